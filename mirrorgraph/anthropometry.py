@@ -1,0 +1,62 @@
+"""Average human segment lengths as fractions of standing height.
+
+Source: D. A. Winter, *Biomechanics and Motor Control of Human Movement*, 4th ed.,
+Wiley 2009, Figure 4.1 ("Body segment lengths expressed as a fraction of body
+height H"), after Drillis and Contini (1966). The figures are population averages
+for adults; an individual differs by a few percent per segment, which is why the
+anthropometric prior of the graph is soft (see ``mirrorgraph.factors.anthropometry``).
+
+Mapping onto the bones of :mod:`mirrorgraph.skeletons`:
+
+==================  =====================================  ==========
+bone                Winter's segment                        fraction H
+==================  =====================================  ==========
+femur               hip (0.530 H) to knee (0.285 H)         0.245
+tibia               knee (0.285 H) to ankle (0.039 H)       0.246
+humerus             upper arm, shoulder to elbow            0.186
+ulna                forearm, elbow to wrist                 0.146
+shoulder_width      biacromial width                        0.259
+scapular            half the shoulder width (neck to side)  0.1295
+hip_width           hip width                               0.191
+pelvis              half the hip width (mid-hip to side)    0.0955
+==================  =====================================  ==========
+"""
+
+from __future__ import annotations
+
+from .skeletons import Skeleton
+
+#: Segment length / standing height, by segment kind (Winter 2009, Fig. 4.1).
+HEIGHT_FRACTION: dict[str, float] = {
+    "femur": 0.245,
+    "tibia": 0.246,
+    "humerus": 0.186,
+    "ulna": 0.146,
+    "shoulder_width": 0.259,
+    "scapular": 0.259 / 2,
+    "hip_width": 0.191,
+    "pelvis": 0.191 / 2,
+}
+
+
+def bone_kind(bone_name: str) -> str:
+    """Segment kind of a bone name: ``"left_femur"`` -> ``"femur"``."""
+    for prefix in ("left_", "right_"):
+        if bone_name.startswith(prefix):
+            return bone_name[len(prefix):]
+    return bone_name
+
+
+def height_fractions(skeleton: Skeleton) -> dict[str, float]:
+    """Expected length / height for each bone of ``skeleton`` (dimensionless)."""
+    return {b: HEIGHT_FRACTION[bone_kind(b)] for b in skeleton.bones}
+
+
+def femur_ratios(skeleton: Skeleton) -> dict[str, float]:
+    """Expected length / femur length for each bone (the paper's sigma_k)."""
+    return {b: f / HEIGHT_FRACTION["femur"] for b, f in height_fractions(skeleton).items()}
+
+
+def expected_bone_lengths(skeleton: Skeleton, height_m: float) -> dict[str, float]:
+    """Expected bone lengths in metres for a subject of standing height ``height_m``."""
+    return {b: f * height_m for b, f in height_fractions(skeleton).items()}

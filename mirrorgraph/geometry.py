@@ -1,0 +1,385 @@
+"""The geometry of one camera and one planar mirror.
+
+Frames and units
+----------------
+Everything is expressed in the *real camera frame*: origin at the optical
+centre, x right, y down, z forward (OpenCV convention). Lengths are in the unit
+of the mirror distance ``d`` (metres once a metric prior fixed the scale).
+Pixels have their origin at the top-left corner of the image.
+
+The mirror is the plane ``n . X = d`` with ``n`` a unit vector pointing *away
+from the camera* and ``d > 0`` the camera-to-plane distance. The reflection
+across it is the affine map
+
+    S(X) = H X + 2 d n,    H = I - 2 n n^T   (Householder matrix, det H = -1).
+
+A point X is seen directly at ``pi(K X)`` and in the mirror at
+``pi(K S(X))``: the mirror view is a *virtual camera*, the reflection of the
+real one, whose frame is left-handed. Following MirrorCalib (Liao, Zheng and
+Mitchell, eq. 7) we write its extrinsics as a proper rotation, a translation and
+the handedness flip ``D = diag(-1, 1, 1)``:
+
+    X_virtual = D (R X + t) = S(X),   R = D H,   t = 2 d D n.
+
+The reflective essential matrix is ``E = 2 d [n]_x`` and the reflective
+fundamental matrix ``F ~ K^-T [n]_x K^-1 = [K n]_x / det K`` is skew-symmetric:
+``u'^T F u = 0`` says that the image ``u`` of a joint, the image ``u'`` of its
+reflection and the epipole ``e ~ K n`` are collinear (Hartley and Zisserman,
+*Multiple View Geometry*, 2nd ed., sec. 9.2 and exercise on planar motion;
+Gluckman and Nayar, "Catadioptric stereo using planar mirrors", IJCV 2001).
+The epipole is the vanishing point of the mirror normal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import DegenerateGeometryError
+
+#: The handedness flip between the real and the virtual camera frame.
+D_FLIP = np.diag([-1.0, 1.0, 1.0])
+
+
+# --------------------------------------------------------------------------- basics
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``[v]_x`` of a ``(3,)`` vector, so ``[v]_x w = v x w``."""
+    x, y, z = np.asarray(v, dtype=float)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def unskew(M: np.ndarray) -> np.ndarray:
+    """The ``(3,)`` vector ``v`` of the skew-symmetric part of ``M``: ``M ~ [v]_x``."""
+    A = 0.5 * (np.asarray(M, dtype=float) - np.asarray(M, dtype=float).T)
+    return np.array([A[2, 1], A[0, 2], A[1, 0]])
+
+
+def to_homogeneous(u: np.ndarray) -> np.ndarray:
+    """Append a 1: ``(..., 2)`` pixels -> ``(..., 3)`` homogeneous pixels."""
+    u = np.asarray(u, dtype=float)
+    return np.concatenate([u, np.ones(u.shape[:-1] + (1,))], axis=-1)
+
+
+def project(K: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Pinhole projection ``pi(K X)``.
+
+    Args:
+        K: ``(3, 3)`` intrinsics.
+        X: ``(..., 3)`` points in the camera frame.
+
+    Returns:
+        ``(..., 2)`` pixels.
+    """
+    x = np.asarray(X, dtype=float) @ np.asarray(K, dtype=float).T
+    return x[..., :2] / x[..., 2:3]
+
+
+# --------------------------------------------------------------------------- mirror
+def normalize_plane(normal: np.ndarray, distance: float) -> tuple[np.ndarray, float]:
+    """Scale ``n . X = d`` to a unit normal and orient it so that ``d > 0``.
+
+    Raises:
+        DegenerateGeometryError: zero normal, or a plane through the camera centre.
+    """
+    n = np.asarray(normal, dtype=float).reshape(3)
+    norm = np.linalg.norm(n)
+    if not np.isfinite(norm) or norm < 1e-12:
+        raise DegenerateGeometryError("mirror normal is zero or not finite")
+    n, d = n / norm, float(distance) / norm
+    if abs(d) < 1e-12:
+        raise DegenerateGeometryError("mirror plane passes through the camera centre")
+    return (n, d) if d > 0 else (-n, -d)
+
+
+def householder(normal: np.ndarray) -> np.ndarray:
+    """``(3, 3)`` reflection ``H = I - 2 n n^T`` about the plane through 0 with unit normal."""
+    n = np.asarray(normal, dtype=float).reshape(3)
+    return np.eye(3) - 2.0 * np.outer(n, n)
+
+
+def reflect_points(X: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
+    """Mirror image ``S(X) = X - 2 (n . X - d) n`` of ``(..., 3)`` points."""
+    X = np.asarray(X, dtype=float)
+    n = np.asarray(normal, dtype=float).reshape(3)
+    return X - 2.0 * ((X @ n) - distance)[..., None] * n
+
+
+def virtual_camera_from_mirror(normal: np.ndarray, distance: float
+                               ) -> tuple[np.ndarray, np.ndarray]:
+    """Extrinsics of the virtual camera, ``X_virtual = D (R X + t)``.
+
+    Args:
+        normal: ``(3,)`` unit mirror normal, real camera frame, away from the camera.
+        distance: ``d > 0``, camera-to-mirror distance.
+
+    Returns:
+        ``R`` ``(3, 3)`` proper rotation ``D (I - 2 n n^T)`` and ``t`` ``(3,)``
+        ``2 d D n`` (same unit as ``d``).
+    """
+    n, d = normalize_plane(normal, distance)
+    return D_FLIP @ householder(n), 2.0 * d * (D_FLIP @ n)
+
+
+def mirror_from_virtual_camera(R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, float]:
+    """Inverse of :func:`virtual_camera_from_mirror`: ``(n, d)`` from ``(R, t)``.
+
+    The normal is read from ``t`` (``D t = 2 d n``); ``R`` is used only to check
+    consistency. With a unit-length ``t`` (unknown scale) ``d = 1/2``.
+    """
+    Dt = D_FLIP @ np.asarray(t, dtype=float).reshape(3)      # = 2 d n
+    norm = float(np.linalg.norm(Dt))
+    if norm < 1e-12:
+        raise DegenerateGeometryError("virtual camera translation is zero")
+    return Dt / norm, 0.5 * norm
+
+
+def essential_from_mirror(normal: np.ndarray, distance: float) -> np.ndarray:
+    """Reflective essential matrix ``E = 2 d [n]_x`` (3, 3), skew-symmetric."""
+    n, d = normalize_plane(normal, distance)
+    return 2.0 * d * skew(n)
+
+
+def epipole_from_normal(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Homogeneous epipole ``e = K n`` (3,), scaled to unit norm, sign of ``K n`` kept."""
+    e = np.asarray(K, dtype=float) @ np.asarray(normal, dtype=float).reshape(3)
+    return e / np.linalg.norm(e)
+
+
+def fundamental_from_epipole(e: np.ndarray) -> np.ndarray:
+    """Reflective fundamental matrix ``F = [e]_x`` (3, 3), unit Frobenius norm.
+
+    ``u'^T F u = 0`` for a joint ``u`` and its reflection ``u'`` (homogeneous pixels).
+    """
+    F = skew(np.asarray(e, dtype=float).reshape(3))
+    return F / np.linalg.norm(F)
+
+
+def fundamental_from_mirror(K: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """``F ~ K^-T [n]_x K^-1 = [K n]_x / det K``, unit Frobenius norm (3, 3)."""
+    return fundamental_from_epipole(epipole_from_normal(K, normal))
+
+
+def epipole_from_fundamental(F: np.ndarray) -> np.ndarray:
+    """Homogeneous epipole (3,) of a reflective (skew-symmetric) ``F = [e]_x``."""
+    e = unskew(F)
+    return e / np.linalg.norm(e)
+
+
+def epipole_pixels(e: np.ndarray) -> np.ndarray | None:
+    """Epipole in pixels ``(2,)``, or ``None`` when it lies at infinity."""
+    e = np.asarray(e, dtype=float).reshape(3)
+    if abs(e[2]) < 1e-12 * np.linalg.norm(e):
+        return None
+    return e[:2] / e[2]
+
+
+def normal_from_epipole(K: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Unit mirror normal ``n ~ K^-1 e`` (3,), oriented away from the camera (``n_z >= 0``).
+
+    The sign of ``n`` is not observable from ``e`` alone; a mirror that the
+    camera faces has ``n_z > 0``. :func:`orient_normal` settles it from data.
+    """
+    n = np.linalg.solve(np.asarray(K, dtype=float), np.asarray(e, dtype=float).reshape(3))
+    n /= np.linalg.norm(n)
+    return n if n[2] >= 0 else -n
+
+
+# --------------------------------------------------------------------------- residuals
+def epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray) -> np.ndarray:
+    """Reflective epipolar distance in pixels (Sampson distance of collinearity).
+
+    A pair is consistent with the epipole when ``u``, ``u'`` and ``e`` are
+    collinear: ``c = det[e, u, u'] = 0``. The Sampson distance
+    ``|c| / |grad_{u,u'} c|`` is the smallest total displacement of the two
+    points (to first order) that makes them collinear with ``e`` (Hartley and
+    Zisserman sec. 4.2.6). Unlike the point-to-epipolar-line distances it is
+    symmetric in ``u`` and ``u'``, stays well behaved when one point is close to
+    the epipole, and works for an epipole at infinity. With independent
+    Gaussian noise of standard deviation sigma per coordinate and per view it
+    is distributed as ``|N(0, sigma^2)|`` (to first order).
+
+    Args:
+        e: ``(3,)`` homogeneous epipole in pixels.
+        u: ``(..., 2)`` direct-view pixels.
+        u_mirror: ``(..., 2)`` mirror-view pixels of the same joints.
+
+    Returns:
+        ``(...)`` distances in pixels (``inf`` where undefined).
+    """
+    return np.abs(signed_epipolar_distances(e, u, u_mirror))
+
+
+def signed_epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
+                              ) -> np.ndarray:
+    """Signed version of :func:`epipolar_distances` (``(...)`` pixels)."""
+    e = np.asarray(e, dtype=float).reshape(3)
+    x1 = to_homogeneous(u)
+    x2 = to_homogeneous(u_mirror)
+    l1 = np.cross(e, x1)            # line through e and u;  d c / d u' = l1[:2]
+    l2 = np.cross(x2, e)            # d c / d u = (u' x e)[:2]
+    c = np.einsum("...i,...i->...", l1, x2)   # = det(e, u, u')
+    g = np.sqrt(l1[..., 0] ** 2 + l1[..., 1] ** 2 + l2[..., 0] ** 2 + l2[..., 1] ** 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = c / g
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+def epipolar_distances_fundamental(F: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
+                                   ) -> np.ndarray:
+    """Symmetric epipolar distance in pixels for a general ``F`` (``u'^T F u = 0``).
+
+    Mean of the distance of ``u'`` to the line ``F u`` and of ``u`` to the line
+    ``F^T u'``; equal to :func:`epipolar_distances` when ``F = [e]_x``.
+
+    Args:
+        F: ``(3, 3)`` fundamental matrix in pixels.
+        u, u_mirror: ``(..., 2)`` pixel pairs.
+
+    Returns:
+        ``(...)`` distances in pixels.
+    """
+    x1 = to_homogeneous(u)
+    x2 = to_homogeneous(u_mirror)
+    l2 = x1 @ np.asarray(F, dtype=float).T          # F u: line in the mirror view
+    l1 = x2 @ np.asarray(F, dtype=float)            # F^T u': line in the direct view
+    alg = np.abs(np.einsum("...i,...i->...", l2, x2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = 0.5 * (alg / np.hypot(l2[..., 0], l2[..., 1]) + alg / np.hypot(l1[..., 0], l1[..., 1]))
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+# --------------------------------------------------------------------------- triangulation
+def _virtual_projection_matrix(K: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
+    """``(3, 4)`` matrix of the mirror view: ``x' ~ K (H X + 2 d n)``."""
+    n = np.asarray(normal, dtype=float).reshape(3)
+    return np.asarray(K, dtype=float) @ np.hstack([householder(n), (2.0 * distance * n)[:, None]])
+
+
+def triangulate_mirror(K: np.ndarray, normal: np.ndarray, distance: float,
+                       u: np.ndarray, u_mirror: np.ndarray, *, iterations: int = 3
+                       ) -> np.ndarray:
+    """Triangulate joints from their direct and mirrored images.
+
+    Linear triangulation (DLT, Hartley and Zisserman sec. 12.2) with the real
+    camera ``K [I | 0]`` and the virtual camera ``K [H | 2 d n]``, then a few
+    Gauss-Newton steps on the reprojection error in both views, vectorised over
+    points.
+
+    Args:
+        K: ``(3, 3)`` intrinsics.
+        normal: ``(3,)`` unit mirror normal (real camera frame).
+        distance: mirror distance ``d``.
+        u: ``(..., 2)`` direct-view pixels (undistorted).
+        u_mirror: ``(..., 2)`` mirror-view pixels, same joints.
+        iterations: Gauss-Newton steps after the linear solution.
+
+    Returns:
+        ``(..., 3)`` points in the real camera frame, unit of ``d``.
+        Rows whose input is not finite are NaN.
+    """
+    K = np.asarray(K, dtype=float)
+    u = np.asarray(u, dtype=float)
+    um = np.asarray(u_mirror, dtype=float)
+    shape = u.shape[:-1]
+    u2, um2 = u.reshape(-1, 2), um.reshape(-1, 2)
+    ok = np.isfinite(u2).all(1) & np.isfinite(um2).all(1)
+    out = np.full((u2.shape[0], 3), np.nan)
+    if not ok.any():
+        return out.reshape(shape + (3,))
+    a, b = u2[ok], um2[ok]
+    P1 = np.hstack([K, np.zeros((3, 1))])
+    P2 = _virtual_projection_matrix(K, normal, distance)
+    A = np.stack([a[:, :1] * P1[2] - P1[0], a[:, 1:2] * P1[2] - P1[1],
+                  b[:, :1] * P2[2] - P2[0], b[:, 1:2] * P2[2] - P2[1]], axis=1)
+    # scale rows for conditioning, then the null vector of each (4, 4) system
+    A /= np.linalg.norm(A, axis=2, keepdims=True)
+    _, _, Vt = np.linalg.svd(A)
+    Xh = Vt[:, -1, :]
+    X = Xh[:, :3] / Xh[:, 3:4]
+    n = np.asarray(normal, dtype=float).reshape(3)
+    H = householder(n)
+    c = 2.0 * distance * n
+    for _ in range(iterations):
+        X = _gauss_newton_step(K, H, c, X, a, b)
+    out[ok] = X
+    return out.reshape(shape + (3,))
+
+
+def _gauss_newton_step(K, H, c, X, a, b):
+    """One batched Gauss-Newton step of the two-view reprojection error."""
+    def proj_and_jac(Y, M):
+        # Y: (N, 3) camera-frame points; d/dX of pi(K Y) with Y = M X + const
+        y = Y @ K.T
+        z = y[:, 2:3]
+        p = y[:, :2] / z
+        J_y = np.zeros((Y.shape[0], 2, 3))
+        J_y[:, :, :2] = np.eye(2) / z[:, :, None]
+        J_y[:, :, 2] = -p / z
+        return p, J_y @ K @ M
+    p1, J1 = proj_and_jac(X, np.eye(3))
+    p2, J2 = proj_and_jac(X @ H.T + c, H)
+    r = np.concatenate([p1 - a, p2 - b], axis=1)                  # (N, 4)
+    J = np.concatenate([J1, J2], axis=1)                          # (N, 4, 3)
+    JtJ = np.einsum("nki,nkj->nij", J, J) + 1e-9 * np.eye(3)
+    Jtr = np.einsum("nki,nk->ni", J, r)
+    step = np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
+    bad = ~np.isfinite(step).all(1)
+    step[bad] = 0.0
+    return X - step
+
+
+def orient_normal(K: np.ndarray, normal: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
+                  ) -> np.ndarray:
+    """Choose the sign of ``n`` for which the triangulated joints lie in front of
+    the camera and in front of the mirror (cheirality), with ``d = 1``.
+
+    Args:
+        K: ``(3, 3)`` intrinsics; normal: ``(3,)`` unit normal (either sign).
+        u, u_mirror: ``(N, 2)`` paired pixels.
+
+    Returns:
+        ``(3,)`` unit normal with the better-supported sign.
+    """
+    n = np.asarray(normal, dtype=float).reshape(3)
+    scores = []
+    for cand in (n, -n):
+        X = triangulate_mirror(K, cand, 1.0, u, u_mirror, iterations=0)
+        good = (X[:, 2] > 0) & (X @ cand < 1.0)
+        scores.append(np.count_nonzero(good))
+    return n if scores[0] >= scores[1] else -n
+
+
+# --------------------------------------------------------------------------- decomposition
+def decompose_reflective_essential(E: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Virtual-camera pose from a (possibly not exactly skew) essential matrix.
+
+    MirrorCalib, sec. "Reflective essential matrix decomposition":
+    ``E = [t']_x D R`` with ``t' = D t``. The ordinary SVD decomposition of
+    ``E`` (Hartley and Zisserman, result 9.19) gives proper rotations ``Q`` with
+    ``E ~ [t']_x Q``; a reflection has ``D R = H = -Q`` for the twisted-pair
+    candidate, so ``R = -D Q``. Of the two candidates we keep the one closest
+    to a half-turn (``trace Q = -1``: the rotation by pi about the normal); the
+    other is close to the identity.
+
+    Returns:
+        ``R`` (3, 3) rotation, ``t`` (3,) unit translation, ``n`` (3,) the
+        unit normal implied by ``t`` (sign: ``n_z >= 0``).
+    """
+    U, _, Vt = np.linalg.svd(np.asarray(E, dtype=float))
+    if np.linalg.det(U) < 0:
+        U = -U
+    if np.linalg.det(Vt) < 0:
+        Vt = -Vt
+    W = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    cands = [U @ W @ Vt, U @ W.T @ Vt]
+    Q = min(cands, key=lambda q: abs(np.trace(q) + 1.0))   # the half-turn: trace -1
+    t_prime = U[:, 2]
+    n = t_prime if t_prime[2] >= 0 else -t_prime
+    R = -D_FLIP @ Q
+    t = D_FLIP @ n                                   # t = 2 d D n with 2d = 1
+    return R, t, n
+
+
+def check_finite(name: str, a: np.ndarray) -> None:
+    """Raise :class:`DegenerateGeometryError` if ``a`` holds NaN or inf."""
+    if not np.all(np.isfinite(a)):
+        raise DegenerateGeometryError(f"{name} is not finite")

@@ -1,0 +1,171 @@
+"""Skeleton definitions: joint names, the left/right flip map and the bone set.
+
+A pose detector labels the mirrored person anatomically *as it sees them*: the
+reflection of the real left wrist is labelled "right wrist". :attr:`Skeleton.flip`
+is the permutation that turns the detector's labels of the reflection into the
+labels of the real joints it images: ``mirror_flipped = mirror[..., skeleton.flip, :]``.
+
+Joint names are canonical lower-case snake case (``left_wrist``, ``mid_hip``) for
+every skeleton, so that code can ask for a joint by name whatever the detector.
+
+The bone set follows MirrorCalib (Liao, Zheng and Mitchell), section
+"Refining 2D joint locations": femur, tibia, humerus, ulna, scapular and hip, on
+each side. Where a skeleton has no neck the scapular bones become the shoulder
+width; where it has no mid-hip the hip bones become the hip width (both unpaired).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """A 2D keypoint layout.
+
+    Attributes:
+        name: layout name, e.g. ``"COCO_17"``.
+        joints: ``(J,)`` canonical joint names in the detector's order.
+        bones: bone name -> (proximal joint, distal joint), by joint name.
+        symmetric_bones: pairs ``(left bone, right bone)`` of bone names.
+        mid_hip: name of the mid-hip joint, or ``None`` where the layout has none.
+        calibration_joint_names: joints used by default for calibration: the paper
+            leaves out face, hands and feet.
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    bones: dict[str, tuple[str, str]]
+    symmetric_bones: tuple[tuple[str, str], ...]
+    mid_hip: str | None
+    calibration_joint_names: tuple[str, ...]
+    _index: dict[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_index", {n: i for i, n in enumerate(self.joints)})
+
+    @property
+    def num_joints(self) -> int:
+        """Number of keypoints J."""
+        return len(self.joints)
+
+    def index(self, name: str) -> int:
+        """Index of a joint by canonical name (``KeyError`` if absent)."""
+        return self._index[name]
+
+    def has(self, name: str) -> bool:
+        """Whether the layout has a joint of this name."""
+        return name in self._index
+
+    @property
+    def flip(self) -> np.ndarray:
+        """``(J,)`` int permutation: index of each joint's left/right counterpart.
+
+        Centre joints (nose, neck, mid-hip) map to themselves. Applying it twice
+        is the identity.
+        """
+        out = np.arange(self.num_joints)
+        for i, n in enumerate(self.joints):
+            if n.startswith("left_"):
+                out[i] = self._index["right_" + n[5:]]
+            elif n.startswith("right_"):
+                out[i] = self._index["left_" + n[6:]]
+        return out
+
+    @property
+    def calibration_joints(self) -> np.ndarray:
+        """``(K,)`` int indices of :attr:`calibration_joint_names`, ascending."""
+        return np.array(sorted(self._index[n] for n in self.calibration_joint_names), dtype=int)
+
+    @property
+    def bone_index(self) -> np.ndarray:
+        """``(B, 2)`` int joint indices of :attr:`bones`, in dict order."""
+        return np.array([[self._index[a], self._index[b]] for a, b in self.bones.values()],
+                        dtype=int).reshape(-1, 2)
+
+    @property
+    def bone_names(self) -> tuple[str, ...]:
+        """``(B,)`` bone names, in the order of :attr:`bone_index`."""
+        return tuple(self.bones)
+
+
+_LIMBS = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+_CORE = tuple(f"{side}_{j}" for j in _LIMBS for side in ("left", "right"))
+
+
+def _bones(has_neck: bool, has_mid_hip: bool) -> tuple[dict[str, tuple[str, str]],
+                                                        tuple[tuple[str, str], ...]]:
+    bones: dict[str, tuple[str, str]] = {}
+    pairs: list[tuple[str, str]] = []
+    for bone, (a, b) in {"femur": ("hip", "knee"), "tibia": ("knee", "ankle"),
+                         "humerus": ("shoulder", "elbow"), "ulna": ("elbow", "wrist")}.items():
+        for side in ("left", "right"):
+            bones[f"{side}_{bone}"] = (f"{side}_{a}", f"{side}_{b}")
+        pairs.append((f"left_{bone}", f"right_{bone}"))
+    if has_neck:
+        for side in ("left", "right"):
+            bones[f"{side}_scapular"] = ("neck", f"{side}_shoulder")
+        pairs.append(("left_scapular", "right_scapular"))
+    else:
+        bones["shoulder_width"] = ("left_shoulder", "right_shoulder")
+    if has_mid_hip:
+        for side in ("left", "right"):
+            bones[f"{side}_pelvis"] = ("mid_hip", f"{side}_hip")
+        pairs.append(("left_pelvis", "right_pelvis"))
+    else:
+        bones["hip_width"] = ("left_hip", "right_hip")
+    return bones, tuple(pairs)
+
+
+def _make(name: str, joints: tuple[str, ...]) -> Skeleton:
+    has_neck, has_mid_hip = "neck" in joints, "mid_hip" in joints
+    bones, pairs = _bones(has_neck, has_mid_hip)
+    calib = _CORE + (("neck",) if has_neck else ()) + (("mid_hip",) if has_mid_hip else ())
+    return Skeleton(name=name, joints=joints, bones=bones, symmetric_bones=pairs,
+                    mid_hip="mid_hip" if has_mid_hip else None,
+                    calibration_joint_names=calib)
+
+
+#: COCO-17 keypoints (MMPose, HRNet, RTMPose, ViTPose).
+COCO_17 = _make("COCO_17", (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle"))
+
+#: OpenPose BODY_25 (also EasyMocap / Mirrored-Human annotations).
+BODY_25 = _make("BODY_25", (
+    "nose", "neck", "right_shoulder", "right_elbow", "right_wrist",
+    "left_shoulder", "left_elbow", "left_wrist", "mid_hip",
+    "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle",
+    "right_eye", "left_eye", "right_ear", "left_ear",
+    "left_big_toe", "left_small_toe", "left_heel",
+    "right_big_toe", "right_small_toe", "right_heel"))
+
+#: OpenPose COCO-18 (the older OpenPose COCO model).
+COCO_18 = _make("COCO_18", (
+    "nose", "neck", "right_shoulder", "right_elbow", "right_wrist",
+    "left_shoulder", "left_elbow", "left_wrist",
+    "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle",
+    "right_eye", "left_eye", "right_ear", "left_ear"))
+
+#: Every layout by name.
+SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18)}
+
+
+def skeleton_by_name(name: str) -> Skeleton:
+    """Look a layout up by name, case-insensitively (``ValueError`` if unknown)."""
+    key = name.upper().replace("-", "_")
+    if key not in SKELETONS:
+        raise ValueError(f"unknown skeleton {name!r}; known: {', '.join(SKELETONS)}")
+    return SKELETONS[key]
+
+
+def skeleton_for_count(num_joints: int) -> Skeleton | None:
+    """The layout with this many keypoints, or ``None`` (17, 18 and 25 are known)."""
+    for s in SKELETONS.values():
+        if s.num_joints == num_joints:
+            return s
+    return None

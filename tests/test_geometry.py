@@ -1,0 +1,118 @@
+"""Round trips and identities of the mirror geometry, against ground truth."""
+
+import numpy as np
+import pytest
+
+from mirrorgraph import geometry as geo
+from mirrorgraph.errors import DegenerateGeometryError
+
+from .conftest import points_in_front, random_mirror
+
+
+def test_virtual_camera_round_trip_and_reflection():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        n, d = random_mirror(rng)
+        R, t = geo.virtual_camera_from_mirror(n, d)
+        assert np.allclose(R @ R.T, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
+        n2, d2 = geo.mirror_from_virtual_camera(R, t)
+        assert np.allclose(n2, n) and np.isclose(d2, d)
+        X = rng.normal(size=(10, 3))
+        # X_virtual = D (R X + t) is the reflection S(X)
+        assert np.allclose((X @ R.T + t) @ geo.D_FLIP.T, geo.reflect_points(X, n, d))
+        # reflecting twice is the identity; the plane is fixed
+        S = geo.reflect_points(X, n, d)
+        assert np.allclose(geo.reflect_points(S, n, d), X)
+        P = X - ((X @ n) - d)[:, None] * n
+        assert np.allclose(geo.reflect_points(P, n, d), P)
+
+
+def test_normalize_plane_orients_and_refuses_degenerate():
+    n, d = geo.normalize_plane(np.array([0, 0, -2.0]), -6.0)
+    assert np.allclose(n, [0, 0, 1]) and np.isclose(d, 3.0)
+    with pytest.raises(DegenerateGeometryError):
+        geo.normalize_plane(np.zeros(3), 1.0)
+    with pytest.raises(DegenerateGeometryError):
+        geo.normalize_plane(np.array([0, 0, 1.0]), 0.0)
+
+
+def test_fundamental_is_skew_and_satisfied(scene_points):
+    K, n, d, X, u, um = scene_points
+    F = geo.fundamental_from_mirror(K, n)
+    assert np.allclose(F, -F.T)
+    # F ~ K^-T E K^-1 with E = 2 d [n]_x
+    F2 = np.linalg.inv(K).T @ geo.essential_from_mirror(n, d) @ np.linalg.inv(K)
+    F2 /= np.linalg.norm(F2)
+    assert np.allclose(F, F2) or np.allclose(F, -F2)
+    alg = np.einsum("ni,ij,nj->n", geo.to_homogeneous(um), F, geo.to_homogeneous(u))
+    assert np.abs(alg).max() < 1e-12
+    assert geo.epipolar_distances(geo.epipole_from_fundamental(F), u, um).max() < 1e-9
+    assert geo.epipolar_distances_fundamental(F, u, um).max() < 1e-9
+
+
+def test_epipole_is_image_of_normal(scene_points):
+    K, n, d, X, u, um = scene_points
+    e = geo.epipole_from_normal(K, n)
+    assert np.allclose(geo.normal_from_epipole(K, e), n)
+    assert np.allclose(geo.normal_from_epipole(K, -e), n)
+    # the epipole is where the reflected point of a ray along n projects
+    e_px = geo.epipole_pixels(e)
+    assert np.allclose(geo.project(K, 1e9 * n), e_px, atol=1e-3)
+    # the reflection lies between the joint and the epipole (mirror faces camera)
+    assert np.all(np.linalg.norm(um - e_px, axis=1) < np.linalg.norm(u - e_px, axis=1))
+
+
+def test_sampson_distance_matches_noise_level(scene_points):
+    K, n, d, X, u, um = scene_points
+    rng = np.random.default_rng(1)
+    e = geo.epipole_from_normal(K, n)
+    r = geo.signed_epipolar_distances(e, u + rng.normal(0, 3, u.shape), um + rng.normal(0, 3, u.shape))
+    assert 2.4 < np.std(r) < 3.6  # first order: std of the per-coordinate noise
+
+
+def test_triangulation_exact_and_noisy(scene_points):
+    K, n, d, X, u, um = scene_points
+    assert np.abs(geo.triangulate_mirror(K, n, d, u, um) - X).max() < 1e-9
+    rng = np.random.default_rng(2)
+    noisy = geo.triangulate_mirror(K, n, d, u + rng.normal(0, 1, u.shape), um + rng.normal(0, 1, u.shape))
+    assert np.median(np.linalg.norm(noisy - X, axis=1)) < 0.03
+    # NaN rows stay NaN, the others are unaffected
+    u2 = u.copy()
+    u2[0] = np.nan
+    out = geo.triangulate_mirror(K, n, d, u2, um)
+    assert np.isnan(out[0]).all() and np.allclose(out[1:], X[1:])
+
+
+def test_gauss_newton_lowers_reprojection_error(scene_points):
+    K, n, d, X, u, um = scene_points
+    rng = np.random.default_rng(5)
+    nu, num = u + rng.normal(0, 2, u.shape), um + rng.normal(0, 2, u.shape)
+
+    def rms(Y):
+        r = np.r_[geo.project(K, Y) - nu, geo.project(K, geo.reflect_points(Y, n, d)) - num]
+        return np.sqrt(np.mean(r ** 2))
+    assert rms(geo.triangulate_mirror(K, n, d, nu, num, iterations=3)) < \
+        rms(geo.triangulate_mirror(K, n, d, nu, num, iterations=0))
+
+
+def test_orient_normal_by_cheirality(scene_points):
+    K, n, d, X, u, um = scene_points
+    assert np.allclose(geo.orient_normal(K, -n, u, um), n)
+    assert np.allclose(geo.orient_normal(K, n, u, um), n)
+
+
+def test_decompose_reflective_essential():
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        n, d = random_mirror(rng)
+        R_true, t_true = geo.virtual_camera_from_mirror(n, d)
+        R, t, n2 = geo.decompose_reflective_essential(geo.essential_from_mirror(n, d) * rng.uniform(-3, 3))
+        assert np.allclose(R, R_true, atol=1e-9)
+        assert np.allclose(n2, n) and np.allclose(t, t_true / np.linalg.norm(t_true))
+
+
+def test_points_helper_in_front():
+    rng = np.random.default_rng(9)
+    n, d = random_mirror(rng)
+    X = points_in_front(rng, n, d, 50)
+    assert np.all(X @ n < d) and np.all(X[:, 2] > 0)
