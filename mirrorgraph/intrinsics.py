@@ -1,0 +1,310 @@
+"""Pinhole intrinsics of the real camera: loading, approximating, undistorting.
+
+Conventions: pixels, origin at the top-left image corner, x right, y down.
+``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` maps normalised camera coordinates
+``(X/Z, Y/Z, 1)`` to pixels. Distortion coefficients follow OpenCV's order
+``(k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4[, tx, ty]]]])``.
+
+Sources:
+
+* :func:`load_intrinsics`: a JSON file
+  ``{"K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "dist": [k1, k2, p1, p2, k3],
+  "image_size": [w, h]}`` (``dist`` and ``image_size`` optional), or an OpenCV
+  ``FileStorage`` YAML/XML file with ``camera_matrix``, optional
+  ``distortion_coefficients``, ``image_width`` and ``image_height`` (what
+  OpenCV's calibration sample writes; YAML files start with ``%YAML``).
+* :func:`intrinsics_from_fov`: a guess from the image size and a horizontal
+  field of view, flagged ``approximate``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from .errors import InputError
+from .io._common import json_type, load_json, numeric_array
+
+#: Horizontal field of view assumed when no intrinsics are given, degrees. A
+#: typical webcam or phone main camera has a horizontal FOV of 55-70 degrees.
+DEFAULT_FOV_DEG = 60.0
+
+#: Lengths OpenCV accepts for distortion coefficient vectors.
+DIST_LENGTHS = (4, 5, 8, 12, 14)
+
+_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+
+
+@dataclass
+class Intrinsics:
+    """Camera matrix, distortion and image size of one camera.
+
+    Attributes:
+        K: ``(3, 3)`` float camera matrix, pixels.
+        dist: ``(k,)`` float OpenCV distortion coefficients, or ``None`` (none).
+        image_size: ``(width, height)`` pixels, if known.
+        source: where the values came from (file name or a description).
+        approximate: ``True`` when guessed (e.g. from a field of view).
+    """
+
+    K: np.ndarray
+    dist: np.ndarray | None = None
+    image_size: tuple[int, int] | None = None
+    source: str = ""
+    approximate: bool = False
+
+    def __post_init__(self) -> None:
+        self.K = np.asarray(self.K, dtype=float)
+        if self.K.shape != (3, 3):
+            raise ValueError(f"K must be 3x3, got shape {self.K.shape}")
+        if self.dist is not None:
+            self.dist = np.asarray(self.dist, dtype=float).ravel()
+        if self.image_size is not None:
+            self.image_size = (int(self.image_size[0]), int(self.image_size[1]))
+
+    @property
+    def fx(self) -> float:
+        """Focal length along x, pixels."""
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        """Focal length along y, pixels."""
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        """Principal point x, pixels."""
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        """Principal point y, pixels."""
+        return float(self.K[1, 2])
+
+    @property
+    def has_distortion(self) -> bool:
+        """Whether any distortion coefficient is non-zero."""
+        return self.dist is not None and bool(np.any(self.dist != 0))
+
+    def undistort_points(self, points: np.ndarray) -> np.ndarray:
+        """Remove lens distortion from pixel coordinates.
+
+        Args:
+            points: ``(..., 2)`` distorted pixel coordinates; rows with a NaN stay NaN.
+
+        Returns:
+            ``(..., 2)`` float: where an ideal pinhole camera with the same ``K``
+            would image the same rays. A copy of ``points`` without distortion.
+        """
+        pts = np.array(points, dtype=float)
+        if pts.shape[-1:] != (2,):
+            raise ValueError(f"points must have shape (..., 2), got {pts.shape}")
+        if not self.has_distortion:
+            return pts
+        flat = pts.reshape(-1, 2)
+        ok = np.isfinite(flat).all(axis=1)
+        flat[~ok] = np.nan
+        if ok.any():
+            src = np.ascontiguousarray(flat[ok]).reshape(-1, 1, 2)
+            flat[ok] = _cv_undistort(src, self.K, self.dist).reshape(-1, 2)
+        return flat.reshape(pts.shape)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form: ``K``, ``dist``, ``image_size``, ``source``, ``approximate``."""
+        return {"K": self.K.tolist(),
+                "dist": None if self.dist is None else self.dist.tolist(),
+                "image_size": None if self.image_size is None else list(self.image_size),
+                "source": self.source, "approximate": self.approximate}
+
+
+def _cv_undistort(src: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Iterative undistortion to convergence (OpenCV's default stops after 5 steps)."""
+    if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
+        return cv2.undistortPointsIter(src, K, dist, None, K, _CRITERIA)
+    return cv2.undistortPoints(src, K, dist, P=K, criteria=_CRITERIA)
+
+
+def load_intrinsics(path: str | os.PathLike) -> Intrinsics:
+    """Read intrinsics from a JSON or OpenCV YAML/XML file (see the module docstring).
+
+    Raises:
+        InputError: naming the file and field: missing file, malformed content,
+            no or non-3x3 ``K``, non-finite values, last row of ``K`` not
+            ``[0, 0, 1]``, ``fx`` or ``fy`` not positive, singular ``K``, a
+            distortion vector of a length OpenCV does not know, image size not
+            two positive integers.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such file", source=path)
+    with open(path, "rb") as f:
+        head = f.read(64).lstrip()
+    if head.startswith(b"%YAML") or head.startswith(b"<?xml") or \
+            path.suffix.lower() in (".yml", ".yaml", ".xml"):
+        K, dist, size, key = _read_opencv(path)
+    else:
+        K, dist, size, key = _read_json(path)
+    return Intrinsics(K=_check_K(K, path, key), dist=_check_dist(dist, path),
+                      image_size=size, source=str(path))
+
+
+def _read_json(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None, str]:
+    obj = load_json(path)
+    if not isinstance(obj, dict):
+        raise InputError(f"expected a JSON object, got {json_type(obj)}", source=path)
+    if "K" not in obj:
+        raise InputError("missing (the 3x3 camera matrix)", source=path, field="K")
+    K = numeric_array(obj["K"], 2, source=path, frame=None, field="K")
+    dist = obj.get("dist")
+    if dist is not None:
+        dist = numeric_array(dist, None, source=path, frame=None, field="dist")
+    size = obj.get("image_size")
+    if size is not None:
+        if not (isinstance(size, list) and len(size) == 2):
+            raise InputError(f"expected [width, height], got {size!r}", source=path,
+                             field="image_size")
+        size = _check_size(size[0], size[1], path, "image_size")
+    return K, dist, size, "K"
+
+
+def _read_opencv(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None, str]:
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as e:
+        raise InputError(f"malformed OpenCV YAML/XML ({_cv_message(e)})", source=path) from None
+    if not fs.isOpened():
+        raise InputError("cannot open as OpenCV YAML/XML", source=path)
+    try:
+        K = _node_matrix(fs, "camera_matrix", path)
+        if K is None:
+            raise InputError("missing (the 3x3 camera matrix)", source=path,
+                             field="camera_matrix")
+        dist = _node_matrix(fs, "distortion_coefficients", path)
+        w, h = (_node_int(fs, k, path) for k in ("image_width", "image_height"))
+    finally:
+        fs.release()
+    if (w is None) != (h is None):
+        raise InputError("image_width and image_height must be given together", source=path,
+                         field="image_width" if w is None else "image_height")
+    size = None if w is None else _check_size(w, h, path, "image_width")
+    return K, dist, size, "camera_matrix"
+
+
+def _node_matrix(fs: Any, key: str, path: Path) -> np.ndarray | None:
+    node = fs.getNode(key)
+    if node.empty() or node.isNone():
+        return None
+    if not (node.isMap() or node.isSeq()):
+        raise InputError("expected an !!opencv-matrix or a list of numbers", source=path,
+                         field=key)
+    try:
+        if node.isSeq():
+            values = [node.at(i) for i in range(node.size())]
+            if not all(v.isInt() or v.isReal() for v in values):
+                raise InputError("expected a list of numbers", source=path, field=key)
+            return np.array([v.real() for v in values], dtype=float)
+        m = node.mat()
+    except (cv2.error, SystemError) as e:
+        raise InputError(f"not an OpenCV matrix ({_cv_message(e)})", source=path,
+                         field=key) from None
+    if m is None:
+        raise InputError("not an OpenCV matrix", source=path, field=key)
+    return np.asarray(m, dtype=float)
+
+
+def _node_int(fs: Any, key: str, path: Path) -> int | None:
+    node = fs.getNode(key)
+    if node.empty() or node.isNone():
+        return None
+    if not node.isInt():
+        raise InputError("expected an integer", source=path, field=key)
+    return int(node.real())
+
+
+def _cv_message(e: Exception) -> str:
+    """The gist of an OpenCV error: the text after ``error: (-code:kind)``."""
+    text = " ".join(str(e.__cause__ or e).split())
+    m = re.search(r"error: \([^)]*\) (.*)$", text)
+    return m.group(1) if m else text or type(e).__name__
+
+
+def _check_K(K: np.ndarray, path: Path, key: str) -> np.ndarray:
+    def fail(message: str) -> InputError:
+        return InputError(message, source=path, field=key)
+
+    if K.shape != (3, 3):
+        raise fail(f"expected a 3x3 matrix, got shape {K.shape}")
+    if not np.isfinite(K).all():
+        raise fail("non-finite values")
+    if not np.allclose(K[2], [0.0, 0.0, 1.0], rtol=0.0, atol=1e-9):
+        raise fail(f"last row must be [0, 0, 1], got {K[2].tolist()}")
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise fail(f"focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+    if abs(np.linalg.det(K)) <= 1e-9 * K[0, 0] * K[1, 1]:
+        raise fail("singular camera matrix")
+    return K
+
+
+def _check_dist(dist: np.ndarray | None, path: Path) -> np.ndarray | None:
+    if dist is None:
+        return None
+    dist = dist.ravel()
+    if len(dist) not in DIST_LENGTHS:
+        raise InputError(f"{len(dist)} distortion coefficients; OpenCV takes "
+                         f"{', '.join(map(str, DIST_LENGTHS))}", source=path, field="dist")
+    if not np.isfinite(dist).all():
+        raise InputError("non-finite values", source=path, field="dist")
+    return dist
+
+
+def _check_size(w: Any, h: Any, source: Any, field: str) -> tuple[int, int]:
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0
+             for v in (w, h))
+    if not ok:
+        raise InputError(f"image size must be two positive integers, got {w!r} x {h!r}",
+                         source=source, field=field)
+    return int(w), int(h)
+
+
+_SIZE = re.compile(r"^\s*(\d+)\s*[xX,]\s*(\d+)\s*$")
+
+
+def parse_image_size(value: str | tuple[int, int] | list[int]) -> tuple[int, int]:
+    """``"1920x1080"`` (or ``(1920, 1080)``) -> ``(1920, 1080)``; InputError otherwise."""
+    if isinstance(value, str):
+        m = _SIZE.match(value)
+        if m is None:
+            raise InputError(f"image size {value!r} is not WIDTHxHEIGHT, e.g. 1920x1080",
+                             field="image_size")
+        value = (int(m.group(1)), int(m.group(2)))
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise InputError(f"image size {value!r} is not (width, height)", field="image_size")
+    return _check_size(value[0], value[1], None, "image_size")
+
+
+def intrinsics_from_fov(image_size: str | tuple[int, int],
+                        fov_deg: float = DEFAULT_FOV_DEG) -> Intrinsics:
+    """Approximate intrinsics from the image size and a horizontal field of view.
+
+    Square pixels, no skew, no distortion, principal point at the image centre
+    ``(w / 2, h / 2)``; ``fx = fy = (w / 2) / tan(fov / 2)``.
+
+    Args:
+        image_size: ``(width, height)`` pixels or ``"WIDTHxHEIGHT"``.
+        fov_deg: horizontal field of view in degrees, in ``(0, 180)``.
+    """
+    w, h = parse_image_size(image_size)
+    if not (math.isfinite(fov_deg) and 0.0 < fov_deg < 180.0):
+        raise InputError(f"field of view {fov_deg} deg is not in (0, 180)", field="fov_deg")
+    f = 0.5 * w / math.tan(math.radians(fov_deg) / 2.0)
+    K = np.array([[f, 0.0, w / 2.0], [0.0, f, h / 2.0], [0.0, 0.0, 1.0]])
+    return Intrinsics(K=K, dist=None, image_size=(w, h), approximate=True,
+                      source=f"approximate: {fov_deg:g} deg horizontal field of view")

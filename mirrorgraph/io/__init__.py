@@ -1,0 +1,77 @@
+"""Reading and writing keypoints, calibrations and other files.
+
+:func:`read_keypoints` reads any supported detector output, telling the format
+from the path (see :mod:`.detect`):
+
+========== ============================================ ==========================
+format     input                                        returns
+========== ============================================ ==========================
+mmpose     one ``.json`` file of inferencer predictions :class:`RawDetections`
+openpose   folder of ``*_keypoints.json``, one a frame  :class:`RawDetections`
+easymocap  folder of ``{frame:06d}.json`` annotations   :class:`RawDetections`
+npz        ``.npz`` of paired ``real``/``mirror``       :class:`PairedKeypoints`
+========== ============================================ ==========================
+
+Every reader refuses bad input with :class:`~mirrorgraph.errors.InputError`
+naming file, frame and field. :func:`write_keypoints` and
+:func:`write_paired_npz` are the exact inverses; all writes are atomic.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..keypoints import PairedKeypoints, RawDetections
+from ..skeletons import Skeleton
+from .atomic import atomic_dir, atomic_path, atomic_write_bytes, atomic_write_text
+from .calibration import read_json, to_jsonable, write_json
+from .detect import classify_json, detect_format, sniff
+from .easymocap import read_easymocap, write_easymocap
+from .mmpose import detections_from_mmpose, read_mmpose, write_mmpose
+from .npz import read_paired_npz, write_paired_npz
+from .openpose import read_openpose, write_openpose
+
+__all__ = [
+    "read_keypoints", "write_keypoints", "write_paired_npz", "read_paired_npz",
+    "detect_format", "classify_json", "read_mmpose", "write_mmpose", "read_openpose",
+    "write_openpose", "read_easymocap", "write_easymocap", "atomic_path", "atomic_dir",
+    "atomic_write_bytes", "atomic_write_text", "read_json", "write_json", "to_jsonable",
+]
+
+_WRITERS = {"mmpose": write_mmpose, "openpose": write_openpose, "easymocap": write_easymocap}
+
+
+def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None = None
+                   ) -> RawDetections | PairedKeypoints:
+    """Read keypoints in any supported format, detected from ``path``.
+
+    Args:
+        path: an MMPose ``.json`` file, a paired ``.npz`` file, or an OpenPose /
+            EasyMocap folder.
+        skeleton: the keypoint layout (a :class:`Skeleton` or its name); by
+            default found from the keypoint count.
+
+    Returns:
+        :class:`RawDetections` (``.format`` names the format), or
+        :class:`PairedKeypoints` for ``.npz`` (mirror labels already flipped).
+
+    Raises:
+        InputError: unknown format, or any malformed content.
+    """
+    kind, obj = sniff(path)
+    if kind == "npz":
+        return read_paired_npz(path, skeleton=skeleton)
+    if kind == "mmpose":
+        return detections_from_mmpose(obj, source=str(path), skeleton=skeleton)
+    if kind == "openpose":
+        return read_openpose(path, skeleton=skeleton)
+    return read_easymocap(path, skeleton=skeleton)
+
+
+def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str) -> None:
+    """Write detections as ``fmt``: ``"mmpose"`` (a ``.json`` file), ``"openpose"``
+    or ``"easymocap"`` (a folder, replaced as a whole). Missing joints are written
+    the format's way (``0, 0`` with confidence 0)."""
+    if fmt not in _WRITERS:
+        raise ValueError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}")
+    _WRITERS[fmt](detections, path)

@@ -1,0 +1,260 @@
+"""Helpers shared by the keypoint readers and writers (private).
+
+Every check raises :class:`~mirrorgraph.errors.InputError` naming the file,
+frame and field at fault.
+
+Confidence policy (all readers): a confidence must be finite and in ``[0, 1]``.
+Detectors whose scores are not probabilities (RTMPose's SimCC scores, OpenPose
+heat-map peaks) sometimes exceed 1 a little, so values in ``(1, 1.5]`` are
+clipped to 1; negative values and values above 1.5 are refused.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..skeletons import Skeleton, skeleton_by_name, skeleton_for_count
+
+#: Confidences up to this value are clipped to 1; above it they are refused.
+MAX_CONFIDENCE = 1.5
+
+_TRAILING_INT = re.compile(r"(\d+)\D*$")
+
+
+def load_json(path: str | os.PathLike) -> Any:
+    """Parse a JSON file; a missing, unreadable or malformed file is an InputError."""
+    try:
+        with open(path, "rb") as f:
+            return json.loads(f.read().decode("utf-8"))
+    except FileNotFoundError:
+        raise InputError("no such file", source=path) from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"malformed JSON: {e.msg} (line {e.lineno}, column {e.colno})",
+                         source=path) from None
+    except UnicodeDecodeError as e:
+        raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", source=path) from None
+    except OSError as e:
+        raise InputError(f"cannot read ({e.strerror})", source=path) from None
+
+
+def dump_json(obj: Any) -> str:
+    """Compact JSON text (floats round-trip exactly; NaN refused)."""
+    return json.dumps(obj, allow_nan=False, separators=(",", ":"))
+
+
+def require(obj: dict, key: str, kind: type, *, source: Any, frame: int | None = None,
+            field: str | None = None, context: str = "") -> Any:
+    """``obj[key]``, checked to be of ``kind`` (a bool is never taken for an int).
+
+    ``field`` names the key in messages (default ``key``); ``context`` is
+    appended to them (e.g. ``" in frame entry 3"``).
+    """
+    field = key if field is None else field
+    if key not in obj:
+        raise InputError(f"missing{context}", source=source, frame=frame, field=field)
+    value = obj[key]
+    if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
+        raise InputError(f"expected {_JSON_NAMES.get(kind, kind.__name__)}, got "
+                         f"{json_type(value)}{context}", source=source, frame=frame, field=field)
+    return value
+
+
+_JSON_NAMES = {list: "a list", dict: "an object", int: "an integer", float: "a number",
+               str: "a string", bool: "true/false", type(None): "null"}
+
+
+def json_type(value: Any) -> str:
+    """JSON name of a parsed value's type, for messages."""
+    return _JSON_NAMES.get(type(value), type(value).__name__)
+
+
+def numeric_array(value: Any, ndim: int | None, *, source: Any, frame: int | None,
+                  field: str) -> np.ndarray:
+    """A float array of ``ndim`` dims (any if ``None``) from nested lists of JSON numbers.
+
+    Strings, nulls, all-true/false and ragged lists are refused (no silent coercion).
+    """
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):
+        raise InputError("expected a rectangular array of numbers", source=source,
+                         frame=frame, field=field) from None
+    if a.dtype.kind not in "iuf":
+        raise InputError(f"expected numbers, got {_describe(a)}", source=source,
+                         frame=frame, field=field)
+    if ndim is not None and a.ndim != ndim:
+        raise InputError(f"expected a {ndim}-D array of numbers, got shape {a.shape}",
+                         source=source, frame=frame, field=field)
+    return a.astype(float)
+
+
+def _describe(a: np.ndarray) -> str:
+    if a.ndim == 0:
+        return json_type(a.item())
+    return {"U": "text entries", "S": "text entries", "b": "true/false entries"}.get(
+        a.dtype.kind, "null or non-numeric entries")
+
+
+def to_skeleton(skeleton: Skeleton | str | None, *, source: Any) -> Skeleton | None:
+    """Resolve a skeleton option given as a name."""
+    if skeleton is None or isinstance(skeleton, Skeleton):
+        return skeleton
+    try:
+        return skeleton_by_name(str(skeleton))
+    except ValueError as e:
+        raise InputError(str(e), source=source, field="skeleton") from None
+
+
+class JointCount:
+    """Checks that every person of every frame has the same number of keypoints.
+
+    The first person seen fixes the count; it must match ``skeleton`` if one is
+    given, or else one of the known skeletons.
+    """
+
+    def __init__(self, skeleton: Skeleton | None, default: Skeleton) -> None:
+        self.skeleton = skeleton
+        self.default = default
+        self.count: int | None = None if skeleton is None else skeleton.num_joints
+        self._checked = False
+
+    def check(self, n: int, *, source: Any, frame: int | None, field: str) -> None:
+        if not self._checked:
+            self._checked = True
+            if self.skeleton is None:
+                found = skeleton_for_count(n)
+                if found is None:
+                    raise InputError(f"{n} keypoints match no known skeleton "
+                                     "(COCO_17: 17, COCO_18: 18, BODY_25: 25)",
+                                     source=source, frame=frame, field=field)
+                self.skeleton, self.count = found, n
+        if n != self.count:
+            raise InputError(f"{n} keypoints, but skeleton {self.skeleton.name} has "
+                             f"{self.count}", source=source, frame=frame, field=field)
+
+    def result(self) -> Skeleton:
+        """The skeleton found (the format's default if nobody was ever detected)."""
+        return self.skeleton if self.skeleton is not None else self.default
+
+
+def clean_keypoints(kp: np.ndarray, *, source: Any, frame: int | None, field: str,
+                    allow_nan_missing: bool = False,
+                    frames: np.ndarray | None = None) -> np.ndarray:
+    """Validate ``(..., J, 3)`` keypoints and mark missing joints; returns a new array.
+
+    Non-finite values are refused, except (with ``allow_nan_missing``) NaN
+    coordinates of joints whose confidence is 0. Confidences in ``(1, 1.5]`` are
+    clipped to 1, others outside ``[0, 1]`` refused. Joints of confidence 0 get
+    ``NaN`` coordinates. With ``frames`` (``(T,)`` ids), ``kp`` is ``(T, J, 3)``
+    and an error names the frame of the offending row.
+    """
+    kp = np.array(kp, dtype=float)
+    conf = kp[..., 2]
+    bad = ~np.isfinite(kp)
+    if allow_nan_missing:
+        bad[..., :2] &= ~(np.isnan(kp[..., :2]) & (conf == 0)[..., None])
+
+    def fail(idx: np.ndarray, message: str) -> InputError:
+        f = frame
+        if frames is not None:
+            f, idx = int(frames[idx[0]]), idx[1:]
+        where = ", ".join(f"{n} {int(i)}" for n, i in zip(("person", "joint")[-len(idx):], idx))
+        return InputError(f"{message} at {where}", source=source, frame=f, field=field)
+
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        what = ("x", "y", "confidence")[idx[-1]]
+        raise fail(idx[:-1], f"non-finite {what} ({kp[tuple(idx)]})")
+    out = (conf < 0) | (conf > MAX_CONFIDENCE)
+    if out.any():
+        idx = np.argwhere(out)[0]
+        raise fail(idx, f"confidence {conf[tuple(idx)]} outside [0, 1]")
+    np.minimum(conf, 1.0, out=conf)
+    kp[conf == 0, :2] = np.nan
+    return kp
+
+
+def frame_from_name(path: Path) -> int:
+    """The frame number in a file name: the last run of digits in its stem.
+
+    ``video_000000000012_keypoints.json`` -> 12, ``000012.json`` -> 12.
+    """
+    m = _TRAILING_INT.search(path.stem)
+    if m is None:
+        raise InputError("file name holds no frame number", source=path)
+    return int(m.group(1))
+
+
+def check_frame_ids(frame_ids: Iterable[int], *, source: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(frame_ids sorted, order)``; refuses an empty list and duplicates."""
+    ids = np.asarray(list(frame_ids), dtype=np.int64)
+    if ids.size == 0:
+        raise InputError("holds no frames", source=source)
+    order = np.argsort(ids, kind="stable")
+    ids = ids[order]
+    dup = np.flatnonzero(np.diff(ids) == 0)
+    if dup.size:
+        raise InputError("duplicate frame id", source=source, frame=int(ids[dup[0]]))
+    return ids, order
+
+
+def json_folder(path: Path) -> list[Path]:
+    """The ``*.json`` files of a folder, sorted by name; InputError if there are none."""
+    try:
+        names = [e.name for e in os.scandir(path)
+                 if e.name.lower().endswith(".json") and e.is_file()]
+    except OSError as e:
+        raise InputError(f"cannot list folder ({e.strerror})", source=path) from None
+    if not names:
+        raise InputError("folder holds no JSON files", source=path)
+    return [path / n for n in sorted(names)]
+
+
+def missing_mask(people: np.ndarray) -> np.ndarray:
+    """``(..., J)`` bool: joints a writer must write as missing."""
+    return (people[..., 2] <= 0) | ~np.isfinite(people[..., :2]).all(-1)
+
+
+def zero_missing(people: np.ndarray) -> np.ndarray:
+    """Copy with missing joints set to ``0, 0, 0`` (how detectors write them)."""
+    out = np.array(people, dtype=float)
+    out[missing_mask(out)] = 0.0
+    return out
+
+
+def bbox_of(person: np.ndarray) -> list[float]:
+    """``[x1, y1, x2, y2]`` of the visible joints of a ``(J, 3)`` person (zeros if none)."""
+    seen = person[~missing_mask(person), :2]
+    if seen.size == 0:
+        return [0.0, 0.0, 0.0, 0.0]
+    return [*map(float, seen.min(0)), *map(float, seen.max(0))]
+
+
+def check_writable_ids(frame_ids: np.ndarray) -> None:
+    """Folder formats encode frame ids in file names: they must be >= 0."""
+    if np.any(np.asarray(frame_ids) < 0):
+        raise ValueError("frame ids written into file names must be >= 0")
+
+
+def frame_files(folder: Path) -> tuple[np.ndarray, list[Path]]:
+    """``(frame_ids, files)`` of a per-frame JSON folder, sorted by frame number.
+
+    Only file names are listed here; the files are parsed one at a time later.
+    """
+    files = json_folder(folder)
+    frame_ids, order = check_frame_ids([frame_from_name(f) for f in files], source=folder)
+    return frame_ids, [files[i] for i in order]
+
+
+def mixed_folder(folder: Path, file: Path, expected: str, key: str) -> InputError:
+    """The error for a file of another format among per-frame files."""
+    return InputError(f"not an {expected} frame file (no '{key}'); folder {folder} mixes "
+                      "formats or holds other JSON files", source=file, field=key)

@@ -1,0 +1,111 @@
+"""EasyMocap / Mirrored-Human 2D annotations: a folder of one JSON file per frame.
+
+File ``{frame:06d}.json``::
+
+    {"filename": "images/000012.jpg", "height": H, "width": W,
+     "annots": [{"personID": 0,
+                 "keypoints": [[x, y, c], ...],      # (J, 3) pixels, c in [0, 1]
+                 "bbox": [x1, y1, x2, y2, c],        # ignored on reading
+                 "isKeyframe": false}]}
+
+The layout is BODY_25; COCO-17 and COCO-18 are accepted by count. A missing
+joint is written ``[0, 0, 0]``. The frame id is the last number in the file
+name; ``width``/``height`` give the image size (optional, but they must agree
+between files). Files are read in frame order, one at a time.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..keypoints import RawDetections
+from ..skeletons import BODY_25, Skeleton
+from ._common import (JointCount, bbox_of, check_writable_ids, clean_keypoints, dump_json,
+                      frame_files, json_type, load_json, mixed_folder, numeric_array,
+                      require, to_skeleton, zero_missing)
+from .atomic import atomic_dir
+
+FORMAT = "easymocap"
+
+
+def read_easymocap(folder: str | os.PathLike, *,
+                   skeleton: Skeleton | str | None = None) -> RawDetections:
+    """Read an EasyMocap annots folder (see the module docstring)."""
+    folder = Path(folder)
+    counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
+    frame_ids, files = frame_files(folder)
+    people: list[np.ndarray | None] = []
+    image_size: tuple[int, int] | None = None
+    for t, file in zip(frame_ids.tolist(), files):
+        obj = load_json(file)
+        if not isinstance(obj, dict) or "annots" not in obj:
+            raise mixed_folder(folder, file, "EasyMocap", "annots")
+        size = _image_size(obj, source=str(file), frame=t)
+        if size is not None:
+            if image_size is not None and size != image_size:
+                raise InputError(f"image size {size[0]}x{size[1]} differs from "
+                                 f"{image_size[0]}x{image_size[1]} in earlier files",
+                                 source=file, frame=t, field="width")
+            image_size = size
+        annots = require(obj, "annots", list, source=file, frame=t)
+        people.append(_frame(annots, counter, source=str(file), frame=t))
+    skel = counter.result()
+    empty = np.empty((0, skel.num_joints, 3))
+    return RawDetections(skeleton=skel, frame_ids=frame_ids,
+                         people=[empty.copy() if p is None else p for p in people],
+                         source=str(folder), format=FORMAT, image_size=image_size)
+
+
+def _image_size(obj: dict, *, source: str, frame: int) -> tuple[int, int] | None:
+    """``(width, height)`` if the file has both, checked to be positive ints."""
+    if "width" not in obj and "height" not in obj:
+        return None
+    w = require(obj, "width", int, source=source, frame=frame)
+    h = require(obj, "height", int, source=source, frame=frame)
+    if w <= 0 or h <= 0:
+        raise InputError(f"image size {w}x{h} is not positive", source=source, frame=frame,
+                         field="width" if w <= 0 else "height")
+    return w, h
+
+
+def _frame(annots: list, counter: JointCount, *, source: str, frame: int) -> np.ndarray | None:
+    """``(P, J, 3)`` keypoints of one file's ``annots`` (``None`` if empty)."""
+    rows = []
+    for p, annot in enumerate(annots):
+        field = f"annots[{p}].keypoints"
+        if not isinstance(annot, dict):
+            raise InputError(f"expected an object, got {json_type(annot)}",
+                             source=source, frame=frame, field=f"annots[{p}]")
+        kp = numeric_array(require(annot, "keypoints", list, source=source, frame=frame,
+                                   field=field), 2, source=source, frame=frame, field=field)
+        if kp.shape[1] != 3:
+            raise InputError(f"expected [x, y, c] triples, got rows of {kp.shape[1]}",
+                             source=source, frame=frame, field=field)
+        counter.check(len(kp), source=source, frame=frame, field=field)
+        rows.append(kp)
+    if not rows:
+        return None
+    return clean_keypoints(np.stack(rows), source=source, frame=frame, field="annots")
+
+
+def write_easymocap(detections: RawDetections, folder: str | os.PathLike) -> None:
+    """Write one ``{frame:06d}.json`` per frame into ``folder``, atomically as a whole.
+
+    ``height``/``width`` are written when ``detections.image_size`` is known.
+    """
+    check_writable_ids(detections.frame_ids)
+    size = {}
+    if detections.image_size is not None:
+        size = {"height": int(detections.image_size[1]), "width": int(detections.image_size[0])}
+    with atomic_dir(folder) as tmp:
+        for t, people in zip(detections.frame_ids, detections.people):
+            z = zero_missing(people)
+            annots = [{"personID": p, "keypoints": z[p].tolist(),
+                       "bbox": [*bbox_of(people[p]), 1.0], "isKeyframe": False}
+                      for p in range(len(z))]
+            doc = {"filename": f"images/{int(t):06d}.jpg", **size, "annots": annots}
+            (tmp / f"{int(t):06d}.json").write_text(dump_json(doc))

@@ -1,0 +1,94 @@
+"""OpenPose ``--write_json`` output: a folder of one JSON file per frame.
+
+File ``{stem}_{frame:012d}_keypoints.json``::
+
+    {"version": 1.3,
+     "people": [{"person_id": [-1],
+                 "pose_keypoints_2d": [x0, y0, c0, x1, y1, c1, ...],   # 3 J numbers
+                 "face_keypoints_2d": [], ...}]}
+
+Coordinates are pixels, ``c`` in [0, 1]; a missing joint is written ``0 0 0``.
+The layout is BODY_25 (J = 25) or the older COCO-18 (J = 18), told apart by
+the count unless given. The frame id is the last number in the file name; files
+are read in frame order, one at a time, so folders of any length stream.
+OpenPose files carry no image size.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..keypoints import RawDetections
+from ..skeletons import BODY_25, Skeleton
+from ._common import (JointCount, check_writable_ids, clean_keypoints, dump_json, frame_files,
+                      json_type, load_json, mixed_folder, numeric_array, require,
+                      to_skeleton, zero_missing)
+from .atomic import atomic_dir
+
+FORMAT = "openpose"
+KEY = "pose_keypoints_2d"
+
+
+def read_openpose(folder: str | os.PathLike, *,
+                  skeleton: Skeleton | str | None = None) -> RawDetections:
+    """Read an OpenPose JSON folder (see the module docstring)."""
+    folder = Path(folder)
+    counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
+    frame_ids, files = frame_files(folder)
+    people: list[np.ndarray | None] = []
+    for t, file in zip(frame_ids.tolist(), files):
+        obj = load_json(file)
+        if not isinstance(obj, dict) or "people" not in obj:
+            raise mixed_folder(folder, file, "OpenPose", "people")
+        persons = require(obj, "people", list, source=file, frame=t)
+        people.append(_frame(persons, counter, source=str(file), frame=t))
+    skel = counter.result()
+    empty = np.empty((0, skel.num_joints, 3))
+    return RawDetections(skeleton=skel, frame_ids=frame_ids,
+                         people=[empty.copy() if p is None else p for p in people],
+                         source=str(folder), format=FORMAT)
+
+
+def _frame(persons: list, counter: JointCount, *, source: str, frame: int) -> np.ndarray | None:
+    """``(P, J, 3)`` keypoints of one file's ``people`` (``None`` if empty)."""
+    rows = []
+    for p, person in enumerate(persons):
+        field = f"people[{p}].{KEY}"
+        if not isinstance(person, dict):
+            raise InputError(f"expected an object, got {json_type(person)}",
+                             source=source, frame=frame, field=f"people[{p}]")
+        flat = numeric_array(require(person, KEY, list, source=source, frame=frame, field=field),
+                             1, source=source, frame=frame, field=field)
+        if len(flat) % 3:
+            raise InputError(f"{len(flat)} numbers, not a multiple of 3 (x, y, c)",
+                             source=source, frame=frame, field=field)
+        counter.check(len(flat) // 3, source=source, frame=frame, field=field)
+        rows.append(flat.reshape(-1, 3))
+    if not rows:
+        return None
+    return clean_keypoints(np.stack(rows), source=source, frame=frame, field="people")
+
+
+def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,
+                   stem: str = "video") -> None:
+    """Write one ``{stem}_{frame:012d}_keypoints.json`` per frame into ``folder``.
+
+    The folder is built next to ``folder`` and renamed into place at the end, so a
+    failure leaves no half-written output; an existing folder is replaced.
+    """
+    check_writable_ids(detections.frame_ids)
+    empty_parts = {k: [] for k in ("face_keypoints_2d", "hand_left_keypoints_2d",
+                                   "hand_right_keypoints_2d", "pose_keypoints_3d",
+                                   "face_keypoints_3d", "hand_left_keypoints_3d",
+                                   "hand_right_keypoints_3d")}
+    with atomic_dir(folder) as tmp:
+        for t, people in zip(detections.frame_ids, detections.people):
+            z = zero_missing(people)
+            doc = {"version": 1.3, "people": [
+                {"person_id": [-1], KEY: z[p].ravel().tolist(), **empty_parts}
+                for p in range(len(z))]}
+            (tmp / f"{stem}_{int(t):012d}_keypoints.json").write_text(dump_json(doc))
