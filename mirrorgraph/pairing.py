@@ -1,0 +1,250 @@
+"""Pairing of the person and their reflection, frame by frame.
+
+A detector gives, per frame, an unordered list of people: the person, their
+reflection, sometimes only one of them, sometimes bystanders. This module
+decides which two detections are the person and the reflection, which of the
+two is the reflection, and flips the reflection's anatomical labels
+(:attr:`~mirrorgraph.skeletons.Skeleton.flip`). It relies on one fact of
+mirror geometry, independent of the intrinsics: every joint, its reflection and
+the epipole ``e`` are collinear (:mod:`mirrorgraph.geometry`).
+
+1. **Candidates.** Every unordered pair of detections in a frame (at most
+   ``max_people`` per frame, the most confident), with the reflection's labels
+   flipped. The line through a joint and its partner does not depend on which of
+   the two is the reflection, so the epipole can be found before that is known.
+2. **Epipole.** Reflective RANSAC (:func:`mirrorgraph.estimators.estimate_epipole`)
+   over the lines of all candidates of a well-spread subset of frames; wrong
+   candidates and left/right confusions are outliers.
+3. **Choice per frame.** For each candidate, both labelings of the reflection
+   (flipped, and flipped again, i.e. the detector confused left and right) are
+   scored by the median epipolar distance; the best one under the threshold is
+   kept. A frame whose best candidate fails is left unpaired.
+4. **Which is the reflection.** The mirror image ``S(X)`` lies on the ray from
+   ``X`` along ``n``, whose image runs from ``u`` to the epipole; for a mirror
+   the camera faces (``n_z > 0``) the reflection lies *between* the joint and
+   the epipole. So the detection closer to the epipole is the reflection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import geometry as geo
+from .errors import DegenerateGeometryError, InputError
+from .estimators import DEFAULT_THRESHOLD_PX, estimate_epipole
+from .keypoints import PairedKeypoints, RawDetections
+
+
+@dataclass(frozen=True)
+class PairingOptions:
+    """Options of :func:`pair_detections`.
+
+    Attributes:
+        min_confidence: joints below this detector confidence are ignored.
+        threshold_px: inlier threshold on the epipolar distance, pixels.
+        max_people: detections considered per frame (most confident first).
+        ransac_frames: frames sampled (evenly spread) to find the epipole.
+        min_joints: joints a candidate pair needs in common to be scored.
+        seed: RANSAC seed.
+    """
+
+    min_confidence: float = 0.3
+    threshold_px: float = DEFAULT_THRESHOLD_PX
+    max_people: int = 6
+    ransac_frames: int = 400
+    min_joints: int = 4
+    seed: int = 0
+
+
+@dataclass
+class _Candidates:
+    frame: np.ndarray      # (M,) frame index
+    a: np.ndarray          # (M, J, 3) first detection
+    b: np.ndarray          # (M, J, 3) second detection, labels flipped
+
+
+def _masked(people: np.ndarray, min_conf: float) -> np.ndarray:
+    p = np.array(people, dtype=float, copy=True)
+    low = ~(p[..., 2] >= min_conf) | ~np.isfinite(p[..., :2]).all(-1)
+    p[low] = (np.nan, np.nan, 0.0)
+    return p
+
+
+def _candidates(raw: RawDetections, opts: PairingOptions) -> _Candidates:
+    flip = raw.skeleton.flip
+    frames, As, Bs = [], [], []
+    for t, people in enumerate(raw.people):
+        if len(people) < 2:
+            continue
+        p = _masked(people, opts.min_confidence)
+        if len(p) > opts.max_people:
+            order = np.argsort(-p[..., 2].mean(1), kind="stable")[: opts.max_people]
+            p = p[np.sort(order)]
+        i, k = np.triu_indices(len(p), 1)
+        frames.append(np.full(len(i), t))
+        As.append(p[i])
+        Bs.append(p[k][:, flip])
+    if not frames:
+        raise InputError("no frame holds two people (a person and their reflection): "
+                         "the reflection is missing in every frame", source=raw.source)
+    return _Candidates(np.concatenate(frames), np.concatenate(As), np.concatenate(Bs))
+
+
+def _median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
+                     min_joints: int) -> np.ndarray:
+    """``(M,)`` median epipolar distance over shared joints (inf if too few)."""
+    d = geo.epipolar_distances(e, a[:, joints, :2], b[:, joints, :2])
+    d[~np.isfinite(d)] = np.nan
+    enough = np.count_nonzero(np.isfinite(d), axis=1) >= min_joints
+    out = np.full(len(a), np.inf)
+    if enough.any():
+        out[enough] = np.nanmedian(d[enough], axis=1)
+    return out
+
+
+def _spread_subset(frames: np.ndarray, count: int) -> np.ndarray:
+    """Bool mask over candidates keeping those of ``count`` evenly spread frames."""
+    unique = np.unique(frames)
+    if len(unique) <= count:
+        return np.ones(len(frames), bool)
+    keep = unique[np.linspace(0, len(unique) - 1, count).round().astype(int)]
+    return np.isin(frames, keep)
+
+
+#: A reflection's labels count as confused by the detector only when the
+#: swapped labeling fits the epipole this much better (median distance ratio):
+#: for a person seen from the side both labelings fit about equally, and the
+#: usual case must win.
+SWAP_MARGIN = 0.5
+
+#: Beyond this distance from the joints (pixels) the epipole is treated as at
+#: infinity and the reflection is told apart by its smaller size instead.
+FAR_EPIPOLE_PX = 1e5
+
+
+def _b_is_reflection(e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(M,)`` bool: detection ``b`` (not ``a``) is the reflection.
+
+    Votes over joints for the detection closer to the epipole. The distances
+    are compared in homogeneous form ``|x e_z - e| = |e_z| |u - e_pix|`` so the
+    unknown sign of ``e`` cancels. When the epipole is (nearly) at infinity the
+    reflection, farther from the camera, is the smaller detection.
+    """
+    ah = geo.to_homogeneous(a[..., :2])
+    bh = geo.to_homogeneous(b[..., :2])
+    da = np.linalg.norm(ah * e[2] - e, axis=-1)
+    db = np.linalg.norm(bh * e[2] - e, axis=-1)
+    votes = np.where(np.isfinite(da) & np.isfinite(db), np.sign(da - db), 0.0)
+    by_epipole = votes.sum(axis=1) >= 0
+    far = np.nanmedian(np.where(np.isfinite(da), da, np.nan), axis=1) > FAR_EPIPOLE_PX * abs(e[2])
+    if not np.any(far):
+        return by_epipole
+    size_a = np.nansum(np.nanstd(a[..., :2], axis=1), axis=-1)
+    size_b = np.nansum(np.nanstd(b[..., :2], axis=1), axis=-1)
+    return np.where(far, size_b <= size_a, by_epipole)
+
+
+def pair_detections(raw: RawDetections, joints: np.ndarray | None = None,
+                    options: PairingOptions | None = None) -> PairedKeypoints:
+    """Pair person and reflection in every frame (see the module docstring).
+
+    Args:
+        raw: detections per frame, pixel coordinates (undistorted if the camera
+            has distortion).
+        joints: ``(k,)`` joint indices used to judge pairs (default: the
+            skeleton's calibration joints).
+        options: :class:`PairingOptions`.
+
+    Returns:
+        :class:`PairedKeypoints` over all frames of ``raw``; unpaired frames have
+        confidence 0 and NaN coordinates.
+
+    Raises:
+        InputError: no frame holds two people.
+        DegenerateGeometryError: the candidates do not determine an epipole.
+    """
+    opts = options or PairingOptions()
+    sk = raw.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    cand = _candidates(raw, opts)
+
+    sub = _spread_subset(cand.frame, opts.ransac_frames)
+    u = cand.a[sub][:, joints, :2].reshape(-1, 2)
+    um = cand.b[sub][:, joints, :2].reshape(-1, 2)
+    try:
+        e, _, _, _ = estimate_epipole(u, um, threshold_px=opts.threshold_px, seed=opts.seed)
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(f"{raw.source}: cannot pair person and reflection: {exc}"
+                                      ) from None
+
+    flip = sk.flip
+    score_flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
+    score_swapped = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
+    swapped = score_swapped < SWAP_MARGIN * score_flipped
+    score = np.where(swapped, score_swapped, score_flipped)
+
+    T, J = len(raw.people), sk.num_joints
+    real = np.full((T, J, 3), np.nan)
+    real[..., 2] = 0.0
+    mirror = real.copy()
+    # best candidate per frame: sort by (frame, score) and keep the first of each frame
+    order = np.lexsort((score, cand.frame))
+    first = np.ones(len(order), bool)
+    first[1:] = cand.frame[order][1:] != cand.frame[order][:-1]
+    best = order[first]
+    best = best[score[best] < opts.threshold_px]
+    a = cand.a[best]                       # detection i, its own labels
+    b_own = cand.b[best][:, flip]          # detection k, its own labels
+    b = np.where(swapped[best, None, None], b_own, cand.b[best])   # b[:, j] ~ a[:, j]
+    b_is_mirror = _b_is_reflection(e, a[:, joints], b[:, joints])
+    # The person keeps the detector's labels; the reflection is relabelled by
+    # the flip map, or kept as it is where the detector confused its left and
+    # right (a confusion cannot be told apart from one on the person, and the
+    # reflection, seen from behind, is where detectors make it).
+    keep = b_is_mirror[:, None, None]
+    mirror_own = np.where(keep, b_own, a)
+    relabel = np.where(swapped[best, None, None], mirror_own, mirror_own[:, flip])
+    real[cand.frame[best]] = np.where(keep, a, b_own)
+    mirror[cand.frame[best]] = relabel
+
+    if len(best) == 0:
+        raise DegenerateGeometryError(
+            f"{raw.source}: no frame has a pair of detections consistent with one mirror")
+    return PairedKeypoints(skeleton=sk, frame_ids=np.asarray(raw.frame_ids), real=real,
+                           mirror=mirror, source=raw.source, format=raw.format,
+                           image_size=raw.image_size, fps=raw.fps,
+                           lr_fixes=int(np.count_nonzero(swapped[best])),
+                           frames_read=T)
+
+
+def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
+                   options: PairingOptions | None = None) -> PairedKeypoints:
+    """Undo the detector's left/right confusions of the reflection, per frame.
+
+    For already paired input (e.g. ``.npz``): finds the epipole on a spread
+    subset of frames, then keeps, frame by frame, the labeling of the
+    reflection (as given, or left/right swapped) with the smaller median
+    epipolar distance. Returns a new :class:`PairedKeypoints`.
+    """
+    opts = options or PairingOptions()
+    sk = paired.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    real = _masked(paired.real, opts.min_confidence)
+    mirror = _masked(paired.mirror, opts.min_confidence)
+    frames = np.arange(len(real))
+    sub = _spread_subset(frames, opts.ransac_frames)
+    e, _, _, _ = estimate_epipole(real[sub][:, joints, :2].reshape(-1, 2),
+                                  mirror[sub][:, joints, :2].reshape(-1, 2),
+                                  threshold_px=opts.threshold_px, seed=opts.seed)
+    flip = sk.flip
+    keep = _median_distance(e, real, mirror, joints, opts.min_joints)
+    swap = _median_distance(e, real, mirror[:, flip], joints, opts.min_joints)
+    swapped = swap < SWAP_MARGIN * keep
+    fixed = np.where(swapped[:, None, None], mirror[:, flip], mirror)
+    return PairedKeypoints(skeleton=sk, frame_ids=paired.frame_ids, real=real, mirror=fixed,
+                           source=paired.source, format=paired.format,
+                           image_size=paired.image_size, fps=paired.fps,
+                           lr_fixes=int(np.count_nonzero(swapped)),
+                           frames_read=paired.frames_read or len(real))
