@@ -1,0 +1,172 @@
+"""A 3D body model for synthetic data: segment lengths and rigid joint offsets.
+
+The model is expressed in units of standing height ``H`` (multiply by the
+subject's height to get metres) in a *body frame*: ``x`` to the person's left,
+``y`` up, ``z`` forward (the way the person faces); right-handed.
+
+Limb and trunk lengths come from :data:`mirrorgraph.anthropometry.HEIGHT_FRACTION`
+(Winter 2009, Fig. 4.1): femur, tibia, humerus, ulna, shoulder width and hip
+width. The rest are my own round figures, chosen to agree with Winter's landmark
+heights (ankle 0.039 H, hip 0.530 H, shoulder 0.818 H, chin 0.870 H,
+eye 0.936 H, vertex 1.000 H, foot length 0.152 H, foot width 0.055 H):
+
+=========================  ==================================================
+segment                    fraction of H (left side; the right mirrors x)
+=========================  ==================================================
+ankle height above floor   0.039
+lumbar (mid-hip to L1)     0.100
+thoracic (L1 to T1)        0.100
+upper trunk (T1 to neck)   0.088   (neck = midpoint of the shoulders)
+neck to head pivot         0.072 up                  (pivot at 0.890 H)
+head pivot to vertex       0.110 up
+eye (from head pivot)      x 0.018, y 0.046, z 0.048  (pupils 0.036 H apart)
+ear                        x 0.040, y 0.036, z 0.000
+nose tip                   x 0,     y 0.026, z 0.062
+heel (from ankle)          x 0.004, y -0.032, z -0.028
+big toe                    x -0.010, y -0.033, z 0.118 (medial)
+small toe                  x 0.022, y -0.033, z 0.092 (lateral)
+=========================  ==================================================
+
+Individual variation: each segment kind (femur, tibia, humerus, ulna, shoulder
+width, hip width, each trunk part, neck, head size, foot size) is scaled by its
+own factor ``1 + s * z`` with ``z`` a standard normal clipped to +-2 and
+``s = 0.03`` by default. The factor is shared by the left and right segment, so
+the body stays exactly left/right symmetric. Afterwards the whole body is scaled
+so that the standing height (floor to vertex, legs straight, trunk upright) is
+exactly ``H``.
+
+The OpenPose ``neck`` is the midpoint of the shoulders and ``mid_hip`` the
+midpoint of the hips, so the scapular and pelvis bones of
+:mod:`mirrorgraph.skeletons` are exactly half the shoulder and hip widths.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..anthropometry import HEIGHT_FRACTION, bone_kind
+from ..skeletons import Skeleton
+
+#: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25).
+FULL_JOINTS: tuple[str, ...] = (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "neck",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "mid_hip", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle",
+    "left_big_toe", "right_big_toe", "left_small_toe", "right_small_toe",
+    "left_heel", "right_heel",
+)
+FULL_INDEX: dict[str, int] = {n: i for i, n in enumerate(FULL_JOINTS)}
+
+#: Nominal fractions of height not in the anthropometry table (see module doc).
+EXTRA_FRACTION: dict[str, float] = {
+    "ankle_height": 0.039,
+    "lumbar": 0.100,
+    "thoracic": 0.100,
+    "upper_trunk": 0.088,
+    "neck": 0.072,
+    "head_top": 0.110,
+}
+
+#: Head points relative to the head pivot (left side; right mirrors x), in H.
+HEAD_OFFSETS: dict[str, tuple[float, float, float]] = {
+    "eye": (0.018, 0.046, 0.048),
+    "ear": (0.040, 0.036, 0.000),
+    "nose": (0.000, 0.026, 0.062),
+}
+
+#: Foot points relative to the ankle for the left foot (x > 0 = lateral), in H.
+FOOT_OFFSETS: dict[str, tuple[float, float, float]] = {
+    "heel": (0.004, -0.032, -0.028),
+    "big_toe": (-0.010, -0.033, 0.118),
+    "small_toe": (0.022, -0.033, 0.092),
+}
+
+_VARIED = ("femur", "tibia", "humerus", "ulna", "shoulder_width", "hip_width",
+           "lumbar", "thoracic", "upper_trunk", "neck", "head", "foot", "ankle_height")
+
+
+@dataclass(frozen=True)
+class BodyModel:
+    """Segment lengths and rigid offsets of one individual, in units of height.
+
+    Attributes:
+        lengths: segment kind -> length / H (``femur``, ``tibia``, ``humerus``,
+            ``ulna``, ``shoulder_width``, ``hip_width``, ``ankle_height``,
+            ``lumbar``, ``thoracic``, ``upper_trunk``, ``neck``, ``head_top``).
+        head: head point name -> (3,) offset from the head pivot (left side).
+        foot: foot point name -> (3,) offset from the ankle (left foot).
+        factors: the individual variation factor per segment kind.
+    """
+
+    lengths: dict[str, float]
+    head: dict[str, np.ndarray]
+    foot: dict[str, np.ndarray]
+    factors: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def stature(self) -> float:
+        """Standing height (floor to vertex) / H; 1 up to rounding."""
+        L = self.lengths
+        return (L["ankle_height"] + L["tibia"] + L["femur"] + L["lumbar"] + L["thoracic"]
+                + L["upper_trunk"] + L["neck"] + L["head_top"])
+
+    def bone_lengths(self, skeleton: Skeleton, height: float = 1.0) -> dict[str, float]:
+        """Length of every bone of ``skeleton`` for a subject of ``height`` metres."""
+        L = self.lengths
+        kind = {"femur": L["femur"], "tibia": L["tibia"], "humerus": L["humerus"],
+                "ulna": L["ulna"], "shoulder_width": L["shoulder_width"],
+                "scapular": L["shoulder_width"] / 2, "hip_width": L["hip_width"],
+                "pelvis": L["hip_width"] / 2}
+        out = {}
+        for b in skeleton.bones:
+            out[b] = kind[bone_kind(b)] * height
+        return out
+
+
+def make_body(rng: np.random.Generator | None = None, variation: float = 0.03) -> BodyModel:
+    """An individual body in units of height.
+
+    Args:
+        rng: random generator for the individual variation; ``None`` gives the
+            nominal (average) body.
+        variation: relative standard deviation of each segment kind (default 3 %).
+    """
+    if rng is None:
+        z = np.zeros(len(_VARIED))
+    else:
+        z = np.clip(rng.standard_normal(len(_VARIED)), -2.0, 2.0)
+    f = {k: float(1.0 + variation * zi) for k, zi in zip(_VARIED, z)}
+    L = {
+        "femur": HEIGHT_FRACTION["femur"] * f["femur"],
+        "tibia": HEIGHT_FRACTION["tibia"] * f["tibia"],
+        "humerus": HEIGHT_FRACTION["humerus"] * f["humerus"],
+        "ulna": HEIGHT_FRACTION["ulna"] * f["ulna"],
+        "shoulder_width": HEIGHT_FRACTION["shoulder_width"] * f["shoulder_width"],
+        "hip_width": HEIGHT_FRACTION["hip_width"] * f["hip_width"],
+        "ankle_height": EXTRA_FRACTION["ankle_height"] * f["ankle_height"],
+        "lumbar": EXTRA_FRACTION["lumbar"] * f["lumbar"],
+        "thoracic": EXTRA_FRACTION["thoracic"] * f["thoracic"],
+        "upper_trunk": EXTRA_FRACTION["upper_trunk"] * f["upper_trunk"],
+        "neck": EXTRA_FRACTION["neck"] * f["neck"],
+        "head_top": EXTRA_FRACTION["head_top"] * f["head"],
+    }
+    head = {k: np.array(v) * f["head"] for k, v in HEAD_OFFSETS.items()}
+    foot = {k: np.array(v) * f["foot"] for k, v in FOOT_OFFSETS.items()}
+    # Renormalise so that the standing height is exactly one.
+    s = 1.0 / (L["ankle_height"] + L["tibia"] + L["femur"] + L["lumbar"] + L["thoracic"]
+               + L["upper_trunk"] + L["neck"] + L["head_top"])
+    L = {k: v * s for k, v in L.items()}
+    head = {k: v * s for k, v in head.items()}
+    foot = {k: v * s for k, v in foot.items()}
+    return BodyModel(lengths=L, head=head, foot=foot, factors=f)
+
+
+def skeleton_columns(skeleton: Skeleton) -> np.ndarray:
+    """``(J,)`` indices into :data:`FULL_JOINTS` of the joints of ``skeleton``."""
+    try:
+        return np.array([FULL_INDEX[n] for n in skeleton.joints], dtype=int)
+    except KeyError as e:  # pragma: no cover - all shipped layouts are covered
+        raise ValueError(f"the synthetic body has no joint {e.args[0]!r}") from None

@@ -1,0 +1,137 @@
+"""The command line end to end: synth -> calibrate on every format, and bad input."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirrorgraph import geometry as geo
+from mirrorgraph.cli import main
+from mirrorgraph.metrics import rotation_error_deg
+from mirrorgraph.synth import read_ground_truth
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scene")
+    assert main(["synth", "--out", str(out), "--frames", "300", "--seed", "21",
+                 "--outliers", "0.05", "--lr-swaps", "0.05", "--missing", "0.02",
+                 "--extra-people", "0.05", "--single", "0.05", "--quiet"]) == 0
+    return out
+
+
+def _check_calibration(path: Path, truth: dict, max_deg: float) -> dict:
+    cal = json.loads(path.read_text())
+    n = np.array(cal["mirror"]["normal"])
+    R = np.array(cal["virtual_camera"]["R"])
+    t = np.array(cal["virtual_camera"]["t"])
+    # self-consistency: R and t follow from the normal (and distance)
+    R2, t2 = geo.virtual_camera_from_mirror(n, cal["mirror"]["distance"] or 0.5)
+    assert np.allclose(R, R2, atol=1e-9) and np.allclose(t, t2, atol=1e-9)
+    F = np.array(cal["fundamental_matrix"])
+    assert np.allclose(F, -F.T)
+    assert rotation_error_deg(R, truth["R"]) < max_deg
+    return cal
+
+
+@pytest.mark.parametrize("fmt", ["keypoints_mmpose.json", "openpose", "easymocap", "keypoints.npz"])
+def test_calibrate_every_format(scene_dir, tmp_path, fmt, capsys):
+    truth = read_ground_truth(scene_dir)
+    out = tmp_path / "cal.json"
+    code = main(["calibrate", str(scene_dir / fmt), "--intrinsics", str(scene_dir / "camera.json"),
+                 "--out", str(out), "--no-refine"])
+    assert code == 0, capsys.readouterr().err
+    cal = _check_calibration(out, truth, 0.5)
+    assert cal["scale"] == "unknown" and cal["mirror"]["distance"] is None
+    assert np.isclose(np.linalg.norm(cal["virtual_camera"]["t"]), 1.0)
+    assert "mirror normal" in capsys.readouterr().out
+
+
+def test_calibrate_quiet_prints_nothing(scene_dir, tmp_path, capsys):
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--out", str(out), "--no-refine", "--quiet"]) == 0
+    assert capsys.readouterr().out == ""
+
+
+def test_calibrate_without_intrinsics_warns_and_reports_epipole(scene_dir, tmp_path, capsys):
+    out = tmp_path / "cal.json"
+    truth = read_ground_truth(scene_dir)
+    assert main(["calibrate", str(scene_dir / "keypoints_mmpose.json"), "--image-size",
+                 "1920x1080", "--out", str(out), "--no-refine"]) == 0
+    cal = json.loads(out.read_text())
+    assert cal["intrinsics"]["approximate"] is True
+    assert any("approximate" in w for w in cal["warnings"])
+    assert "warning:" in capsys.readouterr().err
+    # the epipole in pixels does not depend on K
+    e_true = geo.epipole_pixels(geo.epipole_from_normal(truth["K"], truth["normal"]))
+    assert np.linalg.norm(np.array(cal["epipole_px"]) - e_true) < 0.02 * np.linalg.norm(e_true - [960, 540])
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def _error_of(args, capsys) -> str:
+    code = main(args)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    return err
+
+
+def test_bad_inputs_give_one_line_errors(tmp_path, scene_dir, capsys):
+    cam = str(scene_dir / "camera.json")
+    out = tmp_path / "never.json"
+    bad_json = _write(tmp_path / "bad.json", '[{"frame_id": 0, "instances": [')
+    assert "bad.json" in _error_of(["calibrate", str(bad_json), "--intrinsics", cam, "--out", str(out)], capsys)
+    wrong = _write(tmp_path / "wrong.json", json.dumps(
+        [{"frame_id": 0, "instances": [{"keypoints": [[1.0, 2.0]] * 13, "keypoint_scores": [1.0] * 13}]}]))
+    assert "wrong.json" in _error_of(["calibrate", str(wrong), "--intrinsics", cam, "--out", str(out)], capsys)
+    nan = _write(tmp_path / "nan.json", json.dumps(
+        [{"frame_id": 3, "instances": [{"keypoints": [[1.0, 2.0]] * 16 + [[float("nan"), 1.0]],
+                                        "keypoint_scores": [1.0] * 17}]}]))
+    err = _error_of(["calibrate", str(nan), "--intrinsics", cam, "--out", str(out)], capsys)
+    assert "nan.json" in err and "frame 3" in err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert "empty" in _error_of(["calibrate", str(empty), "--intrinsics", cam, "--out", str(out)], capsys)
+    no_k = _write(tmp_path / "noK.json", json.dumps({"image_size": [1920, 1080]}))
+    assert "noK.json" in _error_of(["calibrate", str(scene_dir / "keypoints_mmpose.json"),
+                                    "--intrinsics", str(no_k), "--out", str(out)], capsys)
+    missing = str(tmp_path / "nope.json")
+    assert "nope.json" in _error_of(["calibrate", missing, "--intrinsics", cam, "--out", str(out)], capsys)
+    assert not out.exists()
+
+
+def test_no_two_people_and_degenerate_geometry(tmp_path, scene_dir, capsys):
+    cam = str(scene_dir / "camera.json")
+    out = tmp_path / "never.json"
+    frames = json.loads((scene_dir / "keypoints_mmpose.json").read_text())
+    frames = frames["instance_info"] if isinstance(frames, dict) else frames
+    for f in frames:
+        f["instances"] = f["instances"][:1]
+    single = _write(tmp_path / "single.json", json.dumps(frames))
+    err = _error_of(["calibrate", str(single), "--intrinsics", cam, "--out", str(out)], capsys)
+    assert "single.json" in err and "reflection" in err
+    # a 'scene' whose pairs all lie on one line cannot fix the epipole
+    kp = [[100.0 + 30 * j, 500.0] for j in range(17)]
+    kp2 = [[x + 400.0, y] for x, y in kp]
+    line = [{"frame_id": t, "instances": [{"keypoints": kp, "keypoint_scores": [1.0] * 17},
+                                          {"keypoints": kp2, "keypoint_scores": [1.0] * 17}]}
+            for t in range(20)]
+    flat = _write(tmp_path / "flat.json", json.dumps(line))
+    err = _error_of(["calibrate", str(flat), "--intrinsics", cam, "--out", str(out)], capsys)
+    assert "flat.json" in err
+    assert not out.exists()
+
+
+def test_existing_output_survives_a_failed_run(tmp_path, scene_dir, capsys):
+    out = _write(tmp_path / "cal.json", "precious")
+    bad = _write(tmp_path / "bad.json", "{")
+    main(["calibrate", str(bad), "--intrinsics", str(scene_dir / "camera.json"), "--out", str(out)])
+    capsys.readouterr()
+    assert out.read_text() == "precious"
