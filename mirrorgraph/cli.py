@@ -21,6 +21,7 @@ import numpy as np
 
 from . import __version__
 from .errors import InputError, MirrorgraphError
+from .progress import Progress
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
@@ -69,8 +70,11 @@ def _add_calibrate(sub) -> None:
                                    "detector's keypoints of a person and their reflection.")
     p.add_argument("keypoints", help="MMPose .json, OpenPose or EasyMocap folder, or paired .npz")
     p.add_argument("--out", required=True, help="calibration JSON to write")
-    p.add_argument("--intrinsics", help="camera intrinsics: JSON {K, image_size, dist} or "
-                                        "OpenCV YAML (camera_matrix, distortion_coefficients)")
+    p.add_argument("--intrinsics", help="camera intrinsics: JSON {K, image_size, dist}, "
+                                        "OpenCV YAML (camera_matrix, distortion_coefficients), "
+                                        "or a Pose2Sim / aniposelib calibration TOML")
+    p.add_argument("--camera", metavar="NAME",
+                   help="camera (section or name) to read from a TOML with several cameras")
     p.add_argument("--image-size", type=_image_size, metavar="WxH",
                    help="image size when no intrinsics are given and the input lacks it")
     p.add_argument("--fov", type=_positive, default=None, metavar="DEG",
@@ -91,8 +95,12 @@ def _add_calibrate(sub) -> None:
                    help="subject's standing height: gives the metric scale")
     p.add_argument("--no-refine", action="store_true",
                    help="keep the robust initialisation, skip the factor graph")
-    p.add_argument("--joints3d", metavar="FILE.npz",
-                   help="write the refined 3D joints (T, J, 3) with names and a validity mask")
+    p.add_argument("--joints3d", metavar="FILE",
+                   help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
+                        "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
+    p.add_argument("--fps", type=_positive, default=None,
+                   help="frame rate for the 3D motion where the input does not carry it "
+                        "(default 30)")
     p.add_argument("--seed", type=int, default=0, help="seed of the RANSAC (default 0)")
     _add_common(p)
     p.set_defaults(func=_cmd_calibrate)
@@ -102,16 +110,24 @@ def _cmd_calibrate(args) -> int:
     from .calibration import write_calibration
     from .intrinsics import load_intrinsics
     from .io import read_keypoints
-    from .io.atomic import atomic_path
+    from .io.motion import write_joints3d
     from .pipeline import CalibrateOptions, calibrate
 
     say = _say(args)
     if Path(args.out).is_dir():
         raise InputError("is a folder; give a file name for the calibration JSON",
                          source=args.out, field="--out")
-    intr = load_intrinsics(args.intrinsics) if args.intrinsics else None
+    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
+        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
+                         field="--joints3d")
+    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" and not args.subject_height:
+        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.camera and not args.intrinsics:
+        raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     t0 = time.perf_counter()
-    data = read_keypoints(args.keypoints, skeleton=args.skeleton)
+    with Progress("reading frames", enabled=not args.quiet) as bar:
+        data = read_keypoints(args.keypoints, skeleton=args.skeleton, progress=bar.callback)
     _verbose_input(args, data)
     opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
                             refine=not args.no_refine, subject_height=args.subject_height,
@@ -128,12 +144,9 @@ def _cmd_calibrate(args) -> int:
     if args.joints3d:
         if run.joints3d is None:
             raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
-        with atomic_path(args.joints3d) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, joints3d=run.joints3d, valid=run.valid3d,
-                                    frame_ids=run.paired.frame_ids,
-                                    joint_names=np.array(run.paired.skeleton.joints),
-                                    unit=np.array("m" if calib.distance else "mirror distance"))
+        write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
+                       run.paired.skeleton.joints, args.fps or run.paired.fps or 30.0,
+                       unit="m" if calib.distance is not None else "mirror distance")
     for w in calib.warnings:
         print(f"warning: {w}", file=sys.stderr)
     say(calib.summary())
@@ -271,6 +284,34 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- export
+def _add_export(sub) -> None:
+    p = sub.add_parser("export", help="write the real and virtual camera for Pose2Sim / aniposelib",
+                       description="Write the real camera and the mirror's virtual camera as two "
+                                   "ordinary cameras of a Pose2Sim Calib.toml or an aniposelib "
+                                   "calibration.toml. The virtual camera is the one that sees the "
+                                   "horizontally flipped image (u -> W - u): give those tools the "
+                                   "reflection's keypoints with x -> W - x and left/right labels "
+                                   "swapped (see the README).")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    p.add_argument("--to", required=True, choices=("pose2sim", "anipose"), dest="fmt")
+    p.add_argument("out", help="TOML file to write")
+    p.add_argument("--world", default="camera", choices=("camera", "z_up"),
+                   help="world frame: the real camera's (default) or X right, Y depth, Z up")
+    _add_common(p)
+    p.set_defaults(func=_cmd_export)
+
+
+def _cmd_export(args) -> int:
+    from .export import export_calibration
+
+    warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    _say(args)(f"wrote {args.out} ({args.fmt}: cameras 'real' and 'mirror')")
+    return 0
+
+
 # --------------------------------------------------------------------------- common
 def _add_common(p) -> None:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -297,6 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate(sub)
     _add_synth(sub)
     _add_demo(sub)
+    _add_export(sub)
     return parser
 
 

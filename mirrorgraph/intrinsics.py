@@ -12,7 +12,11 @@ Sources:
   "image_size": [w, h]}`` (``dist`` and ``image_size`` optional), or an OpenCV
   ``FileStorage`` YAML/XML file with ``camera_matrix``, optional
   ``distortion_coefficients``, ``image_width`` and ``image_height`` (what
-  OpenCV's calibration sample writes; YAML files start with ``%YAML``).
+  OpenCV's calibration sample writes; YAML files start with ``%YAML``), or a
+  ``.toml`` camera file of Pose2Sim (``Calib.toml``: ``[cam_01]`` tables with
+  ``matrix``, ``distortions``, ``size``) or aniposelib (``calibration.toml``:
+  ``[cam_0]`` tables with ``name``, ``matrix``, ``distortions``, ``size``); pick
+  the camera with ``camera=`` (section key or name) when the file holds several.
 * :func:`intrinsics_from_fov`: a guess from the image size and a horizontal
   field of view, flagged ``approximate``.
 """
@@ -30,7 +34,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError
-from .io._common import json_type, load_json, numeric_array
+from .io._common import MAX_IMAGE_SIDE, json_type, load_json, numeric_array
 
 #: Horizontal field of view assumed when no intrinsics are given, degrees. A
 #: typical webcam or phone main camera has a horizontal FOV of 55-70 degrees.
@@ -132,19 +136,38 @@ def _cv_undistort(src: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarra
     return cv2.undistortPoints(src, K, dist, P=K, criteria=_CRITERIA)
 
 
-def load_intrinsics(path: str | os.PathLike) -> Intrinsics:
-    """Read intrinsics from a JSON or OpenCV YAML/XML file (see the module docstring).
+def load_intrinsics(path: str | os.PathLike, camera: str | int | None = None) -> Intrinsics:
+    """Read intrinsics from a JSON, OpenCV YAML/XML or TOML file (see the module docstring).
+
+    Args:
+        path: the file. A ``.toml`` suffix selects the Pose2Sim / aniposelib
+            camera-file reader.
+        camera: for TOML files, the camera to read: its section key
+            (``"cam_01"``, ``"cam_0"``) or its ``name``. May be left out when
+            the file holds one camera. Only the intrinsics (``matrix``,
+            ``distortions``, ``size``) are read; the extrinsics are ignored.
+            Note that the mirror camera of a file written by
+            :func:`mirrorgraph.export.export_calibration` is the *flipped*
+            virtual camera (mirrored principal point and tangential terms),
+            not the real camera's intrinsics.
 
     Raises:
         InputError: naming the file and field: missing file, malformed content,
             no or non-3x3 ``K``, non-finite values, last row of ``K`` not
             ``[0, 0, 1]``, ``fx`` or ``fy`` not positive, singular ``K``, a
             distortion vector of a length OpenCV does not know, image size not
-            two positive integers.
+            two positive integers; for TOML also a missing or ambiguous
+            ``camera`` (the message lists the cameras of the file) and
+            Pose2Sim's ``fisheye = true`` (a lens model mirrorgraph does not use).
     """
     path = Path(path)
     if not path.is_file():
         raise InputError("no such file", source=path)
+    if path.suffix.lower() == ".toml":
+        return _load_toml(path, camera)
+    if camera is not None:
+        raise InputError("camera= selects a camera of a .toml file; this is not one",
+                         source=path, field="camera")
     with open(path, "rb") as f:
         head = f.read(64).lstrip()
     if head.startswith(b"%YAML") or head.startswith(b"<?xml") or \
@@ -154,6 +177,25 @@ def load_intrinsics(path: str | os.PathLike) -> Intrinsics:
         K, dist, size, key = _read_json(path)
     return Intrinsics(K=_check_K(K, path, key), dist=_check_dist(dist, path),
                       image_size=size, source=str(path))
+
+
+def _load_toml(path: Path, camera: str | int | None) -> Intrinsics:
+    from .io.camera_toml import read_camera_toml, select_camera
+
+    cam = select_camera(read_camera_toml(path), camera, source=path)
+    if cam.fisheye:
+        raise InputError("fisheye = true: the OpenCV fisheye lens model is not supported "
+                         "(mirrorgraph undistorts with the standard model)", source=path,
+                         field=f"{cam.key}.fisheye")
+    dist = cam.distortions if cam.distortions.size else None
+    if dist is not None and len(dist) not in DIST_LENGTHS:
+        raise InputError(f"{len(dist)} distortion coefficients; OpenCV takes "
+                         f"{', '.join(map(str, DIST_LENGTHS))}", source=path,
+                         field=f"{cam.key}.distortions")
+    size = None if cam.size is None else _check_size(*cam.size, path, f"{cam.key}.size")
+    return Intrinsics(K=_check_K(cam.matrix, path, f"{cam.key}.matrix"),
+                      dist=_check_dist(dist, path), image_size=size,
+                      source=f"{path} [{cam.key}]")
 
 
 def _read_json(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None, str]:
@@ -248,7 +290,10 @@ def _check_K(K: np.ndarray, path: Path, key: str) -> np.ndarray:
         raise fail(f"last row must be [0, 0, 1], got {K[2].tolist()}")
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         raise fail(f"focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
-    if abs(np.linalg.det(K)) <= 1e-9 * K[0, 0] * K[1, 1]:
+    # determinant of K with its rows divided by fx, fy (no overflow for huge fx, fy)
+    with np.errstate(all="ignore"):
+        det = np.linalg.det(K / np.array([[K[0, 0]], [K[1, 1]], [1.0]]))
+    if not np.isfinite(det) or abs(det) <= 1e-9:
         raise fail("singular camera matrix")
     return K
 
@@ -266,11 +311,11 @@ def _check_dist(dist: np.ndarray | None, path: Path) -> np.ndarray | None:
 
 
 def _check_size(w: Any, h: Any, source: Any, field: str) -> tuple[int, int]:
-    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v > 0
-             for v in (w, h))
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+             and 0 < v <= MAX_IMAGE_SIDE for v in (w, h))
     if not ok:
-        raise InputError(f"image size must be two positive integers, got {w!r} x {h!r}",
-                         source=source, field=field)
+        raise InputError(f"image size must be two positive integers up to {MAX_IMAGE_SIDE}, "
+                         f"got {w!r} x {h!r}", source=source, field=field)
     return int(w), int(h)
 
 

@@ -54,12 +54,17 @@ class Progress:
         self.stream.flush()
 
     def close(self, info: str = "") -> None:
-        """Finish the line."""
-        if self.enabled:
+        """Finish the line (nothing is drawn if nothing was reported)."""
+        if self.enabled and self.done > 0:
             self._draw(info)
             self.stream.write("\n")
             self.stream.flush()
             self.enabled = False
+
+    def callback(self, done: int, total: int) -> None:
+        """``(done, total)`` callback form, as the folder readers call it."""
+        self.total = total
+        self.update(done - self.done)
 
     def __enter__(self) -> "Progress":
         return self

@@ -135,3 +135,23 @@ def test_existing_output_survives_a_failed_run(tmp_path, scene_dir, capsys):
     main(["calibrate", str(bad), "--intrinsics", str(scene_dir / "camera.json"), "--out", str(out)])
     capsys.readouterr()
     assert out.read_text() == "precious"
+
+
+def test_export_to_pose2sim_and_anipose(scene_dir, tmp_path, capsys):
+    import tomllib
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(scene_dir / "openpose"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--out", str(cal), "--no-refine", "--quiet"]) == 0
+    for fmt in ("pose2sim", "anipose"):
+        out = tmp_path / f"{fmt}.toml"
+        assert main(["export", str(cal), "--to", fmt, str(out), "--quiet"]) == 0
+        cams = [v for v in tomllib.loads(out.read_text()).values()
+                if isinstance(v, dict) and "matrix" in v]
+        assert len(cams) == 2
+        # the mirror camera is the flipped-image camera: principal point at W - cx
+        K = np.array(json.loads(cal.read_text())["intrinsics"]["K"])
+        W = json.loads(cal.read_text())["intrinsics"]["image_size"][0]
+        cx = sorted(c["matrix"][0][2] for c in cams)
+        assert np.allclose(cx, sorted([K[0, 2], W - K[0, 2]]))
+    # unknown scale: the export warns
+    assert "warning" in capsys.readouterr().err

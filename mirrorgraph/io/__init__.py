@@ -23,6 +23,7 @@ import os
 
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton
+from ._common import ProgressCallback
 from .atomic import atomic_dir, atomic_path, atomic_write_bytes, atomic_write_text
 from .calibration import read_json, to_jsonable, write_json
 from .detect import classify_json, detect_format, sniff
@@ -41,7 +42,8 @@ __all__ = [
 _WRITERS = {"mmpose": write_mmpose, "openpose": write_openpose, "easymocap": write_easymocap}
 
 
-def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None = None
+def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None = None,
+                   progress: ProgressCallback | None = None
                    ) -> RawDetections | PairedKeypoints:
     """Read keypoints in any supported format, detected from ``path``.
 
@@ -50,6 +52,7 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
             EasyMocap folder.
         skeleton: the keypoint layout (a :class:`Skeleton` or its name); by
             default found from the keypoint count.
+        progress: ``progress(done, total)`` called per file of a folder.
 
     Returns:
         :class:`RawDetections` (``.format`` names the format), or
@@ -64,8 +67,8 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     if kind == "mmpose":
         return detections_from_mmpose(obj, source=str(path), skeleton=skeleton)
     if kind == "openpose":
-        return read_openpose(path, skeleton=skeleton)
-    return read_easymocap(path, skeleton=skeleton)
+        return read_openpose(path, skeleton=skeleton, progress=progress)
+    return read_easymocap(path, skeleton=skeleton, progress=progress)
 
 
 def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str) -> None:

@@ -7,6 +7,11 @@ Confidence policy (all readers): a confidence must be finite and in ``[0, 1]``.
 Detectors whose scores are not probabilities (RTMPose's SimCC scores, OpenPose
 heat-map peaks) sometimes exceed 1 a little, so values in ``(1, 1.5]`` are
 clipped to 1; negative values and values above 1.5 are refused.
+
+Coordinate policy: the x, y of a detected joint (confidence > 0) must be finite
+and within ``MAX_COORDINATE`` pixels of the origin; larger values are no image
+coordinate of any camera (they come from corrupt files) and are refused.
+Image sides are at most ``MAX_IMAGE_SIDE`` pixels.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ import os
 import re
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -25,6 +30,12 @@ from ..skeletons import Skeleton, skeleton_by_name, skeleton_for_count
 
 #: Confidences up to this value are clipped to 1; above it they are refused.
 MAX_CONFIDENCE = 1.5
+
+#: Largest absolute pixel coordinate accepted for a detected joint.
+MAX_COORDINATE = 1e6
+
+#: Largest image width or height accepted, pixels.
+MAX_IMAGE_SIDE = 1_000_000
 
 _TRAILING_INT = re.compile(r"(\d+)\D*$")
 
@@ -41,6 +52,10 @@ def load_json(path: str | os.PathLike) -> Any:
                          source=path) from None
     except UnicodeDecodeError as e:
         raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", source=path) from None
+    except ValueError as e:  # e.g. an integer literal longer than Python converts
+        raise InputError(f"malformed JSON ({e})", source=path) from None
+    except RecursionError:
+        raise InputError("malformed JSON: nested too deeply", source=path) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=path) from None
 
@@ -80,7 +95,7 @@ def numeric_array(value: Any, ndim: int | None, *, source: Any, frame: int | Non
                   field: str) -> np.ndarray:
     """A float array of ``ndim`` dims (any if ``None``) from nested lists of JSON numbers.
 
-    Strings, nulls, all-true/false and ragged lists are refused (no silent coercion).
+    Strings, nulls, true/false and ragged lists are refused (no silent coercion).
     """
     try:
         a = np.asarray(value)
@@ -90,10 +105,25 @@ def numeric_array(value: Any, ndim: int | None, *, source: Any, frame: int | Non
     if a.dtype.kind not in "iuf":
         raise InputError(f"expected numbers, got {_describe(a)}", source=source,
                          frame=frame, field=field)
+    if _holds_bool(value):  # NumPy turns [true, 2.5] into [1.0, 2.5]
+        raise InputError("expected numbers, got true/false entries", source=source,
+                         frame=frame, field=field)
     if ndim is not None and a.ndim != ndim:
         raise InputError(f"expected a {ndim}-D array of numbers, got shape {a.shape}",
                          source=source, frame=frame, field=field)
     return a.astype(float)
+
+
+def _holds_bool(value: Any) -> bool:
+    """Whether nested lists hold a ``bool`` anywhere (iteratively: no recursion limit)."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, (list, tuple)):
+            stack.extend(v)
+        elif isinstance(v, (bool, np.bool_)):
+            return True
+    return False
 
 
 def _describe(a: np.ndarray) -> str:
@@ -151,10 +181,11 @@ def clean_keypoints(kp: np.ndarray, *, source: Any, frame: int | None, field: st
     """Validate ``(..., J, 3)`` keypoints and mark missing joints; returns a new array.
 
     Non-finite values are refused, except (with ``allow_nan_missing``) NaN
-    coordinates of joints whose confidence is 0. Confidences in ``(1, 1.5]`` are
-    clipped to 1, others outside ``[0, 1]`` refused. Joints of confidence 0 get
-    ``NaN`` coordinates. With ``frames`` (``(T,)`` ids), ``kp`` is ``(T, J, 3)``
-    and an error names the frame of the offending row.
+    coordinates of joints whose confidence is 0, and coordinates beyond
+    ``MAX_COORDINATE`` of joints whose confidence is not 0. Confidences in
+    ``(1, 1.5]`` are clipped to 1, others outside ``[0, 1]`` refused. Joints of
+    confidence 0 get ``NaN`` coordinates. With ``frames`` (``(T,)`` ids), ``kp``
+    is ``(T, J, 3)`` and an error names the frame of the offending row.
     """
     kp = np.array(kp, dtype=float)
     conf = kp[..., 2]
@@ -177,6 +208,12 @@ def clean_keypoints(kp: np.ndarray, *, source: Any, frame: int | None, field: st
     if out.any():
         idx = np.argwhere(out)[0]
         raise fail(idx, f"confidence {conf[tuple(idx)]} outside [0, 1]")
+    far = (np.abs(kp[..., :2]) > MAX_COORDINATE) & (conf != 0)[..., None]
+    if far.any():
+        idx = np.argwhere(far)[0]
+        what = ("x", "y")[idx[-1]]
+        raise fail(idx[:-1], f"{what} = {kp[tuple(idx)]:g} px is no image coordinate "
+                             f"(beyond +-{MAX_COORDINATE:g})")
     np.minimum(conf, 1.0, out=conf)
     kp[conf == 0, :2] = np.nan
     return kp
@@ -194,8 +231,14 @@ def frame_from_name(path: Path) -> int:
 
 
 def check_frame_ids(frame_ids: Iterable[int], *, source: Any) -> tuple[np.ndarray, np.ndarray]:
-    """``(frame_ids sorted, order)``; refuses an empty list and duplicates."""
-    ids = np.asarray(list(frame_ids), dtype=np.int64)
+    """``(frame_ids sorted, order)``; refuses an empty list, duplicates and ids
+    that do not fit a 64-bit integer."""
+    listed = [int(i) for i in frame_ids]
+    for i in listed:
+        if not -2**63 <= i < 2**63:
+            raise InputError("frame id out of range (64-bit integers)", source=source,
+                             frame=i)
+    ids = np.asarray(listed, dtype=np.int64)
     if ids.size == 0:
         raise InputError("holds no frames", source=source)
     order = np.argsort(ids, kind="stable")
@@ -258,3 +301,7 @@ def mixed_folder(folder: Path, file: Path, expected: str, key: str) -> InputErro
     """The error for a file of another format among per-frame files."""
     return InputError(f"not an {expected} frame file (no '{key}'); folder {folder} mixes "
                       "formats or holds other JSON files", source=file, field=key)
+
+
+#: ``progress(done, total)``: called once per file read by the folder readers.
+ProgressCallback = Callable[[int, int], None]

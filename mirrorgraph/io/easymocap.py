@@ -24,23 +24,27 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import BODY_25, Skeleton
-from ._common import (JointCount, bbox_of, check_writable_ids, clean_keypoints, dump_json,
-                      frame_files, json_type, load_json, mixed_folder, numeric_array,
-                      require, to_skeleton, zero_missing)
+from ._common import (MAX_IMAGE_SIDE, JointCount, bbox_of, check_writable_ids,
+                      clean_keypoints, dump_json, frame_files, json_type, load_json,
+                      mixed_folder, numeric_array, require, to_skeleton, zero_missing)
+from ._common import ProgressCallback
 from .atomic import atomic_dir
 
 FORMAT = "easymocap"
 
 
 def read_easymocap(folder: str | os.PathLike, *,
-                   skeleton: Skeleton | str | None = None) -> RawDetections:
+                   skeleton: Skeleton | str | None = None,
+                   progress: ProgressCallback | None = None) -> RawDetections:
     """Read an EasyMocap annots folder (see the module docstring)."""
     folder = Path(folder)
     counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
     image_size: tuple[int, int] | None = None
-    for t, file in zip(frame_ids.tolist(), files):
+    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
+        if progress is not None:
+            progress(i + 1, len(files))
         obj = load_json(file)
         if not isinstance(obj, dict) or "annots" not in obj:
             raise mixed_folder(folder, file, "EasyMocap", "annots")
@@ -69,6 +73,9 @@ def _image_size(obj: dict, *, source: str, frame: int) -> tuple[int, int] | None
     if w <= 0 or h <= 0:
         raise InputError(f"image size {w}x{h} is not positive", source=source, frame=frame,
                          field="width" if w <= 0 else "height")
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
+        raise InputError(f"image size {w}x{h} is beyond {MAX_IMAGE_SIDE} px", source=source,
+                         frame=frame, field="width" if w > MAX_IMAGE_SIDE else "height")
     return w, h
 
 

@@ -27,6 +27,7 @@ from ..skeletons import BODY_25, Skeleton
 from ._common import (JointCount, check_writable_ids, clean_keypoints, dump_json, frame_files,
                       json_type, load_json, mixed_folder, numeric_array, require,
                       to_skeleton, zero_missing)
+from ._common import ProgressCallback
 from .atomic import atomic_dir
 
 FORMAT = "openpose"
@@ -34,13 +35,16 @@ KEY = "pose_keypoints_2d"
 
 
 def read_openpose(folder: str | os.PathLike, *,
-                  skeleton: Skeleton | str | None = None) -> RawDetections:
+                  skeleton: Skeleton | str | None = None,
+                  progress: ProgressCallback | None = None) -> RawDetections:
     """Read an OpenPose JSON folder (see the module docstring)."""
     folder = Path(folder)
     counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
-    for t, file in zip(frame_ids.tolist(), files):
+    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
+        if progress is not None:
+            progress(i + 1, len(files))
         obj = load_json(file)
         if not isinstance(obj, dict) or "people" not in obj:
             raise mixed_folder(folder, file, "OpenPose", "people")

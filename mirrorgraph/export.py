@@ -1,0 +1,400 @@
+"""Export a mirror calibration as a two-camera rig for Pose2Sim and aniposelib.
+
+The real camera and the mirror's virtual camera are written as two ordinary
+cameras of a Pose2Sim ``Calib.toml`` or an aniposelib ``calibration.toml``
+(see :mod:`mirrorgraph.io.camera_toml`), so that those tools triangulate the
+person from the direct view and the reflection and get mirrorgraph's own 3D
+joints back.
+
+The flip
+--------
+Both tools assume right-handed cameras, ``u ~ K (R X + t)``. The mirror view
+is not one: a point ``X`` (real camera frame) is imaged in the mirror at
+(:mod:`mirrorgraph.geometry`)
+
+    u = pi(K S(X)) = pi(K D (R X + t)),   D = diag(-1, 1, 1),
+    R = D (I - 2 n n^T),  t = 2 d D n,
+
+a camera with a left-handed frame. Mirror the *image* horizontally,
+``u' = W - u`` (``W`` the image width in pixels), i.e. ``u' ~ F u`` with
+``F = [[-1, 0, W], [0, 1, 0], [0, 0, 1]]``. ``F`` does not touch the third
+homogeneous coordinate, so ``pi(F y) = F pi(y)`` and
+
+    u' = pi(F K D (R X + t)) = pi(K' (R X + t)),
+
+    F K D = [[-1, 0, W], [0, 1, 0], [0, 0, 1]] [[-fx, s, cx], [0, fy, cy], [0, 0, 1]]
+          = [[fx, -s, W - cx], [0, fy, cy], [0, 0, 1]] = K'.
+
+``K'`` has positive focal lengths and ``R`` is a proper rotation (``det D =
+det H = -1``), so the flipped mirror view is an ordinary right-handed camera
+with rotation ``R``, translation ``t`` and camera matrix ``K'``: the principal
+point moves to ``W - cx`` and the skew changes sign. Points in front of the
+mirror camera have depth ``(R X + t)_z = S(X)_z > 0``, as required.
+
+Lens distortion happens in the real lens, in the real camera's normalised
+coordinates ``(x, y) = (S_x / S_z, S_y / S_z)``; the flipped camera's normalised
+coordinates are ``(x', y') = (-x, y)`` and its distorted ``x`` is ``-x_d``.
+Substituting ``x = -x'`` into OpenCV's model: the radial terms (``k1..k6``)
+depend on ``r^2`` and keep their sign; ``x_d`` gets ``2 p1 x y`` (even in
+``x``, unchanged after the sign of ``x_d``) and ``p2 (r^2 + 2 x^2)`` (odd:
+changes sign), ``y_d`` gets ``p1 (r^2 + 2 y^2)`` (unchanged) and ``2 p2 x y``
+(changes sign): **p2 flips, p1 does not**. Of the thin-prism terms ``s1, s2``
+(in ``x_d``) flip and ``s3, s4`` do not; of the tilted-sensor angles ``tauY``
+(a rotation about the y axis) flips and ``tauX`` does not. So the flipped
+camera's coefficients are those of the real lens with ``p2, s1, s2, tauY``
+negated (:func:`flip_distortion`), and the flip ``u' = W - u`` is exact on the
+*raw* (distorted) detector pixels.
+
+What users do with their keypoints
+----------------------------------
+* Real camera (``cam_01`` / ``cam_0``): the person's keypoints as detected,
+  unchanged.
+* Mirror camera (``cam_02`` / ``cam_1``): the reflection's keypoints with
+  ``x -> W - x`` (``y`` unchanged, confidences unchanged; missing joints stay
+  missing) **and** the left/right labels swapped: the keypoint the detector
+  called ``right_wrist`` on the reflection becomes ``left_wrist``. A detector
+  labels the reflection as it sees it, as a person: the real left wrist
+  appears as the reflection's right wrist. The horizontally flipped image of
+  the reflection shows the real person un-mirrored, so there the labels are
+  the true anatomical ones. :func:`flip_mirror_keypoints` does both steps.
+* Equivalently, run the detector on the horizontally flipped video and take
+  the reflection's keypoints as they come (no relabelling). Mind the pixel
+  convention: a flipped *video* maps pixel centres ``x -> W - 1 - x`` when the
+  detector puts pixel centres at integers, a sub-pixel-to-1-px offset from the
+  exact ``x -> W - x`` that the exported ``K'`` assumes.
+* Keep the frames of the two views in step (same frame numbers) and feed the
+  real view as the first camera: Pose2Sim pairs the calibration's cameras with
+  its pose folders in order, so name them so that the real view sorts first.
+
+World frame and scale
+---------------------
+``world="camera"`` (default): the world is the real camera frame (x right,
+y down, z forward); the real camera has ``R = I, t = 0``, and triangulated
+points are exactly mirrorgraph's ``joints3d``. ``world="z_up"``: the world is
+``(x, z, -y)`` of the camera frame (X right, Y forward/depth, Z up, for a level
+camera), which is what Pose2Sim's OpenSim steps assume (they turn Z-up into
+Y-up before writing ``.trc``). Translations are in metres when the calibration
+has a metric scale; with ``mirror.distance = null`` they are in units of the
+mirror distance (``d = 1``, the unit of mirrorgraph's ``joints3d`` then) and
+:func:`export_calibration` warns.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import geometry as geo
+from .calibration import Calibration
+from .errors import InputError
+from .intrinsics import Intrinsics, _check_dist, _check_K, _check_size
+from .io._common import load_json, numeric_array
+from .io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
+from .skeletons import Skeleton, skeleton_by_name
+
+__all__ = ["FORMATS", "WORLD_FRAMES", "export_calibration", "export_cameras",
+           "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints", "world_rotation"]
+
+#: Export formats: ``--to`` values and the camera-file style each writes.
+FORMATS = {"pose2sim": "pose2sim", "anipose": "anipose", "aniposelib": "anipose"}
+
+#: ``world=`` choices and the rotation ``A`` with ``X_world = A X_camera``.
+WORLD_FRAMES = {
+    "camera": np.eye(3),
+    "z_up": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+}
+
+#: Distortion coefficient indices (OpenCV order) that change sign under ``x -> -x``:
+#: ``p2``, ``s1``, ``s2``, ``tauY``.
+FLIPPED_DISTORTION_TERMS = (3, 8, 9, 13)
+
+_KEYS = {"pose2sim": (("cam_01", "cam_01"), ("cam_02", "cam_02")),
+         "anipose": (("cam_0", "real"), ("cam_1", "mirror"))}
+
+_HEADER = """\
+Written by mirrorgraph {version} from {source}.
+Two cameras: {real} = the real camera, {mirror} = the mirror's virtual camera as the camera
+that sees the HORIZONTALLY FLIPPED image (x -> {W} - x); both are ordinary right-handed
+OpenCV cameras. World frame: {world}.
+Translation unit: {unit}.
+Keypoints for {real}: the person as detected, unchanged.
+Keypoints for {mirror}: the reflection with x -> {W} - x (y and confidence unchanged) AND
+left/right labels swapped (the detector's right_wrist of the reflection -> left_wrist),
+or the reflection detected on the horizontally flipped video, labels as they come.
+"""
+
+
+# --------------------------------------------------------------------------- flips
+def flip_camera_matrix(K: np.ndarray, width: float) -> np.ndarray:
+    """Camera matrix of the horizontally flipped image, ``K' = F K D``.
+
+    Args:
+        K: ``(3, 3)`` camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``.
+        width: image width ``W`` in pixels (the flip is ``u' = W - u``).
+
+    Returns:
+        ``(3, 3)`` ``[[fx, -s, W - cx], [0, fy, cy], [0, 0, 1]]``.
+    """
+    K = np.asarray(K, dtype=float)
+    F = np.array([[-1.0, 0.0, float(width)], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    return F @ K @ geo.D_FLIP
+
+
+def flip_distortion(dist: np.ndarray | None) -> np.ndarray:
+    """OpenCV distortion coefficients of the horizontally flipped image.
+
+    Negates the terms odd in ``x``: ``p2`` (index 3), ``s1``, ``s2`` (8, 9) and
+    ``tauY`` (13), where present (see the module docstring for the derivation).
+
+    Args:
+        dist: ``(k,)`` coefficients in OpenCV order, or ``None`` (no distortion).
+
+    Returns:
+        ``(k,)`` float coefficients (``(0,)`` for ``None``).
+    """
+    d = np.zeros(0) if dist is None else np.array(dist, dtype=float).ravel()
+    for i in FLIPPED_DISTORTION_TERMS:
+        if i < d.size:
+            d[i] = -d[i]
+    return d
+
+
+def flip_mirror_keypoints(keypoints: np.ndarray, image_width: float,
+                          skeleton: Skeleton | str | np.ndarray) -> np.ndarray:
+    """The reflection's keypoints as the flipped mirror camera sees them.
+
+    Applies the recipe of the module docstring: ``x -> W - x`` and the
+    left/right labels swapped, so that the keypoints can be given to Pose2Sim or
+    aniposelib as the views of the exported mirror camera.
+
+    Args:
+        keypoints: ``(..., J, 2)`` or ``(..., J, 3)`` (x, y[, confidence]) of the
+            reflection, in the detector's labels, raw pixels (with distortion).
+        image_width: ``W``, pixels.
+        skeleton: the layout (a :class:`~mirrorgraph.skeletons.Skeleton` or its
+            name), or the ``(J,)`` left/right permutation itself.
+
+    Returns:
+        New ``(..., J, 2|3)`` array: entry ``j`` holds the detector's joint
+        ``flip[j]`` with ``x`` mirrored. Missing joints (NaN, or confidence
+        ``<= 0``, e.g. OpenPose's ``0, 0, 0``) are moved but left as they were.
+    """
+    kp = np.array(keypoints, dtype=float)
+    if kp.ndim < 2 or kp.shape[-1] not in (2, 3):
+        raise ValueError(f"keypoints must have shape (..., J, 2|3), got {kp.shape}")
+    if isinstance(skeleton, str):
+        skeleton = skeleton_by_name(skeleton)
+    perm = skeleton.flip if isinstance(skeleton, Skeleton) else np.asarray(skeleton, dtype=int)
+    if perm.shape != (kp.shape[-2],):
+        raise ValueError(f"{kp.shape[-2]} joints, but the left/right map has {perm.shape}")
+    out = kp[..., perm, :].copy()
+    seen = np.isfinite(out[..., 0])
+    if out.shape[-1] == 3:
+        seen &= out[..., 2] > 0
+    out[..., 0] = np.where(seen, float(image_width) - out[..., 0], out[..., 0])
+    return out
+
+
+def world_rotation(world: str) -> np.ndarray:
+    """``(3, 3)`` rotation ``A`` of ``X_world = A X_camera`` for a ``world=`` choice."""
+    if world not in WORLD_FRAMES:
+        raise InputError(f"unknown world frame {world!r}; choose one of "
+                         f"{', '.join(WORLD_FRAMES)}", field="world")
+    return WORLD_FRAMES[world].copy()
+
+
+# --------------------------------------------------------------------------- input
+def _read_calibration(calibration: Any
+                      ) -> tuple[np.ndarray, float | None, Intrinsics, str | None]:
+    """``(normal, distance or None, intrinsics, source)`` from any accepted input."""
+    if isinstance(calibration, Calibration):
+        return (np.asarray(calibration.normal, float), calibration.distance,
+                calibration.intrinsics, None)
+    if isinstance(calibration, (str, os.PathLike)):
+        src: str | None = str(calibration)
+        obj = load_json(calibration)
+    elif isinstance(calibration, Mapping):
+        src, obj = None, calibration
+    else:
+        raise TypeError("calibration must be a path, a dict or a Calibration, "
+                        f"got {type(calibration).__name__}")
+
+    def section(key: str) -> Mapping:
+        sec = obj.get(key) if isinstance(obj, Mapping) else None
+        if not isinstance(sec, Mapping):
+            raise InputError("missing or not an object (is this a mirrorgraph "
+                             "calibration.json?)", source=src, field=key)
+        return sec
+
+    mirror = section("mirror")
+    if "normal" not in mirror:
+        raise InputError("missing", source=src, field="mirror.normal")
+    n = numeric_array(mirror["normal"], 1, source=src, frame=None, field="mirror.normal")
+    if n.shape != (3,) or not np.isfinite(n).all() or np.linalg.norm(n) < 1e-9:
+        raise InputError(f"expected a finite non-zero 3-vector, got {mirror['normal']!r}",
+                         source=src, field="mirror.normal")
+    n = n / np.linalg.norm(n)
+    d = mirror.get("distance")
+    if d is not None:
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not np.isfinite(d) or d <= 0:
+            raise InputError(f"expected a positive number of metres or null, got {d!r}",
+                             source=src, field="mirror.distance")
+        d = float(d)
+    intr = section("intrinsics")
+    if "K" not in intr:
+        raise InputError("missing (the 3x3 camera matrix)", source=src, field="intrinsics.K")
+    K = _check_K(numeric_array(intr["K"], 2, source=src, frame=None, field="intrinsics.K"),
+                 src, "intrinsics.K")
+    dist = intr.get("dist")
+    if dist is not None:
+        dist = _check_dist(numeric_array(dist, None, source=src, frame=None,
+                                         field="intrinsics.dist"), src)
+    size = intr.get("image_size")
+    if size is not None:
+        if not (isinstance(size, (list, tuple)) and len(size) == 2):
+            raise InputError(f"expected [width, height], got {size!r}", source=src,
+                             field="intrinsics.image_size")
+        size = _check_size(size[0], size[1], src, "intrinsics.image_size")
+    approx = bool(intr.get("approximate", False))
+    return n, d, Intrinsics(K=K, dist=dist, image_size=size, source=str(intr.get("source", "")),
+                            approximate=approx), src
+
+
+# --------------------------------------------------------------------------- export
+def _style_distortion(d: np.ndarray, style: str, warnings: list[str]) -> np.ndarray:
+    """Coefficient vector in the length each tool writes (values unchanged)."""
+    # Pose2Sim writes (k1, k2, p1, p2), aniposelib (k1, k2, p1, p2, k3): shorter vectors
+    # are padded with zeros, longer ones cut when the extra terms are zero and otherwise
+    # kept whole (both tools undistort with OpenCV, which takes 4, 5, 8, 12 or 14).
+    n = 4 if style == "pose2sim" else 5
+    if d.size <= n or not np.any(d[n:]):
+        return np.pad(d[:n], (0, n - d[:n].size))
+    if style == "pose2sim":
+        return d
+    warnings.append(f"the lens has {d.size} distortion coefficients; aniposelib's "
+                    "undistortion uses OpenCV (all of them) but its own projection only the "
+                    "first 5 (k1, k2, p1, p2, k3)")
+    return d
+
+
+def _export(calibration, fmt, world, image_size):
+    style = FORMATS.get(str(fmt).lower())
+    if style is None:
+        raise InputError(f"unknown export format {fmt!r}; choose one of "
+                         f"{', '.join(FORMATS)}", field="format")
+    A = world_rotation(world)
+    n, d, intr, source = _read_calibration(calibration)
+    size = image_size if image_size is not None else intr.image_size
+    if size is None:
+        raise InputError("the image size is needed to flip the mirror view (u -> W - u) but "
+                         "the calibration has none: pass image_size=(W, H)",
+                         source=source, field="intrinsics.image_size")
+    size = _check_size(size[0], size[1], source, "image_size")
+    warnings: list[str] = []
+    if d is None:
+        warnings.append("the calibration has no metric scale (mirror.distance is null): "
+                        "translations are in units of the mirror distance (d = 1), not "
+                        "metres; calibrate with --subject-height for metres")
+    if intr.approximate:
+        warnings.append("the intrinsics are a field-of-view guess: both cameras are "
+                        "approximate, and so is what the tools triangulate")
+    R_v, t_v = geo.virtual_camera_from_mirror(n, 1.0 if d is None else d)
+    At = A.T                                   # world -> real camera: X_cam = A^T X_world
+    dist = None if intr.dist is None else np.asarray(intr.dist, float)
+    real_dist = np.zeros(0) if dist is None else dist.copy()
+    (k_real, name_real), (k_mirror, name_mirror) = _KEYS[style]
+    real = TomlCamera(key=k_real, name=name_real, matrix=intr.K.copy(),
+                      distortions=_style_distortion(real_dist, style, warnings), size=size,
+                      rotation=rotation_to_rodrigues(At), translation=np.zeros(3))
+    mirror = TomlCamera(key=k_mirror, name=name_mirror,
+                        matrix=flip_camera_matrix(intr.K, size[0]),
+                        distortions=_style_distortion(flip_distortion(dist), style, []),
+                        size=size, rotation=rotation_to_rodrigues(R_v @ At),
+                        translation=np.asarray(t_v, float).copy())
+    return [real, mirror], warnings, style, d, source
+
+
+def export_cameras(calibration: Calibration | Mapping | str | os.PathLike, fmt: str, *,
+                   world: str = "camera", image_size: tuple[int, int] | None = None
+                   ) -> tuple[list[TomlCamera], list[str]]:
+    """The real and the flipped mirror camera, ready for :func:`export_calibration`.
+
+    Args:
+        calibration: a ``calibration.json`` path, its parsed dict, or a
+            :class:`~mirrorgraph.calibration.Calibration`.
+        fmt: ``"pose2sim"`` or ``"anipose"`` (alias ``"aniposelib"``): section
+            keys, names and distortion vector lengths follow that tool.
+        world: ``"camera"`` (world = real camera frame) or ``"z_up"`` (see the
+            module docstring).
+        image_size: ``(width, height)`` px, overriding the calibration's
+            ``intrinsics.image_size`` (the width fixes the flip).
+
+    Returns:
+        ``([real, mirror], warnings)``: the two cameras (Rodrigues rotation,
+        translation in metres or mirror-distance units) and doubts in words.
+
+    Raises:
+        InputError: unknown ``fmt`` or ``world``, malformed calibration (naming the
+            file and field), or no image size.
+    """
+    cameras, warnings, *_ = _export(calibration, fmt, world, image_size)
+    return cameras, warnings
+
+
+def export_calibration(calibration: Calibration | Mapping | str | os.PathLike, fmt: str,
+                       out_path: str | os.PathLike, *, world: str = "camera",
+                       image_size: tuple[int, int] | None = None) -> list[str]:
+    """Write the real and the (flipped) mirror camera as a Pose2Sim or aniposelib file.
+
+    The file is a Pose2Sim ``Calib.toml`` (``fmt="pose2sim"``: sections
+    ``[cam_01]`` real, ``[cam_02]`` mirror, ``size`` as floats, ``fisheye =
+    false``) or an aniposelib ``calibration.toml`` (``fmt="anipose"``: ``[cam_0]``
+    named ``"real"``, ``[cam_1]`` named ``"mirror"``, 5 distortion
+    coefficients), each ending with ``[metadata] adjusted = false, error = 0.0``,
+    with a comment header that states the keypoint recipe. Written atomically.
+
+    The mirror camera is the camera of the horizontally flipped image: rotation
+    ``R = D (I - 2 n n^T)``, translation ``t = 2 d D n`` and camera matrix
+    ``K' = [[fx, -s, W - cx], [0, fy, cy], [0, 0, 1]]``, distortion with
+    ``p2, s1, s2, tauY`` negated (module docstring). Give it the reflection's
+    keypoints through :func:`flip_mirror_keypoints`.
+
+    Args:
+        calibration: a ``calibration.json`` path, its parsed dict, or a
+            :class:`~mirrorgraph.calibration.Calibration`.
+        fmt: ``"pose2sim"`` or ``"anipose"`` (alias ``"aniposelib"``).
+        out_path: the ``.toml`` file to write.
+        world: ``"camera"`` (default; triangulation gives mirrorgraph's
+            ``joints3d``) or ``"z_up"`` (X right, Y depth, Z up: for Pose2Sim's
+            OpenSim steps).
+        image_size: ``(width, height)`` px if the calibration has none.
+
+    Returns:
+        Warnings in words (no metric scale, approximate intrinsics, ...), to be
+        shown to the user; empty when there is nothing to say.
+
+    Raises:
+        InputError: see :func:`export_cameras`.
+
+    Example:
+        >>> warnings = export_calibration("calibration.json", "pose2sim",
+        ...                               "Calib.toml")        # doctest: +SKIP
+    """
+    from . import __version__
+
+    cameras, warnings, style, d, source = _export(calibration, fmt, world, image_size)
+    real, mirror = cameras
+    header = _HEADER.format(
+        version=__version__,
+        source=Path(source).name if source else "a calibration in memory",
+        real=real.key, mirror=mirror.key,
+        W=f"{real.size[0]:d}",
+        world={"camera": "the real camera frame (x right, y down, z forward)",
+               "z_up": "X right, Y forward (depth), Z up (camera (x, z, -y))"}[world],
+        unit="metres" if d is not None else "mirror distance (scale unknown)")
+    write_camera_toml(out_path, cameras, style, header=header)
+    return warnings
