@@ -196,6 +196,9 @@ def _add_synth(sub) -> None:
     p.add_argument("--single", type=_rate, default=0.0,
                    help="rate of frames with only one of the two people detected")
     p.add_argument("--distortion", type=_floats, default=None, metavar="k1,k2,p1,p2,k3")
+    p.add_argument("--motion", default=None, metavar="FILE.bvh",
+                   help="real motion capture (BVH, e.g. ../shared/data/cmu_01_01.bvh) instead "
+                        "of the procedural exercise motion; resampled to 30 fps")
     p.add_argument("--formats", default="mmpose,openpose,easymocap,npz",
                    help="comma-separated formats to write")
     _add_common(p)
@@ -216,7 +219,8 @@ def _cmd_synth(args) -> int:
                        noise_std=args.noise, outlier_rate=args.outliers,
                        lr_swap_rate=args.lr_swaps, missing_rate=args.missing,
                        extra_person_rate=args.extra_people, single_person_rate=args.single,
-                       distortion=None if args.distortion is None else np.array(args.distortion))
+                       distortion=None if args.distortion is None else np.array(args.distortion),
+                       motion=args.motion)
     paths = write_scene(scene, args.out, formats=tuple(f.strip() for f in args.formats.split(",")))
     say = _say(args)
     say(f"wrote a {args.frames}-frame {args.skeleton} scene to {args.out}:")

@@ -6,6 +6,9 @@ A person with individually varied, left/right symmetric proportions
 pose detector (noise, outliers, left/right swaps, missing joints and people,
 bystanders, lens distortion) (:mod:`.scene`); :func:`write_scene` writes the
 detections in every supported format with the ground truth (:mod:`.writer`).
+Instead of the procedural exercises the person can move as a motion-capture
+take does: ``make_scene(motion="take.bvh")`` reads a CMU-skeleton BVH file and
+maps it to the body model's joints (:mod:`.bvh`).
 
     >>> from mirrorgraph.synth import make_scene
     >>> scene = make_scene(frames=300, seed=1, outlier_rate=0.05)

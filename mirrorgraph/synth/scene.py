@@ -33,6 +33,16 @@ height when not given; facing and camera tilt) is drawn again. With the default
 so infeasible short mirror distances are redrawn: the distribution of the
 distance actually used leans to the far end of 2.5-4.5 m.
 
+Real motion: with ``motion="take.bvh"`` a motion-capture take replaces the
+procedural motion (:mod:`~mirrorgraph.synth.bvh`: CMU skeleton mapped to the
+body model's joints, resampled to ``fps``, in the same body frame; the first
+``frames`` frames, played back and forth when the take is shorter). The
+subject's height is then the skeleton's own standing height, or
+``subject_height`` when given (the take is scaled to it); everything else
+(placement, detector model) is unchanged. A take that travels far (the CMU
+playground jumps cover 3.7 m) needs a long enough view: if no placement fits,
+use fewer frames, a wider field of view or a larger mirror distance.
+
 Detector model (MirrorCalib, Liao, Zheng and Mitchell): every observed
 coordinate gets Gaussian noise of mean ``noise_mean`` and standard deviation
 ``noise_std`` pixels (added after lens distortion, i.e. in the image). Then:
@@ -61,6 +71,7 @@ coordinate gets Gaussian noise of mean ``noise_mean`` and standard deviation
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -121,6 +132,13 @@ class SyntheticScene:
         placement: how the person was placed: ``R_body`` (body frame -> camera),
             ``origin`` (body-frame origin, on the floor, in camera coordinates),
             ``facing`` ("camera"/"mirror"), ``attempts``, ``margin_px``.
+        motion: with a motion-capture take (``make_scene(motion=...)``): ``file``,
+            ``source_fps``, ``source_frames``, ``skipped`` (leading reference
+            frames left out), ``take_frames`` (frames after resampling),
+            ``pingpong`` (the take was shorter than ``frames``),
+            ``skeleton_height`` (m) and ``scale`` (subject height / skeleton
+            height); ``None`` with the procedural motion (``body`` is then set;
+            with a take it is ``None``).
     """
 
     K: np.ndarray
@@ -152,6 +170,7 @@ class SyntheticScene:
     options: dict[str, Any] = field(default_factory=dict)
     body: BodyModel | None = None
     placement: dict[str, Any] = field(default_factory=dict)
+    motion: dict[str, Any] | None = None
 
     def __len__(self) -> int:
         return int(self.joints3d.shape[0])
@@ -305,7 +324,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                noise_std: float = 4.0, outlier_rate: float = 0.0, lr_swap_rate: float = 0.0,
                missing_rate: float = 0.0, extra_person_rate: float = 0.0,
                single_person_rate: float = 0.0, distortion: Any = None,
-               fps: float = 30.0) -> SyntheticScene:
+               fps: float = 30.0, motion: str | os.PathLike | None = None
+               ) -> SyntheticScene:
     """Generate a synthetic mirror scene (see the module docstring for the model).
 
     Args:
@@ -319,7 +339,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
             uniform 10-60 deg); the normal turns left or right of the axis
             (azimuth within +-20 deg of horizontal).
         mirror_distance: ``d`` in metres (``None``: uniform 2.5-4.5).
-        subject_height: metres (``None``: uniform 1.55-1.95).
+        subject_height: metres (``None``: uniform 1.55-1.95, or with ``motion``
+            the skeleton's own height).
         noise_mean, noise_std: Gaussian detector noise per coordinate, px.
         outlier_rate: fraction of observations replaced by gross errors.
         lr_swap_rate: fraction of frames whose reflection is labelled unflipped.
@@ -329,10 +350,14 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         distortion: ``(5,)`` OpenCV coefficients ``k1, k2, p1, p2, k3`` (4 also
             accepted) applied to the observations, or ``None``.
         fps: frame rate.
+        motion: a BVH motion-capture take (CMU skeleton) to use instead of the
+            procedural motion (see the module docstring and
+            :mod:`mirrorgraph.synth.bvh`); recorded in ``options["motion"]``.
 
     Raises:
         ValueError: an option out of range, or no placement satisfies the
             constraints with the parameters given.
+        InputError: ``motion`` cannot be read or is not a usable BVH take.
     """
     options = dict(frames=frames, seed=seed, skeleton=skeleton if isinstance(skeleton, str)
                    else skeleton.name, image_size=list(image_size), fov_deg=fov_deg,
@@ -342,7 +367,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    missing_rate=missing_rate, extra_person_rate=extra_person_rate,
                    single_person_rate=single_person_rate,
                    distortion=None if distortion is None else
-                   [float(v) for v in np.asarray(distortion, dtype=float).ravel()], fps=fps)
+                   [float(v) for v in np.asarray(distortion, dtype=float).ravel()], fps=fps,
+                   motion=None if motion is None else os.fspath(motion))
     T = int(frames)
     if T < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
@@ -381,10 +407,22 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
 
     rng = np.random.default_rng(seed)
     K = _camera_matrix(rng, size, fov_deg)
-    body = make_body(rng)
-    motion = generate_motion(body, T, fps, rng)          # (T, 25, 3), units of height
-    local = np.ascontiguousarray(motion[:, cols])        # (T, J, 3)
-    del motion
+    take_info = None
+    if motion is None:
+        body = make_body(rng)
+        full = generate_motion(body, T, fps, rng)        # (T, 25, 3), units of height
+        take_height = None
+    else:
+        from .bvh import motion_for_scene
+        body = None
+        full, take = motion_for_scene(motion, T, fps)    # (T, 25, 3), units of height
+        take_height = take.height
+        take_info = dict(file=take.source, source_fps=take.source_fps,
+                         source_frames=take.source_frames, skipped=take.skipped,
+                         take_frames=len(take), pingpong=T > len(take),
+                         skeleton_height=take.height)
+    local = np.ascontiguousarray(full[:, cols])          # (T, J, 3)
+    del full
     hull = _hull_points(local.reshape(-1, 3))
     centre = local.reshape(-1, 3).mean(0)
 
@@ -392,8 +430,9 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     margin = 0.04 * min(w, h)
     chosen = None
     for attempt in range(_MAX_ATTEMPTS):
-        if attempt == 0 or subject_height is None:
-            H_m = float(subject_height) if subject_height is not None else rng.uniform(1.55, 1.95)
+        if attempt == 0 or (subject_height is None and take_height is None):
+            H_m = (float(subject_height) if subject_height is not None
+                   else take_height if take_height is not None else rng.uniform(1.55, 1.95))
         if attempt == 0 or mirror_angle_deg is None:
             ang = np.radians(mirror_angle_deg if mirror_angle_deg is not None
                              else rng.uniform(10.0, 60.0))
@@ -448,11 +487,16 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         fixed = [k for k, v in (("mirror_angle_deg", mirror_angle_deg),
                                 ("mirror_distance", mirror_distance),
                                 ("subject_height", subject_height)) if v is not None]
+        if motion is not None:
+            fixed.append("motion" + ("" if subject_height is not None
+                                     else f" (subject {take_height:.2f} m)"))
         raise ValueError(
             "cannot place the person so that they and their reflection stay inside the "
             f"{w}x{h} image with a {fov_deg:g} deg field of view"
             + (f" with the given {', '.join(fixed)}" if fixed else "")
-            + "; try a wider field of view, a larger mirror distance or a shorter subject")
+            + ("; try fewer frames, a wider field of view or a larger mirror distance"
+               if motion is not None else
+               "; try a wider field of view, a larger mirror distance or a shorter subject"))
 
     # ------------------------------------------------------------- observations
     obs_clean = np.stack([ri, mi])                          # (2, T, J, 2) in the image
@@ -494,7 +538,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         outlier_mask_mirror=outl[1], lr_swapped=swap, real_image=ri, mirror_image=mi,
         real_observed=obs[0], mirror_observed=obs[1], missing_real=miss[0],
         missing_mirror=miss[1], real_detected=detected[0], mirror_detected=detected[1],
-        extra_person=extra, seed=seed, options=options, body=body, placement=chosen)
+        extra_person=extra, seed=seed, options=options, body=body, placement=chosen,
+        motion=None if take_info is None else dict(take_info, scale=float(H_m) / take_height))
 
 
 def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
