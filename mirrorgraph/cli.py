@@ -56,6 +56,16 @@ def _rate(text: str) -> float:
     return v
 
 
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return v
+
+
 def _floats(text: str) -> tuple[float, ...]:
     try:
         return tuple(float(x) for x in text.split(","))
@@ -101,7 +111,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--fps", type=_positive, default=None,
                    help="frame rate for the 3D motion where the input does not carry it "
                         "(default 30)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the RANSAC (default 0)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the RANSAC (default 0)")
     _add_common(p)
     p.set_defaults(func=_cmd_calibrate)
 
@@ -117,6 +127,8 @@ def _cmd_calibrate(args) -> int:
     if Path(args.out).is_dir():
         raise InputError("is a folder; give a file name for the calibration JSON",
                          source=args.out, field="--out")
+    if args.joints3d and args.no_refine:
+        raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
     if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
         raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
                          field="--joints3d")
@@ -176,7 +188,7 @@ def _add_synth(sub) -> None:
                                    "format, camera.json and ground_truth.json.")
     p.add_argument("--out", required=True, help="folder to write")
     p.add_argument("--frames", type=int, default=1000)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--skeleton", default="COCO_17", choices=("COCO_17", "BODY_25", "COCO_18"))
     p.add_argument("--image-size", type=_image_size, default=(1920, 1080), metavar="WxH")
     p.add_argument("--fov", type=_positive, default=60.0, metavar="DEG")
@@ -236,7 +248,7 @@ def _add_demo(sub) -> None:
                                    "MirrorCalib's noise), write it as MMPose keypoints, "
                                    "calibrate from the file and compare with the truth.")
     p.add_argument("--frames", type=int, default=1000)
-    p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--seed", type=_seed, default=7)
     p.add_argument("--keep", metavar="DIR", help="keep the scene and results in DIR")
     _add_common(p)
     p.set_defaults(func=_cmd_demo)
@@ -332,13 +344,20 @@ def _step(args, name: str) -> None:
         print(f"... {name}", file=sys.stderr)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors, like every other error of the CLI."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        self.exit(EXIT_INPUT, f"error: {self.prog}: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mirrorgraph",
         description="Calibrate a planar mirror's virtual camera from the people in the "
                     "video, and turn mirror videos into 3D motion.")
     parser.add_argument("--version", action="version", version=f"mirrorgraph {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_calibrate(sub)
     _add_synth(sub)
     _add_demo(sub)
@@ -349,7 +368,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mirrorgraph`` command; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:          # --help, --version, or a usage error
+        return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     try:
         return int(args.func(args) or 0)
     except MirrorgraphError as exc:

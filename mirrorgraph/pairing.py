@@ -235,9 +235,12 @@ def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
     mirror = _masked(paired.mirror, opts.min_confidence)
     frames = np.arange(len(real))
     sub = _spread_subset(frames, opts.ransac_frames)
-    e, _, _, _ = estimate_epipole(real[sub][:, joints, :2].reshape(-1, 2),
-                                  mirror[sub][:, joints, :2].reshape(-1, 2),
-                                  threshold_px=opts.threshold_px, seed=opts.seed)
+    try:
+        e, _, _, _ = estimate_epipole(real[sub][:, joints, :2].reshape(-1, 2),
+                                      mirror[sub][:, joints, :2].reshape(-1, 2),
+                                      threshold_px=opts.threshold_px, seed=opts.seed)
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     flip = sk.flip
     keep = _median_distance(e, real, mirror, joints, opts.min_joints)
     swap = _median_distance(e, real, mirror[:, flip], joints, opts.min_joints)

@@ -99,6 +99,48 @@ def resolve_intrinsics(intrinsics: Intrinsics | None, data: RawDetections | Pair
     return intrinsics_from_fov(size, options.fov_deg)
 
 
+#: Keypoints count as outside the image beyond this margin (fraction of each side).
+IMAGE_MARGIN = 0.10
+
+
+def _fraction_outside(data: RawDetections | PairedKeypoints, size: tuple[int, int]) -> float:
+    """Fraction of detected joints outside the image enlarged by :data:`IMAGE_MARGIN`."""
+    if isinstance(data, PairedKeypoints):
+        pts = np.concatenate([data.real.reshape(-1, 3), data.mirror.reshape(-1, 3)])
+    else:
+        pts = np.concatenate([p.reshape(-1, 3) for p in data.people] or [np.empty((0, 3))])
+    pts = pts[(pts[:, 2] > 0) & np.isfinite(pts[:, :2]).all(1)]
+    if len(pts) == 0:
+        return 0.0
+    w, h = size
+    lo = -IMAGE_MARGIN * np.array([w, h])
+    hi = (1 + IMAGE_MARGIN) * np.array([w, h])
+    return float(np.mean(((pts[:, :2] < lo) | (pts[:, :2] > hi)).any(1)))
+
+
+def check_image_size(data: RawDetections | PairedKeypoints, intr: Intrinsics,
+                     warnings: list[str]) -> None:
+    """Compare the keypoints with the image size the intrinsics belong to.
+
+    Most keypoints outside the image mean the keypoints and K are not in the
+    same pixels (a resized video, the wrong camera file). With real intrinsics
+    that is a warning (the result stands if K is right for the keypoints);
+    with a K guessed from that very size it is an :class:`InputError`.
+    """
+    if intr.image_size is None:
+        return
+    frac = _fraction_outside(data, intr.image_size)
+    if frac <= 0.5:
+        return
+    w, h = intr.image_size
+    msg = (f"{100 * frac:.0f}% of the keypoints lie outside the {w}x{h} image: the keypoints "
+           "and the intrinsics do not seem to be in the same pixels")
+    if intr.approximate:
+        raise InputError(msg + "; give the video's real size", source=data.source,
+                         field="image_size")
+    warnings.append(msg + " (resized video? wrong camera file?)")
+
+
 def _undistort(data, intr: Intrinsics):
     if intr.dist is None or not np.any(intr.dist):
         return data
@@ -150,6 +192,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     if opts.estimator not in ESTIMATORS:
         raise InputError(f"unknown estimator {opts.estimator!r}; choose one of "
                          f"{', '.join(ESTIMATORS)}", field="estimator")
+    if isinstance(opts.seed, bool) or not isinstance(opts.seed, (int, np.integer)) or opts.seed < 0:
+        raise InputError(f"must be a non-negative integer, got {opts.seed!r}", field="seed")
     if opts.subject_height is not None and not (0.5 < opts.subject_height < 2.8):
         raise InputError(f"subject height {opts.subject_height} m is not a human height "
                          "(0.5 to 2.8 m)", field="subject_height")
@@ -159,9 +203,10 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         step("reading keypoints")
         keypoints = read_keypoints(keypoints)
     warnings: list[str] = []
+    joints = _joint_indices(keypoints.skeleton, opts.joints)
     intr = resolve_intrinsics(intrinsics, keypoints, opts, warnings)
+    check_image_size(keypoints, intr, warnings)
     data = _undistort(keypoints, intr)
-    joints = _joint_indices(data.skeleton, opts.joints)
     pair_opts = PairingOptions(min_confidence=opts.min_confidence,
                                threshold_px=opts.threshold_px, seed=opts.seed)
     step("pairing person and reflection")
@@ -180,8 +225,11 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     u = paired.real[t_idx, j_idx, :2]
     um = paired.mirror[t_idx, j_idx, :2]
     step(f"initial estimate ({opts.estimator})")
-    est = estimate_mirror(u, um, intr.K, estimator=opts.estimator,
-                          threshold_px=opts.threshold_px, seed=opts.seed)
+    try:
+        est = estimate_mirror(u, um, intr.K, estimator=opts.estimator,
+                              threshold_px=opts.threshold_px, seed=opts.seed)
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     inliers = np.zeros_like(valid)
     inliers[t_idx[est.inliers], j_idx[est.inliers]] = True
     if np.count_nonzero(inliers) < MIN_PAIRS:
