@@ -1,0 +1,21 @@
+"""The factor graph of the mirror refinement: rig, builder, optimiser, entry point.
+
+* :mod:`.rig`: cameras (fixed poses), mirrors, views and their observations;
+* :mod:`.builder`: variables, initial values and factors of a rig;
+* :mod:`.options`: :class:`RefineOptions` (weights, kernels, gauge, solver; tuned defaults);
+* :mod:`.optimizer`: Levenberg-Marquardt driven from Python over GTSAM's elimination;
+* :mod:`.reduction`: the mirror link as an exact constraint (reduced global coordinates);
+* :mod:`.outliers`: rejection by reprojection residual and by bone-length consistency;
+* :mod:`.chunked`: videos too long for one graph (spread subset, then chunks);
+* :mod:`.result`: :class:`RefinementResult` and the normal-to-rotation uncertainty;
+* :mod:`.refine`: :func:`refine_mirror`, the pipeline from paired keypoints to
+  :class:`RefinementResult`.
+"""
+
+from .options import RefineOptions
+from .refine import refine_mirror
+from .result import RefinementResult, rotation_std_from_normal_cov
+from .rig import Camera, Mirror, Rig, View, single_mirror_rig
+
+__all__ = ["Camera", "Mirror", "RefineOptions", "RefinementResult", "Rig", "View",
+           "refine_mirror", "rotation_std_from_normal_cov", "single_mirror_rig"]

@@ -1,0 +1,163 @@
+"""Options of the factor-graph refinement (:func:`mirrorgraph.graph.refine_mirror`).
+
+Every prior's weight is given as a standard deviation ``sigma`` (weight
+``1 / sigma^2`` in the whitened least-squares objective). Lengths are relative
+to the subject's height ``h`` in the graph's length unit: the given
+``subject_height`` (metres), or without it the height implied by the initial
+triangulation's median bone lengths and Winter's proportions (in units of the
+mirror distance). That keeps the defaults valid whatever the gauge.
+
+How the defaults were chosen (synthetic scenes of
+:func:`mirrorgraph.synth.make_scene`, COCO-17, 1000 frames at 30 fps, 4 px noise,
+seeds 0-9, initial normal 1 deg off; paired comparisons: every setting on the same
+noise draws, plus Monte Carlo noise draws on fixed scenes; ``/bench/bench_graph.py``
+reproduces the protocol):
+
+* ``pixel_sigma`` is the noise the paper simulates; the Geman-McClure scale of
+  2.5 sigma and the 2x-scale rejection threshold keep every inlier (their 99.9th
+  percentile residual is ~13 px) and cut outliers displaced by 30-150 px.
+* The bone, symmetry and anthropometry sigmas change the median mirror error
+  by less than 1 % either way (10 seeds, against no body prior at all): the
+  mirror's information is in the epipolar residuals, which constant bones do
+  not touch. They are set as loose bounds for real people (a detector's
+  "joints" move within the body by a few percent of a bone; the synthetic bones
+  are rigid) and they make the body metric, symmetric and outliers visible.
+* ``smoothness_sigma`` is the one that matters: tight smoothing *biases* the
+  mirror on noisy data (Monte Carlo on one scene, 16 draws: mean rotation error
+  0.31 deg at 0.003 h, 0.09 deg at 0.01 h, within noise of no smoothing from
+  0.05 h; 10 seeds, median error 0.064 deg at 0.01 h, 0.053 at 0.2 h, 0.046
+  without). 0.2 h per frame^2 (about ten times the synthetic motion's peak
+  acceleration) keeps the prior as a guard against wild per-frame depths
+  without moving the mirror.
+* ``hip_sigma`` (BODY-25 only): 0.1, the hips are colinear to a few degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["RefineOptions"]
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """Weights, kernel, gauge and solver settings of the refinement.
+
+    Attributes:
+        pixel_sigma: standard deviation of a keypoint coordinate, px (the
+            paper's simulated detector noise is 4 px). ``lambda_repro = 1 / sigma^2``.
+        robust_kernel: ``"geman_mcclure"`` (the paper), ``"huber"``, ``"cauchy"``,
+            ``"tukey"`` or ``None``.
+        kernel_scale_px: the kernel's scale in the first (reprojection-only,
+            outlier-hunting) solve, px of residual norm: 2.5 sigma keeps ~80 %
+            weight for typical inliers and < 1 % beyond 30 px.
+        final_kernel: kernel of the solves with the body priors, after the first
+            outlier rejection: ``"auto"`` (default), a kernel name, or ``None``
+            (least squares). ``"auto"`` is least squares when the first pass
+            rejected fewer than ``auto_kernel_fraction`` of the pairs (clean
+            data: least squares on the inliers is the efficient estimator and
+            converges in two iterations, where a Geman-McClure kernel made the
+            first step overshoot and cost one to two more), else Geman-McClure
+            (keypoints displaced along their epipolar line survive the first
+            rejection and only show once the body priors pull them back; on a
+            10 %-outlier scene least squares left 0.33 deg, Geman-McClure at
+            20 px 0.04 deg).
+        final_kernel_scale_px: scale of that kernel.
+        auto_kernel_fraction: see ``final_kernel``.
+        outlier_threshold_px: after the first solve, a pair whose reprojection
+            residual exceeds this in either view is dropped; ``None``:
+            ``2 * kernel_scale_px`` (Geman-McClure weight < 4 %).
+        bone_outlier_k: a joint whose bones in a frame are all farther than this
+            many robust standard deviations from their median length is an
+            outlier too (0: off); catches keypoints displaced along the
+            epipolar line, which reprojection cannot see.
+        bone_sigma: ``L_var``, a bone's length about its constant value, fraction of ``h``.
+        symmetry_sigma: ``L_sym``, left minus right length, fraction of ``h``.
+        anthropometry_sigma: ``L_anth``, the ratio length / femur about Winter's (absolute).
+        hip_sigma: ``L_hip``, the normalised cross product (~ sine of the hip angle).
+        smoothness_sigma: ``L_smooth``, acceleration per frame^2, fraction of ``h``.
+        smoothness_max_gap: longest frame step bridged by a smoothness factor.
+        use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
+            switch each prior (the hip prior also needs a mid-hip joint; the
+            subject-height gauge needs the bone lengths, so it keeps them on).
+        subject_height: standing height in metres: fixes the scale (metres);
+            ``None``: the mirror distance is 1.
+        height_sigma: relative standard deviation of the subject's sum of bone
+            lengths about Winter's proportions times the height (added to the
+            reported ``distance_std``; the synthetic bodies vary by 3 % per
+            segment, which gives 1-2 % on the sum).
+        link_sigma_rotation, link_sigma_translation: sigmas of the mirror-link
+            factor (rad, length unit) when it is used as a soft factor
+            (``GraphProblem.full(links=True)`` for GTSAM's own optimisers); the
+            refinement itself enforces the link exactly (:mod:`.reduction`).
+        max_iterations: Levenberg-Marquardt iterations (linear solves) per solve.
+        outlier_pass_iterations: cap of the first full solve when outliers were
+            found before it (it only has to expose the rest for the second rejection).
+        relative_tolerance: stop when an iteration lowers the error by less
+            than this fraction.
+        global_step_tolerance: or when it moved the mirror (and bone lengths) by
+            less than this many standard deviations (Mahalanobis length).
+        warm_start_iterations: iterations on the reprojection terms alone before
+            the first full solve (cheap: no coupling between points).
+        warm_start_frames: frames (spread over the video) in that warm start; every
+            pair is then triangulated with its mirror for the first rejection.
+        max_graph_frames: longest video solved as one graph; longer ones are
+            solved on a spread subset of this many frames, then in chunks of at
+            most this many frames sharing the mirror and the bone lengths
+            (:mod:`mirrorgraph.graph.chunked`; one graph of 1000 frames x 12
+            joints peaks at ~100 MB).
+        chunk_block_frames: length of the contiguous blocks of that subset.
+        chunk_passes: most passes over the chunks (each ends with a shared step
+            of the mirror and bone lengths).
+        chunk_step_tolerance: stop the passes when that step (which is applied)
+            is shorter than this many standard deviations; each pass leaves about a
+            tenth of its step (measured: 7.5, 0.92, 0.02 sigma over three passes on
+            10,000 frames), so one sigma leaves ~0.1 sigma and saves a pass.
+        marginals: compute the plane's covariance.
+    """
+
+    pixel_sigma: float = 4.0
+    robust_kernel: str | None = "geman_mcclure"
+    kernel_scale_px: float = 10.0
+    final_kernel: str | None = "auto"
+    final_kernel_scale_px: float = 20.0
+    auto_kernel_fraction: float = 0.01
+    outlier_threshold_px: float | None = None
+    bone_outlier_k: float = 5.0
+
+    bone_sigma: float = 0.01
+    symmetry_sigma: float = 0.005
+    anthropometry_sigma: float = 0.05
+    hip_sigma: float = 0.1
+    smoothness_sigma: float = 0.2
+    smoothness_max_gap: int = 4
+    use_bone_length: bool = True
+    use_symmetry: bool = True
+    use_anthropometry: bool = True
+    use_hip: bool = True
+    use_smoothness: bool = True
+
+    subject_height: float | None = None
+    height_sigma: float = 0.02
+
+    link_sigma_rotation: float = 1e-6
+    link_sigma_translation: float = 1e-6
+
+    max_iterations: int = 20
+    outlier_pass_iterations: int = 5
+    relative_tolerance: float = 1e-5
+    global_step_tolerance: float = 0.05
+    warm_start_iterations: int = 4
+    warm_start_frames: int = 300
+    max_graph_frames: int = 2000
+    chunk_block_frames: int = 250
+    chunk_passes: int = 3
+    chunk_step_tolerance: float = 1.0
+    marginals: bool = True
+
+    @property
+    def outlier_threshold(self) -> float:
+        """The outlier threshold in pixels, default resolved."""
+        if self.outlier_threshold_px is not None:
+            return float(self.outlier_threshold_px)
+        return 2.0 * float(self.kernel_scale_px)

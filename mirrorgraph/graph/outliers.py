@@ -1,0 +1,76 @@
+"""Outlier rejection between solves: reprojection residuals and bone-length consistency.
+
+Two complementary tests, both on the current estimate:
+
+* :func:`reprojection_outliers` -- a pair whose reprojection residual exceeds
+  a threshold in either view. It cannot see a keypoint displaced *along its
+  epipolar line*: the point simply moves in depth and both views fit.
+* :func:`bone_outliers` -- those depth errors break the body instead: the
+  bones at the joint come out too long or too short. A bone is inconsistent
+  in a frame when its length is more than ``k`` robust standard deviations
+  (1.4826 MAD over the frames, at least ``min_rel`` of the median) from its
+  median; a joint is rejected in that frame when *all* its measured bones are
+  inconsistent, keeping, for each inconsistent bone, only the end with more
+  inconsistent bones (a displaced elbow spoils the humerus and the ulna; the
+  wrist, whose only bone is the ulna, is then spared).
+
+Shapes: ``(T, J, 3)`` points in the world frame, ``(T, J)`` masks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .builder import GraphProblem, extract_planes, extract_points, view_residuals
+
+__all__ = ["reprojection_outliers", "bone_outliers"]
+
+
+def reprojection_outliers(problem: GraphProblem, values, threshold: float) -> np.ndarray:
+    """``(T, J)`` bool: used pairs whose residual exceeds ``threshold`` px in some view."""
+    pts = extract_points(problem, values)
+    res = view_residuals(problem.rig, pts, problem.used, extract_planes(problem, values))
+    bad = np.zeros_like(problem.used)
+    for r in res:
+        bad |= r > threshold
+    return bad & problem.used
+
+
+def bone_outliers(points: np.ndarray, used: np.ndarray, bones: np.ndarray, *, k: float = 5.0,
+                  min_rel: float = 0.03) -> np.ndarray:
+    """``(T, J)`` bool: joints whose every bone in that frame has an implausible length.
+
+    Args:
+        points: ``(T, J, 3)`` current 3D joints.
+        used: ``(T, J)`` bool, the estimated joints.
+        bones: ``(B, 2)`` joint indices of the bones.
+        k: threshold in robust standard deviations.
+        min_rel: floor of the robust standard deviation, relative to the median length.
+    """
+    T, J = used.shape
+    bones = np.asarray(bones, dtype=int).reshape(-1, 2)
+    if len(bones) == 0:
+        return np.zeros((T, J), dtype=bool)
+    a, b = bones[:, 0], bones[:, 1]
+    seen = used[:, a] & used[:, b]                                           # (T, B)
+    length = np.where(seen, np.linalg.norm(np.nan_to_num(points[:, a] - points[:, b]), axis=-1),
+                      np.nan)
+    med = np.nanmedian(np.where(seen, length, np.nan), axis=0)             # (B,)
+    mad = np.nanmedian(np.abs(length - med), axis=0) * 1.4826
+    scale = np.maximum(np.nan_to_num(mad), min_rel * np.nan_to_num(med))
+    bad = seen & (np.abs(length - med) > k * np.maximum(scale, 1e-12))     # (T, B)
+
+    n_bad = np.zeros((T, J), dtype=int)
+    n_seen = np.zeros((T, J), dtype=int)
+    for col, end in ((a, 0), (b, 1)):
+        np.add.at(n_bad, (slice(None), col), bad.astype(int))
+        np.add.at(n_seen, (slice(None), col), seen.astype(int))
+    cand = (n_bad > 0) & (n_bad == n_seen)
+    # of the two ends of an inconsistent bone keep the one with more inconsistent bones
+    spare = np.zeros((T, J), dtype=bool)
+    for i in range(len(bones)):
+        both = bad[:, i] & cand[:, a[i]] & cand[:, b[i]]
+        na, nb = n_bad[:, a[i]], n_bad[:, b[i]]
+        spare[both & (na > nb), b[i]] = True
+        spare[both & (nb > na), a[i]] = True
+    return cand & ~spare & used

@@ -1,0 +1,160 @@
+"""The rig: cameras, mirrors and the views they form, with their observations.
+
+A *view* is what one camera sees either directly (``mirror=None``) or through
+one mirror. MirrorCalib's setting is one camera and one mirror, i.e. two views
+of the same person: ``("cam", None)`` and ``("cam", "mirror")``. The graph
+builder only iterates over views, so more cameras (fixed, known poses) or more
+mirrors need no other code.
+
+Frames and units: every pose and plane is in the *world* frame, which for
+:func:`single_mirror_rig` is the real camera frame of :mod:`mirrorgraph.geometry`
+(x right, y down, z forward). Camera poses are camera-to-world ``(4, 4)``;
+pixels are undistorted, origin top-left.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from ..skeletons import Skeleton
+
+__all__ = ["Camera", "Mirror", "View", "Rig", "single_mirror_rig"]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A calibrated camera with a fixed pose.
+
+    Attributes:
+        name: identifier.
+        K: ``(3, 3)`` intrinsics (pixels).
+        pose: ``(4, 4)`` camera-to-world transform (identity: the camera defines
+            the world frame).
+    """
+
+    name: str
+    K: np.ndarray
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def gtsam_pose(self) -> gtsam.Pose3:
+        """:attr:`pose` as a :class:`gtsam.Pose3`."""
+        return gtsam.Pose3(np.asarray(self.pose, dtype=float))
+
+
+@dataclass(frozen=True)
+class Mirror:
+    """A planar mirror ``n . X = d`` (world frame) and its initial estimate.
+
+    Attributes:
+        name: identifier.
+        normal: ``(3,)`` initial unit normal, pointing away from the camera(s).
+        distance: initial ``d > 0`` (length unit of the scene).
+    """
+
+    name: str
+    normal: np.ndarray
+    distance: float = 1.0
+
+
+@dataclass(frozen=True)
+class View:
+    """One camera looking directly or through one mirror, with its keypoints.
+
+    Attributes:
+        name: identifier.
+        camera: name of the :class:`Camera`.
+        mirror: name of the :class:`Mirror`, or ``None`` for the direct view.
+        pixels: ``(T, J, 2)`` observed keypoints (undistorted pixels), indexed by
+            the real joint they image (the reflection's labels already flipped).
+        mask: ``(T, J)`` bool, observations to use (seen and an inlier).
+    """
+
+    name: str
+    camera: str
+    mirror: str | None
+    pixels: np.ndarray
+    mask: np.ndarray
+
+
+@dataclass
+class Rig:
+    """Cameras, mirrors and views of one recording.
+
+    Attributes:
+        cameras: the cameras, by name order of insertion.
+        mirrors: the mirrors.
+        views: the views (at least two must see a joint for it to be estimated).
+        skeleton: keypoint layout of the ``J`` joints.
+        frame_ids: ``(T,)`` increasing frame numbers (gaps allowed).
+        joints: ``(k,)`` joint indices to estimate.
+    """
+
+    cameras: tuple[Camera, ...]
+    mirrors: tuple[Mirror, ...]
+    views: tuple[View, ...]
+    skeleton: Skeleton
+    frame_ids: np.ndarray
+    joints: np.ndarray
+
+    def camera(self, name: str) -> Camera:
+        """The camera called ``name``."""
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    def mirror_index(self, name: str) -> int:
+        """Index of the mirror called ``name`` in :attr:`mirrors`."""
+        for i, m in enumerate(self.mirrors):
+            if m.name == name:
+                return i
+        raise KeyError(name)
+
+    @property
+    def num_frames(self) -> int:
+        """``T``."""
+        return int(len(self.frame_ids))
+
+    def subset(self, rows) -> "Rig":
+        """The same rig restricted to frame rows ``rows`` (slice, indices or bool mask)."""
+        from dataclasses import replace
+        views = tuple(replace(v, pixels=np.asarray(v.pixels)[rows], mask=np.asarray(v.mask)[rows])
+                      for v in self.views)
+        return replace(self, views=views, frame_ids=np.asarray(self.frame_ids)[rows])
+
+    def observation_count(self) -> np.ndarray:
+        """``(T, J)`` int: number of views using each joint (only :attr:`joints` count)."""
+        count = np.zeros((self.num_frames, self.skeleton.num_joints), dtype=int)
+        for v in self.views:
+            count += np.asarray(v.mask, dtype=bool)
+        keep = np.zeros(self.skeleton.num_joints, dtype=bool)
+        keep[np.asarray(self.joints, dtype=int)] = True
+        return count * keep[None, :]
+
+
+def single_mirror_rig(skeleton: Skeleton, frame_ids: np.ndarray, K: np.ndarray,
+                      real: np.ndarray, mirror: np.ndarray, mask: np.ndarray,
+                      normal: np.ndarray, distance: float, joints: np.ndarray) -> Rig:
+    """MirrorCalib's rig: one camera at the world origin and one mirror.
+
+    Args:
+        skeleton: keypoint layout.
+        frame_ids: ``(T,)`` frame numbers.
+        K: ``(3, 3)`` intrinsics.
+        real, mirror: ``(T, J, 2)`` direct and mirror-view pixels (flipped labels).
+        mask: ``(T, J)`` pairs to use in both views.
+        normal, distance: initial plane ``n . X = d``.
+        joints: ``(k,)`` joint indices.
+    """
+    cam = Camera("camera", np.asarray(K, dtype=float))
+    mir = Mirror("mirror", np.asarray(normal, dtype=float), float(distance))
+    mask = np.asarray(mask, dtype=bool)
+    views = (View("direct", cam.name, None, np.asarray(real, dtype=float), mask),
+             View("mirror", cam.name, mir.name, np.asarray(mirror, dtype=float), mask))
+    return Rig(cameras=(cam,), mirrors=(mir,), views=views, skeleton=skeleton,
+               frame_ids=np.asarray(frame_ids, dtype=np.int64),
+               joints=np.asarray(joints, dtype=int))

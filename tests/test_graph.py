@@ -1,0 +1,283 @@
+"""The factor graph end to end: rig, builder, optimiser, refine_mirror, chunked solve.
+
+Scenes come from mirrorgraph.synth.make_scene (4 px detector noise as in MirrorCalib's
+protocol); the initial mirror is the true one tilted by 1 deg, i.e. a 2 deg error of the
+virtual camera's rotation.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import pytest
+
+from mirrorgraph import geometry as geo
+from mirrorgraph.graph import (Camera, Mirror, RefineOptions, Rig, View, refine_mirror,
+                               rotation_std_from_normal_cov)
+from mirrorgraph.graph.builder import build_problem, extract_planes
+from mirrorgraph.graph.chunked import chunk_ranges, spread_blocks
+from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams
+from mirrorgraph.graph.reduction import mirror_reduction
+from mirrorgraph.keypoints import PairedKeypoints
+from mirrorgraph.skeletons import COCO_17
+from mirrorgraph.synth import make_scene
+
+
+# --------------------------------------------------------------------------- helpers
+def rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
+    """Angle of R_est^T R_true for the virtual cameras of two mirror normals."""
+    R1 = geo.virtual_camera_from_mirror(n_est, 1.0)[0]
+    R2 = geo.virtual_camera_from_mirror(n_true, 1.0)[0]
+    c = (np.trace(R1.T @ R2) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def tilted(n: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:
+    a = rng.normal(size=3)
+    a -= (a @ n) * n
+    a /= np.linalg.norm(a)
+    m = np.cos(np.radians(deg)) * n + np.sin(np.radians(deg)) * a
+    return m / np.linalg.norm(m)
+
+
+def noisy_copy(scene, rng: np.random.Generator, std: float = 4.0) -> PairedKeypoints:
+    """The scene's clean keypoints with fresh Gaussian noise (same geometry, new draw)."""
+    base = scene.paired()
+    real, mirror = base.real.copy(), base.mirror.copy()
+    real[..., :2] = scene.real_clean + rng.normal(0.076, std, scene.real_clean.shape)
+    mirror[..., :2] = scene.mirror_clean + rng.normal(0.076, std, scene.mirror_clean.shape)
+    return PairedKeypoints(skeleton=base.skeleton, frame_ids=base.frame_ids, real=real,
+                           mirror=mirror)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_scene(frames=300, seed=3, noise_std=4.0)
+
+
+@pytest.fixture(scope="module")
+def refined(scene):
+    p = scene.paired()
+    n0 = tilted(scene.normal, 1.0, np.random.default_rng(0))
+    calls = []
+    res = refine_mirror(p, scene.K, n0, p.valid(),
+                        options=RefineOptions(subject_height=scene.subject_height),
+                        progress=lambda i, e: calls.append((i, e)))
+    return p, n0, res, calls
+
+
+# --------------------------------------------------------------------------- refine_mirror
+def test_refined_is_better_than_the_initial_mirror(scene, refined):
+    _, n0, res, _ = refined
+    init = rotation_error_deg(n0, scene.normal)
+    err = rotation_error_deg(res.normal, scene.normal)
+    assert init == pytest.approx(2.0, abs=1e-6)
+    assert err < 0.25 * init
+    assert err < 4.0 * res.rotation_std_deg
+
+
+def test_result_fields(scene, refined):
+    p, _, res, calls = refined
+    T, J = p.real.shape[:2]
+    assert res.joints3d.shape == (T, J, 3) and res.valid.shape == (T, J)
+    assert np.isfinite(res.joints3d[res.valid]).all()
+    assert np.isnan(res.joints3d[~res.valid]).all()
+    assert not res.valid[:, scene.skeleton.index("nose")].any()       # not a calibration joint
+    assert res.scale == "subject_height"
+    assert res.normal_cov.shape == (3, 3)
+    assert np.allclose(res.normal_cov @ res.normal, 0.0, atol=1e-12)  # tangent to the sphere
+    assert res.rotation_std_deg == pytest.approx(rotation_std_from_normal_cov(res.normal_cov))
+    assert 0 < res.distance_std < 0.1 * res.distance
+    assert 1.0 < res.rms_direct_px < 6.0 and 1.0 < res.rms_mirror_px < 6.0
+    assert res.iterations >= len(calls) >= 2          # solves; progress counts accepted steps
+    assert calls[-1][1] == pytest.approx(res.final_error)
+    assert set(res.timings) >= {"build", "solve", "marginals", "total"}
+    assert {"reprojection", "bone_length", "symmetry", "anthropometry", "smoothness",
+            "length_sum_gauge"} <= set(res.priors)
+    assert "hip" not in res.priors                                    # COCO has no mid-hip
+    assert set(res.bone_lengths) == {b for b in scene.skeleton.bone_names}
+
+
+def test_metric_distance_with_known_height(scene, refined):
+    _, _, res, _ = refined
+    assert res.distance == pytest.approx(scene.distance, rel=0.03)
+    # and the body comes out metric too
+    femur = np.mean([res.bone_lengths["left_femur"], res.bone_lengths["right_femur"]])
+    true = np.linalg.norm(scene.joints3d[0, scene.skeleton.index("left_hip")]
+                          - scene.joints3d[0, scene.skeleton.index("left_knee")])
+    assert femur == pytest.approx(true, rel=0.05)
+
+
+def test_unit_distance_without_height(scene, refined):
+    p, n0, metric, _ = refined
+    res = refine_mirror(p, scene.K, n0, p.valid())
+    assert res.scale == "unit_distance" and res.distance == 1.0 and res.distance_std == 0.0
+    # the same mirror (the gauge does not change it), the joints in units of d
+    assert rotation_error_deg(res.normal, metric.normal) < 0.2 * metric.rotation_std_deg
+    both = res.valid & metric.valid
+    np.testing.assert_allclose(res.joints3d[both] * metric.distance, metric.joints3d[both],
+                               atol=0.01)
+
+
+def test_marginal_std_agrees_with_the_error_spread():
+    """Several noise draws on one scene: RMS error vs the reported RMS std (factor 2)."""
+    scene = make_scene(frames=200, seed=5, noise_std=0.0)
+    rng = np.random.default_rng(11)
+    errs, stds = [], []
+    for _ in range(6):
+        p = noisy_copy(scene, rng)
+        res = refine_mirror(p, scene.K, tilted(scene.normal, 1.0, rng), p.valid(),
+                            options=RefineOptions(subject_height=scene.subject_height))
+        errs.append(rotation_error_deg(res.normal, scene.normal))
+        stds.append(res.rotation_std_deg)
+    rms_err = float(np.sqrt(np.mean(np.square(errs))))
+    std = float(np.mean(stds))
+    assert 0.5 < rms_err / std < 2.0, (errs, stds)
+
+
+def test_frame_gaps_do_not_break_smoothness():
+    scene = make_scene(frames=300, seed=4, noise_std=4.0)
+    p = scene.paired()
+    keep = np.ones(len(p), dtype=bool)
+    keep[[40, 41, 90]] = False          # short gaps: bridged by non-uniform differences
+    keep[150:190] = False               # a long gap: no factor across it
+    q = PairedKeypoints(skeleton=p.skeleton, frame_ids=p.frame_ids[keep], real=p.real[keep],
+                        mirror=p.mirror[keep])
+    res = refine_mirror(q, scene.K, tilted(scene.normal, 1.0, np.random.default_rng(2)),
+                        q.valid(), options=RefineOptions(subject_height=scene.subject_height))
+    assert rotation_error_deg(res.normal, scene.normal) < 4.0 * res.rotation_std_deg
+    # the smoothness factors: every joint, consecutive estimates, no step longer than 4
+    fid = q.frame_ids
+    expected = 0
+    for j in scene.skeleton.calibration_joints:
+        rows = np.flatnonzero(res.valid[:, j])
+        steps = np.diff(fid[rows])
+        expected += int(np.count_nonzero((steps[:-1] <= 4) & (steps[1:] <= 4)))
+    assert res.priors["smoothness"]["factors"] == expected
+    # joints on either side of the long gap are estimated, and move smoothly
+    assert res.valid[149].any() and res.valid[150].any()
+
+
+def test_outliers_are_rejected_and_the_mirror_stays_accurate():
+    scene = make_scene(frames=300, seed=6, noise_std=4.0, outlier_rate=0.1)
+    p = scene.paired()
+    n0 = tilted(scene.normal, 1.0, np.random.default_rng(3))
+    res = refine_mirror(p, scene.K, n0, p.valid(),
+                        options=RefineOptions(subject_height=scene.subject_height))
+    outlier = (scene.outlier_mask_real | scene.outlier_mask_mirror) & p.valid()
+    calib = np.zeros(outlier.shape[1], dtype=bool)
+    calib[scene.skeleton.calibration_joints] = True
+    outlier &= calib
+    kept = np.count_nonzero(res.inliers & outlier) / np.count_nonzero(outlier)
+    assert kept < 0.25                          # most outliers rejected...
+    assert np.count_nonzero(res.inliers & ~outlier) > 0.9 * np.count_nonzero(~outlier & calib
+                                                                               & p.valid())
+    err = rotation_error_deg(res.normal, scene.normal)
+    assert err < 4.0 * res.rotation_std_deg      # ...and the mirror is as good as its std says
+    assert res.distance == pytest.approx(scene.distance, rel=0.05)
+
+
+def test_long_video_is_solved_in_chunks():
+    scene = make_scene(frames=700, seed=7, noise_std=4.0)
+    p = scene.paired()
+    n0 = tilted(scene.normal, 1.0, np.random.default_rng(4))
+    opts = RefineOptions(subject_height=scene.subject_height)
+    single = refine_mirror(p, scene.K, n0, p.valid(), options=opts)
+    from dataclasses import replace
+    chunked = refine_mirror(p, scene.K, n0, p.valid(),
+                            options=replace(opts, max_graph_frames=300, chunk_block_frames=100))
+    assert any(s["name"].startswith("chunk pass") for s in chunked.stages)
+    assert rotation_error_deg(chunked.normal, single.normal) < 0.5 * single.rotation_std_deg
+    assert chunked.rotation_std_deg == pytest.approx(single.rotation_std_deg, rel=0.2)
+    assert chunked.valid.sum() > 0.95 * single.valid.sum()
+    both = chunked.valid & single.valid
+    assert np.median(np.linalg.norm(chunked.joints3d[both] - single.joints3d[both], axis=-1)) \
+        < 0.01
+
+
+def test_chunk_helpers():
+    m = spread_blocks(1000, 300, 100)
+    assert m.sum() == 300
+    assert m[:100].all() and m[-100:].all()
+    assert spread_blocks(200, 300, 100).all()
+    r = chunk_ranges(1000, 300)
+    assert r[0][0] == 0 and r[-1][1] == 1000 and len(r) == 4
+    assert all(b - a <= 300 for a, b in r)
+
+
+def test_bad_inputs():
+    scene = make_scene(frames=20, seed=1)
+    p = scene.paired()
+    from mirrorgraph.errors import DegenerateGeometryError, InputError
+    with pytest.raises(InputError):
+        refine_mirror(p, scene.K, scene.normal, p.valid()[:5])
+    with pytest.raises(InputError):
+        refine_mirror(p, scene.K, np.zeros(3), p.valid())
+    with pytest.raises(DegenerateGeometryError):
+        refine_mirror(p, scene.K, scene.normal, np.zeros_like(p.valid()))
+
+
+# --------------------------------------------------------------------------- the rig is generic
+def test_two_mirrors_in_one_rig():
+    """Three views (direct + two mirrors): both planes recovered by the same machinery."""
+    rng = np.random.default_rng(12)
+    K = np.array([[1400.0, 0.0, 960.0], [0.0, 1400.0, 540.0], [0.0, 0.0, 1.0]])
+    mirrors = [(np.array([0.35, 0.0, 1.0]), 4.0), (np.array([-0.4, 0.1, 1.0]), 3.5)]
+    mirrors = [(n / np.linalg.norm(n), d) for n, d in mirrors]
+    T, J = 30, COCO_17.num_joints
+    pts = rng.uniform([-0.5, -0.7, 2.2], [0.5, 0.7, 2.8], size=(T, J, 3))
+    joints = COCO_17.calibration_joints
+    mask = np.zeros((T, J), dtype=bool)
+    mask[:, joints] = True
+    cam = Camera("cam", K)
+    views = [View("direct", "cam", None, geo.project(K, pts), mask)]
+    for i, (n, d) in enumerate(mirrors):
+        views.append(View(f"m{i}", "cam", f"mirror{i}",
+                          geo.project(K, geo.reflect_points(pts, n, d)), mask))
+    rig = Rig(cameras=(cam,), mirrors=tuple(Mirror(f"mirror{i}", n, d)
+                                             for i, (n, d) in enumerate(mirrors)),
+              views=tuple(views), skeleton=COCO_17, frame_ids=np.arange(T), joints=joints)
+    start = [(tilted(n, 1.0, rng), d * (1.02 if i else 1.0)) for i, (n, d) in enumerate(mirrors)]
+    noisy = pts + rng.normal(scale=0.01, size=pts.shape)
+    opts = RefineOptions(robust_kernel=None)
+    problem = build_problem(rig, noisy, mask, start, opts, priors=False)
+    assert len(problem.virtual_keys) == 2 and len(problem.plane_keys) == 2
+    red = mirror_reduction(problem, with_lengths=False, distance_gauge=mirrors[0][1])
+    lm = LevenbergMarquardt(problem.reprojection, red, LMParams(max_iterations=15),
+                            ordering=problem.point_ordering())
+    res = lm.optimize(problem.values)
+    assert res.converged
+    for (n_true, d_true), (n, d) in zip(mirrors, extract_planes(problem, res.values)):
+        assert rotation_error_deg(n, n_true) < 1e-4
+        assert d == pytest.approx(d_true, rel=1e-6)
+
+
+def test_reduced_marginals_match_dense_inverse():
+    from mirrorgraph.graph.optimizer import reduced_marginals
+    from gtsam.symbol_shorthand import L, P
+    from mirrorgraph.factors import plane_to_gtsam
+    rng = np.random.default_rng(13)
+    A = rng.normal(size=(12, 7))
+    H = A.T @ A
+    values = gtsam.Values()
+    values.insert(L(0), np.ones(4))
+    values.insert(P(0), plane_to_gtsam(np.array([0.0, 0.0, 1.0]), 2.0))
+    m = reduced_marginals(H, [(L(0), 4), (P(0), 3)], values)
+    np.testing.assert_allclose(m.marginalCovariance(P(0)), np.linalg.inv(H)[4:, 4:],
+                               rtol=1e-8, atol=1e-12)
+
+
+def test_rotation_std_is_twice_the_normal_spread():
+    """Isotropic tangent covariance sigma^2: the RMS rotation is 2 sqrt(2) sigma."""
+    n = np.array([0.0, 0.0, 1.0])
+    sigma = np.radians(0.01)
+    cov = sigma ** 2 * (np.eye(3) - np.outer(n, n))
+    assert rotation_std_from_normal_cov(cov) == pytest.approx(np.degrees(2 * np.sqrt(2) * sigma))
+    # Monte Carlo: normals drawn with that covariance, virtual-camera rotation errors
+    rng = np.random.default_rng(0)
+    errs = []
+    for _ in range(400):
+        m = n + rng.multivariate_normal(np.zeros(3), cov)
+        errs.append(rotation_error_deg(m / np.linalg.norm(m), n))
+    rms = np.sqrt(np.mean(np.square(errs)))
+    assert rms == pytest.approx(rotation_std_from_normal_cov(cov), rel=0.1)
