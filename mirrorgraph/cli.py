@@ -162,6 +162,9 @@ def _cmd_calibrate(args) -> int:
     for w in calib.warnings:
         print(f"warning: {w}", file=sys.stderr)
     say(calib.summary())
+    if args.verbose and not args.quiet:
+        print("timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in run.timings.items()),
+              file=sys.stderr)
     say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
     return 0
 
@@ -199,6 +202,10 @@ def _add_synth(sub) -> None:
     p.add_argument("--noise", type=float, default=4.0, metavar="PX",
                    help="detector noise std in pixels (default 4, as MirrorCalib)")
     p.add_argument("--noise-mean", type=float, default=0.076, metavar="PX")
+    p.add_argument("--noise-correlation", type=_rate, default=0.0, metavar="RHO",
+                   help="frame-to-frame correlation of the detector noise (AR(1), < 1)")
+    p.add_argument("--joint-bias", type=float, default=0.0, metavar="PX",
+                   help="std of a constant per-joint offset of the detector, pixels")
     p.add_argument("--outliers", type=_rate, default=0.0, help="outlier rate")
     p.add_argument("--lr-swaps", type=_rate, default=0.0,
                    help="rate of frames whose reflection has left/right swapped")
@@ -222,6 +229,8 @@ def _cmd_synth(args) -> int:
 
     if args.frames < 1:
         raise InputError("must be at least 1", field="--frames")
+    if args.noise_correlation >= 1.0:
+        raise InputError("must be below 1", field="--noise-correlation")
     if args.distortion is not None and len(args.distortion) != 5:
         raise InputError("needs 5 coefficients k1,k2,p1,p2,k3", field="--distortion")
     scene = make_scene(frames=args.frames, seed=args.seed, skeleton=args.skeleton,
@@ -232,7 +241,8 @@ def _cmd_synth(args) -> int:
                        lr_swap_rate=args.lr_swaps, missing_rate=args.missing,
                        extra_person_rate=args.extra_people, single_person_rate=args.single,
                        distortion=None if args.distortion is None else np.array(args.distortion),
-                       motion=args.motion)
+                       motion=args.motion, noise_correlation=args.noise_correlation,
+                       joint_bias_px=args.joint_bias)
     paths = write_scene(scene, args.out, formats=tuple(f.strip() for f in args.formats.split(",")))
     say = _say(args)
     say(f"wrote a {args.frames}-frame {args.skeleton} scene to {args.out}:")

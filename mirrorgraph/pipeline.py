@@ -10,6 +10,7 @@ collects what a user should know about the run (warnings, counts).
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -73,6 +74,9 @@ class CalibrationRun:
             else in units of the mirror distance), NaN where not estimated;
             ``None`` without refinement.
         valid3d: ``(T, J)`` bool mask of ``joints3d``.
+        timings: wall seconds per step (``pairing``, ``initialisation``,
+            ``build``, ``solve``, ``marginals``); kept out of the JSON so that
+            the same input gives byte-identical output.
     """
 
     calibration: Calibration
@@ -81,7 +85,7 @@ class CalibrationRun:
     joints: np.ndarray
     joints3d: np.ndarray | None = None
     valid3d: np.ndarray | None = None
-    extra: dict = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
 
 
 def resolve_intrinsics(intrinsics: Intrinsics | None, data: RawDetections | PairedKeypoints,
@@ -210,11 +214,13 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     pair_opts = PairingOptions(min_confidence=opts.min_confidence,
                                threshold_px=opts.threshold_px, seed=opts.seed)
     step("pairing person and reflection")
+    clock = time.perf_counter()
     if isinstance(data, PairedKeypoints):
         paired = fix_left_right(data, joints, pair_opts)
     else:
         paired = pair_detections(data, joints, pair_opts)
 
+    t_pairing = time.perf_counter() - clock
     valid = paired.valid(opts.min_confidence)
     valid[:, np.setdiff1d(np.arange(paired.skeleton.num_joints), joints)] = False
     t_idx, j_idx = np.nonzero(valid)
@@ -225,6 +231,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     u = paired.real[t_idx, j_idx, :2]
     um = paired.mirror[t_idx, j_idx, :2]
     step(f"initial estimate ({opts.estimator})")
+    clock = time.perf_counter()
     try:
         est = estimate_mirror(u, um, intr.K, estimator=opts.estimator,
                               threshold_px=opts.threshold_px, seed=opts.seed)
@@ -232,6 +239,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     inliers = np.zeros_like(valid)
     inliers[t_idx[est.inliers], j_idx[est.inliers]] = True
+    t_init = time.perf_counter() - clock
     if np.count_nonzero(inliers) < MIN_PAIRS:
         raise DegenerateGeometryError(
             f"{paired.source}: only {np.count_nonzero(inliers)} pairs agree on one mirror "
@@ -251,7 +259,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                "min_confidence": opts.min_confidence, "threshold_px": opts.threshold_px,
                "seed": opts.seed},
         warnings=warnings)
-    run = CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints)
+    run = CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
+                         timings={"pairing": t_pairing, "initialisation": t_init})
     residual_median = float(np.median(est.residuals[est.inliers]))
     calib.refinement = {"initial_epipolar_median_px": residual_median}
     if opts.refine:
@@ -287,8 +296,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions) -> None:
         "rms_mirror_px": float(res.rms_mirror_px),
         "bone_lengths": {k: float(v) for k, v in res.bone_lengths.items()},
         "scale_source": res.scale,
-        "timings_s": {k: float(v) for k, v in res.timings.items()},
     })
+    run.timings.update({k: float(v) for k, v in res.timings.items() if k != "total"})
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),
         "rotation_std_deg": float(res.rotation_std_deg),

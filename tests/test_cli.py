@@ -155,3 +155,15 @@ def test_export_to_pose2sim_and_anipose(scene_dir, tmp_path, capsys):
         assert np.allclose(cx, sorted([K[0, 2], W - K[0, 2]]))
     # unknown scale: the export warns
     assert "warning" in capsys.readouterr().err
+
+
+def test_same_input_gives_byte_identical_output(scene_dir, tmp_path):
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"cal{k}.json"
+        j3d = tmp_path / f"j{k}.csv"
+        assert main(["calibrate", str(scene_dir / "easymocap"), "--intrinsics",
+                     str(scene_dir / "camera.json"), "--out", str(out), "--subject-height", "1.7",
+                     "--joints3d", str(j3d), "--quiet"]) == 0
+        outs.append((out.read_bytes(), j3d.read_bytes()))
+    assert outs[0] == outs[1]

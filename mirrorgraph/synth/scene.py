@@ -324,7 +324,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                noise_std: float = 4.0, outlier_rate: float = 0.0, lr_swap_rate: float = 0.0,
                missing_rate: float = 0.0, extra_person_rate: float = 0.0,
                single_person_rate: float = 0.0, distortion: Any = None,
-               fps: float = 30.0, motion: str | os.PathLike | None = None
+               fps: float = 30.0, motion: str | os.PathLike | None = None,
+               noise_correlation: float = 0.0, joint_bias_px: float = 0.0
                ) -> SyntheticScene:
     """Generate a synthetic mirror scene (see the module docstring for the model).
 
@@ -353,6 +354,13 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         motion: a BVH motion-capture take (CMU skeleton) to use instead of the
             procedural motion (see the module docstring and
             :mod:`mirrorgraph.synth.bvh`); recorded in ``options["motion"]``.
+        noise_correlation: correlation of each coordinate's noise from one frame
+            to the next (AR(1) coefficient in [0, 1); the standard deviation
+            stays ``noise_std``): a real detector's errors persist over frames.
+        joint_bias_px: standard deviation of a constant offset per view, joint
+            and coordinate, px: a real detector places some joints
+            consistently off (e.g. hips too high). Both are drawn from a
+            generator of their own, so scenes without them are unchanged.
 
     Raises:
         ValueError: an option out of range, or no placement satisfies the
@@ -368,7 +376,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    single_person_rate=single_person_rate,
                    distortion=None if distortion is None else
                    [float(v) for v in np.asarray(distortion, dtype=float).ravel()], fps=fps,
-                   motion=None if motion is None else os.fspath(motion))
+                   motion=None if motion is None else os.fspath(motion),
+                   noise_correlation=noise_correlation, joint_bias_px=joint_bias_px)
     T = int(frames)
     if T < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
@@ -381,6 +390,10 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         raise ValueError(f"fps must be positive, got {fps}")
     if noise_std < 0:
         raise ValueError(f"noise_std must be >= 0, got {noise_std}")
+    if not 0.0 <= noise_correlation < 1.0:
+        raise ValueError(f"noise_correlation must be in [0, 1), got {noise_correlation}")
+    if joint_bias_px < 0:
+        raise ValueError(f"joint_bias_px must be >= 0, got {joint_bias_px}")
     for name, v in (("outlier_rate", outlier_rate), ("lr_swap_rate", lr_swap_rate),
                     ("missing_rate", missing_rate), ("extra_person_rate", extra_person_rate),
                     ("single_person_rate", single_person_rate)):
@@ -501,7 +514,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     # ------------------------------------------------------------- observations
     obs_clean = np.stack([ri, mi])                          # (2, T, J, 2) in the image
     out = _observe(rng, obs_clean, size, noise_mean, noise_std, outlier_rate, missing_rate,
-                   single_person_rate)
+                   single_person_rate, noise_correlation, joint_bias_px,
+                   np.random.default_rng([0 if seed is None else int(seed), 7919]))
     obs, miss, outl, detected = out
     swap = (rng.random(T) < lr_swap_rate) & detected[1]
     flip = skel.flip
@@ -552,12 +566,29 @@ def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
     return conf
 
 
+def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: float
+                      ) -> np.ndarray:
+    """Unit-variance AR(1) noise along axis 1 (frames): ``e_t = rho e_(t-1) + sqrt(1-rho^2) w_t``."""
+    from scipy.signal import lfilter
+
+    w = rng.standard_normal(shape)
+    w[:, 0] /= np.sqrt(1.0 - rho ** 2)          # start in the stationary distribution
+    return lfilter([np.sqrt(1.0 - rho ** 2)], [1.0, -rho], w, axis=1)
+
+
 def _observe(rng: np.random.Generator, clean: np.ndarray, size: tuple[int, int],
              noise_mean: float, noise_std: float, outlier_rate: float, missing_rate: float,
-             single_person_rate: float):
+             single_person_rate: float, noise_correlation: float = 0.0,
+             joint_bias_px: float = 0.0, rng_detector: np.random.Generator | None = None):
     """Noisy detections ``(V, T, J, 3)`` of clean points ``(V, T, J, 2)``."""
     V, T, J, _ = clean.shape
-    if noise_std > 0:
+    if noise_correlation > 0 or joint_bias_px > 0:
+        xy = clean + noise_mean
+        if noise_std > 0:
+            xy = xy + noise_std * _correlated_noise(rng_detector, clean.shape, noise_correlation)
+        if joint_bias_px > 0:
+            xy = xy + rng_detector.normal(0.0, joint_bias_px, (V, 1, J, 2))
+    elif noise_std > 0:
         xy = rng.normal(noise_mean, noise_std, clean.shape)
         xy += clean
     else:
