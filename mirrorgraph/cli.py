@@ -112,6 +112,13 @@ def _add_calibrate(sub) -> None:
                    help="frame rate for the 3D motion where the input does not carry it "
                         "(default 30)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the RANSAC (default 0)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write the report's figures (PNG) into DIR (needs matplotlib: "
+                        "pip install 'mirrorgraph[plot]')")
+    p.add_argument("--video", metavar="FILE",
+                   help="with --report: draw the overlay on sampled frames of this video")
+    p.add_argument("--render", metavar="OUT.mp4",
+                   help="with --report and --video: write the whole overlay video")
     _add_common(p)
     p.set_defaults(func=_cmd_calibrate)
 
@@ -127,6 +134,11 @@ def _cmd_calibrate(args) -> int:
     if Path(args.out).is_dir():
         raise InputError("is a folder; give a file name for the calibration JSON",
                          source=args.out, field="--out")
+    if (args.video or args.render) and not args.report:
+        raise InputError("needs --report DIR", field="--video" if args.video else "--render")
+    if args.report:
+        from .report import require_matplotlib
+        require_matplotlib()          # fail before the long run, with the install hint
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
     if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
@@ -159,6 +171,10 @@ def _cmd_calibrate(args) -> int:
         write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
                        run.paired.skeleton.joints, args.fps or run.paired.fps or 30.0,
                        unit="m" if calib.distance is not None else "mirror distance")
+    if args.report:
+        from .report import make_report
+        make_report(run, args.report, video=args.video, render=args.render,
+                    progress=lambda s: _step(args, s), progress_bar=not args.quiet)
     for w in calib.warnings:
         print(f"warning: {w}", file=sys.stderr)
     say(calib.summary())
@@ -310,6 +326,38 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- report
+def _add_report(sub) -> None:
+    p = sub.add_parser("report", help="figures of a calibration: epipole, residuals, 3D view, "
+                                      "bone lengths, uncertainty",
+                       description="Write PNG figures of a calibration and, with --video, "
+                                   "overlays on the video (needs the plot extra).")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    p.add_argument("keypoints", help="the keypoints the calibration was made from")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder to write the figures into")
+    p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
+    p.add_argument("--video", metavar="FILE",
+                   help="draw joints, reflections and epipolar lines on sampled frames")
+    p.add_argument("--render", metavar="OUT.mp4", help="write the whole overlay video (needs --video)")
+    p.add_argument("--frames", type=int, default=6, help="video frames to sample (default 6)")
+    _add_common(p)
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(args) -> int:
+    from .io import read_keypoints
+    from .report import make_report, require_matplotlib, run_from_calibration
+
+    require_matplotlib()
+    data = read_keypoints(args.keypoints, skeleton=args.skeleton)
+    run = run_from_calibration(args.calibration, data)
+    out = make_report(run, args.out, video=args.video, render=args.render,
+                      max_frames=args.frames, progress=lambda s: _step(args, s),
+                      progress_bar=not args.quiet)
+    _say(args)(f"wrote {len(out)} files into {args.out}")
+    return 0
+
+
 # --------------------------------------------------------------------------- export
 def _add_export(sub) -> None:
     p = sub.add_parser("export", help="write the real and virtual camera for Pose2Sim / aniposelib",
@@ -372,6 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_synth(sub)
     _add_demo(sub)
     _add_export(sub)
+    _add_report(sub)
     return parser
 
 

@@ -1,0 +1,231 @@
+"""Overlays on the video: joints, their reflections and the epipolar lines (OpenCV).
+
+The keypoints of a run are undistorted; the video is not. Points and lines are
+distorted back with the camera's coefficients before drawing, so an epipolar
+line of a camera with distortion is drawn as the curve it is in the image.
+
+Frame ``k`` of the video carries the keypoints whose frame id is ``k``; video
+frames without keypoints are written unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .. import geometry as geo
+from ..errors import InputError
+from ..progress import Progress
+
+# BGR, the report's palette
+REAL = (180, 119, 31)
+MIRROR = (14, 127, 255)
+INLIER = (44, 160, 44)
+OUTLIER = (40, 39, 214)
+EPIPOLE = (0, 215, 255)
+
+
+def distort(intr, pts: np.ndarray) -> np.ndarray:
+    """Undistorted (pinhole) pixels ``(N, 2)`` -> pixels of the real lens."""
+    pts = np.asarray(pts, float).reshape(-1, 2)
+    if not intr.has_distortion or len(pts) == 0:
+        return pts
+    rays = np.hstack([pts, np.ones((len(pts), 1))]) @ np.linalg.inv(intr.K).T
+    out, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), intr.K,
+                               np.asarray(intr.dist, float))
+    return out.reshape(-1, 2)
+
+
+def _line_in_image(e_h: np.ndarray, u: np.ndarray, size) -> np.ndarray | None:
+    """Two end points of the line through ``e`` (homogeneous) and ``u`` within the image."""
+    w, h = size
+    line = np.cross(e_h, np.array([u[0], u[1], 1.0]))
+    a, b, c = line
+    hits = []
+    for x in (0.0, float(w)):
+        if abs(b) > 1e-12:
+            y = -(a * x + c) / b
+            if -1 <= y <= h + 1:
+                hits.append((x, y))
+    for y in (0.0, float(h)):
+        if abs(a) > 1e-12:
+            x = -(b * y + c) / a
+            if -1 <= x <= w + 1:
+                hits.append((x, y))
+    if len(hits) < 2:
+        return None
+    hits = np.array(hits)
+    i, j = np.unravel_index(np.argmax(np.linalg.norm(hits[:, None] - hits[None], axis=-1)),
+                            (len(hits), len(hits)))
+    return hits[[i, j]]
+
+
+def _ipt(p) -> tuple[int, int]:
+    return int(round(float(p[0]))), int(round(float(p[1])))
+
+
+def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier: np.ndarray,
+                 valid: np.ndarray, run, *, label: str = "") -> np.ndarray:
+    """Draw one frame's pairs on a BGR image (in place; also returned).
+
+    Args:
+        frame: ``(H, W, 3)`` uint8 BGR.
+        real, mirror: ``(J, 2)`` undistorted pixels of the joints and reflections.
+        inlier, valid: ``(J,)`` bool: pair kept by the run / pair usable.
+        run: the :class:`~mirrorgraph.pipeline.CalibrationRun` (intrinsics, skeleton).
+        label: text written in the top-left corner.
+    """
+    intr = run.calibration.intrinsics
+    size = (frame.shape[1], frame.shape[0])
+    scale = max(1, round(min(size) / 540))
+    e_h = geo.epipole_from_normal(intr.K, run.calibration.normal)
+    for j in np.flatnonzero(valid):
+        ends = _line_in_image(e_h, real[j], size)
+        if ends is None:
+            continue
+        s = np.linspace(0, 1, 48)[:, None]
+        pts = distort(intr, ends[0] * (1 - s) + ends[1] * s)
+        cv2.polylines(frame, [np.round(pts).astype(np.int32).reshape(-1, 1, 2)], False,
+                      INLIER if inlier[j] else OUTLIER, scale, cv2.LINE_AA)
+    for P, colour in ((real, REAL), (mirror, MIRROR)):
+        Q = np.full_like(P, np.nan)
+        ok = np.isfinite(P).all(1)
+        Q[ok] = distort(intr, P[ok])
+        for a, b in run.paired.skeleton.bone_index:
+            if ok[a] and ok[b]:
+                cv2.line(frame, _ipt(Q[a]), _ipt(Q[b]), colour, 2 * scale, cv2.LINE_AA)
+        for j in np.flatnonzero(ok):
+            cv2.circle(frame, _ipt(Q[j]), 3 * scale, colour, -1, cv2.LINE_AA)
+    e_px = geo.epipole_pixels(e_h)
+    if e_px is not None and 0 <= e_px[0] < size[0] and 0 <= e_px[1] < size[1]:
+        cv2.drawMarker(frame, _ipt(distort(intr, e_px[None])[0]), EPIPOLE, cv2.MARKER_STAR,
+                       20 * scale, 2 * scale)
+    _legend(frame, label, scale)
+    return frame
+
+
+def _legend(frame: np.ndarray, label: str, scale: int) -> None:
+    rows = [(label, (255, 255, 255)), ("person", REAL), ("reflection", MIRROR),
+            ("epipolar line, inlier", INLIER), ("epipolar line, outlier", OUTLIER)]
+    rows = [r for r in rows if r[0]]
+    fs, th, dy = 0.5 * scale, max(1, scale), int(22 * scale)
+    cv2.rectangle(frame, (4, 4), (int(230 * scale), 10 + dy * len(rows)), (0, 0, 0), -1)
+    for i, (text, colour) in enumerate(rows):
+        cv2.putText(frame, text, (10, int(4 + dy * (i + 0.8))), cv2.FONT_HERSHEY_SIMPLEX, fs,
+                    colour, th, cv2.LINE_AA)
+
+
+def _open(video) -> tuple[cv2.VideoCapture, int, tuple[int, int], float]:
+    cap = cv2.VideoCapture(str(video))
+    if not cap.isOpened():
+        raise InputError("cannot be read as a video (OpenCV)", source=str(video), field="--video")
+    count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+    fps = float(cap.get(cv2.CAP_PROP_FPS)) or 30.0
+    return cap, count, size, fps
+
+
+def _check_size(run, size, video) -> None:
+    want = run.calibration.intrinsics.image_size or run.paired.image_size
+    if want is not None and tuple(want) != tuple(size):
+        raise InputError(f"is {size[0]}x{size[1]} but the keypoints and intrinsics are "
+                         f"{want[0]}x{want[1]}: is it the video they come from?",
+                         source=str(video), field="--video")
+
+
+def _frame_rows(run) -> dict[int, int]:
+    return {int(f): i for i, f in enumerate(run.paired.frame_ids)}
+
+
+def _pairs(run, row: int, data=None) -> tuple[np.ndarray, ...]:
+    p = run.paired
+    conf = run.calibration.input.get("min_confidence", 0.3)
+    valid = p.valid(conf)[row]
+    mask = np.zeros_like(valid)
+    mask[np.asarray(run.joints, int)] = True
+    valid &= mask
+    real = np.where((p.real[row, :, 2] > conf)[:, None], p.real[row, :, :2], np.nan)
+    mirror = np.where((p.mirror[row, :, 2] > conf)[:, None], p.mirror[row, :, :2], np.nan)
+    return real, mirror, np.asarray(run.inliers, bool)[row], valid
+
+
+def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *,
+                    count: int = 6, data=None) -> dict[str, Path]:
+    """Draw the overlay on ``count`` frames spread over the video; PNG per frame.
+
+    Returns:
+        ``overlay_<frame>`` -> path of each PNG written.
+    """
+    cap, nframes, size, _fps = _open(video)
+    try:
+        _check_size(run, size, video)
+        rows = _frame_rows(run)
+        p = run.paired
+        have = [f for f, r in rows.items() if p.valid(0.0)[r].any() and (nframes <= 0 or f < nframes)]
+        if not have:
+            raise InputError("no frame of the video has keypoints (frame ids "
+                             f"{int(p.frame_ids[0])}..{int(p.frame_ids[-1])}, video of "
+                             f"{nframes} frames)", source=str(video), field="--video")
+        have = np.array(sorted(have))
+        picks = np.unique(have[np.linspace(0, len(have) - 1, min(count, len(have)))
+                               .round().astype(int)])
+        out = {}
+        for f in picks:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, int(f))
+            ok, img = cap.read()
+            if not ok:
+                continue
+            real, mirror, inl, valid = _pairs(run, rows[int(f)])
+            draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {int(f)}")
+            path = Path(out_dir) / f"overlay_{int(f):06d}.png"
+            cv2.imwrite(str(path), img)
+            out[f"overlay_{int(f):06d}"] = path
+        return out
+    finally:
+        cap.release()
+
+
+def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=None,
+                 progress_bar: bool = True) -> Path:
+    """Write the whole video with the overlay to ``out`` (mp4, codec ``mp4v``).
+
+    Frames are written as read (same size and frame rate); a progress bar is
+    drawn on stderr when it is a terminal. The file appears only when complete.
+    """
+    cap, nframes, size, fps = _open(video)
+    out = Path(out)
+    tmp = out.with_name(f".{out.stem}.part{out.suffix}")
+    writer = None
+    try:
+        _check_size(run, size, video)
+        rows = _frame_rows(run)
+        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        if not writer.isOpened():
+            raise InputError("cannot be written as mp4 (OpenCV)", source=str(out),
+                             field="--render")
+        with Progress("rendering overlay", total=nframes if nframes > 0 else None,
+                      enabled=progress_bar) as bar:
+            k = 0
+            while True:
+                ok, img = cap.read()
+                if not ok:
+                    break
+                if k in rows:
+                    real, mirror, inl, valid = _pairs(run, rows[k])
+                    draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {k}")
+                writer.write(img)
+                k += 1
+                bar.update()
+        writer.release()
+        writer = None
+        os.replace(tmp, out)
+        return out
+    finally:
+        cap.release()
+        if writer is not None:
+            writer.release()
+        if tmp.exists():
+            tmp.unlink()
