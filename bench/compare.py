@@ -78,7 +78,7 @@ here to noiseless projections:
   the reflection's joint the detector calls ``j``; on top of the protocol's
   4 px noise.
 
-Outputs: ``RESULTS_compare.md`` (tables), ``compare_<sweep>.png`` (median and
+Outputs: ``RESULTS.md`` (tables), ``compare_<sweep>.png`` (median and
 inter-quartile band per method), ``compare_protocol.png`` and
 ``compare_results.json`` (every number, for ``--replot``).
 """
@@ -942,8 +942,8 @@ def main(argv=None) -> int:
                               versions=_versions()),
                     rows=rows, memory=memory)
         results_path.write_text(json.dumps(data, indent=1, default=_json_default))
-    md = summarise(data)
-    name = "RESULTS_compare.md"
+    md = _preface(data) + summarise(data)
+    name = "RESULTS.md"
     (out / name).write_text(md)
     files = plot(data, out)
     print_table(data)
@@ -951,6 +951,30 @@ def main(argv=None) -> int:
         print(f"note: {n}")
     print(f"\nwrote {out / name}, {results_path.name} and {len(files)} plot(s) in {out}")
     return 0
+
+
+def _preface(data: dict) -> str:
+    """The head of bench/RESULTS.md: the machine, and the other benchmarks' files."""
+    import os
+    import platform
+    meta = data["meta"]
+    return "\n".join([
+        "# Benchmark results",
+        "",
+        f"Machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
+        f"{platform.python_version()} (shared and noisy: compare within one run). "
+        f"This file is written by `python bench/compare.py {meta.get('argv', '')}`"
+        " (rerun it, or `--replot` from `compare_results.json`). The other benchmarks write "
+        "their own files, each with its date, command and machine:",
+        "",
+        "* [RESULTS_ablation.md](RESULTS_ablation.md): `python bench/bench_ablation.py` — "
+        "end-to-end time split on 1000 frames, and the graph with each prior switched off "
+        "on a realistic detector;",
+        "* [RESULTS_graph.md](RESULTS_graph.md): `python bench/bench_graph.py` — the graph's "
+        "time and peak memory at 1k, 10k and 54k frames, accuracy against the bound per scene.",
+        "",
+        "",
+    ])
 
 
 def _json_default(o):

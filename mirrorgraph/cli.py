@@ -162,7 +162,9 @@ def _cmd_calibrate(args) -> int:
         opts.threshold_px = args.threshold
     if args.fov is not None:
         opts.fov_deg = args.fov
-    run = calibrate(data, intr, opts, progress=lambda s: _step(args, s))
+    with Progress("solving the graph", enabled=not args.quiet) as bar:
+        run = calibrate(data, intr, opts, progress=lambda s: _step(args, s),
+                        iteration_progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
     calib = run.calibration
     write_calibration(args.out, calib)
     if args.joints3d:

@@ -174,7 +174,9 @@ def _joint_indices(skeleton, names: tuple[str, ...] | None) -> np.ndarray:
 
 def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
               intrinsics: Intrinsics | None = None, options: CalibrateOptions | None = None,
-              *, progress: Callable[[str], None] | None = None) -> CalibrationRun:
+              *, progress: Callable[[str], None] | None = None,
+              iteration_progress: Callable[[int, float], None] | None = None
+              ) -> CalibrationRun:
     """Calibrate the mirror seen in a video from its 2D keypoints.
 
     Args:
@@ -184,6 +186,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
             image size and ``options.fov_deg`` (and says so in the warnings).
         options: :class:`CalibrateOptions`.
         progress: optional callback receiving the name of each step.
+        iteration_progress: optional ``(iteration, error)`` callback of the
+            graph's solver, after every iteration.
 
     Returns:
         A :class:`CalibrationRun` holding the :class:`Calibration`.
@@ -265,7 +269,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     calib.refinement = {"initial_epipolar_median_px": residual_median}
     if opts.refine:
         step("factor-graph refinement")
-        _refine(run, opts)
+        _refine(run, opts, iteration_progress)
     elif opts.subject_height is not None:
         warnings.append("--subject-height needs the refinement (it scales the body); "
                         "without it the distance stays unknown")
@@ -273,7 +277,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     return run
 
 
-def _refine(run: CalibrationRun, opts: CalibrateOptions) -> None:
+def _refine(run: CalibrationRun, opts: CalibrateOptions,
+            iteration_progress: Callable[[int, float], None] | None = None) -> None:
     from .graph import RefineOptions, refine_mirror
 
     ropts = opts.refine_options or RefineOptions()
@@ -281,7 +286,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions) -> None:
         ropts = replace(ropts, subject_height=opts.subject_height)
     calib = run.calibration
     res = refine_mirror(run.paired, calib.intrinsics.K, calib.normal, run.inliers,
-                        joints=run.joints, options=ropts)
+                        joints=run.joints, options=ropts, progress=iteration_progress)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
     if res.scale == "subject_height":

@@ -63,3 +63,18 @@ def test_same_input_same_answer(paper_scene):
     a = mg.calibrate(paper_scene.detections, paper_scene.intrinsics, mg.CalibrateOptions(refine=False))
     b = mg.calibrate(paper_scene.detections, paper_scene.intrinsics, mg.CalibrateOptions(refine=False))
     assert np.array_equal(a.calibration.normal, b.calibration.normal)
+
+
+def test_full_pipeline_with_refinement_and_metric_scale(paper_scene):
+    s = paper_scene
+    run = mg.calibrate(s.detections, s.intrinsics, mg.CalibrateOptions(subject_height=s.subject_height))
+    c = run.calibration
+    rot, _ = _errors(c, s)
+    assert c.refined and c.scale == "subject_height"
+    assert rot < 0.3
+    assert abs(c.distance - s.distance) / s.distance < 0.03
+    # the reported uncertainty is of the size of the actual error (not 10x off either way)
+    assert 0.1 < rot / c.uncertainty["rotation_std_deg"] < 4.0 or rot < 0.05
+    # metric 3D joints close to the truth
+    from mirrorgraph.metrics import pa_mpjpe
+    assert pa_mpjpe(run.joints3d, s.joints3d, run.valid3d) < 0.03
