@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings as _warnings
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -273,7 +274,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     elif opts.subject_height is not None:
         warnings.append("--subject-height needs the refinement (it scales the body); "
                         "without it the distance stays unknown")
-    _judge(calib, est.residuals[est.inliers], opts)
+    _judge(calib, est.residuals[est.inliers], opts,
+           _motion_px(paired, joints, opts.min_confidence))
     return run
 
 
@@ -315,23 +317,50 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
 
 #: Warn when the inliers' median epipolar distance exceeds this many pixels.
 SUSPICIOUS_RESIDUAL_PX = 6.0
+#: Warn when fewer of the pairs agree on one mirror: a true reflection, even
+#: with 30% detector outliers, keeps about 70%; a second person mistaken for
+#: the reflection keeps about half (chance alignments with a far epipole).
+MIN_INLIER_RATIO = 0.6
+#: Warn when the rotation's standard deviation from the marginals exceeds this
+#: (degrees): a mirror seen almost edge-on or square-on, too few frames, or
+#: too little motion leave the epipole ill-determined in one direction.
+MAX_ROTATION_STD_DEG = 0.5
+#: Warn when the person's joints move less than this (median over joints of
+#: the standard deviation of their image position over time, pixels).
+MIN_MOTION_PX = 3.0
 
 
-def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOptions) -> None:
+def _motion_px(paired: PairedKeypoints, joints: np.ndarray, min_confidence: float) -> float:
+    """Median over joints of the std of the person's image position over time, pixels."""
+    xy = paired.real[:, joints, :2].copy()
+    xy[~(paired.real[:, joints, 2] > min_confidence)] = np.nan
+    with np.errstate(invalid="ignore"), _warnings.catch_warnings():
+        _warnings.simplefilter("ignore", RuntimeWarning)      # all-NaN joints
+        spread = np.nanstd(xy, axis=0)                   # (k, 2)
+        return float(np.nanmedian(np.hypot(spread[:, 0], spread[:, 1])))
+
+
+def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOptions,
+           motion_px: float = np.inf) -> None:
     """Put doubts about the result into its warnings."""
-    if calib.inlier_ratio < 0.5:
+    if calib.inlier_ratio < MIN_INLIER_RATIO:
         calib.warnings.append(
             f"only {100 * calib.inlier_ratio:.0f}% of the joint/reflection pairs agree on one "
-            "mirror: check the pairing (a second person?) and the detector")
+            "mirror: the 'reflection' may be a second person, or the detector poor")
     med = float(np.median(inlier_residuals)) if inlier_residuals.size else np.inf
     if med > SUSPICIOUS_RESIDUAL_PX:
         calib.warnings.append(
             f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
             "detector noise: the 'reflection' may be another person or the keypoints poor")
-    if calib.uncertainty.get("rotation_std_deg", 0.0) > 1.0:
+    if calib.uncertainty.get("rotation_std_deg", 0.0) > MAX_ROTATION_STD_DEG:
         calib.warnings.append(
             f"the mirror is poorly determined (rotation std "
-            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): more frames or more motion help")
+            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): a mirror seen almost edge-on or "
+            "square-on, too few frames or too little motion; more frames and motion help")
+    if motion_px < MIN_MOTION_PX:
+        calib.warnings.append(
+            f"the person hardly moves (joints move {motion_px:.1f} px): the calibration rests "
+            "on a single pose, and its errors do not average out over frames")
     e_px = geo.epipole_pixels(calib.epipole)
     if e_px is None:
         calib.warnings.append("the epipole is at infinity (mirror parallel to the optical axis)")
