@@ -971,7 +971,9 @@ def _preface(data: dict) -> str:
         "end-to-end time split on 1000 frames, and the graph with each prior switched off "
         "on a realistic detector;",
         "* [RESULTS_graph.md](RESULTS_graph.md): `python bench/bench_graph.py` — the graph's "
-        "time and peak memory at 1k, 10k and 54k frames, accuracy against the bound per scene.",
+        "time and peak memory at 1k, 10k and 54k frames, accuracy against the bound per scene;",
+        "* [RESULTS_scale.md](RESULTS_scale.md): `python bench/bench_scale.py` — end to end "
+        "from an OpenPose folder at 1k, 10k and 54k frames: time split and peak memory.",
         "",
         "",
     ])
