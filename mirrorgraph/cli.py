@@ -3,6 +3,9 @@
     mirrorgraph calibrate KEYPOINTS [--intrinsics FILE] --out calibration.json
     mirrorgraph synth --out DIR [--frames N --noise PX --outliers R ...]
     mirrorgraph demo
+    mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
+    mirrorgraph report calibration.json KEYPOINTS --out DIR
+    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
 
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
@@ -423,6 +426,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_demo(sub)
     _add_export(sub)
     _add_report(sub)
+    from .batch import add_batch_parser
+    add_batch_parser(sub)
     return parser
 
 

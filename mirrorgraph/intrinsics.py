@@ -40,6 +40,10 @@ from .io._common import MAX_IMAGE_SIDE, json_type, load_json, numeric_array
 #: typical webcam or phone main camera has a horizontal FOV of 55-70 degrees.
 DEFAULT_FOV_DEG = 60.0
 
+#: Largest absolute value of an entry of K (focal lengths, principal point, skew), pixels:
+#: a 1,000,000 px wide image seen through a 0.6 deg field of view has fx ~ 1e8.
+MAX_K_ENTRY = 1e8
+
 #: Lengths OpenCV accepts for distortion coefficient vectors.
 DIST_LENGTHS = (4, 5, 8, 12, 14)
 
@@ -154,7 +158,8 @@ def load_intrinsics(path: str | os.PathLike, camera: str | int | None = None) ->
     Raises:
         InputError: naming the file and field: missing file, malformed content,
             no or non-3x3 ``K``, non-finite values, last row of ``K`` not
-            ``[0, 0, 1]``, ``fx`` or ``fy`` not positive, singular ``K``, a
+            ``[0, 0, 1]``, ``fx`` or ``fy`` not positive, entries of ``K`` beyond
+            ``MAX_K_ENTRY``, singular ``K``, a
             distortion vector of a length OpenCV does not know, image size not
             two positive integers; for TOML also a missing or ambiguous
             ``camera`` (the message lists the cameras of the file) and
@@ -231,6 +236,10 @@ def _read_opencv(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, 
                              field="camera_matrix")
         dist = _node_matrix(fs, "distortion_coefficients", path)
         w, h = (_node_int(fs, k, path) for k in ("image_width", "image_height"))
+    except (cv2.error, SystemError) as e:  # e.g. a top level that is no map
+        raise InputError(f"malformed OpenCV YAML/XML ({_cv_message(e)})", source=path) from None
+    except UnicodeDecodeError as e:  # a text node that is not UTF-8
+        raise InputError(f"not UTF-8 text ({e.reason})", source=path) from None
     finally:
         fs.release()
     if (w is None) != (h is None):
@@ -241,25 +250,64 @@ def _read_opencv(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, 
 
 
 def _node_matrix(fs: Any, key: str, path: Path) -> np.ndarray | None:
+    """An ``!!opencv-matrix`` / ``!!opencv-nd-matrix`` or a plain list of numbers.
+
+    The matrix is read here from its ``rows``/``cols`` (or ``sizes``), ``dt`` and ``data``
+    rather than with ``FileNode.mat()``, which corrupts memory (and may crash the
+    process) on a matrix whose ``cols`` is missing (OpenCV 5.0.0).
+    """
     node = fs.getNode(key)
     if node.empty() or node.isNone():
         return None
-    if not (node.isMap() or node.isSeq()):
-        raise InputError("expected an !!opencv-matrix or a list of numbers", source=path,
-                         field=key)
+
+    def fail(message: str) -> InputError:
+        return InputError(message, source=path, field=key)
+
     try:
         if node.isSeq():
-            values = [node.at(i) for i in range(node.size())]
-            if not all(v.isInt() or v.isReal() for v in values):
-                raise InputError("expected a list of numbers", source=path, field=key)
-            return np.array([v.real() for v in values], dtype=float)
-        m = node.mat()
+            return _node_numbers(node, fail, "expected a list of numbers")
+        if not node.isMap():
+            raise fail("expected an !!opencv-matrix or a list of numbers")
+        data = node.getNode("data")
+        if data.empty() or not data.isSeq():
+            raise fail("not an OpenCV matrix: no 'data' list")
+        values = _node_numbers(data, fail, "not an OpenCV matrix: 'data' holds no numbers")
+        sizes = node.getNode("sizes")
+        if not sizes.empty():
+            if not sizes.isSeq() or not all(sizes.at(i).isInt() for i in range(sizes.size())):
+                raise fail("not an OpenCV matrix: 'sizes' is no list of integers")
+            shape = tuple(int(sizes.at(i).real()) for i in range(sizes.size()))
+        else:
+            shape = tuple(_node_child_int(node, k, fail) for k in ("rows", "cols"))
+        dt = node.getNode("dt")
+        m = _DT.match(dt.string()) if dt.isString() else None
+        if m is None:
+            raise fail("not an OpenCV matrix: no 'dt' (a type such as d or f)")
+        if m.group(1) not in ("", "1"):
+            raise fail(f"not a single-channel OpenCV matrix (dt {dt.string()!r})")
     except (cv2.error, SystemError) as e:
-        raise InputError(f"not an OpenCV matrix ({_cv_message(e)})", source=path,
-                         field=key) from None
-    if m is None:
-        raise InputError("not an OpenCV matrix", source=path, field=key)
-    return np.asarray(m, dtype=float)
+        raise fail(f"not an OpenCV matrix ({_cv_message(e)})") from None
+    if any(n < 0 for n in shape) or math.prod(shape) != len(values):
+        raise fail(f"not an OpenCV matrix: 'data' holds {len(values)} numbers for "
+                   f"shape {shape}")
+    return values.reshape(shape)
+
+
+_DT = re.compile(r"^(\d*)([ucwsifdh])$")
+
+
+def _node_numbers(node: Any, fail: Any, message: str) -> np.ndarray:
+    items = [node.at(i) for i in range(node.size())]
+    if not all(v.isInt() or v.isReal() for v in items):
+        raise fail(message)
+    return np.array([v.real() for v in items], dtype=float)
+
+
+def _node_child_int(node: Any, key: str, fail: Any) -> int:
+    child = node.getNode(key)
+    if child.empty() or not child.isInt():
+        raise fail(f"not an OpenCV matrix: no '{key}' (an integer)")
+    return int(child.real())
 
 
 def _node_int(fs: Any, key: str, path: Path) -> int | None:
@@ -290,6 +338,9 @@ def _check_K(K: np.ndarray, path: Path, key: str) -> np.ndarray:
         raise fail(f"last row must be [0, 0, 1], got {K[2].tolist()}")
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         raise fail(f"focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+    if np.abs(K[:2]).max() > MAX_K_ENTRY:
+        raise fail(f"values beyond {MAX_K_ENTRY:g} px (fx={K[0, 0]:g}, fy={K[1, 1]:g}) are "
+                   "no camera's")
     # determinant of K with its rows divided by fx, fy (no overflow for huge fx, fy)
     with np.errstate(all="ignore"):
         det = np.linalg.det(K / np.array([[K[0, 0]], [K[1, 1]], [1.0]]))

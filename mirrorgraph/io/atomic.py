@@ -20,6 +20,12 @@ _UMASK = os.umask(0o022)
 os.umask(_UMASK)
 
 
+def _at(error: OSError, path: Path) -> OSError:
+    """The same kind of OSError, naming ``path`` (its folder when that is missing)."""
+    name = path.parent if isinstance(error, FileNotFoundError) else path
+    return type(error)(error.errno, error.strerror, str(name))
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary file path that replaces ``path`` when the block succeeds.
@@ -35,8 +41,11 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         ...         np.savez(f, a=a)
     """
     path = Path(path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
-                                    dir=path.parent if str(path.parent) else ".")
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
+                                        dir=path.parent if str(path.parent) else ".")
+    except OSError as e:  # name the target, not the temporary, e.g. a missing folder
+        raise _at(e, path) from None
     os.close(fd)
     tmp = Path(tmp_name)
     os.chmod(tmp, 0o666 & ~_UMASK)
@@ -78,7 +87,10 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     if path.exists() and not path.is_dir():
         raise FileExistsError(f"{path} exists and is not a folder")
     parent = path.parent if str(path.parent) else Path(".")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
+    except OSError as e:
+        raise _at(e, path) from None
     os.chmod(tmp, 0o777 & ~_UMASK)
     try:
         yield tmp

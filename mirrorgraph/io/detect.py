@@ -2,7 +2,8 @@
 
 * a file ending ``.npz``: paired keypoints (:mod:`.npz`);
 * a file ending ``.json``: MMPose predictions (:mod:`.mmpose`), checked by
-  structure: a list of ``{"frame_id", "instances"}`` or ``{"instance_info": [...]}``;
+  structure: a list of ``{"frame_id", "instances"}`` (the first entry holding at least
+  one of the two keys) or ``{"instance_info": [...]}``;
 * a folder: its ``*.json`` files are per-frame OpenPose files (``people`` with
   ``pose_keypoints_2d``, :mod:`.openpose`) or EasyMocap annotations (``annots``,
   :mod:`.easymocap`). Only the first file is parsed here; the reader checks that
@@ -31,7 +32,9 @@ def classify_json(obj: Any) -> str | None:
         if "annots" in obj:
             return "easymocap"
     elif isinstance(obj, list):
-        if not obj or (isinstance(obj[0], dict) and "instances" in obj[0]):
+        # a first entry with either key is MMPose's: the reader then names what is missing
+        if not obj or (isinstance(obj[0], dict) and ("instances" in obj[0]
+                                                      or "frame_id" in obj[0])):
             return "mmpose"
     return None
 

@@ -53,7 +53,8 @@ def read_easymocap(folder: str | os.PathLike, *,
             if image_size is not None and size != image_size:
                 raise InputError(f"image size {size[0]}x{size[1]} differs from "
                                  f"{image_size[0]}x{image_size[1]} in earlier files",
-                                 source=file, frame=t, field="width")
+                                 source=file, frame=t,
+                                 field="width" if size[0] != image_size[0] else "height")
             image_size = size
         annots = require(obj, "annots", list, source=file, frame=t)
         people.append(_frame(annots, counter, source=str(file), frame=t))

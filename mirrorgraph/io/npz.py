@@ -20,7 +20,8 @@ other non-finite value is refused. Rows are sorted by frame id on reading.
 from __future__ import annotations
 
 import os
-import zipfile
+import re
+import warnings
 from typing import Any
 
 import numpy as np
@@ -28,7 +29,7 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import PairedKeypoints
 from ..skeletons import Skeleton, skeleton_for_count
-from ._common import check_frame_ids, clean_keypoints, to_skeleton
+from ._common import MAX_IMAGE_SIDE, check_frame_ids, clean_keypoints, to_skeleton
 from .atomic import atomic_path
 
 FORMAT = "npz"
@@ -38,17 +39,7 @@ def read_paired_npz(path: str | os.PathLike, *,
                     skeleton: Skeleton | str | None = None) -> PairedKeypoints:
     """Read a paired ``.npz`` (see the module docstring) into :class:`PairedKeypoints`."""
     src = str(path)
-    try:
-        z = np.load(path, allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise InputError("not an .npz archive (a single .npy array)", source=src)
-        with z:
-            arrays = {k: _member(z, k, src) for k in z.files}
-    except FileNotFoundError:
-        raise InputError("no such file", source=src) from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise InputError(f"not a readable .npz archive ({e})", source=src) from None
-
+    arrays = _load_arrays(path, src)
     real, mirror = (_keypoints(arrays, k, src) for k in ("real", "mirror"))
     if real.shape != mirror.shape:
         raise InputError(f"shape {mirror.shape} differs from real {real.shape}",
@@ -95,11 +86,46 @@ def write_paired_npz(paired: PairedKeypoints, path: str | os.PathLike, *,
             np.savez_compressed(f, **arrays)
 
 
+def _load_arrays(path: str | os.PathLike, src: str) -> dict[str, np.ndarray]:
+    """Every array of the archive; InputError for anything that is not a readable one.
+
+    A damaged archive makes NumPy and ``zipfile`` fail in many ways (``BadZipFile``,
+    ``ValueError``, ``EOFError``, ``NotImplementedError`` for a garbled compression
+    method, ``tokenize.TokenError`` or ``SyntaxError`` for a garbled array header, ...)
+    and warn while parsing a header; all of it means "not a readable .npz".
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            # open the file here: np.load leaves its own handle open when the zip is corrupt
+            with open(path, "rb") as fh:
+                z = np.load(fh, allow_pickle=False)
+                if not isinstance(z, np.lib.npyio.NpzFile):
+                    raise InputError("not an .npz archive (a single .npy array)", source=src)
+                with z:
+                    return {k: _member(z, k, src) for k in z.files}
+    except InputError:
+        raise
+    except FileNotFoundError:
+        raise InputError("no such file", source=src) from None
+    except Exception as e:  # noqa: BLE001 - see the docstring
+        raise InputError(f"not a readable .npz archive ({_reason(e)})", source=src) from None
+
+
 def _member(z: Any, key: str, src: str) -> np.ndarray:
     try:
         return z[key]
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise InputError(f"unreadable array ({e})", source=src, field=key) from None
+    except Exception as e:  # noqa: BLE001 - as in _load_arrays
+        raise InputError(f"unreadable array ({_reason(e)})", source=src, field=key) from None
+
+
+def _reason(e: Exception) -> str:
+    """One line: the exception's type and text, without object addresses."""
+    text = _ADDRESS.sub("...", " ".join(str(e).split()))
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+_ADDRESS = re.compile(r"<[^<>]* at 0x[0-9a-fA-F]+>")
 
 
 def _keypoints(arrays: dict, key: str, src: str) -> np.ndarray:
@@ -160,10 +186,10 @@ def _image_size(arrays: dict, src: str) -> tuple[int, int] | None:
         return None
     a = arrays["image_size"]
     ok = (a.shape == (2,) and a.dtype.kind in "iuf" and np.isfinite(a).all()
-          and (a > 0).all() and (a == np.round(a)).all())
+          and (a > 0).all() and (a <= MAX_IMAGE_SIDE).all() and (a == np.round(a)).all())
     if not ok:
-        raise InputError(f"expected (width, height) positive integers, got {a!r}", source=src,
-                         field="image_size")
+        raise InputError(f"expected (width, height) positive integers up to {MAX_IMAGE_SIDE}, "
+                         f"got {a!r}", source=src, field="image_size")
     return int(a[0]), int(a[1])
 
 
