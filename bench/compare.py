@@ -644,7 +644,7 @@ def summarise(data: dict) -> str:
     if prot:
         T_prot = prot[0]["case"]["params"].get("frames", PROTOCOL["frames"])
         L.append(f"## The paper's protocol ({len(prot)} scenes)\n")
-        L.append(f"![protocol](compare_protocol.png)\n")
+        L.append("![protocol](compare_protocol.png)\n")
         L.append(f"1920x1080, T = {T_prot} frames, COCO-17, Gaussian detector noise mean "
                  "0.076 px, std 4 px, no outliers, no missing joints, mirror normal at a random "
                  "10-60 deg to the optical axis, 2.5-4.5 m away.\n")

@@ -114,7 +114,6 @@ def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float
     norm = SimilarityNormalizer.fit(u[idx], um[idx])
     a, b = norm.apply(u[idx]), norm.apply(um[idx])
     lines = pair_lines(a, b)
-    x, xm = geo.to_homogeneous(a), geo.to_homogeneous(b)
     thr_n = threshold_px * norm.scale
 
     def residuals(e: np.ndarray) -> np.ndarray:

@@ -35,7 +35,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
@@ -935,7 +934,6 @@ def camera_case(draw) -> CamCase:
     w, h = base.image_size
     cam = {"K": K, "image_size": [w, h]}
     kind = draw(st.sampled_from(["valid", "K", "K", "dist", "image_size", "document", "yaml"]))
-    fname = f"{CAM}.json"
 
     def case(what, read, names=(), close=False, text=None, suffix=".json"):
         file = f"{CAM}{suffix}"

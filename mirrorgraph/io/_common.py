@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Callable
 
@@ -295,6 +295,23 @@ def frame_files(folder: Path) -> tuple[np.ndarray, list[Path]]:
     files = json_folder(folder)
     frame_ids, order = check_frame_ids([frame_from_name(f) for f in files], source=folder)
     return frame_ids, [files[i] for i in order]
+
+
+def iter_frame_documents(folder: Path, files: list[Path], frame_ids: np.ndarray,
+                         expected: str, key: str, progress: "ProgressCallback | None" = None
+                         ) -> Iterator[tuple[int, Path, dict]]:
+    """Stream a per-frame JSON folder: ``(frame id, file, parsed dict)`` one file at a time.
+
+    Reports ``progress(done, total)`` per file and refuses a file that is not of
+    the folder's format (no ``key``) with :func:`mixed_folder`'s error.
+    """
+    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
+        if progress is not None:
+            progress(i + 1, len(files))
+        obj = load_json(file)
+        if not isinstance(obj, dict) or key not in obj:
+            raise mixed_folder(folder, file, expected, key)
+        yield t, file, obj
 
 
 def mixed_folder(folder: Path, file: Path, expected: str, key: str) -> InputError:

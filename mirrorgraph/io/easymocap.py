@@ -25,8 +25,8 @@ from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import BODY_25, Skeleton
 from ._common import (MAX_IMAGE_SIDE, JointCount, bbox_of, check_writable_ids,
-                      clean_keypoints, dump_json, frame_files, json_type, load_json,
-                      mixed_folder, numeric_array, require, to_skeleton, zero_missing)
+                      clean_keypoints, dump_json, frame_files, iter_frame_documents,
+                      json_type, numeric_array, require, to_skeleton, zero_missing)
 from ._common import ProgressCallback
 from .atomic import atomic_dir
 
@@ -42,12 +42,8 @@ def read_easymocap(folder: str | os.PathLike, *,
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
     image_size: tuple[int, int] | None = None
-    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
-        if progress is not None:
-            progress(i + 1, len(files))
-        obj = load_json(file)
-        if not isinstance(obj, dict) or "annots" not in obj:
-            raise mixed_folder(folder, file, "EasyMocap", "annots")
+    for t, file, obj in iter_frame_documents(folder, files, frame_ids, "EasyMocap", "annots",
+                                             progress):
         size = _image_size(obj, source=str(file), frame=t)
         if size is not None:
             if image_size is not None and size != image_size:

@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import BODY_25, Skeleton
 from ._common import (JointCount, check_writable_ids, clean_keypoints, dump_json, frame_files,
-                      json_type, load_json, mixed_folder, numeric_array, require,
+                      iter_frame_documents, json_type, numeric_array, require,
                       to_skeleton, zero_missing)
 from ._common import ProgressCallback
 from .atomic import atomic_dir
@@ -42,12 +42,8 @@ def read_openpose(folder: str | os.PathLike, *,
     counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
-    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
-        if progress is not None:
-            progress(i + 1, len(files))
-        obj = load_json(file)
-        if not isinstance(obj, dict) or "people" not in obj:
-            raise mixed_folder(folder, file, "OpenPose", "people")
+    for t, file, obj in iter_frame_documents(folder, files, frame_ids, "OpenPose", "people",
+                                             progress):
         persons = require(obj, "people", list, source=file, frame=t)
         people.append(_frame(persons, counter, source=str(file), frame=t))
     skel = counter.result()
