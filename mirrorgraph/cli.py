@@ -165,9 +165,16 @@ def _cmd_calibrate(args) -> int:
         opts.threshold_px = args.threshold
     if args.fov is not None:
         opts.fov_deg = args.fov
-    with Progress("solving the graph", enabled=not args.quiet) as bar:
+    with Progress("robust initialisation", enabled=not args.quiet) as r_bar, \
+            Progress("solving the graph", enabled=not args.quiet) as g_bar:
+        def on_sample(it: int, planned: int) -> None:
+            r_bar.callback(it, planned)
+
+        def on_iteration(it: int, err: float) -> None:
+            r_bar.close()
+            g_bar.update(1, info=f"error {err:.4g}")
         run = calibrate(data, intr, opts, progress=lambda s: _step(args, s),
-                        iteration_progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
+                        iteration_progress=on_iteration, ransac_progress=on_sample)
     calib = run.calibration
     write_calibration(args.out, calib)
     if args.joints3d:

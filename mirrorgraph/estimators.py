@@ -22,6 +22,7 @@ from the camera (``n_z > 0``, then checked by cheirality).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -34,6 +35,9 @@ from .solvers.reflective import (epipole_from_two_pairs, epipole_least_squares, 
                                  refine_epipole)
 
 ESTIMATORS = ("reflective", "eightpoint", "reflective8")
+
+#: ``progress(iteration, planned)`` of a RANSAC.
+RansacProgress = Callable[[int, int], None]
 
 #: Default inlier threshold on the epipolar distance, pixels: 2.5 sigma of the
 #: 4 px detector noise that MirrorCalib measured for HRNet.
@@ -84,7 +88,8 @@ def _usable(u: np.ndarray, um: np.ndarray) -> np.ndarray:
 
 
 def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float = DEFAULT_THRESHOLD_PX,
-                     seed: int = 0, max_iterations: int = 2000, refine: bool = True
+                     seed: int = 0, max_iterations: int = 2000, refine: bool = True,
+                     progress: RansacProgress | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Reflective RANSAC for the epipole alone (no intrinsics needed).
 
@@ -94,6 +99,7 @@ def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float
         seed: RANSAC seed.
         max_iterations: RANSAC cap.
         refine: run the robust nonlinear refinement on the inliers.
+        progress: ``progress(iteration, planned)`` of the RANSAC (optional).
 
     Returns:
         ``(e, inliers, residuals, iterations)``: ``(3,)`` unit homogeneous
@@ -126,7 +132,7 @@ def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float
 
     result = ransac(len(idx), 2, lambda s: epipole_from_two_pairs(lines[s]), residuals,
                     RansacOptions(threshold=thr_n, seed=seed, max_iterations=max_iterations),
-                    refit=refit)
+                    refit=refit, progress=progress)
     if result is None:
         raise DegenerateGeometryError(
             "every joint/reflection line is the same line: the person does not move "
@@ -168,7 +174,7 @@ def _orient_and_package(name, K, e, F, u, um, inliers, residuals, iterations, R_
 
 def estimate_mirror(u: np.ndarray, u_mirror: np.ndarray, K: np.ndarray, *,
                     estimator: str = "reflective", threshold_px: float = DEFAULT_THRESHOLD_PX,
-                    seed: int = 0) -> MirrorEstimate:
+                    seed: int = 0, progress: RansacProgress | None = None) -> MirrorEstimate:
     """Estimate the mirror from paired joints with the named estimator.
 
     Args:
@@ -178,6 +184,8 @@ def estimate_mirror(u: np.ndarray, u_mirror: np.ndarray, K: np.ndarray, *,
         estimator: one of :data:`ESTIMATORS`.
         threshold_px: inlier threshold on the symmetric epipolar distance.
         seed: RANSAC seed.
+        progress: ``progress(iteration, planned)`` of the RANSAC of the
+            ``reflective`` estimator (optional).
 
     Raises:
         DegenerateGeometryError: the data cannot determine the mirror.
@@ -186,7 +194,8 @@ def estimate_mirror(u: np.ndarray, u_mirror: np.ndarray, K: np.ndarray, *,
     u = np.asarray(u, dtype=float).reshape(-1, 2)
     um = np.asarray(u_mirror, dtype=float).reshape(-1, 2)
     if estimator == "reflective":
-        e, inl, r, it = estimate_epipole(u, um, threshold_px=threshold_px, seed=seed)
+        e, inl, r, it = estimate_epipole(u, um, threshold_px=threshold_px, seed=seed,
+                                         progress=progress)
         return _orient_and_package(estimator, K, e, geo.fundamental_from_epipole(e), u, um,
                                    inl, r, it)
     if estimator == "eightpoint":

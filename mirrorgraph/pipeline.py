@@ -176,7 +176,8 @@ def _joint_indices(skeleton, names: tuple[str, ...] | None) -> np.ndarray:
 def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
               intrinsics: Intrinsics | None = None, options: CalibrateOptions | None = None,
               *, progress: Callable[[str], None] | None = None,
-              iteration_progress: Callable[[int, float], None] | None = None
+              iteration_progress: Callable[[int, float], None] | None = None,
+              ransac_progress: Callable[[int, int], None] | None = None
               ) -> CalibrationRun:
     """Calibrate the mirror seen in a video from its 2D keypoints.
 
@@ -189,6 +190,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         progress: optional callback receiving the name of each step.
         iteration_progress: optional ``(iteration, error)`` callback of the
             graph's solver, after every iteration.
+        ransac_progress: optional ``(iteration, planned)`` callback of the
+            robust initialisation's RANSAC.
 
     Returns:
         A :class:`CalibrationRun` holding the :class:`Calibration`.
@@ -239,7 +242,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     clock = time.perf_counter()
     try:
         est = estimate_mirror(u, um, intr.K, estimator=opts.estimator,
-                              threshold_px=opts.threshold_px, seed=opts.seed)
+                              threshold_px=opts.threshold_px, seed=opts.seed,
+                              progress=ransac_progress)
     except DegenerateGeometryError as exc:
         raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     inliers = np.zeros_like(valid)

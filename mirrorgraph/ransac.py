@@ -75,7 +75,8 @@ def ransac(num_data: int, sample_size: int,
            minimal_solver: Callable[[np.ndarray], Sequence[Model]],
            residuals: Callable[[Model], np.ndarray],
            options: RansacOptions,
-           refit: Callable[[np.ndarray, Model], Model] | None = None) -> RansacResult[Model] | None:
+           refit: Callable[[np.ndarray, Model], Model] | None = None,
+           progress: Callable[[int, int], None] | None = None) -> RansacResult[Model] | None:
     """Robustly fit a model.
 
     Args:
@@ -87,6 +88,8 @@ def ransac(num_data: int, sample_size: int,
         options: threshold, confidence, iteration bounds and seed.
         refit: ``(inlier mask, best model) -> model``, e.g. least squares on the
             inliers; called twice (after sampling, after the inlier pass).
+        progress: ``progress(iteration, planned)`` after every sample, where
+            ``planned`` is the current adaptive estimate of the samples needed.
 
     Returns:
         The result, or ``None`` when no sample gave a model (degenerate data).
@@ -108,6 +111,8 @@ def ransac(num_data: int, sample_size: int,
                 best_model, best_cost = model, cost
                 ratio = np.count_nonzero(r < options.threshold) / num_data
                 needed = required_iterations(ratio, sample_size, options.confidence)
+        if progress is not None:
+            progress(it, int(min(options.max_iterations, max(options.min_iterations, needed))))
     if best_model is None:
         return None
     model = best_model
