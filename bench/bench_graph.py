@@ -47,16 +47,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from mirrorgraph import geometry as geo  # noqa: E402
 from mirrorgraph.graph import RefineOptions, refine_mirror  # noqa: E402
+from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg  # noqa: E402
 from mirrorgraph.synth import make_scene  # noqa: E402
 
-
-def rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
-    """Angle of ``R_est^T R_true`` between the virtual cameras of two mirror normals."""
-    R1 = geo.virtual_camera_from_mirror(n_est, 1.0)[0]
-    R2 = geo.virtual_camera_from_mirror(n_true, 1.0)[0]
-    return float(np.degrees(np.arccos(np.clip((np.trace(R1.T @ R2) - 1.0) / 2.0, -1.0, 1.0))))
 
 
 def tilted(n: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:

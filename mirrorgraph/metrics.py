@@ -22,6 +22,18 @@ def rotation_error_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
+def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
+    """Rotation error (deg) of the virtual camera implied by two mirror normals.
+
+    Equal to ``rotation_error_deg(D H_est, D H_true)``, i.e. twice the angle
+    between the normals.
+    """
+    from .geometry import virtual_camera_from_mirror
+
+    return rotation_error_deg(virtual_camera_from_mirror(n_est, 1.0)[0],
+                              virtual_camera_from_mirror(n_true, 1.0)[0])
+
+
 def normal_angle_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
     """Angle between two unit normals, degrees."""
     c = float(np.dot(n_est, n_true) / (np.linalg.norm(n_est) * np.linalg.norm(n_true)))

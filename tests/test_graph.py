@@ -20,17 +20,11 @@ from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.keypoints import PairedKeypoints
 from mirrorgraph.skeletons import COCO_17
+from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg
 from mirrorgraph.synth import make_scene
 
 
 # --------------------------------------------------------------------------- helpers
-def rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
-    """Angle of R_est^T R_true for the virtual cameras of two mirror normals."""
-    R1 = geo.virtual_camera_from_mirror(n_est, 1.0)[0]
-    R2 = geo.virtual_camera_from_mirror(n_true, 1.0)[0]
-    c = (np.trace(R1.T @ R2) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
-
 
 def tilted(n: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:
     a = rng.normal(size=3)
