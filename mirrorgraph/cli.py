@@ -39,31 +39,30 @@ def _image_size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _positive(text: str) -> float:
+def _number(text: str, cast, kind: str):
+    """``cast(text)``, or argparse's one-line error naming what was expected."""
     try:
-        v = float(text)
+        return cast(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not {kind}: {text!r}") from None
+
+
+def _positive(text: str) -> float:
+    v = _number(text, float, "a number")
     if not np.isfinite(v) or v <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
     return v
 
 
 def _rate(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    v = _number(text, float, "a number")
     if not 0.0 <= v <= 1.0:
         raise argparse.ArgumentTypeError(f"must lie in [0, 1], got {text!r}")
     return v
 
 
 def _seed(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    v = _number(text, int, "an integer")
     if v < 0:
         raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
     return v

@@ -1121,16 +1121,22 @@ def cli_options(draw):
     return base, camera, out, args, tuple(wrong)
 
 
+def write_mmpose_and_camera(root: Path, base, camera: dict | None = None) -> tuple[Path, Path]:
+    """Write a base scene's MMPose predictions and camera JSON into ``root``."""
+    kp = root / MM
+    kp.write_bytes(dumps(base.docs["mmpose"]))
+    cam = root / f"{CAM}.json"
+    cam.write_text(json.dumps(base.camera if camera is None else camera))
+    return kp, cam
+
+
 @fuzz_settings("cli_options")
 @given(opts=cli_options())
 def test_cli_options(opts, capfd):
     base, camera, out_kind, args, wrong = opts
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
-        kp = root / MM
-        kp.write_bytes(dumps(base.docs["mmpose"]))
-        cam = root / f"{CAM}.json"
-        cam.write_text(json.dumps(base.camera))
+        kp, cam = write_mmpose_and_camera(root, base)
         out, prior, out_names = root / "out" / "calibration.json", None, ()
         out.parent.mkdir()
         if out_kind == "existing":
@@ -1193,10 +1199,7 @@ def test_image_size_far_smaller_than_keypoints_warns(base, scale, capfd):
     w, h = (max(1, int(v * scale)) for v in base.image_size)
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
-        kp = root / MM
-        kp.write_bytes(dumps(base.docs["mmpose"]))
-        cam = root / f"{CAM}.json"
-        cam.write_text(json.dumps({"K": base.K, "image_size": [w, h]}))
+        kp, cam = write_mmpose_and_camera(root, base, {"K": base.K, "image_size": [w, h]})
         out = root / "calibration.json"
         code, err = run_cli(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(out),
                              "--no-refine", "--quiet"], out, capfd, prior=None)
@@ -1226,10 +1229,7 @@ def test_impossible_image_size_without_intrinsics_is_an_error(base, w, h, capfd)
 def test_joints3d_without_refine_leaves_outputs_alone(base, prior, capfd):
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
-        kp = root / MM
-        kp.write_bytes(dumps(base.docs["mmpose"]))
-        cam = root / f"{CAM}.json"
-        cam.write_text(json.dumps(base.camera))
+        kp, cam = write_mmpose_and_camera(root, base)
         out = root / "calibration.json"
         code, err = run_cli(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(out),
                              "--no-refine", "--joints3d", str(root / "j.npz")], out, capfd,
@@ -1273,10 +1273,7 @@ def test_usage_errors(option, data, prior, capfd):
     base = BASES[0]
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
-        kp = root / MM
-        kp.write_bytes(dumps(base.docs["mmpose"]))
-        cam = root / f"{CAM}.json"
-        cam.write_text(json.dumps(base.camera))
+        kp, cam = write_mmpose_and_camera(root, base)
         out = root / "calibration.json"
         argv = ["calibrate", str(kp), "--intrinsics", str(cam), "--no-refine"]
         if option == "no --out":
