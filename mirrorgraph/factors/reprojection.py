@@ -11,6 +11,8 @@ cost ~10x more per linearisation):
 
 * direct view: :class:`gtsam.TriangulationFactorCal3_S2` with the fixed camera
   ``PinholeCameraCal3_S2(C, K)`` (``C`` camera-to-world), a factor on the point only;
+* direct view of a camera whose pose is estimated:
+  :class:`gtsam.GenericProjectionFactorCal3_S2` between its pose variable and the point;
 * mirror view: :class:`gtsam.GenericProjectionFactorCal3_S2` between the pose
   variable ``V`` of the virtual camera and the point, with the mirrored
   calibration ``K D = Cal3_S2(-fx, fy, s, cx, cy)`` (:func:`mirrored_calibration`).
@@ -112,6 +114,15 @@ class ReprojectionFactors:
     def direct(self, uv: np.ndarray, point_key: int) -> gtsam.TriangulationFactorCal3_S2:
         """Factor ``rho(|pi(K X) - u| / sigma)`` on one point; ``uv`` (2,) pixels."""
         return gtsam.TriangulationFactorCal3_S2(self.camera, uv, self.noise, point_key)
+
+    def add_posed(self, graph: gtsam.NonlinearFactorGraph, uv: np.ndarray, pose_key: int,
+                  point_keys: np.ndarray) -> None:
+        """Add one direct-view factor per row of ``uv`` (N, 2) for a camera whose pose
+        (camera-to-world) is the variable ``pose_key``."""
+        Kc, noise = calibration(self.K), self.noise
+        make = gtsam.GenericProjectionFactorCal3_S2
+        for u, k in zip(np.asarray(uv, dtype=float), np.asarray(point_keys).tolist()):
+            graph.push_back(make(u, noise, pose_key, k, Kc))
 
     def mirror(self, uv: np.ndarray, virtual_key: int, point_key: int
                ) -> gtsam.GenericProjectionFactorCal3_S2:

@@ -6,6 +6,8 @@ Variables (keys from :mod:`gtsam.symbol_shorthand`):
   frame), only for the pairs marked used;
 * ``P(m)``: :class:`gtsam.OrientedPlane3`, mirror ``m``;
 * ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of view ``v`` (mirror views);
+* ``C(c)``: :class:`gtsam.Pose3`, the pose (camera-to-world) of camera ``c`` where
+  it is estimated (:attr:`Camera.estimate_pose`); fixed cameras have no variable;
 * ``L(0)``: vector of the bone lengths (entry ``i`` for
   ``GraphProblem.bone_names[i]``), shared by all frames (one key for all bones
   keeps the per-frame Python factors cheap, see
@@ -27,7 +29,7 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L as L_, P as P_, V as V_, X as X_
+from gtsam.symbol_shorthand import C as C_, L as L_, P as P_, V as V_, X as X_
 
 from ..anthropometry import expected_bone_lengths, femur_ratios, height_fractions
 from ..factors import (AnthropometricRatioFactor, BoneLengthFactor, HeightPriorFactor, HipColinearityFactor, MirrorLinkFactor,
@@ -38,7 +40,8 @@ from .options import RefineOptions
 from .rig import Rig
 
 __all__ = ["GraphProblem", "build_problem", "point_keys", "bone_table", "body_height_from_points",
-           "view_residuals", "extract_points", "extract_planes", "snap_virtual_poses"]
+           "view_residuals", "extract_points", "extract_planes", "extract_camera_poses",
+           "snap_virtual_poses"]
 
 _X_BASE = X_(0)
 
@@ -89,6 +92,7 @@ class GraphProblem:
         flat_index: ``(N,)`` ``t * J + j`` of the used points, ascending (key order).
         plane_keys: ``P(m)`` per mirror.
         virtual_keys: view index -> ``V(v)`` for the mirror views.
+        camera_keys: camera index -> ``C(c)`` for the cameras whose pose is estimated.
         length_key: key of the bone-length vector, or ``None`` without bone factors.
         bone_names: the bones, in the order of the length vector's entries.
         reprojection: reprojection factors of every view.
@@ -111,6 +115,7 @@ class GraphProblem:
     flat_index: np.ndarray
     plane_keys: list[int]
     virtual_keys: dict[int, int]
+    camera_keys: dict[int, int]
     length_key: int | None
     bone_names: list[str]
     reprojection: gtsam.NonlinearFactorGraph
@@ -148,9 +153,16 @@ class GraphProblem:
 
     @property
     def global_keys(self) -> list[int]:
-        """Keys shared by all frames: virtual poses, bone lengths, planes."""
-        return list(self.virtual_keys.values()) \
+        """Keys shared by all frames: virtual poses, camera poses, bone lengths, planes."""
+        return list(self.virtual_keys.values()) + list(self.camera_keys.values()) \
             + ([self.length_key] if self.length_key is not None else []) + list(self.plane_keys)
+
+    def camera_pose(self, index: int, values: gtsam.Values) -> gtsam.Pose3:
+        """Pose (camera-to-world) of camera ``index``: its variable, or the fixed pose."""
+        key = self.camera_keys.get(index)
+        if key is not None:
+            return values.atPose3(key)
+        return self.rig.cameras[index].gtsam_pose
 
     def point_ordering(self) -> gtsam.Ordering:
         """Elimination ordering of the points: frame-major (row ``t``, then joint).
@@ -214,6 +226,9 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     plane_keys = [P_(m) for m in range(len(rig.mirrors))]
     for k, (n, d) in zip(plane_keys, planes):
         values.insert(k, plane_to_gtsam(n, d))
+    camera_keys = {c: C_(c) for c, cam in enumerate(rig.cameras) if cam.estimate_pose}
+    for c, k in camera_keys.items():
+        values.insert(k, rig.cameras[c].gtsam_pose)
 
     repro = gtsam.NonlinearFactorGraph()
     links = gtsam.NonlinearFactorGraph()
@@ -225,13 +240,18 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         noise = robust_pixel_noise(options.pixel_sigma, options.robust_kernel,
                                    options.kernel_scale_px)
     for vi, view in enumerate(rig.views):
-        cam = rig.camera(view.camera)
+        ci = rig.camera_index(view.camera)
+        cam = rig.cameras[ci]
+        ck = camera_keys.get(ci)
         fac = ReprojectionFactors(cam.K, noise, cam.gtsam_pose)
         mask = used & np.asarray(view.mask, dtype=bool)
         idx = np.flatnonzero(mask.ravel())
         uv = np.asarray(view.pixels, dtype=float).reshape(-1, 2)[idx]
         if view.mirror is None:
-            fac.add_direct(repro, uv, keys.ravel()[idx])
+            if ck is None:
+                fac.add_direct(repro, uv, keys.ravel()[idx])
+            else:
+                fac.add_posed(repro, uv, ck, keys.ravel()[idx])
             continue
         m = rig.mirror_index(view.mirror)
         vk = V_(vi)
@@ -241,7 +261,7 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         fac.add_mirror(repro, uv, vk, keys.ravel()[idx])
         link = MirrorLinkFactor(options.link_sigma_rotation, options.link_sigma_translation,
                                 camera_pose=cam.gtsam_pose)
-        links.push_back(link.make(plane_keys[m], vk))
+        links.push_back(link.make(plane_keys[m], vk, ck))
 
     prior_graph = gtsam.NonlinearFactorGraph()
     length_priors = gtsam.NonlinearFactorGraph()
@@ -282,10 +302,11 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
             info["length_sum_gauge"].update(
                 height_m=float(options.subject_height),
                 relative_sigma_reported=float(options.height_sigma))
-    else:
+    elif planes:
         distance_gauge = float(planes[0][1])
     return GraphProblem(rig=rig, used=used, flat_index=flat, plane_keys=plane_keys,
-                        virtual_keys=virtual_keys, length_key=length_key,
+                        virtual_keys=virtual_keys, camera_keys=camera_keys,
+                        length_key=length_key,
                         bone_names=bone_names, reprojection=repro,
                         links=links, priors=prior_graph, length_priors=length_priors, gauge=gauge,
                         distance_gauge=distance_gauge,
@@ -414,7 +435,14 @@ def snap_virtual_poses(problem: GraphProblem, values: gtsam.Values) -> None:
         view = rig.views[vi]
         n, d = plane_from_gtsam(values.atOrientedPlane3(problem.plane_keys[
             rig.mirror_index(view.mirror)]))
-        values.update(key, reflected_pose(n, d, rig.camera(view.camera).gtsam_pose))
+        pose = problem.camera_pose(rig.camera_index(view.camera), values)
+        values.update(key, reflected_pose(n, d, pose))
+
+
+def extract_camera_poses(problem: GraphProblem, values: gtsam.Values) -> list[np.ndarray]:
+    """``(4, 4)`` camera-to-world pose of every camera (estimated or fixed), rig order."""
+    return [np.asarray(problem.camera_pose(c, values).matrix(), dtype=float)
+            for c in range(len(problem.rig.cameras))]
 
 
 def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np.ndarray, float]]:
@@ -423,25 +451,28 @@ def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np
 
 
 def view_residuals(rig: Rig, points: np.ndarray, used: np.ndarray,
-                   planes: list[tuple[np.ndarray, float]]) -> list[np.ndarray]:
+                   planes: list[tuple[np.ndarray, float]],
+                   poses: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Reprojection residual norms of every view.
 
     Args:
         points: ``(T, J, 3)`` world-frame joints; used: ``(T, J)`` bool.
         planes: ``(n, d)`` per mirror.
+        poses: ``(4, 4)`` camera-to-world pose per camera (default: the rig's).
 
     Returns:
         One ``(T, J)`` array per view, pixels, NaN where the view does not use the pair.
     """
     out = []
     for view in rig.views:
-        cam = rig.camera(view.camera)
+        ci = rig.camera_index(view.camera)
+        cam = rig.cameras[ci]
         mask = used & np.asarray(view.mask, dtype=bool)
         X = points[mask]
         if view.mirror is not None:
             n, d = planes[rig.mirror_index(view.mirror)]
             X = reflect_points(X, n, d)
-        pose = np.asarray(cam.pose, dtype=float)
+        pose = np.asarray(cam.pose if poses is None else poses[ci], dtype=float)
         Xc = (X - pose[:3, 3]) @ pose[:3, :3]
         r = np.full(mask.shape, np.nan)
         r[mask] = np.linalg.norm(project(cam.K, Xc) - np.asarray(view.pixels)[mask], axis=1)

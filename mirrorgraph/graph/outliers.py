@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .builder import GraphProblem, extract_planes, extract_points, view_residuals
+from .builder import (GraphProblem, extract_camera_poses, extract_planes, extract_points,
+                      view_residuals)
 
 __all__ = ["reprojection_outliers", "bone_outliers"]
 
@@ -29,7 +30,8 @@ __all__ = ["reprojection_outliers", "bone_outliers"]
 def reprojection_outliers(problem: GraphProblem, values, threshold: float) -> np.ndarray:
     """``(T, J)`` bool: used pairs whose residual exceeds ``threshold`` px in some view."""
     pts = extract_points(problem, values)
-    res = view_residuals(problem.rig, pts, problem.used, extract_planes(problem, values))
+    res = view_residuals(problem.rig, pts, problem.used, extract_planes(problem, values),
+                         extract_camera_poses(problem, values))
     bad = np.zeros_like(problem.used)
     for r in res:
         bad |= r > threshold

@@ -11,6 +11,9 @@ so the reduced coordinates are ``z = (bone-length vector, planes)`` and
 
     delta_globals = T z,   T = [[0, M], [I, 0], [0, I]]  for  (V..., L..., P...),  M = -J_V^-1 J_P.
 
+In a rig whose camera poses are estimated too, ``z`` also holds the camera
+poses and a virtual pose follows its camera as well: ``dV = -J_V^-1 (J_P dP + J_C dC)``.
+
 After every retraction the virtual poses are reset to the exact reflection of
 their camera across the updated plane (``project``), which keeps ``e = 0``.
 This is the constrained Gauss-Newton step of the problem where ``V`` is
@@ -34,6 +37,10 @@ def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
                      distance_gauge: float | None) -> GlobalReduction:
     """Reduced coordinates for a problem's globals.
 
+    ``z`` holds, in this order, the estimated camera poses (6 each), the bone
+    lengths and the planes (3 each). A virtual pose follows its plane and, when
+    its camera is estimated, its camera: ``dV = -J_V^-1 (J_P dP + J_C dC)``.
+
     Args:
         problem: the built problem (its views, mirrors and keys).
         with_lengths: the bone-length variables are in the graph being solved
@@ -43,29 +50,50 @@ def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
     """
     rig = problem.rig
     vkeys = list(problem.virtual_keys.items())                  # (view index, key)
+    in_graph = set(problem.reprojection.keyVector())
+    ckeys = list(problem.camera_keys.items())                   # (camera index, key)
     lkeys = ([(problem.length_key, len(problem.bone_names))]
              if with_lengths and problem.length_key is not None else [])
     pkeys = list(problem.plane_keys)
-    graph_keys = [(k, 6) for _, k in vkeys] + lkeys
-    extra_keys = [(k, 3) for k in pkeys]
-    z_keys = lkeys + [(k, 3) for k in pkeys]
-    nv, nl, npl = len(vkeys), sum(d for _, d in lkeys), len(pkeys)
-    plane_of_view = [rig.mirror_index(rig.views[vi].mirror) for vi, _ in vkeys]
-    cams = [rig.camera(rig.views[vi].camera).gtsam_pose for vi, _ in vkeys]
+    graph_cams = [(c, k) for c, k in ckeys if k in in_graph]
+    extra_cams = [(c, k) for c, k in ckeys if k not in in_graph]
+    graph_keys = [(k, 6) for _, k in vkeys] + [(k, 6) for _, k in graph_cams] + lkeys
+    extra_keys = [(k, 6) for _, k in extra_cams] + [(k, 3) for k in pkeys]
+    z_keys = [(k, 6) for _, k in ckeys] + lkeys + [(k, 3) for k in pkeys]
+    nv, nc, nl, npl = len(vkeys), len(ckeys), sum(d for _, d in lkeys), len(pkeys)
+    # columns of z and rows of delta_globals = graph_keys + extra_keys
+    zcol_cam = {c: 6 * i for i, (c, _) in enumerate(ckeys)}
+    zcol_len, zcol_plane = 6 * nc, 6 * nc + nl
+    row_cam = {}
+    for i, (c, _) in enumerate(graph_cams):
+        row_cam[c] = 6 * nv + 6 * i
+    row_len = 6 * nv + 6 * len(graph_cams)
+    row_extra = row_len + nl
+    for i, (c, _) in enumerate(extra_cams):
+        row_cam[c] = row_extra + 6 * i
+    row_plane = row_extra + 6 * len(extra_cams)
+    views = [(vi, vk, rig.mirror_index(rig.views[vi].mirror),
+              rig.camera_index(rig.views[vi].camera)) for vi, vk in vkeys]
 
     def basis(values: gtsam.Values) -> np.ndarray:
-        T = np.zeros((6 * nv + nl + 3 * npl, nl + 3 * npl))
-        for i, ((_, vk), m, cam) in enumerate(zip(vkeys, plane_of_view, cams)):
+        T = np.zeros((row_plane + 3 * npl, 6 * nc + nl + 3 * npl))
+        for i, (_, vk, m, c) in enumerate(views):
             plane = values.atOrientedPlane3(pkeys[m])
             n, d = plane_from_gtsam(plane)
             V = values.atPose3(vk)
-            _, _, Jp, Jv = MirrorLinkFactor.evaluate(
+            cam = problem.camera_pose(c, values)
+            _, Jc, Jp, Jv = MirrorLinkFactor.evaluate(
                 cam.rotation().matrix(), np.asarray(cam.translation()), n, d,
                 np.asarray(plane.normal().basis()), V.rotation().matrix(),
                 np.asarray(V.translation()))
-            T[6 * i:6 * i + 6, nl + 3 * m:nl + 3 * m + 3] = -np.linalg.solve(Jv, Jp)
-        T[6 * nv:6 * nv + nl, :nl] = np.eye(nl)
-        T[6 * nv + nl:, nl:] = np.eye(3 * npl)
+            Jv_inv = np.linalg.inv(Jv)
+            T[6 * i:6 * i + 6, zcol_plane + 3 * m:zcol_plane + 3 * m + 3] = -Jv_inv @ Jp
+            if c in zcol_cam:
+                T[6 * i:6 * i + 6, zcol_cam[c]:zcol_cam[c] + 6] = -Jv_inv @ Jc
+        for c, col in zcol_cam.items():
+            T[row_cam[c]:row_cam[c] + 6, col:col + 6] = np.eye(6)
+        T[row_len:row_len + nl, zcol_len:zcol_len + nl] = np.eye(nl)
+        T[row_plane:, zcol_plane:] = np.eye(3 * npl)
         return T
 
     extra = gtsam.NonlinearFactorGraph()

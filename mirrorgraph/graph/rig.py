@@ -26,18 +26,20 @@ __all__ = ["Camera", "Mirror", "View", "Rig", "single_mirror_rig"]
 
 @dataclass(frozen=True)
 class Camera:
-    """A calibrated camera with a fixed pose.
+    """A camera with known intrinsics and a fixed or estimated pose.
 
     Attributes:
         name: identifier.
         K: ``(3, 3)`` intrinsics (pixels).
         pose: ``(4, 4)`` camera-to-world transform (identity: the camera defines
-            the world frame).
+            the world frame); the initial value when ``estimate_pose``.
+        estimate_pose: the pose is a variable of the graph (``False``: held fixed).
     """
 
     name: str
     K: np.ndarray
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+    estimate_pose: bool = False
 
     @property
     def gtsam_pose(self) -> gtsam.Pose3:
@@ -105,6 +107,13 @@ class Rig:
         for c in self.cameras:
             if c.name == name:
                 return c
+        raise KeyError(name)
+
+    def camera_index(self, name: str) -> int:
+        """Index of the camera called ``name`` in :attr:`cameras`."""
+        for i, c in enumerate(self.cameras):
+            if c.name == name:
+                return i
         raise KeyError(name)
 
     def mirror_index(self, name: str) -> int:
