@@ -63,6 +63,8 @@ class _Candidates:
     frame: np.ndarray      # (M,) frame index
     a: np.ndarray          # (M, J, 3) first detection
     b: np.ndarray          # (M, J, 3) second detection, labels flipped
+    ia: np.ndarray         # (M,) index of the first detection in its frame's list
+    ib: np.ndarray         # (M,) index of the second
 
 
 def _masked(people: np.ndarray, min_conf: float) -> np.ndarray:
@@ -74,22 +76,26 @@ def _masked(people: np.ndarray, min_conf: float) -> np.ndarray:
 
 def _candidates(raw: RawDetections, opts: PairingOptions) -> _Candidates:
     flip = raw.skeleton.flip
-    frames, As, Bs = [], [], []
+    frames, As, Bs, Ia, Ib = [], [], [], [], []
     for t, people in enumerate(raw.people):
         if len(people) < 2:
             continue
         p = _masked(people, opts.min_confidence)
+        index = np.arange(len(p))
         if len(p) > opts.max_people:
-            order = np.argsort(-p[..., 2].mean(1), kind="stable")[: opts.max_people]
-            p = p[np.sort(order)]
+            index = np.sort(np.argsort(-p[..., 2].mean(1), kind="stable")[: opts.max_people])
+            p = p[index]
         i, k = np.triu_indices(len(p), 1)
         frames.append(np.full(len(i), t))
         As.append(p[i])
         Bs.append(p[k][:, flip])
+        Ia.append(index[i])
+        Ib.append(index[k])
     if not frames:
         raise InputError("no frame holds two people (a person and their reflection): "
                          "the reflection is missing in every frame", source=raw.source)
-    return _Candidates(np.concatenate(frames), np.concatenate(As), np.concatenate(Bs))
+    return _Candidates(np.concatenate(frames), np.concatenate(As), np.concatenate(Bs),
+                       np.concatenate(Ia), np.concatenate(Ib))
 
 
 def _median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
@@ -251,3 +257,116 @@ def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
                            image_size=paired.image_size, fps=paired.fps,
                            lr_fixes=int(np.count_nonzero(swapped)),
                            frames_read=paired.frames_read or len(real))
+
+
+@dataclass
+class MirrorPairing:
+    """Person and reflections in several mirrors, per frame (:func:`pair_reflections`).
+
+    Attributes:
+        real: ``(T, J, 3)`` the person (x px, y px, confidence; NaN / 0 where unknown).
+        reflections: one ``(T, J, 3)`` per mirror, labels flipped to the real joints
+            they image, in the order of :attr:`epipoles`.
+        epipoles: ``(3,)`` homogeneous epipole of each mirror (pixels).
+        lr_fixes: frames (summed over mirrors) whose reflection's labels were
+            found swapped by the detector.
+    """
+
+    real: np.ndarray
+    reflections: list[np.ndarray]
+    epipoles: list[np.ndarray]
+    lr_fixes: int = 0
+
+
+def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | None = None,
+                     options: PairingOptions | None = None) -> MirrorPairing:
+    """Sort out, per frame, the person and their reflections in ``num_mirrors`` mirrors.
+
+    The single-mirror method of :func:`pair_detections`, once per mirror: the
+    epipole of the mirror explaining most candidate pairs is found by RANSAC, the
+    pairs it explains are set aside, and the next mirror's epipole is searched
+    among the rest (two reflections of the person, or a reflection and a double
+    reflection, are not related by a reflection: their lines meet in no common
+    point). Per frame and mirror the best candidate under the threshold is kept.
+    The person is the detection that the chosen pairs of a frame share; in a
+    frame with one pair only, the reflection is the detection closer to the
+    epipole, as with one mirror.
+
+    Args:
+        raw: detections per frame (undistorted pixels).
+        num_mirrors: mirrors the camera sees (>= 1).
+        joints: joints judging the pairs (default: the calibration joints).
+        options: :class:`PairingOptions`.
+
+    Raises:
+        InputError: no frame holds two people.
+        DegenerateGeometryError: a mirror's epipole cannot be found.
+    """
+    opts = options or PairingOptions()
+    sk = raw.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    cand = _candidates(raw, opts)
+    flip = sk.flip
+    T, J = len(raw.people), sk.num_joints
+    remaining = np.ones(len(cand.frame), dtype=bool)
+    epipoles, choices = [], []
+    for m in range(num_mirrors):
+        pool = np.flatnonzero(remaining)
+        sub = pool[_spread_subset(cand.frame[pool], opts.ransac_frames)]
+        try:
+            e, _, _, _ = estimate_epipole(cand.a[sub][:, joints, :2].reshape(-1, 2),
+                                          cand.b[sub][:, joints, :2].reshape(-1, 2),
+                                          threshold_px=opts.threshold_px, seed=opts.seed + m)
+        except DegenerateGeometryError as exc:
+            raise DegenerateGeometryError(
+                f"{raw.source}: cannot find mirror {m + 1} of {num_mirrors}: {exc}") from None
+        flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
+        swapped_score = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
+        swapped = swapped_score < SWAP_MARGIN * flipped
+        score = np.where(swapped, swapped_score, flipped)
+        ok = score < opts.threshold_px
+        remaining &= ~ok
+        best = np.full(T, -1)
+        idx = np.flatnonzero(ok & (cand.frame >= 0))
+        if len(idx) == 0:
+            raise DegenerateGeometryError(
+                f"{raw.source}: no frame has a pair of detections consistent with mirror "
+                f"{m + 1} of {num_mirrors}")
+        order = idx[np.lexsort((score[idx], cand.frame[idx]))]
+        first = np.ones(len(order), bool)
+        first[1:] = cand.frame[order][1:] != cand.frame[order][:-1]
+        best[cand.frame[order[first]]] = order[first]
+        epipoles.append(e)
+        choices.append((best, swapped))
+
+    # the person: the detection the chosen pairs of a frame share
+    P = 1 + max(int(cand.ia.max()), int(cand.ib.max()))
+    count = np.zeros((T, P), dtype=int)
+    for best, _ in choices:
+        has = best >= 0
+        np.add.at(count, (np.flatnonzero(has), cand.ia[best[has]]), 1)
+        np.add.at(count, (np.flatnonzero(has), cand.ib[best[has]]), 1)
+    shared = np.where(count.max(1) >= 2, count.argmax(1), -1)
+
+    real = np.full((T, J, 3), np.nan)
+    real[..., 2] = 0.0
+    reflections, fixes = [], 0
+    for e, (best, swapped) in zip(epipoles, choices):
+        mirror = real.copy()
+        rows = np.flatnonzero(best >= 0)
+        c = best[rows]
+        a, b_own = cand.a[c], cand.b[c][:, flip]
+        by_epipole = _b_is_reflection(e, a[:, joints], np.where(
+            swapped[c, None, None], b_own, cand.b[c])[:, joints])
+        s = shared[rows]
+        in_pair = (cand.ia[c] == s) | (cand.ib[c] == s)
+        b_is_mirror = np.where((s >= 0) & in_pair, cand.ia[c] == s, by_epipole)
+        keep = b_is_mirror[:, None, None]
+        mirror_own = np.where(keep, b_own, a)
+        mirror[rows] = np.where(swapped[c, None, None], mirror_own, mirror_own[:, flip])
+        person = np.where(keep, a, b_own)
+        fill = rows[~(real[rows, :, 2] > 0).any(1)]
+        real[fill] = person[np.isin(rows, fill)]
+        reflections.append(mirror)
+        fixes += int(np.count_nonzero(swapped[c]))
+    return MirrorPairing(real=real, reflections=reflections, epipoles=epipoles, lr_fixes=fixes)

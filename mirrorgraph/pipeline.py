@@ -146,7 +146,10 @@ def check_image_size(data: RawDetections | PairedKeypoints, intr: Intrinsics,
     warnings.append(msg + " (resized video? wrong camera file?)")
 
 
-def _undistort(data, intr: Intrinsics):
+def undistort_keypoints(data: RawDetections | PairedKeypoints, intr: Intrinsics
+                        ) -> RawDetections | PairedKeypoints:
+    """The keypoints with the lens distortion of ``intr`` removed (pixels in, pixels out;
+    the input itself when there is no distortion)."""
     if intr.dist is None or not np.any(intr.dist):
         return data
     if isinstance(data, PairedKeypoints):
@@ -218,7 +221,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     joints = _joint_indices(keypoints.skeleton, opts.joints)
     intr = resolve_intrinsics(intrinsics, keypoints, opts, warnings)
     check_image_size(keypoints, intr, warnings)
-    data = _undistort(keypoints, intr)
+    data = undistort_keypoints(keypoints, intr)
     pair_opts = PairingOptions(min_confidence=opts.min_confidence,
                                threshold_px=opts.threshold_px, seed=opts.seed)
     step("pairing person and reflection")
