@@ -1,0 +1,199 @@
+"""The rig description: a TOML file naming the cameras, their inputs and the mirrors.
+
+Form (paths are relative to the rig file)::
+
+    subject_height = 1.72          # optional, metres; gives the scale
+    [[cameras]]
+    name = "cam01"
+    keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes
+    intrinsics = "Calib.toml"      # JSON, OpenCV YAML, or Pose2Sim / anipose TOML ...
+    intrinsics_section = "cam01"   # ... with the section to read where it holds several
+    skeleton = "BODY_25B"          # optional where the keypoint count is ambiguous
+    mirrors = ["wall"]             # optional: mirrors this camera sees
+    frame_offset = 0               # optional: this camera's frame f shows rig frame f - offset
+    [[mirrors]]
+    name = "wall"
+
+The first camera defines the world frame. Cameras are synchronised frame by
+frame: frame ``f`` of a camera with ``frame_offset = o`` is rig frame ``f - o``.
+A camera that sees several mirrors lists them in the order of their normals'
+``x`` component in that camera (the mirror on the camera's left first: the
+images cannot tell two mirrors apart otherwise); a mirror seen by several
+cameras is the same plane in all of them.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import InputError
+from ..skeletons import skeleton_by_name
+
+__all__ = ["CameraEntry", "RigConfig", "load_rig_config"]
+
+
+@dataclass(frozen=True)
+class CameraEntry:
+    """One ``[[cameras]]`` table, paths resolved.
+
+    Attributes:
+        name: camera name (unique).
+        keypoints: path of the keypoint input.
+        intrinsics: path of the intrinsics file, or ``None`` (then a 60 deg field of
+            view is assumed, with a warning).
+        intrinsics_section: the camera's section in a TOML file holding several.
+        skeleton: keypoint layout name, or ``None`` (from the keypoint count).
+        mirrors: names of the mirrors the camera sees.
+        frame_offset: the camera's frame ``f`` is rig frame ``f - frame_offset``.
+    """
+
+    name: str
+    keypoints: Path
+    intrinsics: Path | None = None
+    intrinsics_section: str | None = None
+    skeleton: str | None = None
+    mirrors: tuple[str, ...] = ()
+    frame_offset: int = 0
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """A parsed rig file.
+
+    Attributes:
+        source: the rig file.
+        cameras: the cameras, world frame = the first one's.
+        mirrors: mirror names.
+        subject_height: metres, or ``None`` (the scale is then the subject's height = 1).
+    """
+
+    source: Path
+    cameras: tuple[CameraEntry, ...]
+    mirrors: tuple[str, ...] = ()
+    subject_height: float | None = None
+
+
+_CAMERA_KEYS = {"name", "keypoints", "intrinsics", "intrinsics_section", "skeleton", "mirrors",
+                "frame_offset"}
+
+
+def _string(value, source, field_name) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise InputError("must be a non-empty string", source=source, field=field_name)
+    return value
+
+
+def load_rig_config(path: str | os.PathLike) -> RigConfig:
+    """Read and check a rig file (see the module docstring).
+
+    Raises:
+        InputError: naming the file and the field: missing file, malformed TOML,
+            no cameras, duplicate names, unknown keys, a mirror not declared, a
+            skeleton name not known, a missing keypoint or intrinsics path, a
+            non-positive height, a non-integer offset.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such file", source=path)
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", source=path) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file", source=path) from None
+    base = path.parent
+    unknown = set(doc) - {"subject_height", "cameras", "mirrors"}
+    if unknown:
+        raise InputError(f"unknown key(s) {', '.join(sorted(unknown))}; expected "
+                         "subject_height, [[cameras]], [[mirrors]]", source=path)
+
+    height = doc.get("subject_height")
+    if height is not None:
+        if isinstance(height, bool) or not isinstance(height, (int, float)) \
+                or not 0.3 < float(height) < 3.0:
+            raise InputError("must be a height in metres between 0.3 and 3",
+                             source=path, field="subject_height")
+        height = float(height)
+
+    mirrors_doc = doc.get("mirrors", [])
+    if not isinstance(mirrors_doc, list) or not all(isinstance(m, dict) for m in mirrors_doc):
+        raise InputError("must be an array of tables [[mirrors]]", source=path, field="mirrors")
+    mirror_names: list[str] = []
+    for i, m in enumerate(mirrors_doc):
+        name = _string(m.get("name"), path, f"mirrors[{i}].name")
+        if set(m) - {"name"}:
+            raise InputError(f"unknown key(s) {', '.join(sorted(set(m) - {'name'}))}",
+                             source=path, field=f"mirrors[{i}]")
+        if name in mirror_names:
+            raise InputError(f"mirror {name!r} declared twice", source=path,
+                             field=f"mirrors[{i}].name")
+        mirror_names.append(name)
+
+    cams_doc = doc.get("cameras")
+    if not isinstance(cams_doc, list) or not cams_doc or \
+            not all(isinstance(c, dict) for c in cams_doc):
+        raise InputError("needs at least one [[cameras]] table", source=path, field="cameras")
+    cameras: list[CameraEntry] = []
+    seen_mirrors: set[str] = set()
+    for i, c in enumerate(cams_doc):
+        where = f"cameras[{i}]"
+        extra = set(c) - _CAMERA_KEYS
+        if extra:
+            raise InputError(f"unknown key(s) {', '.join(sorted(extra))}; known: "
+                             f"{', '.join(sorted(_CAMERA_KEYS))}", source=path, field=where)
+        name = _string(c.get("name"), path, f"{where}.name")
+        if any(e.name == name for e in cameras):
+            raise InputError(f"camera {name!r} declared twice", source=path,
+                             field=f"{where}.name")
+        kp = base / _string(c.get("keypoints"), path, f"{where}.keypoints")
+        if not kp.exists():
+            raise InputError(f"keypoints {kp} not found", source=path,
+                             field=f"{where}.keypoints")
+        intr = None
+        if c.get("intrinsics") is not None:
+            intr = base / _string(c.get("intrinsics"), path, f"{where}.intrinsics")
+            if not intr.is_file():
+                raise InputError(f"intrinsics {intr} not found", source=path,
+                                 field=f"{where}.intrinsics")
+        section = c.get("intrinsics_section")
+        if section is not None:
+            section = _string(section, path, f"{where}.intrinsics_section")
+        skeleton = c.get("skeleton")
+        if skeleton is not None:
+            skeleton = _string(skeleton, path, f"{where}.skeleton")
+            try:
+                skeleton_by_name(skeleton)
+            except ValueError as exc:
+                raise InputError(str(exc), source=path, field=f"{where}.skeleton") from None
+        mirrors = c.get("mirrors", [])
+        if not isinstance(mirrors, list) or not all(isinstance(m, str) for m in mirrors):
+            raise InputError("must be a list of mirror names", source=path,
+                             field=f"{where}.mirrors")
+        for m in mirrors:
+            if m not in mirror_names:
+                raise InputError(f"mirror {m!r} is not declared in [[mirrors]]", source=path,
+                                 field=f"{where}.mirrors")
+        if len(set(mirrors)) != len(mirrors):
+            raise InputError("a mirror is listed twice", source=path, field=f"{where}.mirrors")
+        seen_mirrors.update(mirrors)
+        offset = c.get("frame_offset", 0)
+        if isinstance(offset, bool) or not isinstance(offset, int):
+            raise InputError("must be an integer number of frames", source=path,
+                             field=f"{where}.frame_offset")
+        cameras.append(CameraEntry(name=name, keypoints=kp, intrinsics=intr,
+                                   intrinsics_section=section, skeleton=skeleton,
+                                   mirrors=tuple(mirrors), frame_offset=int(offset)))
+    unused = [m for m in mirror_names if m not in seen_mirrors]
+    if unused:
+        raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "
+                         "camera's mirrors list)", source=path, field="mirrors")
+    skeletons = {e.skeleton for e in cameras if e.skeleton is not None}
+    if len(skeletons) > 1:
+        raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
+                         "one layout per rig", source=path, field="cameras")
+    return RigConfig(source=path, cameras=tuple(cameras), mirrors=tuple(mirror_names),
+                     subject_height=height)

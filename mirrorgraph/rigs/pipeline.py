@@ -1,0 +1,109 @@
+"""``calibrate_rig``: a rig file in, every camera and mirror calibrated out.
+
+Steps: read and sort every camera's keypoints (:mod:`.observations`), pairwise
+initialisation chained along a spanning tree (:mod:`.initial`), one factor graph
+over all joints, cameras and mirrors (:mod:`.solve`), and the result with its
+uncertainties (:mod:`.result`).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Callable
+
+import numpy as np
+
+from ..graph.options import RefineOptions
+from .config import RigConfig, load_rig_config
+from .initial import initialise_rig
+from .observations import load_observations
+from .result import RigCalibration, RigCamera, RigMirror
+from .solve import build_rig, camera_std, plane_std, solve_rig
+
+__all__ = ["calibrate_rig"]
+
+#: Above this angle (deg) between two cameras' initial views of one mirror, warn.
+MIRROR_SPREAD_WARN_DEG = 5.0
+
+
+def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: float | None = None,
+                  skeleton: str | None = None, options: RefineOptions | None = None,
+                  seed: int = 0, status: Callable[[str], None] | None = None,
+                  progress: Callable[[int, float], None] | None = None) -> RigCalibration:
+    """Calibrate every camera and mirror of a rig from the people in its videos.
+
+    Args:
+        config: a :class:`~.config.RigConfig` or the path of a rig TOML file.
+        subject_height: metres; overrides the file's ``subject_height``. Without
+            either, lengths are in units of the subject's height.
+        skeleton: layout for cameras whose table names none.
+        options: weights and solver settings of the graph.
+        seed: RANSAC seed.
+        status: called with a short description of each step.
+        progress: ``progress(iteration, error)`` of the graph solve.
+
+    Returns:
+        :class:`~.result.RigCalibration` (world frame = the first camera).
+
+    Raises:
+        InputError: a malformed rig file or input, naming the file and field.
+        DegenerateGeometryError: a camera that cannot be placed, a mirror that
+            cannot be found, too few joints.
+    """
+    cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
+    height = subject_height if subject_height is not None else cfg.subject_height
+    scale = "subject_height" if height is not None else "unit_height"
+    H = float(height) if height is not None else 1.0
+    say = status or (lambda s: None)
+
+    obs = load_observations(cfg, skeleton=skeleton,
+                            progress=lambda name: say(f"reading camera {name}"))
+    warnings = list(obs.warnings)
+    say("initialising: camera pairs, mirrors, spanning tree")
+    init = initialise_rig(obs, H, seed=seed)
+    for m, spread in init.mirror_spread_deg.items():
+        if spread > MIRROR_SPREAD_WARN_DEG:
+            warnings.append(f"mirror {m}: the cameras' initial estimates differ by {spread:.1f} "
+                            "deg (is it the same mirror in all of them?)")
+    rig = build_rig(obs, init)
+    say("refining the rig in one factor graph")
+    sol = solve_rig(rig, options or RefineOptions(), H, progress=progress)
+
+    rms = dict(zip(sol.view_names, sol.view_rms_px))
+    counts = dict(zip(sol.view_names, sol.view_counts))
+    cameras = []
+    for c, pose, cov in zip(obs.cameras, sol.poses, sol.camera_cov):
+        rot, pos = camera_std(cov, pose)
+        cameras.append(RigCamera(name=c.name, intrinsics=c.intrinsics, pose=np.asarray(pose),
+                                 rotation_std_deg=rot, position_std=pos,
+                                 reprojection_rms_px=rms.get(c.name, float("nan")),
+                                 observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes))
+    mirrors = []
+    for i, name in enumerate(sol.mirror_names):
+        n, d = sol.planes[i]
+        if sol.plane_basis:
+            ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
+        else:
+            ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")
+        seen_by = [c.name for c in obs.cameras if name in c.reflections]
+        mirrors.append(RigMirror(name=name, normal=np.asarray(n), distance=float(d),
+                                 normal_cov=ncov, rotation_std_deg=rot, distance_std=dstd,
+                                 seen_by=seen_by,
+                                 views_rms_px={c: rms.get(f"{c}/{name}", float("nan"))
+                                               for c in seen_by}))
+    initialisation = {
+        "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
+                   "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],
+        "spanning_tree": [list(e) for e in init.tree],
+        "mirror_sightings": [{"camera": c, "mirror": m, "inliers": s.inliers}
+                             for (c, m), s in init.sightings.items()],
+        "mirror_spread_deg": init.mirror_spread_deg,
+    }
+    refinement = {"iterations": sol.iterations, "rejected_observations": sol.rejected,
+                  "priors": sol.priors, "views": {v: {"rms_px": rms[v], "observations": counts[v]}
+                                                  for v in sol.view_names}}
+    return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+                          skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
+                          joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
+                          initialisation=initialisation, refinement=refinement,
+                          warnings=warnings, source=str(cfg.source))

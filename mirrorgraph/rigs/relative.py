@@ -1,0 +1,245 @@
+"""Two-view initialisation: the relative pose of two cameras, and of a camera and a mirror.
+
+Camera to camera. The same joints seen by two calibrated cameras fix their
+essential matrix ``E = [t]x R`` (``x_b^T E x_a = 0`` in normalised
+coordinates, ``X_b = R X_a + t``); OpenCV's five-point solver (Nister, "An
+efficient solution to the five-point relative pose problem", PAMI 2004) inside
+MAGSAC++ (Barath et al., CVPR 2020) estimates it and the cheirality test picks
+``(R, t)`` among its four decompositions (Hartley and Zisserman, *Multiple View
+Geometry*, 2nd ed., sec. 9.6). A person seen from a few metres covers a small
+part of the image, where rotation and translation trade off (the bas-relief
+ambiguity): a minimal sample's ``E`` is then degrees off although most joints
+fit it, so ``(R, t)`` is refined on all inliers by minimising a robust (Cauchy)
+Sampson distance (:func:`refine_relative_pose`). Measured on the synthetic
+two-camera rig: plain RANSAC 4-19 deg, MAGSAC++ 0.03-0.09 deg, refined 0.02 deg.
+The reflection seen by both cameras adds correspondences of the same kind: the
+mirror image is a rigid (reflected) copy of the person.
+
+Camera to mirror. The reflective RANSAC of :func:`mirrorgraph.estimators.estimate_mirror`.
+
+Scale. Two views fix the geometry up to scale; the subject fixes it: the joints
+triangulated with a unit baseline (or ``d = 1``) give the subject's height in
+that unit from the median bone lengths and Winter's segment proportions
+(:func:`mirrorgraph.graph.builder.body_height_from_points`), so one edge's
+length is ``H / h``. With every edge scaled by the same subject the chain of
+edges is consistent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..errors import DegenerateGeometryError
+from ..estimators import estimate_mirror
+from ..geometry import triangulate_mirror
+from ..graph.builder import body_height_from_points
+from ..graph.rig import Rig
+from ..skeletons import Skeleton
+from .triangulation import camera_projection, triangulate_views
+
+__all__ = ["RelativePose", "MirrorSighting", "relative_pose", "refine_relative_pose",
+           "sampson_px", "mirror_sighting", "MIN_CORRESPONDENCES"]
+
+#: Fewest joint correspondences for a camera-to-camera edge.
+MIN_CORRESPONDENCES = 30
+
+
+@dataclass
+class RelativePose:
+    """Camera ``b`` relative to camera ``a``: ``X_b = R X_a + t``.
+
+    Attributes:
+        R: ``(3, 3)`` rotation.
+        t: ``(3,)`` translation, length = the baseline in the subject's scale
+            (:func:`relative_pose`'s ``height``).
+        inliers: number of inlier correspondences (the edge's weight).
+        correspondences: number of correspondences tried.
+        residual_px: median Sampson distance of the inliers, pixels.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    inliers: int
+    correspondences: int
+    residual_px: float
+
+    @property
+    def pose_b_in_a(self) -> np.ndarray:
+        """``(4, 4)`` camera-to-world pose of ``b`` when ``a`` is the world frame."""
+        T = np.eye(4)
+        T[:3, :3] = self.R.T
+        T[:3, 3] = -self.R.T @ self.t
+        return T
+
+
+@dataclass
+class MirrorSighting:
+    """A mirror seen by one camera: the plane in that camera's frame.
+
+    Attributes:
+        normal: ``(3,)`` unit normal, away from the camera.
+        distance: ``d`` in the subject's scale.
+        inliers: number of inlier pairs.
+    """
+
+    normal: np.ndarray
+    distance: float
+    inliers: int
+
+
+def _skeleton_rig(skeleton: Skeleton, T: int, joints: np.ndarray) -> Rig:
+    return Rig(cameras=(), mirrors=(), views=(), skeleton=skeleton,
+               frame_ids=np.arange(T), joints=np.asarray(joints, dtype=int))
+
+
+def _normalised(K: np.ndarray, u: np.ndarray) -> np.ndarray:
+    uh = np.concatenate([u, np.ones(u.shape[:-1] + (1,))], axis=-1)
+    x = uh @ np.linalg.inv(K).T
+    return x[..., :2] / x[..., 2:3]
+
+
+def sampson_px(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, f: float) -> np.ndarray:
+    """``(N,)`` Sampson distances (pixels: ``f`` times the normalised one) of
+    correspondences ``xa``, ``xb`` ``(N, 2)`` (normalised coordinates) under ``E``."""
+    ha = np.column_stack([xa, np.ones(len(xa))])
+    hb = np.column_stack([xb, np.ones(len(xb))])
+    Ea, Etb = ha @ E.T, hb @ E
+    num = np.einsum("ij,ij->i", hb, Ea)
+    den = np.sqrt(Ea[:, 0] ** 2 + Ea[:, 1] ** 2 + Etb[:, 0] ** 2 + Etb[:, 1] ** 2)
+    return f * num / np.maximum(den, 1e-300)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def refine_relative_pose(xa: np.ndarray, xb: np.ndarray, R: np.ndarray, t: np.ndarray,
+                         f: float, scale_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Refine ``(R, t)`` (``|t| = 1``) on correspondences by a robust Sampson distance.
+
+    Parametrisation: ``R <- R Exp(w)``, ``t <- normalise(t + B v)`` with ``B`` a
+    ``(3, 2)`` basis orthogonal to ``t`` (5 unknowns). Cauchy loss of scale
+    ``scale_px`` (scipy's ``least_squares``, trust-region reflective).
+
+    Args:
+        xa, xb: ``(N, 2)`` normalised coordinates; f: focal length (px) for the units.
+    """
+    R0, t0 = np.asarray(R, float), np.asarray(t, float).ravel() / np.linalg.norm(t)
+    B = np.linalg.svd(t0[None, :])[2][1:].T                          # (3, 2)
+
+    def unpack(p):
+        Rm = R0 @ Rotation.from_rotvec(p[:3]).as_matrix()
+        tv = t0 + B @ p[3:]
+        return Rm, tv / np.linalg.norm(tv)
+
+    def residual(p):
+        Rm, tv = unpack(p)
+        return sampson_px(_skew(tv) @ Rm, xa, xb, f)
+
+    sol = least_squares(residual, np.zeros(5), loss="cauchy", f_scale=float(scale_px),
+                        x_scale="jac", max_nfev=200)
+    return unpack(sol.x)
+
+
+def relative_pose(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray, u_b: np.ndarray,
+                  mask: np.ndarray, skeleton: Skeleton, joints: np.ndarray, height: float,
+                  *, threshold_px: float = 8.0, seed: int = 0) -> RelativePose | None:
+    """Relative pose of two cameras from joints both see, scaled by the subject.
+
+    Args:
+        K_a, K_b: ``(3, 3)`` intrinsics.
+        u_a, u_b: ``(S, T, J, 2)`` undistorted pixels of the same 3D points in
+            ``a`` and ``b`` (``S`` sets: the person, and each reflection both see).
+        mask: ``(S, T, J)`` bool, both cameras observe the point.
+        skeleton, joints: layout and the joints used (for the scale).
+        height: the subject's height in the output unit.
+        threshold_px: RANSAC inlier threshold (Sampson distance), pixels.
+        seed: seed of OpenCV's RANSAC sampling.
+
+    Returns:
+        The pose, or ``None`` with fewer than :data:`MIN_CORRESPONDENCES`
+        correspondences or when the geometry is degenerate.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    n = int(np.count_nonzero(mask))
+    if n < MIN_CORRESPONDENCES:
+        return None
+    xa = _normalised(np.asarray(K_a, float), np.asarray(u_a, float)[mask])
+    xb = _normalised(np.asarray(K_b, float), np.asarray(u_b, float)[mask])
+    f = 0.5 * (np.mean(np.diag(K_a)[:2]) + np.mean(np.diag(K_b)[:2]))
+    cv2.setRNGSeed(int(seed))
+    E, inl = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.USAC_MAGSAC, prob=0.9999,
+                                  threshold=threshold_px / f, maxIters=5000)
+    if E is None or E.shape[1:] != (3,) or E.shape[0] < 3 or inl is None:
+        return None
+    E = E[:3]
+    count, R, t, _ = cv2.recoverPose(E, xa, xb, np.eye(3), mask=inl.copy())
+    if count < MIN_CORRESPONDENCES // 2:
+        return None
+    R, t = refine_relative_pose(xa, xb, R, np.asarray(t, float).ravel(), f, 0.5 * threshold_px)
+    E = _skew(t) @ R
+    sampson = np.abs(sampson_px(E, xa, xb, f))
+    inliers = sampson < threshold_px
+    # cheirality of the refined pose: most inliers in front of both cameras
+    Pa0 = np.hstack([np.eye(3), np.zeros((3, 1))])
+    Pb0 = np.hstack([R, t[:, None]])
+    X, ok = triangulate_views([Pa0, Pb0], [xa, xb], [inliers, inliers])
+    front = ok & (X[:, 2] > 0) & ((X @ R.T + t)[:, 2] > 0)
+    if np.count_nonzero(front) < 0.5 * np.count_nonzero(inliers):
+        return None
+    # scale: triangulate the inliers with a unit baseline, measure the subject
+    full = np.zeros(mask.shape, dtype=bool)
+    full[mask] = inliers
+    Pa = camera_projection(K_a, np.eye(4))
+    Pb = np.asarray(K_b, float) @ np.hstack([R, t[:, None]])
+    h = np.nan
+    for s in range(mask.shape[0]):
+        X, ok = triangulate_views([Pa, Pb], [u_a[s], u_b[s]], [full[s], full[s]])
+        hs = body_height_from_points(_skeleton_rig(skeleton, X.shape[0], joints), X, ok)
+        if np.isfinite(hs) and hs > 0:
+            h = hs
+            break
+    if not np.isfinite(h) or h <= 0:
+        return None
+    return RelativePose(R=np.asarray(R, float), t=t * (float(height) / h),
+                        inliers=int(np.count_nonzero(inliers)), correspondences=n,
+                        residual_px=float(np.median(sampson[inliers])) if inliers.any()
+                        else float("nan"))
+
+
+def mirror_sighting(K: np.ndarray, real: np.ndarray, reflection: np.ndarray, mask: np.ndarray,
+                    skeleton: Skeleton, joints: np.ndarray, height: float, *,
+                    seed: int = 0, name: str = "") -> MirrorSighting:
+    """The mirror plane in one camera's frame, scaled by the subject.
+
+    Args:
+        K: ``(3, 3)`` intrinsics.
+        real, reflection: ``(T, J, 2)`` undistorted pixels (reflection labels flipped).
+        mask: ``(T, J)`` bool, both observed (calibration joints).
+        skeleton, joints: layout and joints (for the scale).
+        height: the subject's height in the output unit.
+        name: ``"camera/mirror"`` for messages.
+
+    Raises:
+        DegenerateGeometryError: the pairs do not determine the mirror.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    try:
+        est = estimate_mirror(real[mask], reflection[mask], K, seed=seed)
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(f"mirror {name}: {exc}") from None
+    inl = np.zeros(mask.shape, dtype=bool)
+    inl[mask] = est.inliers
+    X = np.full(mask.shape + (3,), np.nan)
+    X[inl] = triangulate_mirror(K, est.normal, 1.0, real[inl], reflection[inl])
+    h = body_height_from_points(_skeleton_rig(skeleton, mask.shape[0], joints), X, inl)
+    if not np.isfinite(h) or h <= 0:
+        raise DegenerateGeometryError(f"mirror {name}: cannot measure the subject through "
+                                      "the mirror (no bone seen in both views)")
+    return MirrorSighting(normal=np.asarray(est.normal, float), distance=float(height) / h,
+                          inliers=int(np.count_nonzero(inl)))

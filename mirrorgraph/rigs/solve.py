@@ -1,0 +1,325 @@
+"""Refine a whole rig in one factor graph: all joints, all camera poses, all mirror planes.
+
+The graph is :mod:`mirrorgraph.graph`'s, with the rig's cameras (every camera
+but the first has a :class:`gtsam.Pose3` variable), its mirrors (one
+:class:`gtsam.OrientedPlane3` each; every mirror view's virtual camera is tied
+to its camera and plane exactly, :mod:`mirrorgraph.graph.reduction`), robust
+reprojection in every view, the body priors and the subject-height gauge. The
+world frame is the first camera's (its pose fixed: 6 of the 7 gauge freedoms),
+the scale is the subject's height (the seventh).
+
+Stages:
+
+1. triangulate every joint seen twice with the initial rig; drop observations
+   with gross reprojection residuals (:data:`INITIAL_REJECTION_FACTOR` times
+   ``options.outlier_threshold``; rejection is per *observation* here: a wrong
+   keypoint in one camera does not cost the other views) and joints whose bones
+   are all implausible; triangulate again;
+2. scale everything so that the median bone lengths sum to Winter's lengths
+   for the subject's height (the gauge's value);
+3. solve with the Geman-McClure kernel (:func:`mirrorgraph.graph.refine.full_solve`,
+   Python-driven Levenberg-Marquardt); drop the observations beyond
+   ``options.outlier_threshold``; solve again by least squares from the solution;
+4. marginals: the reduced information of the last undamped solve is the Schur
+   complement of every joint on (camera poses, bone lengths, planes); GTSAM's
+   :class:`gtsam.Marginals` of it gives each camera's 6x6 and each plane's 3x3
+   covariance.
+
+Videos longer than ``options.max_graph_frames`` frames are calibrated on that
+many frames spread over the video (the joints of the other frames are
+triangulated with the result).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import gtsam
+import numpy as np
+
+from ..errors import DegenerateGeometryError
+from ..graph.builder import (GraphProblem, build_problem, bone_table, extract_camera_poses,
+                             extract_planes, extract_points, snap_virtual_poses, view_residuals)
+from ..graph.optimizer import reduced_marginals
+from ..graph.options import RefineOptions
+from ..graph.outliers import bone_outliers
+from ..graph.refine import MIN_PAIRS, _gauge_scale, full_solve, spread_rows
+from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
+from ..graph.rig import Camera, Mirror, Rig, View
+from .initial import MIN_CONFIDENCE, InitialRig
+from .observations import RigObservations
+from .triangulation import camera_projection, mirror_projection, triangulate_views
+
+__all__ = ["RigSolution", "build_rig", "triangulate_rig_views", "solve_rig",
+           "INITIAL_REJECTION_FACTOR"]
+
+#: Before the first solve only gross errors are dropped: observations beyond this
+#: many outlier thresholds. The chained pairwise initialisation is a few per cent
+#: off in scale per edge, i.e. tens of pixels, which the first (robust) solve
+#: removes; rejecting at the final threshold then would drop good keypoints.
+INITIAL_REJECTION_FACTOR = 5.0
+
+
+@dataclass
+class RigSolution:
+    """The refined rig (graph units = metres with a subject height, else heights).
+
+    Attributes:
+        poses: ``(4, 4)`` camera-to-world pose per camera.
+        planes: ``(n, d)`` per mirror of the rig, world frame.
+        mirror_names: names of ``planes``.
+        camera_cov: per camera ``(6, 6)`` covariance of its pose in GTSAM's tangent
+            ``(rotation rad, translation in the camera frame)``; zeros for the first
+            camera (the fixed world frame); NaN when not computed.
+        plane_cov: per mirror ``(3, 3)`` tangent covariance ``(v1, v2, d)``.
+        plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
+        points: ``(T, J, 3)`` joints; used: ``(T, J)``.
+        view_names, view_rms_px: reprojection RMS per view, pixels.
+        view_counts: observations used per view.
+        bone_lengths: bone -> length.
+        rejected: observations dropped as outliers, all views.
+        iterations: Levenberg-Marquardt solves.
+        priors: prior name -> description (as the single-mirror result).
+        timings: seconds per stage.
+    """
+
+    poses: list[np.ndarray]
+    planes: list[tuple[np.ndarray, float]]
+    mirror_names: list[str]
+    camera_cov: list[np.ndarray]
+    plane_cov: list[np.ndarray]
+    plane_basis: list[np.ndarray]
+    points: np.ndarray
+    used: np.ndarray
+    view_names: list[str]
+    view_rms_px: list[float]
+    view_counts: list[int]
+    bone_lengths: dict[str, float]
+    rejected: int
+    iterations: int
+    priors: dict
+    timings: dict
+
+
+def _seen(a: np.ndarray) -> np.ndarray:
+    return (a[..., 2] >= MIN_CONFIDENCE) & np.isfinite(a[..., :2]).all(-1)
+
+
+def build_rig(obs: RigObservations, init: InitialRig) -> Rig:
+    """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
+    estimated), the mirrors that were placed, one direct view per camera and one
+    view per camera and mirror."""
+    cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
+                 for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))
+    mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)
+    placed = {m.name for m in mirrors}
+    views = []
+    for c in obs.cameras:
+        views.append(View(c.name, c.name, None, c.real[..., :2].copy(), _seen(c.real)))
+        for m, refl in c.reflections.items():
+            if m in placed:
+                views.append(View(f"{c.name}/{m}", c.name, m, refl[..., :2].copy(), _seen(refl)))
+    return Rig(cameras=cams, mirrors=mirrors, views=tuple(views), skeleton=obs.skeleton,
+               frame_ids=np.asarray(obs.frame_ids, dtype=np.int64),
+               joints=np.asarray(obs.skeleton.calibration_joints, dtype=int))
+
+
+def _projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
+                 ) -> list[np.ndarray]:
+    out = []
+    for v in rig.views:
+        ci = rig.camera_index(v.camera)
+        K = rig.cameras[ci].K
+        if v.mirror is None:
+            out.append(camera_projection(K, poses[ci]))
+        else:
+            out.append(mirror_projection(K, poses[ci], *planes[rig.mirror_index(v.mirror)]))
+    return out
+
+
+def triangulate_rig_views(rig: Rig, poses: list[np.ndarray],
+                          planes: list[tuple[np.ndarray, float]],
+                          rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, J, 3)`` joints (world frame) and ``(T, J)`` mask, triangulated from every
+    view that observes them (:attr:`View.mask`), estimated joints only."""
+    jmask = np.zeros(rig.skeleton.num_joints, dtype=bool)
+    jmask[rig.joints] = True
+    masks = [np.asarray(v.mask, bool) & jmask[None, :] for v in rig.views]
+    if rows is not None:
+        masks = [m & rows[:, None] for m in masks]
+    return triangulate_views(_projections(rig, poses, planes),
+                             [v.pixels for v in rig.views], masks)
+
+
+def _with_masks(rig: Rig, masks: list[np.ndarray]) -> Rig:
+    return replace(rig, views=tuple(replace(v, mask=m) for v, m in zip(rig.views, masks)))
+
+
+def _with_poses(rig: Rig, poses: list[np.ndarray], planes) -> Rig:
+    cams = tuple(replace(c, pose=np.asarray(p, float)) for c, p in zip(rig.cameras, poses))
+    mirrors = tuple(replace(m, normal=np.asarray(n, float), distance=float(d))
+                    for m, (n, d) in zip(rig.mirrors, planes))
+    return replace(rig, cameras=cams, mirrors=mirrors)
+
+
+def _depth_ok(rig: Rig, points: np.ndarray, used: np.ndarray, poses, planes) -> list[np.ndarray]:
+    """Per view: the observed point lies in front of the (real or virtual) camera."""
+    out = []
+    for v, P in zip(rig.views, _projections(rig, poses, planes)):
+        with np.errstate(invalid="ignore"):
+            w = np.einsum("ij,tkj->tki", P[2:3, :3], np.nan_to_num(points))[..., 0] + P[2, 3]
+        out.append(~(used & (w <= 0)))
+    return out
+
+
+def _reject(rig: Rig, points, used, poses, planes, threshold: float
+            ) -> tuple[list[np.ndarray], int]:
+    """View masks without the observations beyond ``threshold`` px or behind their camera."""
+    res = view_residuals(rig, points, used, planes, poses)
+    depth = _depth_ok(rig, points, used, poses, planes)
+    masks, dropped = [], 0
+    for v, r, ok in zip(rig.views, res, depth):
+        bad = used & ((np.nan_to_num(r, nan=0.0) > threshold) | ~ok) & np.asarray(v.mask, bool)
+        dropped += int(np.count_nonzero(bad))
+        masks.append(np.asarray(v.mask, bool) & ~bad)
+    return masks, dropped
+
+
+def _marginals(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
+               z_keys) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    rig = problem.rig
+    nan6, nan3 = np.full((6, 6), np.nan), np.full((3, 3), np.nan)
+    basis = [np.asarray(values.atOrientedPlane3(k).normal().basis()) for k in problem.plane_keys]
+    if info is None:
+        return ([np.zeros((6, 6)) if i == 0 else nan6 for i in range(len(rig.cameras))],
+                [nan3] * len(problem.plane_keys), basis)
+    zv = gtsam.Values()
+    for k, _ in z_keys:
+        if k in problem.plane_keys:
+            zv.insert(k, values.atOrientedPlane3(k))
+        elif k == problem.length_key:
+            zv.insert(k, values.atVector(k))
+        else:
+            zv.insert(k, values.atPose3(k))
+    marg = reduced_marginals(info, z_keys, zv)
+    cams = []
+    for i in range(len(rig.cameras)):
+        k = problem.camera_keys.get(i)
+        cams.append(np.zeros((6, 6)) if k is None else np.asarray(marg.marginalCovariance(k)))
+    planes = [np.asarray(marg.marginalCovariance(k)) for k in problem.plane_keys]
+    return cams, planes, basis
+
+
+def solve_rig(rig: Rig, options: RefineOptions, height: float,
+              progress=None) -> RigSolution:
+    """Run the stages of the module docstring on ``rig`` (initial poses and planes inside).
+
+    Args:
+        rig: cameras (initial poses), mirrors (initial planes), views.
+        options: weights and solver settings (``subject_height`` is ignored: the
+            gauge is ``height``).
+        height: the subject's height in the output unit.
+        progress: ``progress(iteration, error)`` per accepted step.
+
+    Raises:
+        DegenerateGeometryError: too few joints seen twice.
+    """
+    timings = {"triangulate": 0.0, "build": 0.0, "solve": 0.0, "marginals": 0.0}
+    opts = replace(options, subject_height=float(height))
+    t0 = time.perf_counter()
+    T = rig.num_frames
+    rows = spread_rows(T, opts.max_graph_frames)
+    poses = [np.asarray(c.pose, float) for c in rig.cameras]
+    planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
+    sub = rig.subset(rows)
+
+    # 1. triangulate, reject, triangulate again
+    points, used = triangulate_rig_views(sub, poses, planes)
+    masks, rejected = _reject(sub, points, used, poses, planes,
+                              INITIAL_REJECTION_FACTOR * opts.outlier_threshold)
+    sub = _with_masks(sub, masks)
+    points, used = triangulate_rig_views(sub, poses, planes)
+    if opts.bone_outlier_k > 0:
+        _, pairs = bone_table(sub)
+        used &= ~bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
+    if np.count_nonzero(used) < MIN_PAIRS:
+        raise DegenerateGeometryError(
+            f"only {np.count_nonzero(used)} joints are seen in two views after the initial "
+            f"outlier rejection (need {MIN_PAIRS})")
+    # 2. start on the gauge
+    s = _gauge_scale(sub, points, used, float(height))
+    points = points * s
+    planes = [(n, d * s) for n, d in planes]
+    for p in poses:
+        p[:3, 3] *= s
+    sub = _with_poses(sub, poses, planes)
+    timings["triangulate"] += time.perf_counter() - t0
+
+    problem, values, res, z_keys, iterations, lengths = None, None, None, None, 0, None
+    for stage in range(2):
+        t = time.perf_counter()
+        problem = build_problem(sub, points, used, planes, opts, body_height=float(height),
+                                bone_lengths=lengths, final_kernel=None if stage else
+                                ("geman_mcclure" if opts.final_kernel == "auto"
+                                 else opts.final_kernel))
+        snap_virtual_poses(problem, problem.values)
+        timings["build"] += time.perf_counter() - t
+        t = time.perf_counter()
+        res, z_keys = full_solve(problem, problem.values, opts, progress)
+        iterations += res.iterations
+        values = res.values
+        points = extract_points(problem, values)
+        planes = extract_planes(problem, values)
+        poses = extract_camera_poses(problem, values)
+        lengths = problem.bone_lengths(values)
+        masks, dropped = _reject(problem.rig, points, problem.used, poses, planes,
+                                 opts.outlier_threshold)
+        rejected += dropped
+        used = problem.used
+        sub = _with_poses(_with_masks(problem.rig, masks), poses, planes)
+        timings["solve"] += time.perf_counter() - t
+    t = time.perf_counter()
+    cam_cov, plane_cov, basis = (_marginals(problem, values, res.reduced_information, z_keys)
+                                 if opts.marginals else
+                                 ([np.full((6, 6), np.nan)] * len(poses),
+                                  [np.full((3, 3), np.nan)] * len(planes), []))
+    timings["marginals"] = time.perf_counter() - t
+
+    # every frame: triangulate with the final rig (the graph's joints where it has them)
+    full = _with_poses(_with_masks(rig, [np.asarray(v.mask, bool) for v in rig.views]),
+                       poses, planes)
+    all_points, all_used = triangulate_rig_views(full, poses, planes)
+    all_points[np.flatnonzero(rows)] = np.where(problem.used[..., None], points,
+                                                all_points[rows])
+    all_used[np.flatnonzero(rows)] |= problem.used
+    res_views = view_residuals(problem.rig, points, problem.used, planes, poses)
+    rms = [float(np.sqrt(np.nanmean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any()
+           else float("nan") for r in res_views]
+    counts = [int(np.count_nonzero(np.isfinite(r))) for r in res_views]
+    priors = {"reprojection": {"sigma": opts.pixel_sigma, "unit": "px",
+                               "kernel": "geman_mcclure then none",
+                               "outlier_threshold_px": opts.outlier_threshold,
+                               "factors": int(problem.reprojection.size())}}
+    priors.update(problem.prior_info)
+    timings["total"] = time.perf_counter() - t0
+    return RigSolution(poses=poses, planes=planes, mirror_names=[m.name for m in rig.mirrors],
+                       camera_cov=cam_cov, plane_cov=plane_cov, plane_basis=basis,
+                       points=all_points, used=all_used, view_names=[v.name for v in rig.views],
+                       view_rms_px=rms, view_counts=counts, bone_lengths=lengths or {},
+                       rejected=rejected, iterations=iterations, priors=priors, timings=timings)
+
+
+def camera_std(cov: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
+    """RMS rotation error (deg) and position error (length unit) of a camera from its
+    ``(6, 6)`` tangent covariance (rotation, then translation in the camera frame)."""
+    rot = float(np.degrees(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))))
+    R = np.asarray(pose, float)[:3, :3]
+    pos = float(np.sqrt(max(np.trace(R @ cov[3:, 3:] @ R.T), 0.0)))
+    return rot, pos
+
+
+def plane_std(cov: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Normal covariance ``(3, 3)``, virtual-camera rotation RMS (deg), distance std."""
+    ncov = normal_cov_from_tangent(basis, cov[:2, :2])
+    return ncov, rotation_std_from_normal_cov(ncov), float(np.sqrt(max(cov[2, 2], 0.0)))
