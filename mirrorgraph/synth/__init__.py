@@ -8,7 +8,11 @@ bystanders, lens distortion) (:mod:`.scene`); :func:`write_scene` writes the
 detections in every supported format with the ground truth (:mod:`.writer`).
 Instead of the procedural exercises the person can move as a motion-capture
 take does: ``make_scene(motion="take.bvh")`` reads a CMU-skeleton BVH file and
-maps it to the body model's joints (:mod:`.bvh`).
+maps it to the body model's joints (:mod:`.bvh`). :func:`make_rig` films the
+same person with several cameras and mirrors (four cameras; two cameras and a
+wall mirror; one camera and two mirrors at an angle) for ``mirrorgraph
+calibrate-rig``, and :func:`write_rig` writes such a rig with its ``rig.toml``
+and ground truth (:mod:`.rig`).
 
     >>> from mirrorgraph.synth import make_scene
     >>> scene = make_scene(frames=300, seed=1, outlier_rate=0.05)
@@ -16,7 +20,9 @@ maps it to the body model's joints (:mod:`.bvh`).
     (17, 3)
 """
 
+from .rig import SyntheticRig, make_rig, read_rig_ground_truth, write_rig
 from .scene import SyntheticScene, make_scene
 from .writer import read_ground_truth, write_scene
 
-__all__ = ["SyntheticScene", "make_scene", "read_ground_truth", "write_scene"]
+__all__ = ["SyntheticRig", "SyntheticScene", "make_rig", "make_scene", "read_ground_truth",
+           "read_rig_ground_truth", "write_rig", "write_scene"]
