@@ -6,6 +6,8 @@
     mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
     mirrorgraph report calibration.json KEYPOINTS --out DIR
     mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
+    mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
+    mirrorgraph synth-rig KIND --out DIR
 
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
@@ -434,6 +436,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_report(sub)
     from .batch import add_batch_parser
     add_batch_parser(sub)
+    from .cli_rig import add_rig_parsers
+    add_rig_parsers(sub, _add_common, _positive, _seed, _rate)
     return parser
 
 

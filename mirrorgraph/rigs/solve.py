@@ -10,16 +10,18 @@ the scale is the subject's height (the seventh).
 
 Stages:
 
-1. triangulate every joint seen twice with the initial rig; drop observations
-   with gross reprojection residuals (:data:`INITIAL_REJECTION_FACTOR` times
-   ``options.outlier_threshold``; rejection is per *observation* here: a wrong
-   keypoint in one camera does not cost the other views) and joints whose bones
-   are all implausible; triangulate again;
+1. triangulate every joint seen twice with the initial rig (observations behind
+   their camera dropped);
 2. scale everything so that the median bone lengths sum to Winter's lengths
    for the subject's height (the gauge's value);
-3. solve with the Geman-McClure kernel (:func:`mirrorgraph.graph.refine.full_solve`,
-   Python-driven Levenberg-Marquardt); drop the observations beyond
-   ``options.outlier_threshold``; solve again by least squares from the solution;
+3. three solves (:func:`mirrorgraph.graph.refine.full_solve`, Python-driven
+   Levenberg-Marquardt), each from the previous solution: Geman-McClure with a
+   kernel :data:`INITIAL_REJECTION_FACTOR` times the final one, then drop the
+   observations beyond that many outlier thresholds and the joints whose bones
+   are all implausible; Geman-McClure at ``options.final_kernel_scale_px``, then
+   drop the observations beyond ``options.outlier_threshold``; least squares on
+   what is left. Rejection is per *observation*: a wrong keypoint in one camera
+   does not cost the other views;
 4. marginals: the reduced information of the last undamped solve is the Schur
    complement of every joint on (camera poses, bone lengths, planes); GTSAM's
    :class:`gtsam.Marginals` of it gives each camera's 6x6 and each plane's 3x3
@@ -54,10 +56,11 @@ from .triangulation import camera_projection, mirror_projection, triangulate_vie
 __all__ = ["RigSolution", "build_rig", "triangulate_rig_views", "solve_rig",
            "INITIAL_REJECTION_FACTOR"]
 
-#: Before the first solve only gross errors are dropped: observations beyond this
-#: many outlier thresholds. The chained pairwise initialisation is a few per cent
-#: off in scale per edge, i.e. tens of pixels, which the first (robust) solve
-#: removes; rejecting at the final threshold then would drop good keypoints.
+#: The first solve's robust kernel is this many times wider than the final one, and
+#: only observations beyond this many outlier thresholds are dropped after it. The
+#: chained pairwise initialisation can be degrees and decimetres off (residuals of
+#: 50-150 px on a 120-frame four-camera rig), which that solve removes; a kernel
+#: or a rejection at the final scale would then discard good keypoints.
 INITIAL_REJECTION_FACTOR = 5.0
 
 
@@ -234,19 +237,14 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
     sub = rig.subset(rows)
 
-    # 1. triangulate, reject, triangulate again
+    # 1. triangulate; only observations behind their (real or virtual) camera go
     points, used = triangulate_rig_views(sub, poses, planes)
-    masks, rejected = _reject(sub, points, used, poses, planes,
-                              INITIAL_REJECTION_FACTOR * opts.outlier_threshold)
+    masks, rejected = _reject(sub, points, used, poses, planes, np.inf)
     sub = _with_masks(sub, masks)
     points, used = triangulate_rig_views(sub, poses, planes)
-    if opts.bone_outlier_k > 0:
-        _, pairs = bone_table(sub)
-        used &= ~bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
     if np.count_nonzero(used) < MIN_PAIRS:
         raise DegenerateGeometryError(
-            f"only {np.count_nonzero(used)} joints are seen in two views after the initial "
-            f"outlier rejection (need {MIN_PAIRS})")
+            f"only {np.count_nonzero(used)} joints are seen in two views (need {MIN_PAIRS})")
     # 2. start on the gauge
     s = _gauge_scale(sub, points, used, float(height))
     points = points * s
@@ -256,28 +254,41 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     sub = _with_poses(sub, poses, planes)
     timings["triangulate"] += time.perf_counter() - t0
 
+    # 3. robust solves with a shrinking kernel, then least squares on the inliers
+    wide = INITIAL_REJECTION_FACTOR * opts.outlier_threshold
+    stages = [("geman_mcclure", INITIAL_REJECTION_FACTOR * opts.final_kernel_scale_px, wide),
+              ("geman_mcclure", opts.final_kernel_scale_px, opts.outlier_threshold),
+              (None, opts.final_kernel_scale_px, opts.outlier_threshold)]
     problem, values, res, z_keys, iterations, lengths = None, None, None, None, 0, None
-    for stage in range(2):
+    for i, (kernel, kernel_scale, threshold) in enumerate(stages):
         t = time.perf_counter()
-        problem = build_problem(sub, points, used, planes, opts, body_height=float(height),
-                                bone_lengths=lengths, final_kernel=None if stage else
-                                ("geman_mcclure" if opts.final_kernel == "auto"
-                                 else opts.final_kernel))
+        stage_opts = replace(opts, final_kernel_scale_px=kernel_scale)
+        problem = build_problem(sub, points, used, planes, stage_opts, body_height=float(height),
+                                bone_lengths=lengths, final_kernel=kernel)
+        if problem.used.sum() < MIN_PAIRS:
+            raise DegenerateGeometryError(
+                f"only {int(problem.used.sum())} joints left in two views after outlier "
+                f"rejection (need {MIN_PAIRS})")
         snap_virtual_poses(problem, problem.values)
         timings["build"] += time.perf_counter() - t
         t = time.perf_counter()
-        res, z_keys = full_solve(problem, problem.values, opts, progress)
+        res, z_keys = full_solve(problem, problem.values, stage_opts, progress)
         iterations += res.iterations
         values = res.values
         points = extract_points(problem, values)
         planes = extract_planes(problem, values)
         poses = extract_camera_poses(problem, values)
         lengths = problem.bone_lengths(values)
-        masks, dropped = _reject(problem.rig, points, problem.used, poses, planes,
-                                 opts.outlier_threshold)
-        rejected += dropped
-        used = problem.used
-        sub = _with_poses(_with_masks(problem.rig, masks), poses, planes)
+        used = problem.used.copy()
+        if i < len(stages) - 1:
+            masks, dropped = _reject(problem.rig, points, used, poses, planes, threshold)
+            rejected += dropped
+            if i == 0 and opts.bone_outlier_k > 0:
+                _, pairs = bone_table(problem.rig)
+                bad = bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
+                rejected += int(np.count_nonzero(bad))
+                used &= ~bad
+            sub = _with_poses(_with_masks(problem.rig, masks), poses, planes)
         timings["solve"] += time.perf_counter() - t
     t = time.perf_counter()
     cam_cov, plane_cov, basis = (_marginals(problem, values, res.reduced_information, z_keys)

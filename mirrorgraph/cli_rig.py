@@ -1,0 +1,120 @@
+"""Command-line commands of rigs (a thin layer over :mod:`mirrorgraph.rigs`).
+
+    mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--json FILE]
+                              [--with-virtual] [--subject-height M] [--skeleton NAME]
+                              [--joints3d FILE] [--quiet]
+    mirrorgraph synth-rig KIND --out DIR [--frames N --noise PX --seed S --format F]
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from .errors import InputError
+from .progress import Progress
+
+__all__ = ["add_rig_parsers"]
+
+KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
+
+
+def add_rig_parsers(sub, common, positive, seed, rate) -> None:
+    """Add ``calibrate-rig`` and ``synth-rig`` to the CLI's subparsers."""
+    p = sub.add_parser(
+        "calibrate-rig", help="calibrate several cameras and mirrors from the people in view",
+        description="Calibrate every camera and mirror of a rig (cameras synchronised frame "
+                    "by frame) from a pose detector's keypoints: Pose2Sim's 'calibrate from "
+                    "keypoints'. The first camera of RIG.toml defines the world frame.")
+    p.add_argument("rig", help="rig TOML file (cameras, their keypoints and intrinsics, mirrors)")
+    p.add_argument("--out", required=True, help="Pose2Sim calibration.toml to write")
+    p.add_argument("--json", metavar="FILE",
+                   help="also write the JSON with mirrors, uncertainties and residuals "
+                        "(default: OUT with .json)")
+    p.add_argument("--with-virtual", action="store_true",
+                   help="add each mirror's virtual camera per camera to the TOML "
+                        "(flipped-image convention)")
+    p.add_argument("--subject-height", type=positive, metavar="METRES",
+                   help="subject's height (overrides the rig file's subject_height): metres")
+    p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
+                                      "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18)")
+    p.add_argument("--joints3d", metavar="FILE",
+                   help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
+    p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
+    common(p)
+    p.set_defaults(func=_cmd_calibrate_rig)
+
+    s = sub.add_parser("synth-rig", help="write a synthetic rig with ground truth",
+                       description="Write a synthetic multi-camera / multi-mirror rig: per-camera "
+                                   "keypoints, Calib.toml (intrinsics), rig.toml, ground truth.")
+    s.add_argument("kind", choices=KINDS)
+    s.add_argument("--out", required=True, help="folder to write")
+    s.add_argument("--frames", type=lambda t: int(positive(t)), default=300)
+    s.add_argument("--noise", type=positive, default=4.0, help="pixel noise std (default 4)")
+    s.add_argument("--outliers", type=rate, default=0.0, help="fraction of gross errors")
+    s.add_argument("--seed", type=seed, default=0)
+    s.add_argument("--skeleton", default="BODY_25")
+    s.add_argument("--format", dest="fmt", default="openpose",
+                   choices=("openpose", "mmpose", "easymocap"))
+    s.add_argument("--no-height", action="store_true",
+                   help="leave subject_height out of rig.toml")
+    common(s)
+    s.set_defaults(func=_cmd_synth_rig)
+
+
+def _cmd_calibrate_rig(args) -> int:
+    from .io.motion import write_joints3d
+    from .io.rig_calibration import write_rig_json, write_rig_toml
+    from .rigs import calibrate_rig
+
+    out = Path(args.out)
+    if out.is_dir():
+        raise InputError("is a folder; give a file name for calibration.toml", source=out,
+                         field="--out")
+    if out.suffix.lower() != ".toml":
+        raise InputError("must end in .toml (Pose2Sim's calibration file)", source=out,
+                         field="--out")
+    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
+        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
+                         field="--joints3d")
+    json_path = Path(args.json) if args.json else out.with_suffix(".json")
+    say = (lambda *_a, **_k: None) if args.quiet else print
+    t0 = time.perf_counter()
+
+    def status(text: str) -> None:
+        if args.verbose and not args.quiet:
+            print(f"... {text}", file=sys.stderr)
+
+    with Progress("solving the rig", enabled=not args.quiet) as bar:
+        calib = calibrate_rig(args.rig, subject_height=args.subject_height,
+                              skeleton=args.skeleton, seed=args.seed, status=status,
+                              progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
+    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
+            and calib.scale != "subject_height":
+        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    write_rig_toml(calib, out, with_virtual=args.with_virtual)
+    write_rig_json(calib, json_path)
+    if args.joints3d:
+        from .skeletons import skeleton_by_name
+        write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
+                       skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
+                       unit="m" if calib.scale == "subject_height" else "subject height")
+    for w in calib.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    say(calib.summary())
+    say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _cmd_synth_rig(args) -> int:
+    from .synth.rig import make_rig, write_rig
+
+    rig = make_rig(args.kind, frames=args.frames, seed=args.seed, noise_std=args.noise,
+                   outlier_rate=args.outliers, skeleton=args.skeleton)
+    path = write_rig(rig, args.out, args.fmt, include_height=not args.no_height)
+    if not args.quiet:
+        print(f"wrote a {args.frames}-frame {args.kind} rig to {args.out}: {path.name}, "
+              "Calib.toml (intrinsics), pose/, ground_truth.json")
+    return 0

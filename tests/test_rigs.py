@@ -1,0 +1,259 @@
+"""Rigs: several cameras and mirrors calibrated from the people in view, against ground truth."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mirrorgraph.cli import main
+from mirrorgraph.errors import DegenerateGeometryError, InputError
+from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
+from mirrorgraph.rigs import calibrate_rig, load_rig_config, virtual_extrinsics
+from mirrorgraph.rigs.triangulation import camera_projection, mirror_projection, triangulate_views
+from mirrorgraph.synth.rig import make_rig, write_rig
+
+
+def _errors(cal, rig):
+    """Per camera (rotation deg, metric position m, scale-aligned position m), the rig scale
+    factor truth/estimate, and per mirror (normal deg, distance m)."""
+    est = np.array([c.pose[:3, 3] for c in cal.cameras])
+    tru = np.array([np.asarray(P)[:3, 3] for P in rig.poses])
+    if len(est) > 1:
+        s = float(np.sum(est * tru) / np.sum(est * est))
+    else:
+        d_est = np.array([m.distance for m in cal.mirrors])
+        d_tru = np.array([rig.mirrors[rig.mirror_names.index(m.name)][1] for m in cal.mirrors])
+        s = float(d_est @ d_tru / (d_est @ d_est))
+    cams = [(rotation_error_deg(c.pose[:3, :3], np.asarray(P)[:3, :3]),
+             float(np.linalg.norm(c.pose[:3, 3] - np.asarray(P)[:3, 3])),
+             float(np.linalg.norm(s * c.pose[:3, 3] - np.asarray(P)[:3, 3])))
+            for c, P in zip(cal.cameras, rig.poses)]
+    mirrors = {}
+    for m in cal.mirrors:
+        n, d = rig.mirrors[rig.mirror_names.index(m.name)]
+        mirrors[m.name] = (normal_angle_deg(m.normal, n), abs(m.distance - d))
+    return cams, s, mirrors
+
+
+@pytest.fixture(scope="module")
+def four_cams(tmp_path_factory):
+    rig = make_rig("4cams", frames=300, seed=0, noise_std=4.0)
+    path = write_rig(rig, tmp_path_factory.mktemp("4cams"))
+    return rig, path, calibrate_rig(path)
+
+
+def test_four_camera_rig_meets_the_accuracy_target(four_cams):
+    """The issue's target: 4 cameras, 4 px, 300 frames: every camera within 0.5 deg and 2 cm.
+
+    Positions are compared after one scale factor for the whole rig (MirrorCalib's
+    translation metric is scale-aligned): the metric scale rests on the subject's
+    proportions, checked separately below."""
+    rig, _, cal = four_cams
+    cams, s, _ = _errors(cal, rig)
+    assert [c.name for c in cal.cameras] == rig.camera_names
+    assert np.allclose(cal.cameras[0].pose, np.eye(4))
+    for rot, _, aligned in cams[1:]:
+        assert rot < 0.5
+        assert aligned < 0.02
+    # metric scale from the subject height: within 1% (the subject's bones differ from
+    # Winter's proportions by a few tenths of a per cent here)
+    assert abs(s - 1.0) < 0.01
+    assert cal.scale == "subject_height"
+
+
+def test_marginals_are_the_size_of_the_errors(four_cams):
+    rig, _, cal = four_cams
+    cams, _, _ = _errors(cal, rig)
+    rot_err = np.array([c[0] for c in cams[1:]])
+    rot_std = np.array([c.rotation_std_deg for c in cal.cameras[1:]])
+    assert np.all(rot_std > 0) and cal.cameras[0].rotation_std_deg == 0
+    # a handful of cameras: the RMS error and the RMS std agree within a factor of 3
+    ratio = np.sqrt(np.mean(rot_err ** 2)) / np.sqrt(np.mean(rot_std ** 2))
+    assert 1 / 3 < ratio < 3
+
+
+def test_three_dimensional_joints_in_the_world_frame(four_cams):
+    rig, _, cal = four_cams
+    sk = rig.skeleton
+    J = sk.calibration_joints
+    ok = cal.valid[:, J]
+    err = np.linalg.norm(cal.joints3d[:, J][ok] - rig.joints3d[:, J][ok], axis=-1)
+    assert ok.mean() > 0.9
+    assert np.median(err) < 0.03
+
+
+@pytest.mark.parametrize("kind", ["2cams1mirror", "1cam2mirrors"])
+def test_rigs_with_mirrors(tmp_path, kind):
+    rig = make_rig(kind, frames=200, seed=1, noise_std=4.0)
+    cal = calibrate_rig(write_rig(rig, tmp_path))
+    cams, s, mirrors = _errors(cal, rig)
+    assert sorted(mirrors) == sorted(rig.mirror_names)
+    for rot, _, aligned in cams[1:]:
+        assert rot < 0.5
+        assert aligned < 0.03
+    for name, (angle, _) in mirrors.items():
+        assert angle < 0.25, name
+        m = cal.mirror(name)
+        assert 0 < m.rotation_std_deg < 1.0
+        assert set(m.seen_by) == {c for c, ms in rig.sees.items() if name in ms}
+    assert abs(s - 1.0) < 0.05           # metric scale through the subject's proportions
+
+
+def test_without_height_lengths_are_in_subject_heights(tmp_path):
+    rig = make_rig("2cams1mirror", frames=150, seed=2)
+    path = write_rig(rig, tmp_path, include_height=False)
+    cal = calibrate_rig(path)
+    assert cal.scale == "unit_height" and cal.subject_height is None
+    cams, _, _ = _errors(cal, rig)
+    # the baseline in subject heights: the true baseline over the true height, to 5%
+    baseline = np.linalg.norm(np.asarray(rig.poses[1])[:3, 3]) / rig.subject_height
+    assert np.linalg.norm(cal.cameras[1].pose[:3, 3]) == pytest.approx(baseline, rel=0.05)
+    assert "subject heights" in cal.to_dict()["length_unit"]
+
+
+def test_frame_offsets_put_cameras_on_one_clock(tmp_path):
+    """A camera whose files start later, with its offset in the rig file, gives the same rig."""
+    rig = make_rig("4cams", frames=120, seed=3)
+    shift = 17
+    rig.detections["cam02"].frame_ids = rig.detections["cam02"].frame_ids + shift
+    path = write_rig(rig, tmp_path)
+    text = path.read_text()
+    parts = text.split("[[cameras]]")
+    parts[2] = parts[2].replace("frame_offset = 0", f"frame_offset = {shift}")
+    path.write_text("[[cameras]]".join(parts))
+    cal = calibrate_rig(path)
+    cams, _, _ = _errors(cal, rig)
+    assert cams[1][0] < 0.5 and cams[1][2] < 0.03
+
+
+def test_pose2sim_toml_triangulates_the_truth(four_cams, tmp_path):
+    """The written calibration.toml, read back as a Pose2Sim file, projects the truth."""
+    from mirrorgraph.io.camera_toml import read_camera_toml
+    from mirrorgraph.io.rig_calibration import write_rig_toml
+
+    rig, _, cal = four_cams
+    out = tmp_path / "calibration.toml"
+    write_rig_toml(cal, out)
+    cams = read_camera_toml(out)
+    assert list(cams) == rig.camera_names
+    sk = rig.skeleton
+    X = rig.joints3d[:, sk.calibration_joints].reshape(-1, 3)
+    for name, P in zip(rig.camera_names, rig.poses):
+        P = np.asarray(P)
+        uv_true = camera_projection(rig.K[rig.camera_names.index(name)], P)
+        Xh = np.column_stack([X, np.ones(len(X))])
+        a = Xh @ uv_true.T
+        b = Xh @ cams[name].projection_matrix.T
+        px = np.linalg.norm(a[:, :2] / a[:, 2:] - b[:, :2] / b[:, 2:], axis=1)
+        assert np.median(px) < 6.0, name
+
+
+def test_virtual_cameras_of_the_flipped_image(tmp_path):
+    """With --with-virtual each view through a mirror becomes an ordinary camera of the
+    flipped image: with the flipped keypoints it triangulates the real joints."""
+    from mirrorgraph.export import flip_camera_matrix
+    from mirrorgraph.io.camera_toml import read_camera_toml
+
+    rig = make_rig("1cam2mirrors", frames=60, seed=4, noise_std=0.0)
+    cal = calibrate_rig(write_rig(rig, tmp_path))
+    out = tmp_path / "calibration.toml"
+    assert main(["calibrate-rig", str(tmp_path / "rig.toml"), "--out", str(out),
+                 "--with-virtual", "--quiet"]) == 0
+    cams = read_camera_toml(out)
+    assert set(cams) == {"cam01", "cam01_mirror_left", "cam01_mirror_right"}
+    # virtual_extrinsics agrees with the reflection: pi(K' (R X + t)) = flip(pi(K S(X)))
+    K = rig.K[0]
+    W = rig.image_size[0]
+    X = rig.joints3d[:5].reshape(-1, 3)
+    for m in cal.mirrors:
+        R, t = virtual_extrinsics(cal.cameras[0].pose, m.normal, m.distance)
+        a = (X @ R.T + t) @ flip_camera_matrix(K, W).T
+        P = mirror_projection(K, cal.cameras[0].pose, m.normal, m.distance)
+        b = np.column_stack([X, np.ones(len(X))]) @ P.T
+        assert np.allclose(a[:, 0] / a[:, 2], W - b[:, 0] / b[:, 2], atol=1e-6)
+        assert np.allclose(a[:, 1] / a[:, 2], b[:, 1] / b[:, 2], atol=1e-6)
+    doc = json.loads(out.with_suffix(".json").read_text())
+    assert {m["name"] for m in doc["mirrors"]} == {"mirror_left", "mirror_right"}
+    assert doc["scale"] == "subject_height"
+
+
+def test_triangulate_views_exact_without_noise():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (50, 3)) + [0, 0, 5]
+    K = np.array([[1000.0, 0, 960], [0, 1000.0, 540], [0, 0, 1]])
+    P1 = camera_projection(K, np.eye(4))
+    pose = np.eye(4)
+    pose[:3, 3] = [1.0, 0.0, 0.0]
+    P2 = mirror_projection(K, pose, np.array([0.6, 0.0, 0.8]), 6.0)
+
+    def proj(P):
+        h = np.column_stack([X, np.ones(len(X))]) @ P.T
+        return h[:, :2] / h[:, 2:]
+
+    mask = np.ones(len(X), bool)
+    Y, ok = triangulate_views([P1, P2], [proj(P1), proj(P2)], [mask, mask])
+    assert ok.all() and np.allclose(Y, X, atol=1e-8)
+    one = mask.copy()
+    one[:10] = False
+    Y, ok = triangulate_views([P1, P2], [proj(P1), proj(P2)], [mask, one])
+    assert not ok[:10].any() and np.isnan(Y[:10]).all()
+
+
+# --------------------------------------------------------------------------- bad input
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "rig.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, field", [
+    ("[[cameras]\nname = 'a'", None),
+    ("subject_height = 1.7", "cameras"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = 'missing.json'", "cameras[0].keypoints"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\nmirrors = ['wall']", "cameras[0].mirrors"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\nlens = 3", "cameras[0]"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\nskeleton = 'BODY_99'", "cameras[0].skeleton"),
+    ("subject_height = -1\n[[cameras]]\nname = 'a'\nkeypoints = '.'", "subject_height"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\nframe_offset = 1.5", "cameras[0].frame_offset"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\n[[cameras]]\nname = 'a'\nkeypoints = '.'",
+     "cameras[1].name"),
+    ("[[cameras]]\nname = 'a'\nkeypoints = '.'\n[[mirrors]]\nname = 'wall'", "mirrors"),
+])
+def test_malformed_rig_files_name_the_field(tmp_path, text, field):
+    path = _write(tmp_path, text)
+    with pytest.raises(InputError) as exc:
+        load_rig_config(path)
+    assert str(path) in str(exc.value)
+    if field is not None:
+        assert exc.value.field == field
+
+
+def test_cli_bad_rig_is_one_line(tmp_path, capsys):
+    path = _write(tmp_path, "[[cameras]]\nname = 'a'\nkeypoints = 'nope'")
+    assert main(["calibrate-rig", str(path), "--out", str(tmp_path / "c.toml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "keypoints" in err[0] and "rig.toml" in err[0]
+    assert not (tmp_path / "c.toml").exists()
+
+
+def test_camera_that_never_sees_the_person_with_the_others(tmp_path):
+    """A camera whose keypoints belong to other frames cannot be placed: a clear error."""
+    rig = make_rig("4cams", frames=60, seed=5)
+    rig.detections["cam03"].frame_ids = rig.detections["cam03"].frame_ids + 1000
+    path = write_rig(rig, tmp_path)
+    with pytest.raises(DegenerateGeometryError, match="cam03"):
+        calibrate_rig(path)
+
+
+def test_rig_toml_written_by_synth_is_the_documented_form(tmp_path):
+    rig = make_rig("2cams1mirror", frames=10, seed=0)
+    path = write_rig(rig, tmp_path)
+    doc = tomllib.loads(path.read_text())
+    assert set(doc) == {"subject_height", "cameras", "mirrors"}
+    cfg = load_rig_config(path)
+    assert [c.name for c in cfg.cameras] == rig.camera_names
+    assert cfg.cameras[0].intrinsics_section == rig.camera_names[0]
