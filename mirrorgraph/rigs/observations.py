@@ -5,8 +5,9 @@ keypoints (any format of :func:`mirrorgraph.io.read_keypoints`), read the
 intrinsics and undistort, then sort every frame into the person and, for each
 mirror the camera sees, their reflection (labels flipped to the real joints,
 :func:`mirrorgraph.pairing.pair_reflections`). Cameras without a mirror keep,
-per frame, the most confident detection (one person in view). Frames are put
-on the rig's clock with each camera's ``frame_offset``.
+per frame, the most confident detection, or, where a frame holds several people,
+the one consistent with the first camera's person (:mod:`.matching`). Frames are
+put on the rig's clock with each camera's ``frame_offset``.
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
@@ -48,6 +49,11 @@ class CameraObservations:
             mirror, labels flipped (entry ``j`` images the real joint ``j``).
         source: the keypoint input.
         lr_fixes: reflection frames whose left/right labels were corrected.
+        people: for a camera without mirrors, ``T`` arrays ``(P_t, J, 3)`` of every
+            detection per frame (:func:`mirrorgraph.rigs.matching.match_people` picks
+            the person among them); ``None`` otherwise.
+        matched: frames where the cross-camera match chose another detection than
+            the most confident one.
     """
 
     name: str
@@ -56,6 +62,8 @@ class CameraObservations:
     reflections: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = ""
     lr_fixes: int = 0
+    people: list[np.ndarray] | None = None
+    matched: int = 0
 
 
 @dataclass
@@ -148,6 +156,19 @@ def _sort_camera(entry: CameraEntry, data, intr: Intrinsics
     return pairing.real, refl, pairing.lr_fixes
 
 
+def _match_across_cameras(cameras: list[CameraObservations], skeleton: Skeleton) -> None:
+    """For every camera without mirrors but the first, the person consistent with the
+    first camera's person (:func:`mirrorgraph.rigs.matching.match_people`), in place."""
+    from .matching import match_people
+
+    ref = cameras[0]
+    for cam in cameras[1:]:
+        if cam.people is None or not any(len(p) > 1 for p in cam.people):
+            continue
+        cam.real, cam.matched = match_people(ref.real, ref.intrinsics.K, cam.people,
+                                             cam.intrinsics.K, skeleton)
+
+
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None) -> RigObservations:
     """Read, undistort and sort every camera's keypoints (see the module docstring).
@@ -173,7 +194,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         data = undistort_keypoints(data, intr)
         real, refl, fixes = _sort_camera(entry, data, intr)
         frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
-        per_camera.append((entry, intr, frames, real, refl, fixes, data.source))
+        people = data.people if isinstance(data, RawDetections) and not entry.mirrors else None
+        per_camera.append((entry, intr, frames, real, refl, fixes, data.source, people))
         layouts.append(data.skeleton)
         fps = fps or data.fps
     names = {s.name for s in layouts}
@@ -185,8 +207,13 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
     cameras = []
-    for entry, intr, frames, real, refl, fixes, source in per_camera:
+    for entry, intr, frames, real, refl, fixes, source, people in per_camera:
         rows = np.searchsorted(frame_ids, frames)
+        if people is not None:
+            everyone = [np.zeros((0, J, 3))] * T
+            for r, p in zip(rows, people):
+                everyone[r] = np.asarray(p, dtype=float).reshape(-1, J, 3)
+            people = everyone
 
         def place(a: np.ndarray) -> np.ndarray:
             out = np.full((T, J, 3), np.nan)
@@ -196,6 +223,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
 
         cameras.append(CameraObservations(
             name=entry.name, intrinsics=intr, real=place(real),
-            reflections={m: place(a) for m, a in refl.items()}, source=source, lr_fixes=fixes))
+            reflections={m: place(a) for m, a in refl.items()}, source=source, lr_fixes=fixes,
+            people=people))
+    _match_across_cameras(cameras, sk)
     return RigObservations(skeleton=sk, frame_ids=frame_ids, cameras=cameras,
                            mirrors=config.mirrors, fps=fps, warnings=warnings)

@@ -77,7 +77,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         cameras.append(RigCamera(name=c.name, intrinsics=c.intrinsics, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  reprojection_rms_px=rms.get(c.name, float("nan")),
-                                 observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes))
+                                 observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes,
+                                 matched_frames=c.matched))
     mirrors = []
     for i, name in enumerate(sol.mirror_names):
         n, d = sol.planes[i]

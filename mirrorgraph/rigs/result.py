@@ -53,6 +53,8 @@ class RigCamera:
         reprojection_rms_px: RMS residual of its direct view.
         observations: keypoints of its direct view used in the final solve.
         lr_fixes: reflection frames whose labels were corrected.
+        matched_frames: frames where another detection than the most confident one
+            was taken as the person (cross-camera matching, several people in view).
     """
 
     name: str
@@ -63,6 +65,7 @@ class RigCamera:
     reprojection_rms_px: float
     observations: int
     lr_fixes: int = 0
+    matched_frames: int = 0
 
     @property
     def R(self) -> np.ndarray:
@@ -160,6 +163,7 @@ class RigCalibration:
                                 "position_std": c.position_std},
                 "reprojection_rms_px": c.reprojection_rms_px,
                 "observations": c.observations, "lr_fixes": c.lr_fixes,
+                "matched_frames": c.matched_frames,
             } for c in self.cameras],
             "mirrors": [{
                 "name": m.name, "normal": np.asarray(m.normal).tolist(), "distance": m.distance,
