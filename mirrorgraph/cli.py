@@ -94,7 +94,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--fov", type=_positive, default=None, metavar="DEG",
                    help="horizontal field of view assumed without intrinsics (default 60)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
-                                      "(COCO_17, BODY_25, COCO_18)")
+                                      "(COCO_17, BODY_25, BODY_25B, COCO_18, HALPE_26)")
     p.add_argument("--estimator", default="reflective",
                    choices=("reflective", "eightpoint", "reflective8"),
                    help="initial estimator: ours (reflective, default), MirrorCalib's "
@@ -221,7 +221,7 @@ def _add_synth(sub) -> None:
     p.add_argument("--out", required=True, help="folder to write")
     p.add_argument("--frames", type=int, default=1000)
     p.add_argument("--seed", type=_seed, default=0)
-    p.add_argument("--skeleton", default="COCO_17", choices=("COCO_17", "BODY_25", "COCO_18"))
+    p.add_argument("--skeleton", default="COCO_17", choices=("COCO_17", "BODY_25", "COCO_18", "BODY_25B", "HALPE_26"))
     p.add_argument("--image-size", type=_image_size, default=(1920, 1080), metavar="WxH")
     p.add_argument("--fov", type=_positive, default=60.0, metavar="DEG")
     p.add_argument("--mirror-angle", type=float, default=None, metavar="DEG",

@@ -151,21 +151,75 @@ COCO_18 = _make("COCO_18", (
     "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle",
     "right_eye", "left_eye", "right_ear", "left_ear"))
 
+#: OpenPose's experimental BODY_25B model (Pose2Sim's default detector layout).
+#: Order: OpenPose ``POSE_BODY_25B_BODY_PARTS`` (``src/openpose/pose/poseParameters.cpp``;
+#: the model is described in ``openpose_train/experimental_models/README.md``) and
+#: Pose2Sim's ``skeletons.BODY_25B``: the COCO-17 joints first, then OpenPose's
+#: ``UpperNeck`` (Pose2Sim ``Neck``) and ``HeadTop`` (Pose2Sim ``Head``), then the feet.
+#: Its neck is the *upper* neck, trained on MPII's "upper neck" label, not the
+#: midpoint of the shoulders of BODY_25 (see :mod:`mirrorgraph.skeleton_guess`).
+BODY_25B = _make("BODY_25B", (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle",
+    "neck", "head_top",
+    "left_big_toe", "left_small_toe", "left_heel",
+    "right_big_toe", "right_small_toe", "right_heel"))
+
+#: HALPE body, 26 keypoints (AlphaPose ``halpe26`` models, RTMPose ``body8-halpe26``;
+#: Pose2Sim's ``HALPE_26``). Order: the Halpe-FullBody annotation
+#: (github.com/Fang-Haoshu/Halpe-FullBody, body points 0-25), also MMPose's
+#: ``configs/_base_/datasets/halpe26.py``: the COCO-17 joints, then ``Head`` (the top
+#: of the head), ``Neck``, ``Hip`` (the pelvis centre), then big toes, small toes
+#: and heels, each left before right.
+HALPE_26 = _make("HALPE_26", (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+    "left_wrist", "right_wrist", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle",
+    "head_top", "neck", "mid_hip",
+    "left_big_toe", "right_big_toe", "left_small_toe", "right_small_toe",
+    "left_heel", "right_heel"))
+
 #: Every layout by name.
-SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18)}
+SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18, BODY_25B,
+                                                      HALPE_26)}
 
 
 def skeleton_by_name(name: str) -> Skeleton:
-    """Look a layout up by name, case-insensitively (``ValueError`` if unknown)."""
-    key = name.upper().replace("-", "_")
+    """Look a layout up by name, case-insensitively, ``-`` for ``_`` (``"body_25b"``,
+    ``"HALPE-26"``); ``ValueError`` if unknown."""
+    key = name.strip().upper().replace("-", "_")
     if key not in SKELETONS:
         raise ValueError(f"unknown skeleton {name!r}; known: {', '.join(SKELETONS)}")
     return SKELETONS[key]
 
 
+def skeletons_for_count(num_joints: int) -> tuple[Skeleton, ...]:
+    """Every layout with this many keypoints, in :data:`SKELETONS` order.
+
+    Empty if none; more than one where the count is ambiguous (25: ``BODY_25``
+    and ``BODY_25B``, told apart from the data by
+    :func:`mirrorgraph.skeleton_guess.guess_skeleton`).
+    """
+    return tuple(s for s in SKELETONS.values() if s.num_joints == num_joints)
+
+
 def skeleton_for_count(num_joints: int) -> Skeleton | None:
-    """The layout with this many keypoints, or ``None`` (17, 18 and 25 are known)."""
-    for s in SKELETONS.values():
-        if s.num_joints == num_joints:
-            return s
-    return None
+    """The one layout with this many keypoints, or ``None`` if there is none.
+
+    Raises:
+        ValueError: several layouts have this count (25: ``BODY_25``, ``BODY_25B``);
+            the count alone does not tell them apart (see :func:`skeletons_for_count`).
+    """
+    found = skeletons_for_count(num_joints)
+    if len(found) > 1:
+        raise ValueError(f"{num_joints} keypoints fit several skeletons: "
+                         f"{' or '.join(s.name for s in found)}")
+    return found[0] if found else None
+
+
+def known_counts() -> str:
+    """``"COCO_17: 17, BODY_25: 25, ..."``: every layout and its count, for messages."""
+    return ", ".join(f"{s.name}: {s.num_joints}" for s in SKELETONS.values())

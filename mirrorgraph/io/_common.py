@@ -26,7 +26,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import InputError
-from ..skeletons import Skeleton, skeleton_by_name, skeleton_for_count
+from ..skeleton_guess import guess_skeleton
+from ..skeletons import Skeleton, known_counts, skeleton_by_name, skeletons_for_count
 
 #: Confidences up to this value are clipped to 1; above it they are refused.
 MAX_CONFIDENCE = 1.5
@@ -147,31 +148,46 @@ class JointCount:
     """Checks that every person of every frame has the same number of keypoints.
 
     The first person seen fixes the count; it must match ``skeleton`` if one is
-    given, or else one of the known skeletons.
+    given, or else one of the known skeletons. Where several skeletons share the
+    count (25: BODY_25 and BODY_25B) the choice waits for all the data:
+    :meth:`result` decides from the detections
+    (:func:`mirrorgraph.skeleton_guess.guess_skeleton`).
     """
 
     def __init__(self, skeleton: Skeleton | None, default: Skeleton) -> None:
         self.skeleton = skeleton
         self.default = default
         self.count: int | None = None if skeleton is None else skeleton.num_joints
-        self._checked = False
+        self.candidates: tuple[Skeleton, ...] = () if skeleton is None else (skeleton,)
 
     def check(self, n: int, *, source: Any, frame: int | None, field: str) -> None:
-        if not self._checked:
-            self._checked = True
-            if self.skeleton is None:
-                found = skeleton_for_count(n)
-                if found is None:
-                    raise InputError(f"{n} keypoints match no known skeleton "
-                                     "(COCO_17: 17, COCO_18: 18, BODY_25: 25)",
-                                     source=source, frame=frame, field=field)
-                self.skeleton, self.count = found, n
+        if self.count is None:
+            found = skeletons_for_count(n)
+            if not found:
+                raise InputError(f"{n} keypoints match no known skeleton ({known_counts()})",
+                                 source=source, frame=frame, field=field)
+            self.candidates, self.count = found, n
+            if len(found) == 1:
+                self.skeleton = found[0]
         if n != self.count:
-            raise InputError(f"{n} keypoints, but skeleton {self.skeleton.name} has "
-                             f"{self.count}", source=source, frame=frame, field=field)
+            names = " or ".join(s.name for s in self.candidates)
+            raise InputError(f"{n} keypoints, but skeleton {names} has {self.count}",
+                             source=source, frame=frame, field=field)
 
-    def result(self) -> Skeleton:
-        """The skeleton found (the format's default if nobody was ever detected)."""
+    def result(self, people: Iterable[np.ndarray | None] = (), *, source: Any = None
+               ) -> Skeleton:
+        """The skeleton found (the format's default if nobody was ever detected).
+
+        Args:
+            people: every frame's ``(P_t, J, 3)`` detections (``None`` for none),
+                used only where the count is ambiguous.
+            source: the file or folder, for the error message.
+
+        Raises:
+            InputError: an ambiguous count that the detections do not resolve.
+        """
+        if self.skeleton is None and len(self.candidates) > 1:
+            self.skeleton = guess_skeleton(self.candidates, people, source=source)
         return self.skeleton if self.skeleton is not None else self.default
 
 

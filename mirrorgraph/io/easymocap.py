@@ -54,7 +54,7 @@ def read_easymocap(folder: str | os.PathLike, *,
             image_size = size
         annots = require(obj, "annots", list, source=file, frame=t)
         people.append(_frame(annots, counter, source=str(file), frame=t))
-    skel = counter.result()
+    skel = counter.result(people, source=folder)
     empty = np.empty((0, skel.num_joints, 3))
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if p is None else p for p in people],

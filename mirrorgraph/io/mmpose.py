@@ -69,7 +69,7 @@ def detections_from_mmpose(obj: Any, *, source: str,
         people.append(clean_keypoints(np.stack(persons), source=source, frame=t,
                                       field="instances") if persons else None)
     frame_ids, order = check_frame_ids(ids, source=source)
-    skel = counter.result()
+    skel = counter.result(people, source=source)
     empty = np.empty((0, skel.num_joints, 3))
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if people[i] is None else people[i] for i in order],

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..keypoints import PairedKeypoints
-from ..skeletons import Skeleton, skeleton_for_count
+from ..skeleton_guess import guess_skeleton
+from ..skeletons import Skeleton, known_counts, skeletons_for_count
 from ._common import MAX_IMAGE_SIDE, check_frame_ids, clean_keypoints, to_skeleton
 from .atomic import atomic_path
 
@@ -54,6 +55,8 @@ def read_paired_npz(path: str | os.PathLike, *,
                            allow_nan_missing=True, frames=frame_ids)
     mirror = clean_keypoints(mirror[order], source=src, frame=None, field="mirror",
                              allow_nan_missing=True, frames=frame_ids)
+    if skel is None:
+        skel = guess_skeleton(skeletons_for_count(J), np.concatenate([real, mirror]), source=src)
     if not _flag(arrays, "mirror_flipped", src):
         mirror = mirror[:, skel.flip]
     return PairedKeypoints(skeleton=skel, frame_ids=frame_ids, real=real, mirror=mirror,
@@ -138,7 +141,9 @@ def _keypoints(arrays: dict, key: str, src: str) -> np.ndarray:
     return a.astype(float)
 
 
-def _skeleton(arrays: dict, option: Skeleton | str | None, J: int, src: str) -> Skeleton:
+def _skeleton(arrays: dict, option: Skeleton | str | None, J: int, src: str) -> Skeleton | None:
+    """The layout named by the option or the file, or the one of ``J`` keypoints;
+    ``None`` where several layouts have ``J`` (see :func:`guess_skeleton`)."""
     skel = to_skeleton(option, source=src)
     if "skeleton" in arrays:
         a = arrays["skeleton"]
@@ -151,10 +156,13 @@ def _skeleton(arrays: dict, option: Skeleton | str | None, J: int, src: str) -> 
                              field="skeleton")
         skel = stored
     if skel is None:
-        skel = skeleton_for_count(J)
-        if skel is None:
-            raise InputError(f"{J} keypoints match no known skeleton "
-                             "(COCO_17: 17, COCO_18: 18, BODY_25: 25)", source=src, field="real")
+        found = skeletons_for_count(J)
+        if not found:
+            raise InputError(f"{J} keypoints match no known skeleton ({known_counts()})",
+                             source=src, field="real")
+        if len(found) > 1:
+            return None          # ambiguous: decided from the cleaned keypoints
+        skel = found[0]
     if skel.num_joints != J:
         raise InputError(f"{J} keypoints, but skeleton {skel.name} has {skel.num_joints}",
                          source=src, field="real")

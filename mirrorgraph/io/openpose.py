@@ -8,9 +8,12 @@ File ``{stem}_{frame:012d}_keypoints.json``::
                  "face_keypoints_2d": [], ...}]}
 
 Coordinates are pixels, ``c`` in [0, 1]; a missing joint is written ``0 0 0``.
-The layout is BODY_25 (J = 25) or the older COCO-18 (J = 18), told apart by
-the count unless given. The frame id is the last number in the file name; files
-are read in frame order, one at a time, so folders of any length stream.
+The layout is BODY_25 or the experimental BODY_25B (J = 25), the older COCO-18
+(J = 18) or, from other tools writing this format, COCO-17 or HALPE-26, told
+apart by the count unless given; BODY_25 and BODY_25B from the detections
+(:func:`mirrorgraph.skeleton_guess.guess_skeleton`). The frame id is the last
+number in the file name; files are read in frame order, one at a time, so
+folders of any length stream.
 OpenPose files carry no image size.
 """
 
@@ -46,7 +49,7 @@ def read_openpose(folder: str | os.PathLike, *,
                                              progress):
         persons = require(obj, "people", list, source=file, frame=t)
         people.append(_frame(persons, counter, source=str(file), frame=t))
-    skel = counter.result()
+    skel = counter.result(people, source=folder)
     empty = np.empty((0, skel.num_joints, 3))
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if p is None else p for p in people],

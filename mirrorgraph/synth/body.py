@@ -38,6 +38,9 @@ exactly ``H``.
 The OpenPose ``neck`` is the midpoint of the shoulders and ``mid_hip`` the
 midpoint of the hips, so the scapular and pelvis bones of
 :mod:`mirrorgraph.skeletons` are exactly half the shoulder and hip widths.
+BODY_25B and HALPE_26 get the same ``neck`` and ``mid_hip`` (a simplification:
+their detectors place the neck somewhat higher), and their ``head_top``, not a
+column of the model, is the vertex of the rigid head (:func:`skeleton_points`).
 """
 
 from __future__ import annotations
@@ -49,7 +52,8 @@ import numpy as np
 from ..anthropometry import HEIGHT_FRACTION, bone_kind
 from ..skeletons import Skeleton
 
-#: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25).
+#: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25;
+#: BODY_25B and HALPE_26 also need ``head_top``, see :func:`skeleton_points`).
 FULL_JOINTS: tuple[str, ...] = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear", "neck",
     "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
@@ -165,8 +169,83 @@ def make_body(rng: np.random.Generator | None = None, variation: float = 0.03) -
 
 
 def skeleton_columns(skeleton: Skeleton) -> np.ndarray:
-    """``(J,)`` indices into :data:`FULL_JOINTS` of the joints of ``skeleton``."""
+    """``(J,)`` indices into :data:`FULL_JOINTS` of the joints of ``skeleton``.
+
+    Raises:
+        ValueError: a joint is not a column of the model (``head_top`` of BODY_25B
+            and HALPE_26 is derived from the head instead: :func:`skeleton_points`).
+    """
     try:
         return np.array([FULL_INDEX[n] for n in skeleton.joints], dtype=int)
-    except KeyError as e:  # pragma: no cover - all shipped layouts are covered
+    except KeyError as e:
         raise ValueError(f"the synthetic body has no joint {e.args[0]!r}") from None
+
+
+#: Joints not among :data:`FULL_JOINTS` that :func:`skeleton_points` derives.
+DERIVED_JOINTS: tuple[str, ...] = ("head_top",)
+
+_HEAD_POINTS = ("left_eye", "right_eye", "left_ear", "right_ear", "nose")
+
+
+def _head_model() -> np.ndarray:
+    """``(5, 3)`` nominal offsets of :data:`_HEAD_POINTS` from the head pivot, in H."""
+    rows = []
+    for name in _HEAD_POINTS:
+        side, _, kind = name.rpartition("_")
+        o = np.array(HEAD_OFFSETS[kind], dtype=float)
+        rows.append(o * np.array([-1.0, 1.0, 1.0]) if side == "right" else o)
+    return np.array(rows)
+
+
+def head_top(full: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` top of the head (vertex) of joints ``(..., 25, 3)`` (:data:`FULL_JOINTS`).
+
+    The eyes, ears and nose are rigid offsets from the head pivot (:data:`HEAD_OFFSETS`,
+    the same in :mod:`~mirrorgraph.synth.motion` and :mod:`~mirrorgraph.synth.bvh`,
+    scaled by the individual's head size), and the vertex lies ``head_top`` (0.110 H
+    nominal, same scale) above the pivot along the head's up axis. A least-squares
+    similarity transform (Umeyama: rotation, scale, translation) from the nominal
+    head points to the five given ones carries the nominal vertex to the answer:
+    exact for the model's rigid heads, in the units and frame of ``full``.
+    """
+    P = np.asarray(full, dtype=float)[..., [FULL_INDEX[n] for n in _HEAD_POINTS], :]
+    Q = _head_model()                                        # (5, 3)
+    mp, mq = P.mean(-2, keepdims=True), Q.mean(0)
+    Pc, Qc = P - mp, Q - mq
+    C = np.einsum("...ki,kj->...ij", Pc, Qc)                 # (..., 3, 3) sum p q^T
+    U, S, Vt = np.linalg.svd(C)
+    d = np.sign(np.linalg.det(U @ Vt))                       # no reflection
+    D = np.ones(S.shape)
+    D[..., 2] = d
+    R = (U * D[..., None, :]) @ Vt
+    k = (S * D).sum(-1) / (Qc ** 2).sum()                    # (...,) scale
+    top = np.array([0.0, EXTRA_FRACTION["head_top"], 0.0]) - mq
+    return mp[..., 0, :] + k[..., None] * (R @ top)
+
+
+def check_skeleton(skeleton: Skeleton) -> None:
+    """``ValueError`` unless the model produces every joint of ``skeleton``
+    (a column of :data:`FULL_JOINTS` or one of :data:`DERIVED_JOINTS`)."""
+    for name in skeleton.joints:
+        if name not in FULL_INDEX and name not in DERIVED_JOINTS:
+            raise ValueError(f"the synthetic body has no joint {name!r}")
+
+
+def skeleton_points(full: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """``(T, J, 3)`` joints of ``skeleton`` from ``(T, 25, 3)`` ones in :data:`FULL_JOINTS` order.
+
+    Columns of the model are copied; ``head_top`` (BODY_25B, HALPE_26) is
+    :func:`head_top`. Same units and frame as ``full``.
+
+    Raises:
+        ValueError: ``skeleton`` has a joint the model cannot produce.
+    """
+    check_skeleton(skeleton)
+    full = np.asarray(full, dtype=float)
+    out = np.empty(full.shape[:-2] + (skeleton.num_joints, 3))
+    for j, name in enumerate(skeleton.joints):
+        if name in FULL_INDEX:
+            out[..., j, :] = full[..., FULL_INDEX[name], :]
+        else:                                           # the one derived joint
+            out[..., j, :] = head_top(full)
+    return out

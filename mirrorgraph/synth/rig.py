@@ -111,7 +111,7 @@ import numpy as np
 
 from ..keypoints import RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
-from .body import BodyModel, make_body, skeleton_columns
+from .body import BodyModel, make_body, skeleton_points
 from .motion import generate_motion
 from .scene import _camera_matrix, _observe, _rot_y, _rot_z, project
 
@@ -598,7 +598,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     rng = np.random.default_rng(seed)
     Ks = [_camera_matrix(rng, size, fov_deg) for _ in range(n_cams)]
     body = make_body(rng)
-    local = np.ascontiguousarray(generate_motion(body, T, fps, rng)[:, skeleton_columns(skel)])
+    local = skeleton_points(generate_motion(body, T, fps, rng), skel)
     H = float(subject_height) if subject_height is not None else float(rng.uniform(1.55, 1.95))
 
     torso = np.array([skel.index(f"{s}_{j}") for s in ("left", "right")

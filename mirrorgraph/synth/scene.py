@@ -79,7 +79,7 @@ import numpy as np
 
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
-from .body import BodyModel, make_body, skeleton_columns
+from .body import BodyModel, check_skeleton, make_body, skeleton_points
 from .motion import generate_motion
 
 #: Reflection of the x axis that makes the virtual camera's rotation proper.
@@ -414,8 +414,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                              "(k1, k2, p1, p2[, k3])")
         dist[:len(dv)] = dv
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
-    cols = skeleton_columns(skel)
-    J = len(cols)
+    check_skeleton(skel)
+    J = skel.num_joints
     size = (w, h)
 
     rng = np.random.default_rng(seed)
@@ -434,7 +434,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                          source_frames=take.source_frames, skipped=take.skipped,
                          take_frames=len(take), pingpong=T > len(take),
                          skeleton_height=take.height)
-    local = np.ascontiguousarray(full[:, cols])          # (T, J, 3)
+    local = skeleton_points(full, skel)                  # (T, J, 3)
     del full
     hull = _hull_points(local.reshape(-1, 3))
     centre = local.reshape(-1, 3).mean(0)
