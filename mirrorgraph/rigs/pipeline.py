@@ -69,11 +69,16 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     say("refining the rig in one factor graph")
     sol = solve_rig(rig, options or RefineOptions(), H, progress=progress)
 
+    # with a subject height the metric scale rests on Winter's proportions: a pure scale
+    # uncertainty of ``height_sigma`` (relative) added to every length's std, as the
+    # single-mirror refinement does; without one the unit is the height itself
+    rel = (options or RefineOptions()).height_sigma if height is not None else 0.0
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []
     for c, pose, cov in zip(obs.cameras, sol.poses, sol.camera_cov):
         rot, pos = camera_std(cov, pose)
+        pos = float(np.hypot(pos, rel * np.linalg.norm(np.asarray(pose)[:3, 3])))
         cameras.append(RigCamera(name=c.name, intrinsics=c.intrinsics, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  reprojection_rms_px=rms.get(c.name, float("nan")),
@@ -84,6 +89,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         n, d = sol.planes[i]
         if sol.plane_basis:
             ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
+            dstd = float(np.hypot(dstd, rel * abs(d)))
         else:
             ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")
         seen_by = [c.name for c in obs.cameras if name in c.reflections]

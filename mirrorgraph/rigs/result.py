@@ -49,7 +49,9 @@ class RigCamera:
         intrinsics: its intrinsics (as given; keypoints were undistorted with them).
         pose: ``(4, 4)`` camera-to-world.
         rotation_std_deg: RMS rotation error from the marginals (0 for the first camera).
-        position_std: RMS error of the camera centre (length unit).
+        position_std: RMS error of the camera centre (length unit); with a subject
+            height it includes the scale's uncertainty (``height_sigma``, 2 %, of the
+            distance to the first camera: the subject's proportions vs Winter's).
         reprojection_rms_px: RMS residual of its direct view.
         observations: keypoints of its direct view used in the final solve.
         lr_fixes: reflection frames whose labels were corrected.
@@ -88,7 +90,8 @@ class RigMirror:
         distance: ``d`` of ``n . X = d`` (length unit).
         normal_cov: ``(3, 3)`` covariance of the normal (rad^2, rank 2).
         rotation_std_deg: RMS rotation error of its virtual cameras (2x the normal's).
-        distance_std: standard deviation of ``d``.
+        distance_std: standard deviation of ``d`` (with the scale's uncertainty, as
+            ``position_std``).
         seen_by: cameras that see it.
         views_rms_px: camera name -> RMS residual of that camera's view through it.
     """
