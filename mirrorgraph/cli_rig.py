@@ -39,6 +39,9 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                    help="subject's height (overrides the rig file's subject_height): metres")
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
                                       "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18)")
+    p.add_argument("--joints", metavar="SET",
+                   help="joints to calibrate from: limbs (default: no face, hands or feet), "
+                        "all, or comma-separated names; overrides the rig file's joints")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
@@ -89,7 +92,8 @@ def _cmd_calibrate_rig(args) -> int:
 
     with Progress("solving the rig", enabled=not args.quiet) as bar:
         calib = calibrate_rig(args.rig, subject_height=args.subject_height,
-                              skeleton=args.skeleton, seed=args.seed, status=status,
+                              skeleton=args.skeleton, joints=args.joints, seed=args.seed,
+                              status=status,
                               progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
     if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
             and calib.scale != "subject_height":

@@ -3,6 +3,7 @@
 Form (paths are relative to the rig file)::
 
     subject_height = 1.72          # optional, metres; gives the scale
+    joints = "limbs"               # optional: "limbs" (default), "all", or a list of names
     [[cameras]]
     name = "cam01"
     keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes
@@ -32,7 +33,35 @@ from pathlib import Path
 from ..errors import InputError
 from ..skeletons import skeleton_by_name
 
-__all__ = ["CameraEntry", "RigConfig", "load_rig_config"]
+__all__ = ["CameraEntry", "RigConfig", "load_rig_config", "resolve_joints", "JOINT_SETS"]
+
+#: Named joint sets: ``limbs`` = the skeleton's calibration joints (the 12 limb joints
+#: and neck / mid-hip: MirrorCalib leaves out face, hands and feet, which are small and
+#: often occluded, above all in a mirror), ``all`` = every keypoint of the layout.
+JOINT_SETS = ("limbs", "all")
+
+
+def resolve_joints(skeleton, spec, source=None) -> "np.ndarray":
+    """``(k,)`` joint indices of a joint spec: ``None`` / ``"limbs"``, ``"all"``, or names.
+
+    Raises:
+        InputError: an unknown set or joint name (listing the layout's names).
+    """
+    import numpy as np
+
+    if spec is None or spec == "limbs":
+        return np.asarray(skeleton.calibration_joints, dtype=int)
+    if spec == "all":
+        return np.arange(skeleton.num_joints)
+    if isinstance(spec, str):
+        spec = [n.strip() for n in spec.split(",") if n.strip()]
+    missing = [n for n in spec if not skeleton.has(n)]
+    if missing or len(spec) < 4:
+        raise InputError(("unknown joint(s) " + ", ".join(missing) if missing else
+                          "needs at least 4 joints")
+                         + f"; use limbs, all, or names of {skeleton.name}: "
+                         + ", ".join(skeleton.joints), source=source, field="joints")
+    return np.array(sorted({skeleton.index(n) for n in spec}), dtype=int)
 
 
 @dataclass(frozen=True)
@@ -68,12 +97,15 @@ class RigConfig:
         cameras: the cameras, world frame = the first one's.
         mirrors: mirror names.
         subject_height: metres, or ``None`` (the scale is then the subject's height = 1).
+        joints: ``"limbs"``, ``"all"`` or joint names (see :func:`resolve_joints`), or
+            ``None`` (the default, limbs).
     """
 
     source: Path
     cameras: tuple[CameraEntry, ...]
     mirrors: tuple[str, ...] = ()
     subject_height: float | None = None
+    joints: str | tuple[str, ...] | None = None
 
 
 _CAMERA_KEYS = {"name", "keypoints", "intrinsics", "intrinsics_section", "skeleton", "mirrors",
@@ -106,10 +138,18 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
     except UnicodeDecodeError:
         raise InputError("not a text file", source=path) from None
     base = path.parent
-    unknown = set(doc) - {"subject_height", "cameras", "mirrors"}
+    unknown = set(doc) - {"subject_height", "joints", "cameras", "mirrors"}
     if unknown:
         raise InputError(f"unknown key(s) {', '.join(sorted(unknown))}; expected "
-                         "subject_height, [[cameras]], [[mirrors]]", source=path)
+                         "subject_height, joints, [[cameras]], [[mirrors]]", source=path)
+    joints = doc.get("joints")
+    if joints is not None:
+        ok = (isinstance(joints, str) and joints in JOINT_SETS) or (
+            isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints))
+        if not ok:
+            raise InputError("must be \"limbs\", \"all\" or a list of joint names",
+                             source=path, field="joints")
+        joints = joints if isinstance(joints, str) else tuple(joints)
 
     height = doc.get("subject_height")
     if height is not None:
@@ -196,4 +236,4 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
         raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
                          "one layout per rig", source=path, field="cameras")
     return RigConfig(source=path, cameras=tuple(cameras), mirrors=tuple(mirror_names),
-                     subject_height=height)
+                     subject_height=height, joints=joints)

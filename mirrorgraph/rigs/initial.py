@@ -66,19 +66,21 @@ def _plane_to_world(pose: np.ndarray, n: np.ndarray, d: float) -> tuple[np.ndarr
     return nw, float(d + nw @ pose[:3, 3])
 
 
-def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0) -> InitialRig:
+def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
+                   joints: np.ndarray | None = None) -> InitialRig:
     """Initial poses and planes (see the module docstring).
 
     Args:
         obs: the sorted observations.
         height: the subject's height in the output unit (metres, or 1).
         seed: RANSAC seed.
+        joints: ``(k,)`` joint indices used (default: the calibration joints).
 
     Raises:
         DegenerateGeometryError: a camera cannot be chained, a mirror not estimated.
     """
     sk = obs.skeleton
-    joints = sk.calibration_joints
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
     jmask = np.zeros(sk.num_joints, dtype=bool)
     jmask[joints] = True
     cams = obs.cameras

@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 
 from ..graph.options import RefineOptions
-from .config import RigConfig, load_rig_config
+from .config import RigConfig, load_rig_config, resolve_joints
 from .initial import initialise_rig
 from .observations import load_observations
 from .result import RigCalibration, RigCamera, RigMirror
@@ -27,7 +27,8 @@ MIRROR_SPREAD_WARN_DEG = 5.0
 
 
 def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: float | None = None,
-                  skeleton: str | None = None, options: RefineOptions | None = None,
+                  skeleton: str | None = None, joints=None,
+                  options: RefineOptions | None = None,
                   seed: int = 0, status: Callable[[str], None] | None = None,
                   progress: Callable[[int, float], None] | None = None) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
@@ -37,6 +38,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         subject_height: metres; overrides the file's ``subject_height``. Without
             either, lengths are in units of the subject's height.
         skeleton: layout for cameras whose table names none.
+        joints: ``"limbs"`` (the default: no face, hands or feet, as MirrorCalib),
+            ``"all"``, or joint names; overrides the file's ``joints``.
         options: weights and solver settings of the graph.
         seed: RANSAC seed.
         status: called with a short description of each step.
@@ -59,13 +62,15 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     obs = load_observations(cfg, skeleton=skeleton,
                             progress=lambda name: say(f"reading camera {name}"))
     warnings = list(obs.warnings)
+    used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
+                                 source=cfg.source)
     say("initialising: camera pairs, mirrors, spanning tree")
-    init = initialise_rig(obs, H, seed=seed)
+    init = initialise_rig(obs, H, seed=seed, joints=used_joints)
     for m, spread in init.mirror_spread_deg.items():
         if spread > MIRROR_SPREAD_WARN_DEG:
             warnings.append(f"mirror {m}: the cameras' initial estimates differ by {spread:.1f} "
                             "deg (is it the same mirror in all of them?)")
-    rig = build_rig(obs, init)
+    rig = build_rig(obs, init, used_joints)
     say("refining the rig in one factor graph")
     sol = solve_rig(rig, options or RefineOptions(), H, progress=progress)
 
@@ -106,7 +111,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                              for (c, m), s in init.sightings.items()],
         "mirror_spread_deg": init.mirror_spread_deg,
     }
-    refinement = {"iterations": sol.iterations, "rejected_observations": sol.rejected,
+    refinement = {"joints": [obs.skeleton.joints[j] for j in used_joints],
+                  "iterations": sol.iterations, "rejected_observations": sol.rejected,
                   "priors": sol.priors, "views": {v: {"rms_px": rms[v], "observations": counts[v]}
                                                   for v in sol.view_names}}
     return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,

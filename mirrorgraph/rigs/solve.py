@@ -109,10 +109,10 @@ def _seen(a: np.ndarray) -> np.ndarray:
     return (a[..., 2] >= MIN_CONFIDENCE) & np.isfinite(a[..., :2]).all(-1)
 
 
-def build_rig(obs: RigObservations, init: InitialRig) -> Rig:
+def build_rig(obs: RigObservations, init: InitialRig, joints: np.ndarray | None = None) -> Rig:
     """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
     estimated), the mirrors that were placed, one direct view per camera and one
-    view per camera and mirror."""
+    view per camera and mirror; ``joints`` (default: the calibration joints) estimated."""
     cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
                  for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))
     mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)
@@ -125,7 +125,8 @@ def build_rig(obs: RigObservations, init: InitialRig) -> Rig:
                 views.append(View(f"{c.name}/{m}", c.name, m, refl[..., :2].copy(), _seen(refl)))
     return Rig(cameras=cams, mirrors=mirrors, views=tuple(views), skeleton=obs.skeleton,
                frame_ids=np.asarray(obs.frame_ids, dtype=np.int64),
-               joints=np.asarray(obs.skeleton.calibration_joints, dtype=int))
+               joints=np.asarray(obs.skeleton.calibration_joints if joints is None else joints,
+                                 dtype=int))
 
 
 def _projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
