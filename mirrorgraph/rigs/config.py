@@ -30,6 +30,8 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
 from ..skeletons import skeleton_by_name
 
@@ -41,14 +43,12 @@ __all__ = ["CameraEntry", "RigConfig", "load_rig_config", "resolve_joints", "JOI
 JOINT_SETS = ("limbs", "all")
 
 
-def resolve_joints(skeleton, spec, source=None) -> "np.ndarray":
+def resolve_joints(skeleton, spec, source=None) -> np.ndarray:
     """``(k,)`` joint indices of a joint spec: ``None`` / ``"limbs"``, ``"all"``, or names.
 
     Raises:
         InputError: an unknown set or joint name (listing the layout's names).
     """
-    import numpy as np
-
     if spec is None or spec == "limbs":
         return np.asarray(skeleton.calibration_joints, dtype=int)
     if spec == "all":
