@@ -125,6 +125,21 @@ def _spread_subset(frames: np.ndarray, count: int) -> np.ndarray:
 #: usual case must win.
 SWAP_MARGIN = 0.5
 
+#: ... and only when the detector's labeling (flipped) fits badly: its median
+#: distance exceeds this fraction of the threshold. Where the flipped labeling
+#: fits within the noise (a person seen from the side: both labelings fit), the
+#: detector's labels stand. Measured on the paper's protocol (no confusions at
+#: all): without this floor 6 of 1000 frames of one scene were "fixed", and the
+#: refined mirror was 0.44 deg off instead of 0.26.
+SWAP_MIN_FRACTION = 0.6
+
+
+def _is_swap(flipped: np.ndarray, swapped: np.ndarray, threshold_px: float) -> np.ndarray:
+    """``(M,)`` bool: the swapped labeling of a reflection is the right one (see
+    :data:`SWAP_MARGIN`, :data:`SWAP_MIN_FRACTION`)."""
+    return (swapped < SWAP_MARGIN * flipped) & (flipped > SWAP_MIN_FRACTION * threshold_px)
+
+
 #: Beyond this distance from the joints (pixels) the epipole is treated as at
 #: infinity and the reflection is told apart by its smaller size instead.
 FAR_EPIPOLE_PX = 1e5
@@ -188,7 +203,7 @@ def pair_detections(raw: RawDetections, joints: np.ndarray | None = None,
     flip = sk.flip
     score_flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
     score_swapped = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
-    swapped = score_swapped < SWAP_MARGIN * score_flipped
+    swapped = _is_swap(score_flipped, score_swapped, opts.threshold_px)
     score = np.where(swapped, score_swapped, score_flipped)
 
     T, J = len(raw.people), sk.num_joints
@@ -250,7 +265,7 @@ def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
     flip = sk.flip
     keep = _median_distance(e, real, mirror, joints, opts.min_joints)
     swap = _median_distance(e, real, mirror[:, flip], joints, opts.min_joints)
-    swapped = swap < SWAP_MARGIN * keep
+    swapped = _is_swap(keep, swap, opts.threshold_px)
     fixed = np.where(swapped[:, None, None], mirror[:, flip], mirror)
     return PairedKeypoints(skeleton=sk, frame_ids=paired.frame_ids, real=real, mirror=fixed,
                            source=paired.source, format=paired.format,
@@ -322,7 +337,7 @@ def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | 
                 f"{raw.source}: cannot find mirror {m + 1} of {num_mirrors}: {exc}") from None
         flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
         swapped_score = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
-        swapped = swapped_score < SWAP_MARGIN * flipped
+        swapped = _is_swap(flipped, swapped_score, opts.threshold_px)
         score = np.where(swapped, swapped_score, flipped)
         ok = score < opts.threshold_px
         remaining &= ~ok
