@@ -69,7 +69,10 @@ class CalibrationRun:
     Attributes:
         calibration: the result.
         paired: undistorted, paired keypoints.
-        inliers: ``(T, J)`` bool, pairs kept by the initialisation.
+        inliers: ``(T, J)`` bool, pairs kept by the initialisation (after the
+            refinement: the pairs its final solve used).
+        candidates: ``(T, J)`` bool, the pairs handed to the refinement: epipolar
+            distance under :data:`REFINE_GATE_FACTOR` thresholds (see there).
         joints: ``(k,)`` joint indices used.
         joints3d: ``(T, J, 3)`` refined 3D joints (metres with a metric prior,
             else in units of the mirror distance), NaN where not estimated;
@@ -84,6 +87,7 @@ class CalibrationRun:
     paired: PairedKeypoints
     inliers: np.ndarray
     joints: np.ndarray
+    candidates: np.ndarray | None = None
     joints3d: np.ndarray | None = None
     valid3d: np.ndarray | None = None
     timings: dict[str, float] = field(default_factory=dict)
@@ -251,6 +255,9 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     inliers = np.zeros_like(valid)
     inliers[t_idx[est.inliers], j_idx[est.inliers]] = True
+    gate = est.residuals < REFINE_GATE_FACTOR * opts.threshold_px
+    candidates = np.zeros_like(valid)
+    candidates[t_idx[gate], j_idx[gate]] = True
     t_init = time.perf_counter() - clock
     if np.count_nonzero(inliers) < MIN_PAIRS:
         raise DegenerateGeometryError(
@@ -272,6 +279,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                "seed": opts.seed},
         warnings=warnings)
     run = CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
+                         candidates=candidates,
                          timings={"pairing": t_pairing, "initialisation": t_init})
     residual_median = float(np.median(est.residuals[est.inliers]))
     calib.refinement = {"initial_epipolar_median_px": residual_median}
@@ -294,7 +302,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     if opts.subject_height is not None:
         ropts = replace(ropts, subject_height=opts.subject_height)
     calib = run.calibration
-    res = refine_mirror(run.paired, calib.intrinsics.K, calib.normal, run.inliers,
+    pairs = run.candidates if run.candidates is not None else run.inliers
+    res = refine_mirror(run.paired, calib.intrinsics.K, calib.normal, pairs,
                         joints=run.joints, options=ropts, progress=iteration_progress)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
@@ -321,6 +330,15 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
 
+
+#: The refinement gets every pair within this many RANSAC thresholds of the initial
+#: mirror, not only the RANSAC inliers: an inlier set chosen against the initial
+#: estimate truncates the noise about *that* estimate and pulls the refinement back
+#: to it (measured on the paper's protocol, 12 seeds: RMS error / Cramer-Rao bound
+#: 1.41 with the inliers, 1.10 with every pair). The gate only keeps gross outliers
+#: (tens of pixels off their epipolar line) out of the first solve; the graph's
+#: robust kernel and its own rejection (:mod:`mirrorgraph.graph.outliers`) do the rest.
+REFINE_GATE_FACTOR = 3.0
 
 #: Warn when the inliers' median epipolar distance exceeds this many pixels.
 SUSPICIOUS_RESIDUAL_PX = 6.0
