@@ -330,12 +330,36 @@ def triangulate_rig(rig: Rig, used: np.ndarray, planes: list[tuple[np.ndarray, f
     return out
 
 
+#: Pairs whose two rays (from the camera and from its virtual camera) meet at less
+#: than this angle (degrees) are dropped: a joint straight between the camera and
+#: the mirror, its reflection behind it in the image, has no depth, and without a
+#: prior to hold it its variable makes the system indeterminate.
+MIN_PARALLAX_DEG = 0.5
+
+
+def low_parallax(rig: Rig, points: np.ndarray, used: np.ndarray,
+                 planes: list[tuple[np.ndarray, float]]) -> np.ndarray:
+    """``(T, J)`` bool: used pairs triangulated under :data:`MIN_PARALLAX_DEG`."""
+    direct = next(v for v in rig.views if v.mirror is None)
+    mirror = next(v for v in rig.views if v.mirror is not None)
+    n, d = planes[rig.mirror_index(mirror.mirror)]
+    c = np.asarray(rig.camera(direct.camera).pose, float)[:3, 3]
+    cv = c - 2.0 * (np.asarray(n) @ c - d) * np.asarray(n)          # the virtual centre
+    X = np.where(used[..., None], np.nan_to_num(points), 1.0)
+    a, b = X - c, X - cv
+    cos = np.einsum("...i,...i", a, b) / np.maximum(
+        np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-300)
+    return used & (cos > np.cos(np.radians(MIN_PARALLAX_DEG)))
+
+
 def first_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
                    planes: list[tuple[np.ndarray, float]], opts: RefineOptions) -> np.ndarray:
-    """``(T, J)`` bool: pairs failing the reprojection or the bone test (numpy, no graph)."""
+    """``(T, J)`` bool: pairs failing the reprojection or the bone test, or seen from
+    (nearly) one direction by both views (numpy, no graph)."""
     bad = np.zeros_like(used)
     for r in view_residuals(rig, points, used, planes):
         bad |= r > opts.outlier_threshold
+    bad |= low_parallax(rig, points, used, planes)
     if opts.bone_outlier_k > 0:
         _, pairs = bone_table(rig)
         bad |= bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
