@@ -113,7 +113,8 @@ from ..keypoints import RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
 from .body import BodyModel, make_body, skeleton_points
 from .motion import generate_motion
-from .scene import _camera_matrix, _observe, _rot_y, _rot_z, project
+from .scene import _camera_matrix, _observe, _rot_y, _rot_z, check_camera_args, project
+from .writer import load_ground_truth_joints
 
 __all__ = ["KINDS", "RigView", "SyntheticRig", "make_rig", "write_rig",
            "read_rig_ground_truth"]
@@ -569,18 +570,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                    corner_angle_deg=corner_angle_deg)
     if kind not in KINDS:
         raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
-    T = int(frames)
-    if T < 1:
-        raise ValueError(f"frames must be >= 1, got {frames}")
-    w, h = int(image_size[0]), int(image_size[1])
-    if w <= 0 or h <= 0:
-        raise ValueError(f"image_size must be positive, got {image_size}")
-    if not 0.0 < fov_deg < 180.0:
-        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
-    if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
-    if noise_std < 0:
-        raise ValueError(f"noise_std must be >= 0, got {noise_std}")
+    T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
     for name, v in (("outlier_rate", outlier_rate), ("lr_swap_rate", lr_swap_rate),
                     ("missing_rate", missing_rate)):
         if not 0.0 <= v <= 1.0:
@@ -866,10 +856,5 @@ def read_rig_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
     out["normals"] = np.array([m["normal"] for m in gt["mirrors"]], dtype=float).reshape(-1, 3)
     out["distances"] = np.array([m["distance"] for m in gt["mirrors"]], dtype=float)
     out["subject_height"] = float(gt["subject_height"])
-    j3 = gt.get("joints3d")
-    if isinstance(j3, str):
-        with np.load(p.parent / j3, allow_pickle=False) as z:
-            out["joints3d"] = z["joints3d"]
-            out["frame_ids"] = z["frame_ids"]
-            out["joint_names"] = z["joint_names"]
+    out.update(load_ground_truth_joints(p.parent, gt.get("joints3d")))
     return out

@@ -317,6 +317,31 @@ def _hull_points(pts: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ make_scene
+def check_camera_args(frames: int, image_size: tuple[int, int], fov_deg: float, fps: float,
+                      noise_std: float) -> tuple[int, int, int]:
+    """Check the arguments a synthetic scene and a synthetic rig share.
+
+    Returns:
+        ``(T, width, height)`` as ints.
+
+    Raises:
+        ValueError: naming the argument out of range.
+    """
+    T = int(frames)
+    if T < 1:
+        raise ValueError(f"frames must be >= 1, got {frames}")
+    w, h = (int(image_size[0]), int(image_size[1]))
+    if w <= 0 or h <= 0:
+        raise ValueError(f"image_size must be positive, got {image_size}")
+    if not 0.0 < fov_deg < 180.0:
+        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+    if fps <= 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    if noise_std < 0:
+        raise ValueError(f"noise_std must be >= 0, got {noise_std}")
+    return T, w, h
+
+
 def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skeleton = "COCO_17",
                image_size: tuple[int, int] = (1920, 1080), fov_deg: float = 60.0,
                mirror_angle_deg: float | None = None, mirror_distance: float | None = None,
@@ -378,18 +403,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    [float(v) for v in np.asarray(distortion, dtype=float).ravel()], fps=fps,
                    motion=None if motion is None else os.fspath(motion),
                    noise_correlation=noise_correlation, joint_bias_px=joint_bias_px)
-    T = int(frames)
-    if T < 1:
-        raise ValueError(f"frames must be >= 1, got {frames}")
-    w, h = (int(image_size[0]), int(image_size[1]))
-    if w <= 0 or h <= 0:
-        raise ValueError(f"image_size must be positive, got {image_size}")
-    if not 0.0 < fov_deg < 180.0:
-        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
-    if fps <= 0:
-        raise ValueError(f"fps must be positive, got {fps}")
-    if noise_std < 0:
-        raise ValueError(f"noise_std must be >= 0, got {noise_std}")
+    T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
     if not 0.0 <= noise_correlation < 1.0:
         raise ValueError(f"noise_correlation must be in [0, 1), got {noise_correlation}")
     if joint_bias_px < 0:

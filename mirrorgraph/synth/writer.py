@@ -127,10 +127,15 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
     out["K"] = np.asarray(gt["K"], dtype=float)
     out["dist"] = None if gt.get("dist") is None else np.asarray(gt["dist"], dtype=float)
     out["image_size"] = tuple(gt["image_size"])
-    j3 = gt.get("joints3d")
-    if isinstance(j3, str):
-        with np.load(p.parent / j3, allow_pickle=False) as z:
-            out["joints3d"] = z["joints3d"]
-            out["frame_ids"] = z["frame_ids"]
-            out["joint_names"] = z["joint_names"]
+    out.update(load_ground_truth_joints(p.parent, gt.get("joints3d")))
     return out
+
+
+def load_ground_truth_joints(folder: Path, name: Any) -> dict[str, np.ndarray]:
+    """``joints3d`` ``(T, J, 3)``, ``frame_ids`` and ``joint_names`` of the ground-truth
+    ``.npz`` that a ``ground_truth.json`` names (``{}`` when it names none)."""
+    if not isinstance(name, str):
+        return {}
+    with np.load(Path(folder) / name, allow_pickle=False) as z:
+        return {"joints3d": z["joints3d"], "frame_ids": z["frame_ids"],
+                "joint_names": z["joint_names"]}
