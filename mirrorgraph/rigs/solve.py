@@ -299,9 +299,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     timings["marginals"] = time.perf_counter() - t
 
     # every frame: triangulate with the final rig (the graph's joints where it has them)
-    full = _with_poses(_with_masks(rig, [np.asarray(v.mask, bool) for v in rig.views]),
-                       poses, planes)
-    all_points, all_used = triangulate_rig_views(full, poses, planes)
+    all_points, all_used = triangulate_rig_views(rig, poses, planes)
     all_points[np.flatnonzero(rows)] = np.where(problem.used[..., None], points,
                                                 all_points[rows])
     all_used[np.flatnonzero(rows)] |= problem.used
