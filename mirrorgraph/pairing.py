@@ -186,58 +186,11 @@ def pair_detections(raw: RawDetections, joints: np.ndarray | None = None,
         InputError: no frame holds two people.
         DegenerateGeometryError: the candidates do not determine an epipole.
     """
-    opts = options or PairingOptions()
-    sk = raw.skeleton
-    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    cand = _candidates(raw, opts)
-
-    sub = _spread_subset(cand.frame, opts.ransac_frames)
-    u = cand.a[sub][:, joints, :2].reshape(-1, 2)
-    um = cand.b[sub][:, joints, :2].reshape(-1, 2)
-    try:
-        e, _, _, _ = estimate_epipole(u, um, threshold_px=opts.threshold_px, seed=opts.seed)
-    except DegenerateGeometryError as exc:
-        raise DegenerateGeometryError(f"{raw.source}: cannot pair person and reflection: {exc}"
-                                      ) from None
-
-    flip = sk.flip
-    score_flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
-    score_swapped = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
-    swapped = _is_swap(score_flipped, score_swapped, opts.threshold_px)
-    score = np.where(swapped, score_swapped, score_flipped)
-
-    T, J = len(raw.people), sk.num_joints
-    real = np.full((T, J, 3), np.nan)
-    real[..., 2] = 0.0
-    mirror = real.copy()
-    # best candidate per frame: sort by (frame, score) and keep the first of each frame
-    order = np.lexsort((score, cand.frame))
-    first = np.ones(len(order), bool)
-    first[1:] = cand.frame[order][1:] != cand.frame[order][:-1]
-    best = order[first]
-    best = best[score[best] < opts.threshold_px]
-    a = cand.a[best]                       # detection i, its own labels
-    b_own = cand.b[best][:, flip]          # detection k, its own labels
-    b = np.where(swapped[best, None, None], b_own, cand.b[best])   # b[:, j] ~ a[:, j]
-    b_is_mirror = _b_is_reflection(e, a[:, joints], b[:, joints])
-    # The person keeps the detector's labels; the reflection is relabelled by
-    # the flip map, or kept as it is where the detector confused its left and
-    # right (a confusion cannot be told apart from one on the person, and the
-    # reflection, seen from behind, is where detectors make it).
-    keep = b_is_mirror[:, None, None]
-    mirror_own = np.where(keep, b_own, a)
-    relabel = np.where(swapped[best, None, None], mirror_own, mirror_own[:, flip])
-    real[cand.frame[best]] = np.where(keep, a, b_own)
-    mirror[cand.frame[best]] = relabel
-
-    if len(best) == 0:
-        raise DegenerateGeometryError(
-            f"{raw.source}: no frame has a pair of detections consistent with one mirror")
-    return PairedKeypoints(skeleton=sk, frame_ids=np.asarray(raw.frame_ids), real=real,
-                           mirror=mirror, source=raw.source, format=raw.format,
-                           image_size=raw.image_size, fps=raw.fps,
-                           lr_fixes=int(np.count_nonzero(swapped[best])),
-                           frames_read=T)
+    pairing = pair_reflections(raw, 1, joints, options)
+    return PairedKeypoints(skeleton=raw.skeleton, frame_ids=np.asarray(raw.frame_ids),
+                           real=pairing.real, mirror=pairing.reflections[0], source=raw.source,
+                           format=raw.format, image_size=raw.image_size, fps=raw.fps,
+                           lr_fixes=pairing.lr_fixes, frames_read=len(raw.people))
 
 
 def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
@@ -297,15 +250,18 @@ def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | 
                      options: PairingOptions | None = None) -> MirrorPairing:
     """Sort out, per frame, the person and their reflections in ``num_mirrors`` mirrors.
 
-    The single-mirror method of :func:`pair_detections`, once per mirror: the
+    The method of the module docstring, once per mirror: the
     epipole of the mirror explaining most candidate pairs is found by RANSAC, the
     pairs it explains are set aside, and the next mirror's epipole is searched
     among the rest (two reflections of the person, or a reflection and a double
     reflection, are not related by a reflection: their lines meet in no common
     point). Per frame and mirror the best candidate under the threshold is kept.
     The person is the detection that the chosen pairs of a frame share; in a
-    frame with one pair only, the reflection is the detection closer to the
-    epipole, as with one mirror.
+    frame with one pair only (always, with one mirror), the reflection is the
+    detection closer to the epipole. The person keeps the detector's labels; the
+    reflection is relabelled by the flip map, or kept as it is where the detector
+    confused its left and right (a confusion cannot be told apart from one on the
+    person, and the reflection, seen from behind, is where detectors make it).
 
     Args:
         raw: detections per frame (undistorted pixels).
@@ -333,8 +289,9 @@ def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | 
                                           cand.b[sub][:, joints, :2].reshape(-1, 2),
                                           threshold_px=opts.threshold_px, seed=opts.seed + m)
         except DegenerateGeometryError as exc:
-            raise DegenerateGeometryError(
-                f"{raw.source}: cannot find mirror {m + 1} of {num_mirrors}: {exc}") from None
+            what = ("cannot pair person and reflection" if num_mirrors == 1
+                    else f"cannot find mirror {m + 1} of {num_mirrors}")
+            raise DegenerateGeometryError(f"{raw.source}: {what}: {exc}") from None
         flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
         swapped_score = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
         swapped = _is_swap(flipped, swapped_score, opts.threshold_px)
@@ -342,11 +299,11 @@ def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | 
         ok = score < opts.threshold_px
         remaining &= ~ok
         best = np.full(T, -1)
-        idx = np.flatnonzero(ok & (cand.frame >= 0))
+        idx = np.flatnonzero(ok)
         if len(idx) == 0:
             raise DegenerateGeometryError(
-                f"{raw.source}: no frame has a pair of detections consistent with mirror "
-                f"{m + 1} of {num_mirrors}")
+                f"{raw.source}: no frame has a pair of detections consistent with "
+                + ("one mirror" if num_mirrors == 1 else f"mirror {m + 1} of {num_mirrors}"))
         order = idx[np.lexsort((score[idx], cand.frame[idx]))]
         first = np.ones(len(order), bool)
         first[1:] = cand.frame[order][1:] != cand.frame[order][:-1]
