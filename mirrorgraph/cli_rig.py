@@ -45,6 +45,9 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
+    p.add_argument("--report", metavar="DIR",
+                   help="write figures (top view of the rig, residuals per view) into DIR "
+                        "(needs matplotlib: pip install 'mirrorgraph[plot]')")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
     common(p)
     p.set_defaults(func=_cmd_calibrate_rig)
@@ -83,6 +86,9 @@ def _cmd_calibrate_rig(args) -> int:
         raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
                          field="--joints3d")
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
+    if args.report:
+        from .report import require_matplotlib
+        require_matplotlib()          # fail before the long run, with the install hint
     say = (lambda *_a, **_k: None) if args.quiet else print
     t0 = time.perf_counter()
 
@@ -105,6 +111,10 @@ def _cmd_calibrate_rig(args) -> int:
         write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
                        skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
                        unit="m" if calib.scale == "subject_height" else "subject height")
+    if args.report:
+        from .report.rig import write_rig_report
+        for path in write_rig_report(calib, args.report):
+            say(f"wrote {path}")
     for w in calib.warnings:
         print(f"warning: {w}", file=sys.stderr)
     say(calib.summary())

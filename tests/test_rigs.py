@@ -300,3 +300,15 @@ def test_every_joint_when_asked(tmp_path):
     assert max(c[0] for c in cams) < 0.5
     with pytest.raises(InputError, match="unknown joint"):
         calibrate_rig(path, joints="left_wrist,tail,nose,neck")
+
+
+def test_rig_report_figures(tmp_path):
+    pytest.importorskip("matplotlib", reason="the plot extra; the test command installs it")
+    rig = make_rig("1cam2mirrors", frames=60, seed=8)
+    path = write_rig(rig, tmp_path / "rig")
+    out = tmp_path / "calibration.toml"
+    assert main(["calibrate-rig", str(path), "--out", str(out), "--report",
+                 str(tmp_path / "report"), "--quiet"]) == 0
+    for name in ("rig_top_view.png", "rig_residuals.png"):
+        data = (tmp_path / "report" / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
