@@ -312,3 +312,15 @@ def test_rig_report_figures(tmp_path):
     for name in ("rig_top_view.png", "rig_residuals.png"):
         data = (tmp_path / "report" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+@pytest.mark.parametrize("skeleton, fmt", [("HALPE_26", "mmpose"), ("BODY_25B", "openpose")])
+def test_pose2sim_layouts_in_a_rig(tmp_path, skeleton, fmt):
+    """Pose2Sim's layouts (RTMPose HALPE_26, OpenPose BODY_25B), named or detected."""
+    rig = make_rig("2cams1mirror", frames=120, seed=9, skeleton=skeleton)
+    path = write_rig(rig, tmp_path, fmt)
+    cal = calibrate_rig(path)
+    assert cal.skeleton == skeleton
+    cams, _, mirrors = _errors(cal, rig)
+    assert cams[1][0] < 0.5 and cams[1][2] < 0.03
+    assert mirrors["wall"][0] < 0.25
