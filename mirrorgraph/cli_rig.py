@@ -40,8 +40,9 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
                                       "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18)")
     p.add_argument("--joints", metavar="SET",
-                   help="joints to calibrate from: limbs (default: no face, hands or feet), "
-                        "all, or comma-separated names; overrides the rig file's joints")
+                   help="joints to calibrate from: auto (default: every keypoint in direct "
+                        "views, limbs through mirrors), limbs (no face, hands or feet), all, "
+                        "or comma-separated names; overrides the rig file's joints")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")

@@ -92,6 +92,9 @@ def test_rigs_with_mirrors(tmp_path, kind):
     cal = calibrate_rig(write_rig(rig, tmp_path))
     cams, s, mirrors = _errors(cal, rig)
     assert sorted(mirrors) == sorted(rig.mirror_names)
+    # by default every keypoint in the direct views, the limbs through the mirrors
+    assert len(cal.refinement["joints"]["direct"]) == rig.skeleton.num_joints
+    assert len(cal.refinement["joints"]["through_mirrors"]) == len(rig.skeleton.calibration_joints)
     for rot, _, aligned in cams[1:]:
         assert rot < 0.5
         assert aligned < 0.03
@@ -287,13 +290,13 @@ def test_a_bystander_does_not_break_the_rig(tmp_path):
 
 
 def test_every_joint_when_asked(tmp_path):
-    """joints = "all" calibrates from face and feet too: more data, a smaller std."""
+    """Face and feet too (the default in direct views): more data, a smaller std."""
     rig = make_rig("4cams", frames=120, seed=7)
     path = write_rig(rig, tmp_path)
-    limbs = calibrate_rig(path)
-    every = calibrate_rig(path, joints="all")
-    assert len(every.refinement["joints"]) == rig.skeleton.num_joints
-    assert len(limbs.refinement["joints"]) == len(rig.skeleton.calibration_joints)
+    limbs = calibrate_rig(path, joints="limbs")
+    every = calibrate_rig(path)
+    assert len(every.refinement["joints"]["direct"]) == rig.skeleton.num_joints
+    assert len(limbs.refinement["joints"]["direct"]) == len(rig.skeleton.calibration_joints)
     for a, b in zip(limbs.cameras[1:], every.cameras[1:]):
         assert b.rotation_std_deg < 0.85 * a.rotation_std_deg
     cams, _, _ = _errors(every, rig)

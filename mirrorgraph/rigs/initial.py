@@ -67,31 +67,37 @@ def _plane_to_world(pose: np.ndarray, n: np.ndarray, d: float) -> tuple[np.ndarr
 
 
 def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
-                   joints: np.ndarray | None = None) -> InitialRig:
+                   joints: tuple[np.ndarray, np.ndarray] | None = None) -> InitialRig:
     """Initial poses and planes (see the module docstring).
 
     Args:
         obs: the sorted observations.
         height: the subject's height in the output unit (metres, or 1).
         seed: RANSAC seed.
-        joints: ``(k,)`` joint indices used (default: the calibration joints).
+        joints: ``(direct, mirror)`` joint indices used in the direct views and through
+            mirrors (:func:`~mirrorgraph.rigs.config.resolve_joints`; default: the
+            calibration joints in both).
 
     Raises:
         DegenerateGeometryError: a camera cannot be chained, a mirror not estimated.
     """
     sk = obs.skeleton
-    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    jmask = np.zeros(sk.num_joints, dtype=bool)
-    jmask[joints] = True
+    limbs = np.asarray(sk.calibration_joints, dtype=int)
+    direct, through = (limbs, limbs) if joints is None else (np.asarray(joints[0], dtype=int),
+                                                             np.asarray(joints[1], dtype=int))
+    dmask = np.zeros(sk.num_joints, dtype=bool)
+    dmask[direct] = True
+    mmask = np.zeros(sk.num_joints, dtype=bool)
+    mmask[through] = True
     cams = obs.cameras
     C = len(cams)
 
     sightings: dict[tuple[str, str], MirrorSighting] = {}
     for cam in cams:
         for m, refl in cam.reflections.items():
-            mask = _seen(cam.real, jmask) & _seen(refl, jmask)
+            mask = _seen(cam.real, mmask) & _seen(refl, mmask)
             sightings[(cam.name, m)] = mirror_sighting(
-                cam.intrinsics.K, cam.real[..., :2], refl[..., :2], mask, sk, joints, height,
+                cam.intrinsics.K, cam.real[..., :2], refl[..., :2], mask, sk, through, height,
                 seed=seed, name=f"{cam.name}/{m}")
 
     edges: dict[tuple[str, str], RelativePose] = {}
@@ -103,9 +109,10 @@ def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
                 sets_a.append(ca.reflections[m])
                 sets_b.append(cb.reflections[m])
             ua, ub = np.stack(sets_a), np.stack(sets_b)
-            mask = _seen(ua, jmask) & _seen(ub, jmask)
+            masks = np.stack([dmask] + [mmask] * (len(sets_a) - 1))[:, None, :]
+            mask = _seen(ua, masks) & _seen(ub, masks)
             rel = relative_pose(ca.intrinsics.K, cb.intrinsics.K, ua[..., :2], ub[..., :2],
-                                mask, sk, joints, height, seed=seed)
+                                mask, sk, direct, height, seed=seed)
             if rel is not None:
                 edges[(ca.name, cb.name)] = rel
 

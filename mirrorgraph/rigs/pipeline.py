@@ -38,8 +38,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         subject_height: metres; overrides the file's ``subject_height``. Without
             either, lengths are in units of the subject's height.
         skeleton: layout for cameras whose table names none.
-        joints: ``"limbs"`` (the default: no face, hands or feet, as MirrorCalib),
-            ``"all"``, or joint names; overrides the file's ``joints``.
+        joints: ``"auto"`` (the default: every keypoint in the direct views, the
+            limbs through mirrors), ``"limbs"`` (no face, hands or feet, as
+            MirrorCalib), ``"all"``, or joint names; overrides the file's ``joints``.
         options: weights and solver settings of the graph.
         seed: RANSAC seed.
         status: called with a short description of each step.
@@ -111,7 +112,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                              for (c, m), s in init.sightings.items()],
         "mirror_spread_deg": init.mirror_spread_deg,
     }
-    refinement = {"joints": [obs.skeleton.joints[j] for j in used_joints],
+    refinement = {"joints": {"direct": [obs.skeleton.joints[j] for j in used_joints[0]],
+                             "through_mirrors": [obs.skeleton.joints[j] for j in used_joints[1]]},
                   "iterations": sol.iterations, "rejected_observations": sol.rejected,
                   "priors": sol.priors, "views": {v: {"rms_px": rms[v], "observations": counts[v]}
                                                   for v in sol.view_names}}

@@ -109,24 +109,33 @@ def _seen(a: np.ndarray) -> np.ndarray:
     return (a[..., 2] >= MIN_CONFIDENCE) & np.isfinite(a[..., :2]).all(-1)
 
 
-def build_rig(obs: RigObservations, init: InitialRig, joints: np.ndarray | None = None) -> Rig:
+def build_rig(obs: RigObservations, init: InitialRig,
+              joints: tuple[np.ndarray, np.ndarray] | None = None) -> Rig:
     """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
     estimated), the mirrors that were placed, one direct view per camera and one
-    view per camera and mirror; ``joints`` (default: the calibration joints) estimated."""
+    view per camera and mirror. ``joints`` = ``(direct, mirror)`` joint indices that
+    the direct views and the views through mirrors use
+    (:func:`~mirrorgraph.rigs.config.resolve_joints`; default: the calibration joints)."""
+    limbs = np.asarray(obs.skeleton.calibration_joints, dtype=int)
+    direct, through = (limbs, limbs) if joints is None else joints
+    J = obs.skeleton.num_joints
+    dmask, mmask = np.zeros(J, dtype=bool), np.zeros(J, dtype=bool)
+    dmask[direct], mmask[through] = True, True
     cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
                  for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))
     mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)
     placed = {m.name for m in mirrors}
     views = []
     for c in obs.cameras:
-        views.append(View(c.name, c.name, None, c.real[..., :2].copy(), _seen(c.real)))
+        views.append(View(c.name, c.name, None, c.real[..., :2].copy(),
+                          _seen(c.real) & dmask))
         for m, refl in c.reflections.items():
             if m in placed:
-                views.append(View(f"{c.name}/{m}", c.name, m, refl[..., :2].copy(), _seen(refl)))
+                views.append(View(f"{c.name}/{m}", c.name, m, refl[..., :2].copy(),
+                                  _seen(refl) & mmask))
     return Rig(cameras=cams, mirrors=mirrors, views=tuple(views), skeleton=obs.skeleton,
                frame_ids=np.asarray(obs.frame_ids, dtype=np.int64),
-               joints=np.asarray(obs.skeleton.calibration_joints if joints is None else joints,
-                                 dtype=int))
+               joints=np.flatnonzero(dmask | mmask))
 
 
 def _projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
