@@ -45,6 +45,7 @@ def test_notebook_runs(tmp_path, monkeypatch):
     texts = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
                     for o in c.get("outputs", []))
     assert "refined normal error" in texts and "[cam_01]" in texts
+    assert "camera 2 rotation error" in texts and "mirror normal error" in texts
     images = sum("image/png" in o.get("data", {}) for c in nb.cells if c.cell_type == "code"
                  for o in c.get("outputs", []))
-    assert images == 5
+    assert images == 7                     # five of the mirror report, two of the rig
