@@ -92,13 +92,20 @@ def rig_scale(est: list[np.ndarray], true: list[np.ndarray]) -> float:
     return float(e @ t) / den if den > 0 else float("nan")
 
 
-def used_joints(res, skeleton) -> np.ndarray:
-    """Joint indices the calibration used (``refinement["joints"]`` names where the result
-    records them, else the skeleton's calibration joints)."""
-    names = (res.refinement or {}).get("joints") if res is not None else None
-    if names:
+def used_joints(res, skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """``(direct, through mirrors)`` joint indices the calibration used (from
+    ``refinement["joints"]``, else the skeleton's calibration joints for both)."""
+    rec = (res.refinement or {}).get("joints") if res is not None else None
+    limbs = np.asarray(skeleton.calibration_joints, dtype=int)
+    if not rec:
+        return limbs, limbs
+
+    def index(names):
         return np.array(sorted(skeleton.index(n) for n in names), dtype=int)
-    return np.asarray(skeleton.calibration_joints, dtype=int)
+
+    if isinstance(rec, dict):
+        return index(rec["direct"]), index(rec["through_mirrors"])
+    return index(rec), index(rec)
 
 
 def proportions(rig, joints: np.ndarray | None = None) -> dict:
@@ -309,8 +316,9 @@ def run_kind(kind: str, seed: int, frames: int, noise: float, anipose: bool,
         row["wall_s"] = time.perf_counter() - t0
         row["cpu_s"] = time.process_time() - c0
         joints = used_joints(res, rig.skeleton)
-        row["joints"] = [rig.skeleton.joints[j] for j in joints]
-        row.update(proportions(rig, joints))
+        direct = joints[0]
+        row["joints"] = [rig.skeleton.joints[j] for j in direct]
+        row.update(proportions(rig, direct))
         row.update(evaluate(res, rig))
         if anipose and kind == "4cams":
             t1 = time.perf_counter()
@@ -322,7 +330,7 @@ def run_kind(kind: str, seed: int, frames: int, noise: float, anipose: bool,
             row["init_wall_s"] = time.perf_counter() - t1
             if "warmup_s" not in warm:
                 warm["warmup_s"] = anipose_warmup(obs, init)
-            row["anipose"] = run_anipose(obs, init, rig, seed, joints)
+            row["anipose"] = run_anipose(obs, init, rig, seed, direct)
     return row
 
 
