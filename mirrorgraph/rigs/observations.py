@@ -87,12 +87,6 @@ class RigObservations:
     warnings: list[str] = field(default_factory=list)
 
 
-def _read(entry: CameraEntry, skeleton: Skeleton | str | None,
-          progress: Callable[[int, int], None] | None) -> RawDetections | PairedKeypoints:
-    return read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton,
-                          progress=progress)
-
-
 def _intrinsics(entry: CameraEntry, data, warnings: list[str]) -> Intrinsics:
     if entry.intrinsics is not None:
         section = entry.intrinsics_section
@@ -181,7 +175,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
-            skeletons, no frame in common.
+            skeletons.
         DegenerateGeometryError: a camera's reflections cannot be sorted out.
     """
     warnings: list[str] = []
@@ -189,7 +183,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     for entry in config.cameras:
         if progress is not None:
             progress(entry.name)
-        data = _read(entry, skeleton, None)
+        data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton)
         intr = _intrinsics(entry, data, warnings)
         data = undistort_keypoints(data, intr)
         real, refl, fixes = _sort_camera(entry, data, intr)
