@@ -39,7 +39,7 @@ from ..geometry import project, reflect_points
 from .options import RefineOptions
 from .rig import Rig
 
-__all__ = ["GraphProblem", "build_problem", "point_keys", "bone_table", "body_height_from_points",
+__all__ = ["GraphProblem", "build_problem", "smoothness_graph", "point_keys", "bone_table", "body_height_from_points",
            "view_residuals", "extract_points", "extract_planes", "extract_camera_poses",
            "snap_virtual_poses"]
 
@@ -415,6 +415,19 @@ def _add_smoothness(rig, graph, values, used, keys, points, sigma, max_gap, info
         factor.add_many(graph, k, fid[tri[..., 0]], X, values)
         count = len(tri)
     _record(info, "smoothness", sigma, "length / frame^2", count)
+
+
+def smoothness_graph(problem: GraphProblem, values: gtsam.Values, sigma: float,
+                     max_gap: int) -> gtsam.NonlinearFactorGraph:
+    """Smoothness factors of standard deviation ``sigma`` (graph length unit per frame^2)
+    over a built problem's points, linearised at ``values`` (they are linear: exact)."""
+    T, J = problem.used.shape
+    keys = np.zeros(T * J, dtype=np.uint64)
+    keys[problem.flat_index] = np.uint64(_X_BASE) + problem.flat_index.astype(np.uint64)
+    graph = gtsam.NonlinearFactorGraph()
+    _add_smoothness(problem.rig, graph, values, problem.used, keys.reshape(T, J),
+                    extract_points(problem, values), sigma, max_gap, {})
+    return graph
 
 
 # --------------------------------------------------------------------------- read back

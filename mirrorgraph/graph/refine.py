@@ -33,7 +33,7 @@ Videos longer than ``options.max_graph_frames`` are solved by :mod:`.chunked`
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable
 
 import gtsam
@@ -44,7 +44,8 @@ from ..errors import DegenerateGeometryError, InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
 from .builder import (GraphProblem, body_height_from_points, bone_table, build_problem,
-                      extract_planes, extract_points, snap_virtual_poses, view_residuals)
+                      extract_planes, extract_points, smoothness_graph, snap_virtual_poses,
+                      view_residuals)
 from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_marginals
 from .options import RefineOptions
 from .outliers import bone_outliers, reprojection_outliers
@@ -302,7 +303,7 @@ def solve_single(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
         if not rejected.any():
             break
     state = state_from_problem(problem, values, res, z_keys, stages, timings)
-    smooth_joints(rig, problem, values, opts, kernel, state)
+    smooth_joints(problem, values, opts, state)
     return state
 
 
@@ -310,8 +311,8 @@ def solve_single(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
 JOINTS_PASS_ITERATIONS = 1
 
 
-def smooth_joints(rig: Rig, problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
-                  kernel: str | None, state: "SolveState") -> None:
+def smooth_joints(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
+                  state: "SolveState") -> None:
     """The joints pass: the 3D joints solved again with the mirror and the bone lengths
     held and the smoothness of ``opts.joints_smoothness_sigma`` (in place on ``state``).
 
@@ -322,16 +323,20 @@ def smooth_joints(rig: Rig, problem: GraphProblem, values: gtsam.Values, opts: R
     if not opts.use_smoothness or sigma is None or sigma >= opts.smoothness_sigma:
         return
     t = time.perf_counter()
-    jopts = replace(opts, smoothness_sigma=float(sigma))
-    jp = _build_full(rig, problem, values, None, problem.used, None, jopts, kernel)
-    red = mirror_reduction(jp, with_lengths=True, distance_gauge=jp.distance_gauge)
+    # the calibration's smoothness stays; factors of sigma_x are added so that the two
+    # together weigh as one of ``sigma``: 1 / sigma^2 = 1 / sigma_c^2 + 1 / sigma_x^2
+    sigma_x = 1.0 / np.sqrt(1.0 / sigma ** 2 - 1.0 / opts.smoothness_sigma ** 2)
+    graph = problem.full()
+    graph.push_back(smoothness_graph(problem, values, problem.body_height * sigma_x,
+                                     opts.smoothness_max_gap))
+    red = mirror_reduction(problem, with_lengths=True, distance_gauge=problem.distance_gauge)
     # the smoothness is linear in the points and the points start at the calibration's
     # solution: one Gauss-Newton step lands within ~1 mm of the converged joints (error
-    # 15156.7 vs 15155.9 converged on a 1000-frame protocol scene), for 0.4 s instead of 0.6
-    lm = LevenbergMarquardt(jp.full(), red, lm_params(jopts, jp, JOINTS_PASS_ITERATIONS),
-                            ordering=jp.point_ordering(), hold_globals=True)
-    res = lm.optimize(jp.values)
-    state.points = extract_points(jp, res.values)
+    # 15156.7 vs 15155.9 converged on a 1000-frame protocol scene)
+    lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, JOINTS_PASS_ITERATIONS),
+                            ordering=problem.point_ordering(), hold_globals=True)
+    res = lm.optimize(values)
+    state.points = extract_points(problem, res.values)
     state.stages.append(_stage("joints pass (mirror held, smoothness %g h)" % sigma, res,
                                np.zeros_like(problem.used)))
     state.iterations += res.iterations
