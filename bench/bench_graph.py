@@ -49,16 +49,7 @@ if str(ROOT) not in sys.path:
 
 from mirrorgraph.graph import RefineOptions, refine_mirror  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg  # noqa: E402
-from mirrorgraph.synth import make_scene  # noqa: E402
-
-
-
-def tilted(n: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:
-    a = rng.normal(size=3)
-    a -= (a @ n) * n
-    a /= np.linalg.norm(a)
-    m = np.cos(np.radians(deg)) * n + np.sin(np.radians(deg)) * a
-    return m / np.linalg.norm(m)
+from mirrorgraph.synth import make_scene, tilted_normal as tilted  # noqa: E402
 
 
 def crb_rotation_deg(scene) -> float:

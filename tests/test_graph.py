@@ -21,18 +21,10 @@ from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.keypoints import PairedKeypoints
 from mirrorgraph.skeletons import COCO_17
 from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg
-from mirrorgraph.synth import make_scene
+from mirrorgraph.synth import make_scene, tilted_normal as tilted
 
 
 # --------------------------------------------------------------------------- helpers
-
-def tilted(n: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:
-    a = rng.normal(size=3)
-    a -= (a @ n) * n
-    a /= np.linalg.norm(a)
-    m = np.cos(np.radians(deg)) * n + np.sin(np.radians(deg)) * a
-    return m / np.linalg.norm(m)
-
 
 def noisy_copy(scene, rng: np.random.Generator, std: float = 4.0) -> PairedKeypoints:
     """The scene's clean keypoints with fresh Gaussian noise (same geometry, new draw)."""

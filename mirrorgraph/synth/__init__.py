@@ -21,8 +21,8 @@ and ground truth (:mod:`.rig`).
 """
 
 from .rig import SyntheticRig, make_rig, read_rig_ground_truth, write_rig
-from .scene import SyntheticScene, make_scene
+from .scene import SyntheticScene, make_scene, tilted_normal
 from .writer import read_ground_truth, write_scene
 
 __all__ = ["SyntheticRig", "SyntheticScene", "make_rig", "make_scene", "read_ground_truth",
-           "read_rig_ground_truth", "write_rig", "write_scene"]
+           "read_rig_ground_truth", "tilted_normal", "write_rig", "write_scene"]

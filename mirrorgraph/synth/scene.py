@@ -234,6 +234,17 @@ class SyntheticScene:
 
 
 # ------------------------------------------------------------------ projection helpers
+def tilted_normal(normal: np.ndarray, deg: float, rng: np.random.Generator) -> np.ndarray:
+    """A unit vector ``deg`` degrees from the unit ``normal`` ``(3,)``, in a random direction:
+    a perturbed initial mirror (the virtual camera then turns by ``2 deg``)."""
+    n = np.asarray(normal, dtype=float)
+    a = rng.normal(size=3)
+    a -= (a @ n) * n
+    a /= np.linalg.norm(a)
+    m = np.cos(np.radians(deg)) * n + np.sin(np.radians(deg)) * a
+    return m / np.linalg.norm(m)
+
+
 def project(K: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Pinhole projection ``pi(K X)`` of points ``(..., 3)`` -> ``(..., 2)``."""
     x = X[..., :2] / X[..., 2:3]
