@@ -28,7 +28,7 @@ from ..errors import DegenerateGeometryError
 from .observations import RigObservations
 from .relative import MIN_CORRESPONDENCES, MirrorSighting, RelativePose, mirror_sighting, relative_pose
 
-__all__ = ["InitialRig", "initialise_rig", "MIN_CONFIDENCE"]
+__all__ = ["InitialRig", "initialise_rig", "observed", "joint_masks", "MIN_CONFIDENCE"]
 
 #: Joints below this detector confidence are not used.
 MIN_CONFIDENCE = 0.3
@@ -57,8 +57,24 @@ class InitialRig:
     mirror_spread_deg: dict[str, float] = field(default_factory=dict)
 
 
-def _seen(a: np.ndarray, joints_mask: np.ndarray) -> np.ndarray:
+def observed(a: np.ndarray, joints_mask: np.ndarray | bool = True) -> np.ndarray:
+    """``(..., J)`` bool: keypoints ``a`` ``(..., J, 3)`` at or above :data:`MIN_CONFIDENCE`,
+    finite, and among ``joints_mask`` (broadcast against ``(..., J)``)."""
     return (a[..., 2] >= MIN_CONFIDENCE) & np.isfinite(a[..., :2]).all(-1) & joints_mask
+
+
+def joint_masks(skeleton, joints: tuple[np.ndarray, np.ndarray] | None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(J,)`` bool masks of the joints used in the direct views and through mirrors
+    (``joints`` from :func:`~mirrorgraph.rigs.config.resolve_joints`; ``None``: the
+    calibration joints in both)."""
+    limbs = np.asarray(skeleton.calibration_joints, dtype=int)
+    direct, through = (limbs, limbs) if joints is None else joints
+    dmask = np.zeros(skeleton.num_joints, dtype=bool)
+    mmask = np.zeros(skeleton.num_joints, dtype=bool)
+    dmask[np.asarray(direct, dtype=int)] = True
+    mmask[np.asarray(through, dtype=int)] = True
+    return dmask, mmask
 
 
 def _plane_to_world(pose: np.ndarray, n: np.ndarray, d: float) -> tuple[np.ndarray, float]:
@@ -82,20 +98,15 @@ def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
         DegenerateGeometryError: a camera cannot be chained, a mirror not estimated.
     """
     sk = obs.skeleton
-    limbs = np.asarray(sk.calibration_joints, dtype=int)
-    direct, through = (limbs, limbs) if joints is None else (np.asarray(joints[0], dtype=int),
-                                                             np.asarray(joints[1], dtype=int))
-    dmask = np.zeros(sk.num_joints, dtype=bool)
-    dmask[direct] = True
-    mmask = np.zeros(sk.num_joints, dtype=bool)
-    mmask[through] = True
+    dmask, mmask = joint_masks(sk, joints)
+    direct, through = np.flatnonzero(dmask), np.flatnonzero(mmask)
     cams = obs.cameras
     C = len(cams)
 
     sightings: dict[tuple[str, str], MirrorSighting] = {}
     for cam in cams:
         for m, refl in cam.reflections.items():
-            mask = _seen(cam.real, mmask) & _seen(refl, mmask)
+            mask = observed(cam.real, mmask) & observed(refl, mmask)
             sightings[(cam.name, m)] = mirror_sighting(
                 cam.intrinsics.K, cam.real[..., :2], refl[..., :2], mask, sk, through, height,
                 seed=seed, name=f"{cam.name}/{m}")
@@ -110,7 +121,7 @@ def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
                 sets_b.append(cb.reflections[m])
             ua, ub = np.stack(sets_a), np.stack(sets_b)
             masks = np.stack([dmask] + [mmask] * (len(sets_a) - 1))[:, None, :]
-            mask = _seen(ua, masks) & _seen(ub, masks)
+            mask = observed(ua, masks) & observed(ub, masks)
             rel = relative_pose(ca.intrinsics.K, cb.intrinsics.K, ua[..., :2], ub[..., :2],
                                 mask, sk, direct, height, seed=seed)
             if rel is not None:

@@ -49,7 +49,7 @@ from ..graph.outliers import bone_outliers
 from ..graph.refine import MIN_PAIRS, _gauge_scale, full_solve, spread_rows
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.rig import Camera, Mirror, Rig, View
-from .initial import MIN_CONFIDENCE, InitialRig
+from .initial import InitialRig, joint_masks, observed
 from .observations import RigObservations
 from .triangulation import camera_projection, mirror_projection, triangulate_views
 
@@ -105,10 +105,6 @@ class RigSolution:
     timings: dict
 
 
-def _seen(a: np.ndarray) -> np.ndarray:
-    return (a[..., 2] >= MIN_CONFIDENCE) & np.isfinite(a[..., :2]).all(-1)
-
-
 def build_rig(obs: RigObservations, init: InitialRig,
               joints: tuple[np.ndarray, np.ndarray] | None = None) -> Rig:
     """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
@@ -116,11 +112,7 @@ def build_rig(obs: RigObservations, init: InitialRig,
     view per camera and mirror. ``joints`` = ``(direct, mirror)`` joint indices that
     the direct views and the views through mirrors use
     (:func:`~mirrorgraph.rigs.config.resolve_joints`; default: the calibration joints)."""
-    limbs = np.asarray(obs.skeleton.calibration_joints, dtype=int)
-    direct, through = (limbs, limbs) if joints is None else joints
-    J = obs.skeleton.num_joints
-    dmask, mmask = np.zeros(J, dtype=bool), np.zeros(J, dtype=bool)
-    dmask[direct], mmask[through] = True, True
+    dmask, mmask = joint_masks(obs.skeleton, joints)
     cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
                  for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))
     mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)
@@ -128,11 +120,11 @@ def build_rig(obs: RigObservations, init: InitialRig,
     views = []
     for c in obs.cameras:
         views.append(View(c.name, c.name, None, c.real[..., :2].copy(),
-                          _seen(c.real) & dmask))
+                          observed(c.real, dmask)))
         for m, refl in c.reflections.items():
             if m in placed:
                 views.append(View(f"{c.name}/{m}", c.name, m, refl[..., :2].copy(),
-                                  _seen(refl) & mmask))
+                                  observed(refl, mmask)))
     return Rig(cameras=cams, mirrors=mirrors, views=tuple(views), skeleton=obs.skeleton,
                frame_ids=np.asarray(obs.frame_ids, dtype=np.int64),
                joints=np.flatnonzero(dmask | mmask))
