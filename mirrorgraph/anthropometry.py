@@ -20,6 +20,11 @@ scapular            half the shoulder width (neck to side)  0.1295
 hip_width           hip width                               0.191
 pelvis              half the hip width (mid-hip to side)    0.0955
 ==================  =====================================  ==========
+
+The same figure gives the heights of landmarks above the floor, standing upright
+(:data:`LANDMARK_HEIGHT`): the stature estimate of :mod:`mirrorgraph.stature`
+uses the parts of the body below the ankle and above the eyes, which no
+keypoint of BODY_25 or COCO spans.
 """
 
 from __future__ import annotations
@@ -36,6 +41,18 @@ HEIGHT_FRACTION: dict[str, float] = {
     "scapular": 0.259 / 2,
     "hip_width": 0.191,
     "pelvis": 0.191 / 2,
+}
+
+#: Height of a landmark above the floor / standing height, standing upright
+#: (Winter 2009, Fig. 4.1).
+LANDMARK_HEIGHT: dict[str, float] = {
+    "ankle": 0.039,
+    "knee": 0.285,
+    "hip": 0.530,
+    "shoulder": 0.818,
+    "chin": 0.870,
+    "eye": 0.936,
+    "vertex": 1.000,
 }
 
 

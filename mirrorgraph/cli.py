@@ -107,6 +107,10 @@ def _add_calibrate(sub) -> None:
                                     "hands or feet)")
     p.add_argument("--subject-height", type=_positive, metavar="METRES",
                    help="subject's standing height: gives the metric scale")
+    p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
+                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
+                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
+                        "bent over most of the video)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep the robust initialisation, skip the factor graph")
     p.add_argument("--joints3d", metavar="FILE",
@@ -132,6 +136,7 @@ def _cmd_calibrate(args) -> int:
     from .intrinsics import load_intrinsics
     from .io import read_keypoints
     from .io.motion import write_joints3d
+    from .graph.options import RefineOptions
     from .pipeline import CalibrateOptions, calibrate
 
     say = _say(args)
@@ -161,7 +166,8 @@ def _cmd_calibrate(args) -> int:
                             refine=not args.no_refine, subject_height=args.subject_height,
                             seed=args.seed, image_size=args.image_size,
                             joints=tuple(j.strip() for j in args.joints.split(","))
-                            if args.joints else None)
+                            if args.joints else None,
+                            refine_options=RefineOptions(scale_from=args.scale_from))
     if args.threshold is not None:
         opts.threshold_px = args.threshold
     if args.fov is not None:

@@ -319,7 +319,11 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         "rms_mirror_px": float(res.rms_mirror_px),
         "bone_lengths": {k: float(v) for k, v in res.bone_lengths.items()},
         "scale_source": res.scale,
+        "scale_method": res.scale_source,
+        "stature": res.stature,
     })
+    if res.scale == "subject_height" and res.stature is None and ropts.scale_from == "stature":
+        calib.warnings.append(f"scale: {res.scale_source}")
     run.timings.update({k: float(v) for k, v in res.timings.items() if k != "total"})
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),

@@ -42,6 +42,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+#: The ways a subject height becomes a length (``RefineOptions.scale_from``).
+SCALE_FROM = ("stature", "limbs")
+
 __all__ = ["RefineOptions"]
 
 
@@ -97,10 +100,22 @@ class RefineOptions:
             subject-height gauge needs the bone lengths, so it keeps them on).
         subject_height: standing height in metres: fixes the scale (metres);
             ``None``: the mirror distance is 1.
-        height_sigma: relative standard deviation of the subject's sum of bone
-            lengths about Winter's proportions times the height (added to the
-            reported ``distance_std``; the synthetic bodies vary by 3 % per
-            segment, which gives 1-2 % on the sum).
+        scale_from: how the subject's height becomes a length (with
+            ``subject_height``): ``"stature"`` (default) rescales the solution so
+            that the stature measured on its joints, ankle to eyes or head top,
+            is the height (:mod:`mirrorgraph.stature`; falls back to ``"limbs"``
+            and says so when the joints do not span it); ``"limbs"`` keeps the
+            gauge's scale, the limb bones' sum at Winter's fractions of the height
+            (for a subject who is not upright for most of the video: sitting,
+            lying, bent over). On synthetic subjects (3 % per segment) the metric
+            scale error is 0.3 % RMS with the stature, 1.6 % with the limbs
+            (``bench/RESULTS_stature.md``).
+        height_sigma: relative standard deviation of the metric scale, added to
+            every reported length std (``distance_std``, camera positions): the
+            subject's proportions where the stature is not measured, the
+            detector's placement of the keypoints and the height's own
+            measurement. 2 % by default: conservative on synthetic subjects
+            (0.3 % RMS with the stature), not measured on real video.
         link_sigma_rotation, link_sigma_translation: sigmas of the mirror-link
             factor (rad, length unit) when it is used as a soft factor
             (``GraphProblem.full(links=True)`` for GTSAM's own optimisers); the
@@ -155,6 +170,7 @@ class RefineOptions:
 
     subject_height: float | None = None
     height_sigma: float = 0.02
+    scale_from: str = "stature"
 
     link_sigma_rotation: float = 1e-6
     link_sigma_translation: float = 1e-6
@@ -170,6 +186,12 @@ class RefineOptions:
     chunk_passes: int = 3
     chunk_step_tolerance: float = 1.0
     marginals: bool = True
+
+    def __post_init__(self) -> None:
+        if self.scale_from not in SCALE_FROM:
+            from ..errors import InputError
+            raise InputError(f"scale_from must be one of {', '.join(SCALE_FROM)}, "
+                             f"got {self.scale_from!r}", field="scale_from")
 
     @property
     def outlier_threshold(self) -> float:

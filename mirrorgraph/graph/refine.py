@@ -25,6 +25,8 @@ Pipeline of :func:`refine_mirror` (:func:`solve_single`):
    :class:`gtsam.Marginals` of that reduced Gaussian gives the plane's 3x3
    tangent covariance, mapped to the unit normal with the tangent basis
    (:mod:`.result`).
+6. **Metric scale** (with a subject height): everything is rescaled so that the
+   stature measured on the joints equals the height (:mod:`.stature_scale`).
 
 Videos longer than ``options.max_graph_frames`` are solved by :mod:`.chunked`
 (a spread subset first, then frame chunks sharing the mirror).
@@ -33,7 +35,7 @@ Videos longer than ``options.max_graph_frames`` are solved by :mod:`.chunked`
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import gtsam
@@ -94,7 +96,12 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
         state = solve_chunked(rig, used, d0, opts, progress)
     else:
         state = solve_single(rig, used, d0, opts, progress)
-    return finish(rig, state, opts, t_start)
+    res = finish(rig, state, opts, t_start)
+    if res.scale == "subject_height":
+        from .stature_scale import LIMB_CHOSEN, scale_by_stature
+        res = (scale_by_stature(res, paired, K, float(opts.subject_height))
+               if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
+    return res
 
 
 # --------------------------------------------------------------------------- steps

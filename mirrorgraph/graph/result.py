@@ -76,6 +76,11 @@ class RefinementResult:
         timings: seconds: ``build``, ``solve``, ``marginals``, ``total``.
         stages: per solve stage: name, iterations, initial/final error, rejected
             pairs, kernel (and, for long videos, each chunk pass's global step).
+        scale_source: with a subject height, how it became a length: the stature
+            measured on the joints (:mod:`mirrorgraph.stature`) or, failing that,
+            the limb bones' Winter proportions; empty without a height.
+        stature: the stature estimate's record (:meth:`StatureEstimate.to_dict`),
+            after scaling (its height is the subject's), or ``None``.
     """
 
     normal: np.ndarray
@@ -95,3 +100,5 @@ class RefinementResult:
     priors: dict[str, dict]
     timings: dict[str, float]
     stages: list[dict] = field(default_factory=list)
+    scale_source: str = ""
+    stature: dict | None = None

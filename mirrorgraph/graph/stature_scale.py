@@ -1,0 +1,80 @@
+"""The metric scale of a single-mirror refinement from the subject's measured stature.
+
+The graph's gauge holds the limb bones' sum at Winter's fractions of the subject's
+height (:mod:`mirrorgraph.factors.gauge`), so the subject's own limb proportions
+(a few percent off the population's) go straight into ``d`` and every length.
+Afterwards the solution is rescaled so that the stature measured on its joints
+(:func:`mirrorgraph.stature.estimate_stature`: ankle to eyes or head top, only the
+feet and the top of the head from population figures) equals the given height. A
+pure change of scale: reprojections, the mirror's normal and the body priors'
+ratios are unchanged, so it is the solution the graph would reach under that gauge.
+
+The chain needs the eyes (or the head top), which the calibration joints (the
+limbs) do not include: they are triangulated here from the person and the
+reflection with the refined mirror (:func:`mirrorgraph.geometry.triangulate_mirror`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..geometry import triangulate_mirror
+from ..keypoints import PairedKeypoints
+from ..stature import estimate_stature
+from .result import RefinementResult
+
+__all__ = ["scale_by_stature", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
+
+_LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"
+#: The scale's description when the stature cannot be measured.
+LIMB_PROPORTIONS = _LIMBS + ": the joints do not span ankle to eyes in enough frames"
+#: ... and when the user chose the limbs (``RefineOptions.scale_from = "limbs"``).
+LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
+
+
+def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, J, 3)`` joints and ``(T, J)`` mask: the refinement's, plus the joints it did
+    not estimate triangulated from both views (in front of the camera and the mirror)."""
+    points = np.array(res.joints3d, dtype=float, copy=True)
+    valid = np.array(res.valid, dtype=bool, copy=True)
+    missing = paired.valid() & ~valid
+    if missing.any():
+        X = triangulate_mirror(K, res.normal, res.distance,
+                               np.where(missing[..., None], paired.real[..., :2], np.nan),
+                               np.where(missing[..., None], paired.mirror[..., :2], np.nan))
+        with np.errstate(invalid="ignore"):
+            ok = (missing & np.isfinite(X).all(-1) & (X[..., 2] > 0)
+                  & (X @ np.asarray(res.normal, float) < res.distance))
+        points[ok] = X[ok]
+        valid |= ok
+    return points, valid
+
+
+def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
+                     height: float) -> RefinementResult:
+    """Rescale a metric refinement so that the subject's measured stature is ``height``.
+
+    Args:
+        res: the refinement (``scale == "subject_height"``: metres through the gauge).
+        paired: its person and reflection keypoints (undistorted pixels).
+        K: ``(3, 3)`` intrinsics.
+        height: the subject's standing height, metres.
+
+    Returns:
+        ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
+        multiplied by ``height / measured stature`` and ``scale_source``/``stature``
+        set; unchanged but for ``scale_source`` when the stature cannot be measured.
+    """
+    points, valid = _with_head(res, paired, K)
+    est = estimate_stature(points, valid, paired.skeleton)
+    if est is None:
+        return replace(res, scale_source=LIMB_PROPORTIONS)
+    f = float(height) / est.height
+    record = replace(est, height=float(height),
+                     segments={k: v * f for k, v in est.segments.items()}).to_dict()
+    return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
+                   bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
+                   distance_std=res.distance_std * f, scale_source=est.describe(), stature=record)

@@ -1,0 +1,163 @@
+"""Standing height from 3D joints: the anatomical (segment-sum) method.
+
+Reflections and views carry no absolute scale; it comes from the subject's
+standing height ``H`` given by the user. To turn ``H`` into a length of the
+reconstruction one needs the same height *measured* in the reconstruction's
+units. Summing limb bones with population proportions (femur 0.245 H, humerus
+0.186 H, ...) mixes in parts that do not make up stature (the arms, the
+shoulder and hip widths), so an individual's proportions bias the scale by
+their full deviation from the average (a few percent per segment).
+
+Stature is the sum of the heights of the segments stacked from the floor to
+the vertex (the *anatomical method*: G. Fully, "Une nouvelle methode de
+determination de la taille", *Ann. Med. Leg.* 36, 1956; M. H. Raxter, B. M.
+Auerbach and C. B. Ruff, "Revision of the Fully technique for estimating
+statures", *Am. J. Phys. Anthropol.* 130, 2006). Measured here per frame and
+summarised by the median over frames:
+
+==========  =========================================================  ============
+segment     measured as                                                Winter, H
+==========  =========================================================  ============
+shank       ``|knee - ankle|``, both sides                             0.246
+thigh       ``|hip - knee|``, both sides                               0.245
+trunk       ``|mid-shoulder - mid-hip|``                               0.288
+head        ``(top - mid-shoulder) . u``, ``u`` the unit trunk axis    0.118 / 0.182
+==========  =========================================================  ============
+
+``top`` is the skeleton's ``head_top`` where it has one (BODY_25B, HALPE_26),
+else the midpoint of the eyes. Mid-points are computed from the left and right
+joints (every skeleton has them; BODY_25's ``neck`` and BODY_25B's upper neck
+differ). What no keypoint spans is taken from Winter's landmark heights
+(:data:`mirrorgraph.anthropometry.LANDMARK_HEIGHT`): the ankle above the floor
+(0.039 H) and, with the eyes as top, the vertex above the eyes (0.064 H), so
+
+    H = (shank + thigh + trunk + head) / (1 - unmeasured fraction).
+
+Only those ~4-10 % of the height rest on population proportions; a 3 % per
+segment individual variation leaves ~0.3 % of scale error instead of ~1 % from
+limb proportions (measured on the synthetic subjects of :mod:`mirrorgraph.synth`:
+``bench/RESULTS_rig.md``). The medians assume the subject stands or moves upright
+for most of the frames (walking, exercises standing): a video spent sitting,
+lying or bent over shortens the trunk and the legs' stack and the estimate with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .anthropometry import LANDMARK_HEIGHT
+from .skeletons import Skeleton
+
+__all__ = ["StatureEstimate", "estimate_stature", "MIN_FRAMES"]
+
+#: A segment needs at least this many frames with both its end points.
+MIN_FRAMES = 10
+
+_LEGS = ("knee", "ankle", "hip")
+_TRUNK = ("shoulder", "hip")
+
+
+@dataclass(frozen=True)
+class StatureEstimate:
+    """The subject's standing height measured on 3D joints.
+
+    Attributes:
+        height: standing height in the joints' unit (metres if they are).
+        segments: ``shank``, ``thigh``, ``trunk``, ``head`` -> median length, the
+            joints' unit.
+        top: ``"head_top"`` or ``"eyes"``: the highest keypoint used.
+        unmeasured_fraction: the part of ``height`` taken from Winter's landmark
+            heights (below the ankle, above ``top``).
+        frames: frames with every segment measured.
+    """
+
+    height: float
+    segments: dict[str, float]
+    top: str
+    unmeasured_fraction: float
+    frames: int
+
+    def describe(self) -> str:
+        """One line for reports: what was measured and what was assumed."""
+        top = "head top" if self.top == "head_top" else "eyes"
+        return (f"stature measured from ankle to {top} (shank, thigh, trunk, head); "
+                f"{100 * self.unmeasured_fraction:.1f} % of it from Winter's landmark heights")
+
+    def to_dict(self) -> dict:
+        """Plain-Python form for JSON."""
+        return {"height": float(self.height), "segments": {k: float(v) for k, v in self.segments.items()},
+                "top": self.top, "unmeasured_fraction": float(self.unmeasured_fraction),
+                "frames": int(self.frames), "method": self.describe()}
+
+
+def _required(skeleton: Skeleton) -> dict[str, int] | None:
+    """Indices of the joints the chain needs, or ``None`` if the skeleton lacks one."""
+    names = [f"{s}_{j}" for s in ("left", "right") for j in _LEGS + _TRUNK[:1]]
+    if "head_top" in skeleton.joints:
+        names.append("head_top")
+    else:
+        names += ["left_eye", "right_eye"]
+    if any(n not in skeleton.joints for n in names):
+        return None
+    return {n: skeleton.index(n) for n in names}
+
+
+def _median(values: np.ndarray) -> tuple[float, int]:
+    """Median of the finite ``values`` and their count."""
+    v = values[np.isfinite(values)]
+    return (float(np.median(v)) if len(v) else float("nan")), int(len(v))
+
+
+def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, *,
+                     min_frames: int = MIN_FRAMES) -> StatureEstimate | None:
+    """Standing height from 3D joints by summing the segments of the vertical chain.
+
+    Args:
+        points: ``(T, J, 3)`` joints, any frame, any length unit.
+        valid: ``(T, J)`` bool, the joints to trust.
+        skeleton: their layout (needs left/right ankle, knee, hip, shoulder and
+            either ``head_top`` or both eyes).
+        min_frames: frames each segment needs.
+
+    Returns:
+        The estimate, or ``None`` when the skeleton lacks a joint of the chain or
+        a segment is measured in fewer than ``min_frames`` frames (the caller
+        falls back to limb proportions and says so).
+    """
+    idx = _required(skeleton)
+    if idx is None:
+        return None
+    P = np.where(np.asarray(valid, bool)[..., None], np.asarray(points, float), np.nan)
+
+    def joint(name: str) -> np.ndarray:
+        return P[:, idx[name]]
+
+    def both(a: str, b: str) -> np.ndarray:               # (2T,) lengths, both sides
+        return np.concatenate([np.linalg.norm(joint(f"{s}_{a}") - joint(f"{s}_{b}"), axis=-1)
+                               for s in ("left", "right")])
+
+    mid_hip = 0.5 * (joint("left_hip") + joint("right_hip"))
+    mid_shoulder = 0.5 * (joint("left_shoulder") + joint("right_shoulder"))
+    if "head_top" in idx:
+        top, top_name, above = joint("head_top"), "head_top", 1.0 - LANDMARK_HEIGHT["vertex"]
+    else:
+        top, top_name = 0.5 * (joint("left_eye") + joint("right_eye")), "eyes"
+        above = LANDMARK_HEIGHT["vertex"] - LANDMARK_HEIGHT["eye"]
+    axis = mid_shoulder - mid_hip
+    trunk = np.linalg.norm(axis, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        head = np.einsum("ti,ti->t", top - mid_shoulder, axis) / trunk
+
+    measured = {"shank": _median(both("knee", "ankle")), "thigh": _median(both("hip", "knee")),
+                "trunk": _median(trunk), "head": _median(head)}
+    if min(n for _, n in measured.values()) < min_frames:
+        return None
+    segments = {k: v for k, (v, _) in measured.items()}
+    if not all(v > 0 for v in segments.values()):
+        return None
+    unmeasured = LANDMARK_HEIGHT["ankle"] + above
+    frames = int(np.sum(np.isfinite(trunk) & np.isfinite(head)))
+    return StatureEstimate(height=sum(segments.values()) / (1.0 - unmeasured), segments=segments,
+                           top=top_name, unmeasured_fraction=unmeasured, frames=frames)
