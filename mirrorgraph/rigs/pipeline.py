@@ -2,28 +2,60 @@
 
 Steps: read and sort every camera's keypoints (:mod:`.observations`), pairwise
 initialisation chained along a spanning tree (:mod:`.initial`), one factor graph
-over all joints, cameras and mirrors (:mod:`.solve`), and the result with its
-uncertainties (:mod:`.result`).
+over all joints, cameras and mirrors (:mod:`.solve`), the joints the graph did not
+use triangulated with its rig (:mod:`.completion`), and the result with its
+uncertainties (:mod:`.result`). The scale: the graph holds the limb bones at
+Winter's fractions of the subject's height, then the whole rig is rescaled so
+that the stature measured on the solved joints (:mod:`mirrorgraph.stature`)
+equals that height.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
 from ..graph.options import RefineOptions
+from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
+from ..skeletons import Skeleton
+from ..stature import StatureEstimate, estimate_stature
+from .completion import complete_joints
 from .config import RigConfig, load_rig_config, resolve_joints
 from .initial import initialise_rig
 from .observations import load_observations
 from .result import RigCalibration, RigCamera, RigMirror
-from .solve import build_rig, camera_std, plane_std, solve_rig
+from .solve import RigSolution, build_rig, camera_std, plane_std, solve_rig
 
 __all__ = ["calibrate_rig"]
 
 #: Above this angle (deg) between two cameras' initial views of one mirror, warn.
 MIRROR_SPREAD_WARN_DEG = 5.0
+
+
+def _stature_scale(sol: RigSolution, skeleton: Skeleton, height: float
+                   ) -> tuple[RigSolution, str, StatureEstimate | None]:
+    """Rescale the solution so that the subject's measured stature is ``height``.
+
+    The graph's gauge holds the limb bones' sum at Winter's fractions of the height,
+    which carries the subject's limb proportions into the scale; the stature measured
+    on the solved joints (:func:`mirrorgraph.stature.estimate_stature`) depends on
+    population proportions for only the few percent of the height below the ankles
+    and above the eyes. Without the joints it needs the gauge's scale stays.
+
+    Returns:
+        The (rescaled) solution, a description of the scale's source and the
+        stature estimate (``None``: the limb-proportion scale was kept).
+    """
+    stature = estimate_stature(sol.points, sol.used, skeleton)
+    if stature is None:
+        return sol, LIMB_PROPORTIONS, None
+    scaled = sol.scaled(height / stature.height)
+    return scaled, stature.describe(), replace(stature, height=height,
+                                               segments={k: v * height / stature.height
+                                                         for k, v in stature.segments.items()})
 
 
 def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: float | None = None,
@@ -73,12 +105,20 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                             "deg (is it the same mirror in all of them?)")
     rig = build_rig(obs, init, used_joints)
     say("refining the rig in one factor graph")
-    sol = solve_rig(rig, options or RefineOptions(), H, progress=progress)
+    opts = options or RefineOptions()
+    sol = solve_rig(rig, opts, H, progress=progress)
+    sol = complete_joints(obs, sol, opts.outlier_threshold)
+    if opts.scale_from == "stature":
+        sol, scale_source, stature = _stature_scale(sol, obs.skeleton, H)
+        if stature is None:
+            warnings.append(f"scale: {scale_source}")
+    else:
+        scale_source, stature = LIMB_CHOSEN, None
 
     # with a subject height the metric scale rests on Winter's proportions: a pure scale
     # uncertainty of ``height_sigma`` (relative) added to every length's std, as the
     # single-mirror refinement does; without one the unit is the height itself
-    rel = (options or RefineOptions()).height_sigma if height is not None else 0.0
+    rel = opts.height_sigma if height is not None else 0.0
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []
@@ -117,7 +157,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                   "iterations": sol.iterations, "rejected_observations": sol.rejected,
                   "priors": sol.priors, "views": {v: {"rms_px": rms[v], "observations": counts[v]}
                                                   for v in sol.view_names}}
+    refinement["stature"] = stature.to_dict() if stature is not None else None
     return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+                          scale_source=scale_source,
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
                           joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
                           initialisation=initialisation, refinement=refinement,

@@ -114,6 +114,8 @@ class RigCalibration:
         cameras, mirrors: the calibrated cameras and mirrors.
         scale: ``"subject_height"`` (metres) or ``"unit_height"`` (the subject is 1 tall).
         subject_height: metres, or ``None``.
+        scale_source: how the height became a length of the rig (the stature
+            measured on the joints, or limb proportions).
         skeleton: keypoint layout name.
         frame_ids: ``(T,)`` rig frames.
         joints3d: ``(T, J, 3)`` joints, world frame, length unit; NaN where unknown.
@@ -138,6 +140,7 @@ class RigCalibration:
     refinement: dict[str, Any]
     warnings: list[str] = field(default_factory=list)
     source: str = ""
+    scale_source: str = ""
 
     def camera(self, name: str) -> RigCamera:
         """The camera called ``name``."""
@@ -156,6 +159,7 @@ class RigCalibration:
             "mirrorgraph_version": __version__,
             "world_frame": f"camera {self.cameras[0].name} (x right, y down, z forward)",
             "scale": self.scale, "length_unit": unit, "subject_height": self.subject_height,
+            "scale_source": self.scale_source,
             "skeleton": self.skeleton,
             "cameras": [{
                 "name": c.name, "pose_camera_to_world": c.pose.tolist(),
@@ -198,6 +202,7 @@ class RigCalibration:
             lines.append(f"mirror {m.name:<10} normal [{n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}] "
                          f"d {m.distance:.4f} {unit}  rot std {m.rotation_std_deg:.3f} deg")
         lines.append("scale: " + (f"subject height {self.subject_height:g} m"
+                                  + (f" ({self.scale_source})" if self.scale_source else "")
                                   if self.scale == "subject_height"
                                   else "unknown (lengths in subject heights; pass "
                                        "subject_height or --subject-height for metres)"))

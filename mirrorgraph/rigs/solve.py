@@ -104,6 +104,29 @@ class RigSolution:
     priors: dict
     timings: dict
 
+    def scaled(self, factor: float) -> "RigSolution":
+        """The same solution with every length multiplied by ``factor`` (> 0).
+
+        Reprojections, the body priors (ratios, and lengths relative to the
+        body) and the marginals' rotations do not change with the scale, so this
+        is the solution the graph would have reached under a gauge ``factor``
+        times larger: camera centres, plane distances, joints, bone lengths and
+        the length parts of the covariances scale, nothing else.
+        """
+        f = float(factor)
+        poses = []
+        for P in self.poses:
+            Q = np.array(P, dtype=float)
+            Q[:3, 3] *= f
+            poses.append(Q)
+        unit = np.diag([1.0, 1.0, 1.0, f, f, f])
+        camera_cov = [unit @ C @ unit for C in self.camera_cov]
+        d_unit = np.diag([1.0, 1.0, f])
+        plane_cov = [d_unit @ C @ d_unit for C in self.plane_cov]
+        return replace(self, poses=poses, planes=[(np.asarray(n), float(d) * f) for n, d in self.planes],
+                       camera_cov=camera_cov, plane_cov=plane_cov, points=self.points * f,
+                       bone_lengths={b: v * f for b, v in self.bone_lengths.items()})
+
 
 def build_rig(obs: RigObservations, init: InitialRig,
               joints: tuple[np.ndarray, np.ndarray] | None = None) -> Rig:
