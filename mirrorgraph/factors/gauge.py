@@ -23,7 +23,11 @@ single pixel. One of two priors fixes it:
   smoothness) has its residuals shrink with the scene and would pull the
   scale towards zero against a soft prior. Being a pure scale, that
   uncertainty is exact to add afterwards: ``distance_std^2 += (rel_sigma d)^2``
-  (:mod:`mirrorgraph.graph.refine`).
+  (:mod:`mirrorgraph.graph.refine`). For the same reason the final scale need not be
+  this gauge's: by default the solution is rescaled afterwards so that the stature
+  measured on its joints is ``H`` (:mod:`mirrorgraph.graph.stature_scale`), which
+  leaves the subject's limb proportions out of it; the gauge then only fixes the
+  scale during the solve.
 * :class:`DistancePriorFactor` when there are no bone lengths (body priors
   off) and in the reprojection-only warm start: ``d = d0`` (1 by default), i.e.
   lengths in units of the mirror distance. Residual ``r = d - d0`` (1,); the plane

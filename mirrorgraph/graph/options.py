@@ -108,7 +108,7 @@ class RefineOptions:
             gauge's scale, the limb bones' sum at Winter's fractions of the height
             (for a subject who is not upright for most of the video: sitting,
             lying, bent over). On synthetic subjects (3 % per segment) the metric
-            scale error is 0.3 % RMS with the stature, 1.6 % with the limbs
+            scale error is 0.33 % RMS with the stature, 1.59 % with the limbs
             (``bench/RESULTS_stature.md``).
         height_sigma: relative standard deviation of the metric scale, added to
             every reported length std (``distance_std``, camera positions): the
