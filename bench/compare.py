@@ -944,7 +944,8 @@ def main(argv=None) -> int:
         results_path.write_text(json.dumps(data, indent=1, default=_json_default))
     md = _preface(data) + summarise(data)
     name = "RESULTS.md"
-    (out / name).write_text(md)
+    from results_blocks import keep_blocks       # the other benchmarks' sections stay
+    (out / name).write_text(keep_blocks(out / name, md))
     files = plot(data, out)
     print_table(data)
     for n in data["meta"].get("notes", []):
@@ -973,7 +974,13 @@ def _preface(data: dict) -> str:
         "* [RESULTS_graph.md](RESULTS_graph.md): `python bench/bench_graph.py` — the graph's "
         "time and peak memory at 1k, 10k and 54k frames, accuracy against the bound per scene;",
         "* [RESULTS_scale.md](RESULTS_scale.md): `python bench/bench_scale.py` — end to end "
-        "from an OpenPose folder at 1k, 10k and 54k frames: time split and peak memory.",
+        "from an OpenPose folder at 1k, 10k and 54k frames: time split and peak memory;",
+        "* [RESULTS_bound.md](RESULTS_bound.md): `python bench/bench_bound.py` — the "
+        "Cramer-Rao bound across scene geometries;",
+        "* [RESULTS_stature.md](RESULTS_stature.md): `python bench/bench_stature.py` — the "
+        "metric scale from the measured stature against limb proportions;",
+        "* [RESULTS_rig.md](RESULTS_rig.md): `python bench/bench_rig.py` — rigs of several "
+        "cameras and mirrors; its comparison with aniposelib is also the last section here.",
         "",
         "",
     ])
