@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RefinementResult", "rotation_std_from_normal_cov", "normal_cov_from_tangent"]
+__all__ = ["RefinementResult", "rotation_std_from_normal_cov", "normal_cov_from_tangent",
+           "residual_noise_px"]
 
 
 def rotation_std_from_normal_cov(normal_cov: np.ndarray) -> float:
@@ -33,6 +34,30 @@ def rotation_std_from_normal_cov(normal_cov: np.ndarray) -> float:
     """
     tr = float(np.trace(np.asarray(normal_cov, dtype=float)))
     return float(np.degrees(2.0 * np.sqrt(max(tr, 0.0))))
+
+
+def residual_noise_px(sum_sq_px: float, coordinates: int, unknowns: int) -> float:
+    """A posteriori standard deviation of one keypoint coordinate, pixels.
+
+    ``sqrt(RSS / (m - u))`` for ``m`` measured coordinates and ``u`` estimated
+    parameters: the residuals of a maximum-likelihood fit are smaller than the noise
+    by ``sqrt(1 - u / m)`` (Hartley and Zisserman, *Multiple View Geometry*, 2nd ed.,
+    result 5.2). The marginals assume ``RefineOptions.pixel_sigma``; multiplied by
+    ``(this / pixel_sigma)^2`` they follow the noise actually in the data, as
+    OpenCV's ``calibrateCamera`` scales its parameter deviations. The body priors
+    (bone lengths, symmetry, smoothness) are not counted as measurements, so with
+    them this slightly overstates the noise (a cautious direction).
+
+    Args:
+        sum_sq_px: sum of the squared reprojection residuals (both coordinates), px^2.
+        coordinates: ``m``, twice the number of observations.
+        unknowns: ``u``: 3 per estimated point, plus the camera and plane parameters.
+
+    Returns:
+        The standard deviation, px; NaN when ``m <= u``.
+    """
+    dof = int(coordinates) - int(unknowns)
+    return float(np.sqrt(sum_sq_px / dof)) if dof > 0 else float("nan")
 
 
 def normal_cov_from_tangent(basis: np.ndarray, tangent_cov: np.ndarray) -> np.ndarray:

@@ -47,7 +47,8 @@ from ..graph.optimizer import reduced_marginals
 from ..graph.options import RefineOptions
 from ..graph.outliers import bone_outliers
 from ..graph.refine import MIN_PAIRS, _gauge_scale, full_solve, spread_rows
-from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
+from ..graph.result import (normal_cov_from_tangent, residual_noise_px,
+                            rotation_std_from_normal_cov)
 from ..graph.rig import Camera, Mirror, Rig, View
 from .initial import InitialRig, joint_masks, observed
 from .observations import RigObservations
@@ -321,17 +322,28 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                                  ([np.full((6, 6), np.nan)] * len(poses),
                                   [np.full((3, 3), np.nan)] * len(planes), []))
     timings["marginals"] = time.perf_counter() - t
+    res_views = view_residuals(problem.rig, points, problem.used, planes, poses)
+    # the noise the data show (the marginals assume pixel_sigma): the final least-squares
+    # residuals over their degrees of freedom (3 a joint, 6 a camera, 3 a plane)
+    finite = np.concatenate([r[np.isfinite(r)] for r in res_views])
+    unknowns = (3 * int(np.count_nonzero(problem.used)) + 6 * len(problem.camera_keys)
+                + 3 * len(planes))
+    noise_px = residual_noise_px(float(np.sum(finite ** 2)), 2 * len(finite), unknowns)
+    factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
+    cam_cov = [C * factor for C in cam_cov]
+    plane_cov = [C * factor for C in plane_cov]
 
     # every frame: triangulate with the final rig (the graph's joints where it has them)
     all_points, all_used = triangulate_rig_views(rig, poses, planes)
     all_points[np.flatnonzero(rows)] = np.where(problem.used[..., None], points,
                                                 all_points[rows])
     all_used[np.flatnonzero(rows)] |= problem.used
-    res_views = view_residuals(problem.rig, points, problem.used, planes, poses)
     rms = [float(np.sqrt(np.nanmean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any()
            else float("nan") for r in res_views]
     counts = [int(np.count_nonzero(np.isfinite(r))) for r in res_views]
     priors = {"reprojection": {"sigma": opts.pixel_sigma, "unit": "px",
+                               "a_posteriori_sigma_px": noise_px,
+                               "covariance_scaled_by": factor,
                                "kernel": "geman_mcclure then none",
                                "outlier_threshold_px": opts.outlier_threshold,
                                "factors": int(problem.reprojection.size())}}
