@@ -169,6 +169,25 @@ def test_marker_names():
         assert len(set(m)) == len(m)
 
 
+@pytest.mark.parametrize("layout", ["BODY_25", "BODY_25B", "HALPE_26", "COCO_17"])
+def test_marker_names_are_pose2sims(layout):
+    """Every marker of a layout has the name Pose2Sim's skeleton of that layout gives the
+    same keypoint (its ids are the detector's indices)."""
+    why = "Pose2Sim is not installed (the README's test command installs it)"
+    pytest.importorskip("anytree", reason=why)
+    p2s = pytest.importorskip("Pose2Sim.skeletons", reason=why)
+    from anytree import PreOrderIter
+
+    from mirrorgraph.io.motion import trc_marker_names
+    from mirrorgraph.skeletons import skeleton_by_name
+
+    sk = skeleton_by_name(layout)
+    theirs = {n.id: n.name for n in PreOrderIter(getattr(p2s, layout)) if n.id is not None}
+    ours = trc_marker_names(sk.joints)
+    for i, name in theirs.items():
+        assert ours[i] == name, (layout, i, sk.joints[i])
+
+
 def test_writes_are_atomic(tmp_path):
     X, valid, ids, names = motion(T=3)
     path = tmp_path / "out.trc"

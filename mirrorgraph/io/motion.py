@@ -33,11 +33,12 @@ which OpenSim reads as a missing marker (NaN).
 
 Marker names: Pose2Sim's / OpenSim's names for the detector keypoints,
 ``L``/``R`` prefix and CamelCase: ``left_knee -> LKnee``, ``right_hip -> RHip``,
-``left_big_toe -> LBigToe``, ``nose -> Nose``, ``neck -> Neck``; the mid-hip
-(BODY_25 / COCO-18) is ``CHip``, the name in Pose2Sim's BODY_25 skeleton and
-OpenSim marker set (HALPE_26 calls it ``Hip``; pass ``marker_names`` to
-override). COCO-17 has neither neck nor mid-hip; Pose2Sim's COCO_17 model does
-not need them.
+``left_big_toe -> LBigToe``, ``nose -> Nose``, ``neck -> Neck``; the head top
+(BODY_25B, HALPE_26) is ``Head``; the mid-hip is ``CHip`` in BODY_25 / COCO-18
+and ``Hip`` in HALPE_26, as in Pose2Sim's skeletons and OpenSim marker sets (the
+layouts with a head top are the ones that call it ``Hip``; pass ``marker_names``
+to override, :func:`trc_marker_names`). COCO-17 has neither neck nor mid-hip;
+Pose2Sim's COCO_17 model does not need them.
 
 Axes: OpenSim's ground frame has Y up (X forward, Z to the right); the real
 camera frame has y *down*. The ``.trc`` holds ``(X, Y, Z) = (z, -y, x)`` of the
@@ -63,7 +64,7 @@ from ..errors import InputError
 from .atomic import atomic_path, atomic_write_text
 
 __all__ = ["write_joints3d", "write_joints3d_npz", "write_joints3d_csv", "write_trc",
-           "trc_marker_name", "TRC_FROM_CAMERA", "CAMERA_FRAME"]
+           "trc_marker_name", "trc_marker_names", "TRC_FROM_CAMERA", "CAMERA_FRAME"]
 
 #: ``(3, 3)`` rotation from the real camera frame to the ``.trc`` axes:
 #: ``(X, Y, Z)_trc = TRC_FROM_CAMERA @ (x, y, z)_camera = (z, -y, x)``.
@@ -77,14 +78,15 @@ _METRES = {"m": 1.0, "metre": 1.0, "metres": 1.0, "meter": 1.0, "meters": 1.0,
            "cm": 0.01, "mm": 0.001}
 
 #: Canonical names whose Pose2Sim / OpenSim marker name does not follow the general rule.
-_MARKER_EXCEPTIONS = {"mid_hip": "CHip"}
+_MARKER_EXCEPTIONS = {"mid_hip": "CHip", "head_top": "Head"}
 
 
 def trc_marker_name(joint: str) -> str:
     """Pose2Sim / OpenSim marker name of a canonical joint name.
 
     ``left_`` / ``right_`` become ``L`` / ``R``, the rest CamelCase
-    (``left_small_toe -> LSmallToe``); ``mid_hip`` is ``CHip``.
+    (``left_small_toe -> LSmallToe``); ``mid_hip`` is ``CHip`` (BODY_25's name;
+    :func:`trc_marker_names` gives HALPE_26's ``Hip``), ``head_top`` is ``Head``.
     """
     if joint in _MARKER_EXCEPTIONS:
         return _MARKER_EXCEPTIONS[joint]
@@ -93,6 +95,15 @@ def trc_marker_name(joint: str) -> str:
     if parts and parts[0] in ("left", "right") and len(parts) > 1:
         prefix, parts = parts[0][0].upper(), parts[1:]
     return prefix + "".join(p[:1].upper() + p[1:] for p in parts)
+
+
+def trc_marker_names(joint_names: Sequence[str]) -> list[str]:
+    """Marker names of a whole layout (:func:`trc_marker_name` of each joint), with the
+    mid-hip called ``Hip`` where the layout also has a head top (HALPE_26, as
+    Pose2Sim names it) and ``CHip`` otherwise (BODY_25, COCO-18)."""
+    names = [str(n) for n in joint_names]
+    halpe = "head_top" in names
+    return ["Hip" if (n == "mid_hip" and halpe) else trc_marker_name(n) for n in names]
 
 
 def _check(joints3d, valid, frame_ids, joint_names, fps):
@@ -206,7 +217,7 @@ def write_trc(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
         raise InputError(f"the 3D joints are in {unit!r}, not metres; OpenSim needs metres "
                          "(calibrate with a metric prior such as --subject-height)",
                          source=path, field="unit")
-    markers = [trc_marker_name(n) for n in names] if marker_names is None \
+    markers = trc_marker_names(names) if marker_names is None \
         else [str(m) for m in marker_names]
     if len(markers) != len(names):
         raise ValueError(f"{len(markers)} marker names for {len(names)} joints")
