@@ -179,6 +179,18 @@ def test_long_video_is_solved_in_chunks():
     both = chunked.valid & single.valid
     assert np.median(np.linalg.norm(chunked.joints3d[both] - single.joints3d[both], axis=-1)) \
         < 0.01
+    # the joints pass runs chunk by chunk too: the joints are as close to the truth
+    assert any(s["name"].startswith("joints pass") and "chunks" in s["name"]
+               for s in chunked.stages)
+    truth = scene.joints3d[both]
+    err_single = np.median(np.linalg.norm(single.joints3d[both] - truth, axis=-1))
+    err_chunked = np.median(np.linalg.norm(chunked.joints3d[both] - truth, axis=-1))
+    assert err_chunked < 1.2 * err_single
+    rough = refine_mirror(p, scene.K, n0, p.valid(),
+                          options=replace(opts, max_graph_frames=300, chunk_block_frames=100,
+                                          joints_smoothness_sigma=None))
+    err_rough = np.median(np.linalg.norm(rough.joints3d[both] - truth, axis=-1))
+    assert err_chunked < 0.8 * err_rough
 
 
 def test_chunk_helpers():

@@ -26,6 +26,10 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
    with the new mirror, until the step is below ``global_step_tolerance``
    standard deviations (or ``chunk_passes`` passes). The covariance of the mirror
    comes from the summed information of the last pass, so it reflects every frame.
+4. **Joints pass.** Chunk by chunk, the 3D joints are solved again with the final
+   mirror and bone lengths held and the tighter smoothness of
+   ``joints_smoothness_sigma``, as for a short video
+   (:func:`mirrorgraph.graph.refine.joints_pass`).
 
 Time is linear in the number of frames (each pass visits each frame once);
 memory is bounded by one chunk.
@@ -182,6 +186,8 @@ def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
         if zlen <= opts.chunk_step_tolerance:
             break
         carried = next_carried
+    _joints_pass_chunks(rig, next_carried, plane, lengths, length_sum, sub.body_height, opts,
+                        out_points, stages, timings)
     return SolveState(normal=plane[0], distance=plane[1], points=out_points, used=out_used,
                       bone_lengths={k: float(v) for k, v in lengths.items()}, scale=sub.scale,
                       information=information, z_keys=red.z_keys, z_values=zv,
@@ -189,6 +195,41 @@ def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
                       reprojection_factors=n_repro, iterations=iterations,
                       final_error=final_error, stages=stages, timings=timings,
                       body_height=sub.body_height)
+
+
+def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndarray, float],
+                        lengths: dict, length_sum, body_height: float, opts: RefineOptions,
+                        out_points: np.ndarray, stages: list[dict], timings: dict) -> None:
+    """The joints pass (:func:`mirrorgraph.graph.refine.joints_pass`) chunk by chunk with
+    the final mirror and bone lengths held, writing the smoothed joints into
+    ``out_points`` ``(T, J, 3)`` (in place). The mirror held, chunks are independent."""
+    from .refine import joints_pass
+
+    if opts.joints_smoothness_sigma is None or not chunks:
+        return
+    t = time.perf_counter()
+    iterations, done = 0, 0
+    for ci, (a, b) in enumerate(chunk_ranges(rig.num_frames, opts.max_graph_frames)):
+        if ci not in chunks:
+            continue
+        cpoints, keep, kernel = chunks[ci]
+        if np.count_nonzero(keep) == 0:
+            continue
+        problem = build_problem(_masked(rig.subset(slice(a, b)), keep), cpoints, keep, [plane],
+                                opts, body_height=body_height, bone_lengths=lengths,
+                                length_sum=length_sum, final_kernel=kernel)
+        snap_virtual_poses(problem, problem.values)
+        res = joints_pass(problem, problem.values, opts)
+        if res is None:
+            return
+        out_points[a:b] = extract_points(problem, res.values)
+        iterations += res.iterations
+        done += 1
+    timings["solve"] += time.perf_counter() - t
+    stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
+                   % (opts.joints_smoothness_sigma, done), "iterations": iterations,
+                   "initial_error": None, "final_error": None, "converged": None, "rejected": 0,
+                   "seconds": time.perf_counter() - t})
 
 
 # --------------------------------------------------------------------------- helpers

@@ -93,8 +93,8 @@ class RefineOptions:
             tight one biases it), the motion a tight one (it halves the joints'
             error: PA-MPJPE 15-20 -> 9-11 mm on protocol and CMU scenes, mirror
             unchanged, +0.4 s per 1000 frames): the two passes give each its own.
-            Videos solved in chunks (longer than ``max_graph_frames``) keep the
-            calibration's joints.
+            Videos solved in chunks (longer than ``max_graph_frames``) get it
+            chunk by chunk with the final mirror.
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior (the hip prior also needs a mid-hip joint; the
             subject-height gauge needs the bone lengths, so it keeps them on).

@@ -319,18 +319,18 @@ def solve_single(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
 JOINTS_PASS_ITERATIONS = 1
 
 
-def smooth_joints(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
-                  state: "SolveState") -> None:
-    """The joints pass: the 3D joints solved again with the mirror and the bone lengths
-    held and the smoothness of ``opts.joints_smoothness_sigma`` (in place on ``state``).
+def joints_pass(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
+                ) -> LMResult | None:
+    """The 3D joints solved again with the mirror and the bone lengths held and the
+    smoothness of ``opts.joints_smoothness_sigma``, from ``values``.
 
-    Skipped without smoothness or when that sigma is not tighter than the calibration's.
-    ``state.final_error`` stays the calibration graph's error.
+    Returns:
+        The solve (``None``: skipped, without smoothness or when that sigma is not
+        tighter than the calibration's).
     """
     sigma = opts.joints_smoothness_sigma
     if not opts.use_smoothness or sigma is None or sigma >= opts.smoothness_sigma:
-        return
-    t = time.perf_counter()
+        return None
     # the calibration's smoothness stays; factors of sigma_x are added so that the two
     # together weigh as one of ``sigma``: 1 / sigma^2 = 1 / sigma_c^2 + 1 / sigma_x^2
     sigma_x = 1.0 / np.sqrt(1.0 / sigma ** 2 - 1.0 / opts.smoothness_sigma ** 2)
@@ -343,7 +343,20 @@ def smooth_joints(problem: GraphProblem, values: gtsam.Values, opts: RefineOptio
     # 15156.7 vs 15155.9 converged on a 1000-frame protocol scene)
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, JOINTS_PASS_ITERATIONS),
                             ordering=problem.point_ordering(), hold_globals=True)
-    res = lm.optimize(values)
+    return lm.optimize(values)
+
+
+def smooth_joints(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
+                  state: "SolveState") -> None:
+    """The joints pass (:func:`joints_pass`) on ``state``, in place.
+
+    ``state.final_error`` stays the calibration graph's error.
+    """
+    t = time.perf_counter()
+    res = joints_pass(problem, values, opts)
+    if res is None:
+        return
+    sigma = opts.joints_smoothness_sigma
     state.points = extract_points(problem, res.values)
     state.stages.append(_stage("joints pass (mirror held, smoothness %g h)" % sigma, res,
                                np.zeros_like(problem.used)))
