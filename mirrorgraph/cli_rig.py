@@ -3,7 +3,8 @@
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--json FILE]
                               [--with-virtual] [--subject-height M] [--skeleton NAME]
                               [--joints3d FILE] [--quiet]
-    mirrorgraph synth-rig KIND --out DIR [--frames N --noise PX --seed S --format F]
+    mirrorgraph synth-rig KIND --out DIR [--frames N --noise PX --seed S --format F
+                                         --bystanders N]
 """
 
 from __future__ import annotations
@@ -37,6 +38,10 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                         "(flipped-image convention)")
     p.add_argument("--subject-height", type=positive, metavar="METRES",
                    help="subject's height (overrides the rig file's subject_height): metres")
+    p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
+                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
+                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
+                        "bent over most of the video)")
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
                                       "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18)")
     p.add_argument("--joints", metavar="SET",
@@ -62,6 +67,7 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     s.add_argument("--noise", type=positive, default=4.0, help="pixel noise std (default 4)")
     s.add_argument("--outliers", type=rate, default=0.0, help="fraction of gross errors")
     s.add_argument("--seed", type=seed, default=0)
+    s.add_argument("--bystanders", type=seed, default=0, help="other people near the subject")
     s.add_argument("--skeleton", default="BODY_25")
     s.add_argument("--format", dest="fmt", default="openpose",
                    choices=("openpose", "mmpose", "easymocap"))
@@ -74,6 +80,7 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
 def _cmd_calibrate_rig(args) -> int:
     from .io.motion import write_joints3d
     from .io.rig_calibration import write_rig_json, write_rig_toml
+    from .graph.options import RefineOptions
     from .rigs import calibrate_rig
 
     out = Path(args.out)
@@ -100,6 +107,7 @@ def _cmd_calibrate_rig(args) -> int:
     with Progress("solving the rig", enabled=not args.quiet) as bar:
         calib = calibrate_rig(args.rig, subject_height=args.subject_height,
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
+                              options=RefineOptions(scale_from=args.scale_from),
                               status=status,
                               progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
     if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
@@ -127,7 +135,8 @@ def _cmd_synth_rig(args) -> int:
     from .synth.rig import make_rig, write_rig
 
     rig = make_rig(args.kind, frames=args.frames, seed=args.seed, noise_std=args.noise,
-                   outlier_rate=args.outliers, skeleton=args.skeleton)
+                   outlier_rate=args.outliers, skeleton=args.skeleton,
+                   bystanders=args.bystanders)
     path = write_rig(rig, args.out, args.fmt, include_height=not args.no_height)
     if not args.quiet:
         print(f"wrote a {args.frames}-frame {args.kind} rig to {args.out}: {path.name}, "

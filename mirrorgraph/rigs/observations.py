@@ -3,11 +3,40 @@
 For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the
 keypoints (any format of :func:`mirrorgraph.io.read_keypoints`), read the
 intrinsics and undistort, then sort every frame into the person and, for each
-mirror the camera sees, their reflection (labels flipped to the real joints,
-:func:`mirrorgraph.pairing.pair_reflections`). Cameras without a mirror keep,
-per frame, the most confident detection, or, where a frame holds several people,
-the one consistent with the first camera's person (:mod:`.matching`). Frames are
-put on the rig's clock with each camera's ``frame_offset``.
+mirror the camera sees, their reflection (labels flipped to the real joints).
+Frames are put on the rig's clock with each camera's ``frame_offset``.
+
+Who the person is, camera by camera:
+
+* **Candidates.** In a camera with mirrors, every (person, reflection) pair of a
+  frame that fits a mirror's epipole is kept
+  (:func:`mirrorgraph.pairing.pair_candidates`); the candidates for the person
+  are the detections that are the person of such a pair
+  (:func:`mirrorgraph.pairing.paired_people`). In front of a mirror everyone
+  has a reflection: a bystander's pair fits the epipole as well as the
+  subject's, so one frame alone cannot tell them apart. In a camera without
+  mirrors every detection is a candidate.
+* **The first camera** (the reference), when some frame holds several
+  candidates, follows one person over time: its candidates are linked into
+  tracks (:func:`mirrorgraph.rigs.matching.track_people`) and the subject is
+  the track seen in the most frames, that is, with mirrors, the one that
+  pairs with a reflection in the most frames
+  (:func:`~mirrorgraph.rigs.matching.longest_track`; ties: the more
+  confident). Per frame only the pairs holding that track's detection compete
+  (:func:`mirrorgraph.pairing.choose_pairs`); frames without it have no
+  person. When another track is seen in more than
+  :data:`SECOND_PERSON_FRACTION` of the frames a warning says so (the subject
+  is then the person seen longest, which the user should know). With one
+  candidate per frame, the frame's best pair (or most confident detection) is
+  kept, as :func:`mirrorgraph.pairing.pair_reflections` does.
+* **Every other camera** with several candidates in some frame, with or
+  without mirrors, keeps per frame the candidate consistent with the first
+  camera's person by epipolar geometry
+  (:func:`mirrorgraph.rigs.matching.match_candidates`); with mirrors the
+  reflections of the chosen person come along. When no candidate track fits, a
+  :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
+  Cameras with one candidate per frame keep it (one person in view, the
+  common case).
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
@@ -21,19 +50,30 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import DegenerateGeometryError, InputError
 from ..intrinsics import Intrinsics, intrinsics_from_fov, load_intrinsics
 from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
-from ..pairing import pair_detections, pair_reflections
+from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
+                       paired_people)
 from ..pipeline import check_image_size, undistort_keypoints
 from ..skeletons import Skeleton
 from .config import CameraEntry, RigConfig
+from .matching import longest_track, match_candidates, track_people
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
 #: Horizontal field of view assumed for a camera without intrinsics, degrees.
 DEFAULT_FOV_DEG = 60.0
+
+#: The first camera warns when a second person pairs with a reflection in more
+#: than this fraction of its frames.
+SECOND_PERSON_FRACTION = 0.2
+
+#: Detections per frame (the most confident) that a camera with mirrors pairs: two
+#: bystanders in front of two mirrors make 9 (the single-camera default, 6, left
+#: the subject's reflections out in a tenth of such frames).
+MAX_PEOPLE = 12
 
 
 @dataclass
@@ -49,11 +89,14 @@ class CameraObservations:
             mirror, labels flipped (entry ``j`` images the real joint ``j``).
         source: the keypoint input.
         lr_fixes: reflection frames whose left/right labels were corrected.
-        people: for a camera without mirrors, ``T`` arrays ``(P_t, J, 3)`` of every
-            detection per frame (:func:`mirrorgraph.rigs.matching.match_people` picks
-            the person among them); ``None`` otherwise.
-        matched: frames where the cross-camera match chose another detection than
-            the most confident one.
+        people: ``T`` arrays ``(P_t, J, 3)``: the candidates for the person per frame
+            (every detection without mirrors; with mirrors those that are the
+            person of a pair fitting a mirror) among which the person was chosen;
+            ``None`` for already paired input.
+        matched: frames where the person kept is not the one the camera alone
+            would take frame by frame (the most confident candidate; with mirrors
+            the person of the frame's best pair): chosen by the cross-camera match
+            or, in the first camera, by following the subject's track.
     """
 
     name: str
@@ -76,7 +119,8 @@ class RigObservations:
         cameras: per camera, in the rig file's order.
         mirrors: mirror names.
         fps: frame rate if an input carries it.
-        warnings: what the user should know (assumed intrinsics, ...).
+        warnings: what the user should know (assumed intrinsics, several people
+            with reflections in the first camera, ...).
     """
 
     skeleton: Skeleton
@@ -129,38 +173,147 @@ def _order_by_normal_x(K: np.ndarray, epipoles: list[np.ndarray]) -> np.ndarray:
     return np.argsort(xs, kind="stable")
 
 
-def _sort_camera(entry: CameraEntry, data, intr: Intrinsics
-                 ) -> tuple[np.ndarray, dict[str, np.ndarray], int]:
-    sk = data.skeleton
-    joints = sk.calibration_joints
+@dataclass
+class _Sorting:
+    """One camera's keypoints sorted on its own frames ``T_c`` (before the rig's clock).
+
+    Attributes:
+        real, reflections, lr_fixes: as :class:`CameraObservations` (``(T_c, J, 3)``).
+        people: ``T_c`` arrays ``(P_t, J, 3)``, the candidates for the person
+            (``None``: already paired input).
+        pairs: with mirrors and raw detections, every pair fitting a mirror.
+        index: with ``pairs``, per frame the detection index (in the frame's list)
+            of each candidate of ``people``.
+        mirror_of: with ``pairs``, the mirror name of each of its epipoles.
+        matched: see :attr:`CameraObservations.matched`.
+    """
+
+    real: np.ndarray
+    reflections: dict[str, np.ndarray]
+    lr_fixes: int
+    people: list[np.ndarray] | None
+    pairs: PairCandidates | None = None
+    index: list[np.ndarray] | None = None
+    mirror_of: list[str] = field(default_factory=list)
+    matched: int = 0
+
+    def several(self) -> bool:
+        """Some frame holds more than one candidate for the person."""
+        return self.people is not None and any(len(p) > 1 for p in self.people)
+
+
+def _sort_camera(entry: CameraEntry, data, intr: Intrinsics) -> _Sorting:
+    """Each frame's person and reflections as the camera alone sees them: the most
+    confident detection, or the person and reflections of the frame's best pairs
+    (:func:`mirrorgraph.pairing.pair_reflections`), with the candidates for later."""
+    joints = data.skeleton.calibration_joints
     k = len(entry.mirrors)
     if isinstance(data, PairedKeypoints):
         if k > 1:
             raise InputError(f"a paired .npz holds one reflection but camera {entry.name!r} "
                              f"lists {k} mirrors", source=data.source, field="mirrors")
-        return data.real, ({entry.mirrors[0]: data.mirror} if k else {}), 0
+        return _Sorting(data.real, {entry.mirrors[0]: data.mirror} if k else {}, 0, None)
     if k == 0:
-        return _most_confident(data, joints), {}, 0
-    if k == 1:
-        paired = pair_detections(data)
-        return paired.real, {entry.mirrors[0]: paired.mirror}, paired.lr_fixes
-    pairing = pair_reflections(data, k)
-    order = _order_by_normal_x(intr.K, pairing.epipoles)
-    refl = {entry.mirrors[i]: pairing.reflections[j] for i, j in enumerate(order)}
-    return pairing.real, refl, pairing.lr_fixes
+        people = [np.asarray(p, dtype=float).reshape(-1, data.skeleton.num_joints, 3)
+                  for p in data.people]
+        return _Sorting(_most_confident(data, joints), {}, 0, people)
+    pairs = pair_candidates(data, k, options=PairingOptions(max_people=MAX_PEOPLE))
+    order = _order_by_normal_x(intr.K, pairs.epipoles)
+    mirror_of = [""] * k
+    for i, j in enumerate(order):
+        mirror_of[j] = entry.mirrors[i]
+    index = paired_people(pairs)
+    J = data.skeleton.num_joints
+    people = [np.asarray(data.people[t], dtype=float).reshape(-1, J, 3)[idx]
+              for t, idx in enumerate(index)]
+    sorting = _Sorting(np.empty(0), {}, 0, people, pairs, index, mirror_of)
+    _apply_pairing(sorting, choose_pairs(pairs, data.skeleton.flip), entry.mirrors)
+    return sorting
 
 
-def _match_across_cameras(cameras: list[CameraObservations], skeleton: Skeleton) -> None:
-    """For every camera without mirrors but the first, the person consistent with the
-    first camera's person (:func:`mirrorgraph.rigs.matching.match_people`), in place."""
-    from .matching import match_people
+def _apply_pairing(sorting: _Sorting, pairing, mirrors: list[str]) -> None:
+    """Take a :class:`~mirrorgraph.pairing.MirrorPairing` as the camera's person and
+    reflections (named in the rig file's order), in place."""
+    by_name = dict(zip(sorting.mirror_of, pairing.reflections))
+    sorting.real = pairing.real
+    sorting.reflections = {m: by_name[m] for m in mirrors}
+    sorting.lr_fixes = pairing.lr_fixes
 
-    ref = cameras[0]
-    for cam in cameras[1:]:
-        if cam.people is None or not any(len(p) > 1 for p in cam.people):
-            continue
-        cam.real, cam.matched = match_people(ref.real, ref.intrinsics.K, cam.people,
-                                             cam.intrinsics.K, skeleton)
+
+def _keep_person(sorting: _Sorting, person: np.ndarray, flip: np.ndarray,
+                 mirrors: list[str]) -> None:
+    """Keep per frame only the pairs of the given person detection (``(T_c,)`` index
+    into the frame's list, -1: none) and count the frames where that changed the
+    person (:attr:`CameraObservations.matched`), in place."""
+    before = sorting.real
+    _apply_pairing(sorting, choose_pairs(sorting.pairs, flip, person), mirrors)
+    both = (before[..., 2] > 0).any(1) & (sorting.real[..., 2] > 0).any(1)
+    differ = (np.nan_to_num(before, nan=-1.0) != np.nan_to_num(sorting.real, nan=-1.0)).any((1, 2))
+    sorting.matched = int(np.count_nonzero(both & differ))
+
+
+def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: list[str],
+                    warnings: list[str]) -> None:
+    """The first camera: keep the person whose track is seen (with mirrors: pairs with a
+    reflection) in the most frames, ties broken by confidence (see the module
+    docstring), in place."""
+    joints = skeleton.calibration_joints
+    tracks = track_people(sorting.people, joints, PairingOptions().min_confidence)
+    conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
+    subject, frames = longest_track(tracks, conf)
+    chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
+                      dtype=int)                                # a handful per frame
+    often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
+    if often > 1:
+        what = "have reflections" if mirrors else "are in view"
+        warnings.append(f"camera {name}: {often} people {what}; calibrating from the one "
+                        f"seen longest ({frames[subject]} of {len(tracks)} frames)")
+    _keep_chosen(sorting, chosen, conf, skeleton, mirrors)
+
+
+def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
+                 skeleton: Skeleton, mirrors: list[str]) -> None:
+    """Keep per frame the chosen candidate (``(T_c,)`` index into ``sorting.people[t]``,
+    -1: none) as the person, with its reflections, in place."""
+    if sorting.pairs is not None:
+        person = np.array([idx[c] if c >= 0 else -1 for idx, c in zip(sorting.index, chosen)],
+                          dtype=int)
+        _keep_person(sorting, person, skeleton.flip, mirrors)
+        return
+    J = skeleton.num_joints
+    real = np.full((len(chosen), J, 3), np.nan)
+    real[..., 2] = 0.0
+    for t in np.flatnonzero(chosen >= 0):
+        real[t] = sorting.people[t][chosen[t]]
+    most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
+    sorting.real = real
+    sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
+
+
+def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
+                  K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str) -> None:
+    """Another camera: keep per frame the candidate consistent with the first camera's
+    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
+
+    Raises:
+        DegenerateGeometryError: no candidate track fits, naming the camera.
+    """
+    try:
+        chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
+    except DegenerateGeometryError as exc:
+        raise DegenerateGeometryError(
+            f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
+            f"the person of camera {ref_name}: {exc}") from None
+    conf = [np.nan_to_num(p[:, skeleton.calibration_joints, 2]).sum(1) for p in sorting.people]
+    _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors)
+
+
+def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
+    """``(T, J, 3)``: a camera's ``(T_c, J, 3)`` at its rows of the rig's clock."""
+    out = np.full((T,) + a.shape[1:], np.nan)
+    out[..., 2] = 0.0
+    out[rows] = a
+    return out
 
 
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
@@ -176,7 +329,9 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     Raises:
         InputError: unreadable input (naming the file), cameras with different
             skeletons.
-        DegenerateGeometryError: a camera's reflections cannot be sorted out.
+        DegenerateGeometryError: a camera's reflections cannot be sorted out, or
+            none of the people a camera sees is the first camera's person (naming
+            the camera).
     """
     warnings: list[str] = []
     per_camera, layouts, fps = [], [], None
@@ -186,10 +341,9 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton)
         intr = _intrinsics(entry, data, warnings)
         data = undistort_keypoints(data, intr)
-        real, refl, fixes = _sort_camera(entry, data, intr)
+        sorting = _sort_camera(entry, data, intr)
         frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
-        people = data.people if isinstance(data, RawDetections) and not entry.mirrors else None
-        per_camera.append((entry, intr, frames, real, refl, fixes, data.source, people))
+        per_camera.append((entry, intr, frames, sorting, data.source))
         layouts.append(data.skeleton)
         fps = fps or data.fps
     names = {s.name for s in layouts}
@@ -200,25 +354,27 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     sk = layouts[0]
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
+    rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]
+
+    ref_entry, ref_intr, _, ref, _ = per_camera[0]
+    if ref.several():
+        _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
+    ref_person = _place(ref.real, rows[0], T)
+    for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
+        if sorting.several():
+            _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
+                          sk, source)
+
     cameras = []
-    for entry, intr, frames, real, refl, fixes, source, people in per_camera:
-        rows = np.searchsorted(frame_ids, frames)
-        if people is not None:
-            everyone = [np.zeros((0, J, 3))] * T
-            for r, p in zip(rows, people):
-                everyone[r] = np.asarray(p, dtype=float).reshape(-1, J, 3)
-            people = everyone
-
-        def place(a: np.ndarray) -> np.ndarray:
-            out = np.full((T, J, 3), np.nan)
-            out[..., 2] = 0.0
-            out[rows] = a
-            return out
-
+    for (entry, intr, _, sorting, source), r in zip(per_camera, rows):
+        people = None
+        if sorting.people is not None:
+            people = [np.zeros((0, J, 3))] * T
+            for row, p in zip(r, sorting.people):
+                people[row] = p
         cameras.append(CameraObservations(
-            name=entry.name, intrinsics=intr, real=place(real),
-            reflections={m: place(a) for m, a in refl.items()}, source=source, lr_fixes=fixes,
-            people=people))
-    _match_across_cameras(cameras, sk)
+            name=entry.name, intrinsics=intr, real=_place(sorting.real, r, T),
+            reflections={m: _place(a, r, T) for m, a in sorting.reflections.items()},
+            source=source, lr_fixes=sorting.lr_fixes, people=people, matched=sorting.matched))
     return RigObservations(skeleton=sk, frame_ids=frame_ids, cameras=cameras,
                            mirrors=config.mirrors, fps=fps, warnings=warnings)

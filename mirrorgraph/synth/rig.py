@@ -88,6 +88,28 @@ Visibility of a joint in a view (direct, or through a sequence of mirrors):
   5 visible joints; hidden joints are missing (NaN, confidence 0). Occlusion of
   one view by another is not modelled.
 
+Bystanders (``bystanders=N``, default none): other people near the subject,
+the common case of a gym or a dance studio, where everyone in front of the
+mirror has a reflection too. Each has their own body (:func:`.body.make_body`),
+motion (:func:`.motion.generate_motion`) and height (1.55-1.95 m), faces any
+way, and is in the room for one stretch of 40-80 % of the frames (so the
+subject is the person seen longest). Their motion's centre is 1-2.5 m from the
+subject's, in a direction at least 30 deg from every mirror's normal (a
+bystander straight behind the subject along the normal would lie on the
+subject's epipolar lines), at least 0.2 m in front of every mirror and 1 m
+(horizontally) from every camera. A camera *sees* a bystander when it sees
+them whole, directly and in each of its mirrors, in at least half of their
+frames: every camera with a mirror and at least half of the cameras must, and
+where a camera sees them their torso is apart from the subject's (direct and
+single reflections, as above) in at least 80 % of their frames (each draw of
+up to 1000 is checked; a ``ValueError`` when none passes). They are detected
+by the same detector model, directly and through every mirror, wherever
+visible; their views are named ``"bystander1"``, ``"bystander1/wall"``, ...
+(:attr:`SyntheticRig.views`, :attr:`SyntheticRig.detection_views`), their truth
+is in :attr:`SyntheticRig.bystanders`. They draw from their own generator
+(``default_rng([seed, 1])``): with the same seed the rig, the subject and the
+subject's detections are those without bystanders.
+
 Detector model (that of :mod:`.scene`, per camera): Gaussian noise of
 ``noise_std`` px per coordinate (zero mean), outliers, confidences, missing
 people and joints as in :func:`mirrorgraph.synth.make_scene`; coordinates
@@ -116,8 +138,8 @@ from .motion import generate_motion
 from .scene import _camera_matrix, _observe, _rot_y, _rot_z, check_camera_args, project
 from .writer import load_ground_truth_joints
 
-__all__ = ["KINDS", "RigView", "SyntheticRig", "make_rig", "write_rig",
-           "read_rig_ground_truth"]
+__all__ = ["KINDS", "RigView", "RigBystander", "SyntheticRig", "make_rig", "write_rig",
+           "read_rig_ground_truth", "bystander_name"]
 
 #: The rig kinds :func:`make_rig` builds.
 KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
@@ -129,6 +151,13 @@ _PERSON_FULL = 0.90     # fraction of frames each camera must see the whole pers
 _REFLECTION_FULL = 0.75  # ... and the whole of each single reflection it sees
 _APART = 0.90          # ... and the torsos of any two of these apart in the image
 _MAX_ATTEMPTS = 300
+_BYSTANDER_DISTANCE = (1.0, 2.5)   # m: a bystander's motion centre from the subject's
+_BYSTANDER_PRESENT = (0.4, 0.8)    # fraction of the frames a bystander is in the room
+_BYSTANDER_FULL = 0.5    # ... of which each camera sees them whole, directly and in each mirror
+_BYSTANDER_APART = 0.8   # ... and their torso apart from the subject's views
+_BYSTANDER_NORMAL_DEG = 30.0   # least angle between their offset and a mirror's normal
+_BYSTANDER_CAMERA_GAP = 1.0    # m: nearest (horizontally) a bystander may stand to a camera
+_BYSTANDER_ATTEMPTS = 1000     # placements drawn per bystander
 _UP = np.array([0.0, 1.0, 0.0])
 _DEG = np.pi / 180.0
 
@@ -148,7 +177,9 @@ class RigView:
 
     Attributes:
         name: ``"person"`` (direct), a mirror name, or a double reflection
-            (``"a>b"``, ``"a+b"``; see the module docstring).
+            (``"a>b"``, ``"a+b"``; see the module docstring); a bystander's views
+            are named after them: ``"bystander1"`` (direct), ``"bystander1/wall"``,
+            ``"bystander1/a+b"`` (:func:`bystander_name`).
         paths: the mirror sequences (as the ray from the camera meets them)
             that give this image: ``()`` direct, ``(("wall",),)`` a single
             reflection, ``(("a", "b"), ("b", "a"))`` a merged double one.
@@ -174,6 +205,32 @@ class RigView:
     observed: np.ndarray
     outliers: np.ndarray
     lr_swapped: np.ndarray
+
+
+@dataclass
+class RigBystander:
+    """Ground truth of one bystander of a rig (``make_rig(..., bystanders=N)``).
+
+    Attributes:
+        name: ``"bystander1"``, ``"bystander2"``, ...
+        joints3d: ``(T, J, 3)`` their joints, world frame, metres (every frame,
+            also where they are not in the room).
+        height: their standing height, metres.
+        present: ``(T,)`` frames in which they are in the room (detected only there).
+        body: their individual body model (units of height).
+    """
+
+    name: str
+    joints3d: np.ndarray
+    height: float
+    present: np.ndarray
+    body: BodyModel | None = None
+
+
+def bystander_name(bystander: str, view: str) -> str:
+    """Name of a bystander's view: ``"bystander1"`` for :data:`PERSON` (direct), else
+    ``"bystander1/<view>"`` (``view`` a mirror or a double reflection)."""
+    return bystander if view == PERSON else f"{bystander}/{view}"
 
 
 @dataclass
@@ -203,7 +260,8 @@ class SyntheticRig:
         detections: camera name -> :class:`~mirrorgraph.keypoints.RawDetections`
             (``image_size`` and ``fps`` set): every view the camera detected,
             in random order per frame (see the module docstring for labels).
-        options: every argument given to :func:`make_rig`.
+        options: every argument given to :func:`make_rig` (``bystanders`` only
+            when there are some: rigs without them are written as before).
         fps: frame rate.
         seed: the seed.
         mirror_limits: mirror name -> list of ``(a (3,), b)``: the mirror's
@@ -212,12 +270,16 @@ class SyntheticRig:
         views: camera name -> view name -> :class:`RigView` (ground truth of
             each view, detected or not).
         detection_views: camera name -> per frame the view name of each row of
-            ``detections[camera].people[t]``.
+            ``detections[camera].people[t]`` (a bystander's rows: their view names,
+            see :class:`RigView`).
         body: the individual body model (units of height).
         placement: how the rig was built: ``room_to_world`` ``(4, 4)`` (the
             construction frame, ``Y`` up, floor at ``Y = 0``), ``person_yaw_deg``,
             ``facing``, ``attempts`` and the per-kind numbers (distances,
-            azimuths, heights).
+            azimuths, heights); with bystanders also ``bystanders``: per
+            bystander their distance from the subject, azimuth, yaw, first and
+            last frame in the room and the attempts.
+        bystanders: :class:`RigBystander` per bystander (empty by default).
     """
 
     kind: str
@@ -241,6 +303,7 @@ class SyntheticRig:
     detection_views: dict[str, list[tuple[str, ...]]] = field(default_factory=dict)
     body: BodyModel | None = None
     placement: dict[str, Any] = field(default_factory=dict)
+    bystanders: list[RigBystander] = field(default_factory=list)
 
     def __len__(self) -> int:
         return int(self.joints3d.shape[0])
@@ -249,7 +312,9 @@ class SyntheticRig:
         return (f"SyntheticRig({self.kind}, {self.skeleton.name}, {len(self)} frames, "
                 f"cameras {', '.join(self.camera_names)}, "
                 f"mirrors {', '.join(self.mirror_names) or 'none'}, "
-                f"subject {self.subject_height:.3f} m, seed={self.seed})")
+                f"subject {self.subject_height:.3f} m"
+                + (f", {len(self.bystanders)} bystanders" if self.bystanders else "")
+                + f", seed={self.seed})")
 
     def camera_index(self, camera: str | int) -> int:
         """Index of a camera given by name or index."""
@@ -528,14 +593,155 @@ def _build_1cam2mirrors(rng, local, H, alpha):
     return X, [cam], mirrors, info
 
 
+# --------------------------------------------------------------------------- bystanders
+def _main_views(views: list) -> list:
+    """The direct view and the single reflections of a :func:`_camera_views` list."""
+    return [v for v in views if not v[1] or len(v[1][0]) == 1]
+
+
+def _presence(rng, T: int) -> np.ndarray:
+    """``(T,)`` bool: one contiguous stretch of :data:`_BYSTANDER_PRESENT` of the frames."""
+    n = min(T, max(1, int(round(rng.uniform(*_BYSTANDER_PRESENT) * T))))
+    start = int(rng.integers(0, T - n + 1))
+    present = np.zeros(T, dtype=bool)
+    present[start:start + n] = True
+    return present
+
+
+def _place_bystander(rng, local: np.ndarray, H: float, X_subject: np.ndarray,
+                     cams: list, Ks: list, size: tuple[int, int], mirrors: dict,
+                     double: bool, present: np.ndarray, others: list, torso: np.ndarray):
+    """Room-frame joints ``(T, J, 3)`` of a bystander, their views per camera and the
+    placement numbers, or ``None`` when no placement passes the checks of the
+    module docstring in :data:`_BYSTANDER_ATTEMPTS` draws.
+
+    ``others``: per camera, the subject's main views (direct and single
+    reflections, :func:`_camera_views` tuples) that the bystander must not overlap.
+    """
+    centre = _motion_centre(X_subject)
+    normals = [m.n for m in mirrors.values()]
+    cos_max = np.cos(np.radians(_BYSTANDER_NORMAL_DEG))
+    for attempt in range(_BYSTANDER_ATTEMPTS):
+        dist = rng.uniform(*_BYSTANDER_DISTANCE)
+        az = rng.uniform(-np.pi, np.pi)
+        yaw = rng.uniform(-np.pi, np.pi)
+        offset = np.array([np.sin(az), 0.0, np.cos(az)])
+        if any(abs(offset @ n) > cos_max for n in normals):
+            continue           # in line with a mirror's normal: on the subject's epipolar lines
+        X = _person(local, H, yaw, np.zeros(3))
+        shift = centre + dist * offset - _motion_centre(X)      # their centre there, on the floor
+        shift[1] = 0.0
+        X = X + shift
+        if not _gap_ok(X, mirrors):
+            continue
+        here = _motion_centre(X)
+        if any(np.hypot(*(here - c.C)[[0, 2]]) < _BYSTANDER_CAMERA_GAP for c in cams):
+            continue
+        views, ok, seen_by = [], True, 0
+        for cam, K, other in zip(cams, Ks, others):
+            vs = _camera_views(cam, K, size, X, mirrors, double)
+            vs = [(n, paths, flipped, uv, vis & present[:, None])
+                  for n, paths, flipped, uv, vis in vs]
+            main = _main_views(vs)
+            seen = all(_full_fraction(v[4][present]) >= _BYSTANDER_FULL for v in main)
+            ok = (seen or not cam.sees) and (not seen or all(
+                _apart_fraction(v[3][present], o[3][present], torso) >= _BYSTANDER_APART
+                for v in main for o in other))
+            if not ok:
+                break
+            seen_by += seen
+            views.append(vs)
+        if ok and seen_by >= len(cams) / 2:
+            info = dict(distance_m=float(dist), azimuth_deg=float(np.degrees(az)),
+                        yaw_deg=float(np.degrees(yaw)), attempts=attempt + 1)
+            return X, views, info
+    return None
+
+
+def _bystander_rng(seed) -> np.random.Generator:
+    """The bystanders' own generator: the subject's draws stay those without them."""
+    return np.random.default_rng() if seed is None else np.random.default_rng([seed, 1])
+
+
+def _make_bystanders(rng, count: int, skel: Skeleton, fps: float, cams: list, Ks: list,
+                     size: tuple[int, int], X_subject: np.ndarray, mirrors: dict,
+                     double: bool, subject_views: list, torso: np.ndarray) -> list:
+    """``count`` bystanders in the room frame: per bystander ``(name, (X (T, J, 3), height,
+    present (T,), body), views per camera (named by :func:`bystander_name`), placement)``.
+
+    Raises:
+        ValueError: a bystander cannot be placed (see the module docstring).
+    """
+    T = X_subject.shape[0]
+    others = [_main_views(vs) for vs in subject_views]
+    out = []
+    for k in range(count):
+        name = f"bystander{k + 1}"
+        body = make_body(rng)
+        local = skeleton_points(generate_motion(body, T, fps, rng), skel)
+        H = float(rng.uniform(1.55, 1.95))
+        present = _presence(rng, T)
+        placed = _place_bystander(rng, local, H, X_subject, cams, Ks, size, mirrors, double,
+                                  present, others, torso)
+        if placed is None:
+            raise ValueError(f"cannot place {name} near the subject, seen by the cameras "
+                             "and apart from the subject; try another seed or a wider field "
+                             "of view")
+        X, views, info = placed
+        info.update(name=name, height_m=H, first_frame=int(np.argmax(present)),
+                    last_frame=int(T - 1 - np.argmax(present[::-1])))
+        views = [[(bystander_name(name, v[0]),) + tuple(v[1:]) for v in vs] for vs in views]
+        out.append((name, (X, H, present, body), views, info))
+    return out
+
+
+def _detect(rng, views: list, size: tuple[int, int], noise_std: float, outlier_rate: float,
+            missing_rate: float, lr_swap_rate: float, flip: np.ndarray
+            ) -> tuple[list[np.ndarray], dict[str, RigView], np.ndarray]:
+    """The detector on one camera's views of one person (:func:`_camera_views` list).
+
+    Returns:
+        per view the ``(T, J, 3)`` detections with the detector's labels, the
+        :class:`RigView` per view name, and ``(V, T)`` detected.
+    """
+    V = len(views)
+    T = views[0][3].shape[0]
+    clean = np.stack([v[3] for v in views])                    # (V, T, J, 2)
+    visible = np.stack([v[4] for v in views])                  # (V, T, J)
+    filled = np.where(visible[..., None], clean, 0.0)
+    obs, miss, outl, detected = _observe(rng, filled, size, 0.0, noise_std,
+                                         outlier_rate, missing_rate, 0.0)
+    detected &= visible.sum(-1) >= _MIN_JOINTS
+    miss |= ~visible
+    detected &= ~miss.all(-1)
+    miss |= ~detected[..., None]
+    outl &= ~miss
+    obs[miss] = (np.nan, np.nan, 0.0)
+    swapped = np.zeros((V, T), dtype=bool)
+    rows_by_view, cam_views = [], {}
+    for i, (vname, paths, flipped, _, _) in enumerate(views):
+        if flipped:
+            swapped[i] = (rng.random(T) < lr_swap_rate) & detected[i]
+            labelled = np.where(swapped[i][:, None, None], obs[i], obs[i][:, flip])
+        else:
+            labelled = obs[i]
+        rows_by_view.append(labelled)
+        cam_views[vname] = RigView(
+            name=vname, paths=paths, flipped=flipped,
+            clean=np.where(visible[i][..., None], clean[i], np.nan), visible=visible[i],
+            detected=detected[i], observed=obs[i], outliers=outl[i],
+            lr_swapped=swapped[i])
+    return rows_by_view, cam_views, detected
+
+
 # --------------------------------------------------------------------------- make_rig
 def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
              skeleton: str | Skeleton = "BODY_25", noise_std: float = 4.0,
              subject_height: float | None = None, outlier_rate: float = 0.0,
              missing_rate: float = 0.0, lr_swap_rate: float = 0.0,
              double_reflections: bool = False, image_size: tuple[int, int] = (1920, 1080),
-             fov_deg: float = 60.0, fps: float = 30.0, corner_angle_deg: float = 90.0
-             ) -> SyntheticRig:
+             fov_deg: float = 60.0, fps: float = 30.0, corner_angle_deg: float = 90.0,
+             bystanders: int = 0) -> SyntheticRig:
     """Generate a synthetic rig (see the module docstring for the geometry and model).
 
     Args:
@@ -556,6 +762,11 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         fps: frame rate.
         corner_angle_deg: interior angle between the two mirrors of
             ``"1cam2mirrors"`` (60-140; 90 = the two walls of a room corner).
+        bystanders: other people near the subject, each with their reflections
+            (see the module docstring). Drawn from their own generator
+            (``default_rng([seed, 1])``): the subject's detections, the rig and
+            the truth are those of ``bystanders=0`` with the same seed, only
+            the bystanders' rows are added (interleaved at random).
 
     Raises:
         ValueError: an unknown kind, an option out of range, or no placement
@@ -568,6 +779,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                    lr_swap_rate=lr_swap_rate, double_reflections=bool(double_reflections),
                    image_size=list(image_size), fov_deg=fov_deg, fps=fps,
                    corner_angle_deg=corner_angle_deg)
+    if bystanders:
+        options["bystanders"] = int(bystanders)       # absent by default: files as before
     if kind not in KINDS:
         raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
     T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
@@ -579,6 +792,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         raise ValueError(f"subject_height must be positive, got {subject_height}")
     if not 60.0 <= corner_angle_deg <= 140.0:
         raise ValueError(f"corner_angle_deg must be in [60, 140], got {corner_angle_deg}")
+    if int(bystanders) != bystanders or bystanders < 0:
+        raise ValueError(f"bystanders must be a non-negative integer, got {bystanders}")
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
     J = skel.num_joints
     size = (w, h)
@@ -625,6 +840,11 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                          f"(and the reflections) with a {fov_deg:g} deg field of view in "
                          f"{w}x{h} images; try a wider field of view")
     info["attempts"] = attempt + 1
+    rng_b = _bystander_rng(seed)
+    extra = _make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
+                             mirrors_r, double_reflections, views_r, torso)
+    if extra:
+        info["bystanders"] = [b[3] for b in extra]
 
     # ------------------------------------------------------------- to camera 0's frame
     R0, C0 = cams[0].R, cams[0].C
@@ -654,41 +874,27 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
 
     # ------------------------------------------------------------- detector
     flip = skel.flip
+    detect = dict(size=size, noise_std=noise_std, outlier_rate=outlier_rate,
+                  missing_rate=missing_rate, lr_swap_rate=lr_swap_rate, flip=flip)
     detections, views, det_views = {}, {}, {}
-    for cname, vs in zip(names, views_r):
-        V = len(vs)
-        clean = np.stack([v[3] for v in vs])                       # (V, T, J, 2)
-        visible = np.stack([v[4] for v in vs])                     # (V, T, J)
-        filled = np.where(visible[..., None], clean, 0.0)
-        obs, miss, outl, detected = _observe(rng, filled, size, 0.0, noise_std,
-                                             outlier_rate, missing_rate, 0.0)
-        detected &= visible.sum(-1) >= _MIN_JOINTS
-        miss |= ~visible
-        detected &= ~miss.all(-1)
-        miss |= ~detected[..., None]
-        outl &= ~miss
-        obs[miss] = (np.nan, np.nan, 0.0)
-        swapped = np.zeros((V, T), dtype=bool)
-        rows_by_view = []
-        cam_views = {}
-        for i, (vname, paths, flipped, _, _) in enumerate(vs):
-            if flipped:
-                swapped[i] = (rng.random(T) < lr_swap_rate) & detected[i]
-                labelled = np.where(swapped[i][:, None, None], obs[i], obs[i][:, flip])
-            else:
-                labelled = obs[i]
-            rows_by_view.append(labelled)
-            cam_views[vname] = RigView(
-                name=vname, paths=paths, flipped=flipped,
-                clean=np.where(visible[i][..., None], clean[i], np.nan), visible=visible[i],
-                detected=detected[i], observed=obs[i], outliers=outl[i],
-                lr_swapped=swapped[i])
-        groups = [np.flatnonzero(detected[i]) for i in range(V)]
+    for c, (cname, vs) in enumerate(zip(names, views_r)):
+        rows_by_view, cam_views, detected = _detect(rng, vs, **detect)
+        groups = [np.flatnonzero(d) for d in detected]
+        vnames = [v[0] for v in vs]
+        keys = [rng.random(sum(len(g) for g in groups))]         # random order per frame
+        for bname, _, bviews, _ in extra:                        # after the subject's draws
+            b_rows, b_views, b_detected = _detect(rng_b, bviews[c], **detect)
+            b_groups = [np.flatnonzero(d) for d in b_detected]
+            rows_by_view += b_rows
+            cam_views.update(b_views)
+            groups += b_groups
+            vnames += [v[0] for v in bviews[c]]
+            keys.append(rng_b.random(sum(len(g) for g in b_groups)))
         row_frame = np.concatenate(groups)
         row_view = np.concatenate([np.full(len(g), i) for i, g in enumerate(groups)])
-        order = np.lexsort((rng.random(len(row_frame)), row_frame))   # random order per frame
+        order = np.lexsort((np.concatenate(keys), row_frame))
         allrows = np.concatenate([rows_by_view[i][g] for i, g in enumerate(groups)])[order]
-        vnames = np.array([v[0] for v in vs], dtype=object)[row_view[order]]
+        vnames = np.array(vnames, dtype=object)[row_view[order]]
         splits = np.cumsum(np.bincount(row_frame, minlength=T))[:-1]
         people = np.split(allrows.reshape(-1, J, 3), splits)
         det_views[cname] = [tuple(x) for x in np.split(vnames, splits)]
@@ -699,12 +905,14 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         views[cname] = cam_views
 
     placement = dict(info, room_to_world=room_to_world)
+    truth = [RigBystander(name=bname, joints3d=(Xb - C0) @ R0, height=Hb, present=present,
+                          body=bbody) for bname, (Xb, Hb, present, bbody), _, _ in extra]
     return SyntheticRig(
         kind=kind, skeleton=skel, frame_ids=np.arange(T, dtype=np.int64), camera_names=names,
         K=Ks, image_size=size, poses=poses, mirror_names=mirror_names, mirrors=mirrors,
         sees=sees, joints3d=joints3d, subject_height=H, detections=detections,
         options=options, fps=float(fps), seed=seed, mirror_limits=limits, views=views,
-        detection_views=det_views, body=body, placement=placement)
+        detection_views=det_views, body=body, placement=placement, bystanders=truth)
 
 
 # --------------------------------------------------------------------------- writing
@@ -754,8 +962,13 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
                               (camera-to-world and Pose2Sim's world-to-camera
                               ``rvec``/``tvec``), mirrors, what each camera sees
     ``joints3d.npz``          ``joints3d`` (T, J, 3) world metres, ``frame_ids``,
-                              ``joint_names``
+                              ``joint_names``; with bystanders also
+                              ``bystanders_joints3d`` (B, T, J, 3)
     ========================  ==========================================================
+
+    With bystanders ``ground_truth.json`` also lists them (``bystanders``: name,
+    height, the frames they are in the room); their detections are in the
+    keypoint files with the subject's, as a detector would give them.
 
     Returns:
         the path of ``rig.toml``.
@@ -781,11 +994,14 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
         header="Intrinsics of the cameras of a synthetic rig (mirrorgraph.synth.write_rig).\n"
                "rotation and translation are placeholders (zero): the extrinsics are unknown.")
 
+    extra = {}
+    if rig.bystanders:                              # only then: rigs without them as before
+        extra["bystanders_joints3d"] = np.stack([b.joints3d for b in rig.bystanders])
     with atomic_path(out / JOINTS3D_NAME) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, joints3d=rig.joints3d,
                                 frame_ids=np.asarray(rig.frame_ids, dtype=np.int64),
-                                joint_names=np.array(rig.skeleton.joints))
+                                joint_names=np.array(rig.skeleton.joints), **extra)
 
     cameras = []
     for name, K, P in zip(rig.camera_names, rig.K, rig.poses):
@@ -817,6 +1033,11 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
         "placement": rig.placement,
         "joints3d": JOINTS3D_NAME,
     }
+    if rig.bystanders:
+        gt["bystanders"] = [{"name": b.name, "height": b.height,
+                             "frames_present": np.flatnonzero(b.present).tolist(),
+                             "joints3d": f"{JOINTS3D_NAME}:bystanders_joints3d[{i}]"}
+                            for i, b in enumerate(rig.bystanders)]
     write_json(out / GROUND_TRUTH_NAME, gt)
     rig_path = out / RIG_NAME
     atomic_write_text(rig_path, _rig_toml(rig, fmt, include_height))
@@ -832,7 +1053,8 @@ def read_rig_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
         ``tvec`` (C, 3) world-to-camera, ``rvec`` (C, 3), ``mirror_names``
         (list), ``normals`` (M, 3), ``distances`` (M,), ``sees`` (camera ->
         mirror names), ``joints3d`` (T, J, 3), ``frame_ids`` (T,),
-        ``joint_names`` (J,), ``image_size`` (tuple).
+        ``joint_names`` (J,), ``image_size`` (tuple); for a rig with bystanders
+        also ``bystanders_joints3d`` (B, T, J, 3).
     """
     from ..io.calibration import read_json
 
@@ -857,4 +1079,7 @@ def read_rig_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
     out["distances"] = np.array([m["distance"] for m in gt["mirrors"]], dtype=float)
     out["subject_height"] = float(gt["subject_height"])
     out.update(load_ground_truth_joints(p.parent, gt.get("joints3d")))
+    if gt.get("bystanders") and isinstance(gt.get("joints3d"), str):
+        with np.load(p.parent / gt["joints3d"], allow_pickle=False) as z:
+            out["bystanders_joints3d"] = z["bystanders_joints3d"]
     return out
