@@ -702,14 +702,19 @@ def side_notes(sweep: list[dict], diag: dict | None, noise: float) -> list[str]:
             cells = [f"{s['noise']:g} px {100 * s['residual']:+.3f} %" if "residual" in s
                      else f"{s['noise']:g} px failed" for s in sweep if s["kind"] == k]
             parts.append(f"{k}: " + ", ".join(cells))
-        L.append("* **The remaining scale offset is a noise bias.** Measured minus predicted "
+        at = [abs(s["residual"]) for s in sweep if "residual" in s and s["noise"] == noise]
+        at2 = [abs(s["residual"]) for s in sweep if "residual" in s and s["noise"] == 2 * noise]
+        zero = [abs(s["residual"]) for s in sweep if "residual" in s and s["noise"] == 0]
+        L.append("* **What the noise adds to the scale error.** Measured minus predicted "
                  "scale error on seed 0 at several noise levels (same standard normals, only "
-                 "the amplitude changes): " + "; ".join(parts) + ". It is zero without noise "
-                 "and grows with the square of the noise: the measured segments come out slightly "
-                 "long (noise across a segment lengthens it on average), the stature is held to "
-                 "the given height, so the rig shrinks. Larger for the mirror rigs, whose reflected "
-                 "views are seen from farther away. Small next to the proportion error at "
-                 f"{noise:g} px, but systematic.")
+                 "the amplitude changes): " + "; ".join(parts) + ". "
+                 + (f"Without noise at most {100 * max(zero):.3f} % (the stature measured on "
+                    "the solved joints is the one on the true joints); " if zero else "")
+                 + (f"at {noise:g} px at most {100 * max(at):.2f} %" if at else "")
+                 + (f", at {2 * noise:g} px at most {100 * max(at2):.2f} %" if at2 else "")
+                 + ". Noise across a segment lengthens it on average (the rig then comes out "
+                 "small), the medians over frames and the graph's smoothing pull the other "
+                 "way; the sum stays small next to the body's own proportions.")
     if diag:
         cams = ", ".join(f"{n} {m:.3f} (std {s:.3f}, LS from truth {t:.3f}, MC RMS {r:.3f} "
                          f"max {x:.3f})" for n, m, s, t, r, x in
