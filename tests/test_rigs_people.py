@@ -205,3 +205,53 @@ def test_no_person_in_common_with_the_first_camera_is_an_error(tmp_path, capsys)
     assert main(["calibrate-rig", str(path), "--out", str(tmp_path / "c.toml"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cam02" in err[0] and "Traceback" not in err[0]
+
+
+def _swap_camera_person(rig, other, camera: str, frames: np.ndarray) -> None:
+    """Give ``camera`` the keypoints of ``other``'s person (another walk, seen by another
+    camera placement) in ``frames``, in place."""
+    people = rig.detections[camera].people
+    for t in frames:
+        people[t] = other.detections[camera].people[t]
+
+
+def test_a_camera_that_sees_only_someone_else_is_an_error(tmp_path):
+    """cam02 given another person's keypoints in every frame: none fit the rig, and the
+    error names the camera (no traceback, no garbage pose)."""
+    rig = make_rig("4cams", frames=120, seed=5, noise_std=4.0)
+    other = make_rig("4cams", frames=120, seed=12, noise_std=4.0)
+    _swap_camera_person(rig, other, "cam02", np.arange(120))
+    with pytest.raises(DegenerateGeometryError, match="camera cam02"):
+        calibrate_rig(write_rig(rig, tmp_path))
+
+
+def test_a_camera_that_sometimes_sees_someone_else_drops_those_frames(tmp_path):
+    """The subject leaves cam02's view and someone else walks in (the last 30 % of the
+    frames, one person a frame): those frames do not fit the first camera's person
+    and are dropped; the calibration is that of the frames that do."""
+    rig = make_rig("4cams", frames=120, seed=5, noise_std=4.0)
+    other = make_rig("4cams", frames=120, seed=12, noise_std=4.0)
+    wrong = np.arange(84, 120)
+    _swap_camera_person(rig, other, "cam02", wrong)
+    path = write_rig(rig, tmp_path)
+    obs = load_observations(load_rig_config(path))
+    cam02 = obs.cameras[1]
+    kept = (cam02.real[..., 2] > 0).any(1)
+    assert kept[wrong].mean() < 0.05 and kept[:84].mean() > 0.95
+    cal = calibrate_rig(path)
+    errors = [rotation_error_deg(c.pose[:3, :3], np.asarray(P)[:3, :3])
+              for c, P in zip(cal.cameras[1:], rig.poses[1:])]
+    assert max(errors) < 0.5
+    assert not any(w.startswith("view ") for w in cal.warnings)
+
+
+def test_views_that_lost_most_keypoints_are_named():
+    from types import SimpleNamespace
+
+    from mirrorgraph.rigs.pipeline import MIN_KEPT_FRACTION, _poorly_fitting_views
+
+    sol = SimpleNamespace(view_names=["cam01", "cam02", "cam02/wall"],
+                          view_counts=[990, 300, 0], view_observed=[1000, 1000, 0])
+    out = _poorly_fitting_views(sol)
+    assert MIN_KEPT_FRACTION == 0.5
+    assert len(out) == 1 and out[0].startswith("view cam02: only 30 % of its keypoints fit")

@@ -52,6 +52,8 @@ from typing import Callable
 import gtsam
 import numpy as np
 
+from ..errors import DegenerateGeometryError
+
 _log = logging.getLogger(__name__)
 
 __all__ = ["LMParams", "LMResult", "GlobalReduction", "LevenbergMarquardt", "local_ordering",
@@ -308,7 +310,11 @@ class LevenbergMarquardt:
         if self.hold_globals or len(gz) == 0:
             z = np.zeros(len(gz))
         else:
-            z = np.linalg.solve(Hz + lam * np.diag(np.diag(Hz)), gz)
+            try:
+                z = np.linalg.solve(Hz + lam * np.diag(np.diag(Hz)), gz)
+            except np.linalg.LinAlgError:
+                raise DegenerateGeometryError(
+                    "the graph cannot be solved: " + _unconstrained(Hz, red.z_keys)) from None
         dg = T @ z
         given = gtsam.VectorValues()
         ng = sum(d for _, d in red.graph_keys)
@@ -385,3 +391,18 @@ class LevenbergMarquardt:
             gfg = self.graph.linearize(values)
         result.values, result.final_error = values, error
         return result
+
+
+def _unconstrained(H: np.ndarray, z_keys: list[tuple[int, int]]) -> str:
+    """Which global variables of a singular reduced system ``H`` no observation holds."""
+    names, i = [], 0
+    scale = max(float(np.max(np.abs(np.diag(H)))), 1e-300)
+    for key, dim in z_keys:
+        if np.all(np.abs(np.diag(H)[i:i + dim]) <= 1e-12 * scale):
+            names.append(gtsam.DefaultKeyFormatter(int(key)))
+        i += dim
+    if names:
+        return ("no observation constrains " + ", ".join(names)
+                + " (a camera, mirror or bone length whose keypoints were all rejected)")
+    return "its system is singular (the views do not fix the cameras and mirrors)"
+

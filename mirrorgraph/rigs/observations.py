@@ -29,14 +29,13 @@ Who the person is, camera by camera:
   is then the person seen longest, which the user should know). With one
   candidate per frame, the frame's best pair (or most confident detection) is
   kept, as :func:`mirrorgraph.pairing.pair_reflections` does.
-* **Every other camera** with several candidates in some frame, with or
-  without mirrors, keeps per frame the candidate consistent with the first
-  camera's person by epipolar geometry
+* **Every other camera**, with or without mirrors, keeps per frame the
+  candidate consistent with the first camera's person by epipolar geometry
   (:func:`mirrorgraph.rigs.matching.match_candidates`); with mirrors the
-  reflections of the chosen person come along. When no candidate track fits, a
+  reflections of the chosen person come along. Also with one candidate a
+  frame: the subject may leave a camera's view while someone else walks in,
+  and those frames are dropped. When no candidate track fits, a
   :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
-  Cameras with one candidate per frame keep it (one person in view, the
-  common case).
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
@@ -361,7 +360,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
     ref_person = _place(ref.real, rows[0], T)
     for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
-        if sorting.several():
+        if sorting.people is not None:      # one candidate a frame may still be another person
             _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
                           sk, source)
 

@@ -81,6 +81,8 @@ class RigSolution:
         points: ``(T, J, 3)`` joints; used: ``(T, J)``.
         view_names, view_rms_px: reprojection RMS per view, pixels.
         view_counts: observations used per view.
+        view_observed: observations each view offered the graph (seen, on the graph's
+            frames), before any rejection.
         bone_lengths: bone -> length.
         rejected: observations dropped as outliers, all views.
         iterations: Levenberg-Marquardt solves.
@@ -99,6 +101,7 @@ class RigSolution:
     view_names: list[str]
     view_rms_px: list[float]
     view_counts: list[int]
+    view_observed: list[int]
     bone_lengths: dict[str, float]
     rejected: int
     iterations: int
@@ -179,6 +182,35 @@ def triangulate_rig_views(rig: Rig, poses: list[np.ndarray],
         masks = [m & rows[:, None] for m in masks]
     return triangulate_views(_projections(rig, poses, planes),
                              [v.pixels for v in rig.views], masks)
+
+
+#: An estimated camera or a mirror needs at least this many keypoints left in its
+#: views after outlier rejection (a pose has 6 unknowns, a plane 3).
+MIN_HELD_OBSERVATIONS = 30
+
+
+def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
+    """Raise when an estimated camera or a mirror has (almost) no keypoints left.
+
+    Args:
+        rig: the graph's rig; masks: per view, the observations kept; offered: per
+            view, the observations it had before any rejection.
+
+    Raises:
+        DegenerateGeometryError: naming the camera or mirror, with the counts.
+    """
+    kept = np.array([int(np.count_nonzero(m)) for m in masks])
+    had = np.asarray(offered)
+    groups = [(f"camera {c.name}", [i for i, v in enumerate(rig.views) if v.camera == c.name])
+              for c in rig.cameras if c.estimate_pose]
+    groups += [(f"mirror {m.name}", [i for i, v in enumerate(rig.views) if v.mirror == m.name])
+               for m in rig.mirrors]
+    for what, idx in groups:
+        if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
+            raise DegenerateGeometryError(
+                f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the rest of "
+                f"the rig (need {MIN_HELD_OBSERVATIONS}): is it the same person as in the "
+                "other cameras? the right intrinsics, frame offset, mirror?")
 
 
 def _with_masks(rig: Rig, masks: list[np.ndarray]) -> Rig:
@@ -262,10 +294,12 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     poses = [np.asarray(c.pose, float) for c in rig.cameras]
     planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
     sub = rig.subset(rows)
+    observed_counts = [int(np.count_nonzero(v.mask)) for v in sub.views]
 
     # 1. triangulate; only observations behind their (real or virtual) camera go
     points, used = triangulate_rig_views(sub, poses, planes)
     masks, rejected = _reject(sub, points, used, poses, planes, np.inf)
+    _check_held(sub, masks, observed_counts)
     sub = _with_masks(sub, masks)
     points, used = triangulate_rig_views(sub, poses, planes)
     if np.count_nonzero(used) < MIN_PAIRS:
@@ -308,6 +342,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
         used = problem.used.copy()
         if i < len(stages) - 1:
             masks, dropped = _reject(problem.rig, points, used, poses, planes, threshold)
+            _check_held(problem.rig, masks, observed_counts)
             rejected += dropped
             if i == 0 and opts.bone_outlier_k > 0:
                 _, pairs = bone_table(problem.rig)
@@ -352,7 +387,8 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     return RigSolution(poses=poses, planes=planes, mirror_names=[m.name for m in rig.mirrors],
                        camera_cov=cam_cov, plane_cov=plane_cov, plane_basis=basis,
                        points=all_points, used=all_used, view_names=[v.name for v in rig.views],
-                       view_rms_px=rms, view_counts=counts, bone_lengths=lengths or {},
+                       view_rms_px=rms, view_counts=counts,
+                       view_observed=observed_counts, bone_lengths=lengths or {},
                        rejected=rejected, iterations=iterations, priors=priors, timings=timings)
 
 
