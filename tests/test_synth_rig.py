@@ -307,6 +307,28 @@ def test_noise_rates_and_random_order():
     assert 0.2 < share < 0.5
 
 
+def test_joint_bias_is_constant_per_view_and_joint():
+    """joint_bias_px: an offset per view and joint, the same in every frame, on top of the
+    noise; without it the rig is the one of before (same seed, same detections)."""
+    kw = dict(frames=400, seed=3, noise_std=4.0)
+    plain = make_rig("2cams1mirror", **kw)
+    biased = make_rig("2cams1mirror", joint_bias_px=3.0, **kw)
+    assert np.array_equal(plain.joints3d, biased.joints3d)
+    assert "joint_bias_px" not in plain.options and biased.options["joint_bias_px"] == 3.0
+    means, spread = [], []
+    for cam in biased.camera_names:
+        for v in biased.views[cam].values():
+            ok = v.detected[:, None] & v.visible
+            err = np.where(ok[..., None], v.observed[..., :2] - v.clean, np.nan)
+            means.append(np.nanmean(err, axis=0))                # (J, 2) per-joint offsets
+            spread.append(np.nanstd(err, axis=0))
+    means, spread = np.concatenate(means), np.concatenate(spread)
+    assert np.nanstd(means) == pytest.approx(3.0, rel=0.25)      # the offsets
+    assert np.nanmedian(spread) == pytest.approx(4.0, rel=0.1)   # the noise about them
+    with pytest.raises(ValueError, match="joint_bias_px"):
+        make_rig("4cams", frames=10, joint_bias_px=-1.0)
+
+
 def test_options_are_checked():
     with pytest.raises(ValueError, match="unknown rig kind"):
         make_rig("3cams")

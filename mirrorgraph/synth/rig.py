@@ -696,9 +696,14 @@ def _make_bystanders(rng, count: int, skel: Skeleton, fps: float, cams: list, Ks
 
 
 def _detect(rng, views: list, size: tuple[int, int], noise_std: float, outlier_rate: float,
-            missing_rate: float, lr_swap_rate: float, flip: np.ndarray
+            missing_rate: float, lr_swap_rate: float, flip: np.ndarray,
+            joint_bias_px: float = 0.0, rng_bias: np.random.Generator | None = None
             ) -> tuple[list[np.ndarray], dict[str, RigView], np.ndarray]:
     """The detector on one camera's views of one person (:func:`_camera_views` list).
+
+    With ``joint_bias_px`` every view and joint also gets a constant offset (the
+    detector's systematic error, as :func:`mirrorgraph.synth.make_scene`'s), and the
+    Gaussian noise comes from ``rng_bias`` too (the subject's other draws unchanged).
 
     Returns:
         per view the ``(T, J, 3)`` detections with the detector's labels, the
@@ -710,7 +715,8 @@ def _detect(rng, views: list, size: tuple[int, int], noise_std: float, outlier_r
     visible = np.stack([v[4] for v in views])                  # (V, T, J)
     filled = np.where(visible[..., None], clean, 0.0)
     obs, miss, outl, detected = _observe(rng, filled, size, 0.0, noise_std,
-                                         outlier_rate, missing_rate, 0.0)
+                                         outlier_rate, missing_rate, 0.0, 0.0,
+                                         joint_bias_px, rng_bias)
     detected &= visible.sum(-1) >= _MIN_JOINTS
     miss |= ~visible
     detected &= ~miss.all(-1)
@@ -741,7 +747,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
              missing_rate: float = 0.0, lr_swap_rate: float = 0.0,
              double_reflections: bool = False, image_size: tuple[int, int] = (1920, 1080),
              fov_deg: float = 60.0, fps: float = 30.0, corner_angle_deg: float = 90.0,
-             bystanders: int = 0) -> SyntheticRig:
+             bystanders: int = 0, joint_bias_px: float = 0.0) -> SyntheticRig:
     """Generate a synthetic rig (see the module docstring for the geometry and model).
 
     Args:
@@ -767,6 +773,10 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
             (``default_rng([seed, 1])``): the subject's detections, the rig and
             the truth are those of ``bystanders=0`` with the same seed, only
             the bystanders' rows are added (interleaved at random).
+        joint_bias_px: standard deviation (px) of a constant offset per camera view
+            and joint, the same in every frame: a detector's systematic error,
+            which more frames do not average out. Drawn with the Gaussian noise
+            from ``default_rng([seed, 2])``; 0 (default) keeps every output as before.
 
     Raises:
         ValueError: an unknown kind, an option out of range, or no placement
@@ -781,6 +791,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                    corner_angle_deg=corner_angle_deg)
     if bystanders:
         options["bystanders"] = int(bystanders)       # absent by default: files as before
+    if joint_bias_px:
+        options["joint_bias_px"] = float(joint_bias_px)
     if kind not in KINDS:
         raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
     T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
@@ -792,6 +804,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         raise ValueError(f"subject_height must be positive, got {subject_height}")
     if not 60.0 <= corner_angle_deg <= 140.0:
         raise ValueError(f"corner_angle_deg must be in [60, 140], got {corner_angle_deg}")
+    if not joint_bias_px >= 0:
+        raise ValueError(f"joint_bias_px must be >= 0, got {joint_bias_px}")
     if int(bystanders) != bystanders or bystanders < 0:
         raise ValueError(f"bystanders must be a non-negative integer, got {bystanders}")
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
@@ -875,7 +889,10 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     # ------------------------------------------------------------- detector
     flip = skel.flip
     detect = dict(size=size, noise_std=noise_std, outlier_rate=outlier_rate,
-                  missing_rate=missing_rate, lr_swap_rate=lr_swap_rate, flip=flip)
+                  missing_rate=missing_rate, lr_swap_rate=lr_swap_rate, flip=flip,
+                  joint_bias_px=float(joint_bias_px),
+                  rng_bias=np.random.default_rng([0 if seed is None else seed, 2])
+                  if joint_bias_px else None)
     detections, views, det_views = {}, {}, {}
     for c, (cname, vs) in enumerate(zip(names, views_r)):
         rows_by_view, cam_views, detected = _detect(rng, vs, **detect)
