@@ -821,8 +821,10 @@ def side_notes(sweep: list[dict], diag: dict | None, noise: float) -> list[str]:
                      "expected at 300 frames) turns the cameras by "
                      + ", ".join(f"{x:.3f}" for x in sp["means"]) + " deg; the noise minus "
                      "those means by " + ", ".join(f"{x:.3f}" for x in sp["rest"]) + " deg: "
-                     "the weak direction is driven by constant per-joint patterns, which more "
-                     "frames do not average (see the systematic-error section).")
+                     "the weak direction is driven by the noise's constant per-joint part "
+                     "(which shrinks only as one over the square root of the frames) and "
+                     "would be by a detector's systematic offsets, which do not shrink at all "
+                     "(see the systematic-error section).")
         L.append(text)
     return L
 
