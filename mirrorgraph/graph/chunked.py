@@ -186,11 +186,13 @@ def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
         if zlen <= opts.chunk_step_tolerance:
             break
         carried = next_carried
+    z_keys = red.z_keys
+    del last, problem, values, red, lm, res      # one chunk's graph in memory at a time
     _joints_pass_chunks(rig, next_carried, plane, lengths, length_sum, sub.body_height, opts,
                         out_points, stages, timings)
     return SolveState(normal=plane[0], distance=plane[1], points=out_points, used=out_used,
                       bone_lengths={k: float(v) for k, v in lengths.items()}, scale=sub.scale,
-                      information=information, z_keys=red.z_keys, z_values=zv,
+                      information=information, z_keys=z_keys, z_values=zv,
                       plane_key=plane_key, prior_info=sub.prior_info,
                       reprojection_factors=n_repro, iterations=iterations,
                       final_error=final_error, stages=stages, timings=timings,
