@@ -50,7 +50,7 @@ import numpy as np
 from .anthropometry import LANDMARK_HEIGHT
 from .skeletons import Skeleton
 
-__all__ = ["StatureEstimate", "estimate_stature", "MIN_FRAMES"]
+__all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "MIN_FRAMES"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
@@ -102,6 +102,13 @@ def _required(skeleton: Skeleton) -> dict[str, int] | None:
     if any(n not in skeleton.joints for n in names):
         return None
     return {n: skeleton.index(n) for n in names}
+
+
+def stature_joints(skeleton: Skeleton) -> np.ndarray | None:
+    """``(k,)`` indices of the joints the stature chain uses, or ``None`` if the skeleton
+    lacks one of them."""
+    idx = _required(skeleton)
+    return None if idx is None else np.array(sorted(idx.values()), dtype=int)
 
 
 def _median(values: np.ndarray) -> tuple[float, int]:

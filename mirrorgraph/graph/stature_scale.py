@@ -22,7 +22,7 @@ import numpy as np
 
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
-from ..stature import estimate_stature
+from ..stature import estimate_stature, stature_joints
 from .result import RefinementResult
 
 __all__ = ["scale_by_stature", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
@@ -36,20 +36,26 @@ LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
 
 def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
-    """``(T, J, 3)`` joints and ``(T, J)`` mask: the refinement's, plus the joints it did
-    not estimate triangulated from both views (in front of the camera and the mirror)."""
+    """``(T, J, 3)`` joints and ``(T, J)`` mask: the refinement's, plus the stature's joints
+    it did not estimate (the eyes or head top) triangulated from both views (in front of
+    the camera and the mirror). Only those joints: a long video's every joint would be
+    hundreds of MB of triangulation."""
     points = np.array(res.joints3d, dtype=float, copy=True)
     valid = np.array(res.valid, dtype=bool, copy=True)
-    missing = paired.valid() & ~valid
+    chain = stature_joints(paired.skeleton)
+    if chain is None:
+        return points, valid
+    missing = paired.valid()[:, chain] & ~valid[:, chain]                    # (T, k)
     if missing.any():
-        X = triangulate_mirror(K, res.normal, res.distance,
-                               np.where(missing[..., None], paired.real[..., :2], np.nan),
-                               np.where(missing[..., None], paired.mirror[..., :2], np.nan))
+        t, k = np.nonzero(missing)
+        j = chain[k]
+        X = triangulate_mirror(K, res.normal, res.distance, paired.real[t, j, :2],
+                               paired.mirror[t, j, :2])
         with np.errstate(invalid="ignore"):
-            ok = (missing & np.isfinite(X).all(-1) & (X[..., 2] > 0)
+            ok = (np.isfinite(X).all(-1) & (X[:, 2] > 0)
                   & (X @ np.asarray(res.normal, float) < res.distance))
-        points[ok] = X[ok]
-        valid |= ok
+        points[t[ok], j[ok]] = X[ok]
+        valid[t[ok], j[ok]] = True
     return points, valid
 
 
