@@ -85,6 +85,14 @@ class StatureEstimate:
         return (f"stature measured from ankle to {top} (shank, thigh, trunk, head); "
                 f"{100 * self.unmeasured_fraction:.1f} % of it from Winter's landmark heights")
 
+    def scaled(self, factor: float) -> "StatureEstimate":
+        """The same estimate on joints ``factor`` times larger (height and segments)."""
+        f = float(factor)
+        return StatureEstimate(height=self.height * f,
+                               segments={k: v * f for k, v in self.segments.items()},
+                               top=self.top, unmeasured_fraction=self.unmeasured_fraction,
+                               frames=self.frames)
+
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
         return {"height": float(self.height), "segments": {k: float(v) for k, v in self.segments.items()},

@@ -79,8 +79,7 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
     if est is None:
         return replace(res, scale_source=LIMB_PROPORTIONS)
     f = float(height) / est.height
-    record = replace(est, height=float(height),
-                     segments={k: v * f for k, v in est.segments.items()}).to_dict()
+    record = est.scaled(f).to_dict()
     return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
                    bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
                    distance_std=res.distance_std * f, scale_source=est.describe(), stature=record)

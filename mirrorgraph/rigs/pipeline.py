@@ -13,7 +13,6 @@ equals that height.
 from __future__ import annotations
 
 import os
-from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -57,10 +56,8 @@ def _stature_scale(sol: RigSolution, skeleton: Skeleton, height: float
     stature = estimate_stature(sol.points, sol.used, skeleton)
     if stature is None:
         return sol, LIMB_PROPORTIONS, None
-    scaled = sol.scaled(height / stature.height)
-    return scaled, stature.describe(), replace(stature, height=height,
-                                               segments={k: v * height / stature.height
-                                                         for k, v in stature.segments.items()})
+    factor = height / stature.height
+    return sol.scaled(factor), stature.describe(), stature.scaled(factor)
 
 
 def _poorly_fitting_views(sol: RigSolution) -> list[str]:
@@ -131,9 +128,10 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     else:
         scale_source, stature = LIMB_CHOSEN, None
 
-    # with a subject height the metric scale rests on Winter's proportions: a pure scale
-    # uncertainty of ``height_sigma`` (relative) added to every length's std, as the
-    # single-mirror refinement does; without one the unit is the height itself
+    # with a subject height the metric scale rests on the subject's proportions where the
+    # stature is not measured (or on the limbs'), the detector and the height itself: a
+    # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
+    # as the single-mirror refinement does; without one the unit is the height itself
     rel = opts.height_sigma if height is not None else 0.0
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
