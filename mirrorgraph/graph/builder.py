@@ -41,7 +41,7 @@ from .rig import Rig
 
 __all__ = ["GraphProblem", "build_problem", "smoothness_graph", "point_keys", "bone_table", "body_height_from_points",
            "view_residuals", "extract_points", "extract_planes", "extract_camera_poses",
-           "snap_virtual_poses"]
+           "snap_virtual_poses", "cheirality_guard", "points_array"]
 
 _X_BASE = X_(0)
 
@@ -435,9 +435,71 @@ def extract_points(problem: GraphProblem, values: gtsam.Values) -> np.ndarray:
     """``(T, J, 3)`` points from ``values``, NaN where not estimated."""
     T, J = problem.used.shape
     out = np.full((T * J, 3), np.nan)
-    pts = np.array([values.atPoint3(k) for k in point_keys(problem.flat_index)]).reshape(-1, 3)
-    out[problem.flat_index] = pts
+    out[problem.flat_index] = points_array(problem, values)
     return out.reshape(T, J, 3)
+
+
+def points_array(problem: GraphProblem, values: gtsam.Values) -> np.ndarray:
+    """``(N, 3)`` the used points of ``values`` in key order (``problem.flat_index`` order)."""
+    pts = np.asarray(gtsam.utilities.extractPoint3(values), dtype=float).reshape(-1, 3)
+    if len(pts) != len(problem.flat_index):       # other 3-vectors among the values
+        pts = np.array([values.atPoint3(k) for k in point_keys(problem.flat_index)],
+                       dtype=float).reshape(-1, 3)
+    return pts
+
+
+def cheirality_guard(problem: GraphProblem):
+    """A guard for :class:`~.optimizer.LevenbergMarquardt`: every point stays in front
+    of each camera that sees it, real or virtual, and in front of each mirror it is
+    seen in.
+
+    A point pushed behind a camera is where a projection factor's residual turns
+    constant with a zero Jacobian (GTSAM's cheirality handling): the point loses
+    that view's rows, its block turns singular and the next step is indeterminate.
+    The guard puts such a point back at its previous value (a projection of the step
+    onto the feasible set); the step is then judged on its error as usual.
+
+    Returns:
+        ``guard(previous, candidate) -> int`` (points restored in ``candidate``).
+    """
+    rig = problem.rig
+    T, J = problem.used.shape
+    pos = np.full(T * J, -1, dtype=np.int64)
+    pos[problem.flat_index] = np.arange(len(problem.flat_index))
+    checks = []
+    for vi, view in enumerate(rig.views):
+        mask = (problem.used & np.asarray(view.mask, dtype=bool)).reshape(-1)
+        idx = pos[np.flatnonzero(mask)]
+        if len(idx) == 0:
+            continue
+        ci = rig.camera_index(view.camera)
+        plane_key = (problem.plane_keys[rig.mirror_index(view.mirror)]
+                     if view.mirror is not None else None)
+        checks.append((idx, ci, problem.virtual_keys.get(vi), plane_key))
+    keys = np.asarray(point_keys(problem.flat_index), dtype=np.uint64)
+
+    def infeasible(values: gtsam.Values, X: np.ndarray) -> np.ndarray:
+        bad = np.zeros(len(X), dtype=bool)
+        for idx, ci, vkey, pkey in checks:
+            pose = (values.atPose3(vkey) if vkey is not None
+                    else problem.camera_pose(ci, values))
+            R, c = np.asarray(pose.rotation().matrix()), np.asarray(pose.translation())
+            with np.errstate(invalid="ignore"):
+                bad[idx] |= ~(((X[idx] - c) @ R[:, 2]) > 0.0)
+                if pkey is not None:
+                    n, d = plane_from_gtsam(values.atOrientedPlane3(pkey))
+                    bad[idx] |= ~(X[idx] @ n < d)
+        return bad
+
+    def guard(previous: gtsam.Values, candidate: gtsam.Values) -> int:
+        Xp, Xc = points_array(problem, previous), points_array(problem, candidate)
+        back = np.flatnonzero(infeasible(candidate, Xc) & ~infeasible(previous, Xp))
+        for i in back:                 # Values.update takes no Point3 from Python
+            candidate.erase(int(keys[i]))
+            candidate.insertPoint3(int(keys[i]), Xp[i])
+        return int(len(back))
+
+    return guard
 
 
 def snap_virtual_poses(problem: GraphProblem, values: gtsam.Values) -> None:

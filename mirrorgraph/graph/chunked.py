@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam
-from .builder import build_problem, extract_points, snap_virtual_poses
+from .builder import build_problem, cheirality_guard, extract_points, snap_virtual_poses
 from .optimizer import LevenbergMarquardt, dense_system
 from .options import RefineOptions
 from .reduction import mirror_reduction
@@ -83,7 +83,8 @@ def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
         :class:`mirrorgraph.graph.refine.SolveState` for the whole video.
     """
     from .refine import (MIN_PAIRS, SolveState, _Counter, _build_full, first_outliers,
-                         in_front, lm_params, reject_outliers, solve_single, triangulate_rig)
+                         in_front, lm_params, reject_outliers, solve_single, triangulate_rig,
+                         undetermined)
 
     T = rig.num_frames
     counter = _Counter(progress)
@@ -141,11 +142,12 @@ def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
                 t = time.perf_counter()
                 red = mirror_reduction(problem, with_lengths=True, distance_gauge=None)
                 lm = LevenbergMarquardt(problem.frame_factors(), red, lm_params(opts, problem),
-                                        ordering=problem.point_ordering(), hold_globals=True)
+                                        ordering=problem.point_ordering(), hold_globals=True,
+                                        guard=cheirality_guard(problem))
                 res = lm.optimize(problem.values, counter)
                 values = res.values
                 iterations += res.iterations
-                keep = reject_outliers(problem, values, opts)
+                keep = reject_outliers(problem, values, opts) & ~undetermined(problem, res)
                 timings["solve"] += time.perf_counter() - t
                 if not (problem.used & ~keep).any():
                     break

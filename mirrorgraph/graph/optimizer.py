@@ -34,9 +34,20 @@ adapts ``lambda``: above 0.75 it shrinks by ``lambda_factor`` (to 0 below
 ``lambda_start``); a rejected step grows it and is recomputed from the same
 linearisation. The loop stops when an accepted undamped step lowers the error
 by less than ``relative_tolerance`` of it, when the actual decrease matched the
-prediction that closely, when the mirror moved by less than
-``global_step_tolerance`` of its standard deviation, after ``max_iterations``
-solves, or above ``lambda_max``.
+prediction that closely, when the mirror (and every estimated pose) moved by less
+than ``global_step_tolerance`` of its standard deviation at any damping (a damped
+step's length is scaled by ``1 + lambda`` to judge the undamped one), after
+``max_iterations`` solves, or above ``lambda_max``.
+
+Never an exception from an ill-posed step: GTSAM raises
+``IndeterminantLinearSystemException`` (a :class:`RuntimeError` from Python) when
+a point's block is (nearly) singular: a point one view alone sees, the other
+downweighted by the robust kernel, or one whose two rays are nearly one line.
+As in GTSAM's own LM this is a failed try: more damping, which makes every point
+block definite; the variable is reported (:attr:`LMResult.indeterminate`) so that
+the caller can drop it. An optional ``guard`` keeps points in front of every camera
+that sees them (:func:`mirrorgraph.graph.builder.cheirality_guard`): behind a
+camera a projection factor's residual is constant with a zero Jacobian.
 
 The reduced information ``T^T Lambda T`` of the last undamped solve is kept: it
 is the exact Schur complement of everything but ``z``, hence the marginal
@@ -46,6 +57,7 @@ information of the plane and bone lengths (:func:`reduced_marginals`).
 from __future__ import annotations
 
 import logging
+import re
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -200,6 +212,12 @@ class LMResult:
         reduced_gradient: ``T^T eta`` of that solve (``H_z z = g_z`` is the reduced
             Gauss-Newton step): what a chunk contributes to a shared global step.
         history: error after each accepted step.
+        rejected_steps: tries that raised the error or met a singular block.
+        indeterminate: local variables GTSAM found (nearly) undetermined at some
+            linearisation (only damping made their block definite): the caller
+            drops them and their observations.
+        guarded: local variables held at their value by the guard (e.g. a point
+            that a step would have taken behind a camera).
     """
 
     values: gtsam.Values
@@ -210,6 +228,9 @@ class LMResult:
     reduced_information: np.ndarray | None = None
     reduced_gradient: np.ndarray | None = None
     history: list[float] = field(default_factory=list)
+    rejected_steps: int = 0
+    indeterminate: set[int] = field(default_factory=set)
+    guarded: int = 0
 
 
 class LevenbergMarquardt:
@@ -223,12 +244,17 @@ class LevenbergMarquardt:
             :func:`local_ordering` (COLAMD, computed once).
         hold_globals: solve the local variables only (``z`` is not stepped, but its
             reduced system is still computed and returned).
+        guard: ``guard(previous, candidate) -> int``: after every retraction, restore
+            in ``candidate`` the local variables that left their feasible set (e.g.
+            a point behind a camera) to their ``previous`` value; returns how many.
     """
 
     def __init__(self, graph: gtsam.NonlinearFactorGraph, reduction: GlobalReduction,
                  params: LMParams | None = None, ordering: gtsam.Ordering | None = None,
-                 hold_globals: bool = False) -> None:
+                 hold_globals: bool = False,
+                 guard: Callable[[gtsam.Values, gtsam.Values], int] | None = None) -> None:
         self.hold_globals = hold_globals
+        self.guard = guard
         self.graph = graph
         self.reduction = reduction
         self.params = params or LMParams()
@@ -345,7 +371,8 @@ class LevenbergMarquardt:
 
         Args:
             values: initial values of every variable (graph and extra).
-            progress: called as ``progress(iteration, error)`` after each accepted step.
+            progress: called as ``progress(iteration, error)`` after each accepted step
+                (the error never rises from one call to the next).
         """
         p = self.params
         project = self.reduction.project
@@ -356,15 +383,33 @@ class LevenbergMarquardt:
         gfg = self.graph.linearize(values)
         for it in range(1, p.max_iterations + 1):
             result.iterations = it
-            delta, Hz, gz, zlen = self.step(gfg, values, lam)
+            try:
+                delta, Hz, gz, zlen = self.step(gfg, values, lam)
+            except RuntimeError as exc:
+                # GTSAM's Cholesky met a (nearly) singular block: a point that one
+                # view alone sees (the other downweighted by the kernel), or seen
+                # along one line. As GTSAM's own LM does: a failed try, more damping
+                # (which makes every point block definite). The variable is named.
+                key = indeterminate_key(exc)
+                if key is None:
+                    raise
+                result.indeterminate.add(key)
+                result.rejected_steps += 1
+                lam = max(lam * p.lambda_factor, p.lambda_start)
+                if lam > p.lambda_max:
+                    break
+                continue
             if lam == 0.0:
                 result.reduced_information, result.reduced_gradient = Hz, gz
             candidate = values.retract(delta)
             if project is not None:
                 project(candidate)
+            if self.guard is not None:
+                result.guarded += self.guard(values, candidate)
             new_error = self.error(candidate)
             decrease = error - new_error
             if not (np.isfinite(new_error) and decrease >= 0.0):
+                result.rejected_steps += 1
                 lam = max(lam * p.lambda_factor, p.lambda_start)
                 if lam > p.lambda_max:
                     break
@@ -379,9 +424,14 @@ class LevenbergMarquardt:
                 progress(it, error)
             tol = p.relative_tolerance * (error + decrease)
             trusted = lam == 0.0 or rho > 0.75          # a heavily damped step proves nothing
-            if decrease <= p.absolute_tolerance or (trusted and decrease <= tol) or (
-                    lam == 0.0 and (abs(decrease - predicted) <= tol or (
-                        not self.hold_globals and zlen <= p.global_step_tolerance))):
+            # the mirror (and any pose) moved by less than the tolerance in standard
+            # deviations; a damped step is about 1 / (1 + lambda) of the undamped one
+            # (Marquardt's scaling), so its undamped length is judged
+            still = (not self.hold_globals and bool(self.reduction.z_keys)
+                     and (lam == 0.0 or rho > 0.25)
+                     and zlen * (1.0 + lam) <= p.global_step_tolerance)
+            if decrease <= p.absolute_tolerance or (trusted and decrease <= tol) or still or (
+                    lam == 0.0 and abs(decrease - predicted) <= tol):
                 result.converged = True
                 break
             if rho > 0.75:
@@ -391,6 +441,21 @@ class LevenbergMarquardt:
             gfg = self.graph.linearize(values)
         result.values, result.final_error = values, error
         return result
+
+
+_KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
+
+
+def indeterminate_key(exc: BaseException) -> int | None:
+    """The variable named by GTSAM's ``IndeterminantLinearSystemException``, else ``None``.
+
+    The Python bindings raise it as a :class:`RuntimeError` whose message reads
+    "Indeterminate linear system detected while working near variable <key>".
+    """
+    m = _KEY_IN_MESSAGE.search(str(exc))
+    if m is None or "ndetermin" not in str(exc):
+        return None
+    return int(m.group(1))
 
 
 def _unconstrained(H: np.ndarray, z_keys: list[tuple[int, int]]) -> str:

@@ -127,6 +127,13 @@ class RefineOptions:
             than this fraction.
         global_step_tolerance: or when it moved the mirror (and bone lengths) by
             less than this many standard deviations (Mahalanobis length).
+        min_parallax_deg: pairs whose two rays (from the camera and from the
+            virtual camera) meet at less than this angle, degrees, are left out of
+            the graph (:func:`~mirrorgraph.graph.refine.low_parallax`): their depth
+            is held by nothing but the body priors.
+        warm_start_min_parallax_deg: the same for the warm start, which has no body
+            prior: a pair at 3 deg has ~10x the depth noise of one at 30 deg and
+            adds next to nothing about the mirror (it lies near the epipole).
         warm_start_iterations: iterations on the reprojection terms alone before
             the first full solve (cheap: no coupling between points).
         warm_start_frames: frames (spread over the video) in that warm start; every
@@ -179,6 +186,8 @@ class RefineOptions:
     outlier_pass_iterations: int = 5
     relative_tolerance: float = 1e-5
     global_step_tolerance: float = 0.05
+    min_parallax_deg: float = 0.5
+    warm_start_min_parallax_deg: float = 3.0
     warm_start_iterations: int = 4
     warm_start_frames: int = 300
     max_graph_frames: int = 2000

@@ -46,6 +46,7 @@ from ..errors import DegenerateGeometryError, InputError
 from ..geometry import epipolar_distances, epipole_from_normal, triangulate_mirror
 from ..keypoints import PairedKeypoints
 from .builder import (GraphProblem, body_height_from_points, bone_table, build_problem,
+                      cheirality_guard, point_keys,
                       extract_planes, extract_points, smoothness_graph, snap_virtual_poses,
                       view_residuals)
 from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_marginals
@@ -238,7 +239,7 @@ def warm_start(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
     red = mirror_reduction(problem, with_lengths=False, distance_gauge=d)
     lm = LevenbergMarquardt(problem.reprojection, red,
                             lm_params(opts, problem, opts.warm_start_iterations),
-                            ordering=problem.point_ordering())
+                            ordering=problem.point_ordering(), guard=cheirality_guard(problem))
     return lm.optimize(values, progress)
 
 
@@ -248,7 +249,7 @@ def full_solve(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions,
     """Levenberg-Marquardt on the whole graph; returns the result and the reduced keys."""
     red = mirror_reduction(problem, with_lengths=True, distance_gauge=problem.distance_gauge)
     lm = LevenbergMarquardt(problem.full(), red, lm_params(opts, problem, max_iterations),
-                            ordering=problem.point_ordering())
+                            ordering=problem.point_ordering(), guard=cheirality_guard(problem))
     return lm.optimize(values, progress), red.z_keys
 
 
@@ -266,6 +267,8 @@ def solve_single(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
     t = time.perf_counter()
     points = triangulate_rig(rig, sub, planes)
     sub &= in_front(points, n0, d0)
+    # without the body priors nothing but the two rays holds a point's depth
+    sub &= ~low_parallax(rig, points, sub, planes, opts.warm_start_min_parallax_deg)
     timings["solve"] += time.perf_counter() - t
     if opts.warm_start_iterations > 0 and np.count_nonzero(sub) >= MIN_PAIRS:
         t = time.perf_counter()
@@ -303,7 +306,7 @@ def solve_single(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
         cap = opts.outlier_pass_iterations if (res is None and found) else None
         res, z_keys = full_solve(problem, problem.values, opts, counter, cap)
         values = res.values
-        keep = reject_outliers(problem, values, opts)
+        keep = reject_outliers(problem, values, opts) & ~undetermined(problem, res)
         rejected = problem.used & ~keep
         stages.append(_stage(name, res, rejected))
         stages[-1]["kernel"] = kernel
@@ -342,7 +345,8 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
     # solution: one Gauss-Newton step lands within ~1 mm of the converged joints (error
     # 15156.7 vs 15155.9 converged on a 1000-frame protocol scene)
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, JOINTS_PASS_ITERATIONS),
-                            ordering=problem.point_ordering(), hold_globals=True)
+                            ordering=problem.point_ordering(), hold_globals=True,
+                            guard=cheirality_guard(problem))
     return lm.optimize(values)
 
 
@@ -390,16 +394,27 @@ def triangulate_rig(rig: Rig, used: np.ndarray, planes: list[tuple[np.ndarray, f
     return out
 
 
-#: Pairs whose two rays (from the camera and from its virtual camera) meet at less
-#: than this angle (degrees) are dropped: a joint straight between the camera and
-#: the mirror, its reflection behind it in the image, has no depth, and without a
-#: prior to hold it its variable makes the system indeterminate.
-MIN_PARALLAX_DEG = 0.5
+def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
+    """``(T, J)`` bool: the points GTSAM found (nearly) undetermined during ``res``
+    (:attr:`~.optimizer.LMResult.indeterminate`); they are dropped with their pairs."""
+    T, J = problem.used.shape
+    out = np.zeros(T * J, dtype=bool)
+    flat = np.array(sorted(res.indeterminate), dtype=np.uint64) - np.uint64(point_keys([0])[0])
+    flat = flat[flat < T * J].astype(np.int64)
+    out[flat] = True
+    return out.reshape(T, J) & problem.used
 
 
 def low_parallax(rig: Rig, points: np.ndarray, used: np.ndarray,
-                 planes: list[tuple[np.ndarray, float]]) -> np.ndarray:
-    """``(T, J)`` bool: used pairs triangulated under :data:`MIN_PARALLAX_DEG`."""
+                 planes: list[tuple[np.ndarray, float]], min_deg: float) -> np.ndarray:
+    """``(T, J)`` bool: used pairs whose two rays meet at under ``min_deg`` degrees.
+
+    The angle is between the *lines* of the two rays (from the camera and from its
+    virtual camera), so rays pointing the same way and rays pointing opposite ways
+    (a joint straight between the camera and the mirror: the usual case, since the
+    virtual camera stands behind the mirror) both count as low parallax. A point's
+    depth standard deviation grows as ``1 / sin(angle)``.
+    """
     direct = next(v for v in rig.views if v.mirror is None)
     mirror = next(v for v in rig.views if v.mirror is not None)
     n, d = planes[rig.mirror_index(mirror.mirror)]
@@ -409,7 +424,7 @@ def low_parallax(rig: Rig, points: np.ndarray, used: np.ndarray,
     a, b = X - c, X - cv
     cos = np.einsum("...i,...i", a, b) / np.maximum(
         np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-300)
-    return used & (cos > np.cos(np.radians(MIN_PARALLAX_DEG)))
+    return used & (np.abs(cos) > np.cos(np.radians(min_deg)))
 
 
 def first_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
@@ -419,7 +434,7 @@ def first_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
     bad = np.zeros_like(used)
     for r in view_residuals(rig, points, used, planes):
         bad |= r > opts.outlier_threshold
-    bad |= low_parallax(rig, points, used, planes)
+    bad |= low_parallax(rig, points, used, planes, opts.min_parallax_deg)
     if opts.bone_outlier_k > 0:
         _, pairs = bone_table(rig)
         bad |= bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
@@ -560,7 +575,8 @@ class _Counter:
 def _stage(name: str, res: LMResult, rejected: np.ndarray) -> dict:
     return {"name": name, "iterations": res.iterations, "initial_error": res.initial_error,
             "final_error": res.final_error, "converged": res.converged,
-            "rejected": int(np.count_nonzero(rejected))}
+            "rejected": int(np.count_nonzero(rejected)), "failed_steps": res.rejected_steps,
+            "guarded": res.guarded, "indeterminate": len(res.indeterminate)}
 
 
 def _with_mask(rig: Rig, mask: np.ndarray) -> Rig:

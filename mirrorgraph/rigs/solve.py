@@ -46,7 +46,7 @@ from ..graph.builder import (GraphProblem, build_problem, bone_table, extract_ca
 from ..graph.optimizer import reduced_marginals
 from ..graph.options import RefineOptions
 from ..graph.outliers import bone_outliers
-from ..graph.refine import MIN_PAIRS, _gauge_scale, full_solve, spread_rows
+from ..graph.refine import MIN_PAIRS, _gauge_scale, full_solve, spread_rows, undetermined
 from ..graph.result import (normal_cov_from_tangent, residual_noise_px,
                             rotation_std_from_normal_cov)
 from ..graph.rig import Camera, Mirror, Rig, View
@@ -339,7 +339,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
         planes = extract_planes(problem, values)
         poses = extract_camera_poses(problem, values)
         lengths = problem.bone_lengths(values)
-        used = problem.used.copy()
+        used = problem.used & ~undetermined(problem, res)
         if i < len(stages) - 1:
             masks, dropped = _reject(problem.rig, points, used, poses, planes, threshold)
             _check_held(problem.rig, masks, observed_counts)
