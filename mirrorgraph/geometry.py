@@ -210,14 +210,35 @@ def epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray) -> np
 
 def signed_epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
                               ) -> np.ndarray:
-    """Signed version of :func:`epipolar_distances` (``(...)`` pixels)."""
-    e = np.asarray(e, dtype=float).reshape(3)
-    x1 = to_homogeneous(u)
-    x2 = to_homogeneous(u_mirror)
-    l1 = np.cross(e, x1)            # line through e and u;  d c / d u' = l1[:2]
-    l2 = np.cross(x2, e)            # d c / d u = (u' x e)[:2]
-    c = np.einsum("...i,...i->...", l1, x2)   # = det(e, u, u')
-    g = np.sqrt(l1[..., 0] ** 2 + l1[..., 1] ** 2 + l2[..., 0] ** 2 + l2[..., 1] ** 2)
+    """Signed version of :func:`epipolar_distances` (``(...)`` pixels): the Sampson
+    distance of :func:`sampson_distances` with ``F = [e]_x`` (``u'^T [e]_x u = det(u', e, u)``)."""
+    return sampson_distances(skew(np.asarray(e, dtype=float).reshape(3)), u, u_mirror)
+
+
+def sampson_distances(F: np.ndarray, u: np.ndarray, u_other: np.ndarray) -> np.ndarray:
+    """Signed Sampson distance of correspondences under an epipolar matrix, ``(...)``.
+
+    ``c = u'^T F u`` over the norm of its gradient in the four image coordinates,
+    ``sqrt((F u)_1^2 + (F u)_2^2 + (F^T u')_1^2 + (F^T u')_2^2)``: the first-order
+    smallest displacement of the two points onto the epipolar constraint (Hartley and
+    Zisserman, *Multiple View Geometry*, 2nd ed., sec. 11.4.3). With ``F`` in pixels
+    the distance is in pixels; with an essential matrix on normalised coordinates,
+    in those (times the focal length for pixels).
+
+    Args:
+        F: ``(3, 3)`` fundamental (or essential) matrix, ``u'^T F u = 0``.
+        u, u_other: ``(..., 2)`` points of the first and the second view.
+
+    Returns:
+        ``(...)`` signed distances (``inf`` where undefined).
+    """
+    F = np.asarray(F, dtype=float)
+    x1 = to_homogeneous(np.asarray(u, dtype=float))
+    x2 = to_homogeneous(np.asarray(u_other, dtype=float))
+    Fx1 = x1 @ F.T                          # F u: line in the second view
+    Ftx2 = x2 @ F                           # F^T u': line in the first view
+    c = np.einsum("...i,...i->...", x2, Fx1)
+    g = np.sqrt(Fx1[..., 0] ** 2 + Fx1[..., 1] ** 2 + Ftx2[..., 0] ** 2 + Ftx2[..., 1] ** 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = c / g
     return np.where(np.isfinite(out), out, np.inf)
@@ -248,10 +269,100 @@ def epipolar_distances_fundamental(F: np.ndarray, u: np.ndarray, u_mirror: np.nd
 
 
 # --------------------------------------------------------------------------- triangulation
-def _virtual_projection_matrix(K: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
-    """``(3, 4)`` matrix of the mirror view: ``x' ~ K (H X + 2 d n)``."""
+def camera_projection(K: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """``(3, 4)`` world-to-pixel matrix ``K [R^T | -R^T c]`` of a camera with ``(4, 4)``
+    camera-to-world ``pose`` (rotation ``R``, centre ``c``)."""
+    pose = np.asarray(pose, dtype=float)
+    R, c = pose[:3, :3], pose[:3, 3]
+    return np.asarray(K, dtype=float) @ np.hstack([R.T, (-R.T @ c)[:, None]])
+
+
+def mirror_projection(K: np.ndarray, pose: np.ndarray, normal: np.ndarray, distance: float
+                      ) -> np.ndarray:
+    """``(3, 4)``: the camera of ``pose`` looking through the mirror ``n . X = d`` (world
+    frame): it sees ``X`` where it would see ``S(X)``, so the matrix is the camera's
+    times ``S = [[H, 2 d n], [0, 1]]``, ``H = I - 2 n n^T``."""
     n = np.asarray(normal, dtype=float).reshape(3)
-    return np.asarray(K, dtype=float) @ np.hstack([householder(n), (2.0 * distance * n)[:, None]])
+    S = np.eye(4)
+    S[:3, :3] = householder(n)
+    S[:3, 3] = 2.0 * float(distance) * n
+    return camera_projection(K, pose) @ S
+
+
+def triangulate(projections: np.ndarray | list[np.ndarray], pixels: np.ndarray | list,
+                masks: np.ndarray | list | None = None, *, iterations: int = 3,
+                min_views: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Triangulate points seen by any number of real and virtual cameras.
+
+    Linear triangulation (DLT, Hartley and Zisserman, *Multiple View Geometry*, 2nd
+    ed., sec. 12.2: two rows a view, ``u P_3 - P_1`` and ``v P_3 - P_2``, each scaled
+    to unit norm, the right singular vector of the smallest singular value), then
+    ``iterations`` Gauss-Newton steps on the reprojection error of the views that
+    see the point (the maximum-likelihood point under iid pixel noise, sec. 12.3).
+    Batched over points: one SVD and one ``3 x 3`` solve per point per step.
+
+    Args:
+        projections: ``V`` world-to-pixel matrices ``(3, 4)``
+            (:func:`camera_projection`, :func:`mirror_projection`).
+        pixels: ``V`` arrays ``(..., 2)`` of one leading shape ``S``, undistorted pixels.
+        masks: ``V`` bool arrays of shape ``S``: the view observes the point
+            (default: wherever its pixels are finite).
+        iterations: Gauss-Newton steps after the linear solution.
+        min_views: fewest views a point needs.
+
+    Returns:
+        ``(S + (3,))`` world points (NaN where not triangulated) and the ``S`` bool
+        mask of the triangulated ones.
+    """
+    P = np.stack([np.asarray(p, dtype=float) for p in projections])                 # (V, 3, 4)
+    shape = np.asarray(pixels[0]).shape[:-1]
+    uv = np.stack([np.asarray(p, dtype=float).reshape(-1, 2) for p in pixels])      # (V, N, 2)
+    m = np.isfinite(uv).all(-1)
+    if masks is not None:
+        m &= np.stack([np.asarray(k, dtype=bool).reshape(-1) for k in masks])
+    ok = m.sum(0) >= min_views
+    out = np.full((uv.shape[1], 3), np.nan)
+    if ok.any():
+        u = np.nan_to_num(uv[:, ok])                                                  # (V, M, 2)
+        w = m[:, ok]
+        rows_x = u[..., 0:1] * P[:, None, 2] - P[:, None, 0]                          # (V, M, 4)
+        rows_y = u[..., 1:2] * P[:, None, 2] - P[:, None, 1]
+        A = np.concatenate([rows_x, rows_y], axis=0)                                  # (2V, M, 4)
+        A = A / np.maximum(np.linalg.norm(A, axis=-1, keepdims=True), 1e-300)
+        A = np.where(np.concatenate([w, w], axis=0)[..., None], A, 0.0).transpose(1, 0, 2)
+        _, _, Vt = np.linalg.svd(A)
+        Xh = Vt[:, -1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            X = Xh[:, :3] / Xh[:, 3:4]
+        for _ in range(iterations):
+            X = _gauss_newton_views(P, u, w, X)
+        good = np.isfinite(X).all(1) & (np.abs(Xh[:, 3]) > 1e-12)
+        idx = np.flatnonzero(ok)
+        out[idx[good]] = X[good]
+        ok[idx[~good]] = False
+    return out.reshape(shape + (3,)), ok.reshape(shape)
+
+
+def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarray
+                        ) -> np.ndarray:
+    """One batched Gauss-Newton step of the reprojection error over the views ``w``.
+
+    Args:
+        P: ``(V, 3, 4)``; u: ``(V, M, 2)`` pixels; w: ``(V, M)`` bool; X: ``(M, 3)``.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y = np.einsum("vij,mj->vmi", P[:, :, :3], X) + P[:, None, :, 3]              # (V, M, 3)
+        z = y[..., 2:3]
+        p = y[..., :2] / z
+        # d pi / dX = (1 / z) [P_1 - u P_3 ; P_2 - v P_3] (first three columns)
+        J = (P[:, None, :2, :3] - p[..., None] * P[:, None, 2:3, :3]) / z[..., None]  # (V,M,2,3)
+        r = np.where(w[..., None], p - u, 0.0)
+        J = np.where(w[..., None, None], J, 0.0)
+        JtJ = np.einsum("vmki,vmkj->mij", J, J) + 1e-9 * np.eye(3)
+        Jtr = np.einsum("vmki,vmk->mi", J, r)
+        step = np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
+    step[~np.isfinite(step).all(1)] = 0.0
+    return X - step
 
 
 def triangulate_mirror(K: np.ndarray, normal: np.ndarray, distance: float,
@@ -259,10 +370,8 @@ def triangulate_mirror(K: np.ndarray, normal: np.ndarray, distance: float,
                        ) -> np.ndarray:
     """Triangulate joints from their direct and mirrored images.
 
-    Linear triangulation (DLT, Hartley and Zisserman sec. 12.2) with the real
-    camera ``K [I | 0]`` and the virtual camera ``K [H | 2 d n]``, then a few
-    Gauss-Newton steps on the reprojection error in both views, vectorised over
-    points.
+    :func:`triangulate` with the real camera ``K [I | 0]`` and the virtual camera
+    ``K [H | 2 d n]``.
 
     Args:
         K: ``(3, 3)`` intrinsics.
@@ -276,55 +385,11 @@ def triangulate_mirror(K: np.ndarray, normal: np.ndarray, distance: float,
         ``(..., 3)`` points in the real camera frame, unit of ``d``.
         Rows whose input is not finite are NaN.
     """
-    K = np.asarray(K, dtype=float)
-    u = np.asarray(u, dtype=float)
-    um = np.asarray(u_mirror, dtype=float)
-    shape = u.shape[:-1]
-    u2, um2 = u.reshape(-1, 2), um.reshape(-1, 2)
-    ok = np.isfinite(u2).all(1) & np.isfinite(um2).all(1)
-    out = np.full((u2.shape[0], 3), np.nan)
-    if not ok.any():
-        return out.reshape(shape + (3,))
-    a, b = u2[ok], um2[ok]
-    P1 = np.hstack([K, np.zeros((3, 1))])
-    P2 = _virtual_projection_matrix(K, normal, distance)
-    A = np.stack([a[:, :1] * P1[2] - P1[0], a[:, 1:2] * P1[2] - P1[1],
-                  b[:, :1] * P2[2] - P2[0], b[:, 1:2] * P2[2] - P2[1]], axis=1)
-    # scale rows for conditioning, then the null vector of each (4, 4) system
-    A /= np.linalg.norm(A, axis=2, keepdims=True)
-    _, _, Vt = np.linalg.svd(A)
-    Xh = Vt[:, -1, :]
-    X = Xh[:, :3] / Xh[:, 3:4]
-    n = np.asarray(normal, dtype=float).reshape(3)
-    H = householder(n)
-    c = 2.0 * distance * n
-    for _ in range(iterations):
-        X = _gauss_newton_step(K, H, c, X, a, b)
-    out[ok] = X
-    return out.reshape(shape + (3,))
-
-
-def _gauss_newton_step(K, H, c, X, a, b):
-    """One batched Gauss-Newton step of the two-view reprojection error."""
-    def proj_and_jac(Y, M):
-        # Y: (N, 3) camera-frame points; d/dX of pi(K Y) with Y = M X + const
-        y = Y @ K.T
-        z = y[:, 2:3]
-        p = y[:, :2] / z
-        J_y = np.zeros((Y.shape[0], 2, 3))
-        J_y[:, :, :2] = np.eye(2) / z[:, :, None]
-        J_y[:, :, 2] = -p / z
-        return p, J_y @ K @ M
-    p1, J1 = proj_and_jac(X, np.eye(3))
-    p2, J2 = proj_and_jac(X @ H.T + c, H)
-    r = np.concatenate([p1 - a, p2 - b], axis=1)                  # (N, 4)
-    J = np.concatenate([J1, J2], axis=1)                          # (N, 4, 3)
-    JtJ = np.einsum("nki,nkj->nij", J, J) + 1e-9 * np.eye(3)
-    Jtr = np.einsum("nki,nk->ni", J, r)
-    step = np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
-    bad = ~np.isfinite(step).all(1)
-    step[bad] = 0.0
-    return X - step
+    eye = np.eye(4)
+    X, _ = triangulate([camera_projection(K, eye), mirror_projection(K, eye, normal, distance)],
+                       [np.asarray(u, dtype=float), np.asarray(u_mirror, dtype=float)],
+                       iterations=iterations)
+    return X
 
 
 def orient_normal(K: np.ndarray, normal: np.ndarray, u: np.ndarray, u_mirror: np.ndarray

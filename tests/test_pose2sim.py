@@ -78,8 +78,7 @@ def test_pose2sim_triangulates_with_a_calibrated_rig(tmp_path):
                     & set(t for t, _ in views["mirror_right"]))
     assert len(frames) >= 5
     by = {k: dict(v) for k, v in views.items()}
-    from mirrorgraph.rigs.triangulation import (camera_projection, mirror_projection,
-                                                triangulate_views)
+    from mirrorgraph.geometry import camera_projection, mirror_projection, triangulate
     doc = __import__("json").loads(toml.with_suffix(".json").read_text())
     K = np.asarray(doc["cameras"][0]["intrinsics"]["K"])
     pose = np.asarray(doc["cameras"][0]["pose_camera_to_world"])
@@ -99,7 +98,7 @@ def test_pose2sim_triangulates_with_a_calibrated_rig(tmp_path):
                                                      [1.0, 1.0, 1.0])[:3])
             raw = [by["real"][t][j, :2], by["mirror_left"][t][sk.flip][j, :2],
                    by["mirror_right"][t][sk.flip][j, :2]]
-            X, ok = triangulate_views(ours_P, [r[None] for r in raw], [np.ones(1, bool)] * 3)
+            X, ok = triangulate(ours_P, [r[None] for r in raw], [np.ones(1, bool)] * 3)
             ours.append(X[0])
             truth.append(rig.joints3d[t, j])
     theirs, ours, truth = (np.asarray(a, float) for a in (theirs, ours, truth))

@@ -13,7 +13,7 @@ from mirrorgraph.cli import main
 from mirrorgraph.errors import DegenerateGeometryError, InputError
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
 from mirrorgraph.rigs import calibrate_rig, load_rig_config, virtual_extrinsics
-from mirrorgraph.rigs.triangulation import camera_projection, mirror_projection, triangulate_views
+from mirrorgraph.geometry import camera_projection, mirror_projection, triangulate
 from mirrorgraph.synth.rig import make_rig, write_rig
 
 
@@ -216,11 +216,11 @@ def test_triangulate_views_exact_without_noise():
         return h[:, :2] / h[:, 2:]
 
     mask = np.ones(len(X), bool)
-    Y, ok = triangulate_views([P1, P2], [proj(P1), proj(P2)], [mask, mask])
+    Y, ok = triangulate([P1, P2], [proj(P1), proj(P2)], [mask, mask])
     assert ok.all() and np.allclose(Y, X, atol=1e-8)
     one = mask.copy()
     one[:10] = False
-    Y, ok = triangulate_views([P1, P2], [proj(P1), proj(P2)], [mask, one])
+    Y, ok = triangulate([P1, P2], [proj(P1), proj(P2)], [mask, one])
     assert not ok[:10].any() and np.isnan(Y[:10]).all()
 
 
@@ -285,7 +285,7 @@ def test_rig_toml_written_by_synth_is_the_documented_form(tmp_path):
 def test_a_bystander_does_not_break_the_rig(tmp_path):
     """A second person, more confident than the subject in one camera: the subject is
     found there by epipolar consistency with the first camera."""
-    from mirrorgraph.rigs.triangulation import camera_projection
+    from mirrorgraph.geometry import camera_projection
 
     rig = make_rig("4cams", frames=150, seed=6)
     rng = np.random.default_rng(0)

@@ -6,10 +6,12 @@
 * :mod:`.optimizer`: Levenberg-Marquardt driven from Python over GTSAM's elimination;
 * :mod:`.reduction`: the mirror link as an exact constraint (reduced global coordinates);
 * :mod:`.outliers`: rejection by reprojection residual and by bone-length consistency;
+* :mod:`.solve`: :func:`~.solve.solve`, the one solve driver of every rig, and
+  :mod:`.stages`, its stages and the configuration that says what varies;
 * :mod:`.chunked`: videos too long for one graph (spread subset, then chunks);
 * :mod:`.result`: :class:`RefinementResult` and the normal-to-rotation uncertainty;
-* :mod:`.refine`: :func:`refine_mirror`, the pipeline from paired keypoints to
-  :class:`RefinementResult`.
+* :mod:`.refine`: :func:`refine_mirror`, the single-mirror front end (the rig front
+  end is :func:`mirrorgraph.rigs.solve.solve_rig`).
 """
 
 from .options import RefineOptions

@@ -35,13 +35,13 @@ from ..anthropometry import expected_bone_lengths, femur_ratios, height_fraction
 from ..factors import (AnthropometricRatioFactor, BoneLengthFactor, HeightPriorFactor, HipColinearityFactor, MirrorLinkFactor,
                        ReprojectionFactors, SmoothnessFactor, SymmetryFactor,
                        plane_from_gtsam, plane_to_gtsam, reflected_pose, robust_pixel_noise)
-from ..geometry import project, reflect_points
+from ..geometry import camera_projection, mirror_projection, project, reflect_points
 from .options import RefineOptions
 from .rig import Rig
 
 __all__ = ["GraphProblem", "build_problem", "smoothness_graph", "point_keys", "bone_table", "body_height_from_points",
            "view_residuals", "extract_points", "extract_planes", "extract_camera_poses",
-           "snap_virtual_poses", "cheirality_guard", "points_array"]
+           "snap_virtual_poses", "cheirality_guard", "points_array", "view_projections"]
 
 _X_BASE = X_(0)
 
@@ -523,6 +523,26 @@ def extract_camera_poses(problem: GraphProblem, values: gtsam.Values) -> list[np
 def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np.ndarray, float]]:
     """``(n, d)`` of every mirror from ``values``."""
     return [plane_from_gtsam(values.atOrientedPlane3(k)) for k in problem.plane_keys]
+
+
+def view_projections(rig: Rig, poses: list[np.ndarray] | None = None,
+                     planes: list[tuple[np.ndarray, float]] | None = None) -> list[np.ndarray]:
+    """``(3, 4)`` world-to-pixel matrix of every view, real or through a mirror
+    (:func:`~mirrorgraph.geometry.camera_projection`,
+    :func:`~mirrorgraph.geometry.mirror_projection`); default: the rig's poses and planes."""
+    out = []
+    for v in rig.views:
+        ci = rig.camera_index(v.camera)
+        K = rig.cameras[ci].K
+        pose = rig.cameras[ci].pose if poses is None else poses[ci]
+        if v.mirror is None:
+            out.append(camera_projection(K, pose))
+        else:
+            m = rig.mirror_index(v.mirror)
+            n, d = ((rig.mirrors[m].normal, rig.mirrors[m].distance) if planes is None
+                    else planes[m])
+            out.append(mirror_projection(K, pose, n, d))
+    return out
 
 
 def view_residuals(rig: Rig, points: np.ndarray, used: np.ndarray,

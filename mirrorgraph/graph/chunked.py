@@ -3,7 +3,7 @@
 One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
 54,000 frames would need ~5 GB. Above ``options.max_graph_frames`` frames:
 
-1. **Subset.** :func:`mirrorgraph.graph.refine.solve_single` on contiguous blocks of
+1. **Subset.** The driver (:mod:`.solve`) on contiguous blocks of
    ``options.chunk_block_frames`` frames spread evenly over the video,
    ``max_graph_frames`` frames in all (blocks, not single frames, so that the
    smoothness prior still has neighbours). This fixes the scale (the bone-length
@@ -12,7 +12,7 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
 2. **Chunks, shared globals.** The video is cut into consecutive chunks of at most
    ``max_graph_frames`` frames (smoothness factors that would cross a cut are
    dropped: two per joint and cut). Each chunk is triangulated with the current
-   mirror, cleaned (:func:`~mirrorgraph.graph.refine.first_outliers`), and its
+   mirror, cleaned as the driver cleans (:mod:`.solve`), and its
    points are solved with the mirror and bone lengths *held*
    (:class:`~mirrorgraph.graph.optimizer.LevenbergMarquardt` with
    ``hold_globals=True``), with the second rejection and re-solve as in the
@@ -29,7 +29,7 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
 4. **Joints pass.** Chunk by chunk, the 3D joints are solved again with the final
    mirror and bone lengths held and the tighter smoothness of
    ``joints_smoothness_sigma``, as for a short video
-   (:func:`mirrorgraph.graph.refine.joints_pass`).
+   (:func:`mirrorgraph.graph.stages.joints_pass`).
 
 Time is linear in the number of frames (each pass visits each frame once);
 memory is bounded by one chunk.
@@ -45,11 +45,14 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam
-from .builder import build_problem, cheirality_guard, extract_points, snap_virtual_poses
-from .optimizer import LevenbergMarquardt, dense_system
+from .builder import build_problem, extract_points, snap_virtual_poses
+from .optimizer import dense_system, reduced_marginals
 from .options import RefineOptions
-from .reduction import mirror_reduction
+from .outliers import observation_outliers
 from .rig import Rig
+from .stages import (MIN_PAIRS, SolveState, clean_views, with_views, joints_pass, optimize,
+                     reprojection_noise_px, seen_twice, solve_rows, undetermined,
+                     with_views)
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges"]
 
@@ -75,140 +78,153 @@ def chunk_ranges(T: int, size: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
-def solve_chunked(rig: Rig, used: np.ndarray, d0: float, opts: RefineOptions,
-                  progress: Callable[[int, float], None] | None = None):
+def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter):
     """Subset solve, then chunk passes with a shared global step (see the module docstring).
 
-    Returns:
-        :class:`mirrorgraph.graph.refine.SolveState` for the whole video.
-    """
-    from .refine import (MIN_PAIRS, SolveState, _Counter, _build_full, first_outliers,
-                         in_front, lm_params, reject_outliers, solve_single, triangulate_rig,
-                         undetermined)
+    Args:
+        rig: one fixed camera, one mirror (its initial plane), two views.
+        opts, config, height, counter: as :func:`mirrorgraph.graph.solve.solve`.
 
+    Returns:
+        :class:`mirrorgraph.graph.stages.SolveState` for the whole video.
+    """
+    from dataclasses import replace
+
+
+    if height is not None:
+        opts = replace(opts, subject_height=float(height))
     T = rig.num_frames
-    counter = _Counter(progress)
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
-    sub = solve_single(rig.subset(rows), used[rows], d0, opts, counter)
+    sub = solve_rows(rig.subset(rows), opts, config, height, counter)
     timings = dict(sub.timings)
     stages = [dict(s, name="subset: " + s["name"]) for s in sub.stages]
     iterations = sub.iterations
-    plane = (np.asarray(sub.normal, dtype=float), float(sub.distance))
+    plane = (np.asarray(sub.planes[0][0], dtype=float), float(sub.planes[0][1]))
+    pose = sub.poses
     lengths = dict(sub.bone_lengths)
     length_sum = sub.prior_info.get("length_sum_gauge", {}).get("sum")
+    kernel = next((s.get("kernel") for s in reversed(sub.stages) if "kernel" in s), None)
 
     information = None
     final_error = 0.0
+    rejected = 0
     carried: dict[int, tuple] = {}
+    out_masks = [np.zeros((T, rig.skeleton.num_joints), bool) for _ in rig.views]
     for npass in range(1, opts.chunk_passes + 1):
         next_carried: dict[int, tuple] = {}
         H = g = None
-        out_points = np.full(used.shape + (3,), np.nan)
-        out_used = np.zeros(used.shape, dtype=bool)
+        out_points = np.full((T, rig.skeleton.num_joints, 3), np.nan)
+        out_used = np.zeros((T, rig.skeleton.num_joints), dtype=bool)
         final_error, n_repro, last = 0.0, 0, None
         t_pass = time.perf_counter()
         for ci, (a, b) in enumerate(chunk_ranges(T, opts.max_graph_frames)):
             crig = rig.subset(slice(a, b))
             t = time.perf_counter()
             if ci in carried:
-                # later passes start from the previous pass (same pairs, same kernel)
-                cpoints, keep, kernel = carried.pop(ci)
+                # later passes start from the previous pass (same pairs)
+                cpoints, cmasks = carried.pop(ci)
             else:
-                cused = used[a:b]
-                cpoints = triangulate_rig(crig, cused, [plane])
-                cused = cused & in_front(cpoints, *plane)
-                keep = cused & ~first_outliers(crig, cpoints, cused, [plane], opts)
-                kernel = opts.final_kernel
-                if kernel == "auto":
-                    found = np.count_nonzero(cused & ~keep)
-                    kernel = ("geman_mcclure"
-                              if found > opts.auto_kernel_fraction * cused.sum() else None)
+                cpoints, cmasks, _, _ = clean_views(crig, [np.asarray(v.mask, bool) for v in crig.views],
+                                               pose, [plane], opts, config, opts.min_parallax_deg)
+            keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
             timings["solve"] += time.perf_counter() - t
-            problem, values = None, None
+            problem, values, res = None, None, None
             for attempt in range(2):
                 if np.count_nonzero(keep) < MIN_PAIRS:
                     break
                 t = time.perf_counter()
-                if problem is None:
-                    problem = build_problem(_masked(crig, keep), cpoints, keep, [plane], opts,
-                                            body_height=sub.body_height,
-                                            bone_lengths=lengths, length_sum=length_sum,
-                                            final_kernel=kernel)
-                else:
-                    problem = _build_full(crig, problem, values, cpoints, keep, [plane], opts,
-                                          kernel)
+                if problem is not None:
+                    cpoints = extract_points(problem, values)
+                problem = build_problem(with_views(crig, cmasks), cpoints, keep, [plane], opts,
+                                        body_height=sub.body_height, bone_lengths=lengths,
+                                        length_sum=length_sum, final_kernel=kernel)
                 snap_virtual_poses(problem, problem.values)
                 timings["build"] += time.perf_counter() - t
                 t = time.perf_counter()
-                red = mirror_reduction(problem, with_lengths=True, distance_gauge=None)
-                lm = LevenbergMarquardt(problem.frame_factors(), red, lm_params(opts, problem),
-                                        ordering=problem.point_ordering(), hold_globals=True,
-                                        guard=cheirality_guard(problem))
-                res = lm.optimize(problem.values, counter)
+                res, z_keys = optimize(problem, problem.frame_factors(), opts, with_lengths=True,
+                                       distance_gauge=None, hold_globals=True, progress=counter)
                 values = res.values
                 iterations += res.iterations
-                keep = reject_outliers(problem, values, opts) & ~undetermined(problem, res)
+                pts = extract_points(problem, values)
+                lost = undetermined(problem, res)
+                cmasks, dropped = observation_outliers(crig, pts, problem.used & ~lost, cmasks, pose, [plane],
+                                         opts.outlier_threshold)
+                cmasks = [m & ~lost for m in cmasks]
+                keep = problem.used & seen_twice(cmasks)
                 timings["solve"] += time.perf_counter() - t
-                if not (problem.used & ~keep).any():
+                if not dropped and not lost.any():
                     break
             if problem is None or res.reduced_information is None:
                 continue
             out_points[a:b] = extract_points(problem, values)
             out_used[a:b] = problem.used
-            next_carried[ci] = (out_points[a:b], problem.used.copy(), kernel)
+            for k, v in enumerate(problem.rig.views):
+                out_masks[k][a:b] = np.asarray(v.mask, bool) & problem.used
+            next_carried[ci] = (out_points[a:b], [np.asarray(v.mask, bool)
+                                                  for v in problem.rig.views])
             final_error += res.final_error
             n_repro += int(problem.reprojection.size())
             H = res.reduced_information if H is None else H + res.reduced_information
             g = res.reduced_gradient if g is None else g + res.reduced_gradient
-            last = (problem, values, red)
+            last = (problem, values, z_keys)
         if last is None:
             raise DegenerateGeometryError("no chunk of the video could be solved")
         # the shared global step: chunks + length-only factors + distance gauge
-        problem, values, red = last
+        problem, values, z_keys = last
         zv = _globals_values(problem, values)
         glob = problem.global_factors()
         if problem.distance_gauge is not None:
             glob.push_back(DistancePriorFactor(problem.distance_gauge).make(problem.plane_keys[0]))
         if glob.size():
-            Hg, gg = dense_system(glob.linearize(zv), red.z_keys)
+            Hg, gg = dense_system(glob.linearize(zv), z_keys)
             H, g = H + Hg, g + gg
             final_error += float(glob.error(zv))
         information = H
         z = np.linalg.solve(H, g)
         zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
-        zv = _apply_step(zv, red.z_keys, z)
+        zv = _apply_step(zv, z_keys, z)
         plane_key = problem.plane_keys[0]
         plane = _plane(zv, plane_key)
         if problem.length_key is not None:
             lengths = dict(zip(problem.bone_names, zv.atVector(problem.length_key)))
+        rejected = int(sum(np.count_nonzero(np.asarray(v.mask, bool) & ~m)
+                           for v, m in zip(rig.views, out_masks)))
         stages.append({"name": "chunk pass %d" % npass, "iterations": None,
                        "initial_error": None, "final_error": final_error, "converged": None,
-                       "rejected": int(np.count_nonzero(used & ~out_used)),
-                       "global_step_sigma": zlen, "seconds": time.perf_counter() - t_pass})
+                       "rejected": rejected, "global_step_sigma": zlen,
+                       "seconds": time.perf_counter() - t_pass})
         if zlen <= opts.chunk_step_tolerance:
             break
         carried = next_carried
-    z_keys = red.z_keys
-    del last, problem, values, red, lm, res      # one chunk's graph in memory at a time
+    del last, problem, values, res      # one chunk's graph in memory at a time
     _joints_pass_chunks(rig, next_carried, plane, lengths, length_sum, sub.body_height, opts,
-                        out_points, stages, timings)
-    return SolveState(normal=plane[0], distance=plane[1], points=out_points, used=out_used,
+                        kernel, out_points, stages, timings)
+    t = time.perf_counter()
+    noise_px = reprojection_noise_px(rig, out_masks, pose, [plane], 3)
+    factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
+    basis = [np.asarray(zv.atOrientedPlane3(plane_key).normal().basis())]
+    plane_cov = [np.full((3, 3), np.nan)]
+    if opts.marginals:
+        marg = reduced_marginals(information, z_keys, zv)
+        plane_cov = [np.asarray(marg.marginalCovariance(plane_key)) * factor]
+    timings["marginals"] = time.perf_counter() - t
+    return SolveState(poses=pose, planes=[plane], points=out_points, used=out_used,
                       bone_lengths={k: float(v) for k, v in lengths.items()}, scale=sub.scale,
-                      information=information, z_keys=z_keys, z_values=zv,
-                      plane_key=plane_key, prior_info=sub.prior_info,
-                      reprojection_factors=n_repro, iterations=iterations,
-                      final_error=final_error, stages=stages, timings=timings,
-                      body_height=sub.body_height)
+                      camera_cov=[np.zeros((6, 6))], plane_cov=plane_cov, plane_basis=basis,
+                      noise_px=noise_px, variance_factor=factor, view_masks=out_masks,
+                      rejected=rejected, undetermined=sub.undetermined,
+                      prior_info=sub.prior_info, reprojection_factors=n_repro,
+                      iterations=iterations, final_error=final_error, stages=stages,
+                      timings=timings, body_height=sub.body_height, information=information,
+                      z_keys=z_keys, z_values=zv, problem=None)
 
 
 def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndarray, float],
                         lengths: dict, length_sum, body_height: float, opts: RefineOptions,
-                        out_points: np.ndarray, stages: list[dict], timings: dict) -> None:
-    """The joints pass (:func:`mirrorgraph.graph.refine.joints_pass`) chunk by chunk with
+                        kernel, out_points: np.ndarray, stages: list[dict], timings: dict) -> None:
+    """The joints pass (:func:`mirrorgraph.graph.stages.joints_pass`) chunk by chunk with
     the final mirror and bone lengths held, writing the smoothed joints into
     ``out_points`` ``(T, J, 3)`` (in place). The mirror held, chunks are independent."""
-    from .refine import joints_pass
-
     if opts.joints_smoothness_sigma is None or not chunks:
         return
     t = time.perf_counter()
@@ -216,10 +232,11 @@ def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndar
     for ci, (a, b) in enumerate(chunk_ranges(rig.num_frames, opts.max_graph_frames)):
         if ci not in chunks:
             continue
-        cpoints, keep, kernel = chunks[ci]
+        cpoints, cmasks = chunks[ci]
+        keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
         if np.count_nonzero(keep) == 0:
             continue
-        problem = build_problem(_masked(rig.subset(slice(a, b)), keep), cpoints, keep, [plane],
+        problem = build_problem(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
                                 opts, body_height=body_height, bone_lengths=lengths,
                                 length_sum=length_sum, final_kernel=kernel)
         snap_virtual_poses(problem, problem.values)
@@ -237,12 +254,6 @@ def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndar
 
 
 # --------------------------------------------------------------------------- helpers
-def _masked(rig: Rig, mask: np.ndarray) -> Rig:
-    from dataclasses import replace
-    return replace(rig, views=tuple(replace(v, mask=np.asarray(v.mask, dtype=bool) & mask)
-                                    for v in rig.views))
-
-
 def _globals_values(problem, values: gtsam.Values) -> gtsam.Values:
     zv = gtsam.Values()
     for k in problem.plane_keys:

@@ -129,7 +129,7 @@ class RefineOptions:
             less than this many standard deviations (Mahalanobis length).
         min_parallax_deg: pairs whose two rays (from the camera and from the
             virtual camera) meet at less than this angle, degrees, are left out of
-            the graph (:func:`~mirrorgraph.graph.refine.low_parallax`): their depth
+            the graph (:func:`~mirrorgraph.graph.stages.parallax_deg`): their depth
             is held by nothing but the body priors.
         warm_start_min_parallax_deg: the same for the warm start, which has no body
             prior: a pair at 3 deg has ~10x the depth noise of one at 30 deg and

@@ -2,9 +2,10 @@
 
 Two complementary tests, both on the current estimate:
 
-* :func:`reprojection_outliers` -- a pair whose reprojection residual exceeds
-  a threshold in either view. It cannot see a keypoint displaced *along its
-  epipolar line*: the point simply moves in depth and both views fit.
+* :func:`observation_outliers` -- an observation whose reprojection residual
+  exceeds a threshold, or whose joint lies behind its camera (:func:`feasible`).
+  It cannot see a keypoint displaced *along its epipolar line*: the point simply
+  moves in depth and both views fit.
 * :func:`bone_outliers` -- those depth errors break the body instead: the
   bones at the joint come out too long or too short. A bone is inconsistent
   in a frame when its length is more than ``k`` robust standard deviations
@@ -21,21 +22,56 @@ from __future__ import annotations
 
 import numpy as np
 
-from .builder import (GraphProblem, extract_camera_poses, extract_planes, extract_points,
-                      view_residuals)
+from dataclasses import replace
 
-__all__ = ["reprojection_outliers", "bone_outliers"]
+from .builder import view_projections, view_residuals
+from .rig import Rig
+
+__all__ = ["feasible", "observation_outliers", "bone_outliers"]
 
 
-def reprojection_outliers(problem: GraphProblem, values, threshold: float) -> np.ndarray:
-    """``(T, J)`` bool: used pairs whose residual exceeds ``threshold`` px in some view."""
-    pts = extract_points(problem, values)
-    res = view_residuals(problem.rig, pts, problem.used, extract_planes(problem, values),
-                         extract_camera_poses(problem, values))
-    bad = np.zeros_like(problem.used)
-    for r in res:
-        bad |= r > threshold
-    return bad & problem.used
+def feasible(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, planes
+             ) -> list[np.ndarray]:
+    """Per view ``(T, J)`` bool: the observed joint is in front of the view's (real or
+    virtual) camera and, through a mirror, in front of that mirror (cheirality);
+    ``True`` where the view does not observe it."""
+    out = []
+    X = np.nan_to_num(points)
+    for v, P, m in zip(rig.views, view_projections(rig, poses, planes), masks):
+        with np.errstate(invalid="ignore"):
+            ok = X @ P[2, :3] + P[2, 3] > 0          # the depth: K's third row is e3
+            if v.mirror is not None:
+                n, d = planes[rig.mirror_index(v.mirror)]
+                ok &= X @ np.asarray(n, float) < d
+        out.append(~np.asarray(m, bool) | (ok & np.isfinite(points).all(-1)))
+    return out
+
+
+def observation_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
+                         masks: list[np.ndarray], poses, planes, threshold: float
+                         ) -> tuple[list[np.ndarray], int]:
+    """View masks without the observations of ``used`` joints whose reprojection residual
+    exceeds ``threshold`` px or that lie behind their camera (per observation: a wrong
+    keypoint in one view does not cost the others).
+
+    Args:
+        rig: views and cameras; points: ``(T, J, 3)``; used: ``(T, J)``;
+        masks: per view ``(T, J)`` observations; poses, planes: the rig's geometry.
+
+    Returns:
+        The new masks and how many observations were dropped.
+    """
+    probe = [np.asarray(m, bool) & used for m in masks]
+    res = view_residuals(replace(rig, views=tuple(replace(v, mask=m) for v, m
+                                                  in zip(rig.views, probe))),
+                         points, used, planes, poses)
+    ok = feasible(rig, points, probe, poses, planes)
+    out, dropped = [], 0
+    for m, p, r, good in zip(masks, probe, res, ok):
+        bad = p & ((np.nan_to_num(r, nan=0.0) > threshold) | ~good)
+        dropped += int(np.count_nonzero(bad))
+        out.append(np.asarray(m, bool) & ~bad)
+    return out, dropped
 
 
 def bone_outliers(points: np.ndarray, used: np.ndarray, bones: np.ndarray, *, k: float = 5.0,

@@ -21,7 +21,7 @@ import numpy as np
 from .initial import observed
 from .observations import RigObservations
 from .solve import RigSolution
-from .triangulation import camera_projection, mirror_projection, triangulate_views
+from ..geometry import camera_projection, mirror_projection, triangulate
 
 __all__ = ["complete_joints"]
 
@@ -73,7 +73,7 @@ def complete_joints(obs: RigObservations, sol: RigSolution, threshold_px: float
     projections, keypoints = _views(obs, sol)
     masks = [observed(k) & missing for k in keypoints]
     pixels = [k[..., :2] for k in keypoints]
-    X, ok = triangulate_views(projections, pixels, masks)
+    X, ok = triangulate(projections, pixels, masks)
     if not ok.any():
         return sol
     kept = []
@@ -82,7 +82,7 @@ def complete_joints(obs: RigObservations, sol: RigSolution, threshold_px: float
         keep = m.copy()
         keep[ok] &= (dist <= threshold_px) & ahead
         kept.append(keep)
-    X, ok = triangulate_views(projections, pixels, kept)
+    X, ok = triangulate(projections, pixels, kept)
     points = np.array(sol.points, dtype=float, copy=True)
     used = np.array(sol.used, dtype=bool, copy=True)
     points[ok] = X[ok]

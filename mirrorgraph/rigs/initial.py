@@ -12,7 +12,7 @@
    ``(R_c, c_c)`` (camera-to-world). Its normal is then turned to point away from
    the world origin (``d > 0``) when the plane does not pass through it.
 4. Every joint seen by two or more views (real or through a mirror) is
-   triangulated (:func:`~mirrorgraph.rigs.triangulation.triangulate_views`).
+   triangulated (:func:`~mirrorgraph.geometry.triangulate`).
 
 A camera that shares too few joints with the cameras already placed cannot be
 chained: that is a :class:`~mirrorgraph.errors.DegenerateGeometryError` naming it.

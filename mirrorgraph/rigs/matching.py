@@ -50,7 +50,8 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..skeletons import Skeleton
-from .relative import _normalised, _skew, refine_relative_pose, sampson_px
+from ..geometry import skew
+from .relative import _normalised, refine_relative_pose, sampson_px
 
 __all__ = ["match_candidates", "match_people", "track_people", "longest_track",
            "MATCH_THRESHOLD_PX"]
@@ -159,7 +160,7 @@ def _track_geometry(xa: np.ndarray, xb: np.ndarray, f: float, seed: int
         return None, 0.0
     _, R, t, _ = cv2.recoverPose(E[:3], xa, xb, np.eye(3))
     R, t = refine_relative_pose(xa, xb, R, np.asarray(t, float).ravel(), f, 4.0)
-    E = _skew(t) @ R
+    E = skew(t) @ R
     return E, float(np.mean(np.abs(sampson_px(E, xa, xb, f)) < TRACK_INLIER_PX))
 
 

@@ -36,11 +36,10 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import DegenerateGeometryError
 from ..estimators import estimate_mirror
-from ..geometry import triangulate_mirror
+from ..geometry import camera_projection, sampson_distances, skew, triangulate, triangulate_mirror
 from ..graph.builder import body_height_from_points
 from ..graph.rig import Rig
 from ..skeletons import Skeleton
-from .triangulation import camera_projection, triangulate_views
 
 __all__ = ["RelativePose", "MirrorSighting", "relative_pose", "refine_relative_pose",
            "sampson_px", "mirror_sighting", "MIN_CORRESPONDENCES"]
@@ -104,18 +103,10 @@ def _normalised(K: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 
 def sampson_px(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, f: float) -> np.ndarray:
-    """``(N,)`` Sampson distances (pixels: ``f`` times the normalised one) of
-    correspondences ``xa``, ``xb`` ``(N, 2)`` (normalised coordinates) under ``E``."""
-    ha = np.column_stack([xa, np.ones(len(xa))])
-    hb = np.column_stack([xb, np.ones(len(xb))])
-    Ea, Etb = ha @ E.T, hb @ E
-    num = np.einsum("ij,ij->i", hb, Ea)
-    den = np.sqrt(Ea[:, 0] ** 2 + Ea[:, 1] ** 2 + Etb[:, 0] ** 2 + Etb[:, 1] ** 2)
-    return f * num / np.maximum(den, 1e-300)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    """``(N,)`` signed Sampson distances in pixels (``f`` times the normalised one,
+    :func:`mirrorgraph.geometry.sampson_distances`) of correspondences ``xa``, ``xb``
+    ``(N, 2)`` (normalised coordinates) under the essential matrix ``E``."""
+    return f * sampson_distances(E, xa, xb)
 
 
 def refine_relative_pose(xa: np.ndarray, xb: np.ndarray, R: np.ndarray, t: np.ndarray,
@@ -139,7 +130,7 @@ def refine_relative_pose(xa: np.ndarray, xb: np.ndarray, R: np.ndarray, t: np.nd
 
     def residual(p):
         Rm, tv = unpack(p)
-        return sampson_px(_skew(tv) @ Rm, xa, xb, f)
+        return sampson_px(skew(tv) @ Rm, xa, xb, f)
 
     sol = least_squares(residual, np.zeros(5), loss="cauchy", f_scale=float(scale_px),
                         x_scale="jac", max_nfev=200)
@@ -182,13 +173,13 @@ def relative_pose(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray, u_b: np.nda
     if count < MIN_CORRESPONDENCES // 2:
         return None
     R, t = refine_relative_pose(xa, xb, R, np.asarray(t, float).ravel(), f, 0.5 * threshold_px)
-    E = _skew(t) @ R
+    E = skew(t) @ R
     sampson = np.abs(sampson_px(E, xa, xb, f))
     inliers = sampson < threshold_px
     # cheirality of the refined pose: most inliers in front of both cameras
     Pa0 = np.hstack([np.eye(3), np.zeros((3, 1))])
     Pb0 = np.hstack([R, t[:, None]])
-    X, ok = triangulate_views([Pa0, Pb0], [xa, xb], [inliers, inliers])
+    X, ok = triangulate([Pa0, Pb0], [xa, xb], [inliers, inliers])
     front = ok & (X[:, 2] > 0) & ((X @ R.T + t)[:, 2] > 0)
     if np.count_nonzero(front) < 0.5 * np.count_nonzero(inliers):
         return None
@@ -199,7 +190,7 @@ def relative_pose(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray, u_b: np.nda
     Pb = np.asarray(K_b, float) @ np.hstack([R, t[:, None]])
     h = np.nan
     for s in range(mask.shape[0]):
-        X, ok = triangulate_views([Pa, Pb], [u_a[s], u_b[s]], [full[s], full[s]])
+        X, ok = triangulate([Pa, Pb], [u_a[s], u_b[s]], [full[s], full[s]])
         hs = body_height_from_points(_skeleton_rig(skeleton, X.shape[0], joints), X, ok)
         if np.isfinite(hs) and hs > 0:
             h = hs

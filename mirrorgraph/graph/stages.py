@@ -1,0 +1,646 @@
+"""The stages of the one solve driver (:func:`mirrorgraph.graph.solve.solve`), and what varies.
+
+A :class:`SolveConfig` says what differs between rigs: the full-graph
+:class:`Stage` s (kernel, scale, rejection after each), whether outliers are
+rejected before the first solve, the warm start, the joints pass, chunking.
+:func:`single_mirror_config` and :func:`rig_config` are the two in use.
+
+Stages (each recorded in :attr:`SolveState.stages`):
+
+1. **Triangulation** of every joint seen in two views or more with the initial rig
+   (:func:`mirrorgraph.geometry.triangulate`, DLT then Gauss-Newton). An observation
+   behind its (real or virtual) camera, or a joint behind a mirror it is seen in, is
+   dropped (cheirality); a joint whose rays all meet at under
+   ``options.min_parallax_deg`` (the angle of the rays' *lines*: rays pointing opposite
+   ways, the usual mirror case, count too) is dropped; with
+   ``config.first_rejection``, observations whose residual exceeds the outlier
+   threshold and joints whose bones are all implausible are dropped too.
+2. **Warm start** (``config.warm_start``, rigs whose camera poses are all held):
+   Levenberg-Marquardt on the robust reprojection terms alone, on
+   ``options.warm_start_frames`` frames spread over the video, the first mirror's
+   distance held; then every joint is triangulated again with the warm rig and step
+   1 repeated. Its joints must meet at ``options.warm_start_min_parallax_deg`` at
+   least: without a body prior nothing else holds their depth.
+3. **Gauge.** With a subject height everything is scaled so that the per-bone median
+   lengths sum to Winter's lengths for that height (the gauge's value).
+4. **Stages** of :attr:`SolveConfig.stages`: the full graph (every joint, every
+   estimated pose and plane, the bone lengths, the body priors) with the stage's
+   robust kernel, then the observations beyond the stage's threshold (and behind
+   their camera) are dropped, with the joints left in fewer than two views and the
+   joints GTSAM found undetermined, before the next stage (built from this one's
+   solution). ``"auto"`` is least squares when the first rejection found under
+   ``options.auto_kernel_fraction`` outliers, else Geman-McClure.
+5. **Joints pass** (``config.joints_pass``): the joints once more with every pose,
+   plane and bone length held and the tighter ``options.joints_smoothness_sigma``.
+6. **Marginals and noise.** The reduced information of the last undamped solve is the
+   Schur complement of every joint on (poses, bone lengths, planes); GTSAM's
+   :class:`gtsam.Marginals` of it gives each estimated camera's ``6 x 6`` and each
+   plane's ``3 x 3`` covariance, scaled by the noise the data show: every used joint
+   triangulated again from its kept views with the solved rig (the maximum-likelihood
+   point of the reprojection alone, free of the body priors that pull the graph's
+   joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
+   this is the pairs' Sampson distances to first order).
+
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import gtsam
+import numpy as np
+
+from ..anthropometry import expected_bone_lengths
+from ..errors import DegenerateGeometryError
+from ..geometry import triangulate
+from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
+                      extract_camera_poses, extract_planes, extract_points, point_keys,
+                      smoothness_graph, snap_virtual_poses, view_projections, view_residuals)
+from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_marginals
+from .options import RefineOptions
+from .outliers import bone_outliers, observation_outliers
+from .reduction import mirror_reduction
+from .result import residual_noise_px
+from .rig import Rig
+
+__all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
+           "MIN_PAIRS", "triangulate_rig", "spread_rows", "lm_params", "solve_rows", "Counter"]
+
+#: Fewest joints seen in two views for a solve.
+MIN_PAIRS = 12
+
+Progress = Callable[[int, float], None]
+
+
+# --------------------------------------------------------------------------- configuration
+@dataclass(frozen=True)
+class Stage:
+    """One solve of the full graph.
+
+    Attributes:
+        name: for the record.
+        kernel: robust kernel of the reprojection factors (``"auto"``, a kernel name
+            of :func:`mirrorgraph.factors.robust_pixel_noise`, or ``None``: least squares).
+        kernel_scale_px: the kernel's scale.
+        reject_px: after the stage, observations with a larger residual are dropped
+            (``None``: nothing is dropped).
+        bone_outliers: after the stage, joints whose bones are all implausible
+            (``options.bone_outlier_k``) are dropped too.
+        only_if_rejected: run the stage only when the previous one dropped something.
+        cap_if_outliers: the stage's most iterations when the first rejection found
+            outliers (it only has to expose the rest); ``None``: ``options.max_iterations``.
+    """
+
+    name: str
+    kernel: str | None
+    kernel_scale_px: float
+    reject_px: float | None
+    bone_outliers: bool = False
+    only_if_rejected: bool = False
+    cap_if_outliers: int | None = None
+
+
+@dataclass(frozen=True)
+class SolveConfig:
+    """What varies between rigs (one driver, :func:`solve`).
+
+    Attributes:
+        stages: the full-graph solves, in order.
+        first_rejection: drop observations beyond the outlier threshold and joints with
+            implausible bones after the first triangulation (needs an initial rig good
+            to a few pixels: a RANSAC mirror; a chained pairwise rig is not).
+        warm_start: reprojection-only iterations on spread frames first (only where
+            every camera pose is held: the first mirror's distance is its gauge).
+        joints_pass: solve the joints again with the tighter smoothness.
+        chunks: long videos of one camera and one mirror in chunks sharing the mirror
+            (otherwise: a spread subset of frames).
+    """
+
+    stages: tuple[Stage, ...]
+    first_rejection: bool = True
+    warm_start: bool = True
+    joints_pass: bool = True
+    chunks: bool = True
+
+
+def single_mirror_config(opts: RefineOptions) -> SolveConfig:
+    """A RANSAC-initialised mirror: the first rejection at once, the kernel chosen by what
+    it found, a second solve only if the first exposed more outliers."""
+    thr = opts.outlier_threshold
+    stages = (Stage("full graph", opts.final_kernel, opts.final_kernel_scale_px, thr,
+                    bone_outliers=True, cap_if_outliers=opts.outlier_pass_iterations),
+              Stage("final (outliers removed)", opts.final_kernel, opts.final_kernel_scale_px,
+                    thr, bone_outliers=True, only_if_rejected=True))
+    return SolveConfig(stages=stages)
+
+
+#: The first solve's robust kernel is this many times wider than the final one, and
+#: only observations beyond this many outlier thresholds are dropped after it. The
+#: chained pairwise initialisation of a rig can be degrees and decimetres off
+#: (residuals of 50-150 px on a 120-frame four-camera rig), which that solve removes;
+#: a kernel or a rejection at the final scale would then discard good keypoints.
+INITIAL_REJECTION_FACTOR = 5.0
+
+
+def rig_config(opts: RefineOptions) -> SolveConfig:
+    """A rig chained from pairwise estimates: a shrinking kernel, then least squares on
+    the inliers; the rejection per observation (a wrong keypoint in one camera does
+    not cost the other views)."""
+    thr = opts.outlier_threshold
+    f = INITIAL_REJECTION_FACTOR
+    stages = (Stage("wide kernel", "geman_mcclure", f * opts.final_kernel_scale_px, f * thr,
+                    bone_outliers=True),
+              Stage("kernel", "geman_mcclure", opts.final_kernel_scale_px, thr),
+              Stage("least squares", None, opts.final_kernel_scale_px, None))
+    return SolveConfig(stages=stages, first_rejection=False, warm_start=False,
+                       joints_pass=False, chunks=False)
+
+
+# --------------------------------------------------------------------------- result
+@dataclass
+class SolveState:
+    """What :func:`solve` returns (graph units: metres with a subject height).
+
+    Attributes:
+        poses: ``(4, 4)`` camera-to-world pose per camera.
+        planes: ``(n, d)`` per mirror.
+        points: ``(T, J, 3)`` joints (NaN where not estimated); used: ``(T, J)``.
+        bone_lengths: bone name -> length.
+        scale: ``"subject_height"`` or ``"unit_distance"``.
+        camera_cov: per camera ``(6, 6)`` tangent covariance (zeros for a held pose,
+            NaN when not computed), scaled by ``variance_factor``.
+        plane_cov: per mirror ``(3, 3)`` tangent covariance ``(v1, v2, d)``, scaled.
+        plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
+        noise_px: the a posteriori pixel sigma; variance_factor: ``(noise / pixel_sigma)^2``.
+        view_masks: per view the observations kept.
+        rejected: observations dropped as outliers (all views, all stages).
+        undetermined: joints dropped because GTSAM found them undetermined.
+        prior_info: prior name -> description.
+        reprojection_factors: in the final graph(s).
+        iterations, final_error, stages, timings: bookkeeping.
+        body_height: subject height in graph units (the body priors' length scale).
+        information, z_keys, z_values: the reduced system of the last undamped solve.
+        problem: the final graph (``None`` for chunked solves).
+    """
+
+    poses: list[np.ndarray]
+    planes: list[tuple[np.ndarray, float]]
+    points: np.ndarray
+    used: np.ndarray
+    bone_lengths: dict[str, float]
+    scale: str
+    camera_cov: list[np.ndarray]
+    plane_cov: list[np.ndarray]
+    plane_basis: list[np.ndarray]
+    noise_px: float
+    variance_factor: float
+    view_masks: list[np.ndarray]
+    rejected: int
+    undetermined: int
+    prior_info: dict[str, dict]
+    reprojection_factors: int
+    iterations: int
+    final_error: float
+    stages: list[dict]
+    timings: dict[str, float]
+    body_height: float = float("nan")
+    information: np.ndarray | None = None
+    z_keys: list[tuple[int, int]] = field(default_factory=list)
+    z_values: gtsam.Values | None = None
+    problem: GraphProblem | None = None
+
+
+# --------------------------------------------------------------------------- geometry
+def view_centres(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
+                 ) -> np.ndarray:
+    """``(V, 3)`` optical centre of every view: the camera's, or its reflection."""
+    out = []
+    for v in rig.views:
+        c = np.asarray(poses[rig.camera_index(v.camera)], float)[:3, 3]
+        if v.mirror is not None:
+            n, d = planes[rig.mirror_index(v.mirror)]
+            n = np.asarray(n, float)
+            c = c - 2.0 * (n @ c - d) * n
+        out.append(c)
+    return np.array(out)
+
+
+def triangulate_rig(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
+                    planes: list[tuple[np.ndarray, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, J, 3)`` joints (world frame) and ``(T, J)`` mask: every estimated joint seen
+    in two of ``masks`` (per view), triangulated with the rig ``poses`` / ``planes``."""
+    jmask = np.zeros(rig.skeleton.num_joints, dtype=bool)
+    jmask[rig.joints] = True
+    return triangulate(view_projections(rig, poses, planes), [v.pixels for v in rig.views],
+                       [np.asarray(m, bool) & jmask[None, :] for m in masks])
+
+
+def parallax_deg(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, planes
+                 ) -> np.ndarray:
+    """``(T, J)`` largest angle between the *lines* of two rays that see a joint, degrees.
+
+    Rays pointing opposite ways (a joint between the camera and the mirror, seen
+    from the camera and from its virtual camera behind the mirror) are as
+    ill-conditioned as rays pointing the same way: a joint's depth standard
+    deviation grows as ``1 / sin(angle)``. 0 where under two views see it.
+    """
+    C = view_centres(rig, poses, planes)
+    X = np.nan_to_num(points)
+    dirs = X[None] - C[:, None, None, :]                                   # (V, T, J, 3)
+    dirs /= np.maximum(np.linalg.norm(dirs, axis=-1, keepdims=True), 1e-300)
+    m = np.stack([np.asarray(k, bool) for k in masks])
+    best = np.zeros(points.shape[:2])
+    for a in range(len(C)):
+        for b in range(a + 1, len(C)):
+            cos = np.abs(np.einsum("tjk,tjk->tj", dirs[a], dirs[b]))
+            ang = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+            best = np.where(m[a] & m[b], np.maximum(best, ang), best)
+    return best
+
+
+def spread_rows(T: int, count: int) -> np.ndarray:
+    """``(T,)`` bool: ``count`` frame rows spread evenly over ``T`` (all if ``T <= count``)."""
+    mask = np.zeros(T, dtype=bool)
+    if count <= 0 or T <= count:
+        mask[:] = count > 0 or T == 0
+        return mask
+    mask[np.unique(np.linspace(0, T - 1, count).round().astype(int))] = True
+    return mask
+
+
+# --------------------------------------------------------------------------- pieces
+def lm_params(opts: RefineOptions, problem: GraphProblem,
+              max_iterations: int | None = None) -> LMParams:
+    """:class:`LMParams` from the options; the points' damping scale is the typical
+    information of a point seen in two views, ``2 (f / Z)^2 / sigma^2`` (graph units)."""
+    K = problem.rig.cameras[0].K
+    depth = problem.median_depth
+    scale = 2.0 * (K[0, 0] / max(depth, 1e-9)) ** 2 / opts.pixel_sigma ** 2
+    return LMParams(max_iterations=opts.max_iterations if max_iterations is None
+                    else max_iterations, relative_tolerance=opts.relative_tolerance,
+                    global_step_tolerance=opts.global_step_tolerance, local_scale=scale)
+
+
+def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
+             *, with_lengths: bool, distance_gauge: float | None, max_iterations=None,
+             hold_globals: bool = False, progress: Progress | None = None
+             ) -> tuple[LMResult, list[tuple[int, int]]]:
+    """Levenberg-Marquardt on ``graph`` with the links exact, the cheirality guard on."""
+    red = mirror_reduction(problem, with_lengths=with_lengths, distance_gauge=distance_gauge)
+    lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
+                            ordering=problem.point_ordering(), hold_globals=hold_globals,
+                            guard=cheirality_guard(problem))
+    return lm.optimize(problem.values, progress), red.z_keys
+
+
+def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
+    """``(T, J)`` bool: the points GTSAM found (nearly) undetermined during ``res``
+    (:attr:`~.optimizer.LMResult.indeterminate`); they are dropped with their pairs."""
+    T, J = problem.used.shape
+    out = np.zeros(T * J, dtype=bool)
+    flat = np.array(sorted(res.indeterminate), dtype=np.uint64) - np.uint64(point_keys([0])[0])
+    flat = flat[flat < T * J].astype(np.int64)
+    out[flat] = True
+    return out.reshape(T, J) & problem.used
+
+
+def seen_twice(masks: list[np.ndarray]) -> np.ndarray:
+    """``(T, J)`` bool: observed in at least two views."""
+    return np.sum([np.asarray(m, bool) for m in masks], axis=0) >= 2
+
+
+def gauge_scale(rig: Rig, points: np.ndarray, used: np.ndarray, height: float) -> float:
+    """Factor that makes the per-bone median lengths sum to Winter's lengths for ``height``."""
+    names, pairs = bone_table(rig)
+    expected = expected_bone_lengths(rig.skeleton, height)
+    total, want = 0.0, 0.0
+    for name, (a, b) in zip(names, pairs):
+        ok = used[:, a] & used[:, b]
+        if ok.any():
+            total += float(np.median(np.linalg.norm(points[ok, a] - points[ok, b], axis=1)))
+            want += expected[name]
+    return want / total if total > 0 else 1.0
+
+
+class Counter:
+    """Counts iterations over stages and forwards them to the user's callback, whose
+    error never rises: a stage that starts above the last reported error (new factors,
+    another kernel) is reported from where it gets below it."""
+
+    def __init__(self, progress: Progress | None) -> None:
+        self.progress, self.count, self.last = progress, 0, float("inf")
+
+    def __call__(self, iteration: int, error: float) -> None:
+        self.count += 1
+        if self.progress is not None and error <= self.last:
+            self.last = error
+            self.progress(self.count, error)
+
+    def restart(self) -> None:
+        """A new objective (another graph): its errors are not comparable."""
+        self.last = float("inf")
+
+
+def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
+    """One entry of :attr:`SolveState.stages`."""
+    return {"name": name, "iterations": res.iterations, "initial_error": res.initial_error,
+            "final_error": res.final_error, "converged": res.converged, "rejected": rejected,
+            "failed_steps": res.rejected_steps, "guarded": res.guarded,
+            "undetermined": len(res.indeterminate), **extra}
+
+
+# --------------------------------------------------------------------------- the stages
+def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,
+                counter: Counter) -> SolveState:
+    timings = {"triangulate": 0.0, "build": 0.0, "solve": 0.0, "marginals": 0.0}
+    t_start = time.perf_counter()
+    stages: list[dict] = []
+    if height is not None:
+        opts = replace(opts, subject_height=float(height))
+    poses = [np.asarray(c.pose, float).copy() for c in rig.cameras]
+    planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
+    masks = [np.asarray(v.mask, bool) for v in rig.views]
+    offered = [int(np.count_nonzero(m)) for m in masks]
+    thr = opts.outlier_threshold
+
+    # 1. triangulate, cheirality, parallax, first rejection
+    t = time.perf_counter()
+    points, masks, rejected, found = clean_views(rig, masks, poses, planes, opts, config,
+                                            opts.min_parallax_deg)
+    timings["triangulate"] += time.perf_counter() - t
+
+    # 2. warm start on spread frames, reprojection only, the first distance held
+    if (config.warm_start and opts.warm_start_iterations > 0 and planes
+            and not any(c.estimate_pose for c in rig.cameras)):
+        t = time.perf_counter()
+        rows = spread_rows(rig.num_frames, opts.warm_start_frames)
+        used = seen_twice(masks) & rows[:, None]
+        used &= parallax_deg(rig, points, masks, poses, planes) >= opts.warm_start_min_parallax_deg
+        if np.count_nonzero(used) >= MIN_PAIRS:
+            warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False)
+            timings["build"] += time.perf_counter() - t
+            t = time.perf_counter()
+            counter.restart()
+            res, _ = optimize(warm, warm.reprojection, opts, with_lengths=False,
+                              distance_gauge=planes[0][1],
+                              max_iterations=opts.warm_start_iterations, progress=counter)
+            planes = extract_planes(warm, res.values)
+            poses = extract_camera_poses(warm, res.values)
+            # every joint again with the warm rig (the original masks: the first
+            # rejection is judged anew against the better mirror)
+            points, masks, rejected, found = clean_views(
+                rig, [np.asarray(v.mask, bool) for v in rig.views], poses, planes, opts,
+                config, opts.min_parallax_deg)
+            stages.append(stage_record("warm start (reprojection only, %d frames)"
+                                       % np.count_nonzero(used.any(1)), res, rejected))
+        timings["solve"] += time.perf_counter() - t
+    _check_held(rig, masks, offered)
+    used = seen_twice(masks) & np.isfinite(points).all(-1)
+    if np.count_nonzero(used) < MIN_PAIRS:
+        raise DegenerateGeometryError(
+            f"only {np.count_nonzero(used)} joints are seen in two views after the outliers "
+            f"and the joints without depth were removed (need {MIN_PAIRS})")
+
+    # 3. start on the gauge
+    if height is not None:
+        s = gauge_scale(rig, points, used, float(height))
+        points = points * s
+        planes = [(n, d * s) for n, d in planes]
+        for p in poses:
+            p[:3, 3] *= s
+
+    # 4. the stages
+    problem, values, res, z_keys = None, None, None, []
+    lengths, body_height, length_sum = None, (None if height is None else float(height)), None
+    dropped_last, n_undetermined, iterations = True, 0, sum(s["iterations"] for s in stages)
+    for stage in config.stages:
+        if stage.only_if_rejected and not dropped_last:
+            continue
+        kernel = stage.kernel
+        if kernel == "auto":
+            kernel = ("geman_mcclure" if found > opts.auto_kernel_fraction * max(used.sum(), 1)
+                      else None)
+        if np.count_nonzero(used) < MIN_PAIRS:
+            raise DegenerateGeometryError(
+                f"only {int(np.count_nonzero(used))} joints left in two views after outlier "
+                f"rejection (need {MIN_PAIRS})")
+        t = time.perf_counter()
+        stage_opts = replace(opts, final_kernel_scale_px=stage.kernel_scale_px)
+        srig = with_views(rig, masks, poses, planes)
+        problem = build_problem(srig, points, used, planes, stage_opts,
+                                body_height=body_height, bone_lengths=lengths,
+                                length_sum=length_sum, final_kernel=kernel)
+        if height is not None:
+            problem.body_height = float(height)
+        snap_virtual_poses(problem, problem.values)
+        timings["build"] += time.perf_counter() - t
+        t = time.perf_counter()
+        cap = stage.cap_if_outliers if (res is None and found) else None
+        counter.restart()
+        res, z_keys = optimize(problem, problem.full(), stage_opts, with_lengths=True,
+                               distance_gauge=problem.distance_gauge, max_iterations=cap,
+                               progress=counter)
+        iterations += res.iterations
+        values = res.values
+        points = extract_points(problem, values)
+        planes = extract_planes(problem, values)
+        poses = extract_camera_poses(problem, values)
+        lengths = problem.bone_lengths(values)
+        body_height = problem.body_height
+        if problem.length_key is not None and height is None:
+            length_sum = problem.prior_info["length_sum_gauge"]["sum"]
+        lost = undetermined(problem, res)
+        n_undetermined += int(np.count_nonzero(lost))
+        used = problem.used & ~lost
+        dropped = 0
+        if stage.reject_px is not None:
+            masks, dropped = observation_outliers(rig, points, used, masks, poses, planes, stage.reject_px)
+            if stage.bone_outliers and opts.bone_outlier_k > 0:
+                _, pairs = bone_table(rig)
+                bad = bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
+                dropped += int(np.count_nonzero(bad))
+                masks = [m & ~bad for m in masks]
+            _check_held(rig, masks, offered)
+        dropped += int(np.count_nonzero(lost))
+        used &= seen_twice(masks)
+        rejected += dropped
+        dropped_last = dropped > 0
+        stages.append(stage_record(stage.name, res, dropped, kernel=kernel))
+        timings["solve"] += time.perf_counter() - t
+    final_error = float(res.final_error)
+    final_used = problem.used.copy()
+    state_points = extract_points(problem, values)
+
+    # 5. joints pass: the joints with everything else held, tighter smoothness
+    if config.joints_pass:
+        t = time.perf_counter()
+        jp = joints_pass(problem, values, opts)
+        if jp is not None:
+            state_points = extract_points(problem, jp.values)
+            stages.append(stage_record("joints pass (globals held, smoothness %g h)"
+                                       % opts.joints_smoothness_sigma, jp, 0))
+            iterations += jp.iterations
+        timings["solve"] += time.perf_counter() - t
+
+    # 6. marginals, scaled by the noise the data show
+    t = time.perf_counter()
+    final_masks = [np.asarray(v.mask, bool) & final_used for v in problem.rig.views]
+    noise_px = reprojection_noise_px(problem.rig, final_masks, poses, planes,
+                                     6 * len(problem.camera_keys) + 3 * len(planes))
+    factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
+    cam_cov, plane_cov, basis, zv = covariances(problem, values, res.reduced_information,
+                                                z_keys, opts.marginals)
+    timings["marginals"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t_start
+    info = dict(problem.prior_info)
+    if problem.distance_gauge is not None:
+        info["distance_gauge"] = {"sigma": 1e-6, "weight": 1e12, "unit": "d", "factors": 1,
+                                  "distance": problem.distance_gauge}
+    return SolveState(poses=poses, planes=planes, points=state_points, used=final_used,
+                      bone_lengths=lengths or {}, scale=problem.scale,
+                      camera_cov=[C * factor for C in cam_cov],
+                      plane_cov=[C * factor for C in plane_cov], plane_basis=basis,
+                      noise_px=noise_px, variance_factor=factor, view_masks=final_masks,
+                      rejected=rejected, undetermined=n_undetermined, prior_info=info,
+                      reprojection_factors=int(problem.reprojection.size()),
+                      iterations=iterations, final_error=final_error, stages=stages,
+                      timings=timings, body_height=problem.body_height,
+                      information=res.reduced_information, z_keys=z_keys, z_values=zv,
+                      problem=problem)
+
+
+def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,
+           config: SolveConfig, min_parallax: float):
+    """Triangulate; drop observations behind their camera, joints without parallax and,
+    with ``config.first_rejection``, outliers. Returns points, masks, the count dropped
+    and the count of outliers found (for the ``"auto"`` kernel)."""
+    points, _ = triangulate_rig(rig, masks, poses, planes)
+    masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)
+    points, ok = triangulate_rig(rig, masks, poses, planes)
+    flat = ok & (parallax_deg(rig, points, masks, poses, planes) < min_parallax)
+    masks = [m & ~flat for m in masks]
+    found = 0
+    if config.first_rejection:
+        used = seen_twice(masks) & ok
+        masks, found = observation_outliers(rig, points, used, masks, poses, planes, opts.outlier_threshold)
+        if opts.bone_outlier_k > 0:
+            _, pairs = bone_table(rig)
+            bad = bone_outliers(points, used & seen_twice(masks), pairs, k=opts.bone_outlier_k)
+            found += int(np.count_nonzero(bad))
+            masks = [m & ~bad for m in masks]
+    return points, masks, behind + int(np.count_nonzero(flat)) + found, found
+
+
+#: An estimated camera or a mirror needs at least this many keypoints left in its
+#: views after outlier rejection (a pose has 6 unknowns, a plane 3).
+MIN_HELD_OBSERVATIONS = 30
+
+
+def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
+    """Raise when an estimated camera or a mirror has (almost) no keypoints left.
+
+    Raises:
+        DegenerateGeometryError: naming the camera or mirror, with the counts.
+    """
+    kept = np.array([int(np.count_nonzero(m)) for m in masks])
+    had = np.asarray(offered)
+    groups = [(f"camera {c.name}", [i for i, v in enumerate(rig.views) if v.camera == c.name])
+              for c in rig.cameras if c.estimate_pose]
+    groups += [(f"mirror {m.name}", [i for i, v in enumerate(rig.views) if v.mirror == m.name])
+               for m in rig.mirrors]
+    for what, idx in groups:
+        if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
+            raise DegenerateGeometryError(
+                f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the rest of "
+                f"the rig (need {MIN_HELD_OBSERVATIONS}): is it the same person as in the "
+                "other cameras? the right intrinsics, frame offset, mirror?")
+
+
+def with_views(rig: Rig, masks: list[np.ndarray], poses=None, planes=None) -> Rig:
+    """``rig`` with other view masks (and initial poses / planes)."""
+    out = replace(rig, views=tuple(replace(v, mask=m) for v, m in zip(rig.views, masks)))
+    if poses is not None:
+        out = replace(out, cameras=tuple(replace(c, pose=np.asarray(p, float))
+                                         for c, p in zip(out.cameras, poses)))
+    if planes is not None:
+        out = replace(out, mirrors=tuple(replace(m, normal=np.asarray(n, float),
+                                                 distance=float(d))
+                                         for m, (n, d) in zip(out.mirrors, planes)))
+    return out
+
+
+#: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the smoothness is linear
+#: in the points and the points start at the calibration's solution, so one step lands
+#: within ~1 mm of the converged joints (error 15156.7 vs 15155.9 converged on a
+#: 1000-frame protocol scene).
+JOINTS_PASS_ITERATIONS = 1
+
+
+def joints_pass(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
+                ) -> LMResult | None:
+    """The 3D joints solved again with every global held and the smoothness of
+    ``opts.joints_smoothness_sigma``, from ``values``.
+
+    Returns:
+        The solve (``None``: skipped, without smoothness or when that sigma is not
+        tighter than the calibration's).
+    """
+    sigma = opts.joints_smoothness_sigma
+    if not opts.use_smoothness or sigma is None or sigma >= opts.smoothness_sigma:
+        return None
+    # the calibration's smoothness stays; factors of sigma_x are added so that the two
+    # together weigh as one of ``sigma``: 1 / sigma^2 = 1 / sigma_c^2 + 1 / sigma_x^2
+    sigma_x = 1.0 / np.sqrt(1.0 / sigma ** 2 - 1.0 / opts.smoothness_sigma ** 2)
+    graph = problem.full()
+    graph.push_back(smoothness_graph(problem, values, problem.body_height * sigma_x,
+                                     opts.smoothness_max_gap))
+    red = mirror_reduction(problem, with_lengths=True, distance_gauge=problem.distance_gauge)
+    lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, JOINTS_PASS_ITERATIONS),
+                            ordering=problem.point_ordering(), hold_globals=True,
+                            guard=cheirality_guard(problem))
+    return lm.optimize(values)
+
+
+def reprojection_noise_px(rig: Rig, masks: list[np.ndarray], poses, planes,
+                          global_unknowns: int) -> float:
+    """A posteriori pixel sigma: every joint of ``masks`` triangulated from its views with
+    the solved rig (maximum likelihood of the reprojection alone), ``sqrt(RSS / dof)``
+    with ``dof = 2 observations - 3 joints - global_unknowns``
+    (:func:`~.result.residual_noise_px`)."""
+    X, ok = triangulate_rig(rig, masks, poses, planes)
+    kept = [m & ok for m in masks]
+    res = view_residuals(with_views(rig, kept), X, ok, planes, poses)
+    r = np.concatenate([v[np.isfinite(v)] for v in res])
+    n_obs = len(r)
+    return residual_noise_px(float(np.sum(r ** 2)), 2 * n_obs,
+                             3 * int(np.count_nonzero(ok)) + global_unknowns)
+
+
+def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
+                z_keys, compute: bool = True):
+    """Per camera ``(6, 6)`` and per plane ``(3, 3)`` tangent covariance from the reduced
+    information (:func:`~.optimizer.reduced_marginals`), the planes' normal bases and the
+    reduced variables' values. Held cameras get zeros; NaN where not computed."""
+    rig = problem.rig
+    nan6, nan3 = np.full((6, 6), np.nan), np.full((3, 3), np.nan)
+    basis = [np.asarray(values.atOrientedPlane3(k).normal().basis()) for k in problem.plane_keys]
+    zv = gtsam.Values()
+    for k, _ in z_keys:
+        if k in problem.plane_keys:
+            zv.insert(k, values.atOrientedPlane3(k))
+        elif k == problem.length_key:
+            zv.insert(k, values.atVector(k))
+        else:
+            zv.insert(k, values.atPose3(k))
+    if info is None or not compute:
+        return ([np.zeros((6, 6)) if i not in problem.camera_keys else nan6
+                 for i in range(len(rig.cameras))],
+                [nan3] * len(problem.plane_keys), basis, zv)
+    marg = reduced_marginals(info, z_keys, zv)
+    cams = [np.zeros((6, 6)) if problem.camera_keys.get(i) is None
+            else np.asarray(marg.marginalCovariance(problem.camera_keys[i]))
+            for i in range(len(rig.cameras))]
+    planes = [np.asarray(marg.marginalCovariance(k)) for k in problem.plane_keys]
+    return cams, planes, basis, zv
