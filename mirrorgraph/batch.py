@@ -22,7 +22,9 @@ A *manifest* lists the recordings (see :func:`read_manifest`):
 :func:`run_batch` calibrates every recording on a Dask cluster: a local one by default
 (one single-threaded worker *process* per core: GTSAM holds the GIL, so threads would not
 run in parallel), or an existing cluster given by its scheduler address. Each task runs
-the whole pipeline and writes its calibration JSON atomically; a recording that fails
+the whole pipeline and writes its calibration JSON atomically, with the run its report
+draws from beside it (``<out>.report.npz``, :mod:`mirrorgraph.report.store`, so that
+``mirrorgraph report`` shows that very run); a recording that fails
 is reported with its one-line error and does not stop the others. Workers of an existing
 cluster need mirrorgraph installed and the paths of the manifest readable.
 
@@ -220,6 +222,10 @@ def _height(text: str, where: str) -> float | None:
     if not math.isfinite(value) or value <= 0:
         raise InputError(f"must be a positive number of metres, got {text!r}", source=where,
                          field="subject_height")
+    from .cli import height_problem
+    problem = height_problem(value)
+    if problem is not None:
+        raise InputError(problem, source=where, field="subject_height")
     return value
 
 
@@ -270,16 +276,19 @@ def calibrate_recording(recording: Recording, options: CalibrateOptions) -> Batc
         if rec.out.is_dir():
             raise InputError("is a folder; give a file name for the calibration JSON",
                              source=rec.out, field="out")
-        from .calibration import write_calibration
         from .intrinsics import load_intrinsics
         from .pipeline import calibrate
+        from .report.store import write_calibration_and_run
 
         intr = None if rec.intrinsics is None else load_intrinsics(rec.intrinsics)
         opts = options if rec.subject_height is None else \
             replace(options, subject_height=rec.subject_height)
-        cal = calibrate(rec.keypoints, intr, opts).calibration
+        run = calibrate(rec.keypoints, intr, opts)
+        cal = run.calibration
+        cal.input.setdefault("subject_height", opts.subject_height)     # for a recomputation
+        cal.input.setdefault("scale_from", getattr(opts.refine_options, "scale_from", "stature"))
         rec.out.parent.mkdir(parents=True, exist_ok=True)
-        write_calibration(rec.out, cal)
+        write_calibration_and_run(rec.out, run)     # with the run its report draws from
         std = cal.uncertainty.get("rotation_std_deg") if cal.uncertainty else None
         result = replace(result, status=OK, out=str(rec.out),
                          normal=tuple(float(v) for v in cal.normal),
@@ -351,7 +360,8 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise MirrorgraphError("mirrorgraph batch needs Dask: pip install "
-                               "'mirrorgraph[batch]' (dask[distributed])") from None
+                               "'mirrorgraph[batch]' (in a clone: pip install -e '.[batch]')"
+                               ) from None
 
     cluster = None
     if scheduler:
@@ -438,6 +448,7 @@ def results_to_json(results: Sequence[BatchResult]) -> list[dict]:
 # --------------------------------------------------------------------------- command line
 def add_batch_parser(subparsers) -> None:
     """Add the ``batch`` command to ``mirrorgraph``'s sub-command parsers."""
+    from .cli import _height as _human_height
     from .cli import _image_size, _positive, _rate
 
     p = subparsers.add_parser(
@@ -461,7 +472,7 @@ def add_batch_parser(subparsers) -> None:
     p.add_argument("--threshold", type=_positive, default=None, metavar="PX",
                    help="inlier threshold on the epipolar distance in pixels (default 10)")
     p.add_argument("--min-confidence", type=_rate, default=0.3)
-    p.add_argument("--subject-height", type=_positive, metavar="METRES",
+    p.add_argument("--subject-height", type=_human_height, metavar="METRES",
                    help="subject height for recordings whose manifest line gives none")
     p.add_argument("--image-size", type=_image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")

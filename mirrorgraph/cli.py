@@ -4,7 +4,7 @@
     mirrorgraph synth --out DIR [--frames N --noise PX --outliers R ...]
     mirrorgraph demo
     mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
-    mirrorgraph report calibration.json KEYPOINTS --out DIR
+    mirrorgraph report calibration.json [KEYPOINTS] --out DIR
     mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
     mirrorgraph synth-rig KIND --out DIR
@@ -12,6 +12,13 @@
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
 traceback). No output file is written by a failed run.
+
+What a run says: its summary on stdout, each warning once on stderr (also under
+``--quiet``), progress bars on stderr only when it is a terminal
+(:mod:`mirrorgraph.progress`), and a last line naming what was written.
+``calibrate --out c.json`` also keeps the run its figures are drawn from in
+``c.report.npz`` (named in ``c.json``, see :mod:`mirrorgraph.report.store`), so
+that ``report`` later draws the very figures ``calibrate --report`` draws.
 """
 
 from __future__ import annotations
@@ -20,13 +27,14 @@ import argparse
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
 from .errors import InputError, MirrorgraphError
-from .progress import Progress
+from .progress import Progress, SolveProgress
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
@@ -63,6 +71,37 @@ def _rate(text: str) -> float:
     return v
 
 
+#: Standing heights accepted by ``--subject-height``, metres (as the pipeline checks).
+HUMAN_HEIGHT_M = (0.5, 2.8)
+
+
+def height_problem(value: float) -> str | None:
+    """Why ``value`` is not a subject height in metres (with the likely unit it was given
+    in), or ``None`` when it is one.
+
+    Example:
+        >>> height_problem(175)
+        '175 m is not a human height (0.5 to 2.8 m): did you mean 1.75 m (centimetres given)?'
+    """
+    lo, hi = HUMAN_HEIGHT_M
+    if lo < value < hi:
+        return None
+    text = f"{value:g} m is not a human height ({lo:g} to {hi:g} m)"
+    for factor, unit in ((100.0, "centimetres"), (1000.0, "millimetres")):
+        if lo < value / factor < hi:
+            return text + f": did you mean {value / factor:g} m ({unit} given)?"
+    return text
+
+
+def _height(text: str) -> float:
+    """``--subject-height``: a human height in metres (centimetres are caught and named)."""
+    v = _positive(text)
+    problem = height_problem(v)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return v
+
+
 def _seed(text: str) -> int:
     v = _number(text, int, "an integer")
     if v < 0:
@@ -75,6 +114,11 @@ def _floats(text: str) -> tuple[float, ...]:
         return tuple(float(x) for x in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+def _install_hint() -> str:
+    from .report import INSTALL_HINT
+    return INSTALL_HINT
 
 
 # --------------------------------------------------------------------------- calibrate
@@ -105,8 +149,8 @@ def _add_calibrate(sub) -> None:
                    help="ignore joints below this detector confidence (default 0.3)")
     p.add_argument("--joints", help="comma-separated joint names to use (default: no face, "
                                     "hands or feet)")
-    p.add_argument("--subject-height", type=_positive, metavar="METRES",
-                   help="subject's standing height: gives the metric scale")
+    p.add_argument("--subject-height", type=_height, metavar="METRES",
+                   help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
     p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
                    help="how the height becomes a length: stature (default: measured on the joints, ankle "
                         "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
@@ -122,7 +166,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--report", metavar="DIR",
                    help="write the report's figures (PNG) into DIR (needs matplotlib: "
-                        "pip install 'mirrorgraph[plot]')")
+                        f"{_install_hint()})")
     p.add_argument("--video", metavar="FILE",
                    help="with --report: draw the overlay on sampled frames of this video")
     p.add_argument("--render", metavar="OUT.mp4",
@@ -132,7 +176,6 @@ def _add_calibrate(sub) -> None:
 
 
 def _cmd_calibrate(args) -> int:
-    from .calibration import write_calibration
     from .intrinsics import load_intrinsics
     from .io import read_keypoints
     from .io.motion import write_joints3d
@@ -148,6 +191,10 @@ def _cmd_calibrate(args) -> int:
     if args.report:
         from .report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
+    if args.video and not Path(args.video).is_file():
+        raise InputError("no such video file", source=args.video, field="--video")
+    if args.render and Path(args.render).suffix.lower() != ".mp4":
+        raise InputError("must end in .mp4", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
     if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
@@ -172,36 +219,89 @@ def _cmd_calibrate(args) -> int:
         opts.threshold_px = args.threshold
     if args.fov is not None:
         opts.fov_deg = args.fov
-    with Progress("robust initialisation", enabled=not args.quiet) as r_bar, \
-            Progress("solving the graph", enabled=not args.quiet) as g_bar:
-        def on_sample(it: int, planned: int) -> None:
-            r_bar.callback(it, planned)
-
-        def on_iteration(it: int, err: float) -> None:
-            r_bar.close()
-            g_bar.update(1, info=f"error {err:.4g}")
-        run = calibrate(data, intr, opts, progress=lambda s: _step(args, s),
-                        iteration_progress=on_iteration, ransac_progress=on_sample)
+    for name, value in (("fps", args.fps), ("video", args.video)):
+        if value is not None and hasattr(opts, name):     # the frame rate of the 3D motion
+            setattr(opts, name, value)
+    with _solver_progress(args) as callbacks:
+        run = calibrate(data, intr, opts, **callbacks)
     calib = run.calibration
-    write_calibration(args.out, calib)
+    # what a recomputation needs and the JSON does not otherwise say
+    calib.input.setdefault("subject_height", args.subject_height)
+    calib.input.setdefault("scale_from", args.scale_from)
+    _write_calibration_and_run(args.out, run)
     if args.joints3d:
         if run.joints3d is None:
             raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
         write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
-                       run.paired.skeleton.joints, args.fps or run.paired.fps or 30.0,
+                       run.paired.skeleton.joints,
+                       args.fps or getattr(run, "fps", None) or run.paired.fps or 30.0,
                        unit="m" if calib.distance is not None else "mirror distance")
+    report_line = None
     if args.report:
         from .report import make_report
-        make_report(run, args.report, video=args.video, render=args.render,
-                    progress=lambda s: _step(args, s), progress_bar=not args.quiet)
-    for w in calib.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    say(calib.summary())
+        written = make_report(run, args.report, video=args.video, render=args.render,
+                              progress=lambda s: _step(args, s), progress_bar=not args.quiet)
+        report_line = _report_written(written, args.report)
+    _print_result(args, calib.summary(), calib.warnings)
     if args.verbose and not args.quiet:
         print("timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in run.timings.items()),
               file=sys.stderr)
+    if report_line:
+        say(report_line)
     say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
     return 0
+
+
+def _write_calibration_and_run(out: str | Path, run) -> None:
+    """The calibration JSON and, beside it, the run its report draws from
+    (:func:`mirrorgraph.report.store.write_calibration_and_run`)."""
+    from .report.store import write_calibration_and_run
+    write_calibration_and_run(out, run)
+
+
+@contextmanager
+def _solver_progress(args):
+    """Progress bars of the robust initialisation and of the graph; yields the keyword
+    arguments of :func:`mirrorgraph.calibrate` that draw them.
+
+    The initialisation's bar ends with the first step after it, its total shown
+    once known (the RANSAC adapts it); the graph's shows the accepted steps and
+    the error of the current pass (:class:`~mirrorgraph.progress.SolveProgress`).
+    """
+    with Progress("robust initialisation", enabled=not args.quiet) as r_bar, \
+            Progress("solving the graph", enabled=not args.quiet) as g_bar:
+        solve = SolveProgress(g_bar, on_first=r_bar.close)
+
+        def step(name: str) -> None:
+            if r_bar.started:             # any step after the initialisation ends its bar
+                r_bar.close()
+            _step(args, name)
+        yield {"progress": step, "iteration_progress": solve,
+               "ransac_progress": r_bar.estimate}
+        g_bar.close(solve.info or None)
+
+
+def _report_written(written: dict, out) -> str:
+    """``wrote 5 figures and 6 video overlays to DIR, and the overlay video OUT.mp4``."""
+    figures = sum(1 for k in written if not k.startswith("overlay_") and k != "video")
+    parts = [f"{figures} figure{'s' * (figures != 1)}"]
+    overlays = sum(1 for k in written if k.startswith("overlay_"))
+    if overlays:
+        parts.append(f"{overlays} video overlay{'s' * (overlays != 1)}")
+    text = f"wrote {' and '.join(parts)} to {out}"
+    if "video" in written:
+        text += f", and the overlay video {written['video']}"
+    return text
+
+
+def _print_result(args, summary: str, warnings) -> None:
+    """The summary on stdout (unless ``--quiet``, and without its warning lines), then
+    every warning once on stderr (also under ``--quiet``)."""
+    lines = [ln for ln in summary.splitlines() if not ln.startswith("warning: ")]
+    _say(args)("\n".join(lines))
+    sys.stdout.flush()
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
 
 
 def _verbose_input(args, data) -> None:
@@ -312,20 +412,21 @@ def _cmd_demo(args) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(args.keep) if args.keep else Path(tmp)
         paths = write_scene(scene, root, formats=("mmpose",))
+        where = (f"-> {paths['mmpose']}" if args.keep else
+                 "(in a temporary folder, deleted at the end; --keep DIR keeps it)")
         say(f"scene: {args.frames} frames, COCO-17, 1920x1080, noise 4 px, 5% outliers, "
-            f"5% left/right swaps, subject {scene.subject_height:.2f} m -> {paths['mmpose']}")
+            f"5% left/right swaps, subject {scene.subject_height:.2f} m {where}")
         t0 = time.perf_counter()
-        run = calibrate(paths["mmpose"], load_intrinsics(paths["camera"]),
-                        CalibrateOptions(subject_height=scene.subject_height),
-                        progress=lambda s: _step(args, s))
+        with _solver_progress(args) as callbacks:
+            run = calibrate(paths["mmpose"], load_intrinsics(paths["camera"]),
+                            CalibrateOptions(subject_height=scene.subject_height), **callbacks)
         elapsed = time.perf_counter() - t0
         if args.keep:
-            from .calibration import write_calibration
-            write_calibration(root / "calibration.json", run.calibration)
+            _write_calibration_and_run(root / "calibration.json", run)
     c = run.calibration
     R_true, t_true = scene.virtual_R, scene.virtual_t
     say("")
-    say(c.summary())
+    _print_result(args, c.summary(), c.warnings)
     say("")
     say(f"{'':18s}{'estimate':>34s}{'ground truth':>34s}")
     fmt = lambda v: "[" + ", ".join(f"{x:+.4f}" for x in v) + "]"  # noqa: E731
@@ -342,6 +443,9 @@ def _cmd_demo(args) -> int:
         say(f"distance error            {100 * abs(c.distance - scene.distance) / scene.distance:.2f} %"
             " (scale from the subject's height)")
     say(f"time                      {elapsed:.2f} s")
+    if args.keep:
+        say(f"kept the scene and calibration.json in {root} (mirrorgraph report "
+            f"{root / 'calibration.json'} --out DIR draws its figures)")
     return 0
 
 
@@ -350,10 +454,18 @@ def _add_report(sub) -> None:
     p = sub.add_parser("report", help="figures of a calibration: epipole, residuals, 3D view, "
                                       "bone lengths, uncertainty",
                        description="Write PNG figures of a calibration and, with --video, "
-                                   "overlays on the video (needs the plot extra).")
+                                   "overlays on the video (needs the plot extra). The figures "
+                                   "are those of 'calibrate --report': drawn from the run "
+                                   "'calibrate' kept beside the calibration (CALIBRATION with "
+                                   ".report.npz), or, without it, from the keypoints calibrated "
+                                   "again with the options the calibration records.")
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
-    p.add_argument("keypoints", help="the keypoints the calibration was made from")
+    p.add_argument("keypoints", nargs="?", default=None,
+                   help="the keypoints the calibration was made from (needed only without "
+                        "the .report.npz beside the calibration, or with --recompute)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the figures into")
+    p.add_argument("--recompute", action="store_true",
+                   help="calibrate the keypoints again even where the run is stored")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--video", metavar="FILE",
                    help="draw joints, reflections and epipolar lines on sampled frames")
@@ -364,16 +476,26 @@ def _add_report(sub) -> None:
 
 
 def _cmd_report(args) -> int:
-    from .io import read_keypoints
-    from .report import make_report, require_matplotlib, run_from_calibration
+    from .report import load_run, make_report, require_matplotlib
 
     require_matplotlib()
-    data = read_keypoints(args.keypoints, skeleton=args.skeleton)
-    run = run_from_calibration(args.calibration, data)
-    out = make_report(run, args.out, video=args.video, render=args.render,
+    if args.recompute and args.keypoints is None:
+        raise InputError("needs the keypoints the calibration was made from", field="--recompute")
+    say = _say(args)
+    with _solver_progress(args) as callbacks:
+        loaded = load_run(args.calibration, args.keypoints,
+                          report_data=None if args.recompute else "auto",
+                          skeleton=args.skeleton, **callbacks)
+    for w in loaded.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    note = ""
+    if loaded.origin == "stored" and args.keypoints is not None:
+        note = f" ({args.keypoints} not read; --recompute calibrates it again)"
+    say(loaded.message + note)
+    out = make_report(loaded.run, args.out, video=args.video, render=args.render,
                       max_frames=args.frames, progress=lambda s: _step(args, s),
                       progress_bar=not args.quiet)
-    _say(args)(f"wrote {len(out)} files into {args.out}")
+    say(_report_written(out, args.out))
     return 0
 
 
@@ -396,12 +518,16 @@ def _add_export(sub) -> None:
 
 
 def _cmd_export(args) -> int:
-    from .export import export_calibration
+    from .export import camera_sections, export_calibration
 
     warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
     for w in warnings:
         print(f"warning: {w}", file=sys.stderr)
-    _say(args)(f"wrote {args.out} ({args.fmt}: cameras 'real' and 'mirror')")
+    (k_real, n_real), (k_mirror, n_mirror) = camera_sections(args.fmt)
+    named = lambda key, name: f"[{key}]" + (f" '{name}'" if name != key else "")  # noqa: E731
+    _say(args)(f"wrote {args.out} ({args.fmt}): {named(k_real, n_real)} the real camera, "
+               f"{named(k_mirror, n_mirror)} the mirror's virtual camera (flipped image: give "
+               "it the reflection's keypoints with x -> W - x and left/right swapped)")
     return 0
 
 
@@ -417,8 +543,17 @@ def _say(args):
 
 
 def _step(args, name: str) -> None:
+    """Name a step on stderr with ``--verbose`` (on a terminal over any open progress line)."""
     if getattr(args, "verbose", False) and not args.quiet:
-        print(f"... {name}", file=sys.stderr)
+        clear = "\r" + " " * 80 + "\r" if _isatty(sys.stderr) else ""
+        print(f"{clear}... {name}", file=sys.stderr)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 class _Parser(argparse.ArgumentParser):

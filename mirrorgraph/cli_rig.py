@@ -14,11 +14,21 @@ import time
 from pathlib import Path
 
 from .errors import InputError
-from .progress import Progress
+from .progress import Progress, SolveProgress
 
 __all__ = ["add_rig_parsers"]
 
 KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
+
+
+def _height(text: str) -> float:
+    from .cli import _height as height
+    return height(text)
+
+
+def _install_hint() -> str:
+    from .report import INSTALL_HINT
+    return INSTALL_HINT
 
 
 def add_rig_parsers(sub, common, positive, seed, rate) -> None:
@@ -36,8 +46,9 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--with-virtual", action="store_true",
                    help="add each mirror's virtual camera per camera to the TOML "
                         "(flipped-image convention)")
-    p.add_argument("--subject-height", type=positive, metavar="METRES",
-                   help="subject's height (overrides the rig file's subject_height): metres")
+    p.add_argument("--subject-height", type=_height, metavar="METRES",
+                   help="subject's height in metres, e.g. 1.75 (overrides the rig file's "
+                        "subject_height)")
     p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
                    help="how the height becomes a length: stature (default: measured on the joints, ankle "
                         "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
@@ -53,7 +64,7 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (top view of the rig, residuals per view) into DIR "
-                        "(needs matplotlib: pip install 'mirrorgraph[plot]')")
+                        f"(needs matplotlib: {_install_hint()})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
     common(p)
     p.set_defaults(func=_cmd_calibrate_rig)
@@ -100,16 +111,19 @@ def _cmd_calibrate_rig(args) -> int:
     say = (lambda *_a, **_k: None) if args.quiet else print
     t0 = time.perf_counter()
 
-    def status(text: str) -> None:
-        if args.verbose and not args.quiet:
-            print(f"... {text}", file=sys.stderr)
-
     with Progress("solving the rig", enabled=not args.quiet) as bar:
+        solve = SolveProgress(bar)
+
+        def status(text: str) -> None:        # a status line ends the open progress line
+            if bar.started:
+                bar.close(solve.info or None)
+            if args.verbose and not args.quiet:
+                print(f"... {text}", file=sys.stderr)
         calib = calibrate_rig(args.rig, subject_height=args.subject_height,
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
                               options=RefineOptions(scale_from=args.scale_from),
-                              status=status,
-                              progress=lambda it, err: bar.update(1, info=f"error {err:.4g}"))
+                              status=status, progress=solve)
+        bar.close(solve.info or None)
     if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
             and calib.scale != "subject_height":
         raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
@@ -120,13 +134,14 @@ def _cmd_calibrate_rig(args) -> int:
         write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
                        skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
                        unit="m" if calib.scale == "subject_height" else "subject height")
+    written = None
     if args.report:
         from .report.rig import write_rig_report
-        for path in write_rig_report(calib, args.report):
-            say(f"wrote {path}")
-    for w in calib.warnings:
-        print(f"warning: {w}", file=sys.stderr)
-    say(calib.summary())
+        written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
+    from .cli import _print_result
+    _print_result(args, calib.summary(), calib.warnings)
+    if written is not None:
+        say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
     return 0
 

@@ -96,8 +96,9 @@ from .io._common import load_json, numeric_array
 from .io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 from .skeletons import Skeleton, skeleton_by_name
 
-__all__ = ["FORMATS", "WORLD_FRAMES", "export_calibration", "export_cameras",
-           "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints", "world_rotation"]
+__all__ = ["FORMATS", "WORLD_FRAMES", "camera_sections", "export_calibration",
+           "export_cameras", "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints",
+           "world_rotation"]
 
 #: Export formats: ``--to`` values and the camera-file style each writes.
 FORMATS = {"pose2sim": "pose2sim", "anipose": "anipose", "aniposelib": "anipose"}
@@ -114,6 +115,23 @@ FLIPPED_DISTORTION_TERMS = (3, 8, 9, 13)
 
 _KEYS = {"pose2sim": (("cam_01", "cam_01"), ("cam_02", "cam_02")),
          "anipose": (("cam_0", "real"), ("cam_1", "mirror"))}
+
+
+def camera_sections(fmt: str) -> tuple[tuple[str, str], tuple[str, str]]:
+    """``((section, name) of the real camera, (section, name) of the mirror camera)`` as
+    :func:`export_calibration` writes them for ``fmt``.
+
+    Example:
+        >>> camera_sections("pose2sim")
+        (('cam_01', 'cam_01'), ('cam_02', 'cam_02'))
+        >>> camera_sections("anipose")
+        (('cam_0', 'real'), ('cam_1', 'mirror'))
+    """
+    style = FORMATS.get(str(fmt).lower())
+    if style is None:
+        raise InputError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}",
+                         field="fmt")
+    return _KEYS[style]
 
 _HEADER = """\
 Written by mirrorgraph {version} from {source}.

@@ -91,6 +91,8 @@ def test_csv_manifest_resolves_paths_and_defaults(tmp_path):
     (["keypoints,subject_height", "a.json,tall"], ["line 2", "'subject_height'", "tall"]),
     (["keypoints,subject_height", "a.json,-1.7"], ["line 2", "'subject_height'"]),
     (["keypoints,subject_height", "a.json,nan"], ["line 2", "'subject_height'"]),
+    (["keypoints,subject_height", "a.json,172"],
+     ["line 2", "'subject_height'", "did you mean 1.72 m (centimetres given)?"]),
     (["keypoints,out", "a.json,same.json", "b.json,same.json"],
      ["line 3", "field 'out'", "line 2"]),
     (["keypoints", "x/k.json", "y/k.json"], ["line 3", "k.calibration.json", "line 2"]),
@@ -149,6 +151,12 @@ def test_calibrate_recording_without_dask(scenes, tmp_path):
     check_good(res, scenes / "gym")
     assert res.out == str(good.out) and res.distance is None
     assert any("subject-height" in w for w in res.warnings)     # needs the refinement
+    # beside it, the run its report draws from
+    from mirrorgraph.report import load_run
+    assert json.loads(good.out.read_text())["report_data"] == "gym.report.npz"
+    loaded = load_run(good.out)
+    assert loaded.origin == "stored" and loaded.path == good.out.parent / "gym.report.npz"
+    assert np.count_nonzero(loaded.run.inliers) == json.loads(good.out.read_text())["pairs_used"]
 
     out = tmp_path / "precious.json"
     out.write_text("precious")

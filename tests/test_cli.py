@@ -160,10 +160,13 @@ def test_export_to_pose2sim_and_anipose(scene_dir, tmp_path, capsys):
 def test_same_input_gives_byte_identical_output(scene_dir, tmp_path):
     outs = []
     for k in range(2):
-        out = tmp_path / f"cal{k}.json"
-        j3d = tmp_path / f"j{k}.csv"
+        # the same options, --out's name included (the calibration names its .report.npz)
+        (tmp_path / str(k)).mkdir()
+        out = tmp_path / str(k) / "cal.json"
+        j3d = tmp_path / str(k) / "j.csv"
         assert main(["calibrate", str(scene_dir / "easymocap"), "--intrinsics",
                      str(scene_dir / "camera.json"), "--out", str(out), "--subject-height", "1.7",
                      "--joints3d", str(j3d), "--quiet"]) == 0
-        outs.append((out.read_bytes(), j3d.read_bytes()))
+        outs.append((out.read_bytes(), j3d.read_bytes(),
+                     (tmp_path / str(k) / "cal.report.npz").read_bytes()))
     assert outs[0] == outs[1]

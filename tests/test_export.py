@@ -13,8 +13,9 @@ import pytest
 from mirrorgraph import geometry as geo
 from mirrorgraph.calibration import Calibration, write_calibration
 from mirrorgraph.errors import InputError
-from mirrorgraph.export import (WORLD_FRAMES, export_calibration, export_cameras,
-                                flip_camera_matrix, flip_distortion, flip_mirror_keypoints)
+from mirrorgraph.export import (WORLD_FRAMES, camera_sections, export_calibration,
+                                export_cameras, flip_camera_matrix, flip_distortion,
+                                flip_mirror_keypoints)
 from mirrorgraph.intrinsics import Intrinsics, load_intrinsics
 from mirrorgraph.io.toml_writer import dumps
 from mirrorgraph.skeletons import BODY_25, COCO_17
@@ -453,3 +454,15 @@ def test_toml_writer_round_trip():
     for bad in ({"x": None}, {"x": [{"a": 1}]}, {"x": object()}, {1: 2}):
         with pytest.raises(TypeError):
             dumps(bad)
+
+
+@pytest.mark.parametrize("fmt", ["pose2sim", "anipose", "aniposelib"])
+def test_camera_sections_are_the_ones_written(tmp_path, fmt):
+    n, d, _X = scene(3)
+    out = tmp_path / "c.toml"
+    export_calibration(calib_dict(n, d), fmt, out)
+    doc = tomllib.loads(out.read_text())
+    written = [(k, v["name"]) for k, v in doc.items() if isinstance(v, dict) and "matrix" in v]
+    assert written == list(camera_sections(fmt))
+    with pytest.raises(InputError, match="unknown export format"):
+        camera_sections("opencv")

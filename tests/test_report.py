@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import builtins
 import json
+import re
 
 import numpy as np
 import pytest
@@ -124,14 +125,198 @@ def test_video_of_another_size_is_refused(scene_run, tmp_path):
 def test_run_from_calibration_file(scene_run, tmp_path):
     scene, run = scene_run
     path = tmp_path / "calibration.json"
-    mg.write_calibration(path, run.calibration)
+    mg.write_calibration(path, run.calibration)       # no .report.npz: recomputed exactly
     again = run_from_calibration(path, scene.detections)
-    assert np.allclose(again.calibration.normal, run.calibration.normal)
+    assert np.allclose(again.calibration.normal, run.calibration.normal, rtol=0, atol=1e-12)
     assert np.allclose(again.calibration.initial_normal, run.calibration.initial_normal)
-    assert again.inliers.sum() > 0.8 * run.inliers.sum()
+    assert np.array_equal(again.inliers, run.inliers)
+    assert np.array_equal(again.joints3d, run.joints3d, equal_nan=True)
     out = make_report(again, tmp_path / "rep")
     assert all(p.exists() for p in out.values())
     assert json.loads(path.read_text())["mirror"]["distance"] == again.calibration.distance
+
+
+# --------------------------------------------------------------------------- report == calibrate --report
+@pytest.fixture(scope="module")
+def scene_files(tmp_path_factory):
+    from mirrorgraph.synth import write_scene
+    root = tmp_path_factory.mktemp("files")
+    scene = make_scene(frames=150, seed=5, outlier_rate=0.05, lr_swap_rate=0.05)
+    write_scene(scene, root, formats=("mmpose",))
+    return scene, root
+
+
+def _same_figure_numbers(a, b):
+    """The numbers the figures are drawn from are the same (exactly, NaN where NaN)."""
+    assert np.array_equal(a.inlier, b.inlier)
+    assert np.array_equal(a.t_idx, b.t_idx) and np.array_equal(a.j_idx, b.j_idx)
+    for name in ("u", "um", "epi_before", "epi_after", "reproj_before", "reproj_after",
+                 "joints_before", "joints_after", "bones_before", "bones_after"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.shape == y.shape and np.allclose(x, y, rtol=1e-12, atol=0, equal_nan=True), name
+    assert np.array_equal(a.normal, b.normal) and a.distance == b.distance
+    assert a.bone_reference == b.bone_reference
+
+
+@pytest.mark.parametrize("height", [None, "1.75"])
+def test_report_shows_the_calibrations_own_run(scene_files, tmp_path, height, capsys):
+    from mirrorgraph.cli import main
+    from mirrorgraph.report import load_run
+
+    scene, root = scene_files
+    kp, cam = root / "keypoints_mmpose.json", root / "camera.json"
+    cal = tmp_path / "c.json"
+    args = ["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(cal), "--fps", "30",
+            "--report", str(tmp_path / "rep")] + (["--subject-height", height] if height else [])
+    assert main(args) == 0
+    assert "wrote 5 figures to" in capsys.readouterr().out
+    doc = json.loads(cal.read_text())
+    assert doc["report_data"] == "c.report.npz" and (tmp_path / "c.report.npz").exists()
+    # the run calibrate had in memory (the same pipeline and options: it is deterministic)
+    memory = mg.calibrate(kp, mg.load_intrinsics(cam), mg.CalibrateOptions(
+        subject_height=None if height is None else float(height), fps=30.0)
+        if "fps" in mg.CalibrateOptions.__dataclass_fields__ else
+        mg.CalibrateOptions(subject_height=None if height is None else float(height)))
+    assert memory.calibration.normal.tolist() == doc["mirror"]["normal"]
+    want = report_data(memory)
+    stored = load_run(cal)                                  # no keypoints needed
+    assert stored.origin == "stored" and not stored.warnings
+    recomputed = load_run(cal, kp, report_data=None)
+    assert recomputed.origin == "recomputed" and not recomputed.warnings
+    assert "the same mirror" in recomputed.message
+    for loaded in (stored, recomputed):
+        got = report_data(loaded.run)
+        _same_figure_numbers(want, got)
+        # the inlier fraction the figures show is the calibration's
+        assert np.count_nonzero(got.inlier) == doc["pairs_used"]
+        assert len(got.inlier) == doc["pairs_total"]
+    # and the command says which it did
+    assert main(["report", str(cal), "--out", str(tmp_path / "r1")]) == 0
+    out = capsys.readouterr().out
+    assert f"figures of the run stored in {tmp_path / 'c.report.npz'}" in out
+    assert "wrote 5 figures to" in out
+    assert main(["report", str(cal), str(kp), "--recompute", "--out", str(tmp_path / "r2")]) == 0
+    assert "recomputed from" in capsys.readouterr().out
+
+
+def test_stale_or_missing_report_data(scene_files, tmp_path, capsys):
+    from mirrorgraph.cli import main
+    from mirrorgraph.report import load_run
+
+    scene, root = scene_files
+    kp, cam = root / "keypoints_mmpose.json", root / "camera.json"
+    cal = tmp_path / "c.json"
+    assert main(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(cal), "--fps",
+                 "30", "--no-refine", "--quiet"]) == 0
+    doc = json.loads(cal.read_text())
+    n = np.array(doc["mirror"]["normal"]) + [0.0, 1e-3, 0.0]
+    doc["mirror"]["normal"] = (n / np.linalg.norm(n)).tolist()
+    cal.write_text(json.dumps(doc))
+    # another calibration's run is not drawn: recomputed, with a warning saying why
+    loaded = load_run(cal, kp)
+    assert loaded.origin == "recomputed"
+    assert any("c.report.npz" in w and "another calibration" in w for w in loaded.warnings)
+    assert any("recomputed mirror is" in w for w in loaded.warnings)
+    # without keypoints it is one line naming the file
+    capsys.readouterr()
+    assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "c.report.npz" in err
+    (tmp_path / "c.report.npz").unlink()
+    assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "keypoints" in err and "missing" in err
+
+
+def test_a_failed_write_leaves_calibration_and_run_alone(scene_files, tmp_path, monkeypatch):
+    from mirrorgraph import cli
+
+    scene, root = scene_files
+    cal = tmp_path / "c.json"
+    cal.write_text("precious")
+    (tmp_path / "c.report.npz").write_bytes(b"old")
+
+    def broken(*_a, **_k):
+        raise OSError(28, "No space left on device", str(cal))
+    monkeypatch.setattr("mirrorgraph.io.calibration.write_json", broken)
+    code = cli.main(["calibrate", str(root / "keypoints_mmpose.json"), "--intrinsics",
+                     str(root / "camera.json"), "--out", str(cal), "--no-refine", "--quiet",
+                     "--fps", "30"])
+    assert code != 0
+    assert cal.read_text() == "precious" and (tmp_path / "c.report.npz").read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json", "c.report.npz"]
+
+
+# --------------------------------------------------------------------------- figures' texts
+def _legend_texts(ax):
+    leg = ax.get_legend()
+    return [t.get_text() for t in leg.get_texts()] if leg else []
+
+
+@pytest.mark.parametrize("metric", [True, False])
+def test_bone_length_legends_have_enough_digits(scene_run, metric):
+    from mirrorgraph.report import figures
+    plt = require_matplotlib()
+    _scene, run = scene_run
+    data = report_data(run)
+    if not metric:         # the same run without a metric scale: lengths in mirror distances
+        from dataclasses import replace
+        data = replace(data, unit="mirror distance", joints_before=data.joints_before / data.distance,
+                       joints_after=data.joints_after / data.distance,
+                       bones_before=data.bones_before / data.distance,
+                       bones_after=data.bones_after / data.distance,
+                       bone_reference={k: v / data.distance for k, v in data.bone_reference.items()},
+                       distance=1.0)
+    fig = figures.bone_lengths(data)
+    texts = [t for ax in fig.axes for t in _legend_texts(ax)]
+    sds = [t for t in texts if " sd " in t]
+    assert len(sds) == 2 * len(data.bone_names)
+    for t in sds:
+        m = re.search(r"sd (\d+\.?\d*)( cm)? \((\d+\.\d) %\)", t)
+        assert m, t
+        digits = m.group(1).replace(".", "").lstrip("0")
+        assert len(digits) >= 2 and float(m.group(1)) > 0, t     # never "sd 0.0"
+        assert bool(m.group(2)) == metric, t
+    refs = [t for t in texts if t.startswith("refined length")]
+    assert len(refs) == len(data.bone_names)
+    for t in refs:
+        value = t.split()[2]
+        assert len(value.replace(".", "").lstrip("0")) >= 3, t
+    title = fig._suptitle.get_text()
+    assert ("mirror distance" in title) != metric
+    plt.close(fig)
+
+
+def test_scene3d_is_readable(scene_run):
+    from mirrorgraph.report import figures
+    plt = require_matplotlib()
+    _scene, run = scene_run
+    data = report_data(run)
+    fig = figures.scene3d(data)
+    title = fig._suptitle.get_text()
+    assert "unit: metres" in title and f"{data.distance:.3f} m" in title
+    assert title.count("mirror distance") == 0
+    top, edge = fig.axes[:2]
+    for ax in (top, edge):        # orthographic, equal scales: distances read as they are
+        assert ax.name == "rectilinear" and ax.get_aspect() == 1.0
+    # seen along the mirror: the mirror a vertical line at d, the person in front of it
+    # and the reflection as far behind it
+    gap = figures.mirror_gap(data)
+    assert 0 < gap < data.distance
+    lines = {gid: [ln for ln in edge.get_lines() if ln.get_gid() == gid]
+             for gid in ("mirror", "skeleton", "reflection")}
+    assert len(lines["mirror"]) == 1 and set(lines["mirror"][0].get_xdata()) == {data.distance}
+    assert lines["skeleton"] and lines["reflection"]
+    assert max(max(ln.get_xdata()) for ln in lines["skeleton"]) < data.distance
+    assert min(min(ln.get_xdata()) for ln in lines["reflection"]) > data.distance
+    assert [ln for ln in top.get_lines() if ln.get_gid() == "mirror"]
+    plt.close(fig)
+    # without a metric scale the unit is said once, and is not "metres"
+    from dataclasses import replace
+    fig = figures.scene3d(replace(data, unit="mirror distance"))
+    title = fig._suptitle.get_text()
+    assert "unit: the camera-to-mirror distance" in title and "unit: metres" not in title
+    plt.close(fig)
 
 
 def test_without_matplotlib_says_how_to_install(monkeypatch):
@@ -145,3 +330,27 @@ def test_without_matplotlib_says_how_to_install(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", fake_import)
     with pytest.raises(mg.MirrorgraphError, match=r"pip install 'mirrorgraph\[plot\]'"):
         require_matplotlib()
+
+
+def test_unrefined_figures_do_not_claim_a_refinement(scene_run):
+    from mirrorgraph.report import figures
+    plt = require_matplotlib()
+    scene, _run = scene_run
+    run = mg.calibrate(scene.detections, scene.intrinsics, mg.CalibrateOptions(refine=False))
+    data = report_data(run)
+    assert not data.refined
+    # joints only where the run kept the pair
+    ok = np.isfinite(data.joints_after[data.t_idx, data.j_idx]).all(-1)
+    assert np.array_equal(ok, data.inlier)
+    fig = figures.bone_lengths(data)
+    texts = [t for ax in fig.axes for t in _legend_texts(ax)]
+    assert texts and all(t.startswith("initial") for t in texts)
+    assert "did not run" in fig._suptitle.get_text()
+    plt.close(fig)
+    fig = figures.residuals(data)
+    texts = [t for ax in fig.axes for t in _legend_texts(ax)]
+    assert texts and not any("after" in t for t in texts)
+    plt.close(fig)
+    fig = figures.scene3d(data)
+    assert "not refined" in fig._suptitle.get_text()
+    plt.close(fig)

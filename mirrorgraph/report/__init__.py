@@ -6,9 +6,11 @@
   joint-to-reflection lines through it, inliers and outliers coloured;
 * ``residuals.png``: histograms of the epipolar and reprojection residuals
   before (initial normal) and after the factor-graph refinement;
-* ``scene3d.png``: the real and the virtual camera, the mirror plane and the
-  skeleton (with its reflection) at a few frames;
-* ``bone_lengths.png``: every bone's length over time, before and after;
+* ``scene3d.png``: the real and the virtual camera, the mirror and the skeleton
+  (with its reflection) at a few frames, from above and seen along the mirror
+  (orthographic, equal scales; metres or units of the mirror distance, said);
+* ``bone_lengths.png``: every bone's length over time, before and after, with
+  its spread over frames absolute and in % of its median;
 * ``uncertainty.png``: the covariance of the normal as ellipses around the epipole.
 
 With ``video=`` the joints, their reflections and the epipolar lines are drawn
@@ -17,10 +19,16 @@ on a few sampled frames of the video (``overlay_<frame>.png``); with
 
 "Before" is what the initial estimate alone gives: the joints triangulated with
 ``calibration.initial_normal`` and the final distance (the initial estimate has
-no scale of its own). "After" uses the refined normal and ``run.joints3d``.
+no scale of its own). "After" uses the refined normal and ``run.joints3d``, the
+factor graph's joints.
 
-matplotlib is an optional dependency (``pip install 'mirrorgraph[plot]'``); it
-is imported lazily, with the non-interactive Agg backend.
+The figures of a ``calibration.json`` drawn later (``mirrorgraph report``) are
+those of the calibration itself: :func:`load_run` reads the run that
+``mirrorgraph calibrate`` kept beside it (``c.report.npz``, :mod:`.store`), or
+calibrates the keypoints again with the options the file records.
+
+matplotlib is an optional dependency (:data:`INSTALL_HINT`); it is imported
+lazily, with the non-interactive Agg backend.
 """
 
 from __future__ import annotations
@@ -34,11 +42,14 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import InputError, MirrorgraphError
+from ..progress import Progress
 
-__all__ = ["ReportData", "make_report", "report_data", "require_matplotlib",
+__all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
+           "options_from_calibration", "report_data", "require_matplotlib",
            "run_from_calibration"]
 
-INSTALL_HINT = "pip install 'mirrorgraph[plot]'"
+#: How to install the ``plot`` extra, from PyPI or in a clone (as the README says).
+INSTALL_HINT = "pip install 'mirrorgraph[plot]' (in a clone: pip install -e '.[plot]')"
 
 
 def require_matplotlib():
@@ -174,9 +185,10 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
         joints_after = np.array(run.joints3d, float)
         if run.valid3d is not None:
             joints_after[~np.asarray(run.valid3d, bool)] = np.nan
-    else:
+    else:   # no graph: the inlier pairs triangulated with the (initial) normal
         joints_after = np.full((T, J, 3), np.nan)
-        joints_after[t_idx, j_idx] = geo.triangulate_mirror(K, n, d, u, um)
+        joints_after[t_idx[inlier], j_idx[inlier]] = geo.triangulate_mirror(
+            K, n, d, u[inlier], um[inlier])
     reproj_before = _reprojection(K, n0, d, joints_before[t_idx, j_idx], u, um)
     reproj_after = _reprojection(K, n, d, joints_after[t_idx, j_idx], u, um)
     # a joint the run dropped (outlier) has no 3D point in either
@@ -222,8 +234,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         max_frames: frames of the skeleton in the 3D view (at most 4) and of
             the video sampled for overlays.
         progress: optional callback receiving the name of each step.
-        progress_bar: draw a progress bar on stderr while rendering (only on a
-            terminal).
+        progress_bar: draw progress bars on stderr while drawing the figures,
+            sampling and rendering video frames (only on a terminal).
         dpi: resolution of the PNGs.
 
     Returns:
@@ -255,17 +267,20 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     makers = {"image_plane": figures.image_plane, "residuals": figures.residuals,
               "scene3d": lambda dt: figures.scene3d(dt, frames=min(4, max(1, max_frames))),
               "bone_lengths": figures.bone_lengths, "uncertainty": figures.uncertainty}
-    for name in FIGURES:
-        step(f"report: {name}.png")
-        fig = makers[name](data)
-        path = out / f"{name}.png"
-        fig.savefig(path, dpi=dpi)
-        plt.close(fig)
-        written[name] = path
+    with Progress("drawing the report", total=len(FIGURES), enabled=progress_bar) as bar:
+        for name in FIGURES:
+            step(f"report: {name}.png")
+            fig = makers[name](data)
+            path = out / f"{name}.png"
+            fig.savefig(path, dpi=dpi)
+            plt.close(fig)
+            written[name] = path
+            bar.update(info=f"{name}.png")
     if video is not None:
         from . import video as vid
         step("report: overlays on sampled video frames")
-        written.update(vid.overlay_samples(video, run, out, count=max_frames, data=data))
+        written.update(vid.overlay_samples(video, run, out, count=max_frames, data=data,
+                                           progress_bar=progress_bar))
         if render is not None:
             step(f"report: rendering {render}")
             written["video"] = vid.render_video(video, run, render, data=data,
@@ -274,16 +289,180 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
 
 
 # --------------------------------------------------------------------------- from files
-def run_from_calibration(calibration, keypoints, *, intrinsics=None, min_confidence=None,
-                         threshold_px=None):
-    """A :class:`~mirrorgraph.pipeline.CalibrationRun` from a ``calibration.json``
-    and the keypoints it was made from, without calibrating again.
+@dataclass
+class LoadedRun:
+    """A calibration's run, read back for its report (see :func:`load_run`).
 
-    The keypoints are read, undistorted and paired as the pipeline does; a pair
-    is an inlier when its epipolar distance under the file's normal is below the
-    threshold the calibration used; the 3D joints are triangulated with the
-    file's plane (``joints3d`` of the run are not stored in the JSON, so
-    "after" shows the plane's triangulation, not the graph's smoothed joints).
+    Attributes:
+        run: the :class:`~mirrorgraph.pipeline.CalibrationRun` to draw.
+        origin: ``"stored"`` (read from the ``.report.npz`` beside the calibration)
+            or ``"recomputed"`` (calibrated again from the keypoints).
+        message: one sentence saying where the figures' data come from.
+        warnings: doubts, e.g. a stale ``.report.npz`` or a recomputation whose
+            mirror is not the file's.
+        path: the ``.report.npz`` read, or ``None``.
+    """
+
+    run: object
+    origin: str
+    message: str
+    warnings: list[str]
+    path: Path | None = None
+
+
+def options_from_calibration(obj) -> "CalibrateOptions":  # noqa: F821 - lazy import
+    """The :class:`~mirrorgraph.pipeline.CalibrateOptions` a ``calibration.json`` records.
+
+    Estimator, threshold, minimum confidence, seed, joints and whether the graph
+    ran come from the file; the subject height and ``scale_from`` from ``input``
+    where recorded there, else from what the refinement reports (the height its
+    gauge used, and whether the limbs were asked for). The intrinsics (and so the
+    field of view or image size of a guess) are the file's own.
+
+    Args:
+        obj: the parsed ``calibration.json``.
+    """
+    from ..estimators import DEFAULT_THRESHOLD_PX
+    from ..graph.options import RefineOptions
+    from ..pipeline import CalibrateOptions
+
+    info = obj.get("input") or {}
+    ref = obj.get("refinement") or {}
+    height = info.get("subject_height")
+    if height is None and obj.get("scale") == "subject_height":
+        gauge = (ref.get("priors") or {}).get("length_sum_gauge") or {}
+        height = gauge.get("height_m") or (ref.get("stature") or {}).get("height")
+    scale_from = info.get("scale_from")
+    if scale_from is None:
+        scale_from = "limbs" if "scale_from = limbs" in str(ref.get("scale_method", "")) \
+            else "stature"
+    names = info.get("joints")
+    return CalibrateOptions(
+        estimator=str(obj.get("estimator") or "reflective"),
+        threshold_px=float(info.get("threshold_px", DEFAULT_THRESHOLD_PX)),
+        min_confidence=float(info.get("min_confidence", 0.3)),
+        joints=tuple(names) if names else None, refine=bool(obj.get("refined", False)),
+        subject_height=None if height is None else float(height),
+        seed=int(info.get("seed", 0) or 0),
+        refine_options=RefineOptions(scale_from=scale_from))
+
+
+def _stored_path(obj, calibration_path: Path) -> Path:
+    from .store import KEY, report_data_path
+
+    name = obj.get(KEY) if isinstance(obj, dict) else None
+    if isinstance(name, str) and name and (calibration_path.parent / name).exists():
+        return calibration_path.parent / name
+    return report_data_path(calibration_path)   # also where a renamed pair is found
+
+
+def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None,
+             overrides: dict | None = None, skeleton: str | None = None, progress: Callable[[str], None] | None = None,
+             iteration_progress: Callable[[int, float], None] | None = None,
+             ransac_progress: Callable[[int, int], None] | None = None) -> LoadedRun:
+    """The run of a ``calibration.json``, for figures that are the calibration's own.
+
+    The run kept beside the calibration (``c.report.npz``, which ``mirrorgraph
+    calibrate`` writes, see :mod:`.store`) is read when it is there and belongs
+    to this calibration. Otherwise the keypoints are calibrated again with the
+    very pipeline and options the file records (:func:`options_from_calibration`,
+    the file's intrinsics): the pipeline is deterministic, so that gives the
+    same pairs, inliers and 3D joints, which is checked (the recomputed mirror
+    must be the file's, else a warning says by how much they differ).
+
+    Args:
+        calibration: path of ``calibration.json`` (or its parsed dict: then only
+            ``report_data`` given as a path is read).
+        keypoints: a keypoint path or what :func:`mirrorgraph.read_keypoints`
+            returned; needed only when there is no stored run.
+        report_data: ``"auto"`` (the file beside the calibration), a path, or
+            ``None`` to recompute whatever is stored.
+        intrinsics: overrides the intrinsics stored in the calibration (recomputes).
+        overrides: :class:`~mirrorgraph.pipeline.CalibrateOptions` fields to change
+            (recomputes; the mirror then need not be the file's).
+        skeleton: keypoint layout to read ``keypoints`` with (default: the one
+            the calibration records).
+        progress, iteration_progress, ransac_progress: callbacks of the
+            recomputation, as :func:`mirrorgraph.calibrate` takes them.
+
+    Returns:
+        A :class:`LoadedRun` (the run, where it came from, doubts).
+
+    Raises:
+        InputError: no usable stored run and no keypoints; unreadable files.
+
+    Example:
+        >>> loaded = load_run("calibration.json", "keypoints.json")   # doctest: +SKIP
+        >>> loaded.origin, loaded.run.inliers.mean()                 # doctest: +SKIP
+        ('stored', 0.9)
+    """
+    from dataclasses import replace
+
+    from ..io._common import load_json
+    from ..keypoints import PairedKeypoints, RawDetections
+    from .store import calibration_from_json, read_run
+
+    path = Path(calibration) if isinstance(calibration, (str, os.PathLike)) else None
+    obj = load_json(calibration) if path is not None else dict(calibration)
+    src = str(path) if path is not None else None
+    calib = calibration_from_json(obj, src)
+    warnings: list[str] = []
+    forced = intrinsics is not None or bool(overrides)
+    stored = None
+    if report_data == "auto":
+        stored = _stored_path(obj, path) if path is not None else None
+    elif report_data is not None:
+        stored = Path(report_data)
+    if stored is not None and not forced and (stored.exists() or report_data != "auto"):
+        try:
+            run = read_run(stored, calib)
+            return LoadedRun(run=run, origin="stored", path=stored, warnings=warnings,
+                             message=f"figures of the run stored in {stored}")
+        except InputError as exc:
+            if keypoints is None:
+                raise
+            warnings.append(f"{exc}; recomputing the run from the keypoints instead")
+    if keypoints is None:
+        where = f" ({stored} is missing)" if stored is not None else ""
+        raise InputError(f"no stored run to draw{where}: give the keypoints the "
+                         "calibration was made from, to recompute it",
+                         source=src, field="keypoints")
+    from ..pipeline import calibrate
+
+    opts = options_from_calibration(obj)
+    if overrides:
+        opts = replace(opts, **overrides)
+    if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
+        from ..io import read_keypoints
+        keypoints = read_keypoints(keypoints,
+                                   skeleton=skeleton or (obj.get("input") or {}).get("skeleton"))
+    run = calibrate(keypoints, intrinsics if intrinsics is not None else calib.intrinsics, opts,
+                    progress=progress, iteration_progress=iteration_progress,
+                    ransac_progress=ransac_progress)
+    new = run.calibration
+    angle = float(np.degrees(np.arccos(np.clip(abs(float(np.dot(new.normal, calib.normal))),
+                                               -1.0, 1.0))))
+    same_d = ((new.distance is None) == (calib.distance is None)) and (
+        calib.distance is None or abs(new.distance - calib.distance) <= 1e-9 * calib.distance)
+    name = src or "the calibration"
+    if angle <= 1e-7 and same_d:
+        message = (f"figures of the run recomputed from {run.paired.source or 'the keypoints'} "
+                   f"with the options {name} records (the same mirror)")
+    else:
+        message = (f"figures of the run recomputed from {run.paired.source or 'the keypoints'}")
+        what = f"{angle:.3g} deg from" if angle > 1e-7 else "at another distance than"
+        warnings.append(f"the recomputed mirror is {what} the one in {name} (other keypoints, "
+                        "options or mirrorgraph version?): the figures show the recomputation")
+    return LoadedRun(run=run, origin="recomputed", message=message, warnings=warnings)
+
+
+def run_from_calibration(calibration, keypoints=None, *, intrinsics=None, min_confidence=None,
+                         threshold_px=None):
+    """The :class:`~mirrorgraph.pipeline.CalibrationRun` of a ``calibration.json``.
+
+    The run stored beside the calibration when there is one, else the keypoints
+    calibrated again with the options the file records; see :func:`load_run`
+    (which also says which of the two it did).
 
     Args:
         calibration: path of ``calibration.json`` (or its parsed dict).
@@ -291,69 +470,6 @@ def run_from_calibration(calibration, keypoints, *, intrinsics=None, min_confide
         intrinsics: overrides the intrinsics stored in the calibration.
         min_confidence, threshold_px: override the values stored in the file.
     """
-    from dataclasses import replace
-
-    from ..calibration import Calibration
-    from ..estimators import DEFAULT_THRESHOLD_PX
-    from ..export import _read_calibration
-    from ..io._common import load_json
-    from ..keypoints import PairedKeypoints, RawDetections
-    from ..pairing import PairingOptions, fix_left_right, pair_detections
-    from ..pipeline import CalibrationRun, _joint_indices
-
-    obj = load_json(calibration) if isinstance(calibration, (str, os.PathLike)) else calibration
-    n, d, intr, _src = _read_calibration(calibration)
-    if intrinsics is not None:
-        intr = intrinsics
-    info = obj.get("input") or {}
-    conf = float(min_confidence if min_confidence is not None else info.get("min_confidence", 0.3))
-    thr = float(threshold_px if threshold_px is not None else info.get("threshold_px", DEFAULT_THRESHOLD_PX))
-    if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
-        from ..io import read_keypoints
-        keypoints = read_keypoints(keypoints, skeleton=info.get("skeleton"))
-    names = info.get("joints")
-    joints = _joint_indices(keypoints.skeleton, tuple(names) if names else None)
-    if intr.has_distortion:
-        if isinstance(keypoints, PairedKeypoints):
-            real, mirror = keypoints.real.copy(), keypoints.mirror.copy()
-            real[..., :2] = intr.undistort_points(real[..., :2])
-            mirror[..., :2] = intr.undistort_points(mirror[..., :2])
-            keypoints = replace(keypoints, real=real, mirror=mirror)
-        else:
-            people = []
-            for p in keypoints.people:
-                p = np.array(p, float, copy=True)
-                if len(p):
-                    p[..., :2] = intr.undistort_points(p[..., :2])
-                people.append(p)
-            keypoints = replace(keypoints, people=people)
-    popts = PairingOptions(min_confidence=conf, threshold_px=thr,
-                           seed=int(info.get("seed", 0) or 0))
-    paired = (fix_left_right(keypoints, joints, popts) if isinstance(keypoints, PairedKeypoints)
-              else pair_detections(keypoints, joints, popts))
-    valid = paired.valid(conf)
-    mask = np.zeros(paired.skeleton.num_joints, bool)
-    mask[joints] = True
-    valid &= mask[None, :]
-    e = geo.epipole_from_normal(intr.K, n)
-    inliers = np.zeros_like(valid)
-    t_idx, j_idx = np.nonzero(valid)
-    dist = geo.epipolar_distances(e, paired.real[t_idx, j_idx, :2],
-                                  paired.mirror[t_idx, j_idx, :2])
-    inliers[t_idx[dist < thr], j_idx[dist < thr]] = True
-    dd = d if d is not None else 1.0
-    X = np.full(paired.real.shape[:2] + (3,), np.nan)
-    ti, ji = np.nonzero(inliers)
-    X[ti, ji] = geo.triangulate_mirror(intr.K, n, dd, paired.real[ti, ji, :2],
-                                       paired.mirror[ti, ji, :2])
-    n0 = np.asarray(obj.get("initial_normal") or n, float)
-    calib = Calibration(
-        normal=n, distance=d, scale=str(obj.get("scale", "unknown")),
-        estimator=str(obj.get("estimator", "")), intrinsics=intr,
-        initial_normal=n0 / np.linalg.norm(n0), refined=bool(obj.get("refined", False)),
-        input={**info, "min_confidence": conf, "threshold_px": thr},
-        refinement=dict(obj.get("refinement") or {}),
-        uncertainty=dict(obj.get("uncertainty") or {}),
-        warnings=list(obj.get("warnings") or []))
-    return CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
-                          joints3d=X, valid3d=inliers.copy())
+    overrides = {k: v for k, v in (("min_confidence", min_confidence),
+                                   ("threshold_px", threshold_px)) if v is not None}
+    return load_run(calibration, keypoints, intrinsics=intrinsics, overrides=overrides).run

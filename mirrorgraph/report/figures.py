@@ -49,15 +49,18 @@ def image_plane(data, *, sample: int = 150, seed: int = 0):
     """Image plane: epipole, a sample of joint-to-reflection lines, inliers and outliers."""
     plt = _plt()
     rng = np.random.default_rng(seed)
-    fig, ax = plt.subplots(figsize=(9, 6.5), layout="constrained")
+    xlim, ylim, shown = image_limits(data)
+    aspect = abs(ylim[0] - ylim[1]) / max(abs(xlim[1] - xlim[0]), 1e-9)
+    fig, ax = plt.subplots(figsize=(9, float(np.clip(7.6 * aspect + 1.9, 4.5, 9.5))),
+                           layout="constrained")
     w, h = data.image_size
     ax.add_patch(plt.Rectangle((0, 0), w, h, fill=False, ec="k", lw=1.2))
     ax.text(4, h - 8, f"image {w}x{h}", fontsize=8, va="bottom")
-    xlim, ylim, shown = image_limits(data)
     pick_in = _sample(data.inlier, sample, rng)
     pick_out = _sample(~data.inlier, max(sample // 3, 1), rng)
     e = data.epipole
-    for idx, colour, label in ((pick_in, INLIER, "inlier pair"), (pick_out, OUTLIER, "outlier pair")):
+    # outliers first, thin and faint, so that the inliers' lines stay visible on top
+    for idx, colour, label in ((pick_out, OUTLIER, "outlier pair"), (pick_in, INLIER, "inlier pair")):
         if len(idx) == 0:
             continue
         u, um = data.u[idx], data.um[idx]
@@ -73,8 +76,9 @@ def image_plane(data, *, sample: int = 150, seed: int = 0):
             L = np.hypot(w, h)
             segs = np.stack([u - L * dvec, u + L * dvec], axis=1)
         from matplotlib.collections import LineCollection
-        ax.add_collection(LineCollection(segs, colors=colour, lw=0.6,
-                                         alpha=0.35 if colour == INLIER else 0.6))
+        ax.add_collection(LineCollection(segs, colors=colour,
+                                         lw=0.7 if colour == INLIER else 0.5,
+                                         alpha=0.45 if colour == INLIER else 0.5))
         ax.plot([], [], color=colour, lw=1.5, label=f"{label}: line from the epipole "
                 f"({len(idx)} drawn of {int(np.count_nonzero(data.inlier if colour == INLIER else ~data.inlier))})")
     show = np.concatenate([pick_in, pick_out])
@@ -106,6 +110,12 @@ def image_plane(data, *, sample: int = 150, seed: int = 0):
 
 # --------------------------------------------------------------------------- (2)
 def _hist_pair(ax, before, after, label, unit="px", ylabel="joint pairs"):
+    """Histograms of ``before`` (filled) and ``after`` (outline; ``None``: not refined)."""
+    series = ((before, BEFORE, "before (initial normal)", dict(alpha=0.55)),
+              (after, AFTER, "after refinement", dict(histtype="step", lw=1.8)))
+    if after is None:
+        after = before[:0]
+        series = ((before, BEFORE, "initial estimate (not refined)", dict(alpha=0.55)),)
     before, after = before[np.isfinite(before)], after[np.isfinite(after)]
     both = np.concatenate([before, after])
     if both.size == 0:
@@ -114,9 +124,8 @@ def _hist_pair(ax, before, after, label, unit="px", ylabel="joint pairs"):
     top = float(np.percentile(both, 99))
     top = top if top > 0 else 1.0
     bins = np.linspace(0, top, 40)
-    for vals, colour, name, kw in ((before, BEFORE, "before (initial normal)", dict(alpha=0.55)),
-                                   (after, AFTER, "after refinement",
-                                    dict(histtype="step", lw=1.8))):
+    for vals, colour, name, kw in series:
+        vals = vals[np.isfinite(vals)]
         med = float(np.median(vals)) if vals.size else np.nan
         over = int(np.count_nonzero(vals > top))
         ax.hist(np.clip(vals, 0, top), bins=bins, color=colour, **kw,
@@ -132,17 +141,21 @@ def residuals(data):
     plt = _plt()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6), layout="constrained")
     m = data.inlier
-    _hist_pair(a1, data.epi_before[m], data.epi_after[m], "epipolar distance")
+    refined = data.refined
+    _hist_pair(a1, data.epi_before[m], data.epi_after[m] if refined else None,
+               "epipolar distance")
     a1.set_title("Epipolar distance (how far a pair is from being\n"
                  "collinear with the epipole)")
     rb = data.reproj_before[m].ravel()
     ra = data.reproj_after[m].ravel()
-    _hist_pair(a2, rb, ra, "reprojection error", ylabel="joint observations (2 per pair)")
+    _hist_pair(a2, rb, ra if refined else None, "reprojection error",
+               ylabel="joint observations (2 per pair)")
     a2.set_title("Reprojection error of the 3D joints (both views pooled);\n"
-                 "after: joints held to rigid bones and smooth motion", fontsize=11)
+                 + ("after: joints held to rigid bones and smooth motion" if refined
+                    else "each pair triangulated on its own"), fontsize=11)
     fig.suptitle(f"Residuals of the {int(np.count_nonzero(m))} inlier pairs, 99th percentile "
                  "range (larger values counted in the last bin)"
-                 + ("" if data.refined else " - refinement did not run: before = after"),
+                 + ("" if data.refined else " - the refinement did not run"),
                  fontsize=10)
     return fig
 
@@ -179,110 +192,228 @@ def pick_frames(data, count: int) -> np.ndarray:
     return np.unique(good[np.linspace(0, len(good) - 1, min(count, len(good))).round().astype(int)])
 
 
-def scene3d(data, *, frames: int = 4):
-    """3D view: the real and the virtual camera, the mirror and the skeleton at a few frames."""
-    plt = _plt()
-    fig = plt.figure(figsize=(9, 7.5), layout="constrained")
-    ax = fig.add_subplot(projection="3d")
-    n, d = data.normal, data.distance
-    depth = 0.12 * d
-    F = _frustum(depth, data.K, data.image_size)
-    _draw_frustum(ax, F, "k", "real camera")
-    _draw_frustum(ax, geo.reflect_points(F, n, d), "#9467bd", "virtual (mirror) camera")
-    picks = pick_frames(data, frames)
-    cmap = plt.get_cmap("viridis")
-    pts = [np.zeros((1, 3)), geo.reflect_points(np.zeros((1, 3)), n, d)]
-    bones = data.skeleton.bone_index
-    for k, t in enumerate(picks):
-        X = data.joints_after[t]
-        Xr = geo.reflect_points(X, n, d)
-        colour = cmap(k / max(len(picks) - 1, 1) * 0.85)
-        for a, b in bones:
-            for P, ls, alpha in ((X, "-", 1.0), (Xr, ":", 0.6)):
-                seg = _view(P[[a, b]])
-                if np.isfinite(seg).all():
-                    ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], color=colour, ls=ls, alpha=alpha,
-                            lw=2 if ls == "-" else 1)
-        V = _view(X)
-        ax.scatter(V[:, 0], V[:, 1], V[:, 2], color=colour, s=8)
-        ax.plot([], [], color=colour, lw=2, label=f"skeleton, frame {int(data.frame_ids[t])}")
-        pts += [X[np.isfinite(X).all(1)], Xr[np.isfinite(Xr).all(1)]]
-    if len(picks):
-        ax.plot([], [], color="0.4", ls=":", label="its reflection (behind the mirror)")
-    P = np.vstack(pts)
-    # the mirror: a rectangle in the plane around the people, "up" = -y projected on it
+def mirror_gap(data) -> float | None:
+    """Median over frames of the person's distance in front of the mirror, ``d - n.X``
+    of the mean of each frame's 3D joints (the report's unit), or ``None``."""
+    X = data.joints_after
+    ok = np.isfinite(X).all(-1)
+    rows = np.flatnonzero(ok.any(1))
+    if len(rows) == 0:
+        return None
+    means = np.array([X[t][ok[t]].mean(0) for t in rows])
+    return float(np.median(data.distance - means @ data.normal))
+
+
+def _mirror_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors in the mirror plane: ``up`` (closest to the camera's -y) and ``side``."""
     up = np.array([0.0, -1.0, 0.0]) - n * (-n[1])
     up = up / np.linalg.norm(up) if np.linalg.norm(up) > 1e-6 else np.array([1.0, 0, 0])
-    side = np.cross(n, up)
-    body = np.vstack(pts[2:]) if len(pts) > 2 else P
-    foot = body - np.outer(body @ n - d, n)
-    cu, cs = foot @ up, foot @ side
-    pad = 0.25 * d
-    c0 = d * n
-    rect = np.array([c0 + a * up + b * side
-                     for a, b in ((cu.min() - pad, cs.min() - pad), (cu.max() + pad, cs.min() - pad),
-                                  (cu.max() + pad, cs.max() + pad), (cu.min() - pad, cs.max() + pad))])
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-    ax.add_collection3d(Poly3DCollection([_view(rect)], facecolor="#9ecae1", edgecolor="#3182bd",
-                                         alpha=0.25))
-    ax.plot([], [], color="#9ecae1", lw=8, alpha=0.6, label="mirror plane")
-    A = _view(np.vstack([P, rect, F]))
-    lo, hi = A.min(0), A.max(0)
-    mid, half = (lo + hi) / 2, (hi - lo).max() / 2
-    ax.set_xlim(mid[0] - half, mid[0] + half)
-    ax.set_ylim(mid[1] - half, mid[1] + half)
-    ax.set_zlim(mid[2] - half, mid[2] + half)
-    ax.set_box_aspect((1, 1, 1))
-    u = data.unit
-    ax.set_xlabel(f"x, right ({u})")
-    ax.set_ylabel(f"z, forward ({u})")
-    ax.set_zlabel(f"up = -y ({u})")
-    ax.view_init(elev=22, azim=-60)
-    ax.legend(loc="upper left", fontsize=8)
-    ax.set_title("Cameras, mirror and skeleton (real camera frame, refined)\n"
-                 f"mirror distance {d:.3f} {u}", fontsize=11)
+    return up, np.cross(n, up)
+
+
+def _trace(n: np.ndarray, d: float, fixed: int, value: float, free: int, lo: float,
+           hi: float) -> np.ndarray | None:
+    """``(2, 3)`` ends of the mirror's trace on the plane ``X[fixed] = value``, the
+    coordinate ``free`` running over ``[lo, hi]`` (``None`` if the plane is parallel)."""
+    other = ({0, 1, 2} - {fixed, free}).pop()
+    if abs(n[other]) < 1e-9:
+        return None
+    ends = np.zeros((2, 3))
+    ends[:, fixed] = value
+    ends[:, free] = (lo, hi)
+    ends[:, other] = (d - n[fixed] * value - n[free] * ends[:, free]) / n[other]
+    return ends
+
+
+def scene3d(data, *, frames: int = 4):
+    """Cameras, mirror and skeleton at a few frames, in two orthographic views.
+
+    * from above: the real camera's ``x`` (right) and ``z`` (forward), the mirror
+      as its trace at the subject's mean height;
+    * along the mirror: the distance from the camera along the mirror normal
+      against the height in the mirror plane, so the mirror is seen edge-on, as a
+      line at its distance, and the gap between the person and the mirror (and
+      the reflection as far behind it) reads as it is.
+
+    Both views have equal scales on their two axes. Lengths in metres with a
+    metric scale, else in units of the mirror distance (the figure says which).
+    """
+    plt = _plt()
+    from matplotlib.lines import Line2D
+
+    n, d = data.normal, data.distance
+    metric = data.unit == "m"
+    u = "m" if metric else "x mirror distance"
+    F = _frustum(0.12 * d, data.K, data.image_size)
+    Fv = geo.reflect_points(F, n, d)
+    picks = pick_frames(data, frames)
+    cmap = plt.get_cmap("viridis")
+    colours = [cmap(k / max(len(picks) - 1, 1) * 0.85) for k in range(len(picks))]
+    skel = [data.joints_after[t] for t in picks]
+    refl = [geo.reflect_points(X, n, d) for X in skel]
+    body = np.vstack([X[np.isfinite(X).all(1)] for X in skel]) if len(skel) else np.zeros((0, 3))
+    if len(body) == 0:
+        body = (d * n)[None]
+    centre = body.mean(0)
+    allpts = np.vstack([F, Fv, body] + [R[np.isfinite(R).all(1)] for R in refl])
+    bones = data.skeleton.bone_index
+    up, side_dir = _mirror_basis(n)
+
+    fig, (top, edge) = plt.subplots(1, 2, figsize=(13.5, 6.4), layout="constrained")
+    # projections (horizontal, vertical) of camera-frame points
+    proj_top = lambda P: (np.asarray(P)[..., 0], np.asarray(P)[..., 2])  # noqa: E731
+    proj_edge = lambda P: (np.asarray(P) @ n, np.asarray(P) @ up)       # noqa: E731
+    for ax, proj in ((top, proj_top), (edge, proj_edge)):
+        for Fr, colour in ((F, "k"), (Fv, "#9467bd")):
+            x, y = proj(Fr)
+            for i in range(1, 5):
+                ax.plot([x[0], x[i]], [y[0], y[i]], color=colour, lw=1)
+            ax.plot(x[0], y[0], "o", color=colour, ms=5)
+        for X, R, colour in zip(skel, refl, colours):
+            for P, ls, alpha, lw, gid in ((X, "-", 1.0, 1.8, "skeleton"),
+                                          (R, ":", 0.7, 1.0, "reflection")):
+                for a, b in bones:
+                    if np.isfinite(P[[a, b]]).all():
+                        x, y = proj(P[[a, b]])
+                        ax.plot(x, y, color=colour, ls=ls, alpha=alpha, lw=lw, gid=gid)
+        x, y = proj(allpts)
+        lo, hi = np.array([x.min(), y.min()]), np.array([x.max(), y.max()])
+        mid, half = (lo + hi) / 2, 0.56 * (hi - lo).max()
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] - half, mid[1] + half)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(alpha=0.3)
+        for P, text, colour in ((np.zeros(3), "camera", "k"), (Fv[0], "virtual camera", "#9467bd")):
+            px, py = proj(P)
+            right = px > mid[0]            # label towards the middle: it stays in the axes
+            ax.annotate(text, (px, py), textcoords="offset points", xytext=(-6 if right else 6, -12),
+                        ha="right" if right else "left", fontsize=8, color=colour)
+    # the mirror: from above its trace at the subject's mean height, edge-on a line at d
+    (x0, x1), (z0, z1) = top.get_xlim(), top.get_ylim()
+    tr = _trace(n, d, 1, centre[1], 0, x0 - (x1 - x0), x1 + (x1 - x0))
+    if tr is None:
+        tr = _trace(n, d, 1, centre[1], 2, z0 - (z1 - z0), z1 + (z1 - z0))
+    if tr is not None:
+        top.plot(tr[:, 0], tr[:, 2], "-", color="#3182bd", lw=4, alpha=0.55,
+                 solid_capstyle="butt", gid="mirror")
+        top.set_xlim(x0, x1)
+        top.set_ylim(z0, z1)
+    edge.axvline(d, color="#3182bd", lw=4, alpha=0.55, gid="mirror")
+    gap = mirror_gap(data)
+    if gap is not None:
+        h = float(np.median(body @ up))
+        edge.annotate("", xy=(d, h), xytext=(d - gap, h),
+                      arrowprops=dict(arrowstyle="<->", color="0.3", lw=1))
+        edge.text(d - gap / 2, h, f"{gap:.2f} {'m' if metric else ''}".strip(), ha="center",
+                  va="bottom", fontsize=8, color="0.2")
+    top.set_xlabel(f"x, right ({u})")
+    top.set_ylabel(f"z, forward ({u})")
+    top.set_title("From above (real camera's x and z); mirror at the subject's height",
+                  fontsize=10)
+    edge.set_xlabel(f"distance from the camera along the mirror normal ({u})")
+    edge.set_ylabel(f"height along the mirror ({u})")
+    edge.set_title("Along the mirror (seen edge-on): camera, person, mirror, reflection",
+                   fontsize=10)
+
+    handles = [Line2D([], [], color="k", lw=1.5, label="real camera"),
+               Line2D([], [], color="#9467bd", lw=1.5, label="virtual (mirror) camera"),
+               Line2D([], [], color="#3182bd", lw=4, alpha=0.55, label="mirror")]
+    handles += [Line2D([], [], color=c, lw=2, label=f"skeleton, frame {int(data.frame_ids[t])}")
+                for c, t in zip(colours, picks)]
+    if len(picks):
+        handles.append(Line2D([], [], color="0.4", ls=":", label="its reflection"))
+    edge.legend(handles=handles, loc="upper left", fontsize=8, framealpha=0.9)
+    if metric:
+        where = f"unit: metres; the mirror is {d:.3f} m from the camera"
+        if gap is not None:
+            where += f", the person about {gap:.2f} m in front of it"
+    else:
+        where = ("unit: the camera-to-mirror distance (no metric scale: --subject-height "
+                 "gives metres)")
+        if gap is not None:
+            where += f"; the person {gap:.2f} of it in front of the mirror"
+    stage = "after refinement" if data.refined else "initial estimate, not refined"
+    fig.suptitle(f"Cameras, mirror and skeleton (real camera frame, {stage})\n"
+                 + where, fontsize=11)
     return fig
 
 
 # --------------------------------------------------------------------------- (4)
+def significant(value: float, digits: int) -> str:
+    """``value`` with ``digits`` significant digits, trailing zeros kept (``0.150``,
+    ``0.0020``, ``43.5``); integers of more digits are written whole."""
+    value = float(value)
+    if value == 0 or not np.isfinite(value):
+        return f"{value:g}"
+    decimals = max(digits - 1 - int(np.floor(np.log10(abs(value)))), 0)
+    return f"{value:.{decimals}f}"
+
+
+def _spread(values: np.ndarray, unit: str) -> str:
+    """``"sd 0.42 cm (1.0 %)"``: standard deviation over frames, absolute (2 significant
+    digits) and relative to the median."""
+    fin = values[np.isfinite(values)]
+    if fin.size == 0:
+        return ""
+    sd, med = float(np.std(fin)), float(np.median(fin))
+    rel = f" ({100 * sd / med:.1f} %)" if med > 0 else ""
+    return f"sd {significant(sd, 2)}{unit}{rel}"
+
+
 def bone_lengths(data):
-    """Every bone's length over time, before (initial normal) and after refinement."""
+    """Every bone's length over time, before (initial normal) and after refinement.
+
+    Lengths are in centimetres with a metric scale, else in units of the mirror
+    distance; legends give the standard deviation over frames in that unit (two
+    significant digits) and in % of the bone's median length, and the length the
+    refinement estimated (three significant digits).
+    """
     plt = _plt()
     B = len(data.bone_names)
     cols = 5 if B > 6 else max(B, 1)
     rows = max(1, int(np.ceil(B / cols)))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows + 0.8),
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows + 0.9),
                              sharex=True, squeeze=False, layout="constrained")
-    scale = 100.0 if data.unit == "m" else 1.0
-    unit = "cm" if data.unit == "m" else "x mirror distance"
+    metric = data.unit == "m"
+    scale = 100.0 if metric else 1.0
+    unit = " cm" if metric else ""
     fr = data.frame_ids
     for k, ax in enumerate(axes.ravel()):
         if k >= B:
             ax.axis("off")
             continue
         b0, b1 = data.bones_before[:, k] * scale, data.bones_after[:, k] * scale
-        ax.plot(fr, b0, ".", ms=2.5, color=BEFORE,
-                label=f"before: sd {np.nanstd(b0):.1f}" if np.isfinite(b0).any() else "before")
-        ax.plot(fr, b1, "-", lw=1.4, color=AFTER,
-                label=f"after: sd {np.nanstd(b1):.1f}" if np.isfinite(b1).any() else "after")
+        if data.refined:
+            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE,
+                    label=f"before: {_spread(b0, unit)}" if np.isfinite(b0).any() else "before")
+            ax.plot(fr, b1, "-", lw=1.4, color=AFTER,
+                    label=f"after: {_spread(b1, unit)}" if np.isfinite(b1).any() else "after")
+        else:                   # before = after: one series
+            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE,
+                    label=f"initial: {_spread(b0, unit)}" if np.isfinite(b0).any() else "initial")
         ref = data.bone_reference.get(data.bone_names[k]) if data.bone_reference else None
         if ref is not None:
             ax.axhline(ref * scale, color="k", ls="--", lw=1,
-                       label=f"refined length {ref * scale:.1f}")
+                       label=f"refined length {significant(ref * scale, 3)}{unit}")
         ax.set_title(data.bone_names[k].replace("_", " "), fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
         fin = np.concatenate([b0[np.isfinite(b0)], b1[np.isfinite(b1)]])
         if fin.size:
             lo, hi = np.percentile(fin, [1, 99])
-            pad = 0.15 * (hi - lo) + 1e-6
-            ax.set_ylim(lo - pad, hi + pad)
+            pad = 0.15 * (hi - lo) + 1e-6 * max(abs(hi), 1e-12)
+            ax.set_ylim(lo - pad, hi + pad + 0.35 * (hi - lo))   # room for the legend
         if k % cols == 0:
-            ax.set_ylabel(f"length ({unit})")
+            ax.set_ylabel("length (cm)" if metric else "length (x mirror distance)")
         if k >= B - cols:
             ax.set_xlabel("frame")
-    fig.suptitle("Bone lengths over time: a rigid bone should be a flat line "
-                 "(before = triangulated with the initial normal; sd in the same unit)",
-                 fontsize=10)
+    scale_note = ("" if metric else "; no metric scale: lengths in units of the mirror "
+                  "distance (--subject-height gives metres)")
+    what = ("before = triangulated with the initial normal, after = the factor graph's joints"
+            if data.refined else "the refinement did not run: the inlier pairs triangulated "
+            "with the initial normal")
+    fig.suptitle("Bone lengths over time: a rigid bone should be a flat line\n"
+                 f"{what}; sd = standard deviation over frames, and in % of the median"
+                 + scale_note, fontsize=10)
     return fig
 
 

@@ -40,12 +40,13 @@ def rig_top_view(calib):
     path = _path(calib)
     ok = np.isfinite(path).all(1)
     pts = [c.pose[:3, 3] for c in calib.cameras] + list(path[ok])
+    cam_labels = []
     P = np.asarray(pts)
     span = float(np.ptp(P[:, [0, 2]], axis=0).max()) or 1.0
     if ok.any():
         ax.plot(path[ok, 0], path[ok, 2], "-", color=PERSON, lw=1, alpha=0.8,
                 label="subject (mean of the joints)")
-    for c in calib.cameras:
+    for k, c in enumerate(calib.cameras):
         x, _, z = c.pose[:3, 3]
         fwd = c.pose[:3, 2]
         ax.plot([x], [z], "o", color=CAMERA, ms=7)
@@ -53,11 +54,12 @@ def rig_top_view(calib):
                     arrowprops=dict(arrowstyle="->", color=CAMERA, lw=1.5))
         if np.isfinite(c.position_std) and c.position_std > 0:
             ax.add_patch(plt.Circle((x, z), c.position_std, fill=False, ec=CAMERA, lw=0.8, ls=":"))
-        ax.text(x, z, f"  {c.name}\n  rot std {c.rotation_std_deg:.2f} deg", fontsize=8,
-                color=CAMERA, va="top")
+        # the first camera is the world frame: fixed, no uncertainty of its own
+        what = "world frame (fixed)" if k == 0 else f"rot std {c.rotation_std_deg:.2f} deg"
+        cam_labels.append((np.array([x, z]), f"{c.name}\n{what}"))
     y0 = float(np.nanmean(path[ok, 1])) if ok.any() else 0.0
     centre = np.nanmean(path[ok][:, [0, 2]], axis=0) if ok.any() else P[:, [0, 2]].mean(0)
-    anchors = []
+    anchors, labels = [], []
     for m in calib.mirrors:
         n, d = np.asarray(m.normal, float), float(m.distance)
         nh = np.array([n[0], n[2]])
@@ -72,21 +74,38 @@ def rig_top_view(calib):
         ax.plot(seg[:, 0], seg[:, 1], "-", color=MIRROR, lw=4, alpha=0.6)
         ax.annotate("", xy=anchor + 0.1 * span * nh / np.linalg.norm(nh), xytext=anchor,
                     arrowprops=dict(arrowstyle="->", color=MIRROR))
-        ax.text(*anchor, f"  {m.name}\n  rot std {m.rotation_std_deg:.3f} deg", fontsize=8,
-                color="k")
         anchors.append(anchor)
+        labels.append((anchor, f"{m.name}\nrot std {m.rotation_std_deg:.3f} deg"))
     Q = np.vstack([P[:, [0, 2]]] + [a[None] for a in anchors])
     lo, hi = Q.min(0) - 0.25 * span, Q.max(0) + 0.25 * span
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
+    ratio = (hi[0] - lo[0]) / max(hi[1] - lo[1], 1e-9)     # a figure of the data's shape
+    fig.set_size_inches(float(np.clip(6.2 * ratio + 2.2, 5.5, 12.0)), 7.0)
+    mid_x = (lo[0] + hi[0]) / 2
+    for (anchor, text), colour in ([(a, "k") for a in labels]
+                                   + [(a, CAMERA) for a in cam_labels]):
+        right = anchor[0] > mid_x     # on the side of the anchor that stays in the axes
+        ax.annotate(text, anchor, textcoords="offset points", xytext=(-6 if right else 6, -4),
+                    ha="right" if right else "left", va="top", fontsize=8, color=colour)
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=CAMERA, marker="o", ls="none", label="camera (arrow: view)")]
+    if labels:
+        handles.append(Line2D([], [], color=MIRROR, lw=4, alpha=0.6,
+                              label="mirror (at the subject's height)"))
+    if ok.any():
+        handles.append(Line2D([], [], color=PERSON, lw=1, label="subject (mean of the joints)"))
     unit = "m" if calib.scale == "subject_height" else "subject heights"
     ax.set_xlabel(f"x ({unit}, world = camera {calib.cameras[0].name})")
     ax.set_ylabel(f"z ({unit})")
-    ax.set_title("Rig from above: cameras (arrow: viewing direction, dotted: 1-sigma position), "
-                 "mirrors, subject", fontsize=10)
+    scale = ("unit: metres" if calib.scale == "subject_height" else
+             "unit: subject heights (no metric scale:\nsubject_height or --subject-height "
+             "gives metres)")
+    ax.set_title("Rig from above: cameras (arrow: viewing direction,\ndotted circle: "
+                 f"1-sigma position), mirrors, subject; {scale}", fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(handles=handles, loc="best", fontsize=8)
     return fig
 
 
@@ -110,16 +129,27 @@ def rig_residuals(calib):
     return fig
 
 
-def write_rig_report(calib, out_dir) -> list[Path]:
-    """Write the rig's figures as PNG files into ``out_dir``; returns their paths."""
+def write_rig_report(calib, out_dir, *, progress_bar: bool = True) -> list[Path]:
+    """Write the rig's figures as PNG files into ``out_dir``; returns their paths.
+
+    Args:
+        calib: the :class:`~mirrorgraph.rigs.RigCalibration`.
+        out_dir: folder to write into (created if missing).
+        progress_bar: draw a progress bar on stderr (only on a terminal).
+    """
+    from ..progress import Progress
+
     plt = require_matplotlib()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, make in (("rig_top_view.png", rig_top_view), ("rig_residuals.png", rig_residuals)):
-        fig = make(calib)
-        p = out / name
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+    makers = (("rig_top_view.png", rig_top_view), ("rig_residuals.png", rig_residuals))
+    with Progress("drawing the report", total=len(makers), enabled=progress_bar) as bar:
+        for name, make in makers:
+            fig = make(calib)
+            p = out / name
+            fig.savefig(p, dpi=110)
+            plt.close(fig)
+            paths.append(p)
+            bar.update(info=name)
     return paths

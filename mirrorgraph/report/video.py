@@ -153,8 +153,12 @@ def _pairs(run, row: int, data=None) -> tuple[np.ndarray, ...]:
 
 
 def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *,
-                    count: int = 6, data=None) -> dict[str, Path]:
+                    count: int = 6, data=None, progress_bar: bool = True) -> dict[str, Path]:
     """Draw the overlay on ``count`` frames spread over the video; PNG per frame.
+
+    Seeking a compressed video decodes from the previous key frame, so each
+    sample can take seconds: a progress bar is drawn on stderr when it is a
+    terminal and ``progress_bar`` is set.
 
     Returns:
         ``overlay_<frame>`` -> path of each PNG written.
@@ -173,16 +177,18 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
         picks = np.unique(have[np.linspace(0, len(have) - 1, min(count, len(have)))
                                .round().astype(int)])
         out = {}
-        for f in picks:
-            cap.set(cv2.CAP_PROP_POS_FRAMES, int(f))
-            ok, img = cap.read()
-            if not ok:
-                continue
-            real, mirror, inl, valid = _pairs(run, rows[int(f)])
-            draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {int(f)}")
-            path = Path(out_dir) / f"overlay_{int(f):06d}.png"
-            cv2.imwrite(str(path), img)
-            out[f"overlay_{int(f):06d}"] = path
+        with Progress("sampling video frames", total=len(picks), enabled=progress_bar) as bar:
+            for f in picks:
+                cap.set(cv2.CAP_PROP_POS_FRAMES, int(f))
+                ok, img = cap.read()
+                bar.update(info=f"frame {int(f)}")
+                if not ok:
+                    continue
+                real, mirror, inl, valid = _pairs(run, rows[int(f)])
+                draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {int(f)}")
+                path = Path(out_dir) / f"overlay_{int(f):06d}.png"
+                cv2.imwrite(str(path), img)
+                out[f"overlay_{int(f):06d}"] = path
         return out
     finally:
         cap.release()

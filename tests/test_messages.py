@@ -1,0 +1,250 @@
+"""What the command line says: warnings once, progress bars that count up to their real
+total, the solver's error never rising within a pass, and the texts of its messages."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import sys
+
+import numpy as np
+import pytest
+
+from mirrorgraph.cli import height_problem, main
+from mirrorgraph.progress import Progress, SolveProgress
+from mirrorgraph.synth import make_scene, write_scene
+
+
+class FakeTTY(io.StringIO):
+    """A text stream that says it is a terminal: progress bars draw on it."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scene")
+    write_scene(make_scene(frames=150, seed=4, outlier_rate=0.05, lr_swap_rate=0.05), out,
+                formats=("mmpose",))
+    return out
+
+
+def run_cli(argv, monkeypatch, *, tty: bool = False) -> tuple[int, str, str]:
+    """``main(argv)`` with stdout and stderr captured (stderr a fake terminal if ``tty``)."""
+    out, err = io.StringIO(), (FakeTTY() if tty else io.StringIO())
+    monkeypatch.setattr(sys, "stdout", out)
+    monkeypatch.setattr(sys, "stderr", err)
+    monkeypatch.setattr(Progress, "min_interval", 0.0)     # draw every update
+    code = main(argv)
+    monkeypatch.undo()
+    return code, out.getvalue(), err.getvalue()
+
+
+BAR = re.compile(r"^(?P<label>[a-z ]+?) (?:\[(?P<bar>[#-]{24})\] )?(?P<done>\d+)"
+                 r"(?:/(?P<total>\d+))? +[\d.]+s ?(?P<info>.*)$")
+
+
+def bar_lines(err: str) -> dict[str, list[dict]]:
+    """Every drawn state of every progress line, by label, in order."""
+    lines: dict[str, list[dict]] = {}
+    for piece in err.replace("\n", "\r").split("\r"):
+        m = BAR.match(piece.strip())
+        if m:
+            d = m.groupdict()
+            d["done"] = int(d["done"])
+            d["total"] = None if d["total"] is None else int(d["total"])
+            d["filled"] = d["bar"].count("#") if d["bar"] else None
+            lines.setdefault(d["label"], []).append(d)
+    return lines
+
+
+def assert_counts_up(states: list[dict]) -> None:
+    done = [s["done"] for s in states]
+    assert done == sorted(done), done
+    filled = [s["filled"] for s in states if s["filled"] is not None]
+    assert filled == sorted(filled), filled          # the bar never moves back
+    totals = {s["total"] for s in states if s["total"] is not None}
+    assert len(totals) <= 1, totals                  # one total, never revised
+    if totals:
+        assert max(done) <= totals.pop()
+
+
+# --------------------------------------------------------------------------- warnings
+def test_every_warning_is_printed_once(scene_dir, tmp_path, monkeypatch):
+    code, out, err = run_cli(["calibrate", str(scene_dir / "keypoints_mmpose.json"),
+                              "--image-size", "1920x1080", "--out", str(tmp_path / "c.json"),
+                              "--no-refine"], monkeypatch)
+    assert code == 0, err
+    warnings = json.loads((tmp_path / "c.json").read_text())["warnings"]
+    assert any("no intrinsics" in w for w in warnings)
+    printed = [ln for ln in (out + err).splitlines() if ln.startswith("warning: ")]
+    assert sorted(printed) == sorted(f"warning: {w}" for w in warnings)
+    assert "warning:" not in out                     # warnings on stderr, the summary on stdout
+    assert "mirror normal" in out
+
+
+def test_quiet_still_warns_once(scene_dir, tmp_path, monkeypatch):
+    code, out, err = run_cli(["calibrate", str(scene_dir / "keypoints_mmpose.json"),
+                              "--image-size", "1920x1080", "--out", str(tmp_path / "c.json"),
+                              "--no-refine", "--quiet"], monkeypatch)
+    assert code == 0 and out == ""
+    assert err.count("no intrinsics given") == 1
+
+
+# --------------------------------------------------------------------------- progress
+def test_progress_of_calibrate_and_report_counts_up(scene_dir, tmp_path, monkeypatch):
+    code, out, err = run_cli(["calibrate", str(scene_dir / "keypoints_mmpose.json"),
+                              "--intrinsics", str(scene_dir / "camera.json"),
+                              "--out", str(tmp_path / "c.json"), "--fps", "30",
+                              "--report", str(tmp_path / "rep")], monkeypatch, tty=True)
+    assert code == 0, err
+    bars = bar_lines(err)
+    assert {"robust initialisation", "solving the graph", "drawing the report"} <= set(bars)
+    for states in bars.values():
+        assert_counts_up(states)
+    # the RANSAC's total is a running estimate: only the last line shows it, the real one
+    init = bars["robust initialisation"]
+    assert all(s["total"] is None for s in init[:-1])
+    assert init[-1]["total"] == init[-1]["done"] > 0
+    cal = json.loads((tmp_path / "c.json").read_text())
+    assert init[-1]["done"] == cal["ransac_iterations"]
+    # the graph: within a pass the error of the accepted steps never rises
+    errors: dict[int, list[float]] = {}
+    for s in bars["solving the graph"]:
+        m = re.match(r"pass (\d+): error (\S+) -> (\S+)", s["info"])
+        assert m, s["info"]
+        errors.setdefault(int(m.group(1)), []).append(float(m.group(3)))
+        assert float(m.group(3)) <= float(m.group(2))
+    assert list(errors) == sorted(errors)
+    for values in errors.values():
+        assert values == sorted(values, reverse=True), values
+    # drawing the report: 1/5 ... 5/5
+    draw = bars["drawing the report"]
+    assert draw[-1]["done"] == draw[-1]["total"] == 5
+    assert f"wrote 5 figures to {tmp_path / 'rep'}" in out
+
+
+def test_no_progress_off_a_terminal_or_when_quiet(scene_dir, tmp_path, monkeypatch):
+    args = ["calibrate", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+            str(scene_dir / "camera.json"), "--out", str(tmp_path / "c.json"), "--fps", "30",
+            "--no-refine"]
+    _, _, err = run_cli(args, monkeypatch)
+    assert not bar_lines(err) and "\r" not in err
+    _, out, err = run_cli(args + ["--quiet"], monkeypatch, tty=True)
+    assert out == "" and err == ""
+
+
+def test_estimated_total_is_never_shown_before_it_is_known():
+    stream = FakeTTY()
+    bar = Progress("robust initialisation", stream=stream)
+    bar.min_interval = 0.0
+    for it, planned in ((1, 267), (2, 40), (3, 80), (30, 50), (50, 50)):
+        bar.estimate(it, planned)
+    bar.close()
+    states = bar_lines(stream.getvalue())["robust initialisation"]
+    assert_counts_up(states)
+    assert [s["total"] for s in states] == [None] * 5 + [50]
+
+
+def test_solve_progress_starts_a_pass_where_the_error_rises():
+    stream = FakeTTY()
+    bar = Progress("solving the graph", stream=stream)
+    bar.min_interval = 0.0
+    closed = []
+    solve = SolveProgress(bar, on_first=lambda: closed.append(True))
+    for it, e in enumerate((1700, 1568, 6636, 6137, 4663, 4663, 5200, 5100), 1):
+        solve(it, e)
+    assert closed == [True] and solve.passes == 3
+    assert solve.info == "pass 3: error 5200 -> 5100"
+    assert bar.done == 8
+
+
+def test_video_sampling_shows_progress(tmp_path, monkeypatch):
+    cv2 = pytest.importorskip("cv2")
+    pytest.importorskip("matplotlib")
+    import mirrorgraph as mg
+    from mirrorgraph.report.video import overlay_samples
+
+    scene = make_scene(frames=30, seed=1)
+    run = mg.calibrate(scene.detections, scene.intrinsics, mg.CalibrateOptions(refine=False))
+    video = tmp_path / "v.mp4"
+    w, h = scene.image_size
+    vw = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (w, h))
+    for i in range(30):
+        vw.write(np.full((h, w, 3), 30 + i, np.uint8))
+    vw.release()
+    stream = FakeTTY()
+    monkeypatch.setattr(sys, "stderr", stream)
+    monkeypatch.setattr(Progress, "min_interval", 0.0)
+    out = overlay_samples(video, run, tmp_path, count=4)
+    monkeypatch.undo()
+    states = bar_lines(stream.getvalue())["sampling video frames"]
+    assert_counts_up(states)
+    assert states[-1]["done"] == states[-1]["total"] == len(out) == 4
+
+
+# --------------------------------------------------------------------------- texts
+def test_export_names_the_cameras_as_written(scene_dir, tmp_path, monkeypatch):
+    import tomllib
+
+    cal = tmp_path / "c.json"
+    assert run_cli(["calibrate", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                    str(scene_dir / "camera.json"), "--out", str(cal), "--no-refine",
+                    "--quiet"], monkeypatch)[0] == 0
+    for fmt, real, mirror in (("pose2sim", "[cam_01]", "[cam_02]"),
+                              ("anipose", "[cam_0] 'real'", "[cam_1] 'mirror'")):
+        toml = tmp_path / f"{fmt}.toml"
+        code, out, _ = run_cli(["export", str(cal), "--to", fmt, str(toml)], monkeypatch)
+        assert code == 0
+        assert f"{real} the real camera" in out and f"{mirror} the mirror's virtual camera" in out
+        sections = [k for k, v in tomllib.loads(toml.read_text()).items()
+                    if isinstance(v, dict) and "matrix" in v]
+        assert sections == [real[1:].split("]")[0], mirror[1:].split("]")[0]]
+        assert "'real' and 'mirror'" not in out
+
+
+def test_matplotlib_hint_matches_the_readme(monkeypatch, tmp_path):
+    import builtins
+
+    from mirrorgraph.report import INSTALL_HINT
+
+    assert "pip install 'mirrorgraph[plot]'" in INSTALL_HINT
+    assert "pip install -e '.[plot]'" in INSTALL_HINT          # the README's command in a clone
+    real_import = builtins.__import__
+
+    def fake_import(name, *args, **kwargs):
+        if name == "matplotlib" or name.startswith("matplotlib."):
+            raise ImportError("no matplotlib")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", fake_import)
+    code, _, err = run_cli(["report", str(tmp_path / "c.json"), "--out", str(tmp_path / "r")],
+                           monkeypatch)
+    assert code == 2 and err.count("\n") == 1 and INSTALL_HINT in err
+
+
+def test_subject_height_in_centimetres_is_named(monkeypatch, tmp_path):
+    assert height_problem(1.75) is None
+    assert "did you mean 1.75 m (centimetres given)?" in height_problem(175)
+    assert "did you mean 1.8 m (millimetres given)?" in height_problem(1800)
+    assert "did you mean" not in height_problem(30)
+    for cmd in (["calibrate", "kp.json", "--out", str(tmp_path / "c.json")],
+                ["calibrate-rig", "rig.toml", "--out", str(tmp_path / "c.toml")]):
+        code, _, err = run_cli(cmd + ["--subject-height", "175"], monkeypatch)
+        assert code == 2 and err.count("\n") == 1
+        assert "175 m is not a human height" in err and "1.75 m (centimetres given)" in err
+
+
+def test_demo_prints_a_path_only_when_it_is_kept(tmp_path, monkeypatch):
+    code, out, err = run_cli(["demo", "--frames", "120"], monkeypatch)
+    assert code == 0, err
+    assert "temporary folder, deleted at the end" in out
+    assert "/tmp" not in out.split("\n")[0] and ".json" not in out.split("\n")[0]
+    keep = tmp_path / "kept"
+    code, out, err = run_cli(["demo", "--frames", "120", "--keep", str(keep)], monkeypatch)
+    assert code == 0, err
+    assert str(keep / "keypoints_mmpose.json") in out and (keep / "calibration.json").exists()
+    assert (keep / "calibration.report.npz").exists()
+    assert f"kept the scene and calibration.json in {keep}" in out
