@@ -13,18 +13,36 @@ from mirrorgraph.errors import InputError
 from mirrorgraph.skeletons import BODY_25, COCO_17
 from mirrorgraph.synth import make_scene, write_scene
 from mirrorgraph.synth.body import FULL_INDEX
-from mirrorgraph.synth.bvh import (CMU_UNIT_M, load_motion, parse_bvh, pingpong_indices,
-                                   read_bvh)
+from mirrorgraph.synth.bvh import (CMU_UNIT_M, cmu_example_path, load_motion, parse_bvh,
+                                   pingpong_indices, read_bvh)
 
-CMU_FILE = Path(__file__).resolve().parents[2] / "shared" / "data" / "cmu_01_01.bvh"
+#: The CMU take shipped as package data (mirrorgraph/data/cmu_01_01.bvh): nothing
+#: outside the repository is needed.
+CMU_FILE = cmu_example_path()
 
 
 @pytest.fixture(scope="module")
 def cmu_path() -> Path:
     if not CMU_FILE.is_file():
-        pytest.fail(f"the CMU motion-capture take is missing: expected {CMU_FILE} (the "
-                    "shared data folder ../shared/data beside the repository)")
+        pytest.fail(f"the CMU motion-capture take is missing: expected {CMU_FILE} "
+                    "(package data of mirrorgraph, mirrorgraph/data/README.md)")
     return CMU_FILE
+
+
+def test_cmu_take_is_package_data():
+    """The take lives in the package (a fresh clone has it), and is declared as
+    package data, so that an installed mirrorgraph has it too."""
+    import tomllib
+
+    import mirrorgraph
+
+    root = Path(mirrorgraph.__file__).resolve().parent
+    assert CMU_FILE.resolve() == root / "data" / "cmu_01_01.bvh"
+    assert (root / "data" / "README.md").is_file()
+    pyproject = root.parent / "pyproject.toml"
+    if pyproject.is_file():                         # a source checkout
+        data = tomllib.loads(pyproject.read_text())["tool"]["setuptools"]["package-data"]
+        assert "data/*.bvh" in data["mirrorgraph"]
 
 
 @pytest.fixture(scope="module")

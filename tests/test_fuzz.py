@@ -2,7 +2,9 @@
 
 Each test draws a small valid input (a 16-frame synthetic scene, COCO-17 or BODY_25) and,
 mostly, one corruption of it: truncated or garbled text, wrong types, wrong keypoint counts,
-NaN and infinite values, negative or absurd confidences, frames with 0, 1, 2 or 5 people,
+NaN and infinite values, absurd confidences, each format's own markers of a missing joint
+(EasyMocap's ``[0, 0, -1]``, Pose2Sim's NaN joints, SimCC scores <= 0 and above 1), people
+without keypoints, frames with 0, 1, 2 or 5 people,
 empty folders, mixed formats in one folder, huge coordinates and frame ids, intrinsics with a
 singular K or a negative focal length, image sizes that disagree with the keypoints. Then:
 
@@ -45,6 +47,11 @@ from mirrorgraph.io import read_keypoints
 from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.skeleton_guess import MIN_DETECTIONS
 from mirrorgraph.synth import make_scene, write_scene
+
+try:     # the fewest joints --joints may name (mirrorgraph.joint_sets)
+    from mirrorgraph.joint_sets import MIN_JOINTS
+except ImportError:
+    MIN_JOINTS = 1
 
 #: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (well under a minute
 #: on a 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20 + 8 + 80 = 2208.
@@ -308,10 +315,19 @@ prior_outputs = st.sampled_from([None, None, b"precious calibration\n"])
 # =============================================================================== JSON formats
 @dataclass(frozen=True)
 class Fmt:
+    """One JSON format, and what its tools write as confidences (see the readers'
+    docstrings): ``max_conf`` is the largest score read (clipped to 1), larger ones are
+    refused; a negative score is a missing joint in all three."""
+
     name: str
     persons: str        # key of a frame's list of people
     kp: str             # key of a person's keypoints
     folder: bool
+    max_conf: float = math.inf
+
+    def conf_ok(self, v: float) -> bool:
+        """Whether the reader must accept confidence ``v`` (finite)."""
+        return v <= self.max_conf
 
     def kp_field(self, p: int, c: int = 0) -> str:
         if self.name == "mmpose" and c == 2:
@@ -321,7 +337,7 @@ class Fmt:
 
 MMPOSE = Fmt("mmpose", "instances", "keypoints", False)
 OPENPOSE = Fmt("openpose", "people", "pose_keypoints_2d", True)
-EASYMOCAP = Fmt("easymocap", "annots", "keypoints", True)
+EASYMOCAP = Fmt("easymocap", "annots", "keypoints", True, max_conf=1.5)
 INPUT = {"mmpose": MM, "openpose": OP, "easymocap": EM}
 
 
@@ -404,8 +420,25 @@ def keypoint_value_mutation(draw, fr: Frames) -> Case:
     j = draw(st.integers(0, J - 1))
     c = draw(st.integers(0, 2))
     person = fr.persons(i)[p]
-    kind = draw(st.sampled_from(["nonfinite", "type", "number"]))
+    kind = draw(st.sampled_from(["nonfinite", "type", "number", "number", "marker"]))
     file_re, t_re = fr.where(i)
+    if kind == "marker":
+        # the format's own "missing" marker on one joint (or every joint of one person,
+        # or an empty keypoint list): read as missing, the calibration unharmed
+        marker = {"mmpose": [0.0, 0.0, -0.3], "easymocap": [0.0, 0.0, -1.0],
+                  "openpose": draw(st.sampled_from([[0.0, 0.0, -1.0], [math.nan] * 3]))}
+        whole = draw(st.sampled_from(["joint", "joint", "person", "no_keypoints"]))
+        if whole == "no_keypoints" and fmt.name != "mmpose":
+            if fmt.name == "openpose":
+                person[fmt.kp] = []
+            else:
+                del person[fmt.kp]
+            return fr.case(f"frame #{i} person {p} without keypoints", "ok", close=True)
+        for jj in (range(J) if whole != "joint" else [j]):
+            for cc in range(3):
+                set_value(fmt, person, jj, cc, marker[fmt.name][cc])
+        return fr.case(f"frame #{i} person {p} {whole} {j} = {marker[fmt.name]}", "ok",
+                       close=True)
     if kind == "nonfinite":
         v = draw(st.sampled_from(NONFINITE))
         names = (file_re, t_re, field_re(fmt.persons), at_re(p, j))
@@ -415,16 +448,17 @@ def keypoint_value_mutation(draw, fr: Frames) -> Case:
         names = (file_re, t_re, field_re(fmt.kp_field(p, c)))
         read = "error"
     elif c == 2:
+        # negative: missing in every JSON format; above 1: clipped up to the format's max
         v = draw(st.one_of(st.floats(-1e300, -1e-9), st.floats(1e-6, 1.0), st.just(0.0),
                            st.floats(1.0, 1.5), st.floats(1.5001, 1e300)))
-        bad = v < 0 or v > 1.5
+        bad = not fmt.conf_ok(v)
         names = (file_re, t_re, field_re(fmt.persons), at_re(p, j)) if bad else ()
         read = "error" if bad else "ok"
     else:
         v = draw(st.one_of(st.floats(-1e6, 1e6), st.integers(-5000, 5000),
                            st.floats(1.0000001e6, 1e300), st.floats(-1e300, -1.0000001e6)))
         conf = get_value(fmt, person, j, 2)
-        far = abs(v) > 1e6 and conf != 0
+        far = abs(v) > 1e6 and conf > 0
         names = (file_re, t_re, field_re(fmt.persons), at_re(p, j)) if far else ()
         read = "error" if far else "ok"
     set_value(fmt, person, j, c, v)
@@ -445,6 +479,8 @@ def structure_mutation(draw, fr: Frames) -> Case:
     if kind == "count":
         n = draw(st.integers(0, 30).filter(lambda n: n != J))
         resize(fmt, fr.persons(i)[p], n, "both")
+        if n == 0 and fmt.name == "openpose":    # OpenPose's body detector off: left out
+            return fr.case(f"frame #{i} person {p} has no keypoints", "ok")
         first = i == 0 and p == 0
         if first and n in KNOWN_COUNTS:   # the first person fixes the skeleton
             names = (lit(fmt.kp),)
@@ -468,6 +504,8 @@ def structure_mutation(draw, fr: Frames) -> Case:
                        (file_re, t_re, field_re(fmt.persons)))
     if kind == "delete_kp":
         del fr.persons(i)[p][fmt.kp]
+        if fmt.name == "easymocap":   # a bounding box only (EasyMocap's YOLO stage)
+            return fr.case(f"frame #{i} person {p} without {fmt.kp}", "ok")
         return fr.case(f"frame #{i} person {p} without {fmt.kp}", "error",
                        (file_re, t_re, field_re(fmt.kp_field(p))))
     if kind == "delete_persons":
@@ -1096,6 +1134,8 @@ def cli_options(draw):
         chosen = draw(st.lists(st.sampled_from(list(skel.joints)), min_size=1, max_size=8,
                                unique=True))
         args += ["--joints", ",".join(chosen)]
+        if len(chosen) < MIN_JOINTS:     # too few joints to name: refused as an option
+            wrong.append(field_re("joints") + ".*at least")
     elif joints == "unknown":
         args += ["--joints", "left_wrist,tail"]
         wrong.append(field_re("joints") + ".*tail")

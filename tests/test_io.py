@@ -293,10 +293,12 @@ def test_mmpose_malformed_json(tmp_path):
      ["frame 5", "instances", "non-finite x", "joint 3"]),
     (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, float("inf")),
      ["frame 5", "instances", "non-finite confidence"]),
-    (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, -0.1),
-     ["frame 5", "instances", "confidence -0.1", "joint 2"]),
-    (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, 1.6),
-     ["frame 5", "instances", "confidence 1.6"]),
+    # (scores <= 0 are missing and any finite score above 1 is clipped in MMPose's
+    #  format: tests/test_io_real_formats.py)
+    (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, float("nan")),
+     ["frame 5", "instances", "non-finite confidence", "joint 2"]),
+    (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, None),
+     ["frame 5", "instances[0].keypoint_scores", "numbers"]),
     (lambda d: d[1]["instances"].append({"keypoints": [[1, 2]] * 18}),
      ["frame 5", "instances[1].keypoints", "18 keypoints", "COCO_17"]),
     (lambda d: d[1].update(frame_id=0), ["frame 0", "duplicate frame id"]),
@@ -342,7 +344,11 @@ def test_openpose_bad_content(tmp_path):
          ["frame 3", "people[1].pose_keypoints_2d", "18 keypoints"]),
         (["1 2 3"], True, ["frame 3", "people[0].pose_keypoints_2d", "list"]),
         ([good_flat(19)], False, ["frame 3", "people[0].pose_keypoints_2d", "no known skeleton"]),
-        ([[1.0, 1.0, 2.0] * 25], True, ["frame 3", "people", "confidence 2.0"]),
+        # NaN only where Pose2Sim writes it (a whole joint NaN, NaN, NaN)
+        ([[1.0, 1.0, float("nan")] * 25], True,
+         ["frame 3", "people", "non-finite confidence", "joint 0"]),
+        ([[float("nan"), 1.0, 0.0] * 25], True, ["frame 3", "people", "non-finite x"]),
+        ([[1.0, 1.0, float("inf")] * 25], True, ["frame 3", "people", "non-finite"]),
     ]
     for i, (people, good_first, parts) in enumerate(cases):
         folder = tmp_path / f"case{i}"
@@ -393,6 +399,11 @@ def test_easymocap_bad_content(tmp_path):
         (dict(annots_kp=[kp], width=800), ["frame 2", "width", "differs"]),
         (dict(annots_kp=[kp], height="480"), ["frame 2", "height", "integer"]),
         (dict(annots_kp=[[[1.0, float("inf"), 0.5]] * 25]), ["frame 2", "non-finite y"]),
+        (dict(annots_kp=[[[float("nan"), float("nan"), -1.0]] * 25]),
+         ["frame 2", "non-finite x"]),
+        (dict(annots_kp=[[[1.0, 2.0, 2.0]] * 25]),
+         ["frame 2", "annots", "confidence 2.0", "person 0, joint 0"]),
+        (dict(annots_kp=[None]), ["frame 2", "annots[0].keypoints", "list"]),
     ]
     for i, (kwargs, parts) in enumerate(cases):
         folder = tmp_path / f"case{i}"

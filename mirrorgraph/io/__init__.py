@@ -6,15 +6,26 @@ from the path (see :mod:`.detect`):
 ========== ============================================ ==========================
 format     input                                        returns
 ========== ============================================ ==========================
-mmpose     one ``.json`` file of inferencer predictions :class:`RawDetections`
+mmpose     one ``.json`` file of inferencer or demo     :class:`RawDetections`
+           predictions, or a folder of the inferencer's
+           per-image ``.json`` files
 openpose   folder of ``*_keypoints.json``, one a frame  :class:`RawDetections`
+           (also Pose2Sim's ``*_{frame:06d}.json``)
 easymocap  folder of ``{frame:06d}.json`` annotations   :class:`RawDetections`
+           (EasyMocap, Mirrored-Human)
 npz        ``.npz`` of paired ``real``/``mirror``       :class:`PairedKeypoints`
 ========== ============================================ ==========================
 
-Every reader refuses bad input with :class:`~mirrorgraph.errors.InputError`
-naming file, frame and field. :func:`write_keypoints` and
-:func:`write_paired_npz` are the exact inverses; all writes are atomic.
+Each reader reads its format as the tools write it, their "missing" markers
+included (a module docstring each says what they are and where that was read):
+joints of confidence ``<= 0`` (EasyMocap's ``[0, 0, -1]``), Pose2Sim's ``NaN``
+joints, scores above 1 (clipped), people without keypoints. What it read as
+missing or clipped is counted in ``read_notes``
+(:class:`~mirrorgraph.keypoints.ReadNotes`) of what it returns. Malformed input
+(broken JSON, wrong types or counts, non-finite numbers a format never writes) is
+refused with :class:`~mirrorgraph.errors.InputError` naming file, frame and
+field. :func:`write_keypoints` and :func:`write_paired_npz` are the exact
+inverses; all writes are atomic.
 """
 
 from __future__ import annotations
@@ -28,15 +39,16 @@ from .atomic import atomic_dir, atomic_path, atomic_write_bytes, atomic_write_te
 from .calibration import read_json, to_jsonable, write_json
 from .detect import classify_json, detect_format, sniff
 from .easymocap import read_easymocap, write_easymocap
-from .mmpose import detections_from_mmpose, read_mmpose, write_mmpose
+from .mmpose import detections_from_mmpose, read_mmpose, read_mmpose_folder, write_mmpose
 from .npz import read_paired_npz, write_paired_npz
 from .openpose import read_openpose, write_openpose
 
 __all__ = [
     "read_keypoints", "write_keypoints", "write_paired_npz", "read_paired_npz",
-    "detect_format", "classify_json", "read_mmpose", "write_mmpose", "read_openpose",
-    "write_openpose", "read_easymocap", "write_easymocap", "atomic_path", "atomic_dir",
-    "atomic_write_bytes", "atomic_write_text", "read_json", "write_json", "to_jsonable",
+    "detect_format", "classify_json", "read_mmpose", "read_mmpose_folder", "write_mmpose",
+    "read_openpose", "write_openpose", "read_easymocap", "write_easymocap", "atomic_path",
+    "atomic_dir", "atomic_write_bytes", "atomic_write_text", "read_json", "write_json",
+    "to_jsonable",
 ]
 
 _WRITERS = {"mmpose": write_mmpose, "openpose": write_openpose, "easymocap": write_easymocap}
@@ -49,14 +61,15 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
 
     Args:
         path: an MMPose ``.json`` file, a paired ``.npz`` file, or an OpenPose /
-            EasyMocap folder.
+            EasyMocap / MMPose per-image folder.
         skeleton: the keypoint layout (a :class:`Skeleton` or its name); by
             default found from the keypoint count.
         progress: ``progress(done, total)`` called per file of a folder.
 
     Returns:
         :class:`RawDetections` (``.format`` names the format), or
-        :class:`PairedKeypoints` for ``.npz`` (mirror labels already flipped).
+        :class:`PairedKeypoints` for ``.npz`` (mirror labels already flipped);
+        ``.read_notes`` counts what was read as missing or clipped.
 
     Raises:
         InputError: unknown format, or any malformed content.
@@ -65,6 +78,8 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     if kind == "npz":
         return read_paired_npz(path, skeleton=skeleton)
     if kind == "mmpose":
+        if obj is None:                                     # a folder of per-image files
+            return read_mmpose_folder(path, skeleton=skeleton, progress=progress)
         return detections_from_mmpose(obj, source=str(path), skeleton=skeleton)
     if kind == "openpose":
         return read_openpose(path, skeleton=skeleton, progress=progress)

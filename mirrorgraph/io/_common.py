@@ -3,10 +3,21 @@
 Every check raises :class:`~mirrorgraph.errors.InputError` naming the file,
 frame and field at fault.
 
-Confidence policy (all readers): a confidence must be finite and in ``[0, 1]``.
-Detectors whose scores are not probabilities (RTMPose's SimCC scores, OpenPose
-heat-map peaks) sometimes exceed 1 a little, so values in ``(1, 1.5]`` are
-clipped to 1; negative values and values above 1.5 are refused.
+Confidence policy. Each format has a :class:`ScorePolicy`: what its tools write
+(the reader modules' docstrings say where that was read). Shared by all:
+
+* a confidence must be finite (except a whole joint written ``NaN, NaN, NaN``
+  where the policy allows it: Pose2Sim's OpenPose-style files);
+* confidence ``0`` is missing, whatever the coordinates (``0, 0, 0`` usually);
+* a negative confidence is missing, whatever the coordinates, where the format
+  writes it so (EasyMocap's ``[0, 0, -1]``; SimCC scores ``<= 0``), and refused
+  elsewhere;
+* confidences above 1 are clipped to 1; above the policy's ``max_confidence``
+  (``MAX_CONFIDENCE`` = 1.5 for formats whose scores are heat-map probabilities,
+  unbounded for SimCC logits) they are refused.
+
+Everything read as missing or clipped is counted (:class:`Tally`, frozen into
+:class:`mirrorgraph.keypoints.ReadNotes`).
 
 Coordinate policy: the x, y of a detected joint (confidence > 0) must be finite
 and within ``MAX_COORDINATE`` pixels of the origin; larger values are no image
@@ -20,16 +31,20 @@ import json
 import os
 import re
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from ..errors import InputError
+from ..keypoints import ReadNotes
 from ..skeleton_guess import guess_skeleton
 from ..skeletons import Skeleton, known_counts, skeleton_by_name, skeletons_for_count
 
-#: Confidences up to this value are clipped to 1; above it they are refused.
+#: Confidences up to this value are clipped to 1, above it refused, in formats whose
+#: scores are heat-map peaks (OpenPose itself writes up to ~1.41: openpose issue #615;
+#: Mirrored-Human's annotations up to 1.057).
 MAX_CONFIDENCE = 1.5
 
 #: Largest absolute pixel coordinate accepted for a detected joint.
@@ -191,23 +206,101 @@ class JointCount:
         return self.skeleton if self.skeleton is not None else self.default
 
 
+@dataclass(frozen=True)
+class ScorePolicy:
+    """How one format writes confidences (see the module docstring).
+
+    Attributes:
+        negative_missing: a negative confidence means "missing" (else refused).
+        max_confidence: confidences in ``(1, max_confidence]`` are clipped to 1,
+            larger ones refused (``inf``: any finite score is accepted).
+        nan_missing: a joint whose x and y are NaN and whose confidence is NaN or
+            ``<= 0`` is missing (else any NaN is refused).
+        zero_nan_missing: NaN coordinates are accepted on joints of confidence 0
+            (the ``.npz`` convention).
+    """
+
+    negative_missing: bool = False
+    max_confidence: float = MAX_CONFIDENCE
+    nan_missing: bool = False
+    zero_nan_missing: bool = False
+
+    def range_text(self) -> str:
+        lo = "(-inf" if self.negative_missing else "[0"
+        hi = "inf)" if np.isinf(self.max_confidence) else f"{self.max_confidence:g}]"
+        return f"{lo}, {hi}"
+
+
+#: mirrorgraph's own ``.npz``: confidence in ``[0, 1.5]``, NaN coordinates where 0.
+NPZ_SCORES = ScorePolicy(zero_nan_missing=True)
+
+
+class Tally:
+    """Counts of what the cleaning read as missing or clipped, summed over calls.
+
+    Joints: ``zero``, ``negative``, ``nan`` (missing by confidence 0, negative
+    confidence, NaN), ``clipped`` (confidence above 1), ``max_confidence`` (largest
+    finite one); people: ``no_keypoints``, ``no_joints``; frames: ``empty_frames``.
+    :meth:`notes` freezes them into :class:`mirrorgraph.keypoints.ReadNotes`.
+    """
+
+    __slots__ = ("zero", "negative", "nan", "clipped", "max_confidence", "no_keypoints",
+                 "no_joints", "empty_frames")
+
+    def __init__(self) -> None:
+        self.zero = self.negative = self.nan = self.clipped = 0
+        self.no_keypoints = self.no_joints = self.empty_frames = 0
+        self.max_confidence = -np.inf
+
+    def notes(self) -> ReadNotes:
+        top = None if not np.isfinite(self.max_confidence) else float(self.max_confidence)
+        return ReadNotes(joints_missing_zero_confidence=self.zero,
+                         joints_missing_negative_confidence=self.negative,
+                         joints_missing_nan=self.nan, scores_clipped_above_1=self.clipped,
+                         max_confidence_read=top, people_without_keypoints=self.no_keypoints,
+                         people_without_joints=self.no_joints,
+                         frames_without_people=self.empty_frames)
+
+
 def clean_keypoints(kp: np.ndarray, *, source: Any, frame: int | None, field: str,
-                    allow_nan_missing: bool = False,
+                    policy: ScorePolicy = NPZ_SCORES, tally: Tally | None = None,
                     frames: np.ndarray | None = None) -> np.ndarray:
     """Validate ``(..., J, 3)`` keypoints and mark missing joints; returns a new array.
 
-    Non-finite values are refused, except (with ``allow_nan_missing``) NaN
-    coordinates of joints whose confidence is 0, and coordinates beyond
-    ``MAX_COORDINATE`` of joints whose confidence is not 0. Confidences in
-    ``(1, 1.5]`` are clipped to 1, others outside ``[0, 1]`` refused. Joints of
-    confidence 0 get ``NaN`` coordinates. With ``frames`` (``(T,)`` ids), ``kp``
-    is ``(T, J, 3)`` and an error names the frame of the offending row.
+    Applies ``policy`` (see the module docstring): non-finite values, confidences
+    outside the policy's range and coordinates beyond ``MAX_COORDINATE`` of
+    detected joints are refused; joints of confidence ``<= 0`` (``0`` only unless
+    ``policy.negative_missing``) and NaN joints (``policy.nan_missing``) get
+    confidence 0 and ``NaN`` coordinates; confidences above 1 are clipped to 1.
+    What was read as missing or clipped is added to ``tally``. With ``frames``
+    (``(T,)`` ids), ``kp`` is ``(T, J, 3)`` and an error names the frame of the
+    offending row. Vectorised over all joints.
+
+    Args:
+        kp: ``(..., J, 3)`` x px, y px, confidence as read.
+        source, frame, field: where ``kp`` came from, for the error message.
+        policy: the format's :class:`ScorePolicy`.
+        tally: counts to add to, if any.
+        frames: ``(T,)`` frame ids of the rows of a ``(T, J, 3)`` ``kp``.
+
+    Returns:
+        ``(..., J, 3)`` float: missing joints ``(NaN, NaN, 0)``, confidences in
+        ``[0, 1]``.
     """
     kp = np.array(kp, dtype=float)
     conf = kp[..., 2]
-    bad = ~np.isfinite(kp)
-    if allow_nan_missing:
-        bad[..., :2] &= ~(np.isnan(kp[..., :2]) & (conf == 0)[..., None])
+    finite = bool(np.isfinite(kp).all())      # the usual case: one check, no masks
+    nan_joint = None
+    if not finite:
+        xy_nan = np.isnan(kp[..., :2])
+        bad = ~np.isfinite(kp)
+        if policy.nan_missing:
+            nan_joint = xy_nan.all(-1) & (np.isnan(conf) | (conf <= 0))
+            bad &= ~nan_joint[..., None]
+        if policy.zero_nan_missing:
+            bad[..., :2] &= ~(xy_nan & (conf == 0)[..., None])
+    else:
+        bad = None
 
     def fail(idx: np.ndarray, message: str) -> InputError:
         f = frame
@@ -216,23 +309,63 @@ def clean_keypoints(kp: np.ndarray, *, source: Any, frame: int | None, field: st
         where = ", ".join(f"{n} {int(i)}" for n, i in zip(("person", "joint")[-len(idx):], idx))
         return InputError(f"{message} at {where}", source=source, frame=f, field=field)
 
-    if bad.any():
+    if bad is not None and bad.any():
         idx = np.argwhere(bad)[0]
         what = ("x", "y", "confidence")[idx[-1]]
         raise fail(idx[:-1], f"non-finite {what} ({kp[tuple(idx)]})")
-    out = (conf < 0) | (conf > MAX_CONFIDENCE)
-    if out.any():
+    seen = None if nan_joint is None else ~nan_joint   # joints with a finite confidence
+    cs = conf if seen is None else conf[seen]
+    lo = float(cs.min()) if cs.size else 0.0
+    hi = float(cs.max()) if cs.size else 0.0
+    if hi > policy.max_confidence or (lo < 0 and not policy.negative_missing):
+        with np.errstate(invalid="ignore"):
+            out = (conf > policy.max_confidence) | ((conf < 0) & (not policy.negative_missing))
         idx = np.argwhere(out)[0]
-        raise fail(idx, f"confidence {conf[tuple(idx)]} outside [0, 1]")
-    far = (np.abs(kp[..., :2]) > MAX_COORDINATE) & (conf != 0)[..., None]
-    if far.any():
+        raise fail(idx, f"confidence {conf[tuple(idx)]} outside {policy.range_text()}")
+    missing = conf <= 0
+    if nan_joint is not None:
+        missing |= nan_joint
+    if finite and np.abs(kp[..., :2]).max(initial=0.0) <= MAX_COORDINATE:
+        far = None
+    else:
+        with np.errstate(invalid="ignore"):
+            far = (np.abs(kp[..., :2]) > MAX_COORDINATE) & ~missing[..., None]
+    if far is not None and far.any():
         idx = np.argwhere(far)[0]
         what = ("x", "y")[idx[-1]]
         raise fail(idx[:-1], f"{what} = {kp[tuple(idx)]:g} px is no image coordinate "
                              f"(beyond +-{MAX_COORDINATE:g})")
-    np.minimum(conf, 1.0, out=conf)
-    kp[conf == 0, :2] = np.nan
+    if tally is not None:
+        if lo <= 0:
+            tally.zero += int(np.count_nonzero(cs == 0))
+            tally.negative += int(np.count_nonzero(cs < 0))
+        if nan_joint is not None:
+            tally.nan += int(np.count_nonzero(nan_joint))
+        if cs.size:
+            tally.max_confidence = max(tally.max_confidence, hi)
+            if hi > 1:
+                tally.clipped += int(np.count_nonzero(cs > 1))
+    if lo <= 0 or nan_joint is not None:
+        conf[missing] = 0.0
+        kp[missing, :2] = np.nan
+    if hi > 1:
+        np.minimum(conf, 1.0, out=conf)
     return kp
+
+
+def drop_empty_people(people: np.ndarray, tally: Tally | None = None) -> np.ndarray:
+    """``(P', J, 3)``: the cleaned ``(P, J, 3)`` people with at least one joint seen.
+
+    A person entry whose every joint is missing is no detection to pair (Pose2Sim
+    writes such entries for tracked people not seen in a frame); they are counted
+    in ``tally.no_joints``.
+    """
+    seen = (people[..., 2] > 0).any(-1)
+    if seen.all():
+        return people
+    if tally is not None:
+        tally.no_joints += int(np.count_nonzero(~seen))
+    return people[seen]
 
 
 def frame_from_name(path: Path) -> int:

@@ -3,11 +3,14 @@
 * a file ending ``.npz``: paired keypoints (:mod:`.npz`);
 * a file ending ``.json``: MMPose predictions (:mod:`.mmpose`), checked by
   structure: a list of ``{"frame_id", "instances"}`` (the first entry holding at least
-  one of the two keys) or ``{"instance_info": [...]}``;
+  one of the two keys), ``{"instance_info": [...]}``, or one image's list of
+  instances (the first entry holding ``keypoints``);
 * a folder: its ``*.json`` files are per-frame OpenPose files (``people`` with
-  ``pose_keypoints_2d``, :mod:`.openpose`) or EasyMocap annotations (``annots``,
-  :mod:`.easymocap`). Only the first file is parsed here; the reader checks that
-  every other file has the same format.
+  ``pose_keypoints_2d``, :mod:`.openpose`; Pose2Sim writes the same), EasyMocap
+  annotations (``annots``, :mod:`.easymocap`) or the MMPose inferencer's per-image
+  predictions (a list of instances, :func:`.mmpose.read_mmpose_folder`). Only the
+  first file is parsed here; the reader checks that every other file has the same
+  format.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from typing import Any
 
 from ..errors import InputError
 from ._common import json_folder, load_json
+from .mmpose import is_instance_list
 
 FORMATS = ("mmpose", "openpose", "easymocap", "npz")
 
@@ -36,6 +40,8 @@ def classify_json(obj: Any) -> str | None:
         if not obj or (isinstance(obj[0], dict) and ("instances" in obj[0]
                                                       or "frame_id" in obj[0])):
             return "mmpose"
+        if is_instance_list(obj):
+            return "mmpose"
     return None
 
 
@@ -50,10 +56,18 @@ def sniff(path: str | os.PathLike) -> tuple[str, Any]:
     path = Path(path)
     if path.is_dir():
         first = json_folder(path)[0]
-        kind = classify_json(load_json(first))
+        doc = load_json(first)
+        if is_instance_list(doc):
+            return "mmpose", None
+        kind = classify_json(doc)
+        if kind == "mmpose":
+            raise InputError(f"folder's JSON files (e.g. {first.name}) are MMPose video "
+                             "predictions: pass one predictions file, not a folder",
+                             source=path)
         if kind not in ("openpose", "easymocap"):
             raise InputError(f"folder's JSON files (e.g. {first.name}) are neither OpenPose "
-                             "('people') nor EasyMocap ('annots') frame files", source=path)
+                             "('people'), EasyMocap ('annots') nor MMPose per-image "
+                             "predictions (a list of instances)", source=path)
         return kind, None
     if not path.exists():
         raise InputError("no such file or folder", source=path)
@@ -70,5 +84,6 @@ def sniff(path: str | os.PathLike) -> tuple[str, Any]:
                          source=path)
     if kind is None:
         raise InputError("not MMPose predictions: expected a list of {'frame_id', "
-                         "'instances'} or an object with 'instance_info'", source=path)
+                         "'instances'}, an object with 'instance_info', or a list of "
+                         "instances", source=path)
     return kind, obj

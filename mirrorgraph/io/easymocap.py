@@ -1,17 +1,49 @@
 """EasyMocap / Mirrored-Human 2D annotations: a folder of one JSON file per frame.
 
-File ``{frame:06d}.json``::
+File ``{frame:06d}.json`` (``annots/<camera>/`` of an EasyMocap dataset)::
 
-    {"filename": "images/000012.jpg", "height": H, "width": W,
+    {"filename": "images/<camera>/000012.jpg", "height": H, "width": W,
      "annots": [{"personID": 0,
-                 "keypoints": [[x, y, c], ...],      # (J, 3) pixels, c in [0, 1]
-                 "bbox": [x1, y1, x2, y2, c],        # ignored on reading
-                 "isKeyframe": false}]}
+                 "bbox": [x1, y1, x2, y2, c],          # 5 numbers, or 7 (Mirrored-Human)
+                 "keypoints": [[x, y, c], ...],        # (J, 3) pixels
+                 "area": A,                            # optional
+                 "isKeyframe": false,
+                 "handl2d": [...], "handr2d": [...], "face2d": [...],   # optional
+                 "bbox_handl2d": [...], ...}],
+     "isKeyframe": false}
 
-The layout is BODY_25; COCO-17 and COCO-18 are accepted by count. A missing
-joint is written ``[0, 0, 0]``. The frame id is the last number in the file
-name; ``width``/``height`` give the image size (optional, but they must agree
-between files). Files are read in frame order, one at a time.
+As the tools write it (read in EasyMocap's ``easymocap/annotator/file_utils.py``
+``annot2string`` / ``save_annot``, ``easymocap/mytools/file_utils.py`` ``read_annot``,
+``easymocap/estimator/openpose_wrapper.py`` ``load_openpose``,
+``easymocap/estimator/yolohrnet_wrapper.py``, ``doc/dataset.md``; and in the
+annotations of Mirrored-Human's ``data/sample-videos.zip``, zju3dv/Mirrored-Human):
+
+* the layout is BODY_25 (``doc/dataset.md``); COCO-17 and COCO-18 are accepted by
+  count;
+* a joint not detected is ``[0, 0, 0]`` (OpenPose's zeros, kept by
+  ``load_openpose``), or confidence 0 with leftover coordinates; a joint the
+  annotator left out is ``[0, 0, -1]`` (Mirrored-Human, e.g.
+  ``annots/backflip/000160.json``, also ``[0, -2.8e-14, -1]``; EasyMocap's own
+  annotator writes negative confidences as 0, ``annot2string``, and its reader
+  sets them to 0, ``read_annot``). Both are read as missing, whatever the
+  coordinates, and counted (:class:`~mirrorgraph.keypoints.ReadNotes`);
+* confidences are heat-map peaks (OpenPose, HRNet) and exceed 1 a little
+  (Mirrored-Human up to 1.057): up to 1.5 they are clipped to 1 and counted,
+  beyond that refused;
+* a person entry without ``keypoints`` holds only a ``bbox`` (the YOLO stage of
+  ``yolohrnet_wrapper.extract_bbox``; ``read_annot`` reads it as zeros): left out
+  and counted. ``keypoints2d`` is read where ``keypoints`` is absent (as
+  ``read_annot`` does); a person whose every joint is missing is left out;
+* ``bbox``, ``personID`` (Mirrored-Human: 0 the person, 1 the reflection;
+  mirrorgraph tells them apart itself), ``area``, ``isKeyframe``, hands, face and
+  any other key are ignored; an empty ``annots`` is a frame with nobody;
+* the tools write no NaN (``annot2string`` formats numbers with ``%7.2f``; none in
+  Mirrored-Human's files): any non-finite number is an error naming file, frame
+  and field.
+
+The frame id is the last number in the file name; ``width``/``height`` give the
+image size (optional, but they must agree between files). Files are read in frame
+order, one at a time.
 """
 
 from __future__ import annotations
@@ -24,13 +56,20 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import BODY_25, Skeleton
-from ._common import (MAX_IMAGE_SIDE, JointCount, bbox_of, check_writable_ids,
-                      clean_keypoints, dump_json, frame_files, iter_frame_documents,
-                      json_type, numeric_array, require, to_skeleton, zero_missing)
+from ._common import (MAX_IMAGE_SIDE, JointCount, ScorePolicy, Tally, bbox_of,
+                      check_writable_ids, clean_keypoints, drop_empty_people, dump_json,
+                      frame_files, iter_frame_documents, json_type, numeric_array, require,
+                      to_skeleton, zero_missing)
 from ._common import ProgressCallback
 from .atomic import atomic_dir
 
 FORMAT = "easymocap"
+
+#: Heat-map confidences, ``[0, 0, -1]`` for a joint left out, no NaN.
+SCORES = ScorePolicy(negative_missing=True)
+
+#: Keys of a person's body keypoints, in the order ``read_annot`` looks for them.
+KEYPOINT_KEYS = ("keypoints", "keypoints2d")
 
 
 def read_easymocap(folder: str | os.PathLike, *,
@@ -42,6 +81,7 @@ def read_easymocap(folder: str | os.PathLike, *,
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
     image_size: tuple[int, int] | None = None
+    tally = Tally()
     for t, file, obj in iter_frame_documents(folder, files, frame_ids, "EasyMocap", "annots",
                                              progress):
         size = _image_size(obj, source=str(file), frame=t)
@@ -53,12 +93,14 @@ def read_easymocap(folder: str | os.PathLike, *,
                                  field="width" if size[0] != image_size[0] else "height")
             image_size = size
         annots = require(obj, "annots", list, source=file, frame=t)
-        people.append(_frame(annots, counter, source=str(file), frame=t))
+        people.append(_frame(annots, counter, tally, source=str(file), frame=t))
     skel = counter.result(people, source=folder)
     empty = np.empty((0, skel.num_joints, 3))
+    tally.empty_frames = sum(p is None for p in people)
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if p is None else p for p in people],
-                         source=str(folder), format=FORMAT, image_size=image_size)
+                         source=str(folder), format=FORMAT, image_size=image_size,
+                         read_notes=tally.notes())
 
 
 def _image_size(obj: dict, *, source: str, frame: int) -> tuple[int, int] | None:
@@ -76,15 +118,20 @@ def _image_size(obj: dict, *, source: str, frame: int) -> tuple[int, int] | None
     return w, h
 
 
-def _frame(annots: list, counter: JointCount, *, source: str, frame: int) -> np.ndarray | None:
-    """``(P, J, 3)`` keypoints of one file's ``annots`` (``None`` if empty)."""
+def _frame(annots: list, counter: JointCount, tally: Tally, *, source: str,
+           frame: int) -> np.ndarray | None:
+    """``(P, J, 3)`` keypoints of one file's ``annots`` (``None`` if nobody is left)."""
     rows = []
     for p, annot in enumerate(annots):
-        field = f"annots[{p}].keypoints"
         if not isinstance(annot, dict):
             raise InputError(f"expected an object, got {json_type(annot)}",
                              source=source, frame=frame, field=f"annots[{p}]")
-        kp = numeric_array(require(annot, "keypoints", list, source=source, frame=frame,
+        key = next((k for k in KEYPOINT_KEYS if k in annot), None)
+        if key is None:                      # a bounding box only
+            tally.no_keypoints += 1
+            continue
+        field = f"annots[{p}].{key}"
+        kp = numeric_array(require(annot, key, list, source=source, frame=frame,
                                    field=field), 2, source=source, frame=frame, field=field)
         if kp.shape[1] != 3:
             raise InputError(f"expected [x, y, c] triples, got rows of {kp.shape[1]}",
@@ -93,7 +140,9 @@ def _frame(annots: list, counter: JointCount, *, source: str, frame: int) -> np.
         rows.append(kp)
     if not rows:
         return None
-    return clean_keypoints(np.stack(rows), source=source, frame=frame, field="annots")
+    kp = drop_empty_people(clean_keypoints(np.stack(rows), source=source, frame=frame,
+                                           field="annots", policy=SCORES, tally=tally), tally)
+    return kp if len(kp) else None
 
 
 def write_easymocap(detections: RawDetections, folder: str | os.PathLike) -> None:

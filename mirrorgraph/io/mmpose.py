@@ -1,26 +1,50 @@
-"""MMPose inferencer predictions: one JSON file for a whole video.
+"""MMPose predictions: one JSON file for a whole video, or one per image.
 
-Layout (``MMPoseInferencer(..., pred_out_dir=...)`` on a video)::
+Layouts, as MMPose writes them (read in MMPose's
+``mmpose/apis/inferencers/base_mmpose_inferencer.py`` ``postprocess`` /
+``_finalize_video_processing``, ``mmpose/structures/utils.py`` ``split_instances``,
+``demo/topdown_demo_with_mmdet.py`` and ``demo/bottomup_demo.py``
+``--save-predictions``)::
 
+    # MMPoseInferencer(..., pred_out_dir=...) on a video: one file, frame_id from 0
     [{"frame_id": t,
       "instances": [{"keypoints": [[x, y], ...],        # (J, 2) pixels
-                     "keypoint_scores": [s, ...],        # (J,) in [0, 1], optional
-                     "bbox": [[x1, y1, x2, y2]],         # pixels, ignored on reading
+                     "keypoint_scores": [s, ...],        # (J,), optional
+                     "bbox": [[x1, y1, x2, y2]],         # ignored on reading
                      "bbox_score": s}]},                 # ignored on reading
      ...]
 
-MMPose's demo scripts write the same list under ``"instance_info"`` of a top
-level object (next to ``"meta_info"``, which is ignored); both are read.
+    # the demo scripts on a video: the same list (frame_id from 1) under
+    {"meta_info": {...}, "instance_info": [...]}        # meta_info ignored
+
+    # the inferencer on images: one file per image, named after it (000012.json),
+    # holding that image's list of instances; the demo scripts on one image:
+    # {"meta_info": {...}, "instance_info": [instance, ...]}
+
+A single file of instances is one frame (frame id 0); a folder of per-image files
+is read like an OpenPose folder (frame id = last number in the file name, one
+file at a time).
+
+Scores (read in ``mmpose/codecs/utils/post_processing.py`` ``get_heatmap_maximum``
+/ ``get_simcc_maximum``, mmpose issues #884, #2755, #3207): heat-map peaks
+(RSN / MSPN up to ~1.3) and RTMPose's SimCC logit maxima are no probabilities and
+exceed 1; a keypoint the decoder did not find has a score ``<= 0`` and a location
+of -1 mapped back into the image. So any finite score above 1 is clipped to 1 and
+a score ``<= 0`` is missing, whatever the coordinates; both are counted
+(:class:`~mirrorgraph.keypoints.ReadNotes`). Missing ``keypoint_scores`` mean
+confidence 1. MMPose writes no NaN: a non-finite number is an error naming file,
+frame and field. Keys other than ``keypoints`` and ``keypoint_scores`` are
+ignored; an empty ``instances`` is a frame with nobody.
 
 The keypoint layout is COCO-17 for the usual body models; it is taken from the
-keypoint count unless given. Missing ``keypoint_scores`` mean confidence 1. A
-joint of score 0 is missing (``NaN`` coordinates); the writer writes missing
-joints as ``[0, 0]`` with score 0. Frames are sorted by ``frame_id``.
+keypoint count unless given. The writer writes missing joints as ``[0, 0]`` with
+score 0. Frames are sorted by ``frame_id``.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,12 +52,16 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import COCO_17, Skeleton
-from ._common import (JointCount, bbox_of, check_frame_ids, clean_keypoints, dump_json,
-                      json_type, load_json, numeric_array, require, to_skeleton,
-                      zero_missing)
+from ._common import (JointCount, ProgressCallback, ScorePolicy, Tally, bbox_of,
+                      check_frame_ids, clean_keypoints, drop_empty_people, dump_json,
+                      frame_files, json_type, load_json, numeric_array,
+                      require, to_skeleton, zero_missing)
 from .atomic import atomic_write_text
 
 FORMAT = "mmpose"
+
+#: Heat-map peaks or SimCC logits: unbounded above, ``<= 0`` when not found, no NaN.
+SCORES = ScorePolicy(negative_missing=True, max_confidence=np.inf)
 
 
 def read_mmpose(path: str | os.PathLike, *,
@@ -42,12 +70,21 @@ def read_mmpose(path: str | os.PathLike, *,
     return detections_from_mmpose(load_json(path), source=str(path), skeleton=skeleton)
 
 
+def is_instance_list(obj: Any) -> bool:
+    """Whether a parsed document is one image's list of instances (empty, or its first
+    entry an object with ``keypoints`` and no ``instances``)."""
+    return isinstance(obj, list) and (not obj or (
+        isinstance(obj[0], dict) and "keypoints" in obj[0] and "instances" not in obj[0]
+        and "frame_id" not in obj[0]))
+
+
 def detections_from_mmpose(obj: Any, *, source: str,
                            skeleton: Skeleton | str | None = None) -> RawDetections:
     """Convert parsed MMPose predictions to :class:`RawDetections`.
 
     Args:
-        obj: the parsed JSON (list of frames, or ``{"instance_info": [...]}``).
+        obj: the parsed JSON: a list of frames, ``{"instance_info": [...]}`` of
+            frames, or one image's instances (either way; frame id 0).
         source: the file name, for error messages and ``RawDetections.source``.
         skeleton: the keypoint layout; by default found from the keypoint count.
     """
@@ -55,6 +92,9 @@ def detections_from_mmpose(obj: Any, *, source: str,
     if not isinstance(frames, list):
         raise InputError(f"expected a list of frames, got {json_type(obj)}", source=source)
     counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
+    tally = Tally()
+    if frames and is_instance_list(frames):          # one image
+        frames = [{"frame_id": 0, "instances": frames}]
     ids: list[int] = []
     people: list[np.ndarray | None] = []
     for i, frame in enumerate(frames):
@@ -63,22 +103,63 @@ def detections_from_mmpose(obj: Any, *, source: str,
                              source=source)
         t = require(frame, "frame_id", int, source=source, context=f" in frame entry {i}")
         instances = require(frame, "instances", list, source=source, frame=t)
-        persons = [_person(inst, p, counter, source=source, frame=t)
-                   for p, inst in enumerate(instances)]
         ids.append(t)
-        people.append(clean_keypoints(np.stack(persons), source=source, frame=t,
-                                      field="instances") if persons else None)
+        people.append(_frame(instances, counter, tally, source=source, frame=t))
     frame_ids, order = check_frame_ids(ids, source=source)
+    return _detections(people, order, frame_ids, counter, tally, source)
+
+
+def read_mmpose_folder(folder: str | os.PathLike, *, skeleton: Skeleton | str | None = None,
+                       progress: ProgressCallback | None = None) -> RawDetections:
+    """Read a folder of the inferencer's per-image predictions (see the module docstring).
+
+    Each ``*.json`` holds one image's list of instances; the frame id is the last
+    number of its name. A file holding anything else is refused as a mixed folder.
+    """
+    folder = Path(folder)
+    counter = JointCount(to_skeleton(skeleton, source=folder), default=COCO_17)
+    frame_ids, files = frame_files(folder)
+    tally = Tally()
+    people: list[np.ndarray | None] = []
+    for i, (t, file) in enumerate(zip(frame_ids.tolist(), files)):
+        if progress is not None:
+            progress(i + 1, len(files))
+        obj = load_json(file)
+        if not is_instance_list(obj):
+            raise InputError("not an MMPose per-image predictions file (a list of "
+                             f"instances); folder {folder} mixes formats or holds other "
+                             "JSON files", source=file)
+        people.append(_frame(obj, counter, tally, source=str(file), frame=t,
+                             field="instances"))
+    return _detections(people, np.arange(len(files)), frame_ids, counter, tally, str(folder))
+
+
+def _frame(instances: list, counter: JointCount, tally: Tally, *, source: str, frame: int,
+           field: str = "instances") -> np.ndarray | None:
+    """``(P, J, 3)`` cleaned keypoints of one frame's instances (``None`` if nobody)."""
+    persons = [_person(inst, p, counter, source=source, frame=frame, field=field)
+               for p, inst in enumerate(instances)]
+    if not persons:
+        return None
+    kp = drop_empty_people(clean_keypoints(np.stack(persons), source=source, frame=frame,
+                                           field=field, policy=SCORES, tally=tally), tally)
+    return kp if len(kp) else None
+
+
+def _detections(people: list, order: np.ndarray, frame_ids: np.ndarray, counter: JointCount,
+                tally: Tally, source: str) -> RawDetections:
     skel = counter.result(people, source=source)
     empty = np.empty((0, skel.num_joints, 3))
+    tally.empty_frames = sum(p is None for p in people)
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if people[i] is None else people[i] for i in order],
-                         source=source, format=FORMAT)
+                         source=source, format=FORMAT, read_notes=tally.notes())
 
 
-def _person(inst: Any, p: int, counter: JointCount, *, source: str, frame: int) -> np.ndarray:
+def _person(inst: Any, p: int, counter: JointCount, *, source: str, frame: int,
+            field: str = "instances") -> np.ndarray:
     """``(J, 3)`` x, y, score of one instance, types and counts checked."""
-    field = f"instances[{p}]"
+    field = f"{field}[{p}]"
     if not isinstance(inst, dict):
         raise InputError(f"expected an object, got {json_type(inst)}", source=source,
                          frame=frame, field=field)

@@ -14,7 +14,10 @@ Arrays (names are the keys of the archive):
   already those of the real joints.
 
 Missing joints have confidence 0 and ``NaN`` (or any finite) coordinates; any
-other non-finite value is refused. Rows are sorted by frame id on reading.
+other non-finite value is refused. This is mirrorgraph's own format, not a
+detector's: a negative confidence is refused, confidences in ``(1, 1.5]`` are
+clipped to 1 (counted in ``read_notes``), larger ones refused. Rows are sorted
+by frame id on reading.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ from ..errors import InputError
 from ..keypoints import PairedKeypoints
 from ..skeleton_guess import guess_skeleton
 from ..skeletons import Skeleton, known_counts, skeletons_for_count
-from ._common import MAX_IMAGE_SIDE, check_frame_ids, clean_keypoints, to_skeleton
+from ._common import (MAX_IMAGE_SIDE, NPZ_SCORES, Tally, check_frame_ids, clean_keypoints,
+                      to_skeleton)
 from .atomic import atomic_path
 
 FORMAT = "npz"
@@ -51,17 +55,18 @@ def read_paired_npz(path: str | os.PathLike, *,
     skel = _skeleton(arrays, skeleton, J, src)
     ids = _frame_ids(arrays, T, src)
     frame_ids, order = check_frame_ids(ids, source=src)
+    tally = Tally()
     real = clean_keypoints(real[order], source=src, frame=None, field="real",
-                           allow_nan_missing=True, frames=frame_ids)
+                           policy=NPZ_SCORES, tally=tally, frames=frame_ids)
     mirror = clean_keypoints(mirror[order], source=src, frame=None, field="mirror",
-                             allow_nan_missing=True, frames=frame_ids)
+                             policy=NPZ_SCORES, tally=tally, frames=frame_ids)
     if skel is None:
         skel = guess_skeleton(skeletons_for_count(J), np.concatenate([real, mirror]), source=src)
     if not _flag(arrays, "mirror_flipped", src):
         mirror = mirror[:, skel.flip]
     return PairedKeypoints(skeleton=skel, frame_ids=frame_ids, real=real, mirror=mirror,
                            source=src, format=FORMAT, image_size=_image_size(arrays, src),
-                           fps=_fps(arrays, src), frames_read=T)
+                           fps=_fps(arrays, src), frames_read=T, read_notes=tally.notes())
 
 
 def write_paired_npz(paired: PairedKeypoints, path: str | os.PathLike, *,

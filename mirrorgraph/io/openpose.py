@@ -1,20 +1,48 @@
-"""OpenPose ``--write_json`` output: a folder of one JSON file per frame.
+"""OpenPose ``--write_json`` output (and the tools writing its format): a folder of
+one JSON file per frame.
 
-File ``{stem}_{frame:012d}_keypoints.json``::
+File ``{stem}_{frame:012d}_keypoints.json`` (OpenPose) or ``{stem}_{frame:06d}.json``
+(Pose2Sim)::
 
     {"version": 1.3,
      "people": [{"person_id": [-1],
                  "pose_keypoints_2d": [x0, y0, c0, x1, y1, c1, ...],   # 3 J numbers
-                 "face_keypoints_2d": [], ...}]}
+                 "face_keypoints_2d": [], "hand_left_keypoints_2d": [],
+                 "hand_right_keypoints_2d": [], "pose_keypoints_3d": [], ...}],
+     "part_candidates": [{"0": [x, y, c, ...], ...}]}              # --part_candidates only
 
-Coordinates are pixels, ``c`` in [0, 1]; a missing joint is written ``0 0 0``.
-The layout is BODY_25 or the experimental BODY_25B (J = 25), the older COCO-18
-(J = 18) or, from other tools writing this format, COCO-17 or HALPE-26, told
-apart by the count unless given; BODY_25 and BODY_25B from the detections
-(:func:`mirrorgraph.skeleton_guess.guess_skeleton`). The frame id is the last
-number in the file name; files are read in frame order, one at a time, so
-folders of any length stream.
-OpenPose files carry no image size.
+As the tools write it (read in OpenPose's ``doc/02_output.md`` and
+``src/openpose/filestream/fileStream.cpp`` ``savePeopleJson`` /
+``addKeypointsToJson``, openpose issue #615; Pose2Sim's
+``Pose2Sim/poseEstimation.py`` ``save_to_openpose`` / ``process_video`` and
+``Pose2Sim/common.py`` ``sort_people_sports2d``; RTMLib's
+``rtmlib/tools/pose_estimation/post_processings.py`` ``get_simcc_maximum``):
+
+* the layout is BODY_25 or the experimental BODY_25B (J = 25), the older COCO-18
+  (J = 18) or, from Pose2Sim / RTMLib, COCO-17 or HALPE-26, told apart by the
+  count unless given; BODY_25 and BODY_25B from the detections
+  (:func:`mirrorgraph.skeleton_guess.guess_skeleton`);
+* coordinates are pixels (OpenPose's default ``--keypoint_scale 0``; other
+  scales are not detected);
+* OpenPose writes a joint not detected as ``0 0 0``: confidence 0 is missing,
+  whatever the coordinates;
+* OpenPose's confidences are heat-map peaks, up to ~1.41 (issue #615);
+  Pose2Sim writes RTMLib's SimCC scores, the mean of two logit maxima, which are
+  unbounded above and ``<= 0`` for keypoints not found (their coordinates are
+  then meaningless): any finite confidence above 1 is clipped to 1, a negative
+  one is missing; both are counted (:class:`~mirrorgraph.keypoints.ReadNotes`);
+* Pose2Sim writes ``NaN, NaN, NaN`` (JSON ``NaN``) for every joint of a person it
+  tracks but does not see in the frame: such joints are missing, a person with
+  nothing else is left out, both counted; any other non-finite number is an error
+  naming file, frame and field;
+* an empty ``pose_keypoints_2d`` (OpenPose with the body detector off) is a
+  person without body keypoints: left out and counted;
+* ``person_id``, ``version``, face, hands, 3D arrays, ``part_candidates`` and any
+  other key are ignored; an empty ``people`` is a frame with nobody.
+
+The frame id is the last number in the file name; files are read in frame order,
+one at a time, so folders of any length stream. OpenPose files carry no image
+size.
 """
 
 from __future__ import annotations
@@ -27,14 +55,17 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import BODY_25, Skeleton
-from ._common import (JointCount, check_writable_ids, clean_keypoints, dump_json, frame_files,
-                      iter_frame_documents, json_type, numeric_array, require,
-                      to_skeleton, zero_missing)
+from ._common import (JointCount, ScorePolicy, Tally, check_writable_ids, clean_keypoints,
+                      drop_empty_people, dump_json, frame_files, iter_frame_documents,
+                      json_type, numeric_array, require, to_skeleton, zero_missing)
 from ._common import ProgressCallback
 from .atomic import atomic_dir
 
 FORMAT = "openpose"
 KEY = "pose_keypoints_2d"
+
+#: OpenPose heat-map peaks or Pose2Sim's SimCC logits; Pose2Sim's NaN joints.
+SCORES = ScorePolicy(negative_missing=True, max_confidence=np.inf, nan_missing=True)
 
 
 def read_openpose(folder: str | os.PathLike, *,
@@ -45,19 +76,22 @@ def read_openpose(folder: str | os.PathLike, *,
     counter = JointCount(to_skeleton(skeleton, source=folder), default=BODY_25)
     frame_ids, files = frame_files(folder)
     people: list[np.ndarray | None] = []
+    tally = Tally()
     for t, file, obj in iter_frame_documents(folder, files, frame_ids, "OpenPose", "people",
                                              progress):
         persons = require(obj, "people", list, source=file, frame=t)
-        people.append(_frame(persons, counter, source=str(file), frame=t))
+        people.append(_frame(persons, counter, tally, source=str(file), frame=t))
     skel = counter.result(people, source=folder)
     empty = np.empty((0, skel.num_joints, 3))
+    tally.empty_frames = sum(p is None for p in people)
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if p is None else p for p in people],
-                         source=str(folder), format=FORMAT)
+                         source=str(folder), format=FORMAT, read_notes=tally.notes())
 
 
-def _frame(persons: list, counter: JointCount, *, source: str, frame: int) -> np.ndarray | None:
-    """``(P, J, 3)`` keypoints of one file's ``people`` (``None`` if empty)."""
+def _frame(persons: list, counter: JointCount, tally: Tally, *, source: str,
+           frame: int) -> np.ndarray | None:
+    """``(P, J, 3)`` keypoints of one file's ``people`` (``None`` if nobody is left)."""
     rows = []
     for p, person in enumerate(persons):
         field = f"people[{p}].{KEY}"
@@ -66,6 +100,9 @@ def _frame(persons: list, counter: JointCount, *, source: str, frame: int) -> np
                              source=source, frame=frame, field=f"people[{p}]")
         flat = numeric_array(require(person, KEY, list, source=source, frame=frame, field=field),
                              1, source=source, frame=frame, field=field)
+        if len(flat) == 0:                   # body detector off: face / hands only
+            tally.no_keypoints += 1
+            continue
         if len(flat) % 3:
             raise InputError(f"{len(flat)} numbers, not a multiple of 3 (x, y, c)",
                              source=source, frame=frame, field=field)
@@ -73,7 +110,9 @@ def _frame(persons: list, counter: JointCount, *, source: str, frame: int) -> np
         rows.append(flat.reshape(-1, 3))
     if not rows:
         return None
-    return clean_keypoints(np.stack(rows), source=source, frame=frame, field="people")
+    kp = drop_empty_people(clean_keypoints(np.stack(rows), source=source, frame=frame,
+                                           field="people", policy=SCORES, tally=tally), tally)
+    return kp if len(kp) else None
 
 
 def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,

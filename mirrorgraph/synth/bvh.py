@@ -565,6 +565,24 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
 #: Metres per CMU unit (the CMU ASF scale: inches / 0.45).
 CMU_UNIT_M = 0.0254 / 0.45
 
+#: File name of the CMU take shipped as package data (``mirrorgraph/data``).
+CMU_EXAMPLE = "cmu_01_01.bvh"
+
+
+def cmu_example_path() -> Path:
+    """Path of the CMU motion-capture take shipped with mirrorgraph.
+
+    ``mirrorgraph/data/cmu_01_01.bvh``: CMU Graphics Lab Motion Capture Database,
+    subject 01, trial 01, 2,752 frames at 120 fps, CMU skeleton (the BVH conversion
+    of facebookresearch/fairmotion's test data; source and licence in
+    ``mirrorgraph/data/README.md``). The default take of the tests and benchmarks,
+    for :func:`load_motion` and ``make_scene(motion=...)``.
+    """
+    from importlib.resources import files
+
+    return Path(str(files("mirrorgraph") / "data" / CMU_EXAMPLE))
+
+
 #: Roles used by :func:`body_joints` -> joint names of the CMU skeleton (as in the
 #: CMU BVH conversions, e.g. ``cmu_01_01.bvh``). The toe and head roles need an
 #: End Site (or a first child) under them.
