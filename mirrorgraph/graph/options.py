@@ -125,8 +125,14 @@ class RefineOptions:
             found before it (it only has to expose the rest for the second rejection).
         relative_tolerance: stop when an iteration lowers the error by less
             than this fraction.
-        global_step_tolerance: or when it moved the mirror (and bone lengths) by
-            less than this many standard deviations (Mahalanobis length).
+        global_step_tolerance: or when it moved the mirror (and bone lengths, and a
+            rig's poses) by less than this many standard deviations (Mahalanobis
+            length), at any damping. 0.2 leaves at most ~0.2 sigma of the mirror
+            unconverged (2 % in quadrature with its own sigma): measured on 7 scenes
+            (4 synthetic, 3 low-parallax, 600 frames) against 0.05, rotation errors
+            changed by at most 0.1 sigma (0.004 deg) and the linear solves fell
+            from 12-14 to 7-9 (synthetic) and 11-12 (low parallax), together with
+            ``outlier_pass_iterations`` 3 instead of 5.
         min_parallax_deg: pairs whose two rays (from the camera and from the
             virtual camera) meet at less than this angle, degrees, are left out of
             the graph (:func:`~mirrorgraph.graph.stages.parallax_deg`): their depth
@@ -183,9 +189,9 @@ class RefineOptions:
     link_sigma_translation: float = 1e-6
 
     max_iterations: int = 20
-    outlier_pass_iterations: int = 5
+    outlier_pass_iterations: int = 3
     relative_tolerance: float = 1e-5
-    global_step_tolerance: float = 0.05
+    global_step_tolerance: float = 0.2
     min_parallax_deg: float = 0.5
     warm_start_min_parallax_deg: float = 3.0
     warm_start_iterations: int = 4
