@@ -64,8 +64,8 @@ Scenes (all :func:`mirrorgraph.synth.make_scene`, fixed seeds): the paper's
 protocol (1920x1080, T=1000, noise mean 0.076 px, std 4 px, nothing else) and
 sweeps around it, one plot each: noise std, frames, mirror angle to the optical
 axis, outlier rate, temporally correlated noise, a per-joint detector bias,
-left/right confusions, and real motion capture (the CMU take in
-``shared/data``) when ``make_scene`` accepts ``motion``. Temporally correlated
+left/right confusions, and real motion capture (the CMU take shipped in
+``mirrorgraph/data``) when ``make_scene`` accepts ``motion``. Temporally correlated
 noise and the per-joint bias are not part of ``make_scene``; they are added
 here to noiseless projections:
 
@@ -119,6 +119,7 @@ from mirrorgraph import geometry as geo  # noqa: E402
 from mirrorgraph import metrics  # noqa: E402
 from mirrorgraph.keypoints import PairedKeypoints, RawDetections  # noqa: E402
 from mirrorgraph.synth import make_scene  # noqa: E402
+from mirrorgraph.synth.bvh import cmu_example_path  # noqa: E402
 
 METHODS = ("baseline1", "paper", "anipose", "mg_init", "mg_full")
 HEADLINE_EXTRA = ("anipose_mg",)
@@ -151,7 +152,7 @@ SWEEPS = {
                  "frames with left/right confused on the reflection", False),
 }
 PERTURBATIONS = ("ar_rho", "bias_px")
-BVH_DEFAULT = ROOT.parent / "shared" / "data" / "cmu_01_01.bvh"
+BVH_DEFAULT = cmu_example_path()
 
 
 # =========================================================================== scenes

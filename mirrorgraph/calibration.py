@@ -41,8 +41,13 @@ class Calibration:
         pairs_total, pairs_used: joint/reflection pairs considered, inliers kept.
         lr_fixes: frames whose reflection's left/right labels were corrected.
         ransac_iterations: samples the robust initialisation drew.
-        input: description of the input (source, format, skeleton, joints).
-        refinement: refinement report (priors, weights, residuals, timings), or empty.
+        input: description of the input (source, format, skeleton, joints, the frame
+            rate ``fps`` and its ``fps_source``: option, input, video or default) and
+            ``reflection_check`` (is the reflection a second person?
+            :class:`mirrorgraph.pipeline.ReflectionCheck`).
+        refinement: refinement report (priors, weights, residuals, timings; under
+            ``completion`` the keypoints outside the graph triangulated with the solved
+            mirror, :class:`mirrorgraph.completion.Completion`), or empty.
         uncertainty: marginal covariance report, or empty.
         warnings: doubts about the result, in words.
     """
@@ -149,6 +154,10 @@ class Calibration:
                      f"({100 * self.inlier_ratio:.1f}%) in {self.frames_used} frames "
                      f"of {self.frames_read}; left/right fixes {self.lr_fixes}")
         lines.append(f"estimator       {self.estimator}" + (" + factor graph" if self.refined else ""))
+        completion = self.refinement.get("completion")
+        if completion:
+            lines.append(f"3D joints       {completion['joints_completed']} keypoints outside the "
+                         "graph triangulated with the solved mirror")
         if self.uncertainty:
             lines.append(f"uncertainty     rotation std {self.uncertainty.get('rotation_std_deg', float('nan')):.4f} deg")
         for w in self.warnings:

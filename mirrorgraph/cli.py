@@ -316,6 +316,9 @@ def _verbose_input(args, data) -> None:
     else:
         print(f"input: {data.format} (paired), skeleton {data.skeleton.name}, "
               f"{len(data)} frames", file=sys.stderr)
+    notes = data.read_notes.summary()
+    if notes:
+        print(f"input: {notes}", file=sys.stderr)
 
 
 # --------------------------------------------------------------------------- synth
@@ -351,7 +354,8 @@ def _add_synth(sub) -> None:
                    help="rate of frames with only one of the two people detected")
     p.add_argument("--distortion", type=_floats, default=None, metavar="k1,k2,p1,p2,k3")
     p.add_argument("--motion", default=None, metavar="FILE.bvh",
-                   help="real motion capture (BVH, e.g. ../shared/data/cmu_01_01.bvh) instead "
+                   help="real motion capture (BVH, e.g. the CMU take shipped as "
+                        "mirrorgraph/data/cmu_01_01.bvh) instead "
                         "of the procedural exercise motion; resampled to 30 fps")
     p.add_argument("--formats", default="mmpose,openpose,easymocap,npz",
                    help="comma-separated formats to write")

@@ -39,10 +39,15 @@ With several mirrors the epipoles are found one after the other and a few
 spare ones besides; the set that best explains the frames as people with a
 reflection in each mirror is kept (:func:`_consistent_mirrors`: two mirrors
 meeting at an edge offer a false epipole on the horizon).
+
+:func:`frame_scores` scores every frame's best candidate against a mirror found,
+paired or not: how the frames that do not pair are spread tells a reflection from
+a second person standing where it should be (:func:`mirrorgraph.pipeline.check_reflection`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,27 +96,43 @@ def _masked(people: np.ndarray, min_conf: float) -> np.ndarray:
 
 
 def _candidates(raw: RawDetections, opts: PairingOptions) -> _Candidates:
+    """Every unordered pair of detections of every frame (at most ``max_people`` a frame,
+    the most confident), the second one's labels flipped; frame by frame, in
+    ``np.triu_indices`` order within a frame. Vectorised over the frames holding the
+    same number of people (a long video has tens of thousands of frames)."""
     flip = raw.skeleton.flip
-    frames, As, Bs, Ia, Ib = [], [], [], [], []
-    for t, people in enumerate(raw.people):
-        if len(people) < 2:
-            continue
-        p = _masked(people, opts.min_confidence)
-        index = np.arange(len(p))
-        if len(p) > opts.max_people:
-            index = np.sort(np.argsort(-p[..., 2].mean(1), kind="stable")[: opts.max_people])
-            p = p[index]
-        i, k = np.triu_indices(len(p), 1)
-        frames.append(np.full(len(i), t))
-        As.append(p[i])
-        Bs.append(p[k][:, flip])
-        Ia.append(index[i])
-        Ib.append(index[k])
-    if not frames:
+    J = raw.skeleton.num_joints
+    counts = np.array([len(p) for p in raw.people], dtype=int)
+    frames_with = np.flatnonzero(counts >= 2)
+    if frames_with.size == 0:
         raise InputError("no frame holds two people (a person and their reflection): "
                          "the reflection is missing in every frame", source=raw.source)
-    return _Candidates(np.concatenate(frames), np.concatenate(As), np.concatenate(Bs),
-                       np.concatenate(Ia), np.concatenate(Ib))
+    people = _masked(np.concatenate([np.asarray(raw.people[t], dtype=float).reshape(-1, J, 3)
+                                     for t in frames_with]), opts.min_confidence)
+    start = np.concatenate([[0], np.cumsum(counts[frames_with])[:-1]])  # first row a frame
+    frame, ia, ib, rank = [], [], [], []
+    for c in np.unique(counts[frames_with]):
+        sel = counts[frames_with] == c
+        f, base = frames_with[sel], start[sel]                          # (F,)
+        if c <= opts.max_people:
+            index = np.broadcast_to(np.arange(c), (len(f), c))          # (F, c)
+        else:                                  # the most confident max_people, in order
+            conf = people[base[:, None] + np.arange(c), :, 2].mean(-1)  # (F, c)
+            index = np.sort(np.argsort(-conf, axis=1, kind="stable")[:, :opts.max_people],
+                            axis=1)
+        i, k = np.triu_indices(index.shape[1], 1)
+        frame.append(np.repeat(f, len(i)))
+        ia.append(index[:, i].ravel())
+        ib.append(index[:, k].ravel())
+        rank.append(np.tile(np.arange(len(i)), len(f)))
+        start_rows = np.repeat(base, len(i))
+        ia[-1] = np.stack([ia[-1], start_rows + ia[-1]])                # (2, P): index, row
+        ib[-1] = np.stack([ib[-1], start_rows + ib[-1]])
+    frame, rank = np.concatenate(frame), np.concatenate(rank)
+    ia, ib = np.concatenate(ia, axis=1), np.concatenate(ib, axis=1)
+    order = np.lexsort((rank, frame))
+    ia, ib = ia[:, order], ib[:, order]
+    return _Candidates(frame[order], people[ia[1]], people[ib[1]][:, flip], ia[0], ib[0])
 
 
 def _median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
@@ -241,6 +262,80 @@ def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
                            image_size=paired.image_size, fps=paired.fps,
                            lr_fixes=int(np.count_nonzero(swapped)),
                            frames_read=paired.frames_read or len(real))
+
+
+def _quantile_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
+                       min_joints: int, quantiles: np.ndarray) -> np.ndarray:
+    """``(Q, M)`` quantiles of the epipolar distance over shared joints (inf if too few);
+    the 0.5 quantile is :func:`_median_distance`."""
+    d = geo.epipolar_distances(e, a[:, joints, :2], b[:, joints, :2])
+    d = np.sort(np.where(np.isfinite(d), d, np.inf), axis=1)       # unknown joints last
+    count = np.count_nonzero(np.isfinite(d), axis=1)                 # (M,)
+    enough = count >= min_joints
+    out = np.full((len(quantiles), len(a)), np.inf)
+    if enough.any():            # numpy's "linear" quantile, vectorised over candidates
+        d, count = d[enough], count[enough]
+        pos = np.asarray(quantiles, dtype=float)[:, None] * (count - 1)      # (Q, M')
+        lo = np.floor(pos).astype(int)
+        hi = np.minimum(lo + 1, count - 1)
+        rows = np.arange(len(d))
+        frac = pos - lo
+        out[:, enough] = d[rows, lo] * (1.0 - frac) + d[rows, hi] * frac
+    return out
+
+
+def frame_scores(data: RawDetections | PairedKeypoints, epipole: np.ndarray,
+                 joints: np.ndarray | None = None, options: PairingOptions | None = None,
+                 quantile: float | Sequence[float] = 0.5) -> np.ndarray:
+    """How well each frame's best candidate pair fits one mirror, pixels.
+
+    Per frame, the smallest ``quantile`` of the epipolar distances over the joints both
+    detections show above the confidence threshold (at least ``min_joints``; the median,
+    ``quantile=0.5``, is the score the pairing thresholds, step 3 of the module
+    docstring), over every candidate pair of detections (:func:`_candidates`) and both
+    labellings of the reflection, against ``epipole``. A frame where the person and
+    their reflection are both seen scores at the detector's noise; a frame whose only
+    candidates are the person and somebody else scores whatever the two people's poses
+    happen to give (:func:`mirrorgraph.pipeline.check_reflection` reads the distribution).
+    A lower quantile is less disturbed by the detector's gross errors on a few joints.
+
+    Args:
+        data: the detections (undistorted pixels), or already paired keypoints (the one
+            candidate per frame is ``real`` with ``mirror``).
+        epipole: ``(3,)`` homogeneous epipole, pixels.
+        joints: joints scored (default: the calibration joints).
+        options: :class:`PairingOptions` (``min_confidence``, ``min_joints``,
+            ``max_people``).
+        quantile: the quantile over joints, or a sequence of them.
+
+    Returns:
+        ``(T,)`` float (``(Q, T)`` for a sequence of ``Q`` quantiles): the score; ``inf``
+        where the frame holds a candidate pair but none shares ``min_joints`` joints; NaN
+        where it holds fewer than two detections.
+    """
+    opts = options or PairingOptions()
+    sk = data.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    e = np.asarray(epipole, dtype=float).reshape(3)
+    q = np.atleast_1d(np.asarray(quantile, dtype=float))
+    if isinstance(data, PairedKeypoints):
+        a = _masked(data.real, opts.min_confidence)
+        b = _masked(data.mirror, opts.min_confidence)
+        score = np.minimum(_quantile_distance(e, a, b, joints, opts.min_joints, q),
+                           _quantile_distance(e, a, b[:, sk.flip], joints, opts.min_joints, q))
+        both = (a[..., 2] > 0).any(1) & (b[..., 2] > 0).any(1)
+        best = np.where(both, score, np.nan)
+    else:
+        best = np.full((len(q), len(data.people)), np.nan)
+        if any(len(p) >= 2 for p in data.people):
+            cand = _candidates(data, opts)
+            score = np.minimum(
+                _quantile_distance(e, cand.a, cand.b, joints, opts.min_joints, q),
+                _quantile_distance(e, cand.a, cand.b[:, sk.flip], joints, opts.min_joints, q))
+            best[:, np.unique(cand.frame)] = np.inf
+            for row, sc in zip(best, score):
+                np.fmin.at(row, cand.frame, sc)
+    return best[0] if np.ndim(quantile) == 0 else best
 
 
 @dataclass

@@ -65,3 +65,54 @@ def test_reflection_missing_everywhere_is_an_input_error():
                            people=[p[:1] for p in scene.detections.people], source="lonely.json")
     with pytest.raises(InputError, match="lonely.json.*reflection is missing"):
         pair_detections(lonely)
+
+
+def test_candidates_are_every_pair_of_every_frame_in_order():
+    """The vectorised candidate list equals the plain loop over frames and pairs."""
+    from mirrorgraph.pairing import PairingOptions, _candidates, _masked
+
+    s = make_scene(frames=300, seed=9, extra_person_rate=0.3, single_person_rate=0.2,
+                   missing_rate=0.1)
+    rng = np.random.default_rng(0)
+    people = list(s.detections.people)
+    for t in range(0, 300, 17):                       # crowds beyond max_people too
+        extra = rng.uniform(0, 1000, (int(rng.integers(1, 8)), 17, 3))
+        people[t] = np.concatenate([people[t], extra])
+    raw = RawDetections(skeleton=s.skeleton, frame_ids=s.frame_ids, people=people)
+    opts = PairingOptions(max_people=4)
+    got = _candidates(raw, opts)
+    frame, a, b, ia, ib = [], [], [], [], []
+    for t, p in enumerate(people):
+        if len(p) < 2:
+            continue
+        p = _masked(p, opts.min_confidence)
+        index = np.arange(len(p))
+        if len(p) > opts.max_people:
+            index = np.sort(np.argsort(-p[..., 2].mean(1), kind="stable")[:opts.max_people])
+        for i, k in zip(*np.triu_indices(len(index), 1)):
+            frame.append(t)
+            a.append(p[index[i]])
+            b.append(p[index[k]][s.skeleton.flip])
+            ia.append(index[i])
+            ib.append(index[k])
+    assert np.array_equal(got.frame, frame) and np.array_equal(got.ia, ia)
+    assert np.array_equal(got.ib, ib)
+    assert np.array_equal(got.a, np.array(a), equal_nan=True)
+    assert np.array_equal(got.b, np.array(b), equal_nan=True)
+
+
+def test_frame_scores_are_the_noise_for_a_reflection():
+    from mirrorgraph.pairing import frame_scores
+
+    s = make_scene(frames=200, seed=4, single_person_rate=0.2)
+    from mirrorgraph.geometry import epipole_from_normal
+    e = epipole_from_normal(s.K, s.normal)
+    raw_scores = frame_scores(s.detections, e)
+    both = s.real_detected & s.mirror_detected
+    assert np.isnan(raw_scores[~both]).all() and np.isfinite(raw_scores[both]).all()
+    assert 1.5 < np.median(raw_scores[both]) < 5.0           # 4 px noise
+    # paired input: the same frames, the same scores
+    paired_scores = frame_scores(s.paired(), e)
+    assert np.allclose(paired_scores[both], raw_scores[both])
+    low = frame_scores(s.detections, e, quantile=(0.5, 0.3))
+    assert low.shape == (2, 200) and np.all(low[1][both] <= low[0][both])

@@ -78,3 +78,73 @@ def test_full_pipeline_with_refinement_and_metric_scale(paper_scene):
     # metric 3D joints close to the truth
     from mirrorgraph.metrics import pa_mpjpe
     assert pa_mpjpe(run.joints3d, s.joints3d, run.valid3d) < 0.03
+
+
+# ------------------------------------------------------------------------------ frame rate
+def _fps_run(data, intrinsics, **kw):
+    return mg.calibrate(data, intrinsics, mg.CalibrateOptions(**kw))
+
+
+def test_fps_from_an_npz_that_carries_it(tmp_path):
+    from mirrorgraph.io import write_paired_npz
+    from mirrorgraph.io.motion import write_joints3d
+
+    s = make_scene(frames=150, seed=7, fps=25.0)
+    path = tmp_path / "paired.npz"
+    write_paired_npz(s.paired(), path)
+    run = _fps_run(str(path), s.intrinsics, subject_height=s.subject_height)
+    assert (run.fps, run.fps_source) == (25.0, "input")
+    c = run.calibration
+    assert c.input["fps"] == 25.0 and c.input["fps_source"] == "input"
+    assert not any("frame rate" in w for w in c.warnings)
+    out = tmp_path / "motion.trc"
+    write_joints3d(out, run.joints3d, run.valid3d, run.paired.frame_ids,
+                   run.paired.skeleton.joints, run.fps)
+    assert out.read_text().splitlines()[2].split("\t")[0] == "25"
+
+
+def test_fps_default_is_named_in_the_warnings():
+    from dataclasses import replace
+    s = make_scene(frames=150, seed=7)
+    raw = replace(s.detections, fps=None)                  # as OpenPose / MMPose files
+    run = _fps_run(raw, s.intrinsics)
+    assert (run.fps, run.fps_source) == (30.0, "default")
+    warned = [w for w in run.calibration.warnings if "frame rate" in w]
+    assert len(warned) == 1 and "default 30 fps" in warned[0] and "--fps" in warned[0] \
+        and "--video" in warned[0]
+    # the frame rate only matters to the 3D motion: no word without the refinement
+    assert not any("frame rate" in w for w in _fps_run(raw, s.intrinsics, refine=False)
+                   .calibration.warnings)
+    # given by the user: no warning
+    run = _fps_run(raw, s.intrinsics, fps=50)
+    assert (run.fps, run.fps_source) == (50.0, "option")
+    assert not any("frame rate" in w for w in run.calibration.warnings)
+
+
+def test_fps_from_a_video_and_disagreements(tmp_path):
+    import cv2
+    from dataclasses import replace
+    from mirrorgraph.pipeline import fps_from_video
+
+    video = tmp_path / "clip.avi"
+    w = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48))
+    for _ in range(3):
+        w.write(np.zeros((48, 64, 3), np.uint8))
+    w.release()
+    assert fps_from_video(video) == 25.0
+    s = make_scene(frames=150, seed=7)
+    raw = replace(s.detections, fps=None)
+    run = _fps_run(raw, s.intrinsics, video=str(video))
+    assert (run.fps, run.fps_source) == (25.0, "video")
+    assert not any("frame rate" in w for w in run.calibration.warnings)
+    # the input's own 30 fps wins over the video's 25, and the disagreement is named
+    run = _fps_run(s.detections, s.intrinsics, video=str(video))
+    assert (run.fps, run.fps_source) == (30.0, "input")
+    assert any("frame rate" in w and "25" in w and "30" in w for w in run.calibration.warnings)
+    with pytest.raises(mg.InputError, match=r"nothing\.mp4.*field 'video'"):
+        fps_from_video(tmp_path / "nothing.mp4")
+    (tmp_path / "text.mp4").write_text("not a video")
+    with pytest.raises(mg.InputError, match="field 'video'"):
+        fps_from_video(tmp_path / "text.mp4")
+    with pytest.raises(mg.InputError, match="field 'fps'"):
+        _fps_run(raw, s.intrinsics, fps=-1.0, refine=False)

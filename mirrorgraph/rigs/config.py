@@ -30,57 +30,12 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from ..errors import InputError
+from ..joint_sets import JOINT_SETS
 from ..skeletons import skeleton_by_name
 
-__all__ = ["CameraEntry", "RigConfig", "load_rig_config", "resolve_joints", "JOINT_SETS"]
-
-#: Named joint sets. ``limbs``: the skeleton's calibration joints (the 12 limb joints
-#: and neck / mid-hip; MirrorCalib leaves out face, hands and feet, which are small and
-#: often hidden, above all in a reflection seen from farther away); ``all``: every
-#: keypoint; ``auto`` (the default): every keypoint in the direct views, the limbs
-#: through mirrors. Measured on the 4-camera rig (10 seeds, 300 frames, 4 px): every
-#: keypoint halves the side cameras' rotation std and puts 9 seeds of 10 within
-#: 0.5 deg and 2 cm (scale-aligned), 8 with the limbs.
-JOINT_SETS = ("auto", "limbs", "all")
-
-
-def resolve_joints(skeleton, spec, source=None) -> tuple[np.ndarray, np.ndarray]:
-    """Joint indices of a joint spec, for the direct views and for the views through mirrors.
-
-    Args:
-        skeleton: the layout.
-        spec: ``None`` / ``"auto"``, ``"limbs"``, ``"all"``, a comma-separated string or a
-            list of joint names (the same joints in every view).
-        source: the rig file, for messages.
-
-    Returns:
-        ``(direct (k,), mirror (m,))`` sorted joint indices.
-
-    Raises:
-        InputError: an unknown set or joint name (listing the layout's names).
-    """
-    limbs = np.asarray(skeleton.calibration_joints, dtype=int)
-    every = np.arange(skeleton.num_joints)
-    if spec is None or spec == "auto":
-        return every, limbs
-    if spec == "limbs":
-        return limbs, limbs
-    if spec == "all":
-        return every, every
-    if isinstance(spec, str):
-        spec = [n.strip() for n in spec.split(",") if n.strip()]
-    missing = [n for n in spec if not skeleton.has(n)]
-    if missing or len(spec) < 4:
-        raise InputError(("unknown joint(s) " + ", ".join(missing) if missing else
-                          "needs at least 4 joints")
-                         + f"; use auto, limbs, all, or names of {skeleton.name}: "
-                         + ", ".join(skeleton.joints), source=source, field="joints")
-    chosen = np.array(sorted({skeleton.index(n) for n in spec}), dtype=int)
-    return chosen, chosen
-
+__all__ = ["CameraEntry", "RigConfig", "load_rig_config"]
 
 @dataclass(frozen=True)
 class CameraEntry:
@@ -116,7 +71,7 @@ class RigConfig:
         mirrors: mirror names.
         subject_height: metres, or ``None`` (the scale is then the subject's height = 1).
         joints: ``"auto"``, ``"limbs"``, ``"all"`` or joint names (see
-            :func:`resolve_joints`), or ``None`` (``"auto"``).
+            :func:`mirrorgraph.joint_sets.resolve_joints`), or ``None`` (``"auto"``).
     """
 
     source: Path

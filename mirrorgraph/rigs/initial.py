@@ -66,7 +66,7 @@ def observed(a: np.ndarray, joints_mask: np.ndarray | bool = True) -> np.ndarray
 def joint_masks(skeleton, joints: tuple[np.ndarray, np.ndarray] | None
                 ) -> tuple[np.ndarray, np.ndarray]:
     """``(J,)`` bool masks of the joints used in the direct views and through mirrors
-    (``joints`` from :func:`~mirrorgraph.rigs.config.resolve_joints`; ``None``: the
+    (``joints`` from :func:`~mirrorgraph.joint_sets.resolve_joints`; ``None``: the
     calibration joints in both)."""
     limbs = np.asarray(skeleton.calibration_joints, dtype=int)
     direct, through = (limbs, limbs) if joints is None else joints
@@ -91,7 +91,7 @@ def initialise_rig(obs: RigObservations, height: float, *, seed: int = 0,
         height: the subject's height in the output unit (metres, or 1).
         seed: RANSAC seed.
         joints: ``(direct, mirror)`` joint indices used in the direct views and through
-            mirrors (:func:`~mirrorgraph.rigs.config.resolve_joints`; default: the
+            mirrors (:func:`~mirrorgraph.joint_sets.resolve_joints`; default: the
             calibration joints in both).
 
     Raises:

@@ -22,7 +22,8 @@ from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..skeletons import Skeleton
 from ..stature import StatureEstimate, estimate_stature
 from .completion import complete_joints
-from .config import RigConfig, load_rig_config, resolve_joints
+from ..joint_sets import resolve_joints
+from .config import RigConfig, load_rig_config
 from .initial import initialise_rig
 from .observations import load_observations
 from .result import RigCalibration, RigCamera, RigMirror

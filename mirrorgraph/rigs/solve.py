@@ -110,7 +110,7 @@ def build_rig(obs: RigObservations, init: InitialRig,
     estimated), the mirrors that were placed, one direct view per camera and one
     view per camera and mirror. ``joints`` = ``(direct, mirror)`` joint indices that
     the direct views and the views through mirrors use
-    (:func:`~mirrorgraph.rigs.config.resolve_joints`; default: the calibration joints)."""
+    (:func:`~mirrorgraph.joint_sets.resolve_joints`; default: the calibration joints)."""
     dmask, mmask = joint_masks(obs.skeleton, joints)
     cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
                  for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))

@@ -1,0 +1,202 @@
+"""The keypoints the graph left out, triangulated with the solved mirror.
+
+The single-mirror graph estimates the joints of its joint set (by default the limbs,
+:mod:`mirrorgraph.joint_sets`): face and feet, seen by the camera and in the mirror,
+have no 3D point from it. Once the mirror ``n . X = d`` is known every such keypoint
+seen in both views is a two-view triangulation away
+(:func:`mirrorgraph.geometry.triangulate_mirror`: the real camera ``K [I | 0]`` and the
+virtual camera ``K [H | 2 d n]``, ``H = I - 2 n n^T``), in the refinement's unit
+(metres with a subject height, else mirror distances), real camera frame.
+
+Two views give a point for any pair of rays that nearly meet, so each point passes
+two gates before it is kept:
+
+* **reprojection**: its image in the direct view ``pi(K X)`` and in the mirror
+  ``pi(K S(X))``, ``S(X) = X - 2 (n . X - d) n``, lie within ``threshold_px`` of the
+  detections, and ``X`` is in front of the camera (``z > 0``), on the camera's side of
+  the mirror (``n . X < d``) and its reflection in front of the camera. This catches an
+  error across the epipolar line;
+* **body**: an error *along* the epipolar line moves the point in depth at no
+  reprojection cost. Each completed joint is anchored to the two graph joints nearest
+  to it (median distance over frames, e.g. the nose to the neck and a shoulder, a toe
+  to its ankle and knee); the distance to the anchors of a rigid body part changes
+  little from frame to frame, so a frame whose distance to either departs from that
+  anchor's median by more than ``max(k MAD, floor * median)`` (robust z-score,
+  :data:`BODY_GATE_MADS`, :data:`BODY_GATE_FLOOR`) is dropped (:func:`anchor_gate`).
+
+Measured (BODY_25, 300 frames, 4 px noise, 7 % outliers a view, 5 % left/right
+swaps, seeds 0-3, subject height given): about 2,800 face and feet points completed
+per scene (86 % of those seen in both views), median error 1.5-2.9 cm against the
+truth (the graph's own joints: 1.0-2.6 cm), 0.4-1.7 % of them over 10 cm, most of
+those detector outliers that moved along the epipolar line. The joints NaN in
+``--joints3d`` fell from 49 % to 14 % (the limbs' outliers the graph rejected).
+
+:func:`complete_mirror_joints` is written for one mirror; the rig's completion
+(:func:`mirrorgraph.rigs.completion.complete_joints`, any number of views) can use
+:func:`anchor_gate` for the same body test.
+"""
+
+from __future__ import annotations
+
+import warnings as _warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import geometry as geo
+from .keypoints import PairedKeypoints
+
+__all__ = ["Completion", "complete_mirror_joints", "anchor_gate", "BODY_GATE_MADS",
+           "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
+
+#: Body gate: robust z-score (in scaled MADs) beyond which a completed joint's
+#: distance to its anchor counts as an error along the epipolar line.
+BODY_GATE_MADS = 4.0
+#: ... but never tighter than this fraction of the median anchor distance (a
+#: joint measured very consistently would otherwise lose frames to the noise).
+BODY_GATE_FLOOR = 0.10
+#: Known joints each completed joint is anchored to (its nearest ones).
+BODY_GATE_ANCHORS = 2
+#: Fewest frames a joint needs for its anchor distance's median to be trusted; with
+#: fewer, its completed points are kept on the reprojection gate alone.
+BODY_GATE_MIN_FRAMES = 10
+
+
+@dataclass
+class Completion:
+    """The refined joints, completed.
+
+    Attributes:
+        joints3d: ``(T, J, 3)`` real camera frame, unit of the mirror distance given;
+            the graph's joints unchanged, NaN where neither estimated nor completed.
+        valid: ``(T, J)`` bool mask of ``joints3d``.
+        completed: ``(T, J)`` bool, the entries filled here.
+        candidates: entries seen in both views that the graph did not estimate.
+        rejected_reprojection, rejected_body: candidates dropped by each gate.
+    """
+
+    joints3d: np.ndarray
+    valid: np.ndarray
+    completed: np.ndarray
+    candidates: int = 0
+    rejected_reprojection: int = 0
+    rejected_body: int = 0
+
+    @property
+    def count(self) -> int:
+        """Entries completed."""
+        return int(np.count_nonzero(self.completed))
+
+    def to_dict(self) -> dict:
+        """The record in ``calibration.json`` (``refinement.completion``)."""
+        return {"joints_completed": self.count, "candidates": int(self.candidates),
+                "rejected_reprojection": int(self.rejected_reprojection),
+                "rejected_body": int(self.rejected_body),
+                "method": "triangulated with the solved mirror (geometry.triangulate_mirror), "
+                          "reprojection and body-distance gates"}
+
+
+def _seen(kp: np.ndarray, min_confidence: float) -> np.ndarray:
+    """``(T, J)`` bool: finite coordinates with confidence at least ``min_confidence``."""
+    return (kp[..., 2] >= min_confidence) & (kp[..., 2] > 0) & np.isfinite(kp[..., :2]).all(-1)
+
+
+def anchor_gate(points: np.ndarray, known: np.ndarray, new: np.ndarray, *,
+                mads: float = BODY_GATE_MADS, floor: float = BODY_GATE_FLOOR,
+                anchors: int = BODY_GATE_ANCHORS,
+                min_frames: int = BODY_GATE_MIN_FRAMES) -> np.ndarray:
+    """Drop completed points whose distances to the body are unlike the joint's usual ones.
+
+    For every joint ``j`` with new points, its anchors are the ``anchors`` known joints
+    ``a`` with the smallest median distance ``m_a`` of ``|X_j - X_a|`` over the frames
+    holding both (e.g. a toe's ankle and knee). A new point is kept where, for every
+    anchor known in its frame, ``| |X_j - X_a| - m_a | <= max(mads * 1.4826 MAD_a,
+    floor * m_a)``. Two anchors catch an error that keeps the distance to one of them.
+    Anchors seen with ``j`` in fewer than ``min_frames`` frames are not used; a joint
+    without any keeps its points.
+
+    Args:
+        points: ``(T, J, 3)`` joints, any unit (NaN where unknown).
+        known: ``(T, J)`` bool, the trusted joints (the graph's).
+        new: ``(T, J)`` bool, the points to test (disjoint from ``known``).
+        mads, floor, anchors, min_frames: see above.
+
+    Returns:
+        ``(T, J)`` bool: the entries of ``new`` that pass.
+    """
+    keep = np.array(new, dtype=bool, copy=True)
+    known = np.asarray(known, dtype=bool)
+    cols = np.flatnonzero(known.any(0))
+    if cols.size == 0:
+        return keep
+    for j in np.flatnonzero(keep.any(0)):
+        both = keep[:, j, None] & known[:, cols]                        # (T, A)
+        enough = both.sum(0) >= min_frames
+        if not enough.any():
+            continue
+        dist = np.linalg.norm(points[:, j, None] - points[:, cols], axis=-1)    # (T, A)
+        dist = np.where(both, dist, np.nan)
+        with _warnings.catch_warnings():
+            _warnings.simplefilter("ignore", RuntimeWarning)             # all-NaN columns
+            med = np.nanmedian(dist, axis=0)                              # (A,)
+            med[~enough] = np.inf
+            near = np.argsort(med, kind="stable")[:anchors]
+            near = near[np.isfinite(med[near])]
+            m = med[near]                                                 # (a,)
+            dev = np.abs(dist[:, near] - m)                               # (T, a)
+            mad = 1.4826 * np.nanmedian(dev, axis=0)
+        tol = np.maximum(mads * mad, floor * m)
+        bad = (both[:, near] & ~(dev <= tol)).any(1)
+        keep[bad, j] = False
+    return keep
+
+
+def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.ndarray,
+                           distance: float, joints3d: np.ndarray, valid: np.ndarray, *,
+                           joints: np.ndarray, min_confidence: float, threshold_px: float
+                           ) -> Completion:
+    """Triangulate, with the solved mirror, the keypoints outside the graph's joint set.
+
+    Args:
+        paired: person and reflection ``(T, J, 3)`` (undistorted pixels, the reflection
+            in the real joints' labels).
+        K: ``(3, 3)`` intrinsics.
+        normal: ``(3,)`` unit mirror normal, real camera frame, away from the camera.
+        distance: mirror distance ``d`` (the unit of ``joints3d``: metres with a subject
+            height, else 1).
+        joints3d: ``(T, J, 3)`` the graph's joints (NaN where not estimated).
+        valid: ``(T, J)`` bool, where the graph estimated a joint.
+        joints: ``(k,)`` the graph's joint set: these are not completed (the graph's
+            rejections stand).
+        min_confidence: both detections need at least this confidence.
+        threshold_px: reprojection gate, pixels in each view.
+
+    Returns:
+        :class:`Completion`.
+    """
+    T, J = paired.real.shape[:2]
+    points = np.array(joints3d, dtype=float, copy=True)
+    known = np.array(valid, dtype=bool, copy=True)
+    want = _seen(paired.real, min_confidence) & _seen(paired.mirror, min_confidence) & ~known
+    want[:, np.asarray(joints, dtype=int)] = False
+    t, j = np.nonzero(want)
+    out = Completion(points, known, np.zeros((T, J), dtype=bool), candidates=int(t.size))
+    if t.size == 0:
+        return out
+    n = np.asarray(normal, dtype=float).reshape(3)
+    u, um = paired.real[t, j, :2], paired.mirror[t, j, :2]
+    X = geo.triangulate_mirror(K, n, float(distance), u, um)
+    S = geo.reflect_points(X, n, float(distance))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ok = (np.isfinite(X).all(-1) & (X[:, 2] > 0) & (X @ n < distance) & (S[:, 2] > 0))
+        ok &= np.linalg.norm(geo.project(K, X) - u, axis=-1) <= threshold_px
+        ok &= np.linalg.norm(geo.project(K, S) - um, axis=-1) <= threshold_px
+    out.rejected_reprojection = int(np.count_nonzero(~ok))
+    points[t[ok], j[ok]] = X[ok]
+    new = np.zeros((T, J), dtype=bool)
+    new[t[ok], j[ok]] = True
+    keep = anchor_gate(points, known, new)
+    out.rejected_body = int(np.count_nonzero(new & ~keep))
+    points[new & ~keep] = np.nan
+    out.joints3d, out.valid, out.completed = points, known | keep, keep
+    return out

@@ -1,0 +1,176 @@
+"""Single mirror: every keypoint seen in both views gets a 3D point, and ``joints`` speaks
+the rig's words."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import mirrorgraph as mg
+from mirrorgraph.completion import anchor_gate, complete_mirror_joints
+from mirrorgraph.joint_sets import JOINT_SETS, mirror_joints, resolve_joints
+from mirrorgraph.skeletons import skeleton_by_name
+from mirrorgraph.synth import make_scene
+
+
+@pytest.fixture(scope="module")
+def body25():
+    """BODY_25 (face and feet outside the calibration joints), 7 % outliers, 5 % swaps."""
+    s = make_scene(frames=300, seed=1, skeleton="BODY_25", outlier_rate=0.07, lr_swap_rate=0.05)
+    run = mg.calibrate(s.detections, s.intrinsics,
+                       mg.CalibrateOptions(subject_height=s.subject_height))
+    return s, run
+
+
+def _left_out(run):
+    return np.setdiff1d(np.arange(run.paired.skeleton.num_joints), run.joints)
+
+
+def test_face_and_feet_are_triangulated_in_metres(body25):
+    s, run = body25
+    other = _left_out(run)
+    names = {run.paired.skeleton.joints[j] for j in other}
+    assert {"nose", "left_eye", "right_big_toe", "left_heel"} <= names
+    seen = ((s.real_observed[..., 2] >= 0.3) & (s.mirror_observed[..., 2] >= 0.3))[:, other]
+    got = run.valid3d[:, other]
+    # nearly every keypoint seen in both views has a point (gross detector outliers,
+    # 7 % a view, are what the gates drop)
+    assert got.sum() > 0.8 * seen.sum()
+    assert np.array_equal(run.completed[:, other], got)
+    assert not run.completed[:, run.joints].any()          # the graph's joints are its own
+    err = np.linalg.norm(run.joints3d - s.joints3d, axis=-1)[:, other][got]
+    assert np.median(err) < 0.03                            # metres
+    assert np.quantile(err, 0.95) < 0.08
+    # as accurate as the graph's own joints, give or take a centimetre
+    graph = run.valid3d & ~run.completed
+    graph_err = np.linalg.norm(run.joints3d - s.joints3d, axis=-1)[graph]
+    assert np.median(err) < np.median(graph_err) + 0.01
+
+
+def test_the_count_is_in_the_run_and_the_json(body25, tmp_path):
+    _, run = body25
+    rec = run.calibration.refinement["completion"]
+    assert rec["joints_completed"] == run.joints_completed > 1000
+    assert rec["candidates"] >= (rec["joints_completed"] + rec["rejected_reprojection"]
+                                 + rec["rejected_body"])
+    out = tmp_path / "calibration.json"
+    mg.write_calibration(out, run.calibration)
+    assert json.loads(out.read_text())["refinement"]["completion"]["joints_completed"] \
+        == run.joints_completed
+
+
+def test_without_a_height_the_points_are_in_mirror_distances():
+    s = make_scene(frames=200, seed=3, skeleton="BODY_25", outlier_rate=0.05)
+    run = mg.calibrate(s.detections, s.intrinsics, mg.CalibrateOptions())
+    assert run.calibration.scale == "unknown" and run.joints_completed > 0
+    truth = s.joints3d / s.distance                           # unit: the mirror distance
+    err = np.linalg.norm(run.joints3d - truth, axis=-1)
+    graph = run.valid3d & ~run.completed
+    assert np.median(err[run.completed]) < np.median(err[graph]) + 0.005
+    # up to the unit-distance solution's own scale error (about 1 %): within 1.5 % of d
+    X, m = run.joints3d, run.valid3d
+    scale = np.sum(X[m] * truth[m]) / np.sum(X[m] ** 2)
+    assert np.median(np.linalg.norm(scale * X - truth, axis=-1)[run.completed]) < 0.015
+
+
+def test_completion_can_be_turned_off(body25):
+    s, _ = body25
+    run = mg.calibrate(s.detections, s.intrinsics,
+                       mg.CalibrateOptions(subject_height=s.subject_height,
+                                           complete_joints=False))
+    assert not run.valid3d[:, _left_out(run)].any()
+    assert run.joints_completed == 0 and "completion" not in run.calibration.refinement
+
+
+@pytest.mark.parametrize("spec", ["all", ("all",), "ALL"])
+def test_all_puts_every_keypoint_into_the_graph(body25, spec):
+    s, _ = body25
+    run = mg.calibrate(s.detections, s.intrinsics,
+                       mg.CalibrateOptions(subject_height=s.subject_height, joints=spec,
+                                           refine=spec == "all"))
+    assert np.array_equal(run.joints, np.arange(25))
+    if spec == "all":
+        assert run.joints_completed == 0
+        err = np.linalg.norm(run.joints3d - s.joints3d, axis=-1)[run.valid3d]
+        assert np.median(err) < 0.03
+
+
+def test_an_outlier_along_the_epipolar_line_is_dropped():
+    """An error along the epipolar line costs no reprojection: the body gate catches it."""
+    s = make_scene(frames=120, seed=5, skeleton="BODY_25")
+    p = s.paired()
+    sk = s.skeleton
+    nose = sk.index("nose")
+    K, n, d = s.K, s.normal, s.distance
+    known = np.zeros(p.real.shape[:2], bool)
+    known[:, sk.calibration_joints] = True
+    X = np.where(known[..., None], s.joints3d, np.nan)
+    # frame 40: the reflection's nose moved 60 px along its epipolar line
+    e = mg.geometry.epipole_pixels(mg.geometry.epipole_from_normal(K, n))
+    u = p.mirror[40, nose, :2]
+    p.mirror[40, nose, :2] = u + 60.0 * (e - u) / np.linalg.norm(e - u)
+    out = complete_mirror_joints(p, K, n, d, X, known, joints=sk.calibration_joints,
+                                 min_confidence=0.3, threshold_px=10.0)
+    assert not out.completed[40, nose] and out.rejected_body >= 1
+    assert out.completed[:, nose].sum() > 100
+    good = out.completed[:, nose]
+    assert np.median(np.linalg.norm(out.joints3d[good, nose] - s.joints3d[good, nose], axis=-1)) \
+        < 0.03
+
+
+def test_anchor_gate_keeps_consistent_points():
+    rng = np.random.default_rng(0)
+    T = 200
+    base = rng.normal(size=(T, 1, 3))
+    pts = np.concatenate([base, base + [0.3, 0, 0], base + [0, 0.2, 0]], axis=1)
+    pts += rng.normal(scale=0.005, size=pts.shape)
+    known = np.zeros((T, 3), bool)
+    known[:, :2] = True
+    new = ~known
+    pts[7, 2] += [0, 0.5, 0]
+    keep = anchor_gate(pts, known, new)
+    assert not keep[7, 2] and keep[:, 2].sum() == T - 1
+
+
+# ------------------------------------------------------------------------- joints words
+@pytest.mark.parametrize("name", ["COCO_17", "BODY_25", "HALPE_26"])
+def test_single_mirror_and_rig_resolve_the_same_words(name):
+    from mirrorgraph.rigs import pipeline as rig_pipeline
+
+    assert rig_pipeline.resolve_joints is resolve_joints          # one parser for both
+    sk = skeleton_by_name(name)
+    every, limbs = np.arange(sk.num_joints), np.asarray(sk.calibration_joints)
+    for spec, want in ((None, (every, limbs)), ("auto", (every, limbs)),
+                       ("limbs", (limbs, limbs)), ("all", (every, every)), (["all"], (every, every))):
+        got = resolve_joints(sk, spec)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want)), spec
+    names = "left_wrist,right_wrist,left_hip,right_hip,nose"
+    chosen = sorted(sk.index(n) for n in names.split(","))
+    assert np.array_equal(resolve_joints(sk, names)[0], chosen)
+    assert np.array_equal(mirror_joints(sk, "auto"), sk.calibration_joints)
+    assert np.array_equal(mirror_joints(sk, ["all"]), np.arange(sk.num_joints))
+
+
+def test_unknown_or_too_few_joints_are_refused_naming_the_words():
+    sk = skeleton_by_name("COCO_17")
+    with pytest.raises(mg.InputError, match=r"field 'joints'.*unknown joint\(s\) tail.*auto, limbs, all"):
+        mirror_joints(sk, ("left_wrist", "tail"))
+    with pytest.raises(mg.InputError, match="at least 4 joints"):
+        mirror_joints(sk, "left_wrist,right_wrist")
+
+
+def test_the_cli_takes_all(tmp_path):
+    from mirrorgraph.cli import main
+    from mirrorgraph.io import write_keypoints
+
+    s = make_scene(frames=120, seed=2, skeleton="BODY_25")
+    kp = tmp_path / "openpose"
+    write_keypoints(s.detections, kp, "openpose")
+    cam = tmp_path / "camera.json"
+    cam.write_text(json.dumps({"K": s.K.tolist(), "image_size": list(s.image_size)}))
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(out),
+                 "--joints", "all", "--no-refine", "--quiet", "--skeleton", "BODY_25"]) == 0
+    assert len(json.loads(out.read_text())["input"]["joints"]) == 25
