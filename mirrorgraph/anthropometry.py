@@ -77,3 +77,25 @@ def femur_ratios(skeleton: Skeleton) -> dict[str, float]:
 def expected_bone_lengths(skeleton: Skeleton, height_m: float) -> dict[str, float]:
     """Expected bone lengths in metres for a subject of standing height ``height_m``."""
     return {b: f * height_m for b, f in height_fractions(skeleton).items()}
+
+
+#: Standing heights accepted by ``--subject-height``, metres (as the pipeline checks).
+HUMAN_HEIGHT_M = (0.5, 2.8)
+
+
+def height_problem(value: float) -> str | None:
+    """Why ``value`` is not a subject height in metres (with the likely unit it was given
+    in), or ``None`` when it is one.
+
+    Example:
+        >>> height_problem(175)
+        '175 m is not a human height (0.5 to 2.8 m): did you mean 1.75 m (centimetres given)?'
+    """
+    lo, hi = HUMAN_HEIGHT_M
+    if lo < value < hi:
+        return None
+    text = f"{value:g} m is not a human height ({lo:g} to {hi:g} m)"
+    for factor, unit in ((100.0, "centimetres"), (1000.0, "millimetres")):
+        if lo < value / factor < hi:
+            return text + f": did you mean {value / factor:g} m ({unit} given)?"
+    return text

@@ -222,7 +222,7 @@ def _height(text: str, where: str) -> float | None:
     if not math.isfinite(value) or value <= 0:
         raise InputError(f"must be a positive number of metres, got {text!r}", source=where,
                          field="subject_height")
-    from .cli import height_problem
+    from .anthropometry import height_problem
     problem = height_problem(value)
     if problem is not None:
         raise InputError(problem, source=where, field="subject_height")

@@ -34,6 +34,7 @@ import numpy as np
 
 from . import __version__
 from .errors import InputError, MirrorgraphError
+from .anthropometry import height_problem
 from .progress import Progress, SolveProgress
 
 EXIT_INPUT = 2
@@ -69,28 +70,6 @@ def _rate(text: str) -> float:
     if not 0.0 <= v <= 1.0:
         raise argparse.ArgumentTypeError(f"must lie in [0, 1], got {text!r}")
     return v
-
-
-#: Standing heights accepted by ``--subject-height``, metres (as the pipeline checks).
-HUMAN_HEIGHT_M = (0.5, 2.8)
-
-
-def height_problem(value: float) -> str | None:
-    """Why ``value`` is not a subject height in metres (with the likely unit it was given
-    in), or ``None`` when it is one.
-
-    Example:
-        >>> height_problem(175)
-        '175 m is not a human height (0.5 to 2.8 m): did you mean 1.75 m (centimetres given)?'
-    """
-    lo, hi = HUMAN_HEIGHT_M
-    if lo < value < hi:
-        return None
-    text = f"{value:g} m is not a human height ({lo:g} to {hi:g} m)"
-    for factor, unit in ((100.0, "centimetres"), (1000.0, "millimetres")):
-        if lo < value / factor < hi:
-            return text + f": did you mean {value / factor:g} m ({unit} given)?"
-    return text
 
 
 def _height(text: str) -> float:
@@ -147,8 +126,10 @@ def _add_calibrate(sub) -> None:
                    help="inlier threshold on the epipolar distance in pixels (default 10)")
     p.add_argument("--min-confidence", type=_rate, default=0.3,
                    help="ignore joints below this detector confidence (default 0.3)")
-    p.add_argument("--joints", help="comma-separated joint names to use (default: no face, "
-                                    "hands or feet)")
+    p.add_argument("--joints", help="auto (default: the limbs in the graph, face, hands and "
+                                    "feet triangulated afterwards), limbs, all (every keypoint in "
+                                    "the graph), or comma-separated joint names (at least 4): the "
+                                    "words of calibrate-rig")
     p.add_argument("--subject-height", type=_height, metavar="METRES",
                    help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
     p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
@@ -161,14 +142,15 @@ def _add_calibrate(sub) -> None:
                    help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
                         "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
     p.add_argument("--fps", type=_positive, default=None,
-                   help="frame rate for the 3D motion where the input does not carry it "
-                        "(default 30)")
+                   help="frame rate of the 3D motion (default: the input's, else --video's, "
+                        "else 30 with a warning)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--report", metavar="DIR",
                    help="write the report's figures (PNG) into DIR (needs matplotlib: "
                         f"{_install_hint()})")
     p.add_argument("--video", metavar="FILE",
-                   help="with --report: draw the overlay on sampled frames of this video")
+                   help="the video the keypoints come from: its frame rate, and with "
+                        "--report the overlay on sampled frames")
     p.add_argument("--render", metavar="OUT.mp4",
                    help="with --report and --video: write the whole overlay video")
     _add_common(p)
@@ -186,8 +168,8 @@ def _cmd_calibrate(args) -> int:
     if Path(args.out).is_dir():
         raise InputError("is a folder; give a file name for the calibration JSON",
                          source=args.out, field="--out")
-    if (args.video or args.render) and not args.report:
-        raise InputError("needs --report DIR", field="--video" if args.video else "--render")
+    if args.render and not (args.report and args.video):
+        raise InputError("needs --report DIR and --video FILE", field="--render")
     if args.report:
         from .report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
@@ -219,22 +201,16 @@ def _cmd_calibrate(args) -> int:
         opts.threshold_px = args.threshold
     if args.fov is not None:
         opts.fov_deg = args.fov
-    for name, value in (("fps", args.fps), ("video", args.video)):
-        if value is not None and hasattr(opts, name):     # the frame rate of the 3D motion
-            setattr(opts, name, value)
+    opts.fps, opts.video = args.fps, args.video           # the frame rate of the 3D motion
     with _solver_progress(args) as callbacks:
         run = calibrate(data, intr, opts, **callbacks)
     calib = run.calibration
-    # what a recomputation needs and the JSON does not otherwise say
-    calib.input.setdefault("subject_height", args.subject_height)
-    calib.input.setdefault("scale_from", args.scale_from)
     _write_calibration_and_run(args.out, run)
     if args.joints3d:
         if run.joints3d is None:
             raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
         write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
-                       run.paired.skeleton.joints,
-                       args.fps or getattr(run, "fps", None) or run.paired.fps or 30.0,
+                       run.paired.skeleton.joints, run.fps,
                        unit="m" if calib.distance is not None else "mirror distance")
     report_line = None
     if args.report:

@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from . import geometry as geo
+from .anthropometry import height_problem
 from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
@@ -163,10 +164,14 @@ def check_image_size(data: RawDetections | PairedKeypoints, intr: Intrinsics,
                      warnings: list[str]) -> None:
     """Compare the keypoints with the image size the intrinsics belong to.
 
-    Most keypoints outside the image mean the keypoints and K are not in the
-    same pixels (a resized video, the wrong camera file). With real intrinsics
-    that is a warning (the result stands if K is right for the keypoints);
-    with a K guessed from that very size it is an :class:`InputError`.
+    Most keypoints outside the image mean the keypoints and K are not in the same
+    pixels (a resized video, the wrong camera file): the normal found with that K
+    would be wrong, so it is one rule for a size given on the command line and one
+    read from a camera file: an :class:`InputError` naming the size and the field.
+
+    Raises:
+        InputError: over half the detected keypoints lie outside the image (enlarged
+            by 10 % each side).
     """
     if intr.image_size is None:
         return
@@ -179,7 +184,9 @@ def check_image_size(data: RawDetections | PairedKeypoints, intr: Intrinsics,
     if intr.approximate:
         raise InputError(msg + "; give the video's real size", source=data.source,
                          field="image_size")
-    warnings.append(msg + " (resized video? wrong camera file?)")
+    raise InputError(msg + " (a resized video? the wrong camera file?); if K is right for "
+                     "these keypoints, fix or remove image_size",
+                     source=intr.source or data.source, field="image_size")
 
 
 def undistort_keypoints(data: RawDetections | PairedKeypoints, intr: Intrinsics
@@ -326,9 +333,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                          f"{', '.join(ESTIMATORS)}", field="estimator")
     if isinstance(opts.seed, bool) or not isinstance(opts.seed, (int, np.integer)) or opts.seed < 0:
         raise InputError(f"must be a non-negative integer, got {opts.seed!r}", field="seed")
-    if opts.subject_height is not None and not (0.5 < opts.subject_height < 2.8):
-        raise InputError(f"subject height {opts.subject_height} m is not a human height "
-                         "(0.5 to 2.8 m)", field="subject_height")
+    if opts.subject_height is not None and height_problem(opts.subject_height):
+        raise InputError(height_problem(opts.subject_height), field="subject_height")
     step = progress or (lambda _name: None)
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
         from .io import read_keypoints
@@ -398,7 +404,9 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                "skeleton": paired.skeleton.name,
                "joints": [paired.skeleton.joints[j] for j in joints],
                "min_confidence": opts.min_confidence, "threshold_px": opts.threshold_px,
-               "seed": opts.seed, "fps": fps, "fps_source": fps_source},
+               "seed": opts.seed, "fps": fps, "fps_source": fps_source,
+               "subject_height": opts.subject_height, "scale_from": _scale_from(opts),
+               "read_notes": keypoints.read_notes.as_dict()},
         warnings=warnings)
     run = CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
                          candidates=candidates, fps=fps, fps_source=fps_source,
@@ -415,6 +423,12 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     _judge(calib, est.residuals[est.inliers], opts,
            _motion_px(paired, joints, opts.min_confidence), check)
     return run
+
+
+def _scale_from(opts: CalibrateOptions) -> str:
+    """How a subject height becomes a length (``RefineOptions.scale_from``)."""
+    from .graph import RefineOptions
+    return (opts.refine_options or RefineOptions()).scale_from
 
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,

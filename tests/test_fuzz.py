@@ -48,10 +48,7 @@ from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.skeleton_guess import MIN_DETECTIONS
 from mirrorgraph.synth import make_scene, write_scene
 
-try:     # the fewest joints --joints may name (mirrorgraph.joint_sets)
-    from mirrorgraph.joint_sets import MIN_JOINTS
-except ImportError:
-    MIN_JOINTS = 1
+from mirrorgraph.joint_sets import MIN_JOINTS   # the fewest joints --joints may name
 
 #: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (well under a minute
 #: on a 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20 + 8 + 80 = 2208.
@@ -989,8 +986,9 @@ def camera_case(draw) -> CamCase:
             cam["dist"] = [0.0] * draw(st.sampled_from([4, 5, 8, 12, 14]))
         elif sub == "no image size":
             del cam["image_size"]
-        elif sub == "other size":   # disagrees with the keypoints; K is still right
-            cam["image_size"] = [draw(st.integers(1, 10**6)), draw(st.integers(1, 10**6))]
+        elif sub == "other size":   # larger than the video; K is still right (a size
+            # too small for the keypoints is an error: test_image_size_far_smaller_...)
+            cam["image_size"] = [draw(st.integers(w, 10**6)), draw(st.integers(h, 10**6))]
         elif sub == "tiny dist":
             cam["dist"] = [draw(st.floats(-1e-4, 1e-4)) for _ in range(5)]
         return case(sub, "ok", close=True)
@@ -1229,16 +1227,17 @@ def test_cli_options(opts, capfd):
 # =============================================================================== image size
 # Image sizes that disagree with the keypoints (pipeline.check_image_size):
 # * intrinsics whose image size cannot hold most of the keypoints (more than half of the
-#   detected joints outside the image enlarged by 10% on each side) give a calibration with
-#   a warning naming that size: the keypoints and K are likely not in the same pixels (a
-#   resized video); the result stands if K is right for the keypoints;
+#   detected joints outside the image enlarged by 10% on each side) are an InputError
+#   naming that size and the field image_size, as an impossible --image-size is: the
+#   keypoints and K are not in the same pixels (a resized video, the wrong camera file),
+#   and the normal found with that K would be wrong;
 # * without intrinsics, an image size that cannot hold most keypoints is an InputError
 #   naming the size and the field image_size: the guessed K comes from that size alone.
 # (An EasyMocap or npz image size unlike the camera file's is no error either: see the
 # "every file says WxH" and "other size" cases above.)
 @fuzz_settings("image_size_small", phases=[Phase.explicit, Phase.generate])
 @given(base=st.sampled_from(BASES), scale=st.one_of(st.floats(0.02, 0.3), st.floats(1.0, 3.0)))
-def test_image_size_far_smaller_than_keypoints_warns(base, scale, capfd):
+def test_image_size_far_smaller_than_keypoints_is_an_error(base, scale, capfd):
     w, h = (max(1, int(v * scale)) for v in base.image_size)
     with tempfile.TemporaryDirectory() as d:
         root = Path(d)
@@ -1246,10 +1245,11 @@ def test_image_size_far_smaller_than_keypoints_warns(base, scale, capfd):
         out = root / "calibration.json"
         code, err = run_cli(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(out),
                              "--no-refine", "--quiet"], out, capfd, prior=None)
-        assert code == 0, err
-        cal = check_calibration(out, base.normal)
-        warned = any(f"{w}x{h}" in m for m in cal["warnings"])
-        assert warned == (scale < 0.5), cal["warnings"]
+        if scale < 0.5:
+            assert code == 2 and f"{w}x{h}" in err and "image_size" in err, err
+        else:
+            assert code == 0, err
+            check_calibration(out, base.normal)
 
 
 @fuzz_settings("image_size_impossible", phases=[Phase.explicit, Phase.generate])
