@@ -205,6 +205,9 @@ def _cmd_calibrate(args) -> int:
     with _solver_progress(args) as callbacks:
         run = calibrate(data, intr, opts, **callbacks)
     calib = run.calibration
+    if args.joints3d and run.fps_source == "default":
+        from .pipeline import DEFAULT_FPS_WARNING
+        calib.warnings.append(DEFAULT_FPS_WARNING)
     _write_calibration_and_run(args.out, run)
     if args.joints3d:
         if run.joints3d is None:

@@ -214,6 +214,10 @@ DEFAULT_FPS = 30.0
 #: Frame rates a video may declare, ``[low, high)``; OpenCV reports 0, or a container's
 #: time base (1000, 90000), where a file has no usable rate: those count as none.
 VIDEO_FPS_RANGE = (1.0, 1000.0)
+#: What to say when the 3D motion is written at :data:`DEFAULT_FPS` for want of a rate.
+DEFAULT_FPS_WARNING = (f"frame rate unknown: the 3D motion is written at the default "
+                       f"{DEFAULT_FPS:g} fps; pass --fps HZ (CalibrateOptions.fps) or --video "
+                       "FILE to set it")
 #: Two frame rates that differ by more than this fraction are named in a warning.
 FPS_TOLERANCE = 0.005
 
@@ -258,8 +262,9 @@ def resolve_fps(data: RawDetections | PairedKeypoints, options: CalibrateOptions
     In this order: ``options.fps`` (the user's), the input's own (``.npz`` ``fps``;
     a reader sets :attr:`RawDetections.fps` where its format carries one), the rate
     ``options.video`` declares (:func:`fps_from_video`), else :data:`DEFAULT_FPS`.
-    Sources that disagree by more than :data:`FPS_TOLERANCE` are named in a warning,
-    and so is the default (with how to set the rate).
+    Sources that disagree by more than :data:`FPS_TOLERANCE` are named in a warning.
+    The default is only reported (``"default"``): a frame rate matters to the 3D
+    motion written out, and whoever writes it warns (:data:`DEFAULT_FPS_WARNING`).
 
     Args:
         data: the keypoints read.
@@ -289,8 +294,6 @@ def resolve_fps(data: RawDetections | PairedKeypoints, options: CalibrateOptions
         else:
             warnings.append(f"the video {os.fspath(options.video)} declares no frame rate")
     if not given:
-        warnings.append(f"frame rate unknown: the 3D motion assumes the default {DEFAULT_FPS:g} "
-                        "fps; pass --fps HZ (CalibrateOptions.fps) or --video FILE to set it")
         return DEFAULT_FPS, "default"
     fps, source, name = given[0]
     for other, _src, other_name in given[1:]:

@@ -1,5 +1,7 @@
 """The Python API end to end on synthetic scenes with known mirrors."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -103,22 +105,33 @@ def test_fps_from_an_npz_that_carries_it(tmp_path):
     assert out.read_text().splitlines()[2].split("\t")[0] == "25"
 
 
-def test_fps_default_is_named_in_the_warnings():
+def test_fps_default_is_reported_and_named_where_the_motion_is_written(tmp_path, capsys):
     from dataclasses import replace
+    from mirrorgraph.cli import main
+    from mirrorgraph.synth import write_scene
     s = make_scene(frames=150, seed=7)
     raw = replace(s.detections, fps=None)                  # as OpenPose / MMPose files
     run = _fps_run(raw, s.intrinsics)
     assert (run.fps, run.fps_source) == (30.0, "default")
-    warned = [w for w in run.calibration.warnings if "frame rate" in w]
-    assert len(warned) == 1 and "default 30 fps" in warned[0] and "--fps" in warned[0] \
-        and "--video" in warned[0]
-    # the frame rate only matters to the 3D motion: no word without the refinement
-    assert not any("frame rate" in w for w in _fps_run(raw, s.intrinsics, refine=False)
-                   .calibration.warnings)
-    # given by the user: no warning
+    assert run.calibration.input["fps_source"] == "default"
+    # the frame rate only matters to the 3D motion: no word from the calibration alone
+    assert not any("frame rate" in w for w in run.calibration.warnings)
+    # given by the user: its source
     run = _fps_run(raw, s.intrinsics, fps=50)
     assert (run.fps, run.fps_source) == (50.0, "option")
-    assert not any("frame rate" in w for w in run.calibration.warnings)
+    # the CLI writing the 3D motion at the default says so, once, in the JSON too
+    paths = write_scene(s, tmp_path / "scene", formats=("mmpose",))
+    out = tmp_path / "c.json"
+    assert main(["calibrate", str(paths["mmpose"]), "--intrinsics", str(paths["camera"]),
+                 "--out", str(out), "--joints3d", str(tmp_path / "j.npz"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    warned = [ln for ln in err.splitlines() if "frame rate" in ln]
+    assert len(warned) == 1 and "default 30 fps" in warned[0] and "--fps" in warned[0] \
+        and "--video" in warned[0]
+    assert any("frame rate" in w for w in json.loads(out.read_text())["warnings"])
+    assert main(["calibrate", str(paths["mmpose"]), "--intrinsics", str(paths["camera"]),
+                 "--out", str(out), "--quiet"]) == 0
+    assert "frame rate" not in capsys.readouterr().err
 
 
 def test_fps_from_a_video_and_disagreements(tmp_path):
