@@ -39,3 +39,19 @@ def scene_points(K):
     n, d = random_mirror(rng, 35.0)
     X = points_in_front(rng, n, d, 200)
     return K, n, d, X, geo.project(K, X), geo.project(K, geo.reflect_points(X, n, d))
+
+
+@pytest.fixture
+def without_matplotlib(monkeypatch):
+    """Every ``import matplotlib...`` raises :class:`ImportError` (a machine without the
+    plot extra)."""
+    import builtins
+
+    real_import = builtins.__import__
+
+    def fake_import(name, *args, **kwargs):
+        if name == "matplotlib" or name.startswith("matplotlib."):
+            raise ImportError("no matplotlib")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", fake_import)

@@ -11,7 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from mirrorgraph.cli import height_problem, main
+from mirrorgraph.anthropometry import height_problem
+from mirrorgraph.cli import main
 from mirrorgraph.progress import Progress, SolveProgress
 from mirrorgraph.synth import make_scene, write_scene
 
@@ -205,21 +206,11 @@ def test_export_names_the_cameras_as_written(scene_dir, tmp_path, monkeypatch):
         assert "'real' and 'mirror'" not in out
 
 
-def test_matplotlib_hint_matches_the_readme(monkeypatch, tmp_path):
-    import builtins
-
+def test_matplotlib_hint_matches_the_readme(monkeypatch, tmp_path, without_matplotlib):
     from mirrorgraph.report import INSTALL_HINT
 
     assert "pip install 'mirrorgraph[plot]'" in INSTALL_HINT
     assert "pip install -e '.[plot]'" in INSTALL_HINT          # the README's command in a clone
-    real_import = builtins.__import__
-
-    def fake_import(name, *args, **kwargs):
-        if name == "matplotlib" or name.startswith("matplotlib."):
-            raise ImportError("no matplotlib")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", fake_import)
     code, _, err = run_cli(["report", str(tmp_path / "c.json"), "--out", str(tmp_path / "r")],
                            monkeypatch)
     assert code == 2 and err.count("\n") == 1 and INSTALL_HINT in err

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import builtins
 import json
 import re
 
@@ -319,15 +318,7 @@ def test_scene3d_is_readable(scene_run):
     plt.close(fig)
 
 
-def test_without_matplotlib_says_how_to_install(monkeypatch):
-    real_import = builtins.__import__
-
-    def fake_import(name, *args, **kwargs):
-        if name == "matplotlib" or name.startswith("matplotlib."):
-            raise ImportError("no matplotlib")
-        return real_import(name, *args, **kwargs)
-
-    monkeypatch.setattr(builtins, "__import__", fake_import)
+def test_without_matplotlib_says_how_to_install(without_matplotlib):
     with pytest.raises(mg.MirrorgraphError, match=r"pip install 'mirrorgraph\[plot\]'"):
         require_matplotlib()
 
