@@ -14,15 +14,30 @@ wall mirror; one camera and two mirrors at an angle; optionally bystanders
 with their own reflections) for ``mirrorgraph calibrate-rig``, and :func:`write_rig` writes such a rig with its ``rig.toml``
 and ground truth (:mod:`.rig`).
 
+Geometries (:mod:`.geometry`): ``make_scene(geometry=...)`` chooses the ranges
+of the placement, ``"favourable"`` (the default: the generator as it always
+was), ``"gym"`` (a typical gym or studio: the person 0.8-2.5 m in front of a
+mirror 3.5-8 m away, the epipole near the person), ``"wide"`` and
+``"low_parallax"``; :func:`scene_geometry_stats` measures a scene (distance of
+the person from the epipole, angle between a joint's two rays). Detector
+models beyond Gaussian noise (:mod:`.detector`): outliers along the epipolar
+line, left/right swaps in both views, a per-label bias. :func:`make_wide_scene`
+makes the scene of a seed in a geometry slice and detector model
+(:mod:`.sampling`).
+
     >>> from mirrorgraph.synth import make_scene
     >>> scene = make_scene(frames=300, seed=1, outlier_rate=0.05)
     >>> scene.detections.people[0].shape[1:]
     (17, 3)
 """
 
+from .geometry import DEFAULT_GEOMETRY, PRESETS, GeometryPreset, scene_geometry_stats
 from .rig import SyntheticRig, make_rig, read_rig_ground_truth, write_rig
+from .sampling import NOISE_MODELS, SLICES, make_wide_scene, sample_scene_params
 from .scene import SyntheticScene, make_scene, tilted_normal
 from .writer import read_ground_truth, write_scene
 
-__all__ = ["SyntheticRig", "SyntheticScene", "make_rig", "make_scene", "read_ground_truth",
-           "read_rig_ground_truth", "tilted_normal", "write_rig", "write_scene"]
+__all__ = ["DEFAULT_GEOMETRY", "GeometryPreset", "NOISE_MODELS", "PRESETS", "SLICES",
+           "SyntheticRig", "SyntheticScene", "make_rig", "make_scene", "make_wide_scene",
+           "read_ground_truth", "read_rig_ground_truth", "sample_scene_params",
+           "scene_geometry_stats", "tilted_normal", "write_rig", "write_scene"]

@@ -115,6 +115,8 @@ of the real joints. People are listed per frame in random order.
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 
 from ..keypoints import RawDetections
@@ -125,8 +127,9 @@ from .motion import generate_motion
 from .rig_bystanders import _bystander_rng, _make_bystanders
 from .rig_files import read_rig_ground_truth, write_rig
 from .rig_placement import (PERSON, _APART, _MAX_ATTEMPTS, _PERSON_FULL, _REFLECTION_FULL,
-                            _apart_fraction, _build_1cam2mirrors, _build_2cams1mirror,
-                            _build_4cams, _camera_views, _full_fraction)
+                            RIG_PRESETS, RigRanges, _apart_fraction, _build_1cam2mirrors,
+                            _build_2cams1mirror, _build_4cams, _camera_views, _full_fraction,
+                            _mirror_distances_ok, resolve_rig_ranges)
 from .rig_types import RigBystander, RigView, SyntheticRig, bystander_name
 from .scene import _camera_matrix, _observe, check_camera_args
 
@@ -197,7 +200,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
              missing_rate: float = 0.0, lr_swap_rate: float = 0.0,
              double_reflections: bool = False, image_size: tuple[int, int] = (1920, 1080),
              fov_deg: float = 60.0, fps: float = 30.0, corner_angle_deg: float = 90.0,
-             bystanders: int = 0, joint_bias_px: float = 0.0) -> SyntheticRig:
+             bystanders: int = 0, joint_bias_px: float = 0.0,
+             geometry: str | RigRanges | None = None) -> SyntheticRig:
     """Generate a synthetic rig (see the module docstring for the geometry and model).
 
     Args:
@@ -227,6 +231,11 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
             and joint, the same in every frame: a detector's systematic error,
             which more frames do not average out. Drawn with the Gaussian noise
             from ``default_rng([seed, 2])``; 0 (default) keeps every output as before.
+        geometry: the placement's ranges: a name of
+            :data:`~mirrorgraph.synth.rig_placement.RIG_PRESETS` (``"favourable"``,
+            the default and the ranges above; ``"gym"``; ``"wide"``) or a
+            :class:`~mirrorgraph.synth.rig_placement.RigRanges`. With a focal range
+            each camera's focal length is drawn (``fov_deg`` then only checked).
 
     Raises:
         ValueError: an unknown kind, an option out of range, or no placement
@@ -243,6 +252,9 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         options["bystanders"] = int(bystanders)       # absent by default: files as before
     if joint_bias_px:
         options["joint_bias_px"] = float(joint_bias_px)
+    g = resolve_rig_ranges(geometry)
+    if RIG_PRESETS.get(g.name) is not g or g.name != "favourable":
+        options["geometry"] = g.name if RIG_PRESETS.get(g.name) is g else asdict(g)
     if kind not in KINDS:
         raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
     T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
@@ -276,18 +288,21 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     # ------------------------------------------------------------- placement (room frame)
     built = None
     for attempt in range(_MAX_ATTEMPTS):
+        if g.focal_px is not None:
+            for K in Ks:
+                K[0, 0] = K[1, 1] = rng.uniform(*g.focal_px)
         if kind == "4cams":
-            built = _build_4cams(rng, local, H, Ks, size)
+            built = _build_4cams(rng, local, H, Ks, size, g)
         elif kind == "2cams1mirror":
-            built = _build_2cams1mirror(rng, local, H)
+            built = _build_2cams1mirror(rng, local, H, g)
         else:
-            built = _build_1cam2mirrors(rng, local, H, np.radians(corner_angle_deg))
+            built = _build_1cam2mirrors(rng, local, H, np.radians(corner_angle_deg), g)
         if built is None:
             continue
         X_r, cams, mirrors_r, info = built
         views_r = [_camera_views(c, K, size, X_r, mirrors_r, double_reflections)
                    for c, K in zip(cams, Ks)]
-        ok = True
+        ok = _mirror_distances_ok(cams, mirrors_r, g)
         for vs in views_r:
             main = [v for v in vs if v[0] == PERSON or len(v[1][0]) == 1]
             for name, _, _, uv, vis in main:
@@ -304,6 +319,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                          f"(and the reflections) with a {fov_deg:g} deg field of view in "
                          f"{w}x{h} images; try a wider field of view")
     info["attempts"] = attempt + 1
+    if g.focal_px is not None:
+        info["focal_px"] = [float(K[0, 0]) for K in Ks]
     rng_b = _bystander_rng(seed)
     extra = _make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
                              mirrors_r, double_reflections, views_r, torso)

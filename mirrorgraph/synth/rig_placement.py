@@ -19,11 +19,20 @@ Visibility of a joint in a view (direct, or through a sequence of mirrors):
   mirror on its surface (inside the half-plane of a corner mirror) in order,
   and the virtual point is at least 0.5 m in front of the camera and projects
   inside the image.
+
+Ranges (:class:`RigRanges`, :data:`RIG_PRESETS`, chosen by
+``make_rig(geometry=...)``): ``"favourable"`` holds the ranges the rigs always
+had (the default, bit for bit); ``"gym"`` and ``"wide"`` widen them as
+:mod:`.geometry` does for one camera and a mirror: the person 0.8-2.5 m
+(``"wide"``: 0.5-3.5 m) in front of the wall mirror, cameras 2.5-6 m (2-7 m)
+from the person, 0.6-1.6 m (0.3-2.5 m) high, 8-45 deg (5-70 deg) off the
+mirror's normal, focal lengths of 800-1600 px (700-2200 px) drawn per camera,
+and every camera 3-8.5 m (2.5-10 m) from every mirror it sees.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -39,6 +48,87 @@ _UP = np.array([0.0, 1.0, 0.0])
 _DEG = np.pi / 180.0
 
 PERSON = "person"       # the name of the direct view (re-exported by .rig_types and .rig)
+
+
+@dataclass(frozen=True)
+class RigRanges:
+    """Ranges of a rig's placement (``(low, high)``, sampled uniformly; metres, degrees).
+
+    Attributes:
+        name: the preset's name.
+        camera_distance: camera to the centre of the person's motion
+            (``"4cams"``, ``"2cams1mirror"``).
+        camera_height: camera height above the floor.
+        roll_std_deg, roll_max_deg: camera roll ``N(0, std)`` clipped at +-max.
+        person_to_mirror: the person's distance to the wall mirror (``"2cams1mirror"``).
+        camera_separation_deg: azimuth between the two cameras around the person.
+        camera_mid_deg: azimuth of their bisector from the mirror's normal.
+        camera_off_normal_deg: each camera's azimuth from the normal (|angle|).
+        corner_person_to_edge: the person's distance to the corner's edge (``"1cam2mirrors"``).
+        corner_camera_further: the camera's distance to the edge beyond the person's.
+        focal_px: focal length of each camera, px; ``None``: from ``fov_deg``.
+        camera_to_mirror: every camera's distance to every mirror it sees;
+            ``None``: not checked.
+    """
+
+    name: str
+    camera_distance: tuple[float, float] = (3.0, 5.0)
+    camera_height: tuple[float, float] = (1.0, 1.6)
+    roll_std_deg: float = 1.0
+    roll_max_deg: float = 2.0
+    person_to_mirror: tuple[float, float] = (1.3, 2.2)
+    camera_separation_deg: tuple[float, float] = (40.0, 90.0)
+    camera_mid_deg: tuple[float, float] = (-15.0, 15.0)
+    camera_off_normal_deg: tuple[float, float] = (15.0, 60.0)
+    corner_person_to_edge: tuple[float, float] = (2.0, 2.6)
+    corner_camera_further: tuple[float, float] = (3.5, 4.5)
+    focal_px: tuple[float, float] | None = None
+    camera_to_mirror: tuple[float, float] | None = None
+
+    def replace(self, **changes) -> "RigRanges":
+        """A copy with some ranges changed."""
+        return replace(self, **changes)
+
+
+#: The rig geometries ``make_rig(geometry=NAME)`` knows (see the module docstring).
+RIG_PRESETS: dict[str, RigRanges] = {
+    "favourable": RigRanges("favourable"),
+    "gym": RigRanges("gym", camera_distance=(2.5, 6.0), camera_height=(0.6, 1.6),
+                     roll_std_deg=1.5, roll_max_deg=4.0, person_to_mirror=(0.8, 2.5),
+                     camera_separation_deg=(30.0, 90.0), camera_mid_deg=(-20.0, 20.0),
+                     camera_off_normal_deg=(8.0, 45.0), corner_person_to_edge=(1.5, 3.0),
+                     corner_camera_further=(2.5, 5.0), focal_px=(800.0, 1600.0),
+                     camera_to_mirror=(3.0, 8.5)),
+    "wide": RigRanges("wide", camera_distance=(2.0, 7.0), camera_height=(0.3, 2.5),
+                      roll_std_deg=2.5, roll_max_deg=6.0, person_to_mirror=(0.5, 3.5),
+                      camera_separation_deg=(20.0, 100.0), camera_mid_deg=(-30.0, 30.0),
+                      camera_off_normal_deg=(5.0, 70.0), corner_person_to_edge=(1.0, 3.5),
+                      corner_camera_further=(2.0, 6.5), focal_px=(700.0, 2200.0),
+                      camera_to_mirror=(2.5, 10.0)),
+}
+
+
+#: The ranges ``make_rig`` uses when ``geometry`` is not given.
+DEFAULT_RIG_GEOMETRY = "favourable"
+
+
+def resolve_rig_ranges(geometry: "str | RigRanges | None") -> RigRanges:
+    """The :class:`RigRanges` of a name (``None``: :data:`DEFAULT_RIG_GEOMETRY`) or the
+    ranges themselves.
+
+    Raises:
+        ValueError: an unknown name.
+    """
+    if geometry is None:
+        geometry = DEFAULT_RIG_GEOMETRY
+    if isinstance(geometry, RigRanges):
+        return geometry
+    if geometry not in RIG_PRESETS:
+        raise ValueError(f"unknown rig geometry {geometry!r}; known: {', '.join(RIG_PRESETS)}")
+    return RIG_PRESETS[geometry]
+
+
+_LEGACY = RIG_PRESETS["favourable"]
 
 
 # --------------------------------------------------------------------------- geometry
@@ -170,16 +260,26 @@ def _person(local: np.ndarray, H: float, yaw: float, origin: np.ndarray) -> np.n
     return (local @ _rot_y(yaw).T) * H + origin
 
 
-def _sample_camera(rng, centre: np.ndarray, azimuth: float, dist: float) -> np.ndarray:
-    h = rng.uniform(1.0, 1.6)
+def _sample_camera(rng, centre: np.ndarray, azimuth: float, dist: float,
+                   g: RigRanges = _LEGACY) -> np.ndarray:
+    h = rng.uniform(*g.camera_height)
     return np.array([centre[0] + dist * np.sin(azimuth), h, centre[2] + dist * np.cos(azimuth)])
 
 
-def _roll(rng) -> float:
-    return float(np.radians(np.clip(rng.normal(0.0, 1.0), -2.0, 2.0)))
+def _roll(rng, g: RigRanges = _LEGACY) -> float:
+    return float(np.radians(np.clip(rng.normal(0.0, g.roll_std_deg), -g.roll_max_deg,
+                                    g.roll_max_deg)))
 
 
-def _build_4cams(rng, local, H, Ks, size):
+def _mirror_distances_ok(cams: list[_Camera], mirrors: dict[str, _Mirror], g: RigRanges) -> bool:
+    """Every camera within ``g.camera_to_mirror`` of every mirror it sees (or no range)."""
+    if g.camera_to_mirror is None:
+        return True
+    lo, hi = g.camera_to_mirror
+    return all(lo <= mirrors[m].d - cam.C @ mirrors[m].n <= hi for cam in cams for m in cam.sees)
+
+
+def _build_4cams(rng, local, H, Ks, size, g: RigRanges = _LEGACY):
     yaw = rng.uniform(-np.pi, np.pi)
     X = _person(local, H, yaw, np.zeros(3))
     centre = _motion_centre(X)
@@ -188,10 +288,10 @@ def _build_4cams(rng, local, H, Ks, size):
     for k in range(4):
         for attempt in range(_MAX_ATTEMPTS):
             az = a0 + k * np.pi / 2 + np.radians(rng.uniform(-10.0, 10.0))
-            dist = rng.uniform(3.0, 5.0)
-            C = _sample_camera(rng, centre, az, dist)
+            dist = rng.uniform(*g.camera_distance)
+            C = _sample_camera(rng, centre, az, dist, g)
             target = centre + rng.uniform(-0.05, 0.05, 3)
-            cam = _Camera(C=C, R=_look_at(C, target, _roll(rng)), sees=[])
+            cam = _Camera(C=C, R=_look_at(C, target, _roll(rng, g)), sees=[])
             _, vis = _project_visible(cam, Ks[k], size, X)
             if _full_fraction(vis) >= _PERSON_FULL:
                 break
@@ -205,17 +305,18 @@ def _build_4cams(rng, local, H, Ks, size):
     return X, cams, {}, dict(info, person_yaw_deg=float(np.degrees(yaw)), facing="any")
 
 
-def _build_2cams1mirror(rng, local, H):
+def _build_2cams1mirror(rng, local, H, g: RigRanges = _LEGACY):
     wall = _Mirror("wall", np.array([0.0, 0.0, 1.0]), 0.0)
     mirrors = {"wall": wall}
-    dp = rng.uniform(1.3, 2.2)
+    dp = rng.uniform(*g.person_to_mirror)
     origin = np.array([rng.uniform(-0.3, 0.3), 0.0, -dp])
-    sep = rng.uniform(40.0, 90.0)
-    mid = rng.uniform(-15.0, 15.0)
+    sep = rng.uniform(*g.camera_separation_deg)
+    mid = rng.uniform(*g.camera_mid_deg)
     psi = np.radians([mid - sep / 2, mid + sep / 2])
-    if np.any(np.abs(np.degrees(psi)) < 15.0) or np.any(np.abs(np.degrees(psi)) > 60.0):
+    lo, hi = g.camera_off_normal_deg
+    if np.any(np.abs(np.degrees(psi)) < lo) or np.any(np.abs(np.degrees(psi)) > hi):
         return None
-    dists = rng.uniform(3.0, 5.0, 2)
+    dists = rng.uniform(*g.camera_distance, 2)
     facing = "mirror" if rng.random() < 0.6 else "cameras"
     # room -Z points from the wall into the room; body z forward = room Z at yaw 0
     base = 0.0 if facing == "mirror" else np.pi - float(np.mean(psi))
@@ -228,9 +329,9 @@ def _build_2cams1mirror(rng, local, H):
     cams = []
     for k in range(2):
         # azimuth psi around the person, from the normal into the room (-Z)
-        C = _sample_camera(rng, centre, np.pi - psi[k], dists[k])
+        C = _sample_camera(rng, centre, np.pi - psi[k], dists[k], g)
         target = _aim_between(C, [centre, refl], centre[1]) + rng.uniform(-0.05, 0.05, 3)
-        cams.append(_Camera(C=C, R=_look_at(C, target, _roll(rng)), sees=["wall"]))
+        cams.append(_Camera(C=C, R=_look_at(C, target, _roll(rng, g)), sees=["wall"]))
     info = dict(person_to_mirror_m=float(dp), camera_azimuth_deg=np.degrees(psi).tolist(),
                 camera_separation_deg=float(sep), distance_m=dists.tolist(),
                 height_m=[float(c.C[1]) for c in cams], person_yaw_deg=float(np.degrees(yaw)),
@@ -238,7 +339,7 @@ def _build_2cams1mirror(rng, local, H):
     return X, cams, mirrors, info
 
 
-def _build_1cam2mirrors(rng, local, H, alpha):
+def _build_1cam2mirrors(rng, local, H, alpha, g: RigRanges = _LEGACY):
     h = alpha / 2.0
     # the corner edge is the room's Y axis; the bisector runs into the room along -Z
     nA = np.array([np.cos(h), 0.0, np.sin(h)])       # the wall toward +X (camera's left)
@@ -246,13 +347,13 @@ def _build_1cam2mirrors(rng, local, H, alpha):
     A = _Mirror("mirror_left", nA, 0.0, [(nB, 0.0)])
     B = _Mirror("mirror_right", nB, 0.0, [(nA, 0.0)])
     mirrors = {"mirror_left": A, "mirror_right": B}
-    rp = rng.uniform(2.0, 2.6)
+    rp = rng.uniform(*g.corner_person_to_edge)
     beta = np.radians(rng.uniform(5.0, 12.0)) * rng.choice([-1.0, 1.0])
     origin = np.array([rp * np.sin(beta), 0.0, -rp * np.cos(beta)])
     # the camera off the bisector on the other side: the double reflection (the
     # person turned about the edge) then does not hide behind the person
     gamma = -np.sign(beta) * np.radians(rng.uniform(3.0, 8.0))
-    rc = rp + rng.uniform(3.5, 4.5)
+    rc = rp + rng.uniform(*g.corner_camera_further)
     facing = "camera" if rng.random() < 0.5 else "corner"
     to_corner = np.arctan2(-origin[0], -origin[2])   # body z forward toward the edge
     base = to_corner if facing == "corner" else to_corner + np.pi
@@ -261,10 +362,11 @@ def _build_1cam2mirrors(rng, local, H, alpha):
     if not _gap_ok(X, mirrors):
         return None
     centre = _motion_centre(X)
-    C = np.array([rc * np.sin(gamma), rng.uniform(1.0, 1.6), -rc * np.cos(gamma)])
+    C = np.array([rc * np.sin(gamma), rng.uniform(*g.camera_height), -rc * np.cos(gamma)])
     pts = [centre, _reflect(centre, nA, 0.0), _reflect(centre, nB, 0.0)]
     target = _aim_between(C, pts, centre[1]) + rng.uniform(-0.05, 0.05, 3)
-    cam = _Camera(C=C, R=_look_at(C, target, _roll(rng)), sees=["mirror_left", "mirror_right"])
+    cam = _Camera(C=C, R=_look_at(C, target, _roll(rng, g)),
+                  sees=["mirror_left", "mirror_right"])
     info = dict(corner_angle_deg=float(np.degrees(alpha)), person_to_edge_m=float(rp),
                 person_off_bisector_deg=float(np.degrees(beta)), camera_to_edge_m=float(rc),
                 camera_off_bisector_deg=float(np.degrees(gamma)), height_m=[float(C[1])],

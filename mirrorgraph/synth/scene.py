@@ -10,6 +10,15 @@ Camera matrix: ``fx = fy = (w / 2) / tan(fov / 2)`` (``fov`` horizontal),
 zero skew, principal point ``(w / 2 + dx, h / 2 + dy)`` with ``dx, dy`` drawn
 uniformly in +-4 px (a real camera's principal point is never exactly central).
 
+Geometry presets (``geometry=``, :mod:`.geometry`): the ranges below are those
+of ``"favourable"``, the generator's original scenes (the default,
+:data:`~.geometry.DEFAULT_GEOMETRY`); ``"gym"``, ``"wide"`` and ``"low_parallax"``
+widen them (mirror 2.5-10 m, the person 0.5-3.5 m in front of it, focal
+700-2200 px, mirror 5-70 deg off the axis, camera height and tilt varied, the
+person near the camera-mirror line) and place a vertical mirror in the world the
+tilted camera sees; the placement below is the same for all of them, with the
+preset's own candidate positions and constraints (:mod:`.geometry`).
+
 The scene: a camera with a small random tilt (pitch +-10 deg, roll +-3 deg
 around level) looks at a person who exercises (see
 :mod:`~mirrorgraph.synth.motion`) between the camera and the mirror, facing
@@ -60,7 +69,17 @@ coordinate gets Gaussian noise of mean ``noise_mean`` and standard deviation
   (either, at random) is not detected;
 * left/right swaps: in a fraction ``lr_swap_rate`` of frames (where the
   reflection is detected) the detector labels the reflection with the real
-  joints' labels instead of the flipped ones;
+  joints' labels instead of the flipped ones; with ``lr_swap_views="both"``
+  also, independently, the person's labels in a fraction ``lr_swap_rate`` of
+  frames are swapped;
+* outliers along the epipolar line: a fraction ``epipolar_outlier_rate`` of the
+  other observations is moved 15-100 px along the line through the epipole
+  (:func:`~.detector.displace_along_epipolar_lines`): no epipolar test sees
+  them, the depth triangulated from them is wrong;
+* a per-joint bias (``joint_bias_px``) per view, or with
+  ``joint_bias_shared=True`` per detector label in both views (mirrored
+  horizontally on the reflection), and AR(1) noise (``noise_correlation``);
+  :mod:`.detector` names a ``"realistic"`` detector built of these;
 * extra people: in a fraction ``extra_person_rate`` of frames a bystander is
   added: a pose of the same motion at another time, another height
   (1.50-1.95 m) and facing, imaged whole inside the image at 35-80 % of its
@@ -72,7 +91,7 @@ coordinate gets Gaussian noise of mean ``noise_mean`` and standard deviation
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -80,6 +99,9 @@ import numpy as np
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
 from .body import BodyModel, check_skeleton, make_body, skeleton_points
+from .detector import displace_along_epipolar_lines
+from .geometry import (PRESETS, GeometryPreset, parallax_deg, resolve_geometry,
+                       vertical_mirror_normal)
 from .motion import generate_motion
 
 #: Reflection of the x axis that makes the virtual camera's rotation proper.
@@ -113,7 +135,13 @@ class SyntheticScene:
         detections: what a detector outputs (see the module docstring).
         outlier_mask_real: ``(T, J)`` observed direct joints replaced by an outlier.
         outlier_mask_mirror: ``(T, J)`` same for the reflection (real-joint labels).
+            Both include the outliers along the epipolar line.
+        epipolar_outlier_mask_real: ``(T, J)`` direct observations displaced along
+            their epipolar line (``epipolar_outlier_rate``).
+        epipolar_outlier_mask_mirror: ``(T, J)`` the same for the reflection.
         lr_swapped: ``(T,)`` frames whose reflection the detector labelled unflipped.
+        lr_swapped_real: ``(T,)`` frames whose person the detector labelled with
+            left and right swapped (``lr_swap_views="both"``; all False otherwise).
         real_image: ``(T, J, 2)`` noise-free points as the camera images them
             (``real_clean`` distorted by ``dist``; the same as ``real_clean`` without).
         mirror_image: ``(T, J, 2)`` the same for the reflection.
@@ -131,7 +159,12 @@ class SyntheticScene:
         body: the individual body model (segment lengths in units of height).
         placement: how the person was placed: ``R_body`` (body frame -> camera),
             ``origin`` (body-frame origin, on the floor, in camera coordinates),
-            ``facing`` ("camera"/"mirror"), ``attempts``, ``margin_px``.
+            ``facing`` ("camera"/"mirror"), ``attempts``, ``margin_px``,
+            ``camera_tilt`` (level camera -> camera), ``R_world`` (world, ``y`` up,
+            -> camera), ``geometry`` (the preset's name), ``focal_px``,
+            ``camera_height`` (m above the floor), ``person_to_mirror`` (m, the
+            centre of the motion) and ``parallax_deg`` (the angle between the two
+            rays of that centre, :mod:`.geometry`).
         motion: with a motion-capture take (``make_scene(motion=...)``): ``file``,
             ``source_fps``, ``source_frames``, ``skipped`` (leading reference
             frames left out), ``take_frames`` (frames after resampling),
@@ -171,6 +204,9 @@ class SyntheticScene:
     body: BodyModel | None = None
     placement: dict[str, Any] = field(default_factory=dict)
     motion: dict[str, Any] | None = None
+    lr_swapped_real: np.ndarray | None = None
+    epipolar_outlier_mask_real: np.ndarray | None = None
+    epipolar_outlier_mask_mirror: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.joints3d.shape[0])
@@ -217,19 +253,25 @@ class SyntheticScene:
         joints included; confidence 0 rows where a person was not detected),
         ``mirror`` in the real joints' labels. With ``fix_lr=True`` (what a perfect
         pairing step returns) the detector's left/right swaps are undone and
-        counted in ``lr_fixes``; with ``fix_lr=False`` the pairs are exactly as the
-        detector labelled them (swapped frames stay swapped), ``lr_fixes = 0``.
+        counted in ``lr_fixes`` (the frames where only one of the two views is
+        swapped: the ones a left/right check sees); with ``fix_lr=False`` the pairs
+        are exactly as the detector labelled them (swapped frames stay swapped, in
+        either view), ``lr_fixes = 0``.
         """
         real = self.real_observed.copy()
         mirror = self.mirror_observed.copy()
+        flip = self.skeleton.flip
+        swapped_real = (np.zeros(len(self), dtype=bool) if self.lr_swapped_real is None
+                        else self.lr_swapped_real)
         if not fix_lr and self.lr_swapped.any():
-            flip = self.skeleton.flip
             mirror[self.lr_swapped] = mirror[self.lr_swapped][:, flip]
+        if not fix_lr and swapped_real.any():
+            real[swapped_real] = real[swapped_real][:, flip]
         return PairedKeypoints(
             skeleton=self.skeleton, frame_ids=self.frame_ids.copy(), real=real, mirror=mirror,
             source=f"synthetic(seed={self.seed})", format="synthetic",
             image_size=tuple(self.image_size), fps=self.fps,
-            lr_fixes=int(self.lr_swapped.sum()) if fix_lr else 0,
+            lr_fixes=int((self.lr_swapped ^ swapped_real).sum()) if fix_lr else 0,
             frames_read=len(self))
 
 
@@ -354,15 +396,17 @@ def check_camera_args(frames: int, image_size: tuple[int, int], fov_deg: float, 
 
 
 def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skeleton = "COCO_17",
-               image_size: tuple[int, int] = (1920, 1080), fov_deg: float = 60.0,
+               image_size: tuple[int, int] = (1920, 1080), fov_deg: float | None = None,
                mirror_angle_deg: float | None = None, mirror_distance: float | None = None,
                subject_height: float | None = None, noise_mean: float = 0.076,
                noise_std: float = 4.0, outlier_rate: float = 0.0, lr_swap_rate: float = 0.0,
                missing_rate: float = 0.0, extra_person_rate: float = 0.0,
                single_person_rate: float = 0.0, distortion: Any = None,
                fps: float = 30.0, motion: str | os.PathLike | None = None,
-               noise_correlation: float = 0.0, joint_bias_px: float = 0.0
-               ) -> SyntheticScene:
+               noise_correlation: float = 0.0, joint_bias_px: float = 0.0,
+               geometry: str | GeometryPreset | None = None, focal_px: float | None = None,
+               lr_swap_views: str = "mirror", epipolar_outlier_rate: float = 0.0,
+               joint_bias_shared: bool = False) -> SyntheticScene:
     """Generate a synthetic mirror scene (see the module docstring for the model).
 
     Args:
@@ -371,16 +415,20 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
             identical arrays.
         skeleton: keypoint layout or its name (``COCO_17``, ``BODY_25``, ``COCO_18``).
         image_size: ``(width, height)`` px.
-        fov_deg: horizontal field of view, degrees.
+        fov_deg: horizontal field of view, degrees (``None``: the geometry's focal
+            range, or 60 deg where it has none, as the ``"favourable"`` one).
         mirror_angle_deg: angle between mirror normal and optical axis (``None``:
-            uniform 10-60 deg); the normal turns left or right of the axis
-            (azimuth within +-20 deg of horizontal).
-        mirror_distance: ``d`` in metres (``None``: uniform 2.5-4.5).
+            the geometry's range, 10-60 deg for ``"favourable"``); the normal turns
+            left or right of the axis.
+        mirror_distance: ``d`` in metres (``None``: the geometry's range, 2.5-4.5
+            for ``"favourable"``).
         subject_height: metres (``None``: uniform 1.55-1.95, or with ``motion``
             the skeleton's own height).
         noise_mean, noise_std: Gaussian detector noise per coordinate, px.
         outlier_rate: fraction of observations replaced by gross errors.
-        lr_swap_rate: fraction of frames whose reflection is labelled unflipped.
+        lr_swap_rate: fraction of frames whose reflection is labelled unflipped
+            (with ``lr_swap_views="both"`` also, independently, the fraction of
+            frames whose person has left and right swapped).
         missing_rate: fraction of joint observations missing.
         extra_person_rate: fraction of frames with a bystander.
         single_person_rate: fraction of frames with only one of person/reflection.
@@ -397,12 +445,30 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
             and coordinate, px: a real detector places some joints
             consistently off (e.g. hips too high). Both are drawn from a
             generator of their own, so scenes without them are unchanged.
+        geometry: a preset name of :data:`~mirrorgraph.synth.geometry.PRESETS`
+            (``"favourable"``, ``"gym"``, ``"wide"``, ``"low_parallax"``) or a
+            :class:`~mirrorgraph.synth.geometry.GeometryPreset`; ``None``:
+            :data:`~mirrorgraph.synth.geometry.DEFAULT_GEOMETRY`. The arguments
+            above that fix a quantity (``fov_deg``, ``mirror_angle_deg``, ...)
+            override its range.
+        focal_px: focal length ``fx = fy`` in px instead of ``fov_deg``.
+        lr_swap_views: ``"mirror"`` (the reflection only) or ``"both"``.
+        epipolar_outlier_rate: fraction of the observations (either view)
+            displaced along their epipolar lines
+            (:func:`~mirrorgraph.synth.detector.displace_along_epipolar_lines`).
+        joint_bias_shared: the per-joint bias follows the detector's label in
+            both views (mirrored on the reflection) instead of one per view.
 
     Raises:
         ValueError: an option out of range, or no placement satisfies the
             constraints with the parameters given.
         InputError: ``motion`` cannot be read or is not a usable BVH take.
     """
+    gp = resolve_geometry(geometry)
+    if fov_deg is not None and focal_px is not None:
+        raise ValueError("give fov_deg or focal_px, not both")
+    if fov_deg is None and focal_px is None and gp.focal_px is None:
+        fov_deg = 60.0
     options = dict(frames=frames, seed=seed, skeleton=skeleton if isinstance(skeleton, str)
                    else skeleton.name, image_size=list(image_size), fov_deg=fov_deg,
                    mirror_angle_deg=mirror_angle_deg, mirror_distance=mirror_distance,
@@ -414,14 +480,25 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    [float(v) for v in np.asarray(distortion, dtype=float).ravel()], fps=fps,
                    motion=None if motion is None else os.fspath(motion),
                    noise_correlation=noise_correlation, joint_bias_px=joint_bias_px)
-    T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
+    # the options of the presets and detector models, recorded where not the default
+    # (the files of a "favourable" scene stay as they were)
+    if gp.name != "favourable" or PRESETS.get(gp.name) is not gp:
+        options["geometry"] = gp.name if PRESETS.get(gp.name) is gp else asdict(gp)
+    for key, value, default in (("focal_px", focal_px, None), ("lr_swap_views", lr_swap_views,
+                                "mirror"), ("epipolar_outlier_rate", epipolar_outlier_rate, 0.0),
+                                ("joint_bias_shared", joint_bias_shared, False)):
+        if value != default:
+            options[key] = value
+    T, w, h = check_camera_args(frames, image_size, 60.0 if fov_deg is None else fov_deg, fps,
+                                noise_std)
     if not 0.0 <= noise_correlation < 1.0:
         raise ValueError(f"noise_correlation must be in [0, 1), got {noise_correlation}")
     if joint_bias_px < 0:
         raise ValueError(f"joint_bias_px must be >= 0, got {joint_bias_px}")
     for name, v in (("outlier_rate", outlier_rate), ("lr_swap_rate", lr_swap_rate),
                     ("missing_rate", missing_rate), ("extra_person_rate", extra_person_rate),
-                    ("single_person_rate", single_person_rate)):
+                    ("single_person_rate", single_person_rate),
+                    ("epipolar_outlier_rate", epipolar_outlier_rate)):
         if not 0.0 <= v <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {v}")
     if mirror_angle_deg is not None and not 0.0 <= mirror_angle_deg < 90.0:
@@ -430,6 +507,10 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         raise ValueError(f"mirror_distance must be positive, got {mirror_distance}")
     if subject_height is not None and subject_height <= 0:
         raise ValueError(f"subject_height must be positive, got {subject_height}")
+    if focal_px is not None and not focal_px > 0:
+        raise ValueError(f"focal_px must be positive, got {focal_px}")
+    if lr_swap_views not in ("mirror", "both"):
+        raise ValueError(f"lr_swap_views must be 'mirror' or 'both', got {lr_swap_views!r}")
     dist = None
     if distortion is not None:
         dist = np.zeros(5)
@@ -444,7 +525,9 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     size = (w, h)
 
     rng = np.random.default_rng(seed)
-    K = _camera_matrix(rng, size, fov_deg)
+    K = _camera_matrix(rng, size, 60.0 if fov_deg is None else fov_deg)
+    if focal_px is not None:
+        K[0, 0] = K[1, 1] = float(focal_px)
     take_info = None
     if motion is None:
         body = make_body(rng)
@@ -461,94 +544,59 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                          skeleton_height=take.height)
     local = skeleton_points(full, skel)                  # (T, J, 3)
     del full
-    hull = _hull_points(local.reshape(-1, 3))
-    centre = local.reshape(-1, 3).mean(0)
 
     # ------------------------------------------------------------- placement
-    margin = 0.04 * min(w, h)
-    chosen = None
-    for attempt in range(_MAX_ATTEMPTS):
-        if attempt == 0 or (subject_height is None and take_height is None):
-            H_m = (float(subject_height) if subject_height is not None
-                   else take_height if take_height is not None else rng.uniform(1.55, 1.95))
-        if attempt == 0 or mirror_angle_deg is None:
-            ang = np.radians(mirror_angle_deg if mirror_angle_deg is not None
-                             else rng.uniform(10.0, 60.0))
-        if attempt == 0 or mirror_distance is None:
-            d = float(mirror_distance) if mirror_distance is not None else rng.uniform(2.5, 4.5)
-        # gym and studio mirrors hang vertically: the normal turns left or right
-        # of the optical axis, with up to +-20 deg of azimuth (a tilted mirror
-        # or camera) around that
-        az = rng.choice([0.0, np.pi]) + np.radians(rng.uniform(-20.0, 20.0))
-        n = np.array([np.sin(ang) * np.cos(az), np.sin(ang) * np.sin(az), np.cos(ang)])
-        tilt = _rot_x(np.radians(np.clip(rng.normal(0.0, 4.0), -10, 10))) \
-            @ _rot_z(np.radians(np.clip(rng.normal(0.0, 1.5), -3, 3)))
-        R_cw = tilt @ _WORLD_TO_LEVEL_CAMERA                 # world (y up) -> camera
-        facing = "camera" if rng.random() < 0.5 else "mirror"
-        n_w = R_cw.T @ n
-        if facing == "mirror" and np.hypot(n_w[0], n_w[2]) > 0.2:
-            base = np.arctan2(n_w[0], n_w[2])
-        else:
-            facing = "camera"
-            base = np.pi
-        base += np.radians(rng.uniform(-15.0, 15.0))
-        R = R_cw @ _rot_y(base)                              # body -> camera
-        A, b = _constraints(K, size, margin, n, d)
-        support = (hull @ (R.T @ A.T)).min(0) * H_m          # min_x a . (R x H)
-        # candidate origins (floor point of the body frame) in camera coordinates
-        cand = rng.uniform([-3.5, -0.2, 0.5], [3.5, 2.2, 2.0 * d + 1.5], (_CANDIDATES, 3))
-        ok = np.all(cand @ A.T + b + support >= 0.0, axis=1)
-        if not ok.any():
-            continue
-        cand = cand[ok]
-        # prefer placements where person and reflection lie apart in the image
-        c3 = cand + H_m * (R @ centre)
-        sep = np.linalg.norm(project(K, c3) - project(K, c3 - 2.0 * ((c3 @ n) - d)[:, None] * n),
-                             axis=-1)
-        good = np.flatnonzero(sep >= np.quantile(sep, 0.5))
-        origin = cand[good[rng.integers(len(good))]]
-        X = (local @ R.T) * H_m + origin
-        rc = project(K, X)
-        mc = project(K, X - 2.0 * ((X @ n) - d)[..., None] * n)
-        if dist is not None:
-            ri, mi = distort_pixels(K, dist, rc), distort_pixels(K, dist, mc)
-            lo, hi = margin / 2, np.array([w - margin / 2, h - margin / 2])
-            if not (np.all(ri >= lo) and np.all(ri <= hi) and np.all(mi >= lo)
-                    and np.all(mi <= hi)):
-                continue
-        else:
-            ri, mi = rc, mc
-        chosen = dict(R_body=R, origin=origin, facing=facing, attempts=attempt + 1,
-                      margin_px=margin, camera_tilt=tilt)
-        break
+    fixed = dict(subject_height=subject_height, take_height=take_height,
+                 mirror_angle_deg=mirror_angle_deg, mirror_distance=mirror_distance,
+                 focal=fov_deg is not None or focal_px is not None)
+    chosen, H_m, n, d, X, rc, mc, ri, mi = _place(rng, gp, K, size, local, dist, **fixed)
     if chosen is None:
-        fixed = [k for k, v in (("mirror_angle_deg", mirror_angle_deg),
+        given = [k for k, v in (("mirror_angle_deg", mirror_angle_deg),
                                 ("mirror_distance", mirror_distance),
                                 ("subject_height", subject_height)) if v is not None]
         if motion is not None:
-            fixed.append("motion" + ("" if subject_height is not None
+            given.append("motion" + ("" if subject_height is not None
                                      else f" (subject {take_height:.2f} m)"))
+        view = (f"a {fov_deg:g} deg field of view" if fov_deg is not None else
+                f"a focal length of {focal_px:g} px" if focal_px is not None else
+                f"focal lengths of {gp.focal_px[0]:g}-{gp.focal_px[1]:g} px")
         raise ValueError(
             "cannot place the person so that they and their reflection stay inside the "
-            f"{w}x{h} image with a {fov_deg:g} deg field of view"
-            + (f" with the given {', '.join(fixed)}" if fixed else "")
+            f"{w}x{h} image with {view}"
+            + ("" if gp.name == "favourable" else f" (geometry {gp.name!r})")
+            + (f" with the given {', '.join(given)}" if given else "")
             + ("; try fewer frames, a wider field of view or a larger mirror distance"
                if motion is not None else
                "; try a wider field of view, a larger mirror distance or a shorter subject"))
 
     # ------------------------------------------------------------- observations
+    flip = skel.flip
+    seed0 = 0 if seed is None else int(seed)
     obs_clean = np.stack([ri, mi])                          # (2, T, J, 2) in the image
     out = _observe(rng, obs_clean, size, noise_mean, noise_std, outlier_rate, missing_rate,
                    single_person_rate, noise_correlation, joint_bias_px,
-                   np.random.default_rng([0 if seed is None else int(seed), 7919]))
+                   np.random.default_rng([seed0, 7919]),
+                   bias_flip=flip if joint_bias_shared else None)
     obs, miss, outl, detected = out
+    epi = np.zeros_like(outl)
+    if epipolar_outlier_rate > 0:                           # a generator of their own
+        epi = displace_along_epipolar_lines(
+            np.random.default_rng([seed0, 104729]), obs[..., :2], obs[..., 2],
+            np.stack([rc, mc]), obs_clean, ~miss & ~outl, epipolar_outlier_rate, K, n, size,
+            dist, distort_pixels)
+        outl |= epi
     swap = (rng.random(T) < lr_swap_rate) & detected[1]
-    flip = skel.flip
+    swap_real = np.zeros(T, dtype=bool)
+    if lr_swap_views == "both":
+        swap_real = (np.random.default_rng([seed0, 15485863]).random(T) < lr_swap_rate) \
+            & detected[0]
+    det_real = np.where(swap_real[:, None, None], obs[0][:, flip], obs[0]) if swap_real.any() \
+        else obs[0]
     det_mirror = np.where(swap[:, None, None], obs[1], obs[1][:, flip])
 
     extra = rng.random(T) < extra_person_rate
-    extra_people = _bystanders(rng, local, np.flatnonzero(extra), K, size, margin,
-                               R_cw, noise_mean, noise_std, missing_rate)
+    extra_people = _bystanders(rng, local, np.flatnonzero(extra), K, size, chosen["margin_px"],
+                               chosen["R_world"], noise_mean, noise_std, missing_rate)
 
     frame_ids = np.arange(T, dtype=np.int64)
     groups = (np.flatnonzero(detected[0]), np.flatnonzero(detected[1]), np.flatnonzero(extra))
@@ -559,11 +607,11 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     dest[order] = np.arange(len(order))
     allrows = np.empty((len(order), J, 3))
     start = 0
-    for src, g in zip((obs[0], det_mirror, None), groups):
-        rows = extra_people if src is None else src[g]
-        allrows[dest[start:start + len(g)]] = rows
-        start += len(g)
-    del det_mirror, extra_people, rows
+    for src, rows_of in zip((det_real, det_mirror, None), groups):
+        rows = extra_people if src is None else src[rows_of]
+        allrows[dest[start:start + len(rows_of)]] = rows
+        start += len(rows_of)
+    del det_real, det_mirror, extra_people, rows
     counts = np.bincount(row_frame, minlength=T)
     people = np.split(allrows, np.cumsum(counts)[:-1])
     detections = RawDetections(skeleton=skel, frame_ids=frame_ids, people=people,
@@ -578,7 +626,182 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         real_observed=obs[0], mirror_observed=obs[1], missing_real=miss[0],
         missing_mirror=miss[1], real_detected=detected[0], mirror_detected=detected[1],
         extra_person=extra, seed=seed, options=options, body=body, placement=chosen,
-        motion=None if take_info is None else dict(take_info, scale=float(H_m) / take_height))
+        motion=None if take_info is None else dict(take_info, scale=float(H_m) / take_height),
+        lr_swapped_real=swap_real, epipolar_outlier_mask_real=epi[0],
+        epipolar_outlier_mask_mirror=epi[1])
+
+
+def _tilt(rng: np.random.Generator, gp: GeometryPreset) -> np.ndarray:
+    """A camera tilt ``(3, 3)`` (level camera to camera): pitch about ``x``, then roll
+    about ``z``, each drawn from the preset's clipped normal distribution."""
+    return _rot_x(np.radians(np.clip(rng.normal(0.0, gp.pitch_std_deg), -gp.pitch_max_deg,
+                                     gp.pitch_max_deg))) \
+        @ _rot_z(np.radians(np.clip(rng.normal(0.0, gp.roll_std_deg), -gp.roll_max_deg,
+                                    gp.roll_max_deg)))
+
+
+def _candidates(rng: np.random.Generator, gp: GeometryPreset, K: np.ndarray, width: int,
+                n: np.ndarray, d: float, tilt: np.ndarray, offset: np.ndarray
+                ) -> np.ndarray | None:
+    """Candidate origins ``(N, 3)`` (the body frame's floor point, camera frame) of one attempt.
+
+    ``offset`` ``(3,)`` is the centre of the motion relative to the origin
+    (camera frame, metres). ``None`` when the attempt's draw admits no candidate.
+    """
+    if gp.sampler == "box":                              # "favourable": the camera frame's box
+        lo, hi = gp.camera_height
+        return rng.uniform([-3.5, lo, 0.5], [3.5, hi, 2.0 * d + 1.5], (_CANDIDATES, 3))
+    lo, hi = gp.person_to_mirror
+    hi = min(hi, d - 0.5)                                # the person in front of the camera
+    if hi < lo:
+        return None
+    if gp.sampler == "slab":
+        # distance to the mirror near a target, camera height, image column: solve the depth
+        t = rng.uniform(lo, hi)
+        pm = np.clip(t + rng.uniform(-0.1, 0.1, _CANDIDATES), lo, hi)
+        height = rng.uniform(*gp.camera_height, _CANDIDATES)
+        half = np.arctan(0.5 * gp.column_frac * width / K[0, 0])
+        tan = np.tan(rng.uniform(-half, half, _CANDIDATES))
+        m = tilt.T @ n                                   # the normal in the level frame
+        den = m[0] * tan + m[2]
+        z = (d - pm - offset @ n - m[1] * height) / np.where(den > 0.05, den, np.nan)
+        level = np.stack([z * tan, height, z], 1)        # x right, y down (the floor), z
+        level = level[np.isfinite(z) & (z > 0.0)]
+        return level @ tilt.T if len(level) else None
+    # "axis": the motion's centre near the camera's line along the normal
+    pm = rng.uniform(lo, hi, _CANDIDATES)
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    b1 = np.cross(n, a)
+    b1 /= np.linalg.norm(b1)
+    b2 = np.cross(n, b1)
+    rho = (d - pm) * np.tan(np.radians(gp.parallax_deg[1])) * np.sqrt(rng.random(_CANDIDATES))
+    phi = rng.uniform(0.0, 2.0 * np.pi, _CANDIDATES)
+    c3 = (d - pm)[:, None] * n + rho[:, None] * (np.cos(phi)[:, None] * b1
+                                                  + np.sin(phi)[:, None] * b2)
+    return c3 - offset
+
+
+def _place(rng: np.random.Generator, gp: GeometryPreset, K: np.ndarray, size: tuple[int, int],
+           local: np.ndarray, dist: np.ndarray | None, *, subject_height: float | None,
+           take_height: float | None, mirror_angle_deg: float | None,
+           mirror_distance: float | None, focal: bool):
+    """Place the mirror and the person (the module docstring's placement).
+
+    Draws, per attempt, every quantity the caller left free from the ranges of
+    ``gp`` and keeps the first attempt with a feasible position. ``K`` gets the
+    attempt's focal length in place when the preset draws one (``focal=False``).
+
+    Returns:
+        ``(chosen, H, n, d, X, rc, mc, ri, mi)``: the placement record (``None``
+        and the rest ``None`` when no attempt fits), the subject's height, the
+        normal ``(3,)``, the distance, the joints ``(T, J, 3)``, their pinhole
+        pixels ``(T, J, 2)`` in both views and the same as imaged (distorted).
+    """
+    w, h = size
+    hull = _hull_points(local.reshape(-1, 3))
+    centre = local.reshape(-1, 3).mean(0)
+    margin = gp.margin_frac * min(w, h)
+    for attempt in range(_MAX_ATTEMPTS):
+        if attempt == 0 or (subject_height is None and take_height is None):
+            H_m = (float(subject_height) if subject_height is not None
+                   else take_height if take_height is not None else rng.uniform(1.55, 1.95))
+        if attempt == 0 or mirror_angle_deg is None:
+            ang = np.radians(mirror_angle_deg if mirror_angle_deg is not None
+                             else rng.uniform(*gp.mirror_angle_deg))
+        if attempt == 0 or mirror_distance is None:
+            d = float(mirror_distance) if mirror_distance is not None \
+                else rng.uniform(*gp.mirror_distance)
+        if gp.focal_px is not None and not focal:
+            K[0, 0] = K[1, 1] = rng.uniform(*gp.focal_px)
+        if gp.vertical_mirror:
+            # a vertical mirror in the world the tilted camera sees
+            tilt = _tilt(rng, gp)
+            R_cw = tilt @ _WORLD_TO_LEVEL_CAMERA
+            side = rng.choice([-1.0, 1.0])
+            lean = np.radians(rng.uniform(-gp.mirror_lean_deg, gp.mirror_lean_deg))
+            n = vertical_mirror_normal(R_cw, ang, lean, side)
+            if n is None:
+                continue
+        else:
+            # gym and studio mirrors hang vertically: the normal turns left or right
+            # of the optical axis, with up to +-20 deg of azimuth (a tilted mirror
+            # or camera) around that
+            az = rng.choice([0.0, np.pi]) + np.radians(rng.uniform(-gp.mirror_azimuth_deg,
+                                                                   gp.mirror_azimuth_deg))
+            n = np.array([np.sin(ang) * np.cos(az), np.sin(ang) * np.sin(az), np.cos(ang)])
+            tilt = _tilt(rng, gp)
+            R_cw = tilt @ _WORLD_TO_LEVEL_CAMERA                 # world (y up) -> camera
+        facing = "camera" if rng.random() < 1.0 - gp.facing_mirror else "mirror"
+        n_w = R_cw.T @ n
+        if facing == "mirror" and np.hypot(n_w[0], n_w[2]) > 0.2:
+            base = np.arctan2(n_w[0], n_w[2])
+        else:
+            facing = "camera"
+            base = np.pi
+        base += np.radians(rng.uniform(-gp.facing_jitter_deg, gp.facing_jitter_deg))
+        R = R_cw @ _rot_y(base)                              # body -> camera
+        A, b = _constraints(K, size, margin, n, d)
+        if gp.between:                                       # n . X >= 0
+            A, b = np.vstack([A, n]), np.append(b, 0.0)
+        support = (hull @ (R.T @ A.T)).min(0) * H_m          # min_x a . (R x H)
+        # candidate origins (floor point of the body frame) in camera coordinates
+        offset = H_m * (R @ centre)
+        cand = _candidates(rng, gp, K, w, n, d, tilt, offset)
+        if cand is None:
+            continue
+        ok = np.all(cand @ A.T + b + support >= 0.0, axis=1)
+        if not ok.any():
+            continue
+        cand = cand[ok]
+        c3 = cand + offset
+        if not gp.favourable:
+            keep = _preset_filter(gp, cand, c3, R_cw, n, d, K, H_m)
+            cand, c3 = cand[keep], c3[keep]
+            if not len(cand):
+                continue
+        # prefer placements where person and reflection lie apart in the image
+        sep = np.linalg.norm(project(K, c3) - project(K, c3 - 2.0 * ((c3 @ n) - d)[:, None] * n),
+                             axis=-1)
+        good = np.flatnonzero(sep >= np.quantile(sep, gp.prefer_apart))
+        origin = cand[good[rng.integers(len(good))]]
+        X = (local @ R.T) * H_m + origin
+        rc = project(K, X)
+        mc = project(K, X - 2.0 * ((X @ n) - d)[..., None] * n)
+        if dist is not None:
+            ri, mi = distort_pixels(K, dist, rc), distort_pixels(K, dist, mc)
+            lo, hi = margin / 2, np.array([w - margin / 2, h - margin / 2])
+            if not (np.all(ri >= lo) and np.all(ri <= hi) and np.all(mi >= lo)
+                    and np.all(mi <= hi)):
+                continue
+        else:
+            ri, mi = rc, mc
+        c = origin + offset
+        chosen = dict(R_body=R, origin=origin, facing=facing, attempts=attempt + 1,
+                      margin_px=margin, camera_tilt=tilt, R_world=R_cw, geometry=gp.name,
+                      focal_px=float(K[0, 0]),
+                      camera_height=float(-origin @ R_cw[:, 1]),
+                      person_to_mirror=float(d - c @ n),
+                      parallax_deg=float(parallax_deg(c[None], n, d)[0]))
+        return chosen, H_m, n, d, X, rc, mc, ri, mi
+    return (None,) * 9
+
+
+def _preset_filter(gp: GeometryPreset, cand: np.ndarray, c3: np.ndarray, R_cw: np.ndarray,
+                   n: np.ndarray, d: float, K: np.ndarray, H_m: float) -> np.ndarray:
+    """``(N,)`` the candidates (origins ``cand``, motion centres ``c3``, ``(N, 3)``) that
+    keep the preset's ranges: distance to the mirror, camera height, the centre's
+    parallax and the reflection's least height in the image."""
+    pm = d - c3 @ n
+    keep = (pm >= gp.person_to_mirror[0] - 1e-9) & (pm <= gp.person_to_mirror[1] + 1e-9)
+    height = -cand @ R_cw[:, 1]                              # R_cw[:, 1]: the world's up
+    keep &= (height >= gp.camera_height[0]) & (height <= gp.camera_height[1])
+    if gp.parallax_deg is not None:
+        par = parallax_deg(c3, n, d)
+        keep &= (par >= gp.parallax_deg[0]) & (par <= gp.parallax_deg[1])
+    if gp.min_reflection_px is not None:
+        depth = (c3 + 2.0 * pm[:, None] * n)[:, 2]              # S(c) = c + 2 (d - n . c) n
+        keep &= K[0, 0] * H_m >= gp.min_reflection_px * depth
+    return keep
 
 
 def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
@@ -604,15 +827,26 @@ def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: flo
 def _observe(rng: np.random.Generator, clean: np.ndarray, size: tuple[int, int],
              noise_mean: float, noise_std: float, outlier_rate: float, missing_rate: float,
              single_person_rate: float, noise_correlation: float = 0.0,
-             joint_bias_px: float = 0.0, rng_detector: np.random.Generator | None = None):
-    """Noisy detections ``(V, T, J, 3)`` of clean points ``(V, T, J, 2)``."""
+             joint_bias_px: float = 0.0, rng_detector: np.random.Generator | None = None,
+             bias_flip: np.ndarray | None = None):
+    """Noisy detections ``(V, T, J, 3)`` of clean points ``(V, T, J, 2)``.
+
+    With ``bias_flip`` (the skeleton's left/right map; ``V = 2``, view 1 the
+    reflection in real-joint labels) the per-joint bias follows the detector's
+    label: label ``j`` is off by ``b_j`` on the person and by ``b_j`` mirrored
+    horizontally on the reflection, whose real joint ``k`` the detector labels
+    ``flip[k]``.
+    """
     V, T, J, _ = clean.shape
     if noise_correlation > 0 or joint_bias_px > 0:
         xy = clean + noise_mean
         if noise_std > 0:
             xy = xy + noise_std * _correlated_noise(rng_detector, clean.shape, noise_correlation)
-        if joint_bias_px > 0:
+        if joint_bias_px > 0 and bias_flip is None:
             xy = xy + rng_detector.normal(0.0, joint_bias_px, (V, 1, J, 2))
+        elif joint_bias_px > 0:
+            b = rng_detector.normal(0.0, joint_bias_px, (J, 2))
+            xy = xy + np.stack([b, b[bias_flip] * np.array([-1.0, 1.0])])[:, None]
     elif noise_std > 0:
         xy = rng.normal(noise_mean, noise_std, clean.shape)
         xy += clean
