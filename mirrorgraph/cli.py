@@ -302,6 +302,8 @@ def _verbose_input(args, data) -> None:
 
 # --------------------------------------------------------------------------- synth
 def _add_synth(sub) -> None:
+    from .synth.geometry import PRESETS as PRESET_NAMES
+
     p = sub.add_parser("synth", help="write a synthetic mirror scene with ground truth",
                        description="Write a synthetic scene: a person exercising between "
                                    "the camera and a mirror, keypoints in every input "
@@ -311,9 +313,20 @@ def _add_synth(sub) -> None:
     p.add_argument("--seed", type=_seed, default=0)
     p.add_argument("--skeleton", default="COCO_17", choices=("COCO_17", "BODY_25", "COCO_18", "BODY_25B", "HALPE_26"))
     p.add_argument("--image-size", type=_image_size, default=(1920, 1080), metavar="WxH")
-    p.add_argument("--fov", type=_positive, default=60.0, metavar="DEG")
+    p.add_argument("--geometry", default="gym", choices=tuple(PRESET_NAMES),
+                   help="scene geometry: gym (default: a typical gym or studio, mirror "
+                        "3.5-8 m away, person 0.8-2.5 m in front of it), wide (mirror 2.5-10 m, "
+                        "person 0.5-3.5 m, focal 700-2200 px, camera height and tilt varied), "
+                        "low_parallax (the person near the camera-mirror line) or favourable "
+                        "(the person far from the epipole: the scenes of earlier versions)")
+    focal = p.add_mutually_exclusive_group()
+    focal.add_argument("--fov", type=_positive, default=None, metavar="DEG",
+                       help="horizontal field of view (default: the geometry's focal range; "
+                            "60 for favourable)")
+    focal.add_argument("--focal", type=_positive, default=None, metavar="PX",
+                       help="focal length in pixels")
     p.add_argument("--mirror-angle", type=float, default=None, metavar="DEG",
-                   help="angle of the mirror normal to the optical axis (default random 10-60)")
+                   help="angle of the mirror normal to the optical axis (default: the geometry's)")
     p.add_argument("--mirror-distance", type=_positive, default=None, metavar="METRES")
     p.add_argument("--subject-height", type=_positive, default=None, metavar="METRES")
     p.add_argument("--noise", type=float, default=4.0, metavar="PX",
@@ -326,6 +339,14 @@ def _add_synth(sub) -> None:
     p.add_argument("--outliers", type=_rate, default=0.0, help="outlier rate")
     p.add_argument("--lr-swaps", type=_rate, default=0.0,
                    help="rate of frames whose reflection has left/right swapped")
+    p.add_argument("--lr-swap-views", default="mirror", choices=("mirror", "both"),
+                   help="swap left/right on the reflection only (default) or in both views")
+    p.add_argument("--epipolar-outliers", type=_rate, default=0.0, metavar="RATE",
+                   help="rate of keypoints displaced along their epipolar line (small "
+                        "epipolar residual, wrong depth)")
+    p.add_argument("--shared-bias", action="store_true",
+                   help="with --joint-bias: the same per-joint offset on the person and, "
+                        "mirrored, on the reflection (one detector's habit)")
     p.add_argument("--missing", type=_rate, default=0.0, help="rate of missing joints")
     p.add_argument("--extra-people", type=_rate, default=0.0,
                    help="rate of frames with an extra person")
@@ -352,7 +373,10 @@ def _cmd_synth(args) -> int:
     if args.distortion is not None and len(args.distortion) != 5:
         raise InputError("needs 5 coefficients k1,k2,p1,p2,k3", field="--distortion")
     scene = make_scene(frames=args.frames, seed=args.seed, skeleton=args.skeleton,
-                       image_size=args.image_size, fov_deg=args.fov,
+                       image_size=args.image_size, fov_deg=args.fov, focal_px=args.focal,
+                       geometry=args.geometry, lr_swap_views=args.lr_swap_views,
+                       epipolar_outlier_rate=args.epipolar_outliers,
+                       joint_bias_shared=args.shared_bias,
                        mirror_angle_deg=args.mirror_angle, mirror_distance=args.mirror_distance,
                        subject_height=args.subject_height, noise_mean=args.noise_mean,
                        noise_std=args.noise, outlier_rate=args.outliers,
@@ -363,7 +387,7 @@ def _cmd_synth(args) -> int:
                        joint_bias_px=args.joint_bias)
     paths = write_scene(scene, args.out, formats=tuple(f.strip() for f in args.formats.split(",")))
     say = _say(args)
-    say(f"wrote a {args.frames}-frame {args.skeleton} scene to {args.out}:")
+    say(f"wrote a {args.frames}-frame {args.skeleton} {args.geometry} scene to {args.out}:")
     for name, path in paths.items():
         say(f"  {name:18s} {path}")
     return 0

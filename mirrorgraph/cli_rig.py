@@ -79,6 +79,10 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     s.add_argument("--outliers", type=rate, default=0.0, help="fraction of gross errors")
     s.add_argument("--seed", type=seed, default=0)
     s.add_argument("--bystanders", type=seed, default=0, help="other people near the subject")
+    s.add_argument("--geometry", default="favourable", choices=("favourable", "gym", "wide"),
+                   help="camera-to-mirror distances and focal lengths: favourable (default, the "
+                        "rigs of earlier versions), gym (3-8.5 m, focal drawn per camera) or wide "
+                        "(2.5-10 m)")
     s.add_argument("--skeleton", default="BODY_25")
     s.add_argument("--format", dest="fmt", default="openpose",
                    choices=("openpose", "mmpose", "easymocap"))
@@ -151,7 +155,7 @@ def _cmd_synth_rig(args) -> int:
 
     rig = make_rig(args.kind, frames=args.frames, seed=args.seed, noise_std=args.noise,
                    outlier_rate=args.outliers, skeleton=args.skeleton,
-                   bystanders=args.bystanders)
+                   bystanders=args.bystanders, geometry=args.geometry)
     path = write_rig(rig, args.out, args.fmt, include_height=not args.no_height)
     if not args.quiet:
         print(f"wrote a {args.frames}-frame {args.kind} rig to {args.out}: {path.name}, "
