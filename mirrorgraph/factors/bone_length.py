@@ -59,7 +59,8 @@ class BoneLengthFactor:
         return length - np.asarray(L, dtype=float), unit, -unit
 
     def make(self, point_keys: list[int], bones: np.ndarray, length_key: int,
-             length_index: np.ndarray, num_lengths: int) -> gtsam.CustomFactor:
+             length_index: np.ndarray, num_lengths: int,
+             sigmas: np.ndarray | None = None) -> gtsam.CustomFactor:
         """The factor of one frame.
 
         Args:
@@ -68,6 +69,8 @@ class BoneLengthFactor:
             length_key: key of the length vector ``L``.
             length_index: ``(B,)`` int, each bone's entry in ``L``.
             num_lengths: size ``n`` of ``L``.
+            sigmas: ``(B,)`` standard deviation of each bone's residual in this frame
+                (default: :attr:`sigma` for all).
         """
         bones = np.asarray(bones, dtype=int).reshape(-1, 2)
         point_keys = [int(k) for k in point_keys]
@@ -92,5 +95,6 @@ class BoneLengthFactor:
                 H[m] = dL
             return r
 
-        return gtsam.CustomFactor(gtsam.noiseModel.Isotropic.Sigma(B, self.sigma),
-                                  point_keys + [int(length_key)], error)
+        noise = (gtsam.noiseModel.Isotropic.Sigma(B, self.sigma) if sigmas is None
+                 else gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, dtype=float)))
+        return gtsam.CustomFactor(noise, point_keys + [int(length_key)], error)

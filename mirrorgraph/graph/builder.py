@@ -270,8 +270,12 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     need_lengths = priors and (options.use_bone_length or options.subject_height is not None)
     length_key, bone_names = None, []
     if need_lengths and len(names):
+        extra = None
+        if options.bone_depth_weighting > 0:
+            extra = options.bone_depth_weighting * bone_measurement_variance(
+                rig, points, used, planes, pairs, options.pixel_sigma)
         length_key, bone_names = _add_bones(prior_graph, values, used, keys, points, names, pairs,
-                                            h * options.bone_sigma, bone_lengths, info)
+                                            h * options.bone_sigma, bone_lengths, info, extra)
     if length_key is not None:
         _add_symmetry(rig, length_priors, length_key, bone_names, h * options.symmetry_sigma,
                       options, info)
@@ -321,14 +325,51 @@ def _record(info: dict, name: str, sigma: float, unit: str, count: int) -> None:
                       "factors": int(count)}
 
 
-def _add_bones(graph, values, used, keys, points, names, pairs, sigma, init, info):
-    """Per-frame bone-length factors and the length vector; returns its key and entries."""
+def bone_measurement_variance(rig: Rig, points: np.ndarray, used: np.ndarray,
+                              planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
+                              pixel_sigma: float) -> np.ndarray:
+    """``(T, B)`` variance of each bone's length in each frame from the reprojection alone.
+
+    Each joint's triangulation covariance ``sigma^2 (sum_v J_v^T J_v)^-1`` over the views
+    that see it (``J_v`` the ``2 x 3`` Jacobian of its projection; Hartley and
+    Zisserman sec. 5.2.1), projected on the bone: ``u^T (Sigma_a + Sigma_b) u``. Large
+    where the joints' rays meet at a small angle: their depth, and with it the bone,
+    is ill-determined there. NaN where a joint is not used.
+    """
+    T, J = used.shape
+    P = np.stack(view_projections(rig, None, planes))                          # (V, 3, 4)
+    X = np.nan_to_num(np.asarray(points, dtype=float)).reshape(-1, 3)
+    info = np.zeros((T * J, 3, 3))
+    for P_v, view in zip(P, rig.views):
+        m = (np.asarray(view.mask, bool) & used).reshape(-1)
+        y = X[m] @ P_v[:, :3].T + P_v[:, 3]
+        z = y[:, 2:3]
+        uv = y[:, :2] / z
+        Jv = (P_v[None, :2, :3] - uv[:, :, None] * P_v[None, 2:3, :3]) / z[:, :, None]
+        info[m] += np.einsum("nki,nkj->nij", Jv, Jv)
+    cov = np.full((T * J, 3, 3), np.nan)
+    ok = used.reshape(-1) & (np.linalg.det(info) > 0)
+    cov[ok] = pixel_sigma ** 2 * np.linalg.inv(info[ok])
+    cov = cov.reshape(T, J, 3, 3)
+    d = np.asarray(points, float)[:, pairs[:, 0]] - np.asarray(points, float)[:, pairs[:, 1]]
+    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)      # (T, B, 3)
+    S = cov[:, pairs[:, 0]] + cov[:, pairs[:, 1]]                               # (T, B, 3, 3)
+    return np.einsum("tbi,tbij,tbj->tb", u, S, u)
+
+
+def _add_bones(graph, values, used, keys, points, names, pairs, sigma, init, info, extra=None):
+    """Per-frame bone-length factors and the length vector; returns its key and entries.
+
+    ``extra``: ``(T, B)`` variance added to ``sigma^2`` per frame and bone (see
+    :attr:`RefineOptions.bone_depth_weighting`)."""
     both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                 # (T, B)
     present = np.flatnonzero(both.any(0))
     if len(present) == 0:
         return None, []
     bone_names = [names[b] for b in present]
     pairs, both = pairs[present], both[:, present]
+    if extra is not None:
+        extra = np.nan_to_num(np.asarray(extra, dtype=float)[:, present], nan=0.0)
     L0 = []
     for b, name in enumerate(bone_names):
         if init is not None and name in init:
@@ -345,7 +386,9 @@ def _add_bones(graph, values, used, keys, points, names, pairs, sigma, init, inf
     for t in np.flatnonzero(both.any(1)):
         sel = np.flatnonzero(both[t])
         joints, local = np.unique(pairs[sel], return_inverse=True)
-        graph.push_back(factor.make(keys[t, joints].tolist(), local.reshape(-1, 2), key, sel, n))
+        sigmas = None if extra is None else np.sqrt(sigma ** 2 + extra[t, sel])
+        graph.push_back(factor.make(keys[t, joints].tolist(), local.reshape(-1, 2), key, sel, n,
+                                    sigmas))
         count += 1
     _record(info, "bone_length", sigma, "length", count)
     return key, bone_names

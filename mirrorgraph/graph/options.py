@@ -81,6 +81,11 @@ class RefineOptions:
             outlier too (0: off); catches keypoints displaced along the
             epipolar line, which reprojection cannot see.
         bone_sigma: ``L_var``, a bone's length about its constant value, fraction of ``h``.
+        bone_depth_weighting: ``k``: a bone's factor in a frame has the variance
+            ``sigma_bone^2 + k var_meas``, ``var_meas`` the bone length's variance
+            from the reprojection alone (its joints' triangulation covariance,
+            :func:`~mirrorgraph.graph.builder.bone_measurement_variance`): where the
+            joints' rays meet at a small angle the bones give way (0: off).
         symmetry_sigma: ``L_sym``, left minus right length, fraction of ``h``.
         anthropometry_sigma: ``L_anth``, the ratio length / femur about Winter's (absolute).
         hip_sigma: ``L_hip``, the normalised cross product (~ sine of the hip angle).
@@ -169,6 +174,7 @@ class RefineOptions:
     bone_outlier_k: float = 5.0
 
     bone_sigma: float = 0.01
+    bone_depth_weighting: float = 0.0
     symmetry_sigma: float = 0.005
     anthropometry_sigma: float = 0.05
     hip_sigma: float = 0.1

@@ -516,9 +516,14 @@ def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOp
     """Triangulate; drop observations behind their camera, joints without parallax and,
     with ``config.first_rejection``, outliers. Returns points, masks, the count dropped
     and the count of outliers found (for the ``"auto"`` kernel)."""
-    points, _ = triangulate_rig(rig, masks, poses, planes)
-    masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)
+    offered = masks
     points, ok = triangulate_rig(rig, masks, poses, planes)
+    masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)
+    if behind:           # again, only the joints that lost an observation
+        changed = np.any([a & ~b for a, b in zip(offered, masks)], axis=0)
+        again, again_ok = triangulate_rig(rig, [m & changed for m in masks], poses, planes)
+        points = np.where(changed[..., None], again, points)
+        ok = np.where(changed, again_ok, ok)
     flat = ok & (parallax_deg(rig, points, masks, poses, planes) < min_parallax)
     masks = [m & ~flat for m in masks]
     found = 0
