@@ -17,11 +17,15 @@ reproduces the protocol):
   2.5 sigma and the 2x-scale rejection threshold keep every inlier (their 99.9th
   percentile residual is ~13 px) and cut outliers displaced by 30-150 px.
 * The bone, symmetry and anthropometry sigmas change the median mirror error
-  by less than 1 % either way (10 seeds, against no body prior at all): the
-  mirror's information is in the epipolar residuals, which constant bones do
-  not touch. They are set as loose bounds for real people (a detector's
+  by less than 1 % either way on the paper's protocol (10 seeds, against no body
+  prior at all). They are set as loose bounds for real people (a detector's
   "joints" move within the body by a few percent of a bone; the synthetic bones
   are rigid) and they make the body metric, symmetric and outliers visible.
+  Elsewhere the bone prior moves the mirror by about one Cramer-Rao bound, and
+  near the epipole (low parallax) it makes it worse, rigid synthetic bones
+  included (``bench/RESULTS_priors.md``): the joint optimum with per-frame depths
+  that the two rays hardly fix is biased, not a convergence failure (started from
+  the truth the graph lands at the same place).
 * ``smoothness_sigma`` is the one that matters: tight smoothing *biases* the
   mirror on noisy data (Monte Carlo on one scene, 16 draws: mean rotation error
   0.31 deg at 0.003 h, 0.09 deg at 0.01 h, within noise of no smoothing from
