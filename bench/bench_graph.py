@@ -61,7 +61,8 @@ def crb_rotation_deg(scene) -> float:
     from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
     p = scene.paired()
     opts = RefineOptions(robust_kernel=None, pixel_sigma=float(scene.options["noise_std"]))
-    rig, used, _ = prepare(p, scene.K, scene.normal, p.valid(), None, opts)
+    rig = prepare(p, scene.K, scene.normal, p.valid(), None, opts)
+    used = rig.views[0].mask
     prob = build_problem(rig, scene.joints3d, used, [(scene.normal, scene.distance)], opts,
                          priors=False)
     red = mirror_reduction(prob, with_lengths=False, distance_gauge=scene.distance)
