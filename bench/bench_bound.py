@@ -318,15 +318,9 @@ def table_corr(rho: dict) -> list[str]:
 
 # --------------------------------------------------------------------------- report
 def machine() -> tuple[str, str]:
+    from results_blocks import cpu_model
     uname = subprocess.run(["uname", "-a"], capture_output=True, text=True).stdout.strip()
-    cpu = "?"
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_model()
     load = os.getloadavg()
     return uname, (f"{cpu}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
                    f"load average at the end {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")

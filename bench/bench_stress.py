@@ -573,14 +573,8 @@ def table_compare(rows, old_rows) -> list[str]:
 
 
 def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    from results_blocks import cpu_model
+    cpu = cpu_model()
     load = os.getloadavg()
     return (f"{platform.platform()}, {cpu}, {os.cpu_count()} CPUs, Python "
             f"{platform.python_version()}; load average at the end {load[0]:.2f} / "

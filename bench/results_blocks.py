@@ -41,3 +41,16 @@ def keep_blocks(path: str | Path, new_text: str) -> str:
     have = {m.group("name") for m in _BLOCK.finditer(new_text)}
     kept = [m.group(0) for m in _BLOCK.finditer(path.read_text()) if m.group("name") not in have]
     return new_text.rstrip("\n") + "\n\n" + "\n".join(kept) if kept else new_text
+
+
+def cpu_model() -> str:
+    """The processor's model name (``/proc/cpuinfo``), for the machine line of a results file."""
+    import platform
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "?"
