@@ -91,11 +91,10 @@ def save_run(file: str | os.PathLike, run) -> None:
         arrays["joints3d"] = np.asarray(run.joints3d, float)
         arrays["valid3d"] = (np.asarray(run.valid3d, bool) if run.valid3d is not None
                              else np.isfinite(run.joints3d).all(-1))
-    if getattr(run, "completed", None) is not None:
+    if run.completed is not None:
         arrays["completed"] = np.asarray(run.completed, bool)
-    if getattr(run, "fps", None) is not None:
-        arrays["run_fps"] = np.float64(run.fps)
-        arrays["fps_source"] = np.str_(getattr(run, "fps_source", ""))
+    arrays["run_fps"] = np.float64(run.fps)
+    arrays["fps_source"] = np.str_(run.fps_source)
     _savez(file, arrays)
 
 
