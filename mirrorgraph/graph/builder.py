@@ -503,7 +503,8 @@ def cheirality_guard(problem: GraphProblem):
     onto the feasible set); the step is then judged on its error as usual.
 
     Returns:
-        ``guard(previous, candidate) -> int`` (points restored in ``candidate``).
+        ``guard(previous, candidate, delta=None) -> int`` (points restored in
+        ``candidate``; ``delta`` the step that made it, for the points' new values).
     """
     rig = problem.rig
     T, J = problem.used.shape
@@ -534,12 +535,30 @@ def cheirality_guard(problem: GraphProblem):
                     bad[idx] |= ~(X[idx] @ n < d)
         return bad
 
-    def guard(previous: gtsam.Values, candidate: gtsam.Values) -> int:
-        Xp, Xc = points_array(problem, previous), points_array(problem, candidate)
-        back = np.flatnonzero(infeasible(candidate, Xc) & ~infeasible(previous, Xp))
+    key_list = keys.tolist()
+    cache: dict[str, object] = {"values": None, "X": None, "bad": None}
+
+    def guard(previous: gtsam.Values, candidate: gtsam.Values,
+              delta: gtsam.VectorValues | None = None) -> int:
+        # the points of ``previous`` (cached: it is the last candidate when that was
+        # accepted) and of ``candidate`` (a point's retraction is an addition, so
+        # ``X + delta``: no per-key reads of 10^4 points)
+        if cache["values"] is previous:
+            Xp, bad_p = cache["X"], cache["bad"]
+        else:
+            Xp = points_array(problem, previous)
+            bad_p = infeasible(previous, Xp)
+        if delta is not None:
+            Xc = Xp + np.asarray(delta.vector(key_list), dtype=float).reshape(-1, 3)
+        else:
+            Xc = points_array(problem, candidate)
+        bad_c = infeasible(candidate, Xc)
+        back = np.flatnonzero(bad_c & ~bad_p)
         for i in back:                 # Values.update takes no Point3 from Python
             candidate.erase(int(keys[i]))
             candidate.insertPoint3(int(keys[i]), Xp[i])
+        Xc[back], bad_c[back] = Xp[back], bad_p[back]
+        cache.update(values=candidate, X=Xc, bad=bad_c)
         return int(len(back))
 
     return guard

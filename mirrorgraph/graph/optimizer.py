@@ -244,9 +244,9 @@ class LevenbergMarquardt:
             :func:`local_ordering` (COLAMD, computed once).
         hold_globals: solve the local variables only (``z`` is not stepped, but its
             reduced system is still computed and returned).
-        guard: ``guard(previous, candidate) -> int``: after every retraction, restore
-            in ``candidate`` the local variables that left their feasible set (e.g.
-            a point behind a camera) to their ``previous`` value; returns how many.
+        guard: ``guard(previous, candidate, delta) -> int``: after every retraction,
+            restore in ``candidate`` the local variables that left their feasible set
+            (e.g. a point behind a camera) to their ``previous`` value; returns how many.
     """
 
     def __init__(self, graph: gtsam.NonlinearFactorGraph, reduction: GlobalReduction,
@@ -405,7 +405,7 @@ class LevenbergMarquardt:
             if project is not None:
                 project(candidate)
             if self.guard is not None:
-                result.guarded += self.guard(values, candidate)
+                result.guarded += self.guard(values, candidate, delta)
             new_error = self.error(candidate)
             decrease = error - new_error
             if not (np.isfinite(new_error) and decrease >= 0.0):
