@@ -613,14 +613,24 @@ def reprojection_noise_px(rig: Rig, masks: list[np.ndarray], poses, planes,
     """A posteriori pixel sigma: every joint of ``masks`` triangulated from its views with
     the solved rig (maximum likelihood of the reprojection alone), ``sqrt(RSS / dof)``
     with ``dof = 2 observations - 3 joints - global_unknowns``
-    (:func:`~.result.residual_noise_px`)."""
-    X, ok = triangulate_rig(rig, masks, poses, planes)
-    kept = [m & ok for m in masks]
-    res = view_residuals(with_views(rig, kept), X, ok, planes, poses)
-    r = np.concatenate([v[np.isfinite(v)] for v in res])
-    n_obs = len(r)
-    return residual_noise_px(float(np.sum(r ** 2)), 2 * n_obs,
-                             3 * int(np.count_nonzero(ok)) + global_unknowns)
+    (:func:`~.result.residual_noise_px`). In blocks of :data:`NOISE_BLOCK_FRAMES`
+    frames, so that a long video's temporaries stay small."""
+    rss, n_obs, n_points = 0.0, 0, 0
+    for a in range(0, rig.num_frames, NOISE_BLOCK_FRAMES):
+        rows = slice(a, a + NOISE_BLOCK_FRAMES)
+        block = rig.subset(rows)
+        bm = [np.asarray(m, bool)[rows] for m in masks]
+        X, ok = triangulate_rig(block, bm, poses, planes)
+        res = view_residuals(with_views(block, [m & ok for m in bm]), X, ok, planes, poses)
+        r = np.concatenate([v[np.isfinite(v)] for v in res])
+        rss += float(np.sum(r ** 2))
+        n_obs += len(r)
+        n_points += int(np.count_nonzero(ok))
+    return residual_noise_px(rss, 2 * n_obs, 3 * n_points + global_unknowns)
+
+
+#: Frames a block of :func:`reprojection_noise_px` holds.
+NOISE_BLOCK_FRAMES = 2000
 
 
 def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
