@@ -38,7 +38,6 @@ memory is bounded by one chunk.
 from __future__ import annotations
 
 import time
-from typing import Callable
 
 import gtsam
 import numpy as np
@@ -50,9 +49,8 @@ from .optimizer import dense_system, reduced_marginals
 from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig
-from .stages import (MIN_PAIRS, SolveState, clean_views, with_views, joints_pass, optimize,
-                     reprojection_noise_px, seen_twice, solve_rows, undetermined,
-                     with_views)
+from .stages import (MIN_PAIRS, SolveState, clean_views, joints_pass, optimize,
+                     reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges"]
 

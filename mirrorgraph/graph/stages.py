@@ -285,14 +285,15 @@ def lm_params(opts: RefineOptions, problem: GraphProblem,
 
 def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
              *, with_lengths: bool, distance_gauge: float | None, max_iterations=None,
-             hold_globals: bool = False, progress: Progress | None = None
-             ) -> tuple[LMResult, list[tuple[int, int]]]:
-    """Levenberg-Marquardt on ``graph`` with the links exact, the cheirality guard on."""
+             hold_globals: bool = False, progress: Progress | None = None,
+             values: gtsam.Values | None = None) -> tuple[LMResult, list[tuple[int, int]]]:
+    """Levenberg-Marquardt on ``graph`` from ``values`` (default: the problem's initial
+    values) with the links exact, the cheirality guard on."""
     red = mirror_reduction(problem, with_lengths=with_lengths, distance_gauge=distance_gauge)
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
                             ordering=problem.point_ordering(), hold_globals=hold_globals,
                             guard=cheirality_guard(problem))
-    return lm.optimize(problem.values, progress), red.z_keys
+    return lm.optimize(problem.values if values is None else values, progress), red.z_keys
 
 
 def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
@@ -325,22 +326,19 @@ def gauge_scale(rig: Rig, points: np.ndarray, used: np.ndarray, height: float) -
 
 
 class Counter:
-    """Counts iterations over stages and forwards them to the user's callback, whose
-    error never rises: a stage that starts above the last reported error (new factors,
-    another kernel) is reported from where it gets below it."""
+    """Counts iterations over stages and chunks and forwards them to the user's callback.
+
+    Each solve reports only accepted steps, so its errors never rise; a new stage or
+    chunk is another objective and may start higher (the CLI's
+    :class:`mirrorgraph.progress.SolveProgress` shows it as a new pass)."""
 
     def __init__(self, progress: Progress | None) -> None:
-        self.progress, self.count, self.last = progress, 0, float("inf")
+        self.progress, self.count = progress, 0
 
     def __call__(self, iteration: int, error: float) -> None:
         self.count += 1
-        if self.progress is not None and error <= self.last:
-            self.last = error
+        if self.progress is not None:
             self.progress(self.count, error)
-
-    def restart(self) -> None:
-        """A new objective (another graph): its errors are not comparable."""
-        self.last = float("inf")
 
 
 def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
@@ -363,7 +361,6 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
     masks = [np.asarray(v.mask, bool) for v in rig.views]
     offered = [int(np.count_nonzero(m)) for m in masks]
-    thr = opts.outlier_threshold
 
     # 1. triangulate, cheirality, parallax, first rejection
     t = time.perf_counter()
@@ -382,7 +379,6 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
             warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False)
             timings["build"] += time.perf_counter() - t
             t = time.perf_counter()
-            counter.restart()
             res, _ = optimize(warm, warm.reprojection, opts, with_lengths=False,
                               distance_gauge=planes[0][1],
                               max_iterations=opts.warm_start_iterations, progress=counter)
@@ -438,7 +434,6 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         timings["build"] += time.perf_counter() - t
         t = time.perf_counter()
         cap = stage.cap_if_outliers if (res is None and found) else None
-        counter.restart()
         res, z_keys = optimize(problem, problem.full(), stage_opts, with_lengths=True,
                                distance_gauge=problem.distance_gauge, max_iterations=cap,
                                progress=counter)
@@ -601,11 +596,10 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
     graph = problem.full()
     graph.push_back(smoothness_graph(problem, values, problem.body_height * sigma_x,
                                      opts.smoothness_max_gap))
-    red = mirror_reduction(problem, with_lengths=True, distance_gauge=problem.distance_gauge)
-    lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, JOINTS_PASS_ITERATIONS),
-                            ordering=problem.point_ordering(), hold_globals=True,
-                            guard=cheirality_guard(problem))
-    return lm.optimize(values)
+    res, _ = optimize(problem, graph, opts, with_lengths=True,
+                      distance_gauge=problem.distance_gauge,
+                      max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True, values=values)
+    return res
 
 
 def reprojection_noise_px(rig: Rig, masks: list[np.ndarray], poses, planes,
