@@ -157,14 +157,13 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     """
     state = solve(rig, options, rig_config(options), height=float(height), progress=progress)
     problem = state.problem
-    res_views = view_residuals(problem.rig, state.points[np.flatnonzero(
-        spread_rows(rig.num_frames, options.max_graph_frames))], problem.used,
-        state.planes, state.poses)
+    rows = spread_rows(rig.num_frames, options.max_graph_frames)     # the graph's frames
+    res_views = view_residuals(problem.rig, state.points[rows], problem.used,
+                               state.planes, state.poses)
     rms = [float(np.sqrt(np.nanmean(r[np.isfinite(r)] ** 2))) if np.isfinite(r).any()
            else float("nan") for r in res_views]
     counts = [int(np.count_nonzero(np.isfinite(r))) for r in res_views]
-    offered = [int(np.count_nonzero(v.mask)) for v in
-               rig.subset(spread_rows(rig.num_frames, options.max_graph_frames)).views]
+    offered = [int(np.count_nonzero(np.asarray(v.mask, bool)[rows])) for v in rig.views]
     priors = {"reprojection": {"sigma": options.pixel_sigma, "unit": "px",
                                "a_posteriori_sigma_px": state.noise_px,
                                "covariance_scaled_by": state.variance_factor,
