@@ -25,6 +25,7 @@ from ..errors import DegenerateGeometryError, InputError
 from ..keypoints import PairedKeypoints
 from .builder import body_height_from_points, view_residuals
 from .options import RefineOptions
+from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .rig import Rig, single_mirror_rig
 from .solve import solve
@@ -108,9 +109,10 @@ def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers
     d0 = 1.0
     if opts.subject_height is not None:
         sample = used & spread_rows(T, opts.warm_start_frames)[:, None]
-        pts, ok = triangulate_rig(rig, [v.mask & sample for v in rig.views],
-                                  [c.pose for c in rig.cameras], [(n0, 1.0)])
-        ok &= (pts[..., 2] > 0) & (np.nan_to_num(pts) @ n0 < 1.0)
+        masks = [v.mask & sample for v in rig.views]
+        poses = [c.pose for c in rig.cameras]
+        pts, ok = triangulate_rig(rig, masks, poses, [(n0, 1.0)])
+        ok &= np.all(feasible(rig, pts, masks, poses, [(n0, 1.0)]), axis=0)   # cheirality
         h = body_height_from_points(rig, pts, ok)
         if np.isfinite(h) and h > 0:
             d0 = float(opts.subject_height) / h
