@@ -46,10 +46,10 @@ VARIANTS: dict[str, RefineOptions | None] = {
     "- symmetry": RefineOptions(use_symmetry=False),
     "- anthropometry": RefineOptions(use_anthropometry=False),
     "- hip colinearity": RefineOptions(use_hip=False),
-    "- smoothness": RefineOptions(use_smoothness=False),
+    "+ smoothness (0.8 h)": RefineOptions(use_smoothness=True),
+    "every bone, every frame": RefineOptions(bone_bias_limit=None),
     "reprojection only": RefineOptions(use_bone_length=False, use_symmetry=False,
-                                       use_anthropometry=False, use_hip=False,
-                                       use_smoothness=False),
+                                       use_anthropometry=False, use_hip=False),
 }
 
 

@@ -39,8 +39,7 @@ OFF = dict(use_bone_length=False, use_symmetry=False, use_anthropometry=False, u
 VARIANTS = {"full": {}, "no priors": OFF, "bones only": dict(OFF, use_bone_length=True),
             "smoothness only": dict(OFF, use_smoothness=True),
             "all but bones": dict(use_bone_length=False),
-            "full, bones depth-weighted k=1": dict(bone_depth_weighting=1.0),
-            "full, k=10": dict(bone_depth_weighting=10.0)}
+            "full, every bone in every frame": dict(bone_bias_limit=None)}
 SLICES = ("favourable", "gym", "low_parallax")
 
 

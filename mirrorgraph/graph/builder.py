@@ -35,12 +35,13 @@ from ..anthropometry import expected_bone_lengths, femur_ratios, height_fraction
 from ..factors import (AnthropometricRatioFactor, BoneLengthFactor, HeightPriorFactor, HipColinearityFactor, MirrorLinkFactor,
                        ReprojectionFactors, SmoothnessFactor, SymmetryFactor,
                        plane_from_gtsam, plane_to_gtsam, reflected_pose, robust_pixel_noise)
-from ..geometry import camera_projection, mirror_projection, project, reflect_points
+from ..geometry import (camera_projection, mirror_projection, project, reflect_points,
+                        triangulation_covariance)
 from .options import RefineOptions
 from .rig import Rig
 
-__all__ = ["GraphProblem", "build_problem", "smoothness_graph", "point_keys", "bone_table", "body_height_from_points",
-           "view_residuals", "extract_points", "extract_planes", "extract_camera_poses",
+__all__ = ["GraphProblem", "build_problem", "point_keys", "bone_table", "body_height_from_points",
+           "view_residuals", "debiased_bone_lengths", "extract_points", "extract_planes", "extract_camera_poses",
            "snap_virtual_poses", "cheirality_guard", "points_array", "view_projections"]
 
 _X_BASE = X_(0)
@@ -191,7 +192,8 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
                   *, body_height: float | None = None,
                   bone_lengths: dict[str, float] | None = None,
                   priors: bool = True, length_sum: float | None = None,
-                  final_kernel: str | None = None) -> GraphProblem:
+                  final_kernel: str | None = None,
+                  bones: list[str] | None = None) -> GraphProblem:
     """Variables, initial values and factors.
 
     Args:
@@ -208,6 +210,8 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
             (default: the sum of the initial lengths).
         final_kernel: the kernel of the reprojection factors when ``priors``
             (resolved: not ``"auto"``).
+        bones: only these bones (default: every bone of the skeleton between
+            estimated joints).
     """
     T, J = used.shape
     used = np.asarray(used, dtype=bool) & (rig.observation_count() >= 2)
@@ -267,15 +271,24 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     length_priors = gtsam.NonlinearFactorGraph()
     info: dict[str, dict] = {}
     names, pairs = bone_table(rig)
+    if bones is not None:
+        sel = [i for i, b in enumerate(names) if b in set(bones)]
+        names, pairs = [names[i] for i in sel], pairs[sel]
     need_lengths = priors and (options.use_bone_length or options.subject_height is not None)
     length_key, bone_names = None, []
     if need_lengths and len(names):
-        extra = None
-        if options.bone_depth_weighting > 0:
-            extra = options.bone_depth_weighting * bone_measurement_variance(
-                rig, points, used, planes, pairs, options.pixel_sigma)
-        length_key, bone_names = _add_bones(prior_graph, values, used, keys, points, names, pairs,
-                                            h * options.bone_sigma, bone_lengths, info, extra)
+        both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                     # (T, B)
+        keep = both
+        if options.bone_bias_limit is not None:
+            bias = bone_curvature_bias(rig, points, used, planes, pairs,
+                                       _median_lengths(points, pairs, both), options.pixel_sigma)
+            keep = both & ~(bias > options.bone_bias_limit * h * options.bone_sigma)
+        length_key, bone_names = _add_bones(prior_graph, values, keys, keep, points, names, pairs,
+                                            h * options.bone_sigma, bone_lengths, info)
+        if length_key is not None and "bone_length" in info:
+            info["bone_length"].update(
+                bias_limit=options.bone_bias_limit,
+                left_out=float(1.0 - keep.sum() / max(int(both.sum()), 1)))
     if length_key is not None:
         _add_symmetry(rig, length_priors, length_key, bone_names, h * options.symmetry_sigma,
                       options, info)
@@ -307,7 +320,11 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
                 height_m=float(options.subject_height),
                 relative_sigma_reported=float(options.height_sigma))
     elif planes:
+        # no bone length to hold: the first mirror's distance is the gauge (metres when
+        # the caller set it from the subject's height, see ``solve``)
         distance_gauge = float(planes[0][1])
+        if priors and options.subject_height is not None:
+            scale = "subject_height"
     return GraphProblem(rig=rig, used=used, flat_index=flat, plane_keys=plane_keys,
                         virtual_keys=virtual_keys, camera_keys=camera_keys,
                         length_key=length_key,
@@ -325,70 +342,123 @@ def _record(info: dict, name: str, sigma: float, unit: str, count: int) -> None:
                       "factors": int(count)}
 
 
-def bone_measurement_variance(rig: Rig, points: np.ndarray, used: np.ndarray,
-                              planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
-                              pixel_sigma: float) -> np.ndarray:
-    """``(T, B)`` variance of each bone's length in each frame from the reprojection alone.
+def bone_curvature_bias(rig: Rig, points: np.ndarray, used: np.ndarray,
+                        planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
+                        lengths: np.ndarray, pixel_sigma: float) -> np.ndarray:
+    """``(T, B)`` bound on the second-order bias of each bone's length measured from noisy joints.
 
-    Each joint's triangulation covariance ``sigma^2 (sum_v J_v^T J_v)^-1`` over the views
-    that see it (``J_v`` the ``2 x 3`` Jacobian of its projection; Hartley and
-    Zisserman sec. 5.2.1), projected on the bone: ``u^T (Sigma_a + Sigma_b) u``. Large
-    where the joints' rays meet at a small angle: their depth, and with it the bone,
-    is ill-determined there. NaN where a joint is not used.
+    A bone's length ``|X_a - X_b|`` is a curved function of its joints: noise across
+    the bone lengthens it on average by ``tr(P S) / (2 L)`` (the expectation of
+    ``|x + e|`` to second order in ``e``), ``S = Sigma_a + Sigma_b`` the two joints'
+    triangulation covariances (:func:`~mirrorgraph.geometry.triangulation_covariance`),
+    ``P = I - u u^T`` the projection across the bone's direction ``u``, ``L`` its
+    length. Where the joints' rays meet at a small angle their depth error is
+    centimetres and a bone across the line of sight (a standing person's thigh seen
+    from the front) is measured decimetres long on average: a bone-length factor
+    there is a biased measurement, and the joint optimum of the mirror and the
+    per-frame depths with it is biased too, however many frames there are (Neyman
+    and Scott's incidental parameters).
+
+    The bound ``tr(S) / (2 L)`` is returned, which does not depend on the bone's
+    measured direction: a rule that kept a bone where its *measured* direction runs
+    along the line of sight would keep exactly the frames whose depth noise made it
+    long (a selection bias of the same sign).
+
+    Args:
+        points: ``(T, J, 3)`` joints (world frame); used: ``(T, J)`` bool.
+        planes: ``(n, d)`` per mirror; pairs: ``(B, 2)`` joint indices of the bones.
+        lengths: ``(B,)`` each bone's length (the points' unit).
+        pixel_sigma: pixel noise, px.
+
+    Returns:
+        The bound in the points' length unit; NaN where a joint is not used.
     """
-    T, J = used.shape
-    P = np.stack(view_projections(rig, None, planes))                          # (V, 3, 4)
-    X = np.nan_to_num(np.asarray(points, dtype=float)).reshape(-1, 3)
-    info = np.zeros((T * J, 3, 3))
-    for P_v, view in zip(P, rig.views):
-        m = (np.asarray(view.mask, bool) & used).reshape(-1)
-        y = X[m] @ P_v[:, :3].T + P_v[:, 3]
-        z = y[:, 2:3]
-        uv = y[:, :2] / z
-        Jv = (P_v[None, :2, :3] - uv[:, :, None] * P_v[None, 2:3, :3]) / z[:, :, None]
-        info[m] += np.einsum("nki,nkj->nij", Jv, Jv)
-    cov = np.full((T * J, 3, 3), np.nan)
-    ok = used.reshape(-1) & (np.linalg.det(info) > 0)
-    cov[ok] = pixel_sigma ** 2 * np.linalg.inv(info[ok])
-    cov = cov.reshape(T, J, 3, 3)
-    d = np.asarray(points, float)[:, pairs[:, 0]] - np.asarray(points, float)[:, pairs[:, 1]]
-    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)      # (T, B, 3)
-    S = cov[:, pairs[:, 0]] + cov[:, pairs[:, 1]]                               # (T, B, 3, 3)
-    return np.einsum("tbi,tbij,tbj->tb", u, S, u)
+    masks = [np.asarray(v.mask, bool) & used for v in rig.views]
+    cov = triangulation_covariance(view_projections(rig, None, planes), points, masks,
+                                   pixel_sigma)                                  # (T, J, 3, 3)
+    var = np.trace(cov, axis1=-2, axis2=-1)                                     # (T, J)
+    total = var[:, pairs[:, 0]] + var[:, pairs[:, 1]]
+    return total / (2.0 * np.maximum(np.asarray(lengths, dtype=float), 1e-12))
 
 
-def _add_bones(graph, values, used, keys, points, names, pairs, sigma, init, info, extra=None):
-    """Per-frame bone-length factors and the length vector; returns its key and entries.
+def debiased_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
+                          planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
+                          pixel_sigma: float, outlier_k: float = 5.0,
+                          min_frames: int = 10) -> np.ndarray:
+    """``(B,)`` bone lengths from noisy triangulated joints, free of the curvature bias.
 
-    ``extra``: ``(T, B)`` variance added to ``sigma^2`` per frame and bone (see
-    :attr:`RefineOptions.bone_depth_weighting`)."""
-    both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                 # (T, B)
-    present = np.flatnonzero(both.any(0))
+    ``E |d|^2 = L^2 + tr(S)`` for a bone ``d = X_a - X_b`` measured with zero-mean noise
+    of covariance ``S = Sigma_a + Sigma_b``, whatever the bone's direction (the
+    corrected-score idea of measurement-error models: Stefanski 1989, Nakamura 1990).
+    So ``L^2`` is estimated by the mean over frames of ``|d|^2 - tr(S)``
+    (:func:`~mirrorgraph.geometry.triangulation_covariance`), where the median of
+    ``|d|`` would be decimetres long for joints whose rays meet at a small angle
+    (:func:`bone_curvature_bias`). Values beyond ``outlier_k`` robust standard
+    deviations (1.4826 MAD) of their median are left out first (a mean, unlike a
+    trimmed one, stays unbiased on the skewed distribution of ``|d|^2``).
+
+    Args:
+        points: ``(T, J, 3)`` joints triangulated from the views (not pulled by priors);
+            used: ``(T, J)`` bool.
+        planes: ``(n, d)`` per mirror; pairs: ``(B, 2)`` joint indices.
+        pixel_sigma: pixel noise, px.
+        outlier_k: the outlier cut, robust standard deviations.
+        min_frames: frames a bone needs.
+
+    Returns:
+        The lengths in the points' unit; NaN for a bone seen in under ``min_frames``
+        frames or whose corrected square is not positive.
+    """
+    masks = [np.asarray(v.mask, bool) & used for v in rig.views]
+    cov = triangulation_covariance(view_projections(rig, None, planes), points, masks,
+                                   pixel_sigma)
+    var = np.trace(cov, axis1=-2, axis2=-1)                                     # (T, J)
+    pts = np.asarray(points, dtype=float)
+    sq = np.sum((pts[:, pairs[:, 0]] - pts[:, pairs[:, 1]]) ** 2, axis=-1)      # (T, B)
+    corrected = sq - var[:, pairs[:, 0]] - var[:, pairs[:, 1]]
+    out = np.full(len(pairs), np.nan)
+    for b in range(len(pairs)):
+        v = corrected[:, b][np.isfinite(corrected[:, b])]
+        if len(v) < min_frames:
+            continue
+        med = np.median(v)
+        mad = 1.4826 * np.median(np.abs(v - med))
+        m = float(np.mean(v[np.abs(v - med) <= outlier_k * mad])) if mad > 0 else float(med)
+        if m > 0:
+            out[b] = np.sqrt(m)
+    return out
+
+
+def _median_lengths(points: np.ndarray, pairs: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``(B,)`` median over the frames of ``mask`` (``(T, B)``) of each bone's length
+    (NaN for a bone never in ``mask``)."""
+    d = np.linalg.norm(np.asarray(points, float)[:, pairs[:, 0]]
+                       - np.asarray(points, float)[:, pairs[:, 1]], axis=-1)
+    with np.errstate(invalid="ignore"):
+        return np.array([np.median(d[mask[:, b], b]) if mask[:, b].any() else np.nan
+                         for b in range(len(pairs))])
+
+
+def _add_bones(graph, values, keys, keep, points, names, pairs, sigma, init, info):
+    """Per-frame bone-length factors (the bones of ``keep``, ``(T, B)``) and the length
+    vector; returns its key and entries (the bones kept in some frame)."""
+    present = np.flatnonzero(keep.any(0))
     if len(present) == 0:
         return None, []
     bone_names = [names[b] for b in present]
-    pairs, both = pairs[present], both[:, present]
-    if extra is not None:
-        extra = np.nan_to_num(np.asarray(extra, dtype=float)[:, present], nan=0.0)
-    L0 = []
-    for b, name in enumerate(bone_names):
-        if init is not None and name in init:
-            L0.append(float(init[name]))
-        else:
-            a, c = pairs[b]
-            L0.append(float(np.median(np.linalg.norm(points[both[:, b], a]
-                                                     - points[both[:, b], c], axis=1))))
+    pairs, keep = pairs[present], keep[:, present]
+    medians = _median_lengths(points, pairs, keep)
+    L0 = [float(init[name]) if init is not None and name in init else float(medians[b])
+          for b, name in enumerate(bone_names)]
     key = L_(0)
     values.insert(key, np.array(L0))
     factor = BoneLengthFactor(sigma)
     n = len(bone_names)
     count = 0
-    for t in np.flatnonzero(both.any(1)):
-        sel = np.flatnonzero(both[t])
+    for t in np.flatnonzero(keep.any(1)):
+        sel = np.flatnonzero(keep[t])
         joints, local = np.unique(pairs[sel], return_inverse=True)
-        sigmas = None if extra is None else np.sqrt(sigma ** 2 + extra[t, sel])
-        graph.push_back(factor.make(keys[t, joints].tolist(), local.reshape(-1, 2), key, sel, n,
-                                    sigmas))
+        graph.push_back(factor.make(keys[t, joints].tolist(), local.reshape(-1, 2), key, sel, n))
         count += 1
     _record(info, "bone_length", sigma, "length", count)
     return key, bone_names
@@ -458,19 +528,6 @@ def _add_smoothness(rig, graph, values, used, keys, points, sigma, max_gap, info
         factor.add_many(graph, k, fid[tri[..., 0]], X, values)
         count = len(tri)
     _record(info, "smoothness", sigma, "length / frame^2", count)
-
-
-def smoothness_graph(problem: GraphProblem, values: gtsam.Values, sigma: float,
-                     max_gap: int) -> gtsam.NonlinearFactorGraph:
-    """Smoothness factors of standard deviation ``sigma`` (graph length unit per frame^2)
-    over a built problem's points, linearised at ``values`` (they are linear: exact)."""
-    T, J = problem.used.shape
-    keys = np.zeros(T * J, dtype=np.uint64)
-    keys[problem.flat_index] = np.uint64(_X_BASE) + problem.flat_index.astype(np.uint64)
-    graph = gtsam.NonlinearFactorGraph()
-    _add_smoothness(problem.rig, graph, values, problem.used, keys.reshape(T, J),
-                    extract_points(problem, values), sigma, max_gap, {})
-    return graph
 
 
 # --------------------------------------------------------------------------- read back

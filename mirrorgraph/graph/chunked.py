@@ -45,7 +45,7 @@ import numpy as np
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam
 from .builder import build_problem, extract_points, snap_virtual_poses
-from .optimizer import dense_system, reduced_marginals
+from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig
@@ -195,7 +195,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
             break
         carried = next_carried
     del last, problem, values, res      # one chunk's graph in memory at a time
-    _joints_pass_chunks(rig, next_carried, plane, lengths, length_sum, sub.body_height, opts,
+    _joints_pass_chunks(rig, next_carried, plane, lengths, sub.body_height, opts,
                         kernel, out_points, stages, timings)
     t = time.perf_counter()
     noise_px = reprojection_noise_px(rig, out_masks, pose, [plane], 3)
@@ -203,8 +203,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     basis = [np.asarray(zv.atOrientedPlane3(plane_key).normal().basis())]
     plane_cov = [np.full((3, 3), np.nan)]
     if opts.marginals:
-        marg = reduced_marginals(information, z_keys, zv)
-        plane_cov = [np.asarray(marg.marginalCovariance(plane_key)) * factor]
+        plane_cov = [reduced_covariance(information, z_keys)[int(plane_key)] * factor]
     timings["marginals"] = time.perf_counter() - t
     return SolveState(poses=pose, planes=[plane], points=out_points, used=out_used,
                       bone_lengths={k: float(v) for k, v in lengths.items()}, scale=sub.scale,
@@ -218,7 +217,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
 
 
 def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndarray, float],
-                        lengths: dict, length_sum, body_height: float, opts: RefineOptions,
+                        lengths: dict, body_height: float, opts: RefineOptions,
                         kernel, out_points: np.ndarray, stages: list[dict], timings: dict) -> None:
     """The joints pass (:func:`mirrorgraph.graph.stages.joints_pass`) chunk by chunk with
     the final mirror and bone lengths held, writing the smoothed joints into
@@ -234,13 +233,11 @@ def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndar
         keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
         if np.count_nonzero(keep) == 0:
             continue
-        problem = build_problem(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
-                                opts, body_height=body_height, bone_lengths=lengths,
-                                length_sum=length_sum, final_kernel=kernel)
-        snap_virtual_poses(problem, problem.values)
-        res = joints_pass(problem, problem.values, opts)
-        if res is None:
+        jp = joints_pass(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
+                         lengths, body_height, opts, kernel)
+        if jp is None:
             return
+        problem, res = jp
         out_points[a:b] = extract_points(problem, res.values)
         iterations += res.iterations
         done += 1

@@ -29,13 +29,18 @@ Stages (each recorded in :attr:`SolveState.stages`):
    their camera) are dropped, with the joints left in fewer than two views and the
    joints GTSAM found undetermined, before the next stage (built from this one's
    solution). ``"auto"`` is least squares when the first rejection found under
-   ``options.auto_kernel_fraction`` outliers, else Geman-McClure.
+   ``options.auto_kernel_fraction`` outliers, else Geman-McClure. A bone enters a
+   frame's factor only where its length is measured without bias
+   (``options.bone_bias_limit``, :func:`~.builder.bone_curvature_bias`).
 5. **Joints pass** (``config.joints_pass``): the joints once more with every pose,
-   plane and bone length held and the tighter ``options.joints_smoothness_sigma``.
+   plane and bone length held, the smoothness of ``options.joints_smoothness_sigma``
+   and every bone in every frame; the bones the calibration left out entirely get
+   the length their triangulations give without the curvature bias
+   (:func:`~.builder.debiased_bone_lengths`).
 6. **Marginals and noise.** The reduced information of the last undamped solve is the
-   Schur complement of every joint on (poses, bone lengths, planes); GTSAM's
-   :class:`gtsam.Marginals` of it gives each estimated camera's ``6 x 6`` and each
-   plane's ``3 x 3`` covariance, scaled by the noise the data show: every used joint
+   Schur complement of every joint on (poses, bone lengths, planes) that GTSAM's
+   elimination leaves; its inverse (:func:`~.optimizer.reduced_covariance`) gives each
+   estimated camera's ``6 x 6`` and each plane's ``3 x 3`` covariance, scaled by the noise the data show: every used joint
    triangulated again from its kept views with the solved rig (the maximum-likelihood
    point of the reprojection alone, free of the body priors that pull the graph's
    joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
@@ -56,9 +61,10 @@ from ..anthropometry import expected_bone_lengths
 from ..errors import DegenerateGeometryError
 from ..geometry import triangulate
 from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
+                      debiased_bone_lengths,
                       extract_camera_poses, extract_planes, extract_points, point_keys,
-                      smoothness_graph, snap_virtual_poses, view_projections, view_residuals)
-from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_marginals
+                      snap_virtual_poses, view_projections, view_residuals)
+from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_covariance
 from .options import RefineOptions
 from .outliers import bone_outliers, observation_outliers
 from .reduction import mirror_reduction
@@ -468,33 +474,53 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     final_used = problem.used.copy()
     state_points = extract_points(problem, values)
 
-    # 5. joints pass: the joints with everything else held, tighter smoothness
+    # every kept joint triangulated with the solved rig: the maximum-likelihood points of
+    # the reprojection alone (free of the priors' pull), for the noise and the lengths
+    t = time.perf_counter()
+    final_masks = [np.asarray(v.mask, bool) & final_used for v in problem.rig.views]
+    tri, tri_ok = triangulate_rig(problem.rig, final_masks, poses, planes)
+    timings["triangulate"] += time.perf_counter() - t
+
+    # 5. joints pass: the joints with everything else held, tighter smoothness, every bone
+    joints_priors = None
     if config.joints_pass:
         t = time.perf_counter()
-        jp = joints_pass(problem, values, opts)
+        lengths = problem.bone_lengths(values)
+        names, pairs = bone_table(problem.rig)
+        other = [i for i, b in enumerate(names) if b not in lengths]
+        if other and opts.use_bone_length:      # the bones the calibration left out
+            est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
+                                        opts.pixel_sigma)
+            lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
+        jp = joints_pass(with_views(problem.rig, [v.mask for v in problem.rig.views], poses,
+                                    planes), state_points, problem.used, planes,
+                         lengths, problem.body_height, opts, kernel)
         if jp is not None:
-            state_points = extract_points(problem, jp.values)
+            state_points = extract_points(jp[0], jp[1].values)
+            joints_priors = {k: v for k, v in jp[0].prior_info.items()
+                             if k in ("bone_length", "hip", "smoothness")}
             stages.append(stage_record("joints pass (globals held, smoothness %g h)"
-                                       % opts.joints_smoothness_sigma, jp, 0))
-            iterations += jp.iterations
+                                       % opts.joints_smoothness_sigma, jp[1], 0))
+            iterations += jp[1].iterations
         timings["solve"] += time.perf_counter() - t
 
     # 6. marginals, scaled by the noise the data show
     t = time.perf_counter()
-    final_masks = [np.asarray(v.mask, bool) & final_used for v in problem.rig.views]
-    noise_px = reprojection_noise_px(problem.rig, final_masks, poses, planes,
-                                     6 * len(problem.camera_keys) + 3 * len(planes))
+    noise_px = residual_noise(problem.rig, final_masks, tri, tri_ok, poses, planes,
+                              6 * len(problem.camera_keys) + 3 * len(planes))
     factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
     cam_cov, plane_cov, basis, zv = covariances(problem, values, res.reduced_information,
                                                 z_keys, opts.marginals)
     timings["marginals"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t_start
     info = dict(problem.prior_info)
+    if joints_priors is not None:
+        info["joints_pass"] = joints_priors
     if problem.distance_gauge is not None:
         info["distance_gauge"] = {"sigma": 1e-6, "weight": 1e12, "unit": "d", "factors": 1,
                                   "distance": problem.distance_gauge}
     return SolveState(poses=poses, planes=planes, points=state_points, used=final_used,
-                      bone_lengths=lengths or {}, scale=problem.scale,
+                      bone_lengths=lengths, scale=problem.scale,
                       camera_cov=[C * factor for C in cam_cov],
                       plane_cov=[C * factor for C in plane_cov], plane_basis=basis,
                       noise_px=noise_px, variance_factor=factor, view_masks=final_masks,
@@ -571,56 +597,84 @@ def with_views(rig: Rig, masks: list[np.ndarray], poses=None, planes=None) -> Ri
     return out
 
 
-#: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the smoothness is linear
-#: in the points and the points start at the calibration's solution, so one step lands
+#: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the points start at the
+#: calibration's solution and the smoothness is linear in them, so one step lands
 #: within ~1 mm of the converged joints (error 15156.7 vs 15155.9 converged on a
 #: 1000-frame protocol scene).
 JOINTS_PASS_ITERATIONS = 1
 
 
-def joints_pass(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
-                ) -> LMResult | None:
-    """The 3D joints solved again with every global held and the smoothness of
-    ``opts.joints_smoothness_sigma``, from ``values``.
+def joints_pass(rig: Rig, points: np.ndarray, used: np.ndarray,
+                planes: list[tuple[np.ndarray, float]], lengths: dict[str, float],
+                body_height: float, opts: RefineOptions, kernel: str | None
+                ) -> tuple[GraphProblem, LMResult] | None:
+    """The 3D joints solved again with every global held, from the calibration's solution.
+
+    The graph of the joints is the calibration's with two changes: the smoothness of
+    ``opts.joints_smoothness_sigma`` (tight: it halves the joints' error, where the
+    calibration wants none, see :class:`RefineOptions`), and every bone the
+    calibration estimated in every frame, the frames that
+    ``opts.bone_bias_limit`` left out of the calibration included (the mirror held,
+    a bone's known length is what fixes the depth of joints whose rays meet at a
+    small angle).
+
+    Args:
+        rig: the solved rig (its cameras' poses, the views' kept observations).
+        points: ``(T, J, 3)`` the calibration's joints; used: ``(T, J)`` the estimated ones.
+        planes: the solved ``(n, d)`` per mirror.
+        lengths: the calibration's bone lengths (only these bones are used).
+        body_height: subject height in graph units (the priors' length scale).
+        kernel: the reprojection kernel of the calibration's last graph (resolved).
 
     Returns:
-        The solve (``None``: skipped, without smoothness or when that sigma is not
-        tighter than the calibration's).
+        The joints' graph and its solve; ``None`` without ``joints_smoothness_sigma``.
     """
     sigma = opts.joints_smoothness_sigma
-    if not opts.use_smoothness or sigma is None or sigma >= opts.smoothness_sigma:
+    if sigma is None:
         return None
-    # the calibration's smoothness stays; factors of sigma_x are added so that the two
-    # together weigh as one of ``sigma``: 1 / sigma^2 = 1 / sigma_c^2 + 1 / sigma_x^2
-    sigma_x = 1.0 / np.sqrt(1.0 / sigma ** 2 - 1.0 / opts.smoothness_sigma ** 2)
-    graph = problem.full()
-    graph.push_back(smoothness_graph(problem, values, problem.body_height * sigma_x,
-                                     opts.smoothness_max_gap))
-    res, _ = optimize(problem, graph, opts, with_lengths=True,
-                      distance_gauge=problem.distance_gauge,
-                      max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True, values=values)
-    return res
+    jopts = replace(opts, bone_bias_limit=None, use_smoothness=True, smoothness_sigma=sigma)
+    jp = build_problem(rig, points, used, planes, jopts, body_height=body_height,
+                       bone_lengths=lengths, bones=list(lengths), final_kernel=kernel)
+    snap_virtual_poses(jp, jp.values)
+    res, _ = optimize(jp, jp.full(), jopts, with_lengths=jp.length_key is not None,
+                      distance_gauge=jp.distance_gauge, max_iterations=JOINTS_PASS_ITERATIONS,
+                      hold_globals=True)
+    return jp, res
 
 
 def reprojection_noise_px(rig: Rig, masks: list[np.ndarray], poses, planes,
                           global_unknowns: int) -> float:
-    """A posteriori pixel sigma: every joint of ``masks`` triangulated from its views with
-    the solved rig (maximum likelihood of the reprojection alone), ``sqrt(RSS / dof)``
-    with ``dof = 2 observations - 3 joints - global_unknowns``
-    (:func:`~.result.residual_noise_px`). In blocks of :data:`NOISE_BLOCK_FRAMES`
-    frames, so that a long video's temporaries stay small."""
+    """A posteriori pixel sigma of a whole video: :func:`residual_noise` of every joint of
+    ``masks`` triangulated from its views with the solved rig, in blocks of
+    :data:`NOISE_BLOCK_FRAMES` frames, so that a long video's temporaries stay small."""
     rss, n_obs, n_points = 0.0, 0, 0
     for a in range(0, rig.num_frames, NOISE_BLOCK_FRAMES):
         rows = slice(a, a + NOISE_BLOCK_FRAMES)
         block = rig.subset(rows)
         bm = [np.asarray(m, bool)[rows] for m in masks]
         X, ok = triangulate_rig(block, bm, poses, planes)
-        res = view_residuals(with_views(block, [m & ok for m in bm]), X, ok, planes, poses)
-        r = np.concatenate([v[np.isfinite(v)] for v in res])
-        rss += float(np.sum(r ** 2))
-        n_obs += len(r)
-        n_points += int(np.count_nonzero(ok))
+        parts = _residual_sums(block, bm, X, ok, poses, planes)
+        rss, n_obs, n_points = rss + parts[0], n_obs + parts[1], n_points + parts[2]
     return residual_noise_px(rss, 2 * n_obs, 3 * n_points + global_unknowns)
+
+
+def residual_noise(rig: Rig, masks: list[np.ndarray], points: np.ndarray, ok: np.ndarray,
+                   poses, planes, global_unknowns: int) -> float:
+    """A posteriori pixel sigma from the joints ``points`` ``(T, J, 3)`` (``ok``: ``(T, J)``)
+    triangulated from the views of ``masks`` with the solved rig (the maximum-likelihood
+    points of the reprojection alone): ``sqrt(RSS / dof)`` with
+    ``dof = 2 observations - 3 joints - global_unknowns``
+    (:func:`~.result.residual_noise_px`)."""
+    rss, n_obs, n_points = _residual_sums(rig, masks, points, ok, poses, planes)
+    return residual_noise_px(rss, 2 * n_obs, 3 * n_points + global_unknowns)
+
+
+def _residual_sums(rig: Rig, masks, points, ok, poses, planes) -> tuple[float, int, int]:
+    """Sum of squared residuals, observations and joints of triangulated ``points``."""
+    res = view_residuals(with_views(rig, [np.asarray(m, bool) & ok for m in masks]), points,
+                         ok, planes, poses)
+    r = np.concatenate([v[np.isfinite(v)] for v in res])
+    return float(np.sum(r ** 2)), len(r), int(np.count_nonzero(ok))
 
 
 #: Frames a block of :func:`reprojection_noise_px` holds.
@@ -630,7 +684,7 @@ NOISE_BLOCK_FRAMES = 2000
 def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
                 z_keys, compute: bool = True):
     """Per camera ``(6, 6)`` and per plane ``(3, 3)`` tangent covariance from the reduced
-    information (:func:`~.optimizer.reduced_marginals`), the planes' normal bases and the
+    information (:func:`~.optimizer.reduced_covariance`), the planes' normal bases and the
     reduced variables' values. Held cameras get zeros; NaN where not computed."""
     rig = problem.rig
     nan6, nan3 = np.full((6, 6), np.nan), np.full((3, 3), np.nan)
@@ -647,9 +701,8 @@ def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | 
         return ([np.zeros((6, 6)) if i not in problem.camera_keys else nan6
                  for i in range(len(rig.cameras))],
                 [nan3] * len(problem.plane_keys), basis, zv)
-    marg = reduced_marginals(info, z_keys, zv)
+    cov = reduced_covariance(info, z_keys)
     cams = [np.zeros((6, 6)) if problem.camera_keys.get(i) is None
-            else np.asarray(marg.marginalCovariance(problem.camera_keys[i]))
-            for i in range(len(rig.cameras))]
-    planes = [np.asarray(marg.marginalCovariance(k)) for k in problem.plane_keys]
+            else cov[int(problem.camera_keys[i])] for i in range(len(rig.cameras))]
+    planes = [cov[int(k)] for k in problem.plane_keys]
     return cams, planes, basis, zv
