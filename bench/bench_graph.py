@@ -65,7 +65,7 @@ def crb_rotation_deg(scene) -> float:
     used = rig.views[0].mask
     prob = build_problem(rig, scene.joints3d, used, [(scene.normal, scene.distance)], opts,
                          priors=False)
-    red = mirror_reduction(prob, with_lengths=False, distance_gauge=scene.distance)
+    red = mirror_reduction(prob, distance_gauge=scene.distance)
     lm = LevenbergMarquardt(prob.reprojection, red, LMParams(max_iterations=1),
                             ordering=prob.point_ordering())
     _, H, _, _ = lm.step(prob.reprojection.linearize(prob.values), prob.values, 0.0)

@@ -203,17 +203,25 @@ def _frame_values(rng, count):
     return values, pts
 
 
-def test_bone_length_factor_jacobians_and_residual():
+def test_bone_length_factors_jacobians_and_residual():
     rng = np.random.default_rng(5)
     values, pts = _frame_values(rng, 5)
-    lengths = np.array([0.4, 0.3, 0.25, 0.5])
-    values.insert(L(0), lengths)
     bones = np.array([[0, 1], [1, 2], [3, 4], [0, 3]])
-    idx = np.array([2, 0, 1, 3])                       # entries of L used by each bone
-    f = BoneLengthFactor(0.02).make([X(i) for i in range(5)], bones, L(0), idx, 4)
-    expected = np.linalg.norm(pts[bones[:, 0]] - pts[bones[:, 1]], axis=1) - lengths[idx]
-    np.testing.assert_allclose(f.unwhitenedError(values), expected, atol=1e-12)
-    assert_jacobians(f, values)
+    lengths = np.array([0.4, 0.3, 0.25, 0.5])
+    g = gtsam.NonlinearFactorGraph()
+    BoneLengthFactor(0.02).add(g, [X(int(i)) for i in bones[:, 0]],
+                               [X(int(i)) for i in bones[:, 1]], lengths)
+    assert g.size() == 4
+    expected = np.linalg.norm(pts[bones[:, 0]] - pts[bones[:, 1]], axis=1) - lengths
+    r, Ja, Jb = BoneLengthFactor.evaluate(pts[bones[:, 0]], pts[bones[:, 1]], lengths)
+    np.testing.assert_allclose(r, expected, atol=1e-12)
+    for i in range(4):
+        f = g.at(i)
+        np.testing.assert_allclose(f.unwhitenedError(values), [expected[i]], atol=1e-12)
+        assert_jacobians(f, values)
+        H = f.linearize(values).jacobian()[0] * 0.02           # whitened by sigma
+        np.testing.assert_allclose(H[:, :3], Ja[i][None], atol=1e-9)
+        np.testing.assert_allclose(H[:, 3:], Jb[i][None], atol=1e-9)
 
 
 def test_symmetry_anthropometry_and_gauge_jacobians():

@@ -241,7 +241,7 @@ def test_two_mirrors_in_one_rig():
     opts = RefineOptions(robust_kernel=None)
     problem = build_problem(rig, noisy, mask, start, opts, priors=False)
     assert len(problem.virtual_keys) == 2 and len(problem.plane_keys) == 2
-    red = mirror_reduction(problem, with_lengths=False, distance_gauge=mirrors[0][1])
+    red = mirror_reduction(problem, distance_gauge=mirrors[0][1])
     lm = LevenbergMarquardt(problem.reprojection, red, LMParams(max_iterations=15),
                             ordering=problem.point_ordering())
     res = lm.optimize(problem.values)

@@ -8,24 +8,25 @@ Variables (keys from :mod:`gtsam.symbol_shorthand`):
 * ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of view ``v`` (mirror views);
 * ``C(c)``: :class:`gtsam.Pose3`, the pose (camera-to-world) of camera ``c`` where
   it is estimated (:attr:`Camera.estimate_pose`); fixed cameras have no variable;
-* ``L(0)``: vector of the bone lengths (entry ``i`` for
-  ``GraphProblem.bone_names[i]``), shared by all frames (one key for all bones
-  keeps the per-frame Python factors cheap, see
-  :mod:`mirrorgraph.factors.bone_length`).
+* the bone lengths are not variables of the linear systems: the bone factors are
+  range factors holding them, set between linearisations (:mod:`.lengths`);
+  the length-only priors and the gauge act on the vector :data:`LENGTH_KEY` of
+  that small problem.
 
 Factors are kept in separate graphs so that the solver can use subsets:
 ``reprojection`` (every view), ``links`` (one :class:`MirrorLinkFactor` per mirror
-view), ``priors`` (the per-frame body priors: bones, hip, smoothness),
-``length_priors`` (symmetry, anthropometry: on the lengths only) and ``gauge``
-(the bone-length sum; without bone lengths, a distance prior on the plane applied
-by :mod:`.reduction`). :meth:`GraphProblem.full` is their union. The solver
-(:mod:`.optimizer`) does not put the links in the least-squares system: it
-enforces them exactly (:mod:`.reduction`).
+view), ``priors`` (the per-frame body priors other than the bones: hip,
+smoothness), ``bones`` (one range factor per frame and bone, at the held
+lengths), ``length_priors`` (symmetry, anthropometry) and ``gauge`` (the
+bone-length sum) of the length problem; without bone lengths a distance prior on
+the plane, applied by :mod:`.reduction`. :meth:`GraphProblem.full` is the graph
+of the joints and globals. The solver (:mod:`.optimizer`) does not put the links
+in the least-squares system: it enforces them exactly (:mod:`.reduction`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -40,11 +41,16 @@ from ..geometry import (camera_projection, mirror_projection, project, reflect_p
 from .options import RefineOptions
 from .rig import Rig
 
-__all__ = ["GraphProblem", "build_problem", "point_keys", "bone_table", "body_height_from_points",
+__all__ = ["GraphProblem", "LENGTH_KEY", "build_problem", "with_motion_priors", "point_keys", "bone_table", "body_height_from_points",
            "view_residuals", "debiased_bone_lengths", "extract_points", "extract_planes", "extract_camera_poses",
            "snap_virtual_poses", "cheirality_guard", "points_array", "view_projections"]
 
 _X_BASE = X_(0)
+
+#: Key of the bone-length vector in the length problem (:mod:`.lengths`): the
+#: length-only priors and the gauge are factors on it; it is not a variable of the
+#: graph of the joints.
+LENGTH_KEY = L_(0)
 
 
 def point_keys(flat_index: np.ndarray) -> list[int]:
@@ -94,13 +100,18 @@ class GraphProblem:
         plane_keys: ``P(m)`` per mirror.
         virtual_keys: view index -> ``V(v)`` for the mirror views.
         camera_keys: camera index -> ``C(c)`` for the cameras whose pose is estimated.
-        length_key: key of the bone-length vector, or ``None`` without bone factors.
-        bone_names: the bones, in the order of the length vector's entries.
+        lengths: ``(B,)`` the held bone lengths (graph units), ``None`` without bone
+            factors; bone_names: their bones.
+        bone_rows: ``(N, 3)`` int, one row per bone factor: the positions of its two
+            joints in the key-ordered points (:func:`points_array`) and its bone.
+        bone_sigma: the bone factors' standard deviation (graph units).
         reprojection: reprojection factors of every view.
         links: the mirror-link factors (virtual pose = reflected camera).
-        priors: per-frame body-prior factors (bones, hip, smoothness).
-        length_priors: factors on the bone lengths only (symmetry, anthropometry).
-        gauge: the bone-length-sum prior (empty without bone lengths).
+        priors: per-frame body-prior factors other than the bones (hip, smoothness).
+        bones: the bone factors at :attr:`lengths` (:meth:`set_lengths`).
+        length_priors: factors on the bone lengths only (symmetry, anthropometry), on
+            :data:`LENGTH_KEY`.
+        gauge: the bone-length-sum prior (empty without bone lengths), on :data:`LENGTH_KEY`.
         distance_gauge: ``d`` held by a distance prior when there is no length sum
             to hold, else ``None``.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"`` (the result is
@@ -117,11 +128,14 @@ class GraphProblem:
     plane_keys: list[int]
     virtual_keys: dict[int, int]
     camera_keys: dict[int, int]
-    length_key: int | None
+    lengths: np.ndarray | None
     bone_names: list[str]
+    bone_rows: np.ndarray
+    bone_sigma: float
     reprojection: gtsam.NonlinearFactorGraph
     links: gtsam.NonlinearFactorGraph
     priors: gtsam.NonlinearFactorGraph
+    bones: gtsam.NonlinearFactorGraph
     length_priors: gtsam.NonlinearFactorGraph
     gauge: gtsam.NonlinearFactorGraph
     distance_gauge: float | None
@@ -132,31 +146,33 @@ class GraphProblem:
     prior_info: dict[str, dict] = field(default_factory=dict)
 
     def full(self, links: bool = False) -> gtsam.NonlinearFactorGraph:
-        """Union of the reprojection, prior and gauge graphs (and the soft links if asked:
-        that graph is complete for GTSAM's own optimisers, gauge aside)."""
-        g = self.frame_factors()
-        g.push_back(self.global_factors())
+        """The graph of the joints and globals: reprojection, body priors and the bone
+        factors at the held lengths (and the soft links if asked, for GTSAM's own
+        optimisers)."""
+        g = gtsam.NonlinearFactorGraph(self.reprojection)
+        g.push_back(self.priors)
+        g.push_back(self.bones)
         if links:
             g.push_back(self.links)
         return g
 
-    def frame_factors(self) -> gtsam.NonlinearFactorGraph:
-        """The factors that involve points (reprojection and per-frame priors)."""
-        g = gtsam.NonlinearFactorGraph(self.reprojection)
-        g.push_back(self.priors)
-        return g
+    def set_lengths(self, lengths: np.ndarray) -> None:
+        """Hold the bones at ``lengths`` (``(B,)``, :attr:`bone_names` order): the bone
+        factors are made again with them."""
+        self.lengths = np.asarray(lengths, dtype=float).copy()
+        self.bones = _bone_graph(self.bone_rows, self.flat_index, self.lengths, self.bone_sigma)
 
-    def global_factors(self) -> gtsam.NonlinearFactorGraph:
-        """The factors on the bone lengths only (symmetry, anthropometry, length-sum gauge)."""
-        g = gtsam.NonlinearFactorGraph(self.length_priors)
-        g.push_back(self.gauge)
-        return g
+    def bone_lengths(self) -> dict[str, float]:
+        """Bone name -> held length (empty without bone factors)."""
+        if self.lengths is None:
+            return {}
+        return {b: float(x) for b, x in zip(self.bone_names, self.lengths)}
 
     @property
     def global_keys(self) -> list[int]:
-        """Keys shared by all frames: virtual poses, camera poses, bone lengths, planes."""
-        return list(self.virtual_keys.values()) + list(self.camera_keys.values()) \
-            + ([self.length_key] if self.length_key is not None else []) + list(self.plane_keys)
+        """Keys shared by all frames: virtual poses, camera poses, planes."""
+        return (list(self.virtual_keys.values()) + list(self.camera_keys.values())
+                + list(self.plane_keys))
 
     def camera_pose(self, index: int, values: gtsam.Values) -> gtsam.Pose3:
         """Pose (camera-to-world) of camera ``index``: its variable, or the fixed pose."""
@@ -177,13 +193,6 @@ class GraphProblem:
         for k in point_keys(self.flat_index):
             o.push_back(k)
         return o
-
-    def bone_lengths(self, values: gtsam.Values) -> dict[str, float]:
-        """Bone name -> length from ``values`` (empty without bone factors)."""
-        if self.length_key is None:
-            return {}
-        L = values.atVector(self.length_key)
-        return {b: float(x) for b, x in zip(self.bone_names, L)}
 
 
 # --------------------------------------------------------------------------- build
@@ -275,7 +284,7 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         sel = [i for i, b in enumerate(names) if b in set(bones)]
         names, pairs = [names[i] for i in sel], pairs[sel]
     need_lengths = priors and (options.use_bone_length or options.subject_height is not None)
-    length_key, bone_names = None, []
+    bone = _BoneSet.empty(h * options.bone_sigma)
     if need_lengths and len(names):
         both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                     # (T, B)
         keep = both
@@ -283,16 +292,16 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
             bias = bone_curvature_bias(rig, points, used, planes, pairs,
                                        _median_lengths(points, pairs, both), options.pixel_sigma)
             keep = both & ~(bias > options.bone_bias_limit * h * options.bone_sigma)
-        length_key, bone_names = _add_bones(prior_graph, values, keys, keep, points, names, pairs,
-                                            h * options.bone_sigma, bone_lengths, info)
-        if length_key is not None and "bone_length" in info:
+        bone = _BoneSet.make(keep, points, names, pairs, flat, J, h * options.bone_sigma,
+                             bone_lengths)
+        if bone.lengths is not None:
+            _record(info, "bone_length", bone.sigma, "length", len(bone.rows))
             info["bone_length"].update(
-                bias_limit=options.bone_bias_limit,
+                frames=int(np.count_nonzero(keep.any(1))), bias_limit=options.bone_bias_limit,
                 left_out=float(1.0 - keep.sum() / max(int(both.sum()), 1)))
-    if length_key is not None:
-        _add_symmetry(rig, length_priors, length_key, bone_names, h * options.symmetry_sigma,
-                      options, info)
-        _add_anthropometry(rig, length_priors, length_key, bone_names, options, info)
+    if bone.lengths is not None:
+        _add_symmetry(rig, length_priors, bone.names, h * options.symmetry_sigma, options, info)
+        _add_anthropometry(rig, length_priors, bone.names, options, info)
     if priors and options.use_hip:
         _add_hip(rig, prior_graph, used, keys, h, options, info)
     if priors and options.use_smoothness:
@@ -302,16 +311,15 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     gauge = gtsam.NonlinearFactorGraph()
     distance_gauge = None
     scale = "unit_distance"
-    if priors and length_key is not None:
+    if priors and bone.lengths is not None:
         if options.subject_height is not None:
             expected = expected_bone_lengths(rig.skeleton, float(options.subject_height))
-            total = sum(expected[b] for b in bone_names)
+            total = sum(expected[b] for b in bone.names)
             scale = "subject_height"
         else:
-            total = float(length_sum if length_sum is not None
-                          else np.sum(values.atVector(length_key)))
+            total = float(length_sum if length_sum is not None else np.sum(bone.lengths))
         hp = HeightPriorFactor(total)
-        gauge.push_back(hp.make(length_key))
+        gauge.push_back(hp.make(LENGTH_KEY))
         info["length_sum_gauge"] = {"sigma": hp.sigma, "weight": 1.0 / hp.sigma ** 2,
                                     "unit": "length (sum of bone lengths)", "factors": 1,
                                     "sum": total}
@@ -327,13 +335,70 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
             scale = "subject_height"
     return GraphProblem(rig=rig, used=used, flat_index=flat, plane_keys=plane_keys,
                         virtual_keys=virtual_keys, camera_keys=camera_keys,
-                        length_key=length_key,
-                        bone_names=bone_names, reprojection=repro,
-                        links=links, priors=prior_graph, length_priors=length_priors, gauge=gauge,
+                        lengths=bone.lengths, bone_names=bone.names, bone_rows=bone.rows,
+                        bone_sigma=bone.sigma, reprojection=repro, links=links,
+                        priors=prior_graph,
+                        bones=_bone_graph(bone.rows, flat, bone.lengths, bone.sigma),
+                        length_priors=length_priors,
+                        gauge=gauge,
                         distance_gauge=distance_gauge,
                         values=values, body_height=h,
                         median_depth=float(np.median(pts[:, 2])) if len(pts) else 1.0,
                         scale=scale, prior_info=info)
+
+
+def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
+                       options: RefineOptions) -> GraphProblem:
+    """The graph of the joints pass: ``problem``'s variables and reprojection factors, other
+    body priors.
+
+    Every bone of ``lengths`` in every frame where both its joints are estimated (no
+    curvature rule: the globals are held, a bone of known length holds the depth of
+    joints whose rays meet at a small angle), the hip prior, and the smoothness of
+    ``options.smoothness_sigma``; no length-only factor and no gauge (the globals
+    and the lengths are held). The reprojection factors are shared, not rebuilt.
+
+    Args:
+        problem: a built graph; values: its solution (the new graph starts there).
+        lengths: bone name -> length (graph units), held.
+        options: the priors' switches and sigmas (``use_smoothness`` and
+            ``smoothness_sigma`` as the joints pass wants them).
+
+    Returns:
+        A :class:`GraphProblem` with new ``priors``, ``bones``, ``values`` and
+        ``prior_info``.
+    """
+    rig, used = problem.rig, problem.used
+    T, J = used.shape
+    keys = np.zeros(T * J, dtype=np.uint64)
+    keys[problem.flat_index] = np.uint64(_X_BASE) + problem.flat_index.astype(np.uint64)
+    keys = keys.reshape(T, J)
+    points = extract_points(problem, values)
+    start = gtsam.Values(values)
+    graph, info = gtsam.NonlinearFactorGraph(), {}
+    names, pairs = bone_table(rig)
+    sel = [i for i, b in enumerate(names) if b in lengths]
+    names, pairs = [names[i] for i in sel], pairs[sel]
+    h = problem.body_height
+    bone = _BoneSet.empty(h * options.bone_sigma)
+    if options.use_bone_length and len(names):
+        both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]
+        bone = _BoneSet.make(both, points, names, pairs, problem.flat_index, J,
+                             h * options.bone_sigma, lengths)
+        if bone.lengths is not None:
+            _record(info, "bone_length", bone.sigma, "length", len(bone.rows))
+    if options.use_hip:
+        _add_hip(rig, graph, used, keys, h, options, info)
+    if options.use_smoothness:
+        _add_smoothness(rig, graph, start, used, keys, points, h * options.smoothness_sigma,
+                        options.smoothness_max_gap, info)
+    distance_gauge = float(extract_planes(problem, values)[0][1]) if problem.plane_keys else None
+    return replace(problem, priors=graph, lengths=bone.lengths, bone_names=bone.names,
+                   bone_rows=bone.rows, bone_sigma=bone.sigma,
+                   bones=_bone_graph(bone.rows, problem.flat_index, bone.lengths, bone.sigma),
+                   length_priors=gtsam.NonlinearFactorGraph(),
+                   gauge=gtsam.NonlinearFactorGraph(), values=start, prior_info=info,
+                   distance_gauge=distance_gauge)
 
 
 def _record(info: dict, name: str, sigma: float, unit: str, count: int) -> None:
@@ -439,32 +504,55 @@ def _median_lengths(points: np.ndarray, pairs: np.ndarray, mask: np.ndarray) -> 
                          for b in range(len(pairs))])
 
 
-def _add_bones(graph, values, keys, keep, points, names, pairs, sigma, init, info):
-    """Per-frame bone-length factors (the bones of ``keep``, ``(T, B)``) and the length
-    vector; returns its key and entries (the bones kept in some frame)."""
-    present = np.flatnonzero(keep.any(0))
-    if len(present) == 0:
-        return None, []
-    bone_names = [names[b] for b in present]
-    pairs, keep = pairs[present], keep[:, present]
-    medians = _median_lengths(points, pairs, keep)
-    L0 = [float(init[name]) if init is not None and name in init else float(medians[b])
-          for b, name in enumerate(bone_names)]
-    key = L_(0)
-    values.insert(key, np.array(L0))
-    factor = BoneLengthFactor(sigma)
-    n = len(bone_names)
-    count = 0
-    for t in np.flatnonzero(keep.any(1)):
-        sel = np.flatnonzero(keep[t])
-        joints, local = np.unique(pairs[sel], return_inverse=True)
-        graph.push_back(factor.make(keys[t, joints].tolist(), local.reshape(-1, 2), key, sel, n))
-        count += 1
-    _record(info, "bone_length", sigma, "length", count)
-    return key, bone_names
+@dataclass
+class _BoneSet:
+    """The bone factors of a graph: which (frame, bone) pairs, their held lengths."""
+
+    names: list[str]
+    rows: np.ndarray            # (N, 3): key-order positions of the two joints, bone index
+    lengths: np.ndarray | None
+    sigma: float
+
+    @classmethod
+    def empty(cls, sigma: float) -> "_BoneSet":
+        return cls([], np.zeros((0, 3), dtype=np.int64), None, float(sigma))
+
+    @classmethod
+    def make(cls, keep: np.ndarray, points: np.ndarray, names: list[str], pairs: np.ndarray,
+             flat: np.ndarray, J: int, sigma: float, init: dict[str, float] | None
+             ) -> "_BoneSet":
+        """The bones of ``keep`` (``(T, B)``), their lengths from ``init`` or else the
+        median over the kept frames; ``flat``: the used points' ``t * J + j`` (key order)."""
+        present = np.flatnonzero(keep.any(0))
+        if len(present) == 0:
+            return cls.empty(sigma)
+        names = [names[b] for b in present]
+        pairs, keep = pairs[present], keep[:, present]
+        medians = _median_lengths(points, pairs, keep)
+        lengths = np.array([float(init[n]) if init is not None and n in init else medians[b]
+                            for b, n in enumerate(names)])
+        pos = np.full(keep.shape[0] * J, -1, dtype=np.int64)
+        pos[flat] = np.arange(len(flat))
+        t, b = np.nonzero(keep)
+        rows = np.stack([pos[t * J + pairs[b, 0]], pos[t * J + pairs[b, 1]], b], axis=1)
+        return cls(names, rows, lengths, float(sigma))
 
 
-def _add_symmetry(rig, graph, key, bone_names, sigma, options, info):
+
+def _bone_graph(rows: np.ndarray, flat: np.ndarray, lengths: np.ndarray | None,
+                sigma: float) -> gtsam.NonlinearFactorGraph:
+    """The range factors of the bone ``rows`` (``(N, 3)``: key-order positions of the two
+    joints among the used points ``flat`` (``t * J + j``), bone index) at ``lengths``."""
+    graph = gtsam.NonlinearFactorGraph()
+    if lengths is None or len(rows) == 0:
+        return graph
+    keys = np.uint64(_X_BASE) + np.asarray(flat, dtype=np.uint64)
+    BoneLengthFactor(sigma).add(graph, keys[rows[:, 0]], keys[rows[:, 1]],
+                                np.asarray(lengths, dtype=float)[rows[:, 2]])
+    return graph
+
+
+def _add_symmetry(rig, graph, bone_names, sigma, options, info):
     if not options.use_symmetry:
         return
     factor = SymmetryFactor(sigma)
@@ -472,12 +560,12 @@ def _add_symmetry(rig, graph, key, bone_names, sigma, options, info):
     count = 0
     for left, right in rig.skeleton.symmetric_bones:
         if left in index and right in index:
-            graph.push_back(factor.make(key, index[left], index[right]))
+            graph.push_back(factor.make(LENGTH_KEY, index[left], index[right]))
             count += 1
     _record(info, "symmetry", sigma, "length", count)
 
 
-def _add_anthropometry(rig, graph, key, bone_names, options, info):
+def _add_anthropometry(rig, graph, bone_names, options, info):
     if not options.use_anthropometry:
         return
     index = {b: i for i, b in enumerate(bone_names)}
@@ -490,7 +578,7 @@ def _add_anthropometry(rig, graph, key, bone_names, options, info):
     for name, i in index.items():
         if name.endswith("femur"):
             continue
-        graph.push_back(factor.make(key, i, femurs, ratios[name]))
+        graph.push_back(factor.make(LENGTH_KEY, i, femurs, ratios[name]))
         count += 1
     _record(info, "anthropometry", options.anthropometry_sigma, "ratio (Winter 2009)", count)
 

@@ -38,6 +38,7 @@ memory is bounded by one chunk.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -86,9 +87,6 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     Returns:
         :class:`mirrorgraph.graph.stages.SolveState` for the whole video.
     """
-    from dataclasses import replace
-
-
     if height is not None:
         opts = replace(opts, subject_height=float(height))
     T = rig.num_frames
@@ -139,8 +137,8 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
                 snap_virtual_poses(problem, problem.values)
                 timings["build"] += time.perf_counter() - t
                 t = time.perf_counter()
-                res, z_keys = optimize(problem, problem.frame_factors(), opts, with_lengths=True,
-                                       distance_gauge=None, hold_globals=True, progress=counter)
+                res, z_keys = optimize(problem, problem.full(), opts, distance_gauge=None,
+                                       hold_globals=True, progress=counter)
                 values = res.values
                 iterations += res.iterations
                 pts = extract_points(problem, values)
@@ -167,10 +165,11 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
             last = (problem, values, z_keys)
         if last is None:
             raise DegenerateGeometryError("no chunk of the video could be solved")
-        # the shared global step: chunks + length-only factors + distance gauge
+        # the shared global step: chunks + distance gauge (the bone lengths are held at
+        # the subset's)
         problem, values, z_keys = last
         zv = _globals_values(problem, values)
-        glob = problem.global_factors()
+        glob = gtsam.NonlinearFactorGraph()
         if problem.distance_gauge is not None:
             glob.push_back(DistancePriorFactor(problem.distance_gauge).make(problem.plane_keys[0]))
         if glob.size():
@@ -183,8 +182,6 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
         zv = _apply_step(zv, z_keys, z)
         plane_key = problem.plane_keys[0]
         plane = _plane(zv, plane_key)
-        if problem.length_key is not None:
-            lengths = dict(zip(problem.bone_names, zv.atVector(problem.length_key)))
         rejected = int(sum(np.count_nonzero(np.asarray(v.mask, bool) & ~m)
                            for v, m in zip(rig.views, out_masks)))
         stages.append({"name": "chunk pass %d" % npass, "iterations": None,
@@ -233,8 +230,11 @@ def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndar
         keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
         if np.count_nonzero(keep) == 0:
             continue
-        jp = joints_pass(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
-                         lengths, body_height, opts, kernel)
+        base = build_problem(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
+                             replace(opts, use_bone_length=False, subject_height=None),
+                             body_height=body_height, final_kernel=kernel)
+        snap_virtual_poses(base, base.values)
+        jp = joints_pass(base, base.values, lengths, opts)
         if jp is None:
             return
         problem, res = jp
@@ -253,8 +253,6 @@ def _globals_values(problem, values: gtsam.Values) -> gtsam.Values:
     zv = gtsam.Values()
     for k in problem.plane_keys:
         zv.insert(k, values.atOrientedPlane3(k))
-    if problem.length_key is not None:
-        zv.insert(problem.length_key, values.atVector(problem.length_key))
     return zv
 
 

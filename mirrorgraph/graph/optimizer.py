@@ -258,14 +258,21 @@ class LevenbergMarquardt:
         guard: ``guard(previous, candidate, delta) -> int``: after every retraction,
             restore in ``candidate`` the local variables that left their feasible set
             (e.g. a point behind a camera) to their ``previous`` value; returns how many.
+        refresh: ``refresh(values) -> graph``: after every accepted step, the graph to
+            continue with, given the new values (e.g. with quantities the graph holds
+            set to their optimum given ``values``, as the bone lengths are): its
+            error at ``values`` must not exceed the old graph's.
     """
 
     def __init__(self, graph: gtsam.NonlinearFactorGraph, reduction: GlobalReduction,
                  params: LMParams | None = None, ordering: gtsam.Ordering | None = None,
                  hold_globals: bool = False,
-                 guard: Callable[[gtsam.Values, gtsam.Values], int] | None = None) -> None:
+                 guard: Callable[[gtsam.Values, gtsam.Values], int] | None = None,
+                 refresh: Callable[[gtsam.Values], gtsam.NonlinearFactorGraph] | None = None
+                 ) -> None:
         self.hold_globals = hold_globals
         self.guard = guard
+        self.refresh = refresh
         self.graph = graph
         self.reduction = reduction
         self.params = params or LMParams()
@@ -430,6 +437,9 @@ class LevenbergMarquardt:
             _log.debug("solve %d: lambda %.3g, decrease %.4g (predicted %.4g, rho %.3f), "
                        "global step %.3g sigma", it, lam, decrease, predicted, rho, zlen)
             values, error = candidate, new_error
+            if self.refresh is not None:
+                self.graph = self.refresh(values)
+                error = self.error(values)
             result.history.append(error)
             if progress is not None:
                 progress(it, error)

@@ -7,9 +7,11 @@ the link residual ``e(plane, V) = 0`` with the factor's analytic Jacobians,
 
     e + J_V dV + J_P dP = 0   =>   dV = -J_V^-1 (e + J_P dP)   (e = 0 after projection),
 
-so the reduced coordinates are ``z = (bone-length vector, planes)`` and
+so the reduced coordinates are ``z = planes`` and
 
-    delta_globals = T z,   T = [[0, M], [I, 0], [0, I]]  for  (V..., L..., P...),  M = -J_V^-1 J_P.
+    delta_globals = T z,   T = [[M], [I]]  for  (V..., P...),  M = -J_V^-1 J_P.
+
+(The bone lengths are not variables of the linear system: :mod:`.lengths`.)
 
 In a rig whose camera poses are estimated too, ``z`` also holds the camera
 poses and a virtual pose follows its camera as well: ``dV = -J_V^-1 (J_P dP + J_C dC)``.
@@ -33,18 +35,15 @@ from .optimizer import GlobalReduction
 __all__ = ["mirror_reduction"]
 
 
-def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
-                     distance_gauge: float | None) -> GlobalReduction:
+def mirror_reduction(problem: GraphProblem, *, distance_gauge: float | None) -> GlobalReduction:
     """Reduced coordinates for a problem's globals.
 
-    ``z`` holds, in this order, the estimated camera poses (6 each), the bone
-    lengths and the planes (3 each). A virtual pose follows its plane and, when
-    its camera is estimated, its camera: ``dV = -J_V^-1 (J_P dP + J_C dC)``.
+    ``z`` holds, in this order, the estimated camera poses (6 each) and the planes
+    (3 each). A virtual pose follows its plane and, when its camera is estimated,
+    its camera: ``dV = -J_V^-1 (J_P dP + J_C dC)``.
 
     Args:
         problem: the built problem (its views, mirrors and keys).
-        with_lengths: the bone-length variables are in the graph being solved
-            (not in the reprojection-only warm start).
         distance_gauge: if not ``None``, a prior ``d = distance_gauge`` on the first
             plane (the unit-distance gauge, or holding ``d`` during the warm start).
     """
@@ -52,23 +51,20 @@ def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
     vkeys = list(problem.virtual_keys.items())                  # (view index, key)
     in_graph = set(problem.reprojection.keyVector())
     ckeys = list(problem.camera_keys.items())                   # (camera index, key)
-    lkeys = ([(problem.length_key, len(problem.bone_names))]
-             if with_lengths and problem.length_key is not None else [])
     pkeys = list(problem.plane_keys)
     graph_cams = [(c, k) for c, k in ckeys if k in in_graph]
     extra_cams = [(c, k) for c, k in ckeys if k not in in_graph]
-    graph_keys = [(k, 6) for _, k in vkeys] + [(k, 6) for _, k in graph_cams] + lkeys
+    graph_keys = [(k, 6) for _, k in vkeys] + [(k, 6) for _, k in graph_cams]
     extra_keys = [(k, 6) for _, k in extra_cams] + [(k, 3) for k in pkeys]
-    z_keys = [(k, 6) for _, k in ckeys] + lkeys + [(k, 3) for k in pkeys]
-    nv, nc, nl, npl = len(vkeys), len(ckeys), sum(d for _, d in lkeys), len(pkeys)
+    z_keys = [(k, 6) for _, k in ckeys] + [(k, 3) for k in pkeys]
+    nv, nc, npl = len(vkeys), len(ckeys), len(pkeys)
     # columns of z and rows of delta_globals = graph_keys + extra_keys
     zcol_cam = {c: 6 * i for i, (c, _) in enumerate(ckeys)}
-    zcol_len, zcol_plane = 6 * nc, 6 * nc + nl
+    zcol_plane = 6 * nc
     row_cam = {}
     for i, (c, _) in enumerate(graph_cams):
         row_cam[c] = 6 * nv + 6 * i
-    row_len = 6 * nv + 6 * len(graph_cams)
-    row_extra = row_len + nl
+    row_extra = 6 * nv + 6 * len(graph_cams)
     for i, (c, _) in enumerate(extra_cams):
         row_cam[c] = row_extra + 6 * i
     row_plane = row_extra + 6 * len(extra_cams)
@@ -76,7 +72,7 @@ def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
               rig.camera_index(rig.views[vi].camera)) for vi, vk in vkeys]
 
     def basis(values: gtsam.Values) -> np.ndarray:
-        T = np.zeros((row_plane + 3 * npl, 6 * nc + nl + 3 * npl))
+        T = np.zeros((row_plane + 3 * npl, 6 * nc + 3 * npl))
         for i, (_, vk, m, c) in enumerate(views):
             plane = values.atOrientedPlane3(pkeys[m])
             n, d = plane_from_gtsam(plane)
@@ -92,7 +88,6 @@ def mirror_reduction(problem: GraphProblem, *, with_lengths: bool,
                 T[6 * i:6 * i + 6, zcol_cam[c]:zcol_cam[c] + 6] = -Jv_inv @ Jc
         for c, col in zcol_cam.items():
             T[row_cam[c]:row_cam[c] + 6, col:col + 6] = np.eye(6)
-        T[row_len:row_len + nl, zcol_len:zcol_len + nl] = np.eye(nl)
         T[row_plane:, zcol_plane:] = np.eye(3 * npl)
         return T
 

@@ -63,7 +63,9 @@ from ..geometry import triangulate
 from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
                       debiased_bone_lengths,
                       extract_camera_poses, extract_planes, extract_points, point_keys,
-                      snap_virtual_poses, view_projections, view_residuals)
+                      snap_virtual_poses, view_projections, view_residuals,
+                      with_motion_priors)
+from .lengths import update_lengths
 from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_covariance
 from .options import RefineOptions
 from .outliers import bone_outliers, observation_outliers
@@ -290,15 +292,23 @@ def lm_params(opts: RefineOptions, problem: GraphProblem,
 
 
 def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
-             *, with_lengths: bool, distance_gauge: float | None, max_iterations=None,
+             *, distance_gauge: float | None, max_iterations=None,
              hold_globals: bool = False, progress: Progress | None = None,
              values: gtsam.Values | None = None) -> tuple[LMResult, list[tuple[int, int]]]:
     """Levenberg-Marquardt on ``graph`` from ``values`` (default: the problem's initial
-    values) with the links exact, the cheirality guard on."""
-    red = mirror_reduction(problem, with_lengths=with_lengths, distance_gauge=distance_gauge)
+    values) with the links exact, the cheirality guard on. Where the problem has bone
+    factors and the globals move, the bone lengths are set to their optimum after
+    every accepted step (:func:`~.lengths.update_lengths`; ``problem`` holds the last
+    ones, and ``graph`` must be its :meth:`~.builder.GraphProblem.full` graph)."""
+    red = mirror_reduction(problem, distance_gauge=distance_gauge)
+    refresh = None
+    if problem.lengths is not None and not hold_globals:
+        def refresh(v: gtsam.Values) -> gtsam.NonlinearFactorGraph:
+            problem.set_lengths(update_lengths(problem, v))
+            return problem.full()
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
                             ordering=problem.point_ordering(), hold_globals=hold_globals,
-                            guard=cheirality_guard(problem))
+                            guard=cheirality_guard(problem), refresh=refresh)
     return lm.optimize(problem.values if values is None else values, progress), red.z_keys
 
 
@@ -385,7 +395,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
             warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False)
             timings["build"] += time.perf_counter() - t
             t = time.perf_counter()
-            res, _ = optimize(warm, warm.reprojection, opts, with_lengths=False,
+            res, _ = optimize(warm, warm.reprojection, opts,
                               distance_gauge=planes[0][1],
                               max_iterations=opts.warm_start_iterations, progress=counter)
             planes = extract_planes(warm, res.values)
@@ -440,7 +450,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         timings["build"] += time.perf_counter() - t
         t = time.perf_counter()
         cap = stage.cap_if_outliers if (res is None and found) else None
-        res, z_keys = optimize(problem, problem.full(), stage_opts, with_lengths=True,
+        res, z_keys = optimize(problem, problem.full(), stage_opts,
                                distance_gauge=problem.distance_gauge, max_iterations=cap,
                                progress=counter)
         iterations += res.iterations
@@ -448,9 +458,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         points = extract_points(problem, values)
         planes = extract_planes(problem, values)
         poses = extract_camera_poses(problem, values)
-        lengths = problem.bone_lengths(values)
+        lengths = problem.bone_lengths()
         body_height = problem.body_height
-        if problem.length_key is not None and height is None:
+        if problem.lengths is not None and height is None:
             length_sum = problem.prior_info["length_sum_gauge"]["sum"]
         lost = undetermined(problem, res)
         n_undetermined += int(np.count_nonzero(lost))
@@ -485,16 +495,14 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     joints_priors = None
     if config.joints_pass:
         t = time.perf_counter()
-        lengths = problem.bone_lengths(values)
+        lengths = problem.bone_lengths()
         names, pairs = bone_table(problem.rig)
         other = [i for i, b in enumerate(names) if b not in lengths]
         if other and opts.use_bone_length:      # the bones the calibration left out
             est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
                                         opts.pixel_sigma)
             lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
-        jp = joints_pass(with_views(problem.rig, [v.mask for v in problem.rig.views], poses,
-                                    planes), state_points, problem.used, planes,
-                         lengths, problem.body_height, opts, kernel)
+        jp = joints_pass(problem, values, lengths, opts)
         if jp is not None:
             state_points = extract_points(jp[0], jp[1].values)
             joints_priors = {k: v for k, v in jp[0].prior_info.items()
@@ -604,27 +612,21 @@ def with_views(rig: Rig, masks: list[np.ndarray], poses=None, planes=None) -> Ri
 JOINTS_PASS_ITERATIONS = 1
 
 
-def joints_pass(rig: Rig, points: np.ndarray, used: np.ndarray,
-                planes: list[tuple[np.ndarray, float]], lengths: dict[str, float],
-                body_height: float, opts: RefineOptions, kernel: str | None
-                ) -> tuple[GraphProblem, LMResult] | None:
+def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
+                opts: RefineOptions) -> tuple[GraphProblem, LMResult] | None:
     """The 3D joints solved again with every global held, from the calibration's solution.
 
-    The graph of the joints is the calibration's with two changes: the smoothness of
+    The calibration's variables and reprojection factors with other body priors
+    (:func:`~.builder.with_motion_priors`): the smoothness of
     ``opts.joints_smoothness_sigma`` (tight: it halves the joints' error, where the
-    calibration wants none, see :class:`RefineOptions`), and every bone the
-    calibration estimated in every frame, the frames that
-    ``opts.bone_bias_limit`` left out of the calibration included (the mirror held,
-    a bone's known length is what fixes the depth of joints whose rays meet at a
-    small angle).
+    calibration wants none, see :class:`RefineOptions`), and every bone of ``lengths``
+    in every frame, the frames that ``opts.bone_bias_limit`` left out of the
+    calibration included (the mirror held, a bone's known length is what fixes the
+    depth of joints whose rays meet at a small angle).
 
     Args:
-        rig: the solved rig (its cameras' poses, the views' kept observations).
-        points: ``(T, J, 3)`` the calibration's joints; used: ``(T, J)`` the estimated ones.
-        planes: the solved ``(n, d)`` per mirror.
-        lengths: the calibration's bone lengths (only these bones are used).
-        body_height: subject height in graph units (the priors' length scale).
-        kernel: the reprojection kernel of the calibration's last graph (resolved).
+        problem, values: the calibration's graph and its solution.
+        lengths: bone name -> length (graph units), held.
 
     Returns:
         The joints' graph and its solve; ``None`` without ``joints_smoothness_sigma``.
@@ -632,12 +634,10 @@ def joints_pass(rig: Rig, points: np.ndarray, used: np.ndarray,
     sigma = opts.joints_smoothness_sigma
     if sigma is None:
         return None
-    jopts = replace(opts, bone_bias_limit=None, use_smoothness=True, smoothness_sigma=sigma)
-    jp = build_problem(rig, points, used, planes, jopts, body_height=body_height,
-                       bone_lengths=lengths, bones=list(lengths), final_kernel=kernel)
-    snap_virtual_poses(jp, jp.values)
-    res, _ = optimize(jp, jp.full(), jopts, with_lengths=jp.length_key is not None,
-                      distance_gauge=jp.distance_gauge, max_iterations=JOINTS_PASS_ITERATIONS,
+    jopts = replace(opts, use_smoothness=True, smoothness_sigma=sigma)
+    jp = with_motion_priors(problem, values, lengths, jopts)
+    res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                      max_iterations=JOINTS_PASS_ITERATIONS,
                       hold_globals=True)
     return jp, res
 
@@ -693,8 +693,6 @@ def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | 
     for k, _ in z_keys:
         if k in problem.plane_keys:
             zv.insert(k, values.atOrientedPlane3(k))
-        elif k == problem.length_key:
-            zv.insert(k, values.atVector(k))
         else:
             zv.insert(k, values.atPose3(k))
     if info is None or not compute:
