@@ -81,6 +81,12 @@ class MirrorEstimate:
         return float(np.mean(self.inliers)) if self.inliers.size else 0.0
 
 
+#: Most inlier pairs the nonlinear refinement of the epipole sees (a random share of
+#: them beyond: 60,000 pairs are 5,000 frames of 12 joints, whose statistical error is
+#: far below any detector's bias; the factor graph uses every pair).
+REFINE_MAX_PAIRS = 60000
+
+
 def _usable(u: np.ndarray, um: np.ndarray) -> np.ndarray:
     ok = np.isfinite(u).all(1) & np.isfinite(um).all(1)
     ok[ok] &= np.linalg.norm(u[ok] - um[ok], axis=1) >= MIN_PAIR_SEPARATION_PX
@@ -122,8 +128,9 @@ def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float
     lines = pair_lines(a, b)
     thr_n = threshold_px * norm.scale
 
-    def residuals(e: np.ndarray) -> np.ndarray:
-        return geo.epipolar_distances(e, a, b)
+    def residuals(e: np.ndarray, sel: np.ndarray | None = None) -> np.ndarray:
+        return (geo.epipolar_distances(e, a, b) if sel is None
+                else geo.epipolar_distances(e, a[sel], b[sel]))
 
     def refit(mask: np.ndarray, _model: np.ndarray) -> np.ndarray:
         # weight lines by the pair's separation: long lines fix e better
@@ -144,7 +151,10 @@ def estimate_epipole(u: np.ndarray, u_mirror: np.ndarray, *, threshold_px: float
     _check_spread(lines[inl])
     e = norm.epipole_to_pixels(e_n)
     if refine:
-        e = refine_epipole(e, u[idx][inl], um[idx][inl], loss_scale_px=threshold_px / 2)
+        sel = np.flatnonzero(inl)
+        if len(sel) > REFINE_MAX_PAIRS:          # a long video: a random share of its inliers
+            sel = np.sort(np.random.default_rng(seed).choice(sel, REFINE_MAX_PAIRS, replace=False))
+        e = refine_epipole(e, u[idx][sel], um[idx][sel], loss_scale_px=threshold_px / 2)
     r_all = np.full(len(u), np.inf)
     r_all[idx] = geo.epipolar_distances(e, u[idx], um[idx])
     return e, r_all < threshold_px, r_all, result.iterations
@@ -230,7 +240,8 @@ def _reflective_eight_point_ransac(u, um, K, threshold_px, seed):
             return []
 
     result = ransac(len(idx), 6, solve,
-                    lambda F: geo.epipolar_distances_fundamental(F, a, b),
+                    lambda F, sel=None: (geo.epipolar_distances_fundamental(F, a, b) if sel is None
+                                         else geo.epipolar_distances_fundamental(F, a[sel], b[sel])),
                     RansacOptions(threshold=threshold_px, seed=seed),
                     refit=lambda m, _F: fundamental_reflective_eight_point(a[m], b[m]))
     if result is None:

@@ -211,8 +211,18 @@ def epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray) -> np
 def signed_epipolar_distances(e: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
                               ) -> np.ndarray:
     """Signed version of :func:`epipolar_distances` (``(...)`` pixels): the Sampson
-    distance of :func:`sampson_distances` with ``F = [e]_x`` (``u'^T [e]_x u = det(u', e, u)``)."""
-    return sampson_distances(skew(np.asarray(e, dtype=float).reshape(3)), u, u_mirror)
+    distance of :func:`sampson_distances` with ``F = [e]_x`` (``u'^T [e]_x u = det(u', e, u)``),
+    written out (``F u = e x u``, ``F^T u' = u' x e``): RANSAC scores every pair with it."""
+    e0, e1, e2 = (float(v) for v in np.asarray(e, dtype=float).reshape(3))
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(u_mirror, dtype=float)
+    x, y, xm, ym = u[..., 0], u[..., 1], v[..., 0], v[..., 1]
+    l0, l1, l2 = e1 - e2 * y, e2 * x - e0, e0 * y - e1 * x      # e x (x, y, 1)
+    m0, m1 = ym * e2 - e1, e0 - xm * e2                         # (xm, ym, 1) x e
+    c = xm * l0 + ym * l1 + l2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = c / np.sqrt(l0 * l0 + l1 * l1 + m0 * m0 + m1 * m1)
+    return np.where(np.isfinite(out), out, np.inf)
 
 
 def sampson_distances(F: np.ndarray, u: np.ndarray, u_other: np.ndarray) -> np.ndarray:

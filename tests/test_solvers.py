@@ -123,8 +123,12 @@ def test_generic_ransac_fits_a_line_with_outliers():
         (x1, x2), (y1, y2) = x[idx], y[idx]
         return [] if x1 == x2 else [((y2 - y1) / (x2 - x1), y1 - x1 * (y2 - y1) / (x2 - x1))]
 
-    def residuals(m):
-        return np.abs(y - (m[0] * x + m[1]))
+    scored = []
+
+    def residuals(m, idx=None):
+        scored.append(300 if idx is None else len(idx))
+        sel = slice(None) if idx is None else idx
+        return np.abs(y[sel] - (m[0] * x[sel] + m[1]))
 
     def refit(mask, _m):
         return tuple(np.polyfit(x[mask], y[mask], 1))
@@ -132,5 +136,13 @@ def test_generic_ransac_fits_a_line_with_outliers():
     res = ransac(300, 2, solver, residuals, RansacOptions(threshold=0.4, seed=1), refit=refit)
     assert abs(res.model[0] - 2) < 0.01 and abs(res.model[1] - 1) < 0.05
     assert res.inliers[90:].mean() > 0.95 and res.inliers[:90].mean() < 0.1
+    assert set(scored) == {300}
+    # hypotheses scored on a subset of 100: the same line, the inliers judged on all 300
+    scored.clear()
+    sub = ransac(300, 2, solver, residuals, RansacOptions(threshold=0.4, seed=1, max_scored=100),
+                 refit=refit)
+    assert abs(sub.model[0] - 2) < 0.01 and abs(sub.model[1] - 1) < 0.05
+    assert sub.inliers.shape == (300,) and sub.inliers[90:].mean() > 0.95
+    assert 100 in scored and scored[-1] == 300
     assert required_iterations(0.5, 2, 0.99) == pytest.approx(np.log(0.01) / np.log(0.75))
     assert ransac(1, 2, solver, residuals, RansacOptions(threshold=1.0)) is None

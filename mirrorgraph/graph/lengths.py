@@ -31,7 +31,8 @@ __all__ = ["update_lengths", "LENGTH_STEPS"]
 LENGTH_STEPS = 2
 
 
-def update_lengths(problem: GraphProblem, values: gtsam.Values) -> np.ndarray:
+def update_lengths(problem: GraphProblem, values: gtsam.Values
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """``(B,)`` the bone lengths that minimise the objective given the joints of ``values``.
 
     Args:
@@ -39,7 +40,8 @@ def update_lengths(problem: GraphProblem, values: gtsam.Values) -> np.ndarray:
         values: the current joints.
 
     Returns:
-        The new lengths, ``problem.bone_names`` order (graph units).
+        The new lengths, ``problem.bone_names`` order (graph units), and each one's
+        standard deviation from its frames alone, ``sigma / sqrt(n_k)``.
     """
     X = points_array(problem, values)
     a, b, k = problem.bone_rows.T
@@ -64,4 +66,4 @@ def update_lengths(problem: GraphProblem, values: gtsam.Values) -> np.ndarray:
             L = L + np.linalg.solve(H, eta)
         except np.linalg.LinAlgError:         # a bone in no frame and no prior: keep it
             L = L + np.linalg.lstsq(H, eta, rcond=None)[0]
-    return L
+    return L, problem.bone_sigma / np.sqrt(np.maximum(n, 1.0))

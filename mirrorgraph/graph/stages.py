@@ -303,9 +303,16 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
     red = mirror_reduction(problem, distance_gauge=distance_gauge)
     refresh = None
     if problem.lengths is not None and not hold_globals:
+        current = [graph]
+
         def refresh(v: gtsam.Values) -> gtsam.NonlinearFactorGraph:
-            problem.set_lengths(update_lengths(problem, v))
-            return problem.full()
+            # the bone factors are made again only when a length moved by more than
+            # the tolerance of the globals' steps, in its own standard deviations
+            L, std = update_lengths(problem, v)
+            if np.any(np.abs(L - problem.lengths) > opts.global_step_tolerance * std):
+                problem.set_lengths(L)
+                current[0] = problem.full()
+            return current[0]
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
                             ordering=problem.point_ordering(), hold_globals=hold_globals,
                             guard=cheirality_guard(problem), refresh=refresh)
