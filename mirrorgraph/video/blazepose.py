@@ -256,7 +256,7 @@ def refine_from_heatmap(xy: np.ndarray, heatmap: np.ndarray, *, kernel: int = HE
     ok = (rows >= 0) & (rows < hh) & (cols >= 0) & (cols < wh)         # (L, k, k)
     ch = np.arange(L)[:, None, None]
     vals = heatmap[np.clip(rows, 0, hh - 1), np.clip(cols, 0, wh - 1), ch]
-    conf = np.where(ok, 1.0 / (1.0 + np.exp(-vals)), 0.0)
+    conf = np.where(ok, 1.0 / (1.0 + np.exp(-np.clip(vals, -60.0, 60.0))), 0.0)
     total = conf.sum(axis=(1, 2))
     mean_r = (conf * rows).sum(axis=(1, 2)) / np.maximum(total, 1e-12)
     mean_c = (conf * cols).sum(axis=(1, 2)) / np.maximum(total, 1e-12)
