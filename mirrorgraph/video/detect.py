@@ -30,7 +30,7 @@ import hashlib
 import json
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import Callable
@@ -291,7 +291,3 @@ def detect_video(path: str | os.PathLike, options: VideoOptions | None = None, *
             out.cache_file = None
     return out
 
-
-def with_range(options: VideoOptions | None, **changes) -> VideoOptions:
-    """``options`` (or the defaults) with some fields replaced."""
-    return replace(options or VideoOptions(), **changes)

@@ -7,16 +7,19 @@ MediaPipe's pose graph does for one person, extended to several:
 1. every track's crop comes from its landmarks of the frame before (the auxiliary
    mid-hip and body-circle landmarks): a person once found is followed without the
    detector, and a track ends where the landmark model no longer sees a person;
-2. the person detector runs on the whole frame, on the horizontally flipped frame
-   and on two overlapping square halves (:func:`detection_views`), its boxes merged:
-   a reflection is a mirror image, often smaller and dimmer than the person, which
-   one pass of a detector trained on people seen directly misses more often (the
-   tiles double the resolution the detector sees, the flipped pass turns the
-   reflection into a directly seen person); a box whose mid-hip lies on a
-   tracked person is not looked at again;
+2. the person detector runs on the whole frame and, every
+   :attr:`TrackerOptions.tiles_every` frames (and whenever a track was lost), on
+   overlapping square tiles (:func:`detection_views`), each view's intensities
+   stretched when dim, its boxes merged: a reflection is a mirror image, often
+   smaller and dimmer than the person, which one pass over the whole frame misses
+   (the tiles show it at up to 2.7 times the scale); a box whose mid-hip lies on a
+   tracked person is not looked at again, nor for a few frames one where the landmark
+   model found nobody;
 3. the landmark model runs on each new box's crop (a dim crop's intensities
-   stretched), and poses closer to one another than :attr:`TrackerOptions.same_person`
-   times their size are one person (the older track is kept);
+   stretched; retried upright, then turned by 180 deg, where it finds nobody: the
+   detector's rotation of a reflection is often upside down), and poses closer to
+   one another than :attr:`TrackerOptions.same_person` times their size are one
+   person (the older track is kept);
 4. a new pose takes the id of a track lost in the last
    :attr:`TrackerOptions.relink_frames` frames whose last box it overlaps, or a new id.
 
@@ -25,7 +28,7 @@ All coordinates are image pixels (x right, y down).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
