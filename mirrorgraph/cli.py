@@ -1,6 +1,7 @@
 """Command-line interface: a thin layer over the Python API.
 
-    mirrorgraph calibrate KEYPOINTS [--intrinsics FILE] --out calibration.json
+    mirrorgraph calibrate KEYPOINTS|VIDEO [--intrinsics FILE] --out calibration.json
+    mirrorgraph detect VIDEO --out keypoints.json [--format openpose] [--every N ...]
     mirrorgraph synth --out DIR [--frames N --noise PX --outliers R ...]
     mirrorgraph demo
     mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
@@ -105,7 +106,8 @@ def _add_calibrate(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate the mirror from 2D keypoints",
                        description="Calibrate the mirror's virtual camera from a pose "
                                    "detector's keypoints of a person and their reflection.")
-    p.add_argument("keypoints", help="MMPose .json, OpenPose or EasyMocap folder, or paired .npz")
+    p.add_argument("keypoints", help="MMPose .json, OpenPose or EasyMocap folder, paired .npz, "
+                                     "or a video file (detected, or read from the cache)")
     p.add_argument("--out", required=True, help="calibration JSON to write")
     p.add_argument("--intrinsics", help="camera intrinsics: JSON {K, image_size, dist}, "
                                         "OpenCV YAML (camera_matrix, distortion_coefficients), "
@@ -117,7 +119,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--fov", type=_positive, default=None, metavar="DEG",
                    help="horizontal field of view assumed without intrinsics (default 60)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
-                                      "(COCO_17, BODY_25, BODY_25B, COCO_18, HALPE_26)")
+                                      "(COCO_17, BODY_25, BODY_25B, COCO_18, HALPE_26, BLAZEPOSE)")
     p.add_argument("--estimator", default="reflective",
                    choices=("reflective", "eightpoint", "reflective8"),
                    help="initial estimator: ours (reflective, default), MirrorCalib's "
@@ -153,6 +155,8 @@ def _add_calibrate(sub) -> None:
                         "--report the overlay on sampled frames")
     p.add_argument("--render", metavar="OUT.mp4",
                    help="with --report and --video: write the whole overlay video")
+    from .cli_video import add_video_options
+    add_video_options(p)
     _add_common(p)
     p.set_defaults(func=_cmd_calibrate)
 
@@ -186,10 +190,21 @@ def _cmd_calibrate(args) -> int:
         raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
     if args.camera and not args.intrinsics:
         raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    from .cli_video import describe, detect_with_progress, video_options
+    from .video.reader import is_video
+    from_video = is_video(args.keypoints)
+    vopts = video_options(args, has_video=from_video)
     intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     t0 = time.perf_counter()
-    with Progress("reading frames", enabled=not args.quiet) as bar:
-        data = read_keypoints(args.keypoints, skeleton=args.skeleton, progress=bar.callback)
+    if from_video:
+        det = detect_with_progress(args.keypoints, vopts, quiet=args.quiet)
+        say(describe(det))
+        data = det.to_raw()
+        if args.video is None:
+            args.video = args.keypoints          # its frame rate, and the report's overlay
+    else:
+        with Progress("reading frames", enabled=not args.quiet) as bar:
+            data = read_keypoints(args.keypoints, skeleton=args.skeleton, progress=bar.callback)
     _verbose_input(args, data)
     opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
                             refine=not args.no_refine, subject_height=args.subject_height,
@@ -586,6 +601,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_batch_parser(sub)
     from .cli_rig import add_rig_parsers
     add_rig_parsers(sub, _add_common, _positive, _seed, _rate)
+    from .cli_video import add_detect_parser
+    add_detect_parser(sub, _add_common)
     return parser
 
 

@@ -54,7 +54,7 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                         "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
                         "bent over most of the video)")
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
-                                      "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18)")
+                                      "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18, BLAZEPOSE)")
     p.add_argument("--joints", metavar="SET",
                    help="joints to calibrate from: auto (default: every keypoint in direct "
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
@@ -66,6 +66,8 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                    help="write figures (top view of the rig, residuals per view) into DIR "
                         f"(needs matplotlib: {_install_hint()})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
+    from .cli_video import add_video_options
+    add_video_options(p)
     common(p)
     p.set_defaults(func=_cmd_calibrate_rig)
 
@@ -114,6 +116,19 @@ def _cmd_calibrate_rig(args) -> int:
         require_matplotlib()          # fail before the long run, with the install hint
     say = (lambda *_a, **_k: None) if args.quiet else print
     t0 = time.perf_counter()
+    from .cli_video import video_options
+    from .rigs.config import load_rig_config
+    from .video.reader import is_video
+    config = load_rig_config(args.rig)
+    vopts = video_options(args, has_video=any(is_video(c.keypoints) for c in config.cameras))
+    bars: dict[str, Progress] = {}
+
+    def frame_progress(camera: str, done: int, total: int) -> None:
+        if camera not in bars:
+            for b in bars.values():
+                b.close()
+            bars[camera] = Progress(f"detecting {camera}", enabled=not args.quiet)
+        bars[camera].callback(done, total)
 
     with Progress("solving the rig", enabled=not args.quiet) as bar:
         solve = SolveProgress(bar)
@@ -123,10 +138,17 @@ def _cmd_calibrate_rig(args) -> int:
                 bar.close(solve.info or None)
             if args.verbose and not args.quiet:
                 print(f"... {text}", file=sys.stderr)
-        calib = calibrate_rig(args.rig, subject_height=args.subject_height,
+        def status_and_bars(text: str) -> None:
+            for b in bars.values():
+                b.close()
+            status(text)
+        calib = calibrate_rig(config, subject_height=args.subject_height,
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
                               options=RefineOptions(scale_from=args.scale_from),
-                              status=status, progress=solve)
+                              status=status_and_bars, progress=solve, video=vopts,
+                              frame_progress=frame_progress)
+        for b in bars.values():
+            b.close()
         bar.close(solve.info or None)
     if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
             and calib.scale != "subject_height":

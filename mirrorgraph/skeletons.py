@@ -182,9 +182,27 @@ HALPE_26 = _make("HALPE_26", (
     "left_big_toe", "right_big_toe", "left_small_toe", "right_small_toe",
     "left_heel", "right_heel"))
 
+#: MediaPipe BlazePose, 33 landmarks (``pose_landmark_full.tflite``; Pose2Sim's
+#: ``BLAZEPOSE``). Order: MediaPipe's ``PoseLandmark`` enum
+#: (``mediapipe/python/solutions/pose.py``; the topology figure
+#: ``mediapipe/modules/pose_landmark/pose_landmark_topology.svg``) and Bazarevsky et al.,
+#: "BlazePose: On-device Real-time Body Pose tracking", CVPR Workshops 2020, Fig. 4.
+#: Canonical names: MediaPipe's ``MOUTH_LEFT`` is ``left_mouth`` (so that the flip map
+#: finds its partner), ``FOOT_INDEX`` (the tip of the foot) is ``big_toe`` (Pose2Sim's
+#: ``LBigToe``); ``pinky``, ``index`` and ``thumb`` are the hand's points. No neck and
+#: no mid-hip: the bones are the shoulder and hip widths.
+BLAZEPOSE = _make("BLAZEPOSE", (
+    "nose", "left_eye_inner", "left_eye", "left_eye_outer",
+    "right_eye_inner", "right_eye", "right_eye_outer", "left_ear", "right_ear",
+    "left_mouth", "right_mouth", "left_shoulder", "right_shoulder",
+    "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+    "left_pinky", "right_pinky", "left_index", "right_index", "left_thumb", "right_thumb",
+    "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle",
+    "left_heel", "right_heel", "left_big_toe", "right_big_toe"))
+
 #: Every layout by name.
 SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18, BODY_25B,
-                                                      HALPE_26)}
+                                                      HALPE_26, BLAZEPOSE)}
 
 
 def skeleton_by_name(name: str) -> Skeleton:

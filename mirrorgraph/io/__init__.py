@@ -14,6 +14,10 @@ openpose   folder of ``*_keypoints.json``, one a frame  :class:`RawDetections`
 easymocap  folder of ``{frame:06d}.json`` annotations   :class:`RawDetections`
            (EasyMocap, Mirrored-Human)
 npz        ``.npz`` of paired ``real``/``mirror``       :class:`PairedKeypoints`
+video      a video file (``.mp4``, ``.avi``, ``.mov``,  :class:`RawDetections`
+           ...): detected by :mod:`mirrorgraph.video`
+           (the ``video`` extra), or read back from
+           its cache
 ========== ============================================ ==========================
 
 Each reader reads its format as the tools write it, their "missing" markers
@@ -55,16 +59,20 @@ _WRITERS = {"mmpose": write_mmpose, "openpose": write_openpose, "easymocap": wri
 
 
 def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None = None,
-                   progress: ProgressCallback | None = None
+                   progress: ProgressCallback | None = None, video=None
                    ) -> RawDetections | PairedKeypoints:
     """Read keypoints in any supported format, detected from ``path``.
 
     Args:
-        path: an MMPose ``.json`` file, a paired ``.npz`` file, or an OpenPose /
-            EasyMocap / MMPose per-image folder.
+        path: an MMPose ``.json`` file, a paired ``.npz`` file, an OpenPose /
+            EasyMocap / MMPose per-image folder, or a video file (see
+            :func:`mirrorgraph.video.detect_video`).
         skeleton: the keypoint layout (a :class:`Skeleton` or its name); by
-            default found from the keypoint count.
-        progress: ``progress(done, total)`` called per file of a folder.
+            default found from the keypoint count. A video's layout is its model's.
+        progress: ``progress(done, total)`` called per file of a folder, per frame of
+            a video.
+        video: :class:`mirrorgraph.video.VideoOptions` for a video (frame range,
+            model, cache); ``None``: the defaults.
 
     Returns:
         :class:`RawDetections` (``.format`` names the format), or
@@ -74,6 +82,10 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     Raises:
         InputError: unknown format, or any malformed content.
     """
+    from ..video.reader import is_video
+    if is_video(path):
+        from ..video.detect import detect_video
+        return detect_video(path, video, progress=progress).to_raw()
     kind, obj = sniff(path)
     if kind == "npz":
         return read_paired_npz(path, skeleton=skeleton)
@@ -86,10 +98,17 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     return read_easymocap(path, skeleton=skeleton, progress=progress)
 
 
-def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str) -> None:
+def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str, *,
+                    track_ids=None) -> None:
     """Write detections as ``fmt``: ``"mmpose"`` (a ``.json`` file), ``"openpose"``
     or ``"easymocap"`` (a folder, replaced as a whole). Missing joints are written
-    the format's way (``0, 0`` with confidence 0)."""
+    the format's way (``0, 0`` with confidence 0). ``track_ids`` (one int array a
+    frame) go into MMPose's ``track_id`` and OpenPose's ``person_id``."""
     if fmt not in _WRITERS:
         raise ValueError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}")
-    _WRITERS[fmt](detections, path)
+    if track_ids is not None:
+        if fmt == "easymocap":
+            raise ValueError("EasyMocap annotations hold no track ids")
+        _WRITERS[fmt](detections, path, track_ids=track_ids)
+    else:
+        _WRITERS[fmt](detections, path)

@@ -181,12 +181,21 @@ def _person(inst: Any, p: int, counter: JointCount, *, source: str, frame: int,
     return np.column_stack([xy, scores])
 
 
-def write_mmpose(detections: RawDetections, path: str | os.PathLike) -> None:
-    """Write :class:`RawDetections` as an MMPose predictions JSON file, atomically."""
+def write_mmpose(detections: RawDetections, path: str | os.PathLike, *,
+                 track_ids: list[np.ndarray] | None = None) -> None:
+    """Write :class:`RawDetections` as an MMPose predictions JSON file, atomically.
+
+    ``track_ids`` (one int array a frame, one id a person) are written as each
+    instance's ``track_id`` (the key MMPose's pose-tracking demo writes; the reader
+    ignores it).
+    """
     frames = []
-    for t, people in zip(detections.frame_ids, detections.people):
+    for i, (t, people) in enumerate(zip(detections.frame_ids, detections.people)):
         z = zero_missing(people)
-        frames.append({"frame_id": int(t), "instances": [
-            {"keypoints": z[p, :, :2].tolist(), "keypoint_scores": z[p, :, 2].tolist(),
-             "bbox": [bbox_of(people[p])], "bbox_score": 1.0} for p in range(len(z))]})
+        inst = [{"keypoints": z[p, :, :2].tolist(), "keypoint_scores": z[p, :, 2].tolist(),
+                 "bbox": [bbox_of(people[p])], "bbox_score": 1.0} for p in range(len(z))]
+        if track_ids is not None:
+            for p, ident in enumerate(track_ids[i]):
+                inst[p]["track_id"] = int(ident)
+        frames.append({"frame_id": int(t), "instances": inst})
     atomic_write_text(path, dump_json(frames))

@@ -116,8 +116,12 @@ def _frame(persons: list, counter: JointCount, tally: Tally, *, source: str,
 
 
 def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,
-                   stem: str = "video") -> None:
+                   stem: str = "video", track_ids: list[np.ndarray] | None = None) -> None:
     """Write one ``{stem}_{frame:012d}_keypoints.json`` per frame into ``folder``.
+
+    ``track_ids`` (one int array a frame, one id a person) are written as each
+    person's ``person_id`` (OpenPose's own tracker writes them there); without them
+    ``person_id`` is ``[-1]``, OpenPose's "not tracked".
 
     The folder is built next to ``folder`` and renamed into place at the end, so a
     failure leaves no half-written output; an existing folder is replaced.
@@ -128,9 +132,10 @@ def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,
                                    "face_keypoints_3d", "hand_left_keypoints_3d",
                                    "hand_right_keypoints_3d")}
     with atomic_dir(folder) as tmp:
-        for t, people in zip(detections.frame_ids, detections.people):
+        for i, (t, people) in enumerate(zip(detections.frame_ids, detections.people)):
             z = zero_missing(people)
+            ids = [-1] * len(z) if track_ids is None else [int(v) for v in track_ids[i]]
             doc = {"version": 1.3, "people": [
-                {"person_id": [-1], KEY: z[p].ravel().tolist(), **empty_parts}
+                {"person_id": [ids[p]], KEY: z[p].ravel().tolist(), **empty_parts}
                 for p in range(len(z))]}
             (tmp / f"{stem}_{int(t):012d}_keypoints.json").write_text(dump_json(doc))

@@ -6,7 +6,7 @@ Form (paths are relative to the rig file)::
     joints = "auto"                # optional: "auto" (default), "limbs", "all", or names
     [[cameras]]
     name = "cam01"
-    keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes
+    keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes (a video too)
     intrinsics = "Calib.toml"      # JSON, OpenCV YAML, or Pose2Sim / anipose TOML ...
     intrinsics_section = "cam01"   # ... with the section to read where it holds several
     skeleton = "BODY_25B"          # optional where the keypoint count is ambiguous

@@ -316,7 +316,9 @@ def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
 
 
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
-                      progress: Callable[[str], None] | None = None) -> RigObservations:
+                      progress: Callable[[str], None] | None = None, video=None,
+                      frame_progress: Callable[[str, int, int], None] | None = None
+                      ) -> RigObservations:
     """Read, undistort and sort every camera's keypoints (see the module docstring).
 
     Args:
@@ -324,6 +326,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         skeleton: layout for cameras whose table names none (default: from the
             keypoint count).
         progress: called with the camera's name before it is read.
+        video: :class:`mirrorgraph.video.VideoOptions` for keypoints that name a video.
+        frame_progress: ``(camera, done, total)`` per frame of a video being detected.
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
@@ -337,7 +341,10 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     for entry in config.cameras:
         if progress is not None:
             progress(entry.name)
-        data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton)
+        on_frame = None if frame_progress is None else \
+            (lambda done, total, name=entry.name: frame_progress(name, done, total))
+        data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton,
+                              progress=on_frame, video=video)
         intr = _intrinsics(entry, data, warnings)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)

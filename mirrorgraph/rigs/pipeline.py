@@ -76,7 +76,10 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                   skeleton: str | None = None, joints=None,
                   options: RefineOptions | None = None,
                   seed: int = 0, status: Callable[[str], None] | None = None,
-                  progress: Callable[[int, float], None] | None = None) -> RigCalibration:
+                  progress: Callable[[int, float], None] | None = None,
+                  video=None,
+                  frame_progress: Callable[[str, int, int], None] | None = None
+                  ) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
 
     Args:
@@ -91,6 +94,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         seed: RANSAC seed.
         status: called with a short description of each step.
         progress: ``progress(iteration, error)`` of the graph solve.
+        video: :class:`mirrorgraph.video.VideoOptions` for cameras whose
+            ``keypoints`` name a video (detected, or read from the cache).
+        frame_progress: ``(camera, done, total)`` per frame of a video being detected.
 
     Returns:
         :class:`~.result.RigCalibration` (world frame = the first camera).
@@ -107,7 +113,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     say = status or (lambda s: None)
 
     obs = load_observations(cfg, skeleton=skeleton,
-                            progress=lambda name: say(f"reading camera {name}"))
+                            progress=lambda name: say(f"reading camera {name}"), video=video,
+                            frame_progress=frame_progress)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)

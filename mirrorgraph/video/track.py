@@ -1,0 +1,307 @@
+"""Every person of every frame, tracked: the person, their reflections, bystanders.
+
+:class:`PoseTracker` runs a pose model (:class:`~mirrorgraph.video.blazepose.BlazePoseModels`
+or anything with the same ``detect`` / ``landmarks`` methods) frame by frame, as
+MediaPipe's pose graph does for one person, extended to several:
+
+1. every track's crop comes from its landmarks of the frame before (the auxiliary
+   mid-hip and body-circle landmarks): a person once found is followed without the
+   detector, and a track ends where the landmark model no longer sees a person;
+2. the person detector runs on the whole frame and, every
+   :attr:`TrackerOptions.tiles_every` frames (and whenever a track was lost), on
+   overlapping square tiles (:func:`detection_views`), each view's intensities
+   stretched when dim, its boxes merged: a reflection is a mirror image, often
+   smaller and dimmer than the person, which one pass over the whole frame misses
+   (the tiles show it at up to 2.7 times the scale); a box whose mid-hip lies on a
+   tracked person is not looked at again, nor for a few frames one where the landmark
+   model found nobody;
+3. the landmark model runs on each new box's crop (a dim crop's intensities
+   stretched; retried upright, then turned by 180 deg, where it finds nobody: the
+   detector's rotation of a reflection is often upside down), and poses closer to
+   one another than :attr:`TrackerOptions.same_person` times their size are one
+   person (the older track is kept);
+4. a new pose takes the id of a track lost in the last
+   :attr:`TrackerOptions.relink_frames` frames whose last box it overlaps, or a new id.
+
+All coordinates are image pixels (x right, y down).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .blazepose import Detection, Pose, weighted_nms
+
+__all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_person"]
+
+
+@dataclass(frozen=True)
+class TrackerOptions:
+    """How :class:`PoseTracker` looks for people.
+
+    Attributes:
+        detect_every: run the person detector on the whole frame every
+            ``detect_every``-th processed frame (and on every frame where a track was
+            lost or nobody is tracked); 1 (default) finds a new person at once.
+        tiles_every: run it on the tiles (:func:`detection_views`) every
+            ``tiles_every``-th processed frame (and where a track was lost or
+            nobody is tracked): small people, reflections above all, are found
+            within that many frames and then followed by their landmarks.
+        flip: also run the detector on the horizontally flipped frame (measured:
+            no gain over the tiles on the composited mirror clips; off).
+        tiles: run the detector on the tiles at all.
+        min_pose_score: the landmark model's person probability below which a crop
+            holds nobody (0.5, MediaPipe's).
+        min_detection_score: the detector's score below which a box is dropped
+            (MediaPipe: 0.5; 0.3 here, the landmark model's person probability
+            rejecting what is no person: on a composited mirror clip the dim,
+            sheared reflection scored 0.3-0.5 in most frames).
+        same_person: two poses whose landmarks lie within this fraction of their
+            size of each other (median over the landmarks) are one person.
+        relink_frames: a new pose takes the id of a track lost at most this many
+            frames before, where their boxes overlap.
+        max_people: most people tracked in one frame (the best detections first).
+    """
+
+    detect_every: int = 1
+    tiles_every: int = 4
+    flip: bool = False
+    tiles: bool = True
+    min_pose_score: float = 0.5
+    min_detection_score: float = 0.3
+    same_person: float = 0.15
+    relink_frames: int = 30
+    max_people: int = 12
+
+    def key(self) -> dict:
+        """The options as a dict (for the detection cache's key)."""
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass
+class TrackedPose:
+    """A pose in one frame with its track id."""
+
+    track_id: int
+    pose: Pose
+
+
+@dataclass
+class _Track:
+    track_id: int
+    roi: np.ndarray
+    box: np.ndarray
+    last_frame: int
+    lost: bool = False
+
+
+def detection_views(width: int, height: int, *, flip: bool, tiles: bool
+                    ) -> list[tuple[bool, tuple[int, int, int, int]]]:
+    """The views the detector runs on: ``(flipped, (x0, y0, x1, y1))`` windows.
+
+    The whole frame, its mirror image (``flip``), and (``tiles``) a grid of squares
+    of two thirds of the short side, ``ceil(side / square)`` along each side of the
+    frame, spread evenly (6 on a 16:9 frame, overlapping by a sixth across and by
+    half down): the detector letterboxes its input to 224 x 224, so a
+    tile shows a person at 1.5 to 2.7 times the whole frame's scale. On the
+    Pose2Sim demo frames composited into a mirror scene (a person about 290 px
+    tall in a 1920 x 1080 frame, at 60 % brightness) the whole frame finds the
+    reflection in few frames, squares of the short side in about half, these
+    tiles in nearly all.
+    """
+    views = [(False, (0, 0, width, height))]
+    if flip:
+        views.append((True, (0, 0, width, height)))
+    if tiles:
+        s = max(1, round(2 * min(width, height) / 3))
+
+        def starts(n: int) -> list[int]:
+            if n <= s:
+                return [0]
+            k = max(2, int(np.ceil(n / s)))
+            return [round(i * (n - s) / (k - 1)) for i in range(k)]
+        views.extend((False, (x, y, x + s, y + s)) for y in starts(height) for x in starts(width))
+    return views
+
+
+def _stretched(view: np.ndarray, max_gain: float = 3.0) -> np.ndarray:
+    """A dim view's intensities scaled so that its 99th percentile reaches 255 (at
+    most ``max_gain`` times): a reflection half as bright as the room is found as
+    often as the person."""
+    top = float(np.percentile(view[::8, ::8], 99))
+    if top <= 0 or top >= 242:
+        return view
+    gain = min(max_gain, 255.0 / top)
+    return np.clip(view.astype(np.float32) * gain, 0, 255).astype(np.uint8)
+
+
+def same_person(a: Pose, b: Pose, fraction: float) -> bool:
+    """Whether two poses are one person: the median distance of their landmarks
+    (those both see with visibility >= 0.5, all where fewer than 4) is under
+    ``fraction`` times the larger of their boxes' diagonals."""
+    both = (a.visibility >= 0.5) & (b.visibility >= 0.5)
+    if both.sum() < 4:
+        both = np.ones_like(both)
+    d = np.median(np.linalg.norm(a.xy[both] - b.xy[both], axis=1))
+    size = max(np.linalg.norm(np.diff(a.bbox().reshape(2, 2), axis=0)),
+               np.linalg.norm(np.diff(b.bbox().reshape(2, 2), axis=0)), 1.0)
+    return bool(d < fraction * size)
+
+
+def _box_iou(a: np.ndarray, b: np.ndarray) -> float:
+    lo, hi = np.maximum(a[:2], b[:2]), np.minimum(a[2:], b[2:])
+    inter = float(np.prod(np.clip(hi - lo, 0, None)))
+    union = float(np.prod(a[2:] - a[:2]) + np.prod(b[2:] - b[:2])) - inter
+    return inter / union if union > 0 else 0.0
+
+
+class PoseTracker:
+    """Tracks every person through a sequence of frames (see the module docstring).
+
+    Args:
+        model: has ``detect(rgb) -> list[Detection]`` and
+            ``landmarks(rgb, roi) -> Pose``.
+        options: :class:`TrackerOptions`.
+    """
+
+    #: A box where the landmark model found nobody is not looked at again for this
+    #: many frames (background people too small for it, posters, statues).
+    REJECT_FRAMES = 8
+
+    def __init__(self, model, options: TrackerOptions | None = None) -> None:
+        self.model = model
+        self.options = options or TrackerOptions()
+        self._tracks: list[_Track] = []
+        self._next_id = 0
+        self._count = 0
+        self._rejected: list[tuple[np.ndarray, float, int]] = []   # (mid-hip, radius, frame)
+        self.stats = {"detector_runs": 0, "landmark_runs": 0}
+
+    def detect_all(self, rgb: np.ndarray, *, tiles: bool = True) -> list[Detection]:
+        """The detector's people over the views of :func:`detection_views`, merged
+        (without the tiles where ``tiles`` is false)."""
+        h, w = rgb.shape[:2]
+        boxes, kps, scores = [], [], []
+        for flipped, (x0, y0, x1, y1) in detection_views(w, h, flip=self.options.flip,
+                                                         tiles=self.options.tiles and tiles):
+            view = rgb[y0:y1, x0:x1]
+            if flipped:
+                view = view[:, ::-1]
+            self.stats["detector_runs"] += 1
+            for d in self.model.detect(_stretched(np.ascontiguousarray(view)),
+                                       min_score=self.options.min_detection_score):
+                box, kp = d.box.copy(), d.keypoints.copy()
+                if flipped:
+                    vw = x1 - x0
+                    box[[0, 2]] = vw - box[[2, 0]]
+                    kp[:, 0] = vw - kp[:, 0]
+                box += [x0, y0, x0, y0]
+                kp += [x0, y0]
+                boxes.append(box)
+                kps.append(kp)
+                scores.append(d.score)
+        if not scores:
+            return []
+        b, k, s = weighted_nms(np.array(boxes), np.array(kps), np.array(scores),
+                               iou_threshold=0.3)
+        return [Detection(box=bb, keypoints=kk, score=float(ss)) for bb, kk, ss in zip(b, k, s)]
+
+    def _covered(self, det: Detection, poses: list[Pose], frame: int) -> bool:
+        """Whether a detection's mid-hip lies on a pose already found, at its size, or
+        where the landmark model found nobody in the last :attr:`REJECT_FRAMES` frames."""
+        hip = det.keypoints[0]
+        radius = np.linalg.norm(det.keypoints[1] - det.keypoints[0])
+        places = [(p.aux[0], np.linalg.norm(p.aux[1] - p.aux[0])) for p in poses]
+        places += [(h, r) for h, r, f in self._rejected if frame - f <= self.REJECT_FRAMES]
+        for centre, r in places:
+            if np.linalg.norm(centre - hip) < 0.3 * max(r, radius) \
+                    and 0.6 < radius / max(r, 1e-9) < 1.6:
+                return True
+        return False
+
+    def step(self, rgb: np.ndarray, frame: int) -> list[TrackedPose]:
+        """Every person in one ``(H, W, 3)`` uint8 RGB frame, with track ids."""
+        o = self.options
+        kept: list[tuple[_Track | None, Pose]] = []
+        lost_now = False
+        for tr in self._tracks:
+            if tr.lost:
+                continue
+            self.stats["landmark_runs"] += 1
+            pose = self.model.landmarks(rgb, tr.roi)
+            if pose.score >= o.min_pose_score:
+                kept.append((tr, pose))
+            else:
+                tr.lost, lost_now = True, True
+        # one person followed twice (two tracks converged): keep the older
+        kept.sort(key=lambda tp: tp[0].track_id)
+        unique: list[tuple[_Track | None, Pose]] = []
+        for tr, pose in kept:
+            if any(same_person(pose, q, o.same_person) for _, q in unique):
+                tr.lost = True
+            else:
+                unique.append((tr, pose))
+        urgent = lost_now or not unique
+        if urgent or self._count % o.detect_every == 0 or self._count % o.tiles_every == 0:
+            tiles = urgent or self._count % o.tiles_every == 0
+            for det in self.detect_all(rgb, tiles=tiles)[:o.max_people]:
+                if len(unique) >= o.max_people or \
+                        self._covered(det, [p for _, p in unique], frame):
+                    continue
+                pose = self._landmarks_of(rgb, det)
+                if pose.score < o.min_pose_score:
+                    self._rejected.append((det.keypoints[0], float(np.linalg.norm(
+                        det.keypoints[1] - det.keypoints[0])), frame))
+                    continue
+                if any(same_person(pose, q, o.same_person) for _, q in unique):
+                    continue
+                unique.append((None, pose))
+        self._count += 1
+        out = []
+        for tr, pose in unique:
+            if tr is None:
+                tr = self._relink(pose, frame)
+            tr.roi, tr.box, tr.last_frame, tr.lost = pose.next_roi, pose.bbox(), frame, False
+            out.append(TrackedPose(tr.track_id, pose))
+        self._tracks = [t for t in self._tracks
+                        if not t.lost or frame - t.last_frame <= o.relink_frames]
+        self._rejected = [r for r in self._rejected if frame - r[2] <= self.REJECT_FRAMES]
+        return out
+
+    def _landmarks_of(self, rgb: np.ndarray, det: Detection) -> Pose:
+        """The landmarks in a new detection's crop; where the landmark model sees nobody
+        there, the same crop turned upright, then turned by 180 deg.
+
+        The detector's rotation comes from two of its keypoints (mid-hip to the
+        body-circle point); on a small, dim reflection it is often upside down
+        (measured on a composited mirror clip: 26 of 30 frames), and the landmark
+        model then finds nobody in a crop that holds the person.
+        """
+        roi = det.roi
+        best = None
+        for rot in (roi[3], 0.0, roi[3] + np.pi):
+            self.stats["landmark_runs"] += 1
+            cand = np.array([roi[0], roi[1], roi[2], (rot + np.pi) % (2 * np.pi) - np.pi])
+            pose = self.model.landmarks(rgb, cand)
+            if best is None or pose.score > best.score:
+                best = pose
+            if pose.score >= self.options.min_pose_score:
+                break
+        return best
+
+    def _relink(self, pose: Pose, frame: int) -> _Track:
+        box = pose.bbox()
+        best, best_iou = None, 0.3
+        for t in self._tracks:
+            if t.lost and frame - t.last_frame <= self.options.relink_frames:
+                iou = _box_iou(box, t.box)
+                if iou > best_iou:
+                    best, best_iou = t, iou
+        if best is not None:
+            return best
+        tr = _Track(track_id=self._next_id, roi=pose.roi, box=box, last_frame=frame)
+        self._next_id += 1
+        self._tracks.append(tr)
+        return tr
