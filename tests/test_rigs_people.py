@@ -255,3 +255,25 @@ def test_views_that_lost_most_keypoints_are_named():
     out = _poorly_fitting_views(sol)
     assert MIN_KEPT_FRACTION == 0.5
     assert len(out) == 1 and out[0].startswith("view cam02: only 30 % of its keypoints fit")
+
+
+def test_between_people_seen_as_long_the_one_who_moves_most_is_the_subject():
+    """Two people in every frame (track 0 found first, standing still; track 1 walking):
+    the subject is the one who moves; a person seen in far fewer frames does not win
+    on motion."""
+    from mirrorgraph.rigs.matching import subject_track, track_motion
+    rng = np.random.default_rng(0)
+    T, J = 60, 17
+    still = np.concatenate([rng.normal(500, 2, (T, J, 2)), np.ones((T, J, 1))], -1)
+    walk = np.concatenate([rng.normal(900, 2, (T, J, 2)) + np.linspace(0, 400, T)[:, None, None],
+                           np.ones((T, J, 1))], -1)
+    people = [np.stack([still[t], walk[t]]) for t in range(T)]
+    tracks = [np.array([0, 1]) for _ in range(T)]
+    joints = np.arange(J)
+    motion = track_motion(tracks, people, joints, 0.3)
+    assert motion[1] > 50 * motion[0]
+    assert subject_track(tracks)[0] == 0                       # frames alone: a tie
+    assert subject_track(tracks, motion)[0] == 1
+    short = [np.array([0, 1]) if t < T // 2 else np.array([0]) for t in range(T)]
+    people_short = [p if t < T // 2 else p[:1] for t, p in enumerate(people)]
+    assert subject_track(short, track_motion(short, people_short, joints, 0.3))[0] == 0

@@ -8,8 +8,9 @@ front of a mirror everyone pairs with their own reflection. So:
 * **Over time, in one camera** (the rig's first, the reference): the
   candidates are linked into tracks frame to frame (Hungarian assignment on the
   mean joint distance, :func:`track_people`) and the subject is the track seen
-  in the most frames (:func:`longest_track`; with mirrors the candidates are
-  the people that pair with a reflection, so the one that pairs longest).
+  in the most frames (:func:`subject_track`; with mirrors the candidates are
+  the people that pair with a reflection, so the one that pairs longest), and
+  between tracks seen nearly as long the one that moves most (:func:`track_motion`).
 * **Across cameras** (:func:`match_candidates`), for every other camera:
 
   1. its candidates are linked into tracks (:func:`track_people`);
@@ -53,7 +54,7 @@ from ..skeletons import Skeleton
 from ..geometry import skew
 from .relative import _normalised, refine_relative_pose, sampson_px
 
-__all__ = ["match_candidates", "match_people", "track_people", "longest_track",
+__all__ = ["match_candidates", "match_people", "track_people", "subject_track", "track_motion",
            "MATCH_THRESHOLD_PX"]
 
 #: Median Sampson distance (px) above which no candidate of a frame is accepted.
@@ -123,15 +124,28 @@ def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidenc
     return ids
 
 
-def longest_track(tracks: list[np.ndarray], confidence: list[np.ndarray] | None = None
-                  ) -> tuple[int, dict[int, int]]:
-    """The track present in the most frames.
+#: Tracks seen in at least this share of the longest track's frames compete on motion
+#: in :func:`subject_track`.
+NEAR_LONGEST = 0.9
+
+
+def subject_track(tracks: list[np.ndarray], motion: dict[int, float] | None = None,
+                  confidence: list[np.ndarray] | None = None) -> tuple[int, dict[int, int]]:
+    """The track to calibrate from: seen in (nearly) the most frames, moving the most.
+
+    A person who hardly moves sweeps a small volume, and the rig's geometry comes from
+    the joints' spread: between tracks seen in at least :data:`NEAR_LONGEST` of the
+    longest one's frames, the one whose joints move most is chosen (on Pose2Sim's
+    Demo_MultiPerson, two people in all 100 frames, the one standing nearly still
+    gave cameras 3.7-5.7 deg off, the other 0.7-2.6 deg: ``bench/RESULTS_real.md``).
 
     Args:
         tracks: ``T`` int arrays ``(P_t,)``, :func:`track_people`'s output.
+        motion: track id -> how much it moves (:func:`track_motion`); default: the
+            frame count alone decides.
         confidence: ``T`` arrays ``(P_t,)``, e.g. each detection's summed joint
-            confidence: breaks ties by the track's total (default: the track
-            that started first).
+            confidence: breaks the remaining ties by the track's total (default: the
+            track that started first).
 
     Returns:
         the track id (-1 when there is no detection at all), and the number of
@@ -145,8 +159,44 @@ def longest_track(tracks: list[np.ndarray], confidence: list[np.ndarray] | None 
     if confidence is not None:
         conf = np.concatenate([np.asarray(c, float).ravel() for c in confidence] + [np.zeros(0)])
         np.add.at(total, where, np.nan_to_num(conf))
-    best = np.lexsort((-np.arange(len(found)), total, counts))[-1]   # a track is once a frame
+    frames = counts.astype(float)
+    if motion is not None:                  # near-longest tracks are equal on frames
+        near = counts >= NEAR_LONGEST * counts.max()
+        frames = np.where(near, counts.max(), counts)
+        moves = np.array([motion.get(int(k), 0.0) for k in found])
+        order = (-np.arange(len(found)), total, np.where(near, moves, 0.0), frames)
+    else:
+        order = (-np.arange(len(found)), total, frames)
+    best = np.lexsort(order)[-1]            # a track is once a frame
     return int(found[best]), dict(zip(found.tolist(), counts.tolist()))
+
+
+def track_motion(tracks: list[np.ndarray], people: list[np.ndarray], joints: np.ndarray,
+                 min_confidence: float) -> dict[int, float]:
+    """How much each track moves: the median over ``joints`` of the spread (RMS distance
+    from its mean, pixels) of the joint's image positions over the track's frames.
+
+    Args:
+        tracks: ``T`` int arrays ``(P_t,)`` of track ids.
+        people: ``T`` arrays ``(P_t, J, 3)`` (x, y, confidence) of the detections.
+        joints: the joints to measure.
+        min_confidence: joints below it are not counted.
+
+    Returns:
+        track id -> spread in pixels (0 for a track with too few frames to tell).
+    """
+    rows = [(int(k), p[i, joints]) for ids, p in zip(tracks, people)
+            for i, k in enumerate(np.asarray(ids, dtype=int).ravel())]
+    out: dict[int, float] = {}
+    for k in {r[0] for r in rows}:
+        X = np.array([r[1] for r in rows if r[0] == k], dtype=float)       # (n, j, 3)
+        xy = np.where((X[..., 2:3] >= min_confidence), X[..., :2], np.nan)
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            spread = np.sqrt(np.nanmean(np.sum((xy - np.nanmean(xy, axis=0)) ** 2, -1), axis=0))
+        spread = spread[np.isfinite(spread)]
+        out[k] = float(np.median(spread)) if len(spread) and len(X) >= 2 else 0.0
+    return out
 
 
 def _track_geometry(xa: np.ndarray, xb: np.ndarray, f: float, seed: int

@@ -20,13 +20,13 @@ Who the person is, camera by camera:
   candidates, follows one person over time: its candidates are linked into
   tracks (:func:`mirrorgraph.rigs.matching.track_people`) and the subject is
   the track seen in the most frames, that is, with mirrors, the one that
-  pairs with a reflection in the most frames
-  (:func:`~mirrorgraph.rigs.matching.longest_track`; ties: the more
-  confident). Per frame only the pairs holding that track's detection compete
+  pairs with a reflection in the most frames; between tracks seen in nearly as
+  many frames, the one that moves most (:func:`~mirrorgraph.rigs.matching.subject_track`:
+  a person standing still gives little geometry); then the more confident. Per frame only the pairs holding that track's detection compete
   (:func:`mirrorgraph.pairing.choose_pairs`); frames without it have no
   person. When another track is seen in more than
   :data:`SECOND_PERSON_FRACTION` of the frames a warning says so (the subject
-  is then the person seen longest, which the user should know). With one
+  is then the person seen longest or moving most, which the user should know). With one
   candidate per frame, the frame's best pair (or most confident detection) is
   kept, as :func:`mirrorgraph.pairing.pair_reflections` does.
 * **Every other camera**, with or without mirrors, keeps per frame the
@@ -58,7 +58,7 @@ from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candid
 from ..pipeline import check_image_size, undistort_keypoints
 from ..skeletons import Skeleton
 from .config import CameraEntry, RigConfig
-from .matching import longest_track, match_candidates, track_people
+from .matching import match_candidates, subject_track, track_motion, track_people
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -254,19 +254,22 @@ def _keep_person(sorting: _Sorting, person: np.ndarray, flip: np.ndarray,
 def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: list[str],
                     warnings: list[str]) -> None:
     """The first camera: keep the person whose track is seen (with mirrors: pairs with a
-    reflection) in the most frames, ties broken by confidence (see the module
-    docstring), in place."""
+    reflection) in the most frames, between nearly equal ones the one that moves most,
+    ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
-    tracks = track_people(sorting.people, joints, PairingOptions().min_confidence)
+    min_conf = PairingOptions().min_confidence
+    tracks = track_people(sorting.people, joints, min_conf)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
-    subject, frames = longest_track(tracks, conf)
+    subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
+                                    conf)
     chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
                       dtype=int)                                # a handful per frame
     often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
     if often > 1:
         what = "have reflections" if mirrors else "are in view"
         warnings.append(f"camera {name}: {often} people {what}; calibrating from the one "
-                        f"seen longest ({frames[subject]} of {len(tracks)} frames)")
+                        f"seen longest and moving most ({frames[subject]} of {len(tracks)} "
+                        "frames)")
     _keep_chosen(sorting, chosen, conf, skeleton, mirrors)
 
 
