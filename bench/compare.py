@@ -117,6 +117,7 @@ if str(ROOT) not in sys.path:
 import mirrorgraph as mg  # noqa: E402
 from mirrorgraph import geometry as geo  # noqa: E402
 from mirrorgraph import metrics  # noqa: E402
+from mirrorgraph.metrics import cramer_rao_mirror  # noqa: E402
 from mirrorgraph.keypoints import PairedKeypoints, RawDetections  # noqa: E402
 from mirrorgraph.synth import make_scene  # noqa: E402
 from mirrorgraph.synth.bvh import cmu_example_path  # noqa: E402
@@ -253,60 +254,8 @@ def _raw_from_paired(paired: PairedKeypoints, rng) -> RawDetections:
 
 
 # =========================================================================== Cramer-Rao bound
-def _tangent_basis(n):
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    b1 = np.cross(n, a)
-    b1 /= np.linalg.norm(b1)
-    return np.stack([b1, np.cross(n, b1)], 1)            # (3, 2)
-
-
-def _proj_jac(K, Y):
-    """``pi(K Y)`` Jacobian w.r.t. ``Y``: (N, 2, 3)."""
-    z = Y[:, 2]
-    x, y = Y[:, 0] / z, Y[:, 1] / z
-    J = np.zeros((len(Y), 2, 3))
-    J[:, 0, 0] = 1.0 / z
-    J[:, 0, 2] = -x / z
-    J[:, 1, 1] = 1.0 / z
-    J[:, 1, 2] = -y / z
-    return K[None, :2, :2] @ J
-
-
-def cramer_rao(K: np.ndarray, n: np.ndarray, d: float, X: np.ndarray, sigma: float,
-               rng: np.random.Generator | None = None) -> dict:
-    """Bound on the mirror normal from joints ``X`` ``(N, 3)`` seen in both views.
-
-    Returns:
-        ``rot_rms_deg`` (``2 sqrt(tr Sigma_n)``), ``rot_median_deg`` (median of
-        ``2 |delta|`` for ``delta ~ N(0, Sigma_n)``), ``trans_rms_mm``
-        (``2 d sqrt(tr Sigma_n)``, the translation error's bound at scale
-        ``|t| = 2 d``) and ``normal_cov`` (2x2, rad^2, in a tangent basis).
-    """
-    K = np.asarray(K, float)
-    X = np.asarray(X, float)
-    n = np.asarray(n, float)
-    B = _tangent_basis(n)
-    H = np.eye(3) - 2.0 * np.outer(n, n)
-    S = X @ H.T + 2.0 * d * n                              # reflected points
-    J1 = _proj_jac(K, X)                                   # (N, 2, 3) d u / d X
-    J2 = _proj_jac(K, S)                                   # d u' / d S
-    Jx = np.concatenate([J1, J2 @ H], 1)                   # (N, 4, 3)
-    s = X @ n - d                                          # (N,)
-    # d S / d n = -2 (s I + n X^T), along the tangent basis
-    dS_dn = -2.0 * (s[:, None, None] * np.eye(3)[None] + n[None, :, None] * X[:, None, :])
-    Jn2 = J2 @ dS_dn @ B                                   # (N, 2, 2)
-    Jn = np.concatenate([np.zeros_like(Jn2), Jn2], 1)      # (N, 4, 2)
-    A = np.einsum("nki,nkj->nij", Jx, Jx)                  # (N, 3, 3)
-    C = np.einsum("nki,nkj->nij", Jx, Jn)                  # (N, 3, 2)
-    Dn = np.einsum("nki,nkj->nij", Jn, Jn).sum(0)          # (2, 2)
-    schur = Dn - np.einsum("nji,njk->ik", C, np.linalg.solve(A, C))
-    cov = np.linalg.inv(schur) * sigma ** 2
-    tr = float(np.trace(cov))
-    rng = rng or np.random.default_rng(0)
-    delta = rng.multivariate_normal(np.zeros(2), cov, 20000)
-    med = float(np.degrees(2.0 * np.median(np.linalg.norm(delta, axis=1))))
-    return dict(rot_rms_deg=float(np.degrees(2.0 * math.sqrt(tr))), rot_median_deg=med,
-                trans_rms_mm=float(2.0 * d * math.sqrt(tr) * 1000.0), normal_cov=cov.tolist())
+#: The analytic bound lives in the package (one home); bench scripts import it from here too.
+cramer_rao = cramer_rao_mirror
 
 
 def scene_bound(prep: Prepared) -> dict:

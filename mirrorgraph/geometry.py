@@ -53,6 +53,17 @@ def unskew(M: np.ndarray) -> np.ndarray:
     return np.array([A[2, 1], A[0, 2], A[1, 0]])
 
 
+def tangent_basis(v: np.ndarray) -> np.ndarray:
+    """``(3, 2)`` orthonormal basis of the plane orthogonal to the unit vector ``v`` ``(3,)``
+    (the tangent space of the sphere at ``v``: a normal's or an epipole's two degrees of
+    freedom)."""
+    v = np.asarray(v, dtype=float).reshape(3)
+    a = np.eye(3)[np.argmin(np.abs(v))]
+    b1 = np.cross(v, a)
+    b1 /= np.linalg.norm(b1)
+    return np.stack([b1, np.cross(v, b1)], axis=1)
+
+
 def to_homogeneous(u: np.ndarray) -> np.ndarray:
     """Append a 1: ``(..., 2)`` pixels -> ``(..., 3)`` homogeneous pixels."""
     u = np.asarray(u, dtype=float)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..geometry import signed_epipolar_distances, to_homogeneous
+from ..geometry import signed_epipolar_distances, tangent_basis, to_homogeneous
 from .normalization import SimilarityNormalizer
 
 
@@ -76,14 +76,6 @@ def epipole_least_squares(lines: np.ndarray, weights: np.ndarray | None = None) 
     return vecs[:, 0]
 
 
-def _tangent_basis(e: np.ndarray) -> np.ndarray:
-    """``(3, 2)`` orthonormal basis of the plane orthogonal to unit ``e``."""
-    a = np.eye(3)[np.argmin(np.abs(e))]
-    b1 = np.cross(e, a)
-    b1 /= np.linalg.norm(b1)
-    return np.stack([b1, np.cross(e, b1)], axis=1)
-
-
 def refine_epipole(e0_pixels: np.ndarray, u: np.ndarray, u_mirror: np.ndarray, *,
                    loss_scale_px: float = 4.0, max_iterations: int = 50) -> np.ndarray:
     """Nonlinear solver: minimise the robust symmetric epipolar distance.
@@ -105,7 +97,7 @@ def refine_epipole(e0_pixels: np.ndarray, u: np.ndarray, u_mirror: np.ndarray, *
     norm = SimilarityNormalizer.fit(u, u_mirror)
     a, b = norm.apply(u), norm.apply(u_mirror)
     e0 = norm.epipole_to_normalized(e0_pixels)
-    B = _tangent_basis(e0)
+    B = tangent_basis(e0)
     scale = loss_scale_px * norm.scale
 
     def point(theta: np.ndarray) -> np.ndarray:
