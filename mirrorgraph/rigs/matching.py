@@ -81,6 +81,15 @@ MIN_TRACK_AGREEMENT = 0.25
 #: track's last position starts a new track.
 TRACK_GATE_PX = 150.0
 
+#: Tracks: each frame a track has gone unseen adds this many px to a detection's
+#: distance from it (a person seen in the last frame is preferred to a track that
+#: went missing: on Pose2Sim's Demo_MultiPerson, brief false detections left tracks
+#: that took over the moving person's identity).
+TRACK_AGE_PX = 20.0
+
+#: Tracks unseen for more frames than this end.
+TRACK_MAX_GAP = 30
+
 
 def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float
                  ) -> list[np.ndarray]:
@@ -96,10 +105,13 @@ def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidenc
     from scipy.optimize import linear_sum_assignment
 
     last: dict[int, np.ndarray] = {}
+    seen_at: dict[int, int] = {}
     ids, next_id = [], 0
-    for people in candidates:
+    for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float)
         lab = np.full(len(p), -1)
+        for k in [k for k, s in seen_at.items() if t - s > TRACK_MAX_GAP]:
+            del last[k], seen_at[k]                     # a track unseen for long has ended
         if len(p):
             xy = np.where((p[:, joints, 2:3] >= min_confidence), p[:, joints, :2], np.nan)
             keys = list(last)
@@ -109,7 +121,10 @@ def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidenc
                     warnings.simplefilter("ignore", RuntimeWarning)
                     dist = np.nanmean(np.linalg.norm(xy[:, None] - prev[None], axis=-1), -1)
                 dist = np.where(np.isfinite(dist), dist, 1e9)
-                r, c = linear_sum_assignment(dist)
+                # a track seen in the last frame is preferred to one that went missing
+                age = np.array([t - 1 - seen_at[k] for k in keys], dtype=float)
+                cost = dist + TRACK_AGE_PX * age[None, :]
+                r, c = linear_sum_assignment(cost)
                 for i, k in zip(r, c):
                     if dist[i, k] < TRACK_GATE_PX:
                         lab[i] = keys[k]
@@ -120,6 +135,7 @@ def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidenc
                 seen = np.isfinite(xy[i]).all(-1)
                 prev_xy = last.get(int(k), np.full(xy[i].shape, np.nan))
                 last[int(k)] = np.where(seen[:, None], xy[i], prev_xy)
+                seen_at[int(k)] = t
         ids.append(lab)
     return ids
 
