@@ -439,14 +439,16 @@ def notes(rows: list[dict], extras: dict) -> list[str]:
     if len(good) >= 2:
         best = min(good, key=lambda r: max(c["rot_deg"] for c in r["cameras"]))
         L.append(f"* {extras['subjects']['trial']}: which person the rig follows matters more "
-                 "than anything else here. Of the two people seen in every frame, calibrate_rig "
-                 f"follows track {good[0]['track']} (a tie, broken by order); following track "
-                 f"{best['track']}, who moves {best['hip_travel_px']:.0f} px against "
+                 "than anything else here. Two people are seen in every frame; calibrating from "
+                 f"track {best['track']}, who moves {best['hip_travel_px']:.0f} px against "
                  f"{good[0]['hip_travel_px']:.0f} px, gives "
                  + " / ".join(f"{c['rot_deg']:.2f}" for c in best["cameras"]) + " deg and "
                  + " / ".join(f"{c['pos_aligned_mm']:.0f}" for c in best["cameras"])
-                 + " mm (1 scale). Breaking such ties by motion, or calibrating from every "
-                 "person the cameras share, is the rig module's to decide.")
+                 + " mm (1 scale), the other " + " / ".join(
+                     f"{c['rot_deg']:.2f}" for c in good[0]["cameras"]) + " deg. calibrate_rig "
+                 "now follows the one who moves most among people seen nearly as long "
+                 "(`rigs.matching.subject_track`), and its tracker no longer splits the moving "
+                 "person when brief false detections come and go (the table at the top).")
     L += ["* So the targets (every camera within 1 deg and 50 mm, aiming at 0.5 deg and 30 mm) "
           "are not met on these videos, and the measurements above place the limit in the "
           "keypoints (BlazePose's systematic error of 6-30 px per joint and view, on a rendered "
@@ -474,9 +476,9 @@ def extras_section(extras: dict) -> list[str]:
         L.append("")
     if extras.get("mirror"):
         m = extras["mirror"]
-        n = sum(r["frames"] for r in m)
-        b = sum(r["both"] for r in m)
-        c = sum(r["consistent"] for r in m)
+        n = int(sum(r["frames"] for r in m))
+        b = int(sum(r["both"] for r in m))
+        c = int(sum(r["consistent"] for r in m))
         L += ["## Person and reflection on composited mirror frames", "",
               f"Every frame of the distinct demo videos ({len(m)}), composited with "
               "`MirrorComposite()` (1920 x 1080; the person 0.5x, the reflection flipped, 0.4x, "
@@ -492,8 +494,9 @@ def extras_section(extras: dict) -> list[str]:
     if extras.get("subjects"):
         sub = extras["subjects"]
         L += [f"## Which person the rig follows ({sub['trial']})", "",
-              "calibrate_rig follows the first camera's person seen longest; here two people "
-              "are seen in all 100 frames. Camera 1's keypoints restricted to one track each "
+              "calibrate_rig follows the first camera's person seen longest, and among people seen "
+              "nearly as long the one who moves most; here two people are seen in all 100 "
+              "frames. Camera 1's keypoints restricted to one track each "
               f"(computed {sub.get('date', '')}):", "",
               "| camera 1 track | frames | hip travel in camera 1, px | rotation deg cam 2 / 3 / 4 "
               "| position mm, 1 scale |", "|---:|---:|---:|---|---|"]
