@@ -376,16 +376,20 @@ def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarr
     Args:
         P: ``(V, 3, 4)``; u: ``(V, M, 2)`` pixels; w: ``(V, M)`` bool; X: ``(M, 3)``.
     """
+    JtJ = np.zeros((len(X), 3, 3))
+    Jtr = np.zeros((len(X), 3))
     with np.errstate(divide="ignore", invalid="ignore"):
-        y = np.einsum("vij,mj->vmi", P[:, :, :3], X) + P[:, None, :, 3]              # (V, M, 3)
-        z = y[..., 2:3]
-        p = y[..., :2] / z
-        # d pi / dX = (1 / z) [P_1 - u P_3 ; P_2 - v P_3] (first three columns)
-        J = (P[:, None, :2, :3] - p[..., None] * P[:, None, 2:3, :3]) / z[..., None]  # (V,M,2,3)
-        r = np.where(w[..., None], p - u, 0.0)
-        J = np.where(w[..., None, None], J, 0.0)
-        JtJ = np.einsum("vmki,vmkj->mij", J, J) + 1e-9 * np.eye(3)
-        Jtr = np.einsum("vmki,vmk->mi", J, r)
+        for Pv, uv, wv in zip(P, u, w):
+            y = X @ Pv[:, :3].T + Pv[:, 3]                                      # (M, 3)
+            inv = np.where(wv, 1.0 / y[:, 2], 0.0)[:, None]
+            px, py = y[:, 0:1] * inv, y[:, 1:2] * inv
+            # d pi / dX = (1 / z) [P_1 - u P_3 ; P_2 - v P_3] (first three columns)
+            jx = (Pv[0, :3] - px * Pv[2, :3]) * inv                             # (M, 3)
+            jy = (Pv[1, :3] - py * Pv[2, :3]) * inv
+            rx, ry = px[:, 0] - uv[:, 0], py[:, 0] - uv[:, 1]
+            JtJ += jx[:, :, None] * jx[:, None, :] + jy[:, :, None] * jy[:, None, :]
+            Jtr += jx * rx[:, None] + jy * ry[:, None]
+        JtJ += 1e-9 * np.eye(3)
         step = np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
     step[~np.isfinite(step).all(1)] = 0.0
     return X - step

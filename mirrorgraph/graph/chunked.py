@@ -91,7 +91,8 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
         opts = replace(opts, subject_height=float(height))
     T = rig.num_frames
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
-    sub = solve_rows(rig.subset(rows), opts, config, height, counter)
+    # the subset's joints are not kept (every chunk is solved again): no joints pass there
+    sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
     timings = dict(sub.timings)
     stages = [dict(s, name="subset: " + s["name"]) for s in sub.stages]
     iterations = sub.iterations

@@ -214,7 +214,7 @@ class RefineOptions:
     warm_start_frames: int = 300
     max_graph_frames: int = 2000
     chunk_block_frames: int = 250
-    chunk_passes: int = 3
+    chunk_passes: int = 1
     chunk_step_tolerance: float = 1.0
     marginals: bool = True
 

@@ -498,17 +498,19 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     tri, tri_ok = triangulate_rig(problem.rig, final_masks, poses, planes)
     timings["triangulate"] += time.perf_counter() - t
 
+    # the bones the calibration left out: their length measured without the curvature bias
+    lengths = problem.bone_lengths()
+    names, pairs = bone_table(problem.rig)
+    other = [i for i, b in enumerate(names) if b not in lengths]
+    if other and opts.use_bone_length:
+        est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
+                                    opts.pixel_sigma)
+        lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
+
     # 5. joints pass: the joints with everything else held, tighter smoothness, every bone
     joints_priors = None
     if config.joints_pass:
         t = time.perf_counter()
-        lengths = problem.bone_lengths()
-        names, pairs = bone_table(problem.rig)
-        other = [i for i, b in enumerate(names) if b not in lengths]
-        if other and opts.use_bone_length:      # the bones the calibration left out
-            est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
-                                        opts.pixel_sigma)
-            lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
         jp = joints_pass(problem, values, lengths, opts)
         if jp is not None:
             state_points = extract_points(jp[0], jp[1].values)
