@@ -350,8 +350,13 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
     """
     from .pipeline import CalibrateOptions
 
+    from .graph import RefineOptions
+
     recordings = list(recordings)
     options = options or CalibrateOptions()
+    # the recordings are the parallel work: a long one's chunks are solved in its worker
+    options = replace(options, refine_options=replace(options.refine_options or RefineOptions(),
+                                                      workers=1))
     if not recordings:
         return []
     if workers is not None and workers < 1:

@@ -172,8 +172,15 @@ def test_long_video_is_solved_in_chunks():
     single = refine_mirror(p, scene.K, n0, p.valid(), options=opts)
     from dataclasses import replace
     chunked = refine_mirror(p, scene.K, n0, p.valid(),
-                            options=replace(opts, max_graph_frames=300, chunk_block_frames=100))
+                            options=replace(opts, max_graph_frames=300, chunk_block_frames=100,
+                                            workers=2))
     assert any(s["name"].startswith("chunk pass") for s in chunked.stages)
+    # the chunks solved in two processes or in this one: the same result
+    serial = refine_mirror(p, scene.K, n0, p.valid(),
+                           options=replace(opts, max_graph_frames=300, chunk_block_frames=100,
+                                           workers=1))
+    np.testing.assert_allclose(serial.normal, chunked.normal, atol=1e-12)
+    np.testing.assert_allclose(serial.joints3d, chunked.joints3d, atol=1e-9, equal_nan=True)
     assert rotation_error_deg(chunked.normal, single.normal) < 0.5 * single.rotation_std_deg
     assert chunked.rotation_std_deg == pytest.approx(single.rotation_std_deg, rel=0.2)
     assert chunked.valid.sum() > 0.95 * single.valid.sum()

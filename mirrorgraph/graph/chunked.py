@@ -3,57 +3,60 @@
 One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
 54,000 frames would need ~5 GB. Above ``options.max_graph_frames`` frames:
 
-1. **Subset.** The driver (:mod:`.solve`) on contiguous blocks of
-   ``options.chunk_block_frames`` frames spread evenly over the video,
-   ``max_graph_frames`` frames in all (blocks, not single frames, so that the
-   smoothness prior still has neighbours). This fixes the scale (the bone-length
-   sum), gives the bone lengths and a mirror within a few standard deviations
-   of the full-video estimate.
+1. **Subset.** The driver's stages (:func:`~.stages.solve_rows`) on contiguous blocks
+   of ``options.chunk_block_frames`` frames spread evenly over the video,
+   ``max_graph_frames`` frames in all. This fixes the scale (the bone-length sum),
+   gives the bone lengths and a mirror within a few of its standard deviations of
+   the whole video's.
 2. **Chunks, shared globals.** The video is cut into consecutive chunks of at most
-   ``max_graph_frames`` frames (smoothness factors that would cross a cut are
-   dropped: two per joint and cut). Each chunk is triangulated with the current
-   mirror, cleaned as the driver cleans (:mod:`.solve`), and its
-   points are solved with the mirror and bone lengths *held*
+   ``max_graph_frames`` frames. Given the mirror and the bone lengths the frames are
+   independent (the calibration graph has no smoothness), so each chunk is
+   triangulated with the current mirror, cleaned as the driver cleans, and its
+   joints are solved with the mirror and bone lengths *held*
    (:class:`~mirrorgraph.graph.optimizer.LevenbergMarquardt` with
-   ``hold_globals=True``), with the second rejection and re-solve as in the
-   single graph. Each chunk also returns its Schur complement on the global
-   coordinates ``z = (bone lengths, plane)`` and its reduced gradient: the
-   information every frame carries about the mirror with that chunk's points
-   eliminated. Only one chunk is in memory at a time.
-3. **Shared step.** Summing the chunks' reduced systems and the length-only
-   factors (symmetry, anthropometry, gauge) gives the Gauss-Newton step of the
-   globals over the whole video; it is applied and the chunks are solved again
-   with the new mirror, until the step is below ``global_step_tolerance``
-   standard deviations (or ``chunk_passes`` passes). The covariance of the mirror
-   comes from the summed information of the last pass, so it reflects every frame.
+   ``hold_globals=True``), with the second rejection and re-solve as in the single
+   graph. Each chunk returns its Schur complement on the plane and its reduced
+   gradient: the information its frames carry about the mirror with its joints
+   eliminated. Only one chunk a worker is in memory at a time.
+3. **Shared step.** The sum of the chunks' reduced systems gives the Gauss-Newton
+   step of the plane over the whole video from the subset's. One pass is the
+   default (``options.chunk_passes``): on 10,000 frames three passes moved the
+   mirror by 0.0001 deg more (0.005 of its standard deviation). The covariance of
+   the mirror comes from the summed information, so it reflects every frame.
 4. **Joints pass.** Chunk by chunk, the 3D joints are solved again with the final
-   mirror and bone lengths held and the tighter smoothness of
-   ``joints_smoothness_sigma``, as for a short video
-   (:func:`mirrorgraph.graph.stages.joints_pass`).
+   mirror and bone lengths held, the tighter smoothness of
+   ``joints_smoothness_sigma`` and every bone (:func:`~.stages.joints_pass`).
 
-Time is linear in the number of frames (each pass visits each frame once);
-memory is bounded by one chunk.
+The chunks of a pass are independent: they are solved in ``options.workers``
+processes (GTSAM holds the interpreter lock, so threads would not help) and
+summed in order, so the result does not depend on the number of workers. Time is
+linear in the number of frames; memory is bounded by a chunk per worker.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import sys
 import time
-from dataclasses import replace
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
 
 import gtsam
 import numpy as np
 
 from ..errors import DegenerateGeometryError
-from ..factors import DistancePriorFactor, plane_from_gtsam
+from ..factors import DistancePriorFactor, plane_from_gtsam, plane_to_gtsam
 from .builder import build_problem, extract_points, snap_virtual_poses
 from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig
-from .stages import (MIN_PAIRS, SolveState, clean_views, joints_pass, optimize,
+from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, joints_pass, optimize,
                      reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
 
-__all__ = ["solve_chunked", "spread_blocks", "chunk_ranges"]
+__all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 
 
 def spread_blocks(T: int, frames: int, block: int) -> np.ndarray:
@@ -77,6 +80,167 @@ def chunk_ranges(T: int, size: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
+def worker_count(opts: RefineOptions, jobs: int) -> int:
+    """Processes for ``jobs`` independent chunks: ``opts.workers``, or by default the
+    machine's cores up to :data:`MAX_AUTO_WORKERS`; never more than the jobs."""
+    n = opts.workers if opts.workers is not None else min(os.cpu_count() or 1, MAX_AUTO_WORKERS)
+    return max(1, min(int(n), jobs))
+
+
+#: Most processes chosen by default (each holds one chunk's graph, ~150-250 MB).
+MAX_AUTO_WORKERS = 4
+
+
+# --------------------------------------------------------------------------- chunk jobs
+@dataclass
+class _Context:
+    """What every chunk of a long video shares."""
+
+    opts: RefineOptions
+    config: SolveConfig
+    pose: list[np.ndarray]
+    body_height: float
+    lengths: dict[str, float]
+    length_sum: float | None
+    kernel: str | None
+
+
+@dataclass
+class _ChunkResult:
+    """One chunk's share of a pass (rows ``a:b`` of the video)."""
+
+    a: int
+    b: int
+    points: np.ndarray | None = None          # (T_c, J, 3)
+    used: np.ndarray | None = None            # (T_c, J)
+    masks: list[np.ndarray] | None = None     # per view (T_c, J)
+    information: np.ndarray | None = None     # reduced, over the plane
+    gradient: np.ndarray | None = None
+    z_keys: list | None = None
+    plane: tuple[np.ndarray, float] | None = None   # where the reduced system was taken
+    distance_gauge: float | None = None
+    final_error: float = 0.0
+    reprojection_factors: int = 0
+    iterations: int = 0
+
+
+def _calibrate_chunk(job: tuple) -> _ChunkResult:
+    """Solve one chunk's joints with the globals held; return its reduced system."""
+    crig, a, b, plane, start, ctx = job
+    opts, config = ctx.opts, ctx.config
+    out = _ChunkResult(a, b)
+    if start is None:
+        cpoints, cmasks, _, _ = clean_views(crig, [np.asarray(v.mask, bool) for v in crig.views],
+                                            ctx.pose, [plane], opts, config, opts.min_parallax_deg)
+    else:
+        cpoints, cmasks = start
+    keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
+    problem = values = res = None
+    for _ in range(2):
+        if np.count_nonzero(keep) < MIN_PAIRS:
+            break
+        if problem is not None:
+            cpoints = extract_points(problem, values)
+        problem = build_problem(with_views(crig, cmasks), cpoints, keep, [plane], opts,
+                                body_height=ctx.body_height, bone_lengths=ctx.lengths,
+                                length_sum=ctx.length_sum, final_kernel=ctx.kernel)
+        snap_virtual_poses(problem, problem.values)
+        res, z_keys = optimize(problem, problem.full(), opts, distance_gauge=None,
+                               hold_globals=True)
+        values = res.values
+        out.iterations += res.iterations
+        pts = extract_points(problem, values)
+        lost = undetermined(problem, res)
+        cmasks, dropped = observation_outliers(crig, pts, problem.used & ~lost, cmasks, ctx.pose,
+                                               [plane], opts.outlier_threshold)
+        cmasks = [m & ~lost for m in cmasks]
+        keep = problem.used & seen_twice(cmasks)
+        if not dropped and not lost.any():
+            break
+    if problem is None or res.reduced_information is None:
+        return out
+    out.points, out.used = extract_points(problem, values), problem.used
+    out.masks = [np.asarray(v.mask, bool) for v in problem.rig.views]
+    out.information, out.gradient, out.z_keys = res.reduced_information, res.reduced_gradient, z_keys
+    out.final_error, out.reprojection_factors = res.final_error, int(problem.reprojection.size())
+    out.plane = plane_from_gtsam(values.atOrientedPlane3(problem.plane_keys[0]))
+    out.distance_gauge = problem.distance_gauge
+    return out
+
+
+def _joints_chunk(job: tuple) -> _ChunkResult:
+    """The joints pass of one chunk with the final mirror held."""
+    crig, a, b, plane, (cpoints, cmasks), ctx = job
+    out = _ChunkResult(a, b)
+    keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
+    if np.count_nonzero(keep) == 0:
+        return out
+    opts = ctx.opts
+    base = build_problem(with_views(crig, cmasks), cpoints, keep, [plane],
+                         replace(opts, use_bone_length=False, subject_height=None),
+                         body_height=ctx.body_height, final_kernel=ctx.kernel)
+    snap_virtual_poses(base, base.values)
+    jp = joints_pass(base, base.values, ctx.lengths, opts)
+    if jp is None:
+        return out
+    problem, res = jp
+    out.points, out.iterations = extract_points(problem, res.values), res.iterations
+    return out
+
+
+class _Runner:
+    """Runs chunk jobs in order, in this process or in a pool of processes.
+
+    The workers are spawned (a fresh interpreter: a forked one would inherit the
+    locks of any thread the caller runs, JAX's or PyTorch's say, and may deadlock),
+    and while they start the caller's main module is hidden from them: a spawned
+    process imports it again otherwise, which would run a user's script that has no
+    ``if __name__ == "__main__"`` guard once more. The jobs need nothing from it.
+    """
+
+    def __init__(self, workers: int) -> None:
+        self.pool = None
+        # a daemonic process (a Dask or multiprocessing worker) may not have children
+        if workers > 1 and not multiprocessing.current_process().daemon:
+            self.pool = ProcessPoolExecutor(max_workers=workers,
+                                            mp_context=multiprocessing.get_context("spawn"))
+            with _main_hidden():
+                list(self.pool.map(_ready, range(workers)))     # start them all now
+
+    def map(self, fn, jobs: list, counter) -> list[_ChunkResult]:
+        results = self.pool.map(fn, jobs) if self.pool is not None else map(fn, jobs)
+        out = []
+        for r in results:                      # in order: sums do not depend on the workers
+            out.append(r)
+            if counter is not None:
+                counter(len(out), float(r.final_error))
+        return out
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown()
+
+
+def _ready(_: int) -> int:
+    return os.getpid()
+
+
+@contextlib.contextmanager
+def _main_hidden():
+    """Hide the ``__main__`` module's name and path from process start-up (see
+    :class:`_Runner`)."""
+    main = sys.modules.get("__main__")
+    saved = {k: getattr(main, k) for k in ("__spec__", "__file__") if hasattr(main, k)}
+    try:
+        for k in saved:
+            setattr(main, k, None)
+        yield
+    finally:
+        for k, v in saved.items():
+            setattr(main, k, v)
+
+
+# --------------------------------------------------------------------------- driver
 def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter):
     """Subset solve, then chunk passes with a shared global step (see the module docstring).
 
@@ -89,7 +253,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     """
     if height is not None:
         opts = replace(opts, subject_height=float(height))
-    T = rig.num_frames
+    T, J = rig.num_frames, rig.skeleton.num_joints
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
     # the subset's joints are not kept (every chunk is solved again): no joints pass there
     sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
@@ -97,114 +261,91 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     stages = [dict(s, name="subset: " + s["name"]) for s in sub.stages]
     iterations = sub.iterations
     plane = (np.asarray(sub.planes[0][0], dtype=float), float(sub.planes[0][1]))
-    pose = sub.poses
-    lengths = dict(sub.bone_lengths)
-    length_sum = sub.prior_info.get("length_sum_gauge", {}).get("sum")
-    kernel = next((s.get("kernel") for s in reversed(sub.stages) if "kernel" in s), None)
-
-    information = None
-    final_error = 0.0
-    rejected = 0
-    carried: dict[int, tuple] = {}
-    out_masks = [np.zeros((T, rig.skeleton.num_joints), bool) for _ in rig.views]
-    for npass in range(1, opts.chunk_passes + 1):
-        next_carried: dict[int, tuple] = {}
-        H = g = None
-        out_points = np.full((T, rig.skeleton.num_joints, 3), np.nan)
-        out_used = np.zeros((T, rig.skeleton.num_joints), dtype=bool)
-        final_error, n_repro, last = 0.0, 0, None
-        t_pass = time.perf_counter()
-        for ci, (a, b) in enumerate(chunk_ranges(T, opts.max_graph_frames)):
-            crig = rig.subset(slice(a, b))
-            t = time.perf_counter()
-            if ci in carried:
-                # later passes start from the previous pass (same pairs)
-                cpoints, cmasks = carried.pop(ci)
-            else:
-                cpoints, cmasks, _, _ = clean_views(crig, [np.asarray(v.mask, bool) for v in crig.views],
-                                               pose, [plane], opts, config, opts.min_parallax_deg)
-            keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
-            timings["solve"] += time.perf_counter() - t
-            problem, values, res = None, None, None
-            for attempt in range(2):
-                if np.count_nonzero(keep) < MIN_PAIRS:
-                    break
-                t = time.perf_counter()
-                if problem is not None:
-                    cpoints = extract_points(problem, values)
-                problem = build_problem(with_views(crig, cmasks), cpoints, keep, [plane], opts,
-                                        body_height=sub.body_height, bone_lengths=lengths,
-                                        length_sum=length_sum, final_kernel=kernel)
-                snap_virtual_poses(problem, problem.values)
-                timings["build"] += time.perf_counter() - t
-                t = time.perf_counter()
-                res, z_keys = optimize(problem, problem.full(), opts, distance_gauge=None,
-                                       hold_globals=True, progress=counter)
-                values = res.values
-                iterations += res.iterations
-                pts = extract_points(problem, values)
-                lost = undetermined(problem, res)
-                cmasks, dropped = observation_outliers(crig, pts, problem.used & ~lost, cmasks, pose, [plane],
-                                         opts.outlier_threshold)
-                cmasks = [m & ~lost for m in cmasks]
-                keep = problem.used & seen_twice(cmasks)
-                timings["solve"] += time.perf_counter() - t
-                if not dropped and not lost.any():
-                    break
-            if problem is None or res.reduced_information is None:
-                continue
-            out_points[a:b] = extract_points(problem, values)
-            out_used[a:b] = problem.used
-            for k, v in enumerate(problem.rig.views):
-                out_masks[k][a:b] = np.asarray(v.mask, bool) & problem.used
-            next_carried[ci] = (out_points[a:b], [np.asarray(v.mask, bool)
-                                                  for v in problem.rig.views])
-            final_error += res.final_error
-            n_repro += int(problem.reprojection.size())
-            H = res.reduced_information if H is None else H + res.reduced_information
-            g = res.reduced_gradient if g is None else g + res.reduced_gradient
-            last = (problem, values, z_keys)
-        if last is None:
-            raise DegenerateGeometryError("no chunk of the video could be solved")
-        # the shared global step: chunks + distance gauge (the bone lengths are held at
-        # the subset's)
-        problem, values, z_keys = last
-        zv = _globals_values(problem, values)
-        glob = gtsam.NonlinearFactorGraph()
-        if problem.distance_gauge is not None:
-            glob.push_back(DistancePriorFactor(problem.distance_gauge).make(problem.plane_keys[0]))
-        if glob.size():
-            Hg, gg = dense_system(glob.linearize(zv), z_keys)
-            H, g = H + Hg, g + gg
-            final_error += float(glob.error(zv))
+    ctx = _Context(opts=opts, config=config, pose=sub.poses, body_height=sub.body_height,
+                   lengths=dict(sub.bone_lengths),
+                   length_sum=sub.prior_info.get("length_sum_gauge", {}).get("sum"),
+                   kernel=next((s.get("kernel") for s in reversed(sub.stages) if "kernel" in s),
+                               None))
+    ranges = chunk_ranges(T, opts.max_graph_frames)
+    chunks = [rig.subset(slice(a, b)) for a, b in ranges]
+    runner = _Runner(worker_count(opts, len(ranges)))
+    try:
+        starts: list = [None] * len(ranges)
+        for npass in range(1, opts.chunk_passes + 1):
+            t_pass = time.perf_counter()
+            done = runner.map(_calibrate_chunk, [(c, a, b, plane, s, ctx) for c, (a, b), s
+                                                 in zip(chunks, ranges, starts)], counter)
+            good = [r for r in done if r.information is not None]
+            if not good:
+                raise DegenerateGeometryError("no chunk of the video could be solved")
+            iterations += sum(r.iterations for r in done)
+            H = sum(r.information for r in good)
+            g = sum(r.gradient for r in good)
+            final_error = sum(r.final_error for r in good)
+            z_keys = good[-1].z_keys
+            zv = gtsam.Values()
+            zv.insert(z_keys[0][0], plane_to_gtsam(*good[-1].plane))
+            glob = gtsam.NonlinearFactorGraph()          # the bone lengths are held
+            gauge = good[-1].distance_gauge
+            if gauge is not None:
+                glob.push_back(DistancePriorFactor(gauge).make(z_keys[0][0]))
+                Hg, gg = dense_system(glob.linearize(zv), z_keys)
+                H, g = H + Hg, g + gg
+                final_error += float(glob.error(zv))
+            z = np.linalg.solve(H, g)
+            zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
+            zv = _apply_step(zv, z_keys, z)
+            plane = plane_from_gtsam(zv.atOrientedPlane3(z_keys[0][0]))
+            seconds = time.perf_counter() - t_pass
+            timings["solve"] += seconds
+            stages.append({"name": "chunk pass %d (%d chunks)" % (npass, len(ranges)),
+                           "iterations": None, "initial_error": None, "final_error": final_error,
+                           "converged": None, "rejected": None, "global_step_sigma": zlen,
+                           "seconds": seconds})
+            starts = [None if r.points is None else (r.points, r.masks) for r in done]
+            if zlen <= opts.chunk_step_tolerance:
+                break
         information = H
-        z = np.linalg.solve(H, g)
-        zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
-        zv = _apply_step(zv, z_keys, z)
-        plane_key = problem.plane_keys[0]
-        plane = _plane(zv, plane_key)
+        out_points = np.full((T, J, 3), np.nan)
+        out_used = np.zeros((T, J), dtype=bool)
+        out_masks = [np.zeros((T, J), bool) for _ in rig.views]
+        for r in good:
+            out_points[r.a:r.b], out_used[r.a:r.b] = r.points, r.used
+            for k, m in enumerate(r.masks):
+                out_masks[k][r.a:r.b] = m & r.used
         rejected = int(sum(np.count_nonzero(np.asarray(v.mask, bool) & ~m)
                            for v, m in zip(rig.views, out_masks)))
-        stages.append({"name": "chunk pass %d" % npass, "iterations": None,
-                       "initial_error": None, "final_error": final_error, "converged": None,
-                       "rejected": rejected, "global_step_sigma": zlen,
-                       "seconds": time.perf_counter() - t_pass})
-        if zlen <= opts.chunk_step_tolerance:
-            break
-        carried = next_carried
-    del last, problem, values, res      # one chunk's graph in memory at a time
-    _joints_pass_chunks(rig, next_carried, plane, lengths, sub.body_height, opts,
-                        kernel, out_points, stages, timings)
+        stages[-1]["rejected"] = rejected
+        n_repro = sum(r.reprojection_factors for r in good)
+        if opts.joints_smoothness_sigma is not None:
+            t = time.perf_counter()
+            jobs = [(chunks[i], r.a, r.b, plane, (r.points, r.masks), ctx)
+                    for i, r in enumerate(done) if r.points is not None]
+            solved = runner.map(_joints_chunk, jobs, None)
+            for r in solved:
+                if r.points is not None:
+                    out_points[r.a:r.b] = r.points
+            iterations += sum(r.iterations for r in solved)
+            seconds = time.perf_counter() - t
+            timings["solve"] += seconds
+            stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
+                           % (opts.joints_smoothness_sigma, len(jobs)),
+                           "iterations": sum(r.iterations for r in solved), "initial_error": None,
+                           "final_error": None, "converged": None, "rejected": 0,
+                           "seconds": seconds})
+    finally:
+        runner.close()
     t = time.perf_counter()
-    noise_px = reprojection_noise_px(rig, out_masks, pose, [plane], 3)
+    noise_px = reprojection_noise_px(rig, out_masks, ctx.pose, [plane], 3)
     factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
+    plane_key = z_keys[0][0]
     basis = [np.asarray(zv.atOrientedPlane3(plane_key).normal().basis())]
     plane_cov = [np.full((3, 3), np.nan)]
     if opts.marginals:
         plane_cov = [reduced_covariance(information, z_keys)[int(plane_key)] * factor]
     timings["marginals"] = time.perf_counter() - t
-    return SolveState(poses=pose, planes=[plane], points=out_points, used=out_used,
-                      bone_lengths={k: float(v) for k, v in lengths.items()}, scale=sub.scale,
+    return SolveState(poses=ctx.pose, planes=[plane], points=out_points, used=out_used,
+                      bone_lengths={k: float(v) for k, v in ctx.lengths.items()}, scale=sub.scale,
                       camera_cov=[np.zeros((6, 6))], plane_cov=plane_cov, plane_basis=basis,
                       noise_px=noise_px, variance_factor=factor, view_masks=out_masks,
                       rejected=rejected, undetermined=sub.undetermined,
@@ -214,49 +355,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
                       z_keys=z_keys, z_values=zv, problem=None)
 
 
-def _joints_pass_chunks(rig: Rig, chunks: dict[int, tuple], plane: tuple[np.ndarray, float],
-                        lengths: dict, body_height: float, opts: RefineOptions,
-                        kernel, out_points: np.ndarray, stages: list[dict], timings: dict) -> None:
-    """The joints pass (:func:`mirrorgraph.graph.stages.joints_pass`) chunk by chunk with
-    the final mirror and bone lengths held, writing the smoothed joints into
-    ``out_points`` ``(T, J, 3)`` (in place). The mirror held, chunks are independent."""
-    if opts.joints_smoothness_sigma is None or not chunks:
-        return
-    t = time.perf_counter()
-    iterations, done = 0, 0
-    for ci, (a, b) in enumerate(chunk_ranges(rig.num_frames, opts.max_graph_frames)):
-        if ci not in chunks:
-            continue
-        cpoints, cmasks = chunks[ci]
-        keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
-        if np.count_nonzero(keep) == 0:
-            continue
-        base = build_problem(with_views(rig.subset(slice(a, b)), cmasks), cpoints, keep, [plane],
-                             replace(opts, use_bone_length=False, subject_height=None),
-                             body_height=body_height, final_kernel=kernel)
-        snap_virtual_poses(base, base.values)
-        jp = joints_pass(base, base.values, lengths, opts)
-        if jp is None:
-            return
-        problem, res = jp
-        out_points[a:b] = extract_points(problem, res.values)
-        iterations += res.iterations
-        done += 1
-    timings["solve"] += time.perf_counter() - t
-    stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
-                   % (opts.joints_smoothness_sigma, done), "iterations": iterations,
-                   "initial_error": None, "final_error": None, "converged": None, "rejected": 0,
-                   "seconds": time.perf_counter() - t})
-
-
 # --------------------------------------------------------------------------- helpers
-def _globals_values(problem, values: gtsam.Values) -> gtsam.Values:
-    zv = gtsam.Values()
-    for k in problem.plane_keys:
-        zv.insert(k, values.atOrientedPlane3(k))
-    return zv
-
-
 def _apply_step(zv: gtsam.Values, z_keys: list[tuple[int, int]], z: np.ndarray) -> gtsam.Values:
     delta = gtsam.VectorValues()
     off = 0
@@ -264,7 +363,3 @@ def _apply_step(zv: gtsam.Values, z_keys: list[tuple[int, int]], z: np.ndarray) 
         delta.insert(int(k), z[off:off + d])
         off += d
     return zv.retract(delta)
-
-
-def _plane(zv: gtsam.Values, key: int) -> tuple[np.ndarray, float]:
-    return plane_from_gtsam(zv.atOrientedPlane3(key))

@@ -432,9 +432,11 @@ class LevenbergMarquardt:
                 if lam > p.lambda_max:
                     break
                 continue
-            predicted = self.predicted_decrease(gfg, delta, values)
-            rho = decrease / predicted if predicted > 0 else 0.0
-            _log.debug("solve %d: lambda %.3g, decrease %.4g (predicted %.4g, rho %.3f), "
+            last = it == p.max_iterations
+            # the last solve allowed: nothing is decided by the model's prediction any more
+            predicted = None if last else self.predicted_decrease(gfg, delta, values)
+            rho = 1.0 if predicted is None else (decrease / predicted if predicted > 0 else 0.0)
+            _log.debug("solve %d: lambda %.3g, decrease %.4g (predicted %s, rho %.3f), "
                        "global step %.3g sigma", it, lam, decrease, predicted, rho, zlen)
             values, error = candidate, new_error
             if self.refresh is not None:
@@ -452,14 +454,15 @@ class LevenbergMarquardt:
                      and (lam == 0.0 or rho > 0.25)
                      and zlen * (1.0 + lam) <= p.global_step_tolerance)
             if decrease <= p.absolute_tolerance or (trusted and decrease <= tol) or still or (
-                    lam == 0.0 and abs(decrease - predicted) <= tol):
+                    lam == 0.0 and predicted is not None and abs(decrease - predicted) <= tol):
                 result.converged = True
                 break
             if rho > 0.75:
                 lam = lam / p.lambda_factor if lam >= p.lambda_start * p.lambda_factor else 0.0
             elif rho < 0.25:
                 lam = max(lam * p.lambda_factor, p.lambda_start)
-            gfg = self.graph.linearize(values)
+            if not last:
+                gfg = self.graph.linearize(values)
         result.values, result.final_error = values, error
         return result
 

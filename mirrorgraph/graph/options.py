@@ -171,6 +171,10 @@ class RefineOptions:
             is shorter than this many standard deviations; each pass leaves about a
             tenth of its step (measured: 7.5, 0.92, 0.02 sigma over three passes on
             10,000 frames), so one sigma leaves ~0.1 sigma and saves a pass.
+        workers: processes that solve the chunks of a long video at once (the chunks
+            are independent given the mirror; GTSAM holds the interpreter lock, so
+            threads would not help); ``None``: the machine's cores, at most 4. Each
+            holds one chunk's graph (~150-250 MB). The result does not depend on it.
         marginals: compute the plane's covariance.
     """
 
@@ -216,6 +220,7 @@ class RefineOptions:
     chunk_block_frames: int = 250
     chunk_passes: int = 1
     chunk_step_tolerance: float = 1.0
+    workers: int | None = None
     marginals: bool = True
 
     def __post_init__(self) -> None:
