@@ -104,8 +104,11 @@ class CalibrationRun:
         fps_source: where it came from: ``"option"``, ``"input"``, ``"video"`` or
             ``"default"``.
         timings: wall seconds per step (``pairing``, ``initialisation``,
-            ``build``, ``solve``, ``marginals``); kept out of the JSON so that
-            the same input gives byte-identical output.
+            ``build``, ``solve``, ``marginals``, ``uncertainty``); kept out of the JSON
+            so that the same input gives byte-identical output.
+        refine_parts: the refinement's uncertainty figures with their covariances
+            (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`); the JSON holds
+            their standard deviations (``uncertainty.robust``).
     """
 
     calibration: Calibration
@@ -119,6 +122,7 @@ class CalibrationRun:
     fps: float = 30.0
     fps_source: str = "default"
     timings: dict[str, float] = field(default_factory=dict)
+    refine_parts: dict | None = None
 
     @property
     def joints_completed(self) -> int:
@@ -465,11 +469,20 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     if res.scale == "subject_height" and res.stature is None and ropts.scale_from == "stature":
         calib.warnings.append(f"scale: {res.scale_source}")
     run.timings.update({k: float(v) for k, v in res.timings.items() if k != "total"})
+    parts = res.uncertainty_parts or {}
+    run.refine_parts = parts
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),
         "rotation_std_deg": float(res.rotation_std_deg),
         "distance_std": None if calib.distance is None else float(res.distance_std),
-        "source": "gtsam.Marginals of the mirror plane at the solution",
+        "marginal_normal_cov": np.asarray(res.marginal_normal_cov).tolist()
+        if res.marginal_normal_cov is not None else None,
+        "marginal_rotation_std_deg": float(res.marginal_rotation_std_deg),
+        "robust": {k: (v if isinstance(v, str) else float(v)) for k, v in parts.items()
+                   if not k.endswith("_normal_cov")},
+        "source": ("the largest of: the marginals of the mirror plane (iid noise) and the "
+                   "cluster-robust sandwich over time segments and joint pairs "
+                   "(mirrorgraph.graph.uncertainty)"),
     }
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers

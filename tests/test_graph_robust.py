@@ -192,3 +192,56 @@ def test_triangulation_covariance_and_bone_bias_match_monte_carlo():
     excess = np.mean(np.array(lengths), axis=0) - true                   # (T, B)
     share = np.median(excess / bound)
     assert 0.2 < share < 1.2, share
+
+
+def test_debiased_bone_lengths_are_unbiased_where_medians_are_not():
+    """Joints 5-30 deg of parallax: the median length of noisy bones is decimetres too
+    long for some, the corrected-score estimate (mean of |d|^2 - tr S) within 2 % of the
+    truth for every bone."""
+    from mirrorgraph.graph.builder import debiased_bone_lengths
+    from mirrorgraph.graph.rig import single_mirror_rig
+
+    paired, K, n, J3 = low_parallax_scene(2, frames=1000, outliers=0.0)
+    sk = paired.skeleton
+    used = np.zeros(paired.real.shape[:2], bool)
+    used[:, sk.calibration_joints] = True
+    rig = single_mirror_rig(sk, paired.frame_ids, K, paired.real[..., :2],
+                            paired.mirror[..., :2], used, n, 6.0, sk.calibration_joints)
+    X = geo.triangulate_mirror(K, n, 6.0, paired.real[..., :2], paired.mirror[..., :2])
+    pairs = np.array([p for p in sk.bone_index if p[0] in sk.calibration_joints
+                      and p[1] in sk.calibration_joints])
+    true = np.median(np.linalg.norm(J3[:, pairs[:, 0]] - J3[:, pairs[:, 1]], axis=-1), axis=0)
+    median = np.median(np.linalg.norm(X[:, pairs[:, 0]] - X[:, pairs[:, 1]], axis=-1), axis=0)
+    est = debiased_bone_lengths(rig, X, used, [(n, 6.0)], pairs, 4.0)
+    assert np.max(median / true - 1.0) > 0.05                  # the bias the rule is about
+    np.testing.assert_allclose(est, true, rtol=0.02)
+
+
+def test_the_bone_rule_keeps_well_measured_bones_and_drops_the_others():
+    """A favourable scene keeps (nearly) every bone in the calibration graph, a
+    low-parallax one leaves most out; both keep every bone in the joints pass."""
+    from mirrorgraph.synth import make_wide_scene
+
+    left = {}
+    for geometry in ("favourable", "low_parallax"):
+        sc = make_wide_scene(0, geometry, "iid", 200)
+        p = sc.paired()
+        res = refine_mirror(p, sc.K, sc.normal, p.valid(), options=RefineOptions())
+        left[geometry] = res.priors.get("bone_length", {}).get("left_out", 1.0)
+        jp = res.priors["joints_pass"]["bone_length"]
+        assert jp["factors"] > 0
+    assert left["favourable"] < 0.1 and left["low_parallax"] > 0.5, left
+
+
+def test_a_subject_height_gives_metres_when_no_bone_is_in_the_calibration():
+    """Every bone left out of the calibration graph (the limit 0): the distance is the
+    gauge, metric from the height, and the stature measured on the joints (held by the
+    joints pass's bones of debiased length) sets the scale."""
+    scene = make_scene(frames=300, seed=2, noise_std=4.0)
+    p = scene.paired()
+    res = refine_mirror(p, scene.K, scene.normal, p.valid(),
+                        options=RefineOptions(bone_bias_limit=0.0,
+                                              subject_height=scene.subject_height))
+    assert "bone_length" not in res.priors
+    assert res.scale == "subject_height"
+    assert res.distance == pytest.approx(scene.distance, rel=0.03)

@@ -29,6 +29,7 @@ from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .rig import Rig, single_mirror_rig
 from .solve import solve
+from .uncertainty import robust_normal_cov
 from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
                      triangulate_rig)
 
@@ -129,9 +130,18 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
     res = view_residuals(rig, state.points, used, [(n, d)])
     rms = [float(np.sqrt(np.nanmean(r[used] ** 2))) if used.any() else float("nan") for r in res]
     cov = state.plane_cov[0]
+    t_unc = time.perf_counter()
+    parts: dict = {}
+    marginal_cov, marginal_std = np.full((3, 3), np.nan), float("nan")
     if opts.marginals and np.all(np.isfinite(cov)):
-        normal_cov = normal_cov_from_tangent(state.plane_basis[0], cov[:2, :2])
-        distance_std = float(np.sqrt(max(cov[2, 2], 0.0)))
+        basis = state.plane_basis[0]
+        marginal_cov = normal_cov_from_tangent(basis, cov[:2, :2])
+        marginal_std = rotation_std_from_normal_cov(marginal_cov)
+        normal_cov, inflation = marginal_cov, 1.0
+        if state.scores is not None:
+            normal_cov, parts = robust_normal_cov(state.scores, basis, marginal_cov)
+            inflation = parts["ratio_to_marginal"]
+        distance_std = float(np.sqrt(max(cov[2, 2], 0.0))) * inflation
         if state.scale == "subject_height":       # the gauge's honest uncertainty, a pure scale
             distance_std = float(np.hypot(distance_std, opts.height_sigma * d))
         else:
@@ -139,6 +149,7 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
         rot_std = rotation_std_from_normal_cov(normal_cov)
     else:
         normal_cov, distance_std, rot_std = np.full((3, 3), np.nan), float("nan"), float("nan")
+    t_unc = time.perf_counter() - t_unc
     priors = {"reprojection": {"sigma": opts.pixel_sigma, "weight": 1.0 / opts.pixel_sigma ** 2,
                                "a_posteriori_sigma_px": state.noise_px,
                                "covariance_scaled_by": state.variance_factor,
@@ -153,13 +164,16 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
     priors.update(state.prior_info)
     timings = {"build": state.timings.get("build", 0.0),
                "solve": state.timings.get("solve", 0.0) + state.timings.get("triangulate", 0.0),
-               "marginals": state.timings.get("marginals", 0.0)}
+               "marginals": state.timings.get("marginals", 0.0),
+               "uncertainty": state.timings.get("uncertainty", 0.0) + t_unc}
     timings["total"] = time.perf_counter() - t_start
     return RefinementResult(
         normal=np.asarray(n, dtype=float), distance=float(d * unit), scale=state.scale,
         joints3d=state.points * unit, valid=used.copy(), inliers=used.copy(),
         bone_lengths={b: v * unit for b, v in state.bone_lengths.items()},
         normal_cov=normal_cov, rotation_std_deg=rot_std, distance_std=distance_std,
+        marginal_normal_cov=marginal_cov, marginal_rotation_std_deg=marginal_std,
+        uncertainty_parts=parts,
         rms_direct_px=rms[0], rms_mirror_px=rms[1], iterations=state.iterations,
         final_error=float(state.final_error), priors=priors, timings=timings,
         stages=state.stages)

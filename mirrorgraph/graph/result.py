@@ -85,7 +85,9 @@ class RefinementResult:
         inliers: ``(T, J)`` bool, pairs used by the final solve (input inliers minus
             the ones rejected by the reprojection and bone tests); here equal to ``valid``.
         bone_lengths: bone name -> length (unit of ``distance``).
-        normal_cov: ``(3, 3)`` covariance of the unit normal (camera frame, rad^2),
+        normal_cov: ``(3, 3)`` covariance of the unit normal (camera frame, rad^2): the
+            cluster-robust one that sees errors correlated over time and per joint
+            (:mod:`.uncertainty`), never below the marginal one,
             rank 2; NaN if marginals were not computed.
         rotation_std_deg: RMS virtual-camera rotation error implied by ``normal_cov``
             (:func:`rotation_std_from_normal_cov`).
@@ -106,6 +108,11 @@ class RefinementResult:
             the limb bones' Winter proportions; empty without a height.
         stature: the stature estimate's record (:meth:`StatureEstimate.to_dict`),
             after scaling (its height is the subject's), or ``None``.
+        marginal_normal_cov, marginal_rotation_std_deg: the graph's marginals (the
+            iid figure), scaled by the a posteriori noise.
+        uncertainty_parts: what the robust figure is made of: the rotation std seen by
+            the time series alone and by the joint clusters alone, the time
+            series' bandwidth (frames), the ratio to the marginal one.
     """
 
     normal: np.ndarray
@@ -127,3 +134,6 @@ class RefinementResult:
     stages: list[dict] = field(default_factory=list)
     scale_source: str = ""
     stature: dict | None = None
+    marginal_normal_cov: np.ndarray | None = None
+    marginal_rotation_std_deg: float = float("nan")
+    uncertainty_parts: dict = field(default_factory=dict)

@@ -72,6 +72,7 @@ from .outliers import bone_outliers, observation_outliers
 from .reduction import mirror_reduction
 from .result import residual_noise_px
 from .rig import Rig
+from .uncertainty import JointScores, joint_scores
 
 __all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
            "MIN_PAIRS", "triangulate_rig", "spread_rows", "lm_params", "solve_rows", "Counter"]
@@ -190,6 +191,9 @@ class SolveState:
         iterations, final_error, stages, timings: bookkeeping.
         body_height: subject height in graph units (the body priors' length scale).
         information, z_keys, z_values: the reduced system of the last undamped solve.
+        scores: every joint's Schur complement and reduced score at the solution, for
+            the cluster-robust uncertainty (:mod:`.uncertainty`; ``None`` without
+            ``options.marginals``).
         problem: the final graph (``None`` for chunked solves).
     """
 
@@ -218,6 +222,7 @@ class SolveState:
     z_keys: list[tuple[int, int]] = field(default_factory=list)
     z_values: gtsam.Values | None = None
     problem: GraphProblem | None = None
+    scores: JointScores | None = None
 
 
 # --------------------------------------------------------------------------- geometry
@@ -529,6 +534,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     cam_cov, plane_cov, basis, zv = covariances(problem, values, res.reduced_information,
                                                 z_keys, opts.marginals)
     timings["marginals"] = time.perf_counter() - t
+    t = time.perf_counter()
+    scores = joint_scores(problem, values) if opts.marginals else None
+    timings["uncertainty"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t_start
     info = dict(problem.prior_info)
     if joints_priors is not None:
@@ -546,7 +554,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                       iterations=iterations, final_error=final_error, stages=stages,
                       timings=timings, body_height=problem.body_height,
                       information=res.reduced_information, z_keys=z_keys, z_values=zv,
-                      problem=problem)
+                      problem=problem, scores=scores)
 
 
 def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,

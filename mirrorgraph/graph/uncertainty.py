@@ -1,0 +1,455 @@
+"""An uncertainty that follows the data's real error structure: a cluster-robust sandwich.
+
+The marginals of the graph (:func:`~.optimizer.reduced_covariance`) are right for
+independent Gaussian pixel noise. A real detector's error is neither: a joint's
+error in one frame predicts the next (frame-to-frame correlated noise), and a
+detector places some joints consistently off the anatomical joint (a per-joint
+bias). Both leave the estimate's spread far above what the marginals say.
+
+The estimate ``theta`` (the globals in reduced coordinates: the planes, the
+estimated camera poses) solves ``sum_p s_p(theta) = 0``, ``s_p`` the score of joint
+``p`` (one joint in one frame) once its own position is eliminated: with the
+linearised, whitened reprojection rows of that joint ``[A_p B_p] (dX, dtheta) = b_p``,
+
+    S_p = B_p^T B_p - B_p^T A_p (A_p^T A_p)^-1 A_p^T B_p        (its Schur complement)
+    s_p = B_p^T b_p - B_p^T A_p (A_p^T A_p)^-1 A_p^T b_p        (its reduced score).
+
+The sandwich (Huber 1967; White 1980) ``Cov = H^-1 Omega H^-1`` with ``H = sum_p
+S_p`` and ``Omega`` the covariance of ``sum_p s_p`` holds whatever the errors are,
+if ``Omega`` sees how the scores are correlated. Two correlations are modelled, as
+two-way clustering does (Cameron, Gelbach and Miller, *J. Bus. Econ. Stat.* 2011):
+
+* **over time**: the frames' scores ``s_t = sum_{p in t} s_p`` form a time series,
+  whose long-run covariance is the heteroscedasticity- and autocorrelation-
+  consistent estimate of Newey and West (1987) with the Bartlett kernel and
+  Andrews' (1991) AR(1) plug-in bandwidth (``Omega_time``);
+* **over joints**: all the frames of one left/right pair of joints are one cluster,
+  ``G_c = sum_{t, j in c} s_tj`` (a per-joint bias is the same in every frame, and the
+  detector's label ``left wrist`` is the person's left wrist in the direct view and
+  the *right* one in the reflection: a label's bias reaches both joints of a pair),
+  ``Omega_joint = C / (C - 1) sum_c G_c G_c^T``;
+
+and ``Omega = Omega_time + Omega_joint - Omega_both``, ``Omega_both`` the time-series
+estimate within each joint summed over joints (counted in both), its negative
+eigenvalues clipped. Under independent noise all three are the same matrix and the
+sandwich is the marginal covariance again (up to its own sampling noise).
+
+What it cannot see: a bias shared by every joint of a view (all keypoints offset
+the same way) looks like a change of the geometry; and with a dozen joints the
+joint clusters' estimate has a dozen degrees of freedom (±30 % on a std).
+
+The same scores give the sensitivity report: how the estimate moves when one
+joint, or one segment of frames, is left out (the linearised jackknife,
+``dtheta_c = -(H - H_c)^-1 G_c``), and the information each segment carries.
+The rows are the reprojection factors alone (the body priors are not data): the
+Schur complements ignore the priors' pull on the joints, which the benchmarks
+show changes the mirror little (``bench/RESULTS_ablation.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from .builder import GraphProblem, point_keys
+from .reduction import mirror_reduction
+
+__all__ = ["JointScores", "joint_scores", "long_run_covariance", "two_way_meat", "sandwich",
+           "jackknife_cov",
+           "gauge_inverse", "scale_direction", "andrews_bandwidth", "robust_normal_cov",
+           "covariance_max", "ROBUST_PARTS"]
+
+
+@dataclass
+class JointScores:
+    """Each estimated joint's Schur complement and reduced score on the globals.
+
+    Attributes:
+        frames: ``(N,)`` frame row of each joint; joints: ``(N,)`` its joint index.
+        clusters: ``(N,)`` its left/right pair (the lower index of the joint and its
+            mirror image in the skeleton).
+        scores: ``(N, n)`` reduced scores ``s_p`` (whitened; ``n`` reduced coordinates).
+        frame_info: ``(T, n, n)`` the Schur complements summed per frame row.
+        joint_info: ``(J, n, n)`` the same per joint.
+        z_keys: ``(key, dim)`` of the reduced coordinates (as
+            :attr:`~.optimizer.GlobalReduction.z_keys`).
+        gauge: ``(n,)`` the scale direction (:func:`scale_direction`): the reprojection
+            alone does not fix it.
+    """
+
+    frames: np.ndarray
+    joints: np.ndarray
+    clusters: np.ndarray
+    scores: np.ndarray
+    frame_info: np.ndarray
+    joint_info: np.ndarray
+    z_keys: list
+    gauge: np.ndarray | None = None
+
+    @property
+    def information(self) -> np.ndarray:
+        """``(n, n)`` ``H = sum_p S_p``."""
+        return self.frame_info.sum(0)
+
+
+def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
+    """The Schur complement and reduced score of every joint of ``problem`` at ``values``.
+
+    The reprojection factors are linearised by GTSAM (whitened, the robust kernel's
+    weights applied), read as one sparse Jacobian, and reduced joint by joint in
+    numpy: every factor has two rows and sees one joint and at most one pose.
+
+    Args:
+        problem: the solved graph; values: its solution.
+
+    Returns:
+        :class:`JointScores` over the reduced coordinates of
+        :func:`~.reduction.mirror_reduction` (planes, estimated camera poses).
+    """
+    red = mirror_reduction(problem, distance_gauge=None)
+    T, J = problem.used.shape
+    nz = sum(d for _, d in red.z_keys)
+    gfg = problem.reprojection.linearize(values)
+    trip = np.asarray(gfg.sparseJacobian_(), dtype=float)                     # (3, nnz)
+    rows, cols, vals = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
+    keys = sorted(int(k) for k in gfg.keyVector())
+    dims = [_dim(k) for k in keys]
+    offsets = np.cumsum([0] + dims)
+    b_col = offsets[-1]
+    key_of_col = np.repeat(np.arange(len(keys)), dims)
+    local_of_col = np.arange(b_col) - np.repeat(offsets[:-1], dims)
+    is_point = np.array([gtsam.Symbol(k).chr() == ord("x") for k in keys])
+    # the basis: graph globals (virtual poses, cameras in the graph) -> z
+    Tb = red.basis(values)
+    row_of_key, off = {}, 0
+    for k, d in red.graph_keys:
+        row_of_key[int(k)] = off
+        off += d
+    nf = problem.reprojection.size()
+    A = np.zeros((nf, 2, 3))
+    Bg = np.zeros((nf, 2, Tb.shape[0]))
+    b = np.zeros((nf, 2))
+    point_of_factor = np.full(nf, -1, dtype=np.int64)
+    f, r = rows // 2, rows % 2
+    last = cols == b_col
+    b[f[last], r[last]] = vals[last]
+    rest = ~last
+    kc = key_of_col[cols[rest]]
+    lc = local_of_col[cols[rest]]
+    fr, rr, vr = f[rest], r[rest], vals[rest]
+    pt = is_point[kc]
+    A[fr[pt], rr[pt], lc[pt]] = vr[pt]
+    point_of_factor[fr[pt]] = kc[pt]
+    glob_row = np.array([row_of_key.get(keys[i], -1) for i in range(len(keys))])
+    gr = glob_row[kc[~pt]]
+    ok = gr >= 0
+    Bg[fr[~pt][ok], rr[~pt][ok], gr[ok] + lc[~pt][ok]] = vr[~pt][ok]
+    B = Bg @ Tb                                                                  # (nf, 2, nz)
+    # per joint: normal equations of its rows, then its Schur complement and score
+    point_index = np.full(len(keys), -1, dtype=np.int64)
+    pk = [i for i in range(len(keys)) if is_point[i]]
+    point_index[pk] = np.arange(len(pk))
+    p = point_index[point_of_factor]
+    n_pts = len(pk)
+    Hxx = np.zeros((n_pts, 3, 3))
+    Hxz = np.zeros((n_pts, 3, nz))
+    Hzz = np.zeros((n_pts, nz, nz))
+    gx = np.zeros((n_pts, 3))
+    gz = np.zeros((n_pts, nz))
+    np.add.at(Hxx, p, np.einsum("fri,frj->fij", A, A))
+    np.add.at(Hxz, p, np.einsum("fri,frj->fij", A, B))
+    np.add.at(Hzz, p, np.einsum("fri,frj->fij", B, B))
+    np.add.at(gx, p, np.einsum("fri,fr->fi", A, b))
+    np.add.at(gz, p, np.einsum("fri,fr->fi", B, b))
+    Hxx += 1e-12 * np.eye(3)
+    solve_xz = np.linalg.solve(Hxx, Hxz)                                         # (N, 3, nz)
+    solve_x = np.linalg.solve(Hxx, gx[..., None])[..., 0]
+    S = Hzz - np.einsum("nia,nib->nab", Hxz, solve_xz)
+    s = gz - np.einsum("nia,ni->na", Hxz, solve_x)
+    flat = np.array([keys[i] for i in pk], dtype=np.uint64) - np.uint64(point_keys([0])[0])
+    frames, joints = (flat // J).astype(np.int64), (flat % J).astype(np.int64)
+    frame_info = np.zeros((T, nz, nz))
+    joint_info = np.zeros((J, nz, nz))
+    np.add.at(frame_info, frames, S)
+    np.add.at(joint_info, joints, S)
+    flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
+    clusters = np.minimum(joints, flip[joints])
+    return JointScores(frames=frames, joints=joints, clusters=clusters, scores=s,
+                       frame_info=frame_info,
+                       joint_info=joint_info, z_keys=list(red.z_keys),
+                       gauge=scale_direction(problem, values, list(red.z_keys)))
+
+
+def _dim(key: int) -> int:
+    """Tangent dimension of a reprojection factor's variable: a point 3, a pose 6."""
+    return 3 if gtsam.Symbol(key).chr() == ord("x") else 6
+
+
+# --------------------------------------------------------------------------- the meat
+def andrews_bandwidth(series: np.ndarray) -> float:
+    """Andrews' (1991) AR(1) plug-in bandwidth of the Bartlett kernel for ``(T, n)`` series.
+
+    Each component's AR(1) coefficient ``rho`` and innovation variance ``v`` give
+    ``alpha = sum 4 rho^2 v^2 / ((1 - rho)^6 (1 + rho)^2) / sum v^2 / (1 - rho)^4``
+    and the bandwidth ``1.1447 (alpha T)^(1/3)`` (lags).
+    """
+    x = np.asarray(series, dtype=float)
+    T = len(x)
+    if T < 3:
+        return 0.0
+    num = den = 0.0
+    for c in x.T:
+        c = c - c.mean()
+        d = float(np.dot(c[:-1], c[:-1]))
+        if d <= 0:
+            continue
+        rho = float(np.clip(np.dot(c[1:], c[:-1]) / d, -0.97, 0.97))
+        v = float(np.mean((c[1:] - rho * c[:-1]) ** 2))
+        num += 4 * rho ** 2 * v ** 2 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+        den += v ** 2 / (1 - rho) ** 4
+    if den <= 0:
+        return 0.0
+    return float(min(1.1447 * (num / den * T) ** (1.0 / 3.0), T - 1))
+
+
+def long_run_covariance(series: np.ndarray, bandwidth: float | None = None) -> np.ndarray:
+    """Newey-West (1987) long-run covariance of the sum of a ``(T, n)`` series of scores.
+
+    ``sum_k w_k (Gamma_k + Gamma_k^T)`` over lags ``|k| <= m`` with Bartlett weights
+    ``w_k = 1 - k / (m + 1)`` and ``Gamma_k = sum_t x_t x_{t-k}^T`` (the scores are
+    taken to have mean zero: at the solution they sum to zero); ``m``: the given
+    bandwidth or :func:`andrews_bandwidth`.
+
+    Returns:
+        ``(n, n)`` covariance of ``sum_t x_t``.
+    """
+    x = np.asarray(series, dtype=float)
+    m = andrews_bandwidth(x) if bandwidth is None else float(bandwidth)
+    out = x.T @ x
+    for k in range(1, int(np.floor(m)) + 1):
+        w = 1.0 - k / (m + 1.0)
+        G = x[k:].T @ x[:-k]
+        out += w * (G + G.T)
+    return out
+
+
+def two_way_meat(scores: JointScores) -> dict[str, np.ndarray]:
+    """``Omega`` of the module docstring and its parts (``(n, n)`` each).
+
+    Returns:
+        ``{"time", "joint", "both", "total"}``; ``total`` has no negative eigenvalue.
+    """
+    T, n = scores.frame_info.shape[0], scores.scores.shape[1]
+    per_frame = np.zeros((T, n))
+    np.add.at(per_frame, scores.frames, scores.scores)
+    m = andrews_bandwidth(per_frame)
+    time_part = long_run_covariance(per_frame, m)
+    clusters = np.unique(scores.clusters)
+    G = np.array([scores.scores[scores.clusters == c].sum(0) for c in clusters])
+    C = len(clusters)
+    joint_part = (C / max(C - 1, 1)) * (G.T @ G)
+    both = np.zeros((n, n))
+    for c in clusters:
+        series = np.zeros((T, n))
+        sel = scores.clusters == c
+        np.add.at(series, scores.frames[sel], scores.scores[sel])
+        both += long_run_covariance(series, m)
+    total = time_part + joint_part - both
+    w, V = np.linalg.eigh(0.5 * (total + total.T))
+    total = (V * np.maximum(w, 0.0)) @ V.T
+    return {"time": time_part, "joint": joint_part, "both": both, "total": total,
+            "bandwidth": np.array(m)}
+
+
+def scale_direction(problem: GraphProblem, values: gtsam.Values, z_keys: list) -> np.ndarray:
+    """``(n,)`` the scale gauge in the reduced coordinates: every length grows together.
+
+    Reprojection alone does not fix the scale: scaling every joint, every camera
+    position and every mirror distance leaves the images unchanged. In the tangent
+    coordinates that is ``delta d = d`` for a plane (:class:`gtsam.OrientedPlane3`'s
+    third coordinate) and ``v = R^T t`` for a pose (:class:`gtsam.Pose3`'s
+    translation coordinates, body frame).
+    """
+    out = []
+    for key, dim in z_keys:
+        if gtsam.Symbol(key).chr() == ord("p"):
+            plane = values.atOrientedPlane3(key)
+            out.append([0.0, 0.0, float(plane.distance())])
+        else:
+            pose = values.atPose3(key)
+            R, t = np.asarray(pose.rotation().matrix()), np.asarray(pose.translation())
+            out.append(np.concatenate([np.zeros(3), R.T @ t]))
+    return np.concatenate([np.asarray(o, dtype=float) for o in out]) if out else np.zeros(0)
+
+
+def gauge_inverse(H: np.ndarray, gauge: np.ndarray | None) -> np.ndarray:
+    """Inverse of a symmetric ``H`` on the complement of its gauge directions.
+
+    ``Q (Q^T H Q)^-1 Q^T`` with ``Q`` an orthonormal basis of the directions orthogonal
+    to ``gauge`` (``(n,)`` or ``(n, k)``; ``None``: no gauge): the covariance in which
+    the gauge does not move. Quantities the gauge leaves unchanged (a normal, a
+    rotation) get their covariance whatever gauge is chosen.
+    """
+    n = H.shape[0]
+    if gauge is None or np.size(gauge) == 0 or not np.any(gauge):
+        Q = np.eye(n)
+    else:
+        G = np.asarray(gauge, dtype=float).reshape(n, -1)
+        U, _, _ = np.linalg.svd(G, full_matrices=True)
+        Q = U[:, G.shape[1]:]
+    M = Q.T @ H @ Q
+    return Q @ np.linalg.inv(0.5 * (M + M.T)) @ Q.T
+
+
+def jackknife_cov(scores: JointScores, kind: str, segments: int | None = None) -> np.ndarray:
+    """Delete-one-cluster jackknife covariance of the reduced coordinates, linearised.
+
+    Leaving cluster ``c`` out moves the estimate by ``delta_c = (H - H_c)^-1 G_c`` to
+    first order (``G_c``, ``H_c``: the cluster's summed scores and Schur complements;
+    the sign does not matter here), and ``Cov = (C - 1) / C sum_c (delta_c - mean)
+    (delta_c - mean)^T`` (Efron and Stein 1981; the CR3 estimator of the clustered
+    regression literature, MacKinnon and White 1985). Unlike ``H^-1 (sum_c G_c
+    G_c^T) H^-1`` it does not shrink where a cluster pulled the estimate towards
+    itself (each ``G_c`` is a residual score at an estimate the cluster helped make),
+    which with a handful of clusters is most of the difference.
+
+    Args:
+        scores: :func:`joint_scores`.
+        kind: ``"joint"``: the left/right pairs of joints; ``"time"``: ``segments``
+            contiguous runs of frames of equal length.
+        segments: number of time segments (``kind="time"``).
+
+    Returns:
+        ``(n, n)`` covariance (whitened units, gauge-fixed as :func:`gauge_inverse`).
+    """
+    H = scores.information
+    n = H.shape[1]
+    if kind == "joint":
+        labels = scores.clusters
+        ids = np.unique(labels)
+        Hc = [sum(scores.joint_info[j] for j in np.unique(scores.joints[labels == c]))
+              for c in ids]
+    else:
+        T = scores.frame_info.shape[0]
+        edges = np.linspace(0, T, int(segments) + 1).round().astype(int)
+        labels = np.searchsorted(edges, scores.frames, side="right") - 1
+        ids = np.unique(labels)
+        Hc = [scores.frame_info[edges[c]:edges[c + 1]].sum(0) for c in ids]
+    deltas = []
+    for c, Hcc in zip(ids, Hc):
+        G = scores.scores[labels == c].sum(0)
+        deltas.append(gauge_inverse(H - Hcc, scores.gauge) @ G)
+    D = np.array(deltas).reshape(len(ids), n)
+    C = len(ids)
+    if C < 2:
+        return np.full((n, n), np.nan)
+    D = D - D.mean(0)
+    return (C - 1) / C * (D.T @ D)
+
+
+#: Time segments of the jackknife: about this many bandwidths of the score series
+#: long (so that neighbouring segments are nearly independent), within
+#: :data:`SEGMENTS_RANGE`.
+SEGMENT_BANDWIDTHS = 3.0
+SEGMENTS_RANGE = (5, 20)
+
+
+def sandwich(scores: JointScores) -> dict[str, np.ndarray]:
+    """The cluster-robust covariance of the reduced coordinates and its parts.
+
+    Args:
+        scores: :func:`joint_scores` (with its scale gauge).
+
+    Returns:
+        ``{"cov", "cov_time", "cov_joint", "marginal", "bread", "meat", ...}``:
+        ``(n, n)`` covariances in whitened units (the scores carry the data's own
+        noise level: no variance factor is needed); ``marginal`` is ``H^-1``, the
+        iid figure of the same rows for comparison.
+    """
+    H = scores.information
+    bread = gauge_inverse(H, scores.gauge)
+    meat = two_way_meat(scores)
+    out = {"bread": bread, "marginal": bread, "meat": meat["total"],
+           "bandwidth": float(meat["bandwidth"])}
+    for name in ("total", "time", "joint"):
+        out["cov" if name == "total" else f"cov_{name}"] = bread @ meat[name] @ bread
+    T = scores.frame_info.shape[0]
+    K = int(np.clip(T / max(SEGMENT_BANDWIDTHS * max(out["bandwidth"], 1.0), 1.0),
+                    *SEGMENTS_RANGE))
+    out["segments"] = K
+    out["cov_jack_time"] = jackknife_cov(scores, "time", K)
+    out["cov_jack_joint"] = jackknife_cov(scores, "joint")
+    return out
+
+
+#: The figures :func:`robust_normal_cov` chooses from, largest rotation std first wins.
+ROBUST_PARTS = ("marginal", "time", "joint", "two_way", "jack_time", "jack_joint")
+
+
+def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarray
+                      ) -> tuple[np.ndarray, dict]:
+    """The headline covariance of a mirror's unit normal, and what it is made of.
+
+    Of the marginal covariance (iid noise), the sandwich seeing the time series alone,
+    the joint-pair clusters alone and both together (:func:`sandwich`), the one with
+    the largest rotation std, widened where it is thinner than the marginals
+    (:func:`covariance_max`): each is an estimate with its own noise (with six pairs
+    of joints the clusters' is a six-degree-of-freedom one, which the two-way
+    combination's subtraction can take below either part), and an uncertainty a user
+    plans on must not be the lucky one.
+
+    Args:
+        scores: :func:`joint_scores` of a single mirror (reduced coordinates: the plane).
+        basis: ``(3, 2)`` the plane's normal tangent basis (the scores' coordinates).
+        marginal: ``(3, 3)`` the marginal covariance of the normal (scaled by the noise).
+
+    Returns:
+        ``(3, 3)`` covariance (camera frame, rad^2) and a record: each candidate's
+        rotation std (deg) and ``(3, 3)`` covariance, the chosen one, the ratio to the
+        marginal std, the time series' bandwidth (frames).
+    """
+    from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
+
+    sw = sandwich(scores)
+    covs = {"marginal": np.asarray(marginal, dtype=float),
+            "time": normal_cov_from_tangent(basis, sw["cov_time"][:2, :2]),
+            "joint": normal_cov_from_tangent(basis, sw["cov_joint"][:2, :2]),
+            "two_way": normal_cov_from_tangent(basis, sw["cov"][:2, :2]),
+            "jack_time": normal_cov_from_tangent(basis, sw["cov_jack_time"][:2, :2]),
+            "jack_joint": normal_cov_from_tangent(basis, sw["cov_jack_joint"][:2, :2])}
+    stds = {k: rotation_std_from_normal_cov(c) for k, c in covs.items()}
+    finite = [k for k in ROBUST_PARTS if np.isfinite(stds[k])]
+    chosen = max(finite, key=lambda k: stds[k]) if finite else "marginal"
+    # no thinner than the marginals in any direction (a cluster estimate from six pairs
+    # can be nearly flat in one): the smallest covariance above both
+    headline = covariance_max(covs["marginal"], covs[chosen])
+    std = rotation_std_from_normal_cov(headline)
+    parts = {f"{k}_rotation_std_deg": float(stds[k]) for k in ROBUST_PARTS}
+    parts.update({f"{k}_normal_cov": covs[k] for k in ROBUST_PARTS},
+                 chosen=chosen, bandwidth_frames=float(sw["bandwidth"]),
+                 segments=int(sw["segments"]),
+                 ratio_to_marginal=float(std / stds["marginal"])
+                 if stds["marginal"] > 0 else float("nan"))
+    return headline, parts
+
+
+def covariance_max(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The covariance that is at least ``A`` and at least ``B`` in every direction.
+
+    In the basis where ``A`` is the identity (``A = L L^T``) ``B`` is ``M = L^-1 B L^-T``;
+    its eigenvalues below 1 are raised to 1 and the result is mapped back: ``L V
+    max(Lambda, 1) V^T L^T``. Singular ``A`` (a unit normal's covariance has rank 2)
+    is handled on its range.
+    """
+    A = 0.5 * (np.asarray(A, float) + np.asarray(A, float).T)
+    B = 0.5 * (np.asarray(B, float) + np.asarray(B, float).T)
+    w, U = np.linalg.eigh(A)
+    keep = w > 1e-12 * max(w.max(), 1e-300)
+    L = U[:, keep] * np.sqrt(w[keep])                      # A = L L^T on its range
+    Linv = np.linalg.pinv(L)
+    M = Linv @ B @ Linv.T
+    lam, V = np.linalg.eigh(0.5 * (M + M.T))
+    out = L @ (V * np.maximum(lam, 1.0)) @ V.T @ L.T
+    return 0.5 * (out + out.T)
