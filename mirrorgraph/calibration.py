@@ -48,7 +48,10 @@ class Calibration:
         refinement: refinement report (priors, weights, residuals, timings; under
             ``completion`` the keypoints outside the graph triangulated with the solved
             mirror, :class:`mirrorgraph.completion.Completion`), or empty.
-        uncertainty: marginal covariance report, or empty.
+        uncertainty: the mirror's covariance and rotation std (the cluster-robust
+            figure, the marginals beside it), or empty.
+        sensitivity: what the calibration rests on
+            (:mod:`mirrorgraph.graph.sensitivity`), or empty.
         warnings: doubts about the result, in words.
     """
 
@@ -69,6 +72,7 @@ class Calibration:
     input: dict[str, Any] = field(default_factory=dict)
     refinement: dict[str, Any] = field(default_factory=dict)
     uncertainty: dict[str, Any] = field(default_factory=dict)
+    sensitivity: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
     # ---------------------------------------------------------------- derived
@@ -136,6 +140,7 @@ class Calibration:
             "input": self.input,
             "refinement": self.refinement,
             "uncertainty": self.uncertainty,
+            "sensitivity": self.sensitivity,
             "warnings": list(self.warnings),
         }
 

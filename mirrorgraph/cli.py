@@ -140,6 +140,9 @@ def _add_calibrate(sub) -> None:
                         "bent over most of the video)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep the robust initialisation, skip the factor graph")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="also solve again with each body prior's weight halved and doubled "
+                        "(calibration.json's sensitivity.prior_weights; eight calibrations more)")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
                         "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
@@ -188,6 +191,8 @@ def _cmd_calibrate(args) -> int:
                          field="--joints3d")
     if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" and not args.subject_height:
         raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.sensitivity and args.no_refine:
+        raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
         raise InputError("needs --intrinsics FILE.toml", field="--camera")
     from .cli_video import describe, detect_with_progress, video_options
@@ -211,7 +216,8 @@ def _cmd_calibrate(args) -> int:
                             seed=args.seed, image_size=args.image_size,
                             joints=tuple(j.strip() for j in args.joints.split(","))
                             if args.joints else None,
-                            refine_options=RefineOptions(scale_from=args.scale_from))
+                            refine_options=RefineOptions(scale_from=args.scale_from),
+                            sensitivity_priors=args.sensitivity)
     if args.threshold is not None:
         opts.threshold_px = args.threshold
     if args.fov is not None:

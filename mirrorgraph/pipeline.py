@@ -24,6 +24,7 @@ from .anthropometry import height_problem
 from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
+from .graph.uncertainty import POORLY_DETERMINED_DEG
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
 from .keypoints import PairedKeypoints, RawDetections
@@ -64,6 +65,9 @@ class CalibrateOptions:
             (:func:`resolve_fps`).
         video: the video the keypoints were detected on; read only for its frame
             rate (:func:`fps_from_video`).
+        sensitivity_priors: also solve the graph again with each body prior's weight
+            halved and doubled (``calibration.sensitivity.prior_weights``; eight
+            calibrations more: off by default, ``--sensitivity`` on the command line).
     """
 
     estimator: str = "reflective"
@@ -79,6 +83,7 @@ class CalibrateOptions:
     complete_joints: bool = True
     fps: float | None = None
     video: str | os.PathLike | None = None
+    sensitivity_priors: bool = False
 
 
 @dataclass
@@ -471,6 +476,16 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     run.timings.update({k: float(v) for k, v in res.timings.items() if k != "total"})
     parts = res.uncertainty_parts or {}
     run.refine_parts = parts
+    calib.sensitivity = dict(res.sensitivity or {})
+    if opts.sensitivity_priors and calib.sensitivity:
+        from .graph.sensitivity import prior_weights
+
+        def again(o):
+            return refine_mirror(run.paired, calib.intrinsics.K, calib.initial_normal, pairs,
+                                 joints=run.joints, options=o)
+        clock = time.perf_counter()
+        calib.sensitivity["prior_weights"] = prior_weights(again, res.normal, ropts, res.priors)
+        run.timings["sensitivity"] = time.perf_counter() - clock
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),
         "rotation_std_deg": float(res.rotation_std_deg),
@@ -514,10 +529,6 @@ SUSPICIOUS_RESIDUAL_PX = 6.0
 #: with 30% detector outliers, keeps about 70%; a second person mistaken for
 #: the reflection keeps about half (chance alignments with a far epipole).
 MIN_INLIER_RATIO = 0.6
-#: Warn when the rotation's standard deviation from the marginals exceeds this
-#: (degrees): a mirror seen almost edge-on or square-on, too few frames, or
-#: too little motion leave the epipole ill-determined in one direction.
-MAX_ROTATION_STD_DEG = 0.5
 #: Warn when the person's joints move less than this (median over joints of
 #: the standard deviation of their image position over time, pixels).
 MIN_MOTION_PX = 3.0
@@ -702,7 +713,7 @@ def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOpti
         calib.warnings.append(
             f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
             "detector noise: the 'reflection' may be another person or the keypoints poor")
-    if calib.uncertainty.get("rotation_std_deg", 0.0) > MAX_ROTATION_STD_DEG:
+    if calib.uncertainty.get("rotation_std_deg", 0.0) > POORLY_DETERMINED_DEG:
         calib.warnings.append(
             f"the mirror is poorly determined (rotation std "
             f"{calib.uncertainty['rotation_std_deg']:.2f} deg): a mirror seen almost edge-on or "

@@ -123,8 +123,8 @@ def test_progress_of_calibrate_and_report_counts_up(scene_dir, tmp_path, monkeyp
         assert values == sorted(values, reverse=True), values
     # drawing the report: 1/5 ... 5/5
     draw = bars["drawing the report"]
-    assert draw[-1]["done"] == draw[-1]["total"] == 5
-    assert f"wrote 5 figures to {tmp_path / 'rep'}" in out
+    assert draw[-1]["done"] == draw[-1]["total"] == 6
+    assert f"wrote 6 figures to {tmp_path / 'rep'}" in out
 
 
 def test_no_progress_off_a_terminal_or_when_quiet(scene_dir, tmp_path, monkeypatch):

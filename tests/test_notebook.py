@@ -46,6 +46,7 @@ def test_notebook_runs(tmp_path, monkeypatch):
                     for o in c.get("outputs", []))
     assert "refined normal error" in texts and "[cam_01]" in texts
     assert "camera 2 rotation error" in texts and "mirror normal error" in texts
+    assert "marginals alone" in texts and "frames needed for a rotation std" in texts
     images = sum("image/png" in o.get("data", {}) for c in nb.cells if c.cell_type == "code"
                  for o in c.get("outputs", []))
-    assert images == 7                     # five of the mirror report, two of the rig
+    assert images == 8                     # six of the mirror report, two of the rig

@@ -168,7 +168,7 @@ def test_report_shows_the_calibrations_own_run(scene_files, tmp_path, height, ca
     args = ["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(cal), "--fps", "30",
             "--report", str(tmp_path / "rep")] + (["--subject-height", height] if height else [])
     assert main(args) == 0
-    assert "wrote 5 figures to" in capsys.readouterr().out
+    assert "wrote 6 figures to" in capsys.readouterr().out
     doc = json.loads(cal.read_text())
     assert doc["report_data"] == "c.report.npz" and (tmp_path / "c.report.npz").exists()
     # the run calibrate had in memory (the same pipeline and options: it is deterministic)
@@ -193,7 +193,7 @@ def test_report_shows_the_calibrations_own_run(scene_files, tmp_path, height, ca
     assert main(["report", str(cal), "--out", str(tmp_path / "r1")]) == 0
     out = capsys.readouterr().out
     assert f"figures of the run stored in {tmp_path / 'c.report.npz'}" in out
-    assert "wrote 5 figures to" in out
+    assert "wrote 6 figures to" in out
     assert main(["report", str(cal), str(kp), "--recompute", "--out", str(tmp_path / "r2")]) == 0
     assert "recomputed from" in capsys.readouterr().out
 

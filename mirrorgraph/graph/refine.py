@@ -29,6 +29,7 @@ from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .rig import Rig, single_mirror_rig
 from .solve import solve
+from .sensitivity import sensitivity_report
 from .uncertainty import robust_normal_cov
 from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
                      triangulate_rig)
@@ -132,6 +133,7 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
     cov = state.plane_cov[0]
     t_unc = time.perf_counter()
     parts: dict = {}
+    sensitivity: dict = {}
     marginal_cov, marginal_std = np.full((3, 3), np.nan), float("nan")
     if opts.marginals and np.all(np.isfinite(cov)):
         basis = state.plane_basis[0]
@@ -141,6 +143,8 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
         if state.scores is not None:
             normal_cov, parts = robust_normal_cov(state.scores, basis, marginal_cov)
             inflation = parts["ratio_to_marginal"]
+            sensitivity = sensitivity_report(state.scores, basis, parts, marginal_std,
+                                             rig.skeleton, rig.frame_ids)
         distance_std = float(np.sqrt(max(cov[2, 2], 0.0))) * inflation
         if state.scale == "subject_height":       # the gauge's honest uncertainty, a pure scale
             distance_std = float(np.hypot(distance_std, opts.height_sigma * d))
@@ -173,7 +177,7 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
         bone_lengths={b: v * unit for b, v in state.bone_lengths.items()},
         normal_cov=normal_cov, rotation_std_deg=rot_std, distance_std=distance_std,
         marginal_normal_cov=marginal_cov, marginal_rotation_std_deg=marginal_std,
-        uncertainty_parts=parts,
+        uncertainty_parts=parts, sensitivity=sensitivity,
         rms_direct_px=rms[0], rms_mirror_px=rms[1], iterations=state.iterations,
         final_error=float(state.final_error), priors=priors, timings=timings,
         stages=state.stages)

@@ -113,6 +113,9 @@ class RefinementResult:
         uncertainty_parts: what the robust figure is made of: the rotation std seen by
             the time series alone and by the joint clusters alone, the time
             series' bandwidth (frames), the ratio to the marginal one.
+        sensitivity: what the calibration rests on (:mod:`.sensitivity`): the mirror's
+            move when a joint pair or a segment is left out, each segment's
+            information, the std predicted for other numbers of frames.
     """
 
     normal: np.ndarray
@@ -137,3 +140,4 @@ class RefinementResult:
     marginal_normal_cov: np.ndarray | None = None
     marginal_rotation_std_deg: float = float("nan")
     uncertainty_parts: dict = field(default_factory=dict)
+    sensitivity: dict = field(default_factory=dict)

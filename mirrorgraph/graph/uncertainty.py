@@ -56,10 +56,15 @@ import numpy as np
 from .builder import GraphProblem, point_keys
 from .reduction import mirror_reduction
 
-__all__ = ["JointScores", "joint_scores", "long_run_covariance", "two_way_meat", "sandwich",
-           "jackknife_cov",
+#: A camera or mirror whose rotation std (the robust figure) exceeds this many degrees
+#: is reported as poorly determined (a mirror seen almost edge-on or square-on, too few
+#: frames, too little motion, or a detector's error that the frames do not average).
+POORLY_DETERMINED_DEG = 0.5
+
+__all__ = ["POORLY_DETERMINED_DEG", "JointScores", "joint_scores", "long_run_covariance", "two_way_meat", "sandwich",
+           "jackknife_cov", "leave_one_out",
            "gauge_inverse", "scale_direction", "andrews_bandwidth", "robust_normal_cov",
-           "covariance_max", "ROBUST_PARTS"]
+           "covariance_max", "robust_blocks", "ROBUST_PARTS"]
 
 
 @dataclass
@@ -303,46 +308,60 @@ def gauge_inverse(H: np.ndarray, gauge: np.ndarray | None) -> np.ndarray:
     return Q @ np.linalg.inv(0.5 * (M + M.T)) @ Q.T
 
 
-def jackknife_cov(scores: JointScores, kind: str, segments: int | None = None) -> np.ndarray:
-    """Delete-one-cluster jackknife covariance of the reduced coordinates, linearised.
+def leave_one_out(scores: JointScores, kind: str, segments: int | None = None
+                  ) -> tuple[list, np.ndarray, np.ndarray]:
+    """How the estimate moves when one cluster of observations is left out, linearised.
 
-    Leaving cluster ``c`` out moves the estimate by ``delta_c = (H - H_c)^-1 G_c`` to
-    first order (``G_c``, ``H_c``: the cluster's summed scores and Schur complements;
-    the sign does not matter here), and ``Cov = (C - 1) / C sum_c (delta_c - mean)
-    (delta_c - mean)^T`` (Efron and Stein 1981; the CR3 estimator of the clustered
-    regression literature, MacKinnon and White 1985). Unlike ``H^-1 (sum_c G_c
-    G_c^T) H^-1`` it does not shrink where a cluster pulled the estimate towards
-    itself (each ``G_c`` is a residual score at an estimate the cluster helped make),
-    which with a handful of clusters is most of the difference.
+    Without cluster ``c`` the Gauss-Newton step from the solution is ``delta_c =
+    -(H - H_c)^-1 G_c`` (``G_c``, ``H_c``: the cluster's summed reduced scores and
+    Schur complements; at the solution the scores sum to zero, so the other clusters'
+    pull is ``-G_c``).
 
     Args:
         scores: :func:`joint_scores`.
         kind: ``"joint"``: the left/right pairs of joints; ``"time"``: ``segments``
-            contiguous runs of frames of equal length.
+            contiguous runs of frame rows of equal length.
         segments: number of time segments (``kind="time"``).
 
     Returns:
-        ``(n, n)`` covariance (whitened units, gauge-fixed as :func:`gauge_inverse`).
+        the clusters (a pair's joint indices, or a segment's ``(start, stop)`` rows),
+        ``(C, n)`` the moves (reduced coordinates, gauge-fixed as
+        :func:`gauge_inverse`) and ``(C, n, n)`` each cluster's information ``H_c``.
     """
     H = scores.information
     n = H.shape[1]
     if kind == "joint":
         labels = scores.clusters
         ids = np.unique(labels)
-        Hc = [sum(scores.joint_info[j] for j in np.unique(scores.joints[labels == c]))
-              for c in ids]
+        members = [sorted(set(scores.joints[labels == c].tolist())) for c in ids]
+        Hc = [sum(scores.joint_info[j] for j in m) for m in members]
     else:
         T = scores.frame_info.shape[0]
         edges = np.linspace(0, T, int(segments) + 1).round().astype(int)
         labels = np.searchsorted(edges, scores.frames, side="right") - 1
-        ids = np.unique(labels)
+        ids = np.arange(len(edges) - 1)
+        members = [(int(edges[c]), int(edges[c + 1])) for c in ids]
         Hc = [scores.frame_info[edges[c]:edges[c + 1]].sum(0) for c in ids]
-    deltas = []
-    for c, Hcc in zip(ids, Hc):
-        G = scores.scores[labels == c].sum(0)
-        deltas.append(gauge_inverse(H - Hcc, scores.gauge) @ G)
-    D = np.array(deltas).reshape(len(ids), n)
-    C = len(ids)
+    deltas = np.array([-gauge_inverse(H - Hcc, scores.gauge) @ scores.scores[labels == c].sum(0)
+                       for c, Hcc in zip(ids, Hc)]).reshape(len(ids), n)
+    return members, deltas, np.array(Hc).reshape(len(ids), n, n)
+
+
+def jackknife_cov(scores: JointScores, kind: str, segments: int | None = None) -> np.ndarray:
+    """Delete-one-cluster jackknife covariance of the reduced coordinates, linearised.
+
+    ``Cov = (C - 1) / C sum_c (delta_c - mean)(delta_c - mean)^T`` over the moves of
+    :func:`leave_one_out` (Efron and Stein 1981; the CR3 estimator of the clustered
+    regression literature, MacKinnon and White 1985). Unlike ``H^-1 (sum_c G_c
+    G_c^T) H^-1`` it does not shrink where a cluster pulled the estimate towards
+    itself (each ``G_c`` is a residual score at an estimate the cluster helped make),
+    which with a handful of clusters is most of the difference.
+
+    Returns:
+        ``(n, n)`` covariance (whitened units, gauge-fixed as :func:`gauge_inverse`).
+    """
+    _, D, _ = leave_one_out(scores, kind, segments)
+    C, n = D.shape
     if C < 2:
         return np.full((n, n), np.nan)
     D = D - D.mean(0)
@@ -453,3 +472,51 @@ def covariance_max(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     lam, V = np.linalg.eigh(0.5 * (M + M.T))
     out = L @ (V * np.maximum(lam, 1.0)) @ V.T @ L.T
     return 0.5 * (out + out.T)
+
+
+def _candidates(sw: dict) -> dict[str, np.ndarray]:
+    """The sandwich's full covariances by name (:data:`ROBUST_PARTS` but the marginals)."""
+    return {"time": sw["cov_time"], "joint": sw["cov_joint"], "two_way": sw["cov"],
+            "jack_time": sw["cov_jack_time"], "jack_joint": sw["cov_jack_joint"]}
+
+
+def robust_blocks(scores: JointScores, marginal_blocks: list[np.ndarray]
+                  ) -> tuple[list[np.ndarray], list[dict]]:
+    """Headline covariances of a rig's estimated cameras and mirrors, block by block.
+
+    As :func:`robust_normal_cov` for each reduced variable of ``scores.z_keys`` (a
+    camera pose: its rotation block, the first three tangent coordinates; a plane:
+    its normal block, the first two): the candidate with the largest trace there,
+    widened where thinner than the marginals (:func:`covariance_max`); the rest of the
+    block (a position, a distance, whose reprojection-only figure depends on the
+    scale gauge) is the marginal one scaled by the same ratio of stds.
+
+    Args:
+        scores: :func:`joint_scores` of the rig.
+        marginal_blocks: the marginal covariance of each reduced variable, in
+            ``scores.z_keys`` order (scaled by the noise).
+
+    Returns:
+        the headline blocks and, per block, ``{"chosen", "ratio_to_marginal"}``.
+    """
+    cands = _candidates(sandwich(scores))
+    out, parts, off = [], [], 0
+    for (key, dim), M in zip(scores.z_keys, marginal_blocks):
+        M = np.asarray(M, dtype=float)
+        rot = slice(0, 3) if dim == 6 else slice(0, 2)
+        block = slice(off, off + dim)
+        off += dim
+        mrot = M[rot, rot]
+        best, best_tr = "marginal", float(np.trace(mrot))
+        for name, C in cands.items():
+            B = C[block, block][rot, rot]
+            if np.all(np.isfinite(B)) and np.trace(B) > best_tr:
+                best, best_tr = name, float(np.trace(B))
+        head = mrot if best == "marginal" else covariance_max(mrot, cands[best][block, block][rot, rot])
+        tr = float(np.trace(mrot))
+        ratio = float(np.sqrt(np.trace(head) / tr)) if tr > 0 else 1.0
+        H = M * ratio ** 2
+        H[rot, rot] = head
+        out.append(H)
+        parts.append({"chosen": best, "ratio_to_marginal": ratio})
+    return out, parts

@@ -92,6 +92,9 @@ class ReportData:
         joints_before, joints_after: ``(T, J, 3)`` 3D joints.
         bone_names: ``(B,)``; bones_before, bones_after: ``(T, B)`` lengths.
         bone_reference: bone name -> length the refinement estimated (or empty).
+        marginal_epipole_cov: ``(2, 2)`` px^2 the same from the marginal (iid)
+            covariance, or ``None``; marginal_rotation_std_deg: its rotation std.
+        sensitivity: the calibration's ``sensitivity`` record (or empty).
     """
 
     K: np.ndarray
@@ -123,6 +126,9 @@ class ReportData:
     bones_after: np.ndarray
     refined: bool
     bone_reference: dict | None = None
+    marginal_epipole_cov: np.ndarray | None = None
+    marginal_rotation_std_deg: float | None = None
+    sensitivity: dict | None = None
 
 
 def epipole_covariance(K: np.ndarray, normal: np.ndarray, normal_cov: np.ndarray
@@ -197,6 +203,7 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
     sk = paired.skeleton
     bi = sk.bone_index
     cov = calib.uncertainty.get("normal_cov") if calib.uncertainty else None
+    mcov = calib.uncertainty.get("marginal_normal_cov") if calib.uncertainty else None
     return ReportData(
         K=np.asarray(K, float), image_size=(int(size[0]), int(size[1])), normal=n,
         initial_normal=n0, distance=d, unit=unit,
@@ -211,11 +218,15 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
         joints_before=joints_before, joints_after=joints_after,
         bone_names=sk.bone_names, bones_before=_bone_lengths(joints_before, bi),
         bones_after=_bone_lengths(joints_after, bi), refined=bool(calib.refined),
-        bone_reference=dict((calib.refinement or {}).get("bone_lengths") or {}))
+        bone_reference=dict((calib.refinement or {}).get("bone_lengths") or {}),
+        marginal_epipole_cov=None if mcov is None
+        else epipole_covariance(K, n, np.asarray(mcov, float)),
+        marginal_rotation_std_deg=(calib.uncertainty or {}).get("marginal_rotation_std_deg"),
+        sensitivity=dict(getattr(calib, "sensitivity", None) or {}))
 
 
 # --------------------------------------------------------------------------- report
-FIGURES = ("image_plane", "residuals", "scene3d", "bone_lengths", "uncertainty")
+FIGURES = ("image_plane", "residuals", "scene3d", "bone_lengths", "uncertainty", "sensitivity")
 
 
 def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | None = None,
@@ -266,7 +277,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     written: dict[str, Path] = {}
     makers = {"image_plane": figures.image_plane, "residuals": figures.residuals,
               "scene3d": lambda dt: figures.scene3d(dt, frames=min(4, max(1, max_frames))),
-              "bone_lengths": figures.bone_lengths, "uncertainty": figures.uncertainty}
+              "bone_lengths": figures.bone_lengths, "uncertainty": figures.uncertainty,
+              "sensitivity": figures.sensitivity}
     with Progress("drawing the report", total=len(FIGURES), enabled=progress_bar) as bar:
         for name in FIGURES:
             step(f"report: {name}.png")

@@ -443,6 +443,12 @@ def uncertainty(data):
         ax.plot(E[:, 0], E[:, 1], color=AFTER, ls=ls, lw=1.5,
                 label=f"{k} sigma ({[39.3, 86.5, 98.9][k - 1]}% for a 2D Gaussian)")
         pts.append(E)
+    mc = getattr(data, "marginal_epipole_cov", None)
+    if mc is not None:
+        E = e + _ellipse_points(mc, 1)
+        ax.plot(E[:, 0], E[:, 1], color="0.5", lw=1.0,
+                label="1 sigma of the marginals alone (iid noise)")
+        pts.append(E)
     ax.plot(*e, "*", ms=15, mfc="gold", mec="k", label=f"refined epipole ({e[0]:.1f}, {e[1]:.1f})")
     e0 = data.initial_epipole
     if e0 is not None:
@@ -460,7 +466,9 @@ def uncertainty(data):
     sd = np.sqrt(np.linalg.eigvalsh(cov))
     txt = [f"epipole std: {sd[1]:.1f} px (major), {sd[0]:.1f} px (minor)"]
     if data.rotation_std_deg is not None:
-        txt.append(f"normal direction std: {data.rotation_std_deg:.3f} deg")
+        txt.append(f"virtual camera rotation std: {data.rotation_std_deg:.3f} deg")
+    if getattr(data, "marginal_rotation_std_deg", None) is not None:
+        txt.append(f"  (marginals alone: {data.marginal_rotation_std_deg:.3f} deg)")
     if data.distance_std is not None:
         txt.append(f"mirror distance: {data.distance:.3f} +- {data.distance_std:.3f} {data.unit}")
     ax.text(0.02, 0.02, "\n".join(txt), transform=ax.transAxes, fontsize=9, va="bottom",
@@ -468,5 +476,71 @@ def uncertainty(data):
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
     ax.set_title("Uncertainty of the mirror normal, seen as the epipole\n"
-                 "(first-order propagation of the 3x3 marginal covariance of n)", fontsize=11)
+                 "(the reported covariance of n: errors correlated over time and per joint "
+                 "pair included)", fontsize=11)
+    return fig
+
+
+def sensitivity(data):
+    """What the calibration rests on: leave one joint pair or segment out, each segment's
+    information, and the std predicted for other numbers of frames."""
+    plt = _plt()
+    sens = getattr(data, "sensitivity", None) or {}
+    if not sens.get("leave_out"):
+        fig, ax = plt.subplots(figsize=(7, 3), layout="constrained")
+        ax.text(0.5, 0.5, "No sensitivity report: the refinement did not run.", ha="center",
+                va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return fig
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5), layout="constrained")
+    std = data.rotation_std_deg
+    pairs = sens["leave_out"]["joint_pairs"]
+    ax = axes[0, 0]
+    names = [" / ".join(p["joints"]).replace("left_", "L ").replace("right_", "R ")
+             for p in pairs]
+    ax.barh(names, [p["rotation_change_deg"] for p in pairs], color=AFTER)
+    if std:
+        ax.axvline(std, color="k", ls="--", lw=1, label=f"reported std {std:.3f} deg")
+        ax.legend(fontsize=8, loc="lower right")
+    ax.set_xlabel("rotation of the virtual camera, deg")
+    ax.set_title("The mirror's move with one pair of joints left out", fontsize=10)
+    ax.invert_yaxis()
+    segs = sens["leave_out"]["segments"]
+    labels = [f"{s['frames'][0]}-{s['frames'][1]}" for s in segs]
+    ax = axes[0, 1]
+    ax.bar(labels, [s["rotation_change_deg"] for s in segs], color=AFTER)
+    if std:
+        ax.axhline(std, color="k", ls="--", lw=1, label=f"reported std {std:.3f} deg")
+        ax.legend(fontsize=8)
+    ax.set_ylabel("rotation, deg")
+    ax.set_title("... with one segment of frames left out", fontsize=10)
+    ax.tick_params(axis="x", rotation=45, labelsize=8)
+    ax = axes[1, 0]
+    share = [100 * (s["information_share"] or 0.0) for s in segs]
+    ax.bar(labels, share, color=BEFORE)
+    ax.axhline(100.0 / max(len(segs), 1), color="k", ls=":", lw=1, label="equal shares")
+    ax.set_ylabel("share of the normal's information, %")
+    ax.set_xlabel("frames")
+    ax.set_title("Which parts of the video carry the calibration", fontsize=10)
+    ax.tick_params(axis="x", rotation=45, labelsize=8)
+    ax.legend(fontsize=8)
+    fn = sens["frames_needed"]
+    ax = axes[1, 1]
+    ax.loglog(fn["frames"], fn["iid_rotation_std_deg"], "o-", color="0.5",
+              label="iid noise (falls as 1/sqrt(frames))")
+    ax.loglog(fn["frames"], fn["rotation_std_deg"], "o-", color=AFTER,
+              label="reported model (a bias does not fall)")
+    if fn.get("floor_rotation_std_deg"):
+        ax.axhline(fn["floor_rotation_std_deg"], color=AFTER, ls=":", lw=1,
+                   label=f"floor {fn['floor_rotation_std_deg']:.3f} deg")
+    n_now = len(data.frame_ids)
+    if std:
+        ax.plot([n_now], [std], "*", ms=14, mfc="gold", mec="k",
+                label=f"this video: {n_now} frames, {std:.3f} deg")
+    ax.set_xlabel("frames of this kind of motion")
+    ax.set_ylabel("rotation std, deg")
+    ax.set_title("How many frames for a given accuracy", fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.suptitle("What the mirror calibration rests on (linearised at the solution)", fontsize=12)
     return fig

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..graph.options import RefineOptions
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
+from ..graph.uncertainty import POORLY_DETERMINED_DEG
 from ..skeletons import Skeleton
 from ..stature import StatureEstimate, estimate_stature
 from .completion import complete_joints
@@ -145,28 +146,40 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     counts = dict(zip(sol.view_names, sol.view_counts))
     warnings += _poorly_fitting_views(sol)
     cameras = []
-    for c, pose, cov in zip(obs.cameras, sol.poses, sol.camera_cov):
+    marg_cams = sol.marginal_camera_cov or sol.camera_cov
+    for c, pose, cov, mcov in zip(obs.cameras, sol.poses, sol.camera_cov, marg_cams):
         rot, pos = camera_std(cov, pose)
         pos = float(np.hypot(pos, rel * np.linalg.norm(np.asarray(pose)[:3, 3])))
         cameras.append(RigCamera(name=c.name, intrinsics=c.intrinsics, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
+                                 marginal_rotation_std_deg=camera_std(mcov, pose)[0],
                                  reprojection_rms_px=rms.get(c.name, float("nan")),
                                  observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes,
                                  matched_frames=c.matched))
     mirrors = []
     for i, name in enumerate(sol.mirror_names):
         n, d = sol.planes[i]
+        mrot = float("nan")
         if sol.plane_basis:
             ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
             dstd = float(np.hypot(dstd, rel * abs(d)))
+            mrot = plane_std((sol.marginal_plane_cov or sol.plane_cov)[i], sol.plane_basis[i])[1]
         else:
             ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")
         seen_by = [c.name for c in obs.cameras if name in c.reflections]
         mirrors.append(RigMirror(name=name, normal=np.asarray(n), distance=float(d),
                                  normal_cov=ncov, rotation_std_deg=rot, distance_std=dstd,
+                                 marginal_rotation_std_deg=mrot,
                                  seen_by=seen_by,
                                  views_rms_px={c: rms.get(f"{c}/{name}", float("nan"))
                                                for c in seen_by}))
+    for what, items in (("camera", cameras[1:]), ("mirror", mirrors)):
+        for item in items:
+            if item.rotation_std_deg > POORLY_DETERMINED_DEG:
+                warnings.append(f"{what} {item.name} is poorly determined (rotation std "
+                                f"{item.rotation_std_deg:.2f} deg, {item.marginal_rotation_std_deg:.2f} "
+                                "deg from the marginals alone): too few frames, too little "
+                                "motion, or a detector's error the frames do not average out")
     initialisation = {
         "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
                    "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],

@@ -48,7 +48,9 @@ class RigCamera:
         name: camera name.
         intrinsics: its intrinsics (as given; keypoints were undistorted with them).
         pose: ``(4, 4)`` camera-to-world.
-        rotation_std_deg: RMS rotation error from the marginals (0 for the first camera).
+        rotation_std_deg: RMS rotation error (0 for the first camera): the figure that
+            follows the data's error structure (time-correlated and per-joint detector
+            error, :mod:`mirrorgraph.graph.uncertainty`), never below the marginal one.
         position_std: RMS error of the camera centre (length unit); with a subject
             height it includes the scale's uncertainty (``height_sigma``, 2 %, of the
             distance to the first camera: the subject's proportions vs Winter's).
@@ -68,6 +70,7 @@ class RigCamera:
     observations: int
     lr_fixes: int = 0
     matched_frames: int = 0
+    marginal_rotation_std_deg: float = float("nan")
 
     @property
     def R(self) -> np.ndarray:
@@ -89,7 +92,8 @@ class RigMirror:
         normal: ``(3,)`` unit normal, world frame (away from the world origin).
         distance: ``d`` of ``n . X = d`` (length unit).
         normal_cov: ``(3, 3)`` covariance of the normal (rad^2, rank 2).
-        rotation_std_deg: RMS rotation error of its virtual cameras (2x the normal's).
+        rotation_std_deg: RMS rotation error of its virtual cameras (2x the normal's),
+            the robust figure as :attr:`RigCamera.rotation_std_deg`.
         distance_std: standard deviation of ``d`` (with the scale's uncertainty, as
             ``position_std``).
         seen_by: cameras that see it.
@@ -104,6 +108,7 @@ class RigMirror:
     distance_std: float
     seen_by: list[str]
     views_rms_px: dict[str, float] = field(default_factory=dict)
+    marginal_rotation_std_deg: float = float("nan")
 
 
 @dataclass
@@ -167,7 +172,8 @@ class RigCalibration:
                 "convention": "X_camera = R X_world + t",
                 "intrinsics": c.intrinsics.to_dict(),
                 "uncertainty": {"rotation_std_deg": c.rotation_std_deg,
-                                "position_std": c.position_std},
+                                "position_std": c.position_std,
+                                "marginal_rotation_std_deg": c.marginal_rotation_std_deg},
                 "reprojection_rms_px": c.reprojection_rms_px,
                 "observations": c.observations, "lr_fixes": c.lr_fixes,
                 "matched_frames": c.matched_frames,
@@ -177,7 +183,8 @@ class RigCalibration:
                 "plane": "n.X = distance, world frame",
                 "uncertainty": {"normal_cov": np.asarray(m.normal_cov).tolist(),
                                 "rotation_std_deg": m.rotation_std_deg,
-                                "distance_std": m.distance_std},
+                                "distance_std": m.distance_std,
+                                "marginal_rotation_std_deg": m.marginal_rotation_std_deg},
                 "seen_by": list(m.seen_by), "reprojection_rms_px": dict(m.views_rms_px),
             } for m in self.mirrors],
             "bone_lengths": dict(self.bone_lengths),

@@ -21,13 +21,14 @@ triangulated with the result).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..graph.builder import view_residuals
 from ..graph.options import RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
+from ..graph.uncertainty import robust_blocks
 from ..graph.solve import solve
 from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config, spread_rows, triangulate_rig
 from ..graph.rig import Camera, Mirror, Rig, View
@@ -47,8 +48,12 @@ class RigSolution:
         mirror_names: names of ``planes``.
         camera_cov: per camera ``(6, 6)`` covariance of its pose in GTSAM's tangent
             ``(rotation rad, translation in the camera frame)``; zeros for the first
-            camera (the fixed world frame); NaN when not computed.
-        plane_cov: per mirror ``(3, 3)`` tangent covariance ``(v1, v2, d)``.
+            camera (the fixed world frame); NaN when not computed. The headline
+            figure: the data's error structure included (:func:`robust_blocks`).
+        plane_cov: per mirror ``(3, 3)`` tangent covariance ``(v1, v2, d)``, the same.
+        marginal_camera_cov, marginal_plane_cov: the graph's marginals (iid noise).
+        robust_parts: camera or mirror name -> which figure the headline is and its
+            ratio to the marginal std.
         plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
         points: ``(T, J, 3)`` joints; used: ``(T, J)``.
         view_names, view_rms_px: reprojection RMS per view, pixels.
@@ -79,6 +84,9 @@ class RigSolution:
     iterations: int
     priors: dict
     timings: dict
+    marginal_camera_cov: list[np.ndarray] = field(default_factory=list)
+    marginal_plane_cov: list[np.ndarray] = field(default_factory=list)
+    robust_parts: dict = field(default_factory=dict)
 
     def scaled(self, factor: float) -> "RigSolution":
         """The same solution with every length multiplied by ``factor`` (> 0).
@@ -96,11 +104,13 @@ class RigSolution:
             Q[:3, 3] *= f
             poses.append(Q)
         unit = np.diag([1.0, 1.0, 1.0, f, f, f])
-        camera_cov = [unit @ C @ unit for C in self.camera_cov]
         d_unit = np.diag([1.0, 1.0, f])
-        plane_cov = [d_unit @ C @ d_unit for C in self.plane_cov]
         return replace(self, poses=poses, planes=[(np.asarray(n), float(d) * f) for n, d in self.planes],
-                       camera_cov=camera_cov, plane_cov=plane_cov, points=self.points * f,
+                       camera_cov=[unit @ C @ unit for C in self.camera_cov],
+                       plane_cov=[d_unit @ C @ d_unit for C in self.plane_cov],
+                       marginal_camera_cov=[unit @ C @ unit for C in self.marginal_camera_cov],
+                       marginal_plane_cov=[d_unit @ C @ d_unit for C in self.marginal_plane_cov],
+                       points=self.points * f,
                        bone_lengths={b: v * f for b, v in self.bone_lengths.items()})
 
 
@@ -174,9 +184,26 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                                "undetermined_dropped": state.undetermined,
                                "factors": state.reprojection_factors}}
     priors.update(state.prior_info)
+    camera_cov, plane_cov = list(state.camera_cov), list(state.plane_cov)
+    robust_parts: dict = {}
+    if state.scores is not None and state.scores.z_keys:
+        # the headline figures follow the data's error structure (graph.uncertainty)
+        order = ([("camera", i) for i in problem.camera_keys]
+                 + [("mirror", m) for m in range(len(problem.plane_keys))])
+        marg = [camera_cov[i] if kind == "camera" else plane_cov[i] for kind, i in order]
+        blocks, parts = robust_blocks(state.scores, marg)
+        for (kind, i), B, part in zip(order, blocks, parts):
+            if kind == "camera":
+                camera_cov[i] = B
+                robust_parts[rig.cameras[i].name] = part
+            else:
+                plane_cov[i] = B
+                robust_parts[rig.mirrors[i].name] = part
     return RigSolution(poses=state.poses, planes=state.planes,
                        mirror_names=[m.name for m in rig.mirrors],
-                       camera_cov=state.camera_cov, plane_cov=state.plane_cov,
+                       camera_cov=camera_cov, plane_cov=plane_cov,
+                       marginal_camera_cov=list(state.camera_cov),
+                       marginal_plane_cov=list(state.plane_cov), robust_parts=robust_parts,
                        plane_basis=state.plane_basis, points=state.points, used=state.used,
                        view_names=[v.name for v in rig.views], view_rms_px=rms,
                        view_counts=counts, view_observed=offered,
