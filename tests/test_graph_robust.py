@@ -152,6 +152,20 @@ def test_undetermined_points_are_dropped_from_the_refinement():
     assert drop[t, j] and drop.sum() == 1
 
 
+def _calibration_joints_rig(seed: int, frames: int):
+    """An outlier-free low-parallax scene and its one-mirror rig over the calibration
+    joints (the mirror 6 m away): paired, K, n, joints, rig, used."""
+    from mirrorgraph.graph.rig import single_mirror_rig
+
+    paired, K, n, J3 = low_parallax_scene(seed, frames=frames, outliers=0.0)
+    sk = paired.skeleton
+    used = np.zeros(paired.real.shape[:2], bool)
+    used[:, sk.calibration_joints] = True
+    rig = single_mirror_rig(sk, paired.frame_ids, K, paired.real[..., :2],
+                            paired.mirror[..., :2], used, n, 6.0, sk.calibration_joints)
+    return paired, K, n, J3, rig, used
+
+
 def test_triangulation_covariance_and_bone_bias_match_monte_carlo():
     """At low parallax (rays 5-30 deg apart) the triangulation covariance predicts the
     spread of noisy triangulations (to first order: the depth errors are no longer
@@ -159,14 +173,9 @@ def test_triangulation_covariance_and_bone_bias_match_monte_carlo():
     by no more than the curvature bound ``tr(S) / (2 L)`` and by a good part of it."""
     from mirrorgraph.geometry import mirror_projection, triangulation_covariance
     from mirrorgraph.graph.builder import bone_curvature_bias
-    from mirrorgraph.graph.rig import single_mirror_rig
 
-    paired, K, n, J3 = low_parallax_scene(0, frames=40, outliers=0.0)
+    paired, K, n, J3, rig, used = _calibration_joints_rig(0, 40)
     sk = paired.skeleton
-    used = np.zeros(paired.real.shape[:2], bool)
-    used[:, sk.calibration_joints] = True
-    rig = single_mirror_rig(sk, paired.frame_ids, K, paired.real[..., :2],
-                            paired.mirror[..., :2], used, n, 6.0, sk.calibration_joints)
     P = [np.hstack([K, np.zeros((3, 1))]), mirror_projection(K, np.eye(4), n, 6.0)]
     cov = triangulation_covariance(P, J3, [used, used], 4.0)
     assert cov.shape == J3.shape + (3,) and np.isnan(cov[~used]).all()
@@ -199,14 +208,9 @@ def test_debiased_bone_lengths_are_unbiased_where_medians_are_not():
     long for some, the corrected-score estimate (mean of |d|^2 - tr S) within 2 % of the
     truth for every bone."""
     from mirrorgraph.graph.builder import debiased_bone_lengths
-    from mirrorgraph.graph.rig import single_mirror_rig
 
-    paired, K, n, J3 = low_parallax_scene(2, frames=1000, outliers=0.0)
+    paired, K, n, J3, rig, used = _calibration_joints_rig(2, 1000)
     sk = paired.skeleton
-    used = np.zeros(paired.real.shape[:2], bool)
-    used[:, sk.calibration_joints] = True
-    rig = single_mirror_rig(sk, paired.frame_ids, K, paired.real[..., :2],
-                            paired.mirror[..., :2], used, n, 6.0, sk.calibration_joints)
     X = geo.triangulate_mirror(K, n, 6.0, paired.real[..., :2], paired.mirror[..., :2])
     pairs = np.array([p for p in sk.bone_index if p[0] in sk.calibration_joints
                       and p[1] in sk.calibration_joints])
