@@ -33,8 +33,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
-import os
-import platform
 import sys
 import time
 from multiprocessing import Pool
@@ -132,7 +130,7 @@ def tables(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import cpu_model
+    from results_blocks import machine
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=4)
     ap.add_argument("--frames", type=int, default=1000)
@@ -147,13 +145,10 @@ def main() -> None:
             rows += part
             print(f"[{i}/{len(cases)}] {part[0]['slice']}/{part[0]['noise']}/{part[0]['seed']}: "
                   + ", ".join(f"{r['variant']} {r['err']:.2f}" for r in part), flush=True)
-    load = os.getloadavg()
     lines = ["# Ablation of the body priors (`bench/bench_ablation.py`)", "",
              f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
              f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, Python "
-             f"{platform.python_version()}; load average at the end {load[0]:.2f} / {load[1]:.2f} "
-             f"/ {load[2]:.2f} ({args.workers} scenes at a time: CPU times are the steadier figure)",
+             f"* machine: {machine()} ({args.workers} scenes at a time: CPU times are the steadier figure)",
              f"* command: `python bench/bench_ablation.py --seeds {args.seeds} --frames {args.frames} "
              f"--workers {args.workers}`",
              f"* scenes: `make_wide_scene(seed, slice, noise, {args.frames}, skeleton='BODY_25')`, "

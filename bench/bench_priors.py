@@ -117,9 +117,7 @@ def summary(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import cpu_model
-    import platform
-    import os
+    from results_blocks import machine
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=6, help="scenes a slice")
@@ -136,13 +134,10 @@ def main() -> None:
     for r in rows:
         if r["variant"] == "c = 0.3 (default)" and r["left_out"] is not None:
             left.setdefault(r["slice"], []).append(r["left_out"])
-    load = os.getloadavg()
     lines = ["# The bone prior and the mirror's bias (`bench/bench_priors.py`)", "",
              f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
              f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, Python "
-             f"{platform.python_version()}; load average at the end {load[0]:.2f} / {load[1]:.2f} "
-             f"/ {load[2]:.2f}",
+             f"* machine: {machine()}",
              f"* command: `python bench/bench_priors.py --scenes {args.scenes} --draws {args.draws} "
              f"--frames {args.frames} --workers {args.workers}`",
              "* scenes: `make_wide_scene(seed, slice, 'iid', frames)`'s true joints and mirror, "

@@ -16,7 +16,6 @@ import argparse
 import datetime as _dt
 import json
 import os
-import platform
 import resource
 import subprocess
 import sys
@@ -124,12 +123,11 @@ def main() -> None:
                      + " | ".join(f"{r.get(k, float('nan')):.2f}" for k in keys)
                      + f" | {1000 * r['total'] / r['frames']:.2f} | {r['tree_pss_mb']:.0f} | "
                      f"{r['rot_err']:.4f} |")
-    load = os.getloadavg()
+    from results_blocks import machine
     text = "\n".join([
         "# End-to-end scaling (`bench/bench_scale.py`)", "",
         f"* date: {_dt.datetime.now().isoformat(timespec='seconds')}",
-        f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
-        f"{platform.python_version()}; load average {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}",
+        f"* machine: {machine()}",
         f"* command: `python bench/bench_scale.py --frames {' '.join(map(str, args.frames))} "
         f"--workers {args.workers}`",
         "* input: an OpenPose folder (one JSON file a frame) of `make_scene(frames=T, seed=0)`, "

@@ -88,7 +88,6 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 import argparse  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -618,13 +617,7 @@ def table_compare(rows, old_rows) -> list[str]:
     return L
 
 
-def machine() -> str:
-    from results_blocks import cpu_model
-    cpu = cpu_model()
-    load = os.getloadavg()
-    return (f"{platform.platform()}, {cpu}, {os.cpu_count()} CPUs, Python "
-            f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
-            f"{load[1]:.2f} / {load[2]:.2f} (1/5/15 min)")
+from results_blocks import machine  # noqa: E402  (one machine line for every results file)
 
 
 #: Where the solver lives: the files whose changes a stress run measures.

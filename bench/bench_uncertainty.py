@@ -33,8 +33,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
-import os
-import platform
 import sys
 import time
 from multiprocessing import Pool
@@ -120,7 +118,7 @@ def table(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import cpu_model
+    from results_blocks import machine
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=50, help="scenes per noise model")
     ap.add_argument("--frames", type=int, default=1000)
@@ -136,7 +134,6 @@ def main() -> None:
             if i % 10 == 0 or i == len(cases):
                 print(f"[{i}/{len(cases)}] {(time.perf_counter() - t0) / 60:.1f} min", flush=True)
     failed = [r for r in rows if "error" in r]
-    load = os.getloadavg()
     chosen = {}
     for r in rows:
         if "chosen" in r:
@@ -144,9 +141,7 @@ def main() -> None:
     lines = ["# Calibration of the reported uncertainty (`bench/bench_uncertainty.py`)", "",
              f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
              f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, Python "
-             f"{platform.python_version()}; load average at the end {load[0]:.2f} / {load[1]:.2f} "
-             f"/ {load[2]:.2f}",
+             f"* machine: {machine()}",
              f"* command: `python bench/bench_uncertainty.py --scenes {args.scenes} --frames "
              f"{args.frames} --workers {args.workers}`",
              f"* scenes: `make_wide_scene(seed, slice, 'iid', {args.frames}, **noise)`, seeds "

@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-__all__ = ["replace_block", "keep_blocks"]
+__all__ = ["replace_block", "keep_blocks", "cpu_model", "machine"]
 
 _BLOCK = re.compile(r"<!-- block:(?P<name>[\w-]+) -->\n.*?<!-- /block:(?P=name) -->\n?", re.S)
 
@@ -54,3 +54,14 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or platform.machine() or "?"
+
+
+def machine() -> str:
+    """The machine line of a results file: platform, processor, cores, Python, and the load
+    average when it is written (the machines are shared: a high load means contended times)."""
+    import os
+    import platform
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    return (f"{platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, Python "
+            f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
+            f"{load[1]:.2f} / {load[2]:.2f} (1/5/15 min)")

@@ -21,12 +21,7 @@ Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 :mod:`~mirrorgraph.cli` (the command line over this API).
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
-
-try:
-    __version__ = _version("mirrorgraph")
-except PackageNotFoundError:  # running from a source tree
-    __version__ = "0.1.0+src"
+from ._version import __version__
 
 from .calibration import Calibration, write_calibration  # noqa: E402
 from .errors import DegenerateGeometryError, InputError, MirrorgraphError  # noqa: E402

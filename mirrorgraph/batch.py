@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 from .errors import InputError, MirrorgraphError
+from .keypoints import DEFAULT_MIN_CONFIDENCE
 
 if TYPE_CHECKING:  # imported where used: `mirrorgraph --help` stays fast
     from .pipeline import CalibrateOptions
@@ -476,7 +477,7 @@ def add_batch_parser(subparsers) -> None:
                    choices=("reflective", "eightpoint", "reflective8"))
     p.add_argument("--threshold", type=_positive, default=None, metavar="PX",
                    help="inlier threshold on the epipolar distance in pixels (default 10)")
-    p.add_argument("--min-confidence", type=_rate, default=0.3)
+    p.add_argument("--min-confidence", type=_rate, default=DEFAULT_MIN_CONFIDENCE)
     p.add_argument("--subject-height", type=_human_height, metavar="METRES",
                    help="subject height for recordings whose manifest line gives none")
     p.add_argument("--image-size", type=_image_size, metavar="WxH",

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from . import geometry as geo
+from ._version import __version__
 from .intrinsics import Intrinsics
 
 
@@ -104,7 +105,6 @@ class Calibration:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``calibration.json`` schema (plain Python types)."""
-        from . import __version__
 
         e_px = geo.epipole_pixels(self.epipole)
         return {

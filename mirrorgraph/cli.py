@@ -33,8 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .errors import InputError, MirrorgraphError
+from .keypoints import DEFAULT_MIN_CONFIDENCE
 from .anthropometry import height_problem
 from .progress import Progress, SolveProgress
 
@@ -126,8 +127,9 @@ def _add_calibrate(sub) -> None:
                         "Baseline1 (eightpoint) or its 6-unknown eight-point (reflective8)")
     p.add_argument("--threshold", type=_positive, default=None, metavar="PX",
                    help="inlier threshold on the epipolar distance in pixels (default 10)")
-    p.add_argument("--min-confidence", type=_rate, default=0.3,
-                   help="ignore joints below this detector confidence (default 0.3)")
+    p.add_argument("--min-confidence", type=_rate, default=DEFAULT_MIN_CONFIDENCE,
+                   help="ignore joints below this detector confidence (default "
+                        f"{DEFAULT_MIN_CONFIDENCE:g})")
     p.add_argument("--joints", help="auto (default: the limbs in the graph, face, hands and "
                                     "feet triangulated afterwards), limbs, all (every keypoint in "
                                     "the graph), or comma-separated joint names (at least 4): the "

@@ -89,6 +89,7 @@ from typing import Any
 import numpy as np
 
 from . import geometry as geo
+from ._version import __version__
 from .calibration import Calibration
 from .errors import InputError
 from .intrinsics import Intrinsics, _check_dist, _check_K, _check_size
@@ -402,7 +403,6 @@ def export_calibration(calibration: Calibration | Mapping | str | os.PathLike, f
         >>> warnings = export_calibration("calibration.json", "pose2sim",
         ...                               "Calib.toml")        # doctest: +SKIP
     """
-    from . import __version__
 
     cameras, warnings, style, d, source = _export(calibration, fmt, world, image_size)
     real, mirror = cameras

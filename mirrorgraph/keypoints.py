@@ -22,6 +22,13 @@ import numpy as np
 
 from .skeletons import Skeleton
 
+#: Keypoints whose detector confidence is below this are ignored by default
+#: (``--min-confidence``; one home for every module that filters on it).
+DEFAULT_MIN_CONFIDENCE = 0.3
+
+#: Fewest joint/reflection pairs (joints seen in two views) a calibration needs.
+MIN_PAIRS = 12
+
 
 @dataclass(frozen=True)
 class ReadNotes:

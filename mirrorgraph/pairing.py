@@ -55,7 +55,7 @@ import numpy as np
 from . import geometry as geo
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, estimate_epipole
-from .keypoints import PairedKeypoints, RawDetections
+from .keypoints import DEFAULT_MIN_CONFIDENCE, PairedKeypoints, RawDetections
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,7 @@ class PairingOptions:
         seed: RANSAC seed.
     """
 
-    min_confidence: float = 0.3
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE
     threshold_px: float = DEFAULT_THRESHOLD_PX
     max_people: int = 6
     ransac_frames: int = 400

@@ -27,11 +27,9 @@ from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
 from .graph.uncertainty import POORLY_DETERMINED_DEG
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
-from .keypoints import PairedKeypoints, RawDetections
+from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
 from .pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
 
-#: Fewest inlier pairs accepted for a calibration.
-MIN_PAIRS = 12
 
 
 @dataclass
@@ -72,7 +70,7 @@ class CalibrateOptions:
 
     estimator: str = "reflective"
     threshold_px: float = DEFAULT_THRESHOLD_PX
-    min_confidence: float = 0.3
+    min_confidence: float = DEFAULT_MIN_CONFIDENCE
     joints: str | tuple[str, ...] | None = None
     refine: bool = True
     subject_height: float | None = None

@@ -52,11 +52,12 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .keypoints import DEFAULT_MIN_CONFIDENCE
 from .skeletons import BODY_25, BODY_25B, Skeleton
 
 #: A joint takes part only with at least this confidence (the CLI's default
 #: ``--min-confidence``).
-MIN_CONFIDENCE = 0.3
+MIN_CONFIDENCE = DEFAULT_MIN_CONFIDENCE
 
 #: Fewest usable detections (all of joints 0, 1, 2, 5 confident) for a decision.
 MIN_DETECTIONS = 10

@@ -60,6 +60,7 @@ import numpy as np
 from ..anthropometry import expected_bone_lengths
 from ..errors import DegenerateGeometryError
 from ..geometry import triangulate
+from ..keypoints import MIN_PAIRS
 from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
                       debiased_bone_lengths,
                       extract_camera_poses, extract_planes, extract_points, point_keys,
@@ -77,8 +78,6 @@ from .uncertainty import JointScores, joint_scores
 __all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
            "MIN_PAIRS", "triangulate_rig", "spread_rows", "lm_params", "solve_rows", "Counter"]
 
-#: Fewest joints seen in two views for a solve.
-MIN_PAIRS = 12
 
 Progress = Callable[[int, float], None]
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import InputError, MirrorgraphError
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
 
 __all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
@@ -169,7 +170,7 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
     n0 = np.asarray(calib.initial_normal, float)
     d = float(calib.distance) if calib.distance is not None else 1.0
     unit = "m" if calib.distance is not None else "mirror distance"
-    conf = calib.input.get("min_confidence", 0.3) if min_confidence is None else min_confidence
+    conf = calib.input.get("min_confidence", DEFAULT_MIN_CONFIDENCE) if min_confidence is None else min_confidence
     valid = paired.valid(conf)
     keep = np.zeros(paired.skeleton.num_joints, bool)
     keep[np.asarray(run.joints, int)] = True
@@ -352,7 +353,7 @@ def options_from_calibration(obj) -> "CalibrateOptions":  # noqa: F821 - lazy im
     return CalibrateOptions(
         estimator=str(obj.get("estimator") or "reflective"),
         threshold_px=float(info.get("threshold_px", DEFAULT_THRESHOLD_PX)),
-        min_confidence=float(info.get("min_confidence", 0.3)),
+        min_confidence=float(info.get("min_confidence", DEFAULT_MIN_CONFIDENCE)),
         joints=tuple(names) if names else None, refine=bool(obj.get("refined", False)),
         subject_height=None if height is None else float(height),
         seed=int(info.get("seed", 0) or 0),

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import InputError
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
 
 # BGR, the report's palette
@@ -142,7 +143,7 @@ def _frame_rows(run) -> dict[int, int]:
 
 def _pairs(run, row: int, data=None) -> tuple[np.ndarray, ...]:
     p = run.paired
-    conf = run.calibration.input.get("min_confidence", 0.3)
+    conf = run.calibration.input.get("min_confidence", DEFAULT_MIN_CONFIDENCE)
     valid = p.valid(conf)[row]
     mask = np.zeros_like(valid)
     mask[np.asarray(run.joints, int)] = True

@@ -25,13 +25,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import DegenerateGeometryError
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .observations import RigObservations
 from .relative import MIN_CORRESPONDENCES, MirrorSighting, RelativePose, mirror_sighting, relative_pose
 
 __all__ = ["InitialRig", "initialise_rig", "observed", "joint_masks", "MIN_CONFIDENCE"]
 
 #: Joints below this detector confidence are not used.
-MIN_CONFIDENCE = 0.3
+MIN_CONFIDENCE = DEFAULT_MIN_CONFIDENCE
 
 
 @dataclass

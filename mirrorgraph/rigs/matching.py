@@ -50,6 +50,7 @@ import cv2
 import numpy as np
 
 from ..errors import DegenerateGeometryError
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton
 from ..geometry import skew
 from .relative import _normalised, refine_relative_pose, sampson_px
@@ -241,7 +242,7 @@ def _other_people(track: np.ndarray, score: np.ndarray) -> np.ndarray:
 
 
 def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
-                     K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = 0.3,
+                     K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = DEFAULT_MIN_CONFIDENCE,
                      seed: int = 0) -> tuple[np.ndarray, int]:
     """Choose, per frame, which candidate detection is the reference camera's person.
 
@@ -340,7 +341,7 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
 
 
 def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
-                 K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = 0.3,
+                 K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = DEFAULT_MIN_CONFIDENCE,
                  seed: int = 0) -> tuple[np.ndarray, int]:
     """Choose, per frame, the candidate detection that is the reference camera's person.
 

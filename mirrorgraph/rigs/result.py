@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .._version import __version__
 from ..geometry import D_FLIP, householder
 from ..intrinsics import Intrinsics
 
@@ -157,7 +158,6 @@ class RigCalibration:
 
     def to_dict(self) -> dict[str, Any]:
         """The rig JSON schema (plain Python types)."""
-        from .. import __version__
 
         unit = "m" if self.scale == "subject_height" else "subject heights"
         return {

@@ -67,6 +67,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import geometry as geo
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
 
 __all__ = ["DEFAULT_GEOMETRY", "GeometryPreset", "PRESETS", "resolve_geometry",
            "vertical_mirror_normal", "parallax_deg", "ray_angles_deg", "geometry_stats",
@@ -314,7 +315,7 @@ def scene_geometry_stats(scene, joints: np.ndarray | None = None) -> dict:
 
 def pair_by_epipole(people: list[np.ndarray], K: np.ndarray, n: np.ndarray, flip: np.ndarray,
                     joints: np.ndarray, max_line_px: float = 12.0,
-                    min_confidence: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+                    min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> tuple[np.ndarray, np.ndarray]:
     """Joint/reflection pairs of detections, paired with the *true* mirror (to measure a scene).
 
     In every frame with exactly two people, the reflection is the one nearer the
