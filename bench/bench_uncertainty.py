@@ -84,6 +84,10 @@ def run_scene(case: tuple[str, int, int]) -> dict:
     delta = n_true * np.sign(n_true @ n) - n                      # tangent to the sphere at n
     delta -= (delta @ n) * n
     parts = run.refine_parts or {}
+    if "marginal_normal_cov" not in parts:
+        return dict(model=model, seed=seed, slice=slice_,
+                    error="no uncertainty: the marginals were not computed "
+                          f"(rotation std {c.uncertainty.get('rotation_std_deg')})")
     row = dict(model=model, seed=seed, slice=slice_, err=mirror_rotation_error_deg(n, n_true),
                wall=wall, unc_s=run.timings.get("uncertainty", 0.0), chosen=parts.get("chosen"),
                bandwidth=parts.get("bandwidth_frames"))
