@@ -82,6 +82,8 @@ class JointScores:
             :attr:`~.optimizer.GlobalReduction.z_keys`).
         gauge: ``(n,)`` the scale direction (:func:`scale_direction`): the reprojection
             alone does not fix it.
+        row_info: ``(N, n, n)`` each joint's own Schur complement ``S_p``, kept where the
+            scores must later be moved to other globals (:meth:`moved`), else ``None``.
     """
 
     frames: np.ndarray
@@ -92,14 +94,21 @@ class JointScores:
     joint_info: np.ndarray
     z_keys: list
     gauge: np.ndarray | None = None
+    row_info: np.ndarray | None = None
 
     @property
     def information(self) -> np.ndarray:
         """``(n, n)`` ``H = sum_p S_p``."""
         return self.frame_info.sum(0)
 
+    def moved(self, z: np.ndarray) -> np.ndarray:
+        """``(N, n)`` the scores after a step ``z`` (``(n,)``, reduced coordinates) of the
+        globals, the joints re-eliminated: ``s_p - S_p z`` (first order)."""
+        return self.scores - np.einsum("nab,b->na", self.row_info, np.asarray(z, float))
 
-def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
+
+def joint_scores(problem: GraphProblem, values: gtsam.Values,
+                 keep_rows: bool = False) -> JointScores:
     """The Schur complement and reduced score of every joint of ``problem`` at ``values``.
 
     The reprojection factors are linearised by GTSAM (whitened, the robust kernel's
@@ -108,6 +117,7 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
 
     Args:
         problem: the solved graph; values: its solution.
+        keep_rows: keep each joint's Schur complement (:attr:`JointScores.row_info`).
 
     Returns:
         :class:`JointScores` over the reduced coordinates of
@@ -184,7 +194,8 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     return JointScores(frames=frames, joints=joints, clusters=clusters, scores=s,
                        frame_info=frame_info,
                        joint_info=joint_info, z_keys=list(red.z_keys),
-                       gauge=scale_direction(problem, values, list(red.z_keys)))
+                       gauge=scale_direction(problem, values, list(red.z_keys)),
+                       row_info=S if keep_rows else None)
 
 
 def _dim(key: int) -> int:
