@@ -24,7 +24,7 @@ from .anthropometry import height_problem
 from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
-from .graph.uncertainty import POORLY_DETERMINED_DEG
+from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
 from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
@@ -487,6 +487,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),
         "rotation_std_deg": float(res.rotation_std_deg),
+        "rotation_90_deg": float(parts.get("rotation_90_deg",
+                                           region_rotation_deg(res.normal_cov))),
         "distance_std": None if calib.distance is None else float(res.distance_std),
         "marginal_normal_cov": np.asarray(res.marginal_normal_cov).tolist()
         if res.marginal_normal_cov is not None else None,

@@ -142,3 +142,40 @@ def test_the_covariance_is_computed_when_the_last_solves_were_all_damped():
     u = run.calibration.uncertainty
     assert np.isfinite(u["rotation_std_deg"]) and np.isfinite(u["marginal_rotation_std_deg"])
     assert 0 < u["marginal_rotation_std_deg"] <= u["rotation_std_deg"] < 1.0
+
+
+def test_the_region_of_a_few_clusters_covers_what_it_says():
+    """A covariance estimated from G clusters: Hotelling's quantile covers 90 % of the
+    errors of their mean; the Gaussian's chi-square, which ignores the covariance's own
+    noise, covers markedly less at G = 6 (the joint pairs of COCO's body)."""
+    from mirrorgraph.graph.uncertainty import region_threshold
+
+    rng = np.random.default_rng(3)
+    A = np.array([[2.0, 0.3], [0.3, 0.5]])
+    for G in (6, 20):
+        x = rng.multivariate_normal([0.0, 0.0], A, size=(20000, G))
+        m = x.mean(1)
+        d = x - m[:, None]
+        S = np.einsum("rgi,rgj->rij", d, d) / (G - 1) / G      # the covariance of the mean
+        m2 = np.einsum("ri,rij,rj->r", m, np.linalg.inv(S), m)
+        hot = np.mean(m2 <= region_threshold(2, G))
+        assert hot == pytest.approx(0.90, abs=0.01)
+        gauss = np.mean(m2 <= region_threshold(2, None))
+        if G == 6:
+            assert gauss < 0.80
+    assert region_threshold(2, None) == pytest.approx(4.605, abs=1e-3)
+    assert region_threshold(2, 10_000) == pytest.approx(4.605, rel=2e-3)
+
+
+def test_the_calibration_reports_its_90_percent_region():
+    from mirrorgraph.graph.uncertainty import region_rotation_deg
+
+    run, unc, _ = _calibrate_scene(joint_bias_px=4.0, joint_bias_shared=True)
+    robust = unc["robust"]
+    assert robust["clusters"] >= 3
+    assert unc["rotation_90_deg"] == pytest.approx(
+        region_rotation_deg(np.asarray(unc["normal_cov"]), robust["clusters"]), rel=1e-9)
+    # wider than the Gaussian region of the same covariance, which is wider than one std
+    assert unc["rotation_90_deg"] > region_rotation_deg(np.asarray(unc["normal_cov"])) \
+        > unc["rotation_std_deg"]
+    assert "90 % region" in run.calibration.summary()
