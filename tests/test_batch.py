@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirrorgraph.batch import (BatchResult, Recording, add_batch_parser, calibrate_recording,
-                               format_summary, read_manifest, run_batch)
+from mirrorgraph.batch import (BatchResult, Recording, calibrate_recording, format_summary,
+                               read_manifest, run_batch)
+from mirrorgraph.cli.batch import add_parsers as add_batch_parser
 from mirrorgraph.errors import InputError
 from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.pipeline import CalibrateOptions
@@ -223,7 +224,7 @@ def test_run_batch_on_a_local_cluster(scenes, tmp_path):
 
 
 def batch_cli(argv: list[str]) -> int:
-    """``mirrorgraph batch ...`` through add_batch_parser (as cli.build_parser wires it)."""
+    """``mirrorgraph batch ...`` through cli.batch.add_parsers (as cli.build_parser wires it)."""
     parser = argparse.ArgumentParser(prog="mirrorgraph")
     sub = parser.add_subparsers(dest="command", required=True)
     add_batch_parser(sub)

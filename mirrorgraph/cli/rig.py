@@ -1,4 +1,4 @@
-"""Command-line commands of rigs (a thin layer over :mod:`mirrorgraph.rigs`).
+"""The commands of rigs (a thin layer over :mod:`mirrorgraph.rigs`).
 
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--json FILE]
                               [--with-virtual] [--subject-height M] [--skeleton NAME]
@@ -13,25 +13,18 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import InputError
-from .progress import Progress, SolveProgress
+from ..errors import InputError
+from ..progress import Progress, SolveProgress
+from ..report.backend import INSTALL_HINT
+from .args import add_common, height, positive, print_result, printer, rate, seed
+from .video import add_video_options, video_options
 
-__all__ = ["add_rig_parsers"]
+__all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
 
 KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
 
 
-def _height(text: str) -> float:
-    from .cli import _height as height
-    return height(text)
-
-
-def _install_hint() -> str:
-    from .report import INSTALL_HINT
-    return INSTALL_HINT
-
-
-def add_rig_parsers(sub, common, positive, seed, rate) -> None:
+def add_parsers(sub) -> None:
     """Add ``calibrate-rig`` and ``synth-rig`` to the CLI's subparsers."""
     p = sub.add_parser(
         "calibrate-rig", help="calibrate several cameras and mirrors from the people in view",
@@ -46,7 +39,7 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--with-virtual", action="store_true",
                    help="add each mirror's virtual camera per camera to the TOML "
                         "(flipped-image convention)")
-    p.add_argument("--subject-height", type=_height, metavar="METRES",
+    p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's height in metres, e.g. 1.75 (overrides the rig file's "
                         "subject_height)")
     p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
@@ -64,12 +57,11 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (top view of the rig, residuals per view) into DIR "
-                        f"(needs matplotlib: {_install_hint()})")
+                        f"(needs matplotlib: {INSTALL_HINT})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
-    from .cli_video import add_video_options
     add_video_options(p)
-    common(p)
-    p.set_defaults(func=_cmd_calibrate_rig)
+    add_common(p)
+    p.set_defaults(func=cmd_calibrate_rig)
 
     s = sub.add_parser("synth-rig", help="write a synthetic rig with ground truth",
                        description="Write a synthetic multi-camera / multi-mirror rig: per-camera "
@@ -90,15 +82,15 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                    choices=("openpose", "mmpose", "easymocap"))
     s.add_argument("--no-height", action="store_true",
                    help="leave subject_height out of rig.toml")
-    common(s)
-    s.set_defaults(func=_cmd_synth_rig)
+    add_common(s)
+    s.set_defaults(func=cmd_synth_rig)
 
 
-def _cmd_calibrate_rig(args) -> int:
-    from .io.motion import write_joints3d
-    from .io.rig_calibration import write_rig_json, write_rig_toml
-    from .graph.options import RefineOptions
-    from .rigs import calibrate_rig
+def cmd_calibrate_rig(args) -> int:
+    from ..io.motion import write_joints3d
+    from ..io.rig_calibration import write_rig_json, write_rig_toml
+    from ..graph.options import RefineOptions
+    from ..rigs import calibrate_rig
 
     out = Path(args.out)
     if out.is_dir():
@@ -112,13 +104,12 @@ def _cmd_calibrate_rig(args) -> int:
                          field="--joints3d")
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
     if args.report:
-        from .report import require_matplotlib
+        from ..report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
-    say = (lambda *_a, **_k: None) if args.quiet else print
+    say = printer(args)
     t0 = time.perf_counter()
-    from .cli_video import video_options
-    from .rigs.config import load_rig_config
-    from .video.reader import is_video
+    from ..rigs.config import load_rig_config
+    from ..video.reader import is_video
     config = load_rig_config(args.rig)
     vopts = video_options(args, has_video=any(is_video(c.keypoints) for c in config.cameras))
     bars: dict[str, Progress] = {}
@@ -156,24 +147,23 @@ def _cmd_calibrate_rig(args) -> int:
     write_rig_toml(calib, out, with_virtual=args.with_virtual)
     write_rig_json(calib, json_path)
     if args.joints3d:
-        from .skeletons import skeleton_by_name
+        from ..skeletons import skeleton_by_name
         write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
                        skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
                        unit="m" if calib.scale == "subject_height" else "subject height")
     written = None
     if args.report:
-        from .report.rig import write_rig_report
+        from ..report.rig import write_rig_report
         written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
-    from .cli import _print_result
-    _print_result(args, calib.summary(), calib.warnings)
+    print_result(args, calib.summary(), calib.warnings)
     if written is not None:
         say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
     return 0
 
 
-def _cmd_synth_rig(args) -> int:
-    from .synth.rig import make_rig, write_rig
+def cmd_synth_rig(args) -> int:
+    from ..synth.rig import make_rig, write_rig
 
     rig = make_rig(args.kind, frames=args.frames, seed=args.seed, noise_std=args.noise,
                    outlier_rate=args.outliers, skeleton=args.skeleton,
