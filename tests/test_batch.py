@@ -266,6 +266,19 @@ def test_batch_command_exit_codes_without_a_cluster(tmp_path, capsys):
     assert run_batch([]) == []
 
 
+@pytest.mark.parametrize("option", ["--seed=-1", "--seed=x", "--seed=1.5"])
+def test_batch_refuses_the_seeds_calibrate_refuses(tmp_path, capsys, option):
+    from mirrorgraph.cli import main
+
+    assert main(["calibrate", "kp.json", "--out", str(tmp_path / "c.json"), option]) == 2
+    calibrate_err = capsys.readouterr().err
+    assert main(["batch", str(tmp_path / "missing.csv"), option]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "--seed" in err
+    same = lambda e: e.split("--seed")[1].split(" (see ")[0]     # noqa: E731 - the message
+    assert same(err) == same(calibrate_err)
+
+
 def test_batch_is_wired_into_the_cli(tmp_path, capsys):
     from mirrorgraph.cli import build_parser, main
 

@@ -15,7 +15,7 @@ from ..batch import (BatchResult, default_workers, format_summary, read_manifest
                      results_to_json, run_batch)
 from ..errors import InputError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
-from .args import height, image_size, positive, rate
+from .args import height, image_size, positive, rate, seed
 
 __all__ = ["add_parsers", "cmd_batch"]
 
@@ -50,7 +50,7 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
                    help="horizontal field of view assumed without intrinsics (default 60)")
     p.add_argument("--no-refine", action="store_true", help="skip the factor graph")
-    p.add_argument("--seed", type=int, default=0, help="seed of the RANSAC (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--quiet", action="store_true", help="print nothing but the summary "
                                                        "and errors")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
