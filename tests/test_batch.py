@@ -288,3 +288,48 @@ def test_batch_is_wired_into_the_cli(tmp_path, capsys):
     assert main(["batch", str(tmp_path / "missing.csv")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "missing.csv" in err
+
+
+# --------------------------------------------------------------------------- calibrate's options
+@pytest.fixture(scope="module")
+def scheduler():
+    """An in-process cluster listening on TCP (a remote one's stand-in), its address."""
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
+                      dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def _gym_alone(scenes, tmp_path, subject_height: str = "") -> Path:
+    """A manifest of the gym recording only, writing ``tmp_path/gym.json``."""
+    gym = scenes / "gym"
+    manifest = tmp_path / "runs.csv"
+    manifest.write_text("keypoints,intrinsics,out,subject_height\n"
+                        f"{gym / 'keypoints_mmpose.json'},{gym / 'camera.json'},"
+                        f"{tmp_path / 'gym.json'},{subject_height}\n")
+    return manifest
+
+
+def test_batch_joints_are_the_joints_calibrated_from(scenes, scheduler, tmp_path, capsys):
+    chosen = ["left_shoulder", "right_shoulder", "left_hip", "right_hip", "left_knee",
+              "right_knee"]
+    used = {}
+    for name, extra in (("default", []), ("chosen", ["--joints", " , ".join(chosen)])):
+        code = batch_cli(["batch", str(_gym_alone(scenes, tmp_path)), "--scheduler", scheduler,
+                          "--no-refine", "--quiet", *extra])
+        assert code == 0, capsys.readouterr().out
+        used[name] = json.loads((tmp_path / "gym.json").read_text())["input"]["joints"]
+    assert used["chosen"] == chosen
+    assert len(used["default"]) > len(chosen) and set(chosen) < set(used["default"])
+
+
+def test_batch_scale_from_limbs_reaches_the_scale(scenes, scheduler, tmp_path, capsys):
+    # the manifest's height replaces the options' one: the scale source must survive that
+    code = batch_cli(["batch", str(_gym_alone(scenes, tmp_path, subject_height="1.75")),
+                      "--scheduler", scheduler, "--scale-from", "limbs", "--quiet"])
+    assert code == 0, capsys.readouterr().out
+    cal = json.loads((tmp_path / "gym.json").read_text())
+    assert cal["input"]["scale_from"] == "limbs" and cal["input"]["subject_height"] == 1.75
+    assert cal["refinement"]["scale_method"].endswith("as asked (scale_from = limbs)")
+    assert cal["mirror"]["distance"] is not None

@@ -1,9 +1,12 @@
 """What the commands of the command line share: the argument types (a positive
 number, a rate in [0, 1], a seed, a human height in metres, an image size, a list
 of numbers: each an argparse ``type`` whose error is one line), the options every
-command has (``--quiet --verbose --debug``, :func:`add_common`), and how a run
-speaks: the summary and its warnings (:func:`print_result`), steps under
-``--verbose``, the solver's progress bars (:func:`solver_progress`).
+command has (``--quiet --verbose --debug``, :func:`add_common`), those of the
+calibration several commands have (``--joints``, ``--scale-from``) and the
+:class:`~mirrorgraph.pipeline.CalibrateOptions` of what ``calibrate`` and ``batch``
+share (:func:`options_from_args`), and how a run speaks: the summary and its
+warnings (:func:`print_result`), steps under ``--verbose``, the solver's progress
+bars (:func:`solver_progress`).
 """
 
 from __future__ import annotations
@@ -18,8 +21,9 @@ from ..anthropometry import height_problem
 from ..errors import InputError
 from ..progress import Progress, SolveProgress
 
-__all__ = ["add_common", "floats", "height", "image_size", "positive", "print_result", "printer",
-           "rate", "report_written", "seed", "solver_progress", "step"]
+__all__ = ["add_common", "add_joints", "add_scale_from", "floats", "height", "image_size",
+           "options_from_args", "positive", "print_result", "printer", "rate", "report_written",
+           "seed", "solver_progress", "step"]
 
 
 # --------------------------------------------------------------------------- argument types
@@ -81,6 +85,46 @@ def add_common(p) -> None:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.add_argument("--verbose", action="store_true", help="tell what was detected and done")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+
+
+def add_joints(p) -> None:
+    """``--joints``: the joints :func:`mirrorgraph.calibrate` calibrates from (``calibrate``,
+    ``batch``; ``calibrate-rig`` has its own words for its views)."""
+    p.add_argument("--joints", help="auto (default: the limbs in the graph, face, hands and "
+                                    "feet triangulated afterwards), limbs, all (every keypoint in "
+                                    "the graph), or comma-separated joint names (at least 4): the "
+                                    "words of calibrate-rig")
+
+
+def add_scale_from(p) -> None:
+    """``--scale-from stature|limbs``: how the subject height becomes a length."""
+    from ..graph.options import SCALE_FROM
+    p.add_argument("--scale-from", choices=SCALE_FROM, default="stature",
+                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
+                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
+                        "bent over most of the video)")
+
+
+def options_from_args(args):
+    """The :class:`~mirrorgraph.pipeline.CalibrateOptions` of the options ``calibrate``
+    and ``batch`` share (``--estimator --threshold --min-confidence --joints
+    --no-refine --subject-height --seed --image-size --fov --scale-from``, and
+    ``--sensitivity`` where the command has it)."""
+    from ..graph.options import RefineOptions
+    from ..pipeline import CalibrateOptions
+
+    opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
+                            refine=not args.no_refine, subject_height=args.subject_height,
+                            seed=args.seed, image_size=args.image_size,
+                            joints=tuple(j.strip() for j in args.joints.split(","))
+                            if args.joints else None,
+                            refine_options=RefineOptions(scale_from=args.scale_from),
+                            sensitivity_priors=getattr(args, "sensitivity", False))
+    if args.threshold is not None:
+        opts.threshold_px = args.threshold
+    if args.fov is not None:
+        opts.fov_deg = args.fov
+    return opts
 
 
 # --------------------------------------------------------------------------- what a run says

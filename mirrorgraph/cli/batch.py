@@ -15,7 +15,8 @@ from ..batch import (BatchResult, default_workers, format_summary, read_manifest
                      results_to_json, run_batch)
 from ..errors import InputError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
-from .args import height, image_size, positive, rate, seed
+from .args import (add_joints, add_scale_from, height, image_size, options_from_args, positive,
+                   rate, seed)
 
 __all__ = ["add_parsers", "cmd_batch"]
 
@@ -43,8 +44,10 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--threshold", type=positive, default=None, metavar="PX",
                    help="inlier threshold on the epipolar distance in pixels (default 10)")
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE)
+    add_joints(p)
     p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject height for recordings whose manifest line gives none")
+    add_scale_from(p)
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
@@ -59,16 +62,8 @@ def add_parsers(subparsers) -> None:
 
 def cmd_batch(args) -> int:
     """Run ``mirrorgraph batch``; 0 if every recording was calibrated, 2 if any failed."""
-    from ..pipeline import CalibrateOptions
-
     recordings = read_manifest(args.manifest, out_dir=args.out_dir)
-    opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
-                            refine=not args.no_refine, subject_height=args.subject_height,
-                            seed=args.seed, image_size=args.image_size)
-    if args.threshold is not None:
-        opts.threshold_px = args.threshold
-    if args.fov is not None:
-        opts.fov_deg = args.fov
+    opts = options_from_args(args)
     if args.report and Path(args.report).is_dir():
         raise InputError("is a folder; give a file name for the report", source=args.report,
                          field="--report")

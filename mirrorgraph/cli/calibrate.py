@@ -17,8 +17,9 @@ from ..errors import InputError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
 from ..report.backend import INSTALL_HINT
-from .args import (add_common, height, image_size, positive, print_result, printer, rate,
-                   report_written, seed, solver_progress, step)
+from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
+                   positive, print_result, printer, rate, report_written, seed, solver_progress,
+                   step)
 from .video import add_video_options, describe, detect_with_progress, video_options
 
 __all__ = ["add_parsers", "cmd_calibrate"]
@@ -52,16 +53,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
                    help="ignore joints below this detector confidence (default "
                         f"{DEFAULT_MIN_CONFIDENCE:g})")
-    p.add_argument("--joints", help="auto (default: the limbs in the graph, face, hands and "
-                                    "feet triangulated afterwards), limbs, all (every keypoint in "
-                                    "the graph), or comma-separated joint names (at least 4): the "
-                                    "words of calibrate-rig")
+    add_joints(p)
     p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
-    p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
-                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
-                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
-                        "bent over most of the video)")
+    add_scale_from(p)
     p.add_argument("--no-refine", action="store_true",
                    help="keep the robust initialisation, skip the factor graph")
     p.add_argument("--sensitivity", action="store_true",
@@ -91,8 +86,7 @@ def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
     from ..io.motion import write_joints3d
-    from ..graph.options import RefineOptions
-    from ..pipeline import CalibrateOptions, calibrate
+    from ..pipeline import calibrate
     from ..report.store import write_calibration_and_run
 
     say = printer(args)
@@ -134,17 +128,7 @@ def cmd_calibrate(args) -> int:
         with Progress("reading frames", enabled=not args.quiet) as bar:
             data = read_keypoints(args.keypoints, skeleton=args.skeleton, progress=bar.callback)
     _verbose_input(args, data)
-    opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
-                            refine=not args.no_refine, subject_height=args.subject_height,
-                            seed=args.seed, image_size=args.image_size,
-                            joints=tuple(j.strip() for j in args.joints.split(","))
-                            if args.joints else None,
-                            refine_options=RefineOptions(scale_from=args.scale_from),
-                            sensitivity_priors=args.sensitivity)
-    if args.threshold is not None:
-        opts.threshold_px = args.threshold
-    if args.fov is not None:
-        opts.fov_deg = args.fov
+    opts = options_from_args(args)
     opts.fps, opts.video = args.fps, args.video           # the frame rate of the 3D motion
     with solver_progress(args) as callbacks:
         run = calibrate(data, intr, opts, **callbacks)

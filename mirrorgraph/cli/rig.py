@@ -16,7 +16,8 @@ from pathlib import Path
 from ..errors import InputError
 from ..progress import Progress, SolveProgress
 from ..report.backend import INSTALL_HINT
-from .args import add_common, height, positive, print_result, printer, rate, seed
+from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
+                   seed)
 from .video import add_video_options, video_options
 
 __all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
@@ -42,10 +43,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's height in metres, e.g. 1.75 (overrides the rig file's "
                         "subject_height)")
-    p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
-                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
-                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
-                        "bent over most of the video)")
+    add_scale_from(p)
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
                                       "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18, BLAZEPOSE)")
     p.add_argument("--joints", metavar="SET",
