@@ -14,6 +14,8 @@ from pathlib import Path
 from ..batch import (BatchResult, default_workers, format_summary, read_manifest,
                      results_to_json, run_batch)
 from ..errors import InputError
+from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .args import (add_joints, add_scale_from, height, image_size, options_from_args, positive,
                    rate, seed)
@@ -39,10 +41,10 @@ def add_parsers(subparsers) -> None:
                    help="folder for calibrations the manifest gives no 'out' for")
     p.add_argument("--report", metavar="FILE.json",
                    help="also write every result as JSON")
-    p.add_argument("--estimator", default="reflective",
-                   choices=("reflective", "eightpoint", "reflective8"))
+    p.add_argument("--estimator", default="reflective", choices=ESTIMATORS)
     p.add_argument("--threshold", type=positive, default=None, metavar="PX",
-                   help="inlier threshold on the epipolar distance in pixels (default 10)")
+                   help="inlier threshold on the epipolar distance in pixels (default "
+                        f"{DEFAULT_THRESHOLD_PX:g})")
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE)
     add_joints(p)
     p.add_argument("--subject-height", type=height, metavar="METRES",
@@ -51,7 +53,8 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default 60)")
+                   help="horizontal field of view assumed without intrinsics (default "
+                        f"{DEFAULT_FOV_DEG:g})")
     p.add_argument("--no-refine", action="store_true", help="skip the factor graph")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--quiet", action="store_true", help="print nothing but the summary "

@@ -14,9 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from ..pipeline import DEFAULT_FPS
 from ..progress import Progress
 from ..report.backend import INSTALL_HINT
+from ..skeletons import SKELETONS
 from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
                    step)
@@ -41,15 +45,17 @@ def add_parsers(sub) -> None:
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size when no intrinsics are given and the input lacks it")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default 60)")
+                   help="horizontal field of view assumed without intrinsics (default "
+                        f"{DEFAULT_FOV_DEG:g})")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
-                                      "(COCO_17, BODY_25, BODY_25B, COCO_18, HALPE_26, BLAZEPOSE)")
+                                      f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective",
-                   choices=("reflective", "eightpoint", "reflective8"),
+                   choices=ESTIMATORS,
                    help="initial estimator: ours (reflective, default), MirrorCalib's "
                         "Baseline1 (eightpoint) or its 6-unknown eight-point (reflective8)")
     p.add_argument("--threshold", type=positive, default=None, metavar="PX",
-                   help="inlier threshold on the epipolar distance in pixels (default 10)")
+                   help="inlier threshold on the epipolar distance in pixels (default "
+                        f"{DEFAULT_THRESHOLD_PX:g})")
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
                    help="ignore joints below this detector confidence (default "
                         f"{DEFAULT_MIN_CONFIDENCE:g})")
@@ -67,7 +73,7 @@ def add_parsers(sub) -> None:
                         "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
     p.add_argument("--fps", type=positive, default=None,
                    help="frame rate of the 3D motion (default: the input's, else --video's, "
-                        "else 30 with a warning)")
+                        f"else {DEFAULT_FPS:g} with a warning)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--report", metavar="DIR",
                    help="write the report's figures (PNG) into DIR (needs matplotlib: "

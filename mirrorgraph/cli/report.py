@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import InputError
+from ..export import FORMATS, WORLD_FRAMES
 from .args import add_common, printer, report_written, solver_progress, step
 
 __all__ = ["add_parsers", "cmd_export", "cmd_report"]
@@ -80,9 +81,11 @@ def _add_export(sub) -> None:
                                    "reflection's keypoints with x -> W - x and left/right labels "
                                    "swapped (see the README).")
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
-    p.add_argument("--to", required=True, choices=("pose2sim", "anipose"), dest="fmt")
+    # the file styles, without the API's alias "aniposelib"
+    p.add_argument("--to", required=True, choices=tuple(dict.fromkeys(FORMATS.values())),
+                   dest="fmt")
     p.add_argument("out", help="TOML file to write")
-    p.add_argument("--world", default="camera", choices=("camera", "z_up"),
+    p.add_argument("--world", default="camera", choices=tuple(WORLD_FRAMES),
                    help="world frame: the real camera's (default) or X right, Y depth, Z up")
     add_common(p)
     p.set_defaults(func=cmd_export)

@@ -16,13 +16,15 @@ from pathlib import Path
 from ..errors import InputError
 from ..progress import Progress, SolveProgress
 from ..report.backend import INSTALL_HINT
+from ..skeletons import SKELETONS
+from ..synth.rig import KINDS
+from ..synth.rig_files import KEYPOINT_FORMATS
+from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
 from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
                    seed)
 from .video import add_video_options, video_options
 
 __all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
-
-KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
 
 
 def add_parsers(sub) -> None:
@@ -45,7 +47,7 @@ def add_parsers(sub) -> None:
                         "subject_height)")
     add_scale_from(p)
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
-                                      "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18, BLAZEPOSE)")
+                                      f"({', '.join(SKELETONS)})")
     p.add_argument("--joints", metavar="SET",
                    help="joints to calibrate from: auto (default: every keypoint in direct "
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
@@ -71,13 +73,13 @@ def add_parsers(sub) -> None:
     s.add_argument("--outliers", type=rate, default=0.0, help="fraction of gross errors")
     s.add_argument("--seed", type=seed, default=0)
     s.add_argument("--bystanders", type=seed, default=0, help="other people near the subject")
-    s.add_argument("--geometry", default="favourable", choices=("favourable", "gym", "wide"),
+    s.add_argument("--geometry", default=DEFAULT_RIG_GEOMETRY, choices=tuple(RIG_PRESETS),
                    help="camera-to-mirror distances and focal lengths: favourable (default, the "
                         "rigs of earlier versions), gym (3-8.5 m, focal drawn per camera) or wide "
                         "(2.5-10 m)")
     s.add_argument("--skeleton", default="BODY_25")
     s.add_argument("--format", dest="fmt", default="openpose",
-                   choices=("openpose", "mmpose", "easymocap"))
+                   choices=KEYPOINT_FORMATS)
     s.add_argument("--no-height", action="store_true",
                    help="leave subject_height out of rig.toml")
     add_common(s)

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..synth.body import SUPPORTED_SKELETONS
+from ..synth.geometry import PRESETS
+from ..synth.writer import FORMATS
 from .args import (add_common, floats, image_size, positive, print_result, printer, rate, seed,
                    solver_progress)
 
@@ -26,8 +29,6 @@ def add_parsers(sub) -> None:
 
 # --------------------------------------------------------------------------- synth
 def _add_synth(sub) -> None:
-    from ..synth.geometry import PRESETS as PRESET_NAMES
-
     p = sub.add_parser("synth", help="write a synthetic mirror scene with ground truth",
                        description="Write a synthetic scene: a person exercising between "
                                    "the camera and a mirror, keypoints in every input "
@@ -35,9 +36,9 @@ def _add_synth(sub) -> None:
     p.add_argument("--out", required=True, help="folder to write")
     p.add_argument("--frames", type=int, default=1000)
     p.add_argument("--seed", type=seed, default=0)
-    p.add_argument("--skeleton", default="COCO_17", choices=("COCO_17", "BODY_25", "COCO_18", "BODY_25B", "HALPE_26"))
+    p.add_argument("--skeleton", default="COCO_17", choices=SUPPORTED_SKELETONS)
     p.add_argument("--image-size", type=image_size, default=(1920, 1080), metavar="WxH")
-    p.add_argument("--geometry", default="gym", choices=tuple(PRESET_NAMES),
+    p.add_argument("--geometry", default="gym", choices=tuple(PRESETS),
                    help="scene geometry: gym (default: a typical gym or studio, mirror "
                         "3.5-8 m away, person 0.8-2.5 m in front of it), wide (mirror 2.5-10 m, "
                         "person 0.5-3.5 m, focal 700-2200 px, camera height and tilt varied), "
@@ -81,7 +82,7 @@ def _add_synth(sub) -> None:
                    help="real motion capture (BVH, e.g. the CMU take shipped as "
                         "mirrorgraph/data/cmu_01_01.bvh) instead "
                         "of the procedural exercise motion; resampled to 30 fps")
-    p.add_argument("--formats", default="mmpose,openpose,easymocap,npz",
+    p.add_argument("--formats", default=",".join(FORMATS),
                    help="comma-separated formats to write")
     add_common(p)
     p.set_defaults(func=cmd_synth)
