@@ -49,8 +49,7 @@ def add_parsers(sub) -> None:
                         f"{DEFAULT_FOV_DEG:g})")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
-    p.add_argument("--estimator", default="reflective",
-                   choices=ESTIMATORS,
+    p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,
                    help="initial estimator: ours (reflective, default), MirrorCalib's "
                         "Baseline1 (eightpoint) or its 6-unknown eight-point (reflective8)")
     p.add_argument("--threshold", type=positive, default=None, metavar="PX",

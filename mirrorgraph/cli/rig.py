@@ -1,10 +1,8 @@
-"""The commands of rigs (a thin layer over :mod:`mirrorgraph.rigs`).
-
-    mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--json FILE]
-                              [--with-virtual] [--subject-height M] [--skeleton NAME]
-                              [--joints3d FILE] [--quiet]
-    mirrorgraph synth-rig KIND --out DIR [--frames N --noise PX --seed S --format F
-                                         --bystanders N]
+"""The commands of rigs: ``calibrate-rig`` calibrates every camera and mirror of a
+rig file from the people in view (Pose2Sim's ``calibration.toml``, a JSON with the
+mirrors, uncertainties and residuals, and on request the 3D joints and figures),
+``synth-rig`` writes a synthetic rig with its ground truth: a thin layer over
+:mod:`mirrorgraph.rigs` and :func:`mirrorgraph.synth.make_rig`.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import InputError
 from ..synth.body import SUPPORTED_SKELETONS
 from ..synth.geometry import PRESETS
-from ..synth.writer import FORMATS
+from ..synth.writer import FORMATS as SCENE_FORMATS
 from .args import (add_common, floats, image_size, positive, print_result, printer, rate, seed,
                    solver_progress)
 
@@ -82,7 +82,7 @@ def _add_synth(sub) -> None:
                    help="real motion capture (BVH, e.g. the CMU take shipped as "
                         "mirrorgraph/data/cmu_01_01.bvh) instead "
                         "of the procedural exercise motion; resampled to 30 fps")
-    p.add_argument("--formats", default=",".join(FORMATS),
+    p.add_argument("--formats", default=",".join(SCENE_FORMATS),
                    help="comma-separated formats to write")
     add_common(p)
     p.set_defaults(func=cmd_synth)

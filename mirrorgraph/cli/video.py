@@ -1,13 +1,8 @@
-"""The ``detect`` command and the video options (a thin layer over :mod:`mirrorgraph.video`).
-
-    mirrorgraph detect VIDEO --out keypoints.json [--format mmpose|openpose]
-                       [--start N] [--end N] [--every N]
-                       [--pose-model FILE.onnx --det-model FILE.onnx]
-                       [--no-cache] [--cache-dir DIR]
-
-and the same video options on ``calibrate`` and ``calibrate-rig``, whose
-keypoint inputs may name a video (:func:`add_video_options`,
-:func:`video_options`).
+"""The ``detect`` command, every person's 2D keypoints in a video written as MMPose or
+OpenPose files, and the video options (``--start --end --every --pose-model
+--det-model --no-cache --cache-dir``) that ``calibrate`` and ``calibrate-rig`` also
+take where a keypoint input names a video (:func:`add_video_options`,
+:func:`video_options`): a thin layer over :mod:`mirrorgraph.video`.
 """
 
 from __future__ import annotations
