@@ -1266,7 +1266,7 @@ def test_impossible_image_size_without_intrinsics_is_an_error(base, w, h, capfd)
 
 
 # =============================================================================== regressions
-# Bugs this suite found in cli.py / pipeline.py, fixed since; they stay as tests.
+# Bugs this suite found in the CLI and pipeline.py, fixed since; they stay as tests.
 @fuzz_settings("joints3d_without_refine", phases=[Phase.explicit, Phase.generate])
 @given(base=st.sampled_from(BASES), prior=st.sampled_from([None, b"precious"]))
 def test_joints3d_without_refine_leaves_outputs_alone(base, prior, capfd):
