@@ -714,10 +714,16 @@ def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOpti
             f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
             "detector noise: the 'reflection' may be another person or the keypoints poor")
     if calib.uncertainty.get("rotation_std_deg", 0.0) > POORLY_DETERMINED_DEG:
+        robust = calib.uncertainty.get("robust") or {}
+        bias = robust.get("chosen") in ("joint", "two_way", "jack_joint")
         calib.warnings.append(
             f"the mirror is poorly determined (rotation std "
-            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): a mirror seen almost edge-on or "
-            "square-on, too few frames or too little motion; more frames and motion help")
+            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): "
+            + ("the joint pairs disagree about the mirror (a detector placing some joints "
+               "consistently off: more frames do not help; see sensitivity.leave_out.joint_pairs)"
+               if bias else
+               "a mirror seen almost edge-on or square-on, too few frames or too little motion; "
+               "more frames and motion help"))
     if motion_px < MIN_MOTION_PX:
         calib.warnings.append(
             f"the person hardly moves (joints move {motion_px:.1f} px): the calibration rests "

@@ -179,3 +179,15 @@ def test_the_calibration_reports_its_90_percent_region():
     assert unc["rotation_90_deg"] > region_rotation_deg(np.asarray(unc["normal_cov"])) \
         > unc["rotation_std_deg"]
     assert "90 % region" in run.calibration.summary()
+
+
+def test_a_mirror_made_uncertain_by_a_detectors_bias_is_warned_as_such():
+    """A per-label bias of 4 px: the joint pairs disagree about the mirror, and the warning
+    says so (more frames would not help), not that the geometry is poor."""
+    from mirrorgraph.synth import make_wide_scene
+
+    sc = make_wide_scene(1, "gym", "iid", 600, joint_bias_px=4.0, joint_bias_shared=True)
+    calib = calibrate(sc.detections, sc.intrinsics, CalibrateOptions()).calibration
+    assert calib.uncertainty["rotation_std_deg"] > 0.5
+    warned = [w for w in calib.warnings if "poorly determined" in w]
+    assert warned and "joint pairs disagree" in warned[0]
