@@ -191,3 +191,27 @@ def test_a_mirror_made_uncertain_by_a_detectors_bias_is_warned_as_such():
     assert calib.uncertainty["rotation_std_deg"] > 0.5
     warned = [w for w in calib.warnings if "poorly determined" in w]
     assert warned and "joint pairs disagree" in warned[0]
+
+
+def test_a_rig_reports_what_each_camera_and_mirror_rests_on(tmp_path):
+    """Per estimated camera and mirror, as for one mirror: the information shares of the
+    segments add up to one, a tenth of the video alone gives about sqrt(10) times the
+    (iid) std of the whole, and the predicted std falls with more frames."""
+    from mirrorgraph.rigs import calibrate_rig
+    from mirrorgraph.synth.rig import make_rig, write_rig
+
+    rig = make_rig("2cams1mirror", frames=200, seed=1, noise_std=3.0)
+    cal = calibrate_rig(write_rig(rig, tmp_path))
+    sens = cal.sensitivity
+    names = {c.name for c in cal.cameras[1:]} | {m.name for m in cal.mirrors}
+    assert set(sens) == names
+    for c in cal.cameras[1:] + cal.mirrors:
+        s = sens[c.name]
+        segs = s["leave_out"]["segments"]
+        assert len(segs) == 10
+        assert sum(x["information_share"] for x in segs) == pytest.approx(1.0, rel=1e-6)
+        alone = np.median([x["rotation_std_deg_alone"] for x in segs])
+        assert alone / c.marginal_rotation_std_deg == pytest.approx(np.sqrt(10), rel=0.35)
+        assert all(p["rotation_change_deg"] >= 0 for p in s["leave_out"]["joint_pairs"])
+        assert np.all(np.diff(s["frames_needed"]["rotation_std_deg"]) < 0)
+    assert cal.to_dict()["sensitivity"] == sens
