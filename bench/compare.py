@@ -120,7 +120,7 @@ from mirrorgraph import metrics  # noqa: E402
 from mirrorgraph.metrics import cramer_rao_mirror  # noqa: E402
 from mirrorgraph.keypoints import PairedKeypoints, RawDetections  # noqa: E402
 from mirrorgraph.synth import make_scene  # noqa: E402
-from mirrorgraph.synth.bvh import cmu_example_path  # noqa: E402
+from mirrorgraph.synth.mocap import cmu_example_path  # noqa: E402
 
 METHODS = ("baseline1", "paper", "anipose", "mg_init", "mg_full")
 HEADLINE_EXTRA = ("anipose_mg",)

@@ -208,7 +208,7 @@ def head_top(full: np.ndarray) -> np.ndarray:
     """``(..., 3)`` top of the head (vertex) of joints ``(..., 25, 3)`` (:data:`FULL_JOINTS`).
 
     The eyes, ears and nose are rigid offsets from the head pivot (:data:`HEAD_OFFSETS`,
-    the same in :mod:`~mirrorgraph.synth.motion` and :mod:`~mirrorgraph.synth.bvh`,
+    the same in :mod:`~mirrorgraph.synth.motion` and :mod:`~mirrorgraph.synth.mocap`,
     scaled by the individual's head size), and the vertex lies ``head_top`` (0.110 H
     nominal, same scale) above the pivot along the head's up axis. A least-squares
     similarity transform (Umeyama: rotation, scale, translation) from the nominal

@@ -43,7 +43,7 @@ so infeasible short mirror distances are redrawn: the distribution of the
 distance actually used leans to the far end of 2.5-4.5 m.
 
 Real motion: with ``motion="take.bvh"`` a motion-capture take replaces the
-procedural motion (:mod:`~mirrorgraph.synth.bvh`: CMU skeleton mapped to the
+procedural motion (:mod:`~mirrorgraph.synth.mocap`: CMU skeleton mapped to the
 body model's joints, resampled to ``fps``, in the same body frame; the first
 ``frames`` frames, played back and forth when the take is shorter). The
 subject's height is then the skeleton's own standing height, or
@@ -437,7 +437,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         fps: frame rate.
         motion: a BVH motion-capture take (CMU skeleton) to use instead of the
             procedural motion (see the module docstring and
-            :mod:`mirrorgraph.synth.bvh`); recorded in ``options["motion"]``.
+            :mod:`mirrorgraph.synth.mocap`); recorded in ``options["motion"]``.
         noise_correlation: correlation of each coordinate's noise from one frame
             to the next (AR(1) coefficient in [0, 1); the standard deviation
             stays ``noise_std``): a real detector's errors persist over frames.
@@ -534,7 +534,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         full = generate_motion(body, T, fps, rng)        # (T, 25, 3), units of height
         take_height = None
     else:
-        from .bvh import motion_for_scene
+        from .mocap import motion_for_scene
         body = None
         full, take = motion_for_scene(motion, T, fps)    # (T, 25, 3), units of height
         take_height = take.height

@@ -1,4 +1,4 @@
-"""Tests of the BVH reader and of motion capture as synthetic motion (mirrorgraph.synth.bvh)."""
+"""Tests of motion capture as the motion of a synthetic person (mirrorgraph.synth.mocap)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from mirrorgraph.errors import InputError
 from mirrorgraph.skeletons import BODY_25, COCO_17
 from mirrorgraph.synth import make_scene, write_scene
 from mirrorgraph.synth.body import FULL_INDEX
-from mirrorgraph.synth.bvh import (CMU_UNIT_M, cmu_example_path, load_motion, parse_bvh,
-                                   pingpong_indices, read_bvh)
+from mirrorgraph.io.bvh import read_bvh
+from mirrorgraph.synth.mocap import CMU_UNIT_M, cmu_example_path, load_motion, pingpong_indices
 
 #: The CMU take shipped as package data (mirrorgraph/data/cmu_01_01.bvh): nothing
 #: outside the repository is needed.
@@ -64,23 +64,6 @@ def _bones(X: np.ndarray, skeleton=BODY_25) -> dict[str, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- the CMU take
-def test_cmu_take_is_parsed(cmu):
-    assert cmu.frames == 2752 and cmu.fps == 120.0
-    assert len(cmu.joint_names) == 31
-    for name in ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
-                 "RightUpLeg", "Spine", "Spine1", "Neck", "Neck1", "Head", "LeftShoulder",
-                 "LeftArm", "LeftForeArm", "LeftHand", "RightHand"):
-        assert cmu.has(name), name
-    assert cmu.channels[0] == ("Xposition", "Yposition", "Zposition", "Zrotation",
-                               "Yrotation", "Xrotation")
-    assert cmu.values.shape == (2752, 6 + 30 * 3)
-    # the thigh: 7.16 CMU units = 0.40 m, at every frame
-    P = cmu.positions()
-    thigh = np.linalg.norm(P[:, cmu.index("LeftLeg")] - P[:, cmu.index("LeftUpLeg")], axis=-1)
-    assert thigh * CMU_UNIT_M == pytest.approx(np.full(2752, 0.404), abs=0.002)
-    assert np.ptp(thigh) < 1e-9
-
-
 def test_mapped_take_is_rigid_symmetric_and_human(cmu, take30):
     X = take30.joints
     assert X.shape == (688, 25, 3)                        # 2751 frames after the T-pose / 4
@@ -154,97 +137,9 @@ def test_clip_is_in_the_body_frame_and_ping_pongs(take30):
     assert step <= np.linalg.norm(np.diff(take30.joints, axis=0), axis=-1).max() + 1e-9
 
 
-# --------------------------------------------------------------------------- a tiny file
-TINY = """\
-HIERARCHY
-ROOT Root
-{
-\tOFFSET 0 0 0
-\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-\tJOINT A
-\t{
-\t\tOFFSET 1 0 0
-\t\tCHANNELS 3 Xrotation Yrotation Zrotation
-\t\tEnd Site
-\t\t{
-\t\t\tOFFSET 2 0 0
-\t\t}
-\t}
-\tJOINT B {
-\t\tOFFSET 0 0 3
-\t\tCHANNELS 1 yrotation
-\t\tEnd Site { OFFSET 1 0 0 }
-\t}
-}
-MOTION
-Frames: 2
-Frame Time: 0.5
-0 0 0 0 0 0 0 0 0 0
-10 20 30 90 0 0 90 90 0 90
-"""
+def test_mapping_or_scene_of_an_unusable_take(tmp_path):
+    from tests.io.test_bvh import TINY
 
-
-def test_tiny_bvh_forward_kinematics_by_hand():
-    m = parse_bvh(TINY, source="tiny.bvh")
-    assert m.names == ("Root", "A", "A_EndSite", "B", "B_EndSite")
-    assert list(m.parents) == [-1, 0, 1, 0, 3]
-    assert m.channels[3] == ("Yrotation",) and m.fps == 2.0 and m.frames == 2
-    P, G = m.forward_kinematics()
-    rest = np.array([[0, 0, 0], [1, 0, 0], [3, 0, 0], [0, 0, 3], [1, 0, 3]], float)
-    assert np.allclose(P[0], rest) and np.allclose(m.rest_positions(), rest)
-    # frame 1: root at (10, 20, 30) turned 90 deg about z (x -> y, y -> -x).
-    # A = root + Rz (1, 0, 0); A's tip = A + Rz Rx Ry (2, 0, 0): Ry takes it to
-    # (0, 0, -2), Rx to (0, 2, 0), Rz to (-2, 0, 0) (intrinsic order as listed).
-    # B = root + Rz (0, 0, 3); B's tip = B + Rz Ry (1, 0, 0) = B + (0, 0, -1).
-    want = np.array([[10, 20, 30], [10, 21, 30], [8, 21, 30], [10, 20, 33], [10, 20, 32]],
-                    float)
-    assert np.allclose(P[1], want, atol=1e-12)
-    for R in G[1]:
-        assert np.allclose(R @ R.T, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
-    # resampling at 4 fps: the middle sample turns every joint half way (slerp)
-    P4, G4 = m.resample(4.0)
-    assert len(P4) == 3 and np.allclose(P4[[0, 2]], P)
-    assert np.allclose(P4[1, 0], [5, 10, 15])
-    c = np.cos(np.pi / 4)
-    assert np.allclose(G4[1, 0], [[c, -c, 0], [c, c, 0], [0, 0, 1]])   # Rz(45 deg)
-    tip = P4[1, 2] - P4[1, 1]
-    assert np.linalg.norm(tip) == pytest.approx(2.0)     # rigid, not a chord
-
-
-@pytest.mark.parametrize("edit, line, words", [
-    (("OFFSET 1 0 0", "OFFSET 1 zero 0"), 8, "expected a number"),
-    (("CHANNELS 1 yrotation", "CHANNELS 1 Wrotation"), 17, "unknown channel"),
-    (("CHANNELS 3 Xrotation", "CHANNELS 4 Xrotation"), 10, "declares 4"),
-    (("0 0 0 0 0 0 0 0 0 0", "0 0 0 0 0 0 0 0 0"), 24, "has 9 values"),
-    (("10 20 30 90 0 0 90 90 0 90", "10 20 30 90 0 0 90 x 0 90"), 25, "not a number"),
-    (("Frames: 2", "Frames: 3"), 25, "only 2 frame lines"),
-    (("0 0 0 0 0 0 0 0 0 0\n10 20 30 90 0 0 90 90 0 90",
-      "0 0 0 0 0 0 0 0 0\n10 20 30 90 0 0 90 90 0 90 0"), 24, "has 9 values"),
-    (("10 20 30 90 0 0 90 90 0 90", "10 20 30 90 0 0 90 nan 0 90"), 25, "not finite"),
-    (("Frame Time: 0.5", "Frame Time: -1"), 23, "positive"),
-    (("MOTION\n", ""), 21, "expected 'ROOT' or 'MOTION'"),
-    (("\t}\n}\nMOTION", "\t}\nMOTION"), 19, "expected '}'"),
-    (("JOINT B {", "JOINT A {"), 15, "used twice"),
-    (("HIERARCHY", "HIERARCHIES"), 1, "HIERARCHY"),
-])
-def test_malformed_bvh_names_file_and_line(tmp_path, edit, line, words):
-    old, new = edit
-    assert old in TINY
-    path = tmp_path / "bad.bvh"
-    path.write_text(TINY.replace(old, new, 1))
-    with pytest.raises(InputError) as info:
-        read_bvh(path)
-    msg = str(info.value)
-    assert str(path) in msg and f"line {line}:" in msg and words in msg, msg
-
-
-def test_missing_or_unusable_file(tmp_path, cmu):
-    with pytest.raises(InputError, match="no such BVH file"):
-        read_bvh(tmp_path / "nope.bvh")
-    empty = tmp_path / "empty.bvh"
-    empty.write_text("")
-    with pytest.raises(InputError, match="empty"):
-        read_bvh(empty)
     tiny = tmp_path / "tiny.bvh"
     tiny.write_text(TINY)
     with pytest.raises(InputError, match="no joint for left_hip"):
