@@ -44,21 +44,98 @@ reproduces the protocol):
   solve (140 vs 45 ms on 1000 frames). The 3D motion gets its smoothness in the
   joints pass (``joints_smoothness_sigma``), with the mirror held.
 * ``hip_sigma`` (BODY-25 only): 0.1, the hips are colinear to a few degrees.
+
+The settings are grouped by concern, one class each (:class:`PriorOptions`,
+:class:`ScheduleOptions`, :class:`SolverOptions`, :class:`GaugeOptions`, each setting in
+exactly one of them); :class:`RefineOptions`, the one options object of the solve
+driver, is all of them together (as GTSAM's ``LevenbergMarquardtParams`` extends
+``NonlinearOptimizerParams``): ``RefineOptions(bone_sigma=0.02, max_iterations=10)``, or
+:meth:`RefineOptions.from_groups` from the groups, and back with
+:attr:`RefineOptions.priors` etc.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields
+from typing import Literal, get_args
 
-#: The ways a subject height becomes a length (``RefineOptions.scale_from``).
-SCALE_FROM = ("stature", "limbs")
+from ..errors import InputError
 
-__all__ = ["RefineOptions"]
+#: Robust kernels of the reprojection factors (:func:`mirrorgraph.factors.reprojection.robust_pixel_noise`).
+Kernel = Literal["geman_mcclure", "huber", "cauchy", "tukey"]
+KERNELS: tuple[str, ...] = get_args(Kernel)
+
+#: The ways a subject height becomes a length (``GaugeOptions.scale_from``).
+ScaleFrom = Literal["stature", "limbs"]
+SCALE_FROM: tuple[str, ...] = get_args(ScaleFrom)
+
+__all__ = ["GaugeOptions", "KERNELS", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
+           "ScaleFrom", "ScheduleOptions", "SolverOptions"]
 
 
-@dataclass(frozen=True)
-class RefineOptions:
-    """Weights, kernel, gauge and solver settings of the refinement.
+@dataclass(frozen=True, kw_only=True)
+class PriorOptions:
+    """The body priors of the graph: which are on and their weights.
+
+    Each prior is a factor module of :mod:`mirrorgraph.factors` (``bone_length``,
+    ``symmetry``, ``anthropometry``, ``hip``, ``smoothness``); its weight is a standard
+    deviation in units of the subject's height ``h`` (see the module docstring for how
+    the defaults were measured).
+
+    Attributes:
+        bone_sigma: ``L_var``, a bone's length about its constant value, fraction of ``h``.
+        bone_bias_limit: ``c``: a bone's factor in a frame is left out of the
+            calibration graph where its length, measured from the joints' rays, is
+            biased by more than ``c`` bone sigmas by the noise across the bone
+            (:func:`~mirrorgraph.graph.builder.bone_curvature_bias`, second order:
+            joints whose rays meet at a small angle have centimetres of depth
+            noise); ``None``: every bone in every frame. The joints pass keeps
+            every bone (the mirror is held there).
+        symmetry_sigma: ``L_sym``, left minus right length, fraction of ``h``.
+        anthropometry_sigma: ``L_anth``, the ratio length / femur about Winter's (absolute).
+        hip_sigma: ``L_hip``, the normalised cross product (~ sine of the hip angle).
+        smoothness_sigma: ``L_smooth``, acceleration per frame^2, fraction of ``h``.
+        smoothness_max_gap: longest frame step bridged by a smoothness factor.
+        joints_smoothness_sigma: after the mirror is found, the 3D joints are solved
+            once more with the mirror and the bone lengths held and this (tighter)
+            smoothness, fraction of ``h`` per frame^2; ``None`` skips that pass (the
+            joints are then the calibration's). The mirror wants a loose prior (a
+            tight one biases it), the motion a tight one (it halves the joints'
+            error: PA-MPJPE 15-20 -> 9-11 mm on protocol and CMU scenes, mirror
+            unchanged, +0.4 s per 1000 frames): the two passes give each its own.
+            Videos solved in chunks (longer than ``max_graph_frames``) get it
+            chunk by chunk with the final mirror.
+        use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
+            switch each prior of the calibration graph (the hip prior also needs a
+            mid-hip joint; the subject-height gauge needs the bone lengths, so it
+            keeps them on; the smoothness is off: see the module docstring, the
+            joints pass has its own).
+    """
+
+    bone_sigma: float = 0.01
+    bone_bias_limit: float | None = 0.3
+    symmetry_sigma: float = 0.005
+    anthropometry_sigma: float = 0.05
+    hip_sigma: float = 0.1
+    smoothness_sigma: float = 0.8
+    smoothness_max_gap: int = 4
+    joints_smoothness_sigma: float | None = 0.01
+    use_bone_length: bool = True
+    use_symmetry: bool = True
+    use_anthropometry: bool = True
+    use_hip: bool = True
+    use_smoothness: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScheduleOptions:
+    """The robust schedule: the noise model, the kernels and the outlier passes.
+
+    The first solve hunts outliers with a robust kernel on the reprojection terms, the
+    ones after it carry the body priors with the final kernel (:mod:`.stages`); pairs
+    that the data cannot hold (rays meeting at a small angle, residuals over the
+    threshold) are left out by the rules here.
 
     Attributes:
         pixel_sigma: standard deviation of a keypoint coordinate, px (the
@@ -88,68 +165,6 @@ class RefineOptions:
             many robust standard deviations from their median length is an
             outlier too (0: off); catches keypoints displaced along the
             epipolar line, which reprojection cannot see.
-        bone_sigma: ``L_var``, a bone's length about its constant value, fraction of ``h``.
-        bone_bias_limit: ``c``: a bone's factor in a frame is left out of the
-            calibration graph where its length, measured from the joints' rays, is
-            biased by more than ``c`` bone sigmas by the noise across the bone
-            (:func:`~mirrorgraph.graph.builder.bone_curvature_bias`, second order:
-            joints whose rays meet at a small angle have centimetres of depth
-            noise); ``None``: every bone in every frame. The joints pass keeps
-            every bone (the mirror is held there).
-        symmetry_sigma: ``L_sym``, left minus right length, fraction of ``h``.
-        anthropometry_sigma: ``L_anth``, the ratio length / femur about Winter's (absolute).
-        hip_sigma: ``L_hip``, the normalised cross product (~ sine of the hip angle).
-        smoothness_sigma: ``L_smooth``, acceleration per frame^2, fraction of ``h``.
-        smoothness_max_gap: longest frame step bridged by a smoothness factor.
-        joints_smoothness_sigma: after the mirror is found, the 3D joints are solved
-            once more with the mirror and the bone lengths held and this (tighter)
-            smoothness, fraction of ``h`` per frame^2; ``None`` skips that pass (the
-            joints are then the calibration's). The mirror wants a loose prior (a
-            tight one biases it), the motion a tight one (it halves the joints'
-            error: PA-MPJPE 15-20 -> 9-11 mm on protocol and CMU scenes, mirror
-            unchanged, +0.4 s per 1000 frames): the two passes give each its own.
-            Videos solved in chunks (longer than ``max_graph_frames``) get it
-            chunk by chunk with the final mirror.
-        use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
-            switch each prior of the calibration graph (the hip prior also needs a
-            mid-hip joint; the subject-height gauge needs the bone lengths, so it
-            keeps them on; the smoothness is off: see the module docstring, the
-            joints pass has its own).
-        subject_height: standing height in metres: fixes the scale (metres);
-            ``None``: the mirror distance is 1.
-        scale_from: how the subject's height becomes a length (with
-            ``subject_height``): ``"stature"`` (default) rescales the solution so
-            that the stature measured on its joints, ankle to eyes or head top,
-            is the height (:mod:`mirrorgraph.stature`; falls back to ``"limbs"``
-            and says so when the joints do not span it); ``"limbs"`` keeps the
-            gauge's scale, the limb bones' sum at Winter's fractions of the height
-            (for a subject who is not upright for most of the video: sitting,
-            lying, bent over). On synthetic subjects (3 % per segment) the metric
-            scale error is 0.33 % RMS with the stature, 1.59 % with the limbs
-            (``bench/RESULTS_stature.md``).
-        height_sigma: relative standard deviation of the metric scale, added to
-            every reported length std (``distance_std``, camera positions): the
-            subject's proportions where the stature is not measured, the
-            detector's placement of the keypoints and the height's own
-            measurement. 2 % by default: conservative on synthetic subjects
-            (0.3 % RMS with the stature), not measured on real video.
-        link_sigma_rotation, link_sigma_translation: sigmas of the mirror-link
-            factor (rad, length unit) when it is used as a soft factor
-            (``GraphProblem.full(links=True)`` for GTSAM's own optimisers); the
-            refinement itself enforces the link exactly (:mod:`.reduction`).
-        max_iterations: Levenberg-Marquardt iterations (linear solves) per solve.
-        outlier_pass_iterations: cap of the first full solve when outliers were
-            found before it (it only has to expose the rest for the second rejection).
-        relative_tolerance: stop when an iteration lowers the error by less
-            than this fraction.
-        global_step_tolerance: or when it moved the mirror (and bone lengths, and a
-            rig's poses) by less than this many standard deviations (Mahalanobis
-            length), at any damping. 0.2 leaves at most ~0.2 sigma of the mirror
-            unconverged (2 % in quadrature with its own sigma): measured on 7 scenes
-            (4 synthetic, 3 low-parallax, 600 frames) against 0.05, rotation errors
-            changed by at most 0.1 sigma (0.004 deg) and the linear solves fell
-            from 12-14 to 7-9 (synthetic) and 11-12 (low parallax), together with
-            ``outlier_pass_iterations`` 3 instead of 5.
         min_parallax_deg: pairs whose two rays (from the camera and from the
             virtual camera) meet at less than this angle, degrees, are left out of
             the graph (:func:`~mirrorgraph.graph.stages.parallax_deg`): their depth
@@ -161,6 +176,63 @@ class RefineOptions:
             the first full solve (cheap: no coupling between points).
         warm_start_frames: frames (spread over the video) in that warm start; every
             pair is then triangulated with its mirror for the first rejection.
+        outlier_pass_iterations: cap of the first full solve when outliers were
+            found before it (it only has to expose the rest for the second rejection).
+    """
+
+    pixel_sigma: float = 4.0
+    robust_kernel: Kernel | None = "geman_mcclure"
+    kernel_scale_px: float = 10.0
+    final_kernel: Kernel | Literal["auto"] | None = "auto"
+    final_kernel_scale_px: float = 20.0
+    auto_kernel_fraction: float = 0.01
+    outlier_threshold_px: float | None = None
+    bone_outlier_k: float = 5.0
+    min_parallax_deg: float = 0.5
+    warm_start_min_parallax_deg: float = 3.0
+    warm_start_iterations: int = 4
+    warm_start_frames: int = 300
+    outlier_pass_iterations: int = 3
+
+    def __post_init__(self) -> None:
+        for name in ("robust_kernel", "final_kernel"):
+            value = getattr(self, name)
+            allowed = KERNELS + (("auto",) if name == "final_kernel" else ())
+            if value is not None and value not in allowed:
+                raise InputError(f"must be one of {', '.join(allowed)} or None, got {value!r}",
+                                 field=name)
+        if not (self.pixel_sigma > 0 and math.isfinite(self.pixel_sigma)):
+            raise InputError(f"must be a positive number of pixels, got {self.pixel_sigma!r}",
+                             field="pixel_sigma")
+
+    @property
+    def outlier_threshold(self) -> float:
+        """The outlier threshold in pixels, default resolved."""
+        if self.outlier_threshold_px is not None:
+            return float(self.outlier_threshold_px)
+        return 2.0 * float(self.kernel_scale_px)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolverOptions:
+    """The linear solves: iterations, stopping rules, long videos, marginals.
+
+    Levenberg-Marquardt on the reduced system of the mirror(s) and the bone lengths
+    (:mod:`.optimizer`); videos longer than ``max_graph_frames`` in chunks
+    (:mod:`.chunked`).
+
+    Attributes:
+        max_iterations: Levenberg-Marquardt iterations (linear solves) per solve.
+        relative_tolerance: stop when an iteration lowers the error by less
+            than this fraction.
+        global_step_tolerance: or when it moved the mirror (and bone lengths, and a
+            rig's poses) by less than this many standard deviations (Mahalanobis
+            length), at any damping. 0.2 leaves at most ~0.2 sigma of the mirror
+            unconverged (2 % in quadrature with its own sigma): measured on 7 scenes
+            (4 synthetic, 3 low-parallax, 600 frames) against 0.05, rotation errors
+            changed by at most 0.1 sigma (0.004 deg) and the linear solves fell
+            from 12-14 to 7-9 (synthetic) and 11-12 (low parallax), together with
+            ``outlier_pass_iterations`` 3 instead of 5.
         max_graph_frames: longest video solved as one graph; longer ones are
             solved on a spread subset of this many frames, then in chunks of at
             most this many frames sharing the mirror and the bone lengths
@@ -180,44 +252,9 @@ class RefineOptions:
         marginals: compute the plane's covariance.
     """
 
-    pixel_sigma: float = 4.0
-    robust_kernel: str | None = "geman_mcclure"
-    kernel_scale_px: float = 10.0
-    final_kernel: str | None = "auto"
-    final_kernel_scale_px: float = 20.0
-    auto_kernel_fraction: float = 0.01
-    outlier_threshold_px: float | None = None
-    bone_outlier_k: float = 5.0
-
-    bone_sigma: float = 0.01
-    bone_bias_limit: float | None = 0.3
-    symmetry_sigma: float = 0.005
-    anthropometry_sigma: float = 0.05
-    hip_sigma: float = 0.1
-    smoothness_sigma: float = 0.8
-    smoothness_max_gap: int = 4
-    joints_smoothness_sigma: float | None = 0.01
-    use_bone_length: bool = True
-    use_symmetry: bool = True
-    use_anthropometry: bool = True
-    use_hip: bool = True
-    use_smoothness: bool = False
-
-    subject_height: float | None = None
-    height_sigma: float = 0.02
-    scale_from: str = "stature"
-
-    link_sigma_rotation: float = 1e-6
-    link_sigma_translation: float = 1e-6
-
     max_iterations: int = 20
-    outlier_pass_iterations: int = 3
     relative_tolerance: float = 1e-5
     global_step_tolerance: float = 0.2
-    min_parallax_deg: float = 0.5
-    warm_start_min_parallax_deg: float = 3.0
-    warm_start_iterations: int = 4
-    warm_start_frames: int = 300
     max_graph_frames: int = 2000
     chunk_block_frames: int = 250
     chunk_passes: int = 1
@@ -225,15 +262,116 @@ class RefineOptions:
     workers: int | None = None
     marginals: bool = True
 
+
+@dataclass(frozen=True, kw_only=True)
+class GaugeOptions:
+    """The gauge: what fixes the scale and how the mirror link is held.
+
+    2D keypoints fix the mirror's normal, not its distance: the scale is the subject's
+    height (metres with ``subject_height``, else the mirror distance is 1).
+
+    Attributes:
+        subject_height: standing height in metres: fixes the scale (metres);
+            ``None``: the mirror distance is 1.
+        height_sigma: relative standard deviation of the metric scale, added to
+            every reported length std (``distance_std``, camera positions): the
+            subject's proportions where the stature is not measured, the
+            detector's placement of the keypoints and the height's own
+            measurement. 2 % by default: conservative on synthetic subjects
+            (0.3 % RMS with the stature), not measured on real video.
+        scale_from: how the subject's height becomes a length (with
+            ``subject_height``): ``"stature"`` (default) rescales the solution so
+            that the stature measured on its joints, ankle to eyes or head top,
+            is the height (:mod:`mirrorgraph.stature`; falls back to ``"limbs"``
+            and says so when the joints do not span it); ``"limbs"`` keeps the
+            gauge's scale, the limb bones' sum at Winter's fractions of the height
+            (for a subject who is not upright for most of the video: sitting,
+            lying, bent over). On synthetic subjects (3 % per segment) the metric
+            scale error is 0.33 % RMS with the stature, 1.59 % with the limbs
+            (``bench/RESULTS_stature.md``).
+        link_sigma_rotation, link_sigma_translation: sigmas of the mirror-link
+            factor (rad, length unit) when it is used as a soft factor
+            (``GraphProblem.full(links=True)`` for GTSAM's own optimisers); the
+            refinement itself enforces the link exactly (:mod:`.reduction`).
+    """
+
+    subject_height: float | None = None
+    height_sigma: float = 0.02
+    scale_from: ScaleFrom = "stature"
+    link_sigma_rotation: float = 1e-6
+    link_sigma_translation: float = 1e-6
+
     def __post_init__(self) -> None:
         if self.scale_from not in SCALE_FROM:
-            from ..errors import InputError
-            raise InputError(f"scale_from must be one of {', '.join(SCALE_FROM)}, "
-                             f"got {self.scale_from!r}", field="scale_from")
+            raise InputError(f"must be one of {', '.join(SCALE_FROM)}, got {self.scale_from!r}",
+                             field="scale_from")
+        h = self.subject_height
+        if h is not None and (isinstance(h, bool) or not isinstance(h, (int, float))
+                              or not (math.isfinite(h) and h > 0)):
+            raise InputError(f"must be a positive number of metres or None, got {h!r}",
+                             field="subject_height")
+
+
+_GROUPS = {"priors": PriorOptions, "schedule": ScheduleOptions, "solver": SolverOptions,
+           "gauge": GaugeOptions}
+
+
+@dataclass(frozen=True, kw_only=True)
+class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
+    """Every setting of the refinement: the four groups together.
+
+    The fields are those of :class:`PriorOptions` (the body priors),
+    :class:`ScheduleOptions` (noise model, kernels, outlier passes),
+    :class:`SolverOptions` (iterations, stopping, chunks, marginals) and
+    :class:`GaugeOptions` (scale and mirror link), documented there; keyword
+    arguments only. One object serves the single mirror (:func:`~.refine.refine_mirror`)
+    and rigs (:func:`mirrorgraph.rigs.solve.solve_rig`): one solve driver, one
+    configuration.
+
+    Example:
+        >>> opts = RefineOptions(bone_sigma=0.02, max_iterations=10)
+        >>> opts.priors.bone_sigma, opts.solver.max_iterations
+        (0.02, 10)
+        >>> RefineOptions.from_groups(priors=PriorOptions(use_hip=False)).use_hip
+        False
+    """
+
+    def __post_init__(self) -> None:
+        ScheduleOptions.__post_init__(self)
+        GaugeOptions.__post_init__(self)
+
+    @classmethod
+    def from_groups(cls, *, priors: PriorOptions | None = None,
+                    schedule: ScheduleOptions | None = None,
+                    solver: SolverOptions | None = None,
+                    gauge: GaugeOptions | None = None) -> "RefineOptions":
+        """Join option groups (a group not given keeps its defaults)."""
+        kw = {}
+        for group in (priors, schedule, solver, gauge):
+            if group is not None:
+                kw.update({f.name: getattr(group, f.name) for f in fields(group)})
+        return cls(**kw)
+
+    def _group(self, name: str):
+        kind = _GROUPS[name]
+        return kind(**{f.name: getattr(self, f.name) for f in fields(kind)})
 
     @property
-    def outlier_threshold(self) -> float:
-        """The outlier threshold in pixels, default resolved."""
-        if self.outlier_threshold_px is not None:
-            return float(self.outlier_threshold_px)
-        return 2.0 * float(self.kernel_scale_px)
+    def priors(self) -> PriorOptions:
+        """The body priors' settings."""
+        return self._group("priors")
+
+    @property
+    def schedule(self) -> ScheduleOptions:
+        """The robust schedule's settings."""
+        return self._group("schedule")
+
+    @property
+    def solver(self) -> SolverOptions:
+        """The linear solves' settings."""
+        return self._group("solver")
+
+    @property
+    def gauge(self) -> GaugeOptions:
+        """The gauge's settings."""
+        return self._group("gauge")

@@ -16,10 +16,12 @@ reflection with the refined mirror (:func:`mirrorgraph.geometry.triangulate_mirr
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
 from ..stature import estimate_stature, stature_joints
@@ -73,7 +75,15 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
         multiplied by ``height / measured stature`` and ``scale_source``/``stature``
         set; unchanged but for ``scale_source`` when the stature cannot be measured.
+
+    Raises:
+        InputError: ``height`` is not a positive finite number.
     """
+    h = height
+    if isinstance(h, bool) or not isinstance(h, (int, float, np.floating)) or not (
+            math.isfinite(h) and h > 0):
+        raise InputError(f"must be a positive number of metres, got {height!r}",
+                         field="subject_height")
     points, valid = _with_head(res, paired, K)
     est = estimate_stature(points, valid, paired.skeleton)
     if est is None:

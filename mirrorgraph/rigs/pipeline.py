@@ -17,6 +17,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..anthropometry import height_problem
+from ..errors import InputError
 from ..graph.options import RefineOptions
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
@@ -85,8 +87,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
 
     Args:
         config: a :class:`~.config.RigConfig` or the path of a rig TOML file.
-        subject_height: metres; overrides the file's ``subject_height``. Without
-            either, lengths are in units of the subject's height.
+        subject_height: metres; overrides the file's ``subject_height`` (as does
+            ``options.subject_height``; two different heights are refused). Without
+            any, lengths are in units of the subject's height.
         skeleton: layout for cameras whose table names none.
         joints: ``"auto"`` (the default: every keypoint in the direct views, the
             limbs through mirrors), ``"limbs"`` (no face, hands or feet, as
@@ -108,7 +111,15 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
             cannot be found, too few joints.
     """
     cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
-    height = subject_height if subject_height is not None else cfg.subject_height
+    opts = options or RefineOptions()
+    given = [h for h in (subject_height, opts.subject_height) if h is not None]
+    if len(given) == 2 and float(given[0]) != float(given[1]):
+        raise InputError(f"subject_height {subject_height!r} differs from "
+                         f"options.subject_height {opts.subject_height!r}: give the height once",
+                         field="subject_height")
+    height = given[0] if given else cfg.subject_height
+    if height is not None and height_problem(height):
+        raise InputError(height_problem(height), field="subject_height")
     scale = "subject_height" if height is not None else "unit_height"
     H = float(height) if height is not None else 1.0
     say = status or (lambda s: None)
@@ -127,7 +138,6 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                             "deg (is it the same mirror in all of them?)")
     rig = build_rig(obs, init, used_joints)
     say("refining the rig in one factor graph")
-    opts = options or RefineOptions()
     sol = solve_rig(rig, opts, H, progress=progress)
     sol = complete_joints(obs, sol, opts.outlier_threshold)
     if opts.scale_from == "stature":

@@ -6,8 +6,7 @@ Each test hands :func:`scale_by_stature` a refinement that is the truth of
 limbs estimated (the calibration joints) and the eyes or head top not: those it
 triangulates from the person and the reflection itself.
 
-The last two tests are strict xfails: known bugs (a height of 0, a negative or a
-non-finite one is taken as given), to turn into plain tests when they are fixed.
+A height of 0, a negative or a non-finite one is refused, naming the field.
 """
 
 from __future__ import annotations
@@ -19,7 +18,7 @@ import pytest
 
 from mirrorgraph import geometry as geo
 from mirrorgraph.errors import InputError
-from mirrorgraph.graph import RefineOptions, refine_mirror
+from mirrorgraph.graph import RefineOptions
 from mirrorgraph.graph.result import RefinementResult
 from mirrorgraph.graph.stature_scale import LIMB_PROPORTIONS, scale_by_stature
 from mirrorgraph.keypoints import PairedKeypoints
@@ -171,33 +170,14 @@ def test_eyes_triangulated_behind_the_mirror_are_not_used():
 
 
 @pytest.mark.parametrize("height", [0.0, -1.7, math.nan, math.inf])
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="bug: scale_by_stature takes any height; 0, a negative, NaN or "
-                          "infinite one gives a zero, negative, NaN or infinite scene")
 def test_a_height_that_is_no_height_is_refused(height):
     scene = make_scene(frames=40, seed=2)
     res = _limbs_at_scale(scene, 1.0)
-    try:
-        out = scale_by_stature(res, scene.paired(), scene.K, height)
-    except (InputError, ValueError):
-        return
-    raise AssertionError(f"height {height}: distance {out.distance}")
+    with pytest.raises(InputError, match="subject_height"):
+        scale_by_stature(res, scene.paired(), scene.K, height)
 
 
 @pytest.mark.parametrize("height", [0.0, -1.7, math.nan])
-@pytest.mark.filterwarnings("ignore::RuntimeWarning")     # the solve on a scale of 0 or NaN
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="bug: RefineOptions takes any subject_height; refine_mirror then "
-                          "fails with a DegenerateGeometryError about the data, not the height")
-def test_refine_mirror_names_a_height_that_is_no_height(height):
-    scene = make_scene(frames=60, seed=2)
-    p = scene.paired()
-    try:
-        refine_mirror(p, scene.K, scene.normal, p.valid(),
-                      options=RefineOptions(subject_height=height, marginals=False))
-    except InputError as e:
-        assert "subject_height" in str(e)
-        return
-    except Exception as e:          # noqa: BLE001 - the bug: another error
-        raise AssertionError(f"height {height}: {type(e).__name__}: {e}") from None
-    raise AssertionError(f"height {height} accepted")
+def test_refine_options_name_a_height_that_is_no_height(height):
+    with pytest.raises(InputError, match="subject_height"):
+        RefineOptions(subject_height=height, marginals=False)

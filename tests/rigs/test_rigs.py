@@ -345,3 +345,17 @@ def test_pose2sim_layouts_in_a_rig(tmp_path, skeleton, fmt):
     cams, _, mirrors = _errors(cal, rig)
     assert cams[1][0] < 0.5 and cams[1][2] < 0.03
     assert mirrors["wall"][0] < 0.25
+
+
+def test_a_rig_takes_the_height_once(tmp_path):
+    """``calibrate_rig(subject_height=...)`` and ``options.subject_height`` are one
+    setting: two different heights are refused (before any reading), not one ignored."""
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.graph.options import RefineOptions
+
+    rig = make_rig("2cams1mirror", frames=10, seed=0)
+    path = write_rig(rig, tmp_path)
+    with pytest.raises(InputError, match="give the height once"):
+        calibrate_rig(path, subject_height=1.8, options=RefineOptions(subject_height=1.7))
+    with pytest.raises(InputError, match="not a human height"):
+        calibrate_rig(path, options=RefineOptions(subject_height=175.0))
