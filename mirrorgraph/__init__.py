@@ -8,6 +8,14 @@ The Python API in a nutshell::
                        mg.CalibrateOptions(subject_height=1.75))
     print(run.calibration.summary())
     mg.write_calibration("calibration.json", run.calibration)
+    mg.export_calibration("calibration.json", "pose2sim", "Calib.toml")
+
+    rig = mg.calibrate_rig("rig.toml", subject_height=1.75)     # cameras and mirrors
+    mg.write_rig_toml(rig, "Calib.toml")
+
+Every name in ``__all__`` is the public API (the README's *Python API* section); the
+rest is reachable through its module. The names whose modules pull GTSAM or an
+optional extra are imported on first use, so that ``import mirrorgraph`` stays fast.
 
 Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 :mod:`~mirrorgraph.solvers` (minimal and linear solvers),
@@ -23,21 +31,44 @@ Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 
 from ._version import __version__
 
-from .calibration import Calibration, write_calibration  # noqa: E402
+from .calibration import Calibration, read_calibration, write_calibration  # noqa: E402
 from .errors import DegenerateGeometryError, InputError, MirrorgraphError  # noqa: E402
 from .pipeline import CalibrateOptions, CalibrationRun, calibrate  # noqa: E402
 
+#: Public name -> the module it lives in, imported on first use (``__getattr__``).
+_LAZY = {
+    "load_intrinsics": "mirrorgraph.intrinsics",
+    "Intrinsics": "mirrorgraph.intrinsics",
+    "read_keypoints": "mirrorgraph.io",
+    "write_keypoints": "mirrorgraph.io",
+    "RefineOptions": "mirrorgraph.graph.options",
+    "calibrate_rig": "mirrorgraph.rigs.pipeline",
+    "load_rig_config": "mirrorgraph.rigs.config",
+    "RigConfig": "mirrorgraph.rigs.config",
+    "RigCalibration": "mirrorgraph.rigs.result",
+    "write_rig_toml": "mirrorgraph.io.rig_calibration",
+    "write_rig_json": "mirrorgraph.io.rig_calibration",
+    "export_calibration": "mirrorgraph.export",
+    "export_cameras": "mirrorgraph.export",
+    "make_report": "mirrorgraph.report",
+    "write_rig_report": "mirrorgraph.report.rig",
+}
+
 __all__ = ["Calibration", "CalibrateOptions", "CalibrationRun", "DegenerateGeometryError",
-           "InputError", "MirrorgraphError", "calibrate", "load_intrinsics", "read_keypoints",
-           "write_calibration", "__version__"]
+           "InputError", "MirrorgraphError", "calibrate", "read_calibration",
+           "write_calibration", "__version__", *_LAZY]
 
 
-def __getattr__(name):
-    # light lazy imports so that `import mirrorgraph` stays fast
-    if name == "load_intrinsics":
-        from .intrinsics import load_intrinsics
-        return load_intrinsics
-    if name == "read_keypoints":
-        from .io import read_keypoints
-        return read_keypoints
-    raise AttributeError(f"module 'mirrorgraph' has no attribute {name!r}")
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mirrorgraph' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -4,7 +4,9 @@
 :meth:`Calibration.to_dict` is the schema of ``calibration.json``. Everything in
 it is self-consistent: the virtual camera ``(R, t)``, the fundamental matrix and
 the epipole are all derived from the one mirror plane ``(normal, distance)``
-(see :mod:`mirrorgraph.geometry`).
+(see :mod:`mirrorgraph.geometry`). :func:`write_calibration` writes it (atomically,
+through :mod:`mirrorgraph.io.calibration`) and :func:`read_calibration` reads it back,
+checking every field it needs.
 
 Scale: 2D keypoints alone fix the normal but not the distance. With a metric
 prior (``subject_height``) the distance, ``t`` and the 3D joints are in metres
@@ -14,14 +16,21 @@ and ``scale`` is ``"subject_height"``; otherwise ``distance`` is ``null``,
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from . import geometry as geo
 from ._version import __version__
-from .intrinsics import Intrinsics
+from .errors import InputError
+from .intrinsics import Intrinsics, check_camera_matrix, check_distortion, check_size
+from .io._common import load_json, numeric_array
+from .io.calibration import write_json
+
+__all__ = ["Calibration", "read_calibration", "write_calibration"]
 
 
 @dataclass
@@ -174,8 +183,118 @@ class Calibration:
         return "\n".join(lines)
 
 
-def write_calibration(path, calibration: Calibration) -> None:
+def write_calibration(path: str | os.PathLike, calibration: Calibration) -> None:
     """Write ``calibration.json`` atomically (see :meth:`Calibration.to_dict`)."""
-    from .io.calibration import write_json
-
     write_json(path, calibration.to_dict())
+
+
+def read_calibration(calibration: str | os.PathLike | Mapping | Calibration, *,
+                     intrinsics: Intrinsics | None = None) -> Calibration:
+    """A :class:`~mirrorgraph.calibration.Calibration` from ``calibration.json``.
+
+    The mirror, the intrinsics and the counts are checked (a missing or malformed
+    field raises one :class:`~mirrorgraph.errors.InputError` naming the file and
+    the field); the reports (``input``, ``refinement``, ``uncertainty``,
+    ``sensitivity``, ``warnings``) are taken as written. The normal is kept as
+    written where it is a unit vector to 1e-12 (so that numbers derived from it equal
+    those of the run in memory), else normalised.
+
+    Args:
+        calibration: the file's path, its parsed document, or a
+            :class:`~mirrorgraph.calibration.Calibration` (returned as it is, with
+            ``intrinsics`` replaced where given).
+        intrinsics: overrides the intrinsics stored in the file.
+
+    Returns:
+        The calibration; ``distance`` is ``None`` where the file has no metric scale.
+
+    Raises:
+        InputError: unreadable file or a missing / malformed field.
+    """
+    if isinstance(calibration, Calibration):
+        if intrinsics is None:
+            return calibration
+        return replace(calibration, intrinsics=intrinsics)
+    if isinstance(calibration, (str, os.PathLike)):
+        src: str | None = str(calibration)
+        obj = load_json(calibration)
+    elif isinstance(calibration, Mapping):
+        src, obj = None, calibration
+    else:
+        raise TypeError("calibration must be a path, a dict or a Calibration, "
+                        f"got {type(calibration).__name__}")
+
+    def section(key: str) -> Mapping:
+        sec = obj.get(key) if isinstance(obj, Mapping) else None
+        if not isinstance(sec, Mapping):
+            raise InputError("missing or not an object (is this a mirrorgraph "
+                             "calibration.json?)", source=src, field=key)
+        return sec
+
+    mirror = section("mirror")
+    if "normal" not in mirror:
+        raise InputError("missing", source=src, field="mirror.normal")
+    raw = numeric_array(mirror["normal"], 1, source=src, frame=None, field="mirror.normal")
+    if raw.shape != (3,) or not np.isfinite(raw).all() or np.linalg.norm(raw) < 1e-9:
+        raise InputError(f"expected a finite non-zero 3-vector, got {mirror['normal']!r}",
+                         source=src, field="mirror.normal")
+    n = raw if abs(np.linalg.norm(raw) - 1.0) < 1e-12 else raw / np.linalg.norm(raw)
+    d = mirror.get("distance")
+    if d is not None:
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not np.isfinite(d) or d <= 0:
+            raise InputError(f"expected a positive number of metres or null, got {d!r}",
+                             source=src, field="mirror.distance")
+        d = float(d)
+    if intrinsics is None:
+        intrinsics = _read_intrinsics(section("intrinsics"), src)
+    n0 = obj.get("initial_normal")
+    if n0 is None:
+        n0 = n
+    else:
+        n0 = numeric_array(n0, 1, source=src, frame=None, field="initial_normal")
+        if n0.shape != (3,) or not np.isfinite(n0).all() or np.linalg.norm(n0) < 1e-9:
+            raise InputError("expected a finite non-zero 3-vector", source=src,
+                             field="initial_normal")
+        if abs(np.linalg.norm(n0) - 1.0) >= 1e-12:
+            n0 = n0 / np.linalg.norm(n0)
+    counts = {}
+    for key in ("frames_read", "frames_paired", "frames_used", "pairs_total", "pairs_used",
+                "lr_fixes", "ransac_iterations"):
+        v = obj.get(key) or 0
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 0 or v != int(v):
+            raise InputError(f"expected a count (a whole number >= 0), got {v!r}",
+                             source=src, field=key)
+        counts[key] = int(v)
+    reports = {}
+    for key in ("input", "refinement", "uncertainty", "sensitivity"):
+        v = obj.get(key) or {}
+        if not isinstance(v, Mapping):
+            raise InputError("expected an object", source=src, field=key)
+        reports[key] = dict(v)
+    warnings = obj.get("warnings") or []
+    if not isinstance(warnings, list):
+        raise InputError("expected a list of strings", source=src, field="warnings")
+    return Calibration(normal=n, distance=d, scale=str(obj.get("scale", "unknown")),
+                       estimator=str(obj.get("estimator", "")), intrinsics=intrinsics,
+                       initial_normal=n0, refined=bool(obj.get("refined", False)),
+                       warnings=[str(w) for w in warnings], **counts, **reports)
+
+
+def _read_intrinsics(intr: Mapping, src: str | None) -> Intrinsics:
+    """The ``intrinsics`` section of ``calibration.json`` (:meth:`Intrinsics.to_dict`)."""
+    if "K" not in intr:
+        raise InputError("missing (the 3x3 camera matrix)", source=src, field="intrinsics.K")
+    K = check_camera_matrix(numeric_array(intr["K"], 2, source=src, frame=None,
+                                          field="intrinsics.K"), src, "intrinsics.K")
+    dist = intr.get("dist")
+    if dist is not None:
+        dist = check_distortion(numeric_array(dist, None, source=src, frame=None,
+                                              field="intrinsics.dist"), src)
+    size = intr.get("image_size")
+    if size is not None:
+        if not (isinstance(size, (list, tuple)) and len(size) == 2):
+            raise InputError(f"expected [width, height], got {size!r}", source=src,
+                             field="intrinsics.image_size")
+        size = check_size(size[0], size[1], src, "intrinsics.image_size")
+    return Intrinsics(K=K, dist=dist, image_size=size, source=str(intr.get("source", "")),
+                      approximate=bool(intr.get("approximate", False)))

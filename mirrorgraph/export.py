@@ -90,10 +90,9 @@ import numpy as np
 
 from . import geometry as geo
 from ._version import __version__
-from .calibration import Calibration
+from .calibration import Calibration, read_calibration
 from .errors import InputError
-from .intrinsics import Intrinsics, _check_dist, _check_K, _check_size
-from .io._common import load_json, numeric_array
+from .intrinsics import check_size
 from .io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 from .skeletons import Skeleton, skeleton_by_name
 
@@ -227,62 +226,6 @@ def world_rotation(world: str) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- input
-def _read_calibration(calibration: Any
-                      ) -> tuple[np.ndarray, float | None, Intrinsics, str | None]:
-    """``(normal, distance or None, intrinsics, source)`` from any accepted input."""
-    if isinstance(calibration, Calibration):
-        return (np.asarray(calibration.normal, float), calibration.distance,
-                calibration.intrinsics, None)
-    if isinstance(calibration, (str, os.PathLike)):
-        src: str | None = str(calibration)
-        obj = load_json(calibration)
-    elif isinstance(calibration, Mapping):
-        src, obj = None, calibration
-    else:
-        raise TypeError("calibration must be a path, a dict or a Calibration, "
-                        f"got {type(calibration).__name__}")
-
-    def section(key: str) -> Mapping:
-        sec = obj.get(key) if isinstance(obj, Mapping) else None
-        if not isinstance(sec, Mapping):
-            raise InputError("missing or not an object (is this a mirrorgraph "
-                             "calibration.json?)", source=src, field=key)
-        return sec
-
-    mirror = section("mirror")
-    if "normal" not in mirror:
-        raise InputError("missing", source=src, field="mirror.normal")
-    n = numeric_array(mirror["normal"], 1, source=src, frame=None, field="mirror.normal")
-    if n.shape != (3,) or not np.isfinite(n).all() or np.linalg.norm(n) < 1e-9:
-        raise InputError(f"expected a finite non-zero 3-vector, got {mirror['normal']!r}",
-                         source=src, field="mirror.normal")
-    n = n / np.linalg.norm(n)
-    d = mirror.get("distance")
-    if d is not None:
-        if isinstance(d, bool) or not isinstance(d, (int, float)) or not np.isfinite(d) or d <= 0:
-            raise InputError(f"expected a positive number of metres or null, got {d!r}",
-                             source=src, field="mirror.distance")
-        d = float(d)
-    intr = section("intrinsics")
-    if "K" not in intr:
-        raise InputError("missing (the 3x3 camera matrix)", source=src, field="intrinsics.K")
-    K = _check_K(numeric_array(intr["K"], 2, source=src, frame=None, field="intrinsics.K"),
-                 src, "intrinsics.K")
-    dist = intr.get("dist")
-    if dist is not None:
-        dist = _check_dist(numeric_array(dist, None, source=src, frame=None,
-                                         field="intrinsics.dist"), src)
-    size = intr.get("image_size")
-    if size is not None:
-        if not (isinstance(size, (list, tuple)) and len(size) == 2):
-            raise InputError(f"expected [width, height], got {size!r}", source=src,
-                             field="intrinsics.image_size")
-        size = _check_size(size[0], size[1], src, "intrinsics.image_size")
-    approx = bool(intr.get("approximate", False))
-    return n, d, Intrinsics(K=K, dist=dist, image_size=size, source=str(intr.get("source", "")),
-                            approximate=approx), src
-
-
 # --------------------------------------------------------------------------- export
 def _style_distortion(d: np.ndarray, style: str, warnings: list[str]) -> np.ndarray:
     """Coefficient vector in the length each tool writes (values unchanged)."""
@@ -306,13 +249,15 @@ def _export(calibration, fmt, world, image_size):
         raise InputError(f"unknown export format {fmt!r}; choose one of "
                          f"{', '.join(FORMATS)}", field="format")
     A = world_rotation(world)
-    n, d, intr, source = _read_calibration(calibration)
+    calib = read_calibration(calibration)
+    n, d, intr = np.asarray(calib.normal, float), calib.distance, calib.intrinsics
+    source = str(calibration) if isinstance(calibration, (str, os.PathLike)) else None
     size = image_size if image_size is not None else intr.image_size
     if size is None:
         raise InputError("the image size is needed to flip the mirror view (u -> W - u) but "
                          "the calibration has none: pass image_size=(W, H)",
                          source=source, field="intrinsics.image_size")
-    size = _check_size(size[0], size[1], source, "image_size")
+    size = check_size(size[0], size[1], source, "image_size")
     warnings: list[str] = []
     if d is None:
         warnings.append("the calibration has no metric scale (mirror.distance is null): "

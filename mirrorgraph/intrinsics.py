@@ -180,7 +180,7 @@ def load_intrinsics(path: str | os.PathLike, camera: str | int | None = None) ->
         K, dist, size, key = _read_opencv(path)
     else:
         K, dist, size, key = _read_json(path)
-    return Intrinsics(K=_check_K(K, path, key), dist=_check_dist(dist, path),
+    return Intrinsics(K=check_camera_matrix(K, path, key), dist=check_distortion(dist, path),
                       image_size=size, source=str(path))
 
 
@@ -197,9 +197,9 @@ def _load_toml(path: Path, camera: str | int | None) -> Intrinsics:
         raise InputError(f"{len(dist)} distortion coefficients; OpenCV takes "
                          f"{', '.join(map(str, DIST_LENGTHS))}", source=path,
                          field=f"{cam.key}.distortions")
-    size = None if cam.size is None else _check_size(*cam.size, path, f"{cam.key}.size")
-    return Intrinsics(K=_check_K(cam.matrix, path, f"{cam.key}.matrix"),
-                      dist=_check_dist(dist, path), image_size=size,
+    size = None if cam.size is None else check_size(*cam.size, path, f"{cam.key}.size")
+    return Intrinsics(K=check_camera_matrix(cam.matrix, path, f"{cam.key}.matrix"),
+                      dist=check_distortion(dist, path), image_size=size,
                       source=f"{path} [{cam.key}]")
 
 
@@ -218,7 +218,7 @@ def _read_json(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, in
         if not (isinstance(size, list) and len(size) == 2):
             raise InputError(f"expected [width, height], got {size!r}", source=path,
                              field="image_size")
-        size = _check_size(size[0], size[1], path, "image_size")
+        size = check_size(size[0], size[1], path, "image_size")
     return K, dist, size, "K"
 
 
@@ -245,7 +245,7 @@ def _read_opencv(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, 
     if (w is None) != (h is None):
         raise InputError("image_width and image_height must be given together", source=path,
                          field="image_width" if w is None else "image_height")
-    size = None if w is None else _check_size(w, h, path, "image_width")
+    size = None if w is None else check_size(w, h, path, "image_width")
     return K, dist, size, "camera_matrix"
 
 
@@ -326,7 +326,7 @@ def _cv_message(e: Exception) -> str:
     return m.group(1) if m else text or type(e).__name__
 
 
-def _check_K(K: np.ndarray, path: Path, key: str) -> np.ndarray:
+def check_camera_matrix(K: np.ndarray, path: Path, key: str) -> np.ndarray:
     def fail(message: str) -> InputError:
         return InputError(message, source=path, field=key)
 
@@ -349,7 +349,7 @@ def _check_K(K: np.ndarray, path: Path, key: str) -> np.ndarray:
     return K
 
 
-def _check_dist(dist: np.ndarray | None, path: Path) -> np.ndarray | None:
+def check_distortion(dist: np.ndarray | None, path: Path) -> np.ndarray | None:
     if dist is None:
         return None
     dist = dist.ravel()
@@ -361,7 +361,7 @@ def _check_dist(dist: np.ndarray | None, path: Path) -> np.ndarray | None:
     return dist
 
 
-def _check_size(w: Any, h: Any, source: Any, field: str) -> tuple[int, int]:
+def check_size(w: Any, h: Any, source: Any, field: str) -> tuple[int, int]:
     ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
              and 0 < v <= MAX_IMAGE_SIDE for v in (w, h))
     if not ok:
@@ -383,7 +383,7 @@ def parse_image_size(value: str | tuple[int, int] | list[int]) -> tuple[int, int
         value = (int(m.group(1)), int(m.group(2)))
     if not isinstance(value, (tuple, list)) or len(value) != 2:
         raise InputError(f"image size {value!r} is not (width, height)", field="image_size")
-    return _check_size(value[0], value[1], None, "image_size")
+    return check_size(value[0], value[1], None, "image_size")
 
 
 def intrinsics_from_fov(image_size: str | tuple[int, int],

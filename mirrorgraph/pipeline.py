@@ -24,6 +24,7 @@ from .anthropometry import height_problem
 from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
+from .graph.options import RefineOptions
 from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
@@ -48,12 +49,15 @@ class CalibrateOptions:
             MirrorCalib), ``"all"`` every keypoint, or joint names (a sequence or
             one comma-separated string; at least 4).
         refine: run the factor-graph refinement after the initialisation.
-        subject_height: subject's standing height in metres (metric prior).
+        subject_height: subject's standing height in metres (metric prior); the one
+            home of this setting for :func:`calibrate` (a height in ``refine_options``
+            is taken when this is ``None``, and two different ones are refused).
         seed: seed of every random choice (RANSAC).
         fov_deg: horizontal field of view assumed when no intrinsics are given.
         image_size: ``(width, height)`` used when no intrinsics are given and
             the input does not carry it.
-        refine_options: :class:`mirrorgraph.graph.RefineOptions` (weights, kernel).
+        refine_options: :class:`mirrorgraph.graph.RefineOptions` (priors, schedule,
+            solver, gauge); ``None``: the defaults.
         complete_joints: after the refinement, triangulate with the solved mirror
             every keypoint outside ``joints`` seen in both views
             (:func:`mirrorgraph.completion.complete_mirror_joints`), so that
@@ -77,7 +81,7 @@ class CalibrateOptions:
     seed: int = 0
     fov_deg: float = DEFAULT_FOV_DEG
     image_size: tuple[int, int] | None = None
-    refine_options: object | None = None
+    refine_options: RefineOptions | None = None
     complete_joints: bool = True
     fps: float | None = None
     video: str | os.PathLike | None = None
@@ -343,6 +347,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                          f"{', '.join(ESTIMATORS)}", field="estimator")
     if isinstance(opts.seed, bool) or not isinstance(opts.seed, (int, np.integer)) or opts.seed < 0:
         raise InputError(f"must be a non-negative integer, got {opts.seed!r}", field="seed")
+    opts = replace(opts, subject_height=_subject_height(opts))
     if opts.subject_height is not None and height_problem(opts.subject_height):
         raise InputError(height_problem(opts.subject_height), field="subject_height")
     step = progress or (lambda _name: None)
@@ -437,13 +442,23 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
 
 def _scale_from(opts: CalibrateOptions) -> str:
     """How a subject height becomes a length (``RefineOptions.scale_from``)."""
-    from .graph import RefineOptions
     return (opts.refine_options or RefineOptions()).scale_from
+
+
+def _subject_height(opts: CalibrateOptions) -> float | None:
+    """The one subject height of a run: ``opts.subject_height``, else the refinement's."""
+    inner = opts.refine_options.subject_height if opts.refine_options is not None else None
+    if opts.subject_height is None:
+        return inner
+    if inner is not None and float(inner) != float(opts.subject_height):
+        raise InputError(f"{opts.subject_height!r} differs from refine_options.subject_height "
+                         f"{inner!r}: give the height once", field="subject_height")
+    return opts.subject_height
 
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None) -> None:
-    from .graph import RefineOptions, refine_mirror
+    from .graph import refine_mirror
 
     ropts = opts.refine_options or RefineOptions()
     if opts.subject_height is not None:

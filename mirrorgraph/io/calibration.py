@@ -1,7 +1,8 @@
 """Reading and writing JSON documents such as the calibration file.
 
 Only the mechanics live here: conversion of NumPy values to plain JSON types and
-atomic writing. The calibration schema is defined by the modules that fill it.
+atomic writing. The calibration's schema, reader and writer are
+:mod:`mirrorgraph.calibration`'s.
 """
 
 from __future__ import annotations
@@ -58,4 +59,5 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 def read_json(path: str | os.PathLike) -> Any:
     """Parse a JSON file; InputError naming the file if missing or malformed."""
     return load_json(path)
+
 

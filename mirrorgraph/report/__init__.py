@@ -391,12 +391,13 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
 
     from ..io._common import load_json
     from ..keypoints import PairedKeypoints, RawDetections
-    from .store import calibration_from_json, read_run
+    from ..calibration import read_calibration
+    from .store import read_run
 
     path = Path(calibration) if isinstance(calibration, (str, os.PathLike)) else None
     obj = load_json(calibration) if path is not None else dict(calibration)
     src = str(path) if path is not None else None
-    calib = calibration_from_json(obj, src)
+    calib = read_calibration(calibration if path is not None else obj)
     warnings: list[str] = []
     forced = intrinsics is not None or bool(overrides)
     stored = None

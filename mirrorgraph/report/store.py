@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["KEY", "SUFFIX", "calibration_from_json", "read_run", "report_data_path",
+__all__ = ["KEY", "SUFFIX", "read_run", "report_data_path",
            "save_run", "write_calibration_and_run", "write_run"]
 
 #: Suffix of the file beside the calibration: ``c.json`` -> ``c.report.npz``.
@@ -138,8 +138,8 @@ def write_calibration_and_run(out: str | os.PathLike, run) -> Path:
     Returns:
         The path of the ``.report.npz`` written.
     """
-    from ..calibration import write_calibration
     from ..io.atomic import atomic_path
+    from ..calibration import write_calibration
     from ..io.calibration import write_json
 
     out = Path(out)
@@ -153,53 +153,6 @@ def write_calibration_and_run(out: str | os.PathLike, run) -> Path:
             doc[KEY] = sidecar.name
             write_json(out, doc)
     return sidecar
-
-
-def calibration_from_json(obj: Mapping, source: str | None = None, *, intrinsics=None):
-    """A :class:`~mirrorgraph.calibration.Calibration` from a parsed ``calibration.json``.
-
-    The normal is taken as written (renormalised only if it is not a unit vector
-    to 1e-12), so that numbers derived from it equal those of the run in memory.
-
-    Args:
-        obj: the parsed JSON document.
-        source: the file's path, for error messages.
-        intrinsics: overrides the intrinsics stored in the file.
-
-    Raises:
-        InputError: a missing or malformed field (named).
-    """
-    from ..calibration import Calibration
-    from ..export import _read_calibration
-
-    try:
-        n, d, intr, _ = _read_calibration(obj)
-    except InputError as exc:
-        if source is None or exc.source is not None:
-            raise
-        raise InputError(exc.reason, source=source, field=exc.field) from None
-    raw = np.asarray(obj["mirror"]["normal"], float)
-    if abs(np.linalg.norm(raw) - 1.0) < 1e-12:
-        n = raw
-    n0 = np.asarray(obj.get("initial_normal") or n, float)
-    if abs(np.linalg.norm(n0) - 1.0) >= 1e-12:
-        n0 = n0 / np.linalg.norm(n0)
-    return Calibration(
-        normal=n, distance=d, scale=str(obj.get("scale", "unknown")),
-        estimator=str(obj.get("estimator", "")),
-        intrinsics=intrinsics if intrinsics is not None else intr,
-        initial_normal=n0, refined=bool(obj.get("refined", False)),
-        frames_read=int(obj.get("frames_read") or 0),
-        frames_paired=int(obj.get("frames_paired") or 0),
-        frames_used=int(obj.get("frames_used") or 0),
-        pairs_total=int(obj.get("pairs_total") or 0),
-        pairs_used=int(obj.get("pairs_used") or 0),
-        lr_fixes=int(obj.get("lr_fixes") or 0),
-        ransac_iterations=int(obj.get("ransac_iterations") or 0),
-        input=dict(obj.get("input") or {}),
-        refinement=dict(obj.get("refinement") or {}),
-        uncertainty=dict(obj.get("uncertainty") or {}),
-        warnings=list(obj.get("warnings") or []))
 
 
 def read_run(path: str | os.PathLike, calibration):

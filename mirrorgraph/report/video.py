@@ -129,7 +129,7 @@ def _open(video) -> tuple[cv2.VideoCapture, int, tuple[int, int], float]:
     return cap, count, size, fps
 
 
-def _check_size(run, size, video) -> None:
+def check_size(run, size, video) -> None:
     want = run.calibration.intrinsics.image_size or run.paired.image_size
     if want is not None and tuple(want) != tuple(size):
         raise InputError(f"is {size[0]}x{size[1]} but the keypoints and intrinsics are "
@@ -166,7 +166,7 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
     """
     cap, nframes, size, _fps = _open(video)
     try:
-        _check_size(run, size, video)
+        check_size(run, size, video)
         rows = _frame_rows(run)
         p = run.paired
         have = [f for f, r in rows.items() if p.valid(0.0)[r].any() and (nframes <= 0 or f < nframes)]
@@ -207,7 +207,7 @@ def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=
     tmp = out.with_name(f".{out.stem}.part{out.suffix}")
     writer = None
     try:
-        _check_size(run, size, video)
+        check_size(run, size, video)
         rows = _frame_rows(run)
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
         if not writer.isOpened():

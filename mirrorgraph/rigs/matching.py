@@ -53,7 +53,7 @@ from ..errors import DegenerateGeometryError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton
 from ..geometry import skew
-from .relative import _normalised, refine_relative_pose, sampson_px
+from .relative import normalised_coordinates, refine_relative_pose, sampson_px
 
 __all__ = ["match_candidates", "match_people", "track_people", "subject_track", "track_motion",
            "MATCH_THRESHOLD_PX"]
@@ -297,8 +297,8 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     f = 0.5 * (K_ref[0, 0] + K[0, 0])
     xa_all = np.full(A.shape[:-1] + (2,), np.nan)
     xb_all = np.full(B.shape[:-1] + (2,), np.nan)
-    xa_all[seen] = _normalised(np.asarray(K_ref, float), A[..., :2][seen])
-    xb_all[seen] = _normalised(np.asarray(K, float), B[..., :2][seen])
+    xa_all[seen] = normalised_coordinates(np.asarray(K_ref, float), A[..., :2][seen])
+    xb_all[seen] = normalised_coordinates(np.asarray(K, float), B[..., :2][seen])
     track = np.concatenate(track_people(candidates, joints, min_confidence))
     best_E, best_fit, best_frac, tried = None, -1.0, 0.0, 0
     for k in np.unique(track):

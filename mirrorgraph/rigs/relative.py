@@ -96,7 +96,8 @@ def _skeleton_rig(skeleton: Skeleton, T: int, joints: np.ndarray) -> Rig:
                frame_ids=np.arange(T), joints=np.asarray(joints, dtype=int))
 
 
-def _normalised(K: np.ndarray, u: np.ndarray) -> np.ndarray:
+def normalised_coordinates(K: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Normalised image coordinates ``(..., 2)`` ``pi(K^-1 [u; 1])`` of pixels ``(..., 2)``."""
     uh = np.concatenate([u, np.ones(u.shape[:-1] + (1,))], axis=-1)
     x = uh @ np.linalg.inv(K).T
     return x[..., :2] / x[..., 2:3]
@@ -160,8 +161,8 @@ def relative_pose(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray, u_b: np.nda
     n = int(np.count_nonzero(mask))
     if n < MIN_CORRESPONDENCES:
         return None
-    xa = _normalised(np.asarray(K_a, float), np.asarray(u_a, float)[mask])
-    xb = _normalised(np.asarray(K_b, float), np.asarray(u_b, float)[mask])
+    xa = normalised_coordinates(np.asarray(K_a, float), np.asarray(u_a, float)[mask])
+    xb = normalised_coordinates(np.asarray(K_b, float), np.asarray(u_b, float)[mask])
     f = 0.5 * (np.mean(np.diag(K_a)[:2]) + np.mean(np.diag(K_b)[:2]))
     cv2.setRNGSeed(int(seed))
     E, inl = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.USAC_MAGSAC, prob=0.9999,

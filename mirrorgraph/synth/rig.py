@@ -124,14 +124,14 @@ from ..skeletons import Skeleton, skeleton_by_name
 from . import rig_files as _files, rig_placement as _placement
 from .body import make_body, skeleton_points
 from .motion import generate_motion
-from .rig_bystanders import _bystander_rng, _make_bystanders
+from .rig_bystanders import bystander_rng, make_bystanders
 from .rig_files import read_rig_ground_truth, write_rig
-from .rig_placement import (PERSON, _APART, _MAX_ATTEMPTS, _PERSON_FULL, _REFLECTION_FULL,
-                            RIG_PRESETS, RigRanges, _apart_fraction, _build_1cam2mirrors,
-                            _build_2cams1mirror, _build_4cams, _camera_views, _full_fraction,
-                            _mirror_distances_ok, resolve_rig_ranges)
+from .rig_placement import (PERSON, TORSOS_APART, MAX_ATTEMPTS, PERSON_FULL, REFLECTION_FULL,
+                            RIG_PRESETS, RigRanges, apart_fraction, build_1cam2mirrors,
+                            build_2cams1mirror, build_4cams, camera_views, full_fraction,
+                            mirror_distances_ok, resolve_rig_ranges)
 from .rig_types import RigBystander, RigView, SyntheticRig, bystander_name
-from .scene import _camera_matrix, _observe, check_camera_args
+from .scene import random_camera_matrix, observe_keypoints, check_camera_args
 
 __all__ = ["KINDS", "RigView", "RigBystander", "SyntheticRig", "make_rig", "write_rig",
            "read_rig_ground_truth", "bystander_name"]
@@ -152,7 +152,7 @@ def _detect(rng, views: list, size: tuple[int, int], noise_std: float, outlier_r
             missing_rate: float, lr_swap_rate: float, flip: np.ndarray,
             joint_bias_px: float = 0.0, rng_bias: np.random.Generator | None = None
             ) -> tuple[list[np.ndarray], dict[str, RigView], np.ndarray]:
-    """The detector on one camera's views of one person (:func:`_camera_views` list).
+    """The detector on one camera's views of one person (:func:`camera_views` list).
 
     With ``joint_bias_px`` every view and joint also gets a constant offset (the
     detector's systematic error, as :func:`mirrorgraph.synth.make_scene`'s), and the
@@ -167,7 +167,7 @@ def _detect(rng, views: list, size: tuple[int, int], noise_std: float, outlier_r
     clean = np.stack([v[3] for v in views])                    # (V, T, J, 2)
     visible = np.stack([v[4] for v in views])                  # (V, T, J)
     filled = np.where(visible[..., None], clean, 0.0)
-    obs, miss, outl, detected = _observe(rng, filled, size, 0.0, noise_std,
+    obs, miss, outl, detected = observe_keypoints(rng, filled, size, 0.0, noise_std,
                                          outlier_rate, missing_rate, 0.0, 0.0,
                                          joint_bias_px, rng_bias)
     detected &= visible.sum(-1) >= _MIN_JOINTS
@@ -277,7 +277,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     names = [f"cam{i + 1:02d}" for i in range(n_cams)]
 
     rng = np.random.default_rng(seed)
-    Ks = [_camera_matrix(rng, size, fov_deg) for _ in range(n_cams)]
+    Ks = [random_camera_matrix(rng, size, fov_deg) for _ in range(n_cams)]
     body = make_body(rng)
     local = skeleton_points(generate_motion(body, T, fps, rng), skel)
     H = float(subject_height) if subject_height is not None else float(rng.uniform(1.55, 1.95))
@@ -287,30 +287,30 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
 
     # ------------------------------------------------------------- placement (room frame)
     built = None
-    for attempt in range(_MAX_ATTEMPTS):
+    for attempt in range(MAX_ATTEMPTS):
         if g.focal_px is not None:
             for K in Ks:
                 K[0, 0] = K[1, 1] = rng.uniform(*g.focal_px)
         if kind == "4cams":
-            built = _build_4cams(rng, local, H, Ks, size, g)
+            built = build_4cams(rng, local, H, Ks, size, g)
         elif kind == "2cams1mirror":
-            built = _build_2cams1mirror(rng, local, H, g)
+            built = build_2cams1mirror(rng, local, H, g)
         else:
-            built = _build_1cam2mirrors(rng, local, H, np.radians(corner_angle_deg), g)
+            built = build_1cam2mirrors(rng, local, H, np.radians(corner_angle_deg), g)
         if built is None:
             continue
         X_r, cams, mirrors_r, info = built
-        views_r = [_camera_views(c, K, size, X_r, mirrors_r, double_reflections)
+        views_r = [camera_views(c, K, size, X_r, mirrors_r, double_reflections)
                    for c, K in zip(cams, Ks)]
-        ok = _mirror_distances_ok(cams, mirrors_r, g)
+        ok = mirror_distances_ok(cams, mirrors_r, g)
         for vs in views_r:
             main = [v for v in vs if v[0] == PERSON or len(v[1][0]) == 1]
             for name, _, _, uv, vis in main:
-                ok &= _full_fraction(vis) >= (_PERSON_FULL if name == PERSON
-                                              else _REFLECTION_FULL)
+                ok &= full_fraction(vis) >= (PERSON_FULL if name == PERSON
+                                              else REFLECTION_FULL)
             for i, a in enumerate(main):
                 for b in main[i + 1:]:
-                    ok &= _apart_fraction(a[3], b[3], torso) >= _APART
+                    ok &= apart_fraction(a[3], b[3], torso) >= TORSOS_APART
         if ok:
             break
         built = None
@@ -321,8 +321,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     info["attempts"] = attempt + 1
     if g.focal_px is not None:
         info["focal_px"] = [float(K[0, 0]) for K in Ks]
-    rng_b = _bystander_rng(seed)
-    extra = _make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
+    rng_b = bystander_rng(seed)
+    extra = make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
                              mirrors_r, double_reflections, views_r, torso)
     if extra:
         info["bystanders"] = [b[3] for b in extra]

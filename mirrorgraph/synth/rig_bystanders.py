@@ -31,8 +31,8 @@ import numpy as np
 from ..skeletons import Skeleton
 from .body import make_body, skeleton_points
 from .motion import generate_motion
-from .rig_placement import (_apart_fraction, _camera_views, _full_fraction, _gap_ok,
-                            _motion_centre, _person)
+from .rig_placement import (apart_fraction, camera_views, full_fraction, gap_ok,
+                            motion_centre, place_person)
 from .rig_types import bystander_name
 
 _BYSTANDER_DISTANCE = (1.0, 2.5)   # m: a bystander's motion centre from the subject's
@@ -45,7 +45,7 @@ _BYSTANDER_ATTEMPTS = 1000     # placements drawn per bystander
 
 
 def _main_views(views: list) -> list:
-    """The direct view and the single reflections of a :func:`_camera_views` list."""
+    """The direct view and the single reflections of a :func:`camera_views` list."""
     return [v for v in views if not v[1] or len(v[1][0]) == 1]
 
 
@@ -66,9 +66,9 @@ def _place_bystander(rng, local: np.ndarray, H: float, X_subject: np.ndarray,
     module docstring in :data:`_BYSTANDER_ATTEMPTS` draws.
 
     ``others``: per camera, the subject's main views (direct and single
-    reflections, :func:`_camera_views` tuples) that the bystander must not overlap.
+    reflections, :func:`camera_views` tuples) that the bystander must not overlap.
     """
-    centre = _motion_centre(X_subject)
+    centre = motion_centre(X_subject)
     normals = [m.n for m in mirrors.values()]
     cos_max = np.cos(np.radians(_BYSTANDER_NORMAL_DEG))
     for attempt in range(_BYSTANDER_ATTEMPTS):
@@ -78,24 +78,24 @@ def _place_bystander(rng, local: np.ndarray, H: float, X_subject: np.ndarray,
         offset = np.array([np.sin(az), 0.0, np.cos(az)])
         if any(abs(offset @ n) > cos_max for n in normals):
             continue           # in line with a mirror's normal: on the subject's epipolar lines
-        X = _person(local, H, yaw, np.zeros(3))
-        shift = centre + dist * offset - _motion_centre(X)      # their centre there, on the floor
+        X = place_person(local, H, yaw, np.zeros(3))
+        shift = centre + dist * offset - motion_centre(X)      # their centre there, on the floor
         shift[1] = 0.0
         X = X + shift
-        if not _gap_ok(X, mirrors):
+        if not gap_ok(X, mirrors):
             continue
-        here = _motion_centre(X)
+        here = motion_centre(X)
         if any(np.hypot(*(here - c.C)[[0, 2]]) < _BYSTANDER_CAMERA_GAP for c in cams):
             continue
         views, ok, seen_by = [], True, 0
         for cam, K, other in zip(cams, Ks, others):
-            vs = _camera_views(cam, K, size, X, mirrors, double)
+            vs = camera_views(cam, K, size, X, mirrors, double)
             vs = [(n, paths, flipped, uv, vis & present[:, None])
                   for n, paths, flipped, uv, vis in vs]
             main = _main_views(vs)
-            seen = all(_full_fraction(v[4][present]) >= _BYSTANDER_FULL for v in main)
+            seen = all(full_fraction(v[4][present]) >= _BYSTANDER_FULL for v in main)
             ok = (seen or not cam.sees) and (not seen or all(
-                _apart_fraction(v[3][present], o[3][present], torso) >= _BYSTANDER_APART
+                apart_fraction(v[3][present], o[3][present], torso) >= _BYSTANDER_APART
                 for v in main for o in other))
             if not ok:
                 break
@@ -108,12 +108,12 @@ def _place_bystander(rng, local: np.ndarray, H: float, X_subject: np.ndarray,
     return None
 
 
-def _bystander_rng(seed) -> np.random.Generator:
+def bystander_rng(seed) -> np.random.Generator:
     """The bystanders' own generator: the subject's draws stay those without them."""
     return np.random.default_rng() if seed is None else np.random.default_rng([seed, 1])
 
 
-def _make_bystanders(rng, count: int, skel: Skeleton, fps: float, cams: list, Ks: list,
+def make_bystanders(rng, count: int, skel: Skeleton, fps: float, cams: list, Ks: list,
                      size: tuple[int, int], X_subject: np.ndarray, mirrors: dict,
                      double: bool, subject_views: list, torso: np.ndarray) -> list:
     """``count`` bystanders in the room frame: per bystander ``(name, (X (T, J, 3), height,

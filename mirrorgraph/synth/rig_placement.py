@@ -1,11 +1,11 @@
 """Placement of the synthetic rigs of :mod:`.rig`: the cameras, the mirrors and the person.
 
-Builds each rig kind (:func:`_build_4cams`, :func:`_build_2cams1mirror`,
-:func:`_build_1cam2mirrors`) in a *room frame*: ``Y`` up, floor at ``Y = 0``,
+Builds each rig kind (:func:`build_4cams`, :func:`build_2cams1mirror`,
+:func:`build_1cam2mirrors`) in a *room frame*: ``Y`` up, floor at ``Y = 0``,
 metres. A camera is its centre ``C`` and its camera-to-room rotation ``R``
 (columns: the camera's ``x`` right, ``y`` down, ``z`` forward); a mirror is the
 plane ``n . X = d``, ``n`` pointing out of the room, with the reflective side
-``n . X < d``. :func:`_camera_views` gives what a camera sees of joints
+``n . X < d``. :func:`camera_views` gives what a camera sees of joints
 ``(T, J, 3)``: the pixels and visibility of the direct view and of the
 reflections. :func:`~.rig.make_rig` checks the placement and moves it to the
 world frame (camera 0's).
@@ -36,14 +36,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .scene import _rot_y, _rot_z, project
+from ..geometry import reflect_points
+from .scene import project, rot_y, rot_z
 
 _Z_MIN = 0.5            # m: nearest a visible point may be to the camera plane
 _MIRROR_GAP = 0.2       # m: nearest a joint may come to a mirror
-_PERSON_FULL = 0.90     # fraction of frames each camera must see the whole person
-_REFLECTION_FULL = 0.75  # ... and the whole of each single reflection it sees
-_APART = 0.90          # ... and the torsos of any two of these apart in the image
-_MAX_ATTEMPTS = 300
+PERSON_FULL = 0.90     # fraction of frames each camera must see the whole person
+REFLECTION_FULL = 0.75  # ... and the whole of each single reflection it sees
+TORSOS_APART = 0.90          # ... and the torsos of any two of these apart in the image
+MAX_ATTEMPTS = 300
 _UP = np.array([0.0, 1.0, 0.0])
 _DEG = np.pi / 180.0
 
@@ -132,10 +133,6 @@ _LEGACY = RIG_PRESETS["favourable"]
 
 
 # --------------------------------------------------------------------------- geometry
-def _reflect(X: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
-    return X - 2.0 * ((X @ n) - d)[..., None] * n
-
-
 def _look_at(C: np.ndarray, target: np.ndarray, roll: float) -> np.ndarray:
     """Camera-to-room rotation (columns: camera x right, y down, z forward), room ``Y`` up."""
     z = target - C
@@ -143,7 +140,7 @@ def _look_at(C: np.ndarray, target: np.ndarray, roll: float) -> np.ndarray:
     x = np.cross(z, _UP)
     x = x / np.linalg.norm(x)
     y = np.cross(z, x)
-    return np.column_stack([x, y, z]) @ _rot_z(roll)
+    return np.column_stack([x, y, z]) @ rot_z(roll)
 
 
 @dataclass
@@ -167,7 +164,7 @@ def _path_visible(C: np.ndarray, X: np.ndarray, path: tuple[_Mirror, ...]
     whether the light path exists (the mirrors met in order, on their surfaces)."""
     virt = X
     for m in reversed(path):
-        virt = _reflect(virt, m.n, m.d)
+        virt = reflect_points(virt, m.n, m.d)
     ok = np.ones(X.shape[:-1], dtype=bool)
     start = np.broadcast_to(C, X.shape)
     target = virt
@@ -181,7 +178,7 @@ def _path_visible(C: np.ndarray, X: np.ndarray, path: tuple[_Mirror, ...]
         for a, b in m.limits:
             ok &= hit @ a <= b
         start = hit
-        target = _reflect(target, m.n, m.d)            # continue toward the next image
+        target = reflect_points(target, m.n, m.d)            # continue toward the next image
     return virt, ok
 
 
@@ -196,7 +193,7 @@ def _project_visible(cam: _Camera, K: np.ndarray, size: tuple[int, int], V: np.n
     return uv, inside
 
 
-def _camera_views(cam: _Camera, K: np.ndarray, size: tuple[int, int], X: np.ndarray,
+def camera_views(cam: _Camera, K: np.ndarray, size: tuple[int, int], X: np.ndarray,
                   mirrors: dict[str, _Mirror], double: bool
                   ) -> list[tuple[str, tuple[tuple[str, ...], ...], bool, np.ndarray, np.ndarray]]:
     """``(name, paths, flipped, clean (T, J, 2), visible (T, J))`` of every view."""
@@ -222,7 +219,7 @@ def _camera_views(cam: _Camera, K: np.ndarray, size: tuple[int, int], X: np.ndar
     return out
 
 
-def _motion_centre(X: np.ndarray) -> np.ndarray:
+def motion_centre(X: np.ndarray) -> np.ndarray:
     """Horizontal mean and the middle of the vertical extent of a motion ``(T, J, 3)``."""
     flat = X.reshape(-1, 3)
     c = flat.mean(0)
@@ -240,24 +237,24 @@ def _aim_between(C: np.ndarray, points: list[np.ndarray], height: float) -> np.n
     return np.array([C[0] + dist * np.sin(mid), height, C[2] + dist * np.cos(mid)])
 
 
-def _full_fraction(vis: np.ndarray) -> float:
+def full_fraction(vis: np.ndarray) -> float:
     return float(vis.all(-1).mean())
 
 
-def _apart_fraction(uv1: np.ndarray, uv2: np.ndarray, torso: np.ndarray) -> float:
+def apart_fraction(uv1: np.ndarray, uv2: np.ndarray, torso: np.ndarray) -> float:
     """Fraction of frames whose two views' torsos (shoulders and hips) do not
     overlap horizontally in the image."""
     x1, x2 = uv1[:, torso, 0], uv2[:, torso, 0]
     return float(((x1.max(1) < x2.min(1)) | (x2.max(1) < x1.min(1))).mean())
 
 
-def _gap_ok(X: np.ndarray, mirrors: dict[str, _Mirror]) -> bool:
+def gap_ok(X: np.ndarray, mirrors: dict[str, _Mirror]) -> bool:
     """Every joint at least ``_MIRROR_GAP`` in front of every mirror."""
     return all(float((X @ m.n - m.d).max()) <= -_MIRROR_GAP for m in mirrors.values())
 
 
-def _person(local: np.ndarray, H: float, yaw: float, origin: np.ndarray) -> np.ndarray:
-    return (local @ _rot_y(yaw).T) * H + origin
+def place_person(local: np.ndarray, H: float, yaw: float, origin: np.ndarray) -> np.ndarray:
+    return (local @ rot_y(yaw).T) * H + origin
 
 
 def _sample_camera(rng, centre: np.ndarray, azimuth: float, dist: float,
@@ -271,7 +268,7 @@ def _roll(rng, g: RigRanges = _LEGACY) -> float:
                                     g.roll_max_deg)))
 
 
-def _mirror_distances_ok(cams: list[_Camera], mirrors: dict[str, _Mirror], g: RigRanges) -> bool:
+def mirror_distances_ok(cams: list[_Camera], mirrors: dict[str, _Mirror], g: RigRanges) -> bool:
     """Every camera within ``g.camera_to_mirror`` of every mirror it sees (or no range)."""
     if g.camera_to_mirror is None:
         return True
@@ -279,21 +276,21 @@ def _mirror_distances_ok(cams: list[_Camera], mirrors: dict[str, _Mirror], g: Ri
     return all(lo <= mirrors[m].d - cam.C @ mirrors[m].n <= hi for cam in cams for m in cam.sees)
 
 
-def _build_4cams(rng, local, H, Ks, size, g: RigRanges = _LEGACY):
+def build_4cams(rng, local, H, Ks, size, g: RigRanges = _LEGACY):
     yaw = rng.uniform(-np.pi, np.pi)
-    X = _person(local, H, yaw, np.zeros(3))
-    centre = _motion_centre(X)
+    X = place_person(local, H, yaw, np.zeros(3))
+    centre = motion_centre(X)
     a0 = rng.uniform(-np.pi, np.pi)
     cams, info = [], dict(azimuth_deg=[], distance_m=[], height_m=[], camera_attempts=[])
     for k in range(4):
-        for attempt in range(_MAX_ATTEMPTS):
+        for attempt in range(MAX_ATTEMPTS):
             az = a0 + k * np.pi / 2 + np.radians(rng.uniform(-10.0, 10.0))
             dist = rng.uniform(*g.camera_distance)
             C = _sample_camera(rng, centre, az, dist, g)
             target = centre + rng.uniform(-0.05, 0.05, 3)
             cam = _Camera(C=C, R=_look_at(C, target, _roll(rng, g)), sees=[])
             _, vis = _project_visible(cam, Ks[k], size, X)
-            if _full_fraction(vis) >= _PERSON_FULL:
+            if full_fraction(vis) >= PERSON_FULL:
                 break
         else:
             return None
@@ -305,7 +302,7 @@ def _build_4cams(rng, local, H, Ks, size, g: RigRanges = _LEGACY):
     return X, cams, {}, dict(info, person_yaw_deg=float(np.degrees(yaw)), facing="any")
 
 
-def _build_2cams1mirror(rng, local, H, g: RigRanges = _LEGACY):
+def build_2cams1mirror(rng, local, H, g: RigRanges = _LEGACY):
     wall = _Mirror("wall", np.array([0.0, 0.0, 1.0]), 0.0)
     mirrors = {"wall": wall}
     dp = rng.uniform(*g.person_to_mirror)
@@ -321,11 +318,11 @@ def _build_2cams1mirror(rng, local, H, g: RigRanges = _LEGACY):
     # room -Z points from the wall into the room; body z forward = room Z at yaw 0
     base = 0.0 if facing == "mirror" else np.pi - float(np.mean(psi))
     yaw = base + np.radians(rng.uniform(-20.0, 20.0))
-    X = _person(local, H, yaw, origin)
-    if not _gap_ok(X, mirrors):
+    X = place_person(local, H, yaw, origin)
+    if not gap_ok(X, mirrors):
         return None
-    centre = _motion_centre(X)
-    refl = _reflect(centre, wall.n, wall.d)
+    centre = motion_centre(X)
+    refl = reflect_points(centre, wall.n, wall.d)
     cams = []
     for k in range(2):
         # azimuth psi around the person, from the normal into the room (-Z)
@@ -339,7 +336,7 @@ def _build_2cams1mirror(rng, local, H, g: RigRanges = _LEGACY):
     return X, cams, mirrors, info
 
 
-def _build_1cam2mirrors(rng, local, H, alpha, g: RigRanges = _LEGACY):
+def build_1cam2mirrors(rng, local, H, alpha, g: RigRanges = _LEGACY):
     h = alpha / 2.0
     # the corner edge is the room's Y axis; the bisector runs into the room along -Z
     nA = np.array([np.cos(h), 0.0, np.sin(h)])       # the wall toward +X (camera's left)
@@ -358,12 +355,12 @@ def _build_1cam2mirrors(rng, local, H, alpha, g: RigRanges = _LEGACY):
     to_corner = np.arctan2(-origin[0], -origin[2])   # body z forward toward the edge
     base = to_corner if facing == "corner" else to_corner + np.pi
     yaw = base + np.radians(rng.uniform(-25.0, 25.0))
-    X = _person(local, H, yaw, origin)
-    if not _gap_ok(X, mirrors):
+    X = place_person(local, H, yaw, origin)
+    if not gap_ok(X, mirrors):
         return None
-    centre = _motion_centre(X)
+    centre = motion_centre(X)
     C = np.array([rc * np.sin(gamma), rng.uniform(*g.camera_height), -rc * np.cos(gamma)])
-    pts = [centre, _reflect(centre, nA, 0.0), _reflect(centre, nB, 0.0)]
+    pts = [centre, reflect_points(centre, nA, 0.0), reflect_points(centre, nB, 0.0)]
     target = _aim_between(C, pts, centre[1]) + rng.uniform(-0.05, 0.05, 3)
     cam = _Camera(C=C, R=_look_at(C, target, _roll(rng, g)),
                   sees=["mirror_left", "mirror_right"])

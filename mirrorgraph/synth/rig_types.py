@@ -17,7 +17,8 @@ import numpy as np
 from ..keypoints import RawDetections
 from ..skeletons import Skeleton
 from .body import BodyModel
-from .rig_placement import PERSON, _reflect
+from ..geometry import reflect_points
+from .rig_placement import PERSON
 from .scene import project
 
 __all__ = ["PERSON", "RigView", "RigBystander", "SyntheticRig", "bystander_name"]
@@ -196,7 +197,7 @@ class SyntheticRig:
     def reflect(self, X: np.ndarray, mirror: str) -> np.ndarray:
         """``S(X)`` of world points ``(..., 3)`` in a mirror."""
         n, d = self.mirror(mirror)
-        return _reflect(X, n, d)
+        return reflect_points(X, n, d)
 
     def mirror_in_camera(self, camera: str | int, mirror: str) -> tuple[np.ndarray, float]:
         """The mirror plane in a camera's frame, ``n`` pointing away from that camera."""

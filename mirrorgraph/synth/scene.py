@@ -109,7 +109,7 @@ D_FLIP = np.diag([-1.0, 1.0, 1.0])
 
 _Z_MIN = 0.5          # m: nearest a joint (or its reflection) may be to the camera plane
 _MIRROR_GAP = 0.2     # m: nearest a joint may come to the mirror
-_MAX_ATTEMPTS = 400
+MAX_ATTEMPTS = 400
 _CANDIDATES = 4096
 _HULL_MIN_POINTS = 3000
 
@@ -314,7 +314,7 @@ def distort_pixels(K: np.ndarray, dist: np.ndarray, pts: np.ndarray) -> np.ndarr
     return np.stack([fx * xd + s * yd + cx, fy * yd + cy], -1)
 
 
-def _camera_matrix(rng: np.random.Generator, image_size: tuple[int, int], fov_deg: float
+def random_camera_matrix(rng: np.random.Generator, image_size: tuple[int, int], fov_deg: float
                    ) -> np.ndarray:
     w, h = image_size
     f = (w / 2.0) / np.tan(np.radians(fov_deg) / 2.0)
@@ -327,12 +327,12 @@ def _rot_x(a: float) -> np.ndarray:
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
 
 
-def _rot_y(a: float) -> np.ndarray:
+def rot_y(a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, 0, s], [0, 1.0, 0], [-s, 0, c]])
 
 
-def _rot_z(a: float) -> np.ndarray:
+def rot_z(a: float) -> np.ndarray:
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
 
@@ -525,7 +525,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     size = (w, h)
 
     rng = np.random.default_rng(seed)
-    K = _camera_matrix(rng, size, 60.0 if fov_deg is None else fov_deg)
+    K = random_camera_matrix(rng, size, 60.0 if fov_deg is None else fov_deg)
     if focal_px is not None:
         K[0, 0] = K[1, 1] = float(focal_px)
     take_info = None
@@ -573,7 +573,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     flip = skel.flip
     seed0 = 0 if seed is None else int(seed)
     obs_clean = np.stack([ri, mi])                          # (2, T, J, 2) in the image
-    out = _observe(rng, obs_clean, size, noise_mean, noise_std, outlier_rate, missing_rate,
+    out = observe_keypoints(rng, obs_clean, size, noise_mean, noise_std, outlier_rate, missing_rate,
                    single_person_rate, noise_correlation, joint_bias_px,
                    np.random.default_rng([seed0, 7919]),
                    bias_flip=flip if joint_bias_shared else None)
@@ -636,7 +636,7 @@ def _tilt(rng: np.random.Generator, gp: GeometryPreset) -> np.ndarray:
     about ``z``, each drawn from the preset's clipped normal distribution."""
     return _rot_x(np.radians(np.clip(rng.normal(0.0, gp.pitch_std_deg), -gp.pitch_max_deg,
                                      gp.pitch_max_deg))) \
-        @ _rot_z(np.radians(np.clip(rng.normal(0.0, gp.roll_std_deg), -gp.roll_max_deg,
+        @ rot_z(np.radians(np.clip(rng.normal(0.0, gp.roll_std_deg), -gp.roll_max_deg,
                                     gp.roll_max_deg)))
 
 
@@ -701,7 +701,7 @@ def _place(rng: np.random.Generator, gp: GeometryPreset, K: np.ndarray, size: tu
     hull = _hull_points(local.reshape(-1, 3))
     centre = local.reshape(-1, 3).mean(0)
     margin = gp.margin_frac * min(w, h)
-    for attempt in range(_MAX_ATTEMPTS):
+    for attempt in range(MAX_ATTEMPTS):
         if attempt == 0 or (subject_height is None and take_height is None):
             H_m = (float(subject_height) if subject_height is not None
                    else take_height if take_height is not None else rng.uniform(1.55, 1.95))
@@ -739,7 +739,7 @@ def _place(rng: np.random.Generator, gp: GeometryPreset, K: np.ndarray, size: tu
             facing = "camera"
             base = np.pi
         base += np.radians(rng.uniform(-gp.facing_jitter_deg, gp.facing_jitter_deg))
-        R = R_cw @ _rot_y(base)                              # body -> camera
+        R = R_cw @ rot_y(base)                              # body -> camera
         A, b = _constraints(K, size, margin, n, d)
         if gp.between:                                       # n . X >= 0
             A, b = np.vstack([A, n]), np.append(b, 0.0)
@@ -824,7 +824,7 @@ def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: flo
     return lfilter([np.sqrt(1.0 - rho ** 2)], [1.0, -rho], w, axis=1)
 
 
-def _observe(rng: np.random.Generator, clean: np.ndarray, size: tuple[int, int],
+def observe_keypoints(rng: np.random.Generator, clean: np.ndarray, size: tuple[int, int],
              noise_mean: float, noise_std: float, outlier_rate: float, missing_rate: float,
              single_person_rate: float, noise_correlation: float = 0.0,
              joint_bias_px: float = 0.0, rng_detector: np.random.Generator | None = None,

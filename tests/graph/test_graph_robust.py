@@ -25,7 +25,7 @@ from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg
 from mirrorgraph.synth import make_scene, tilted_normal
 
 
-def _rot_y(deg: float) -> np.ndarray:
+def rot_y(deg: float) -> np.ndarray:
     a = np.radians(deg)
     return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
 
@@ -38,7 +38,7 @@ def low_parallax_scene(seed: int, frames: int = 300, outliers: float = 0.05,
     rng = np.random.default_rng(seed)
     base = make_scene(frames=frames, seed=seed, noise_std=0.0)
     K = base.K
-    n = _rot_y(turn_deg) @ np.array([0.0, 0.0, 1.0])
+    n = rot_y(turn_deg) @ np.array([0.0, 0.0, 1.0])
     side = np.cross([0.0, 1.0, 0.0], n)
     side /= np.linalg.norm(side)
     J3 = base.joints3d - np.nanmean(base.joints3d, axis=(0, 1))
