@@ -40,12 +40,14 @@ import os
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import Callable, Sequence
 
+from .anthropometry import height_problem
 from .errors import InputError, MirrorgraphError
-
-if TYPE_CHECKING:  # imported where used: `mirrorgraph --help` stays fast
-    from .pipeline import CalibrateOptions
+from .graph import RefineOptions
+from .intrinsics import load_intrinsics
+from .pipeline import CalibrateOptions, calibrate
+from .report.store import write_calibration_and_run
 
 #: Columns a CSV manifest may have; ``keypoints`` is required.
 COLUMNS = ("keypoints", "intrinsics", "out", "subject_height")
@@ -218,7 +220,6 @@ def _height(text: str, where: str) -> float | None:
     if not math.isfinite(value) or value <= 0:
         raise InputError(f"must be a positive number of metres, got {text!r}", source=where,
                          field="subject_height")
-    from .anthropometry import height_problem
     problem = height_problem(value)
     if problem is not None:
         raise InputError(problem, source=where, field="subject_height")
@@ -272,10 +273,6 @@ def calibrate_recording(recording: Recording, options: CalibrateOptions) -> Batc
         if rec.out.is_dir():
             raise InputError("is a folder; give a file name for the calibration JSON",
                              source=rec.out, field="out")
-        from .intrinsics import load_intrinsics
-        from .pipeline import calibrate
-        from .report.store import write_calibration_and_run
-
         intr = None if rec.intrinsics is None else load_intrinsics(rec.intrinsics)
         opts = options if rec.subject_height is None else \
             replace(options, subject_height=rec.subject_height)
@@ -344,10 +341,6 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
         MirrorgraphError: Dask is not installed, ``workers`` is not positive, or the
             scheduler cannot be reached.
     """
-    from .pipeline import CalibrateOptions
-
-    from .graph import RefineOptions
-
     recordings = list(recordings)
     options = options or CalibrateOptions()
     # the recordings are the parallel work: a long one's chunks are solved in its worker
@@ -358,6 +351,7 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
     if workers is not None and workers < 1:
         raise InputError(f"must be at least 1, got {workers}", field="--workers")
     try:
+        # the batch extra: Dask is optional, imported only to run a batch
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise MirrorgraphError("mirrorgraph batch needs Dask: pip install "

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .geometry import householder, tangent_basis
+from .geometry import householder, tangent_basis, virtual_camera_from_mirror
 
 
 def rotation_error_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
@@ -35,8 +35,6 @@ def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
     Equal to ``rotation_error_deg(D H_est, D H_true)``, i.e. twice the angle
     between the normals.
     """
-    from .geometry import virtual_camera_from_mirror
-
     return rotation_error_deg(virtual_camera_from_mirror(n_est, 1.0)[0],
                               virtual_camera_from_mirror(n_true, 1.0)[0])
 

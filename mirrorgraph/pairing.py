@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 
@@ -497,8 +498,6 @@ def _consistent_mirrors(cand: _Candidates, found: list[_Epipole], num_mirrors: i
     Under such an epipole the real people pair with nothing, so a set holding it
     explains fewer frames as a person with a reflection in each mirror.
     """
-    from itertools import combinations
-
     if len(found) <= num_mirrors:
         return found
     best, best_score = list(range(num_mirrors)), _consistency(cand, found[:num_mirrors])

@@ -48,6 +48,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import DegenerateGeometryError
+from ..estimators import estimate_mirror
 from . import require, triangulate_virtual
 
 INITS = ("essential", "reflective", "identity")
@@ -119,7 +120,6 @@ def _initial_pose(kind: str, K, Kf, u, um_flipped, um, threshold_px, seed):
     if kind == "identity":
         return np.eye(3), np.array([-1.0, 0.0, 0.0])
     if kind == "reflective":
-        from ..estimators import estimate_mirror
         est = estimate_mirror(u, um, K, seed=seed)
         R, t = geo.virtual_camera_from_mirror(est.normal, 0.5)
         return R, t

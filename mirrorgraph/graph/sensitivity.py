@@ -25,10 +25,13 @@ line), as it costs several calibrations.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ..metrics import mirror_rotation_error_deg
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
-from .uncertainty import JointScores, gauge_inverse, leave_one_out
+from .uncertainty import JointScores, gauge_inverse, leave_one_out, sandwich
 
 __all__ = ["sensitivity_report", "rig_sensitivity_report", "predicted_std", "TARGET_STDS_DEG", "FRAME_GRID",
            "REPORT_SEGMENTS", "prior_weights", "PRIORS"]
@@ -163,8 +166,6 @@ def rig_sensitivity_report(scores: JointScores, blocks: list[tuple[str, str, obj
         "frames_needed"}`` (rotations in degrees: a camera's own, a mirror's virtual
         camera's).
     """
-    from .uncertainty import sandwich
-
     T = scores.frame_info.shape[0]
     H = scores.information
     Hinv = gauge_inverse(H, scores.gauge)
@@ -254,10 +255,6 @@ def prior_weights(refine, normal: np.ndarray, options, used: dict, factors=(0.5,
     Returns:
         prior name -> ``{"x0.5": deg, "x2": deg}``.
     """
-    from dataclasses import replace
-
-    from ..metrics import mirror_rotation_error_deg
-
     out = {}
     for name, field_name in PRIORS.items():
         if name not in used:

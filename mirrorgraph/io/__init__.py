@@ -82,6 +82,8 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     Raises:
         InputError: unknown format, or any malformed content.
     """
+    # lazy: mirrorgraph.video is the video extra's path, and importing it (the whole
+    # package: detector, tracker) adds ~13 ms to `import mirrorgraph`
     from ..video.reader import is_video
     if is_video(path):
         from ..video.detect import detect_video

@@ -34,17 +34,24 @@ lazily, with the non-interactive Agg backend.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from .. import geometry as geo
+from ..calibration import read_calibration
 from ..errors import InputError
-from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from ..estimators import DEFAULT_THRESHOLD_PX
+from ..graph.options import RefineOptions
+from ..io import read_keypoints
+from ..io._common import load_json
+from ..keypoints import DEFAULT_MIN_CONFIDENCE, PairedKeypoints, RawDetections
+from ..pipeline import CalibrateOptions, calibrate
 from ..progress import Progress
 from .backend import INSTALL_HINT, require_matplotlib
+from .store import KEY, read_run, report_data_path
 
 __all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
            "options_from_calibration", "report_data", "require_matplotlib",
@@ -244,6 +251,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     if video is not None and not Path(video).is_file():
         raise InputError("no such video file", source=str(video), field="--video")
     plt = require_matplotlib()
+    # lazy: the figures are the plot extra's (matplotlib), and importing them adds
+    # ~6 ms to `mirrorgraph --help`, which imports this package
     from . import figures
 
     step = progress or (lambda _s: None)
@@ -268,7 +277,7 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
             written[name] = path
             bar.update(info=f"{name}.png")
     if video is not None:
-        from . import video as vid
+        from . import video as vid  # lazy, as figures: only with a video (~2 ms)
         step("report: overlays on sampled video frames")
         written.update(vid.overlay_samples(video, run, out, count=max_frames, data=data,
                                            progress_bar=progress_bar))
@@ -301,7 +310,7 @@ class LoadedRun:
     path: Path | None = None
 
 
-def options_from_calibration(obj) -> "CalibrateOptions":  # noqa: F821 - lazy import
+def options_from_calibration(obj) -> CalibrateOptions:
     """The :class:`~mirrorgraph.pipeline.CalibrateOptions` a ``calibration.json`` records.
 
     Estimator, threshold, minimum confidence, seed, joints and whether the graph
@@ -313,10 +322,6 @@ def options_from_calibration(obj) -> "CalibrateOptions":  # noqa: F821 - lazy im
     Args:
         obj: the parsed ``calibration.json``.
     """
-    from ..estimators import DEFAULT_THRESHOLD_PX
-    from ..graph.options import RefineOptions
-    from ..pipeline import CalibrateOptions
-
     info = obj.get("input") or {}
     ref = obj.get("refinement") or {}
     height = info.get("subject_height")
@@ -339,8 +344,6 @@ def options_from_calibration(obj) -> "CalibrateOptions":  # noqa: F821 - lazy im
 
 
 def _stored_path(obj, calibration_path: Path) -> Path:
-    from .store import KEY, report_data_path
-
     name = obj.get(KEY) if isinstance(obj, dict) else None
     if isinstance(name, str) and name and (calibration_path.parent / name).exists():
         return calibration_path.parent / name
@@ -387,13 +390,6 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         >>> loaded.origin, loaded.run.inliers.mean()                 # doctest: +SKIP
         ('stored', 0.9)
     """
-    from dataclasses import replace
-
-    from ..io._common import load_json
-    from ..keypoints import PairedKeypoints, RawDetections
-    from ..calibration import read_calibration
-    from .store import read_run
-
     path = Path(calibration) if isinstance(calibration, (str, os.PathLike)) else None
     obj = load_json(calibration) if path is not None else dict(calibration)
     src = str(path) if path is not None else None
@@ -419,13 +415,10 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         raise InputError(f"no stored run to draw{where}: give the keypoints the "
                          "calibration was made from, to recompute it",
                          source=src, field="keypoints")
-    from ..pipeline import calibrate
-
     opts = options_from_calibration(obj)
     if overrides:
         opts = replace(opts, **overrides)
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
-        from ..io import read_keypoints
         keypoints = read_keypoints(keypoints,
                                    skeleton=skeleton or (obj.get("input") or {}).get("skeleton"))
     run = calibrate(keypoints, intrinsics if intrinsics is not None else calib.intrinsics, opts,

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..progress import Progress
 from .backend import require_matplotlib
 
 __all__ = ["rig_top_view", "rig_residuals", "write_rig_report"]
@@ -89,7 +90,7 @@ def rig_top_view(calib):
         right = anchor[0] > mid_x     # on the side of the anchor that stays in the axes
         ax.annotate(text, anchor, textcoords="offset points", xytext=(-6 if right else 6, -4),
                     ha="right" if right else "left", va="top", fontsize=8, color=colour)
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D  # the plot extra: lazy, as in require_matplotlib
     handles = [Line2D([], [], color=CAMERA, marker="o", ls="none", label="camera (arrow: view)")]
     if labels:
         handles.append(Line2D([], [], color=MIRROR, lw=4, alpha=0.6,
@@ -137,8 +138,6 @@ def write_rig_report(calib, out_dir, *, progress_bar: bool = True) -> list[Path]
         out_dir: folder to write into (created if missing).
         progress_bar: draw a progress bar on stderr (only on a terminal).
     """
-    from ..progress import Progress
-
     plt = require_matplotlib()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -27,12 +27,19 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import zipfile
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from ..calibration import write_calibration
 from ..errors import InputError
+from ..io.atomic import atomic_path
+from ..io.calibration import write_json
+from ..keypoints import PairedKeypoints
+from ..pipeline import CalibrationRun
+from ..skeletons import skeleton_by_name
 
 __all__ = ["KEY", "SUFFIX", "read_run", "report_data_path",
            "save_run", "write_calibration_and_run", "write_run"]
@@ -104,8 +111,6 @@ _ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
 def _savez(file, arrays: dict[str, Any]) -> None:
     """``np.savez_compressed`` with fixed time stamps, so that the bytes depend on the data only."""
-    import zipfile
-
     with zipfile.ZipFile(file, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         for name, value in arrays.items():
             info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_TIME)
@@ -117,8 +122,6 @@ def _savez(file, arrays: dict[str, Any]) -> None:
 
 def write_run(path: str | os.PathLike, run) -> Path:
     """Write what the report needs of ``run`` to ``path`` atomically; returns ``path``."""
-    from ..io.atomic import atomic_path
-
     with atomic_path(path) as tmp:
         save_run(tmp, run)
     return Path(path)
@@ -138,10 +141,6 @@ def write_calibration_and_run(out: str | os.PathLike, run) -> Path:
     Returns:
         The path of the ``.report.npz`` written.
     """
-    from ..io.atomic import atomic_path
-    from ..calibration import write_calibration
-    from ..io.calibration import write_json
-
     out = Path(out)
     sidecar = report_data_path(out)
     with atomic_path(sidecar) as tmp:
@@ -168,10 +167,6 @@ def read_run(path: str | os.PathLike, calibration):
             another calibration (its mirror differs from ``calibration``'s); the
             message names the file.
     """
-    from ..keypoints import PairedKeypoints
-    from ..pipeline import CalibrationRun
-    from ..skeletons import skeleton_by_name
-
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as z:

@@ -48,6 +48,7 @@ import warnings
 
 import cv2
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
@@ -103,8 +104,6 @@ def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidenc
     Returns:
         ``T`` int arrays ``(P_t,)``: the track id of each detection.
     """
-    from scipy.optimize import linear_sum_assignment
-
     last: dict[int, np.ndarray] = {}
     seen_at: dict[int, int] = {}
     ids, next_id = [], 0

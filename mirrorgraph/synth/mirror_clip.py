@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 __all__ = ["MirrorComposite"]
@@ -47,7 +48,6 @@ class MirrorComposite:
 
     def compose(self, frame: np.ndarray) -> np.ndarray:
         """``(H, W, 3)`` uint8 canvas from one ``(h, w, 3)`` uint8 source frame."""
-        import cv2
         W, H = self.canvas
         out = np.full((H, W, 3), self.background, np.uint8)
         for scale, origin, flip, gain in ((self.person_scale, self.person_origin, False, 1.0),
@@ -133,7 +133,6 @@ class PlanarMirrorClip:
 
     def compose(self, frame: np.ndarray) -> np.ndarray:
         """``(h, width, 3)`` uint8 clip frame from an ``(h, w, 3)`` uint8 source frame."""
-        import cv2
         h, w = frame.shape[:2]
         out = np.zeros((h, self.width, 3), np.uint8)
         out[:, :min(w, self.split)] = frame[:, :min(w, self.split)]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, replace
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.bvh import BvhMotion, axis_rotation, read_bvh
+from .body import EXTRA_FRACTION, FOOT_OFFSETS, FULL_INDEX, FULL_JOINTS, HEAD_OFFSETS
 
 
 # --------------------------------------------------------------------------- CMU -> body
@@ -48,8 +50,6 @@ def cmu_example_path() -> Path:
     ``mirrorgraph/data/README.md``). The default take of the tests and benchmarks,
     for :func:`load_motion` and ``make_scene(motion=...)``.
     """
-    from importlib.resources import files
-
     return Path(str(files("mirrorgraph") / "data" / CMU_EXAMPLE))
 
 
@@ -106,8 +106,6 @@ def skeleton_height(motion: BvhMotion, names: dict[str, str] | None = None) -> f
         InputError: a joint is missing, or the skeleton is not Y-up (the head's
             top not above the hips in the rest pose).
     """
-    from .body import EXTRA_FRACTION
-
     J = _resolve(motion, CMU_JOINT_NAMES if names is None else names)
     rest = motion.rest_positions()
     leg = 0.0
@@ -161,8 +159,6 @@ def body_joints(motion: BvhMotion, positions: np.ndarray, rotations: np.ndarray,
       top of the head) along the head's axis: roughly the top of the neck.
       ``Neck1`` is not needed: the head segment's pose carries the face.
     """
-    from .body import FOOT_OFFSETS, FULL_INDEX, FULL_JOINTS, HEAD_OFFSETS
-
     J = _resolve(motion, CMU_JOINT_NAMES if names is None else names)
     P = np.asarray(positions, dtype=float)
     G = np.asarray(rotations, dtype=float)
@@ -253,8 +249,6 @@ class MocapMotion:
         ``0, 1, .., F-1, F-2, .., 0, 1, ..``): the motion stays continuous (no jump
         back to the start; the velocity reverses at the turns).
         """
-        from .body import FULL_INDEX
-
         T = int(frames)
         if T < 1:
             raise ValueError(f"frames must be >= 1, got {frames}")
@@ -310,8 +304,6 @@ def load_motion(path: str | os.PathLike | BvhMotion, fps: float = 30.0, *,
     Raises:
         InputError: unreadable or malformed file, joints missing, not Y-up.
     """
-    from .body import FULL_INDEX
-
     if not fps > 0:
         raise ValueError(f"fps must be positive, got {fps}")
     if not unit > 0:

@@ -14,6 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from ..io import write_keypoints
+from ..io.atomic import atomic_path, atomic_write_text
+from ..io.calibration import read_json, write_json
+from ..io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
+from ..io.toml_writer import format_value
 from .rig_types import SyntheticRig
 from .writer import load_ground_truth_joints
 
@@ -34,8 +39,6 @@ def _keypoints_path(camera: str, fmt: str) -> str:
 def _rig_toml(rig: SyntheticRig, fmt: str, include_height: bool) -> str:
     """The text of ``rig.toml`` (arrays of tables written here: the package's TOML
     writer does not do them; every value goes through its ``format_value``)."""
-    from ..io.toml_writer import format_value
-
     lines = [f"# synthetic {rig.kind} rig (mirrorgraph.synth.make_rig, seed {rig.seed}); "
              "paths relative to this file", ""]
     if include_height:
@@ -84,11 +87,6 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
     Returns:
         the path of ``rig.toml``.
     """
-    from ..io import write_keypoints
-    from ..io.atomic import atomic_path, atomic_write_text
-    from ..io.calibration import write_json
-    from ..io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
-
     if fmt not in KEYPOINT_FORMATS:
         raise ValueError(f"unknown keypoint format {fmt!r}; known: "
                          f"{', '.join(KEYPOINT_FORMATS)}")
@@ -167,8 +165,6 @@ def read_rig_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
         ``joint_names`` (J,), ``image_size`` (tuple); for a rig with bystanders
         also ``bystanders_joints3d`` (B, T, J, 3).
     """
-    from ..io.calibration import read_json
-
     p = Path(path)
     if p.is_dir():
         p = p / GROUND_TRUTH_NAME

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..intrinsics import Intrinsics
 from ..keypoints import RawDetections
 from ..skeletons import Skeleton
 from .body import BodyModel
@@ -209,7 +210,6 @@ class SyntheticRig:
 
     def intrinsics(self, camera: str | int):
         """A camera's :class:`mirrorgraph.intrinsics.Intrinsics` (exact)."""
-        from ..intrinsics import Intrinsics
         return Intrinsics(K=self.K[self.camera_index(camera)].copy(), dist=None,
                           image_size=tuple(self.image_size), source="synthetic rig",
                           approximate=False)

@@ -23,6 +23,7 @@ import numpy as np
 
 from .detector import DETECTORS, sample_detector_params
 from .geometry import PRESETS
+from .scene import make_scene
 
 __all__ = ["SLICES", "NOISE_MODELS", "sample_scene_params", "make_wide_scene"]
 
@@ -69,8 +70,6 @@ def make_wide_scene(seed: int, slice: str = "wide", noise: str = "iid", frames: 
     Returns:
         A :class:`~mirrorgraph.synth.scene.SyntheticScene`.
     """
-    from .scene import make_scene
-
     params = sample_scene_params(np.random.default_rng([int(seed), _SALT]), slice, noise)
     params.update(overrides)
     return make_scene(frames=frames, seed=seed, **params)

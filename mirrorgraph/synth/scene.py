@@ -95,7 +95,9 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
+from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
 from .body import BodyModel, check_skeleton, make_body, skeleton_points
@@ -236,7 +238,6 @@ class SyntheticScene:
     @property
     def intrinsics(self):
         """The camera as :class:`mirrorgraph.intrinsics.Intrinsics` (exact, not approximate)."""
-        from ..intrinsics import Intrinsics
         return Intrinsics(K=self.K.copy(), dist=None if self.dist is None else self.dist.copy(),
                           image_size=tuple(self.image_size), source="synthetic",
                           approximate=False)
@@ -363,7 +364,6 @@ def _hull_points(pts: np.ndarray) -> np.ndarray:
     if len(pts) < _HULL_MIN_POINTS:
         return pts
     try:
-        from scipy.spatial import ConvexHull
         return pts[ConvexHull(pts).vertices]
     except Exception:  # degenerate input: fall back to every point
         return pts
@@ -534,6 +534,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         full = generate_motion(body, T, fps, rng)        # (T, 25, 3), units of height
         take_height = None
     else:
+        # lazy: the motion-capture reader (mocap, io.bvh) adds ~7 ms to `import
+        # mirrorgraph.synth` and so to `mirrorgraph --help`; only a take needs it
         from .mocap import motion_for_scene
         body = None
         full, take = motion_for_scene(motion, T, fps)    # (T, 25, 3), units of height
@@ -817,6 +819,8 @@ def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
 def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: float
                       ) -> np.ndarray:
     """Unit-variance AR(1) noise along axis 1 (frames): ``e_t = rho e_(t-1) + sqrt(1-rho^2) w_t``."""
+    # lazy: importing scipy.signal costs ~0.35 s, and this module is loaded by
+    # `import mirrorgraph.synth` and `mirrorgraph --help`
     from scipy.signal import lfilter
 
     w = rng.standard_normal(shape)

@@ -27,6 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from ..io import write_keypoints, write_paired_npz
+from ..io.atomic import atomic_path
+from ..io.calibration import read_json, write_json
 from .scene import D_FLIP, SyntheticScene
 
 FORMATS = ("mmpose", "openpose", "easymocap", "npz")
@@ -43,10 +46,6 @@ def write_scene(scene: SyntheticScene, out_dir: str | os.PathLike,
         paths by name: each format name, ``"camera"``, ``"ground_truth"`` and
         ``"joints3d"``.
     """
-    from ..io import write_keypoints, write_paired_npz
-    from ..io.atomic import atomic_path
-    from ..io.calibration import write_json
-
     unknown = [f for f in formats if f not in FORMATS]
     if unknown:
         raise ValueError(f"unknown format(s) {', '.join(map(repr, unknown))}; "
@@ -115,8 +114,6 @@ def read_ground_truth(path: str | os.PathLike) -> dict[str, Any]:
         ``R`` (3, 3), ``t`` (3,), ``D`` (3, 3), ``K`` (3, 3), ``dist`` (5,) or
         ``None``, ``joints3d`` (T, J, 3), ``frame_ids`` (T,), ``joint_names`` (J,).
     """
-    from ..io.calibration import read_json
-
     p = Path(path)
     if p.is_dir():
         p = p / "ground_truth.json"

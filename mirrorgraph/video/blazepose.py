@@ -41,6 +41,7 @@ import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
@@ -183,7 +184,6 @@ def letterbox(image: np.ndarray, size: int) -> tuple[np.ndarray, float, np.ndarr
         ``(size, size, 3)`` uint8, the scale (input px per image px) and the offset
         ``(2,)`` in input pixels: ``input = scale * image + offset``.
     """
-    import cv2
     h, w = image.shape[:2]
     scale = size / max(h, w)
     nw, nh = max(1, round(w * scale)), max(1, round(h * scale))
@@ -342,7 +342,7 @@ def find_model_files() -> tuple[Path, Path]:
 
 
 def _interpreter(path: Path, threads: int):
-    try:
+    try:  # the video extra: LiteRT is optional, imported only to run the model
         from ai_edge_litert.interpreter import Interpreter
     except ImportError:
         raise InputError(f"the video path needs LiteRT (ai-edge-litert): {INSTALL_HINT}"
@@ -417,7 +417,6 @@ class BlazePoseModels:
             gain: stretch a dim crop's intensities (at most 3x, so that its 99th
                 percentile reaches 255): a reflection is often darker than the person.
         """
-        import cv2
         M = crop_matrix(roi, LANDMARK_SIZE)
         crop = cv2.warpAffine(image, M, (LANDMARK_SIZE, LANDMARK_SIZE),
                               flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,

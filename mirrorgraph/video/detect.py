@@ -38,10 +38,13 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError
+from ..io.atomic import atomic_path
 from ..keypoints import RawDetections
-from ..skeletons import BLAZEPOSE, Skeleton
+from ..skeletons import BLAZEPOSE, Skeleton, skeleton_by_name
+from .blazepose import BlazePoseModels, find_model_files
 from .reader import VideoInfo, frames, probe
-from .track import TrackerOptions
+from .rtm import check_onnx_files, rtmlib_frames
+from .track import PoseTracker, TrackerOptions
 
 __all__ = ["VideoOptions", "VideoDetections", "detect_video", "cache_dir", "CACHE_VERSION"]
 
@@ -147,9 +150,7 @@ def _file_hash(path: Path) -> str:
 def _model_files(opts: VideoOptions) -> tuple[str, tuple[Path, ...]]:
     """The model's name and files (without loading it)."""
     if opts.pose_model is not None or opts.det_model is not None:
-        from .rtm import check_onnx_files
         return "rtmlib", check_onnx_files(opts.pose_model, opts.det_model)
-    from .blazepose import BlazePoseModels, find_model_files
     return BlazePoseModels.name, find_model_files()
 
 
@@ -168,7 +169,6 @@ def _cache_path(folder: Path, info: VideoInfo, key: dict) -> Path:
 
 
 def _save(path: Path, det: VideoDetections, key: dict) -> None:
-    from ..io.atomic import atomic_path
     counts = np.array([len(p) for p in det.people], dtype=np.int64)
     J = det.skeleton.num_joints
     meta = {"key": key, "model": det.model, "skeleton": det.skeleton.name,
@@ -187,7 +187,6 @@ def _save(path: Path, det: VideoDetections, key: dict) -> None:
 def _load(path: Path, info: VideoInfo, key: dict) -> VideoDetections | None:
     """The cached detections, or ``None`` where the entry is missing, unreadable or
     made for another key (then it is detected again and overwritten)."""
-    from ..skeletons import skeleton_by_name
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
@@ -207,8 +206,6 @@ def _load(path: Path, info: VideoInfo, key: dict) -> VideoDetections | None:
 
 
 def _blazepose_frames(info: VideoInfo, opts: VideoOptions, step: Callable[[], None]):
-    from .blazepose import BlazePoseModels
-    from .track import PoseTracker
     tracker = PoseTracker(BlazePoseModels(threads=opts.threads), opts.tracker)
     ids, people, tids, boxes = [], [], [], []
     W, H = info.width, info.height
@@ -273,7 +270,6 @@ def detect_video(path: str | os.PathLike, options: VideoOptions | None = None, *
 
     clock = time.perf_counter()
     if model == "rtmlib":
-        from .rtm import rtmlib_frames
         skeleton, ids, people, tids, boxes, name, stats = rtmlib_frames(info, opts, step)
     else:
         skeleton, ids, people, tids, boxes, name, stats = _blazepose_frames(info, opts, step)

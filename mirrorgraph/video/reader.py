@@ -16,6 +16,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
@@ -71,7 +72,6 @@ def quiet_stderr():
 
 
 def _open(path: Path):
-    import cv2
     if not path.is_file():
         raise InputError("no such video file", source=path)
     with quiet_stderr():
@@ -84,7 +84,6 @@ def _open(path: Path):
 
 def probe(path: str | os.PathLike) -> VideoInfo:
     """Size, frame rate and frame count of a video (InputError if it cannot be read)."""
-    import cv2
     path = Path(path)
     cap = _open(path)
     try:
@@ -108,7 +107,6 @@ def frames(path: str | os.PathLike, *, start: int = 0, end: int | None = None,
     Frames before ``start`` and between the ones kept are decoded but not converted
     (``grab``), so that frame numbers are exact whatever the codec's seeking.
     """
-    import cv2
     path = Path(path)
     if start < 0 or every < 1 or (end is not None and end <= start):
         raise InputError(f"empty frame range: start {start}, end {end}, every {every}",

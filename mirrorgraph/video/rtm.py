@@ -25,10 +25,12 @@ import io
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
 from ..skeletons import skeletons_for_count
+from .reader import frames
 
 __all__ = ["check_onnx_files", "rtmlib_frames", "BoxTracker", "RTM_INSTALL_HINT"]
 
@@ -60,7 +62,7 @@ def _input_hw(session, source: Path, flag: str) -> tuple[int, int]:
 
 
 def _load(pose_path: Path, det_path: Path):
-    try:
+    try:  # the rtm extra: onnxruntime and rtmlib are optional, imported only to run them
         import onnxruntime  # noqa: F401
         from rtmlib import RTMDet, RTMPose, YOLOX
     except ImportError:
@@ -135,8 +137,6 @@ def rtmlib_frames(info, opts, step: Callable[[], None]):
         ``(skeleton, frame ids, people, track ids, boxes, model name, stats)`` as
         :func:`mirrorgraph.video.detect.detect_video` assembles them.
     """
-    import cv2
-    from .reader import frames
     pose_path, det_path = check_onnx_files(opts.pose_model, opts.det_model)
     det, pose = _load(pose_path, det_path)
     tracker = BoxTracker()

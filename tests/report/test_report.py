@@ -237,7 +237,7 @@ def test_a_failed_write_leaves_calibration_and_run_alone(scene_files, tmp_path, 
 
     def broken(*_a, **_k):
         raise OSError(28, "No space left on device", str(cal))
-    monkeypatch.setattr("mirrorgraph.io.calibration.write_json", broken)
+    monkeypatch.setattr("mirrorgraph.report.store.write_json", broken)   # where it is looked up
     code = cli.main(["calibrate", str(root / "keypoints_mmpose.json"), "--intrinsics",
                      str(root / "camera.json"), "--out", str(cal), "--no-refine", "--quiet",
                      "--fps", "30"])
