@@ -158,6 +158,14 @@ class Calibration:
         lines.append(f"pairs           {self.pairs_used} inliers of {self.pairs_total} "
                      f"({100 * self.inlier_ratio:.1f}%) in {self.frames_used} frames "
                      f"of {self.frames_read}; left/right fixes {self.lr_fixes}")
+        est = self.intrinsics.estimated
+        if est:
+            if est.get("estimated"):
+                lines.append(f"focal length    {est['focal_px']:.1f} +- {est['std_px']:.1f} px "
+                             "(estimated from the person and the reflection)")
+            else:
+                lines.append(f"focal length    {self.intrinsics.K[0, 0]:.1f} px (a guess: the "
+                             "data do not determine it)")
         lines.append(f"estimator       {self.estimator}" + (" + factor graph" if self.refined else ""))
         completion = self.refinement.get("completion")
         if completion:

@@ -116,9 +116,15 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--camera", metavar="NAME",
                    help="camera (section or name) to read from a TOML with several cameras")
     p.add_argument("--image-size", type=_image_size, metavar="WxH",
-                   help="image size when no intrinsics are given and the input lacks it")
+                   help="image size when no intrinsics are given and the input lacks it; "
+                        "the focal length is then estimated from the person and the "
+                        "reflection (square pixels, principal point at the image centre)")
     p.add_argument("--fov", type=_positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default 60)")
+                   help="without intrinsics: keep this horizontal field of view instead of "
+                        "estimating the focal length (the estimate starts from 60)")
+    p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
+                   help="without intrinsics: the principal point at the image centre "
+                        "(default) or estimated with the focal length")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       "(COCO_17, BODY_25, BODY_25B, COCO_18, HALPE_26, BLAZEPOSE)")
     p.add_argument("--estimator", default="reflective",
@@ -170,7 +176,7 @@ def _cmd_calibrate(args) -> int:
     from .intrinsics import load_intrinsics
     from .io import read_keypoints
     from .io.motion import write_joints3d
-    from .graph.options import RefineOptions
+    from .graph.options import FocalOptions, RefineOptions
     from .pipeline import CalibrateOptions, calibrate
 
     say = _say(args)
@@ -197,6 +203,10 @@ def _cmd_calibrate(args) -> int:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
         raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    if args.principal_point == "free" and (args.intrinsics or args.fov is not None
+                                           or args.no_refine):
+        raise InputError("estimates the principal point with the focal length: not with "
+                         "--intrinsics, --fov or --no-refine", field="--principal-point")
     from .cli_video import describe, detect_with_progress, video_options
     from .video.reader import is_video
     from_video = is_video(args.keypoints)
@@ -218,12 +228,14 @@ def _cmd_calibrate(args) -> int:
                             seed=args.seed, image_size=args.image_size,
                             joints=tuple(j.strip() for j in args.joints.split(","))
                             if args.joints else None,
-                            refine_options=RefineOptions(scale_from=args.scale_from),
+                            refine_options=RefineOptions(
+                                scale_from=args.scale_from,
+                                focal=FocalOptions(principal_point=args.principal_point == "free")),
                             sensitivity_priors=args.sensitivity)
     if args.threshold is not None:
         opts.threshold_px = args.threshold
-    if args.fov is not None:
-        opts.fov_deg = args.fov
+    if args.fov is not None:                 # a field of view given: kept, not estimated
+        opts.fov_deg, opts.estimate_focal = args.fov, False
     opts.fps, opts.video = args.fps, args.video           # the frame rate of the 3D motion
     with _solver_progress(args) as callbacks:
         run = calibrate(data, intr, opts, **callbacks)

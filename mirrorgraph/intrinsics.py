@@ -60,6 +60,9 @@ class Intrinsics:
         image_size: ``(width, height)`` pixels, if known.
         source: where the values came from (file name or a description).
         approximate: ``True`` when guessed (e.g. from a field of view).
+        estimated: where ``K`` was estimated from the data (the focal length from the
+            person and the reflection, :mod:`mirrorgraph.graph`), the estimate's record
+            (``focal_px``, ``std_px``, ...; ``RefinementResult.focal``); else ``None``.
     """
 
     K: np.ndarray
@@ -67,6 +70,7 @@ class Intrinsics:
     image_size: tuple[int, int] | None = None
     source: str = ""
     approximate: bool = False
+    estimated: dict | None = None
 
     def __post_init__(self) -> None:
         self.K = np.asarray(self.K, dtype=float)
@@ -126,11 +130,15 @@ class Intrinsics:
         return flat.reshape(pts.shape)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form: ``K``, ``dist``, ``image_size``, ``source``, ``approximate``."""
-        return {"K": self.K.tolist(),
-                "dist": None if self.dist is None else self.dist.tolist(),
-                "image_size": None if self.image_size is None else list(self.image_size),
-                "source": self.source, "approximate": self.approximate}
+        """Plain-JSON form: ``K``, ``dist``, ``image_size``, ``source``, ``approximate``
+        (and ``estimated`` where ``K`` was estimated)."""
+        out = {"K": self.K.tolist(),
+               "dist": None if self.dist is None else self.dist.tolist(),
+               "image_size": None if self.image_size is None else list(self.image_size),
+               "source": self.source, "approximate": self.approximate}
+        if self.estimated is not None:
+            out["estimated"] = dict(self.estimated)
+        return out
 
 
 def _cv_undistort(src: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:

@@ -51,7 +51,62 @@ from dataclasses import dataclass
 #: The ways a subject height becomes a length (``RefineOptions.scale_from``).
 SCALE_FROM = ("stature", "limbs")
 
-__all__ = ["RefineOptions"]
+__all__ = ["RefineOptions", "FocalOptions"]
+
+
+@dataclass(frozen=True)
+class FocalOptions:
+    """How the intrinsics of a camera given without them are estimated.
+
+    Which cameras: :attr:`mirrorgraph.graph.rig.Camera.estimate_focal` (the front ends
+    set it for a camera without intrinsics: ``calibrate`` without ``--intrinsics`` and
+    without ``--fov``, a rig camera without ``intrinsics``). These options say how.
+
+    What determines the focal length of one camera and a mirror: not the images'
+    epipolar geometry (``F ~ [K n]x`` fixes the epipole, the image of the normal, for
+    any focal length), but the body: bones keep their length from pose to pose, and a
+    wrong focal length stretches the reconstruction along the line of sight against
+    across it (``bench/RESULTS_focal.md``). So the bones decide it, and where their
+    lengths are measured with a curvature bias (joints whose rays meet at a small
+    angle, :func:`~mirrorgraph.graph.builder.bone_curvature_bias`) that bias is a
+    stretch too: it biases the focal length, by +19 % on a far scene at 4 px with every
+    bone in every frame. ``bone_bias_limit`` keeps the bones whose bias is small.
+
+    Attributes:
+        principal_point: estimate the principal point ``(cx, cy)`` too (default: held
+            at the image centre, where phones and webcams have it within a few per
+            cent of the image; it is poorly determined from people).
+        search_fov_deg: the focal length's initial search (one camera and its mirrors,
+            :func:`~mirrorgraph.graph.stages.focal_search`) spans these horizontal
+            fields of view, degrees.
+        search_steps: candidate focal lengths of that search (log-spaced; the best is
+            refined by a parabola through its neighbours).
+        search_frames: frames (spread over the video) of each candidate's solve.
+        bone_bias_limit: the calibration graph's bone rule (``RefineOptions.
+            bone_bias_limit``) where a focal length is estimated: 1 (a bone's bias under
+            one bone sigma) against 0.3 for known intrinsics. On 12 wide scenes (4 px,
+            1000 frames, started at the true focal length) 0.3 left no bone in five
+            scenes, 1 in three, with a median focal error of 0.6 % either way where
+            bones were left.
+        prior_rel_sigma: a weak Gaussian prior on the focal length about the front
+            end's guess (:attr:`~mirrorgraph.graph.rig.Camera.focal_prior`), this
+            fraction of it: where the data do not determine the focal length the
+            guess is kept (and the warning says so), and the graph stays solvable;
+            where they do (a standard deviation of a few per cent) it moves the
+            estimate by a fraction of a per cent at most.
+        undetermined_rel_std: a focal length whose standard deviation (the larger of
+            the marginal and the time-robust figure) exceeds this fraction of it is
+            reported as not determined by the data (a warning): too little depth
+            change, a person who hardly moves, a mirror seen square-on.
+    """
+
+    principal_point: bool = False
+    search_fov_deg: tuple[float, float] = (20.0, 120.0)
+    search_steps: int = 9
+    search_frames: int = 150
+    bone_bias_limit: float | None = 1.0
+    prior_rel_sigma: float = 0.5
+    undetermined_rel_std: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -176,6 +231,7 @@ class RefineOptions:
             threads would not help); ``None``: the machine's cores, at most 4. Each
             holds one chunk's graph (~150-250 MB). The result does not depend on it.
         marginals: compute the plane's covariance.
+        focal: :class:`FocalOptions`, for the cameras whose focal length is estimated.
     """
 
     pixel_sigma: float = 4.0
@@ -222,6 +278,7 @@ class RefineOptions:
     chunk_step_tolerance: float = 1.0
     workers: int | None = None
     marginals: bool = True
+    focal: FocalOptions = FocalOptions()
 
     def __post_init__(self) -> None:
         if self.scale_from not in SCALE_FROM:
