@@ -66,6 +66,9 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
                    help="write figures (top view of the rig, residuals per view) into DIR "
                         f"(needs matplotlib: {_install_hint()})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
+    p.add_argument("--no-focal", action="store_true",
+                   help="cameras without intrinsics keep a 60 deg field of view guess instead "
+                        "of having their focal length estimated")
     from .cli_video import add_video_options
     add_video_options(p)
     common(p)
@@ -146,7 +149,7 @@ def _cmd_calibrate_rig(args) -> int:
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
                               options=RefineOptions(scale_from=args.scale_from),
                               status=status_and_bars, progress=solve, video=vopts,
-                              frame_progress=frame_progress)
+                              frame_progress=frame_progress, estimate_focal=not args.no_focal)
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)

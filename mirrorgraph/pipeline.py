@@ -25,7 +25,7 @@ from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
 from .graph.uncertainty import POORLY_DETERMINED_DEG
-from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
+from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
 from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
 from .pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
@@ -543,44 +543,6 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         run.joints3d, run.valid3d, run.completed = done.joints3d, done.valid, done.completed
         calib.refinement["completion"] = done.to_dict()
         run.timings["completion"] = time.perf_counter() - clock
-
-
-def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg: float,
-                         warnings: list[str]) -> Intrinsics:
-    """The intrinsics of a run whose focal length was estimated, with its warnings.
-
-    Args:
-        guess: the field-of-view guess the estimate started from.
-        K: ``(3, 3)`` the refinement's camera matrix (the guess where the data did not
-            determine the focal length).
-        focal: the refinement's record (:attr:`mirrorgraph.graph.RefinementResult.focal`).
-        fov_deg: the guess's horizontal field of view, degrees.
-        warnings: the run's warnings, appended to.
-
-    Returns:
-        :class:`Intrinsics` with ``estimated`` set: exact where determined
-        (``approximate=False``), the guess (``approximate=True``) where not.
-    """
-    w = guess.image_size[0] if guess.image_size else 2.0 * float(K[0, 2])
-    if focal.get("estimated"):
-        f, std = focal["focal_px"], focal["std_px"]
-        fov = math.degrees(2.0 * math.atan(0.5 * w / f))
-        source = (f"estimated from the person and the reflection: focal {f:.1f} +- {std:.1f} px "
-                  f"({fov:.1f} deg horizontal field of view), square pixels, principal point "
-                  + ("estimated" if focal.get("principal_point_estimated") else "at the centre"))
-        return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
-                          source=source, approximate=False, estimated=dict(focal))
-    und = focal.get("undetermined", {})
-    warnings.append(
-        f"the focal length is not determined by the data (its estimate "
-        f"{und.get('focal_px', float('nan')):.0f} px has a standard deviation of "
-        f"{100 * und.get('rel_std', float('nan')):.0f}%: too little change of the person's "
-        "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
-        f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "
-        "and distance are approximate (the epipole in pixels is not); pass --intrinsics FILE")
-    return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
-                      source=guess.source + " (the focal length could not be estimated)",
-                      approximate=True, estimated=dict(focal))
 
 
 #: The refinement gets every pair within this many RANSAC thresholds of the initial
