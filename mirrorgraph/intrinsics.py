@@ -428,13 +428,21 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
         camera: the camera's name (a rig's), for the warning.
 
     Returns:
-        :class:`Intrinsics` with ``estimated`` set: exact where determined
-        (``approximate=False``), the guess (``approximate=True``) where not.
+        :class:`Intrinsics` with ``estimated`` set: the estimate where determined
+        (``approximate=False``; a warning where poorly determined), the guess
+        (``approximate=True``, a warning) where not.
     """
     w = guess.image_size[0] if guess.image_size else 2.0 * float(K[0, 2])
     if focal.get("estimated"):
         f, std = focal["focal_px"], focal["std_px"]
         fov = math.degrees(2.0 * math.atan(0.5 * w / f))
+        if focal.get("poorly_determined"):
+            warnings.append(
+                ("" if camera is None else f"camera {camera}: ")
+                + f"the focal length is poorly determined ({f:.0f} +- {std:.0f} px, "
+                f"{100 * std / f:.0f}%): little change of the person's depth and pose, or "
+                "joints whose two rays meet at a small angle; the normal and distance "
+                "inherit its error; pass --intrinsics FILE if you have them")
         source = (f"estimated from the person and the reflection: focal {f:.1f} +- {std:.1f} px "
                   f"({fov:.1f} deg horizontal field of view), square pixels, principal point "
                   + ("estimated" if focal.get("principal_point_estimated") else "at the centre"))

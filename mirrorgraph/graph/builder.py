@@ -369,7 +369,8 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
                 left_out=float(1.0 - keep.sum() / max(int(both.sum()), 1)))
     if bone.lengths is not None:
         _add_symmetry(rig, length_priors, bone.names, h * options.symmetry_sigma, options, info)
-        _add_anthropometry(rig, length_priors, bone.names, options, info)
+        if not calibration_keys or options.focal.anthropometry:
+            _add_anthropometry(rig, length_priors, bone.names, options, info)
     for c, (kk, _) in calibration_keys.items():
         _add_focal_prior(rig.cameras[c], kk, prior_graph, info)
     if priors and options.use_hip:

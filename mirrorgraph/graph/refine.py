@@ -77,7 +77,7 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     rig = with_intrinsics(rig, state.intrinsics)
     res = finish(rig, state, opts, t_start)
     if estimate_focal:
-        res.focal = focal_record(state, guess)
+        res.focal = focal_record(state, guess, options=opts)
     if res.scale == "subject_height":
         from .stature_scale import LIMB_CHOSEN, scale_by_stature
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
@@ -85,9 +85,13 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     return res
 
 
-def focal_record(state: SolveState, guess: Camera, index: int = 0) -> dict:
+def focal_record(state: SolveState, guess: Camera, index: int = 0,
+                 options: RefineOptions | None = None) -> dict:
     """The ``focal`` record of :class:`RefinementResult` for camera ``index`` of a solve
-    whose focal length was estimated (``guess``: the camera as given to the solve)."""
+    whose focal length was estimated (``guess``: the camera as given to the solve);
+    ``poorly_determined`` where its relative std exceeds
+    ``options.focal.undetermined_rel_std``."""
+    options = options or RefineOptions()
     K = np.asarray(state.intrinsics[index], dtype=float)
     f = float(K[0, 0])
     search = [s.get("focal_px") for s in state.stages if "focal_px" in s]
@@ -106,7 +110,8 @@ def focal_record(state: SolveState, guess: Camera, index: int = 0) -> dict:
               else marginal)
     std = np.fmax(marginal, robust)
     rec.update(std_px=float(std[0]), marginal_std_px=float(marginal[0]),
-               robust_std_px=float(robust[0]), rel_std=float(std[0] / f))
+               robust_std_px=float(robust[0]), rel_std=float(std[0] / f),
+               poorly_determined=bool(std[0] / f > options.focal.undetermined_rel_std))
     if guess.estimate_principal_point and len(std) == 3:
         rec["principal_point_std_px"] = [float(std[1]), float(std[2])]
     return rec

@@ -16,7 +16,7 @@ the result.
 
 Estimated intrinsics (:attr:`~.rig.Camera.estimate_focal`): a camera whose focal
 length the data do not determine (its standard deviation above
-``options.focal.undetermined_rel_std`` of it: too little depth change, a person who
+``options.focal.fallback_rel_std`` of it: too little depth change, a person who
 hardly moves, bones all measured with a curvature bias) keeps its guess: the rig is
 solved again with that camera's ``K`` held at the centre of its prior, and
 :attr:`~.stages.SolveState.focal_undetermined` names it with the figure found.
@@ -68,15 +68,20 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
     return again
 
 
-def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions) -> dict[int, dict]:
+def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
+                       limit: float | None = None) -> dict[int, dict]:
     """Cameras whose estimated focal length the data do not determine.
+
+    Args:
+        limit: the relative std above which a focal length counts as undetermined
+            (default ``opts.focal.fallback_rel_std``).
 
     Returns:
         camera index -> ``{"focal_px", "std_px", "rel_std"}`` (the estimate and its
         standard deviation: the larger of the marginal and the time-robust figure)
-        where the relative std exceeds ``opts.focal.undetermined_rel_std`` or is not
-        finite.
+        where the relative std exceeds ``limit`` or is not finite.
     """
+    limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     out = {}
     for i, cam in enumerate(rig.cameras):
         if not cam.intrinsics_dim or i >= len(state.intrinsics_cov):
@@ -86,7 +91,7 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions) -> dict
         if state.intrinsics_std and i < len(state.intrinsics_std):
             std = max(std, float(state.intrinsics_std[i][0]))
         rel = std / f if f > 0 else float("inf")
-        if not np.isfinite(rel) or rel > opts.focal.undetermined_rel_std:
+        if not np.isfinite(rel) or rel > limit:
             out[i] = {"focal_px": f, "std_px": std, "rel_std": rel}
     return out
 

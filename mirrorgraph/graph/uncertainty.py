@@ -293,17 +293,16 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     Bp = np.zeros((T, width, nz))
     bp = np.zeros((T, width))
     Ap[fr, slot], Bp[fr, slot], bp[fr, slot] = A[lr], B[lr], b[lr]
-    Hxx = np.einsum("tri,trj->tij", Ap, Ap)
-    Hxz = np.einsum("tri,trj->tij", Ap, Bp)
-    Hzz = np.einsum("tri,trj->tij", Bp, Bp)
+    At = Ap.transpose(0, 2, 1)
+    Hxx, Hxz, Hzz = At @ Ap, At @ Bp, Bp.transpose(0, 2, 1) @ Bp
     absent = np.einsum("tii->ti", Hxx) <= 0.0                 # joints a frame does not hold
     ti, ji = np.nonzero(absent)
     Hxx[ti, ji, ji] = 1.0
     M = np.linalg.solve(Hxx, Hxz)                                                # (T, 3J, nz)
-    frame_info = Hzz - np.einsum("tia,tib->tab", Hxz, M)
+    frame_info = Hzz - Hxz.transpose(0, 2, 1) @ M
     # every row's share of its frame's score, given to the joints it sees (a bone's row
     # half to each of its two joints): the joints' scores then sum to the frame's
-    Bt = Bp - np.einsum("tri,tia->tra", Ap, M)                                   # (T, W, nz)
+    Bt = Bp - Ap @ M                                                             # (T, W, nz)
     share = Bt[fr, slot] * b[lr][:, None]                                        # (Rl, nz)
     pos = np.full(n_rows, -1, dtype=np.int64)
     pos[lr] = np.arange(len(lr))
@@ -317,8 +316,8 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     # a joint's information: its reprojection rows' after the frame's elimination
     data = pairs[pairs[:, 0] < n_data]
     Bd = Bt[fr[pos[data[:, 0]]], slot[pos[data[:, 0]]]]
-    joint_info = np.zeros((J, nz, nz))
-    np.add.at(joint_info, data[:, 1] % J, np.einsum("ra,rb->rab", Bd, Bd))
+    joint_info = np.stack([Bd[data[:, 1] % J == j].T @ Bd[data[:, 1] % J == j]
+                           for j in range(J)])
     flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
     return JointScores(frames=frames.astype(np.int64), joints=joints.astype(np.int64),
                        clusters=np.minimum(joints, flip[joints]), scores=scores,

@@ -222,7 +222,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
             else:
                 plane_cov[i] = B
                 robust_parts[rig.mirrors[i].name] = part
-    focal = {c.name: focal_record(state, c, i) for i, c in enumerate(rig.cameras)
+    focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
              if c.estimate_focal}
     return RigSolution(poses=state.poses, planes=state.planes,
                        intrinsics=list(state.intrinsics), focal=focal,
