@@ -237,6 +237,11 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
       golden-section search; square pixels, the principal point at the image centre).
       Well conditioned: the person spans depth, thousands of joints, no degenerate
       relative placement.
+    * Otherwise, a camera that sees mirrors: the focal length that makes the body most
+      rigid between the person and the reflections (the single mirror's search,
+      :func:`~mirrorgraph.graph.stages.focal_search`, on that camera alone): the
+      relative pose of two cameras needs a focal length within ~10 % (a synthetic
+      two-camera rig's started 99 deg off with the 60 deg guess, 8 % off).
     * Otherwise from the fundamental matrix with the camera sharing most joints
       (:func:`~mirrorgraph.rigs.relative.focal_from_fundamental`: one unknown with a
       calibrated partner, both with none), unstable where the two optical axes meet
@@ -285,6 +290,13 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
                     out[cams[u].name] = {"focal_px": float(f), "method": "resection against "
                                          + ", ".join(cams[i].name for i in placed)}
     for u in unknown:
+        if cams[u].name in out or not cams[u].reflections:
+            continue
+        f = _focal_through_mirrors(obs, u, height, seed, dmask, mmask)
+        if f is not None:
+            out[cams[u].name] = {"focal_px": f, "method": "search through its mirror(s) "
+                                 + ", ".join(cams[u].reflections)}
+    for u in unknown:
         if cams[u].name in out:
             continue
         partners = [i for i in range(len(cams)) if i != u]
@@ -307,6 +319,47 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
             out[cams[u].name] = {"focal_px": float(res[1]),
                                  "method": f"fundamental matrix with {cams[i].name}"}
     return out
+
+
+def _focal_through_mirrors(obs: RigObservations, u: int, height: float, seed: int,
+                           dmask: np.ndarray, mmask: np.ndarray) -> float | None:
+    """The focal search of one camera with its mirrors (the rig of that camera alone);
+    ``None`` where a mirror cannot be estimated or the search fails."""
+    from dataclasses import replace
+
+    from ..errors import DegenerateGeometryError as Degenerate
+    from ..graph.options import RefineOptions
+    from ..graph.rig import Camera, Mirror, Rig, View
+    from ..graph.stages import focal_search, single_mirror_config
+
+    cam = obs.cameras[u]
+    sk = obs.skeleton
+    K = np.asarray(cam.intrinsics.K, float)
+    mirrors, views, planes = [], [View("direct", cam.name, None, cam.real[..., :2],
+                                       observed(cam.real, dmask))], []
+    for m, refl in cam.reflections.items():
+        mask = observed(cam.real, mmask) & observed(refl, mmask)
+        try:
+            s = mirror_sighting(K, cam.real[..., :2], refl[..., :2], mask, sk,
+                                np.flatnonzero(mmask), height, seed=seed, name=f"{cam.name}/{m}")
+        except Degenerate:
+            return None
+        mirrors.append(Mirror(m, s.normal, s.distance))
+        planes.append((s.normal, s.distance))
+        views.append(View(m, cam.name, m, refl[..., :2], mask))
+    camera = Camera(cam.name, K, estimate_focal=True)
+    rig = Rig(cameras=(camera,), mirrors=tuple(mirrors), views=tuple(views), skeleton=sk,
+              frame_ids=np.asarray(obs.frame_ids), joints=np.flatnonzero(dmask | mmask))
+    opts = RefineOptions()
+    try:
+        rig2, _, record = focal_search(rig, [v.mask for v in views], [np.eye(4)], planes, opts,
+                                       replace(single_mirror_config(opts), first_rejection=False),
+                                       None)
+    except Degenerate:
+        return None
+    f = float(record["focal_px"])
+    fs = record["candidates_px"]
+    return f if min(fs) * 1.02 < f < max(fs) / 1.02 else None
 
 
 def _focal_by_resection(X: np.ndarray, ok: np.ndarray, person: np.ndarray, dmask: np.ndarray,
