@@ -21,6 +21,14 @@ Stages (each recorded in :attr:`SolveState.stages`):
    distance held; then every joint is triangulated again with the warm rig and step
    1 repeated. Its joints must meet at ``options.warm_start_min_parallax_deg`` at
    least: without a body prior nothing else holds their depth.
+2b. **Focal search** (``config.focal_search``, one held camera whose focal length is
+   estimated, :attr:`~.rig.Camera.estimate_focal`): the focal length that makes the body
+   most rigid among log-spaced candidates, each with its normals from the epipoles
+   (:func:`focal_search`); then every joint triangulated again with it. The stages
+   that follow estimate it with the rest (the bone lengths then a variable of the
+   linear system, :mod:`.builder`), the last one always runs (its bones chosen at the
+   estimated focal length), and an undamped step that overshoots is halved before the
+   damping grows (:attr:`~.optimizer.LMParams.backtrack`).
 3. **Gauge.** With a subject height everything is scaled so that the per-bone median
    lengths sum to Winter's lengths for that height (the gauge's value).
 4. **Stages** of :attr:`SolveConfig.stages`: the full graph (every joint, every
@@ -44,7 +52,11 @@ Stages (each recorded in :attr:`SolveState.stages`):
    triangulated again from its kept views with the solved rig (the maximum-likelihood
    point of the reprojection alone, free of the body priors that pull the graph's
    joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
-   this is the pairs' Sampson distances to first order).
+   this is the pairs' Sampson distances to first order). An estimated camera's
+   intrinsics get their ``(d, d)`` covariance the same way (the bone lengths among the
+   eliminated globals), and a headline std that is the larger of it and the
+   time-robust figure (:func:`~.uncertainty.frame_scores`,
+   :func:`~.uncertainty.robust_intrinsics_std`).
 
 """
 
