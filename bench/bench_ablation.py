@@ -39,6 +39,7 @@ from multiprocessing import Pool
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import wilcoxon
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -126,6 +127,33 @@ def tables(rows: list[dict]) -> list[str]:
         out.append(f"| {name} | " + " | ".join(
             f"{np.nanmedian([r['err'] for r in rows if r['variant'] == name and r['slice'] == s and r['noise'] == n]):.2f}"
             for s, n in cols) + " |")
+    out += ["", "Each variant against the full graph, scene by scene (the same initialisation and "
+            "detections): scenes where it is better / worse than the full graph, RMS error / "
+            "bound of the two, and the two-sided Wilcoxon signed-rank p-value (a small p: the "
+            "difference is not chance).", ""]
+    out += ["| variant | " + " | ".join(f"{n}: better / worse, RMS full -> variant, p"
+                                      for n in NOISE) + " |",
+            "|:---|" + "---:|" * len(NOISE)]
+    for name in names:
+        if name == "full":
+            continue
+        cells = []
+        for noise in NOISE:
+            full = {(r["slice"], r["seed"]): r["err"] for r in rows
+                    if r["variant"] == "full" and r["noise"] == noise}
+            pairs = np.array([(full[(r["slice"], r["seed"])], r["err"]) for r in rows
+                              if r["variant"] == name and r["noise"] == noise
+                              and (r["slice"], r["seed"]) in full], dtype=float)
+            pairs = pairs[np.isfinite(pairs).all(1)] if len(pairs) else pairs
+            if len(pairs) < 6:
+                cells.append("–")
+                continue
+            f, v = pairs[:, 0], pairs[:, 1]
+            p = wilcoxon(v, f).pvalue if np.any(v != f) else 1.0
+            cells.append(f"{int((v < f).sum())} / {int((v > f).sum())}, "
+                         f"{np.sqrt(np.mean(f ** 2)):.2f} -> {np.sqrt(np.mean(v ** 2)):.2f}, "
+                         f"{p:.3f}")
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
     return out
 
 
@@ -136,7 +164,19 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "RESULTS_ablation.md")
+    ap.add_argument("--replot", type=Path, default=None, metavar="RESULTS.json",
+                    help="only rewrite the tables of --out (its header kept) from a run's JSON")
     args = ap.parse_args()
+    if args.replot:
+        rows = json.loads(args.replot.read_text())
+        head = []
+        for line in args.out.read_text().splitlines():
+            if line.startswith("| "):
+                break
+            head.append(line)
+        args.out.write_text("\n".join(head + tables(rows) + [""]))
+        print(f"wrote {args.out} from {args.replot}")
+        return
     t0 = time.perf_counter()
     cases = [(s, n, seed, args.frames) for n in NOISE for s in SLICES for seed in range(args.seeds)]
     with Pool(args.workers) as pool:

@@ -621,7 +621,8 @@ def summarise(data: dict) -> str:
         rep = _vals(prot, "mg_full", "reported_rot_std_deg")
         if rep.size and np.isfinite(rep).any():
             fin = rep[np.isfinite(rep)]
-            L.append(f"mirrorgraph's own uncertainty (GTSAM marginals at its solution): rotation "
+            L.append(f"mirrorgraph's reported uncertainty (calibration.json's headline: the "
+                     f"larger of the marginals and the cluster-robust figure): rotation "
                      f"std median {_fmt(float(np.median(fin)), 3)} deg; its actual RMS rotation "
                      f"error is {_fmt(_rms(_vals(prot, 'mg_full', 'rot_deg')), 3)} deg.\n")
         ini = _vals(prot, "paper", "init_rot_deg")

@@ -1,4 +1,4 @@
-"""``mirrorgraph batch``: calibrate many recordings in parallel with Dask.
+"""Calibrate many recordings in parallel with Dask: the library of ``mirrorgraph batch``.
 
 A *manifest* lists the recordings (see :func:`read_manifest`):
 
@@ -28,26 +28,21 @@ draws from beside it (``<out>.report.npz``, :mod:`mirrorgraph.report.store`, so 
 is reported with its one-line error and does not stop the others. Workers of an existing
 cluster need mirrorgraph installed and the paths of the manifest readable.
 
-The command ``mirrorgraph batch MANIFEST`` prints one line per finished recording on
-stderr and :func:`format_summary` on stdout; it exits with 0 when every recording was
-calibrated and 2 when any failed (or the manifest itself is bad).
+Its command line, ``mirrorgraph batch MANIFEST``, is :mod:`mirrorgraph.cli.batch`.
 """
 
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import math
 import os
-import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 from .errors import InputError, MirrorgraphError
-from .keypoints import DEFAULT_MIN_CONFIDENCE
 
 if TYPE_CHECKING:  # imported where used: `mirrorgraph --help` stays fast
     from .pipeline import CalibrateOptions
@@ -449,80 +444,3 @@ def format_summary(results: Sequence[BatchResult]) -> str:
 def results_to_json(results: Sequence[BatchResult]) -> list[dict]:
     """Plain-JSON form of the results (what ``--report`` writes)."""
     return [asdict(r) for r in results]
-
-
-# --------------------------------------------------------------------------- command line
-def add_batch_parser(subparsers) -> None:
-    """Add the ``batch`` command to ``mirrorgraph``'s sub-command parsers."""
-    from .cli import _height as _human_height
-    from .cli import _image_size, _positive, _rate
-
-    p = subparsers.add_parser(
-        "batch", help="calibrate many recordings in parallel (Dask)",
-        description="Calibrate every recording of a manifest in parallel with Dask: a CSV "
-                    "(keypoints,intrinsics,out,subject_height; paths relative to it) or a "
-                    "folder of recording subfolders. One failed recording is reported "
-                    "and does not stop the others; a summary table ends the run. Exit "
-                    "status 0 if every recording was calibrated, 2 if any failed.")
-    p.add_argument("manifest", help="CSV manifest, or folder of recording subfolders")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="address of an existing Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, metavar="N",
-                   help="local worker processes (default: one per core)")
-    p.add_argument("--out-dir", metavar="DIR",
-                   help="folder for calibrations the manifest gives no 'out' for")
-    p.add_argument("--report", metavar="FILE.json",
-                   help="also write every result as JSON")
-    p.add_argument("--estimator", default="reflective",
-                   choices=("reflective", "eightpoint", "reflective8"))
-    p.add_argument("--threshold", type=_positive, default=None, metavar="PX",
-                   help="inlier threshold on the epipolar distance in pixels (default 10)")
-    p.add_argument("--min-confidence", type=_rate, default=DEFAULT_MIN_CONFIDENCE)
-    p.add_argument("--subject-height", type=_human_height, metavar="METRES",
-                   help="subject height for recordings whose manifest line gives none")
-    p.add_argument("--image-size", type=_image_size, metavar="WxH",
-                   help="image size for recordings without intrinsics or a size of their own")
-    p.add_argument("--fov", type=_positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default 60)")
-    p.add_argument("--no-refine", action="store_true", help="skip the factor graph")
-    p.add_argument("--seed", type=int, default=0, help="seed of the RANSAC (default 0)")
-    p.add_argument("--quiet", action="store_true", help="print nothing but the summary "
-                                                       "and errors")
-    p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
-    p.set_defaults(func=cmd_batch)
-
-
-def cmd_batch(args) -> int:
-    """Run ``mirrorgraph batch``; 0 if every recording was calibrated, 2 if any failed."""
-    from .pipeline import CalibrateOptions
-
-    recordings = read_manifest(args.manifest, out_dir=args.out_dir)
-    opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
-                            refine=not args.no_refine, subject_height=args.subject_height,
-                            seed=args.seed, image_size=args.image_size)
-    if args.threshold is not None:
-        opts.threshold_px = args.threshold
-    if args.fov is not None:
-        opts.fov_deg = args.fov
-    if args.report and Path(args.report).is_dir():
-        raise InputError("is a folder; give a file name for the report", source=args.report,
-                         field="--report")
-
-    def report(res: BatchResult, done: int, total: int) -> None:
-        if args.quiet:
-            return
-        what = f"ok ({res.seconds:.1f} s)" if res.ok else f"FAILED: {res.message}"
-        print(f"[{done}/{total}] {res.name}: {what}", file=sys.stderr)
-
-    if not args.quiet:
-        where = args.scheduler or f"a local cluster of " \
-            f"{args.workers or default_workers(len(recordings))} worker processes"
-        print(f"calibrating {len(recordings)} recording{'s' * (len(recordings) != 1)} "
-              f"on {where}", file=sys.stderr)
-    results = run_batch(recordings, scheduler=args.scheduler, workers=args.workers,
-                        options=opts, progress=report)
-    print(format_summary(results))
-    if args.report:
-        from .io.atomic import atomic_write_text
-        atomic_write_text(args.report, json.dumps(results_to_json(results), indent=2) + "\n")
-    return 0 if all(r.ok for r in results) else 2

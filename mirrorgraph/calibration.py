@@ -172,7 +172,11 @@ class Calibration:
             lines.append(f"3D joints       {completion['joints_completed']} keypoints outside the "
                          "graph triangulated with the solved mirror")
         if self.uncertainty:
-            lines.append(f"uncertainty     rotation std {self.uncertainty.get('rotation_std_deg', float('nan')):.4f} deg")
+            u = self.uncertainty
+            line = f"uncertainty     rotation std {u.get('rotation_std_deg', float('nan')):.4f} deg"
+            if u.get("rotation_90_deg") is not None:
+                line += f", 90 % region up to {u['rotation_90_deg']:.4f} deg"
+            lines.append(line)
         for w in self.warnings:
             lines.append(f"warning: {w}")
         return "\n".join(lines)

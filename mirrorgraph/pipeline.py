@@ -24,7 +24,7 @@ from .anthropometry import height_problem
 from .calibration import Calibration
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
-from .graph.uncertainty import POORLY_DETERMINED_DEG
+from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
 from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
@@ -512,6 +512,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib.uncertainty = {
         "normal_cov": np.asarray(res.normal_cov).tolist(),
         "rotation_std_deg": float(res.rotation_std_deg),
+        "rotation_90_deg": float(parts.get("rotation_90_deg",
+                                           region_rotation_deg(res.normal_cov))),
         "distance_std": None if calib.distance is None else float(res.distance_std),
         "marginal_normal_cov": np.asarray(res.marginal_normal_cov).tolist()
         if res.marginal_normal_cov is not None else None,
@@ -745,10 +747,16 @@ def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOpti
             f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
             "detector noise: the 'reflection' may be another person or the keypoints poor")
     if calib.uncertainty.get("rotation_std_deg", 0.0) > POORLY_DETERMINED_DEG:
+        robust = calib.uncertainty.get("robust") or {}
+        bias = robust.get("chosen") in ("joint", "two_way", "jack_joint")
         calib.warnings.append(
             f"the mirror is poorly determined (rotation std "
-            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): a mirror seen almost edge-on or "
-            "square-on, too few frames or too little motion; more frames and motion help")
+            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): "
+            + ("the joint pairs disagree about the mirror (a detector placing some joints "
+               "consistently off: more frames do not help; see sensitivity.leave_out.joint_pairs)"
+               if bias else
+               "a mirror seen almost edge-on or square-on, too few frames or too little motion; "
+               "more frames and motion help"))
     if motion_px < MIN_MOTION_PX:
         calib.warnings.append(
             f"the person hardly moves (joints move {motion_px:.1f} px): the calibration rests "

@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mirrorgraph.batch import (BatchResult, Recording, add_batch_parser, calibrate_recording,
-                               format_summary, read_manifest, run_batch)
+from mirrorgraph.batch import (BatchResult, Recording, calibrate_recording, format_summary,
+                               read_manifest, run_batch)
+from mirrorgraph.cli.batch import add_parsers as add_batch_parser
 from mirrorgraph.errors import InputError
 from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.pipeline import CalibrateOptions
@@ -223,7 +224,7 @@ def test_run_batch_on_a_local_cluster(scenes, tmp_path):
 
 
 def batch_cli(argv: list[str]) -> int:
-    """``mirrorgraph batch ...`` through add_batch_parser (as cli.build_parser wires it)."""
+    """``mirrorgraph batch ...`` through cli.batch.add_parsers (as cli.build_parser wires it)."""
     parser = argparse.ArgumentParser(prog="mirrorgraph")
     sub = parser.add_subparsers(dest="command", required=True)
     add_batch_parser(sub)
@@ -265,6 +266,19 @@ def test_batch_command_exit_codes_without_a_cluster(tmp_path, capsys):
     assert run_batch([]) == []
 
 
+@pytest.mark.parametrize("option", ["--seed=-1", "--seed=x", "--seed=1.5"])
+def test_batch_refuses_the_seeds_calibrate_refuses(tmp_path, capsys, option):
+    from mirrorgraph.cli import main
+
+    assert main(["calibrate", "kp.json", "--out", str(tmp_path / "c.json"), option]) == 2
+    calibrate_err = capsys.readouterr().err
+    assert main(["batch", str(tmp_path / "missing.csv"), option]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1 and "--seed" in err
+    same = lambda e: e.split("--seed")[1].split(" (see ")[0]     # noqa: E731 - the message
+    assert same(err) == same(calibrate_err)
+
+
 def test_batch_is_wired_into_the_cli(tmp_path, capsys):
     from mirrorgraph.cli import build_parser, main
 
@@ -274,3 +288,48 @@ def test_batch_is_wired_into_the_cli(tmp_path, capsys):
     assert main(["batch", str(tmp_path / "missing.csv")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "missing.csv" in err
+
+
+# --------------------------------------------------------------------------- calibrate's options
+@pytest.fixture(scope="module")
+def scheduler():
+    """An in-process cluster listening on TCP (a remote one's stand-in), its address."""
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
+                      dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def _gym_alone(scenes, tmp_path, subject_height: str = "") -> Path:
+    """A manifest of the gym recording only, writing ``tmp_path/gym.json``."""
+    gym = scenes / "gym"
+    manifest = tmp_path / "runs.csv"
+    manifest.write_text("keypoints,intrinsics,out,subject_height\n"
+                        f"{gym / 'keypoints_mmpose.json'},{gym / 'camera.json'},"
+                        f"{tmp_path / 'gym.json'},{subject_height}\n")
+    return manifest
+
+
+def test_batch_joints_are_the_joints_calibrated_from(scenes, scheduler, tmp_path, capsys):
+    chosen = ["left_shoulder", "right_shoulder", "left_hip", "right_hip", "left_knee",
+              "right_knee"]
+    used = {}
+    for name, extra in (("default", []), ("chosen", ["--joints", " , ".join(chosen)])):
+        code = batch_cli(["batch", str(_gym_alone(scenes, tmp_path)), "--scheduler", scheduler,
+                          "--no-refine", "--quiet", *extra])
+        assert code == 0, capsys.readouterr().out
+        used[name] = json.loads((tmp_path / "gym.json").read_text())["input"]["joints"]
+    assert used["chosen"] == chosen
+    assert len(used["default"]) > len(chosen) and set(chosen) < set(used["default"])
+
+
+def test_batch_scale_from_limbs_reaches_the_scale(scenes, scheduler, tmp_path, capsys):
+    # the manifest's height replaces the options' one: the scale source must survive that
+    code = batch_cli(["batch", str(_gym_alone(scenes, tmp_path, subject_height="1.75")),
+                      "--scheduler", scheduler, "--scale-from", "limbs", "--quiet"])
+    assert code == 0, capsys.readouterr().out
+    cal = json.loads((tmp_path / "gym.json").read_text())
+    assert cal["input"]["scale_from"] == "limbs" and cal["input"]["subject_height"] == 1.75
+    assert cal["refinement"]["scale_method"].endswith("as asked (scale_from = limbs)")
+    assert cal["mirror"]["distance"] is not None

@@ -20,7 +20,7 @@ from mirrorgraph.intrinsics import Intrinsics, load_intrinsics
 from mirrorgraph.io.toml_writer import dumps
 from mirrorgraph.skeletons import BODY_25, COCO_17
 
-from .conftest import points_in_front, random_mirror
+from tests.helpers import points_in_front, random_mirror
 
 W, H = 1920, 1080
 K0 = np.array([[1400.0, 0.0, 955.0], [0.0, 1410.0, 545.0], [0.0, 0.0, 1.0]])

@@ -6,7 +6,7 @@ import pytest
 from mirrorgraph import geometry as geo
 from mirrorgraph.errors import DegenerateGeometryError
 
-from .conftest import points_in_front, random_mirror
+from tests.helpers import points_in_front, random_mirror
 
 
 def test_virtual_camera_round_trip_and_reflection():

@@ -58,6 +58,7 @@ from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig
+from .uncertainty import JointScores, joint_scores
 from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, joints_pass, optimize,
                      reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
 
@@ -124,6 +125,7 @@ class _ChunkResult:
     z_keys: list | None = None
     plane: tuple[np.ndarray, float] | None = None   # where the reduced system was taken
     distance_gauge: float | None = None
+    scores: JointScores | None = None         # frames relative to the chunk
     final_error: float = 0.0
     reprojection_factors: int = 0
     iterations: int = 0
@@ -170,6 +172,8 @@ def _calibrate_chunk(job: tuple) -> _ChunkResult:
     out.final_error, out.reprojection_factors = res.final_error, int(problem.reprojection.size())
     out.plane = plane_from_gtsam(values.atOrientedPlane3(problem.plane_keys[0]))
     out.distance_gauge = problem.distance_gauge
+    if opts.marginals:
+        out.scores = joint_scores(problem, values, keep_rows=True)
     return out
 
 
@@ -345,6 +349,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     finally:
         runner.close()
     t = time.perf_counter()
+    scores = _joined_scores([r for r in good if r.scores is not None], T, z)
     noise_px = reprojection_noise_px(rig, out_masks, ctx.pose, [plane], 3)
     factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
     plane_key = z_keys[0][0]
@@ -361,11 +366,34 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
                       prior_info=sub.prior_info, reprojection_factors=n_repro,
                       iterations=iterations, final_error=final_error, stages=stages,
                       timings=timings, body_height=sub.body_height, information=information,
-                      z_keys=z_keys, z_values=zv, problem=None, intrinsics=sub.intrinsics,
-                      intrinsics_cov=sub.intrinsics_cov, intrinsics_std=sub.intrinsics_std)
+                      z_keys=z_keys, z_values=zv, problem=None, scores=scores,
+                      intrinsics=sub.intrinsics, intrinsics_cov=sub.intrinsics_cov,
+                      intrinsics_std=sub.intrinsics_std)
 
 
 # --------------------------------------------------------------------------- helpers
+def _joined_scores(parts: list[_ChunkResult], T: int, z: np.ndarray) -> JointScores | None:
+    """The chunks' joint scores as one record over the video's ``T`` frame rows.
+
+    Every chunk scored its joints at the globals it was given; the last global step ``z``
+    moves them to the final globals (else each score would carry the step's gradient and
+    the per-joint clusters would read it as noise)."""
+    if not parts:
+        return None
+    first = parts[0].scores
+    n = first.scores.shape[1]
+    frame_info = np.zeros((T, n, n))
+    for r in parts:
+        frame_info[r.a:r.b] = r.scores.frame_info
+    return JointScores(frames=np.concatenate([r.scores.frames + r.a for r in parts]),
+                       joints=np.concatenate([r.scores.joints for r in parts]),
+                       clusters=np.concatenate([r.scores.clusters for r in parts]),
+                       scores=np.concatenate([r.scores.moved(z) for r in parts]),
+                       frame_info=frame_info,
+                       joint_info=sum(r.scores.joint_info for r in parts),
+                       z_keys=first.z_keys, gauge=first.gauge)
+
+
 def _apply_step(zv: gtsam.Values, z_keys: list[tuple[int, int]], z: np.ndarray) -> gtsam.Values:
     delta = gtsam.VectorValues()
     off = 0

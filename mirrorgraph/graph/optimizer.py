@@ -379,6 +379,34 @@ class LevenbergMarquardt:
             _split(dg[ng:], red.extra_keys, delta)
         return delta, Hz, gz, float(np.sqrt(max(z @ Hz @ z, 0.0)))
 
+    def reduced_system(self, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
+        """The reduced information ``T^T Lambda T`` and gradient at ``values``.
+
+        Undamped where GTSAM can; where a point's block is singular there (a point the
+        last solve left nearly undetermined) the points alone are damped by the smallest
+        ``lambda`` of ``1e-9, 1e-7, ...`` that lets the elimination through, which
+        changes the globals' information by that relative amount.
+
+        Raises:
+            DegenerateGeometryError: the globals' system itself is singular, or no
+                damping up to ``1e-3`` makes the points' blocks definite.
+        """
+        gfg = self.graph.linearize(values)
+        lam = 0.0
+        while True:
+            try:
+                _, Hz, gz, _ = self.step(gfg, values, lam)
+                return Hz, gz
+            except RuntimeError as exc:
+                if indeterminate_key(exc) is None:
+                    raise
+                lam = 1e-9 if lam == 0.0 else lam * 100.0
+                if lam > 1e-3:
+                    raise DegenerateGeometryError(
+                        "the solution's information could not be computed: "
+                        + str(exc).splitlines()[1 if len(str(exc).splitlines()) > 1 else 0]
+                        ) from None
+
     def predicted_decrease(self, gfg: gtsam.GaussianFactorGraph, delta: gtsam.VectorValues,
                            values: gtsam.Values) -> float:
         """Decrease of the (undamped) linearised model along ``delta``."""

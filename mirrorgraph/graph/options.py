@@ -23,13 +23,15 @@ reproduces the protocol):
   to the mirror): the joint optimum of the mirror and the per-frame depths with
   such bones is biased however many frames there are. Monte Carlo (6 scenes a
   slice, 3 noise draws each, iid 4 px, 1000 frames; RMS error over the bound):
-  every bone in every frame 1.77 (gym 2.01, low parallax 2.52), the rule at
-  ``c = 0.3`` 0.96, at 1 1.03, at 3 1.22, no bone 0.94 (``bench/RESULTS_priors.md``).
-  Under iid noise the rule's bones neither help nor hurt the mirror; under a
-  realistic detector (per-label bias, AR(1) noise, outliers along epipolar lines)
-  they help in some scenes and hurt in others (medians 8.9 vs 8.7 bounds). They
-  stay in the calibration (they make the body metric and its outliers visible)
-  and every bone holds the joints in the joints pass, where the mirror is held.
+  every bone in every frame 1.60 (gym 1.64, low parallax 2.10), the rule at
+  ``c = 0.3`` 1.01, at 1 1.08, at 3 1.22, no bone 0.93 (``bench/RESULTS_priors.md``).
+  Under iid noise the rule's bones cost the mirror ~8 % of a bound against no
+  bone; under a realistic detector (per-label bias, AR(1) noise, outliers along
+  epipolar lines) they help in some scenes and hurt in others (medians 8.9 vs 8.7
+  bounds). They stay in the calibration because they make the body metric (the
+  subject-height gauge is a sum of bone lengths) and its gross outliers visible
+  (``bone_outlier_k``); every bone holds the joints in the joints pass, where the
+  mirror is held.
 * The symmetry and anthropometry sigmas act on the bone lengths only; they are
   loose bounds for real people (a detector's "joints" move within the body by a
   few percent of a bone).

@@ -30,7 +30,7 @@ import numpy as np
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from .uncertainty import JointScores, gauge_inverse, leave_one_out
 
-__all__ = ["sensitivity_report", "predicted_std", "TARGET_STDS_DEG", "FRAME_GRID",
+__all__ = ["sensitivity_report", "rig_sensitivity_report", "predicted_std", "TARGET_STDS_DEG", "FRAME_GRID",
            "REPORT_SEGMENTS", "prior_weights", "PRIORS"]
 
 #: Segments of the leave-one-out and information tables.
@@ -125,6 +125,108 @@ def sensitivity_report(scores: JointScores, basis: np.ndarray, parts: dict,
                      "with more frames, a bias the joint pairs show beyond it does not",
         },
     }
+
+
+# --------------------------------------------------------------------------- rigs
+def _block_move_deg(kind: str, basis, d: np.ndarray) -> float:
+    """A camera's rotation (deg) of its pose step ``d[:3]``, or a mirror's virtual-camera
+    rotation of its plane step (``d[:2]``, normal tangent coordinates)."""
+    if kind == "camera":
+        return float(np.degrees(np.linalg.norm(np.asarray(d, float)[:3])))
+    return _rot_deg(basis, d)
+
+
+def _block_std_deg(kind: str, basis, C: np.ndarray) -> float:
+    """The rotation std (deg) of a camera's ``(3, 3)`` or a mirror's ``(2, 2)`` tangent
+    covariance (as :func:`mirrorgraph.rigs.solve.camera_std` and ``plane_std``)."""
+    if kind == "camera":
+        return float(np.degrees(np.sqrt(max(np.trace(C), 0.0))))
+    return rotation_std_from_normal_cov(normal_cov_from_tangent(basis, C))
+
+
+def rig_sensitivity_report(scores: JointScores, blocks: list[tuple[str, str, object]],
+                           marginal_blocks: list[np.ndarray], skeleton,
+                           frame_ids: np.ndarray) -> dict:
+    """The ``sensitivity`` record of a rig: per estimated camera and mirror, as
+    :func:`sensitivity_report` for a single mirror.
+
+    Args:
+        scores: :func:`~.uncertainty.joint_scores` of the rig at its solution.
+        blocks: per reduced variable of ``scores.z_keys``, in order: ``(name, kind,
+            basis)``, kind ``"camera"`` (a pose: rotation first) or ``"mirror"`` (a plane:
+            the normal's tangent first, ``basis`` its ``(3, 2)`` tangent basis).
+        marginal_blocks: each variable's marginal covariance (scaled by the noise).
+        skeleton, frame_ids: as :func:`sensitivity_report`.
+
+    Returns:
+        camera or mirror name -> ``{"leave_out": {"joint_pairs", "segments"},
+        "frames_needed"}`` (rotations in degrees: a camera's own, a mirror's virtual
+        camera's).
+    """
+    from .uncertainty import sandwich
+
+    T = scores.frame_info.shape[0]
+    H = scores.information
+    Hinv = gauge_inverse(H, scores.gauge)
+    sw = sandwich(scores)
+    cands = {k: sw[f"cov_{k}"] for k in ("time", "joint", "jack_time", "jack_joint")}
+    cands["two_way"] = sw["cov"]
+    pairs, dpair, _ = leave_one_out(scores, "joint")
+    segs, dseg, Hseg = leave_one_out(scores, "time", min(REPORT_SEGMENTS, max(T, 1)))
+    fid = np.asarray(frame_ids)
+    grid = np.array(FRAME_GRID, dtype=float)
+    out, off = {}, 0
+    for (key, dim), (name, kind, basis), M in zip(scores.z_keys, blocks, marginal_blocks):
+        rot = slice(off, off + (3 if kind == "camera" else 2))
+        block = slice(off, off + dim)
+        off += dim
+        M = np.asarray(M, dtype=float)
+        r = slice(0, 3 if kind == "camera" else 2)
+        marginal_std = _block_std_deg(kind, basis, M[r, r])
+        whitened = _block_std_deg(kind, basis, Hinv[rot, rot])
+        scale = (marginal_std / whitened) ** 2 if whitened > 0 else float("nan")
+        total = float(np.trace(H[rot, rot]))
+
+        def alone(Hc: np.ndarray, rot=rot, kind=kind, basis=basis, scale=scale):
+            # the segment's own marginal (its information on every global, the gauge
+            # fixed): a camera's rotation is tied to its position
+            if np.trace(Hc[rot, rot]) <= 0:
+                return None
+            try:
+                C = gauge_inverse(Hc, scores.gauge)[rot, rot]
+            except np.linalg.LinAlgError:
+                return None
+            if not np.all(np.isfinite(C)):
+                return None
+            return float(np.sqrt(scale) * _block_std_deg(kind, basis, C))
+
+        segments = [{"frames": [int(fid[a]), int(fid[b - 1])] if b > a else [None, None],
+                     "rotation_change_deg": _block_move_deg(kind, basis, d[block]),
+                     "information_share": float(np.trace(Hc[rot, rot]) / total)
+                     if total > 0 else None,
+                     "rotation_std_deg_alone": alone(Hc)}
+                    for (a, b), d, Hc in zip(segs, dseg, Hseg)]
+        joint_pairs = [{"joints": [skeleton.joints[j] for j in members],
+                        "rotation_change_deg": _block_move_deg(kind, basis, d[block])}
+                       for members, d in zip(pairs, dpair)]
+        stds = {k: _block_std_deg(kind, basis, C[rot, rot]) for k, C in cands.items()
+                if np.all(np.isfinite(C[rot, rot]))}
+        time_std = max([marginal_std] + [stds[k] for k in ("time", "jack_time") if k in stds])
+        head_std = max([marginal_std] + list(stds.values()))
+        v_time, v_floor = time_std ** 2, max(head_std ** 2 - time_std ** 2, 0.0)
+        needed = {f"{t:g}": (None if t ** 2 <= v_floor
+                             else int(np.ceil(v_time * T / (t ** 2 - v_floor))))
+                  for t in TARGET_STDS_DEG}
+        out[name] = {
+            "kind": kind,
+            "leave_out": {"joint_pairs": joint_pairs, "segments": segments},
+            "frames_needed": {
+                "frames": [int(x) for x in grid],
+                "rotation_std_deg": predicted_std(grid, T, v_time, v_floor).tolist(),
+                "floor_rotation_std_deg": float(np.sqrt(v_floor)),
+                "frames_for_rotation_std_deg": needed},
+        }
+    return out
 
 
 # --------------------------------------------------------------------------- priors

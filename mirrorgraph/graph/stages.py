@@ -366,6 +366,16 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
     return res, red.z_keys
 
 
+def information_at(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The reduced information and gradient of ``problem``'s full graph at ``values``
+    (:meth:`~.optimizer.LevenbergMarquardt.reduced_system`)."""
+    red = mirror_reduction(problem, distance_gauge=problem.distance_gauge)
+    lm = LevenbergMarquardt(problem.full(), red, lm_params(opts, problem),
+                            ordering=problem.point_ordering())
+    return lm.reduced_system(values)
+
+
 def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
     """``(T, J)`` bool: the points GTSAM found (nearly) undetermined during ``res``
     (:attr:`~.optimizer.LMResult.indeterminate`); they are dropped with their pairs."""
@@ -667,6 +677,10 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         stages.append(stage_record(stage.name, res, dropped, kernel=kernel))
         timings["solve"] += time.perf_counter() - t
     final_error = float(res.final_error)
+    if res.reduced_information is None and opts.marginals:
+        # every solve of the last stage was damped (it met a nearly singular point):
+        # the information at its solution, for the covariances
+        res.reduced_information, res.reduced_gradient = information_at(problem, values, opts)
     final_used = problem.used.copy()
     state_points = extract_points(problem, values)
     intrinsics = extract_intrinsics(problem, values)

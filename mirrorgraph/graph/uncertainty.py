@@ -64,7 +64,8 @@ POORLY_DETERMINED_DEG = 0.5
 __all__ = ["POORLY_DETERMINED_DEG", "JointScores", "joint_scores", "frame_scores", "long_run_covariance", "two_way_meat", "sandwich",
            "jackknife_cov", "leave_one_out",
            "gauge_inverse", "scale_direction", "andrews_bandwidth", "robust_normal_cov",
-           "covariance_max", "robust_blocks", "robust_intrinsics_std", "ROBUST_PARTS"]
+           "covariance_max", "robust_blocks", "robust_intrinsics_std", "ROBUST_PARTS",
+           "REGION_LEVEL", "region_threshold", "region_rotation_deg"]
 
 
 @dataclass
@@ -89,6 +90,8 @@ class JointScores:
             frame, so that the joint-pair clusters apply (:func:`joint_scores`); not
             where the bones couple a frame's joints (:func:`frame_scores`: the time
             figures alone).
+        row_info: ``(N, n, n)`` each joint's own Schur complement ``S_p``, kept where the
+            scores must later be moved to other globals (:meth:`moved`), else ``None``.
     """
 
     frames: np.ndarray
@@ -101,6 +104,7 @@ class JointScores:
     gauge: np.ndarray | None = None
     prior_information: np.ndarray | None = None
     joint_clusters: bool = True
+    row_info: np.ndarray | None = None
 
     @property
     def information(self) -> np.ndarray:
@@ -108,8 +112,14 @@ class JointScores:
         H = self.frame_info.sum(0)
         return H if self.prior_information is None else H + self.prior_information
 
+    def moved(self, z: np.ndarray) -> np.ndarray:
+        """``(N, n)`` the scores after a step ``z`` (``(n,)``, reduced coordinates) of the
+        globals, the joints re-eliminated: ``s_p - S_p z`` (first order)."""
+        return self.scores - np.einsum("nab,b->na", self.row_info, np.asarray(z, float))
 
-def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
+
+def joint_scores(problem: GraphProblem, values: gtsam.Values,
+                 keep_rows: bool = False) -> JointScores:
     """The Schur complement and reduced score of every joint of ``problem`` at ``values``.
 
     Where the bone lengths are a variable of the graph (an estimated focal length,
@@ -121,6 +131,7 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
 
     Args:
         problem: the solved graph; values: its solution.
+        keep_rows: keep each joint's Schur complement (:attr:`JointScores.row_info`).
 
     Returns:
         :class:`JointScores` over the reduced coordinates of
@@ -199,7 +210,8 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     return JointScores(frames=frames, joints=joints, clusters=clusters, scores=s,
                        frame_info=frame_info,
                        joint_info=joint_info, z_keys=list(red.z_keys),
-                       gauge=scale_direction(problem, values, list(red.z_keys)))
+                       gauge=scale_direction(problem, values, list(red.z_keys)),
+                       row_info=S if keep_rows else None)
 
 
 def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
@@ -613,7 +625,10 @@ def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarr
     Returns:
         ``(3, 3)`` covariance (camera frame, rad^2) and a record: each candidate's
         rotation std (deg) and ``(3, 3)`` covariance, the chosen one, the ratio to the
-        marginal std, the time series' bandwidth (frames).
+        marginal std, the time series' bandwidth (frames), the chosen figure's clusters
+        (0: none), the 90 % region's squared radius (:func:`region_threshold`) and its
+        largest rotation error ``rotation_90_deg`` (twice the normal's largest angle in
+        the region, deg).
     """
     from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 
@@ -631,13 +646,67 @@ def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarr
     # can be nearly flat in one): the smallest covariance above both
     headline = covariance_max(covs["marginal"], covs[chosen])
     std = rotation_std_from_normal_cov(headline)
+    clusters = {"jack_time": int(sw["segments"]), "joint": len(np.unique(scores.clusters)),
+                "two_way": len(np.unique(scores.clusters)),
+                "jack_joint": len(np.unique(scores.clusters))}.get(chosen)
+    m2 = region_threshold(2, clusters, REGION_LEVEL)
     parts = {f"{k}_rotation_std_deg": float(stds[k]) for k in ROBUST_PARTS}
     parts.update({f"{k}_normal_cov": covs[k] for k in ROBUST_PARTS},
                  chosen=chosen, bandwidth_frames=float(sw["bandwidth"]),
-                 segments=int(sw["segments"]),
+                 segments=int(sw["segments"]), clusters=int(clusters or 0),
+                 region90_mahalanobis2=float(m2),
+                 rotation_90_deg=region_rotation_deg(headline, clusters),
                  ratio_to_marginal=float(std / stds["marginal"])
                  if stds["marginal"] > 0 else float("nan"))
     return headline, parts
+
+
+#: The confidence level of the region :func:`robust_normal_cov` reports.
+REGION_LEVEL = 0.9
+
+
+def region_threshold(dim: int, clusters: int | None, level: float = REGION_LEVEL) -> float:
+    """The squared Mahalanobis radius of a ``level`` confidence region of ``dim`` parameters.
+
+    A covariance estimated from ``G`` independent clusters (joint pairs, time segments)
+    is itself uncertain with ``G - 1`` degrees of freedom; the region then follows
+    Hotelling's ``T^2 = dim (G - 1) / (G - dim) F(dim, G - dim)`` (Cameron and Miller
+    2015, small-cluster inference), wider than the Gaussian's ``chi^2(dim)``, which it
+    is for ``G`` large or for the marginals and the time series' long-run covariance
+    (``clusters=None``).
+
+    Args:
+        dim: parameters (2 for a unit normal); clusters: ``G``, or ``None``.
+        level: the confidence level.
+
+    Returns:
+        the threshold ``c``: the region is ``delta^T Sigma^-1 delta <= c``.
+    """
+    from scipy.stats import chi2, f
+
+    if clusters is None or clusters <= dim:
+        return float(chi2.ppf(level, dim))
+    G = int(clusters)
+    return float(dim * (G - 1) / (G - dim) * f.ppf(level, dim, G - dim))
+
+
+def region_rotation_deg(normal_cov: np.ndarray, clusters: int | None = None,
+                        level: float = REGION_LEVEL) -> float:
+    """The largest virtual-camera rotation error in a mirror normal's confidence region.
+
+    Args:
+        normal_cov: ``(3, 3)`` covariance of the unit normal (camera frame, rad^2).
+        clusters: as :func:`region_threshold`; level: the confidence level.
+
+    Returns:
+        ``2 sqrt(c lambda_max)`` in degrees: the mirror turns the virtual camera by
+        twice the normal's angle.
+    """
+    C = np.asarray(normal_cov, dtype=float)
+    if not np.all(np.isfinite(C)):
+        return float("nan")
+    lam = float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
+    return float(2.0 * np.degrees(np.sqrt(region_threshold(2, clusters, level) * max(lam, 0.0))))
 
 
 def covariance_max(A: np.ndarray, B: np.ndarray) -> np.ndarray:

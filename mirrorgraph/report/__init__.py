@@ -27,7 +27,7 @@ those of the calibration itself: :func:`load_run` reads the run that
 ``mirrorgraph calibrate`` kept beside it (``c.report.npz``, :mod:`.store`), or
 calibrates the keypoints again with the options the file records.
 
-matplotlib is an optional dependency (:data:`INSTALL_HINT`); it is imported
+matplotlib is an optional dependency (:data:`INSTALL_HINT`, :mod:`.backend`); it is imported
 lazily, with the non-interactive Agg backend.
 """
 
@@ -41,36 +41,14 @@ from typing import Callable
 import numpy as np
 
 from .. import geometry as geo
-from ..errors import InputError, MirrorgraphError
+from ..errors import InputError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
+from .backend import INSTALL_HINT, require_matplotlib
 
 __all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
            "options_from_calibration", "report_data", "require_matplotlib",
            "run_from_calibration"]
-
-#: How to install the ``plot`` extra, from PyPI or in a clone (as the README says).
-INSTALL_HINT = "pip install 'mirrorgraph[plot]' (in a clone: pip install -e '.[plot]')"
-
-
-def require_matplotlib():
-    """Import matplotlib with the Agg backend and return ``matplotlib.pyplot``.
-
-    Raises:
-        MirrorgraphError: matplotlib is not installed (the message says how to
-            install it).
-    """
-    try:
-        import matplotlib
-    except ImportError:
-        raise MirrorgraphError(f"the report needs matplotlib: {INSTALL_HINT}") from None
-    # Agg unless a notebook (inline backend) or the user chose one already
-    backend = str(matplotlib.get_backend()).lower()
-    if "inline" not in backend and "ipympl" not in backend and "widget" not in backend:
-        matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-    return plt
-
 
 # --------------------------------------------------------------------------- data
 @dataclass

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry as geo
-from . import require_matplotlib
+from .backend import require_matplotlib
 
 REAL = "#1f77b4"
 MIRROR = "#ff7f0e"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import require_matplotlib
+from .backend import require_matplotlib
 
 __all__ = ["rig_top_view", "rig_residuals", "write_rig_report"]
 

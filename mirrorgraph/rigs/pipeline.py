@@ -214,4 +214,5 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
                           joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
                           initialisation=initialisation, refinement=refinement,
+                          sensitivity=sol.sensitivity,
                           warnings=warnings, source=str(cfg.source))

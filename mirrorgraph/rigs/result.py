@@ -129,6 +129,9 @@ class RigCalibration:
         bone_lengths: bone -> length.
         initialisation: the pairwise edges, spanning tree and mirror sightings.
         refinement: iterations, rejected observations, priors, timings.
+        sensitivity: per estimated camera and mirror, how it moves with each joint pair
+            or video segment left out, each segment's information, the frames a target
+            accuracy needs (:func:`mirrorgraph.graph.sensitivity.rig_sensitivity_report`).
         warnings: what the user should know.
         source: the rig file.
     """
@@ -147,6 +150,7 @@ class RigCalibration:
     warnings: list[str] = field(default_factory=list)
     source: str = ""
     scale_source: str = ""
+    sensitivity: dict[str, Any] = field(default_factory=dict)
 
     def camera(self, name: str) -> RigCamera:
         """The camera called ``name``."""
@@ -191,6 +195,7 @@ class RigCalibration:
             "frames": int(len(self.frame_ids)),
             "initialisation": self.initialisation,
             "refinement": self.refinement,
+            "sensitivity": self.sensitivity,
             "warnings": list(self.warnings),
             "source": self.source,
         }

@@ -29,6 +29,7 @@ from ..graph.builder import view_residuals
 from ..graph.refine import focal_record
 from ..graph.options import FocalOptions, RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
+from ..graph.sensitivity import rig_sensitivity_report
 from ..graph.uncertainty import robust_blocks
 from ..graph.solve import solve
 from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config, spread_rows, triangulate_rig
@@ -55,6 +56,8 @@ class RigSolution:
         marginal_camera_cov, marginal_plane_cov: the graph's marginals (iid noise).
         robust_parts: camera or mirror name -> which figure the headline is and its
             ratio to the marginal std.
+        sensitivity: camera or mirror name -> what it rests on
+            (:func:`~mirrorgraph.graph.sensitivity.rig_sensitivity_report`).
         plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
         points: ``(T, J, 3)`` joints; used: ``(T, J)``.
         view_names, view_rms_px: reprojection RMS per view, pixels.
@@ -95,6 +98,7 @@ class RigSolution:
     robust_parts: dict = field(default_factory=dict)
     intrinsics: list[np.ndarray] = field(default_factory=list)
     focal: dict[str, dict] = field(default_factory=dict)
+    sensitivity: dict = field(default_factory=dict)
 
     def scaled(self, factor: float) -> "RigSolution":
         """The same solution with every length multiplied by ``factor`` (> 0).
@@ -209,6 +213,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
     priors.update(state.prior_info)
     camera_cov, plane_cov = list(state.camera_cov), list(state.plane_cov)
     robust_parts: dict = {}
+    sensitivity: dict = {}
     if state.scores is not None and state.scores.z_keys:
         # the headline figures follow the data's error structure (graph.uncertainty)
         order = ([("camera", i) for i in problem.camera_keys]
@@ -222,6 +227,12 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
             else:
                 plane_cov[i] = B
                 robust_parts[rig.mirrors[i].name] = part
+        # what each camera and mirror rests on: joint pairs and segments left out
+        named = [(rig.cameras[i].name, "camera", None) if kind == "camera"
+                 else (rig.mirrors[i].name, "mirror", state.plane_basis[i])
+                 for kind, i in order]
+        sensitivity = rig_sensitivity_report(state.scores, named, marg, rig.skeleton,
+                                             rig.frame_ids)
     focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
              if c.estimate_focal}
     return RigSolution(poses=state.poses, planes=state.planes,
@@ -230,6 +241,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                        camera_cov=camera_cov, plane_cov=plane_cov,
                        marginal_camera_cov=list(state.camera_cov),
                        marginal_plane_cov=list(state.plane_cov), robust_parts=robust_parts,
+                       sensitivity=sensitivity,
                        plane_basis=state.plane_basis, points=state.points, used=state.used,
                        view_names=[v.name for v in rig.views], view_rms_px=rms,
                        view_counts=counts, view_observed=offered,

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..anthropometry import HEIGHT_FRACTION, bone_kind
-from ..skeletons import Skeleton
+from ..skeletons import SKELETONS, Skeleton
 
 #: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25;
 #: BODY_25B and HALPE_26 also need ``head_top``, see :func:`skeleton_points`).
@@ -183,6 +183,13 @@ def skeleton_columns(skeleton: Skeleton) -> np.ndarray:
 
 #: Joints not among :data:`FULL_JOINTS` that :func:`skeleton_points` derives.
 DERIVED_JOINTS: tuple[str, ...] = ("head_top",)
+
+#: The layouts of :data:`mirrorgraph.skeletons.SKELETONS` whose every joint the model
+#: produces, in that order: every one but BLAZEPOSE (no eye corners, mouth, hands).
+#: What ``make_scene(skeleton=...)`` and ``mirrorgraph synth --skeleton`` accept.
+SUPPORTED_SKELETONS: tuple[str, ...] = tuple(
+    name for name, skel in SKELETONS.items()
+    if all(j in FULL_INDEX or j in DERIVED_JOINTS for j in skel.joints))
 
 _HEAD_POINTS = ("left_eye", "right_eye", "left_ear", "right_ear", "nose")
 

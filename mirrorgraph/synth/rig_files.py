@@ -23,7 +23,8 @@ JOINTS3D_NAME = "joints3d.npz"
 GROUND_TRUTH_NAME = "ground_truth.json"
 RIG_NAME = "rig.toml"
 CALIB_NAME = "Calib.toml"
-_KEYPOINT_FORMATS = ("openpose", "easymocap", "mmpose")
+#: Keypoint formats :func:`write_rig` writes the cameras' detections in (``fmt``).
+KEYPOINT_FORMATS = ("openpose", "mmpose", "easymocap")
 
 
 def _keypoints_path(camera: str, fmt: str) -> str:
@@ -88,9 +89,9 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
     from ..io.calibration import write_json
     from ..io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 
-    if fmt not in _KEYPOINT_FORMATS:
+    if fmt not in KEYPOINT_FORMATS:
         raise ValueError(f"unknown keypoint format {fmt!r}; known: "
-                         f"{', '.join(_KEYPOINT_FORMATS)}")
+                         f"{', '.join(KEYPOINT_FORMATS)}")
     out = Path(out_dir)
     (out / "pose").mkdir(parents=True, exist_ok=True)
     for name in rig.camera_names:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,7 +20,7 @@ from mirrorgraph.baselines import triangulate_virtual
 from mirrorgraph.baselines.anipose import flip_points, flipped_intrinsics
 from mirrorgraph.synth import make_scene
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.helpers import REPO_ROOT
 
 
 def _has(module: str) -> bool:
@@ -159,7 +158,8 @@ def test_anipose_adapter_runs_with_the_users_initialisation():
 # --------------------------------------------------------------------------- bench/compare.py
 @pytest.fixture(scope="module")
 def compare():
-    spec = importlib.util.spec_from_file_location("bench_compare", ROOT / "bench" / "compare.py")
+    spec = importlib.util.spec_from_file_location("bench_compare",
+                                                  REPO_ROOT / "bench" / "compare.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod            # dataclasses look their module up by name
     try:

@@ -13,7 +13,7 @@ from mirrorgraph.solvers import (SimilarityNormalizer, epipole_from_two_pairs,
 from mirrorgraph.solvers.eightpoint import (fundamental_eight_point,
                                             fundamental_reflective_eight_point)
 
-from .conftest import points_in_front, random_mirror
+from tests.helpers import points_in_front, random_mirror
 
 
 def _same_point(a, b):

@@ -5,7 +5,6 @@ make_rig(geometry=...))."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,9 @@ from mirrorgraph.synth.detector import DETECTORS, EPIPOLAR_OUTLIER_PX
 from mirrorgraph.synth.geometry import geometry_stats, pair_by_epipole
 from mirrorgraph.synth.rig_placement import RIG_PRESETS
 
-FIXTURES = Path(__file__).resolve().parents[2] / "shared" / "fixtures"
+from tests.helpers import REPO_ROOT
+
+FIXTURES = REPO_ROOT.parent / "shared" / "fixtures"
 
 #: Summaries of make_scene's output before presets existed (commit 2eedefd), for
 #: the same arguments: the "favourable" preset must reproduce them exactly.

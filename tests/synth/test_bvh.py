@@ -255,7 +255,7 @@ def test_missing_or_unusable_file(tmp_path, cmu):
 
 # --------------------------------------------------------------------------- make_scene
 def _assert_valid_scene(s) -> None:
-    """The checks of tests/test_synth.py: visible, in front of camera and mirror, rigid."""
+    """The checks of tests/synth/test_synth.py: visible, in front of camera and mirror, rigid."""
     w, h = s.image_size
     margin = s.placement["margin_px"]
     for P in (s.real_clean, s.mirror_clean, s.real_image, s.mirror_image):

@@ -294,7 +294,7 @@ def test_mmpose_malformed_json(tmp_path):
     (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, float("inf")),
      ["frame 5", "instances", "non-finite confidence"]),
     # (scores <= 0 are missing and any finite score above 1 is clipped in MMPose's
-    #  format: tests/test_io_real_formats.py)
+    #  format: tests/io/test_io_real_formats.py)
     (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, float("nan")),
      ["frame 5", "instances", "non-finite confidence", "joint 2"]),
     (lambda d: d[1]["instances"][0]["keypoint_scores"].__setitem__(2, None),

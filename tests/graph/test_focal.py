@@ -2,10 +2,11 @@
 
 Against ground truth on synthetic scenes: a scene whose focal length the bones
 determine (estimated within a few standard deviations, the JSON and the exports
-carry it), one where they do not (the warning fires, the guess is kept), a rig with
-a camera's intrinsics missing; and the pieces: what the reprojection alone
-determines (not the focal length), the reduced coordinates of the two calibration
-variables, the frame scores against the solver's marginals.
+carry it), one where they do not (the warning fires, the guess is kept); and the
+pieces: what the reprojection alone determines (not the focal length), the reduced
+coordinates of the two calibration variables, the frame scores against the solver's
+marginals. Rigs: tests/rigs/test_rigs_focal.py; the command line:
+tests/cli/test_focal_cli.py.
 """
 
 import dataclasses
@@ -15,8 +16,6 @@ import numpy as np
 import pytest
 
 import mirrorgraph as mg
-from mirrorgraph.cli import main
-from mirrorgraph.errors import InputError
 from mirrorgraph.factors import mirror_residuals
 from mirrorgraph.graph import RefineOptions
 from mirrorgraph.graph.builder import build_problem, camera_matrix
@@ -185,64 +184,3 @@ def test_undetermined_focal_length_warns_and_keeps_the_guess():
     assert cal.intrinsics.estimated["undetermined"]["rel_std"] > 0.2
     assert any("focal length is not determined" in w for w in cal.warnings)
     assert "focal length" in cal.summary()
-
-
-def test_rig_camera_without_intrinsics(tmp_path):
-    from mirrorgraph.rigs.config import load_rig_config
-    from mirrorgraph.rigs.pipeline import calibrate_rig
-    from mirrorgraph.synth import make_rig, write_rig
-
-    r = make_rig("2cams1mirror", frames=300, seed=0, geometry="wide")
-    write_rig(r, tmp_path / "rig")
-    cfg = load_rig_config(tmp_path / "rig" / "rig.toml")
-    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
-                                                image_size=tuple(r.image_size)))
-    cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams), subject_height=r.subject_height)
-    c = cal.cameras[1]
-    est = c.intrinsics.estimated
-    assert est["estimated"] and est["initial"]["method"].startswith("search through its mirror")
-    assert abs(c.intrinsics.K[0, 0] / r.K[1][0, 0] - 1.0) < 0.02
-    assert abs(c.intrinsics.K[0, 0] - r.K[1][0, 0]) < 4.0 * est["std_px"]
-    assert np.allclose(cal.cameras[0].intrinsics.K, r.K[0])          # given: untouched
-    from mirrorgraph.metrics import rotation_error_deg
-    assert rotation_error_deg(c.pose[:3, :3], r.poses[1][:3, :3]) < 0.5
-
-
-def test_rig_file_image_size(tmp_path):
-    from mirrorgraph.rigs.config import load_rig_config
-    kp = tmp_path / "kp.json"
-    kp.write_text("[]")
-    (tmp_path / "cam.json").write_text(json.dumps({"K": [[1000, 0, 960], [0, 1000, 540],
-                                                         [0, 0, 1]]}))
-    (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'image_size = [1920, 1080]\n')
-    assert load_rig_config(tmp_path / "rig.toml").cameras[0].image_size == (1920, 1080)
-    (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'image_size = [1920]\n')
-    with pytest.raises(InputError, match="image_size"):
-        load_rig_config(tmp_path / "rig.toml")
-    (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'intrinsics = "cam.json"\nimage_size = [1920, 1080]\n')
-    with pytest.raises(InputError, match="without intrinsics"):
-        load_rig_config(tmp_path / "rig.toml")
-
-
-def test_cli_estimates_by_default_and_fov_keeps_the_guess(tmp_path, capsys):
-    d = tmp_path / "scene"
-    assert main(["synth", "--out", str(d), "--frames", "200", "--seed", "3", "--focal", "1100",
-                 "--quiet"]) == 0
-    assert main(["calibrate", str(d / "keypoints_mmpose.json"), "--image-size", "1920x1080",
-                 "--out", str(tmp_path / "a.json"), "--quiet"]) == 0
-    a = json.loads((tmp_path / "a.json").read_text())["intrinsics"]
-    assert "estimated" in a and a["K"][0][0] != pytest.approx(1662.77, rel=1e-3)
-    assert main(["calibrate", str(d / "keypoints_mmpose.json"), "--image-size", "1920x1080",
-                 "--fov", "60", "--out", str(tmp_path / "b.json"), "--quiet"]) == 0
-    b = json.loads((tmp_path / "b.json").read_text())["intrinsics"]
-    assert "estimated" not in b and b["approximate"]
-    assert b["K"][0][0] == pytest.approx(960.0 / np.tan(np.radians(30.0)))
-    capsys.readouterr()
-    assert main(["calibrate", str(d / "keypoints_mmpose.json"), "--intrinsics",
-                 str(d / "camera.json"), "--principal-point", "free",
-                 "--out", str(tmp_path / "c.json"), "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert "--principal-point" in err and "Traceback" not in err

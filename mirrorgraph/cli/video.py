@@ -1,13 +1,8 @@
-"""Command line of the video path (a thin layer over :mod:`mirrorgraph.video`).
-
-    mirrorgraph detect VIDEO --out keypoints.json [--format mmpose|openpose]
-                       [--start N] [--end N] [--every N]
-                       [--pose-model FILE.onnx --det-model FILE.onnx]
-                       [--no-cache] [--cache-dir DIR]
-
-and the same video options on ``calibrate`` and ``calibrate-rig``, whose
-keypoint inputs may name a video (:func:`add_video_options`,
-:func:`video_options`).
+"""The ``detect`` command, every person's 2D keypoints in a video written as MMPose or
+OpenPose files, and the video options (``--start --end --every --pose-model
+--det-model --no-cache --cache-dir``) that ``calibrate`` and ``calibrate-rig`` also
+take where a keypoint input names a video (:func:`add_video_options`,
+:func:`video_options`): a thin layer over :mod:`mirrorgraph.video`.
 """
 
 from __future__ import annotations
@@ -15,11 +10,12 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from .errors import InputError
-from .progress import Progress
+from ..errors import InputError
+from ..progress import Progress
+from .args import add_common, printer
 
-__all__ = ["add_detect_parser", "add_video_options", "video_options", "detect_with_progress",
-           "describe"]
+__all__ = ["add_parsers", "add_video_options", "cmd_detect", "describe", "detect_with_progress",
+           "video_options"]
 
 
 def _count(text: str, least: int, what: str) -> int:
@@ -72,7 +68,7 @@ def video_options(args, *, has_video: bool = True):
         InputError: video options given where no input is a video, or one ONNX model
             without the other.
     """
-    from .video.detect import VideoOptions
+    from ..video.detect import VideoOptions
     given = _given(args)
     if given and not has_video:
         raise InputError("applies to a video input only (the input is keypoints, not a "
@@ -108,12 +104,12 @@ def describe(det) -> str:
 def detect_with_progress(path, options, *, quiet: bool, label: str | None = None):
     """:func:`mirrorgraph.video.detect_video` with a progress bar (none under ``quiet``
     or off a terminal)."""
-    from .video.detect import detect_video
+    from ..video.detect import detect_video
     with Progress(label or f"detecting {Path(path).name}", enabled=not quiet) as bar:
         return detect_video(path, options, progress=bar.callback)
 
 
-def add_detect_parser(sub, common) -> None:
+def add_parsers(sub) -> None:
     """Add ``detect`` to the CLI's subparsers."""
     p = sub.add_parser(
         "detect", help="detect every person's 2D keypoints in a video (offline)",
@@ -127,14 +123,14 @@ def add_detect_parser(sub, common) -> None:
                    help="MMPose predictions .json to write (a folder with --format openpose)")
     p.add_argument("--format", dest="fmt", default="mmpose", choices=("mmpose", "openpose"))
     add_video_options(p)
-    common(p)
-    p.set_defaults(func=_cmd_detect)
+    add_common(p)
+    p.set_defaults(func=cmd_detect)
 
 
-def _cmd_detect(args) -> int:
-    from .io import write_keypoints
-    from .video.reader import is_video
-    say = (lambda *_a, **_k: None) if args.quiet else print
+def cmd_detect(args) -> int:
+    from ..io import write_keypoints
+    from ..video.reader import is_video
+    say = printer(args)
     out = Path(args.out)
     if not is_video(args.video):
         raise InputError("is not a video file (expected .mp4, .avi, .mov, .mkv, ...)",

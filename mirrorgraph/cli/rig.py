@@ -1,10 +1,8 @@
-"""Command-line commands of rigs (a thin layer over :mod:`mirrorgraph.rigs`).
-
-    mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--json FILE]
-                              [--with-virtual] [--subject-height M] [--skeleton NAME]
-                              [--joints3d FILE] [--quiet]
-    mirrorgraph synth-rig KIND --out DIR [--frames N --noise PX --seed S --format F
-                                         --bystanders N]
+"""The commands of rigs: ``calibrate-rig`` calibrates every camera and mirror of a
+rig file from the people in view (Pose2Sim's ``calibration.toml``, a JSON with the
+mirrors, uncertainties and residuals, and on request the 3D joints and figures),
+``synth-rig`` writes a synthetic rig with its ground truth: a thin layer over
+:mod:`mirrorgraph.rigs` and :func:`mirrorgraph.synth.make_rig`.
 """
 
 from __future__ import annotations
@@ -13,25 +11,21 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import InputError
-from .progress import Progress, SolveProgress
+from ..errors import InputError
+from ..progress import Progress, SolveProgress
+from ..report.backend import INSTALL_HINT
+from ..skeletons import SKELETONS
+from ..synth.rig import KINDS
+from ..synth.rig_files import KEYPOINT_FORMATS
+from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
+from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
+                   seed)
+from .video import add_video_options, video_options
 
-__all__ = ["add_rig_parsers"]
-
-KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
-
-
-def _height(text: str) -> float:
-    from .cli import _height as height
-    return height(text)
-
-
-def _install_hint() -> str:
-    from .report import INSTALL_HINT
-    return INSTALL_HINT
+__all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
 
 
-def add_rig_parsers(sub, common, positive, seed, rate) -> None:
+def add_parsers(sub) -> None:
     """Add ``calibrate-rig`` and ``synth-rig`` to the CLI's subparsers."""
     p = sub.add_parser(
         "calibrate-rig", help="calibrate several cameras and mirrors from the people in view",
@@ -46,15 +40,12 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--with-virtual", action="store_true",
                    help="add each mirror's virtual camera per camera to the TOML "
                         "(flipped-image convention)")
-    p.add_argument("--subject-height", type=_height, metavar="METRES",
+    p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's height in metres, e.g. 1.75 (overrides the rig file's "
                         "subject_height)")
-    p.add_argument("--scale-from", choices=("stature", "limbs"), default="stature",
-                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
-                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
-                        "bent over most of the video)")
+    add_scale_from(p)
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
-                                      "(BODY_25, BODY_25B, COCO_17, HALPE_26, COCO_18, BLAZEPOSE)")
+                                      f"({', '.join(SKELETONS)})")
     p.add_argument("--joints", metavar="SET",
                    help="joints to calibrate from: auto (default: every keypoint in direct "
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
@@ -64,15 +55,14 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (top view of the rig, residuals per view) into DIR "
-                        f"(needs matplotlib: {_install_hint()})")
+                        f"(needs matplotlib: {INSTALL_HINT})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
     p.add_argument("--no-focal", action="store_true",
                    help="cameras without intrinsics keep a 60 deg field of view guess instead "
                         "of having their focal length estimated")
-    from .cli_video import add_video_options
     add_video_options(p)
-    common(p)
-    p.set_defaults(func=_cmd_calibrate_rig)
+    add_common(p)
+    p.set_defaults(func=cmd_calibrate_rig)
 
     s = sub.add_parser("synth-rig", help="write a synthetic rig with ground truth",
                        description="Write a synthetic multi-camera / multi-mirror rig: per-camera "
@@ -84,24 +74,24 @@ def add_rig_parsers(sub, common, positive, seed, rate) -> None:
     s.add_argument("--outliers", type=rate, default=0.0, help="fraction of gross errors")
     s.add_argument("--seed", type=seed, default=0)
     s.add_argument("--bystanders", type=seed, default=0, help="other people near the subject")
-    s.add_argument("--geometry", default="favourable", choices=("favourable", "gym", "wide"),
+    s.add_argument("--geometry", default=DEFAULT_RIG_GEOMETRY, choices=tuple(RIG_PRESETS),
                    help="camera-to-mirror distances and focal lengths: favourable (default, the "
                         "rigs of earlier versions), gym (3-8.5 m, focal drawn per camera) or wide "
                         "(2.5-10 m)")
     s.add_argument("--skeleton", default="BODY_25")
     s.add_argument("--format", dest="fmt", default="openpose",
-                   choices=("openpose", "mmpose", "easymocap"))
+                   choices=KEYPOINT_FORMATS)
     s.add_argument("--no-height", action="store_true",
                    help="leave subject_height out of rig.toml")
-    common(s)
-    s.set_defaults(func=_cmd_synth_rig)
+    add_common(s)
+    s.set_defaults(func=cmd_synth_rig)
 
 
-def _cmd_calibrate_rig(args) -> int:
-    from .io.motion import write_joints3d
-    from .io.rig_calibration import write_rig_json, write_rig_toml
-    from .graph.options import RefineOptions
-    from .rigs import calibrate_rig
+def cmd_calibrate_rig(args) -> int:
+    from ..io.motion import write_joints3d
+    from ..io.rig_calibration import write_rig_json, write_rig_toml
+    from ..graph.options import RefineOptions
+    from ..rigs import calibrate_rig
 
     out = Path(args.out)
     if out.is_dir():
@@ -115,13 +105,12 @@ def _cmd_calibrate_rig(args) -> int:
                          field="--joints3d")
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
     if args.report:
-        from .report import require_matplotlib
+        from ..report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
-    say = (lambda *_a, **_k: None) if args.quiet else print
+    say = printer(args)
     t0 = time.perf_counter()
-    from .cli_video import video_options
-    from .rigs.config import load_rig_config
-    from .video.reader import is_video
+    from ..rigs.config import load_rig_config
+    from ..video.reader import is_video
     config = load_rig_config(args.rig)
     vopts = video_options(args, has_video=any(is_video(c.keypoints) for c in config.cameras))
     bars: dict[str, Progress] = {}
@@ -159,24 +148,23 @@ def _cmd_calibrate_rig(args) -> int:
     write_rig_toml(calib, out, with_virtual=args.with_virtual)
     write_rig_json(calib, json_path)
     if args.joints3d:
-        from .skeletons import skeleton_by_name
+        from ..skeletons import skeleton_by_name
         write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
                        skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
                        unit="m" if calib.scale == "subject_height" else "subject height")
     written = None
     if args.report:
-        from .report.rig import write_rig_report
+        from ..report.rig import write_rig_report
         written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
-    from .cli import _print_result
-    _print_result(args, calib.summary(), calib.warnings)
+    print_result(args, calib.summary(), calib.warnings)
     if written is not None:
         say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
     return 0
 
 
-def _cmd_synth_rig(args) -> int:
-    from .synth.rig import make_rig, write_rig
+def cmd_synth_rig(args) -> int:
+    from ..synth.rig import make_rig, write_rig
 
     rig = make_rig(args.kind, frames=args.frames, seed=args.seed, noise_std=args.noise,
                    outlier_rate=args.outliers, skeleton=args.skeleton,

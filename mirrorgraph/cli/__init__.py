@@ -1,0 +1,101 @@
+"""Command-line interface: a thin layer over the Python API; this package assembles it.
+
+    mirrorgraph calibrate KEYPOINTS|VIDEO [--intrinsics FILE] --out calibration.json
+    mirrorgraph detect VIDEO --out keypoints.json [--format openpose] [--every N ...]
+    mirrorgraph synth --out DIR [--frames N --noise PX --outliers R ...]
+    mirrorgraph demo
+    mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
+    mirrorgraph report calibration.json [KEYPOINTS] --out DIR
+    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
+    mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
+    mirrorgraph synth-rig KIND --out DIR
+
+Every error that input can cause ends in one line ``error: ...`` on stderr and
+exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
+traceback). No output file is written by a failed run.
+
+What a run says: its summary on stdout, each warning once on stderr (also under
+``--quiet``), progress bars on stderr only when it is a terminal
+(:mod:`mirrorgraph.progress`), and a last line naming what was written.
+``calibrate --out c.json`` also keeps the run its figures are drawn from in
+``c.report.npz`` (named in ``c.json``, see :mod:`mirrorgraph.report.store`), so
+that ``report`` later draws the very figures ``calibrate --report`` draws.
+
+One module per family of commands, each adding its parsers (``add_parsers``)
+and running them (``cmd_*``): :mod:`.calibrate`, :mod:`.video` (``detect`` and
+the video options), :mod:`.synth` (``synth``, ``demo``), :mod:`.report`
+(``report``, ``export``), :mod:`.batch`, :mod:`.rig` (``calibrate-rig``,
+``synth-rig``); what they share (argument types, common options, how a run
+speaks) is in :mod:`.args`. Here: :func:`build_parser`, :func:`main` and the exit
+statuses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .._version import __version__
+from ..errors import MirrorgraphError
+from . import batch, calibrate, report, rig, synth, video
+
+__all__ = ["EXIT_INPUT", "EXIT_INTERNAL", "build_parser", "main"]
+
+EXIT_INPUT = 2
+EXIT_INTERNAL = 1
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors, like every other error of the CLI."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        self.exit(EXIT_INPUT, f"error: {self.prog}: {message} (see '{self.prog} --help')\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="mirrorgraph",
+        description="Calibrate a planar mirror's virtual camera from the people in the "
+                    "video, and turn mirror videos into 3D motion.")
+    parser.add_argument("--version", action="version", version=f"mirrorgraph {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for commands in (calibrate, synth, report, batch, rig, video):
+        commands.add_parsers(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``mirrorgraph`` command; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:          # --help, --version, or a usage error
+        return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except MirrorgraphError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except FileNotFoundError as exc:
+        print(f"error: {exc.filename}: no such file or folder", file=sys.stderr)
+        return EXIT_INPUT
+    except (PermissionError, IsADirectoryError, NotADirectoryError) as exc:
+        print(f"error: {exc.filename}: {exc.strerror}", file=sys.stderr)
+        return EXIT_INPUT
+    except BrokenPipeError:  # e.g. `mirrorgraph ... | head`: the reader left
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - last line of defence of the CLI
+        if getattr(args, "debug", False):
+            raise
+        print(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug and "
+              "please report it)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":
+    sys.exit(main())

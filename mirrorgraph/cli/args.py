@@ -1,0 +1,196 @@
+"""What the commands of the command line share: the argument types (a positive
+number, a rate in [0, 1], a seed, a human height in metres, an image size, a list
+of numbers: each an argparse ``type`` whose error is one line), the options every
+command has (``--quiet --verbose --debug``, :func:`add_common`), those of the
+calibration several commands have (``--joints``, ``--scale-from``) and the
+:class:`~mirrorgraph.pipeline.CalibrateOptions` of what ``calibrate`` and ``batch``
+share (:func:`options_from_args`), and how a run speaks: the summary and its
+warnings (:func:`print_result`), steps under ``--verbose``, the solver's progress
+bars (:func:`solver_progress`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from contextlib import contextmanager
+
+import numpy as np
+
+from ..anthropometry import height_problem
+from ..errors import InputError
+from ..progress import Progress, SolveProgress
+
+__all__ = ["add_common", "add_joints", "add_scale_from", "floats", "height", "image_size",
+           "options_from_args", "positive", "print_result", "printer", "rate", "report_written",
+           "seed", "solver_progress", "step"]
+
+
+# --------------------------------------------------------------------------- argument types
+def image_size(text: str) -> tuple[int, int]:
+    from ..intrinsics import parse_image_size
+    try:
+        return parse_image_size(text)
+    except (ValueError, InputError) as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _number(text: str, cast, kind: str):
+    """``cast(text)``, or argparse's one-line error naming what was expected."""
+    try:
+        return cast(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not {kind}: {text!r}") from None
+
+
+def positive(text: str) -> float:
+    v = _number(text, float, "a number")
+    if not np.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return v
+
+
+def rate(text: str) -> float:
+    v = _number(text, float, "a number")
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 1], got {text!r}")
+    return v
+
+
+def height(text: str) -> float:
+    """``--subject-height``: a human height in metres (centimetres are caught and named)."""
+    v = positive(text)
+    problem = height_problem(v)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return v
+
+
+def seed(text: str) -> int:
+    v = _number(text, int, "an integer")
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return v
+
+
+def floats(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+# --------------------------------------------------------------------------- common options
+def add_common(p) -> None:
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--verbose", action="store_true", help="tell what was detected and done")
+    p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+
+
+def add_joints(p) -> None:
+    """``--joints``: the joints :func:`mirrorgraph.calibrate` calibrates from (``calibrate``,
+    ``batch``; ``calibrate-rig`` has its own words for its views)."""
+    p.add_argument("--joints", help="auto (default: the limbs in the graph, face, hands and "
+                                    "feet triangulated afterwards), limbs, all (every keypoint in "
+                                    "the graph), or comma-separated joint names (at least 4): the "
+                                    "words of calibrate-rig")
+
+
+def add_scale_from(p) -> None:
+    """``--scale-from stature|limbs``: how the subject height becomes a length."""
+    from ..graph.options import SCALE_FROM
+    p.add_argument("--scale-from", choices=SCALE_FROM, default="stature",
+                   help="how the height becomes a length: stature (default: measured on the joints, ankle "
+                        "to eyes) or limbs (Winter's limb proportions; for subjects seated or "
+                        "bent over most of the video)")
+
+
+def options_from_args(args):
+    """The :class:`~mirrorgraph.pipeline.CalibrateOptions` of the options ``calibrate``
+    and ``batch`` share (``--estimator --threshold --min-confidence --joints
+    --no-refine --subject-height --seed --image-size --fov --scale-from``, and
+    ``--sensitivity`` and ``--principal-point`` where the command has them). Without
+    intrinsics the focal length is estimated unless ``--fov`` gives one."""
+    from ..graph.options import FocalOptions, RefineOptions
+    from ..pipeline import CalibrateOptions
+
+    free = getattr(args, "principal_point", "centre") == "free"
+    opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
+                            refine=not args.no_refine, subject_height=args.subject_height,
+                            seed=args.seed, image_size=args.image_size,
+                            joints=tuple(j.strip() for j in args.joints.split(","))
+                            if args.joints else None,
+                            refine_options=RefineOptions(
+                                scale_from=args.scale_from,
+                                focal=FocalOptions(principal_point=free)),
+                            sensitivity_priors=getattr(args, "sensitivity", False))
+    if args.threshold is not None:
+        opts.threshold_px = args.threshold
+    if args.fov is not None:                 # a field of view given: kept, not estimated
+        opts.fov_deg, opts.estimate_focal = args.fov, False
+    return opts
+
+
+# --------------------------------------------------------------------------- what a run says
+def printer(args):
+    """``print``, or a function that prints nothing under ``--quiet``."""
+    return (lambda *_a, **_k: None) if args.quiet else print
+
+
+def step(args, name: str) -> None:
+    """Name a step on stderr with ``--verbose`` (on a terminal over any open progress line)."""
+    if getattr(args, "verbose", False) and not args.quiet:
+        clear = "\r" + " " * 80 + "\r" if _isatty(sys.stderr) else ""
+        print(f"{clear}... {name}", file=sys.stderr)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def print_result(args, summary: str, warnings) -> None:
+    """The summary on stdout (unless ``--quiet``, and without its warning lines), then
+    every warning once on stderr (also under ``--quiet``)."""
+    lines = [ln for ln in summary.splitlines() if not ln.startswith("warning: ")]
+    printer(args)("\n".join(lines))
+    sys.stdout.flush()
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+
+
+def report_written(written: dict, out) -> str:
+    """``wrote 5 figures and 6 video overlays to DIR, and the overlay video OUT.mp4``."""
+    figures = sum(1 for k in written if not k.startswith("overlay_") and k != "video")
+    parts = [f"{figures} figure{'s' * (figures != 1)}"]
+    overlays = sum(1 for k in written if k.startswith("overlay_"))
+    if overlays:
+        parts.append(f"{overlays} video overlay{'s' * (overlays != 1)}")
+    text = f"wrote {' and '.join(parts)} to {out}"
+    if "video" in written:
+        text += f", and the overlay video {written['video']}"
+    return text
+
+
+@contextmanager
+def solver_progress(args):
+    """Progress bars of the robust initialisation and of the graph; yields the keyword
+    arguments of :func:`mirrorgraph.calibrate` that draw them.
+
+    The initialisation's bar ends with the first step after it, its total shown
+    once known (the RANSAC adapts it); the graph's shows the accepted steps and
+    the error of the current pass (:class:`~mirrorgraph.progress.SolveProgress`).
+    """
+    with Progress("robust initialisation", enabled=not args.quiet) as r_bar, \
+            Progress("solving the graph", enabled=not args.quiet) as g_bar:
+        solve = SolveProgress(g_bar, on_first=r_bar.close)
+
+        def on_step(name: str) -> None:
+            if r_bar.started:             # any step after the initialisation ends its bar
+                r_bar.close()
+            step(args, name)
+        yield {"progress": on_step, "iteration_progress": solve,
+               "ransac_progress": r_bar.estimate}
+        g_bar.close(solve.info or None)

@@ -1,0 +1,191 @@
+"""The ``calibrate`` command: one mirror video's keypoints (or the video itself,
+detected first, :mod:`.video`) to ``calibration.json``, with the run its report is
+drawn from beside it (``c.report.npz``, :mod:`mirrorgraph.report.store`), and on
+request the 3D joints (``--joints3d``) and the report's figures (``--report``): a
+thin layer over :func:`mirrorgraph.calibrate`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..intrinsics import DEFAULT_FOV_DEG
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from ..pipeline import DEFAULT_FPS
+from ..progress import Progress
+from ..report.backend import INSTALL_HINT
+from ..skeletons import SKELETONS
+from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
+                   positive, print_result, printer, rate, report_written, seed, solver_progress,
+                   step)
+from .video import add_video_options, describe, detect_with_progress, video_options
+
+__all__ = ["add_parsers", "cmd_calibrate"]
+
+
+def add_parsers(sub) -> None:
+    """Add ``calibrate`` to the CLI's subparsers."""
+    p = sub.add_parser("calibrate", help="calibrate the mirror from 2D keypoints",
+                       description="Calibrate the mirror's virtual camera from a pose "
+                                   "detector's keypoints of a person and their reflection.")
+    p.add_argument("keypoints", help="MMPose .json, OpenPose or EasyMocap folder, paired .npz, "
+                                     "or a video file (detected, or read from the cache)")
+    p.add_argument("--out", required=True, help="calibration JSON to write")
+    p.add_argument("--intrinsics", help="camera intrinsics: JSON {K, image_size, dist}, "
+                                        "OpenCV YAML (camera_matrix, distortion_coefficients), "
+                                        "or a Pose2Sim / aniposelib calibration TOML")
+    p.add_argument("--camera", metavar="NAME",
+                   help="camera (section or name) to read from a TOML with several cameras")
+    p.add_argument("--image-size", type=image_size, metavar="WxH",
+                   help="image size when no intrinsics are given and the input lacks it; "
+                        "the focal length is then estimated from the person and the "
+                        "reflection (square pixels, principal point at the image centre)")
+    p.add_argument("--fov", type=positive, default=None, metavar="DEG",
+                   help="without intrinsics: keep this horizontal field of view instead of "
+                        f"estimating the focal length (the estimate starts from "
+                        f"{DEFAULT_FOV_DEG:g})")
+    p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
+                   help="without intrinsics: the principal point at the image centre "
+                        "(default) or estimated with the focal length")
+    p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
+                                      f"({', '.join(SKELETONS)})")
+    p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,
+                   help="initial estimator: ours (reflective, default), MirrorCalib's "
+                        "Baseline1 (eightpoint) or its 6-unknown eight-point (reflective8)")
+    p.add_argument("--threshold", type=positive, default=None, metavar="PX",
+                   help="inlier threshold on the epipolar distance in pixels (default "
+                        f"{DEFAULT_THRESHOLD_PX:g})")
+    p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
+                   help="ignore joints below this detector confidence (default "
+                        f"{DEFAULT_MIN_CONFIDENCE:g})")
+    add_joints(p)
+    p.add_argument("--subject-height", type=height, metavar="METRES",
+                   help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
+    add_scale_from(p)
+    p.add_argument("--no-refine", action="store_true",
+                   help="keep the robust initialisation, skip the factor graph")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="also solve again with each body prior's weight halved and doubled "
+                        "(calibration.json's sensitivity.prior_weights; eight calibrations more)")
+    p.add_argument("--joints3d", metavar="FILE",
+                   help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
+                        "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
+    p.add_argument("--fps", type=positive, default=None,
+                   help="frame rate of the 3D motion (default: the input's, else --video's, "
+                        f"else {DEFAULT_FPS:g} with a warning)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write the report's figures (PNG) into DIR (needs matplotlib: "
+                        f"{INSTALL_HINT})")
+    p.add_argument("--video", metavar="FILE",
+                   help="the video the keypoints come from: its frame rate, and with "
+                        "--report the overlay on sampled frames")
+    p.add_argument("--render", metavar="OUT.mp4",
+                   help="with --report and --video: write the whole overlay video")
+    add_video_options(p)
+    add_common(p)
+    p.set_defaults(func=cmd_calibrate)
+
+
+def cmd_calibrate(args) -> int:
+    from ..intrinsics import load_intrinsics
+    from ..io import read_keypoints
+    from ..io.motion import write_joints3d
+    from ..pipeline import calibrate
+    from ..report.store import write_calibration_and_run
+
+    say = printer(args)
+    if Path(args.out).is_dir():
+        raise InputError("is a folder; give a file name for the calibration JSON",
+                         source=args.out, field="--out")
+    if args.render and not (args.report and args.video):
+        raise InputError("needs --report DIR and --video FILE", field="--render")
+    if args.report:
+        from ..report import require_matplotlib
+        require_matplotlib()          # fail before the long run, with the install hint
+    if args.video and not Path(args.video).is_file():
+        raise InputError("no such video file", source=args.video, field="--video")
+    if args.render and Path(args.render).suffix.lower() != ".mp4":
+        raise InputError("must end in .mp4", source=args.render, field="--render")
+    if args.joints3d and args.no_refine:
+        raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
+    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
+        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
+                         field="--joints3d")
+    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" and not args.subject_height:
+        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.sensitivity and args.no_refine:
+        raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
+    if args.camera and not args.intrinsics:
+        raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    if args.principal_point == "free" and (args.intrinsics or args.fov is not None
+                                           or args.no_refine):
+        raise InputError("estimates the principal point with the focal length: not with "
+                         "--intrinsics, --fov or --no-refine", field="--principal-point")
+    from ..video.reader import is_video
+    from_video = is_video(args.keypoints)
+    vopts = video_options(args, has_video=from_video)
+    intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
+    t0 = time.perf_counter()
+    if from_video:
+        det = detect_with_progress(args.keypoints, vopts, quiet=args.quiet)
+        say(describe(det))
+        data = det.to_raw()
+        if args.video is None:
+            args.video = args.keypoints          # its frame rate, and the report's overlay
+    else:
+        with Progress("reading frames", enabled=not args.quiet) as bar:
+            data = read_keypoints(args.keypoints, skeleton=args.skeleton, progress=bar.callback)
+    _verbose_input(args, data)
+    opts = options_from_args(args)
+    opts.fps, opts.video = args.fps, args.video           # the frame rate of the 3D motion
+    with solver_progress(args) as callbacks:
+        run = calibrate(data, intr, opts, **callbacks)
+    calib = run.calibration
+    if args.joints3d and run.fps_source == "default":
+        from ..pipeline import DEFAULT_FPS_WARNING
+        calib.warnings.append(DEFAULT_FPS_WARNING)
+    write_calibration_and_run(args.out, run)     # with the run its report draws from
+    if args.joints3d:
+        if run.joints3d is None:
+            raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
+        write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
+                       run.paired.skeleton.joints, run.fps,
+                       unit="m" if calib.distance is not None else "mirror distance")
+    report_line = None
+    if args.report:
+        from ..report import make_report
+        written = make_report(run, args.report, video=args.video, render=args.render,
+                              progress=lambda s: step(args, s), progress_bar=not args.quiet)
+        report_line = report_written(written, args.report)
+    print_result(args, calib.summary(), calib.warnings)
+    if args.verbose and not args.quiet:
+        print("timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in run.timings.items()),
+              file=sys.stderr)
+    if report_line:
+        say(report_line)
+    say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _verbose_input(args, data) -> None:
+    if not getattr(args, "verbose", False):
+        return
+    from ..keypoints import RawDetections
+    if isinstance(data, RawDetections):
+        counts = np.bincount([len(p) for p in data.people])
+        per = ", ".join(f"{n} people: {c}" for n, c in enumerate(counts) if c)
+        print(f"input: {data.format}, skeleton {data.skeleton.name}, {len(data)} frames "
+              f"({per})", file=sys.stderr)
+    else:
+        print(f"input: {data.format} (paired), skeleton {data.skeleton.name}, "
+              f"{len(data)} frames", file=sys.stderr)
+    notes = data.read_notes.summary()
+    if notes:
+        print(f"input: {notes}", file=sys.stderr)

@@ -1,0 +1,105 @@
+"""The commands that read a calibration: ``report`` draws its figures (and video
+overlays) from the run kept beside it or from its keypoints calibrated again
+(:mod:`mirrorgraph.report`), ``export`` writes its real and virtual camera for
+Pose2Sim or aniposelib (:mod:`mirrorgraph.export`).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import InputError
+from ..export import FORMATS, WORLD_FRAMES
+from .args import add_common, printer, report_written, solver_progress, step
+
+__all__ = ["add_parsers", "cmd_export", "cmd_report"]
+
+
+def add_parsers(sub) -> None:
+    """Add ``export`` and ``report`` to the CLI's subparsers."""
+    _add_export(sub)
+    _add_report(sub)
+
+
+# --------------------------------------------------------------------------- report
+def _add_report(sub) -> None:
+    p = sub.add_parser("report", help="figures of a calibration: epipole, residuals, 3D view, "
+                                      "bone lengths, uncertainty",
+                       description="Write PNG figures of a calibration and, with --video, "
+                                   "overlays on the video (needs the plot extra). The figures "
+                                   "are those of 'calibrate --report': drawn from the run "
+                                   "'calibrate' kept beside the calibration (CALIBRATION with "
+                                   ".report.npz), or, without it, from the keypoints calibrated "
+                                   "again with the options the calibration records.")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    p.add_argument("keypoints", nargs="?", default=None,
+                   help="the keypoints the calibration was made from (needed only without "
+                        "the .report.npz beside the calibration, or with --recompute)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder to write the figures into")
+    p.add_argument("--recompute", action="store_true",
+                   help="calibrate the keypoints again even where the run is stored")
+    p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
+    p.add_argument("--video", metavar="FILE",
+                   help="draw joints, reflections and epipolar lines on sampled frames")
+    p.add_argument("--render", metavar="OUT.mp4", help="write the whole overlay video (needs --video)")
+    p.add_argument("--frames", type=int, default=6, help="video frames to sample (default 6)")
+    add_common(p)
+    p.set_defaults(func=cmd_report)
+
+
+def cmd_report(args) -> int:
+    from ..report import load_run, make_report, require_matplotlib
+
+    require_matplotlib()
+    if args.recompute and args.keypoints is None:
+        raise InputError("needs the keypoints the calibration was made from", field="--recompute")
+    say = printer(args)
+    with solver_progress(args) as callbacks:
+        loaded = load_run(args.calibration, args.keypoints,
+                          report_data=None if args.recompute else "auto",
+                          skeleton=args.skeleton, **callbacks)
+    for w in loaded.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    note = ""
+    if loaded.origin == "stored" and args.keypoints is not None:
+        note = f" ({args.keypoints} not read; --recompute calibrates it again)"
+    say(loaded.message + note)
+    out = make_report(loaded.run, args.out, video=args.video, render=args.render,
+                      max_frames=args.frames, progress=lambda s: step(args, s),
+                      progress_bar=not args.quiet)
+    say(report_written(out, args.out))
+    return 0
+
+
+# --------------------------------------------------------------------------- export
+def _add_export(sub) -> None:
+    p = sub.add_parser("export", help="write the real and virtual camera for Pose2Sim / aniposelib",
+                       description="Write the real camera and the mirror's virtual camera as two "
+                                   "ordinary cameras of a Pose2Sim Calib.toml or an aniposelib "
+                                   "calibration.toml. The virtual camera is the one that sees the "
+                                   "horizontally flipped image (u -> W - u): give those tools the "
+                                   "reflection's keypoints with x -> W - x and left/right labels "
+                                   "swapped (see the README).")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    # the file styles, without the API's alias "aniposelib"
+    p.add_argument("--to", required=True, choices=tuple(dict.fromkeys(FORMATS.values())),
+                   dest="fmt")
+    p.add_argument("out", help="TOML file to write")
+    p.add_argument("--world", default="camera", choices=tuple(WORLD_FRAMES),
+                   help="world frame: the real camera's (default) or X right, Y depth, Z up")
+    add_common(p)
+    p.set_defaults(func=cmd_export)
+
+
+def cmd_export(args) -> int:
+    from ..export import camera_sections, export_calibration
+
+    warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    (k_real, n_real), (k_mirror, n_mirror) = camera_sections(args.fmt)
+    named = lambda key, name: f"[{key}]" + (f" '{name}'" if name != key else "")  # noqa: E731
+    printer(args)(f"wrote {args.out} ({args.fmt}): {named(k_real, n_real)} the real camera, "
+                  f"{named(k_mirror, n_mirror)} the mirror's virtual camera (flipped image: give "
+                  "it the reflection's keypoints with x -> W - x and left/right swapped)")
+    return 0

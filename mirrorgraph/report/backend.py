@@ -1,0 +1,34 @@
+"""matplotlib for the report, an optional dependency: how to install it
+(:data:`INSTALL_HINT`) and :func:`require_matplotlib`, which imports it with the
+non-interactive Agg backend or fails with that hint. A module of its own so that
+the report package and its figure modules (:mod:`.figures`, :mod:`.rig`) share it
+without importing each other; :mod:`mirrorgraph.report` re-exports both names.
+"""
+
+from __future__ import annotations
+
+from ..errors import MirrorgraphError
+
+__all__ = ["INSTALL_HINT", "require_matplotlib"]
+
+#: How to install the ``plot`` extra, from PyPI or in a clone (as the README says).
+INSTALL_HINT = "pip install 'mirrorgraph[plot]' (in a clone: pip install -e '.[plot]')"
+
+
+def require_matplotlib():
+    """Import matplotlib with the Agg backend and return ``matplotlib.pyplot``.
+
+    Raises:
+        MirrorgraphError: matplotlib is not installed (the message says how to
+            install it).
+    """
+    try:
+        import matplotlib
+    except ImportError:
+        raise MirrorgraphError(f"the report needs matplotlib: {INSTALL_HINT}") from None
+    # Agg unless a notebook (inline backend) or the user chose one already
+    backend = str(matplotlib.get_backend()).lower()
+    if "inline" not in backend and "ipympl" not in backend and "widget" not in backend:
+        matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    return plt

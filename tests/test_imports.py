@@ -1,0 +1,132 @@
+"""How the package's modules import each other, read from the source (nothing is
+imported): no two modules import each other, directly or through a chain, and the
+library imports nothing from the command line (:mod:`mirrorgraph.cli`) over it.
+
+Every ``import`` counts, also those inside functions (the package imports lazily
+to keep ``mirrorgraph --help`` fast, and a lazy cycle is still a cycle). A
+module's parent packages, which Python runs first, are not counted as imports.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "mirrorgraph"
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    """Dotted name -> (file, whether it is a package's ``__init__``)."""
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        is_package = parts[-1] == "__init__"
+        out[".".join(parts[:-1] if is_package else parts)] = (path, is_package)
+    return out
+
+
+def _imports(name: str, path: Path, is_package: bool, known) -> set[str]:
+    """The modules of the package ``name`` imports (the deepest known module of each)."""
+    targets = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            targets += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                here = name.split(".") if is_package else name.split(".")[:-1]
+                base = ".".join(here[:len(here) - node.level + 1]
+                                + ([node.module] if node.module else []))
+            else:
+                base = node.module
+            # `from . import x` imports the module x when there is one
+            targets += [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base
+                        for a in node.names]
+    found = set()
+    for target in targets:
+        while target and target not in known:
+            target = target.rpartition(".")[0]
+        if target and target != name:
+            found.add(target)
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    known = _modules()
+    return {name: _imports(name, path, is_package, known)
+            for name, (path, is_package) in known.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm,
+    iterative), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, successors = work[-1]
+            for nxt in successors:
+                if nxt not in index:
+                    index[nxt] = low[nxt] = len(index)
+                    stack.append(nxt)
+                    on_stack.add(nxt)
+                    work.append((nxt, iter(sorted(graph[nxt]))))
+                    break
+                if nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1:
+                        found.append(sorted(component))
+    return found
+
+
+def test_the_cycle_finder_finds_cycles():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a", "e"}, "e": {"d"}, "f": set()}
+    assert sorted(cycles(graph)) == [["a", "b", "c"], ["d", "e"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_the_import_graph_is_read():
+    graph = import_graph()
+    assert "mirrorgraph.cli.args" in graph["mirrorgraph.cli.calibrate"]
+    assert "mirrorgraph.batch" in graph["mirrorgraph.cli.batch"]            # from ..batch
+    assert "mirrorgraph.report.backend" in graph["mirrorgraph.report.figures"]
+    assert "mirrorgraph.pipeline" in graph["mirrorgraph.cli.calibrate"]     # inside a function
+
+
+def test_no_import_cycles():
+    graph = import_graph()
+    found = cycles(graph)
+    assert not found, "modules importing each other: " + "; ".join(
+        " <-> ".join(c) + " (" + ", ".join(f"{m} -> {sorted(graph[m] & set(c))}" for m in c) + ")"
+        for c in found)
+
+
+def test_the_library_does_not_import_the_command_line():
+    def is_cli(name: str) -> bool:
+        return name == "mirrorgraph.cli" or name.startswith("mirrorgraph.cli.")
+
+    graph = import_graph()
+    offenders = {name: sorted(filter(is_cli, targets)) for name, targets in graph.items()
+                 if not is_cli(name) and name != "mirrorgraph.__main__"}
+    offenders = {name: cli for name, cli in offenders.items() if cli}
+    assert not offenders, f"library modules importing the command line: {offenders}"
