@@ -796,20 +796,31 @@ def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
     """Raise when an estimated camera or a mirror has (almost) no keypoints left.
 
     Raises:
-        DegenerateGeometryError: naming the camera or mirror, with the counts.
+        DegenerateGeometryError: naming the camera or mirror, with the counts; for a
+            camera whose focal length is estimated, that its start (the initial focal
+            length and placement) may be what is too far off, not the user's input.
     """
     kept = np.array([int(np.count_nonzero(m)) for m in masks])
     had = np.asarray(offered)
-    groups = [(f"camera {c.name}", [i for i, v in enumerate(rig.views) if v.camera == c.name])
-              for c in rig.cameras if c.estimate_pose]
-    groups += [(f"mirror {m.name}", [i for i, v in enumerate(rig.views) if v.mirror == m.name])
+    groups = [(c, f"camera {c.name}", [i for i, v in enumerate(rig.views)
+                                        if v.camera == c.name])
+              for c in rig.cameras if c.estimate_pose or c.estimate_focal]
+    groups += [(None, f"mirror {m.name}", [i for i, v in enumerate(rig.views)
+                                           if v.mirror == m.name])
                for m in rig.mirrors]
-    for what, idx in groups:
+    for cam, what, idx in groups:
         if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
+            head = (f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the "
+                    f"rest of the rig (need {MIN_HELD_OBSERVATIONS})")
+            if cam is not None and cam.estimate_focal:
+                raise DegenerateGeometryError(
+                    f"{head} at its initial focal length {cam.K[0, 0]:.0f} px and placement, "
+                    "which the graph starts its estimate from: the start is too far off for "
+                    "these views (give this camera's intrinsics), or it sees another person "
+                    "or needs a frame offset")
             raise DegenerateGeometryError(
-                f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the rest of "
-                f"the rig (need {MIN_HELD_OBSERVATIONS}): is it the same person as in the "
-                "other cameras? the right intrinsics, frame offset, mirror?")
+                f"{head}: is it the same person as in the other cameras? the right "
+                "intrinsics, frame offset, mirror?")
 
 
 def with_intrinsics(rig: Rig, intrinsics: list[np.ndarray]) -> Rig:

@@ -184,3 +184,31 @@ def test_undetermined_focal_length_warns_and_keeps_the_guess():
     assert cal.intrinsics.estimated["undetermined"]["rel_std"] > 0.2
     assert any("focal length is not determined" in w for w in cal.warnings)
     assert "focal length" in cal.summary()
+
+
+def test_a_camera_left_without_keypoints_names_its_start():
+    # a camera whose focal length is estimated and whose keypoints all fail the rest of
+    # the rig: the message names its initial focal length as the likely cause, not the
+    # user's intrinsics (it has none)
+    from mirrorgraph.errors import DegenerateGeometryError
+    from mirrorgraph.graph.rig import Camera, Rig, View
+    from mirrorgraph.graph.stages import _check_held
+    from mirrorgraph.skeletons import skeleton_by_name
+
+    sk = skeleton_by_name("COCO_17")
+    T, J = 20, len(sk.joints)
+    K = np.array([[1234.0, 0, 960], [0, 1234.0, 540], [0, 0, 1]])
+    cams = (Camera("a", K), Camera("b", K, estimate_pose=True, estimate_focal=True))
+    views = tuple(View(c.name, c.name, None, np.zeros((T, J, 2)), np.ones((T, J), bool))
+                  for c in cams)
+    rig = Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
+              frame_ids=np.arange(T), joints=np.arange(J))
+    masks = [np.ones((T, J), bool), np.zeros((T, J), bool)]
+    with pytest.raises(DegenerateGeometryError, match="camera b: 0 of its 340 keypoints") as e:
+        _check_held(rig, masks, [T * J, T * J])
+    assert "initial focal length 1234 px" in str(e.value)
+    assert "right intrinsics" not in str(e.value)
+    cams = (cams[0], Camera("b", K, estimate_pose=True))
+    with pytest.raises(DegenerateGeometryError, match="the right intrinsics"):
+        _check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
+                        frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
