@@ -263,9 +263,12 @@ class LevenbergMarquardt:
             :func:`local_ordering` (COLAMD, computed once).
         hold_globals: solve the local variables only (``z`` is not stepped, but its
             reduced system is still computed and returned).
-        guard: ``guard(previous, candidate, delta) -> int``: after every retraction,
-            restore in ``candidate`` the local variables that left their feasible set
-            (e.g. a point behind a camera) to their ``previous`` value; returns how many.
+        guard: ``guard(previous, candidate, delta) -> int | None``: after every
+            retraction, restore in ``candidate`` the local variables that left their
+            feasible set (e.g. a point behind a camera) to their ``previous`` value;
+            returns how many, or ``None`` where no such repair makes the step feasible
+            (a camera moved past a point): the step is then rejected as one whose
+            error is not finite.
         refresh: ``refresh(values) -> graph``: after every accepted step, the graph to
             continue with, given the new values (e.g. with quantities the graph holds
             set to their optimum given ``values``, as the bone lengths are): its
@@ -425,6 +428,8 @@ class LevenbergMarquardt:
         if self.reduction.project is not None:
             self.reduction.project(candidate)
         guarded = self.guard(values, candidate, delta) if self.guard is not None else 0
+        if guarded is None:                       # infeasible: rejected unevaluated
+            return candidate, float("inf"), 0
         return candidate, self.error(candidate), int(guarded)
 
     # ----------------------------------------------------------------- loop

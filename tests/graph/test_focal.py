@@ -212,3 +212,45 @@ def test_a_camera_left_without_keypoints_names_its_start():
     with pytest.raises(DegenerateGeometryError, match="the right intrinsics"):
         _check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
                         frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
+
+
+def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):
+    # the guard puts a point a step pushed behind a camera back where it was; where the
+    # step moved the mirror (its virtual camera) past the points instead, putting them
+    # back does not help: the step is infeasible (GTSAM's factors with a calibration
+    # variable would give those points zero residuals, and print a line each)
+    import gtsam
+
+    from mirrorgraph.factors.mirror_link import plane_from_gtsam, plane_to_gtsam
+    from mirrorgraph.graph.builder import cheirality_guard, point_keys, snap_virtual_poses
+
+    rig, o, X = _truth_problem(scene, frames=20, subject_height=scene.subject_height)
+    prob = build_problem(rig, X, rig.views[0].mask, [(scene.normal, scene.distance)], o,
+                         final_kernel=None)
+    guard = cheirality_guard(prob)
+    keys = [int(k) for k in point_keys(prob.flat_index)]
+    still = gtsam.VectorValues()
+    for k in keys:
+        still.insert(k, np.zeros(3))
+    # the points stay, the mirror moves to the camera's side of them
+    moved = gtsam.Values(prob.values)
+    pk = prob.plane_keys[0]
+    n, d = plane_from_gtsam(moved.atOrientedPlane3(pk))
+    depth = np.asarray([moved.atPoint3(k) for k in keys]) @ n
+    moved.update(pk, plane_to_gtsam(n, float(np.min(depth)) - 0.5))
+    snap_virtual_poses(prob, moved)
+    assert guard(prob.values, moved, still) is None
+    # a step that pushes one point behind the camera, the rest fixed: that point is
+    # put back, the step stands
+    X0 = np.asarray(prob.values.atPoint3(keys[0]))
+    step = gtsam.VectorValues()
+    for k in keys:
+        step.insert(k, -2.0 * X0 if k == keys[0] else np.zeros(3))
+    cand = prob.values.retract(step)
+    assert guard(prob.values, cand, step) == 1
+    assert np.allclose(cand.atPoint3(keys[0]), X0)
+    # the optimiser rejects an infeasible step without evaluating it
+    lm = LevenbergMarquardt(prob.full(), mirror_reduction(prob, distance_gauge=None),
+                            LMParams(), guard=lambda previous, candidate, delta: None)
+    _, err, guarded = lm._try(prob.values, still)
+    assert err == np.inf and guarded == 0
