@@ -445,7 +445,9 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
                 "inherit its error; pass --intrinsics FILE if you have them")
         source = (f"estimated from the person and the reflection: focal {f:.1f} +- {std:.1f} px "
                   f"({fov:.1f} deg horizontal field of view), square pixels, principal point "
-                  + ("estimated" if focal.get("principal_point_estimated") else "at the centre"))
+                  + ("estimated" if focal.get("principal_point_estimated") else
+                     "assumed at the centre (an offset there is not in the standard "
+                     "deviations: it turns the normal by up to about offset / focal rad)"))
         return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
                           source=source, approximate=False, estimated=dict(focal))
     und = focal.get("undetermined", {})
@@ -456,7 +458,8 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
         f"{100 * und.get('rel_std', float('nan')):.0f}%: too little change of the person's "
         "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
         f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "
-        "and distance are approximate (the epipole in pixels is not); pass --intrinsics FILE")
+        "and distance are approximate, their standard deviations assume the guess is right "
+        "(the epipole in pixels is not approximate); pass --intrinsics FILE")
     return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
                       source=guess.source + " (the focal length could not be estimated)",
                       approximate=True, estimated=dict(focal))
