@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """Unknown intrinsics (issue 17): the focal length from the person and the reflection.
 
-    python bench/bench_focal.py                  # everything (~25 min on 2 cores)
-    python bench/bench_focal.py --quick          # fewer scenes, no real trials (~6 min)
+    python bench/bench_focal.py                  # everything (~5 min on 2 cores)
+    python bench/bench_focal.py --quick          # fewer scenes, no real trials
     python bench/bench_focal.py --no-real --no-write
 
 Sections of ``bench/RESULTS_focal.md``:
@@ -33,6 +33,12 @@ Sections of ``bench/RESULTS_focal.md``:
    cache), each camera's intrinsics removed in turn, its focal length from the people
    against Qualisys' (which also has lens distortion, left in the keypoints of the
    camera whose intrinsics are removed).
+6. **The independent generator's scenes** (``../shared/fixtures``, as ``bench_stress.py``;
+   their principal points are 14 and 24 px off the image centre): the mirror with the
+   true intrinsics, with the focal length estimated (the principal point assumed at the
+   centre), with the true focal length but the principal point at the centre (what the
+   assumption alone costs), and with ``principal_point`` estimated too.
+7. **Targets**: the issue's, each against its measurement above.
 
 Writes ``bench/RESULTS_focal.md`` and ``bench/RESULTS_focal.json`` unless ``--no-write``.
 """
@@ -355,6 +361,87 @@ def real_trials(trials: list[str], cache: Path) -> list[dict]:
     return rows
 
 
+# --------------------------------------------------------------------------- fixtures
+FIXTURES = ROOT.parent / "shared" / "fixtures"
+
+
+def fixture_cases(folder: Path) -> list[dict]:
+    """Each scene of the independent generator calibrated four ways (see the docstring)."""
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.graph.options import FocalOptions
+    from mirrorgraph.intrinsics import Intrinsics, load_intrinsics
+    from mirrorgraph.io import read_keypoints
+
+    rows = []
+    for scene in sorted(p for p in folder.iterdir() if (p / "truth.json").is_file()):
+        truth = json.loads((scene / "truth.json").read_text())
+        n_true = np.asarray(truth["normal"], float)
+        intr = load_intrinsics(scene / "camera.json")
+        K, size = np.asarray(intr.K, float), tuple(intr.image_size)
+        data = read_keypoints(scene / "keypoints.json")
+        centred = K.copy()
+        centred[0, 2], centred[1, 2] = size[0] / 2, size[1] / 2
+        row = {"scene": scene.name, "f_true": float(K[0, 0]),
+               "pp_offset_px": [float(K[0, 2] - size[0] / 2), float(K[1, 2] - size[1] / 2)],
+               "bound_known_deg": truth.get("cramer_rao_rotation_std_deg_at_4px")}
+        variants = (
+            ("known", Intrinsics(K=K, dist=intr.dist, image_size=size, source="truth"), None),
+            ("focal", None, None),
+            ("true f, centred", Intrinsics(K=centred, dist=intr.dist, image_size=size,
+                                           source="truth, principal point at the centre"), None),
+            ("focal and principal point", None, FocalOptions(principal_point=True)))
+        for name, given, focal in variants:
+            opts = mg.CalibrateOptions(subject_height=float(truth["height"]), image_size=size)
+            if focal is not None:
+                opts.refine_options = RefineOptions(focal=focal)
+            t0 = time.perf_counter()
+            try:
+                run = mg.calibrate(data, given, opts)
+            except Exception as exc:  # noqa: BLE001
+                row[name] = {"failed": f"{type(exc).__name__}: {exc}"}
+                continue
+            cal = run.calibration
+            est = cal.intrinsics.estimated or {}
+            names = list(run.paired.skeleton.joints)
+            lh, rh = names.index("left_hip"), names.index("right_hip")
+            both = run.valid3d[:, lh] & run.valid3d[:, rh]
+            hip = np.linalg.norm(run.joints3d[both, lh] - run.joints3d[both, rh], axis=-1)
+            row[name] = {"wall_s": time.perf_counter() - t0,
+                         "rot_err_deg": mirror_rotation_error_deg(cal.normal, n_true),
+                         "rot_std_deg": float(cal.uncertainty.get("rotation_std_deg", np.nan)),
+                         "dist_rel_err": float(cal.distance / truth["distance"] - 1.0),
+                         "f_rel_err": float(cal.intrinsics.K[0, 0] / K[0, 0] - 1.0),
+                         "f_std_rel": float(est.get("rel_std", np.nan)),
+                         "pp_err_px": [float(cal.intrinsics.K[0, 2] - K[0, 2]),
+                                       float(cal.intrinsics.K[1, 2] - K[1, 2])],
+                         "dist_std_rel": float((cal.uncertainty.get("distance_std") or np.nan)
+                                               / cal.distance),
+                         "hip_width_m": float(np.median(hip)) if len(hip) else float("nan"),
+                         "warnings": list(cal.warnings)}
+        rows.append(row)
+    return rows
+
+
+def table_fixtures(rows: list[dict]) -> list[str]:
+    L = ["| scene | principal point off centre px | intrinsics | focal err % (std %) | "
+         "principal point err px | rotation err deg (reported std) | distance err % (std %) "
+         "| hip width m (median) |",
+         "|---|---|---|---:|---|---:|---:|---:|"]
+    for r in rows:
+        off = "%+.0f, %+.0f" % tuple(r["pp_offset_px"])
+        for name in ("known", "focal", "true f, centred", "focal and principal point"):
+            v = r.get(name, {})
+            if "failed" in v:
+                L.append(f"| {r['scene']} | {off} | {name} | failed: {v['failed']} | | | | |")
+                continue
+            L.append(f"| {r['scene']} | {off} | {name} | {100 * v['f_rel_err']:+.1f} "
+                     f"({_pct(v['f_std_rel'])}) | {v['pp_err_px'][0]:+.0f}, "
+                     f"{v['pp_err_px'][1]:+.0f} | {v['rot_err_deg']:.3f} "
+                     f"({v['rot_std_deg']:.3f}) | {100 * v['dist_rel_err']:+.1f} "
+                     f"({_pct(v['dist_std_rel'])}) | {v['hip_width_m']:.2f} |")
+    return L
+
+
 # --------------------------------------------------------------------------- report
 def _f(x, fmt="{:.2f}") -> str:
     if x is None or (isinstance(x, float) and not np.isfinite(x)):
@@ -511,6 +598,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trials", nargs="*", default=["Demo_SinglePerson", "Demo_MultiPerson"])
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "mirrorgraph_bench_focal"),
                     help="detection cache of the real trials")
+    ap.add_argument("--no-fixtures", action="store_true",
+                    help="leave out the independent generator's scenes (../shared/fixtures)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
     if args.quick:
@@ -623,6 +712,10 @@ def main(argv: list[str] | None = None) -> int:
     if not data["real_skipped"]:
         real = real_trials(args.trials, Path(args.cache))
     data["real"] = real
+
+    # 6. the independent generator's scenes
+    data["fixtures"] = [] if args.no_fixtures or not FIXTURES.is_dir() else fixture_cases(FIXTURES)
+    log(f"fixtures: {len(data['fixtures'])} scenes")
     seconds = time.perf_counter() - t_start
     data["seconds"] = seconds
 
@@ -723,7 +816,87 @@ def report(data: dict, args, seconds: float) -> str:
         L += table_real(data["real"])
         L += ["", f"Within 3 % of Qualisys: {sum(e <= 0.03 for e in errs)} of {len(errs)} "
               f"(median error {_pct(_med(errs))} %).", ""]
+    if data.get("fixtures"):
+        L += ["## 6. The independent generator's scenes", "",
+              "The two scenes of `../shared/fixtures` (another generator: outliers, left/right "
+              "swaps, dropped detections; 1000 frames, 4 px), the subject's height given; "
+              "their principal points are off the image centre. *known*: the true "
+              "intrinsics; *focal*: the image size alone (the principal point assumed at the "
+              "centre); *true f, centred*: the true focal length with the principal point "
+              "at the centre, what the assumption alone costs; *focal and principal "
+              "point*: `--principal-point free`.", ""]
+        L += table_fixtures(data["fixtures"])
+        L += [""]
+    L += targets(data, s)
     return "\n".join(L) + "\n"
+
+
+def targets(data: dict, s: dict) -> list[str]:
+    """The issue's targets, each against its measurement."""
+    det_rows = [r for r in data["scenes"] if r.get("focal", {}).get("determined")]
+    bound_ratio_det = _med([r["bound"]["rot_deg"] / r["bound_known_rot_deg"] for r in det_rows
+                            if "bound" in r and np.isfinite(r["bound"]["rot_deg"])])
+    ratios = ", ".join(f"{b['label'].split(' (')[0]} "
+                       f"{_f(_med(np.array(b['rot_deg']) / np.array(b['known_deg'])), '{:.1f}')}x"
+                       for b in data.get("bounds", []))
+    over = [r for r in det_rows if abs(r["focal"]["f_rel_err"]) > 2 * r["focal"]["f_std_rel"]]
+    f_ok = s["f_err_median_determined"] <= 0.02
+    d_ok = s["dist_err_median_focal_determined"] <= 0.03
+    L = ["## 7. The targets", "",
+         "| target | measured | met |", "|---|---|:---:|",
+         f"| median focal error <= 2 % | {_pct(s['f_err_median_determined'], 2)} % on the "
+         f"{s['determined']} of {s['scenes']} scenes that determine it; "
+         f"{_pct(s['f_err_median_all'], 2)} % over all (the guess where not) | "
+         f"{'yes' if f_ok else 'no'} |",
+         f"| mirror rotation within 1.5x of the known-intrinsics result | "
+         f"{_f(s['rot_ratio_median_determined'])}x (median ratio of the errors, determined "
+         f"scenes) | no |",
+         f"| metric distance within 3 % | {_pct(s['dist_err_median_focal_determined'])} % "
+         f"(determined), {_pct(s['dist_err_median_focal_all'])} % (all) | "
+         f"{'yes' if d_ok else 'no'} |",
+         "| each real camera's focal within 3 % of Qualisys' | " +
+         ("not measured: " + data["real_skipped"] if data.get("real_skipped") else
+          f"{sum(abs(r['f_rel_err']) <= 0.03 for r in data['real'] if 'failed' not in r)} of "
+          f"{len(data['real'])} cameras") + " | " +
+         ("–" if data.get("real_skipped") else
+          ("yes" if all("failed" not in r and abs(r["f_rel_err"]) <= 0.03
+                        for r in data["real"]) else "no")) + " |", "",
+         f"**The 1.5x rotation target is beyond what the data allow.** With the focal length "
+         f"unknown the mirror's Cramer-Rao bound is itself {_f(s['rot_bound_ratio_median'])}x "
+         f"the known-intrinsics bound (median over the end-to-end scenes; "
+         f"{_f(bound_ratio_det)}x over the determined ones; by slice in section 2: "
+         f"{ratios}): the focal length and the normal are estimated from the same joints, "
+         "and a focal error turns the normal (`n ~ K^-1 e`). No unbiased estimator reaches "
+         "1.5x; the graph's rotation error is "
+         f"{_f(s['rot_err_over_bound_focal'])}x its own bound (median, determined scenes).", "",
+         f"**The reported focal std is too small in the tail.** The median of |error| / std "
+         f"is {_f(s['f_err_over_std_median'])} (about 0.67 for an honest Gaussian std); "
+         f"{len(over)} of {len(det_rows)} determined scenes are beyond 2 std ("
+         + ", ".join(f"seed {r['seed']}: {100 * r['focal']['f_rel_err']:+.1f} % at std "
+                     f"{100 * r['focal']['f_std_rel']:.1f} %" for r in over)
+         + "). The rotation std inherits it.", ""]
+    fx = [r for r in data.get("fixtures", [])
+          if all("rot_err_deg" in r.get(k, {}) for k in ("known", "focal", "true f, centred",
+                                                          "focal and principal point"))]
+    if fx:
+        def each(fn):
+            return " and ".join(fn(r) for r in fx)
+        L += ["**A principal point off the centre is in no std.** On the independent "
+              f"generator's scenes (section 6; {each(lambda r: '%.0f' % np.hypot(*r['pp_offset_px']))} "
+              "px off) the assumption alone (the true focal length, the principal point at "
+              f"the centre) costs {each(lambda r: '%.2f' % r['true f, centred']['rot_err_deg'])} "
+              f"deg of rotation against {each(lambda r: '%.3f' % r['known']['rot_err_deg'])} "
+              "deg with the true intrinsics; with the focal length estimated too "
+              f"{each(lambda r: '%.2f' % r['focal']['rot_err_deg'])} deg (reported std "
+              f"{each(lambda r: '%.2f' % r['focal']['rot_std_deg'])}), the distance "
+              f"{each(lambda r: '%+.1f %%' % (100 * r['focal']['dist_rel_err']))}. Estimating "
+              "the principal point from people is no cure: "
+              f"{each(lambda r: '%.2f deg, distance %+.1f %%' % (r['focal and principal point']['rot_err_deg'], 100 * r['focal and principal point']['dist_rel_err']))}. "
+              "Where the distance is far off, the joints are: the hips triangulate "
+              f"{each(lambda r: '%.2f' % r['focal']['hip_width_m'])} m apart (median; "
+              f"{each(lambda r: '%.2f' % r['known']['hip_width_m'])} m with the true "
+              "intrinsics), and the stature measured on them sets the scale.", ""]
+    return L
 
 
 if __name__ == "__main__":
