@@ -167,6 +167,14 @@ class Calibration:
         lines.append(f"pairs           {self.pairs_used} inliers of {self.pairs_total} "
                      f"({100 * self.inlier_ratio:.1f}%) in {self.frames_used} frames "
                      f"of {self.frames_read}; left/right fixes {self.lr_fixes}")
+        est = self.intrinsics.estimated
+        if est:
+            if est.get("estimated"):
+                lines.append(f"focal length    {est['focal_px']:.1f} +- {est['std_px']:.1f} px "
+                             "(estimated from the person and the reflection)")
+            else:
+                lines.append(f"focal length    {self.intrinsics.K[0, 0]:.1f} px (a guess: the "
+                             "data do not determine it)")
         lines.append(f"estimator       {self.estimator}" + (" + factor graph" if self.refined else ""))
         completion = self.refinement.get("completion")
         if completion:
@@ -296,5 +304,9 @@ def _read_intrinsics(intr: Mapping, src: str | None) -> Intrinsics:
             raise InputError(f"expected [width, height], got {size!r}", source=src,
                              field="intrinsics.image_size")
         size = check_size(size[0], size[1], src, "intrinsics.image_size")
+    est = intr.get("estimated")
+    if est is not None and not isinstance(est, Mapping):
+        raise InputError("expected an object or null", source=src, field="intrinsics.estimated")
     return Intrinsics(K=K, dist=dist, image_size=size, source=str(intr.get("source", "")),
-                      approximate=bool(intr.get("approximate", False)))
+                      approximate=bool(intr.get("approximate", False)),
+                      estimated=None if est is None else dict(est))

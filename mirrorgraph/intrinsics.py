@@ -60,6 +60,9 @@ class Intrinsics:
         image_size: ``(width, height)`` pixels, if known.
         source: where the values came from (file name or a description).
         approximate: ``True`` when guessed (e.g. from a field of view).
+        estimated: where ``K`` was estimated from the data (the focal length from the
+            person and the reflection, :mod:`mirrorgraph.graph`), the estimate's record
+            (``focal_px``, ``std_px``, ...; ``RefinementResult.focal``); else ``None``.
     """
 
     K: np.ndarray
@@ -67,6 +70,7 @@ class Intrinsics:
     image_size: tuple[int, int] | None = None
     source: str = ""
     approximate: bool = False
+    estimated: dict | None = None
 
     def __post_init__(self) -> None:
         self.K = np.asarray(self.K, dtype=float)
@@ -126,11 +130,15 @@ class Intrinsics:
         return flat.reshape(pts.shape)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form: ``K``, ``dist``, ``image_size``, ``source``, ``approximate``."""
-        return {"K": self.K.tolist(),
-                "dist": None if self.dist is None else self.dist.tolist(),
-                "image_size": None if self.image_size is None else list(self.image_size),
-                "source": self.source, "approximate": self.approximate}
+        """Plain-JSON form: ``K``, ``dist``, ``image_size``, ``source``, ``approximate``
+        (and ``estimated`` where ``K`` was estimated)."""
+        out = {"K": self.K.tolist(),
+               "dist": None if self.dist is None else self.dist.tolist(),
+               "image_size": None if self.image_size is None else list(self.image_size),
+               "source": self.source, "approximate": self.approximate}
+        if self.estimated is not None:
+            out["estimated"] = dict(self.estimated)
+        return out
 
 
 def _cv_undistort(src: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -404,3 +412,54 @@ def intrinsics_from_fov(image_size: str | tuple[int, int],
     K = np.array([[f, 0.0, w / 2.0], [0.0, f, h / 2.0], [0.0, 0.0, 1.0]])
     return Intrinsics(K=K, dist=None, image_size=(w, h), approximate=True,
                       source=f"approximate: {fov_deg:g} deg horizontal field of view")
+
+
+def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg: float,
+                         warnings: list[str], camera: str | None = None) -> Intrinsics:
+    """The intrinsics of a run whose focal length was estimated, with its warnings.
+
+    Args:
+        guess: the field-of-view guess the estimate started from.
+        K: ``(3, 3)`` the refinement's camera matrix (the guess where the data did not
+            determine the focal length).
+        focal: the refinement's record (:attr:`mirrorgraph.graph.RefinementResult.focal`).
+        fov_deg: the guess's horizontal field of view, degrees.
+        warnings: the run's warnings, appended to.
+        camera: the camera's name (a rig's), for the warning.
+
+    Returns:
+        :class:`Intrinsics` with ``estimated`` set: the estimate where determined
+        (``approximate=False``; a warning where poorly determined), the guess
+        (``approximate=True``, a warning) where not.
+    """
+    w = guess.image_size[0] if guess.image_size else 2.0 * float(K[0, 2])
+    if focal.get("estimated"):
+        f, std = focal["focal_px"], focal["std_px"]
+        fov = math.degrees(2.0 * math.atan(0.5 * w / f))
+        if focal.get("poorly_determined"):
+            warnings.append(
+                ("" if camera is None else f"camera {camera}: ")
+                + f"the focal length is poorly determined ({f:.0f} +- {std:.0f} px, "
+                f"{100 * std / f:.0f}%): little change of the person's depth and pose, or "
+                "joints whose two rays meet at a small angle; the normal and distance "
+                "inherit its error; pass --intrinsics FILE if you have them")
+        source = (f"estimated from the person and the reflection: focal {f:.1f} +- {std:.1f} px "
+                  f"({fov:.1f} deg horizontal field of view), square pixels, principal point "
+                  + ("estimated" if focal.get("principal_point_estimated") else
+                     "assumed at the centre (an offset there is not in the standard "
+                     "deviations: it turns the normal by up to about offset / focal rad)"))
+        return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
+                          source=source, approximate=False, estimated=dict(focal))
+    und = focal.get("undetermined", {})
+    warnings.append(
+        ("" if camera is None else f"camera {camera}: ")
+        + f"the focal length is not determined by the data (its estimate "
+        f"{und.get('focal_px', float('nan')):.0f} px has a standard deviation of "
+        f"{100 * und.get('rel_std', float('nan')):.0f}%: too little change of the person's "
+        "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
+        f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "
+        "and distance are approximate, their standard deviations assume the guess is right "
+        "(the epipole in pixels is not approximate); pass --intrinsics FILE")
+    return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
+                      source=guess.source + " (the focal length could not be estimated)",
+                      approximate=True, estimated=dict(focal))

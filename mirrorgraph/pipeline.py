@@ -26,7 +26,7 @@ from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
 from .graph.options import RefineOptions
 from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
-from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, intrinsics_from_fov
+from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from .joint_sets import mirror_joints
 from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
 from .pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
@@ -53,7 +53,17 @@ class CalibrateOptions:
             home of this setting for :func:`calibrate` (a height in ``refine_options``
             is taken when this is ``None``, and two different ones are refused).
         seed: seed of every random choice (RANSAC).
-        fov_deg: horizontal field of view assumed when no intrinsics are given.
+        fov_deg: horizontal field of view assumed when no intrinsics are given: the
+            guess the focal length's estimate starts from (and its weak prior's
+            centre), or, with ``estimate_focal=False``, the focal length used.
+        estimate_focal: without intrinsics, estimate the focal length from the person
+            and the reflection in the factor graph (square pixels, the principal point
+            at the image centre unless ``RefineOptions.focal.principal_point``): the
+            bones' constant lengths determine it (:class:`mirrorgraph.graph.options.
+            FocalOptions`). Where the data do not (a far or square-on mirror, little
+            motion in depth) the ``fov_deg`` guess is kept and a warning says so.
+            ``False``: keep the guess (the command line's ``--fov DEG``). Needs the
+            refinement.
         image_size: ``(width, height)`` used when no intrinsics are given and
             the input does not carry it.
         refine_options: :class:`mirrorgraph.graph.RefineOptions` (priors, schedule,
@@ -80,6 +90,7 @@ class CalibrateOptions:
     subject_height: float | None = None
     seed: int = 0
     fov_deg: float = DEFAULT_FOV_DEG
+    estimate_focal: bool = True
     image_size: tuple[int, int] | None = None
     refine_options: RefineOptions | None = None
     complete_joints: bool = True
@@ -146,10 +157,17 @@ def resolve_intrinsics(intrinsics: Intrinsics | None, data: RawDetections | Pair
     if size is None:
         raise InputError("no intrinsics and no image size: pass --intrinsics FILE or "
                          "--image-size WxH", source=data.source)
-    warnings.append(f"no intrinsics given: assumed a {options.fov_deg:g} deg horizontal field "
-                    f"of view with the principal point at the centre of {size[0]}x{size[1]}; "
-                    "the normal and distance are approximate (the epipole in pixels is not)")
+    if not focal_estimated(options):
+        warnings.append(f"no intrinsics given: assumed a {options.fov_deg:g} deg horizontal "
+                        f"field of view with the principal point at the centre of "
+                        f"{size[0]}x{size[1]}; the normal and distance are approximate (the "
+                        "epipole in pixels is not)")
     return intrinsics_from_fov(size, options.fov_deg)
+
+
+def focal_estimated(options: CalibrateOptions) -> bool:
+    """Whether a run without intrinsics estimates the focal length (it needs the graph)."""
+    return bool(options.estimate_focal and options.refine)
 
 
 #: Keypoints count as outside the image beyond this margin (fraction of each side).
@@ -431,7 +449,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     calib.input["reflection_check"] = check.to_dict()
     if opts.refine:
         step("factor-graph refinement")
-        _refine(run, opts, iteration_progress)
+        _refine(run, opts, iteration_progress,
+                estimate_focal=intrinsics is None and focal_estimated(opts))
     elif opts.subject_height is not None:
         warnings.append("--subject-height needs the refinement (it scales the body); "
                         "without it the distance stays unknown")
@@ -457,7 +476,8 @@ def _subject_height(opts: CalibrateOptions) -> float | None:
 
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
-            iteration_progress: Callable[[int, float], None] | None = None) -> None:
+            iteration_progress: Callable[[int, float], None] | None = None,
+            estimate_focal: bool = False) -> None:
     from .graph import refine_mirror
 
     ropts = opts.refine_options or RefineOptions()
@@ -465,8 +485,13 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         ropts = replace(ropts, subject_height=opts.subject_height)
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
-    res = refine_mirror(run.paired, calib.intrinsics.K, calib.normal, pairs,
-                        joints=run.joints, options=ropts, progress=iteration_progress)
+    guess = calib.intrinsics
+    res = refine_mirror(run.paired, guess.K, calib.normal, pairs,
+                        joints=run.joints, options=ropts, progress=iteration_progress,
+                        estimate_focal=estimate_focal)
+    if estimate_focal:
+        calib.intrinsics = estimated_intrinsics(guess, res.intrinsics, res.focal,
+                                                opts.fov_deg, calib.warnings)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
     if res.scale == "subject_height":
@@ -494,8 +519,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         from .graph.sensitivity import prior_weights
 
         def again(o):
-            return refine_mirror(run.paired, calib.intrinsics.K, calib.initial_normal, pairs,
-                                 joints=run.joints, options=o)
+            return refine_mirror(run.paired, guess.K, calib.initial_normal, pairs,
+                                 joints=run.joints, options=o, estimate_focal=estimate_focal)
         clock = time.perf_counter()
         calib.sensitivity["prior_weights"] = prior_weights(again, res.normal, ropts, res.priors)
         run.timings["sensitivity"] = time.perf_counter() - clock
@@ -514,6 +539,14 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
                    "cluster-robust sandwich over time segments and joint pairs "
                    "(mirrorgraph.graph.uncertainty)"),
     }
+    if res.focal.get("estimated"):
+        calib.uncertainty["focal_std_px"] = float(res.focal["std_px"])
+        calib.uncertainty["focal_marginal_std_px"] = float(res.focal["marginal_std_px"])
+        calib.uncertainty["source"] = (
+            "with the focal length estimated: the largest of the marginals of the plane, "
+            "the focal length and the bone lengths together (the bones decide the focal "
+            "length) and the sandwich over time segments (the bones couple a frame's "
+            "joints: no joint-pair clusters) (mirrorgraph.graph.uncertainty.frame_scores)")
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
     if opts.complete_joints:

@@ -109,21 +109,25 @@ def options_from_args(args):
     """The :class:`~mirrorgraph.pipeline.CalibrateOptions` of the options ``calibrate``
     and ``batch`` share (``--estimator --threshold --min-confidence --joints
     --no-refine --subject-height --seed --image-size --fov --scale-from``, and
-    ``--sensitivity`` where the command has it)."""
-    from ..graph.options import RefineOptions
+    ``--sensitivity`` and ``--principal-point`` where the command has them). Without
+    intrinsics the focal length is estimated unless ``--fov`` gives one."""
+    from ..graph.options import FocalOptions, RefineOptions
     from ..pipeline import CalibrateOptions
 
+    free = getattr(args, "principal_point", "centre") == "free"
     opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,
                             refine=not args.no_refine, subject_height=args.subject_height,
                             seed=args.seed, image_size=args.image_size,
                             joints=tuple(j.strip() for j in args.joints.split(","))
                             if args.joints else None,
-                            refine_options=RefineOptions(scale_from=args.scale_from),
+                            refine_options=RefineOptions(
+                                scale_from=args.scale_from,
+                                focal=FocalOptions(principal_point=free)),
                             sensitivity_priors=getattr(args, "sensitivity", False))
     if args.threshold is not None:
         opts.threshold_px = args.threshold
-    if args.fov is not None:
-        opts.fov_deg = args.fov
+    if args.fov is not None:                 # a field of view given: kept, not estimated
+        opts.fov_deg, opts.estimate_focal = args.fov, False
     return opts
 
 

@@ -53,7 +53,8 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default "
+                   help="recordings without intrinsics: keep this horizontal field of view "
+                        "instead of estimating the focal length (the estimate starts from "
                         f"{DEFAULT_FOV_DEG:g})")
     p.add_argument("--no-refine", action="store_true", help="skip the factor graph")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")

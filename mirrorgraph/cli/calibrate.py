@@ -43,10 +43,16 @@ def add_parsers(sub) -> None:
     p.add_argument("--camera", metavar="NAME",
                    help="camera (section or name) to read from a TOML with several cameras")
     p.add_argument("--image-size", type=image_size, metavar="WxH",
-                   help="image size when no intrinsics are given and the input lacks it")
+                   help="image size when no intrinsics are given and the input lacks it; "
+                        "the focal length is then estimated from the person and the "
+                        "reflection (square pixels, principal point at the image centre)")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="horizontal field of view assumed without intrinsics (default "
+                   help="without intrinsics: keep this horizontal field of view instead of "
+                        f"estimating the focal length (the estimate starts from "
                         f"{DEFAULT_FOV_DEG:g})")
+    p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
+                   help="without intrinsics: the principal point at the image centre "
+                        "(default) or estimated with the focal length")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,
@@ -118,6 +124,10 @@ def cmd_calibrate(args) -> int:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
         raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    if args.principal_point == "free" and (args.intrinsics or args.fov is not None
+                                           or args.no_refine):
+        raise InputError("estimates the principal point with the focal length: not with "
+                         "--intrinsics, --fov or --no-refine", field="--principal-point")
     from ..video.reader import is_video
     from_video = is_video(args.keypoints)
     vopts = video_options(args, has_video=from_video)

@@ -57,6 +57,9 @@ def add_parsers(sub) -> None:
                    help="write figures (top view of the rig, residuals per view) into DIR "
                         f"(needs matplotlib: {INSTALL_HINT})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
+    p.add_argument("--no-focal", action="store_true",
+                   help="cameras without intrinsics keep a 60 deg field of view guess instead "
+                        "of having their focal length estimated")
     add_video_options(p)
     add_common(p)
     p.set_defaults(func=cmd_calibrate_rig)
@@ -135,7 +138,7 @@ def cmd_calibrate_rig(args) -> int:
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
                               options=RefineOptions(scale_from=args.scale_from),
                               status=status_and_bars, progress=solve, video=vopts,
-                              frame_progress=frame_progress)
+                              frame_progress=frame_progress, estimate_focal=not args.no_focal)
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)

@@ -26,7 +26,7 @@ from .bone_length import BoneLengthFactor
 from .gauge import DistancePriorFactor, HeightPriorFactor
 from .hip import HipColinearityFactor
 from .mirror_link import MirrorLinkFactor, plane_from_gtsam, plane_to_gtsam, reflected_pose
-from .reprojection import (ReprojectionFactors, direct_residuals, mirror_residuals,
+from .reprojection import (ReprojectionFactors, calibration, direct_residuals, mirror_residuals,
                            mirrored_calibration, robust_pixel_noise)
 from .smoothness import SmoothnessFactor
 from .symmetry import SymmetryFactor
@@ -34,7 +34,7 @@ from .symmetry import SymmetryFactor
 __all__ = [
     "AnthropometricRatioFactor", "BoneLengthFactor", "DistancePriorFactor",
     "HeightPriorFactor", "HipColinearityFactor", "MirrorLinkFactor", "ReprojectionFactors",
-    "SmoothnessFactor", "SymmetryFactor", "direct_residuals", "mirror_residuals",
+    "SmoothnessFactor", "SymmetryFactor", "calibration", "direct_residuals", "mirror_residuals",
     "mirrored_calibration", "plane_from_gtsam", "plane_to_gtsam", "reflected_pose",
     "robust_pixel_noise",
 ]

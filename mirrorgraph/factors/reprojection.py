@@ -18,7 +18,14 @@ cost ~10x more per linearisation):
   calibration ``K D = Cal3_S2(-fx, fy, s, cx, cy)`` (:func:`mirrored_calibration`).
   With ``V = (H R_c D, S(t_c))`` (:func:`mirrorgraph.factors.mirror_link.reflected_pose`)
   it projects ``X`` to ``pi(K S(X))``: the virtual camera frame is ``D`` times the
-  reflected (left-handed) frame, and the ``D`` is absorbed by negating ``fx``.
+  reflected (left-handed) frame, and the ``D`` is absorbed by negating ``fx``;
+* a camera whose intrinsics are estimated (:attr:`mirrorgraph.graph.rig.Camera.estimate_focal`):
+  :class:`gtsam.GeneralSFMFactor2Cal3_S2` between a pose, the point and a
+  :class:`gtsam.Cal3_S2` variable, in both views (:meth:`ReprojectionFactors.add_calibrated`):
+  the real camera's calibration ``K`` for the direct view (its pose variable, or a
+  held one), the mirrored calibration ``K D`` for the mirror views. The two
+  calibration variables are one unknown ``f`` (and ``cx, cy``): the solver moves
+  them together (:mod:`mirrorgraph.graph.reduction`).
 
 Frames and units: points are in the world frame (the real camera frame of
 :mod:`mirrorgraph.geometry`), in the length unit of the scene; pixels are
@@ -137,6 +144,21 @@ class ReprojectionFactors:
         make = gtsam.TriangulationFactorCal3_S2
         for u, k in zip(np.asarray(uv, dtype=float), np.asarray(point_keys).tolist()):
             graph.push_back(make(cam, u, noise, k))
+
+    def add_calibrated(self, graph: gtsam.NonlinearFactorGraph, uv: np.ndarray, pose_key: int,
+                       calibration_key: int, point_keys: np.ndarray) -> None:
+        """Add one factor per row of ``uv`` (N, 2) whose calibration is a variable.
+
+        ``rho(|pi(K_c, P, X) - u| / sigma)`` with the pose ``P`` (camera-to-world: the
+        real camera's, or the virtual camera ``V`` of a mirror view), the point ``X``
+        and the calibration ``K_c`` (:class:`gtsam.Cal3_S2`: the camera's ``K``, or
+        ``K D`` for a mirror view) all variables: GTSAM's
+        :class:`gtsam.GeneralSFMFactor2Cal3_S2`.
+        """
+        noise = self.noise
+        make = gtsam.GeneralSFMFactor2Cal3_S2
+        for u, k in zip(np.asarray(uv, dtype=float), np.asarray(point_keys).tolist()):
+            graph.push_back(make(u, noise, pose_key, k, calibration_key))
 
     def add_mirror(self, graph: gtsam.NonlinearFactorGraph, uv: np.ndarray, virtual_key: int,
                    point_keys: np.ndarray) -> None:

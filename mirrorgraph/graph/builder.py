@@ -7,11 +7,23 @@ Variables (keys from :mod:`gtsam.symbol_shorthand`):
 * ``P(m)``: :class:`gtsam.OrientedPlane3`, mirror ``m``;
 * ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of view ``v`` (mirror views);
 * ``C(c)``: :class:`gtsam.Pose3`, the pose (camera-to-world) of camera ``c`` where
-  it is estimated (:attr:`Camera.estimate_pose`); fixed cameras have no variable;
+  it is estimated (:attr:`Camera.estimate_pose`); a fixed camera has no variable,
+  unless its intrinsics are estimated: then ``C(c)`` is a *held* variable (the
+  factor that takes the calibration as a variable needs a pose key; the solver
+  never moves it, :mod:`.reduction`);
+* ``K(c)``, ``Q(c)``: :class:`gtsam.Cal3_S2`, the calibration ``K`` of camera ``c``
+  and the mirrored one ``K D = (-fx, fy, s, cx, cy)`` of its mirror views, where its
+  intrinsics are estimated (:attr:`Camera.estimate_focal`): two variables, one
+  unknown ``f`` (and ``cx, cy``), kept equal by the solver (:mod:`.reduction`);
 * the bone lengths are not variables of the linear systems: the bone factors are
   range factors holding them, set between linearisations (:mod:`.lengths`);
   the length-only priors and the gauge act on the vector :data:`LENGTH_KEY` of
-  that small problem.
+  that small problem. Where a camera's intrinsics are estimated the lengths are
+  strongly coupled to its focal length (which only the bones' constancy
+  determines) and the vector ``L(0)`` is a variable of the graph instead
+  (:attr:`GraphProblem.length_key`): one factor per frame on its joints and ``L``
+  (:meth:`~mirrorgraph.factors.BoneLengthFactor.add_frames`), the length-only priors
+  and the gauge in the graph too.
 
 Factors are kept in separate graphs so that the solver can use subsets:
 ``reprojection`` (every view), ``links`` (one :class:`MirrorLinkFactor` per mirror
@@ -30,12 +42,13 @@ from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import C as C_, L as L_, P as P_, V as V_, X as X_
+from gtsam.symbol_shorthand import C as C_, K as K_, L as L_, P as P_, Q as Q_, V as V_, X as X_
 
 from ..anthropometry import expected_bone_lengths, femur_ratios, height_fractions
 from ..factors import (AnthropometricRatioFactor, BoneLengthFactor, HeightPriorFactor, HipColinearityFactor, MirrorLinkFactor,
-                       ReprojectionFactors, SmoothnessFactor, SymmetryFactor,
-                       plane_from_gtsam, plane_to_gtsam, reflected_pose, robust_pixel_noise)
+                       ReprojectionFactors, SmoothnessFactor, SymmetryFactor, calibration,
+                       mirrored_calibration, plane_from_gtsam, plane_to_gtsam, reflected_pose,
+                       robust_pixel_noise)
 from ..geometry import (camera_projection, mirror_projection, project, reflect_points,
                         triangulation_covariance)
 from .options import RefineOptions
@@ -43,6 +56,7 @@ from .rig import Rig
 
 __all__ = ["GraphProblem", "LENGTH_KEY", "build_problem", "with_motion_priors", "point_keys", "bone_table", "body_height_from_points",
            "view_residuals", "debiased_bone_lengths", "extract_points", "extract_planes", "extract_camera_poses",
+           "extract_intrinsics", "camera_matrix",
            "snap_virtual_poses", "cheirality_guard", "points_array", "view_projections"]
 
 _X_BASE = X_(0)
@@ -100,6 +114,12 @@ class GraphProblem:
         plane_keys: ``P(m)`` per mirror.
         virtual_keys: view index -> ``V(v)`` for the mirror views.
         camera_keys: camera index -> ``C(c)`` for the cameras whose pose is estimated.
+        calibration_keys: camera index -> ``(K(c), Q(c))`` for the cameras whose
+            intrinsics are estimated (``Q(c)``: ``None`` without a mirror view).
+        held_pose_keys: camera index -> ``C(c)`` for the fixed cameras whose
+            intrinsics are estimated (a pose variable the solver holds).
+        length_key: :data:`LENGTH_KEY` where the bone lengths are a variable of the
+            graph (a camera's intrinsics are estimated), else ``None`` (held lengths).
         lengths: ``(B,)`` the held bone lengths (graph units), ``None`` without bone
             factors; bone_names: their bones.
         bone_rows: ``(N, 3)`` int, one row per bone factor: the positions of its two
@@ -144,22 +164,33 @@ class GraphProblem:
     median_depth: float
     scale: str
     prior_info: dict[str, dict] = field(default_factory=dict)
+    calibration_keys: dict[int, tuple[int, int | None]] = field(default_factory=dict)
+    held_pose_keys: dict[int, int] = field(default_factory=dict)
+    length_key: int | None = None
 
     def full(self, links: bool = False) -> gtsam.NonlinearFactorGraph:
         """The graph of the joints and globals: reprojection, body priors and the bone
         factors at the held lengths (and the soft links if asked, for GTSAM's own
-        optimisers)."""
+        optimisers); with the lengths a variable (:attr:`length_key`) the bone factors
+        on them, the length-only priors and the gauge."""
         g = gtsam.NonlinearFactorGraph(self.reprojection)
         g.push_back(self.priors)
         g.push_back(self.bones)
+        if self.length_key is not None:
+            g.push_back(self.length_priors)
+            g.push_back(self.gauge)
         if links:
             g.push_back(self.links)
         return g
 
     def set_lengths(self, lengths: np.ndarray) -> None:
         """Hold the bones at ``lengths`` (``(B,)``, :attr:`bone_names` order): the bone
-        factors are made again with them."""
+        factors are made again with them (with the lengths a variable, their value in
+        :attr:`values` is set instead)."""
         self.lengths = np.asarray(lengths, dtype=float).copy()
+        if self.length_key is not None:
+            self.values.update(self.length_key, self.lengths)
+            return
         self.bones = _bone_graph(self.bone_rows, self.flat_index, self.lengths, self.bone_sigma)
 
     def bone_lengths(self) -> dict[str, float]:
@@ -170,9 +201,18 @@ class GraphProblem:
 
     @property
     def global_keys(self) -> list[int]:
-        """Keys shared by all frames: virtual poses, camera poses, planes."""
+        """Keys shared by all frames: virtual poses, camera poses (held ones too),
+        calibrations, planes."""
+        calib = [k for pair in self.calibration_keys.values() for k in pair if k is not None]
         return (list(self.virtual_keys.values()) + list(self.camera_keys.values())
-                + list(self.plane_keys))
+                + list(self.held_pose_keys.values()) + calib + list(self.plane_keys))
+
+    def intrinsics(self, index: int, values: gtsam.Values) -> np.ndarray:
+        """``(3, 3)`` camera matrix of camera ``index``: its variable, or the fixed ``K``."""
+        keys = self.calibration_keys.get(index)
+        if keys is not None:
+            return camera_matrix(values.atCal3_S2(keys[0]))
+        return np.asarray(self.rig.cameras[index].K, dtype=float)
 
     def camera_pose(self, index: int, values: gtsam.Values) -> gtsam.Pose3:
         """Pose (camera-to-world) of camera ``index``: its variable, or the fixed pose."""
@@ -202,7 +242,8 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
                   bone_lengths: dict[str, float] | None = None,
                   priors: bool = True, length_sum: float | None = None,
                   final_kernel: str | None = None,
-                  bones: list[str] | None = None) -> GraphProblem:
+                  bones: list[str] | None = None,
+                  hold_intrinsics: bool = False) -> GraphProblem:
     """Variables, initial values and factors.
 
     Args:
@@ -221,6 +262,9 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
             (resolved: not ``"auto"``).
         bones: only these bones (default: every bone of the skeleton between
             estimated joints).
+        hold_intrinsics: every camera's ``K`` held, whatever
+            :attr:`~.rig.Camera.estimate_focal` says (a reprojection-only graph of one
+            camera and its mirrors does not determine the focal length).
     """
     T, J = used.shape
     used = np.asarray(used, dtype=bool) & (rig.observation_count() >= 2)
@@ -242,6 +286,20 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     camera_keys = {c: C_(c) for c, cam in enumerate(rig.cameras) if cam.estimate_pose}
     for c, k in camera_keys.items():
         values.insert(k, rig.cameras[c].gtsam_pose)
+    free = [c for c, cam in enumerate(rig.cameras)
+            if cam.intrinsics_dim > 0 and not hold_intrinsics]
+    has_mirror = {rig.camera_index(v.camera) for v in rig.views if v.mirror is not None}
+    calibration_keys: dict[int, tuple[int, int | None]] = {}
+    held_pose_keys: dict[int, int] = {}
+    for c in free:
+        K = np.asarray(rig.cameras[c].K, dtype=float)
+        calibration_keys[c] = (K_(c), Q_(c) if c in has_mirror else None)
+        values.insert(K_(c), calibration(K))
+        if c in has_mirror:
+            values.insert(Q_(c), mirrored_calibration(K))
+        if c not in camera_keys:
+            held_pose_keys[c] = C_(c)
+            values.insert(C_(c), rig.cameras[c].gtsam_pose)
 
     repro = gtsam.NonlinearFactorGraph()
     links = gtsam.NonlinearFactorGraph()
@@ -260,8 +318,12 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         mask = used & np.asarray(view.mask, dtype=bool)
         idx = np.flatnonzero(mask.ravel())
         uv = np.asarray(view.pixels, dtype=float).reshape(-1, 2)[idx]
+        calib = calibration_keys.get(ci)
         if view.mirror is None:
-            if ck is None:
+            if calib is not None:
+                pose_key = ck if ck is not None else held_pose_keys[ci]
+                fac.add_calibrated(repro, uv, pose_key, calib[0], keys.ravel()[idx])
+            elif ck is None:
                 fac.add_direct(repro, uv, keys.ravel()[idx])
             else:
                 fac.add_posed(repro, uv, ck, keys.ravel()[idx])
@@ -271,7 +333,10 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         virtual_keys[vi] = vk
         n, d = planes[m]
         values.insert(vk, reflected_pose(n, d, cam.gtsam_pose))
-        fac.add_mirror(repro, uv, vk, keys.ravel()[idx])
+        if calib is not None:
+            fac.add_calibrated(repro, uv, vk, calib[1], keys.ravel()[idx])
+        else:
+            fac.add_mirror(repro, uv, vk, keys.ravel()[idx])
         link = MirrorLinkFactor(options.link_sigma_rotation, options.link_sigma_translation,
                                 camera_pose=cam.gtsam_pose)
         links.push_back(link.make(plane_keys[m], vk, ck))
@@ -285,23 +350,29 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         names, pairs = [names[i] for i in sel], pairs[sel]
     need_lengths = priors and (options.use_bone_length or options.subject_height is not None)
     bone = _BoneSet.empty(h * options.bone_sigma)
+    # an estimated focal length is decided by the bones, and a bone's curvature bias
+    # biases it: the bone rule of the focal options (FocalOptions.bone_bias_limit)
+    bias_limit = options.focal.bone_bias_limit if calibration_keys else options.bone_bias_limit
     if need_lengths and len(names):
         both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                     # (T, B)
         keep = both
-        if options.bone_bias_limit is not None:
+        if bias_limit is not None:
             bias = bone_curvature_bias(rig, points, used, planes, pairs,
                                        _median_lengths(points, pairs, both), options.pixel_sigma)
-            keep = both & ~(bias > options.bone_bias_limit * h * options.bone_sigma)
+            keep = both & ~(bias > bias_limit * h * options.bone_sigma)
         bone = _BoneSet.make(keep, points, names, pairs, flat, J, h * options.bone_sigma,
                              bone_lengths)
         if bone.lengths is not None:
             _record(info, "bone_length", bone.sigma, "length", len(bone.rows))
             info["bone_length"].update(
-                frames=int(np.count_nonzero(keep.any(1))), bias_limit=options.bone_bias_limit,
+                frames=int(np.count_nonzero(keep.any(1))), bias_limit=bias_limit,
                 left_out=float(1.0 - keep.sum() / max(int(both.sum()), 1)))
     if bone.lengths is not None:
         _add_symmetry(rig, length_priors, bone.names, h * options.symmetry_sigma, options, info)
-        _add_anthropometry(rig, length_priors, bone.names, options, info)
+        if not calibration_keys or options.focal.anthropometry:
+            _add_anthropometry(rig, length_priors, bone.names, options, info)
+    for c, (kk, _) in calibration_keys.items():
+        _add_focal_prior(rig.cameras[c], kk, prior_graph, info)
     if priors and options.use_hip:
         _add_hip(rig, prior_graph, used, keys, h, options, info)
     if priors and options.use_smoothness:
@@ -333,18 +404,28 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         distance_gauge = float(planes[0][1])
         if priors and options.subject_height is not None:
             scale = "subject_height"
+    length_key = None
+    if calibration_keys and bone.lengths is not None:
+        # the lengths start on the gauge (its residual, of weight 1e12, would otherwise
+        # dwarf every other term of the first error, and with it the solver's tolerances)
+        length_key = LENGTH_KEY
+        bone.lengths = np.asarray(bone.lengths, dtype=float) * (
+            info["length_sum_gauge"]["sum"] / float(np.sum(bone.lengths)))
+        values.insert(LENGTH_KEY, bone.lengths)
     return GraphProblem(rig=rig, used=used, flat_index=flat, plane_keys=plane_keys,
                         virtual_keys=virtual_keys, camera_keys=camera_keys,
                         lengths=bone.lengths, bone_names=bone.names, bone_rows=bone.rows,
                         bone_sigma=bone.sigma, reprojection=repro, links=links,
                         priors=prior_graph,
-                        bones=_bone_graph(bone.rows, flat, bone.lengths, bone.sigma),
+                        bones=_bone_graph(bone.rows, flat, bone.lengths, bone.sigma,
+                                          J=J, length_key=length_key),
                         length_priors=length_priors,
                         gauge=gauge,
                         distance_gauge=distance_gauge,
                         values=values, body_height=h,
                         median_depth=float(np.median(pts[:, 2])) if len(pts) else 1.0,
-                        scale=scale, prior_info=info)
+                        scale=scale, prior_info=info, calibration_keys=calibration_keys,
+                        held_pose_keys=held_pose_keys, length_key=length_key)
 
 
 def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
@@ -375,6 +456,8 @@ def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dic
     keys = keys.reshape(T, J)
     points = extract_points(problem, values)
     start = gtsam.Values(values)
+    if problem.length_key is not None:            # the lengths are held here
+        start.erase(problem.length_key)
     graph, info = gtsam.NonlinearFactorGraph(), {}
     names, pairs = bone_table(rig)
     sel = [i for i, b in enumerate(names) if b in lengths]
@@ -398,7 +481,7 @@ def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dic
                    bones=_bone_graph(bone.rows, problem.flat_index, bone.lengths, bone.sigma),
                    length_priors=gtsam.NonlinearFactorGraph(),
                    gauge=gtsam.NonlinearFactorGraph(), values=start, prior_info=info,
-                   distance_gauge=distance_gauge)
+                   distance_gauge=distance_gauge, length_key=None)
 
 
 def _record(info: dict, name: str, sigma: float, unit: str, count: int) -> None:
@@ -541,17 +624,25 @@ class _BoneSet:
         return cls(names, rows, lengths, float(sigma))
 
 
-
 def _bone_graph(rows: np.ndarray, flat: np.ndarray, lengths: np.ndarray | None,
-                sigma: float) -> gtsam.NonlinearFactorGraph:
+                sigma: float, J: int | None = None, length_key: int | None = None
+                ) -> gtsam.NonlinearFactorGraph:
     """The range factors of the bone ``rows`` (``(N, 3)``: key-order positions of the two
-    joints among the used points ``flat`` (``t * J + j``), bone index) at ``lengths``."""
+    joints among the used points ``flat`` (``t * J + j``), bone index) at ``lengths``;
+    with ``length_key`` one factor per frame on its joints and the length vector
+    (``J`` joints a frame)."""
     graph = gtsam.NonlinearFactorGraph()
     if lengths is None or len(rows) == 0:
         return graph
     keys = np.uint64(_X_BASE) + np.asarray(flat, dtype=np.uint64)
-    BoneLengthFactor(sigma).add(graph, keys[rows[:, 0]], keys[rows[:, 1]],
-                                np.asarray(lengths, dtype=float)[rows[:, 2]])
+    factor = BoneLengthFactor(sigma)
+    if length_key is not None:
+        frames = np.asarray(flat, dtype=np.int64)[rows[:, 0]] // int(J)
+        factor.add_frames(graph, keys[rows[:, 0]], keys[rows[:, 1]], rows[:, 2], frames,
+                          length_key, len(lengths))
+        return graph
+    factor.add(graph, keys[rows[:, 0]], keys[rows[:, 1]],
+               np.asarray(lengths, dtype=float)[rows[:, 2]])
     return graph
 
 
@@ -584,6 +675,29 @@ def _add_anthropometry(rig, graph, bone_names, options, info):
         graph.push_back(factor.make(LENGTH_KEY, i, femurs, ratios[name]))
         count += 1
     _record(info, "anthropometry", options.anthropometry_sigma, "ratio (Winter 2009)", count)
+
+
+#: Standard deviation of the principal point's prior where it is estimated, fraction
+#: of the image width (``2 cx`` of the initial ``K``): phones and webcams have it within
+#: a few per cent of the centre.
+PRINCIPAL_POINT_PRIOR = 0.05
+
+
+def _add_focal_prior(camera, key, graph, info):
+    """The weak prior of :attr:`~.rig.Camera.focal_prior` on ``K(c)`` (and on the principal
+    point at its initial value, :data:`PRINCIPAL_POINT_PRIOR`, where it is estimated)."""
+    if camera.focal_prior is None and not camera.estimate_principal_point:
+        return
+    K = np.asarray(camera.K, dtype=float)
+    f0, sigma = camera.focal_prior if camera.focal_prior is not None else (K[0, 0], 1e9)
+    # fx and fy move together (one unknown f): each at sigma sqrt(2) is sigma on f
+    sp = PRINCIPAL_POINT_PRIOR * 2.0 * K[0, 2] if camera.estimate_principal_point else 1e9
+    sigmas = np.array([sigma * np.sqrt(2.0), sigma * np.sqrt(2.0), 1e9, sp, sp])
+    mean = gtsam.Cal3_S2(f0, f0, 0.0, K[0, 2], K[1, 2])
+    graph.push_back(gtsam.PriorFactorCal3_S2(key, mean,
+                                             gtsam.noiseModel.Diagonal.Sigmas(sigmas)))
+    info[f"focal_prior_{camera.name}"] = {"sigma": float(sigma), "weight": 1.0 / sigma ** 2,
+                                          "unit": "px", "factors": 1, "focal_px": float(f0)}
 
 
 def _add_hip(rig, graph, used, keys, h, options, info):
@@ -650,9 +764,17 @@ def cheirality_guard(problem: GraphProblem):
     The guard puts such a point back at its previous value (a projection of the step
     onto the feasible set); the step is then judged on its error as usual.
 
+    A step that moves a camera or a mirror past a point (the point, restored, is still
+    behind it) cannot be repaired this way: the guard then says the step is infeasible
+    (``None``) and the optimiser rejects it unevaluated (GTSAM's factors whose
+    calibration is a variable give such a point a zero residual, and print a line
+    per factor: on a scene of the independent generator with the focal length
+    estimated a step turned the mirror's virtual camera past 10 683 joints).
+
     Returns:
-        ``guard(previous, candidate, delta=None) -> int`` (points restored in
-        ``candidate``; ``delta`` the step that made it, for the points' new values).
+        ``guard(previous, candidate, delta=None) -> int | None`` (points restored in
+        ``candidate``, ``None``: the step is infeasible; ``delta`` the step that made
+        it, for the points' new values).
     """
     rig = problem.rig
     T, J = problem.used.shape
@@ -702,6 +824,14 @@ def cheirality_guard(problem: GraphProblem):
             Xc = points_array(problem, candidate)
         bad_c = infeasible(candidate, Xc)
         back = np.flatnonzero(bad_c & ~bad_p)
+        if len(back):
+            # restored, a point must be feasible for the candidate's cameras and
+            # mirrors too: where the step moved a camera or mirror past it, no point
+            # value of the step's makes it so, and the step is infeasible
+            Xr = Xc.copy()
+            Xr[back] = Xp[back]
+            if np.any(infeasible(candidate, Xr)[back]):
+                return None
         for i in back:                 # Values.update takes no Point3 from Python
             candidate.erase(int(keys[i]))
             candidate.insertPoint3(int(keys[i]), Xp[i])
@@ -714,7 +844,17 @@ def cheirality_guard(problem: GraphProblem):
 
 def snap_virtual_poses(problem: GraphProblem, values: gtsam.Values) -> None:
     """Set every virtual camera pose in ``values`` to the reflection of its camera
-    across its plane (in place): the hard form of the mirror link."""
+    across its plane (in place): the hard form of the mirror link. Where a camera's
+    intrinsics are estimated its mirrored calibration is set to ``K D`` of its ``K``
+    too (and ``K`` to square pixels without skew)."""
+    for c, (kk, qk) in problem.calibration_keys.items():
+        K = camera_matrix(values.atCal3_S2(kk))
+        f = 0.5 * (K[0, 0] + K[1, 1])
+        K[0, 0] = K[1, 1] = f
+        K[0, 1] = 0.0
+        values.update(kk, calibration(K))
+        if qk is not None:
+            values.update(qk, mirrored_calibration(K))
     rig = problem.rig
     for vi, key in problem.virtual_keys.items():
         view = rig.views[vi]
@@ -728,6 +868,16 @@ def extract_camera_poses(problem: GraphProblem, values: gtsam.Values) -> list[np
     """``(4, 4)`` camera-to-world pose of every camera (estimated or fixed), rig order."""
     return [np.asarray(problem.camera_pose(c, values).matrix(), dtype=float)
             for c in range(len(problem.rig.cameras))]
+
+
+def camera_matrix(cal: gtsam.Cal3_S2) -> np.ndarray:
+    """``(3, 3)`` camera matrix of a :class:`gtsam.Cal3_S2`."""
+    return np.asarray(cal.K(), dtype=float)
+
+
+def extract_intrinsics(problem: GraphProblem, values: gtsam.Values) -> list[np.ndarray]:
+    """``(3, 3)`` camera matrix of every camera (estimated or fixed), rig order."""
+    return [problem.intrinsics(c, values) for c in range(len(problem.rig.cameras))]
 
 
 def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np.ndarray, float]]:

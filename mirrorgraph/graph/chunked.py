@@ -27,6 +27,11 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
    mirror and bone lengths held, the tighter smoothness of
    ``joints_smoothness_sigma`` and every bone (:func:`~.stages.joints_pass`).
 
+An estimated focal length (:attr:`~.rig.Camera.estimate_focal`) is the subset's: the
+chunks hold it, and its standard deviation is the subset's (``max_graph_frames``
+frames: 2000 carry the focal length to a fraction of a per cent where the data
+determine it at all).
+
 The chunks of a pass are independent: they are solved in ``options.workers``
 processes (GTSAM holds the interpreter lock, so threads would not help) and
 summed in order, so the result does not depend on the number of workers. Time is
@@ -261,6 +266,10 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
     # the subset's joints are not kept (every chunk is solved again): no joints pass there
     sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
+    # an estimated focal length is the subset's, held in the chunks
+    rig = replace(rig, cameras=tuple(replace(c, K=np.asarray(K, float), estimate_focal=False,
+                                             estimate_principal_point=False)
+                                     for c, K in zip(rig.cameras, sub.intrinsics)))
     timings = dict(sub.timings)
     stages = [dict(s, name="subset: " + s["name"]) for s in sub.stages]
     iterations = sub.iterations
@@ -357,7 +366,9 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
                       prior_info=sub.prior_info, reprojection_factors=n_repro,
                       iterations=iterations, final_error=final_error, stages=stages,
                       timings=timings, body_height=sub.body_height, information=information,
-                      z_keys=z_keys, z_values=zv, problem=None, scores=scores)
+                      z_keys=z_keys, z_values=zv, problem=None, scores=scores,
+                      intrinsics=sub.intrinsics, intrinsics_cov=sub.intrinsics_cov,
+                      intrinsics_std=sub.intrinsics_std)
 
 
 # --------------------------------------------------------------------------- helpers

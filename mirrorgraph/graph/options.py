@@ -71,7 +71,74 @@ ScaleFrom = Literal["stature", "limbs"]
 SCALE_FROM: tuple[str, ...] = get_args(ScaleFrom)
 
 __all__ = ["GaugeOptions", "KERNELS", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
-           "ScaleFrom", "ScheduleOptions", "SolverOptions"]
+           "FocalOptions", "ScaleFrom", "ScheduleOptions", "SolverOptions"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FocalOptions:
+    """How the intrinsics of a camera given without them are estimated.
+
+    Which cameras: :attr:`mirrorgraph.graph.rig.Camera.estimate_focal` (the front ends
+    set it for a camera without intrinsics: ``calibrate`` without ``--intrinsics`` and
+    without ``--fov``, a rig camera without ``intrinsics``). These options say how.
+
+    What determines the focal length of one camera and a mirror: not the images'
+    epipolar geometry (``F ~ [K n]x`` fixes the epipole, the image of the normal, for
+    any focal length), but the body: bones keep their length from pose to pose, and a
+    wrong focal length stretches the reconstruction along the line of sight against
+    across it (``bench/RESULTS_focal.md``). So the bones decide it, and where their
+    lengths are measured with a curvature bias (joints whose rays meet at a small
+    angle, :func:`~mirrorgraph.graph.builder.bone_curvature_bias`) that bias is a
+    stretch too: it biases the focal length, by +19 % on a far scene at 4 px with every
+    bone in every frame. ``bone_bias_limit`` keeps the bones whose bias is small.
+
+    Attributes:
+        principal_point: estimate the principal point ``(cx, cy)`` too (default: held
+            at the image centre, where phones and webcams have it within a few per
+            cent of the image; it is poorly determined from people).
+        search_fov_deg: the focal length's initial search (one camera and its mirrors,
+            :func:`~mirrorgraph.graph.stages.focal_search`) spans these horizontal
+            fields of view, degrees.
+        search_steps: candidate focal lengths of that search (log-spaced; the best is
+            refined by a parabola through its neighbours).
+        search_frames: frames (spread over the video) of each candidate's solve.
+        bone_bias_limit: the calibration graph's bone rule (``RefineOptions.
+            bone_bias_limit``) where a focal length is estimated: 1 (a bone's bias under
+            one bone sigma) against 0.3 for known intrinsics. On 12 wide scenes (4 px,
+            1000 frames, started at the true focal length) 0.3 left no bone in five
+            scenes, 1 in three, with a median focal error of 0.6 % either way where
+            bones were left.
+        prior_rel_sigma: a weak Gaussian prior on the focal length about the front
+            end's guess (:attr:`~mirrorgraph.graph.rig.Camera.focal_prior`), this
+            fraction of it: where the data do not determine the focal length the
+            guess is kept (and the warning says so), and the graph stays solvable;
+            where they do (a standard deviation of a few per cent) it moves the
+            estimate by a fraction of a per cent at most.
+        anthropometry: keep the anthropometric ratios (``RefineOptions.
+            use_anthropometry``) where a focal length is estimated. Off: Winter's
+            population proportions alone "determine" the focal length of a person who
+            holds one pose (its bound 3.9 % on a favourable 1000-frame scene, the
+            symmetry alone 19 %, neither infinite), a bias for any individual, while with
+            motion they add nothing (0.455 % with them, 0.457 % without).
+        undetermined_rel_std: a focal length whose standard deviation (the larger of
+            the marginal and the time-robust figure) exceeds this fraction of it is
+            reported as poorly determined by the data (a warning): too little depth
+            change, a person who hardly moves, bones measured with a curvature bias.
+        fallback_rel_std: above this fraction the data do not determine it at all: the
+            guess is kept (the rig solved again with it held) and a warning says so.
+            Between the two the estimate stays: on a wide scene whose estimate had a
+            std of 6.5 % its error was 6.5 %, the guess's 30 %.
+    """
+
+    principal_point: bool = False
+    search_fov_deg: tuple[float, float] = (20.0, 120.0)
+    search_steps: int = 9
+    search_frames: int = 150
+    bone_bias_limit: float | None = 1.0
+    prior_rel_sigma: float = 0.5
+    anthropometry: bool = False
+    undetermined_rel_std: float = 0.05
+    fallback_rel_std: float = 0.2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -323,8 +390,9 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
     The fields are those of :class:`PriorOptions` (the body priors),
     :class:`ScheduleOptions` (noise model, kernels, outlier passes),
     :class:`SolverOptions` (iterations, stopping, chunks, marginals) and
-    :class:`GaugeOptions` (scale and mirror link), documented there; keyword
-    arguments only. One object serves the single mirror (:func:`~.refine.refine_mirror`)
+    :class:`GaugeOptions` (scale and mirror link), documented there, and ``focal``,
+    a :class:`FocalOptions` (how the intrinsics of a camera given without them are
+    estimated; nested, as it applies to those cameras only); keyword arguments only. One object serves the single mirror (:func:`~.refine.refine_mirror`)
     and rigs (:func:`mirrorgraph.rigs.solve.solve_rig`): one solve driver, one
     configuration.
 
@@ -336,6 +404,8 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
         False
     """
 
+    focal: FocalOptions = FocalOptions()
+
     def __post_init__(self) -> None:
         ScheduleOptions.__post_init__(self)
         GaugeOptions.__post_init__(self)
@@ -344,12 +414,15 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
     def from_groups(cls, *, priors: PriorOptions | None = None,
                     schedule: ScheduleOptions | None = None,
                     solver: SolverOptions | None = None,
-                    gauge: GaugeOptions | None = None) -> "RefineOptions":
+                    gauge: GaugeOptions | None = None,
+                    focal: FocalOptions | None = None) -> "RefineOptions":
         """Join option groups (a group not given keeps its defaults)."""
         kw = {}
         for group in (priors, schedule, solver, gauge):
             if group is not None:
                 kw.update({f.name: getattr(group, f.name) for f in fields(group)})
+        if focal is not None:
+            kw["focal"] = focal
         return cls(**kw)
 
     def _group(self, name: str):

@@ -20,6 +20,8 @@ Shapes: ``(T, J, 3)`` points in the world frame, ``(T, J)`` masks.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from dataclasses import replace
@@ -93,8 +95,10 @@ def bone_outliers(points: np.ndarray, used: np.ndarray, bones: np.ndarray, *, k:
     seen = used[:, a] & used[:, b]                                           # (T, B)
     length = np.where(seen, np.linalg.norm(np.nan_to_num(points[:, a] - points[:, b]), axis=-1),
                       np.nan)
-    med = np.nanmedian(np.where(seen, length, np.nan), axis=0)             # (B,)
-    mad = np.nanmedian(np.abs(length - med), axis=0) * 1.4826
+    with warnings.catch_warnings():       # a bone no frame holds: NaN, and no bone flagged
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(np.where(seen, length, np.nan), axis=0)         # (B,)
+        mad = np.nanmedian(np.abs(length - med), axis=0) * 1.4826
     scale = np.maximum(np.nan_to_num(mad), min_rel * np.nan_to_num(med))
     bad = seen & (np.abs(length - med) > k * np.maximum(scale, 1e-12))     # (T, B)
 

@@ -27,12 +27,12 @@ from .builder import body_height_from_points, view_residuals
 from .options import RefineOptions
 from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
-from .rig import Rig, single_mirror_rig
+from .rig import Camera, Rig, single_mirror_rig
 from .solve import solve
 from .sensitivity import sensitivity_report
 from .uncertainty import robust_normal_cov
 from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
-                     triangulate_rig)
+                     triangulate_rig, with_intrinsics)
 
 __all__ = ["refine_mirror", "RefineOptions", "RefinementResult", "rotation_std_from_normal_cov",
            "MIN_PAIRS"]
@@ -42,7 +42,8 @@ __all__ = ["refine_mirror", "RefineOptions", "RefinementResult", "rotation_std_f
 def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
                   inliers: np.ndarray, *, joints: np.ndarray | None = None,
                   options: RefineOptions | None = None,
-                  progress: Progress | None = None) -> RefinementResult:
+                  progress: Progress | None = None,
+                  estimate_focal: bool = False) -> RefinementResult:
     """Jointly refine the mirror plane and every 3D joint in one GTSAM factor graph.
 
     Args:
@@ -54,6 +55,11 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
         options: weights, kernel, gauge, solver settings.
         progress: ``progress(iteration, error)`` after every accepted step (iterations
             count over all stages; within a stage the error never rises).
+        estimate_focal: ``K`` is a guess (square pixels, no skew): estimate the focal
+            length (and the principal point with ``options.focal.principal_point``) in
+            the graph, starting from a search and with a weak prior about the guess
+            (:class:`~.options.FocalOptions`); where the data do not determine it the
+            guess is kept (``RefinementResult.focal``).
 
     Returns:
         :class:`RefinementResult`.
@@ -64,20 +70,57 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     """
     t_start = time.perf_counter()
     opts = options or RefineOptions()
-    rig = prepare(paired, K, normal0, inliers, joints, opts)
+    rig = prepare(paired, K, normal0, inliers, joints, opts, estimate_focal=estimate_focal)
     state = solve(rig, opts, single_mirror_config(opts), height=opts.subject_height,
                   progress=progress)
+    guess = rig.cameras[0]
+    rig = with_intrinsics(rig, state.intrinsics)
     res = finish(rig, state, opts, t_start)
+    if estimate_focal:
+        res.focal = focal_record(state, guess, options=opts)
     if res.scale == "subject_height":
         from .stature_scale import LIMB_CHOSEN, scale_by_stature
-        res = (scale_by_stature(res, paired, K, float(opts.subject_height))
+        res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
     return res
 
 
+def focal_record(state: SolveState, guess: Camera, index: int = 0,
+                 options: RefineOptions | None = None) -> dict:
+    """The ``focal`` record of :class:`RefinementResult` for camera ``index`` of a solve
+    whose focal length was estimated (``guess``: the camera as given to the solve);
+    ``poorly_determined`` where its relative std exceeds
+    ``options.focal.undetermined_rel_std``."""
+    options = options or RefineOptions()
+    K = np.asarray(state.intrinsics[index], dtype=float)
+    f = float(K[0, 0])
+    search = [s.get("focal_px") for s in state.stages if "focal_px" in s]
+    rec = {"estimated": guess.name not in state.focal_undetermined, "focal_px": f,
+           "guess_px": float(guess.focal_prior[0]) if guess.focal_prior else float(guess.K[0, 0]),
+           "search_px": float(search[0]) if search else None,
+           "principal_point": [float(K[0, 2]), float(K[1, 2])],
+           "principal_point_estimated": bool(guess.estimate_principal_point)}
+    if not rec["estimated"]:
+        rec["undetermined"] = dict(state.focal_undetermined[guess.name])
+        return rec
+    cov = np.asarray(state.intrinsics_cov[index], dtype=float)
+    marginal = np.sqrt(np.maximum(np.diag(cov), 0.0)) if cov.size else np.full(1, np.nan)
+    robust = (np.asarray(state.intrinsics_std[index], dtype=float)
+              if index < len(state.intrinsics_std) and len(state.intrinsics_std[index])
+              else marginal)
+    std = np.fmax(marginal, robust)
+    rec.update(std_px=float(std[0]), marginal_std_px=float(marginal[0]),
+               robust_std_px=float(robust[0]), rel_std=float(std[0] / f),
+               poorly_determined=bool(std[0] / f > options.focal.undetermined_rel_std))
+    if guess.estimate_principal_point and len(std) == 3:
+        rec["principal_point_std_px"] = [float(std[1]), float(std[2])]
+    return rec
+
+
 # --------------------------------------------------------------------------- steps
 def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers: np.ndarray,
-            joints: np.ndarray | None, opts: RefineOptions) -> Rig:
+            joints: np.ndarray | None, opts: RefineOptions, *,
+            estimate_focal: bool = False) -> Rig:
     """Validate the inputs, select the pairs and set the initial scale.
 
     Returns:
@@ -118,7 +161,12 @@ def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers
         h = body_height_from_points(rig, pts, ok)
         if np.isfinite(h) and h > 0:
             d0 = float(opts.subject_height) / h
-    return replace(rig, mirrors=(replace(rig.mirrors[0], distance=d0),))
+    cam = rig.cameras[0]
+    if estimate_focal:      # K is the guess: the start, and the centre of the weak prior
+        cam = replace(cam, estimate_focal=True,
+                      estimate_principal_point=bool(opts.focal.principal_point),
+                      focal_prior=(float(K[0, 0]), opts.focal.prior_rel_sigma * float(K[0, 0])))
+    return replace(rig, cameras=(cam,), mirrors=(replace(rig.mirrors[0], distance=d0),))
 
 
 def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
@@ -178,6 +226,7 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
         normal_cov=normal_cov, rotation_std_deg=rot_std, distance_std=distance_std,
         marginal_normal_cov=marginal_cov, marginal_rotation_std_deg=marginal_std,
         uncertainty_parts=parts, sensitivity=sensitivity,
+        intrinsics=np.asarray(rig.cameras[0].K, dtype=float),
         rms_direct_px=rms[0], rms_mirror_px=rms[1], iterations=state.iterations,
         final_error=float(state.final_error), priors=priors, timings=timings,
         stages=state.stages)

@@ -116,6 +116,16 @@ class RefinementResult:
         sensitivity: what the calibration rests on (:mod:`.sensitivity`): the mirror's
             move when a joint pair or a segment is left out, each segment's
             information, the std predicted for other numbers of frames.
+        intrinsics: ``(3, 3)`` the camera matrix of the solution: the estimate where the
+            focal length was estimated, else the one given.
+        focal: where the focal length was estimated, its record: ``estimated`` (it is
+            the solution's; ``False``: the data did not determine it and the guess was
+            kept), ``focal_px``, ``std_px`` (the larger of the marginal and the
+            time-robust figure), ``marginal_std_px``, ``robust_std_px``,
+            ``robust_figure``, ``rel_std``, ``guess_px``, ``search_px`` (the initial
+            search's), ``principal_point`` (and ``principal_point_std_px`` where it was
+            estimated), ``undetermined`` (the figures found, where the guess was kept);
+            empty where the intrinsics were given.
     """
 
     normal: np.ndarray
@@ -141,3 +151,5 @@ class RefinementResult:
     marginal_rotation_std_deg: float = float("nan")
     uncertainty_parts: dict = field(default_factory=dict)
     sensitivity: dict = field(default_factory=dict)
+    intrinsics: np.ndarray | None = None
+    focal: dict = field(default_factory=dict)

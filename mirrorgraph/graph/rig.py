@@ -26,20 +26,38 @@ __all__ = ["Camera", "Mirror", "View", "Rig", "single_mirror_rig"]
 
 @dataclass(frozen=True)
 class Camera:
-    """A camera with known intrinsics and a fixed or estimated pose.
+    """A camera with known or estimated intrinsics and a fixed or estimated pose.
 
     Attributes:
         name: identifier.
-        K: ``(3, 3)`` intrinsics (pixels).
+        K: ``(3, 3)`` intrinsics (pixels); the initial value when ``estimate_focal``.
         pose: ``(4, 4)`` camera-to-world transform (identity: the camera defines
             the world frame); the initial value when ``estimate_pose``.
         estimate_pose: the pose is a variable of the graph (``False``: held fixed).
+        estimate_focal: the focal length is a variable of the graph: square pixels
+            (``fx = fy = f``, one unknown), no skew (:mod:`mirrorgraph.graph.reduction`);
+            ``K`` must then have ``fx = fy`` and no skew.
+        estimate_principal_point: the principal point ``(cx, cy)`` is a variable too
+            (only with ``estimate_focal``).
+        focal_prior: ``(f0, sigma)`` px: a weak Gaussian prior on an estimated focal
+            length (the front ends centre it on the field-of-view guess), which decides
+            it where the data do not; ``None``: none.
     """
 
     name: str
     K: np.ndarray
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
     estimate_pose: bool = False
+    estimate_focal: bool = False
+    estimate_principal_point: bool = False
+    focal_prior: tuple[float, float] | None = None
+
+    @property
+    def intrinsics_dim(self) -> int:
+        """Unknowns of the intrinsics in the graph: 0 (held), 1 (``f``) or 3 (``f, cx, cy``)."""
+        if not self.estimate_focal:
+            return 0
+        return 3 if self.estimate_principal_point else 1
 
     @property
     def gtsam_pose(self) -> gtsam.Pose3:

@@ -13,9 +13,18 @@ Videos longer than ``options.max_graph_frames`` frames: a rig of one fixed camer
 and one mirror is solved in chunks sharing the mirror (:mod:`.chunked`); any other
 rig on that many frames spread over the video, the other frames triangulated with
 the result.
+
+Estimated intrinsics (:attr:`~.rig.Camera.estimate_focal`): a camera whose focal
+length the data do not determine (its standard deviation above
+``options.focal.fallback_rel_std`` of it: too little depth change, a person who
+hardly moves, bones all measured with a curvature bias) keeps its guess: the rig is
+solved again with that camera's ``K`` held at the centre of its prior, and
+:attr:`~.stages.SolveState.focal_undetermined` names it with the figure found.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,7 +33,7 @@ from .options import RefineOptions
 from .rig import Rig
 from .stages import Counter, Progress, SolveConfig, SolveState, solve_rows, spread_rows, triangulate_rig
 
-__all__ = ["solve"]
+__all__ = ["solve", "undetermined_focal"]
 
 
 def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
@@ -47,6 +56,56 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
             without keypoints.
     """
     counter = counter or Counter(progress)
+    state = _solve(rig, opts, config, height, counter)
+    undetermined = undetermined_focal(state, rig, opts)
+    if not undetermined:
+        return state
+    held = tuple(_hold_at_guess(c) if i in undetermined else c
+                 for i, c in enumerate(rig.cameras))
+    again = _solve(replace(rig, cameras=held), opts, config, height, counter)
+    again.focal_undetermined = {rig.cameras[i].name: v for i, v in undetermined.items()}
+    again.stages = state.stages + again.stages
+    return again
+
+
+def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
+                       limit: float | None = None) -> dict[int, dict]:
+    """Cameras whose estimated focal length the data do not determine.
+
+    Args:
+        limit: the relative std above which a focal length counts as undetermined
+            (default ``opts.focal.fallback_rel_std``).
+
+    Returns:
+        camera index -> ``{"focal_px", "std_px", "rel_std"}`` (the estimate and its
+        standard deviation: the larger of the marginal and the time-robust figure)
+        where the relative std exceeds ``limit`` or is not finite.
+    """
+    limit = opts.focal.fallback_rel_std if limit is None else float(limit)
+    out = {}
+    for i, cam in enumerate(rig.cameras):
+        if not cam.intrinsics_dim or i >= len(state.intrinsics_cov):
+            continue
+        f = float(state.intrinsics[i][0, 0])
+        std = float(np.sqrt(max(state.intrinsics_cov[i][0, 0], 0.0)))
+        if state.intrinsics_std and i < len(state.intrinsics_std):
+            std = max(std, float(state.intrinsics_std[i][0]))
+        rel = std / f if f > 0 else float("inf")
+        if not np.isfinite(rel) or rel > limit:
+            out[i] = {"focal_px": f, "std_px": std, "rel_std": rel}
+    return out
+
+
+def _hold_at_guess(camera):
+    """The camera with its focal length held at the centre of its prior (the guess)."""
+    K = np.asarray(camera.K, dtype=float).copy()
+    if camera.focal_prior is not None:
+        K[0, 0] = K[1, 1] = float(camera.focal_prior[0])
+    return replace(camera, K=K, estimate_focal=False, estimate_principal_point=False)
+
+
+def _solve(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,
+           counter: Counter) -> SolveState:
     T = rig.num_frames
     if T > opts.max_graph_frames and config.chunks and _one_camera_one_mirror(rig):
         return solve_chunked(rig, opts, config, height, counter)

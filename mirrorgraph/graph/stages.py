@@ -21,6 +21,14 @@ Stages (each recorded in :attr:`SolveState.stages`):
    distance held; then every joint is triangulated again with the warm rig and step
    1 repeated. Its joints must meet at ``options.warm_start_min_parallax_deg`` at
    least: without a body prior nothing else holds their depth.
+2b. **Focal search** (``config.focal_search``, one held camera whose focal length is
+   estimated, :attr:`~.rig.Camera.estimate_focal`): the focal length that makes the body
+   most rigid among log-spaced candidates, each with its normals from the epipoles
+   (:func:`focal_search`); then every joint triangulated again with it. The stages
+   that follow estimate it with the rest (the bone lengths then a variable of the
+   linear system, :mod:`.builder`), the last one always runs (its bones chosen at the
+   estimated focal length), and an undamped step that overshoots is halved before the
+   damping grows (:attr:`~.optimizer.LMParams.backtrack`).
 3. **Gauge.** With a subject height everything is scaled so that the per-bone median
    lengths sum to Winter's lengths for that height (the gauge's value).
 4. **Stages** of :attr:`SolveConfig.stages`: the full graph (every joint, every
@@ -44,7 +52,11 @@ Stages (each recorded in :attr:`SolveState.stages`):
    triangulated again from its kept views with the solved rig (the maximum-likelihood
    point of the reprojection alone, free of the body priors that pull the graph's
    joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
-   this is the pairs' Sampson distances to first order).
+   this is the pairs' Sampson distances to first order). An estimated camera's
+   intrinsics get their ``(d, d)`` covariance the same way (the bone lengths among the
+   eliminated globals), and a headline std that is the larger of it and the
+   time-robust figure (:func:`~.uncertainty.frame_scores`,
+   :func:`~.uncertainty.robust_intrinsics_std`).
 
 """
 
@@ -63,7 +75,8 @@ from ..geometry import triangulate
 from ..keypoints import MIN_PAIRS
 from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
                       debiased_bone_lengths,
-                      extract_camera_poses, extract_planes, extract_points, point_keys,
+                      extract_camera_poses, extract_intrinsics, extract_planes, extract_points,
+                      point_keys,
                       snap_virtual_poses, view_projections, view_residuals,
                       with_motion_priors)
 from .lengths import update_lengths
@@ -73,7 +86,7 @@ from .outliers import bone_outliers, observation_outliers
 from .reduction import mirror_reduction
 from .result import residual_noise_px
 from .rig import Rig
-from .uncertainty import JointScores, joint_scores
+from .uncertainty import JointScores, joint_scores, robust_intrinsics_std
 
 __all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
            "MIN_PAIRS", "triangulate_rig", "spread_rows", "lm_params", "solve_rows", "Counter"]
@@ -124,6 +137,11 @@ class SolveConfig:
         joints_pass: solve the joints again with the tighter smoothness.
         chunks: long videos of one camera and one mirror in chunks sharing the mirror
             (otherwise: a spread subset of frames).
+        focal_search: where the camera's focal length is estimated (one held camera and
+            its mirrors), search the focal length that makes the body most rigid
+            before the stages (:func:`focal_search`); the stages then estimate it with
+            the rest, and the last stage always runs (the bones it keeps are chosen
+            at the new focal length).
     """
 
     stages: tuple[Stage, ...]
@@ -131,6 +149,7 @@ class SolveConfig:
     warm_start: bool = True
     joints_pass: bool = True
     chunks: bool = True
+    focal_search: bool = True
 
 
 def single_mirror_config(opts: RefineOptions) -> SolveConfig:
@@ -194,6 +213,17 @@ class SolveState:
             the cluster-robust uncertainty (:mod:`.uncertainty`; ``None`` without
             ``options.marginals``).
         problem: the final graph (``None`` for chunked solves).
+        intrinsics: ``(3, 3)`` camera matrix per camera (the estimate where
+            :attr:`~.rig.Camera.estimate_focal`, else the given one).
+        intrinsics_cov: per camera the ``(d, d)`` covariance of its estimated
+            intrinsics ``(f[, cx, cy])``, px^2, scaled by ``variance_factor``
+            (``(0, 0)`` where held): the marginals.
+        intrinsics_std: per camera the ``(d,)`` standard deviations of its estimated
+            intrinsics, px: the larger of the marginal and the cluster-robust figures
+            (:func:`~.uncertainty.robust_intrinsics_std`; empty without ``scores``).
+        focal_undetermined: camera name -> ``{"focal_px", "std_px", "rel_std"}`` for the
+            cameras whose focal length the data did not determine; the solution holds
+            them at their guess (:func:`mirrorgraph.graph.solve.solve`).
     """
 
     poses: list[np.ndarray]
@@ -222,6 +252,10 @@ class SolveState:
     z_values: gtsam.Values | None = None
     problem: GraphProblem | None = None
     scores: JointScores | None = None
+    intrinsics: list[np.ndarray] = field(default_factory=list)
+    intrinsics_cov: list[np.ndarray] = field(default_factory=list)
+    intrinsics_std: list[np.ndarray] = field(default_factory=list)
+    focal_undetermined: dict[str, dict] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- geometry
@@ -283,6 +317,11 @@ def spread_rows(T: int, count: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- pieces
+#: Halvings of an undamped step that overshoots where intrinsics are estimated
+#: (:attr:`~.optimizer.LMParams.backtrack`).
+FOCAL_BACKTRACK = 4
+
+
 def lm_params(opts: RefineOptions, problem: GraphProblem,
               max_iterations: int | None = None) -> LMParams:
     """:class:`LMParams` from the options; the points' damping scale is the typical
@@ -292,7 +331,8 @@ def lm_params(opts: RefineOptions, problem: GraphProblem,
     scale = 2.0 * (K[0, 0] / max(depth, 1e-9)) ** 2 / opts.pixel_sigma ** 2
     return LMParams(max_iterations=opts.max_iterations if max_iterations is None
                     else max_iterations, relative_tolerance=opts.relative_tolerance,
-                    global_step_tolerance=opts.global_step_tolerance, local_scale=scale)
+                    global_step_tolerance=opts.global_step_tolerance, local_scale=scale,
+                    backtrack=FOCAL_BACKTRACK if problem.calibration_keys else 0)
 
 
 def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
@@ -306,7 +346,7 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
     ones, and ``graph`` must be its :meth:`~.builder.GraphProblem.full` graph)."""
     red = mirror_reduction(problem, distance_gauge=distance_gauge)
     refresh = None
-    if problem.lengths is not None and not hold_globals:
+    if problem.lengths is not None and not hold_globals and problem.length_key is None:
         current = [graph]
 
         def refresh(v: gtsam.Values) -> gtsam.NonlinearFactorGraph:
@@ -320,7 +360,10 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
                             ordering=problem.point_ordering(), hold_globals=hold_globals,
                             guard=cheirality_guard(problem), refresh=refresh)
-    return lm.optimize(problem.values if values is None else values, progress), red.z_keys
+    res = lm.optimize(problem.values if values is None else values, progress)
+    if problem.length_key is not None:       # the lengths are a variable: read them back
+        problem.lengths = np.asarray(res.values.atVector(problem.length_key), dtype=float)
+    return res, red.z_keys
 
 
 def information_at(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
@@ -386,6 +429,122 @@ def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
             "undetermined": len(res.indeterminate), **extra}
 
 
+# --------------------------------------------------------------------------- focal search
+def focal_searchable(rig: Rig) -> bool:
+    """A rig whose focal length the search (:func:`focal_search`) can start: one held camera
+    whose focal length is estimated, seen through its mirrors."""
+    return (len(rig.cameras) == 1 and rig.cameras[0].estimate_focal
+            and not rig.cameras[0].estimate_pose and len(rig.mirrors) > 0)
+
+
+def focal_candidates(K: np.ndarray, opts: RefineOptions) -> np.ndarray:
+    """``(S,)`` candidate focal lengths, px: log-spaced over the horizontal fields of view of
+    ``opts.focal.search_fov_deg`` for an image ``2 cx`` wide."""
+    lo, hi = opts.focal.search_fov_deg
+    width = 2.0 * float(K[0, 2])
+    fov = np.radians(np.geomspace(float(hi), float(lo), int(opts.focal.search_steps)))
+    return 0.5 * width / np.tan(0.5 * fov)
+
+
+def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
+                 planes: list[tuple[np.ndarray, float]], opts: RefineOptions,
+                 config: SolveConfig, height: float | None
+                 ) -> tuple[Rig, list[tuple[np.ndarray, float]], dict]:
+    """The focal length that makes the body most rigid, among candidates: the start of
+    the graph's own estimate.
+
+    For a camera at the origin the epipole ``e ~ K n`` of each mirror is what the
+    images fix; a candidate focal length ``f`` gives the normal ``n ~ K_f^-1 e`` (the
+    distance is a gauge). Each candidate's graph (every joint of
+    ``opts.focal.search_frames`` frames spread over the video, every bone in every
+    frame: one set of factors for all, so that their errors compare; the focal length
+    held) is solved for a few iterations, and the errors are the profile of the
+    objective over ``f``; a parabola in ``log f`` through the best and its neighbours
+    gives the start. With every bone the profile's minimum is biased where the bones
+    are measured with a curvature bias; the graph's estimate that follows keeps
+    the bones of ``opts.focal.bone_bias_limit``.
+
+    Args:
+        rig: one camera (held) with ``estimate_focal``, its mirrors, views; its ``K`` is
+            the initial guess (the principal point stays).
+        masks: per view the observations to use; poses, planes: the current rig.
+        opts, config: the solve's options and configuration.
+        height: the subject's height (the gauge), or ``None``.
+
+    Returns:
+        The rig with the chosen ``K``, the planes turned to it, and the stage's record
+        (``{"name", "candidates_px", "errors", "focal_px", ...}``).
+    """
+    K0 = np.asarray(rig.cameras[0].K, dtype=float)
+    epipoles = [K0 @ np.asarray(n, float) for n, _ in planes]
+    rows = spread_rows(rig.num_frames, opts.focal.search_frames)
+    sub = rig.subset(rows)
+    sub_masks = [np.asarray(m, bool)[rows] for m in masks]
+    sopts = replace(opts, bone_bias_limit=None, focal=replace(opts.focal, bone_bias_limit=None),
+                    use_bone_length=True)
+
+    def profile(f: float) -> float:
+        K = K0.copy()
+        K[0, 0] = K[1, 1] = f
+        frig = with_intrinsics(sub, [K])
+        fplanes = [(_normal_from_epipole(K, e, n), d) for e, (n, d) in zip(epipoles, planes)]
+        pts, fm, _, _ = clean_views(frig, sub_masks, poses, fplanes, sopts, config,
+                                    opts.warm_start_min_parallax_deg)
+        used = seen_twice(fm) & np.isfinite(pts).all(-1)
+        if np.count_nonzero(used) < MIN_PAIRS:
+            return np.inf
+        fposes = [np.asarray(p, float).copy() for p in poses]
+        if height is not None:
+            scale = gauge_scale(frig, pts, used, float(height))
+            pts, fplanes = pts * scale, [(n, d * scale) for n, d in fplanes]
+            for p in fposes:
+                p[:3, 3] *= scale
+        problem = build_problem(with_views(frig, fm, fposes, fplanes), pts, used, fplanes,
+                                sopts, body_height=height, hold_intrinsics=True,
+                                final_kernel=None)
+        snap_virtual_poses(problem, problem.values)
+        try:
+            res, _ = optimize(problem, problem.full(), sopts,
+                              distance_gauge=problem.distance_gauge,
+                              max_iterations=FOCAL_SEARCH_ITERATIONS)
+        except DegenerateGeometryError:
+            return np.inf
+        return float(res.final_error)
+
+    fs = focal_candidates(K0, opts)
+    errors = np.array([profile(f) for f in fs])
+    best = int(np.argmin(errors))
+    f = float(fs[best])
+    if 0 < best < len(fs) - 1 and np.all(np.isfinite(errors[best - 1:best + 2])):
+        x = np.log(fs[best - 1:best + 2])
+        a, b, _ = np.polyfit(x, errors[best - 1:best + 2], 2)
+        if a > 0:
+            f = float(np.exp(np.clip(-b / (2 * a), x[0], x[2])))
+    K = K0.copy()
+    K[0, 0] = K[1, 1] = f
+    new_planes = [(_normal_from_epipole(K, e, n), d) for e, (n, d) in zip(epipoles, planes)]
+    record = {"name": "focal search (%d candidates, %d frames, focal held)"
+              % (len(fs), int(np.count_nonzero(rows))),
+              "iterations": 0, "initial_error": float("nan"),
+              "final_error": float(errors[best]), "converged": True, "rejected": 0,
+              "failed_steps": 0, "guarded": 0, "undetermined": 0,
+              "candidates_px": [float(x) for x in fs],
+              "errors": [float(x) for x in errors], "focal_px": f,
+              "initial_focal_px": float(K0[0, 0])}
+    return with_intrinsics(rig, [K]), new_planes, record
+
+
+#: Iterations of each candidate's solve in :func:`focal_search`.
+FOCAL_SEARCH_ITERATIONS = 3
+
+
+def _normal_from_epipole(K: np.ndarray, e: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """Unit ``K^-1 e`` (3,), the sign of ``like`` (the normal it replaces)."""
+    n = np.linalg.solve(K, np.asarray(e, float))
+    n /= np.linalg.norm(n)
+    return n if n @ np.asarray(like, float) >= 0 else -n
+
+
 # --------------------------------------------------------------------------- the stages
 def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,
                 counter: Counter) -> SolveState:
@@ -413,7 +572,8 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         used = seen_twice(masks) & rows[:, None]
         used &= parallax_deg(rig, points, masks, poses, planes) >= opts.warm_start_min_parallax_deg
         if np.count_nonzero(used) >= MIN_PAIRS:
-            warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False)
+            warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False,
+                                 hold_intrinsics=True)
             timings["build"] += time.perf_counter() - t
             t = time.perf_counter()
             res, _ = optimize(warm, warm.reprojection, opts,
@@ -428,6 +588,15 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                 config, opts.min_parallax_deg)
             stages.append(stage_record("warm start (reprojection only, %d frames)"
                                        % np.count_nonzero(used.any(1)), res, rejected))
+        timings["solve"] += time.perf_counter() - t
+    # 2b. the focal length's initial search (one camera held, its mirrors)
+    if config.focal_search and focal_searchable(rig):
+        t = time.perf_counter()
+        rig, planes, record = focal_search(rig, masks, poses, planes, opts, config, height)
+        points, masks, rejected, found = clean_views(
+            rig, [np.asarray(v.mask, bool) for v in rig.views], poses, planes, opts, config,
+            opts.min_parallax_deg)
+        stages.append(record)
         timings["solve"] += time.perf_counter() - t
     _check_held(rig, masks, offered)
     used = seen_twice(masks) & np.isfinite(points).all(-1)
@@ -448,8 +617,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     problem, values, res, z_keys = None, None, None, []
     lengths, body_height, length_sum = None, (None if height is None else float(height)), None
     dropped_last, n_undetermined, iterations = True, 0, sum(s["iterations"] for s in stages)
+    focal = any(c.intrinsics_dim for c in rig.cameras)
     for stage in config.stages:
-        if stage.only_if_rejected and not dropped_last:
+        if stage.only_if_rejected and not dropped_last and not focal:
             continue
         kernel = stage.kernel
         if kernel == "auto":
@@ -470,7 +640,10 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         snap_virtual_poses(problem, problem.values)
         timings["build"] += time.perf_counter() - t
         t = time.perf_counter()
-        cap = stage.cap_if_outliers if (res is None and found) else None
+        # the cap only saves time where the globals converge in a few steps; an estimated
+        # focal length moves the whole reconstruction and needs the full count
+        cap = (stage.cap_if_outliers if (res is None and found and not problem.calibration_keys)
+               else None)
         res, z_keys = optimize(problem, problem.full(), stage_opts,
                                distance_gauge=problem.distance_gauge, max_iterations=cap,
                                progress=counter)
@@ -479,6 +652,8 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         points = extract_points(problem, values)
         planes = extract_planes(problem, values)
         poses = extract_camera_poses(problem, values)
+        if problem.calibration_keys:      # every later triangulation and residual with the new K
+            rig = with_intrinsics(rig, extract_intrinsics(problem, values))
         lengths = problem.bone_lengths()
         body_height = problem.body_height
         if problem.lengths is not None and height is None:
@@ -508,6 +683,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         res.reduced_information, res.reduced_gradient = information_at(problem, values, opts)
     final_used = problem.used.copy()
     state_points = extract_points(problem, values)
+    intrinsics = extract_intrinsics(problem, values)
+    if problem.calibration_keys:
+        problem.rig = with_intrinsics(problem.rig, intrinsics)
 
     # every kept joint triangulated with the solved rig: the maximum-likelihood points of
     # the reprojection alone (free of the priors' pull), for the noise and the lengths
@@ -542,13 +720,24 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     # 6. marginals, scaled by the noise the data show
     t = time.perf_counter()
     noise_px = residual_noise(problem.rig, final_masks, tri, tri_ok, poses, planes,
-                              6 * len(problem.camera_keys) + 3 * len(planes))
+                              6 * len(problem.camera_keys) + 3 * len(planes)
+                              + sum(problem.rig.cameras[c].intrinsics_dim
+                                    for c in problem.calibration_keys))
     factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
-    cam_cov, plane_cov, basis, zv = covariances(problem, values, res.reduced_information,
-                                                z_keys, opts.marginals)
+    cam_cov, plane_cov, basis, zv, intr_cov = covariances(problem, values,
+                                                          res.reduced_information, z_keys,
+                                                          opts.marginals)
     timings["marginals"] = time.perf_counter() - t
     t = time.perf_counter()
     scores = joint_scores(problem, values) if opts.marginals else None
+    intr_std = []
+    if scores is not None and problem.calibration_keys:
+        robust = robust_intrinsics_std(scores, {
+            int(problem.calibration_keys[c][0]): intr_cov[c] * factor
+            for c in problem.calibration_keys})
+        intr_std = [robust[int(problem.calibration_keys[c][0])][0]
+                    if c in problem.calibration_keys else np.zeros(0)
+                    for c in range(len(problem.rig.cameras))]
     timings["uncertainty"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t_start
     info = dict(problem.prior_info)
@@ -567,7 +756,8 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                       iterations=iterations, final_error=final_error, stages=stages,
                       timings=timings, body_height=problem.body_height,
                       information=res.reduced_information, z_keys=z_keys, z_values=zv,
-                      problem=problem, scores=scores)
+                      problem=problem, scores=scores, intrinsics=intrinsics,
+                      intrinsics_cov=[C * factor for C in intr_cov], intrinsics_std=intr_std)
 
 
 def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,
@@ -606,20 +796,37 @@ def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
     """Raise when an estimated camera or a mirror has (almost) no keypoints left.
 
     Raises:
-        DegenerateGeometryError: naming the camera or mirror, with the counts.
+        DegenerateGeometryError: naming the camera or mirror, with the counts; for a
+            camera whose focal length is estimated, that its start (the initial focal
+            length and placement) may be what is too far off, not the user's input.
     """
     kept = np.array([int(np.count_nonzero(m)) for m in masks])
     had = np.asarray(offered)
-    groups = [(f"camera {c.name}", [i for i, v in enumerate(rig.views) if v.camera == c.name])
-              for c in rig.cameras if c.estimate_pose]
-    groups += [(f"mirror {m.name}", [i for i, v in enumerate(rig.views) if v.mirror == m.name])
+    groups = [(c, f"camera {c.name}", [i for i, v in enumerate(rig.views)
+                                        if v.camera == c.name])
+              for c in rig.cameras if c.estimate_pose or c.estimate_focal]
+    groups += [(None, f"mirror {m.name}", [i for i, v in enumerate(rig.views)
+                                           if v.mirror == m.name])
                for m in rig.mirrors]
-    for what, idx in groups:
+    for cam, what, idx in groups:
         if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
+            head = (f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the "
+                    f"rest of the rig (need {MIN_HELD_OBSERVATIONS})")
+            if cam is not None and cam.estimate_focal:
+                raise DegenerateGeometryError(
+                    f"{head} at its initial focal length {cam.K[0, 0]:.0f} px and placement, "
+                    "which the graph starts its estimate from: the start is too far off for "
+                    "these views (give this camera's intrinsics), or it sees another person "
+                    "or needs a frame offset")
             raise DegenerateGeometryError(
-                f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the rest of "
-                f"the rig (need {MIN_HELD_OBSERVATIONS}): is it the same person as in the "
-                "other cameras? the right intrinsics, frame offset, mirror?")
+                f"{head}: is it the same person as in the other cameras? the right "
+                "intrinsics, frame offset, mirror?")
+
+
+def with_intrinsics(rig: Rig, intrinsics: list[np.ndarray]) -> Rig:
+    """``rig`` with every camera's ``K`` replaced (``(3, 3)`` each, rig order)."""
+    return replace(rig, cameras=tuple(replace(c, K=np.asarray(K, float))
+                                      for c, K in zip(rig.cameras, intrinsics)))
 
 
 def with_views(rig: Rig, masks: list[np.ndarray], poses=None, planes=None) -> Rig:
@@ -714,8 +921,9 @@ NOISE_BLOCK_FRAMES = 2000
 def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
                 z_keys, compute: bool = True):
     """Per camera ``(6, 6)`` and per plane ``(3, 3)`` tangent covariance from the reduced
-    information (:func:`~.optimizer.reduced_covariance`), the planes' normal bases and the
-    reduced variables' values. Held cameras get zeros; NaN where not computed."""
+    information (:func:`~.optimizer.reduced_covariance`), the planes' normal bases, the
+    reduced variables' values and per camera the ``(d, d)`` covariance of its estimated
+    intrinsics (``(0, 0)`` where held). Held cameras get zeros; NaN where not computed."""
     rig = problem.rig
     nan6, nan3 = np.full((6, 6), np.nan), np.full((3, 3), np.nan)
     basis = [np.asarray(values.atOrientedPlane3(k).normal().basis()) for k in problem.plane_keys]
@@ -723,14 +931,23 @@ def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | 
     for k, _ in z_keys:
         if k in problem.plane_keys:
             zv.insert(k, values.atOrientedPlane3(k))
+        elif gtsam.Symbol(k).chr() == ord("k"):
+            zv.insert(k, values.atCal3_S2(k))
+        elif k == problem.length_key:
+            zv.insert(k, values.atVector(k))
         else:
             zv.insert(k, values.atPose3(k))
+    dims = [rig.cameras[i].intrinsics_dim if i in problem.calibration_keys else 0
+            for i in range(len(rig.cameras))]
     if info is None or not compute:
         return ([np.zeros((6, 6)) if i not in problem.camera_keys else nan6
                  for i in range(len(rig.cameras))],
-                [nan3] * len(problem.plane_keys), basis, zv)
+                [nan3] * len(problem.plane_keys), basis, zv,
+                [np.full((d, d), np.nan) for d in dims])
     cov = reduced_covariance(info, z_keys)
     cams = [np.zeros((6, 6)) if problem.camera_keys.get(i) is None
             else cov[int(problem.camera_keys[i])] for i in range(len(rig.cameras))]
     planes = [cov[int(k)] for k in problem.plane_keys]
-    return cams, planes, basis, zv
+    intr = [cov[int(problem.calibration_keys[i][0])] if d else np.zeros((0, 0))
+            for i, d in enumerate(dims)]
+    return cams, planes, basis, zv, intr

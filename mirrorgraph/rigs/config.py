@@ -9,6 +9,8 @@ Form (paths are relative to the rig file)::
     keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes (a video too)
     intrinsics = "Calib.toml"      # JSON, OpenCV YAML, or Pose2Sim / anipose TOML ...
     intrinsics_section = "cam01"   # ... with the section to read where it holds several
+    image_size = [1920, 1080]      # without intrinsics, where the keypoints carry no size
+                                   # (the focal length is then estimated)
     skeleton = "BODY_25B"          # optional where the keypoint count is ambiguous
     mirrors = ["wall"]             # optional: mirrors this camera sees
     frame_offset = 0               # optional: this camera's frame f shows rig frame f - offset
@@ -44,8 +46,11 @@ class CameraEntry:
     Attributes:
         name: camera name (unique).
         keypoints: path of the keypoint input.
-        intrinsics: path of the intrinsics file, or ``None`` (then a 60 deg field of
-            view is assumed, with a warning).
+        intrinsics: path of the intrinsics file, or ``None`` (then the focal length is
+            estimated from a 60 deg field of view guess, square pixels and the principal
+            point at the image centre: :func:`mirrorgraph.rigs.calibrate_rig`).
+        image_size: ``(width, height)`` px of a camera without intrinsics whose keypoints
+            do not carry it (OpenPose folders), or ``None``.
         intrinsics_section: the camera's section in a TOML file holding several.
         skeleton: keypoint layout name, or ``None`` (from the keypoint count).
         mirrors: names of the mirrors the camera sees.
@@ -59,6 +64,7 @@ class CameraEntry:
     skeleton: str | None = None
     mirrors: tuple[str, ...] = ()
     frame_offset: int = 0
+    image_size: tuple[int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -82,7 +88,7 @@ class RigConfig:
 
 
 _CAMERA_KEYS = {"name", "keypoints", "intrinsics", "intrinsics_section", "skeleton", "mirrors",
-                "frame_offset"}
+                "frame_offset", "image_size"}
 
 
 def _string(value, source, field_name) -> str:
@@ -197,9 +203,20 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
         if isinstance(offset, bool) or not isinstance(offset, int):
             raise InputError("must be an integer number of frames", source=path,
                              field=f"{where}.frame_offset")
+        size = c.get("image_size")
+        if size is not None:
+            if not (isinstance(size, list) and len(size) == 2):
+                raise InputError(f"expected [width, height], got {size!r}", source=path,
+                                 field=f"{where}.image_size")
+            from ..intrinsics import _check_size
+            size = _check_size(size[0], size[1], path, f"{where}.image_size")
+            if intr is not None:
+                raise InputError("applies to a camera without intrinsics (the intrinsics file "
+                                 "holds its size)", source=path, field=f"{where}.image_size")
         cameras.append(CameraEntry(name=name, keypoints=kp, intrinsics=intr,
                                    intrinsics_section=section, skeleton=skeleton,
-                                   mirrors=tuple(mirrors), frame_offset=int(offset)))
+                                   mirrors=tuple(mirrors), frame_offset=int(offset),
+                                   image_size=size))
     unused = [m for m in mirror_names if m not in seen_mirrors]
     if unused:
         raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "

@@ -130,7 +130,8 @@ class RigObservations:
     warnings: list[str] = field(default_factory=list)
 
 
-def _intrinsics(entry: CameraEntry, data, warnings: list[str]) -> Intrinsics:
+def _intrinsics(entry: CameraEntry, data, warnings: list[str],
+                estimate_focal: bool = True) -> Intrinsics:
     if entry.intrinsics is not None:
         section = entry.intrinsics_section
         if entry.intrinsics.suffix.lower() != ".toml" and section is not None:
@@ -138,13 +139,15 @@ def _intrinsics(entry: CameraEntry, data, warnings: list[str]) -> Intrinsics:
                              source=entry.intrinsics, field="intrinsics_section")
         intr = load_intrinsics(entry.intrinsics, camera=section)
     else:
-        if data.image_size is None:
+        size = entry.image_size or data.image_size
+        if size is None:
             raise InputError(f"camera {entry.name!r} has no intrinsics and its keypoints no "
-                             "image size: add intrinsics = FILE to its [[cameras]] table",
-                             source=data.source)
-        intr = intrinsics_from_fov(data.image_size, DEFAULT_FOV_DEG)
-        warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
-                        f"{DEFAULT_FOV_DEG:g} deg field of view")
+                             "image size: add intrinsics = FILE or image_size = [W, H] to its "
+                             "[[cameras]] table", source=data.source)
+        intr = intrinsics_from_fov(size, DEFAULT_FOV_DEG)
+        if not estimate_focal:
+            warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
+                            f"{DEFAULT_FOV_DEG:g} deg field of view")
     check_image_size(data, intr, warnings)
     return intr
 
@@ -320,8 +323,8 @@ def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
 
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
-                      frame_progress: Callable[[str, int, int], None] | None = None
-                      ) -> RigObservations:
+                      frame_progress: Callable[[str, int, int], None] | None = None,
+                      estimate_focal: bool = True) -> RigObservations:
     """Read, undistort and sort every camera's keypoints (see the module docstring).
 
     Args:
@@ -331,6 +334,9 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         progress: called with the camera's name before it is read.
         video: :class:`mirrorgraph.video.VideoOptions` for keypoints that name a video.
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
+        estimate_focal: a camera without intrinsics gets a 60 deg field-of-view guess
+            either way (``intrinsics.approximate``); without the estimate (``False``)
+            a warning says so.
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
@@ -348,7 +354,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             (lambda done, total, name=entry.name: frame_progress(name, done, total))
         data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton,
                               progress=on_frame, video=video)
-        intr = _intrinsics(entry, data, warnings)
+        intr = _intrinsics(entry, data, warnings, estimate_focal)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)
         frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset

@@ -28,7 +28,8 @@ from .completion import complete_joints
 from ..joint_sets import resolve_joints
 from .config import RigConfig, load_rig_config
 from .initial import initialise_rig
-from .observations import load_observations
+from ..intrinsics import estimated_intrinsics
+from .observations import DEFAULT_FOV_DEG, load_observations
 from .result import RigCalibration, RigCamera, RigMirror
 from .solve import RigSolution, build_rig, camera_std, plane_std, solve_rig
 
@@ -81,8 +82,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                   seed: int = 0, status: Callable[[str], None] | None = None,
                   progress: Callable[[int, float], None] | None = None,
                   video=None,
-                  frame_progress: Callable[[str, int, int], None] | None = None
-                  ) -> RigCalibration:
+                  frame_progress: Callable[[str, int, int], None] | None = None,
+                  estimate_focal: bool = True) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
 
     Args:
@@ -101,6 +102,13 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         video: :class:`mirrorgraph.video.VideoOptions` for cameras whose
             ``keypoints`` name a video (detected, or read from the cache).
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
+        estimate_focal: estimate the focal length of every camera given without
+            intrinsics (square pixels, the principal point at the image centre unless
+            ``options.focal.principal_point``), from an initial one
+            (:func:`~.initial.initial_focals`) in the one graph, where the other
+            cameras' views determine it with the bones; ``False``: keep the 60 deg
+            field-of-view guess. A camera whose focal length the data do not
+            determine keeps the guess, with a warning.
 
     Returns:
         :class:`~.result.RigCalibration` (world frame = the first camera).
@@ -126,17 +134,17 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
 
     obs = load_observations(cfg, skeleton=skeleton,
                             progress=lambda name: say(f"reading camera {name}"), video=video,
-                            frame_progress=frame_progress)
+                            frame_progress=frame_progress, estimate_focal=estimate_focal)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
     say("initialising: camera pairs, mirrors, spanning tree")
-    init = initialise_rig(obs, H, seed=seed, joints=used_joints)
+    init = initialise_rig(obs, H, seed=seed, joints=used_joints, estimate_focal=estimate_focal)
     for m, spread in init.mirror_spread_deg.items():
         if spread > MIRROR_SPREAD_WARN_DEG:
             warnings.append(f"mirror {m}: the cameras' initial estimates differ by {spread:.1f} "
                             "deg (is it the same mirror in all of them?)")
-    rig = build_rig(obs, init, used_joints)
+    rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")
     sol = solve_rig(rig, opts, H, progress=progress)
     sol = complete_joints(obs, sol, opts.outlier_threshold)
@@ -157,10 +165,16 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     warnings += _poorly_fitting_views(sol)
     cameras = []
     marg_cams = sol.marginal_camera_cov or sol.camera_cov
-    for c, pose, cov, mcov in zip(obs.cameras, sol.poses, sol.camera_cov, marg_cams):
+    for i, (c, pose, cov, mcov) in enumerate(zip(obs.cameras, sol.poses, sol.camera_cov,
+                                                 marg_cams)):
         rot, pos = camera_std(cov, pose)
         pos = float(np.hypot(pos, rel * np.linalg.norm(np.asarray(pose)[:3, 3])))
-        cameras.append(RigCamera(name=c.name, intrinsics=c.intrinsics, pose=np.asarray(pose),
+        intr = c.intrinsics
+        if c.name in sol.focal:
+            sol.focal[c.name]["initial"] = init.focals.get(c.name)
+            intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
+                                        DEFAULT_FOV_DEG, warnings, camera=c.name)
+        cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  marginal_rotation_std_deg=camera_std(mcov, pose)[0],
                                  reprojection_rms_px=rms.get(c.name, float("nan")),

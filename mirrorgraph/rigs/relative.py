@@ -17,6 +17,16 @@ mirror image is a rigid (reflected) copy of the person.
 
 Camera to mirror. The reflective RANSAC of :func:`mirrorgraph.estimators.estimate_mirror`.
 
+A camera without intrinsics (:func:`focal_from_fundamental`). The fundamental matrix
+of two cameras is ``F = K_b^-T E K_a^-1`` whatever their intrinsics, and an essential
+matrix has two equal singular values (Hartley and Zisserman, *Multiple View Geometry*,
+2nd ed., result 9.17). With square pixels and the principal point at the image centre
+the one unknown focal length of ``K_b`` is where ``K_b^T F K_a`` comes closest to that
+(Mendonca and Cipolla's criterion, CVPR 1999: the relative gap of the two largest
+singular values); with both cameras unknown the two focal lengths together
+(Bougnoux's setting, ECCV 1998, unstable where the optical axes meet, as they often
+do on a person: the graph then decides, the bones and every other view with it).
+
 Scale. Two views fix the geometry up to scale; the subject fixes it: the joints
 triangulated with a unit baseline (or ``d = 1``) give the subject's height in
 that unit from the median bone lengths and Winter's segment proportions
@@ -42,7 +52,8 @@ from ..graph.rig import Rig
 from ..skeletons import Skeleton
 
 __all__ = ["RelativePose", "MirrorSighting", "relative_pose", "refine_relative_pose",
-           "sampson_px", "mirror_sighting", "MIN_CORRESPONDENCES"]
+           "sampson_px", "mirror_sighting", "focal_from_fundamental", "essential_defect",
+           "MIN_CORRESPONDENCES"]
 
 #: Fewest joint correspondences for a camera-to-camera edge.
 MIN_CORRESPONDENCES = 30
@@ -202,6 +213,86 @@ def relative_pose(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray, u_b: np.nda
                         inliers=int(np.count_nonzero(inliers)), correspondences=n,
                         residual_px=float(np.median(sampson[inliers])) if inliers.any()
                         else float("nan"))
+
+
+def essential_defect(F: np.ndarray, K_a: np.ndarray, K_b: np.ndarray) -> float:
+    """``(s1 - s2) / (s1 + s2)`` of the two largest singular values of ``K_b^T F K_a``: 0 for
+    an essential matrix (Mendonca and Cipolla's criterion)."""
+    s = np.linalg.svd(np.asarray(K_b, float).T @ np.asarray(F, float) @ np.asarray(K_a, float),
+                      compute_uv=False)
+    return float((s[0] - s[1]) / max(s[0] + s[1], 1e-300))
+
+
+def _with_focal(K: np.ndarray, f: float) -> np.ndarray:
+    K = np.array(K, dtype=float, copy=True)
+    K[0, 0] = K[1, 1] = float(f)
+    return K
+
+
+def focal_from_fundamental(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray,
+                           u_b: np.ndarray, *, unknown: str = "b",
+                           fov_deg: tuple[float, float] = (20.0, 120.0),
+                           threshold_px: float = 4.0, seed: int = 0
+                           ) -> tuple[float, float] | None:
+    """The focal length(s) of cameras without intrinsics from their fundamental matrix.
+
+    Args:
+        K_a, K_b: ``(3, 3)`` intrinsics: the known camera's, and the unknown's guess
+            (its principal point is kept; square pixels, no skew).
+        u_a, u_b: ``(N, 2)`` corresponding pixels (undistorted).
+        unknown: ``"b"`` (``K_a`` known) or ``"both"`` (one focal length each).
+        fov_deg: the horizontal fields of view searched, degrees (of an image ``2 cx``
+            wide).
+        threshold_px: RANSAC threshold of the fundamental matrix (Sampson), pixels.
+        seed: seed of OpenCV's sampling.
+
+    Returns:
+        ``(f_a, f_b)`` px (``f_a`` the given one when ``unknown="b"``), or ``None`` with
+        under :data:`MIN_CORRESPONDENCES` correspondences or no fundamental matrix.
+    """
+    u_a, u_b = np.asarray(u_a, float), np.asarray(u_b, float)
+    if len(u_a) < MIN_CORRESPONDENCES:
+        return None
+    cv2.setRNGSeed(int(seed))
+    F, inl = cv2.findFundamentalMat(u_a, u_b, cv2.USAC_MAGSAC, threshold_px, 0.9999, 10000)
+    if F is None or F.shape != (3, 3) or inl is None or int(inl.sum()) < MIN_CORRESPONDENCES:
+        return None
+
+    def grid(K: np.ndarray, n: int) -> np.ndarray:
+        fov = np.radians(np.geomspace(fov_deg[1], fov_deg[0], n))
+        return float(K[0, 2]) / np.tan(0.5 * fov)
+
+    K_a, K_b = np.asarray(K_a, float), np.asarray(K_b, float)
+    if unknown == "b":
+        fs = grid(K_b, 61)
+        cost = [essential_defect(F, K_a, _with_focal(K_b, f)) for f in fs]
+        i = int(np.argmin(cost))
+        lo, hi = fs[max(i - 1, 0)], fs[min(i + 1, len(fs) - 1)]
+        fb = _golden(lambda f: essential_defect(F, K_a, _with_focal(K_b, f)), lo, hi)
+        return float(K_a[0, 0]), fb
+    fa_grid, fb_grid = grid(K_a, 31), grid(K_b, 31)
+    cost = np.array([[essential_defect(F, _with_focal(K_a, fa), _with_focal(K_b, fb))
+                      for fb in fb_grid] for fa in fa_grid])
+    i, j = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    return float(fa_grid[i]), float(fb_grid[j])
+
+
+def _golden(fn, lo: float, hi: float, iterations: int = 40) -> float:
+    """Minimum of a unimodal ``fn`` on ``[lo, hi]`` (golden-section search)."""
+    g = 0.5 * (np.sqrt(5.0) - 1.0)
+    a, b = float(min(lo, hi)), float(max(lo, hi))
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = fn(c), fn(d)
+    for _ in range(iterations):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = fn(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = fn(d)
+    return 0.5 * (a + b)
 
 
 def mirror_sighting(K: np.ndarray, real: np.ndarray, reflection: np.ndarray, mask: np.ndarray,

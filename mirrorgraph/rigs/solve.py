@@ -26,7 +26,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..graph.builder import view_residuals
-from ..graph.options import RefineOptions
+from ..graph.refine import focal_record
+from ..graph.options import FocalOptions, RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.sensitivity import rig_sensitivity_report
 from ..graph.uncertainty import robust_blocks
@@ -68,6 +69,11 @@ class RigSolution:
         iterations: Levenberg-Marquardt solves.
         priors: prior name -> description (as the single-mirror result).
         timings: seconds per stage.
+        intrinsics: ``(3, 3)`` per camera: the estimate where its focal length was
+            estimated, else the given one.
+        focal: camera name -> its focal length's record
+            (:func:`mirrorgraph.graph.refine.focal_record`) for the cameras whose focal
+            length was estimated.
     """
 
     poses: list[np.ndarray]
@@ -90,6 +96,8 @@ class RigSolution:
     marginal_camera_cov: list[np.ndarray] = field(default_factory=list)
     marginal_plane_cov: list[np.ndarray] = field(default_factory=list)
     robust_parts: dict = field(default_factory=dict)
+    intrinsics: list[np.ndarray] = field(default_factory=list)
+    focal: dict[str, dict] = field(default_factory=dict)
     sensitivity: dict = field(default_factory=dict)
 
     def scaled(self, factor: float) -> "RigSolution":
@@ -119,15 +127,30 @@ class RigSolution:
 
 
 def build_rig(obs: RigObservations, init: InitialRig,
-              joints: tuple[np.ndarray, np.ndarray] | None = None) -> Rig:
+              joints: tuple[np.ndarray, np.ndarray] | None = None,
+              estimate_focal: bool = True, focal: FocalOptions | None = None) -> Rig:
     """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
     estimated), the mirrors that were placed, one direct view per camera and one
     view per camera and mirror. ``joints`` = ``(direct, mirror)`` joint indices that
     the direct views and the views through mirrors use
-    (:func:`~mirrorgraph.joint_sets.resolve_joints`; default: the calibration joints)."""
+    (:func:`~mirrorgraph.joint_sets.resolve_joints`; default: the calibration joints).
+    With ``estimate_focal`` a camera given without intrinsics (``intrinsics.approximate``)
+    has its focal length estimated (:attr:`~mirrorgraph.graph.rig.Camera.estimate_focal`),
+    from its initial one (:attr:`InitialRig.K`), with the weak prior of ``focal``
+    (:class:`~mirrorgraph.graph.options.FocalOptions`) about the field-of-view guess."""
     dmask, mmask = joint_masks(obs.skeleton, joints)
-    cams = tuple(Camera(c.name, c.intrinsics.K, np.asarray(p, float), estimate_pose=i > 0)
-                 for i, (c, p) in enumerate(zip(obs.cameras, init.poses)))
+    focal = focal or FocalOptions()
+    cams = []
+    for i, (c, p) in enumerate(zip(obs.cameras, init.poses)):
+        K = init.K[i] if init.K else c.intrinsics.K
+        cam = Camera(c.name, np.asarray(K, float), np.asarray(p, float), estimate_pose=i > 0)
+        if estimate_focal and c.intrinsics.approximate:
+            guess = float(c.intrinsics.K[0, 0])
+            cam = replace(cam, estimate_focal=True,
+                          estimate_principal_point=focal.principal_point,
+                          focal_prior=(guess, focal.prior_rel_sigma * guess))
+        cams.append(cam)
+    cams = tuple(cams)
     mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)
     placed = {m.name for m in mirrors}
     views = []
@@ -210,7 +233,10 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                  for kind, i in order]
         sensitivity = rig_sensitivity_report(state.scores, named, marg, rig.skeleton,
                                              rig.frame_ids)
+    focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
+             if c.estimate_focal}
     return RigSolution(poses=state.poses, planes=state.planes,
+                       intrinsics=list(state.intrinsics), focal=focal,
                        mirror_names=[m.name for m in rig.mirrors],
                        camera_cov=camera_cov, plane_cov=plane_cov,
                        marginal_camera_cov=list(state.camera_cov),

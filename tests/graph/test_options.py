@@ -10,8 +10,8 @@ import pytest
 
 import mirrorgraph as mg
 from mirrorgraph.errors import InputError
-from mirrorgraph.graph.options import (GaugeOptions, PriorOptions, RefineOptions,
-                                       ScheduleOptions, SolverOptions)
+from mirrorgraph.graph.options import (FocalOptions, GaugeOptions, PriorOptions,
+                                       RefineOptions, ScheduleOptions, SolverOptions)
 from mirrorgraph.synth import make_scene
 
 GROUPS = (PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions)
@@ -27,7 +27,9 @@ def test_every_setting_lives_in_exactly_one_group():
         for name in _names(g):
             assert name not in seen, f"{name} in {seen.get(name)} and {g.__name__}"
             seen[name] = g.__name__
-    assert set(seen) == _names(RefineOptions)
+    # and the nested group of the cameras whose focal length is estimated
+    assert set(seen) | {"focal"} == _names(RefineOptions)
+    assert isinstance(RefineOptions().focal, FocalOptions)
     assert {"bone_sigma", "use_hip"} <= _names(PriorOptions)
     assert {"robust_kernel", "min_parallax_deg"} <= _names(ScheduleOptions)
     assert {"max_iterations", "workers"} <= _names(SolverOptions)
@@ -38,8 +40,10 @@ def test_groups_round_trip_and_keep_their_defaults():
     opts = RefineOptions(bone_sigma=0.02, max_iterations=7, scale_from="limbs")
     assert opts.priors.bone_sigma == 0.02 and opts.solver.max_iterations == 7
     assert opts.gauge.scale_from == "limbs"
+    opts = RefineOptions(bone_sigma=0.02, max_iterations=7, scale_from="limbs",
+                         focal=FocalOptions(principal_point=True))
     again = RefineOptions.from_groups(priors=opts.priors, schedule=opts.schedule,
-                                      solver=opts.solver, gauge=opts.gauge)
+                                      solver=opts.solver, gauge=opts.gauge, focal=opts.focal)
     assert again == opts
     only = RefineOptions.from_groups(solver=SolverOptions(marginals=False))
     assert only.marginals is False and only.bone_sigma == RefineOptions().bone_sigma

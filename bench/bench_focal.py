@@ -1,0 +1,903 @@
+#!/usr/bin/env python
+"""Unknown intrinsics (issue 17): the focal length from the person and the reflection.
+
+    python bench/bench_focal.py                  # everything (~5 min on 2 cores)
+    python bench/bench_focal.py --quick          # fewer scenes, no real trials
+    python bench/bench_focal.py --no-real --no-write
+
+Sections of ``bench/RESULTS_focal.md``:
+
+1. **Identifiability** (one scene, exact data): the reflective epipolar geometry fixes
+   the epipole ``e ~ K n`` alone, so the reprojection terms carry no information on
+   the focal length (the graph's information without bones is singular in that
+   direction); the bones' constancy does.
+2. **The Cramer-Rao bound** of the focal length and of the mirror with the focal
+   length unknown: the graph's information at the truth (every factor the refinement
+   has, the bones with the rule the refinement uses, the bone lengths and the plane
+   eliminated with the joints: :func:`mirrorgraph.graph.uncertainty.frame_scores`),
+   against geometry (the slices of :func:`mirrorgraph.synth.make_wide_scene`, the
+   mirror's angle), frames, motion (procedural, the CMU take, a person who holds one
+   pose) and the bone rule (the focal-specific ``c = 1``, the known-intrinsics
+   ``c = 0.3``, every bone). A scene *determines* the focal length where its bound is
+   under ``FocalOptions.undetermined_rel_std`` (5 %). Next to it the known-intrinsics
+   bound of the mirror (the reprojection terms alone, ``bench_graph.crb_rotation_deg``).
+3. **End to end** on widened scenes (``make_wide_scene``, slice ``wide``, focal
+   700-2200 px, 1000 frames, iid 4 px): ``calibrate`` from the detections with the
+   subject's height, once with the true intrinsics and once with the image size alone
+   (the focal length estimated), side by side in one process: focal error, mirror
+   rotation error of both, metric distance error of both, time of both.
+4. **Rigs** with a camera's intrinsics missing (``make_rig(..., geometry="wide")``,
+   300 frames, 4 px): each camera's focal error, rotation error against the rig with
+   every intrinsic given, the focal length's bound at the truth.
+5. **Real video**: the Pose2Sim demo trials (``bench_real.py``'s detections, read from a
+   cache), each camera's intrinsics removed in turn, its focal length from the people
+   against Qualisys' (which also has lens distortion, left in the keypoints of the
+   camera whose intrinsics are removed).
+6. **The independent generator's scenes** (``../shared/fixtures``, as ``bench_stress.py``;
+   their principal points are 14 and 24 px off the image centre): the mirror with the
+   true intrinsics, with the focal length estimated (the principal point assumed at the
+   centre), with the true focal length but the principal point at the centre (what the
+   assumption alone costs), and with ``principal_point`` estimated too.
+7. **Targets**: the issue's, each against its measurement above.
+
+Writes ``bench/RESULTS_focal.md`` and ``bench/RESULTS_focal.json`` unless ``--no-write``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import datetime  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+for _p in (ROOT, ROOT / "bench"):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+from results_blocks import machine  # noqa: E402
+
+import mirrorgraph as mg  # noqa: E402
+from mirrorgraph.graph import RefineOptions  # noqa: E402
+from mirrorgraph.graph.builder import build_problem  # noqa: E402
+from mirrorgraph.graph.options import FocalOptions  # noqa: E402
+from mirrorgraph.graph.refine import prepare  # noqa: E402
+from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov  # noqa: E402
+from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse  # noqa: E402
+from mirrorgraph.metrics import mirror_rotation_error_deg, rotation_error_deg  # noqa: E402
+from mirrorgraph.synth import make_scene, make_wide_scene  # noqa: E402
+
+CMU = ROOT / "mirrorgraph" / "data" / "cmu_01_01.bvh"
+UNDETERMINED = FocalOptions().undetermined_rel_std
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------- bounds
+def focal_bound(scene, *, bias_limit: float | None = 1.0, joints3d: np.ndarray | None = None,
+                frames: int | None = None) -> dict:
+    """The Cramer-Rao bound of the focal length and the mirror, focal length unknown.
+
+    The graph the refinement builds, at the truth: the true joints, mirror and
+    intrinsics, the bone lengths the true ones, least squares (no kernel), the
+    pixel sigma the scene's noise; the bones by the rule ``bias_limit`` (``None``:
+    every bone in every frame); no prior on the focal length. Its information over
+    (plane, focal length, bone lengths) with every frame's joints eliminated
+    (:func:`~mirrorgraph.graph.uncertainty.frame_scores`), the scale gauge projected
+    out. ``joints3d`` replaces the scene's motion (the same observation masks).
+
+    Returns:
+        ``{"f_rel", "rot_deg", "bones"}``: the focal length's relative std, the virtual
+        camera's RMS rotation std (deg), the bone factors used; inf where singular.
+    """
+    p = scene.paired()
+    X = np.asarray(scene.joints3d if joints3d is None else joints3d, float)
+    if frames is not None:
+        p = dataclasses.replace(p, real=p.real[:frames], mirror=p.mirror[:frames],
+                                frame_ids=p.frame_ids[:frames])
+        X = X[:frames]
+    noise = float(scene.options["noise_std"])
+    opts = RefineOptions(robust_kernel=None, pixel_sigma=noise,
+                         subject_height=scene.subject_height,
+                         focal=FocalOptions(bone_bias_limit=bias_limit))
+    rig = prepare(p, scene.K, scene.normal, p.valid(), None, opts, estimate_focal=True)
+    rig = dataclasses.replace(rig, cameras=(dataclasses.replace(rig.cameras[0],
+                                                                focal_prior=None),))
+    used = rig.views[0].mask
+    names = rig.skeleton.bone_names
+    lengths = {b: float(np.nanmedian(np.linalg.norm(X[:, a] - X[:, c], axis=-1)))
+               for b, (a, c) in zip(names, rig.skeleton.bone_index)}
+    prob = build_problem(rig, X, used, [(scene.normal, scene.distance)], opts,
+                         final_kernel=None, body_height=scene.subject_height,
+                         bone_lengths=lengths)
+    bones = int(prob.prior_info.get("bone_length", {}).get("factors", 0))
+    if prob.length_key is None:
+        return {"f_rel": float("inf"), "rot_deg": float("inf"), "bones": bones}
+    sc = frame_scores(prob, prob.values)
+    try:
+        C = gauge_inverse(sc.information, sc.gauge)
+    except np.linalg.LinAlgError:
+        return {"f_rel": float("inf"), "rot_deg": float("inf"), "bones": bones}
+    f = float(scene.K[0, 0])
+    basis = np.asarray(prob.values.atOrientedPlane3(prob.plane_keys[0]).normal().basis())
+    rot = rotation_std_from_normal_cov(normal_cov_from_tangent(basis, C[:2, :2]))
+    f_var = C[3, 3]
+    return {"f_rel": float(np.sqrt(f_var) / f) if f_var > 0 else float("inf"),
+            "rot_deg": float(rot) if np.isfinite(rot) else float("inf"), "bones": bones}
+
+
+def known_bound(scene) -> float:
+    """The mirror's rotation bound with the intrinsics known (reprojection alone)."""
+    from bench_graph import crb_rotation_deg
+    return float(crb_rotation_deg(scene))
+
+
+def reprojection_only_singular(scene) -> dict:
+    """The graph's information of the reprojection terms alone, focal length unknown:
+    its smallest eigenvalue against its largest (Jacobi-scaled), and what the bones add."""
+    p = scene.paired()
+    opts = RefineOptions(robust_kernel=None, pixel_sigma=float(scene.options["noise_std"]),
+                         use_bone_length=False, subject_height=None)
+    rig = prepare(p, scene.K, scene.normal, p.valid(), None, opts, estimate_focal=True)
+    rig = dataclasses.replace(rig, cameras=(dataclasses.replace(rig.cameras[0],
+                                                                focal_prior=None),))
+    from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams
+    from mirrorgraph.graph.reduction import mirror_reduction
+    prob = build_problem(rig, scene.joints3d, rig.views[0].mask,
+                         [(scene.normal, scene.distance)], opts, priors=False)
+    red = mirror_reduction(prob, distance_gauge=scene.distance)
+    lm = LevenbergMarquardt(prob.reprojection, red, LMParams(max_iterations=1),
+                            ordering=prob.point_ordering())
+    _, H, _, _ = lm.step(prob.reprojection.linearize(prob.values), prob.values, 0.0)
+    H = H[:3, :3] if H.shape[0] > 4 else H
+    d = np.sqrt(np.abs(np.diag(H)))
+    Hn = H / np.outer(d, d)
+    w = np.linalg.eigvalsh(Hn)
+    return {"dims": [k for k in ("normal 1", "normal 2", "distance", "focal")][:H.shape[0]],
+            "eig_min_over_max": float(w[0] / w[-1]), "f_info": float(H[-1, -1])}
+
+
+def still_person(scene) -> np.ndarray:
+    """The scene's first pose held in every frame (the same observation masks)."""
+    return np.repeat(scene.joints3d[:1], len(scene.joints3d), axis=0)
+
+
+# --------------------------------------------------------------------------- end to end
+def run_scene(seed: int, slice_: str, frames: int, bound: bool = True) -> dict:
+    scene = make_wide_scene(seed, slice=slice_, noise="iid", frames=frames)
+    w, h = scene.image_size
+    out = {"seed": seed, "slice": slice_, "frames": frames, "f_true": float(scene.K[0, 0]),
+           "angle_deg": float(np.degrees(np.arccos(abs(scene.normal[2])))),
+           "distance": float(scene.distance), "pp_offset_px":
+           float(np.hypot(scene.K[0, 2] - w / 2, scene.K[1, 2] - h / 2))}
+    for name, intr, opts in (
+            ("known", scene.intrinsics, mg.CalibrateOptions(subject_height=scene.subject_height)),
+            ("focal", None, mg.CalibrateOptions(subject_height=scene.subject_height,
+                                                image_size=scene.image_size))):
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            run = mg.calibrate(scene.detections, intr, opts)
+        except Exception as exc:  # noqa: BLE001 - report, do not stop the benchmark
+            out[name] = {"failed": f"{type(exc).__name__}: {exc}"}
+            continue
+        cal = run.calibration
+        rec = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+               "rot_err_deg": mirror_rotation_error_deg(cal.normal, scene.normal),
+               "rot_std_deg": float(cal.uncertainty.get("rotation_std_deg", np.nan)),
+               "dist_rel_err": float(cal.distance / scene.distance - 1.0)
+               if cal.distance else float("nan"),
+               "solve_s": float(run.timings.get("solve", np.nan)),
+               "uncertainty_s": float(run.timings.get("uncertainty", np.nan))}
+        est = cal.intrinsics.estimated
+        if est is not None:
+            rec.update(f_est=float(cal.intrinsics.K[0, 0]),
+                       f_rel_err=float(cal.intrinsics.K[0, 0] / scene.K[0, 0] - 1.0),
+                       determined=bool(est.get("estimated")),
+                       f_std_rel=float(est.get("rel_std", est.get("undetermined", {})
+                                               .get("rel_std", np.nan))),
+                       f_search_rel_err=(float(est["search_px"] / scene.K[0, 0] - 1.0)
+                                         if est.get("search_px") else float("nan")),
+                       f_found_rel_err=float((est.get("undetermined", {}).get("focal_px")
+                                              or est["focal_px"]) / scene.K[0, 0] - 1.0))
+        out[name] = rec
+    if bound:
+        out["bound_known_rot_deg"] = known_bound(scene)
+        out["bound"] = focal_bound(scene)
+    return out
+
+
+# --------------------------------------------------------------------------- rigs
+def rig_case(kind: str, seed: int, drop: list[int], folder: Path, frames: int = 300) -> dict:
+    from mirrorgraph.rigs.config import load_rig_config
+    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.synth import make_rig, write_rig
+
+    r = make_rig(kind, frames=frames, seed=seed, geometry="wide")
+    path = folder / f"{kind}_{seed}"
+    if not path.exists():
+        write_rig(r, path)
+    cfg = load_rig_config(path / "rig.toml")
+    out = {"kind": kind, "seed": seed, "drop": [r.camera_names[i] for i in drop],
+           "f_true": [float(K[0, 0]) for K in r.K]}
+    for name, d in (("known", []), ("focal", drop)):
+        cams = tuple(dataclasses.replace(c, intrinsics=None, image_size=tuple(r.image_size))
+                     if i in d else c for i, c in enumerate(cfg.cameras))
+        t0 = time.perf_counter()
+        try:
+            cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams),
+                                subject_height=r.subject_height, seed=seed)
+        except Exception as exc:  # noqa: BLE001
+            out[name] = {"failed": f"{type(exc).__name__}: {exc}"}
+            continue
+        rec = {"wall_s": time.perf_counter() - t0, "warnings": list(cal.warnings),
+               "rot_err_deg": [rotation_error_deg(c.pose[:3, :3], P[:3, :3])
+                               for c, P in zip(cal.cameras, r.poses)],
+               "mirror_err_deg": [mirror_rotation_error_deg(m.normal, r.mirrors[r.mirror_names.index(m.name)][0])
+                                  for m in cal.mirrors]}
+        rec["focal"] = {}
+        for i in d:
+            c = cal.cameras[i]
+            est = c.intrinsics.estimated or {}
+            rec["focal"][c.name] = {
+                "f_est": float(c.intrinsics.K[0, 0]),
+                "f_rel_err": float(c.intrinsics.K[0, 0] / r.K[i][0, 0] - 1.0),
+                "determined": bool(est.get("estimated")),
+                "f_std_rel": float(est.get("rel_std", np.nan)),
+                "initial_rel_err": (float(est["initial"]["focal_px"] / r.K[i][0, 0] - 1.0)
+                                    if est.get("initial") else None),
+                "initial_method": (est.get("initial") or {}).get("method")}
+        out[name] = rec
+    return out
+
+
+# --------------------------------------------------------------------------- real
+def missing_detections(trials: list[str], cache: Path) -> str | None:
+    """Why the real trials cannot run from ``cache`` (``None``: every video's detections
+    are there, made with the current model and options). Detecting them here would take
+    the machine's cores for a long while: ``bench_real.py --cache DIR`` makes them."""
+    import importlib.util
+
+    from mirrorgraph.video import VideoOptions
+    from mirrorgraph.video.detect import _cache_key, _cache_path, _model_files
+    from mirrorgraph.video.reader import probe
+
+    spec = importlib.util.find_spec("Pose2Sim")
+    if spec is None or not spec.submodule_search_locations:
+        return "the Pose2Sim wheel (its demo videos) is not installed"
+    root = Path(list(spec.submodule_search_locations)[0])
+    vopts = VideoOptions(cache_dir=cache)
+    try:
+        model, files = _model_files(vopts)
+    except Exception as exc:  # noqa: BLE001
+        return f"the pose model is not available ({exc})"
+    absent, total = [], 0
+    for trial in trials:
+        for n in ("cam01", "cam02", "cam03", "cam04"):
+            video = root / trial / "videos" / f"{n}.mp4"
+            total += 1
+            if not video.is_file():
+                absent.append(f"{trial}/{n} (no video)")
+                continue
+            info = probe(video)
+            if not _cache_path(cache, info, _cache_key(info, vopts, model, files)).is_file():
+                absent.append(f"{trial}/{n}")
+    if absent:
+        which = (f"any of the {total} videos of {', '.join(trials)}" if len(absent) == total
+                 else ", ".join(absent))
+        return (f"no cached detections in {cache} for {which} (made by "
+                f"`python bench/bench_real.py --cache {cache}` with the current model and "
+                "options; not detected here)")
+    return None
+
+
+def real_trials(trials: list[str], cache: Path) -> list[dict]:
+    """Each camera of each trial without its intrinsics, against Qualisys."""
+    import bench_real as br
+    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.video import VideoOptions, detect_video
+
+    root = br.pose2sim_root()
+    rows = []
+    for trial in trials:
+        cams = br.read_cameras(br.calib_path(root, trial))
+        true = br.relative_poses(cams)
+        vopts = VideoOptions(cache_dir=cache)
+        sizes = {}
+        for n in br.CAMERAS:
+            det = detect_video(root / trial / "videos" / f"{n}.mp4", vopts)
+            sizes[n] = (det.info.width, det.info.height)
+        with tempfile.TemporaryDirectory(prefix="bench_focal_") as tmp:
+            tmp = Path(tmp)
+            rig0 = br.write_rig(tmp, root, trial, cams, sizes, None)
+            obs = br.load_observations(br.load_rig_config(rig0), video=vopts)
+            from mirrorgraph.joint_sets import resolve_joints
+            joints = resolve_joints(obs.skeleton, "auto")
+            height = br.gt_reprojection(obs, true, joints[0])["stature_m"]
+            rig = br.write_rig(tmp, root, trial, cams, sizes, height)
+            cfg = br.load_rig_config(rig)
+            known = calibrate_rig(cfg, video=vopts)
+            base = br.camera_errors([np.asarray(c.pose, float) for c in known.cameras], true)
+            for i, n in enumerate(br.CAMERAS):
+                entries = tuple(dataclasses.replace(c, intrinsics=None, intrinsics_section=None,
+                                                    image_size=sizes[n]) if c.name == n else c
+                                for c in cfg.cameras)
+                t0 = time.perf_counter()
+                try:
+                    cal = calibrate_rig(dataclasses.replace(cfg, cameras=entries), video=vopts)
+                except Exception as exc:  # noqa: BLE001
+                    rows.append({"trial": trial, "camera": n, "failed": f"{type(exc).__name__}: {exc}"})
+                    continue
+                c = cal.cameras[i]
+                est = c.intrinsics.estimated or {}
+                errs = br.camera_errors([np.asarray(x.pose, float) for x in cal.cameras], true)
+                dist = np.asarray(cams[n]["dist"], float)
+                rows.append({"trial": trial, "camera": n, "wall_s": time.perf_counter() - t0,
+                             "f_qualisys": float(cams[n]["K"][0, 0]),
+                             "fy_qualisys": float(cams[n]["K"][1, 1]),
+                             "pp_qualisys": [float(cams[n]["K"][0, 2]), float(cams[n]["K"][1, 2])],
+                             "image_size": list(sizes[n]), "dist_qualisys": dist.tolist(),
+                             "f_est": float(c.intrinsics.K[0, 0]),
+                             "f_rel_err": float(c.intrinsics.K[0, 0] / cams[n]["K"][0, 0] - 1.0),
+                             "determined": bool(est.get("estimated")),
+                             "f_std_rel": float(est.get("rel_std", np.nan)),
+                             "initial": est.get("initial"),
+                             "rot_err_deg": [x["rot_deg"] for x in errs["cameras"]],
+                             "rot_err_known_deg": [x["rot_deg"] for x in base["cameras"]]})
+                log(f"  {trial} {n}: f {rows[-1]['f_est']:.0f} vs {rows[-1]['f_qualisys']:.0f} "
+                    f"({100 * rows[-1]['f_rel_err']:+.1f} %)")
+    return rows
+
+
+# --------------------------------------------------------------------------- fixtures
+FIXTURES = ROOT.parent / "shared" / "fixtures"
+
+
+def fixture_cases(folder: Path) -> list[dict]:
+    """Each scene of the independent generator calibrated four ways (see the docstring)."""
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.graph.options import FocalOptions
+    from mirrorgraph.intrinsics import Intrinsics, load_intrinsics
+    from mirrorgraph.io import read_keypoints
+
+    rows = []
+    for scene in sorted(p for p in folder.iterdir() if (p / "truth.json").is_file()):
+        truth = json.loads((scene / "truth.json").read_text())
+        n_true = np.asarray(truth["normal"], float)
+        intr = load_intrinsics(scene / "camera.json")
+        K, size = np.asarray(intr.K, float), tuple(intr.image_size)
+        data = read_keypoints(scene / "keypoints.json")
+        centred = K.copy()
+        centred[0, 2], centred[1, 2] = size[0] / 2, size[1] / 2
+        row = {"scene": scene.name, "f_true": float(K[0, 0]),
+               "pp_offset_px": [float(K[0, 2] - size[0] / 2), float(K[1, 2] - size[1] / 2)],
+               "bound_known_deg": truth.get("cramer_rao_rotation_std_deg_at_4px")}
+        variants = (
+            ("known", Intrinsics(K=K, dist=intr.dist, image_size=size, source="truth"), None),
+            ("focal", None, None),
+            ("true f, centred", Intrinsics(K=centred, dist=intr.dist, image_size=size,
+                                           source="truth, principal point at the centre"), None),
+            ("focal and principal point", None, FocalOptions(principal_point=True)))
+        for name, given, focal in variants:
+            opts = mg.CalibrateOptions(subject_height=float(truth["height"]), image_size=size)
+            if focal is not None:
+                opts.refine_options = RefineOptions(focal=focal)
+            t0 = time.perf_counter()
+            try:
+                run = mg.calibrate(data, given, opts)
+            except Exception as exc:  # noqa: BLE001
+                row[name] = {"failed": f"{type(exc).__name__}: {exc}"}
+                continue
+            cal = run.calibration
+            est = cal.intrinsics.estimated or {}
+            names = list(run.paired.skeleton.joints)
+            lh, rh = names.index("left_hip"), names.index("right_hip")
+            both = run.valid3d[:, lh] & run.valid3d[:, rh]
+            hip = np.linalg.norm(run.joints3d[both, lh] - run.joints3d[both, rh], axis=-1)
+            row[name] = {"wall_s": time.perf_counter() - t0,
+                         "rot_err_deg": mirror_rotation_error_deg(cal.normal, n_true),
+                         "rot_std_deg": float(cal.uncertainty.get("rotation_std_deg", np.nan)),
+                         "dist_rel_err": float(cal.distance / truth["distance"] - 1.0),
+                         "f_rel_err": float(cal.intrinsics.K[0, 0] / K[0, 0] - 1.0),
+                         "f_std_rel": float(est.get("rel_std", np.nan)),
+                         "pp_err_px": [float(cal.intrinsics.K[0, 2] - K[0, 2]),
+                                       float(cal.intrinsics.K[1, 2] - K[1, 2])],
+                         "dist_std_rel": float((cal.uncertainty.get("distance_std") or np.nan)
+                                               / cal.distance),
+                         "hip_width_m": float(np.median(hip)) if len(hip) else float("nan"),
+                         "warnings": list(cal.warnings)}
+        rows.append(row)
+    return rows
+
+
+def table_fixtures(rows: list[dict]) -> list[str]:
+    L = ["| scene | principal point off centre px | intrinsics | focal err % (std %) | "
+         "principal point err px | rotation err deg (reported std) | distance err % (std %) "
+         "| hip width m (median) |",
+         "|---|---|---|---:|---|---:|---:|---:|"]
+    for r in rows:
+        off = "%+.0f, %+.0f" % tuple(r["pp_offset_px"])
+        for name in ("known", "focal", "true f, centred", "focal and principal point"):
+            v = r.get(name, {})
+            if "failed" in v:
+                L.append(f"| {r['scene']} | {off} | {name} | failed: {v['failed']} | | | | |")
+                continue
+            L.append(f"| {r['scene']} | {off} | {name} | {100 * v['f_rel_err']:+.1f} "
+                     f"({_pct(v['f_std_rel'])}) | {v['pp_err_px'][0]:+.0f}, "
+                     f"{v['pp_err_px'][1]:+.0f} | {v['rot_err_deg']:.3f} "
+                     f"({v['rot_std_deg']:.3f}) | {100 * v['dist_rel_err']:+.1f} "
+                     f"({_pct(v['dist_std_rel'])}) | {v['hip_width_m']:.2f} |")
+    return L
+
+
+# --------------------------------------------------------------------------- report
+def _f(x, fmt="{:.2f}") -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "–" if x is None or np.isnan(x) else "∞"
+    return fmt.format(x)
+
+
+def _pct(x, nd=1) -> str:
+    return "–" if x is None or not np.isfinite(x) else f"{100 * x:.{nd}f}"
+
+
+def _med(v) -> float:
+    v = [x for x in v if x is not None and np.isfinite(x)]
+    return float(np.median(v)) if v else float("nan")
+
+
+def table_identifiability(rec: dict) -> list[str]:
+    return ["| information | eigenvalue ratio (min / max, Jacobi-scaled) | focal length's own |",
+            "|---|---:|---:|",
+            f"| reprojection alone, (normal, distance, focal) | {rec['eig_min_over_max']:.1e} "
+            f"| {rec['f_info']:.1e} |"]
+
+
+def table_bounds(rows: list[dict]) -> list[str]:
+    L = ["| scenes | focal length's bound: median [10 %, 90 %] | determined (< 5 %) | "
+         "mirror's rotation bound, focal unknown (deg) | known intrinsics (deg) | ratio |",
+         "|---|---|---:|---:|---:|---:|"]
+    for r in rows:
+        f = np.array(r["f_rel"])
+        fin = f[np.isfinite(f)]
+        q = (np.percentile(fin, [50, 10, 90]) if len(fin) else [np.nan] * 3)
+        det = float(np.mean(f < UNDETERMINED))
+        ratio = _med(np.array(r["rot_deg"]) / np.array(r["known_deg"]))
+        L.append(f"| {r['label']} | {_pct(q[0])} % [{_pct(q[1])}, {_pct(q[2])}] | "
+                 f"{int(round(det * len(f)))} of {len(f)} | {_f(_med(r['rot_deg']), '{:.3f}')} | "
+                 f"{_f(_med(r['known_deg']), '{:.3f}')} | {_f(ratio, '{:.1f}')} |")
+    return L
+
+
+def table_sweep(rows: list[dict], key: str, unit: str) -> list[str]:
+    L = [f"| {key} | focal length's bound (median %) | rotation bound, focal unknown (deg) | "
+         "bone factors |", "|---:|---:|---:|---:|"]
+    for r in rows:
+        L.append(f"| {r[key]}{unit} | {_pct(_med(r['f_rel']), 2)} | "
+                 f"{_f(_med(r['rot_deg']), '{:.3f}')} | {int(_med(r['bones']))} |")
+    return L
+
+
+def table_scenes(rows: list[dict]) -> list[str]:
+    L = ["| seed | f px | angle deg | d m | focal err % (std %) | determined | rotation err deg: "
+         "focal / known | bound: focal / known | distance err %: focal / known | "
+         "time s: focal / known |",
+         "|---:|---:|---:|---:|---:|:---:|---:|---:|---:|---:|"]
+    for r in rows:
+        k, f = r.get("known", {}), r.get("focal", {})
+        if "failed" in f or "failed" in k:
+            L.append(f"| {r['seed']} | {r['f_true']:.0f} | | | failed: "
+                     f"{f.get('failed') or k.get('failed')} | | | | | |")
+            continue
+        b = r.get("bound", {})
+        L.append(f"| {r['seed']} | {r['f_true']:.0f} | {r['angle_deg']:.0f} | {r['distance']:.1f} | "
+                 f"{_pct(f['f_rel_err'])} ({_pct(f['f_std_rel'])}) | "
+                 f"{'yes' if f['determined'] else 'no'} | "
+                 f"{f['rot_err_deg']:.3f} / {k['rot_err_deg']:.3f} | "
+                 f"{_f(b.get('rot_deg'), '{:.3f}')} / {_f(r.get('bound_known_rot_deg'), '{:.3f}')} | "
+                 f"{_pct(f['dist_rel_err'])} / {_pct(k['dist_rel_err'])} | "
+                 f"{f['wall_s']:.1f} / {k['wall_s']:.1f} |")
+    return L
+
+
+def scene_summary(rows: list[dict]) -> dict:
+    ok = [r for r in rows if "failed" not in r.get("focal", {"failed": 1})
+          and "failed" not in r.get("known", {"failed": 1})]
+    det = [r for r in ok if r["focal"]["determined"]]
+    und = [r for r in ok if not r["focal"]["determined"]]
+
+    def m(rs, fn):
+        return _med([fn(r) for r in rs])
+    return {
+        "scenes": len(rows), "solved": len(ok), "determined": len(det),
+        "f_err_median_all": m(ok, lambda r: abs(r["focal"]["f_rel_err"])),
+        "f_err_median_determined": m(det, lambda r: abs(r["focal"]["f_rel_err"])),
+        "f_err_median_undetermined_found": m(und, lambda r: abs(r["focal"]["f_found_rel_err"])),
+        "f_err_over_std_median": m(det, lambda r: abs(r["focal"]["f_rel_err"]) / r["focal"]["f_std_rel"]),
+        "rot_ratio_median_determined": m(det, lambda r: r["focal"]["rot_err_deg"] / r["known"]["rot_err_deg"]),
+        "rot_focal_median_determined": m(det, lambda r: r["focal"]["rot_err_deg"]),
+        "rot_known_median": m(ok, lambda r: r["known"]["rot_err_deg"]),
+        "rot_known_median_determined": m(det, lambda r: r["known"]["rot_err_deg"]),
+        "rot_bound_ratio_median": m(ok, lambda r: r["bound"]["rot_deg"] / r["bound_known_rot_deg"]
+                                    if "bound" in r else float("nan")),
+        "rot_err_over_bound_focal": m(det, lambda r: r["focal"]["rot_err_deg"] / r["bound"]["rot_deg"]
+                                      if "bound" in r else float("nan")),
+        "dist_err_median_focal_determined": m(det, lambda r: abs(r["focal"]["dist_rel_err"])),
+        "dist_err_median_focal_all": m(ok, lambda r: abs(r["focal"]["dist_rel_err"])),
+        "dist_err_median_known": m(ok, lambda r: abs(r["known"]["dist_rel_err"])),
+        "time_focal_median": m(ok, lambda r: r["focal"]["wall_s"]),
+        "time_known_median": m(ok, lambda r: r["known"]["wall_s"]),
+        "bound_f_median": m(ok, lambda r: r["bound"]["f_rel"] if "bound" in r else float("nan")),
+    }
+
+
+def table_rigs(rows: list[dict]) -> list[str]:
+    L = ["| rig | seed | camera without intrinsics | focal err % (std %) | initial err % (how) | "
+         "camera rotation err deg: focal / known | mirror err deg: focal / known | time s: "
+         "focal / known |", "|---|---:|---|---:|---|---|---|---:|"]
+    for r in rows:
+        k, f = r.get("known", {}), r.get("focal", {})
+        if "failed" in f or "failed" in k:
+            L.append(f"| {r['kind']} | {r['seed']} | {', '.join(r['drop'])} | failed: "
+                     f"{f.get('failed') or k.get('failed')} | | | | |")
+            continue
+        for name, rec in f["focal"].items():
+            init = rec["initial_rel_err"]
+            how = (rec["initial_method"] or "search in the graph").split(" against")[0]
+            L.append(f"| {r['kind']} | {r['seed']} | {name} | {_pct(rec['f_rel_err'])} "
+                     f"({_pct(rec['f_std_rel'])}){'' if rec['determined'] else ' undetermined'} | "
+                     f"{_pct(init) if init is not None else '–'} ({how}) | "
+                     f"{' '.join(f'{x:.2f}' for x in f['rot_err_deg'][1:])} / "
+                     f"{' '.join(f'{x:.2f}' for x in k['rot_err_deg'][1:])} | "
+                     f"{' '.join(f'{x:.3f}' for x in f['mirror_err_deg']) or '–'} / "
+                     f"{' '.join(f'{x:.3f}' for x in k['mirror_err_deg']) or '–'} | "
+                     f"{f['wall_s']:.1f} / {k['wall_s']:.1f} |")
+    return L
+
+
+def table_real(rows: list[dict]) -> list[str]:
+    L = ["| trial | camera without intrinsics | Qualisys fx / fy px | estimate px | error % "
+         "(std %) | its lens distortion k1 | cameras 2-4 rotation err deg: focal / all known |",
+         "|---|---|---:|---:|---:|---:|---|"]
+    for r in rows:
+        if "failed" in r:
+            L.append(f"| {r['trial']} | {r['camera']} | | | failed: {r['failed']} | | |")
+            continue
+        k1 = r["dist_qualisys"][0] if r["dist_qualisys"] else float("nan")
+        L.append(f"| {r['trial']} | {r['camera']} | {r['f_qualisys']:.0f} / {r['fy_qualisys']:.0f} | "
+                 f"{r['f_est']:.0f} | {100 * r['f_rel_err']:+.1f} ({_pct(r['f_std_rel'])})"
+                 f"{'' if r['determined'] else ' undetermined'} | {k1:+.3f} | "
+                 f"{' '.join(f'{x:.2f}' for x in r['rot_err_deg'])} / "
+                 f"{' '.join(f'{x:.2f}' for x in r['rot_err_known_deg'])} |")
+    return L
+
+
+# --------------------------------------------------------------------------- main
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", type=int, default=20, help="wide scenes end to end (default 20)")
+    ap.add_argument("--bound-scenes", type=int, default=16, help="scenes per slice for the bound")
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--rig-seeds", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="6 scenes, 6 bound scenes, 2 rig seeds, "
+                    "no real trials")
+    ap.add_argument("--no-real", action="store_true")
+    ap.add_argument("--no-rigs", action="store_true")
+    ap.add_argument("--trials", nargs="*", default=["Demo_SinglePerson", "Demo_MultiPerson"])
+    ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "mirrorgraph_bench_focal"),
+                    help="detection cache of the real trials")
+    ap.add_argument("--no-fixtures", action="store_true",
+                    help="leave out the independent generator's scenes (../shared/fixtures)")
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.scenes, args.bound_scenes, args.rig_seeds, args.no_real = 6, 6, 2, True
+    t_start = time.perf_counter()
+    data: dict = {"frames": args.frames}
+
+    # 1. identifiability
+    scene = make_scene(frames=300, seed=0, noise_std=4.0)
+    data["identifiability"] = reprojection_only_singular(scene)
+    log(f"identifiability: {data['identifiability']}")
+
+    # 2. bounds
+    bounds = []
+    for slice_ in ("favourable", "gym", "wide", "low_parallax"):
+        rec = {"label": f"{slice_} (c = 1)", "f_rel": [], "rot_deg": [], "known_deg": [],
+               "bones": []}
+        for seed in range(args.bound_scenes):
+            sc = make_wide_scene(seed, slice=slice_, noise="iid", frames=args.frames)
+            b = focal_bound(sc)
+            rec["f_rel"].append(b["f_rel"])
+            rec["rot_deg"].append(b["rot_deg"])
+            rec["bones"].append(b["bones"])
+            rec["known_deg"].append(known_bound(sc))
+        log(f"bound {slice_}: median f {_med(rec['f_rel']):.4f}")
+        bounds.append(rec)
+    rules = []
+    for label, c in (("wide, c = 0.3 (the known-intrinsics rule)", 0.3),
+                     ("wide, every bone (c = none)", None)):
+        rec = {"label": label, "f_rel": [], "rot_deg": [], "known_deg": [], "bones": []}
+        for seed in range(args.bound_scenes):
+            sc = make_wide_scene(seed, slice="wide", noise="iid", frames=args.frames)
+            b = focal_bound(sc, bias_limit=c)
+            rec["f_rel"].append(b["f_rel"])
+            rec["rot_deg"].append(b["rot_deg"])
+            rec["bones"].append(b["bones"])
+            rec["known_deg"].append(known_bound(sc))
+        rules.append(rec)
+    data["bounds"], data["bound_rules"] = bounds, rules
+
+    frames_rows = []
+    for T in (100, 300, 1000, 3000):
+        rec = {"frames": T, "f_rel": [], "rot_deg": [], "bones": []}
+        for seed in range(min(args.bound_scenes, 8)):
+            sc = make_wide_scene(seed, slice="wide", noise="iid", frames=T)
+            b = focal_bound(sc)
+            rec["f_rel"].append(b["f_rel"]), rec["rot_deg"].append(b["rot_deg"])
+            rec["bones"].append(b["bones"])
+        frames_rows.append(rec)
+    data["bound_frames"] = frames_rows
+    log("bound vs frames done")
+
+    angle_rows = []
+    for ang in (5, 10, 20, 35, 50, 65):
+        rec = {"angle": ang, "f_rel": [], "rot_deg": [], "bones": []}
+        for seed in range(min(args.bound_scenes, 8)):
+            sc = make_scene(frames=args.frames, seed=seed, mirror_angle_deg=float(ang))
+            b = focal_bound(sc)
+            rec["f_rel"].append(b["f_rel"]), rec["rot_deg"].append(b["rot_deg"])
+            rec["bones"].append(b["bones"])
+        angle_rows.append(rec)
+    data["bound_angle"] = angle_rows
+    log("bound vs angle done")
+
+    motion_rows = []
+    for label in ("procedural exercises", "CMU take 01_01", "one pose held"):
+        rec = {"motion": label, "f_rel": [], "rot_deg": [], "bones": []}
+        for seed in range(min(args.bound_scenes, 8)):
+            if label == "CMU take 01_01":
+                sc = make_scene(frames=args.frames, seed=seed, motion=CMU)
+                b = focal_bound(sc)
+            else:
+                sc = make_scene(frames=args.frames, seed=seed)
+                b = focal_bound(sc, joints3d=still_person(sc) if label == "one pose held" else None)
+            rec["f_rel"].append(b["f_rel"]), rec["rot_deg"].append(b["rot_deg"])
+            rec["bones"].append(b["bones"])
+        motion_rows.append(rec)
+    data["bound_motion"] = motion_rows
+    log("bound vs motion done")
+
+    # 3. end to end
+    scenes = []
+    for seed in range(args.scenes):
+        r = run_scene(seed, "wide", args.frames)
+        f = r.get("focal", {})
+        log(f"scene {seed}: f err {f.get('f_rel_err', float('nan')):+.4f} "
+            f"det {f.get('determined')} rot {f.get('rot_err_deg', float('nan')):.3f} / "
+            f"{r.get('known', {}).get('rot_err_deg', float('nan')):.3f}")
+        scenes.append(r)
+    data["scenes"] = scenes
+    data["summary"] = scene_summary(scenes)
+
+    # 4. rigs
+    rigs = []
+    if not args.no_rigs:
+        with tempfile.TemporaryDirectory(prefix="bench_focal_rigs_") as tmp:
+            for seed in range(args.rig_seeds):
+                for kind, drop in (("4cams", [2]), ("4cams", [1, 3]), ("2cams1mirror", [1]),
+                                   ("1cam2mirrors", [0])):
+                    r = rig_case(kind, seed, drop, Path(tmp))
+                    log(f"rig {kind} {seed} {drop}: "
+                        f"{[(n, round(v['f_rel_err'], 4)) for n, v in r.get('focal', {}).get('focal', {}).items()]}")
+                    rigs.append(r)
+    data["rigs"] = rigs
+
+    # 5. real
+    real = []
+    data["real_skipped"] = "--no-real" if args.no_real else missing_detections(
+        args.trials, Path(args.cache))
+    if not data["real_skipped"]:
+        real = real_trials(args.trials, Path(args.cache))
+    data["real"] = real
+
+    # 6. the independent generator's scenes
+    data["fixtures"] = [] if args.no_fixtures or not FIXTURES.is_dir() else fixture_cases(FIXTURES)
+    log(f"fixtures: {len(data['fixtures'])} scenes")
+    seconds = time.perf_counter() - t_start
+    data["seconds"] = seconds
+
+    md = report(data, args, seconds)
+    print(md)
+    if not args.no_write:
+        (ROOT / "bench" / "RESULTS_focal.md").write_text(md)
+        (ROOT / "bench" / "RESULTS_focal.json").write_text(json.dumps(data, indent=1, default=float))
+    return 0
+
+
+def report(data: dict, args, seconds: float) -> str:
+    s = data["summary"]
+    L = ["# Unknown intrinsics: the focal length from the person and the reflection (issue 17)", "",
+         f"Machine: {machine()}  ",
+         f"Command: `python bench/bench_focal.py {' '.join(sys.argv[1:])}`  ",
+         f"Date: {datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {seconds / 60:.0f} min", ""]
+    L += ["## 1. What determines the focal length", "",
+          "The reflective fundamental matrix is `[e]x` with `e ~ K n`: the images fix the "
+          "epipole and nothing else, so any focal length `f` with the normal `n ~ K_f^-1 e` "
+          "reprojects every pair as well. The graph's information of the reprojection terms "
+          "alone, (normal, distance, focal length), at the truth of a 300-frame scene:", ""]
+    L += table_identifiability(data["identifiability"])
+    L += ["", "Singular: the reprojection carries no information on the focal length. A wrong "
+          "focal length stretches the reconstruction along the lines of sight against across "
+          "them, so that a bone's length changes as it turns in depth: the bones' constancy "
+          "(the bone factors) is what determines it, and so the bound below is the graph's "
+          "information with its bone factors, the bone lengths unknown.", ""]
+    L += ["## 2. The Cramer-Rao bound", "",
+          f"{args.frames} frames, iid 4 px (the bound scales with the pixel noise), the bones "
+          "by the refinement's rule for an estimated focal length (`FocalOptions."
+          "bone_bias_limit = 1`), per slice of `make_wide_scene` (seeds 0-"
+          f"{args.bound_scenes - 1}). *Determined*: a bound under 5 % "
+          "(`FocalOptions.undetermined_rel_std`). The mirror's rotation bound with the focal "
+          "length unknown beside the known-intrinsics one (reprojection alone):", ""]
+    L += table_bounds(data["bounds"] + data["bound_rules"])
+    L += ["", "Against frames (`wide`, 8 scenes):", ""]
+    L += table_sweep(data["bound_frames"], "frames", "")
+    L += ["", "Against the mirror's angle to the optical axis (`make_scene`, the favourable "
+          "placement, 8 seeds):", ""]
+    L += table_sweep(data["bound_angle"], "angle", " deg")
+    L += ["", "Against motion (`make_scene`, favourable, 8 seeds; *one pose held*: the first "
+          "frame's pose in every frame):", ""]
+    L += table_sweep(data["bound_motion"], "motion", "")
+    L += ["", "## 3. End to end on widened scenes", "",
+          f"`make_wide_scene(seed, 'wide')`, seeds 0-{args.scenes - 1}, {args.frames} frames, "
+          "iid 4 px, the subject's height given; `calibrate` with the true intrinsics "
+          "(*known*) and with the image size alone (*focal*), one after the other in one "
+          "process. Undetermined scenes keep the 60 deg guess (their rotation and distance "
+          "errors are the guess's).", ""]
+    L += table_scenes(data["scenes"])
+    L += ["", "| figure | value | target |", "|---|---:|---|",
+          f"| scenes solved / focal length determined | {s['solved']} / {s['determined']} of "
+          f"{s['scenes']} | |",
+          f"| median focal error, determined scenes | {_pct(s['f_err_median_determined'], 2)} % | "
+          "<= 2 % |",
+          f"| median focal error, all scenes (the guess where undetermined) | "
+          f"{_pct(s['f_err_median_all'], 2)} % | |",
+          f"| median focal error / its reported std, determined | "
+          f"{_f(s['f_err_over_std_median'])} | ~0.67 |",
+          f"| median rotation error, focal / known (determined scenes) | "
+          f"{_f(s['rot_focal_median_determined'], '{:.3f}')} / "
+          f"{_f(s['rot_known_median_determined'], '{:.3f}')} deg | |",
+          f"| median ratio of the rotation errors focal / known, determined | "
+          f"{_f(s['rot_ratio_median_determined'])} | <= 1.5 |",
+          f"| median ratio of the rotation bounds focal / known | "
+          f"{_f(s['rot_bound_ratio_median'])} | (what the data allow) |",
+          f"| median rotation error / bound, focal, determined | "
+          f"{_f(s['rot_err_over_bound_focal'])} | |",
+          f"| median metric distance error, focal (determined / all) | "
+          f"{_pct(s['dist_err_median_focal_determined'])} / {_pct(s['dist_err_median_focal_all'])} % "
+          "| <= 3 % |",
+          f"| median metric distance error, known | {_pct(s['dist_err_median_known'])} % | |",
+          f"| median time focal / known | {_f(s['time_focal_median'], '{:.1f}')} / "
+          f"{_f(s['time_known_median'], '{:.1f}')} s | |", ""]
+    if data["rigs"]:
+        L += ["## 4. Rigs with a camera's intrinsics missing", "",
+              "`make_rig(kind, geometry='wide')`, 300 frames, 4 px, the subject's height; the "
+              "camera(s) named without intrinsics (their image size in the rig file), every "
+              "other camera's intrinsics given; beside the same rig with every intrinsic "
+              "given. *initial*: the focal length the graph starts from (resection against "
+              "the calibrated cameras' triangulation, the fundamental matrix, or the "
+              "graph's own search for a camera alone with its mirrors).", ""]
+        L += table_rigs(data["rigs"])
+        L += [""]
+    if data.get("real_skipped"):
+        L += ["## 5. Real video: the Pose2Sim demo trials", "",
+              f"Not run: {data['real_skipped']}. The target on real trials (each camera's "
+              "focal length within 3 % of Qualisys') is therefore not measured here.", ""]
+    if data["real"]:
+        errs = [abs(r["f_rel_err"]) for r in data["real"] if "failed" not in r]
+        L += ["## 5. Real video: the Pose2Sim demo trials", "",
+              "BlazePose on the demo videos (`bench_real.py`'s path), `calibrate_rig` with one "
+              "camera's intrinsics removed (the other three from Qualisys), the subject's "
+              "stature as `bench_real.py` measures it; the focal length against Qualisys'. "
+              "The camera without intrinsics keeps its lens distortion in its keypoints (the "
+              "estimate is a pinhole's).", ""]
+        L += table_real(data["real"])
+        L += ["", f"Within 3 % of Qualisys: {sum(e <= 0.03 for e in errs)} of {len(errs)} "
+              f"(median error {_pct(_med(errs))} %).", ""]
+    if data.get("fixtures"):
+        L += ["## 6. The independent generator's scenes", "",
+              "The two scenes of `../shared/fixtures` (another generator: outliers, left/right "
+              "swaps, dropped detections; 1000 frames, 4 px), the subject's height given; "
+              "their principal points are off the image centre. *known*: the true "
+              "intrinsics; *focal*: the image size alone (the principal point assumed at the "
+              "centre); *true f, centred*: the true focal length with the principal point "
+              "at the centre, what the assumption alone costs; *focal and principal "
+              "point*: `--principal-point free`.", ""]
+        L += table_fixtures(data["fixtures"])
+        L += [""]
+    L += targets(data, s)
+    return "\n".join(L) + "\n"
+
+
+def targets(data: dict, s: dict) -> list[str]:
+    """The issue's targets, each against its measurement."""
+    det_rows = [r for r in data["scenes"] if r.get("focal", {}).get("determined")]
+    bound_ratio_det = _med([r["bound"]["rot_deg"] / r["bound_known_rot_deg"] for r in det_rows
+                            if "bound" in r and np.isfinite(r["bound"]["rot_deg"])])
+    ratios = ", ".join(f"{b['label'].split(' (')[0]} "
+                       f"{_f(_med(np.array(b['rot_deg']) / np.array(b['known_deg'])), '{:.1f}')}x"
+                       for b in data.get("bounds", []))
+    over = [r for r in det_rows if abs(r["focal"]["f_rel_err"]) > 2 * r["focal"]["f_std_rel"]]
+    f_ok = s["f_err_median_determined"] <= 0.02
+    d_ok = s["dist_err_median_focal_determined"] <= 0.03
+    L = ["## 7. The targets", "",
+         "| target | measured | met |", "|---|---|:---:|",
+         f"| median focal error <= 2 % | {_pct(s['f_err_median_determined'], 2)} % on the "
+         f"{s['determined']} of {s['scenes']} scenes that determine it; "
+         f"{_pct(s['f_err_median_all'], 2)} % over all (the guess where not) | "
+         f"{'yes' if f_ok else 'no'} |",
+         f"| mirror rotation within 1.5x of the known-intrinsics result | "
+         f"{_f(s['rot_ratio_median_determined'])}x (median ratio of the errors, determined "
+         f"scenes) | no |",
+         f"| metric distance within 3 % | {_pct(s['dist_err_median_focal_determined'])} % "
+         f"(determined), {_pct(s['dist_err_median_focal_all'])} % (all) | "
+         f"{'yes' if d_ok else 'no'} |",
+         "| each real camera's focal within 3 % of Qualisys' | " +
+         ("not measured: " + data["real_skipped"] if data.get("real_skipped") else
+          f"{sum(abs(r['f_rel_err']) <= 0.03 for r in data['real'] if 'failed' not in r)} of "
+          f"{len(data['real'])} cameras") + " | " +
+         ("–" if data.get("real_skipped") else
+          ("yes" if all("failed" not in r and abs(r["f_rel_err"]) <= 0.03
+                        for r in data["real"]) else "no")) + " |", "",
+         f"**The 1.5x rotation target is beyond what the data allow.** With the focal length "
+         f"unknown the mirror's Cramer-Rao bound is itself {_f(s['rot_bound_ratio_median'])}x "
+         f"the known-intrinsics bound (median over the end-to-end scenes; "
+         f"{_f(bound_ratio_det)}x over the determined ones; by slice in section 2: "
+         f"{ratios}): the focal length and the normal are estimated from the same joints, "
+         "and a focal error turns the normal (`n ~ K^-1 e`). No unbiased estimator reaches "
+         "1.5x; the graph's rotation error is "
+         f"{_f(s['rot_err_over_bound_focal'])}x its own bound (median, determined scenes).", "",
+         f"**The reported focal std is too small in the tail.** The median of |error| / std "
+         f"is {_f(s['f_err_over_std_median'])} (about 0.67 for an honest Gaussian std); "
+         f"{len(over)} of {len(det_rows)} determined scenes are beyond 2 std ("
+         + ", ".join(f"seed {r['seed']}: {100 * r['focal']['f_rel_err']:+.1f} % at std "
+                     f"{100 * r['focal']['f_std_rel']:.1f} %" for r in over)
+         + "). The rotation std inherits it.", ""]
+    fx = [r for r in data.get("fixtures", [])
+          if all("rot_err_deg" in r.get(k, {}) for k in ("known", "focal", "true f, centred",
+                                                          "focal and principal point"))]
+    if fx:
+        def each(fn):
+            return " and ".join(fn(r) for r in fx)
+        L += ["**A principal point off the centre is in no std.** On the independent "
+              f"generator's scenes (section 6; {each(lambda r: '%.0f' % np.hypot(*r['pp_offset_px']))} "
+              "px off) the assumption alone (the true focal length, the principal point at "
+              f"the centre) costs {each(lambda r: '%.2f' % r['true f, centred']['rot_err_deg'])} "
+              f"deg of rotation against {each(lambda r: '%.3f' % r['known']['rot_err_deg'])} "
+              "deg with the true intrinsics; with the focal length estimated too "
+              f"{each(lambda r: '%.2f' % r['focal']['rot_err_deg'])} deg (reported std "
+              f"{each(lambda r: '%.2f' % r['focal']['rot_std_deg'])}), the distance "
+              f"{each(lambda r: '%+.1f %%' % (100 * r['focal']['dist_rel_err']))}. Estimating "
+              "the principal point from people is no cure: "
+              f"{each(lambda r: '%.2f deg, distance %+.1f %%' % (r['focal and principal point']['rot_err_deg'], 100 * r['focal and principal point']['dist_rel_err']))}. "
+              "Where the distance is far off, the joints are: the hips triangulate "
+              f"{each(lambda r: '%.2f' % r['focal']['hip_width_m'])} m apart (median; "
+              f"{each(lambda r: '%.2f' % r['known']['hip_width_m'])} m with the true "
+              "intrinsics), and the stature measured on them sets the scale.", ""]
+    return L
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
