@@ -34,6 +34,7 @@ from pathlib import Path
 
 
 from ..errors import InputError
+from ..intrinsics import check_size
 from ..joint_sets import JOINT_SETS
 from ..skeletons import skeleton_by_name
 
@@ -208,8 +209,7 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
             if not (isinstance(size, list) and len(size) == 2):
                 raise InputError(f"expected [width, height], got {size!r}", source=path,
                                  field=f"{where}.image_size")
-            from ..intrinsics import _check_size
-            size = _check_size(size[0], size[1], path, f"{where}.image_size")
+            size = check_size(size[0], size[1], path, f"{where}.image_size")
             if intr is not None:
                 raise InputError("applies to a camera without intrinsics (the intrinsics file "
                                  "holds its size)", source=path, field=f"{where}.image_size")

@@ -370,7 +370,7 @@ def _focal_by_resection(X: np.ndarray, ok: np.ndarray, person: np.ndarray, dmask
     under :data:`MIN_CORRESPONDENCES` of them."""
     import cv2
 
-    from .relative import _golden
+    from .relative import golden_section_min
 
     m = ok & observed(person, dmask)
     if np.count_nonzero(m) < MIN_CORRESPONDENCES:
@@ -396,4 +396,4 @@ def _focal_by_resection(X: np.ndarray, ok: np.ndarray, person: np.ndarray, dmask
     if not np.isfinite(costs).any():
         return None
     i = int(np.argmin(costs))
-    return _golden(cost, fs[max(i - 1, 0)], fs[min(i + 1, len(fs) - 1)], iterations=25)
+    return golden_section_min(cost, fs[max(i - 1, 0)], fs[min(i + 1, len(fs) - 1)], iterations=25)

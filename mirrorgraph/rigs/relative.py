@@ -268,7 +268,7 @@ def focal_from_fundamental(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray,
         cost = [essential_defect(F, K_a, _with_focal(K_b, f)) for f in fs]
         i = int(np.argmin(cost))
         lo, hi = fs[max(i - 1, 0)], fs[min(i + 1, len(fs) - 1)]
-        fb = _golden(lambda f: essential_defect(F, K_a, _with_focal(K_b, f)), lo, hi)
+        fb = golden_section_min(lambda f: essential_defect(F, K_a, _with_focal(K_b, f)), lo, hi)
         return float(K_a[0, 0]), fb
     fa_grid, fb_grid = grid(K_a, 31), grid(K_b, 31)
     cost = np.array([[essential_defect(F, _with_focal(K_a, fa), _with_focal(K_b, fb))
@@ -277,7 +277,7 @@ def focal_from_fundamental(K_a: np.ndarray, K_b: np.ndarray, u_a: np.ndarray,
     return float(fa_grid[i]), float(fb_grid[j])
 
 
-def _golden(fn, lo: float, hi: float, iterations: int = 40) -> float:
+def golden_section_min(fn, lo: float, hi: float, iterations: int = 40) -> float:
     """Minimum of a unimodal ``fn`` on ``[lo, hi]`` (golden-section search)."""
     g = 0.5 * (np.sqrt(5.0) - 1.0)
     a, b = float(min(lo, hi)), float(max(lo, hi))
