@@ -130,3 +130,18 @@ def test_the_library_does_not_import_the_command_line():
                  if not is_cli(name) and name != "mirrorgraph.__main__"}
     offenders = {name: cli for name, cli in offenders.items() if cli}
     assert not offenders, f"library modules importing the command line: {offenders}"
+
+
+def test_no_module_takes_another_modules_private_names():
+    """A name with a leading underscore is its module's own: another module that needs it
+    needs it public (named, documented, tested as such)."""
+    offenders = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+                private = [a.name for a in node.names
+                           if a.name.startswith("_") and not a.name.startswith("__")]
+                if private and node.module != "_version":
+                    offenders.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} "
+                                     f"{'.' * node.level}{node.module or ''} {private}")
+    assert not offenders, "private names imported across modules: " + "; ".join(offenders)
