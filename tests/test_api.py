@@ -36,3 +36,28 @@ def test_the_notebook_imports_only_public_names():
     assert imports <= {"mirrorgraph", "mirrorgraph.synth"}, imports
     used = set(re.findall(r"\bmg\.(\w+)", code))
     assert used <= set(mg.__all__), used - set(mg.__all__)
+
+
+def test_the_two_front_ends_name_their_callbacks_alike(tmp_path):
+    """``progress`` gets the step names, ``iteration_progress`` (iteration, error), in
+    ``calibrate`` and ``calibrate_rig`` alike."""
+    import inspect
+
+    from mirrorgraph.synth import make_rig, make_scene, write_rig
+
+    one = inspect.signature(mg.calibrate).parameters
+    rig = inspect.signature(mg.calibrate_rig).parameters
+    for name in ("progress", "iteration_progress"):
+        assert str(one[name].annotation) == str(rig[name].annotation), name
+
+    calls: dict[str, list] = {"steps": [], "iterations": []}
+    scene = make_scene(frames=60, seed=1)
+    mg.calibrate(scene.detections, scene.intrinsics, progress=calls["steps"].append,
+                 iteration_progress=lambda i, e: calls["iterations"].append((i, e)))
+    path = write_rig(make_rig("2cams1mirror", frames=40, seed=0), tmp_path)
+    mg.calibrate_rig(path, progress=calls["steps"].append,
+                     iteration_progress=lambda i, e: calls["iterations"].append((i, e)))
+    assert calls["steps"] and all(isinstance(s, str) for s in calls["steps"])
+    assert any("refin" in s for s in calls["steps"])
+    assert calls["iterations"] and all(isinstance(i, int) and float(e) >= 0
+                                       for i, e in calls["iterations"])

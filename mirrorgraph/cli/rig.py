@@ -137,7 +137,8 @@ def cmd_calibrate_rig(args) -> int:
         calib = calibrate_rig(config, subject_height=args.subject_height,
                               skeleton=args.skeleton, joints=args.joints, seed=args.seed,
                               options=RefineOptions(scale_from=args.scale_from),
-                              status=status_and_bars, progress=solve, video=vopts,
+                              progress=status_and_bars, iteration_progress=solve,
+                              video=vopts,
                               frame_progress=frame_progress, estimate_focal=not args.no_focal)
         for b in bars.values():
             b.close()

@@ -79,8 +79,8 @@ def _poorly_fitting_views(sol: RigSolution) -> list[str]:
 def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: float | None = None,
                   skeleton: str | None = None, joints=None,
                   options: RefineOptions | None = None,
-                  seed: int = 0, status: Callable[[str], None] | None = None,
-                  progress: Callable[[int, float], None] | None = None,
+                  seed: int = 0, progress: Callable[[str], None] | None = None,
+                  iteration_progress: Callable[[int, float], None] | None = None,
                   video=None,
                   frame_progress: Callable[[str, int, int], None] | None = None,
                   estimate_focal: bool = True) -> RigCalibration:
@@ -97,8 +97,10 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
             MirrorCalib), ``"all"``, or joint names; overrides the file's ``joints``.
         options: weights and solver settings of the graph.
         seed: RANSAC seed.
-        status: called with a short description of each step.
-        progress: ``progress(iteration, error)`` of the graph solve.
+        progress: called with a short description of each step (as
+            :func:`mirrorgraph.calibrate`'s ``progress``).
+        iteration_progress: ``(iteration, error)`` of the graph solve, after every
+            iteration (as :func:`mirrorgraph.calibrate`'s).
         video: :class:`mirrorgraph.video.VideoOptions` for cameras whose
             ``keypoints`` name a video (detected, or read from the cache).
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
@@ -130,7 +132,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         raise InputError(height_problem(height), field="subject_height")
     scale = "subject_height" if height is not None else "unit_height"
     H = float(height) if height is not None else 1.0
-    say = status or (lambda s: None)
+    say = progress or (lambda s: None)
 
     obs = load_observations(cfg, skeleton=skeleton,
                             progress=lambda name: say(f"reading camera {name}"), video=video,
@@ -146,7 +148,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                             "deg (is it the same mirror in all of them?)")
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")
-    sol = solve_rig(rig, opts, H, progress=progress)
+    sol = solve_rig(rig, opts, H, progress=iteration_progress)
     sol = complete_joints(obs, sol, opts.outlier_threshold)
     if opts.scale_from == "stature":
         sol, scale_source, stature = _stature_scale(sol, obs.skeleton, H)
