@@ -66,7 +66,7 @@ def test_refinement_on_odd_inputs(case, height, prior, capfd):
 
 
 # =============================================================================== image size
-# Image sizes that disagree with the keypoints (pipeline.check_image_size):
+# Image sizes that disagree with the keypoints (preprocess.check_image_size):
 # * intrinsics whose image size cannot hold most of the keypoints (more than half of the
 #   detected joints outside the image enlarged by 10% on each side) are an InputError
 #   naming that size and the field image_size, as an impossible --image-size is: the

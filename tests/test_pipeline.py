@@ -137,7 +137,7 @@ def test_fps_default_is_reported_and_named_where_the_motion_is_written(tmp_path,
 def test_fps_from_a_video_and_disagreements(tmp_path):
     import cv2
     from dataclasses import replace
-    from mirrorgraph.pipeline import fps_from_video
+    from mirrorgraph.preprocess import fps_from_video
 
     video = tmp_path / "clip.avi"
     w = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48))

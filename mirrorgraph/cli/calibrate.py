@@ -17,7 +17,7 @@ from ..errors import InputError
 from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
-from ..pipeline import DEFAULT_FPS
+from ..preprocess import DEFAULT_FPS, DEFAULT_FPS_WARNING
 from ..progress import Progress
 from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
@@ -149,7 +149,6 @@ def cmd_calibrate(args) -> int:
         run = calibrate(data, intr, opts, **callbacks)
     calib = run.calibration
     if args.joints3d and run.fps_source == "default":
-        from ..pipeline import DEFAULT_FPS_WARNING
         calib.warnings.append(DEFAULT_FPS_WARNING)
     write_calibration_and_run(args.out, run)     # with the run its report draws from
     if args.joints3d:

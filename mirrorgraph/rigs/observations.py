@@ -55,7 +55,7 @@ from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
 from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
                        paired_people)
-from ..pipeline import check_image_size, undistort_keypoints
+from ..preprocess import check_image_size, undistort_keypoints
 from ..skeletons import Skeleton
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates, subject_track, track_motion, track_people
