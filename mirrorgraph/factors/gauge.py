@@ -52,18 +52,25 @@ class HeightPriorFactor:
     """Prior on the sum of the bone lengths implied by the subject's height.
 
     Args:
-        expected_sum: ``sum_k f_k H`` in metres.
+        expected_sum: ``sum_k w_k f_k H`` in metres (``w_k = 1`` without weights).
         rel_sigma: standard deviation relative to ``expected_sum`` (a gauge: tiny).
+        weights: ``(n,)`` weight of each length in the sum (default: all 1); see
+            :func:`mirrorgraph.graph.builder.gauge_weights` for why and where.
     """
 
-    def __init__(self, expected_sum: float, rel_sigma: float = 1e-6) -> None:
+    def __init__(self, expected_sum: float, rel_sigma: float = 1e-6,
+                 weights: np.ndarray | None = None) -> None:
         self.expected_sum = float(expected_sum)
         self.sigma = float(rel_sigma) * self.expected_sum
+        self.weights = None if weights is None else np.asarray(weights, dtype=float).reshape(-1)
 
     def evaluate(self, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual ``(1,)`` metres and its Jacobian ``(1, n)`` (all ones)."""
+        """Residual ``(1,)`` metres and its Jacobian ``(1, n)`` (the weights, else all ones)."""
         L = np.asarray(lengths, dtype=float).reshape(-1)
-        return np.array([L.sum() - self.expected_sum]), np.ones((1, len(L)))
+        if self.weights is None:
+            return np.array([L.sum() - self.expected_sum]), np.ones((1, len(L)))
+        return (np.array([float(self.weights @ L) - self.expected_sum]),
+                self.weights.reshape(1, -1).copy())
 
     def make(self, length_key: int) -> gtsam.CustomFactor:
         """The factor on the length vector."""

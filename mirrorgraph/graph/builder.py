@@ -382,18 +382,35 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
     gauge = gtsam.NonlinearFactorGraph()
     distance_gauge = None
     scale = "unit_distance"
+    # where the lengths are a variable of the graph (an estimated focal length) the
+    # gauge weighs each bone by its frames (gauge_weights)
+    weights = (gauge_weights(bone.rows, len(bone.names))
+               if calibration_keys and bone.lengths is not None else None)
     if priors and bone.lengths is not None:
         if options.subject_height is not None:
             expected = expected_bone_lengths(rig.skeleton, float(options.subject_height))
-            total = sum(expected[b] for b in bone.names)
+            reference = np.array([expected[b] for b in bone.names])
             scale = "subject_height"
+        elif weights is not None:       # the scale of the lengths this graph starts from
+            reference = np.asarray(bone.lengths, dtype=float)
+        else:
+            reference = None
+        if weights is not None:
+            total = float(weights @ reference)
+        elif reference is not None:
+            total = sum(float(x) for x in reference)
         else:
             total = float(length_sum if length_sum is not None else np.sum(bone.lengths))
-        hp = HeightPriorFactor(total)
+        hp = HeightPriorFactor(total, weights=weights)
         gauge.push_back(hp.make(LENGTH_KEY))
         info["length_sum_gauge"] = {"sigma": hp.sigma, "weight": 1.0 / hp.sigma ** 2,
                                     "unit": "length (sum of bone lengths)", "factors": 1,
                                     "sum": total}
+        if weights is not None:
+            info["length_sum_gauge"]["bone_weights"] = {
+                b: float(w) for b, w in zip(bone.names, weights)}
+            info["length_sum_gauge"]["unit"] = ("length (sum of bone lengths, each weighted "
+                                                "by its frames)")
         if scale == "subject_height":
             info["length_sum_gauge"].update(
                 height_m=float(options.subject_height),
@@ -410,7 +427,7 @@ def build_problem(rig: Rig, points: np.ndarray, used: np.ndarray,
         # dwarf every other term of the first error, and with it the solver's tolerances)
         length_key = LENGTH_KEY
         bone.lengths = np.asarray(bone.lengths, dtype=float) * (
-            info["length_sum_gauge"]["sum"] / float(np.sum(bone.lengths)))
+            info["length_sum_gauge"]["sum"] / float(weights @ np.asarray(bone.lengths, float)))
         values.insert(LENGTH_KEY, bone.lengths)
     return GraphProblem(rig=rig, used=used, flat_index=flat, plane_keys=plane_keys,
                         virtual_keys=virtual_keys, camera_keys=camera_keys,
@@ -578,6 +595,28 @@ def debiased_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
         if m > 0:
             out[b] = np.sqrt(m)
     return out
+
+
+def gauge_weights(rows: np.ndarray, num_bones: int) -> np.ndarray:
+    """``(B,)`` weight of each bone length in the gauge where the lengths are a variable
+    of the graph: its frames (rows of ``rows[:, 2]``), scaled to a mean of 1.
+
+    The gauge holds a sum of lengths, and every other length-valued term (a bone's
+    constancy, the smoothness) costs less in a smaller scene (:mod:`mirrorgraph.factors.
+    gauge`): a plain sum lets a bone that few frames measure carry it, stretched (its
+    joints moved along their lines of sight, cheap in a few frames) while the rest of
+    the body and the scene shrink. Without the anthropometric ratios, which tie every
+    length to the others (:attr:`~.options.FocalOptions.anthropometry` leaves them out
+    where a focal length is estimated), nothing else stops it: a hip width measured in
+    one frame of 960 was stretched to 12 times the shoulder width, the scene shrank 3.5
+    times, the stature measured on the distorted body put the mirror 30 % short
+    (issue #17). Weighted by its frames (the information of its mean length, as in
+    :func:`~.lengths.update_lengths`), a bone moves the gauge in proportion to what
+    holds it: the shrink a stretch buys is the same per frame whichever bone it is.
+    """
+    n = np.bincount(np.asarray(rows, dtype=np.int64)[:, 2], minlength=num_bones)
+    n = n[:num_bones].astype(float)
+    return n * (num_bones / n.sum()) if n.sum() > 0 else np.ones(num_bones)
 
 
 def _median_lengths(points: np.ndarray, pairs: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -694,10 +694,15 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     tri, tri_ok = triangulate_rig(problem.rig, final_masks, poses, planes)
     timings["triangulate"] += time.perf_counter() - t
 
-    # the bones the calibration left out: their length measured without the curvature bias
+    # the bones the calibration left out, or measured in too few frames to hold every
+    # frame of the joints pass to: their length measured without the curvature bias
     lengths = problem.bone_lengths()
     names, pairs = bone_table(problem.rig)
-    other = [i for i, b in enumerate(names) if b not in lengths]
+    frames = (dict(zip(problem.bone_names, np.bincount(problem.bone_rows[:, 2].astype(np.int64),
+                                                       minlength=len(problem.bone_names))))
+              if problem.lengths is not None else {})
+    other = [i for i, b in enumerate(names)
+             if b not in lengths or frames.get(b, 0) < THIN_BONE_FRAMES]
     if other and opts.use_bone_length:
         est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
                                     opts.pixel_sigma)
@@ -758,6 +763,15 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                       information=res.reduced_information, z_keys=z_keys, z_values=zv,
                       problem=problem, scores=scores, intrinsics=intrinsics,
                       intrinsics_cov=[C * factor for C in intr_cov], intrinsics_std=intr_std)
+
+
+#: A bone the calibration graph measured in fewer frames than this (its bone rule kept
+#: it there in a few frames only) gets, for the joints pass, the length its
+#: triangulations give in every frame without the curvature bias
+#: (:func:`~.builder.debiased_bone_lengths`, whose own minimum this is): a length from
+#: one frame held in every frame puts its error in all of them (a hip width measured
+#: in one frame of 960 was 30 % long, issue #17).
+THIN_BONE_FRAMES = 10
 
 
 def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,

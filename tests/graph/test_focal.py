@@ -18,15 +18,16 @@ import pytest
 import mirrorgraph as mg
 from mirrorgraph.factors import mirror_residuals
 from mirrorgraph.graph import RefineOptions
-from mirrorgraph.graph.builder import build_problem, camera_matrix
+from mirrorgraph.graph.builder import build_problem, camera_matrix, extract_planes
 from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_covariance
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.graph.refine import prepare
 from mirrorgraph.graph.solve import solve
-from mirrorgraph.graph.stages import single_mirror_config
+from mirrorgraph.graph.stages import optimize, single_mirror_config
 from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse
 from mirrorgraph.metrics import mirror_rotation_error_deg
 from mirrorgraph.synth import make_scene, make_wide_scene
+from mirrorgraph.synth.geometry import PRESETS
 
 
 @pytest.fixture(scope="module")
@@ -254,3 +255,33 @@ def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):
                             LMParams(), guard=lambda previous, candidate, delta: None)
     _, err, guarded = lm._try(prob.values, still)
     assert err == np.inf and guarded == 0
+
+
+def test_a_bone_measured_in_one_frame_does_not_carry_the_gauge():
+    # issue 17, the independent scene_901: a bone that the graph measures in one frame
+    # (there the hip width, let in by the bone rule in one frame of 960) carried the
+    # gauge, a plain sum of the length variables: stretched along its lines of sight
+    # it let the rest of the body and the scene shrink 3.5 times (every length-valued
+    # term costs less in a smaller scene), and the stature measured on that body put
+    # the mirror 30 % short. A fixture-like geometry (mirror 4.5-8 m, the person 1-2.5
+    # m in front of it), the right hip seen in one frame only, every bone kept
+    gp = PRESETS["gym"].replace(mirror_distance=(4.5, 8.0), person_to_mirror=(1.0, 2.5))
+    scene = make_scene(frames=200, seed=7, geometry=gp, noise_std=4.0)
+    p = scene.paired()
+    o = RefineOptions(robust_kernel=None, subject_height=scene.subject_height)
+    o = dataclasses.replace(o, focal=dataclasses.replace(o.focal, bone_bias_limit=None))
+    rig = prepare(p, scene.K, scene.normal, p.valid(), None, o, estimate_focal=True)
+    X, sk = scene.joints3d, rig.skeleton
+    used = rig.observation_count() >= 2
+    used[1:, sk.index("right_hip")] = False
+    prob = build_problem(rig, X, used, [(scene.normal, scene.distance)], o, final_kernel=None)
+    frames = dict(zip(prob.bone_names, np.bincount(prob.bone_rows[:, 2])))
+    assert prob.length_key is not None and frames["hip_width"] == 1
+    res, _ = optimize(prob, prob.full(), o, distance_gauge=prob.distance_gauge)
+    L = dict(zip(prob.bone_names, prob.lengths))
+    true = {b: float(np.median(np.linalg.norm(X[:, a] - X[:, c], axis=-1)))
+            for b, (a, c) in zip(sk.bone_names, sk.bone_index)}
+    _, d = extract_planes(prob, res.values)[0]
+    assert abs(d / scene.distance - 1) < 0.05                 # was 9.8 % short
+    assert abs(L["hip_width"] / true["hip_width"] - 1) < 0.10   # was 68 % long
+    assert abs(L["left_femur"] / true["left_femur"] - 1) < 0.05
