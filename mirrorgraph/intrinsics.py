@@ -455,7 +455,10 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
         ("" if camera is None else f"camera {camera}: ")
         + f"the focal length is not determined by the data (its estimate "
         f"{und.get('focal_px', float('nan')):.0f} px has a standard deviation of "
-        f"{100 * und.get('rel_std', float('nan')):.0f}%: too little change of the person's "
+        f"{100 * und.get('rel_std', float('nan')):.0f}%"
+        + (f" and a {und.get('fov_deg', float('nan')):.0f} deg field of view, at the end of "
+           "the cameras searched" if und.get("at_range_end") else "")
+        + ": too little change of the person's "
         "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
         f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "
         "and distance are approximate, their standard deviations assume the guess is right "

@@ -77,23 +77,38 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
             (default ``opts.focal.fallback_rel_std``).
 
     Returns:
-        camera index -> ``{"focal_px", "std_px", "rel_std"}`` (the estimate and its
-        standard deviation: the larger of the marginal and the time-robust figure)
-        where the relative std exceeds ``limit`` or is not finite.
+        camera index -> ``{"focal_px", "std_px", "rel_std", "fov_deg"}`` (the estimate,
+        its standard deviation: the larger of the marginal and the time-robust figure,
+        and its horizontal field of view) where the relative std exceeds ``limit`` or is
+        not finite, or where the estimate lies at an end of the plausible cameras
+        (within :data:`FOV_EDGE` of ``opts.focal.search_fov_deg``, or beyond): there the
+        bones ask for a lens no camera of that range has, which is no minimum of the
+        data's but their lack of one (seen on scenes with little depth change: a
+        "determined" 20 deg lens, 5x the true focal length, its std 16 %).
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
+    lo, hi = opts.focal.search_fov_deg
     out = {}
     for i, cam in enumerate(rig.cameras):
         if not cam.intrinsics_dim or i >= len(state.intrinsics_cov):
             continue
-        f = float(state.intrinsics[i][0, 0])
+        K = np.asarray(state.intrinsics[i], dtype=float)
+        f = float(K[0, 0])
         std = float(np.sqrt(max(state.intrinsics_cov[i][0, 0], 0.0)))
         if state.intrinsics_std and i < len(state.intrinsics_std):
             std = max(std, float(state.intrinsics_std[i][0]))
         rel = std / f if f > 0 else float("inf")
-        if not np.isfinite(rel) or rel > limit:
-            out[i] = {"focal_px": f, "std_px": std, "rel_std": rel}
+        fov = float(np.degrees(2.0 * np.arctan(float(K[0, 2]) / f))) if f > 0 else float("nan")
+        edge = not (lo * (1.0 + FOV_EDGE) < fov < hi / (1.0 + FOV_EDGE))
+        if not np.isfinite(rel) or rel > limit or edge:
+            out[i] = {"focal_px": f, "std_px": std, "rel_std": rel, "fov_deg": fov,
+                      "at_range_end": bool(edge)}
     return out
+
+
+#: An estimated focal length whose horizontal field of view is within this fraction of
+#: an end of ``FocalOptions.search_fov_deg`` (or beyond it) is not taken as determined.
+FOV_EDGE = 0.05
 
 
 def _hold_at_guess(camera):

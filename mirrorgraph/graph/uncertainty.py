@@ -458,7 +458,8 @@ def gauge_inverse(H: np.ndarray, gauge: np.ndarray | None) -> np.ndarray:
     ``Q (Q^T H Q)^-1 Q^T`` with ``Q`` an orthonormal basis of the directions orthogonal
     to ``gauge`` (``(n,)`` or ``(n, k)``; ``None``: no gauge): the covariance in which
     the gauge does not move. Quantities the gauge leaves unchanged (a normal, a
-    rotation) get their covariance whatever gauge is chosen.
+    rotation) get their covariance whatever gauge is chosen. Where ``Q^T H Q`` is
+    singular (a direction nothing observes) its pseudo-inverse.
     """
     n = H.shape[0]
     if gauge is None or np.size(gauge) == 0 or not np.any(gauge):
@@ -468,7 +469,14 @@ def gauge_inverse(H: np.ndarray, gauge: np.ndarray | None) -> np.ndarray:
         U, _, _ = np.linalg.svd(G, full_matrices=True)
         Q = U[:, G.shape[1]:]
     M = Q.T @ H @ Q
-    return Q @ np.linalg.inv(0.5 * (M + M.T)) @ Q.T
+    M = 0.5 * (M + M.T)
+    try:
+        return Q @ np.linalg.inv(M) @ Q.T
+    except np.linalg.LinAlgError:
+        # a direction no observation holds (a leave-one-out that removed every frame of
+        # a bone): the least-norm inverse, which does not move it and moves the rest as
+        # the remaining observations determine them
+        return Q @ np.linalg.pinv(M, hermitian=True) @ Q.T
 
 
 def leave_one_out(scores: JointScores, kind: str, segments: int | None = None
