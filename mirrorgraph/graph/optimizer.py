@@ -388,27 +388,47 @@ class LevenbergMarquardt:
         Undamped where GTSAM can; where a point's block is singular there (a point the
         last solve left nearly undetermined) the points alone are damped by the smallest
         ``lambda`` of ``1e-9, 1e-7, ...`` that lets the elimination through, which
-        changes the globals' information by that relative amount.
+        changes the globals' information by that relative amount. A point that no
+        damping up to ``1e-3`` makes definite (its block nearly singular against its
+        own scale, e.g. two rays nearly along one line) is held where it is by a
+        strong prior of its own, so that it adds nothing but its factors' pull on the
+        globals as a known point would (one point among thousands: what it over-counts
+        is negligible), up to :data:`MAX_PINNED` points.
 
         Raises:
-            DegenerateGeometryError: the globals' system itself is singular, or no
-                damping up to ``1e-3`` makes the points' blocks definite.
+            DegenerateGeometryError: the globals' system itself is singular, or more than
+                :data:`MAX_PINNED` points stay singular.
         """
         gfg = self.graph.linearize(values)
         lam = 0.0
+        pinned: list[int] = []
         while True:
             try:
                 _, Hz, gz, _ = self.step(gfg, values, lam)
                 return Hz, gz
             except RuntimeError as exc:
-                if indeterminate_key(exc) is None:
+                key = indeterminate_key(exc)
+                if key is None:
                     raise
                 lam = 1e-9 if lam == 0.0 else lam * 100.0
-                if lam > 1e-3:
+                if lam <= 1e-3:
+                    continue
+                if key in pinned or len(pinned) >= MAX_PINNED or not self._is_local(key):
                     raise DegenerateGeometryError(
                         "the solution's information could not be computed: "
                         + str(exc).splitlines()[1 if len(str(exc).splitlines()) > 1 else 0]
                         ) from None
+                pinned.append(key)
+                dim = len(values.zeroVectors().at(key))
+                held = gtsam.GaussianFactorGraph()
+                held.push_back(gfg)
+                held.push_back(gtsam.JacobianFactor(key, 1e6 * np.eye(dim), np.zeros(dim),
+                                                    gtsam.noiseModel.Unit.Create(dim)))
+                gfg, lam = held, 0.0
+
+    def _is_local(self, key: int) -> bool:
+        """Whether ``key`` is one of the eliminated (local) variables."""
+        return any(self.ordering.at(i) == key for i in range(self.ordering.size()))
 
     def predicted_decrease(self, gfg: gtsam.GaussianFactorGraph, delta: gtsam.VectorValues,
                            values: gtsam.Values) -> float:
@@ -524,6 +544,11 @@ class LevenbergMarquardt:
 
 
 _KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
+
+
+#: Points :meth:`LevenbergMarquardt.reduced_system` may hold by a prior of their own where
+#: no damping makes their block definite.
+MAX_PINNED = 20
 
 
 def indeterminate_key(exc: BaseException) -> int | None:

@@ -459,8 +459,9 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
     ``opts.focal.search_frames`` frames spread over the video, every bone in every
     frame: one set of factors for all, so that their errors compare; the focal length
     held) is solved for a few iterations, and the errors are the profile of the
-    objective over ``f``; a parabola in ``log f`` through the best and its neighbours
-    gives the start. With every bone the profile's minimum is biased where the bones
+    objective over ``f`` (each observation a candidate's cleaning rejected counted at the
+    rejection threshold's cost, so that every candidate is judged on the same data); a
+    parabola in ``log f`` through the best and its neighbours gives the start. With every bone the profile's minimum is biased where the bones
     are measured with a curvature bias; the graph's estimate that follows keeps
     the bones of ``opts.focal.bone_bias_limit``.
 
@@ -483,7 +484,7 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
     sopts = replace(opts, bone_bias_limit=None, focal=replace(opts.focal, bone_bias_limit=None),
                     use_bone_length=True)
 
-    def profile(f: float) -> float:
+    def profile(f: float) -> tuple[float, int]:
         K = K0.copy()
         K[0, 0] = K[1, 1] = f
         frig = with_intrinsics(sub, [K])
@@ -491,8 +492,9 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
         pts, fm, _, _ = clean_views(frig, sub_masks, poses, fplanes, sopts, config,
                                     opts.warm_start_min_parallax_deg)
         used = seen_twice(fm) & np.isfinite(pts).all(-1)
+        kept = int(sum(np.count_nonzero(np.asarray(m, bool) & used) for m in fm))
         if np.count_nonzero(used) < MIN_PAIRS:
-            return np.inf
+            return np.inf, kept
         fposes = [np.asarray(p, float).copy() for p in poses]
         if height is not None:
             scale = gauge_scale(frig, pts, used, float(height))
@@ -508,11 +510,17 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
                               distance_gauge=problem.distance_gauge,
                               max_iterations=FOCAL_SEARCH_ITERATIONS)
         except DegenerateGeometryError:
-            return np.inf
-        return float(res.final_error)
+            return np.inf, kept
+        return float(res.final_error), kept
 
     fs = focal_candidates(K0, opts)
-    errors = np.array([profile(f) for f in fs])
+    runs = [profile(f) for f in fs]
+    # a candidate is judged on every observation: one its cleaning rejected costs what an
+    # observation at the rejection threshold would (a wrong focal length that rejects a
+    # third of the pairs must not win by the error it no longer counts)
+    kept = np.array([k for _, k in runs], dtype=float)
+    cap = 0.5 * (opts.outlier_threshold / opts.pixel_sigma) ** 2
+    errors = np.array([e for e, _ in runs]) + cap * (kept.max() - kept)
     best = int(np.argmin(errors))
     f = float(fs[best])
     if 0 < best < len(fs) - 1 and np.all(np.isfinite(errors[best - 1:best + 2])):
@@ -529,7 +537,8 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
               "final_error": float(errors[best]), "converged": True, "rejected": 0,
               "failed_steps": 0, "guarded": 0, "undetermined": 0,
               "candidates_px": [float(x) for x in fs],
-              "errors": [float(x) for x in errors], "focal_px": f,
+              "errors": [float(x) for x in errors], "kept": [int(k) for k in kept],
+              "focal_px": f,
               "initial_focal_px": float(K0[0, 0])}
     return with_intrinsics(rig, [K]), new_planes, record
 
