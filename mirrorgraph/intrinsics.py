@@ -458,6 +458,9 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
         f"{100 * und.get('rel_std', float('nan')):.0f}%"
         + (f" and a {und.get('fov_deg', float('nan')):.0f} deg field of view, at the end of "
            "the cameras searched" if und.get("at_range_end") else "")
+        + (f"; a joint's two rays meet at a median {und.get('parallax_deg', float('nan')):.0f} "
+           "deg, where the bones that determine it are measured with a bias"
+           if und.get("low_parallax") else "")
         + ": too little change of the person's "
         "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
         f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "

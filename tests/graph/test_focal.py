@@ -326,7 +326,7 @@ def test_an_estimate_at_the_end_of_the_plausible_lenses_is_not_determined():
         f = 960.0 / np.tan(np.radians(fov_deg) / 2)
         K = np.array([[f, 0, 960.0], [0, f, 540.0], [0, 0, 1]])
         return SimpleNamespace(intrinsics=[K], intrinsics_cov=[np.array([[(rel_std * f) ** 2]])],
-                               intrinsics_std=None)
+                               intrinsics_std=None, points=None, view_masks=[])
 
     assert undetermined_focal(state(60.0, 0.02), rig, opts) == {}
     edge = undetermined_focal(state(lo * 1.01, 0.02), rig, opts)[0]
@@ -348,3 +348,15 @@ def test_the_focal_search_judges_every_candidate_on_the_same_data():
     assert abs(cal.intrinsics.K[0, 0] / sc.K[0, 0] - 1) < 0.05
     assert mirror_rotation_error_deg(cal.normal, sc.normal) < 2.0
     assert abs(cal.distance / sc.distance - 1) < 0.06
+
+
+def test_rays_meeting_at_small_angles_leave_the_focal_undetermined():
+    """The person near the line from the camera to the mirror: the bones that determine the
+    focal length are measured with a curvature bias its std does not hold (this scene:
+    -41 % at a reported 4 %). The guess is kept and the warning names the parallax."""
+    sc = make_wide_scene(119, "low_parallax", "iid", 600)
+    run = mg.calibrate(sc.detections, options=mg.CalibrateOptions(
+        image_size=sc.image_size, subject_height=sc.subject_height))
+    cal = run.calibration
+    assert not cal.intrinsics.estimated["estimated"] and cal.intrinsics.approximate
+    assert any("rays meet at a median" in w for w in cal.warnings)
