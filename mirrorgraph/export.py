@@ -98,6 +98,7 @@ from .skeletons import Skeleton, skeleton_by_name
 
 __all__ = ["FORMATS", "WORLD_FRAMES", "camera_sections", "export_calibration",
            "export_cameras", "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints",
+           "flipped_mirror_camera",
            "world_rotation"]
 
 #: Export formats: ``--to`` values and the camera-file style each writes.
@@ -179,6 +180,33 @@ def flip_distortion(dist: np.ndarray | None) -> np.ndarray:
         if i < d.size:
             d[i] = -d[i]
     return d
+
+
+def flipped_mirror_camera(key: str, name: str, K: np.ndarray, dist: np.ndarray | None,
+                          size: tuple[int, int], R: np.ndarray, t: np.ndarray) -> TomlCamera:
+    """The camera file's section of a mirror's virtual camera, in the flipped image.
+
+    The one construction of :func:`export_cameras` (one camera and its mirror) and of
+    :func:`mirrorgraph.io.rig_calibration.rig_toml_cameras` (every camera and mirror of a
+    rig): the virtual camera of the horizontally flipped image (a proper rotation, see
+    the module docstring), ``K' = F K D`` (:func:`flip_camera_matrix`) and the flipped
+    distortion (:func:`flip_distortion`).
+
+    Args:
+        key, name: the section's key and ``name``.
+        K: ``(3, 3)`` the real camera's matrix; dist: its OpenCV coefficients or ``None``.
+        size: ``(W, H)`` px (``W`` fixes the flip).
+        R, t: ``(3, 3)``, ``(3,)``: world -> virtual camera of the flipped image.
+
+    Returns:
+        The :class:`~mirrorgraph.io.camera_toml.TomlCamera` (4 zero coefficients for
+        a lens without distortion).
+    """
+    d = flip_distortion(dist)
+    return TomlCamera(key=key, name=name, matrix=flip_camera_matrix(K, size[0]),
+                      distortions=d if d.size else np.zeros(4), size=size,
+                      rotation=rotation_to_rodrigues(np.asarray(R, float)),
+                      translation=np.asarray(t, float).copy())
 
 
 def flip_mirror_keypoints(keypoints: np.ndarray, image_width: float,
@@ -274,11 +302,8 @@ def _export(calibration, fmt, world, image_size):
     real = TomlCamera(key=k_real, name=name_real, matrix=intr.K.copy(),
                       distortions=_style_distortion(real_dist, style, warnings), size=size,
                       rotation=rotation_to_rodrigues(At), translation=np.zeros(3))
-    mirror = TomlCamera(key=k_mirror, name=name_mirror,
-                        matrix=flip_camera_matrix(intr.K, size[0]),
-                        distortions=_style_distortion(flip_distortion(dist), style, []),
-                        size=size, rotation=rotation_to_rodrigues(R_v @ At),
-                        translation=np.asarray(t_v, float).copy())
+    mirror = flipped_mirror_camera(k_mirror, name_mirror, intr.K, dist, size, R_v @ At, t_v)
+    mirror.distortions = _style_distortion(flip_distortion(dist), style, [])
     return [real, mirror], warnings, style, d, source
 
 

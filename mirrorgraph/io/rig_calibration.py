@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 
-from ..export import flip_camera_matrix, flip_distortion
+from ..export import flipped_mirror_camera
 from ..rigs.result import RigCalibration, virtual_extrinsics
 from .calibration import write_json
 from .camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
@@ -48,14 +48,10 @@ def rig_toml_cameras(calib: RigCalibration, *, with_virtual: bool = False) -> li
         for m in calib.mirrors:
             for cname in m.seen_by:
                 c = calib.camera(cname)
-                W, _ = c.intrinsics.image_size
                 R, t = virtual_extrinsics(c.pose, m.normal, m.distance)
-                dist = flip_distortion(c.intrinsics.dist)
-                out.append(TomlCamera(key=f"{c.name}_{m.name}", name=f"{c.name}_{m.name}",
-                                      matrix=flip_camera_matrix(c.intrinsics.K, W),
-                                      distortions=dist if dist.size else np.zeros(4),
-                                      size=c.intrinsics.image_size,
-                                      rotation=rotation_to_rodrigues(R), translation=t))
+                out.append(flipped_mirror_camera(f"{c.name}_{m.name}", f"{c.name}_{m.name}",
+                                                 c.intrinsics.K, c.intrinsics.dist,
+                                                 c.intrinsics.image_size, R, t))
     return out
 
 
