@@ -459,9 +459,9 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
     ``opts.focal.search_frames`` frames spread over the video, every bone in every
     frame: one set of factors for all, so that their errors compare; the focal length
     held) is solved for a few iterations, and the errors are the profile of the
-    objective over ``f`` (each observation a candidate's cleaning rejected counted at the
-    rejection threshold's cost, so that every candidate is judged on the same data); a
-    parabola in ``log f`` through the best and its neighbours gives the start. With every bone the profile's minimum is biased where the bones
+    objective over ``f`` (among the candidates that keep nearly all the observations, so
+    that the errors compare); a parabola in ``log f`` through the best and its neighbours
+    gives the start. With every bone the profile's minimum is biased where the bones
     are measured with a curvature bias; the graph's estimate that follows keeps
     the bones of ``opts.focal.bone_bias_limit``.
 
@@ -515,12 +515,13 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
 
     fs = focal_candidates(K0, opts)
     runs = [profile(f) for f in fs]
-    # a candidate is judged on every observation: one its cleaning rejected costs what an
-    # observation at the rejection threshold would (a wrong focal length that rejects a
-    # third of the pairs must not win by the error it no longer counts)
+    # the errors compare only on the same data: a candidate whose cleaning rejected more
+    # than FOCAL_SEARCH_MIN_KEPT of the observations the best-kept one has is out (a
+    # wrong focal length that rejects two thirds of the pairs must not win by the error
+    # it no longer counts)
     kept = np.array([k for _, k in runs], dtype=float)
-    cap = 0.5 * (opts.outlier_threshold / opts.pixel_sigma) ** 2
-    errors = np.array([e for e, _ in runs]) + cap * (kept.max() - kept)
+    errors = np.array([e for e, _ in runs])
+    errors[kept < FOCAL_SEARCH_MIN_KEPT * kept.max()] = np.inf
     best = int(np.argmin(errors))
     f = float(fs[best])
     if 0 < best < len(fs) - 1 and np.all(np.isfinite(errors[best - 1:best + 2])):
@@ -545,6 +546,10 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
 
 #: Iterations of each candidate's solve in :func:`focal_search`.
 FOCAL_SEARCH_ITERATIONS = 3
+
+#: A candidate of :func:`focal_search` whose cleaning kept fewer than this fraction of the
+#: observations the best-kept candidate kept is not compared.
+FOCAL_SEARCH_MIN_KEPT = 0.9
 
 
 def _normal_from_epipole(K: np.ndarray, e: np.ndarray, like: np.ndarray) -> np.ndarray:
