@@ -35,6 +35,7 @@ import numpy as np
 
 from .errors import InputError
 from .io._common import MAX_IMAGE_SIDE, json_type, load_json, numeric_array
+from .io.camera_toml import read_camera_toml, select_camera
 
 #: Horizontal field of view assumed when no intrinsics are given, degrees. A
 #: typical webcam or phone main camera has a horizontal FOV of 55-70 degrees.
@@ -193,8 +194,6 @@ def load_intrinsics(path: str | os.PathLike, camera: str | int | None = None) ->
 
 
 def _load_toml(path: Path, camera: str | int | None) -> Intrinsics:
-    from .io.camera_toml import read_camera_toml, select_camera
-
     cam = select_camera(read_camera_toml(path), camera, source=path)
     if cam.fisheye:
         raise InputError("fisheye = true: the OpenCV fisheye lens model is not supported "

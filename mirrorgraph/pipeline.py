@@ -20,11 +20,15 @@ import numpy as np
 from . import geometry as geo
 from .anthropometry import height_problem
 from .calibration import Calibration
+from .completion import complete_mirror_joints
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
 from .graph.options import RefineOptions
+from .graph.refine import refine_mirror
+from .graph.sensitivity import prior_weights
 from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
 from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, estimated_intrinsics, intrinsics_from_fov
+from .io import read_keypoints
 from .joint_sets import mirror_joints
 from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
 from .pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
@@ -207,7 +211,6 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         raise InputError(height_problem(opts.subject_height), field="subject_height")
     step = progress or (lambda _name: None)
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
-        from .io import read_keypoints
         step("reading keypoints")
         keypoints = read_keypoints(keypoints)
     warnings: list[str] = []
@@ -315,8 +318,6 @@ def _subject_height(opts: CalibrateOptions) -> float | None:
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None,
             estimate_focal: bool = False) -> None:
-    from .graph import refine_mirror
-
     ropts = opts.refine_options or RefineOptions()
     if opts.subject_height is not None:
         ropts = replace(ropts, subject_height=opts.subject_height)
@@ -353,8 +354,6 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     run.refine_parts = parts
     calib.sensitivity = dict(res.sensitivity or {})
     if opts.sensitivity_priors and calib.sensitivity:
-        from .graph.sensitivity import prior_weights
-
         def again(o):
             return refine_mirror(run.paired, guess.K, calib.initial_normal, pairs,
                                  joints=run.joints, options=o, estimate_focal=estimate_focal)
@@ -387,8 +386,6 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
     if opts.complete_joints:
-        from .completion import complete_mirror_joints
-
         clock = time.perf_counter()
         done = complete_mirror_joints(run.paired, calib.intrinsics.K, calib.normal,
                                       float(res.distance), res.joints3d, res.valid,

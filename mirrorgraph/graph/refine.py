@@ -28,11 +28,12 @@ from .options import RefineOptions
 from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .rig import Camera, Rig, single_mirror_rig
-from .solve import solve
 from .sensitivity import sensitivity_report
-from .uncertainty import robust_normal_cov
+from .solve import solve
 from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
                      triangulate_rig, with_intrinsics)
+from .stature_scale import LIMB_CHOSEN, scale_by_stature
+from .uncertainty import robust_normal_cov
 
 __all__ = ["refine_mirror", "RefineOptions", "RefinementResult", "rotation_std_from_normal_cov",
            "MIN_PAIRS"]
@@ -79,7 +80,6 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     if estimate_focal:
         res.focal = focal_record(state, guess, options=opts)
     if res.scale == "subject_height":
-        from .stature_scale import LIMB_CHOSEN, scale_by_stature
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
     return res

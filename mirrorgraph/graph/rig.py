@@ -14,7 +14,7 @@ pixels are undistorted, origin top-left.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -148,7 +148,6 @@ class Rig:
 
     def subset(self, rows) -> "Rig":
         """The same rig restricted to frame rows ``rows`` (slice, indices or bool mask)."""
-        from dataclasses import replace
         views = tuple(replace(v, pixels=np.asarray(v.pixels)[rows], mask=np.asarray(v.mask)[rows])
                       for v in self.views)
         return replace(self, views=views, frame_ids=np.asarray(self.frame_ids)[rows])

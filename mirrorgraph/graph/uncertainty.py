@@ -52,9 +52,11 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
+from scipy.special import chdtri, fdtri
 
 from .builder import GraphProblem, point_keys
 from .reduction import mirror_reduction
+from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 
 #: A camera or mirror whose rotation std (the robust figure) exceeds this many degrees
 #: is reported as poorly determined (a mirror seen almost edge-on or square-on, too few
@@ -638,8 +640,6 @@ def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarr
         largest rotation error ``rotation_90_deg`` (twice the normal's largest angle in
         the region, deg).
     """
-    from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
-
     sw = sandwich(scores)
     covs = {"marginal": np.asarray(marginal, dtype=float),
             "time": normal_cov_from_tangent(basis, sw["cov_time"][:2, :2]),
@@ -690,10 +690,6 @@ def region_threshold(dim: int, clusters: int | None, level: float = REGION_LEVEL
     Returns:
         the threshold ``c``: the region is ``delta^T Sigma^-1 delta <= c``.
     """
-    # scipy.special's inverse distributions, not scipy.stats': importing scipy.stats
-    # costs ~0.6 s, a third of a calibration's CPU time in a fresh process
-    from scipy.special import chdtri, fdtri
-
     if clusters is None or clusters <= dim:
         return float(chdtri(dim, 1.0 - level))
     G = int(clusters)

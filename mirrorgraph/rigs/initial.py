@@ -24,14 +24,20 @@ chained: that is a :class:`~mirrorgraph.errors.DegenerateGeometryError` naming i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
+import cv2
 import numpy as np
 
 from ..errors import DegenerateGeometryError
+from ..geometry import camera_projection, triangulate
+from ..graph.options import RefineOptions
+from ..graph.rig import Camera, Mirror, Rig, View
+from ..graph.stages import focal_search, single_mirror_config
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .observations import RigObservations
-from .relative import MIN_CORRESPONDENCES, MirrorSighting, RelativePose, mirror_sighting, relative_pose
+from .relative import (MIN_CORRESPONDENCES, MirrorSighting, RelativePose, focal_from_fundamental,
+                       golden_section_min, mirror_sighting, relative_pose)
 
 __all__ = ["InitialRig", "initialise_rig", "initial_focals", "observed", "joint_masks",
            "MIN_CONFIDENCE"]
@@ -262,9 +268,6 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
     Returns:
         camera name -> ``{"focal_px", "method"}`` for the cameras it could start.
     """
-    from ..geometry import triangulate, camera_projection
-    from .relative import focal_from_fundamental
-
     sk = obs.skeleton
     _, mmask = joint_masks(sk, None if joints is None else tuple(
         np.flatnonzero(j) if np.asarray(j).dtype == bool else j for j in joints))
@@ -325,13 +328,6 @@ def _focal_through_mirrors(obs: RigObservations, u: int, height: float, seed: in
                            dmask: np.ndarray, mmask: np.ndarray) -> float | None:
     """The focal search of one camera with its mirrors (the rig of that camera alone);
     ``None`` where a mirror cannot be estimated or the search fails."""
-    from dataclasses import replace
-
-    from ..errors import DegenerateGeometryError as Degenerate
-    from ..graph.options import RefineOptions
-    from ..graph.rig import Camera, Mirror, Rig, View
-    from ..graph.stages import focal_search, single_mirror_config
-
     cam = obs.cameras[u]
     sk = obs.skeleton
     K = np.asarray(cam.intrinsics.K, float)
@@ -342,7 +338,7 @@ def _focal_through_mirrors(obs: RigObservations, u: int, height: float, seed: in
         try:
             s = mirror_sighting(K, cam.real[..., :2], refl[..., :2], mask, sk,
                                 np.flatnonzero(mmask), height, seed=seed, name=f"{cam.name}/{m}")
-        except Degenerate:
+        except DegenerateGeometryError:
             return None
         mirrors.append(Mirror(m, s.normal, s.distance))
         planes.append((s.normal, s.distance))
@@ -355,7 +351,7 @@ def _focal_through_mirrors(obs: RigObservations, u: int, height: float, seed: in
         rig2, _, record = focal_search(rig, [v.mask for v in views], [np.eye(4)], planes, opts,
                                        replace(single_mirror_config(opts), first_rejection=False),
                                        None)
-    except Degenerate:
+    except DegenerateGeometryError:
         return None
     f = float(record["focal_px"])
     fs = record["candidates_px"]
@@ -368,10 +364,6 @@ def _focal_by_resection(X: np.ndarray, ok: np.ndarray, person: np.ndarray, dmask
     """The focal length (px) whose PnP pose reprojects the 3D joints ``X`` ``(T, J, 3)``
     (``ok``: ``(T, J)``) best onto this camera's ``person`` ``(T, J, 3)``; ``None`` with
     under :data:`MIN_CORRESPONDENCES` of them."""
-    import cv2
-
-    from .relative import golden_section_min
-
     m = ok & observed(person, dmask)
     if np.count_nonzero(m) < MIN_CORRESPONDENCES:
         return None
