@@ -303,7 +303,7 @@ def _export(calibration, fmt, world, image_size):
                       distortions=_style_distortion(real_dist, style, warnings), size=size,
                       rotation=rotation_to_rodrigues(At), translation=np.zeros(3))
     mirror = flipped_mirror_camera(k_mirror, name_mirror, intr.K, dist, size, R_v @ At, t_v)
-    mirror.distortions = _style_distortion(flip_distortion(dist), style, [])
+    mirror.distortions = _style_distortion(mirror.distortions, style, [])
     return [real, mirror], warnings, style, d, source
 
 

@@ -18,12 +18,11 @@ from typing import Callable
 import numpy as np
 
 from . import geometry as geo
-from .anthropometry import height_problem
 from .calibration import Calibration
 from .completion import complete_mirror_joints
 from .errors import DegenerateGeometryError, InputError
 from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
-from .graph.options import RefineOptions
+from .graph.options import RefineOptions, one_subject_height
 from .graph.refine import refine_mirror
 from .graph.sensitivity import prior_weights
 from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
@@ -206,9 +205,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                          f"{', '.join(ESTIMATORS)}", field="estimator")
     if isinstance(opts.seed, bool) or not isinstance(opts.seed, (int, np.integer)) or opts.seed < 0:
         raise InputError(f"must be a non-negative integer, got {opts.seed!r}", field="seed")
-    opts = replace(opts, subject_height=_subject_height(opts))
-    if opts.subject_height is not None and height_problem(opts.subject_height):
-        raise InputError(height_problem(opts.subject_height), field="subject_height")
+    opts = replace(opts, subject_height=one_subject_height(opts.subject_height,
+                                                           opts.refine_options, "refine_options"))
     step = progress or (lambda _name: None)
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
         step("reading keypoints")
@@ -302,17 +300,6 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
 def _scale_from(opts: CalibrateOptions) -> str:
     """How a subject height becomes a length (``RefineOptions.scale_from``)."""
     return (opts.refine_options or RefineOptions()).scale_from
-
-
-def _subject_height(opts: CalibrateOptions) -> float | None:
-    """The one subject height of a run: ``opts.subject_height``, else the refinement's."""
-    inner = opts.refine_options.subject_height if opts.refine_options is not None else None
-    if opts.subject_height is None:
-        return inner
-    if inner is not None and float(inner) != float(opts.subject_height):
-        raise InputError(f"{opts.subject_height!r} differs from refine_options.subject_height "
-                         f"{inner!r}: give the height once", field="subject_height")
-    return opts.subject_height
 
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,

@@ -60,6 +60,7 @@ import math
 from dataclasses import dataclass, fields
 from typing import Literal, get_args
 
+from ..anthropometry import height_problem
 from ..errors import InputError
 
 #: Robust kernels of the reprojection factors (:func:`mirrorgraph.factors.reprojection.robust_pixel_noise`).
@@ -70,7 +71,7 @@ KERNELS: tuple[str, ...] = get_args(Kernel)
 ScaleFrom = Literal["stature", "limbs"]
 SCALE_FROM: tuple[str, ...] = get_args(ScaleFrom)
 
-__all__ = ["GaugeOptions", "KERNELS", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
+__all__ = ["GaugeOptions", "KERNELS", "one_subject_height", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
            "FocalOptions", "ScaleFrom", "ScheduleOptions", "SolverOptions"]
 
 
@@ -448,3 +449,36 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
     def gauge(self) -> GaugeOptions:
         """The gauge's settings."""
         return self._group("gauge")
+
+
+def one_subject_height(given: float | None, options: GaugeOptions | None, where: str, *,
+                       default: float | None = None) -> float | None:
+    """The one subject height of a run whose front end takes it in two places.
+
+    :func:`mirrorgraph.calibrate` takes ``CalibrateOptions.subject_height`` and
+    :func:`mirrorgraph.calibrate_rig` its ``subject_height`` argument, beside the
+    ``subject_height`` of the :class:`RefineOptions` they are given: either is taken,
+    two different ones are refused, none is ignored.
+
+    Args:
+        given: the front end's own height, metres, or ``None``.
+        options: the refinement's options (``None``: the defaults).
+        where: how the front end names ``options`` in the message
+            (``"refine_options"``, ``"options"``).
+        default: the height where neither gives one (a rig file's), or ``None``.
+
+    Returns:
+        The height in metres, or ``None`` (no metric scale).
+
+    Raises:
+        InputError: two different heights, or one that is no human height
+            (:func:`mirrorgraph.anthropometry.height_problem`), field ``subject_height``.
+    """
+    inner = None if options is None else options.subject_height
+    if given is not None and inner is not None and float(given) != float(inner):
+        raise InputError(f"{given!r} differs from {where}.subject_height {inner!r}: give the "
+                         "height once", field="subject_height")
+    height = next((h for h in (given, inner, default) if h is not None), None)
+    if height is not None and height_problem(height):
+        raise InputError(height_problem(height), field="subject_height")
+    return height

@@ -90,6 +90,7 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     lo, hi = opts.focal.search_fov_deg
+    angles = None                                       # (T, J) ray angles, once
     out = {}
     for i, cam in enumerate(rig.cameras):
         if not cam.intrinsics_dim or i >= len(state.intrinsics_cov):
@@ -102,7 +103,9 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         rel = std / f if f > 0 else float("inf")
         fov = float(np.degrees(2.0 * np.arctan(float(K[0, 2]) / f))) if f > 0 else float("nan")
         edge = not (lo * (1.0 + FOV_EDGE) < fov < hi / (1.0 + FOV_EDGE))
-        rays = _median_parallax(state, rig, i)
+        if angles is None and state.points is not None and len(state.view_masks):
+            angles = parallax_deg(rig, state.points, state.view_masks, state.poses, state.planes)
+        rays = _median_parallax(state, rig, i, angles)
         narrow = bool(rays < FOCAL_MIN_PARALLAX_DEG)
         if not np.isfinite(rel) or rel > limit or edge or narrow:
             out[i] = {"focal_px": f, "std_px": std, "rel_std": rel, "fov_deg": fov,
@@ -111,11 +114,12 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
     return out
 
 
-def _median_parallax(state: SolveState, rig: Rig, camera: int) -> float:
-    """Median angle between the two rays of the joints camera ``camera`` sees, degrees."""
-    if state.points is None or not len(state.view_masks):
+def _median_parallax(state: SolveState, rig: Rig, camera: int, ang: np.ndarray | None
+                     ) -> float:
+    """Median angle between the two rays of the joints camera ``camera`` sees, degrees,
+    of the ``(T, J)`` angles ``ang`` (:func:`~.stages.parallax_deg`; ``None``: nan)."""
+    if ang is None:
         return float("nan")
-    ang = parallax_deg(rig, state.points, state.view_masks, state.poses, state.planes)
     mine = np.zeros_like(state.used)
     name = rig.cameras[camera].name
     for v, m in zip(rig.views, state.view_masks):

@@ -17,9 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..anthropometry import height_problem
-from ..errors import InputError
-from ..graph.options import RefineOptions
+from ..graph.options import RefineOptions, one_subject_height
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
 from ..skeletons import Skeleton
@@ -122,14 +120,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     """
     cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
     opts = options or RefineOptions()
-    given = [h for h in (subject_height, opts.subject_height) if h is not None]
-    if len(given) == 2 and float(given[0]) != float(given[1]):
-        raise InputError(f"subject_height {subject_height!r} differs from "
-                         f"options.subject_height {opts.subject_height!r}: give the height once",
-                         field="subject_height")
-    height = given[0] if given else cfg.subject_height
-    if height is not None and height_problem(height):
-        raise InputError(height_problem(height), field="subject_height")
+    height = one_subject_height(subject_height, opts, "options", default=cfg.subject_height)
     scale = "subject_height" if height is not None else "unit_height"
     H = float(height) if height is not None else 1.0
     say = progress or (lambda s: None)
