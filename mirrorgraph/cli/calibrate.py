@@ -75,7 +75,8 @@ def add_parsers(sub) -> None:
                         "(calibration.json's sensitivity.prior_weights; eight calibrations more)")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
-                        "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
+                        "mask, .csv, or in metres (needs --subject-height) OpenSim .trc, C3D "
+                        ".c3d or BVH .bvh")
     p.add_argument("--fps", type=positive, default=None,
                    help="frame rate of the 3D motion (default: the input's, else --video's, "
                         f"else {DEFAULT_FPS:g} with a warning)")
@@ -96,7 +97,7 @@ def add_parsers(sub) -> None:
 def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
-    from ..io.motion import write_joints3d
+    from ..io.motion import check_motion_path, write_joints3d
     from ..pipeline import calibrate
     from ..report.store import write_calibration_and_run
 
@@ -115,11 +116,8 @@ def cmd_calibrate(args) -> int:
         raise InputError("must end in .mp4", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
-    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
-        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
-                         field="--joints3d")
-    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" and not args.subject_height:
-        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=bool(args.subject_height))
     if args.sensitivity and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:

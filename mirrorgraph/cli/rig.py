@@ -51,7 +51,8 @@ def add_parsers(sub) -> None:
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
                         "or comma-separated names; overrides the rig file's joints")
     p.add_argument("--joints3d", metavar="FILE",
-                   help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
+                   help="write the 3D joints (world frame): .npz, .csv, or in metres (needs a "
+                        "subject height) .trc, .c3d or .bvh")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (top view of the rig, residuals per view) into DIR "
@@ -88,7 +89,7 @@ def add_parsers(sub) -> None:
 
 
 def cmd_calibrate_rig(args) -> int:
-    from ..io.motion import write_joints3d
+    from ..io.motion import check_motion_path, write_joints3d
     from ..io.rig_calibration import write_rig_json, write_rig_toml
     from ..graph.options import RefineOptions
     from ..rigs import calibrate_rig
@@ -100,9 +101,8 @@ def cmd_calibrate_rig(args) -> int:
     if out.suffix.lower() != ".toml":
         raise InputError("must end in .toml (Pose2Sim's calibration file)", source=out,
                          field="--out")
-    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
-        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
-                         field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=None)   # the scale is known after the solve
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
     if args.report:
         from ..report import require_matplotlib
@@ -143,9 +143,8 @@ def cmd_calibrate_rig(args) -> int:
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)
-    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
-            and calib.scale != "subject_height":
-        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=calib.scale == "subject_height")
     write_rig_toml(calib, out, with_virtual=args.with_virtual)
     write_rig_json(calib, json_path)
     if args.joints3d:

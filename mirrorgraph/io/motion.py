@@ -1,4 +1,4 @@
-"""3D motion out: joints over time as ``.npz``, ``.csv`` or OpenSim ``.trc``.
+"""3D motion out: joints over time as ``.npz``, ``.csv``, OpenSim ``.trc``, C3D or BVH.
 
 :func:`write_joints3d` picks the format from the file suffix; every write is
 atomic.
@@ -15,6 +15,11 @@ format      content
             the frame rate is unknown); empty fields where a joint is invalid.
             Real camera frame, the unit of the data.
 ``.trc``    OpenSim marker file as Pose2Sim writes it (below). Metres, Y up.
+``.c3d``    C3D with the ``.trc``'s markers, axes and Pose2Sim's units
+            (millimetres), :mod:`mirrorgraph.io.c3d_writer` (``c3d`` extra).
+``.bvh``    BVH: a hierarchy built from the skeleton, one length a bone,
+            joint rotations from the 3D positions, root translation in metres,
+            the ``.trc``'s axes (Y up), :mod:`mirrorgraph.io.bvh_writer`.
 =========== ================================================================
 
 TRC layout (tab-separated; Pose2Sim's ``make_trc`` structure)::
@@ -64,7 +69,15 @@ from ..errors import InputError
 from .atomic import atomic_path, atomic_write_text
 
 __all__ = ["write_joints3d", "write_joints3d_npz", "write_joints3d_csv", "write_trc",
-           "trc_marker_name", "trc_marker_names", "TRC_FROM_CAMERA", "CAMERA_FRAME"]
+           "trc_marker_name", "trc_marker_names", "TRC_FROM_CAMERA", "CAMERA_FRAME",
+           "MOTION_SUFFIXES", "METRIC_SUFFIXES", "check_motion_path", "metres_factor",
+           "regular_frames", "to_trc_axes"]
+
+#: The file suffixes :func:`write_joints3d` writes.
+MOTION_SUFFIXES = (".npz", ".csv", ".trc", ".c3d", ".bvh")
+#: Those whose format needs metres (a metric scale: ``--subject-height``).
+METRIC_SUFFIXES = (".trc", ".c3d", ".bvh")
+_FORMAT_NAMES = {".trc": "OpenSim .trc", ".c3d": "C3D", ".bvh": "BVH"}
 
 #: ``(3, 3)`` rotation from the real camera frame to the ``.trc`` axes:
 #: ``(X, Y, Z)_trc = TRC_FROM_CAMERA @ (x, y, z)_camera = (z, -y, x)``.
@@ -106,6 +119,54 @@ def trc_marker_names(joint_names: Sequence[str]) -> list[str]:
     return ["Hip" if (n == "mid_hip" and halpe) else trc_marker_name(n) for n in names]
 
 
+def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
+    """Refuse, before a long run, a ``--joints3d`` file :func:`write_joints3d` cannot write:
+    an unknown suffix, or a format in metres (:data:`METRIC_SUFFIXES`) when ``metric`` is
+    ``False`` (no subject height; ``None``: not known yet)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in MOTION_SUFFIXES:
+        raise InputError("must end in " + ", ".join(MOTION_SUFFIXES[:-1]) + " or "
+                         + MOTION_SUFFIXES[-1], source=path, field="--joints3d")
+    if suffix in METRIC_SUFFIXES and metric is False:
+        raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres: add --subject-height",
+                         field="--joints3d")
+
+
+def metres_factor(unit: str, path: str | os.PathLike | None = None) -> float:
+    """The factor from ``unit`` (``m``, ``cm``, ``mm``, ...) to metres; a unit that is not a
+    length (``"mirror distance"``, ``"subject height"``) raises :class:`InputError`."""
+    factor = _METRES.get(str(unit).strip().lower())
+    if factor is None:
+        raise InputError(f"the 3D joints are in {unit!r}, not metres; this format needs metres "
+                         "(calibrate with a metric prior such as --subject-height)",
+                         source=path, field="unit")
+    return factor
+
+
+def to_trc_axes(X: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` camera-frame points in the ``.trc`` axes (Y up): ``(z, -y, x)``."""
+    return np.asarray(X, float) @ TRC_FROM_CAMERA.T
+
+
+def regular_frames(frame_ids: np.ndarray) -> tuple[np.ndarray, int]:
+    """Evenly spaced frame numbers covering ``frame_ids`` (increasing), and their step.
+
+    The step is the greatest common divisor of the gaps (``--every 3`` gives 3), so
+    ``frame_ids`` is a subset of ``first, first + step, ..., last``; formats whose
+    frames are evenly spaced in time (C3D, BVH) write one row for each.
+
+    Returns:
+        ``(rows, step)``: ``(T',)`` int64 frame numbers, int step >= 1.
+    """
+    ids = np.asarray(frame_ids, dtype=np.int64)
+    gaps = np.diff(ids)
+    if gaps.size and (gaps <= 0).any():
+        raise ValueError("frame_ids must be increasing")
+    step = int(np.gcd.reduce(gaps)) if gaps.size else 1
+    step = max(step, 1)
+    return np.arange(ids[0], ids[-1] + 1, step, dtype=np.int64), step
+
+
 def _check(joints3d, valid, frame_ids, joint_names, fps):
     X = np.array(joints3d, dtype=float)
     if X.ndim != 3 or X.shape[2] != 3:
@@ -144,22 +205,25 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     """Write 3D joints over time; the format follows the suffix of ``path``.
 
     Args:
-        path: ``.npz``, ``.csv`` or ``.trc`` file (see the module docstring).
+        path: ``.npz``, ``.csv``, ``.trc``, ``.c3d`` or ``.bvh`` file (see the module
+            docstring).
         joints3d: ``(T, J, 3)`` joints in the real camera frame.
         valid: ``(T, J)`` bool, joints to write (``None``: every finite one);
             non-finite joints are always invalid.
         frame_ids: ``(T,)`` frame numbers (``None``: ``0 .. T-1``).
         joint_names: ``(J,)`` canonical joint names (``left_knee``, ...).
-        fps: frame rate in Hz, or ``None`` if unknown (refused for ``.trc``).
+        fps: frame rate in Hz, or ``None`` if unknown (refused for ``.trc``, ``.c3d``,
+            ``.bvh``).
         unit: the unit of ``joints3d``: ``"m"`` with a metric scale, otherwise
-            e.g. ``"mirror distance"``. ``.trc`` takes only ``m``, ``cm``, ``mm``
-            (converted to metres).
-        marker_names: ``.trc`` only: marker names to use instead of
+            e.g. ``"mirror distance"``. ``.trc``, ``.c3d`` and ``.bvh`` take only
+            ``m``, ``cm``, ``mm`` (converted to their own unit).
+        marker_names: ``.trc`` and ``.c3d`` only: marker names to use instead of
             :func:`trc_marker_name` of ``joint_names``.
 
     Raises:
-        InputError: unknown suffix, ``.trc`` without a frame rate or in a
-            non-metric unit, bad frame rate.
+        InputError: unknown suffix, ``.trc`` / ``.c3d`` / ``.bvh`` without a frame
+            rate or in a non-metric unit, bad frame rate, ``.c3d`` without the ``c3d``
+            package.
         ValueError: arrays of inconsistent shapes.
     """
     suffix = Path(path).suffix.lower()
@@ -170,9 +234,16 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     elif suffix == ".trc":
         write_trc(path, joints3d, valid, frame_ids, joint_names, fps, unit,
                   marker_names=marker_names)
+    elif suffix == ".c3d":
+        from .c3d_writer import write_c3d
+        write_c3d(path, joints3d, valid, frame_ids, joint_names, fps, unit,
+                  marker_names=marker_names)
+    elif suffix == ".bvh":
+        from .bvh_writer import write_bvh
+        write_bvh(path, joints3d, valid, frame_ids, joint_names, fps, unit)
     else:
-        raise InputError(f"unknown 3D motion format {suffix or '(no suffix)'!r}: use .npz, "
-                         ".csv or .trc", source=path)
+        raise InputError(f"unknown 3D motion format {suffix or '(no suffix)'!r}: use "
+                         + ", ".join(MOTION_SUFFIXES), source=path)
 
 
 def write_joints3d_npz(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
@@ -212,16 +283,12 @@ def write_trc(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
     if fps is None:
         raise InputError("a .trc file needs the frame rate", source=path, field="fps")
-    factor = _METRES.get(str(unit).strip().lower())
-    if factor is None:
-        raise InputError(f"the 3D joints are in {unit!r}, not metres; OpenSim needs metres "
-                         "(calibrate with a metric prior such as --subject-height)",
-                         source=path, field="unit")
+    factor = metres_factor(unit, path)
     markers = trc_marker_names(names) if marker_names is None \
         else [str(m) for m in marker_names]
     if len(markers) != len(names):
         raise ValueError(f"{len(markers)} marker names for {len(names)} joints")
-    Y = factor * (X @ TRC_FROM_CAMERA.T)
+    Y = factor * to_trc_axes(X)
     T, J = len(ids), len(names)
     lines = [
         f"PathFileType\t4\t(X/Y/Z)\t{Path(path).name}",
