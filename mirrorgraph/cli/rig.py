@@ -21,6 +21,7 @@ from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
 from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
                    seed)
 from .video import add_video_options, video_options
+from .view import add_view_option, check_view_option, view_after_run
 
 __all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
 
@@ -61,6 +62,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--no-focal", action="store_true",
                    help="cameras without intrinsics keep a 60 deg field of view guess instead "
                         "of having their focal length estimated")
+    add_view_option(p)
     add_video_options(p)
     add_common(p)
     p.set_defaults(func=cmd_calibrate_rig)
@@ -104,6 +106,7 @@ def cmd_calibrate_rig(args) -> int:
     if args.joints3d:
         check_motion_path(args.joints3d, metric=None)   # the scale is known after the solve
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
+    check_view_option(args)
     if args.report:
         from ..report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
@@ -156,7 +159,13 @@ def cmd_calibrate_rig(args) -> int:
     if args.report:
         from ..report.rig import write_rig_report
         written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
+    view_line = None
+    if args.view is not None:
+        from ..viewer import scene_from_rig
+        view_line = view_after_run(args, scene_from_rig(calib, fps=args.fps))
     print_result(args, calib.summary(), calib.warnings)
+    if view_line:
+        say(view_line)
     if written is not None:
         say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
