@@ -589,7 +589,7 @@ def _log_video(rr, rec, scene: ViewScene, video, max_video_frames: int) -> None:
     ids = scene.frame_ids if scene.frame_ids is not None else np.arange(max_video_frames)
     if len(ids) > max_video_frames:
         ids = ids[np.unique(np.linspace(0, len(ids) - 1, max_video_frames).round().astype(int))]
-    wanted = set(int(f) for f in ids)
+    wanted = {int(f) for f in ids}
     base = _image_path(scene)
     last = max(wanted) + 1 if wanted else 0
     for f, rgb in frames(video, end=last):

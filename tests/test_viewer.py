@@ -10,7 +10,6 @@ import json
 import numpy as np
 import pytest
 
-from mirrorgraph import geometry as geo
 from mirrorgraph.cli import main
 
 rr = pytest.importorskip("rerun", reason="rerun-sdk (the view extra) is missing")

@@ -6,7 +6,7 @@
     mirrorgraph demo
     mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
     mirrorgraph report calibration.json [KEYPOINTS] --out DIR
-    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
+    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--summary FILE.json]
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
     mirrorgraph synth-rig KIND --out DIR
     mirrorgraph view CALIBRATION [--joints3d FILE] [--video FILE] [--save OUT.rrd]
@@ -15,8 +15,8 @@ Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
 traceback). No output file is written by a failed run.
 
-What a run says: its summary on stdout, each warning once on stderr (also under
-``--quiet``), progress bars on stderr only when it is a terminal
+What a run says: its summary on stdout, each warning once on stderr (neither under
+``--quiet``: the warnings stay in the JSON the run writes), progress bars on stderr only when it is a terminal
 (:mod:`mirrorgraph.progress`), and a last line naming what was written.
 ``calibrate --out c.json`` also keeps the run its figures are drawn from in
 ``c.report.npz`` (named in ``c.json``, see :mod:`mirrorgraph.report.store`), so

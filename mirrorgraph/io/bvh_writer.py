@@ -335,7 +335,7 @@ def write_bvh(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     factor = metres_factor(unit, path)
     Y = factor * to_trc_axes(np.where(ok[..., None], X, 0.0))
     try:
-        sk, offsets, root, local, rows, step = solve_bvh(Y, ok, ids, names)
+        sk, offsets, root, local, _, step = solve_bvh(Y, ok, ids, names)
     except InputError as exc:
         raise InputError(str(exc.args[0]) if exc.args else str(exc), source=path,
                          field="joints3d") from None
