@@ -438,17 +438,45 @@ def record(scene: ViewScene, *, save: str | os.PathLike | None = None,
     from .io.atomic import atomic_path
 
     rec = rr.RecordingStream(application_id)
+    layout = blueprint(scene, with_image=scene.keypoints is not None or video is not None)
     if save is None:
-        rec.spawn()
+        rec.spawn(default_blueprint=layout)
         _log(rr, rec, scene, video, max_video_frames)
         rec.flush()
         return None
     with atomic_path(save) as tmp:
-        rec.save(str(tmp))
+        rec.save(str(tmp), default_blueprint=layout)
         _log(rr, rec, scene, video, max_video_frames)
         rec.flush()
         rec.disconnect()
     return Path(save)
+
+
+def blueprint(scene: ViewScene, *, with_image: bool):
+    """The recording's default layout: the 3D scene (seen from above and behind the first
+    camera, looking at the middle of the cameras, mirrors and person), beside it the
+    first camera's image with its keypoints (where there are some) over the summary."""
+    import rerun.blueprint as rrb
+
+    marks = [c.pose[:3, 3] for c in scene.cameras if not c.virtual]
+    marks += [m.distance * np.asarray(m.normal, float) for m in scene.mirrors]
+    if scene.joints3d is not None and scene.valid.any():
+        marks.append(np.median(scene.joints3d[scene.valid], axis=0))
+    marks = np.array(marks)
+    target = marks.mean(axis=0)
+    reach = max(float(np.linalg.norm(marks - target, axis=1).max()), 1.0)
+    first = next(c for c in scene.cameras if not c.virtual).pose[:3, :3]
+    # to the right of the first camera, above it (-y: the world is y down), a little behind
+    offset = first @ np.array([1.0, -1.2, -0.8])
+    eye = target + 2.4 * reach * offset / np.linalg.norm(offset)   # all of it in view
+    view3d = rrb.Spatial3DView(origin="world", name="cameras, mirrors and person",
+                               eye_controls=rrb.EyeControls3D(position=eye, look_target=target,
+                                                              eye_up=first @ [0.0, -1.0, 0.0]))
+    side = [rrb.TextDocumentView(origin="summary", name="summary")]
+    if with_image:
+        side.insert(0, rrb.Spatial2DView(origin=_image_path(scene), name="camera image"))
+    return rrb.Blueprint(rrb.Horizontal(view3d, rrb.Vertical(*side), column_shares=[3, 2]),
+                         collapse_panels=True)
 
 
 def _times(rr, scene: ViewScene, frames: np.ndarray) -> list:

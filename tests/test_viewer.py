@@ -61,6 +61,10 @@ def single(tmp_path_factory):
 
 
 def test_calibrate_view_holds_cameras_mirror_and_motion(single):
+    from rerun.chunk import RrdReader
+
+    reader = RrdReader(single / "run.rrd")
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1   # with its layout
     rec = read_rrd(single / "run.rrd")
     cal = json.loads((single / "cal.json").read_text())
     n, d = np.array(cal["mirror"]["normal"]), cal["mirror"]["distance"]
