@@ -168,7 +168,7 @@ def bvh_skeleton(joint_names: Sequence[str], present: set[str]) -> BvhSkeleton:
         joint_names: canonical joint names of the layout.
         present: the points with data (joint names, ``"<root>"``, ``"<neck>"``).
     """
-    from .motion import trc_marker_names
+    from .motion_base import trc_marker_names
 
     names = [str(n) for n in joint_names]
     marker = dict(zip(names, trc_marker_names(names)))
@@ -259,7 +259,7 @@ def solve_bvh(joints3d: np.ndarray, valid: np.ndarray, frame_ids: np.ndarray,
         ``(skeleton, offsets (N, 3), root (T', 3), local (T', N, 3, 3), rows, step)``:
         the rotations relative to the parent, on the evenly spaced frames ``rows``.
     """
-    from .motion import regular_frames
+    from .motion_base import regular_frames
 
     names = [str(n) for n in joint_names]
     ids = np.asarray(frame_ids, dtype=np.int64)
@@ -325,9 +325,9 @@ def write_bvh(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     Raises:
         InputError: no frame rate, a non-metric unit, no hips in any frame.
     """
-    from .motion import _check, metres_factor, to_trc_axes
+    from .motion_base import check_arrays, metres_factor, to_trc_axes
 
-    X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
+    X, ok, ids, names, fps = check_arrays(joints3d, valid, frame_ids, joint_names, fps)
     if fps is None:
         raise InputError("a .bvh file needs the frame rate", source=path, field="fps")
     if not len(ids):

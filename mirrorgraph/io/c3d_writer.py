@@ -72,9 +72,9 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     Raises:
         InputError: no frame rate, a non-metric unit, or the ``c3d`` package missing.
     """
-    from .motion import _check, metres_factor, regular_frames, to_trc_axes, trc_marker_names
+    from .motion_base import check_arrays, metres_factor, regular_frames, to_trc_axes, trc_marker_names
 
-    X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
+    X, ok, ids, names, fps = check_arrays(joints3d, valid, frame_ids, joint_names, fps)
     if fps is None:
         raise InputError("a .c3d file needs the frame rate", source=path, field="fps")
     factor = metres_factor(unit, path)
