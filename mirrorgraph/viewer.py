@@ -54,7 +54,6 @@ first camera's: x right, y down, z forward, lengths in the calibration's unit)
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -310,7 +309,13 @@ def scene_from_rig(rig, *, joints3d=None, valid=None, frame_ids=None, joint_name
         mirrors = [(m["name"], np.asarray(m["normal"], float), float(m["distance"]),
                     list(m.get("seen_by", []))) for m in rig["mirrors"]]
         unit = rig.get("length_unit", "m")
-        summary = json.dumps({k: rig.get(k) for k in ("scale", "subject_height", "warnings")})
+        lines = []
+        for name, _, _, pose in cams:
+            lines.append(f"camera {name}: centre {np.round(pose[:3, 3], 3).tolist()} {unit}")
+        for name, n, d, seen_by in mirrors:
+            lines.append(f"mirror {name}: normal {np.round(n, 4).tolist()}, distance {d:.3f} "
+                         f"{unit}, seen by {', '.join(seen_by)}")
+        summary = "\n".join(lines + [f"warning: {w}" for w in rig.get("warnings", [])])
         skeleton = rig.get("skeleton")
     else:
         cams = [(c.name, c.intrinsics.K, c.intrinsics.image_size, c.pose) for c in rig.cameras]
@@ -440,7 +445,12 @@ def record(scene: ViewScene, *, save: str | os.PathLike | None = None,
     rec = rr.RecordingStream(application_id)
     layout = blueprint(scene, with_image=scene.keypoints is not None or video is not None)
     if save is None:
-        rec.spawn(default_blueprint=layout)
+        try:
+            rec.spawn(default_blueprint=layout)
+        except Exception as exc:  # noqa: BLE001 - no display, no viewer binary, ...
+            raise InputError(f"cannot open Rerun's viewer ({type(exc).__name__}: {exc}); "
+                             "write the recording with --save OUT.rrd and open it elsewhere",
+                             field="--view") from None
         _log(rr, rec, scene, video, max_video_frames)
         rec.flush()
         return None
@@ -676,8 +686,11 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
     from .calibration import read_calibration
     calib = read_calibration(path)
     keypoints = None
+    run = _read_kept_run(path, calib)
+    if motion is not None and run is not None \
+            and np.array_equal(np.asarray(motion["frame_ids"]), run.paired.frame_ids):
+        keypoints = (run.paired.real, run.paired.mirror)     # the same frames: their 2D
     if motion is None:
-        run = _read_kept_run(path, calib)
         if run is not None and run.joints3d is not None:
             motion = {"joints3d": run.joints3d, "valid": run.valid3d,
                       "frame_ids": run.paired.frame_ids, "joint_names": run.paired.skeleton.joints,

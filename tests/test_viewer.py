@@ -192,6 +192,8 @@ def test_view_command_from_the_kept_run_and_from_joints3d(single, capsys):
                  "--save", str(out2), "--quiet"]) == 0
     rec2 = read_rrd(out2)
     assert len(rec2["/world/cameras/camera/image"]["EncodedImage:blob"]) == 7
+    # the joints file's frames are the kept run's: its 2D keypoints are drawn too
+    assert rec2["/world/cameras/camera/image/keypoints"]["Points2D:positions"]
     assert np.allclose(rec2["/world/person/joints"]["Points3D:positions"][10],
                        rec["/world/person/joints"]["Points3D:positions"][10])
 
@@ -224,6 +226,8 @@ def test_calibrate_rig_view_and_view_of_a_rig(tmp_path, capsys):
             assert main(["view", str(rig / "cal.toml"), "--joints3d", str(rig / "j.npz"),
                          "--save", str(path), "--quiet"]) == 0
         rec = read_rrd(path)
+        summary = static(rec, "/summary", "TextDocument:text")
+        assert "camera cam02" in str(summary) and "mirror wall" in str(summary)
         for cam in doc["cameras"]:
             pose = np.array(cam["pose_camera_to_world"])
             got = static(rec, f"/world/cameras/{cam['name']}", "Transform3D:translation")

@@ -72,7 +72,8 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     Raises:
         InputError: no frame rate, a non-metric unit, or the ``c3d`` package missing.
     """
-    from .motion_base import check_arrays, metres_factor, regular_frames, to_trc_axes, trc_marker_names
+    from .motion_base import (check_arrays, metres_factor, regular_frames, to_trc_axes,
+                              trc_marker_names)
 
     X, ok, ids, names, fps = check_arrays(joints3d, valid, frame_ids, joint_names, fps)
     if fps is None:

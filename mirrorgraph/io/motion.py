@@ -85,7 +85,8 @@ _FORMAT_NAMES = {".trc": "OpenSim .trc", ".c3d": "C3D", ".bvh": "BVH"}
 def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
     """Refuse, before a long run, a ``--joints3d`` file :func:`write_joints3d` cannot write:
     an unknown suffix, or a format in metres (:data:`METRIC_SUFFIXES`) when ``metric`` is
-    ``False`` (no subject height; ``None``: not known yet)."""
+    ``False`` (no subject height; ``None``: not known yet), or ``.c3d`` without the
+    ``c3d`` package."""
     suffix = Path(path).suffix.lower()
     if suffix not in MOTION_SUFFIXES:
         raise InputError("must end in " + ", ".join(MOTION_SUFFIXES[:-1]) + " or "
@@ -93,6 +94,12 @@ def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
     if suffix in METRIC_SUFFIXES and metric is False:
         raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres: add --subject-height",
                          field="--joints3d")
+    if suffix == ".c3d":
+        import importlib.util
+        if importlib.util.find_spec("c3d") is None:
+            from .c3d_writer import C3D_INSTALL_HINT
+            raise InputError(f"writing .c3d needs the c3d package: {C3D_INSTALL_HINT}",
+                             field="--joints3d")
 
 
 def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
