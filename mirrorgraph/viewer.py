@@ -55,6 +55,9 @@ first camera's: x right, y down, z forward, lengths in the calibration's unit)
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -421,9 +424,10 @@ def clip_lines(lines: np.ndarray, width: float, height: float) -> tuple[np.ndarr
 # --------------------------------------------------------------------------- the recording
 def record(scene: ViewScene, *, save: str | os.PathLike | None = None,
            video: str | os.PathLike | None = None, max_video_frames: int = 300,
-           application_id: str = "mirrorgraph") -> Path | None:
-    """Log ``scene`` into a Rerun recording: saved to ``save`` (an ``.rrd``, written
-    atomically, no window) or else sent to a viewer spawned for it.
+           application_id: str = "mirrorgraph") -> Path:
+    """Log ``scene`` into a Rerun recording saved to ``save`` (an ``.rrd``, written
+    atomically, no window), or else to a temporary ``.rrd`` opened in Rerun's viewer
+    (the one of the installed ``rerun-sdk``, ``python -m rerun``).
 
     Args:
         scene: what to draw.
@@ -434,32 +438,50 @@ def record(scene: ViewScene, *, save: str | os.PathLike | None = None,
             frames with keypoints (the 2D keypoints are drawn in every frame).
 
     Returns:
-        The saved file, or ``None`` when the viewer was opened.
+        The recording written (``save``, or the temporary file the viewer opened).
 
     Raises:
-        InputError: the Rerun SDK missing, a video that cannot be read.
+        InputError: the Rerun SDK missing, a video that cannot be read, a viewer that
+            exits at once (no display: the message names the recording to open elsewhere).
     """
     rr = require_rerun()
     from .io.atomic import atomic_path
 
+    out = Path(save) if save is not None else \
+        Path(tempfile.mkdtemp(prefix="mirrorgraph-view-")) / "recording.rrd"
     rec = rr.RecordingStream(application_id)
     layout = blueprint(scene, with_image=scene.keypoints is not None or video is not None)
-    if save is None:
-        try:
-            rec.spawn(default_blueprint=layout)
-        except Exception as exc:  # noqa: BLE001 - no display, no viewer binary, ...
-            raise InputError(f"cannot open Rerun's viewer ({type(exc).__name__}: {exc}); "
-                             "write the recording with --save OUT.rrd and open it elsewhere",
-                             field="--view") from None
-        _log(rr, rec, scene, video, max_video_frames)
-        rec.flush()
-        return None
-    with atomic_path(save) as tmp:
+    with atomic_path(out) as tmp:
         rec.save(str(tmp), default_blueprint=layout)
         _log(rr, rec, scene, video, max_video_frames)
         rec.flush()
         rec.disconnect()
-    return Path(save)
+    if save is None:
+        open_viewer(out)
+    return out
+
+
+def open_viewer(path: str | os.PathLike, wait: float = 5.0) -> None:
+    """Open ``path`` in the Rerun viewer of this Python's ``rerun-sdk``, detached. No
+    display (Linux without ``DISPLAY`` or ``WAYLAND_DISPLAY``), or a viewer that exits with
+    an error within ``wait`` seconds, raises :class:`InputError` naming the recording."""
+    def no_display(why: str) -> InputError:
+        return InputError(f"Rerun's viewer did not open ({why}): the recording is {path}; open "
+                          f"it where there is a display with 'rerun {path}', or write it with "
+                          "--save OUT.rrd")
+
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        raise no_display("no display: neither DISPLAY nor WAYLAND_DISPLAY is set")
+    proc = subprocess.Popen([sys.executable, "-m", "rerun", str(path)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    try:
+        code = proc.wait(timeout=wait)
+    except subprocess.TimeoutExpired:
+        return                                  # running: the window is open
+    if code:
+        raise no_display(f"exit status {code}")
 
 
 def blueprint(scene: ViewScene, *, with_image: bool):
@@ -644,7 +666,7 @@ def _log_video(rr, rec, scene: ViewScene, video, max_video_frames: int) -> None:
 # --------------------------------------------------------------------------- the command
 def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | None = None,
               video: str | os.PathLike | None = None, save: str | os.PathLike | None = None,
-              fps: float | None = None, max_video_frames: int = 300) -> Path | None:
+              fps: float | None = None, max_video_frames: int = 300) -> Path:
     """What ``mirrorgraph view`` does: the recording of a calibration file.
 
     Args:

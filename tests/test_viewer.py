@@ -214,6 +214,20 @@ def test_view_errors_are_one_line(single, tmp_path, capsys):
     assert not (tmp_path / "x.rrd").exists()
 
 
+def test_view_without_a_display_names_the_recording(single, tmp_path, monkeypatch, capsys):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))      # where the recording goes
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    assert main(["view", str(single / "cal.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "no display" in err
+    kept = err.split("the recording is ")[1].split(";")[0]
+    assert kept.startswith(str(tmp_path)) and read_rrd(kept)["/world/person/joints"]
+
+
 def test_calibrate_rig_view_and_view_of_a_rig(tmp_path, capsys):
     rig = tmp_path / "rig"
     assert main(["synth-rig", "2cams1mirror", "--out", str(rig), "--frames", "60", "--quiet"]) == 0

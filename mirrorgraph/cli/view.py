@@ -53,9 +53,14 @@ def cmd_view(args) -> int:
     _check_save(args.save)
     out = view_file(args.calibration, joints3d=args.joints3d, video=args.video, save=args.save,
                     fps=args.fps, max_video_frames=args.max_video_frames)
-    if out is not None:
-        printer(args)(f"wrote {out} (open it with: rerun {out})")
+    printer(args)(_written(out, args.save))
     return 0
+
+
+def _written(out, save) -> str:
+    if save:
+        return f"wrote {out} (open it with: rerun {out})"
+    return f"opened Rerun's viewer on {out}"
 
 
 def add_view_option(p) -> None:
@@ -77,9 +82,9 @@ def check_view_option(args) -> None:
     require_rerun()
 
 
-def view_after_run(args, scene, video=None) -> str | None:
+def view_after_run(args, scene, video=None) -> str:
     """Record ``scene`` as ``--view`` asks; returns the line naming what was written."""
     from ..viewer import record
 
     out = record(scene, save=args.view or None, video=video)
-    return None if out is None else f"wrote {out} (open it with: rerun {out})"
+    return _written(out, args.view)
