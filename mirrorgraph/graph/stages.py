@@ -748,7 +748,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                                                           opts.marginals)
     timings["marginals"] = time.perf_counter() - t
     t = time.perf_counter()
-    scores = joint_scores(problem, values) if opts.marginals else None
+    scores = (joint_scores(problem, values, bias_pixel_sigma=noise_px
+                           if np.isfinite(noise_px) else opts.pixel_sigma)
+              if opts.marginals else None)
     intr_std = []
     if scores is not None and problem.calibration_keys:
         robust = robust_intrinsics_std(scores, {

@@ -166,7 +166,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         if c.name in sol.focal:
             sol.focal[c.name]["initial"] = init.focals.get(c.name)
             intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
-                                        DEFAULT_FOV_DEG, warnings, camera=c.name)
+                                        DEFAULT_FOV_DEG, warnings, camera=c.name,
+                                        user_guess=not estimate_focal)
         cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  marginal_rotation_std_deg=camera_std(mcov, pose)[0],
