@@ -75,7 +75,9 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     differ by what the bones' choice does to it; where that exceeds the graph's std the
     std is no measure of the error (rays meeting at 16 deg: the search 2699 px, the
     graph 1365 px at a std of 4 %, the truth 2186 px), and the difference squared is
-    the floor of its variance. A camera in ``undetermined`` gets its prior's variance.
+    the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
+    so does a principal point held at the centre
+    (:data:`~.builder.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
     Sets the scores' :attr:`~.uncertainty.JointScores.prior_floor` and recomputes the
     cameras' robust intrinsics stds with it.
     """
@@ -90,6 +92,8 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     for key, dim in sc.z_keys:
         c = keys.get(int(key))
         if c is not None:
+            if dim == 3 and problem.rig.cameras[c].principal_point_prior is not None:
+                floor[off + 1:off + 3] = np.inf       # held at the centre: the prior's spread
             f = float(np.asarray(state.intrinsics[c])[0, 0])
             if c in undetermined:
                 floor[off] = np.inf                        # the prior's (capped there)
