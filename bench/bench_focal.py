@@ -478,12 +478,17 @@ def honest_scene(index: int, frames: int) -> dict:
         sc = make_wide_scene(seed, slice="wide", noise="iid", frames=frames)
         kind = "ours (wide)"
     else:
-        slice_ = VARIANT_SLICES[int(rng.integers(len(VARIANT_SLICES)))]
-        focal = float(np.exp(rng.uniform(*np.log(FOCAL_RANGE_PX))))
-        angle = float(rng.uniform(10.0, 65.0))
         cmu = (index // 2) % 2 == 1
-        sc = make_scene(frames=frames, seed=seed, geometry=slice_, focal_px=focal,
-                        mirror_angle_deg=angle, motion=CMU if cmu else None)
+        for _ in range(20):            # a draw the placement cannot fit: the next draw
+            slice_ = VARIANT_SLICES[int(rng.integers(len(VARIANT_SLICES)))]
+            focal = float(np.exp(rng.uniform(*np.log(FOCAL_RANGE_PX))))
+            angle = float(rng.uniform(10.0, 65.0))
+            try:
+                sc = make_scene(frames=frames, seed=seed, geometry=slice_, focal_px=focal,
+                                mirror_angle_deg=angle, motion=CMU if cmu else None)
+                break
+            except ValueError:
+                continue
         kind = f"variant ({slice_}{', CMU' if cmu else ''})"
     w, h = sc.image_size
     dx, dy = rng.uniform(-PP_MAX_REL, PP_MAX_REL, 2) * np.array([w, h])
@@ -901,16 +906,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--issue17", action="store_true",
                     help="also the sections of issue 17 (bounds, end to end, rigs, real trials, "
                          "~9 min more)")
-    ap.add_argument("--report-only", default=None, metavar="JSON",
-                    help="write the report of issue 23's section from a saved --json run")
+    ap.add_argument("--report-only", nargs="+", default=None, metavar="JSON",
+                    help="write the report of issue 23's section from saved --json runs "
+                         "(shards of one run: their scenes together)")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the scenes the --json file holds, run the rest")
+    ap.add_argument("--shard", default="0/1", metavar="I/N",
+                    help="run the scenes i, i + N, ... of issue 23's section (the fixtures "
+                         "with shard 0), for processes side by side")
     args = ap.parse_args(argv)
     if args.report_only:
-        data = json.loads(Path(args.report_only).read_text())
+        parts = [json.loads(Path(f).read_text()) for f in args.report_only]
+        data = dict(parts[0])
+        data["honest"] = _by_scene([r for p in parts for r in p["honest"]])
+        data["seconds"] = max(float(p.get("seconds", 0.0)) for p in parts)
         data["honest_summary"] = honest_summary(data["honest"])
         data.setdefault("honest_frames", args.honest_frames)
         if args.before:
-            data["honest_before_summary"] = honest_summary(
-                json.loads(Path(args.before).read_text())["honest"])
+            before = _by_scene([r for f in args.before.split(",")
+                                for r in json.loads(Path(f).read_text())["honest"]])
+            data["honest_before_summary"] = honest_summary(before)
+            data["honest_before"] = before
         md = report_honest(data, args, float(data.get("seconds", 0.0)))
         print(md)
         if not args.no_write:
@@ -925,12 +941,19 @@ def main(argv: list[str] | None = None) -> int:
 
     # issue 23: the output against the truth without a camera matrix
     honest = []
-    if not args.no_fixtures and FIXTURES.is_dir():
+    shard, shards = (int(x) for x in args.shard.split("/"))
+    if not args.no_fixtures and FIXTURES.is_dir() and shard == 0 and not args.resume:
         for folder in sorted(p for p in FIXTURES.iterdir() if (p / "truth.json").is_file()):
             r = honest_case(fixture_scene(folder))
             log(f"honest fixture {folder.name}: {r.get('size', {}).get('rot_err_deg')}")
             honest.append(r)
-    for i in range(args.honest_scenes):
+    done = {}
+    if args.resume and args.json and Path(args.json).is_file():
+        done = {r["index"]: r for r in json.loads(Path(args.json).read_text())["honest"]}
+        honest = [r for r in done.values()]
+    for i in range(shard, args.honest_scenes, shards):
+        if i in done:
+            continue
         r = honest_case(honest_scene(i, args.honest_frames))
         z = r.get("size", {})
         log(f"honest {i} {r['kind']}: f {z.get('f_rel_err', float('nan')):+.3f} "
@@ -1075,6 +1098,12 @@ def main(argv: list[str] | None = None) -> int:
         (ROOT / "bench" / "RESULTS_focal.md").write_text(md)
         (ROOT / "bench" / "RESULTS_focal.json").write_text(json.dumps(data, indent=1, default=_jsonable))
     return 0
+
+
+def _by_scene(rows: list[dict]) -> list[dict]:
+    """The rows of shards in one order: the fixtures, then the scenes by index."""
+    return sorted(rows, key=lambda r: (isinstance(r["index"], int), r["index"]
+                                       if isinstance(r["index"], int) else 0, str(r["index"])))
 
 
 def _jsonable(x):

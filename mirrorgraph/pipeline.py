@@ -59,13 +59,16 @@ class CalibrateOptions:
             guess the focal length's estimate starts from (and its weak prior's
             centre), or, with ``estimate_focal=False``, the focal length used.
         estimate_focal: without intrinsics, estimate the focal length from the person
-            and the reflection in the factor graph (square pixels, the principal point
-            at the image centre unless ``RefineOptions.focal.principal_point``): the
-            bones' constant lengths determine it (:class:`mirrorgraph.graph.options.
-            FocalOptions`). Where the data do not (a far or square-on mirror, little
-            motion in depth) the ``fov_deg`` guess is kept and a warning says so.
-            ``False``: keep the guess (the command line's ``--fov DEG``). Needs the
-            refinement.
+            and the reflection in the factor graph, about the ``fov_deg`` guess with a
+            wide prior (square pixels; the principal point a variable about the image
+            centre with the spread of real cameras, :class:`mirrorgraph.graph.options.
+            FocalOptions`): the bones' constant lengths determine it. Where the data do
+            not (a far or square-on mirror, little motion in depth) the estimate is kept
+            with its large std and a warning says so. ``False`` (the command line's
+            ``--fov DEG``): the focal length held near ``fov_deg`` by a prior of
+            ``FocalOptions.guess_rel_sigma``, its spread in every std. Either way every
+            reported std holds the unknown intrinsics. Needs the refinement (without
+            it the guess is used as it is, with a warning).
         image_size: ``(width, height)`` used when no intrinsics are given and
             the input does not carry it.
         refine_options: :class:`mirrorgraph.graph.RefineOptions` (priors, schedule,

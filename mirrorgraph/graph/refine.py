@@ -57,11 +57,11 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
         options: weights, kernel, gauge, solver settings.
         progress: ``progress(iteration, error)`` after every accepted step (iterations
             count over all stages; within a stage the error never rises).
-        estimate_focal: ``K`` is a guess (square pixels, no skew): estimate the focal
-            length (and the principal point with ``options.focal.principal_point``) in
-            the graph, starting from a search and with a weak prior about the guess
-            (:class:`~.options.FocalOptions`); where the data do not determine it the
-            guess is kept (``RefinementResult.focal``).
+        estimate_focal: ``K`` is a guess (square pixels, no skew): the focal length and
+            the principal point are variables of the graph, each with a prior about the
+            guess (:func:`guessed_camera`, :class:`~.options.FocalOptions`); the focal
+            length starts from a search. The estimate is kept where the data do not
+            determine it too, with its large std (``RefinementResult.focal``).
         focal_rel_sigma: the focal length's prior about the guess, relative
             (default ``options.focal.prior_rel_sigma``; a user's field-of-view guess:
             ``options.focal.guess_rel_sigma``).
