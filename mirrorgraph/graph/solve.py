@@ -125,8 +125,10 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         (within :data:`FOV_EDGE` of ``opts.focal.search_fov_deg``, or beyond): there the
         bones ask for a lens no camera of that range has, which is no minimum of the
         data's but their lack of one (seen on scenes with little depth change: a
-        "determined" 20 deg lens, 5x the true focal length, its std 16 %), or where the
-        joints' two rays meet at a median angle under :data:`FOCAL_MIN_PARALLAX_DEG`.
+        "determined" 20 deg lens, 5x the true focal length, its std 16 %). The record
+        says too whether the joints' two rays meet at a median angle under
+        :data:`FOCAL_MIN_PARALLAX_DEG` (``low_parallax``: a cause the warning names, no
+        longer a criterion by itself, issue #23: it threw good estimates away).
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     lo, hi = opts.focal.search_fov_deg
