@@ -1101,9 +1101,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _by_scene(rows: list[dict]) -> list[dict]:
-    """The rows of shards in one order: the fixtures, then the scenes by index."""
-    return sorted(rows, key=lambda r: (isinstance(r["index"], int), r["index"]
-                                       if isinstance(r["index"], int) else 0, str(r["index"])))
+    """The rows of shards in one order, each scene once: the fixtures, then the scenes
+    by index."""
+    once = {}
+    for r in rows:
+        once.setdefault(str(r["index"]), r)
+    return sorted(once.values(), key=lambda r: (isinstance(r["index"], int), r["index"]
+                                                if isinstance(r["index"], int) else 0,
+                                                str(r["index"])))
 
 
 def _jsonable(x):
