@@ -974,9 +974,12 @@ def robust_blocks(scores: JointScores, marginal_blocks: list[np.ndarray]
             ``scores.z_keys`` order (scaled by the noise).
 
     Returns:
-        the headline blocks and, per block, ``{"chosen", "ratio_to_marginal"}``.
+        the headline blocks and, per block, ``{"chosen", "ratio_to_marginal",
+        "contributions"}`` (the unknown intrinsics' shares of its rotation's variance,
+        :func:`intrinsics_contributions`).
     """
-    cands = _candidates(sandwich(scores))
+    sw = sandwich(scores)
+    cands = _candidates(sw)
     out, parts, off = [], [], 0
     for (key, dim), M in zip(scores.z_keys, marginal_blocks):
         M = np.asarray(M, dtype=float)
@@ -995,5 +998,9 @@ def robust_blocks(scores: JointScores, marginal_blocks: list[np.ndarray]
         H = M * ratio ** 2
         H[rot, rot] = head
         out.append(H)
-        parts.append({"chosen": best, "ratio_to_marginal": ratio})
+        full = sw["bread"] if best == "marginal" else cands[best]
+        parts.append({"chosen": best, "ratio_to_marginal": ratio,
+                      "contributions": intrinsics_contributions(
+                          full, scores.z_keys, slice(block.start + rot.start,
+                                                     block.start + rot.stop))})
     return out, parts
