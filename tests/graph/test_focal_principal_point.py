@@ -86,3 +86,25 @@ def test_shares_of_a_rotation_variance():
     # var(n0) = 1 + 1 (f), var(n1) = 1 + 4 (cx): f explains 1 of 7, the pp 4 of 7
     assert share["focal_length"] == pytest.approx(1 / 7)
     assert share["principal_point"] == pytest.approx(4 / 7)
+
+
+def test_the_warning_names_what_dominates_the_std():
+    from mirrorgraph.pipeline import poor_mirror_cause
+
+    n = np.array([0.0, np.sin(np.radians(40)), np.cos(np.radians(40))])   # 40 deg off axis
+    u = {"contributions": {"focal_length": 0.8, "principal_point": 0.1}}
+    assert poor_mirror_cause(u, n).startswith("the unknown focal length dominates it (")
+    u = {"contributions": {"focal_length": 0.2, "principal_point": 0.7}}
+    assert poor_mirror_cause(u, n).startswith("the unknown principal point")
+    # the intrinsics a minor share: the geometry's measured causes, each when it holds
+    u = {"contributions": {"focal_length": 0.2, "principal_point": 0.1}}
+    assert "low parallax" in poor_mirror_cause(u, n, ray_angle_deg=9.0)
+    square = np.array([0.0, np.sin(np.radians(8)), np.cos(np.radians(8))])
+    assert "square-on (8 deg" in poor_mirror_cause(u, square, ray_angle_deg=30.0)
+    edge = np.array([0.0, np.sin(np.radians(75)), np.cos(np.radians(75))])
+    assert "edge-on (75 deg" in poor_mirror_cause(u, edge, ray_angle_deg=30.0)
+    assert "too little motion" in poor_mirror_cause(u, n, ray_angle_deg=30.0, motion_px=4.0)
+    assert "joint pairs disagree" in poor_mirror_cause(
+        {"contributions": {}, "robust": {"chosen": "two_way"}}, n)
+    # known intrinsics: no contributions at all, the geometry speaks
+    assert "low parallax" in poor_mirror_cause({}, n, ray_angle_deg=12.0)
