@@ -18,10 +18,10 @@ Estimated intrinsics (:attr:`~.rig.Camera.estimate_focal`): the estimate is kept
 whatever the data say about it, with its standard deviation (the posterior under the
 priors of the guess, :class:`~.options.FocalOptions`), never replaced by the guess
 held exact. A camera whose focal length the data do not determine (its standard
-deviation above ``options.focal.fallback_rel_std`` of it, an estimate at an end of the
-lenses searched, or rays meeting at small angles) is named in
-:attr:`~.stages.SolveState.focal_undetermined` with the figures found, for the
-warnings.
+deviation above ``options.focal.fallback_rel_std`` of it, or an estimate at an end of
+the lenses searched) is named in :attr:`~.stages.SolveState.focal_undetermined` with
+the figures found (and the rays' median angle), for the warnings, and carries its
+prior's variance (:func:`floor_focal`).
 """
 
 from __future__ import annotations
