@@ -68,7 +68,7 @@ __all__ = ["POORLY_DETERMINED_DEG", "JointScores", "joint_scores", "frame_scores
            "gauge_inverse", "scale_direction", "andrews_bandwidth", "robust_normal_cov",
            "covariance_max", "robust_blocks", "robust_intrinsics_std", "ROBUST_PARTS",
            "REGION_LEVEL", "region_threshold", "region_rotation_deg",
-           "intrinsics_contributions", "intrinsics_prior_spread"]
+           "intrinsics_contributions", "intrinsics_prior_spread", "held_intrinsics_cov"]
 
 
 @dataclass
@@ -109,6 +109,9 @@ class JointScores:
             (:func:`frame_scores`): the estimate's first-order bias is
             ``H^-1 bias_score``, whose outer product every figure of :func:`sandwich`
             holds (an error no std of the noise sees); ``None``: not computed.
+        added_cov: ``(n, n)`` a covariance every figure of :func:`sandwich` adds: what
+            globals solved elsewhere and held here bring (a long video's chunks hold the
+            intrinsics its subset estimated, :mod:`.chunked`); ``None``: none.
     """
 
     frames: np.ndarray
@@ -125,6 +128,7 @@ class JointScores:
     prior_spread: np.ndarray | None = None
     prior_floor: np.ndarray | None = None
     bias_score: np.ndarray | None = None
+    added_cov: np.ndarray | None = None
 
     @property
     def information(self) -> np.ndarray:
@@ -683,7 +687,34 @@ def sandwich(scores: JointScores) -> dict[str, np.ndarray]:
         out["bias"] = delta
         for name in ("cov", "cov_time", "cov_joint", "cov_jack_time", "cov_jack_joint"):
             out[name] = out[name] + np.outer(delta, delta)
+    if scores.added_cov is not None:
+        for name in ("cov", "cov_time", "cov_joint", "cov_jack_time", "cov_jack_joint"):
+            out[name] = out[name] + np.asarray(scores.added_cov, dtype=float)
     return out
+
+
+def held_intrinsics_cov(scores: JointScores, block: slice = slice(0, 3)) -> np.ndarray:
+    """``(b, b)`` what the estimated intrinsics of ``scores`` (a subset's solve) bring to
+    the covariance of the coordinates ``block`` (a plane's three) once they are held:
+    ``C_ak C_kk^+ C_ka`` (Gaussian conditioning) of the figure of :func:`sandwich` with
+    the largest trace there (the marginal ``H^-1`` among them); zeros without intrinsics."""
+    sw = sandwich(scores)
+    k = []
+    off = 0
+    for key, dim in scores.z_keys:
+        if gtsam.Symbol(key).chr() == ord("k"):
+            k.extend(range(off, off + dim))
+        off += dim
+    a = np.arange(off)[block]
+    if not k:
+        return np.zeros((len(a), len(a)))
+    best, best_tr = None, -1.0
+    for C in [sw["bread"], *_candidates(sw).values()]:
+        if np.all(np.isfinite(C)) and np.trace(C[np.ix_(a, a)]) > best_tr:
+            best, best_tr = C, float(np.trace(C[np.ix_(a, a)]))
+    k = np.asarray(k)
+    Cak = best[np.ix_(a, k)]
+    return Cak @ np.linalg.pinv(best[np.ix_(k, k)]) @ Cak.T
 
 
 def _with_unknown_intrinsics(out: dict, scores: JointScores, H: np.ndarray, meat: dict) -> None:
