@@ -108,3 +108,26 @@ def test_the_warning_names_what_dominates_the_std():
         {"contributions": {}, "robust": {"chosen": "two_way"}}, n)
     # known intrinsics: no contributions at all, the geometry speaks
     assert "low parallax" in poor_mirror_cause({}, n, ray_angle_deg=12.0)
+
+
+def test_a_long_video_without_intrinsics_keeps_their_uncertainty(scene, monkeypatch):
+    """Above ``max_graph_frames`` the video is solved in chunks that hold the intrinsics a
+    spread subset estimated: what their uncertainty brings to the mirror is added to the
+    chunks' figures (it was not: the std of a held, guessed camera)."""
+    import mirrorgraph.graph.solve as solve_module
+    from mirrorgraph.graph import RefineOptions
+
+    calls = []
+    chunked = solve_module.solve_chunked
+    monkeypatch.setattr(solve_module, "solve_chunked",
+                        lambda *a, **k: calls.append(1) or chunked(*a, **k))
+    sc, p, K = scene
+    opts = mg.CalibrateOptions(image_size=sc.image_size, subject_height=sc.subject_height,
+                               refine_options=RefineOptions(max_graph_frames=120, workers=1))
+    cal = mg.calibrate(p, None, opts).calibration
+    assert calls                                          # the chunked solve it is
+    err = mirror_rotation_error_deg(cal.normal, sc.normal)
+    u = cal.uncertainty
+    # the principal point's 19 px at f = 1100 px alone turn the virtual camera by ~1 deg
+    assert u["rotation_std_deg"] > 0.7
+    assert err <= u["rotation_90_deg"]
