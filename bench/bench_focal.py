@@ -641,6 +641,13 @@ def honest_report(data: dict) -> list[str]:
          f"{_f(s['rot_std_median'], '{:.3f}')} | {_f(s['ratio_median'])} | {_f(s['ratio_max'])} | "
          f"{s['over4']} | {_pct(s['within90'], 0)} % | {_pct(s['dist_err_median'])} % | "
          f"{_f(s['f_ratio_median'])} (largest {_f(s['f_ratio_max'])}) |",
+         ] + ([f"| image size only, before (`main`) | {_pct(b0['f_err_median'])} % "
+               f"({_pct(b0['f_err_median_determined'])} % on the {b0['determined']} it called "
+               f"determined, the guess kept on the others) | {_f(b0['rot_err_median'], '{:.3f}')} | "
+               f"{_f(b0['rot_std_median'], '{:.3f}')} | {_f(b0['ratio_median'])} | "
+               f"{_f(b0['ratio_max'])} | {b0['over4']} | {_pct(b0['within90'], 0)} % | "
+               f"{_pct(b0['dist_err_median'])} % | {_f(b0['f_ratio_median'])} |"]
+              if (b0 := data.get("honest_before_summary")) else []) + [
          f"| known intrinsics | – | {_f(s['rot_err_median_known'], '{:.3f}')} | "
          f"{_f(s['rot_std_median_known'], '{:.3f}')} | {_f(s['ratio_median_known'])} | "
          f"{_f(s['ratio_max_known'])} | – | {_pct(s['within90_known'], 0)} % | "
@@ -1142,8 +1149,15 @@ def report_honest(data: dict, args, seconds: float) -> str:
          "(issues 17 and 23)", "",
          f"Machine: {machine()}  ",
          f"Command: `python bench/bench_focal.py {' '.join(sys.argv[1:])}`  ",
-         f"Date: {datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {seconds / 60:.0f} min", "",
-         "The sections of issue 17 (what determines the focal length, its Cramer-Rao bound, "
+         f"Date: {datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {seconds / 60:.0f} min", ""]
+    if args.report_only:
+        L += ["The data: `python bench/bench_focal.py --honest-scenes 60 --honest-frames 200 "
+              "--shard I/2 --no-write --json after_sI.json` for I = 0, 1 side by side (this "
+              "branch), the same with `MIRRORGRAPH_ROOT=/path/to/main` and `before_sI.json` "
+              "(the code of `main`, for the before column), joined by the command above; the "
+              "machine shared with other work (load average 12-15 during the runs: the "
+              "minutes are not this benchmark's own).", ""]
+    L += ["The sections of issue 17 (what determines the focal length, its Cramer-Rao bound, "
          "rigs, the real trials) are written with `--issue17`; their last figures are in this "
          "file's history (commit 4cadf82).", ""]
     L += honest_report(data)
