@@ -91,20 +91,24 @@ def warp_crop(image: np.ndarray, M: np.ndarray, size: int) -> np.ndarray:
     Returns:
         ``(size, size, C)`` ``float32``, in the input's units, not rounded.
     """
-    h, w = image.shape[:2]
+    h, w, c = image.shape
     M = np.asarray(M, float)
     u = np.arange(size, dtype=float)
-    x = M[0, 0] * u[None, :] + M[0, 1] * u[:, None] + M[0, 2]        # (size, size)
-    y = M[1, 0] * u[None, :] + M[1, 1] * u[:, None] + M[1, 2]
+    x = (M[0, 0] * u[None, :] + M[0, 1] * u[:, None] + M[0, 2]).ravel()    # (size * size,)
+    y = (M[1, 0] * u[None, :] + M[1, 1] * u[:, None] + M[1, 2]).ravel()
     x0, y0 = np.floor(x), np.floor(y)
     fx, fy = (x - x0).astype(np.float32), (y - y0).astype(np.float32)
     x0, y0 = x0.astype(np.intp), y0.astype(np.intp)
-    out = np.zeros((size, size, image.shape[2]), np.float32)
+    flat = image.reshape(h * w, c)
+    out = np.zeros((size * size, c), np.float32)
     for dy, wy in ((0, 1.0 - fy), (1, fy)):
+        yi = y0 + dy
+        inside_y = (yi >= 0) & (yi < h)
         for dx, wx in ((0, 1.0 - fx), (1, fx)):
-            xi, yi = x0 + dx, y0 + dy
-            inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
-            weight = np.where(inside, wx * wy, np.float32(0.0))
-            px = image[np.clip(yi, 0, h - 1), np.clip(xi, 0, w - 1)]
-            out += weight[..., None] * px
-    return out
+            xi = x0 + dx
+            inside = inside_y & (xi >= 0) & (xi < w)
+            weight = wx * wy
+            weight[~inside] = 0.0
+            # one gather of whole pixels from the flattened image (outside: pixel 0, weight 0)
+            out += weight[:, None] * np.take(flat, np.where(inside, yi * w + xi, 0), axis=0)
+    return out.reshape(size, size, c)
