@@ -393,12 +393,17 @@ class BlazePoseModels:
         self.heatmap_offset: float | None = 0.0
 
     def detect(self, image: np.ndarray, *, nms_iou: float = 0.3,
-               min_score: float | None = None) -> list[Detection]:
+               min_score: float | None = None, gain: float = 1.0) -> list[Detection]:
         """People in an ``(H, W, 3)`` uint8 RGB image: the detector's boxes scoring at
         least ``min_score`` (default :attr:`min_detection_score`) after NMS, best first,
-        in image pixels."""
+        in image pixels. ``gain`` scales the intensities of the letterboxed input
+        (clipped at 255): a dim view stretched at the detector's 224 x 224 rather than
+        at the frame's size."""
         inp, scale, offset = letterbox(image, DETECTOR_SIZE)
-        x = inp.astype(np.float32)[None] * np.float32(2.0 / 255.0) - np.float32(1.0)
+        x = inp.astype(np.float32)[None]
+        if gain != 1.0:
+            x = np.minimum(x * np.float32(gain), np.float32(255.0))
+        x = x * np.float32(2.0 / 255.0) - np.float32(1.0)
         self._det.set_tensor(self._det_in, x)
         self._det.invoke()
         boxes, kps, scores = decode_detections(
