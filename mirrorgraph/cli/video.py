@@ -144,7 +144,7 @@ def cmd_detect(args) -> int:
     opts = video_options(args)
     t0 = time.perf_counter()
     det = detect_with_progress(args.video, opts, quiet=args.quiet)
-    write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids)
+    write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids, meta=True)
     say(describe(det))
     say(f"wrote {out} ({args.fmt}) in {time.perf_counter() - t0:.2f} s")
     return 0
