@@ -27,7 +27,7 @@ returns a skeleton on the person with its labels scrambled (OKS 0.0-0.5 with the
 person's own skeleton, measured on a composited mirror clip). Such a skeleton lies
 on the person's body: :func:`on_body_matrix` counts the share of one pose's
 keypoints that lie on another's body (its bones, torso and keypoints, within a
-tenth of its size), whatever their labels; a pose nearly all on a kept one's body
+tenth of the smaller one's size), whatever their labels; a pose nearly all on a kept one's body
 is that person too.
 """
 
@@ -152,9 +152,11 @@ def on_body_matrix(xy: np.ndarray, visibility: np.ndarray, segments: np.ndarray,
                    tolerance: float = 0.1, min_visibility: float = 0.5,
                    boxes: np.ndarray | None = None) -> np.ndarray:
     """``(N, N)``: entry ``[i, j]`` the share of pose ``i``'s keypoints (those it sees at
-    ``min_visibility``, all where fewer than 4) within ``tolerance`` times pose ``j``'s
-    box diagonal of pose ``j``'s body: its segments ``segments`` between keypoints it
-    sees, and those keypoints. Labels play no part.
+    ``min_visibility``, all where fewer than 4) within ``tolerance`` times the smaller
+    of the two poses' box diagonals of pose ``j``'s body: its segments ``segments``
+    between keypoints it sees, and those keypoints. Labels play no part. (The
+    smaller size: a person beside a larger one is not on the larger one's body for
+    being within a tenth of the larger one's size of it.)
 
     Args:
         xy: ``(N, J, 2)`` keypoints, px (finite); visibility ``(N, J)``.
@@ -178,7 +180,8 @@ def on_body_matrix(xy: np.ndarray, visibility: np.ndarray, segments: np.ndarray,
     if boxes is None:
         boxes = pose_boxes(xy, visibility, min_visibility)
     diag = np.hypot(boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1])
-    near = (d <= tolerance * diag[None, None, :]) & seen[:, :, None]
+    tol = tolerance * np.minimum(diag[:, None], diag[None, :])    # (N_i, N_j)
+    near = (d <= tol[:, None, :]) & seen[:, :, None]
     return near.sum(axis=1) / seen.sum(axis=1)[:, None]
 
 

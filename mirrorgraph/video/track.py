@@ -23,7 +23,9 @@ MediaPipe's pose graph does for one person, extended to several:
    frames, on one where the landmark model found nobody) is not looked at again;
    the landmark model runs on each other one's crop (a dim crop's intensities
    stretched; retried upright, then turned by 180 deg, where it finds nobody: the
-   detector's rotation of a reflection is often upside down);
+   detector's rotation of a reflection is often upside down); a pose whose
+   landmarks fill too little of their crop (:func:`extent`) is an object taken
+   for a person;
 4. one skeleton per person: the frame's poses, tracked ones first (the oldest
    track first), then new ones in the detector's order, go through
    :func:`~mirrorgraph.video.nms.pose_nms` (object keypoint similarity, left/right
@@ -45,7 +47,8 @@ from ..skeletons import BLAZEPOSE
 from .blazepose import Detection, Pose, weighted_nms
 from .nms import pose_nms
 
-__all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_body"]
+__all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_body",
+           "extent"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +72,14 @@ class TrackerOptions:
         tiles: run the detector on the tiles at all.
         min_pose_score: the landmark model's person probability below which a crop
             holds nobody (0.5, MediaPipe's).
+        min_extent: a new pose whose landmarks (those seen) span less than this
+            fraction of its crop's side (the larger side of their box) is no person:
+            the crop is 1.25 times the body circle the detector drew around a whole
+            body, and a person's landmarks fill about two thirds of it whatever the
+            pose, where the landmark model squeezes a skeleton into a part of the
+            crop of an object taken for a person. Measured on the Pose2Sim demo
+            videos (medians per track): people 0.60-0.69, the false detections (a
+            camera rig on the wall, a pile of clothes, scoring 0.55-1.0) 0.15-0.41.
         min_detection_score: the detector's score below which a box is dropped
             (MediaPipe: 0.5; 0.3 here, the landmark model's person probability
             rejecting what is no person: on a composited mirror clip the dim,
@@ -93,6 +104,7 @@ class TrackerOptions:
     flip: bool = False
     tiles: bool = True
     min_pose_score: float = 0.5
+    min_extent: float = 0.5
     min_detection_score: float = 0.3
     nms_oks: float = 0.5
     nms_iou: float = 0.7
@@ -180,6 +192,13 @@ def same_body(keypoints: np.ndarray) -> np.ndarray:
     return (d < 0.3 * big) & (ratio < 1.6)
 
 
+def extent(pose: Pose) -> float:
+    """The larger side of the box of a pose's landmarks seen (:meth:`Pose.bbox`) over
+    the side of the crop they come from (see :attr:`TrackerOptions.min_extent`)."""
+    b = pose.bbox()
+    return float(max(b[2] - b[0], b[3] - b[1]) / max(pose.roi[2], 1e-9))
+
+
 def _box_iou(a: np.ndarray, b: np.ndarray) -> float:
     lo, hi = np.maximum(a[:2], b[:2]), np.minimum(a[2:], b[2:])
     inter = float(np.prod(np.clip(hi - lo, 0, None)))
@@ -197,7 +216,9 @@ class PoseTracker:
     """
 
     #: A box where the landmark model found nobody is not looked at again for this
-    #: many frames (background people too small for it, posters, statues).
+    #: many frames (background people too small for it, posters, statues): longer than
+    #: :attr:`TrackerOptions.detect_every`, so that each run of the detector does not
+    #: try them again (three landmark runs each).
     REJECT_FRAMES = 30
 
     def __init__(self, model, options: TrackerOptions | None = None) -> None:
@@ -308,7 +329,7 @@ class PoseTracker:
                         self._covered(det, [p for _, p in unique] + new, frame):
                     continue
                 pose = self._landmarks_of(rgb, det)
-                if pose.score < o.min_pose_score:
+                if pose.score < o.min_pose_score or extent(pose) < o.min_extent:
                     self._rejected.append((det.keypoints[0], float(np.linalg.norm(
                         det.keypoints[1] - det.keypoints[0])), frame))
                     continue

@@ -103,7 +103,7 @@ def test_mirror_aware_tracking_on_a_composited_mirror(demo, models):
     from mirrorgraph.synth.mirror_clip import MirrorComposite
     from mirrorgraph.video.track import PoseTracker
     comp = MirrorComposite()
-    frames = _frames(demo / "Demo_SinglePerson" / "videos" / "cam01.mp4", 40, 6)
+    frames = _frames(demo / "Demo_SinglePerson" / "videos" / "cam01.mp4", 40, 12)
     tracker = PoseTracker(models)
     ids = []
     for i, f in enumerate(frames):
