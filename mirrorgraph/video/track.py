@@ -29,8 +29,9 @@ MediaPipe's pose graph does for one person, extended to several:
 4. one skeleton per person: the frame's poses, tracked ones first (the oldest
    track first), then new ones in the detector's order, go through
    :func:`~mirrorgraph.video.nms.pose_nms` (object keypoint similarity, left/right
-   swaps included, and box overlap); a track that duplicates an older one ends
-   there, a new pose that duplicates a kept one is dropped;
+   swaps included, box overlap, and keypoints lying on a kept pose's body); a track
+   that duplicates an older one ends there, a new pose that duplicates a kept one
+   is dropped;
 5. a new pose takes the id of a track lost in the last
    :attr:`TrackerOptions.relink_frames` frames whose last box it overlaps, or a new id.
 
