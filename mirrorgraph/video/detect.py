@@ -101,7 +101,10 @@ class VideoOptions:
         tracker: :class:`~mirrorgraph.video.track.TrackerOptions` (BlazePose).
         cache: read and write the detection cache.
         cache_dir: where the cache lives (default :func:`cache_dir`).
-        threads: CPU threads of the model runtime.
+        threads: CPU threads of the model runtime (1: LiteRT's second thread makes
+            these small models slower, measured on 2 cores: the landmark model 16-18
+            against 19 ms a run on an idle machine, 26-32 against 32-43 ms on a
+            loaded one).
     """
 
     start: int = 0
@@ -112,7 +115,7 @@ class VideoOptions:
     tracker: TrackerOptions = field(default_factory=TrackerOptions)
     cache: bool = True
     cache_dir: Path | None = None
-    threads: int = 2
+    threads: int = 1
 
 
 @dataclass

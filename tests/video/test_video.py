@@ -206,7 +206,7 @@ def test_cache_key_holds_the_code_version_and_the_settings(demo, models, tmp_pat
     model, files = detect_mod._model_files(VideoOptions())
     key = lambda o: detect_mod._cache_key(info, o, model, files)  # noqa: E731
     base = key(VideoOptions())
-    assert key(VideoOptions(threads=1)) != base
+    assert key(VideoOptions(threads=2)) != base
     assert key(VideoOptions(tracker=TrackerOptions(nms_oks=0.6))) != base
     assert key(VideoOptions(tracker=TrackerOptions(detect_every=5))) != base
     assert key(VideoOptions(cache_dir=tmp_path)) == base       # where, not what
