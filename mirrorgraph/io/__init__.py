@@ -101,16 +101,23 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
 
 
 def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str, *,
-                    track_ids=None) -> None:
+                    track_ids=None, meta: bool = False) -> None:
     """Write detections as ``fmt``: ``"mmpose"`` (a ``.json`` file), ``"openpose"``
     or ``"easymocap"`` (a folder, replaced as a whole). Missing joints are written
     the format's way (``0, 0`` with confidence 0). ``track_ids`` (one int array a
-    frame) go into MMPose's ``track_id`` and OpenPose's ``person_id``."""
+    frame) go into MMPose's ``track_id`` and OpenPose's ``person_id``. ``meta``
+    writes the image size and frame rate the detections carry (MMPose's
+    ``meta_info``, OpenPose's sidecar: :mod:`.meta`), read back by
+    :func:`read_keypoints`."""
     if fmt not in _WRITERS:
         raise ValueError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}")
+    kw = {}
     if track_ids is not None:
         if fmt == "easymocap":
             raise ValueError("EasyMocap annotations hold no track ids")
-        _WRITERS[fmt](detections, path, track_ids=track_ids)
-    else:
-        _WRITERS[fmt](detections, path)
+        kw["track_ids"] = track_ids
+    if meta:
+        if fmt == "easymocap":
+            raise ValueError("EasyMocap annotations hold no image size or frame rate")
+        kw["meta"] = True
+    _WRITERS[fmt](detections, path, **kw)

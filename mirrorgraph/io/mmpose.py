@@ -15,11 +15,17 @@ Layouts, as MMPose writes them (read in MMPose's
      ...]
 
     # the demo scripts on a video: the same list (frame_id from 1) under
-    {"meta_info": {...}, "instance_info": [...]}        # meta_info ignored
+    {"meta_info": {...}, "instance_info": [...]}        # meta_info: the model's
+                                                        # dataset_meta
 
     # the inferencer on images: one file per image, named after it (000012.json),
     # holding that image's list of instances; the demo scripts on one image:
     # {"meta_info": {...}, "instance_info": [instance, ...]}
+
+``mirrorgraph detect`` writes the demo layout with its own ``meta_info``
+(:mod:`.meta`: the skeleton in ``dataset_meta``'s keys, plus ``image_size`` and
+``fps``); the reader takes ``image_size`` and ``fps`` from any ``meta_info`` that
+holds them and ignores its other keys.
 
 A single file of instances is one frame (frame id 0); a folder of per-image files
 is read like an OpenPose folder (frame id = last number in the file name, one
@@ -57,6 +63,7 @@ from ._common import (JointCount, ProgressCallback, ScorePolicy, Tally, bbox_of,
                       frame_files, json_type, load_json, numeric_array,
                       require, to_skeleton, zero_missing)
 from .atomic import atomic_write_text
+from .meta import meta_info, read_meta_info
 
 FORMAT = "mmpose"
 
@@ -89,6 +96,9 @@ def detections_from_mmpose(obj: Any, *, source: str,
         skeleton: the keypoint layout; by default found from the keypoint count.
     """
     frames = require(obj, "instance_info", list, source=source) if isinstance(obj, dict) else obj
+    size, fps = None, None
+    if isinstance(obj, dict) and "meta_info" in obj:
+        size, fps = read_meta_info(obj["meta_info"], source=source)
     if not isinstance(frames, list):
         raise InputError(f"expected a list of frames, got {json_type(obj)}", source=source)
     counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
@@ -106,7 +116,9 @@ def detections_from_mmpose(obj: Any, *, source: str,
         ids.append(t)
         people.append(_frame(instances, counter, tally, source=source, frame=t))
     frame_ids, order = check_frame_ids(ids, source=source)
-    return _detections(people, order, frame_ids, counter, tally, source)
+    out = _detections(people, order, frame_ids, counter, tally, source)
+    out.image_size, out.fps = size, fps
+    return out
 
 
 def read_mmpose_folder(folder: str | os.PathLike, *, skeleton: Skeleton | str | None = None,
@@ -182,12 +194,14 @@ def _person(inst: Any, p: int, counter: JointCount, *, source: str, frame: int,
 
 
 def write_mmpose(detections: RawDetections, path: str | os.PathLike, *,
-                 track_ids: list[np.ndarray] | None = None) -> None:
+                 track_ids: list[np.ndarray] | None = None, meta: bool = False) -> None:
     """Write :class:`RawDetections` as an MMPose predictions JSON file, atomically.
 
     ``track_ids`` (one int array a frame, one id a person) are written as each
     instance's ``track_id`` (the key MMPose's pose-tracking demo writes; the reader
-    ignores it).
+    ignores it). With ``meta`` the file is the demo scripts' layout,
+    ``{"meta_info", "instance_info"}``, ``meta_info`` holding the skeleton, image
+    size and frame rate (:func:`.meta.meta_info`); else the inferencer's list of frames.
     """
     frames = []
     for i, (t, people) in enumerate(zip(detections.frame_ids, detections.people)):
@@ -198,4 +212,5 @@ def write_mmpose(detections: RawDetections, path: str | os.PathLike, *,
             for p, ident in enumerate(track_ids[i]):
                 inst[p]["track_id"] = int(ident)
         frames.append({"frame_id": int(t), "instances": inst})
-    atomic_write_text(path, dump_json(frames))
+    doc = {"meta_info": meta_info(detections), "instance_info": frames} if meta else frames
+    atomic_write_text(path, dump_json(doc))

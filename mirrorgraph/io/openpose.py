@@ -42,7 +42,9 @@ As the tools write it (read in OpenPose's ``doc/02_output.md`` and
 
 The frame id is the last number in the file name; files are read in frame order,
 one at a time, so folders of any length stream. OpenPose files carry no image
-size.
+size and no frame rate; ``mirrorgraph detect --format openpose`` writes both into
+a sidecar in the folder, :data:`.meta.SIDECAR` (not a ``.json`` name, so that
+readers of every ``*.json`` pass it by), read back here where present.
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from ._common import (JointCount, ScorePolicy, Tally, check_writable_ids, clean_
                       json_type, numeric_array, require, to_skeleton, zero_missing)
 from ._common import ProgressCallback
 from .atomic import atomic_dir
+from .meta import SIDECAR, meta_info, read_sidecar
 
 FORMAT = "openpose"
 KEY = "pose_keypoints_2d"
@@ -84,9 +87,11 @@ def read_openpose(folder: str | os.PathLike, *,
     skel = counter.result(people, source=folder)
     empty = np.empty((0, skel.num_joints, 3))
     tally.empty_frames = sum(p is None for p in people)
+    size, fps = read_sidecar(folder)
     return RawDetections(skeleton=skel, frame_ids=frame_ids,
                          people=[empty.copy() if p is None else p for p in people],
-                         source=str(folder), format=FORMAT, read_notes=tally.notes())
+                         source=str(folder), format=FORMAT, read_notes=tally.notes(),
+                         image_size=size, fps=fps)
 
 
 def _frame(persons: list, counter: JointCount, tally: Tally, *, source: str,
@@ -116,8 +121,11 @@ def _frame(persons: list, counter: JointCount, tally: Tally, *, source: str,
 
 
 def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,
-                   stem: str = "video", track_ids: list[np.ndarray] | None = None) -> None:
-    """Write one ``{stem}_{frame:012d}_keypoints.json`` per frame into ``folder``.
+                   stem: str = "video", track_ids: list[np.ndarray] | None = None,
+                   meta: bool = False) -> None:
+    """Write one ``{stem}_{frame:012d}_keypoints.json`` per frame into ``folder``
+    (with ``meta``, and the sidecar :data:`.meta.SIDECAR`: skeleton, image size, frame
+    rate).
 
     ``track_ids`` (one int array a frame, one id a person) are written as each
     person's ``person_id`` (OpenPose's own tracker writes them there); without them
@@ -139,3 +147,5 @@ def write_openpose(detections: RawDetections, folder: str | os.PathLike, *,
                 {"person_id": [ids[p]], KEY: z[p].ravel().tolist(), **empty_parts}
                 for p in range(len(z))]}
             (tmp / f"{stem}_{int(t):012d}_keypoints.json").write_text(dump_json(doc))
+        if meta:
+            (tmp / SIDECAR).write_text(dump_json(meta_info(detections)))

@@ -429,11 +429,16 @@ class BlazePoseModels:
         self.heatmap_offset: float | None = 0.0
 
     def detect(self, image: np.ndarray, *, nms_iou: float = 0.3,
-               min_score: float | None = None) -> list[Detection]:
+               min_score: float | None = None, gain: float = 1.0) -> list[Detection]:
         """People in an ``(H, W, 3)`` uint8 RGB image: the detector's boxes scoring at
         least ``min_score`` (default :attr:`min_detection_score`) after NMS, best first,
-        in image pixels."""
+        in image pixels. ``gain`` scales the intensities of the letterboxed input
+        (clipped at 255): a dim view stretched at the detector's 224 x 224 rather than
+        at the frame's size."""
         x, scale, offset = detector_input(image)
+        if gain != 1.0:                  # x = 2 v / 255 - 1  ->  v' = min(gain v, 255)
+            x = np.minimum((x + np.float32(1.0)) * np.float32(gain), np.float32(2.0)) \
+                - np.float32(1.0)
         self._det.set_tensor(self._det_in, x)
         self._det.invoke()
         boxes, kps, scores = decode_detections(

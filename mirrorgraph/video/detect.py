@@ -15,10 +15,13 @@ Models (both run on the CPU, nothing is downloaded):
 * RTMPose through ``rtmlib`` (:mod:`.rtm`) with ONNX files the user brings
   (``pose_model``, ``det_model``): the layout follows the pose model's keypoint count.
 
-The cache: a second run on the same video with the same model, range and
+The cache: a second run on the same video with the same model, code, range and
 options reads the detections back instead of detecting again. Its key is the
 video's resolved path, size and modification time, the model files' SHA-1, the
-frame range and the tracker options; the entry is a ``.npz`` in
+detection code's version (:func:`code_version`: a hash of the source of this
+package and of :mod:`mirrorgraph.skeletons`, so that detections made by older
+code are never reused), the runtime's version (LiteRT's or rtmlib's), the frame
+range, the threads and the tracker options; the entry is a ``.npz`` in
 :func:`cache_dir` (``$MIRRORGRAPH_CACHE``, else ``$XDG_CACHE_HOME/mirrorgraph``,
 else ``~/.cache/mirrorgraph``), under ``detections/``, written atomically.
 Landmarks outside the image are written as missing.
@@ -46,10 +49,41 @@ from .reader import VideoInfo, frames, probe
 from .rtm import check_onnx_files, rtmlib_frames
 from .track import PoseTracker, TrackerOptions
 
-__all__ = ["VideoOptions", "VideoDetections", "detect_video", "cache_dir", "CACHE_VERSION"]
+__all__ = ["VideoOptions", "VideoDetections", "detect_video", "cache_dir", "CACHE_VERSION",
+           "code_version"]
 
-#: Bumped whenever what a cached entry holds would change for the same key.
-CACHE_VERSION = 1
+#: Bumped whenever the layout of a cached entry changes (what it holds for a key
+#: follows the code by :func:`code_version`).
+CACHE_VERSION = 2
+
+
+def code_version(files: list[Path] | None = None) -> str:
+    """SHA-1 (hex) of the detection code: the names and bytes of the ``.py`` files of
+    :mod:`mirrorgraph.video` and of ``mirrorgraph/skeletons.py`` (the layouts), or of
+    ``files``. Any edit of the code that detects (an upgrade, a local change) changes
+    it, and with it the cache key."""
+    if files is None:
+        here = Path(__file__).resolve().parent
+        files = sorted(here.glob("*.py")) + [here.parent / "skeletons.py"]
+    return _code_hash(tuple(str(Path(f)) for f in files),
+                      tuple(Path(f).stat().st_mtime_ns for f in files))
+
+
+@lru_cache(maxsize=4)
+def _code_hash(files: tuple[str, ...], mtimes: tuple[int, ...]) -> str:
+    h = hashlib.sha1()
+    for f in files:
+        h.update(Path(f).name.encode() + b"\0" + Path(f).read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def _runtime_version(model: str) -> str | None:
+    """The installed version of the package that runs the model (``None`` if unknown)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("rtmlib" if model == "rtmlib" else "ai-edge-litert")
+    except PackageNotFoundError:
+        return None
 
 
 @dataclass(frozen=True)
@@ -67,7 +101,10 @@ class VideoOptions:
         tracker: :class:`~mirrorgraph.video.track.TrackerOptions` (BlazePose).
         cache: read and write the detection cache.
         cache_dir: where the cache lives (default :func:`cache_dir`).
-        threads: CPU threads of the model runtime.
+        threads: CPU threads of the model runtime (1: LiteRT's second thread makes
+            these small models slower, measured on 2 cores: the landmark model 16-18
+            against 19 ms a run on an idle machine, 26-32 against 32-43 ms on a
+            loaded one).
     """
 
     start: int = 0
@@ -78,7 +115,7 @@ class VideoOptions:
     tracker: TrackerOptions = field(default_factory=TrackerOptions)
     cache: bool = True
     cache_dir: Path | None = None
-    threads: int = 2
+    threads: int = 1
 
 
 @dataclass
@@ -156,10 +193,11 @@ def _model_files(opts: VideoOptions) -> tuple[str, tuple[Path, ...]]:
 
 def _cache_key(info: VideoInfo, opts: VideoOptions, model: str, files: tuple[Path, ...]) -> dict:
     st = info.path.stat()
-    return {"version": CACHE_VERSION, "video": str(info.path.resolve()), "size": st.st_size,
-            "mtime_ns": st.st_mtime_ns, "model": model,
+    return {"version": CACHE_VERSION, "code": code_version(),
+            "runtime": _runtime_version(model), "video": str(info.path.resolve()),
+            "size": st.st_size, "mtime_ns": st.st_mtime_ns, "model": model,
             "model_files": [_file_hash(f) for f in files], "start": opts.start,
-            "end": opts.end, "every": opts.every,
+            "end": opts.end, "every": opts.every, "threads": opts.threads,
             "tracker": opts.tracker.key() if model != "rtmlib" else None}
 
 

@@ -5,22 +5,34 @@ or anything with the same ``detect`` / ``landmarks`` methods) frame by frame, as
 MediaPipe's pose graph does for one person, extended to several:
 
 1. every track's crop comes from its landmarks of the frame before (the auxiliary
-   mid-hip and body-circle landmarks): a person once found is followed without the
-   detector, and a track ends where the landmark model no longer sees a person;
-2. the person detector runs on the whole frame and, every
-   :attr:`TrackerOptions.tiles_every` frames (and whenever a track was lost), on
+   mid-hip and body-circle landmarks): a person once found is followed by the
+   landmark model alone, and a track ends where it no longer sees a person;
+2. the person detector runs only to find people not yet tracked: on every frame
+   where a track was lost or nobody is tracked; every
+   :attr:`TrackerOptions.search_every` frames while a track lost in the last
+   :attr:`TrackerOptions.relink_frames` frames is still missing; else on the whole
+   frame every :attr:`TrackerOptions.detect_every` frames and on the tiles every
+   :attr:`TrackerOptions.tiles_every` frames. It runs on the whole frame and on
    overlapping square tiles (:func:`detection_views`), each view's intensities
-   stretched when dim, its boxes merged: a reflection is a mirror image, often
-   smaller and dimmer than the person, which one pass over the whole frame misses
-   (the tiles show it at up to 2.7 times the scale); a box whose mid-hip lies on a
-   tracked person is not looked at again, nor for a few frames one where the landmark
-   model found nobody;
-3. the landmark model runs on each new box's crop (a dim crop's intensities
+   stretched when dim: a reflection is a mirror image, often smaller and dimmer
+   than the person, which one pass over the whole frame misses (the tiles show it
+   at up to 2.7 times the scale). The views' boxes are merged by weighted NMS on
+   the boxes, then by their body circles (:func:`same_body`: one person seen whole
+   and in a tile gives two face boxes that need not overlap);
+3. a detection whose body circle lies on a person already found (or, for a few
+   frames, on one where the landmark model found nobody) is not looked at again;
+   the landmark model runs on each other one's crop (a dim crop's intensities
    stretched; retried upright, then turned by 180 deg, where it finds nobody: the
-   detector's rotation of a reflection is often upside down), and poses closer to
-   one another than :attr:`TrackerOptions.same_person` times their size are one
-   person (the older track is kept);
-4. a new pose takes the id of a track lost in the last
+   detector's rotation of a reflection is often upside down); a pose whose
+   landmarks fill too little of their crop (:func:`extent`) is an object taken
+   for a person;
+4. one skeleton per person: the frame's poses, tracked ones first (the oldest
+   track first), then new ones in the detector's order, go through
+   :func:`~mirrorgraph.video.nms.pose_nms` (object keypoint similarity, left/right
+   swaps included, box overlap, and keypoints lying on a kept pose's body); a track
+   that duplicates an older one ends there, a new pose that duplicates a kept one
+   is dropped;
+5. a new pose takes the id of a track lost in the last
    :attr:`TrackerOptions.relink_frames` frames whose last box it overlaps, or a new id.
 
 All coordinates are image pixels (x right, y down).
@@ -32,9 +44,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..skeletons import BLAZEPOSE
 from .blazepose import Detection, Pose, weighted_nms
+from .nms import pose_nms
 
-__all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_person"]
+__all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_body",
+           "extent"]
 
 
 @dataclass(frozen=True)
@@ -43,35 +58,58 @@ class TrackerOptions:
 
     Attributes:
         detect_every: run the person detector on the whole frame every
-            ``detect_every``-th processed frame (and on every frame where a track was
-            lost or nobody is tracked); 1 (default) finds a new person at once.
+            ``detect_every``-th processed frame while every track is followed (and on
+            every frame where a track was lost or nobody is tracked): a person
+            entering is found within that many frames.
         tiles_every: run it on the tiles (:func:`detection_views`) every
-            ``tiles_every``-th processed frame (and where a track was lost or
-            nobody is tracked): small people, reflections above all, are found
-            within that many frames and then followed by their landmarks.
+            ``tiles_every``-th processed frame while every track is followed: small
+            people, reflections above all, entering are found within that many
+            frames and then followed by their landmarks.
+        search_every: while a track lost in the last ``relink_frames`` frames is
+            missing, run it on the whole frame and the tiles every ``search_every``-th
+            frame.
         flip: also run the detector on the horizontally flipped frame (measured:
             no gain over the tiles on the composited mirror clips; off).
         tiles: run the detector on the tiles at all.
         min_pose_score: the landmark model's person probability below which a crop
             holds nobody (0.5, MediaPipe's).
+        min_extent: a new pose whose landmarks (those seen) span less than this
+            fraction of its crop's side (the larger side of their box) is no person:
+            the crop is 1.25 times the body circle the detector drew around a whole
+            body, and a person's landmarks fill about two thirds of it whatever the
+            pose, where the landmark model squeezes a skeleton into a part of the
+            crop of an object taken for a person. Measured on the Pose2Sim demo
+            videos (medians per track): people 0.60-0.69, the false detections (a
+            camera rig on the wall, a pile of clothes, scoring 0.55-1.0) 0.15-0.41.
         min_detection_score: the detector's score below which a box is dropped
             (MediaPipe: 0.5; 0.3 here, the landmark model's person probability
             rejecting what is no person: on a composited mirror clip the dim,
             sheared reflection scored 0.3-0.5 in most frames).
-        same_person: two poses whose landmarks lie within this fraction of their
-            size of each other (median over the landmarks) are one person.
+        nms_oks: two poses whose object keypoint similarity
+            (:func:`~mirrorgraph.video.nms.oks_matrix`, left/right swaps included)
+            exceeds this are one person.
+        nms_iou: two poses whose keypoint boxes overlap by more than this (intersection
+            over union) are one person.
+        nms_on_body: a pose with more than this share of its keypoints on a kept
+            pose's body (:func:`~mirrorgraph.video.nms.on_body_matrix`; a skeleton the
+            landmark model put on a person from a crop turned the wrong way) is that
+            person; ``None``: off.
         relink_frames: a new pose takes the id of a track lost at most this many
             frames before, where their boxes overlap.
         max_people: most people tracked in one frame (the best detections first).
     """
 
-    detect_every: int = 1
-    tiles_every: int = 4
+    detect_every: int = 10
+    tiles_every: int = 30
+    search_every: int = 4
     flip: bool = False
     tiles: bool = True
     min_pose_score: float = 0.5
+    min_extent: float = 0.5
     min_detection_score: float = 0.3
-    same_person: float = 0.15
+    nms_oks: float = 0.5
+    nms_iou: float = 0.7
+    nms_on_body: float | None = 0.85
     relink_frames: int = 30
     max_people: int = 12
 
@@ -126,28 +164,40 @@ def detection_views(width: int, height: int, *, flip: bool, tiles: bool
     return views
 
 
-def _stretched(view: np.ndarray, max_gain: float = 3.0) -> np.ndarray:
-    """A dim view's intensities scaled so that its 99th percentile reaches 255 (at
-    most ``max_gain`` times): a reflection half as bright as the room is found as
-    often as the person."""
+def _gain(view: np.ndarray, max_gain: float = 3.0) -> float:
+    """The factor that stretches a dim view's intensities so that its 99th percentile
+    (on every 8th pixel) reaches 255, at most ``max_gain``; 1 for a bright view: a
+    reflection half as bright as the room is found as often as the person."""
     top = float(np.percentile(view[::8, ::8], 99))
     if top <= 0 or top >= 242:
-        return view
-    gain = min(max_gain, 255.0 / top)
-    return np.clip(view.astype(np.float32) * gain, 0, 255).astype(np.uint8)
+        return 1.0
+    return min(max_gain, 255.0 / top)
 
 
-def same_person(a: Pose, b: Pose, fraction: float) -> bool:
-    """Whether two poses are one person: the median distance of their landmarks
-    (those both see with visibility >= 0.5, all where fewer than 4) is under
-    ``fraction`` times the larger of their boxes' diagonals."""
-    both = (a.visibility >= 0.5) & (b.visibility >= 0.5)
-    if both.sum() < 4:
-        both = np.ones_like(both)
-    d = np.median(np.linalg.norm(a.xy[both] - b.xy[both], axis=1))
-    size = max(np.linalg.norm(np.diff(a.bbox().reshape(2, 2), axis=0)),
-               np.linalg.norm(np.diff(b.bbox().reshape(2, 2), axis=0)), 1.0)
-    return bool(d < fraction * size)
+def same_body(keypoints: np.ndarray) -> np.ndarray:
+    """``(N, N)`` bool: detections that are one person by their body circles.
+
+    Two detections are one where their mid-hips (the detector's keypoint 0) lie
+    within 0.3 times the larger body-circle radius (the distance to keypoint 1) of
+    each other and the radii differ by less than a factor 1.6.
+
+    Args:
+        keypoints: ``(N, 4, 2)`` the detections' keypoints, image px.
+    """
+    kp = np.asarray(keypoints, float)
+    hip = kp[:, 0]
+    r = np.maximum(np.linalg.norm(kp[:, 1] - kp[:, 0], axis=1), 1e-9)
+    d = np.linalg.norm(hip[:, None] - hip[None], axis=-1)
+    big = np.maximum(r[:, None], r[None])
+    ratio = big / np.minimum(r[:, None], r[None])
+    return (d < 0.3 * big) & (ratio < 1.6)
+
+
+def extent(pose: Pose) -> float:
+    """The larger side of the box of a pose's landmarks seen (:meth:`Pose.bbox`) over
+    the side of the crop they come from (see :attr:`TrackerOptions.min_extent`)."""
+    b = pose.bbox()
+    return float(max(b[2] - b[0], b[3] - b[1]) / max(pose.roi[2], 1e-9))
 
 
 def _box_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -167,8 +217,10 @@ class PoseTracker:
     """
 
     #: A box where the landmark model found nobody is not looked at again for this
-    #: many frames (background people too small for it, posters, statues).
-    REJECT_FRAMES = 8
+    #: many frames (background people too small for it, posters, statues): longer than
+    #: :attr:`TrackerOptions.detect_every`, so that each run of the detector does not
+    #: try them again (three landmark runs each).
+    REJECT_FRAMES = 30
 
     def __init__(self, model, options: TrackerOptions | None = None) -> None:
         self.model = model
@@ -180,8 +232,9 @@ class PoseTracker:
         self.stats = {"detector_runs": 0, "landmark_runs": 0}
 
     def detect_all(self, rgb: np.ndarray, *, tiles: bool = True) -> list[Detection]:
-        """The detector's people over the views of :func:`detection_views`, merged
-        (without the tiles where ``tiles`` is false)."""
+        """The detector's people over the views of :func:`detection_views` (without the
+        tiles where ``tiles`` is false), best first: merged by weighted NMS on their
+        boxes, then one a body (:func:`same_body`, the best-scoring kept)."""
         h, w = rgb.shape[:2]
         boxes, kps, scores = [], [], []
         for flipped, (x0, y0, x1, y1) in detection_views(w, h, flip=self.options.flip,
@@ -190,7 +243,7 @@ class PoseTracker:
             if flipped:
                 view = view[:, ::-1]
             self.stats["detector_runs"] += 1
-            for d in self.model.detect(_stretched(np.ascontiguousarray(view)),
+            for d in self.model.detect(np.ascontiguousarray(view), gain=_gain(view),
                                        min_score=self.options.min_detection_score):
                 box, kp = d.box.copy(), d.keypoints.copy()
                 if flipped:
@@ -206,7 +259,12 @@ class PoseTracker:
             return []
         b, k, s = weighted_nms(np.array(boxes), np.array(kps), np.array(scores),
                                iou_threshold=0.3)
-        return [Detection(box=bb, keypoints=kk, score=float(ss)) for bb, kk, ss in zip(b, k, s)]
+        same = same_body(k)
+        keep: list[int] = []
+        for i in range(len(s)):                          # best first
+            if not any(same[i, j] for j in keep):
+                keep.append(i)
+        return [Detection(box=b[i], keypoints=k[i], score=float(s[i])) for i in keep]
 
     def _covered(self, det: Detection, poses: list[Pose], frame: int) -> bool:
         """Whether a detection's mid-hip lies on a pose already found, at its size, or
@@ -221,43 +279,66 @@ class PoseTracker:
                 return True
         return False
 
+    def _one_each(self, poses: list[Pose]) -> np.ndarray:
+        """Indices of ``poses`` kept by :func:`~mirrorgraph.video.nms.pose_nms` (the
+        order is the preference)."""
+        if len(poses) < 2:
+            return np.arange(len(poses))
+        return pose_nms(np.stack([p.xy for p in poses]),
+                        np.stack([p.visibility for p in poses]),
+                        oks_threshold=self.options.nms_oks, iou_threshold=self.options.nms_iou,
+                        on_body=self.options.nms_on_body,
+                        flip=BLAZEPOSE.flip if len(poses[0].xy) == BLAZEPOSE.num_joints
+                        else None)
+
+    def _detector_due(self, lost_now: bool, tracked: int, frame: int) -> tuple[bool, bool]:
+        """``(run the detector, on the tiles too)`` this frame (the module docstring, 2)."""
+        o, n = self.options, self._count
+        if lost_now or tracked == 0:
+            return True, True
+        missing = any(t.lost and frame - t.last_frame <= o.relink_frames for t in self._tracks)
+        if missing and n % o.search_every == 0:
+            return True, True
+        tiles = n % o.tiles_every == 0
+        return tiles or n % o.detect_every == 0, tiles
+
     def step(self, rgb: np.ndarray, frame: int) -> list[TrackedPose]:
         """Every person in one ``(H, W, 3)`` uint8 RGB frame, with track ids."""
         o = self.options
-        kept: list[tuple[_Track | None, Pose]] = []
+        followed: list[tuple[_Track, Pose]] = []
         lost_now = False
-        for tr in self._tracks:
+        for tr in sorted(self._tracks, key=lambda t: t.track_id):      # the oldest first
             if tr.lost:
                 continue
             self.stats["landmark_runs"] += 1
             pose = self.model.landmarks(rgb, tr.roi)
             if pose.score >= o.min_pose_score:
-                kept.append((tr, pose))
+                followed.append((tr, pose))
             else:
                 tr.lost, lost_now = True, True
-        # one person followed twice (two tracks converged): keep the older
-        kept.sort(key=lambda tp: tp[0].track_id)
-        unique: list[tuple[_Track | None, Pose]] = []
-        for tr, pose in kept:
-            if any(same_person(pose, q, o.same_person) for _, q in unique):
+        # one person followed twice (two tracks converged): the older track goes on
+        keep = set(self._one_each([p for _, p in followed]).tolist())
+        for i, (tr, _) in enumerate(followed):
+            if i not in keep:
                 tr.lost = True
-            else:
-                unique.append((tr, pose))
-        urgent = lost_now or not unique
-        if urgent or self._count % o.detect_every == 0 or self._count % o.tiles_every == 0:
-            tiles = urgent or self._count % o.tiles_every == 0
+        unique: list[tuple[_Track | None, Pose]] = [followed[i] for i in sorted(keep)]
+        run, tiles = self._detector_due(lost_now, len(unique), frame)
+        if run:
+            new: list[Pose] = []
             for det in self.detect_all(rgb, tiles=tiles)[:o.max_people]:
-                if len(unique) >= o.max_people or \
-                        self._covered(det, [p for _, p in unique], frame):
+                if len(unique) + len(new) >= o.max_people or \
+                        self._covered(det, [p for _, p in unique] + new, frame):
                     continue
                 pose = self._landmarks_of(rgb, det)
-                if pose.score < o.min_pose_score:
+                if pose.score < o.min_pose_score or extent(pose) < o.min_extent:
                     self._rejected.append((det.keypoints[0], float(np.linalg.norm(
                         det.keypoints[1] - det.keypoints[0])), frame))
                     continue
-                if any(same_person(pose, q, o.same_person) for _, q in unique):
-                    continue
-                unique.append((None, pose))
+                new.append(pose)
+            if new:
+                every = [p for _, p in unique] + new
+                unique += [(None, every[i]) for i in self._one_each(every).tolist()
+                           if i >= len(unique)]
         self._count += 1
         out = []
         for tr, pose in unique:

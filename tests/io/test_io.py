@@ -548,3 +548,65 @@ def test_read_json_errors(tmp_path):
     path = write_text(tmp_path / "bad.json", '{"a": [1, 2')
     raises_input([path, "malformed JSON"], read_json, path)
     raises_input([tmp_path / "none.json", "no such file"], read_json, tmp_path / "none.json")
+
+
+# ----------------------------------------------------------------------------- meta_info
+@pytest.mark.parametrize("fmt, out", [("mmpose", "kp.json"), ("openpose", "op")])
+def test_image_size_and_frame_rate_round_trip(tmp_path, fmt, out):
+    """With ``meta`` the writers keep image size and frame rate (MMPose's meta_info, an
+    OpenPose sidecar that no *.json reader takes for a frame); without, the files are as
+    before and carry neither."""
+    det = random_detections(COCO_17, image_size=(1920, 1080))
+    det.fps = 25.0
+    write_keypoints(det, tmp_path / out, fmt, meta=True)
+    back = read_keypoints(tmp_path / out)
+    assert back.image_size == (1920, 1080) and back.fps == 25.0
+    assert_same_detections(det, back)
+    if fmt == "openpose":
+        assert not list((tmp_path / out).glob("meta_info*.json"))
+        assert json.loads((tmp_path / out / "meta_info.txt").read_text())["fps"] == 25.0
+    else:
+        doc = json.loads((tmp_path / out).read_text())
+        assert doc["meta_info"]["image_size"] == [1920, 1080]
+        assert doc["meta_info"]["num_keypoints"] == 17
+    plain = tmp_path / f"plain-{out}"
+    write_keypoints(det, plain, fmt)
+    again = read_keypoints(plain)
+    assert again.image_size is None and again.fps is None
+
+
+@pytest.mark.parametrize("meta, field", [
+    ({"image_size": [0, 1080]}, "meta_info.image_size"),
+    ({"image_size": [1920]}, "meta_info.image_size"),
+    ({"image_size": "1920x1080"}, "meta_info.image_size"),
+    ({"fps": -25}, "meta_info.fps"),
+    ({"fps": True}, "meta_info.fps"),
+])
+def test_bad_meta_info_is_one_line(tmp_path, meta, field):
+    det = random_detections(COCO_17)
+    write_keypoints(det, tmp_path / "kp.json", "mmpose", meta=True)
+    doc = json.loads((tmp_path / "kp.json").read_text())
+    doc["meta_info"].update(meta)
+    (tmp_path / "kp.json").write_text(json.dumps(doc))
+    with pytest.raises(InputError) as e:
+        read_keypoints(tmp_path / "kp.json")
+    assert field in str(e.value) and "kp.json" in str(e.value) and "\n" not in str(e.value)
+    write_keypoints(det, tmp_path / "op", "openpose", meta=True)
+    (tmp_path / "op" / "meta_info.txt").write_text(json.dumps(meta))
+    with pytest.raises(InputError) as e:
+        read_keypoints(tmp_path / "op")
+    assert field in str(e.value) and "meta_info.txt" in str(e.value)
+
+
+def test_mmpose_demo_meta_info_without_size_reads(tmp_path):
+    """MMPose's own demo writes the model's dataset_meta (no image size, no frame rate):
+    read as before, neither known."""
+    det = random_detections(COCO_17)
+    write_keypoints(det, tmp_path / "kp.json", "mmpose")
+    frames = json.loads((tmp_path / "kp.json").read_text())
+    (tmp_path / "demo.json").write_text(json.dumps({"meta_info": {
+        "dataset_name": "coco", "num_keypoints": 17, "sigmas": [0.026] * 17},
+        "instance_info": frames}))
+    back = read_keypoints(tmp_path / "demo.json")
+    assert back.image_size is None and back.fps is None
+    assert_same_detections(det, back)

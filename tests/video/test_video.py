@@ -97,12 +97,13 @@ def test_blazepose_finds_the_subject_in_two_cameras_consistently(demo, models):
 
 def test_mirror_aware_tracking_on_a_composited_mirror(demo, models):
     """A person and their flipped, smaller (0.8x), dimmer (0.6x) copy beside them: both
-    found in every frame, with two distinct tracks, and the reflection's landmarks (labels
-    flipped) land on the person's mapped through the mirror."""
+    found in every frame, one skeleton each (no duplicate on either), with two distinct
+    tracks, and the reflection's landmarks (labels flipped) land on the person's mapped
+    through the mirror."""
     from mirrorgraph.synth.mirror_clip import MirrorComposite
     from mirrorgraph.video.track import PoseTracker
     comp = MirrorComposite()
-    frames = _frames(demo / "Demo_SinglePerson" / "videos" / "cam01.mp4", 40, 6)
+    frames = _frames(demo / "Demo_SinglePerson" / "videos" / "cam01.mp4", 40, 12)
     tracker = PoseTracker(models)
     ids = []
     for i, f in enumerate(frames):
@@ -110,7 +111,8 @@ def test_mirror_aware_tracking_on_a_composited_mirror(demo, models):
         found = tracker.step(canvas, i)
         person = [p for p in found if p.pose.aux[0][0] < 1100]
         mirror = [p for p in found if p.pose.aux[0][0] >= 1100]
-        assert person and mirror, f"frame {i}: person {len(person)}, reflection {len(mirror)}"
+        assert len(person) == 1 and len(mirror) == 1, \
+            f"frame {i}: {len(person)} skeletons on the person, {len(mirror)} on the reflection"
         a = max(person, key=lambda p: np.ptp(p.pose.xy[:, 1]))
         mapped = comp.to_reflection(a.pose.xy, f.shape[1])
         size = np.ptp(mapped[:, 1])
@@ -133,10 +135,14 @@ def test_detect_command_formats_range_and_cache(demo, models, tmp_path, capsys):
     first = capsys.readouterr().out
     assert "detected" in first and "from the cache" not in first
     doc = json.loads(out.read_text())
-    assert [f["frame_id"] for f in doc] == [2, 4, 6, 8, 10]
-    assert all("track_id" in inst for f in doc for inst in f["instances"])
+    assert [f["frame_id"] for f in doc["instance_info"]] == [2, 4, 6, 8, 10]
+    assert all("track_id" in inst for f in doc["instance_info"] for inst in f["instances"])
+    meta = doc["meta_info"]        # MMPose demo layout: what detect knows about the video
+    assert meta["image_size"] == [540, 960] and meta["fps"] == pytest.approx(30.0)
+    assert meta["num_keypoints"] == 33 and meta["dataset_name"] == "BLAZEPOSE"
     raw = read_keypoints(out)
     assert raw.skeleton is BLAZEPOSE and all(len(p) >= 1 for p in raw.people)
+    assert raw.image_size == (540, 960) and raw.fps == pytest.approx(30.0)
     # the same again: read from the cache, the same keypoints
     assert main(["detect", str(clip), "--out", str(tmp_path / "kp2.json"), "--every", "2",
                  "--start", "2"]) == 0
@@ -159,7 +165,75 @@ def test_detect_command_formats_range_and_cache(demo, models, tmp_path, capsys):
     files = sorted(folder.glob("*_keypoints.json"))
     assert len(files) == 4
     assert json.loads(files[0].read_text())["people"][0]["person_id"][0] >= 0
-    assert read_keypoints(folder).skeleton is BLAZEPOSE
+    back = read_keypoints(folder)
+    assert back.skeleton is BLAZEPOSE
+    assert back.image_size == (540, 960) and back.fps == pytest.approx(30.0)   # the sidecar
+
+
+def test_cache_key_holds_the_code_version_and_the_settings(demo, models, tmp_path, capsys,
+                                                           monkeypatch):
+    """Detections made by other code, or with other settings, are never read back: the
+    key holds a hash of the detection code's source (any edit changes it) and every
+    setting (threads, the tracker's options)."""
+    import shutil
+
+    import mirrorgraph.video.detect as detect_mod
+    from mirrorgraph.video import TrackerOptions, VideoOptions, probe
+    clip = _write_clip(tmp_path / "clip.mp4", [cv2.resize(f, (540, 960)) for f in
+                       _frames(demo / "Demo_SinglePerson" / "videos" / "cam02.mp4", 0, 3)])
+    args = ["detect", str(clip), "--out", str(tmp_path / "kp.json")]
+    assert main(args) == 0 and "from the cache" not in capsys.readouterr().out
+    assert main(args) == 0 and "from the cache" in capsys.readouterr().out
+    # the code changed (an upgrade, a local edit): detected anew, then cached again
+    monkeypatch.setattr(detect_mod, "code_version", lambda: "0" * 40)
+    assert main(args) == 0 and "from the cache" not in capsys.readouterr().out
+    assert main(args) == 0 and "from the cache" in capsys.readouterr().out
+    monkeypatch.undo()
+    # code_version follows the bytes of the source files
+    src = Path(detect_mod.__file__).parent
+    copies = []
+    for f in sorted(src.glob("*.py")):
+        copies.append(tmp_path / "src" / f.name)
+        copies[-1].parent.mkdir(exist_ok=True)
+        shutil.copy(f, copies[-1])
+    before = detect_mod.code_version(copies)
+    assert before == detect_mod.code_version(copies)
+    with open(copies[0], "a") as fh:
+        fh.write("\n# changed\n")
+    assert detect_mod.code_version(copies) != before
+    # every setting is in the key
+    info = probe(clip)
+    model, files = detect_mod._model_files(VideoOptions())
+    key = lambda o: detect_mod._cache_key(info, o, model, files)  # noqa: E731
+    base = key(VideoOptions())
+    assert key(VideoOptions(threads=2)) != base
+    assert key(VideoOptions(tracker=TrackerOptions(nms_oks=0.6))) != base
+    assert key(VideoOptions(tracker=TrackerOptions(detect_every=5))) != base
+    assert key(VideoOptions(cache_dir=tmp_path)) == base       # where, not what
+
+
+def test_detect_writes_size_and_frame_rate_for_calibrate(demo, models, tmp_path, capsys):
+    """``detect clip.mp4 --out kp.json`` then ``calibrate kp.json``: no --image-size asked
+    (the size is in MMPose's meta_info), and a 25 fps clip stays 25 fps; the same through
+    an OpenPose folder (its sidecar)."""
+    from mirrorgraph.io.qualisys import read_qca
+    from mirrorgraph.synth.mirror_clip import PlanarMirrorClip
+    trial = demo / "Demo_SinglePerson"
+    K = np.diag([0.5, 0.5, 1.0]) @ read_qca(trial / "calibration" / "Calib.qca.txt")["cam01"].K
+    a = np.radians(70)
+    clip = PlanarMirrorClip(K=K, normal=np.array([np.sin(a), 0.0, np.cos(a)]), distance=1.6,
+                            depth=2.9, width=840, split=420)
+    video = _write_clip(tmp_path / "mirror25.mp4", [
+        clip.compose(cv2.resize(f, (540, 960), interpolation=cv2.INTER_AREA))
+        for f in _frames(trial / "videos" / "cam01.mp4", 0, 30)], fps=25.0)
+    for out, fmt in ((tmp_path / "kp.json", "mmpose"), (tmp_path / "op", "openpose")):
+        assert main(["detect", str(video), "--out", str(out), "--format", fmt, "--quiet"]) == 0
+        cal = tmp_path / f"calibration-{fmt}.json"
+        assert main(["calibrate", str(out), "--out", str(cal), "--quiet"]) == 0, fmt
+        c = json.loads(cal.read_text())
+        assert c["input"]["fps"] == pytest.approx(25.0) and c["input"]["fps_source"] == "input"
+        assert c["intrinsics"]["image_size"] == [840, 960]
+        assert "30 fps" not in capsys.readouterr().err
 
 
 def test_bad_video_input_is_one_line(tmp_path, capsys):
@@ -306,7 +380,8 @@ def test_rtmlib_path_on_tiny_onnx_models(tmp_path):
         np.testing.assert_allclose(people[0, 1], [51.0, 16.0, 0.8], atol=1e-4)
         assert np.all(people[0, 2:, 2] == 0)        # scores 0: missing
     doc = json.loads(out.read_text())
-    assert {inst["track_id"] for f in doc for inst in f["instances"]} == {0}
+    assert {inst["track_id"] for f in doc["instance_info"] for inst in f["instances"]} == {0}
+    assert doc["meta_info"]["image_size"] == [96, 64] and doc["meta_info"]["fps"] == 30.0
     # a missing or non-ONNX model file is one clear line
     assert main(["detect", str(clip), "--out", str(out), "--pose-model",
                  str(tmp_path / "nope.onnx"), "--det-model", str(det)]) == 2

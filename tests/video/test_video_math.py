@@ -1,5 +1,6 @@
 """The video path's math without a model: anchors, decoding, NMS, crops, heat maps,
-detection views, box tracking, the Qualisys reader and the BlazePose layout."""
+detection views, pose NMS (keypoint similarity, boxes, on-body), box tracking, the
+Qualisys reader and the BlazePose layout."""
 
 from __future__ import annotations
 
@@ -17,7 +18,9 @@ from mirrorgraph.synth.mirror_clip import MirrorComposite, mirror_homography
 from mirrorgraph.video.blazepose import (crop_matrix, decode_detections, refine_from_heatmap,
                                          roi_from_keypoints, ssd_anchors, weighted_nms)
 from mirrorgraph.video.rtm import BoxTracker
-from mirrorgraph.video.track import detection_views
+from mirrorgraph.video.nms import (BLAZEPOSE_SIGMAS, on_body_matrix, oks_matrix, pose_boxes,
+                                   pose_nms)
+from mirrorgraph.video.track import detection_views, same_body
 
 
 def test_anchor_layout_of_the_pose_detector():
@@ -165,3 +168,96 @@ def test_mirror_homography_keeps_pixels_on_lines_through_the_epipole():
     p = np.array([[100.0, 200.0]])
     back = comp.to_reflection(comp.to_person(p), 1080)
     np.testing.assert_allclose(back, [[(1079 - 100) * 0.4 + 1200, 200 * 0.4 + 140]])
+
+
+#: A standing person's BlazePose landmarks, in heights (x right of the mid-hip, y up).
+_STICK = {"nose": (0.0, 0.90), "eye_inner": (0.02, 0.92), "eye": (0.03, 0.92),
+          "eye_outer": (0.04, 0.92), "ear": (0.06, 0.91), "mouth": (0.02, 0.87),
+          "shoulder": (0.12, 0.80), "elbow": (0.16, 0.62), "wrist": (0.18, 0.46),
+          "pinky": (0.19, 0.42), "index": (0.18, 0.41), "thumb": (0.16, 0.43),
+          "hip": (0.08, 0.50), "knee": (0.09, 0.27), "ankle": (0.09, 0.05),
+          "heel": (0.08, 0.02), "big_toe": (0.12, 0.0)}
+
+
+def _person(x: float, y_feet: float, height: float) -> np.ndarray:
+    """``(33, 2)`` image px of a standing person (the person's left on the image's right,
+    as a person facing the camera), feet at ``y_feet``."""
+    out = np.zeros((33, 2))
+    for j, name in enumerate(BLAZEPOSE.joints):
+        side, _, part = name.partition("_")
+        if name == "nose":
+            side, part = "", "nose"
+        dx, up = _STICK[part]
+        out[j] = [x + (dx if side == "left" else -dx) * height, y_feet - up * height]
+    return out
+
+
+def test_object_keypoint_similarity_is_cocos():
+    """OKS of a pose and the same pose moved by d px at every keypoint is, by COCO's
+    definition, mean_i exp(-d^2 / (2 s^2 (2 sigma_i)^2)) with s^2 the (mean) box area;
+    1 for the same pose, ~0 for another person beside it; labels swapped left/right
+    count as the same pose only with ``flip``."""
+    a = _person(300, 900, 600)
+    vis = np.ones((3, 33))
+    d = 12.0
+    b = a + [d / np.sqrt(2), d / np.sqrt(2)]
+    c = _person(800, 900, 600)
+    o = oks_matrix(np.stack([a, b, c]), vis)
+    box = pose_boxes(a[None], vis[:1])[0]
+    area = (box[2] - box[0]) * (box[3] - box[1])
+    expect = np.mean(np.exp(-d ** 2 / (2 * area * (2 * BLAZEPOSE_SIGMAS) ** 2)))
+    assert o[0, 1] == pytest.approx(expect, rel=1e-9) and 0.5 < expect < 0.95
+    np.testing.assert_allclose(np.diag(o), 1.0)
+    np.testing.assert_allclose(o, o.T)
+    assert o[0, 2] < 1e-3
+    swapped = a[BLAZEPOSE.flip]
+    plain = oks_matrix(np.stack([a, swapped]), vis[:2])[0, 1]
+    flipped = oks_matrix(np.stack([a, swapped]), vis[:2], flip=BLAZEPOSE.flip)[0, 1]
+    assert plain < 0.5 and flipped == pytest.approx(1.0)
+    # only keypoints both see count: a pose wrong where one of them is unseen
+    wrong = a.copy()
+    wrong[25:] += 200                                      # legs off by 200 px
+    v = np.ones((2, 33))
+    v[1, 25:] = 0.1                                        # ... and unseen
+    assert oks_matrix(np.stack([a, wrong]), v)[0, 1] == pytest.approx(1.0)
+
+
+def test_pose_nms_keeps_one_skeleton_per_person():
+    """A person with three duplicates (jittered, labels swapped left/right, labels
+    scrambled on the upper body as from a crop turned the wrong way), their reflection (mirror
+    image, 0.8x, beside them) and a bystander half overlapping them: one skeleton each
+    for the person, the reflection and the bystander, the first of each kept."""
+    rng = np.random.default_rng(3)
+    person = _person(400, 1000, 700)
+    jitter = person + rng.normal(0, 4, person.shape)
+    swapped = person[BLAZEPOSE.flip] + rng.normal(0, 4, person.shape)
+    scrambled = person[rng.choice(25, 33)]          # upper-body points, any labels
+    reflection = _person(1100, 950, 560)[BLAZEPOSE.flip]            # a mirror image
+    bystander = _person(400 + 0.3 * 700, 1000, 650)
+    poses = np.stack([person, jitter, swapped, scrambled, reflection, bystander])
+    vis = np.ones(poses.shape[:2])
+    keep = pose_nms(poses, vis, flip=BLAZEPOSE.flip)
+    np.testing.assert_array_equal(keep, [0, 4, 5])
+    # without the on-body test the scrambled skeleton (OKS near 0) stays
+    assert 3 in pose_nms(poses, vis, flip=BLAZEPOSE.flip, on_body=None)
+    # ... and, by keypoints alone (no box test), without flip the swapped one
+    assert 2 in pose_nms(poses, vis, on_body=None, iou_threshold=1.0)
+    assert 2 not in pose_nms(poses, vis, flip=BLAZEPOSE.flip, on_body=None, iou_threshold=1.0)
+    # the order is the preference: the duplicate first is the one kept
+    np.testing.assert_array_equal(pose_nms(poses[[1, 0, 4]], vis[:3], flip=BLAZEPOSE.flip),
+                                  [0, 2])
+    body = on_body_matrix(poses, vis, np.array([[11, 12]]))
+    assert body[3, 0] == pytest.approx(1.0) and body[5, 0] < 0.85 and body[4, 0] == 0.0
+
+
+def test_same_body_merges_one_person_seen_in_two_views():
+    """Detector keypoints (mid-hip, body-circle point, ...) of one person from the whole
+    frame and from a tile agree within a fraction of the body circle; a person beside,
+    or a far smaller one at the same place, are others."""
+    base = np.array([[500.0, 600], [500, 300], [500, 450], [500, 350]])
+    tile = base + [12.0, -8.0]
+    beside = base + [400.0, 0.0]
+    small = base.copy()
+    small[1] = [500, 520]                                   # radius 80 against 300
+    same = same_body(np.stack([base, tile, beside, small]))
+    assert same[0, 1] and same[1, 0] and not same[0, 2] and not same[0, 3]
