@@ -48,7 +48,6 @@ from ..graph.options import RefineOptions
 from ..io import read_keypoints
 from ..io._common import load_json
 from ..keypoints import DEFAULT_MIN_CONFIDENCE, PairedKeypoints, RawDetections
-from ..pipeline import CalibrateOptions, calibrate
 from ..progress import Progress
 from .backend import INSTALL_HINT, require_matplotlib
 from .store import KEY, read_run, report_data_path
@@ -322,6 +321,8 @@ def options_from_calibration(obj) -> CalibrateOptions:
     Args:
         obj: the parsed ``calibration.json``.
     """
+    from ..pipeline import CalibrateOptions     # GTSAM: at first use, not on importing
+
     info = obj.get("input") or {}
     ref = obj.get("refinement") or {}
     height = info.get("subject_height")
@@ -415,6 +416,8 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         raise InputError(f"no stored run to draw{where}: give the keypoints the "
                          "calibration was made from, to recompute it",
                          source=src, field="keypoints")
+    from ..pipeline import calibrate
+
     opts = options_from_calibration(obj)
     if overrides:
         opts = replace(opts, **overrides)
