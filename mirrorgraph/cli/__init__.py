@@ -38,6 +38,7 @@ import sys
 from .._version import __version__
 from ..errors import MirrorgraphError
 from . import batch, calibrate, report, rig, synth, video
+from .args import error_message
 
 __all__ = ["EXIT_INPUT", "EXIT_INTERNAL", "build_parser", "main"]
 
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except MirrorgraphError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {error_message(exc)}", file=sys.stderr)
         return EXIT_INPUT
     except FileNotFoundError as exc:
         print(f"error: {exc.filename}: no such file or folder", file=sys.stderr)

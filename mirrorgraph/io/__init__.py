@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import os
 
+from ..errors import InputError
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton
 from ._common import ProgressCallback
@@ -107,10 +108,11 @@ def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str
     the format's way (``0, 0`` with confidence 0). ``track_ids`` (one int array a
     frame) go into MMPose's ``track_id`` and OpenPose's ``person_id``."""
     if fmt not in _WRITERS:
-        raise ValueError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}")
+        raise InputError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}",
+                         field="fmt")
     if track_ids is not None:
         if fmt == "easymocap":
-            raise ValueError("EasyMocap annotations hold no track ids")
+            raise InputError("EasyMocap annotations hold no track ids", field="track_ids")
         _WRITERS[fmt](detections, path, track_ids=track_ids)
     else:
         _WRITERS[fmt](detections, path)

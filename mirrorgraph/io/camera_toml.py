@@ -131,7 +131,8 @@ def camera_document(cameras: Sequence[TomlCamera], style: str, *,
         ..., "metadata": {"adjusted": False, "error": error}}``.
     """
     if style not in STYLES:
-        raise ValueError(f"unknown camera file style {style!r}; known: {', '.join(STYLES)}")
+        raise InputError(f"unknown camera file style {style!r}; known: {', '.join(STYLES)}",
+                         field="style")
     doc: dict[str, Any] = {}
     for cam in cameras:
         if cam.key in doc or cam.key == "metadata":

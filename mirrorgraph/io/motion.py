@@ -215,7 +215,7 @@ def write_trc(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     factor = _METRES.get(str(unit).strip().lower())
     if factor is None:
         raise InputError(f"the 3D joints are in {unit!r}, not metres; OpenSim needs metres "
-                         "(calibrate with a metric prior such as --subject-height)",
+                         "(calibrate with a metric prior such as the subject's height)",
                          source=path, field="unit")
     markers = trc_marker_names(names) if marker_names is None \
         else [str(m) for m in marker_names]
