@@ -59,7 +59,8 @@ _LAZY = {
     "write_rig_report": "mirrorgraph.report.rig",
 }
 
-__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError", "__version__", *_LAZY]
+__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError",
+           "__version__"] + list(_LAZY)
 
 
 def __getattr__(name: str):

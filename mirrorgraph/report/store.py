@@ -29,7 +29,7 @@ import dataclasses
 import os
 import zipfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
