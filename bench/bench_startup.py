@@ -10,6 +10,8 @@ the repeats interleaved (the machine is shared and its load moves):
   ``python -X importtime`` reports for the package (its cumulative microseconds,
   from a second process);
 * ``mirrorgraph --help`` in a fresh process (the parser and every command's options);
+* ``python -c "import numpy, cv2, scipy.optimize, gtsam"``: what ``calibrate`` needs
+  from other packages, the floor of its start;
 * ``mirrorgraph calibrate`` of a synthetic 1000-frame scene (MMPose JSON, the
   camera's intrinsics, the subject's height), in a fresh process and the very same
   ``main(argv)`` in a running process that has already run it once (its imports
@@ -47,6 +49,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 THIS = str(Path(__file__).resolve())
+
+#: What ``calibrate`` cannot start without (the epipole's robust fit is SciPy's
+#: ``least_squares``, the graph GTSAM's): the floor of a fresh process's start.
+JOB_IMPORTS = "numpy, cv2, scipy.optimize, gtsam"
+JOB_ROW = f"python -c \"import {JOB_IMPORTS}\""
 
 #: Packages whose import a command pays for only where it needs them.
 HEAVY = ("gtsam", "scipy.optimize", "scipy.spatial", "cv2", "matplotlib", "dask",
@@ -205,6 +212,8 @@ def main() -> None:
             steps = [
                 ("python -c pass", lambda: timed([py, "-c", "pass"], env)),
                 ("import mirrorgraph", lambda: timed([py, "-c", "import mirrorgraph"], env)),
+                (JOB_ROW,
+                 lambda: timed([py, "-c", f"import {JOB_IMPORTS}"], env)),
                 ("mirrorgraph --help", lambda: timed([py, "-m", "mirrorgraph", "--help"], env)),
                 ("calibrate, fresh process",
                  lambda: timed([py, "-m", "mirrorgraph", *calib, "--out", out], env)),
@@ -258,6 +267,8 @@ def main() -> None:
             f"({statistics.median([a - b for a, b in zip(imp, bare)]):.3f} s above "
             f"`python -c pass`); `-X importtime` {statistics.median(imptime[label]):.0f} ms "
             f"cumulative for the package (median; it inflates what it measures). "
+            f"`{JOB_ROW}` (what calibrate needs from other packages): "
+            f"{statistics.median(v[1] for v in rows[(label, JOB_ROW)]):.3f} s CPU. "
             f"A fresh `calibrate` of {args.frames} frames costs "
             f"{statistics.median(d_wall):.3f} s wall ({statistics.median(d_cpu):.3f} s CPU) "
             f"more than the same call in a running process (median of the paired "
