@@ -101,8 +101,7 @@ DEFAULT_FPS = 30.0
 VIDEO_FPS_RANGE = (1.0, 1000.0)
 #: What to say when the 3D motion is written at :data:`DEFAULT_FPS` for want of a rate.
 DEFAULT_FPS_WARNING = (f"frame rate unknown: the 3D motion is written at the default "
-                       f"{DEFAULT_FPS:g} fps; pass --fps HZ (CalibrateOptions.fps) or --video "
-                       "FILE to set it")
+                       f"{DEFAULT_FPS:g} fps; pass --fps HZ or --video FILE to set it")
 #: Two frame rates that differ by more than this fraction are named in a warning.
 FPS_TOLERANCE = 0.005
 

@@ -241,7 +241,7 @@ def test_batch_command_on_an_existing_scheduler(scenes, tmp_path, capsys):
                       dashboard_address=None) as cluster:
         code = batch_cli(["batch", str(scenes), "--scheduler", cluster.scheduler_address,
                           "--no-refine", "--out-dir", str(tmp_path / "cal"),
-                          "--report", str(report)])
+                          "--summary", str(report)])
     cap = capsys.readouterr()
     assert code == 2, cap.err                       # one recording failed
     assert "calibrating 3 recordings on tcp://" in cap.err

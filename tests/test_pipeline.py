@@ -123,11 +123,16 @@ def test_fps_default_is_reported_and_named_where_the_motion_is_written(tmp_path,
     paths = write_scene(s, tmp_path / "scene", formats=("mmpose",))
     out = tmp_path / "c.json"
     assert main(["calibrate", str(paths["mmpose"]), "--intrinsics", str(paths["camera"]),
-                 "--out", str(out), "--joints3d", str(tmp_path / "j.npz"), "--quiet"]) == 0
+                 "--out", str(out), "--joints3d", str(tmp_path / "j.npz")]) == 0
     err = capsys.readouterr().err
     warned = [ln for ln in err.splitlines() if "frame rate" in ln]
     assert len(warned) == 1 and "default 30 fps" in warned[0] and "--fps" in warned[0] \
-        and "--video" in warned[0]
+        and "--video" in warned[0] and "Options" not in warned[0]   # the CLI's words only
+    assert any("frame rate" in w for w in json.loads(out.read_text())["warnings"])
+    # --quiet: not on stderr, still in the JSON
+    assert main(["calibrate", str(paths["mmpose"]), "--intrinsics", str(paths["camera"]),
+                 "--out", str(out), "--joints3d", str(tmp_path / "j.npz"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
     assert any("frame rate" in w for w in json.loads(out.read_text())["warnings"])
     assert main(["calibrate", str(paths["mmpose"]), "--intrinsics", str(paths["camera"]),
                  "--out", str(out), "--quiet"]) == 0

@@ -6,16 +6,17 @@
     mirrorgraph demo
     mirrorgraph export calibration.json --to pose2sim|anipose OUT.toml
     mirrorgraph report calibration.json [KEYPOINTS] --out DIR
-    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--report FILE.json]
+    mirrorgraph batch MANIFEST [--scheduler ADDRESS] [--workers N] [--out-dir DIR] [--summary FILE.json]
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
     mirrorgraph synth-rig KIND --out DIR
+    mirrorgraph view CALIBRATION [--joints3d FILE] [--video FILE] [--save OUT.rrd]
 
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
 traceback). No output file is written by a failed run.
 
-What a run says: its summary on stdout, each warning once on stderr (also under
-``--quiet``), progress bars on stderr only when it is a terminal
+What a run says: its summary on stdout, each warning once on stderr (neither under
+``--quiet``: the warnings stay in the JSON the run writes), progress bars on stderr only when it is a terminal
 (:mod:`mirrorgraph.progress`), and a last line naming what was written.
 ``calibrate --out c.json`` also keeps the run its figures are drawn from in
 ``c.report.npz`` (named in ``c.json``, see :mod:`mirrorgraph.report.store`), so
@@ -25,7 +26,7 @@ One module per family of commands, each adding its parsers (``add_parsers``)
 and running them (``cmd_*``): :mod:`.calibrate`, :mod:`.video` (``detect`` and
 the video options), :mod:`.synth` (``synth``, ``demo``), :mod:`.report`
 (``report``, ``export``), :mod:`.batch`, :mod:`.rig` (``calibrate-rig``,
-``synth-rig``); what they share (argument types, common options, how a run
+``synth-rig``), :mod:`.view` (``view``, and ``--view`` of the calibrations); what they share (argument types, common options, how a run
 speaks) is in :mod:`.args`. Here: :func:`build_parser`, :func:`main` and the exit
 statuses.
 """
@@ -37,7 +38,7 @@ import sys
 
 from .._version import __version__
 from ..errors import MirrorgraphError
-from . import batch, calibrate, report, rig, synth, video
+from . import batch, calibrate, report, rig, synth, video, view
 from .args import error_message
 
 __all__ = ["EXIT_INPUT", "EXIT_INTERNAL", "build_parser", "main"]
@@ -60,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "video, and turn mirror videos into 3D motion.")
     parser.add_argument("--version", action="version", version=f"mirrorgraph {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for commands in (calibrate, synth, report, batch, rig, video):
+    for commands in (calibrate, synth, report, batch, rig, video, view):
         commands.add_parsers(sub)
     return parser
 

@@ -23,7 +23,7 @@ from ..progress import Progress, SolveProgress
 
 __all__ = ["FLAGS", "add_common", "add_joints", "add_scale_from", "error_message", "floats",
            "height", "image_size", "options_from_args", "positive", "print_result", "printer",
-           "rate", "report_written", "seed", "solver_progress", "step"]
+           "rate", "report_written", "seed", "solver_progress", "step", "warn"]
 
 
 #: The library's argument names -> the flags that give them (with a metavar where the flag
@@ -100,7 +100,8 @@ def floats(text: str) -> tuple[float, ...]:
 
 # --------------------------------------------------------------------------- common options
 def add_common(p) -> None:
-    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing but errors (warnings stay in the JSON written)")
     p.add_argument("--verbose", action="store_true", help="tell what was detected and done")
     p.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
 
@@ -169,14 +170,22 @@ def _isatty(stream) -> bool:
         return False
 
 
+def warn(args, warnings) -> None:
+    """Every warning once on stderr, ``warning: ...``; nothing under ``--quiet`` (the
+    warnings stay in the files the run writes)."""
+    if getattr(args, "quiet", False):
+        return
+    for w in dict.fromkeys(warnings):
+        print(f"warning: {w}", file=sys.stderr)
+
+
 def print_result(args, summary: str, warnings) -> None:
-    """The summary on stdout (unless ``--quiet``, and without its warning lines), then
-    every warning once on stderr (also under ``--quiet``)."""
+    """The summary on stdout and every warning once on stderr, neither under ``--quiet``
+    (the summary without its warning lines)."""
     lines = [ln for ln in summary.splitlines() if not ln.startswith("warning: ")]
     printer(args)("\n".join(lines))
     sys.stdout.flush()
-    for w in warnings:
-        print(f"warning: {w}", file=sys.stderr)
+    warn(args, warnings)
 
 
 def report_written(written: dict, out) -> str:

@@ -37,8 +37,9 @@ def add_parsers(subparsers) -> None:
                    help="local worker processes (default: one per core)")
     p.add_argument("--out-dir", metavar="DIR",
                    help="folder for calibrations the manifest gives no 'out' for")
-    p.add_argument("--report", metavar="FILE.json",
-                   help="also write every result as JSON")
+    p.add_argument("--summary", "--report", dest="summary", metavar="FILE.json",
+                   help="also write every recording's result as JSON (--report, its former "
+                        "name, still works; elsewhere --report names a folder of figures)")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS)
     p.add_argument("--threshold", type=positive, default=None, metavar="PX",
                    help="inlier threshold on the epipolar distance in pixels (default "
@@ -69,9 +70,9 @@ def cmd_batch(args) -> int:
 
     recordings = read_manifest(args.manifest, out_dir=args.out_dir)
     opts = options_from_args(args)
-    if args.report and Path(args.report).is_dir():
-        raise InputError("is a folder; give a file name for the report", source=args.report,
-                         field="--report")
+    if args.summary and Path(args.summary).is_dir():
+        raise InputError("is a folder; give a file name for the summary", source=args.summary,
+                         field="--summary")
 
     def report(res: BatchResult, done: int, total: int) -> None:
         if args.quiet:
@@ -87,7 +88,7 @@ def cmd_batch(args) -> int:
     results = run_batch(recordings, scheduler=args.scheduler, workers=args.workers,
                         options=opts, progress=report)
     print(format_summary(results))
-    if args.report:
+    if args.summary:
         from ..io.atomic import atomic_write_text
-        atomic_write_text(args.report, json.dumps(results_to_json(results), indent=2) + "\n")
+        atomic_write_text(args.summary, json.dumps(results_to_json(results), indent=2) + "\n")
     return 0 if all(r.ok for r in results) else 2

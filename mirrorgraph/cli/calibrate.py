@@ -25,6 +25,7 @@ from .args import (add_common, add_joints, add_scale_from, height, image_size, o
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
                    step)
 from .video import add_video_options, describe, detect_with_progress, video_options
+from .view import add_view_option, check_view_option, view_after_run
 
 __all__ = ["add_parsers", "cmd_calibrate"]
 
@@ -75,7 +76,8 @@ def add_parsers(sub) -> None:
                         "(calibration.json's sensitivity.prior_weights; eight calibrations more)")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the refined 3D joints: .npz (T, J, 3) with names and a validity "
-                        "mask, .csv, or OpenSim .trc (metres, needs --subject-height)")
+                        "mask, .csv, or in metres (needs --subject-height) OpenSim .trc, C3D "
+                        ".c3d or BVH .bvh")
     p.add_argument("--fps", type=positive, default=None,
                    help="frame rate of the 3D motion (default: the input's, else --video's, "
                         f"else {DEFAULT_FPS:g} with a warning)")
@@ -88,6 +90,7 @@ def add_parsers(sub) -> None:
                         "--report the overlay on sampled frames")
     p.add_argument("--render", metavar="OUT.mp4",
                    help="with --report and --video: write the whole overlay video")
+    add_view_option(p)
     add_video_options(p)
     add_common(p)
     p.set_defaults(func=cmd_calibrate)
@@ -96,7 +99,7 @@ def add_parsers(sub) -> None:
 def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
-    from ..io.motion import write_joints3d
+    from ..io.motion import check_motion_path, write_joints3d
     from ..pipeline import calibrate
     from ..report.store import write_calibration_and_run
 
@@ -115,11 +118,11 @@ def cmd_calibrate(args) -> int:
         raise InputError("must end in .mp4", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
-    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
-        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
-                         field="--joints3d")
-    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" and not args.subject_height:
-        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=bool(args.subject_height))
+    if args.view is not None and args.no_refine:
+        raise InputError("needs the refinement's 3D joints: drop --no-refine", field="--view")
+    check_view_option(args)
     if args.sensitivity and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
@@ -163,12 +166,22 @@ def cmd_calibrate(args) -> int:
         written = make_report(run, args.report, video=args.video, render=args.render,
                               progress=lambda s: step(args, s), progress_bar=not args.quiet)
         report_line = report_written(written, args.report)
+    view_line = None
+    if args.view is not None:
+        from ..viewer import scene_from_calibration
+        scene = scene_from_calibration(calib, joints3d=run.joints3d, valid=run.valid3d,
+                                       frame_ids=run.paired.frame_ids,
+                                       joint_names=run.paired.skeleton.joints, fps=run.fps,
+                                       keypoints=(run.paired.real, run.paired.mirror))
+        view_line = view_after_run(args, scene, video=args.video)
     print_result(args, calib.summary(), calib.warnings)
     if args.verbose and not args.quiet:
         print("timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in run.timings.items()),
               file=sys.stderr)
     if report_line:
         say(report_line)
+    if view_line:
+        say(view_line)
     say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
     return 0
 

@@ -6,11 +6,10 @@ Pose2Sim or aniposelib (:mod:`mirrorgraph.export`).
 
 from __future__ import annotations
 
-import sys
 
 from ..errors import InputError
 from ..export import FORMATS, WORLD_FRAMES
-from .args import add_common, printer, report_written, solver_progress, step
+from .args import add_common, printer, report_written, solver_progress, step, warn
 
 __all__ = ["add_parsers", "cmd_export", "cmd_report"]
 
@@ -58,8 +57,7 @@ def cmd_report(args) -> int:
         loaded = load_run(args.calibration, args.keypoints,
                           report_data=None if args.recompute else "auto",
                           skeleton=args.skeleton, **callbacks)
-    for w in loaded.warnings:
-        print(f"warning: {w}", file=sys.stderr)
+    warn(args, loaded.warnings)
     note = ""
     if loaded.origin == "stored" and args.keypoints is not None:
         note = f" ({args.keypoints} not read; --recompute calibrates it again)"
@@ -95,8 +93,7 @@ def cmd_export(args) -> int:
     from ..export import camera_sections, export_calibration
 
     warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
-    for w in warnings:
-        print(f"warning: {w}", file=sys.stderr)
+    warn(args, warnings)
     (k_real, n_real), (k_mirror, n_mirror) = camera_sections(args.fmt)
     named = lambda key, name: f"[{key}]" + (f" '{name}'" if name != key else "")  # noqa: E731
     printer(args)(f"wrote {args.out} ({args.fmt}): {named(k_real, n_real)} the real camera, "

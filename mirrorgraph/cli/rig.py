@@ -21,6 +21,7 @@ from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
 from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
                    seed)
 from .video import add_video_options, video_options
+from .view import add_view_option, check_view_option, view_after_run
 
 __all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
 
@@ -51,7 +52,8 @@ def add_parsers(sub) -> None:
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
                         "or comma-separated names; overrides the rig file's joints")
     p.add_argument("--joints3d", metavar="FILE",
-                   help="write the 3D joints (world frame): .npz, .csv, or .trc (needs metres)")
+                   help="write the 3D joints (world frame): .npz, .csv, or in metres (needs a "
+                        "subject height) .trc, .c3d or .bvh")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (top view of the rig, residuals per view) into DIR "
@@ -60,6 +62,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--no-focal", action="store_true",
                    help="cameras without intrinsics keep a 60 deg field of view guess instead "
                         "of having their focal length estimated")
+    add_view_option(p)
     add_video_options(p)
     add_common(p)
     p.set_defaults(func=cmd_calibrate_rig)
@@ -88,7 +91,7 @@ def add_parsers(sub) -> None:
 
 
 def cmd_calibrate_rig(args) -> int:
-    from ..io.motion import write_joints3d
+    from ..io.motion import check_motion_path, write_joints3d
     from ..io.rig_calibration import write_rig_json, write_rig_toml
     from ..graph.options import RefineOptions
     from ..rigs import calibrate_rig
@@ -100,10 +103,10 @@ def cmd_calibrate_rig(args) -> int:
     if out.suffix.lower() != ".toml":
         raise InputError("must end in .toml (Pose2Sim's calibration file)", source=out,
                          field="--out")
-    if args.joints3d and Path(args.joints3d).suffix.lower() not in (".npz", ".csv", ".trc"):
-        raise InputError("must end in .npz, .csv or .trc", source=args.joints3d,
-                         field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=None)   # the scale is known after the solve
     json_path = Path(args.json) if args.json else out.with_suffix(".json")
+    check_view_option(args)
     if args.report:
         from ..report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
@@ -143,9 +146,8 @@ def cmd_calibrate_rig(args) -> int:
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)
-    if args.joints3d and Path(args.joints3d).suffix.lower() == ".trc" \
-            and calib.scale != "subject_height":
-        raise InputError("OpenSim .trc needs metres: add --subject-height", field="--joints3d")
+    if args.joints3d:
+        check_motion_path(args.joints3d, metric=calib.scale == "subject_height")
     write_rig_toml(calib, out, with_virtual=args.with_virtual)
     write_rig_json(calib, json_path)
     if args.joints3d:
@@ -157,7 +159,13 @@ def cmd_calibrate_rig(args) -> int:
     if args.report:
         from ..report.rig import write_rig_report
         written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
+    view_line = None
+    if args.view is not None:
+        from ..viewer import scene_from_rig
+        view_line = view_after_run(args, scene_from_rig(calib, fps=args.fps))
     print_result(args, calib.summary(), calib.warnings)
+    if view_line:
+        say(view_line)
     if written is not None:
         say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")

@@ -1,4 +1,4 @@
-"""3D motion out: joints over time as ``.npz``, ``.csv`` or OpenSim ``.trc``.
+"""3D motion out: joints over time as ``.npz``, ``.csv``, OpenSim ``.trc``, C3D or BVH.
 
 :func:`write_joints3d` picks the format from the file suffix; every write is
 atomic.
@@ -15,6 +15,11 @@ format      content
             the frame rate is unknown); empty fields where a joint is invalid.
             Real camera frame, the unit of the data.
 ``.trc``    OpenSim marker file as Pose2Sim writes it (below). Metres, Y up.
+``.c3d``    C3D with the ``.trc``'s markers, axes and Pose2Sim's units
+            (millimetres), :mod:`mirrorgraph.io.c3d_writer` (``c3d`` extra).
+``.bvh``    BVH: a hierarchy built from the skeleton, one length a bone,
+            joint rotations from the 3D positions, root translation in metres,
+            the ``.trc``'s axes (Y up), :mod:`mirrorgraph.io.bvh_writer`.
 =========== ================================================================
 
 TRC layout (tab-separated; Pose2Sim's ``make_trc`` structure)::
@@ -53,7 +58,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -62,79 +66,40 @@ import numpy as np
 
 from ..errors import InputError
 from .atomic import atomic_path, atomic_write_text
+from .motion_base import (CAMERA_FRAME, TRC_FROM_CAMERA, metres_factor, regular_frames,
+                          to_trc_axes, trc_marker_name, trc_marker_names)
+from .motion_base import check_arrays as _check
 
 __all__ = ["write_joints3d", "write_joints3d_npz", "write_joints3d_csv", "write_trc",
-           "trc_marker_name", "trc_marker_names", "TRC_FROM_CAMERA", "CAMERA_FRAME"]
+           "trc_marker_name", "trc_marker_names", "TRC_FROM_CAMERA", "CAMERA_FRAME",
+           "MOTION_SUFFIXES", "METRIC_SUFFIXES", "check_motion_path", "metres_factor",
+           "regular_frames", "to_trc_axes"]
 
-#: ``(3, 3)`` rotation from the real camera frame to the ``.trc`` axes:
-#: ``(X, Y, Z)_trc = TRC_FROM_CAMERA @ (x, y, z)_camera = (z, -y, x)``.
-TRC_FROM_CAMERA = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
-
-#: The frame of ``.npz`` and ``.csv`` coordinates, in words.
-CAMERA_FRAME = "real camera frame: x right, y down, z forward (OpenCV)"
-
-#: Unit names accepted for ``.trc`` (always written in metres) and their factor to metres.
-_METRES = {"m": 1.0, "metre": 1.0, "metres": 1.0, "meter": 1.0, "meters": 1.0,
-           "cm": 0.01, "mm": 0.001}
-
-#: Canonical names whose Pose2Sim / OpenSim marker name does not follow the general rule.
-_MARKER_EXCEPTIONS = {"mid_hip": "CHip", "head_top": "Head"}
+#: The file suffixes :func:`write_joints3d` writes.
+MOTION_SUFFIXES = (".npz", ".csv", ".trc", ".c3d", ".bvh")
+#: Those whose format needs metres (a metric scale: ``--subject-height``).
+METRIC_SUFFIXES = (".trc", ".c3d", ".bvh")
+_FORMAT_NAMES = {".trc": "OpenSim .trc", ".c3d": "C3D", ".bvh": "BVH"}
 
 
-def trc_marker_name(joint: str) -> str:
-    """Pose2Sim / OpenSim marker name of a canonical joint name.
-
-    ``left_`` / ``right_`` become ``L`` / ``R``, the rest CamelCase
-    (``left_small_toe -> LSmallToe``); ``mid_hip`` is ``CHip`` (BODY_25's name;
-    :func:`trc_marker_names` gives HALPE_26's ``Hip``), ``head_top`` is ``Head``.
-    """
-    if joint in _MARKER_EXCEPTIONS:
-        return _MARKER_EXCEPTIONS[joint]
-    parts = [p for p in str(joint).split("_") if p]
-    prefix = ""
-    if parts and parts[0] in ("left", "right") and len(parts) > 1:
-        prefix, parts = parts[0][0].upper(), parts[1:]
-    return prefix + "".join(p[:1].upper() + p[1:] for p in parts)
-
-
-def trc_marker_names(joint_names: Sequence[str]) -> list[str]:
-    """Marker names of a whole layout (:func:`trc_marker_name` of each joint), with the
-    mid-hip called ``Hip`` where the layout also has a head top (HALPE_26, as
-    Pose2Sim names it) and ``CHip`` otherwise (BODY_25, COCO-18)."""
-    names = [str(n) for n in joint_names]
-    halpe = "head_top" in names
-    return ["Hip" if (n == "mid_hip" and halpe) else trc_marker_name(n) for n in names]
-
-
-def _check(joints3d, valid, frame_ids, joint_names, fps):
-    X = np.array(joints3d, dtype=float)
-    if X.ndim != 3 or X.shape[2] != 3:
-        raise ValueError(f"joints3d must have shape (T, J, 3), got {X.shape}")
-    T, J = X.shape[:2]
-    ok = np.isfinite(X).all(-1)
-    if valid is not None:
-        v = np.asarray(valid)
-        if v.shape != (T, J):
-            raise ValueError(f"valid must have shape {(T, J)}, got {v.shape}")
-        ok &= v.astype(bool)
-    if frame_ids is None:
-        ids = np.arange(T, dtype=np.int64)
-    else:
-        ids = np.asarray(frame_ids)
-        if ids.shape != (T,):
-            raise ValueError(f"frame_ids must have shape {(T,)}, got {ids.shape}")
-        if ids.dtype.kind not in "iu" and not np.all(np.mod(ids, 1) == 0):
-            raise ValueError("frame_ids must be whole numbers")
-        ids = ids.astype(np.int64)
-    names = [str(n) for n in joint_names]
-    if len(names) != J:
-        raise ValueError(f"{len(names)} joint names for {J} joints")
-    if fps is not None:
-        fps = float(fps)
-        if not (math.isfinite(fps) and fps > 0):
-            raise InputError(f"frame rate must be a positive number, got {fps}", field="fps")
-    X[~ok] = np.nan
-    return X, ok, ids, names, fps
+def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
+    """Refuse, before a long run, a ``--joints3d`` file :func:`write_joints3d` cannot write:
+    an unknown suffix, or a format in metres (:data:`METRIC_SUFFIXES`) when ``metric`` is
+    ``False`` (no subject height; ``None``: not known yet), or ``.c3d`` without the
+    ``c3d`` package."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in MOTION_SUFFIXES:
+        raise InputError("must end in " + ", ".join(MOTION_SUFFIXES[:-1]) + " or "
+                         + MOTION_SUFFIXES[-1], source=path, field="--joints3d")
+    if suffix in METRIC_SUFFIXES and metric is False:
+        raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres: add --subject-height",
+                         field="--joints3d")
+    if suffix == ".c3d":
+        import importlib.util
+        if importlib.util.find_spec("c3d") is None:
+            from .c3d_writer import C3D_INSTALL_HINT
+            raise InputError(f"writing .c3d needs the c3d package: {C3D_INSTALL_HINT}",
+                             field="--joints3d")
 
 
 def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
@@ -144,22 +109,25 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     """Write 3D joints over time; the format follows the suffix of ``path``.
 
     Args:
-        path: ``.npz``, ``.csv`` or ``.trc`` file (see the module docstring).
+        path: ``.npz``, ``.csv``, ``.trc``, ``.c3d`` or ``.bvh`` file (see the module
+            docstring).
         joints3d: ``(T, J, 3)`` joints in the real camera frame.
         valid: ``(T, J)`` bool, joints to write (``None``: every finite one);
             non-finite joints are always invalid.
         frame_ids: ``(T,)`` frame numbers (``None``: ``0 .. T-1``).
         joint_names: ``(J,)`` canonical joint names (``left_knee``, ...).
-        fps: frame rate in Hz, or ``None`` if unknown (refused for ``.trc``).
+        fps: frame rate in Hz, or ``None`` if unknown (refused for ``.trc``, ``.c3d``,
+            ``.bvh``).
         unit: the unit of ``joints3d``: ``"m"`` with a metric scale, otherwise
-            e.g. ``"mirror distance"``. ``.trc`` takes only ``m``, ``cm``, ``mm``
-            (converted to metres).
-        marker_names: ``.trc`` only: marker names to use instead of
+            e.g. ``"mirror distance"``. ``.trc``, ``.c3d`` and ``.bvh`` take only
+            ``m``, ``cm``, ``mm`` (converted to their own unit).
+        marker_names: ``.trc`` and ``.c3d`` only: marker names to use instead of
             :func:`trc_marker_name` of ``joint_names``.
 
     Raises:
-        InputError: unknown suffix, ``.trc`` without a frame rate or in a
-            non-metric unit, bad frame rate.
+        InputError: unknown suffix, ``.trc`` / ``.c3d`` / ``.bvh`` without a frame
+            rate or in a non-metric unit, bad frame rate, ``.c3d`` without the ``c3d``
+            package.
         ValueError: arrays of inconsistent shapes.
     """
     suffix = Path(path).suffix.lower()
@@ -170,9 +138,16 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     elif suffix == ".trc":
         write_trc(path, joints3d, valid, frame_ids, joint_names, fps, unit,
                   marker_names=marker_names)
+    elif suffix == ".c3d":
+        from .c3d_writer import write_c3d
+        write_c3d(path, joints3d, valid, frame_ids, joint_names, fps, unit,
+                  marker_names=marker_names)
+    elif suffix == ".bvh":
+        from .bvh_writer import write_bvh
+        write_bvh(path, joints3d, valid, frame_ids, joint_names, fps, unit)
     else:
-        raise InputError(f"unknown 3D motion format {suffix or '(no suffix)'!r}: use .npz, "
-                         ".csv or .trc", source=path)
+        raise InputError(f"unknown 3D motion format {suffix or '(no suffix)'!r}: use "
+                         + ", ".join(MOTION_SUFFIXES), source=path)
 
 
 def write_joints3d_npz(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
@@ -212,16 +187,12 @@ def write_trc(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
     if fps is None:
         raise InputError("a .trc file needs the frame rate", source=path, field="fps")
-    factor = _METRES.get(str(unit).strip().lower())
-    if factor is None:
-        raise InputError(f"the 3D joints are in {unit!r}, not metres; OpenSim needs metres "
-                         "(calibrate with a metric prior such as the subject's height)",
-                         source=path, field="unit")
+    factor = metres_factor(unit, path)
     markers = trc_marker_names(names) if marker_names is None \
         else [str(m) for m in marker_names]
     if len(markers) != len(names):
         raise ValueError(f"{len(markers)} marker names for {len(names)} joints")
-    Y = factor * (X @ TRC_FROM_CAMERA.T)
+    Y = factor * to_trc_axes(X)
     T, J = len(ids), len(names)
     lines = [
         f"PathFileType\t4\t(X/Y/Z)\t{Path(path).name}",

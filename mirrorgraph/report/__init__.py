@@ -5,7 +5,8 @@
 * ``image_plane.png``: the image with the epipole and a sample of the
   joint-to-reflection lines through it, inliers and outliers coloured;
 * ``residuals.png``: histograms of the epipolar and reprojection residuals
-  before (initial normal) and after the factor-graph refinement;
+  with the initial and with the refined mirror (each pair triangulated on its own in
+  both), and the reprojection of the factor graph's joints beside them;
 * ``scene3d.png``: the real and the virtual camera, the mirror and the skeleton
   (with its reflection) at a few frames, from above and seen along the mirror
   (orthographic, equal scales; metres or units of the mirror distance, said);
@@ -76,7 +77,10 @@ class ReportData:
         inlier: ``(N,)`` bool, pair kept by the run.
         epi_before, epi_after: ``(N,)`` epipolar distances, px.
         reproj_before, reproj_after: ``(N, 2)`` reprojection error (direct,
-            mirror view), px; NaN where no 3D joint.
+            mirror view), px, of each pair triangulated on its own with the initial
+            and with the refined mirror (like with like: only the mirror differs).
+        reproj_graph: ``(N, 2)`` the same of the 3D joints the run returns (the factor
+            graph's, held to rigid bones and smooth motion); NaN where no 3D joint.
         joints_before, joints_after: ``(T, J, 3)`` 3D joints.
         bone_names: ``(B,)``; bones_before, bones_after: ``(T, B)`` lengths.
         bone_reference: bone name -> length the refinement estimated (or empty).
@@ -105,6 +109,7 @@ class ReportData:
     epi_after: np.ndarray
     reproj_before: np.ndarray
     reproj_after: np.ndarray
+    reproj_graph: np.ndarray
     frame_ids: np.ndarray
     skeleton: object
     joints_before: np.ndarray
@@ -184,7 +189,8 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
         joints_after[t_idx[inlier], j_idx[inlier]] = geo.triangulate_mirror(
             K, n, d, u[inlier], um[inlier])
     reproj_before = _reprojection(K, n0, d, joints_before[t_idx, j_idx], u, um)
-    reproj_after = _reprojection(K, n, d, joints_after[t_idx, j_idx], u, um)
+    reproj_after = _reprojection(K, n, d, geo.triangulate_mirror(K, n, d, u, um), u, um)
+    reproj_graph = _reprojection(K, n, d, joints_after[t_idx, j_idx], u, um)
     # a joint the run dropped (outlier) has no 3D point in either
     joints_before[~np.isfinite(joints_after).all(-1)] = np.nan
 
@@ -201,7 +207,7 @@ def report_data(run, *, min_confidence: float | None = None) -> ReportData:
         distance_std=calib.uncertainty.get("distance_std") if calib.uncertainty else None,
         t_idx=t_idx, j_idx=j_idx, u=u, um=um, inlier=inlier,
         epi_before=epi_before, epi_after=epi_after,
-        reproj_before=reproj_before, reproj_after=reproj_after,
+        reproj_before=reproj_before, reproj_after=reproj_after, reproj_graph=reproj_graph,
         frame_ids=np.asarray(paired.frame_ids), skeleton=sk,
         joints_before=joints_before, joints_after=joints_after,
         bone_names=sk.bone_names, bones_before=_bone_lengths(joints_before, bi),

@@ -18,6 +18,7 @@ INLIER = "#2ca02c"
 OUTLIER = "#d62728"
 BEFORE = "#8c8c8c"
 AFTER = "#1f77b4"
+THIRD = "#9467bd"
 
 
 def _plt():
@@ -109,23 +110,26 @@ def image_plane(data, *, sample: int = 150, seed: int = 0):
 
 
 # --------------------------------------------------------------------------- (2)
-def _hist_pair(ax, before, after, label, unit="px", ylabel="joint pairs"):
-    """Histograms of ``before`` (filled) and ``after`` (outline; ``None``: not refined)."""
-    series = ((before, BEFORE, "before (initial normal)", dict(alpha=0.55)),
-              (after, AFTER, "after refinement", dict(histtype="step", lw=1.8)))
+def _hist_pair(ax, before, after, label, unit="px", ylabel="joint pairs", *,
+               names=("before: initial mirror", "after: refined mirror"), third=None):
+    """Histograms of ``before`` (filled) and ``after`` (outline; ``None``: not refined),
+    and optionally ``third = (values, name)`` (a dashed outline)."""
+    series = [(before, BEFORE, names[0], dict(alpha=0.55)),
+              (after, AFTER, names[1], dict(histtype="step", lw=1.8))]
     if after is None:
         after = before[:0]
-        series = ((before, BEFORE, "initial estimate (not refined)", dict(alpha=0.55)),)
-    before, after = before[np.isfinite(before)], after[np.isfinite(after)]
-    both = np.concatenate([before, after])
+        series = [(before, BEFORE, "initial estimate (not refined)", dict(alpha=0.55))]
+    if third is not None:
+        series.append((third[0], THIRD, third[1], dict(histtype="step", lw=1.4, ls="--")))
+    finite = [v[np.isfinite(v)] for v, *_ in series]
+    both = np.concatenate(finite)
     if both.size == 0:
         ax.text(0.5, 0.5, "no data", ha="center", transform=ax.transAxes)
         return
     top = float(np.percentile(both, 99))
     top = top if top > 0 else 1.0
     bins = np.linspace(0, top, 40)
-    for vals, colour, name, kw in series:
-        vals = vals[np.isfinite(vals)]
+    for vals, (_, colour, name, kw) in zip(finite, series):
         med = float(np.median(vals)) if vals.size else np.nan
         over = int(np.count_nonzero(vals > top))
         ax.hist(np.clip(vals, 0, top), bins=bins, color=colour, **kw,
@@ -137,9 +141,13 @@ def _hist_pair(ax, before, after, label, unit="px", ylabel="joint pairs"):
 
 
 def residuals(data):
-    """Histograms of epipolar and reprojection residuals (inlier pairs), before and after."""
+    """Histograms of the inlier pairs' residuals with the initial and with the refined
+    mirror, like with like: the epipolar distance to either epipole, and the reprojection
+    error of each pair triangulated on its own with either mirror. The reprojection of
+    the factor graph's joints is a third series: they are held to rigid bones and smooth
+    motion, not fitted pair by pair, so their residual is larger by construction."""
     plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6), layout="constrained")
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.8), layout="constrained")
     m = data.inlier
     refined = data.refined
     _hist_pair(a1, data.epi_before[m], data.epi_after[m] if refined else None,
@@ -148,11 +156,16 @@ def residuals(data):
                  "collinear with the epipole)")
     rb = data.reproj_before[m].ravel()
     ra = data.reproj_after[m].ravel()
+    graph = data.reproj_graph[m].ravel() if refined else None
     _hist_pair(a2, rb, ra if refined else None, "reprojection error",
-               ylabel="joint observations (2 per pair)")
-    a2.set_title("Reprojection error of the 3D joints (both views pooled);\n"
-                 + ("after: joints held to rigid bones and smooth motion" if refined
-                    else "each pair triangulated on its own"), fontsize=11)
+               ylabel="joint observations (2 per pair)",
+               names=("before: initial mirror, pairs triangulated",
+                      "after: refined mirror, pairs triangulated"),
+               third=None if graph is None else
+               (graph, "the graph's 3D joints (rigid bones, smooth motion)"))
+    a2.set_title("Reprojection error (both views pooled): each pair triangulated\n"
+                 "on its own with either mirror; dashed: the joints the run returns",
+                 fontsize=11)
     fig.suptitle(f"Residuals of the {int(np.count_nonzero(m))} inlier pairs, 99th percentile "
                  "range (larger values counted in the last bin)"
                  + ("" if data.refined else " - the refinement did not run"),
@@ -369,32 +382,37 @@ def bone_lengths(data):
             ax.axis("off")
             continue
         b0, b1 = data.bones_before[:, k] * scale, data.bones_after[:, k] * scale
+        fin = np.concatenate([b0[np.isfinite(b0)], b1[np.isfinite(b1)]])
+        lo, hi = np.percentile(fin, [1, 99]) if fin.size else (0.0, 1.0)
+        pad = 0.15 * (hi - lo) + 1e-6 * max(abs(hi), 1e-12)
+        ylim = (lo - pad, hi + pad + 0.35 * (hi - lo))          # room for the legend
+
+        def label(name: str, v: np.ndarray) -> str:
+            if not np.isfinite(v).any():
+                return name
+            off = int(np.count_nonzero((v < ylim[0]) | (v > ylim[1])))
+            return f"{name}: {_spread(v, unit)}" + (f", {off} off the axes" if off else "")
         if data.refined:
-            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE,
-                    label=f"before: {_spread(b0, unit)}" if np.isfinite(b0).any() else "before")
-            ax.plot(fr, b1, "-", lw=1.4, color=AFTER,
-                    label=f"after: {_spread(b1, unit)}" if np.isfinite(b1).any() else "after")
+            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE, label=label("before", b0))
+            ax.plot(fr, b1, "-", lw=1.4, color=AFTER, label=label("after", b1))
         else:                   # before = after: one series
-            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE,
-                    label=f"initial: {_spread(b0, unit)}" if np.isfinite(b0).any() else "initial")
+            ax.plot(fr, b0, ".", ms=2.5, color=BEFORE, label=label("initial", b0))
         ref = data.bone_reference.get(data.bone_names[k]) if data.bone_reference else None
         if ref is not None:
             ax.axhline(ref * scale, color="k", ls="--", lw=1,
                        label=f"refined length {significant(ref * scale, 3)}{unit}")
         ax.set_title(data.bone_names[k].replace("_", " "), fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
-        fin = np.concatenate([b0[np.isfinite(b0)], b1[np.isfinite(b1)]])
         if fin.size:
-            lo, hi = np.percentile(fin, [1, 99])
-            pad = 0.15 * (hi - lo) + 1e-6 * max(abs(hi), 1e-12)
-            ax.set_ylim(lo - pad, hi + pad + 0.35 * (hi - lo))   # room for the legend
+            ax.set_ylim(*ylim)
         if k % cols == 0:
             ax.set_ylabel("length (cm)" if metric else "length (x mirror distance)")
         if k >= B - cols:
             ax.set_xlabel("frame")
     scale_note = ("" if metric else "; no metric scale: lengths in units of the mirror "
                   "distance (--subject-height gives metres)")
-    what = ("before = triangulated with the initial normal, after = the factor graph's joints"
+    what = ("before = each pair triangulated with the initial mirror, after = the 3D joints "
+            "the run returns (the factor graph's; sd counts the frames off the axes too)"
             if data.refined else "the refinement did not run: the inlier pairs triangulated "
             "with the initial normal")
     fig.suptitle("Bone lengths over time: a rigid bone should be a flat line\n"
@@ -404,6 +422,10 @@ def bone_lengths(data):
 
 
 # --------------------------------------------------------------------------- (5)
+#: An epipole ellipse longer than this many times its width is drawn in its own axes.
+ELONGATED = 6.0
+
+
 def _ellipse_points(cov: np.ndarray, k: float, num: int = 200) -> np.ndarray:
     vals, vecs = np.linalg.eigh(cov)
     a = np.linspace(0, 2 * np.pi, num)
@@ -423,32 +445,53 @@ def uncertainty(data):
                 transform=ax.transAxes)
         ax.set_axis_off()
         return fig
-    pts = [e[None]]
+    vals, vecs = np.linalg.eigh(cov)
+    ratio = float(np.sqrt(vals[1] / max(vals[0], 1e-300)))
+    # an ellipse many times longer than wide is a sliver at equal scales: then draw it in
+    # its own axes (along the major and the minor axis, px), each axis at its own scale
+    along = ratio > ELONGATED
+    if along:
+        major, minor = vecs[:, 1], vecs[:, 0]
+        to_axes = lambda P: np.column_stack([(P - e) @ major, (P - e) @ minor])  # noqa: E731
+    else:
+        to_axes = lambda P: P  # noqa: E731
+    pts = [to_axes(e[None])]
     for k, ls in ((1, "-"), (2, "--"), (3, ":")):
-        E = e + _ellipse_points(cov, k)
+        E = to_axes(e + _ellipse_points(cov, k))
         ax.plot(E[:, 0], E[:, 1], color=AFTER, ls=ls, lw=1.5,
                 label=f"{k} sigma ({[39.3, 86.5, 98.9][k - 1]}% for a 2D Gaussian)")
         pts.append(E)
     mc = getattr(data, "marginal_epipole_cov", None)
     if mc is not None:
-        E = e + _ellipse_points(mc, 1)
+        E = to_axes(e + _ellipse_points(mc, 1))
         ax.plot(E[:, 0], E[:, 1], color="0.5", lw=1.0,
                 label="1 sigma of the marginals alone (iid noise)")
         pts.append(E)
-    ax.plot(*e, "*", ms=15, mfc="gold", mec="k", label=f"refined epipole ({e[0]:.1f}, {e[1]:.1f})")
+    ax.plot(*to_axes(e[None])[0], "*", ms=15, mfc="gold", mec="k",
+            label=f"refined epipole ({e[0]:.1f}, {e[1]:.1f})")
     e0 = data.initial_epipole
     if e0 is not None:
-        ax.plot(*e0, "o", ms=8, mfc="none", mec=BEFORE, mew=2,
+        ax.plot(*to_axes(e0[None])[0], "o", ms=8, mfc="none", mec=BEFORE, mew=2,
                 label=f"initial epipole ({e0[0]:.1f}, {e0[1]:.1f})")
-        pts.append(e0[None])
+        pts.append(to_axes(e0[None]))
     P = np.vstack(pts)
     lo, hi = P.min(0), P.max(0)
-    mid, half = (lo + hi) / 2, 0.6 * max((hi - lo).max(), 1e-3)
-    ax.set_xlim(mid[0] - half, mid[0] + half)
-    ax.set_ylim(mid[1] + half, mid[1] - half)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (px)")
-    ax.set_ylabel("y (px, down)")
+    if along:      # each axis its own scale, room for the legend above
+        mid, half = (lo + hi) / 2, 0.6 * np.maximum(hi - lo, 1e-3)
+        ax.set_xlim(mid[0] - half[0], mid[0] + half[0])
+        ax.set_ylim(mid[1] - half[1], mid[1] + 1.9 * half[1])
+        ang = np.degrees(np.arctan2(major[1], major[0]))
+        ax.set_xlabel(f"along the major axis (px; {ang:+.0f} deg from the image's x, y down)")
+        ax.set_ylabel("along the minor axis (px)")
+        ax.axhline(0, color="0.8", lw=0.8)
+        ax.axvline(0, color="0.8", lw=0.8)
+    else:
+        mid, half = (lo + hi) / 2, 0.6 * max((hi - lo).max(), 1e-3)
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] + half, mid[1] - half)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (px)")
+        ax.set_ylabel("y (px, down)")
     sd = np.sqrt(np.linalg.eigvalsh(cov))
     txt = [f"epipole std: {sd[1]:.1f} px (major), {sd[0]:.1f} px (minor)"]
     if data.rotation_std_deg is not None:
@@ -461,9 +504,11 @@ def uncertainty(data):
             bbox=dict(fc="w", ec="0.6"))
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
+    stretch = (f"\nthe ellipse is {ratio:.0f} times longer than wide: drawn in its own axes, "
+               "the minor axis stretched" if along else "")
     ax.set_title("Uncertainty of the mirror normal, seen as the epipole\n"
                  "(the reported covariance of n: errors correlated over time and per joint "
-                 "pair included)", fontsize=11)
+                 "pair included)" + stretch, fontsize=10 if along else 11)
     return fig
 
 
@@ -505,6 +550,7 @@ def sensitivity(data):
     share = [100 * (s["information_share"] or 0.0) for s in segs]
     ax.bar(labels, share, color=BEFORE)
     ax.axhline(100.0 / max(len(segs), 1), color="k", ls=":", lw=1, label="equal shares")
+    ax.set_ylim(0, 1.25 * max(max(share), 100.0 / max(len(segs), 1)))   # the legend above
     ax.set_ylabel("share of the normal's information, %")
     ax.set_xlabel("frames")
     ax.set_title("Which parts of the video carry the calibration", fontsize=10)
@@ -512,10 +558,11 @@ def sensitivity(data):
     ax.legend(fontsize=8)
     fn = sens["frames_needed"]
     ax = axes[1, 1]
-    ax.loglog(fn["frames"], fn["iid_rotation_std_deg"], "o-", color="0.5",
-              label="iid noise (falls as 1/sqrt(frames))")
-    ax.loglog(fn["frames"], fn["rotation_std_deg"], "o-", color=AFTER,
-              label="reported model (a bias does not fall)")
+    ax.loglog(fn["frames"], fn["rotation_std_deg"], "o-", color=AFTER, lw=2.2, zorder=2,
+              label="reported model: 1/sqrt(frames) down to a floor\n"
+                    "(errors shared across frames do not average out)")
+    ax.loglog(fn["frames"], fn["iid_rotation_std_deg"], "s--", color="0.35", ms=4, lw=1.2,
+              zorder=3, label="if every error were independent: 1/sqrt(frames), no floor")
     if fn.get("floor_rotation_std_deg"):
         ax.axhline(fn["floor_rotation_std_deg"], color=AFTER, ls=":", lw=1,
                    label=f"floor {fn['floor_rotation_std_deg']:.3f} deg")

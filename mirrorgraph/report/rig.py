@@ -18,6 +18,7 @@ import numpy as np
 
 from ..progress import Progress
 from .backend import require_matplotlib
+from .figures import significant
 
 __all__ = ["rig_top_view", "rig_residuals", "write_rig_report"]
 
@@ -42,6 +43,7 @@ def rig_top_view(calib):
     ok = np.isfinite(path).all(1)
     pts = [c.pose[:3, 3] for c in calib.cameras] + list(path[ok])
     cam_labels = []
+    circles = False
     P = np.asarray(pts)
     span = float(np.ptp(P[:, [0, 2]], axis=0).max()) or 1.0
     if ok.any():
@@ -53,10 +55,16 @@ def rig_top_view(calib):
         ax.plot([x], [z], "o", color=CAMERA, ms=7)
         ax.annotate("", xy=(x + 0.12 * span * fwd[0], z + 0.12 * span * fwd[2]), xytext=(x, z),
                     arrowprops=dict(arrowstyle="->", color=CAMERA, lw=1.5))
-        if np.isfinite(c.position_std) and c.position_std > 0:
-            ax.add_patch(plt.Circle((x, z), c.position_std, fill=False, ec=CAMERA, lw=0.8, ls=":"))
+        has_std = bool(np.isfinite(c.position_std) and c.position_std > 0)
+        # a circle where one can see it (wider than the camera's dot), else the words only
+        if has_std and c.position_std > 0.03 * span:
+            ax.add_patch(plt.Circle((x, z), c.position_std, fill=False, ec=CAMERA, lw=1.0,
+                                    alpha=0.7))
+            circles = True
         # the first camera is the world frame: fixed, no uncertainty of its own
-        what = "world frame (fixed)" if k == 0 else f"rot std {c.rotation_std_deg:.2f} deg"
+        unit = "m" if calib.scale == "subject_height" else "subject heights"
+        what = ("world frame (fixed)" if k == 0 else f"rot std {c.rotation_std_deg:.2f} deg"
+                + (f"\npos std {significant(c.position_std, 2)} {unit}" if has_std else ""))
         cam_labels.append((np.array([x, z]), f"{c.name}\n{what}"))
     y0 = float(np.nanmean(path[ok, 1])) if ok.any() else 0.0
     centre = np.nanmean(path[ok][:, [0, 2]], axis=0) if ok.any() else P[:, [0, 2]].mean(0)
@@ -103,8 +111,10 @@ def rig_top_view(calib):
     scale = ("unit: metres" if calib.scale == "subject_height" else
              "unit: subject heights (no metric scale:\nsubject_height or --subject-height "
              "gives metres)")
-    ax.set_title("Rig from above: cameras (arrow: viewing direction,\ndotted circle: "
-                 f"1-sigma position), mirrors, subject; {scale}", fontsize=10)
+    parts = "cameras (arrow: viewing direction" + (
+        ", circle: 1-sigma position)" if circles else ")")
+    parts += ", mirrors, subject" if calib.mirrors else ", subject"
+    ax.set_title(f"Rig from above: {parts};\n{scale}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(handles=handles, loc="best", fontsize=8)
     return fig

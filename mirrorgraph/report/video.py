@@ -77,7 +77,8 @@ def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier
         real, mirror: ``(J, 2)`` undistorted pixels of the joints and reflections.
         inlier, valid: ``(J,)`` bool: pair kept by the run / pair usable.
         run: the :class:`~mirrorgraph.pipeline.CalibrationRun` (intrinsics, skeleton).
-        label: text written in the top-left corner.
+        label: text written first in the legend (drawn in the corner that hides fewest
+            joints, :func:`legend_corner`).
     """
     intr = run.calibration.intrinsics
     size = (frame.shape[1], frame.shape[0])
@@ -104,19 +105,39 @@ def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier
     if e_px is not None and 0 <= e_px[0] < size[0] and 0 <= e_px[1] < size[1]:
         cv2.drawMarker(frame, _ipt(distort(intr, e_px[None])[0]), EPIPOLE, cv2.MARKER_STAR,
                        20 * scale, 2 * scale)
-    _legend(frame, label, scale)
+    _legend(frame, label, scale, np.vstack([real, mirror]))
     return frame
 
 
-def _legend(frame: np.ndarray, label: str, scale: int) -> None:
+def legend_corner(size: tuple[int, int], box: tuple[int, int], points: np.ndarray
+                  ) -> tuple[int, int]:
+    """Top-left pixel of a ``box = (w, h)`` legend in the image corner (of ``size =
+    (W, H)``) that covers fewest of ``points`` ``(N, 2)`` (NaN ignored), widened by a
+    margin so that a skeleton's edge is not hidden; ties go to the top-left."""
+    W, H = size
+    w, h = box
+    P = np.asarray(points, float).reshape(-1, 2)
+    P = P[np.isfinite(P).all(1)]
+    m = 0.05 * min(W, H)
+    corners = [(4, 4), (W - w - 4, 4), (4, H - h - 4), (W - w - 4, H - h - 4)]
+    counts = [int(np.count_nonzero((P[:, 0] > x - m) & (P[:, 0] < x + w + m)
+                                   & (P[:, 1] > y - m) & (P[:, 1] < y + h + m)))
+              for x, y in corners]
+    return corners[int(np.argmin(counts))]
+
+
+def _legend(frame: np.ndarray, label: str, scale: int, points: np.ndarray) -> None:
+    """The legend in the corner where it hides fewest joints (:func:`legend_corner`)."""
     rows = [(label, (255, 255, 255)), ("person", REAL), ("reflection", MIRROR),
             ("epipolar line, inlier", INLIER), ("epipolar line, outlier", OUTLIER)]
     rows = [r for r in rows if r[0]]
     fs, th, dy = 0.5 * scale, max(1, scale), int(22 * scale)
-    cv2.rectangle(frame, (4, 4), (int(230 * scale), 10 + dy * len(rows)), (0, 0, 0), -1)
+    w, h = int(230 * scale) - 4, 6 + dy * len(rows)
+    x0, y0 = legend_corner((frame.shape[1], frame.shape[0]), (w, h), points)
+    cv2.rectangle(frame, (x0, y0), (x0 + w, y0 + h), (0, 0, 0), -1)
     for i, (text, colour) in enumerate(rows):
-        cv2.putText(frame, text, (10, int(4 + dy * (i + 0.8))), cv2.FONT_HERSHEY_SIMPLEX, fs,
-                    colour, th, cv2.LINE_AA)
+        cv2.putText(frame, text, (x0 + 6, int(y0 + dy * (i + 0.8))), cv2.FONT_HERSHEY_SIMPLEX,
+                    fs, colour, th, cv2.LINE_AA)
 
 
 def _open(video) -> tuple[cv2.VideoCapture, int, tuple[int, int], float]:

@@ -208,7 +208,7 @@ class RigCalibration:
             pos = c.pose[:3, 3]
             lines.append(f"camera {c.name:<10} centre [{pos[0]:+.3f}, {pos[1]:+.3f}, "
                          f"{pos[2]:+.3f}] {unit}  rot std {c.rotation_std_deg:.3f} deg  "
-                         f"pos std {c.position_std:.4f}  rms {c.reprojection_rms_px:.2f} px")
+                         f"pos std {c.position_std:.4f} {unit}  rms {c.reprojection_rms_px:.2f} px")
         for m in self.mirrors:
             n = m.normal
             lines.append(f"mirror {m.name:<10} normal [{n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}] "

@@ -144,7 +144,7 @@ def test_export_to_pose2sim_and_anipose(scene_dir, tmp_path, capsys):
                  str(scene_dir / "camera.json"), "--out", str(cal), "--no-refine", "--quiet"]) == 0
     for fmt in ("pose2sim", "anipose"):
         out = tmp_path / f"{fmt}.toml"
-        assert main(["export", str(cal), "--to", fmt, str(out), "--quiet"]) == 0
+        assert main(["export", str(cal), "--to", fmt, str(out)]) == 0
         cams = [v for v in tomllib.loads(out.read_text()).values()
                 if isinstance(v, dict) and "matrix" in v]
         assert len(cams) == 2
@@ -153,8 +153,10 @@ def test_export_to_pose2sim_and_anipose(scene_dir, tmp_path, capsys):
         W = json.loads(cal.read_text())["intrinsics"]["image_size"][0]
         cx = sorted(c["matrix"][0][2] for c in cams)
         assert np.allclose(cx, sorted([K[0, 2], W - K[0, 2]]))
-    # unknown scale: the export warns
+    # unknown scale: the export warns, except under --quiet
     assert "warning" in capsys.readouterr().err
+    assert main(["export", str(cal), "--to", "pose2sim", str(tmp_path / "q.toml"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 def test_same_input_gives_byte_identical_output(scene_dir, tmp_path):

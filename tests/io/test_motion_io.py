@@ -146,8 +146,8 @@ def test_trc_units_and_errors(tmp_path):
         write_joints3d(tmp_path / "x.trc", X, valid, ids, names, None, "m")
     with pytest.raises(InputError, match="frame rate must be a positive"):
         write_joints3d(tmp_path / "x.csv", X, valid, ids, names, 0.0, "m")
-    with pytest.raises(InputError, match="unknown 3D motion format '.bvh'"):
-        write_joints3d(tmp_path / "x.bvh", X, valid, ids, names, FPS, "m")
+    with pytest.raises(InputError, match="unknown 3D motion format '.fbx'"):
+        write_joints3d(tmp_path / "x.fbx", X, valid, ids, names, FPS, "m")
     assert not any(p.name.startswith("x") for p in tmp_path.iterdir())   # nothing left behind
     with pytest.raises(ValueError):
         write_joints3d(tmp_path / "x.npz", X, valid[:, :3], ids, names, FPS, "m")
