@@ -169,9 +169,11 @@ class Calibration:
                      f"of {self.frames_read}; left/right fixes {self.lr_fixes}")
         est = self.intrinsics.estimated
         if est:
-            if est.get("estimated"):
+            if est.get("estimated") and "std_px" in est:
                 lines.append(f"focal length    {est['focal_px']:.1f} +- {est['std_px']:.1f} px "
-                             "(estimated from the person and the reflection)")
+                             + ("(estimated from the person and the reflection)"
+                                if est.get("determined", True) else
+                                "(not determined by the data: the estimate and its std)"))
             else:
                 lines.append(f"focal length    {self.intrinsics.K[0, 0]:.1f} px (a guess: the "
                              "data do not determine it)")

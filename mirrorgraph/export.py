@@ -291,8 +291,9 @@ def _export(calibration, fmt, world, image_size):
                         "translations are in units of the mirror distance (d = 1), not "
                         "metres; calibrate with --subject-height for metres")
     if intr.approximate:
-        warnings.append("the intrinsics are a field-of-view guess: both cameras are "
-                        "approximate, and so is what the tools triangulate")
+        warnings.append("the intrinsics are approximate (a field-of-view guess, or a focal "
+                        "length the data do not determine): both cameras are approximate, "
+                        "and so is what the tools triangulate")
     R_v, t_v = geo.virtual_camera_from_mirror(n, 1.0 if d is None else d)
     At = A.T                                   # world -> real camera: X_cam = A^T X_world
     dist = None if intr.dist is None else np.asarray(intr.dist, float)

@@ -414,57 +414,73 @@ def intrinsics_from_fov(image_size: str | tuple[int, int],
 
 
 def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg: float,
-                         warnings: list[str], camera: str | None = None) -> Intrinsics:
-    """The intrinsics of a run whose focal length was estimated, with its warnings.
+                         warnings: list[str], camera: str | None = None,
+                         user_guess: bool = False) -> Intrinsics:
+    """The intrinsics of a run whose focal length (and principal point) were estimated,
+    with its warnings.
+
+    The estimate is always kept with its standard deviation (the priors about the guess
+    hold the spread of real cameras; nothing is replaced by a guess held exact).
 
     Args:
         guess: the field-of-view guess the estimate started from.
-        K: ``(3, 3)`` the refinement's camera matrix (the guess where the data did not
-            determine the focal length).
+        K: ``(3, 3)`` the refinement's camera matrix.
         focal: the refinement's record (:attr:`mirrorgraph.graph.RefinementResult.focal`).
         fov_deg: the guess's horizontal field of view, degrees.
         warnings: the run's warnings, appended to.
         camera: the camera's name (a rig's), for the warning.
+        user_guess: the guess is the user's (``--fov``): its prior is narrow
+            (``FocalOptions.guess_rel_sigma``).
 
     Returns:
-        :class:`Intrinsics` with ``estimated`` set: the estimate where determined
-        (``approximate=False``; a warning where poorly determined), the guess
-        (``approximate=True``, a warning) where not.
+        :class:`Intrinsics` with ``estimated`` set; ``approximate`` where the data do not
+        determine the focal length (``focal["determined"]`` false) or the user's guess
+        holds it.
     """
     w = guess.image_size[0] if guess.image_size else 2.0 * float(K[0, 2])
-    if focal.get("estimated"):
-        f, std = focal["focal_px"], focal["std_px"]
-        fov = math.degrees(2.0 * math.atan(0.5 * w / f))
-        if focal.get("poorly_determined"):
-            warnings.append(
-                ("" if camera is None else f"camera {camera}: ")
-                + f"the focal length is poorly determined ({f:.0f} +- {std:.0f} px, "
-                f"{100 * std / f:.0f}%): little change of the person's depth and pose, or "
-                "joints whose two rays meet at a small angle; the normal and distance "
-                "inherit its error; pass --intrinsics FILE if you have them")
-        source = (f"estimated from the person and the reflection: focal {f:.1f} +- {std:.1f} px "
-                  f"({fov:.1f} deg horizontal field of view), square pixels, principal point "
-                  + ("estimated" if focal.get("principal_point_estimated") else
-                     "assumed at the centre (an offset there is not in the standard "
-                     "deviations: it turns the normal by up to about offset / focal rad)"))
-        return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
-                          source=source, approximate=False, estimated=dict(focal))
-    und = focal.get("undetermined", {})
-    warnings.append(
-        ("" if camera is None else f"camera {camera}: ")
-        + f"the focal length is not determined by the data (its estimate "
-        f"{und.get('focal_px', float('nan')):.0f} px has a standard deviation of "
-        f"{100 * und.get('rel_std', float('nan')):.0f}%"
-        + (f" and a {und.get('fov_deg', float('nan')):.0f} deg field of view, at the end of "
-           "the cameras searched" if und.get("at_range_end") else "")
-        + (f"; a joint's two rays meet at a median {und.get('parallax_deg', float('nan')):.0f} "
-           "deg, where the bones that determine it are measured with a bias"
-           if und.get("low_parallax") else "")
-        + ": too little change of the person's "
-        "depth and pose, a mirror seen nearly square-on, or joints whose two rays meet at a "
-        f"small angle): kept the {fov_deg:g} deg horizontal field of view guess; the normal "
-        "and distance are approximate, their standard deviations assume the guess is right "
-        "(the epipole in pixels is not approximate); pass --intrinsics FILE")
+    who = "" if camera is None else f"camera {camera}: "
+    f, std = float(focal["focal_px"]), float(focal.get("std_px", float("nan")))
+    fov = math.degrees(2.0 * math.atan(0.5 * w / f))
+    determined = bool(focal.get("determined", focal.get("estimated")))
+    prior = focal.get("principal_point_prior_px")
+    pp = ("estimated about the image centre with the spread of real cameras "
+          f"(+- {prior[2]:.0f} px a coordinate)" if prior else
+          "estimated (a loose prior about the centre)") if focal.get(
+              "principal_point_estimated") else "assumed at the centre"
+    if user_guess:
+        warnings.append(
+            who + f"no intrinsics: the focal length is held near the {fov_deg:g} deg field "
+            f"of view given (+- {100 * focal.get('focal_prior_std_px', 0) / max(f, 1e-9):.0f}% "
+            f"spread), {f:.0f} +- {std:.0f} px, the principal point {pp}; their spread is in "
+            "every standard deviation; pass --intrinsics FILE if you have them")
+    elif not determined:
+        und = focal.get("undetermined", {})
+        why = []
+        if und.get("at_range_end"):
+            why.append(f"a {und.get('fov_deg', fov):.0f} deg field of view, at the end of the "
+                       "cameras searched")
+        if und.get("low_parallax"):
+            why.append(f"a joint's two rays meet at a median {und.get('parallax_deg', float('nan')):.0f} "
+                       "deg, where the bones that determine it are measured with a bias")
+        warnings.append(
+            who + f"the focal length is not determined by the data: {f:.0f} +- {std:.0f} px "
+            f"({100 * std / f:.0f}%)" + (f" ({'; '.join(why)})" if why else "")
+            + ": too little change of the person's depth and pose, a mirror seen nearly "
+            "square-on, or joints whose two rays meet at a small angle; the estimate is kept "
+            f"(the {fov_deg:g} deg guess is its prior's centre) and its standard deviation is "
+            "in the normal's and the distance's; pass --intrinsics FILE")
+    elif focal.get("poorly_determined"):
+        warnings.append(
+            who + f"the focal length is poorly determined ({f:.0f} +- {std:.0f} px, "
+            f"{100 * std / f:.0f}%): little change of the person's depth and pose, or "
+            "joints whose two rays meet at a small angle; the normal and distance "
+            "inherit its error (in their standard deviations); pass --intrinsics FILE if "
+            "you have them")
+    source = ((f"near the {fov_deg:g} deg field of view given" if user_guess else
+               "estimated from the person and the reflection")
+              + f": focal {f:.1f} +- {std:.1f} px ({fov:.1f} deg horizontal field of view"
+              + ("" if determined or user_guess else ", not determined by the data")
+              + f"), square pixels, principal point {pp}")
     return Intrinsics(K=np.asarray(K, float), dist=guess.dist, image_size=guess.image_size,
-                      source=guess.source + " (the focal length could not be estimated)",
-                      approximate=True, estimated=dict(focal))
+                      source=source, approximate=bool(user_guess or not determined),
+                      estimated=dict(focal))

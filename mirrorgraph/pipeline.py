@@ -59,13 +59,16 @@ class CalibrateOptions:
             guess the focal length's estimate starts from (and its weak prior's
             centre), or, with ``estimate_focal=False``, the focal length used.
         estimate_focal: without intrinsics, estimate the focal length from the person
-            and the reflection in the factor graph (square pixels, the principal point
-            at the image centre unless ``RefineOptions.focal.principal_point``): the
-            bones' constant lengths determine it (:class:`mirrorgraph.graph.options.
-            FocalOptions`). Where the data do not (a far or square-on mirror, little
-            motion in depth) the ``fov_deg`` guess is kept and a warning says so.
-            ``False``: keep the guess (the command line's ``--fov DEG``). Needs the
-            refinement.
+            and the reflection in the factor graph, about the ``fov_deg`` guess with a
+            wide prior (square pixels; the principal point a variable about the image
+            centre with the spread of real cameras, :class:`mirrorgraph.graph.options.
+            FocalOptions`): the bones' constant lengths determine it. Where the data do
+            not (a far or square-on mirror, little motion in depth) the estimate is kept
+            with its large std and a warning says so. ``False`` (the command line's
+            ``--fov DEG``): the focal length held near ``fov_deg`` by a prior of
+            ``FocalOptions.guess_rel_sigma``, its spread in every std. Either way every
+            reported std holds the unknown intrinsics. Needs the refinement (without
+            it the guess is used as it is, with a warning).
         image_size: ``(width, height)`` used when no intrinsics are given and
             the input does not carry it.
         refine_options: :class:`mirrorgraph.graph.RefineOptions` (priors, schedule,
@@ -159,7 +162,7 @@ def resolve_intrinsics(intrinsics: Intrinsics | None, data: RawDetections | Pair
     if size is None:
         raise InputError("no intrinsics and no image size", source=data.source,
                          fix=("intrinsics", "image_size"))
-    if not focal_estimated(options):
+    if not options.refine:
         warnings.append(f"no intrinsics given: assumed a {options.fov_deg:g} deg horizontal "
                         f"field of view with the principal point at the centre of "
                         f"{size[0]}x{size[1]}; the normal and distance are approximate (the "
@@ -287,13 +290,20 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     calib.input["reflection_check"] = check.to_dict()
     if opts.refine:
         step("factor-graph refinement")
-        _refine(run, opts, iteration_progress,
-                estimate_focal=intrinsics is None and focal_estimated(opts))
+        # without intrinsics the focal length and principal point are always variables of
+        # the graph: about the 60 deg guess with a wide prior (estimated), or about the
+        # user's field of view with that guess's own spread (--fov)
+        _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
+                focal_rel_sigma=None if focal_estimated(opts) else
+                (opts.refine_options or RefineOptions()).focal.guess_rel_sigma)
     elif opts.subject_height is not None:
         warnings.append("--subject-height needs the refinement (it scales the body); "
                         "without it the distance stays unknown")
+    rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
+                                 calib.distance if calib.distance is not None else 1.0)
+            if opts.refine else float("nan"))
     _judge(calib, est.residuals[est.inliers], opts,
-           _motion_px(paired, joints, opts.min_confidence), check)
+           _motion_px(paired, joints, opts.min_confidence), check, rays)
     return run
 
 
@@ -304,7 +314,7 @@ def _scale_from(opts: CalibrateOptions) -> str:
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None,
-            estimate_focal: bool = False) -> None:
+            estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
     ropts = opts.refine_options or RefineOptions()
     if opts.subject_height is not None:
         ropts = replace(ropts, subject_height=opts.subject_height)
@@ -313,10 +323,11 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     guess = calib.intrinsics
     res = refine_mirror(run.paired, guess.K, calib.normal, pairs,
                         joints=run.joints, options=ropts, progress=iteration_progress,
-                        estimate_focal=estimate_focal)
+                        estimate_focal=estimate_focal, focal_rel_sigma=focal_rel_sigma)
     if estimate_focal:
         calib.intrinsics = estimated_intrinsics(guess, res.intrinsics, res.focal,
-                                                opts.fov_deg, calib.warnings)
+                                                opts.fov_deg, calib.warnings,
+                                                user_guess=focal_rel_sigma is not None)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
     if res.scale == "subject_height":
@@ -343,7 +354,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     if opts.sensitivity_priors and calib.sensitivity:
         def again(o):
             return refine_mirror(run.paired, guess.K, calib.initial_normal, pairs,
-                                 joints=run.joints, options=o, estimate_focal=estimate_focal)
+                                 joints=run.joints, options=o, estimate_focal=estimate_focal,
+                                 focal_rel_sigma=focal_rel_sigma)
         clock = time.perf_counter()
         calib.sensitivity["prior_weights"] = prior_weights(again, res.normal, ropts, res.priors)
         run.timings["sensitivity"] = time.perf_counter() - clock
@@ -357,7 +369,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         if res.marginal_normal_cov is not None else None,
         "marginal_rotation_std_deg": float(res.marginal_rotation_std_deg),
         "robust": {k: (v if isinstance(v, str) else float(v)) for k, v in parts.items()
-                   if not k.endswith("_normal_cov")},
+                   if not k.endswith("_normal_cov") and k != "contributions"},
         "source": ("the largest of: the marginals of the mirror plane (iid noise) and the "
                    "cluster-robust sandwich over time segments and joint pairs "
                    "(mirrorgraph.graph.uncertainty)"),
@@ -365,11 +377,18 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     if res.focal.get("estimated"):
         calib.uncertainty["focal_std_px"] = float(res.focal["std_px"])
         calib.uncertainty["focal_marginal_std_px"] = float(res.focal["marginal_std_px"])
+        if "principal_point_std_px" in res.focal:
+            calib.uncertainty["principal_point_std_px"] = list(res.focal["principal_point_std_px"])
+        calib.uncertainty["contributions"] = {
+            k: float(v) for k, v in (parts.get("contributions") or {}).items()}
         calib.uncertainty["source"] = (
-            "with the focal length estimated: the largest of the marginals of the plane, "
-            "the focal length and the bone lengths together (the bones decide the focal "
-            "length) and the sandwich over time segments (the bones couple a frame's "
-            "joints: no joint-pair clusters) (mirrorgraph.graph.uncertainty.frame_scores)")
+            "with the intrinsics estimated: the largest of the marginals of the plane, "
+            "the focal length, the principal point and the bone lengths together (the "
+            "bones decide the focal length; the priors about the guess hold the spread of "
+            "real cameras) and the sandwich over time segments with the priors' spread (the "
+            "bones couple a frame's joints: no joint-pair clusters) "
+            "(mirrorgraph.graph.uncertainty.frame_scores); contributions: the share of the "
+            "rotation's variance each unknown intrinsic makes")
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
     if opts.complete_joints:
@@ -568,8 +587,82 @@ def _motion_px(paired: PairedKeypoints, joints: np.ndarray, min_confidence: floa
         return float(np.nanmedian(np.hypot(spread[:, 0], spread[:, 1])))
 
 
+#: A mirror whose normal is within this angle of the optical axis is "seen square-on"
+#: (the epipole near the image centre, the person in front of their reflection) ...
+SQUARE_ON_DEG = 15.0
+#: ... and beyond this one "edge-on" (the epipole far outside the image), in the words
+#: of the warnings (:func:`poor_mirror_cause`).
+EDGE_ON_DEG = 65.0
+#: A joint's two rays (direct and through the mirror) meeting at a median angle under
+#: this is "low parallax" in the warnings (each ray's depth error is ~1/sin of it).
+LOW_PARALLAX_DEG = 20.0
+#: The share of a rotation's variance (:func:`~mirrorgraph.graph.uncertainty.
+#: intrinsics_contributions`) above which an unknown intrinsic is named as the cause.
+DOMINANT_SHARE = 0.5
+
+
+def poor_mirror_cause(uncertainty: dict, normal: np.ndarray, ray_angle_deg: float = np.nan,
+                      motion_px: float = np.inf, frames: int | None = None) -> str:
+    """The cause of a poorly determined mirror, in words, from what dominates its std.
+
+    The unknown focal length or principal point where its share of the rotation's
+    variance (``uncertainty["contributions"]``) is the largest and above
+    :data:`DOMINANT_SHARE`; else the joint pairs' disagreement where the joint-pair
+    clusters gave the figure (a detector's per-joint bias); else what the geometry
+    shows: rays meeting at small angles (``ray_angle_deg``, the median angle between a
+    joint's two rays), a mirror seen edge-on or square-on (the normal's angle to the
+    optical axis), a person who hardly moves (``motion_px``), few frames.
+    """
+    share = {k: v for k, v in (uncertainty.get("contributions") or {}).items()
+             if np.isfinite(v)}
+    what = {"focal_length": "the unknown focal length", "principal_point":
+            "the unknown principal point (the image centre +- the spread of real cameras)"}
+    if share:
+        top = max(share, key=share.get)
+        if share[top] > DOMINANT_SHARE:
+            rest = [f"{what[k].split(' (')[0]} {100 * v:.0f}%" for k, v in share.items()]
+            return (f"{what[top]} dominates it ({', '.join(rest)} of its variance); "
+                    "pass --intrinsics FILE (a calibrated camera matrix) to remove it")
+    robust = uncertainty.get("robust") or {}
+    if robust.get("chosen") in ("joint", "two_way", "jack_joint"):
+        return ("the joint pairs disagree about the mirror (a detector placing some joints "
+                "consistently off: more frames do not help; see sensitivity.leave_out.joint_pairs)")
+    causes = []
+    if np.isfinite(ray_angle_deg) and ray_angle_deg < LOW_PARALLAX_DEG:
+        causes.append(f"low parallax (a joint's two rays meet at a median {ray_angle_deg:.0f} "
+                      "deg: the person near the line from the camera to the mirror)")
+    angle = float(np.degrees(np.arccos(min(abs(float(np.asarray(normal)[2])), 1.0))))
+    if angle < SQUARE_ON_DEG:
+        causes.append(f"a mirror seen square-on ({angle:.0f} deg off the optical axis)")
+    elif angle > EDGE_ON_DEG:
+        causes.append(f"a mirror seen edge-on ({angle:.0f} deg off the optical axis)")
+    if motion_px < 3 * MIN_MOTION_PX:
+        causes.append(f"too little motion (joints move {motion_px:.1f} px)")
+    if frames is not None and frames < 100:
+        causes.append(f"few frames ({frames})")
+    if causes:
+        return "; ".join(causes)
+    return ("a mirror seen almost edge-on or square-on, too few frames or too little motion; "
+            "more frames and motion help")
+
+
+def median_ray_angle_deg(joints3d: np.ndarray | None, valid: np.ndarray | None,
+                         normal: np.ndarray, distance: float) -> float:
+    """Median angle between a joint's two rays, degrees: from the real camera (origin)
+    and from the virtual one (``2 d n``), over the ``(T, J, 3)`` joints ``valid``
+    (real camera frame, the unit of ``distance``); NaN without joints."""
+    if joints3d is None or valid is None or not np.any(valid):
+        return float("nan")
+    X = np.asarray(joints3d, float)[np.asarray(valid, bool)]
+    a = X / np.linalg.norm(X, axis=-1, keepdims=True)
+    b = X - 2.0 * float(distance) * np.asarray(normal, float)
+    b /= np.linalg.norm(b, axis=-1, keepdims=True)
+    return float(np.degrees(np.median(np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0)))))
+
+
 def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOptions,
-           motion_px: float = np.inf, check: ReflectionCheck | None = None) -> None:
+           motion_px: float = np.inf, check: ReflectionCheck | None = None,
+           ray_angle_deg: float = np.nan) -> None:
     """Put doubts about the result into its warnings."""
     if check is not None and check.verdict == "doubtful":
         calib.warnings.append(check.describe())
@@ -583,16 +676,11 @@ def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOpti
             f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
             "detector noise: the 'reflection' may be another person or the keypoints poor")
     if calib.uncertainty.get("rotation_std_deg", 0.0) > POORLY_DETERMINED_DEG:
-        robust = calib.uncertainty.get("robust") or {}
-        bias = robust.get("chosen") in ("joint", "two_way", "jack_joint")
         calib.warnings.append(
             f"the mirror is poorly determined (rotation std "
             f"{calib.uncertainty['rotation_std_deg']:.2f} deg): "
-            + ("the joint pairs disagree about the mirror (a detector placing some joints "
-               "consistently off: more frames do not help; see sensitivity.leave_out.joint_pairs)"
-               if bias else
-               "a mirror seen almost edge-on or square-on, too few frames or too little motion; "
-               "more frames and motion help"))
+            + poor_mirror_cause(calib.uncertainty, calib.normal, ray_angle_deg, motion_px,
+                                calib.frames_used))
     if motion_px < MIN_MOTION_PX:
         calib.warnings.append(
             f"the person hardly moves (joints move {motion_px:.1f} px): the calibration rests "

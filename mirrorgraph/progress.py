@@ -21,7 +21,22 @@ import sys
 import time
 from typing import Callable, TextIO
 
-__all__ = ["Progress", "SolveProgress"]
+__all__ = ["Progress", "SolveProgress", "end_open_lines"]
+
+#: Streams on which a bar's line is drawn and not yet ended (id -> stream).
+_OPEN_LINES: dict[int, TextIO] = {}
+
+
+def end_open_lines() -> None:
+    """End every bar line left open (a step that raised before closing its bar), so that
+    what is printed next, an error for instance, starts on a line of its own."""
+    for stream in list(_OPEN_LINES.values()):
+        try:
+            stream.write("\n")
+            stream.flush()
+        except (OSError, ValueError):         # a closed stream: nothing to end
+            pass
+    _OPEN_LINES.clear()
 
 
 class Progress:
@@ -108,6 +123,7 @@ class Progress:
             text = f"\r{self.label} [{bar}] {count} {elapsed:5.1f}s {self._info}"
         self.stream.write(text.rstrip()[:120].ljust(80))
         self.stream.flush()
+        _OPEN_LINES[id(self.stream)] = self.stream
 
     def close(self, info: str | None = None) -> None:
         """Finish the line (nothing is drawn if nothing was reported); later calls are
@@ -123,6 +139,7 @@ class Progress:
             self._draw()
             self.stream.write("\n")
             self.stream.flush()
+            _OPEN_LINES.pop(id(self.stream), None)
         self.enabled = False
 
     def __enter__(self) -> "Progress":

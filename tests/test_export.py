@@ -269,7 +269,7 @@ def test_approximate_intrinsics_warn_and_aniposelib_long_distortion(tmp_path):
     obj = calib_dict(n, d, dist=DIST14)
     obj["intrinsics"]["approximate"] = True
     warnings = export_calibration(obj, "aniposelib", tmp_path / "c.toml")
-    assert any("field-of-view guess" in w for w in warnings)
+    assert any("intrinsics are approximate (a field-of-view guess" in w for w in warnings)
     assert any("14 distortion coefficients" in w for w in warnings)
     cams, _ = load_cams(tmp_path / "c.toml")
     assert len(cams[0]["distortions"]) == 14

@@ -38,6 +38,7 @@ import sys
 
 from .._version import __version__
 from ..errors import MirrorgraphError
+from ..progress import end_open_lines
 from . import batch, calibrate, report, rig, synth, video, view
 from .args import error_message
 
@@ -74,7 +75,10 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:          # --help, --version, or a usage error
         return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     try:
-        return int(args.func(args) or 0)
+        try:
+            return int(args.func(args) or 0)
+        finally:
+            end_open_lines()           # an error printed next starts on a line of its own
     except MirrorgraphError as exc:
         print(f"error: {error_message(exc)}", file=sys.stderr)
         return EXIT_INPUT

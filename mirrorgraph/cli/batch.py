@@ -52,8 +52,9 @@ def add_parsers(subparsers) -> None:
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="recordings without intrinsics: keep this horizontal field of view "
-                        "instead of estimating the focal length (the estimate starts from "
+                   help="recordings without intrinsics: a horizontal field of view known "
+                        "roughly: the focal length held near it (a 10%% prior, in every std) "
+                        f"instead of estimated from the person (which starts from "
                         f"{DEFAULT_FOV_DEG:g})")
     p.add_argument("--no-refine", action="store_true", help="skip the factor graph")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")

@@ -45,15 +45,17 @@ def add_parsers(sub) -> None:
                    help="camera (section or name) to read from a TOML with several cameras")
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size when no intrinsics are given and the input lacks it; "
-                        "the focal length is then estimated from the person and the "
-                        "reflection (square pixels, principal point at the image centre)")
+                        "the focal length and the principal point are then estimated from "
+                        "the person and the reflection (square pixels; the principal point "
+                        "about the image centre, with the spread of real cameras)")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",
-                   help="without intrinsics: keep this horizontal field of view instead of "
-                        f"estimating the focal length (the estimate starts from "
-                        f"{DEFAULT_FOV_DEG:g})")
+                   help="without intrinsics: a horizontal field of view you know roughly: "
+                        "the focal length is held near it (a 10%% prior, in every std) instead "
+                        f"of estimated from the person (which starts from {DEFAULT_FOV_DEG:g})")
     p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
-                   help="without intrinsics: the principal point at the image centre "
-                        "(default) or estimated with the focal length")
+                   help="without intrinsics: the principal point about the image centre "
+                        "with the spread of real cameras, 1%% of the larger side (default), or "
+                        "a loose prior (free: the people decide it, poorly)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,

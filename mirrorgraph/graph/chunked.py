@@ -58,8 +58,9 @@ from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig
-from .uncertainty import JointScores, joint_scores
-from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, joints_pass, optimize,
+from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
+from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, floor_focal, joints_pass,
+                     optimize,
                      reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
@@ -266,6 +267,12 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
     # the subset's joints are not kept (every chunk is solved again): no joints pass there
     sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
+    # the subset's estimated intrinsics are held in the chunks: what their uncertainty
+    # brings to the plane is added to every figure of the whole video's (issue #23)
+    held_cov = None
+    if sub.scores is not None and any(c.intrinsics_dim for c in rig.cameras):
+        floor_focal(sub)
+        held_cov = held_intrinsics_cov(sub.scores)
     # an estimated focal length is the subset's, held in the chunks
     rig = replace(rig, cameras=tuple(replace(c, K=np.asarray(K, float), estimate_focal=False,
                                              estimate_principal_point=False)
@@ -357,6 +364,10 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     plane_cov = [np.full((3, 3), np.nan)]
     if opts.marginals:
         plane_cov = [reduced_covariance(information, z_keys)[int(plane_key)] * factor]
+    if held_cov is not None:
+        plane_cov = [plane_cov[0] + held_cov]
+        if scores is not None and scores.scores.shape[1] == 3:
+            scores.added_cov = held_cov
     timings["marginals"] = time.perf_counter() - t
     return SolveState(poses=ctx.pose, planes=[plane], points=out_points, used=out_used,
                       bone_lengths={k: float(v) for k, v in ctx.lengths.items()}, scale=sub.scale,

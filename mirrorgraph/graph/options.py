@@ -94,9 +94,18 @@ class FocalOptions:
     bone in every frame. ``bone_bias_limit`` keeps the bones whose bias is small.
 
     Attributes:
-        principal_point: estimate the principal point ``(cx, cy)`` too (default: held
-            at the image centre, where phones and webcams have it within a few per
-            cent of the image; it is poorly determined from people).
+        principal_point: ``True`` (``--principal-point free``): the principal point's
+            prior is loose (:data:`~mirrorgraph.graph.builder.PRINCIPAL_POINT_PRIOR`,
+            5 % of the image width), so that the people decide it, which they do
+            poorly; ``False`` (default): its prior is the spread of real cameras,
+            ``principal_point_rel_sigma``. Either way it is a variable of the graph
+            and its uncertainty is in every reported standard deviation.
+        principal_point_rel_sigma: the standard deviation of each coordinate of the
+            principal point about the image centre, fraction of the image's larger
+            side: 1 % (19 px at 1920 px). Phones' calibrated principal points lie a
+            few pixels to about 1.5 % of the width off the centre (an iPhone X's ARKit
+            intrinsics at 1920x1440: 3.8 and 1.7 px; another phone's at the same size:
+            29 and 3 px; README, Unknown intrinsics).
         search_fov_deg: the focal length's initial search (one camera and its mirrors,
             :func:`~mirrorgraph.graph.stages.focal_search`) spans these horizontal
             fields of view, degrees.
@@ -128,10 +137,18 @@ class FocalOptions:
         fallback_rel_std: above this fraction the data do not determine it at all: the
             guess is kept (the rig solved again with it held) and a warning says so.
             Between the two the estimate stays: on a wide scene whose estimate had a
-            std of 6.5 % its error was 6.5 %, the guess's 30 %.
+            std of 6.5 % its error was 6.5 %, the guess's 30 %. Above it the estimate
+            stays too (the posterior under the weak prior), with its large standard
+            deviation in every figure and a warning.
+        guess_rel_sigma: a field-of-view guess the user gives (``--fov DEG``) is the
+            centre of the focal length's prior with this relative standard deviation
+            (a phone's video mode crops and stabilises: its field of view is not the
+            specification's): the focal length stays a variable of the graph, so
+            that the guess's own spread is in every standard deviation.
     """
 
     principal_point: bool = False
+    principal_point_rel_sigma: float = 0.01
     search_fov_deg: tuple[float, float] = (20.0, 120.0)
     search_steps: int = 9
     search_frames: int = 150
@@ -140,6 +157,7 @@ class FocalOptions:
     anthropometry: bool = False
     undetermined_rel_std: float = 0.05
     fallback_rel_std: float = 0.2
+    guess_rel_sigma: float = 0.1
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import DegenerateGeometryError, InputError
 from ..keypoints import PairedKeypoints
 from .builder import body_height_from_points, view_residuals
-from .options import RefineOptions
+from .options import FocalOptions, RefineOptions
 from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .rig import Camera, Rig, single_mirror_rig
@@ -44,7 +44,8 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
                   inliers: np.ndarray, *, joints: np.ndarray | None = None,
                   options: RefineOptions | None = None,
                   progress: Progress | None = None,
-                  estimate_focal: bool = False) -> RefinementResult:
+                  estimate_focal: bool = False,
+                  focal_rel_sigma: float | None = None) -> RefinementResult:
     """Jointly refine the mirror plane and every 3D joint in one GTSAM factor graph.
 
     Args:
@@ -56,11 +57,14 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
         options: weights, kernel, gauge, solver settings.
         progress: ``progress(iteration, error)`` after every accepted step (iterations
             count over all stages; within a stage the error never rises).
-        estimate_focal: ``K`` is a guess (square pixels, no skew): estimate the focal
-            length (and the principal point with ``options.focal.principal_point``) in
-            the graph, starting from a search and with a weak prior about the guess
-            (:class:`~.options.FocalOptions`); where the data do not determine it the
-            guess is kept (``RefinementResult.focal``).
+        estimate_focal: ``K`` is a guess (square pixels, no skew): the focal length and
+            the principal point are variables of the graph, each with a prior about the
+            guess (:func:`guessed_camera`, :class:`~.options.FocalOptions`); the focal
+            length starts from a search. The estimate is kept where the data do not
+            determine it too, with its large std (``RefinementResult.focal``).
+        focal_rel_sigma: the focal length's prior about the guess, relative
+            (default ``options.focal.prior_rel_sigma``; a user's field-of-view guess:
+            ``options.focal.guess_rel_sigma``).
 
     Returns:
         :class:`RefinementResult`.
@@ -71,7 +75,8 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     """
     t_start = time.perf_counter()
     opts = options or RefineOptions()
-    rig = prepare(paired, K, normal0, inliers, joints, opts, estimate_focal=estimate_focal)
+    rig = prepare(paired, K, normal0, inliers, joints, opts, estimate_focal=estimate_focal,
+                  focal_rel_sigma=focal_rel_sigma)
     state = solve(rig, opts, single_mirror_config(opts), height=opts.subject_height,
                   progress=progress)
     guess = rig.cameras[0]
@@ -95,14 +100,14 @@ def focal_record(state: SolveState, guess: Camera, index: int = 0,
     K = np.asarray(state.intrinsics[index], dtype=float)
     f = float(K[0, 0])
     search = [s.get("focal_px") for s in state.stages if "focal_px" in s]
-    rec = {"estimated": guess.name not in state.focal_undetermined, "focal_px": f,
+    rec = {"estimated": True, "determined": guess.name not in state.focal_undetermined,
+           "focal_px": f,
            "guess_px": float(guess.focal_prior[0]) if guess.focal_prior else float(guess.K[0, 0]),
            "search_px": float(search[0]) if search else None,
            "principal_point": [float(K[0, 2]), float(K[1, 2])],
            "principal_point_estimated": bool(guess.estimate_principal_point)}
-    if not rec["estimated"]:
+    if not rec["determined"]:
         rec["undetermined"] = dict(state.focal_undetermined[guess.name])
-        return rec
     cov = np.asarray(state.intrinsics_cov[index], dtype=float)
     marginal = np.sqrt(np.maximum(np.diag(cov), 0.0)) if cov.size else np.full(1, np.nan)
     robust = (np.asarray(state.intrinsics_std[index], dtype=float)
@@ -114,13 +119,17 @@ def focal_record(state: SolveState, guess: Camera, index: int = 0,
                poorly_determined=bool(std[0] / f > options.focal.undetermined_rel_std))
     if guess.estimate_principal_point and len(std) == 3:
         rec["principal_point_std_px"] = [float(std[1]), float(std[2])]
+        if guess.principal_point_prior is not None:
+            rec["principal_point_prior_px"] = [float(v) for v in guess.principal_point_prior]
+    if guess.focal_prior is not None:
+        rec["focal_prior_std_px"] = float(guess.focal_prior[1])
     return rec
 
 
 # --------------------------------------------------------------------------- steps
 def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers: np.ndarray,
             joints: np.ndarray | None, opts: RefineOptions, *,
-            estimate_focal: bool = False) -> Rig:
+            estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> Rig:
     """Validate the inputs, select the pairs and set the initial scale.
 
     Returns:
@@ -162,11 +171,27 @@ def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers
         if np.isfinite(h) and h > 0:
             d0 = float(opts.subject_height) / h
     cam = rig.cameras[0]
-    if estimate_focal:      # K is the guess: the start, and the centre of the weak prior
-        cam = replace(cam, estimate_focal=True,
-                      estimate_principal_point=bool(opts.focal.principal_point),
-                      focal_prior=(float(K[0, 0]), opts.focal.prior_rel_sigma * float(K[0, 0])))
+    if estimate_focal:      # K is the guess: the start, and the centre of the priors
+        cam = guessed_camera(cam, K, opts.focal, focal_rel_sigma)
     return replace(rig, cameras=(cam,), mirrors=(replace(rig.mirrors[0], distance=d0),))
+
+
+def guessed_camera(camera: Camera, K: np.ndarray, focal: FocalOptions,
+                   focal_rel_sigma: float | None = None) -> Camera:
+    """A camera whose intrinsics are a guess ``K`` (square pixels, the principal point at
+    the image centre): its focal length and principal point variables of the graph, each
+    with a prior about the guess (:class:`~.options.FocalOptions`: the focal length at
+    ``focal_rel_sigma`` of it, default ``focal.prior_rel_sigma``; the principal point at
+    ``focal.principal_point_rel_sigma`` of the image's larger side ``2 max(cx, cy)``, or
+    loose with ``focal.principal_point``), so that no reported figure assumes the guess."""
+    K = np.asarray(K, dtype=float)
+    f0 = float(K[0, 0])
+    rel = focal.prior_rel_sigma if focal_rel_sigma is None else float(focal_rel_sigma)
+    cx, cy = float(K[0, 2]), float(K[1, 2])
+    pp = (None if focal.principal_point
+          else (cx, cy, focal.principal_point_rel_sigma * 2.0 * max(cx, cy)))
+    return replace(camera, estimate_focal=True, estimate_principal_point=True,
+                   focal_prior=(f0, rel * f0), principal_point_prior=pp)
 
 
 def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float

@@ -42,6 +42,12 @@ class Camera:
         focal_prior: ``(f0, sigma)`` px: a weak Gaussian prior on an estimated focal
             length (the front ends centre it on the field-of-view guess), which decides
             it where the data do not; ``None``: none.
+        principal_point_prior: ``(cx0, cy0, sigma)`` px: the Gaussian prior of an
+            estimated principal point (``estimate_principal_point``), each coordinate
+            ``sigma`` about ``(cx0, cy0)`` (the front ends: the image centre, with the
+            spread of real cameras, :attr:`~.options.FocalOptions.principal_point_rel_sigma`);
+            ``None``: about the initial ``K``'s at
+            :data:`~.builder.PRINCIPAL_POINT_PRIOR` of the image width.
     """
 
     name: str
@@ -51,6 +57,7 @@ class Camera:
     estimate_focal: bool = False
     estimate_principal_point: bool = False
     focal_prior: tuple[float, float] | None = None
+    principal_point_prior: tuple[float, float, float] | None = None
 
     @property
     def intrinsics_dim(self) -> int:

@@ -14,24 +14,25 @@ and one mirror is solved in chunks sharing the mirror (:mod:`.chunked`); any oth
 rig on that many frames spread over the video, the other frames triangulated with
 the result.
 
-Estimated intrinsics (:attr:`~.rig.Camera.estimate_focal`): a camera whose focal
-length the data do not determine (its standard deviation above
-``options.focal.fallback_rel_std`` of it: too little depth change, a person who
-hardly moves, bones all measured with a curvature bias) keeps its guess: the rig is
-solved again with that camera's ``K`` held at the centre of its prior, and
-:attr:`~.stages.SolveState.focal_undetermined` names it with the figure found.
+Estimated intrinsics (:attr:`~.rig.Camera.estimate_focal`): the estimate is kept
+whatever the data say about it, with its standard deviation (the posterior under the
+priors of the guess, :class:`~.options.FocalOptions`), never replaced by the guess
+held exact. A camera whose focal length the data do not determine (its standard
+deviation above ``options.focal.fallback_rel_std`` of it, or an estimate at an end of
+the lenses searched) is named in :attr:`~.stages.SolveState.focal_undetermined` with
+the figures found (and the rays' median angle), for the warnings, and carries its
+prior's variance (:func:`floor_focal`).
 """
 
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 
 from .chunked import solve_chunked
 from .options import RefineOptions
 from .rig import Rig
-from .stages import (Counter, Progress, SolveConfig, SolveState, parallax_deg, solve_rows,
+from .stages import (Counter, Progress, SolveConfig, SolveState, floor_focal, parallax_deg,
+                     solve_rows,
                      spread_rows, triangulate_rig)
 
 __all__ = ["solve", "undetermined_focal"]
@@ -58,15 +59,12 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
     """
     counter = counter or Counter(progress)
     state = _solve(rig, opts, config, height, counter)
+    floor_focal(state)
     undetermined = undetermined_focal(state, rig, opts)
-    if not undetermined:
-        return state
-    held = tuple(_hold_at_guess(c) if i in undetermined else c
-                 for i, c in enumerate(rig.cameras))
-    again = _solve(replace(rig, cameras=held), opts, config, height, counter)
-    again.focal_undetermined = {rig.cameras[i].name: v for i, v in undetermined.items()}
-    again.stages = state.stages + again.stages
-    return again
+    state.focal_undetermined = {rig.cameras[i].name: v for i, v in undetermined.items()}
+    if undetermined:
+        floor_focal(state, set(undetermined))
+    return state
 
 
 def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
@@ -85,8 +83,10 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         (within :data:`FOV_EDGE` of ``opts.focal.search_fov_deg``, or beyond): there the
         bones ask for a lens no camera of that range has, which is no minimum of the
         data's but their lack of one (seen on scenes with little depth change: a
-        "determined" 20 deg lens, 5x the true focal length, its std 16 %), or where the
-        joints' two rays meet at a median angle under :data:`FOCAL_MIN_PARALLAX_DEG`.
+        "determined" 20 deg lens, 5x the true focal length, its std 16 %). The record
+        says too whether the joints' two rays meet at a median angle under
+        :data:`FOCAL_MIN_PARALLAX_DEG` (``low_parallax``: a cause the warning names, no
+        longer a criterion by itself, issue #23: it threw good estimates away).
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     lo, hi = opts.focal.search_fov_deg
@@ -107,7 +107,9 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
             angles = parallax_deg(rig, state.points, state.view_masks, state.poses, state.planes)
         rays = _median_parallax(state, rig, i, angles)
         narrow = bool(rays < FOCAL_MIN_PARALLAX_DEG)
-        if not np.isfinite(rel) or rel > limit or edge or narrow:
+        # the rays' angle names a cause; the bones' bias it brings is in the std
+        # (uncertainty.frame_scores: the curvature bias's score)
+        if not np.isfinite(rel) or rel > limit or edge:
             out[i] = {"focal_px": f, "std_px": std, "rel_std": rel, "fov_deg": fov,
                       "at_range_end": bool(edge), "parallax_deg": rays,
                       "low_parallax": narrow}
@@ -134,21 +136,14 @@ def _median_parallax(state: SolveState, rig: Rig, camera: int, ang: np.ndarray |
 #: determined: there the bones' lengths, which alone determine it, carry a curvature
 #: bias that its standard deviation does not contain. Measured on 40 scenes of the four
 #: slices (600 frames, no intrinsics): under 20 deg the estimate was 20-46 % off in 5 of
-#: 8 scenes with a reported std of 2-8 %; above it, within 4 % on every iid scene.
+#: 8 scenes with a reported std of 2-8 %; above it, within 4 % on every iid scene. The
+#: estimate is kept there too (the guess was worse: issue #23); this names the cause.
 FOCAL_MIN_PARALLAX_DEG = 20.0
 
 
 #: An estimated focal length whose horizontal field of view is within this fraction of
 #: an end of ``FocalOptions.search_fov_deg`` (or beyond it) is not taken as determined.
 FOV_EDGE = 0.05
-
-
-def _hold_at_guess(camera):
-    """The camera with its focal length held at the centre of its prior (the guess)."""
-    K = np.asarray(camera.K, dtype=float).copy()
-    if camera.focal_prior is not None:
-        K[0, 0] = K[1, 1] = float(camera.focal_prior[0])
-    return replace(camera, K=K, estimate_focal=False, estimate_principal_point=False)
 
 
 def _solve(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,

@@ -748,7 +748,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                                                           opts.marginals)
     timings["marginals"] = time.perf_counter() - t
     t = time.perf_counter()
-    scores = joint_scores(problem, values) if opts.marginals else None
+    scores = (joint_scores(problem, values, bias_pixel_sigma=noise_px
+                           if np.isfinite(noise_px) else opts.pixel_sigma)
+              if opts.marginals else None)
     intr_std = []
     if scores is not None and problem.calibration_keys:
         robust = robust_intrinsics_std(scores, {
@@ -786,6 +788,48 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
 #: one frame held in every frame puts its error in all of them (a hip width measured
 #: in one frame of 960 was 30 % long, issue #17).
 THIN_BONE_FRAMES = 10
+
+
+def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None:
+    """Variance floors of the estimated focal lengths, in every robust figure.
+
+    Two estimates of one focal length from the same data, the initial search's (every
+    bone in every frame) and the graph's (the bones whose curvature bias is small),
+    differ by what the bones' choice does to it; where that exceeds the graph's std the
+    std is no measure of the error (rays meeting at 16 deg: the search 2699 px, the
+    graph 1365 px at a std of 4 %, the truth 2186 px), and the difference squared is
+    the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
+    so does a principal point held at the centre
+    (:data:`~.builder.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
+    Sets the scores' :attr:`~.uncertainty.JointScores.prior_floor` and recomputes the
+    cameras' robust intrinsics stds with it.
+    """
+    sc, problem = state.scores, state.problem
+    if sc is None or problem is None or sc.prior_spread is None:
+        return
+    search = [s.get("focal_px") for s in state.stages if s.get("focal_px") is not None]
+    floor = (np.zeros(sc.scores.shape[1]) if sc.prior_floor is None
+             else np.asarray(sc.prior_floor, float).copy())
+    off = 0
+    keys = {int(pair[0]): c for c, pair in problem.calibration_keys.items()}
+    for key, dim in sc.z_keys:
+        c = keys.get(int(key))
+        if c is not None:
+            if dim == 3 and problem.rig.cameras[c].principal_point_prior is not None:
+                floor[off + 1:off + 3] = np.inf       # held at the centre: the prior's spread
+            f = float(np.asarray(state.intrinsics[c])[0, 0])
+            if c in undetermined:
+                floor[off] = np.inf                        # the prior's (capped there)
+            elif search and len(problem.calibration_keys) == 1:
+                floor[off] = max(floor[off], (float(search[-1]) - f) ** 2)
+        off += dim
+    sc.prior_floor = floor
+    marginal = {int(problem.calibration_keys[c][0]): state.intrinsics_cov[c]
+                for c in problem.calibration_keys}
+    robust = robust_intrinsics_std(sc, marginal)
+    state.intrinsics_std = [robust[int(problem.calibration_keys[c][0])][0]
+                            if c in problem.calibration_keys else np.zeros(0)
+                            for c in range(len(state.intrinsics))]
 
 
 def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,

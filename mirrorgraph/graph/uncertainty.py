@@ -54,7 +54,7 @@ import gtsam
 import numpy as np
 from scipy.special import chdtri, fdtri
 
-from .builder import GraphProblem, point_keys
+from .builder import GraphProblem, intrinsics_prior_sigmas, point_keys
 from .reduction import mirror_reduction
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 
@@ -67,7 +67,8 @@ __all__ = ["POORLY_DETERMINED_DEG", "JointScores", "joint_scores", "frame_scores
            "jackknife_cov", "leave_one_out",
            "gauge_inverse", "scale_direction", "andrews_bandwidth", "robust_normal_cov",
            "covariance_max", "robust_blocks", "robust_intrinsics_std", "ROBUST_PARTS",
-           "REGION_LEVEL", "region_threshold", "region_rotation_deg"]
+           "REGION_LEVEL", "region_threshold", "region_rotation_deg",
+           "intrinsics_contributions", "intrinsics_prior_spread", "held_intrinsics_cov"]
 
 
 @dataclass
@@ -94,6 +95,23 @@ class JointScores:
             figures alone).
         row_info: ``(N, n, n)`` each joint's own Schur complement ``S_p``, kept where the
             scores must later be moved to other globals (:meth:`moved`), else ``None``.
+        prior_spread: ``(n, n)`` the information of the priors that stand for an
+            unknown value drawn from a population (an estimated camera's focal length
+            and principal point about their guess, :func:`~.builder.intrinsics_prior`):
+            the spread of that value is added to the sandwich's meat
+            (:func:`sandwich`), since the scores do not contain it; ``None``: none.
+        prior_floor: ``(n,)`` the least variance of each intrinsic's coordinate (of
+            :attr:`prior_spread`; 0: none), in its unit squared (px^2): where the data
+            do not determine a focal length its prior's, where two estimates of it from
+            the same data disagree their difference squared
+            (:func:`mirrorgraph.graph.solve.floor_focal`); ``None``: none.
+        bias_score: ``(n,)`` the reduced score of the bones' curvature bias
+            (:func:`frame_scores`): the estimate's first-order bias is
+            ``H^-1 bias_score``, whose outer product every figure of :func:`sandwich`
+            holds (an error no std of the noise sees); ``None``: not computed.
+        added_cov: ``(n, n)`` a covariance every figure of :func:`sandwich` adds: what
+            globals solved elsewhere and held here bring (a long video's chunks hold the
+            intrinsics its subset estimated, :mod:`.chunked`); ``None``: none.
     """
 
     frames: np.ndarray
@@ -107,6 +125,10 @@ class JointScores:
     prior_information: np.ndarray | None = None
     joint_clusters: bool = True
     row_info: np.ndarray | None = None
+    prior_spread: np.ndarray | None = None
+    prior_floor: np.ndarray | None = None
+    bias_score: np.ndarray | None = None
+    added_cov: np.ndarray | None = None
 
     @property
     def information(self) -> np.ndarray:
@@ -121,7 +143,7 @@ class JointScores:
 
 
 def joint_scores(problem: GraphProblem, values: gtsam.Values,
-                 keep_rows: bool = False) -> JointScores:
+                 keep_rows: bool = False, bias_pixel_sigma: float | None = None) -> JointScores:
     """The Schur complement and reduced score of every joint of ``problem`` at ``values``.
 
     Where the bone lengths are a variable of the graph (an estimated focal length,
@@ -134,13 +156,15 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values,
     Args:
         problem: the solved graph; values: its solution.
         keep_rows: keep each joint's Schur complement (:attr:`JointScores.row_info`).
+        bias_pixel_sigma: the pixel noise (px) of the bones' curvature bias where the
+            bone lengths are a variable (:func:`frame_scores`); ``None``: not computed.
 
     Returns:
         :class:`JointScores` over the reduced coordinates of
         :func:`~.reduction.mirror_reduction` (planes, estimated camera poses).
     """
     if problem.length_key is not None:
-        return frame_scores(problem, values)
+        return frame_scores(problem, values, bias_pixel_sigma)
     red = mirror_reduction(problem, distance_gauge=None)
     T, J = problem.used.shape
     nz = sum(d for _, d in red.z_keys)
@@ -209,14 +233,19 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values,
     np.add.at(joint_info, joints, S)
     flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
     clusters = np.minimum(joints, flip[joints])
+    spread = intrinsics_prior_spread(problem, list(red.z_keys))
     return JointScores(frames=frames, joints=joints, clusters=clusters, scores=s,
                        frame_info=frame_info,
                        joint_info=joint_info, z_keys=list(red.z_keys),
                        gauge=scale_direction(problem, values, list(red.z_keys)),
-                       row_info=S if keep_rows else None)
+                       row_info=S if keep_rows else None,
+                       # estimated intrinsics without bones (every bone biased): their
+                       # priors are all that hold them (None with known intrinsics)
+                       prior_information=spread, prior_spread=spread)
 
 
-def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
+def frame_scores(problem: GraphProblem, values: gtsam.Values,
+                 bias_pixel_sigma: float | None = None) -> JointScores:
     """:func:`joint_scores` with every factor, each frame's joints eliminated together.
 
     With the focal length estimated the reprojection alone carries no information on
@@ -244,8 +273,17 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     projected out (:func:`scale_direction`, with the lengths): the gauge's factor is a
     gauge, not information.
 
+    With ``bias_pixel_sigma`` the bones' curvature bias enters too
+    (:attr:`JointScores.bias_score`): a bone's length measured from noisy joints is long
+    on average by ``tr(P S) / (2 L)`` (:func:`~.builder.bone_curvature_bias`, ``P`` the
+    projection across the bone at the solution), a bias that no std holds and that
+    the bones pass to the focal length (a stretch along the lines of sight); each bone
+    row's share of the reduced score, with its whitened bias in place of its residual,
+    summed, is the score of that bias.
+
     Args:
         problem: the solved graph (its bone lengths a variable); values: its solution.
+        bias_pixel_sigma: the pixel noise of the curvature bias, px (``None``: none).
 
     Returns:
         :class:`JointScores` over the reduced coordinates of
@@ -333,12 +371,79 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values) -> JointScores:
     joint_info = np.stack([Bd[data[:, 1] % J == j].T @ Bd[data[:, 1] % J == j]
                            for j in range(J)])
     flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
+    bias_score = None
+    if bias_pixel_sigma is not None and problem.lengths is not None and len(problem.bone_rows):
+        beta = _bone_bias_rows(problem, values, float(bias_pixel_sigma))        # whitened
+        n_prior = sum(int(problem.priors.at(i).dim()) for i in range(problem.priors.size()))
+        first = n_data + n_prior
+        br = np.asarray(problem.bone_rows)
+        bframe = np.asarray(problem.flat_index, dtype=np.int64)[br[:, 0]] // J
+        order = np.argsort(bframe, kind="stable")          # the bone factors' row order
+        grow = first + np.arange(len(order))
+        keep = (grow < n_rows) & (pos[np.minimum(grow, n_rows - 1)] >= 0)
+        g = pos[grow[keep]]
+        bias_score = (Bt[fr[g], slot[g]] * beta[order[keep]][:, None]).sum(0)
     return JointScores(frames=frames.astype(np.int64), joints=joints.astype(np.int64),
                        clusters=np.minimum(joints, flip[joints]), scores=scores,
                        frame_info=frame_info, joint_info=joint_info,
                        z_keys=list(red.z_keys),
                        gauge=scale_direction(problem, values, list(red.z_keys)),
-                       prior_information=prior_information, joint_clusters=False)
+                       prior_information=prior_information, joint_clusters=False,
+                       prior_spread=intrinsics_prior_spread(problem, list(red.z_keys)),
+                       bias_score=bias_score)
+
+
+def _bone_bias_rows(problem: GraphProblem, values: gtsam.Values, pixel_sigma: float
+                    ) -> np.ndarray:
+    """``(N,)`` each bone row's curvature bias ``tr(P S) / (2 L)`` (``S`` its two joints'
+    triangulation covariances at ``pixel_sigma``, ``P`` across the bone, ``L`` its
+    length), over the bone factors' sigma (whitened), at the solution ``values``."""
+    from ..geometry import triangulation_covariance
+    from .builder import extract_camera_poses, extract_planes, extract_points, view_projections
+
+    T, J = problem.used.shape
+    points = extract_points(problem, values)
+    planes = extract_planes(problem, values)
+    poses = extract_camera_poses(problem, values)
+    rig = problem.rig
+    masks = [np.asarray(v.mask, bool) & problem.used for v in rig.views]
+    cov = triangulation_covariance(view_projections(rig, poses, planes), points, masks,
+                                   pixel_sigma)                                 # (T, J, 3, 3)
+    br = np.asarray(problem.bone_rows)
+    flat = np.asarray(problem.flat_index, dtype=np.int64)
+    fa, fb = flat[br[:, 0]], flat[br[:, 1]]
+    ta, ja, tb, jb = fa // J, fa % J, fb // J, fb % J
+    S = cov[ta, ja] + cov[tb, jb]                                               # (N, 3, 3)
+    diff = points[ta, ja] - points[tb, jb]
+    L = np.linalg.norm(diff, axis=-1)
+    u = diff / np.maximum(L, 1e-12)[:, None]
+    trPS = np.trace(S, axis1=-2, axis2=-1) - np.einsum("ni,nij,nj->n", u, S, u)
+    beta = trPS / (2.0 * np.maximum(L, 1e-12)) / float(problem.bone_sigma)
+    return np.where(np.isfinite(beta), beta, 0.0)
+
+
+def intrinsics_prior_spread(problem: GraphProblem, z_keys: list) -> np.ndarray | None:
+    """``(n, n)`` the information of the estimated cameras' intrinsics priors in the
+    reduced coordinates ``z_keys`` (diagonal: ``1 / sigma^2`` on ``f`` and on ``cx, cy``,
+    :func:`~.builder.intrinsics_prior_sigmas`), ``None`` where no camera has one.
+
+    A prior about a guess stands for the population the unknown true value comes from
+    (cameras' focal lengths, principal points off the image centre): the estimate's
+    error then holds the prior's own draw, ``Var = H^-1 (Omega + P) H^-1`` with ``P``
+    this matrix, which the data's scores (``Omega``) cannot show."""
+    by_key = {int(pair[0]): c for c, pair in problem.calibration_keys.items()}
+    n = sum(d for _, d in z_keys)
+    P = np.zeros((n, n))
+    off, found = 0, False
+    for key, dim in z_keys:
+        c = by_key.get(int(key))
+        if c is not None:
+            w = 1.0 / intrinsics_prior_sigmas(problem.rig.cameras[c]) ** 2
+            if np.any(w > 0):
+                P[off:off + dim, off:off + dim] = np.diag(w[:dim])
+                found = True
+        off += dim
+    return P if found else None
 
 
 def _dim(key: int) -> int:
@@ -574,7 +679,106 @@ def sandwich(scores: JointScores) -> dict[str, np.ndarray]:
     out["cov_jack_time"] = jackknife_cov(scores, "time", K)
     out["cov_jack_joint"] = (jackknife_cov(scores, "joint") if scores.joint_clusters
                              else np.full_like(out["cov_jack_time"], np.nan))
+    if scores.prior_spread is not None:
+        _with_unknown_intrinsics(out, scores, H, meat)
+    if scores.bias_score is not None:
+        # the bones' curvature bias (rays meeting at small angles): the mean square error
+        delta = bread @ np.asarray(scores.bias_score, dtype=float)
+        out["bias"] = delta
+        for name in ("cov", "cov_time", "cov_joint", "cov_jack_time", "cov_jack_joint"):
+            out[name] = out[name] + np.outer(delta, delta)
+    if scores.added_cov is not None:
+        for name in ("cov", "cov_time", "cov_joint", "cov_jack_time", "cov_jack_joint"):
+            out[name] = out[name] + np.asarray(scores.added_cov, dtype=float)
     return out
+
+
+def held_intrinsics_cov(scores: JointScores, block: slice = slice(0, 3)) -> np.ndarray:
+    """``(b, b)`` what the estimated intrinsics of ``scores`` (a subset's solve) bring to
+    the covariance of the coordinates ``block`` (a plane's three) once they are held:
+    ``C_ak C_kk^+ C_ka`` (Gaussian conditioning) of the figure of :func:`sandwich` with
+    the largest trace there (the marginal ``H^-1`` among them); zeros without intrinsics."""
+    sw = sandwich(scores)
+    k = []
+    off = 0
+    for key, dim in scores.z_keys:
+        if gtsam.Symbol(key).chr() == ord("k"):
+            k.extend(range(off, off + dim))
+        off += dim
+    a = np.arange(off)[block]
+    if not k:
+        return np.zeros((len(a), len(a)))
+    best, best_tr = None, -1.0
+    for C in [sw["bread"], *_candidates(sw).values()]:
+        if np.all(np.isfinite(C)) and np.trace(C[np.ix_(a, a)]) > best_tr:
+            best, best_tr = C, float(np.trace(C[np.ix_(a, a)]))
+    k = np.asarray(k)
+    Cak = best[np.ix_(a, k)]
+    return Cak @ np.linalg.pinv(best[np.ix_(k, k)]) @ Cak.T
+
+
+def _with_unknown_intrinsics(out: dict, scores: JointScores, H: np.ndarray, meat: dict) -> None:
+    """The sandwich's figures where intrinsics with a prior about a guess are estimated
+    (:attr:`JointScores.prior_spread`), in place.
+
+    With ``k`` the intrinsics' coordinates and ``a`` the rest, the estimate moves as
+    ``delta a = H_aa^-1 s_a + G delta k``, ``G = -H_aa^-1 H_ak``: the first term is the
+    sandwich with the intrinsics held (``H_aa^-1 Omega_aa H_aa^-1``, the figure of a
+    known camera), the second carries the intrinsics' own error (Gaussian conditioning;
+    the two are uncorrelated where the scores' covariance is their information). The
+    intrinsics' covariance ``C_k`` is each figure's own ``k`` block, at least the
+    marginal (``H^-1``, which holds the prior) and at most the prior's spread in each
+    coordinate: where the data hardly hold them (no bones, rays meeting at a few
+    degrees) the scores' ``k`` part is numerically meaningless (it gave a focal std of
+    5e7 px), and the truth's spread about the guess is the prior's. So the reported
+    figures hold the unknown intrinsics whether or not the data determine them.
+    """
+    P = np.asarray(scores.prior_spread, dtype=float)
+    d = np.diag(P)
+    k = np.flatnonzero(d > 0)
+    a = np.flatnonzero(d <= 0)
+    if not len(k):
+        return
+    gauge = None if scores.gauge is None else np.asarray(scores.gauge, float)[a]
+    bread = out["bread"]
+    bread_a = gauge_inverse(H[np.ix_(a, a)], gauge)
+    G = -bread_a @ H[np.ix_(a, k)]
+    prior_sd = 1.0 / np.sqrt(d[k])
+    marg_k = bread[np.ix_(k, k)]
+    if scores.prior_floor is not None:
+        # an intrinsic the data do not determine: its variance at least the floor
+        # (the prior's, or the disagreement of two estimates), at most the prior's
+        floor = np.minimum(np.asarray(scores.prior_floor, float)[k], prior_sd ** 2)
+        sd = np.sqrt(np.maximum(np.diag(marg_k), 1e-300))
+        up = np.maximum(np.sqrt(floor) / sd, 1.0)
+        marg_k = marg_k * np.outer(up, up)
+
+    def assemble(C_a: np.ndarray, C_k: np.ndarray) -> np.ndarray:
+        n = H.shape[0]
+        if not (np.all(np.isfinite(C_a)) and np.all(np.isfinite(C_k))):
+            return np.full((n, n), np.nan)             # a figure that does not apply
+        C_k = 0.5 * (C_k + C_k.T)
+        sd = np.sqrt(np.maximum(np.diag(C_k), 0.0))
+        shrink = np.where(sd > prior_sd, prior_sd / np.maximum(sd, 1e-300), 1.0)
+        C_k = covariance_max(marg_k, C_k * np.outer(shrink, shrink))
+        C = np.zeros((n, n))
+        C[np.ix_(a, a)] = C_a + G @ C_k @ G.T
+        C[np.ix_(a, k)] = G @ C_k
+        C[np.ix_(k, a)] = (G @ C_k).T
+        C[np.ix_(k, k)] = C_k
+        return C
+
+    for name, part in (("cov", "total"), ("cov_time", "time"), ("cov_joint", "joint")):
+        M = meat[part]
+        out[name] = assemble(bread_a @ M[np.ix_(a, a)] @ bread_a, out[name][np.ix_(k, k)])
+    for name in ("cov_jack_time", "cov_jack_joint"):
+        C = out[name]
+        if not np.all(np.isfinite(C)):
+            continue
+        Ckk = C[np.ix_(k, k)]
+        Cak = C[np.ix_(a, k)]
+        cond = C[np.ix_(a, a)] - Cak @ np.linalg.pinv(Ckk) @ Cak.T
+        out[name] = assemble(cond, Ckk)
 
 
 def robust_intrinsics_std(scores: JointScores, marginal: dict[int, np.ndarray]
@@ -659,7 +863,9 @@ def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarr
                 "jack_joint": len(np.unique(scores.clusters))}.get(chosen)
     m2 = region_threshold(2, clusters, REGION_LEVEL)
     parts = {f"{k}_rotation_std_deg": float(stds[k]) for k in ROBUST_PARTS}
+    full = sw["bread"] if chosen == "marginal" else _candidates(sw)[chosen]
     parts.update({f"{k}_normal_cov": covs[k] for k in ROBUST_PARTS},
+                 contributions=intrinsics_contributions(full, scores.z_keys),
                  chosen=chosen, bandwidth_frames=float(sw["bandwidth"]),
                  segments=int(sw["segments"]), clusters=int(clusters or 0),
                  region90_mahalanobis2=float(m2),
@@ -667,6 +873,47 @@ def robust_normal_cov(scores: JointScores, basis: np.ndarray, marginal: np.ndarr
                  ratio_to_marginal=float(std / stds["marginal"])
                  if stds["marginal"] > 0 else float("nan"))
     return headline, parts
+
+
+def intrinsics_contributions(cov: np.ndarray, z_keys: list, block: slice = slice(0, 2)
+                             ) -> dict[str, float]:
+    """How much of a rotation's variance the unknown intrinsics make.
+
+    With ``C`` the covariance of the reduced coordinates, ``a`` the rotation's block
+    (a plane's first two: its normal) and ``x`` one group of intrinsics, the variance
+    ``a`` would lose were ``x`` known is ``C_ax C_xx^-1 C_xa`` (Gaussian conditioning);
+    its trace over ``tr C_aa`` is that group's share.
+
+    Args:
+        cov: ``(n, n)`` covariance over ``z_keys`` (any scale: the shares are ratios).
+        z_keys: ``(key, dim)`` of the reduced coordinates; an intrinsics block (a
+            ``k`` key) is ``f`` or ``f, cx, cy`` (:mod:`.reduction`).
+        block: the rotation's coordinates in ``cov``.
+
+    Returns:
+        ``{"focal_length": share, "principal_point": share}`` (0-1; the groups the
+        coordinates hold; the rest of the variance is the geometry's and the noise's).
+    """
+    C = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    groups: dict[str, list[int]] = {}
+    off = 0
+    for key, dim in z_keys:
+        if gtsam.Symbol(key).chr() == ord("k"):
+            groups.setdefault("focal_length", []).append(off)
+            if dim == 3:
+                groups.setdefault("principal_point", []).extend([off + 1, off + 2])
+        off += dim
+    a = np.arange(C.shape[0])[block]
+    total = float(np.trace(C[np.ix_(a, a)]))
+    out = {}
+    for name, idx in groups.items():
+        x = np.asarray(idx)
+        Cax, Cxx = C[np.ix_(a, x)], C[np.ix_(x, x)]
+        if not (np.all(np.isfinite(Cax)) and np.all(np.isfinite(Cxx))) or total <= 0:
+            out[name] = float("nan")
+            continue
+        out[name] = float(np.clip(np.trace(Cax @ np.linalg.pinv(Cxx) @ Cax.T) / total, 0, 1))
+    return out
 
 
 #: The confidence level of the region :func:`robust_normal_cov` reports.
@@ -758,9 +1005,12 @@ def robust_blocks(scores: JointScores, marginal_blocks: list[np.ndarray]
             ``scores.z_keys`` order (scaled by the noise).
 
     Returns:
-        the headline blocks and, per block, ``{"chosen", "ratio_to_marginal"}``.
+        the headline blocks and, per block, ``{"chosen", "ratio_to_marginal",
+        "contributions"}`` (the unknown intrinsics' shares of its rotation's variance,
+        :func:`intrinsics_contributions`).
     """
-    cands = _candidates(sandwich(scores))
+    sw = sandwich(scores)
+    cands = _candidates(sw)
     out, parts, off = [], [], 0
     for (key, dim), M in zip(scores.z_keys, marginal_blocks):
         M = np.asarray(M, dtype=float)
@@ -779,5 +1029,9 @@ def robust_blocks(scores: JointScores, marginal_blocks: list[np.ndarray]
         H = M * ratio ** 2
         H[rot, rot] = head
         out.append(H)
-        parts.append({"chosen": best, "ratio_to_marginal": ratio})
+        full = sw["bread"] if best == "marginal" else cands[best]
+        parts.append({"chosen": best, "ratio_to_marginal": ratio,
+                      "contributions": intrinsics_contributions(
+                          full, scores.z_keys, slice(block.start + rot.start,
+                                                     block.start + rot.stop))})
     return out, parts

@@ -20,6 +20,7 @@ import numpy as np
 from ..graph.options import RefineOptions, one_subject_height
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
+from ..pipeline import DOMINANT_SHARE
 from ..skeletons import Skeleton
 from ..stature import StatureEstimate, estimate_stature
 from .completion import complete_joints
@@ -166,7 +167,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         if c.name in sol.focal:
             sol.focal[c.name]["initial"] = init.focals.get(c.name)
             intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
-                                        DEFAULT_FOV_DEG, warnings, camera=c.name)
+                                        DEFAULT_FOV_DEG, warnings, camera=c.name,
+                                        user_guess=not estimate_focal)
         cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  marginal_rotation_std_deg=camera_std(mcov, pose)[0],
@@ -193,10 +195,17 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     for what, items in (("camera", cameras[1:]), ("mirror", mirrors)):
         for item in items:
             if item.rotation_std_deg > POORLY_DETERMINED_DEG:
+                share = (sol.robust_parts.get(item.name) or {}).get("contributions") or {}
+                top = max(share, key=share.get) if share else None
+                cause = ("too few frames, too little motion, or a detector's error the frames "
+                         "do not average out")
+                if top is not None and share[top] > DOMINANT_SHARE:
+                    cause = (f"the unknown {top.replace('_', ' ')} of a camera listed without "
+                             f"intrinsics dominates it ({100 * share[top]:.0f}% of its "
+                             "variance): give that camera its intrinsics")
                 warnings.append(f"{what} {item.name} is poorly determined (rotation std "
                                 f"{item.rotation_std_deg:.2f} deg, {item.marginal_rotation_std_deg:.2f} "
-                                "deg from the marginals alone): too few frames, too little "
-                                "motion, or a detector's error the frames do not average out")
+                                f"deg from the marginals alone): {cause}")
     initialisation = {
         "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
                    "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],

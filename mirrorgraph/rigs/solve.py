@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..graph.builder import view_residuals
-from ..graph.refine import focal_record
+from ..graph.refine import focal_record, guessed_camera
 from ..graph.options import FocalOptions, RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.sensitivity import rig_sensitivity_report
@@ -144,11 +144,12 @@ def build_rig(obs: RigObservations, init: InitialRig,
     for i, (c, p) in enumerate(zip(obs.cameras, init.poses)):
         K = init.K[i] if init.K else c.intrinsics.K
         cam = Camera(c.name, np.asarray(K, float), np.asarray(p, float), estimate_pose=i > 0)
-        if estimate_focal and c.intrinsics.approximate:
-            guess = float(c.intrinsics.K[0, 0])
-            cam = replace(cam, estimate_focal=True,
-                          estimate_principal_point=focal.principal_point,
-                          focal_prior=(guess, focal.prior_rel_sigma * guess))
+        if c.intrinsics.approximate:
+            # no intrinsics: the focal length and principal point are variables with
+            # priors about the guess (the guess's own spread without estimate_focal)
+            cam = replace(guessed_camera(cam, c.intrinsics.K, focal,
+                                         None if estimate_focal else focal.guess_rel_sigma),
+                          K=np.asarray(K, float))
         cams.append(cam)
     cams = tuple(cams)
     mirrors = tuple(Mirror(m, *init.planes[m]) for m in obs.mirrors if m in init.planes)

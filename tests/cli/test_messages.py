@@ -310,3 +310,23 @@ def test_the_same_condition_raises_the_same_type():
         write_keypoints(scene.detections, "x.csv", "csv")
     with pytest.raises(InputError, match="field 'style': unknown camera file style 'vicon'"):
         camera_document([], style="vicon")
+
+
+def test_an_error_after_a_progress_bar_starts_on_its_own_line(monkeypatch):
+    """A step that raises before closing its bar: the error line is not glued to the bar."""
+    from mirrorgraph.cli import calibrate as calibrate_cli
+    from mirrorgraph.errors import InputError
+
+    def failing(args):
+        bar = Progress("reading frames", total=10)     # drawn on the fake terminal
+        bar.update(3)
+        raise InputError("frame 4 has no joints", source="kp.json")
+
+    monkeypatch.setattr(calibrate_cli, "cmd_calibrate", failing)
+    code, out, err = run_cli(["calibrate", "kp.json", "--image-size", "640x480", "--out",
+                              "c.json"], monkeypatch,
+                             tty=True)
+    assert code == 2 and out == ""
+    last = err.rstrip("\n").split("\n")[-1]
+    assert last.startswith("error: kp.json") and "frame 4" in last
+    assert "reading frames" in err and "\rerror" not in err
