@@ -99,7 +99,7 @@ def main() -> int:
     trial = demo / "Demo_SinglePerson"
     cams = read_qca(trial / "calibration" / "Calib.qca.txt")
     names = ["cam01", "cam02", "cam03", "cam04"]
-    rows, along_all, tri = [], {n: [] for n in COMMON}, {}
+    along_all, tri = {n: [] for n in COMMON}, {}
     import datetime
     import platform
     print("# BlazePose vs OpenPose BODY_25B on Demo_SinglePerson\n")

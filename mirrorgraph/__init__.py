@@ -14,8 +14,9 @@ The Python API in a nutshell::
     mg.write_rig_toml(rig, "Calib.toml")
 
 Every name in ``__all__`` is the public API (the README's *Python API* section); the
-rest is reachable through its module. The names whose modules pull GTSAM or an
-optional extra are imported on first use, so that ``import mirrorgraph`` stays fast.
+rest is reachable through its module. Every name but the errors and the version is
+imported on first use (its module pulls NumPy, OpenCV, SciPy, GTSAM or an optional
+extra), so that ``import mirrorgraph`` stays fast and imports none of them.
 
 Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 :mod:`~mirrorgraph.solvers` (minimal and linear solvers),
@@ -31,12 +32,16 @@ Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 
 from ._version import __version__
 
-from .calibration import Calibration, read_calibration, write_calibration  # noqa: E402
 from .errors import DegenerateGeometryError, InputError, MirrorgraphError  # noqa: E402
-from .pipeline import CalibrateOptions, CalibrationRun, calibrate  # noqa: E402
 
 #: Public name -> the module it lives in, imported on first use (``__getattr__``).
 _LAZY = {
+    "Calibration": "mirrorgraph.calibration",
+    "read_calibration": "mirrorgraph.calibration",
+    "write_calibration": "mirrorgraph.calibration",
+    "CalibrateOptions": "mirrorgraph.pipeline",
+    "CalibrationRun": "mirrorgraph.pipeline",
+    "calibrate": "mirrorgraph.pipeline",
     "load_intrinsics": "mirrorgraph.intrinsics",
     "Intrinsics": "mirrorgraph.intrinsics",
     "read_keypoints": "mirrorgraph.io",
@@ -54,17 +59,19 @@ _LAZY = {
     "write_rig_report": "mirrorgraph.report.rig",
 }
 
-__all__ = ["Calibration", "CalibrateOptions", "CalibrationRun", "DegenerateGeometryError",
-           "InputError", "MirrorgraphError", "calibrate", "read_calibration",
-           "write_calibration", "__version__", *_LAZY]
+__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError",
+           "__version__"] + list(_LAZY)
 
 
 def __getattr__(name: str):
+    from importlib import import_module
+    from importlib.util import find_spec
+
     module = _LAZY.get(name)
     if module is None:
+        if not name.startswith("_") and find_spec(f"{__name__}.{name}") is not None:
+            return import_module(f"{__name__}.{name}")    # a submodule: mg.geometry
         raise AttributeError(f"module 'mirrorgraph' has no attribute {name!r}")
-    from importlib import import_module
-
     value = getattr(import_module(module), name)
     globals()[name] = value
     return value

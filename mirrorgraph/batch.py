@@ -349,7 +349,7 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
     if not recordings:
         return []
     if workers is not None and workers < 1:
-        raise InputError(f"must be at least 1, got {workers}", field="--workers")
+        raise InputError(f"must be at least 1, got {workers}", field="workers")
     try:
         # the batch extra: Dask is optional, imported only to run a batch
         from dask.distributed import Client, LocalCluster, as_completed
@@ -364,7 +364,7 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError) as e:
             raise InputError(f"cannot connect to the Dask scheduler {scheduler!r} ({e})",
-                             field="--scheduler") from None
+                             field="scheduler") from None
     else:
         try:
             cluster = LocalCluster(n_workers=workers or default_workers(len(recordings)),

@@ -4,39 +4,77 @@ Every error that user input can cause is a :class:`MirrorgraphError`. It names t
 place at fault (file, frame, field) so that the message alone is enough to fix
 the input; the command-line interface prints ``error: <message>`` and exits with
 a non-zero status instead of showing a traceback.
+
+:class:`InputError` is also a :class:`ValueError` (SciPy's and NumPy's convention
+for an argument that cannot be used), so that ``except ValueError`` catches a bad
+argument whichever function refused it. The library names the argument or field
+at fault (``field="intrinsics"``), never a command-line flag: the CLI says which
+flag gives it.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 
 class MirrorgraphError(Exception):
     """Base class of every error mirrorgraph raises on purpose."""
 
 
-class InputError(MirrorgraphError):
-    """Input that cannot be used: malformed file, wrong shape, NaN, ...
+class InputError(MirrorgraphError, ValueError):
+    """Input that cannot be used: malformed file, wrong shape, NaN, unknown name, ...
 
     Args:
         message: what is wrong, in words a user understands.
         source: the file or folder at fault, if any.
         frame: the frame id at fault, if any.
-        field: the JSON key / array name / option at fault, if any.
+        field: the JSON key / array name / argument at fault, if any.
+        fix: the arguments that would make the input usable, as their names
+            (``"intrinsics"``) or a name and a value (``"skeleton=BODY_25"``): the
+            message ends in ``pass intrinsics or image_size``, and a front end that
+            calls them otherwise says so with :meth:`describe` (the CLI: flags).
     """
 
     def __init__(self, message: str, *, source: str | None = None,
-                 frame: int | None = None, field: str | None = None) -> None:
+                 frame: int | None = None, field: str | None = None,
+                 fix: tuple[str, ...] = ()) -> None:
         self.source = None if source is None else str(source)
         self.frame = frame
         self.field = field
         self.reason = message
+        self.fix = tuple(fix)
+        super().__init__(self.describe())
+
+    def describe(self, names: Mapping[str, str] | None = None) -> str:
+        """The message, with every argument it names (``field``, ``fix``) spelled as
+        ``names`` maps them (an argument it does not map keeps its name).
+
+        Args:
+            names: argument name -> what a front end calls it, e.g. ``{"image_size":
+                "--image-size WxH"}``; in ``field 'x'`` only its first word is used,
+                and only where no ``source`` is named (a field of a file is the file's).
+        """
+        names = names or {}
         where = []
         if self.source is not None:
             where.append(self.source)
-        if frame is not None:
-            where.append(f"frame {frame}")
-        if field is not None:
-            where.append(f"field '{field}'")
-        super().__init__(f"{', '.join(where)}: {message}" if where else message)
+        if self.frame is not None:
+            where.append(f"frame {self.frame}")
+        if self.field is not None:
+            field = names.get(self.field, self.field) if self.source is None else self.field
+            where.append(f"field '{field.split(' ')[0]}'")
+        message = self.reason
+        if self.fix:
+            spelled = []
+            for arg in self.fix:
+                name, _, value = arg.partition("=")
+                if name in names:
+                    spelled.append(names[name].split(" ")[0] + (f" {value}" if value else
+                                   "".join(" " + w for w in names[name].split(" ")[1:])))
+                else:
+                    spelled.append(arg)
+            message += f"; pass {' or '.join(spelled)}"
+        return f"{', '.join(where)}: {message}" if where else message
 
 
 class DegenerateGeometryError(MirrorgraphError):

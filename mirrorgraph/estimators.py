@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from . import geometry as geo
-from .errors import DegenerateGeometryError
+from .errors import DegenerateGeometryError, InputError
 from .ransac import RansacOptions, ransac
 from .solvers.eightpoint import fundamental_eight_point, fundamental_reflective_eight_point
 from .solvers.normalization import SimilarityNormalizer
@@ -199,7 +199,7 @@ def estimate_mirror(u: np.ndarray, u_mirror: np.ndarray, K: np.ndarray, *,
 
     Raises:
         DegenerateGeometryError: the data cannot determine the mirror.
-        ValueError: unknown estimator.
+        InputError: unknown estimator (as :func:`mirrorgraph.calibrate` says it).
     """
     u = np.asarray(u, dtype=float).reshape(-1, 2)
     um = np.asarray(u_mirror, dtype=float).reshape(-1, 2)
@@ -214,7 +214,8 @@ def estimate_mirror(u: np.ndarray, u_mirror: np.ndarray, K: np.ndarray, *,
         return _from_fundamental(estimator, K, F, u, um, threshold_px, 0)
     if estimator == "reflective8":
         return _reflective_eight_point_ransac(u, um, K, threshold_px, seed)
-    raise ValueError(f"unknown estimator {estimator!r}; choose one of {', '.join(ESTIMATORS)}")
+    raise InputError(f"unknown estimator {estimator!r}; choose one of {', '.join(ESTIMATORS)}",
+                     field="estimator")
 
 
 def _from_fundamental(name, K, F, u, um, threshold_px, iterations):

@@ -512,9 +512,3 @@ def decompose_reflective_essential(E: np.ndarray) -> tuple[np.ndarray, np.ndarra
     R = -D_FLIP @ Q
     t = D_FLIP @ n                                   # t = 2 d D n with 2d = 1
     return R, t, n
-
-
-def check_finite(name: str, a: np.ndarray) -> None:
-    """Raise :class:`DegenerateGeometryError` if ``a`` holds NaN or inf."""
-    if not np.all(np.isfinite(a)):
-        raise DegenerateGeometryError(f"{name} is not finite")

@@ -160,8 +160,8 @@ def resolve_intrinsics(intrinsics: Intrinsics | None, data: RawDetections | Pair
         return intrinsics
     size = options.image_size or data.image_size
     if size is None:
-        raise InputError("no intrinsics and no image size: pass --intrinsics FILE or "
-                         "--image-size WxH", source=data.source)
+        raise InputError("no intrinsics and no image size", source=data.source,
+                         fix=("intrinsics", "image_size"))
     if not options.refine:
         warnings.append(f"no intrinsics given: assumed a {options.fov_deg:g} deg horizontal "
                         f"field of view with the principal point at the centre of "

@@ -22,7 +22,8 @@ the distance from an eye to a shoulder. The ratio ``r = a / (a + b)`` in
 ``[0, 1]`` does not depend on image scale, rotation or the left/right labelling of
 a reflection. The median of ``r`` over the file's confident detections decides; a
 file with too few of them, or a median between the two thresholds, is refused
-with a message asking for ``--skeleton``.
+with a message asking for the ``skeleton`` argument (``--skeleton`` on the command
+line).
 
 Measured on synthetic scenes (:func:`mirrorgraph.synth.make_scene`, the person
 and the reflection, 4 px noise, 5 % outliers; BODY_25B labels projected from the
@@ -108,9 +109,9 @@ def guess_skeleton(candidates: Sequence[Skeleton], people: np.ndarray | Iterable
             between :data:`BODY_25_BELOW` and :data:`BODY_25B_ABOVE`).
     """
     names = " or ".join(s.name for s in candidates)
-    fix = " or ".join(f"--skeleton {s.name}" for s in candidates)
+    fix = tuple(f"skeleton={s.name}" for s in candidates)
     if {s.name for s in candidates} != {BODY_25.name, BODY_25B.name}:
-        raise InputError(f"the keypoint count fits {names}; pass {fix}", source=source)
+        raise InputError(f"the keypoint count fits {names}", source=source, fix=fix)
     if isinstance(people, np.ndarray):
         kp = people.reshape(-1, 25, 3)
     else:
@@ -126,5 +127,5 @@ def guess_skeleton(candidates: Sequence[Skeleton], people: np.ndarray | Iterable
         why = f"the joints do not tell them apart (median ratio {m:.2f})"
     else:
         why = f"only {len(r)} confident detections to tell them apart"
-    raise InputError(f"25 keypoints fit BODY_25 and BODY_25B and {why}; pass {fix}",
-                     source=source)
+    raise InputError(f"25 keypoints fit BODY_25 and BODY_25B and {why}", source=source,
+                     fix=fix)

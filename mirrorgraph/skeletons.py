@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import InputError
+
 
 @dataclass(frozen=True)
 class Skeleton:
@@ -207,10 +209,11 @@ SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18,
 
 def skeleton_by_name(name: str) -> Skeleton:
     """Look a layout up by name, case-insensitively, ``-`` for ``_`` (``"body_25b"``,
-    ``"HALPE-26"``); ``ValueError`` if unknown."""
+    ``"HALPE-26"``); :class:`~mirrorgraph.errors.InputError` (a ``ValueError``) if
+    unknown."""
     key = name.strip().upper().replace("-", "_")
     if key not in SKELETONS:
-        raise ValueError(f"unknown skeleton {name!r}; known: {', '.join(SKELETONS)}")
+        raise InputError(f"unknown skeleton {name!r}; known: {', '.join(SKELETONS)}")
     return SKELETONS[key]
 
 

@@ -52,6 +52,7 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 from mirrorgraph.cli import main
+from mirrorgraph.cli.args import error_message
 from mirrorgraph.errors import MirrorgraphError
 from mirrorgraph.io import read_keypoints
 from mirrorgraph.metrics import normal_angle_deg
@@ -302,7 +303,8 @@ def check_keypoint_case(case: Case, capfd, prior: bytes | None, *, refine: bool 
                              str(out), *extra], out, capfd, prior=prior)
         assert joints3d.is_file() == (refine and code == 0)
         if error is not None:
-            assert code == 2 and err == f"error: {error}\n", (err, str(error))
+            # the reader's error, its arguments said as the CLI's flags
+            assert code == 2 and err == f"error: {error_message(error)}\n", (err, str(error))
         elif code == 0:
             cal = check_calibration(out, case.base.normal if case.close else None)
             if refine:

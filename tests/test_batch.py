@@ -260,7 +260,7 @@ def test_batch_command_on_an_existing_scheduler(scenes, tmp_path, capsys):
 def test_batch_command_exit_codes_without_a_cluster(tmp_path, capsys):
     with pytest.raises(InputError, match="no such manifest"):
         batch_cli(["batch", str(tmp_path / "missing.csv")])
-    with pytest.raises(InputError, match="--workers"):
+    with pytest.raises(InputError, match="field 'workers'"):
         run_batch([Recording(name="x", keypoints=None, intrinsics=None, out=tmp_path / "x")],
                   workers=0)
     assert run_batch([]) == []

@@ -14,6 +14,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from mirrorgraph.cli.args import error_message
 from mirrorgraph.intrinsics import MAX_K_ENTRY, load_intrinsics
 
 from tests.fuzzing import (BASES, CAM, MM, NONFINITE, Base, Case, check_calibration,
@@ -190,7 +191,7 @@ def test_intrinsics(case, prior, capfd):
         code, err = run_cli(["calibrate", str(kp), "--intrinsics", str(cam), "--out",
                              str(out), "--no-refine", "--quiet"], out, capfd, prior=prior)
         if error is not None:
-            assert code == 2 and err == f"error: {error}\n", (err, str(error))
+            assert code == 2 and err == f"error: {error_message(error)}\n", (err, str(error))
         elif code == 0:
             check_calibration(out, case.base.normal if case.close else None)
         else:

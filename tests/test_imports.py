@@ -145,3 +145,38 @@ def test_no_module_takes_another_modules_private_names():
                     offenders.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} "
                                      f"{'.' * node.level}{node.module or ''} {private}")
     assert not offenders, "private names imported across modules: " + "; ".join(offenders)
+
+
+def _imported_after(statement: str, modules: tuple[str, ...]) -> list[str]:
+    """Which of ``modules`` a fresh interpreter holds after running ``statement``."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = (f"import sys\n{statement}\nimport json\n"
+            f"print(json.dumps([m for m in {list(modules)!r} if m in sys.modules]))")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(PACKAGE.parent), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, check=True)
+    return json.loads(out.stdout)
+
+
+def test_importing_the_package_imports_no_heavy_dependency():
+    """``import mirrorgraph`` stays fast: SciPy's spatial module, Matplotlib, Dask and GTSAM
+    (each 0.2-0.8 s to import) wait for the first name that needs them."""
+    heavy = ("scipy.spatial", "matplotlib", "dask", "distributed", "gtsam")
+    assert _imported_after("import mirrorgraph", heavy) == []
+    # and the names that need them still resolve, importing them then
+    assert _imported_after("import mirrorgraph; mirrorgraph.calibrate", ("gtsam",)) == ["gtsam"]
+
+
+def test_the_command_line_parser_imports_no_solver():
+    """``mirrorgraph --help``, ``export`` and ``synth`` build the whole parser: that needs
+    neither GTSAM, SciPy's optimiser (which imports its spatial module), Matplotlib, Dask
+    nor the video package; the commands import them when they run."""
+    heavy = ("gtsam", "scipy.optimize", "scipy.spatial", "matplotlib", "dask",
+             "mirrorgraph.video", "mirrorgraph.pipeline")
+    assert _imported_after("from mirrorgraph.cli import build_parser; build_parser()",
+                           heavy) == []

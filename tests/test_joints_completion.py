@@ -10,7 +10,7 @@ import pytest
 
 import mirrorgraph as mg
 from mirrorgraph.completion import anchor_gate, complete_mirror_joints
-from mirrorgraph.joint_sets import JOINT_SETS, mirror_joints, resolve_joints
+from mirrorgraph.joint_sets import mirror_joints, resolve_joints
 from mirrorgraph.skeletons import skeleton_by_name
 from mirrorgraph.synth import make_scene
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from mirrorgraph.anthropometry import expected_bone_lengths, height_fractions
+from mirrorgraph.cli.args import error_message
 from mirrorgraph.errors import InputError
 from mirrorgraph.io import read_keypoints, write_keypoints, write_paired_npz
 from mirrorgraph.keypoints import PairedKeypoints, RawDetections
@@ -224,7 +225,8 @@ def test_too_few_detections_is_an_input_error_naming_the_file(tmp_path, scenes):
         read_keypoints(path)
     msg = str(info.value)
     assert "\n" not in msg and msg.startswith(str(path))
-    assert "--skeleton BODY_25 " in msg and "--skeleton BODY_25B" in msg
+    assert "skeleton=BODY_25 " in msg and "skeleton=BODY_25B" in msg    # the argument
+    assert "--skeleton BODY_25 or --skeleton BODY_25B" in error_message(info.value)   # the CLI
     assert read_keypoints(path, skeleton="BODY_25B").skeleton is BODY_25B
 
 
@@ -237,10 +239,10 @@ def test_data_that_do_not_separate_is_an_input_error(tmp_path):
     write_keypoints(det, path, "mmpose")
     with pytest.raises(InputError, match="do not tell them apart") as info:
         read_keypoints(path)
-    assert str(path) in str(info.value) and "--skeleton BODY_25B" in str(info.value)
+    assert str(path) in str(info.value) and "skeleton=BODY_25B" in str(info.value)
     with pytest.raises(InputError, match="only 0 confident"):
         guess_skeleton((BODY_25, BODY_25B), np.zeros((30, 25, 3)), source="x.json")
-    with pytest.raises(InputError, match="--skeleton COCO_17"):      # nothing to tell them by
+    with pytest.raises(InputError, match="skeleton=COCO_17"):      # nothing to tell them by
         guess_skeleton((COCO_17, COCO_18), np.zeros((30, 17, 3)), source="x.json")
 
 

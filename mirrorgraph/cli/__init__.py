@@ -40,6 +40,7 @@ from .._version import __version__
 from ..errors import MirrorgraphError
 from ..progress import end_open_lines
 from . import batch, calibrate, report, rig, synth, video, view
+from .args import error_message
 
 __all__ = ["EXIT_INPUT", "EXIT_INTERNAL", "build_parser", "main"]
 
@@ -79,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             end_open_lines()           # an error printed next starts on a line of its own
     except MirrorgraphError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {error_message(exc)}", file=sys.stderr)
         return EXIT_INPUT
     except FileNotFoundError as exc:
         print(f"error: {exc.filename}: no such file or folder", file=sys.stderr)

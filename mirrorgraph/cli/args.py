@@ -21,9 +21,27 @@ from ..anthropometry import height_problem
 from ..errors import InputError
 from ..progress import Progress, SolveProgress
 
-__all__ = ["add_common", "add_joints", "add_scale_from", "floats", "height", "image_size",
-           "options_from_args", "positive", "print_result", "printer", "rate", "report_written",
-           "seed", "solver_progress", "step", "warn"]
+__all__ = ["FLAGS", "add_common", "add_joints", "add_scale_from", "error_message", "floats",
+           "height", "image_size", "options_from_args", "positive", "print_result", "printer",
+           "rate", "report_written", "seed", "solver_progress", "step", "warn"]
+
+
+#: The library's argument names -> the flags that give them (with a metavar where the flag
+#: takes a value): the library's messages name arguments (``pass intrinsics``), the CLI says
+#: them as flags (:meth:`mirrorgraph.errors.InputError.describe`).
+FLAGS = {"intrinsics": "--intrinsics FILE", "image_size": "--image-size WxH",
+         "camera": "--camera NAME", "fov_deg": "--fov DEG", "skeleton": "--skeleton NAME",
+         "estimator": "--estimator NAME", "threshold_px": "--threshold PX",
+         "min_confidence": "--min-confidence C", "joints": "--joints NAMES",
+         "subject_height": "--subject-height METRES", "scale_from": "--scale-from WHAT",
+         "seed": "--seed N", "fps": "--fps HZ", "video": "--video FILE",
+         "render": "--render OUT.mp4", "workers": "--workers N",
+         "scheduler": "--scheduler ADDRESS"}
+
+
+def error_message(exc: BaseException) -> str:
+    """What ``error: ...`` says of an error: an :class:`InputError`'s arguments as flags."""
+    return exc.describe(FLAGS) if isinstance(exc, InputError) else str(exc)
 
 
 # --------------------------------------------------------------------------- argument types

@@ -11,8 +11,6 @@ import json
 import sys
 from pathlib import Path
 
-from ..batch import (BatchResult, default_workers, format_summary, read_manifest,
-                     results_to_json, run_batch)
 from ..errors import InputError
 from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
@@ -68,6 +66,9 @@ def add_parsers(subparsers) -> None:
 
 def cmd_batch(args) -> int:
     """Run ``mirrorgraph batch``; 0 if every recording was calibrated, 2 if any failed."""
+    from ..batch import (BatchResult, default_workers, format_summary, read_manifest,
+                         results_to_json, run_batch)
+
     recordings = read_manifest(args.manifest, out_dir=args.out_dir)
     opts = options_from_args(args)
     if args.summary and Path(args.summary).is_dir():

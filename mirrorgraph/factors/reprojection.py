@@ -106,7 +106,7 @@ class ReprojectionFactors:
         camera_pose: fixed real camera pose (camera-to-world, :class:`gtsam.Pose3`);
             identity if ``None``.
 
-    The factors' Jacobians are GTSAM's analytic ones; ``tests/test_factors.py``
+    The factors' Jacobians are GTSAM's analytic ones; ``tests/factors/test_factors.py``
     checks them against central differences of ``pi(K X)`` and ``pi(K S(X))``.
     """
 

@@ -15,9 +15,22 @@
 """
 
 from .options import RefineOptions
-from .refine import refine_mirror
-from .result import RefinementResult, rotation_std_from_normal_cov
-from .rig import Camera, Mirror, Rig, View, single_mirror_rig
+
+#: Name -> its module here, imported on first use (``__getattr__``): they import GTSAM,
+#: which the options above (and so the command line's parser) do not need.
+_LAZY = {"refine_mirror": ".refine", "RefinementResult": ".result",
+         "rotation_std_from_normal_cov": ".result", "Camera": ".rig", "Mirror": ".rig",
+         "Rig": ".rig", "View": ".rig", "single_mirror_rig": ".rig"}
 
 __all__ = ["Camera", "Mirror", "RefineOptions", "RefinementResult", "Rig", "View",
            "refine_mirror", "rotation_std_from_normal_cov", "single_mirror_rig"]
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(_LAZY[name], __name__), name)
+    globals()[name] = value
+    return value

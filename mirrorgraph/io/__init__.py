@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import os
 
+from ..errors import InputError
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton
 from ._common import ProgressCallback
@@ -110,14 +111,16 @@ def write_keypoints(detections: RawDetections, path: str | os.PathLike, fmt: str
     ``meta_info``, OpenPose's sidecar: :mod:`.meta`), read back by
     :func:`read_keypoints`."""
     if fmt not in _WRITERS:
-        raise ValueError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}")
+        raise InputError(f"unknown keypoint format {fmt!r}; known: {', '.join(_WRITERS)}",
+                         field="fmt")
     kw = {}
     if track_ids is not None:
         if fmt == "easymocap":
-            raise ValueError("EasyMocap annotations hold no track ids")
+            raise InputError("EasyMocap annotations hold no track ids", field="track_ids")
         kw["track_ids"] = track_ids
     if meta:
         if fmt == "easymocap":
-            raise ValueError("EasyMocap annotations hold no image size or frame rate")
+            raise InputError("EasyMocap annotations hold no image size or frame rate",
+                             field="meta")
         kw["meta"] = True
     _WRITERS[fmt](detections, path, **kw)

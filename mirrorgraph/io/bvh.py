@@ -194,7 +194,7 @@ class BvhMotion:
             ``F' = floor((F - 1) * fps / self.fps) + 1`` frames at times ``k / fps``.
         """
         if not fps > 0:
-            raise ValueError(f"fps must be positive, got {fps}")
+            raise InputError(f"frame rate must be a positive number, got {fps}", field="fps")
         R, t = self.local_transforms()
         s = resample_times(self.frames, self.fps, fps)
         i0 = np.floor(s).astype(int)

@@ -39,7 +39,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
 from .toml_writer import write_toml
@@ -62,11 +61,15 @@ def rotation_to_rodrigues(R: np.ndarray) -> np.ndarray:
     one), where the textbook ``arccos((trace R - 1) / 2)`` formula loses
     precision.
     """
+    from scipy.spatial.transform import Rotation    # 0.3-0.8 s to import: at first use
+
     return Rotation.from_matrix(np.asarray(R, dtype=float)).as_rotvec()
 
 
 def rodrigues_to_rotation(rvec: np.ndarray) -> np.ndarray:
     """``(3, 3)`` rotation matrix of a ``(3,)`` Rodrigues vector."""
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_rotvec(np.asarray(rvec, dtype=float).reshape(3)).as_matrix()
 
 
@@ -128,7 +131,8 @@ def camera_document(cameras: Sequence[TomlCamera], style: str, *,
         ..., "metadata": {"adjusted": False, "error": error}}``.
     """
     if style not in STYLES:
-        raise ValueError(f"unknown camera file style {style!r}; known: {', '.join(STYLES)}")
+        raise InputError(f"unknown camera file style {style!r}; known: {', '.join(STYLES)}",
+                         field="style")
     doc: dict[str, Any] = {}
     for cam in cameras:
         if cam.key in doc or cam.key == "metadata":

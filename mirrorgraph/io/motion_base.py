@@ -65,7 +65,7 @@ def metres_factor(unit: str, path: str | os.PathLike | None = None) -> float:
     factor = _METRES.get(str(unit).strip().lower())
     if factor is None:
         raise InputError(f"the 3D joints are in {unit!r}, not metres; this format needs metres "
-                         "(calibrate with a metric prior such as --subject-height)",
+                         "(calibrate with a metric prior such as the subject's height)",
                          source=path, field="unit")
     return factor
 

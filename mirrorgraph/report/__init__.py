@@ -37,7 +37,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -49,10 +49,12 @@ from ..graph.options import RefineOptions
 from ..io import read_keypoints
 from ..io._common import load_json
 from ..keypoints import DEFAULT_MIN_CONFIDENCE, PairedKeypoints, RawDetections
-from ..pipeline import CalibrateOptions, calibrate
 from ..progress import Progress
 from .backend import INSTALL_HINT, require_matplotlib
 from .store import KEY, read_run, report_data_path
+
+if TYPE_CHECKING:                    # imported where used: the pipeline imports GTSAM
+    from ..pipeline import CalibrateOptions
 
 __all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
            "options_from_calibration", "report_data", "require_matplotlib",
@@ -251,11 +253,11 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         ``render`` without ``video``.
     """
     if render is not None and video is None:
-        raise InputError("needs the video to draw on: add --video FILE", field="--render")
+        raise InputError("needs the video to draw on", field="render", fix=("video",))
     if render is not None and Path(render).suffix.lower() != ".mp4":
-        raise InputError("must end in .mp4", source=str(render), field="--render")
+        raise InputError("must end in .mp4", source=str(render), field="render")
     if video is not None and not Path(video).is_file():
-        raise InputError("no such video file", source=str(video), field="--video")
+        raise InputError("no such video file", source=str(video), field="video")
     plt = require_matplotlib()
     # lazy: the figures are the plot extra's (matplotlib), and importing them adds
     # ~6 ms to `mirrorgraph --help`, which imports this package
@@ -328,6 +330,8 @@ def options_from_calibration(obj) -> CalibrateOptions:
     Args:
         obj: the parsed ``calibration.json``.
     """
+    from ..pipeline import CalibrateOptions     # GTSAM: at first use, not on importing
+
     info = obj.get("input") or {}
     ref = obj.get("refinement") or {}
     height = info.get("subject_height")
@@ -421,6 +425,8 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         raise InputError(f"no stored run to draw{where}: give the keypoints the "
                          "calibration was made from, to recompute it",
                          source=src, field="keypoints")
+    from ..pipeline import calibrate
+
     opts = options_from_calibration(obj)
     if overrides:
         opts = replace(opts, **overrides)

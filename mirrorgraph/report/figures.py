@@ -182,20 +182,6 @@ def _frustum(depth: float, K: np.ndarray, size) -> np.ndarray:
     return np.vstack([np.zeros(3), depth * rays])
 
 
-def _view(P: np.ndarray) -> np.ndarray:
-    """Camera frame (x right, y down, z forward) -> plot axes (x, z, up)."""
-    P = np.asarray(P, float)
-    return np.stack([P[..., 0], P[..., 2], -P[..., 1]], axis=-1)
-
-
-def _draw_frustum(ax, F: np.ndarray, colour: str, label: str):
-    V = _view(F)
-    for i in range(1, 5):
-        ax.plot(*zip(V[0], V[i]), color=colour, lw=1)
-    ring = V[[1, 2, 3, 4, 1]]
-    ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color=colour, lw=1.5, label=label)
-
-
 def pick_frames(data, count: int) -> np.ndarray:
     """``count`` frame indices spread over the run, each with the most 3D joints nearby."""
     ok = np.isfinite(data.joints_after).all(-1).sum(1)

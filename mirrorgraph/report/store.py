@@ -29,7 +29,7 @@ import dataclasses
 import os
 import zipfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -38,7 +38,6 @@ from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..io.calibration import write_json
 from ..keypoints import PairedKeypoints
-from ..pipeline import CalibrationRun
 from ..skeletons import skeleton_by_name
 
 __all__ = ["KEY", "SUFFIX", "read_run", "report_data_path",
@@ -167,6 +166,8 @@ def read_run(path: str | os.PathLike, calibration):
             another calibration (its mirror differs from ``calibration``'s); the
             message names the file.
     """
+    from ..pipeline import CalibrationRun     # GTSAM: at first use, not on importing
+
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as z:

@@ -143,7 +143,7 @@ def _legend(frame: np.ndarray, label: str, scale: int, points: np.ndarray) -> No
 def _open(video) -> tuple[cv2.VideoCapture, int, tuple[int, int], float]:
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
-        raise InputError("cannot be read as a video (OpenCV)", source=str(video), field="--video")
+        raise InputError("cannot be read as a video (OpenCV)", source=str(video), field="video")
     count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
     size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
     fps = float(cap.get(cv2.CAP_PROP_FPS)) or 30.0
@@ -155,7 +155,7 @@ def check_size(run, size, video) -> None:
     if want is not None and tuple(want) != tuple(size):
         raise InputError(f"is {size[0]}x{size[1]} but the keypoints and intrinsics are "
                          f"{want[0]}x{want[1]}: is it the video they come from?",
-                         source=str(video), field="--video")
+                         source=str(video), field="video")
 
 
 def _frame_rows(run) -> dict[int, int]:
@@ -194,7 +194,7 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
         if not have:
             raise InputError("no frame of the video has keypoints (frame ids "
                              f"{int(p.frame_ids[0])}..{int(p.frame_ids[-1])}, video of "
-                             f"{nframes} frames)", source=str(video), field="--video")
+                             f"{nframes} frames)", source=str(video), field="video")
         have = np.array(sorted(have))
         picks = np.unique(have[np.linspace(0, len(have) - 1, min(count, len(have)))
                                .round().astype(int)])
@@ -233,7 +233,7 @@ def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
         if not writer.isOpened():
             raise InputError("cannot be written as mp4 (OpenCV)", source=str(out),
-                             field="--render")
+                             field="render")
         with Progress("rendering overlay", total=nframes if nframes > 0 else None,
                       enabled=progress_bar) as bar:
             k = 0

@@ -4,7 +4,8 @@
 * :mod:`.observations` -- per-camera keypoints, person and reflections sorted, one clock;
 * :mod:`.relative` -- two-view initialisation (camera-camera, camera-mirror);
 * :mod:`.initial` -- the spanning-tree chaining into one initial rig;
-* :mod:`.triangulation` -- linear triangulation over real and virtual views;
+* :mod:`.completion` -- the joints the graph left out, triangulated over real and
+  virtual views (:func:`mirrorgraph.geometry.triangulate`);
 * :mod:`.solve` -- the factor graph of the whole rig;
 * :mod:`.result` -- the calibrated rig and its JSON schema;
 * :mod:`.pipeline` -- :func:`calibrate_rig`, the entry point.

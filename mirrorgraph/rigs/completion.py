@@ -6,7 +6,7 @@ whose only second view of the face or the feet is a mirror (one camera and its
 mirrors) then has no 3D face or feet from the graph, although every view saw
 them. Once the cameras and mirrors are known those joints are a linear
 triangulation away: every view that observes them, real or through a mirror
-(:mod:`.triangulation`), one round of rejecting observations farther than the
+(:func:`mirrorgraph.geometry.triangulate`), one round of rejecting observations farther than the
 outlier threshold from the first solution, then the final triangulation. They
 complete the output's 3D joints and give the stature estimate its eyes
 (:mod:`mirrorgraph.stature`); they take no part in the calibration.

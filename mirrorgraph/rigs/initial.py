@@ -312,7 +312,7 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
             continue
         i, m = best
         both = not (i in known or cams[i].name in out)
-        Ki = K[i] if not cams[i].name in out else _with_focal(K[i], out[cams[i].name]["focal_px"])
+        Ki = K[i] if cams[i].name not in out else _with_focal(K[i], out[cams[i].name]["focal_px"])
         res = focal_from_fundamental(Ki, K[u], cams[i].real[..., :2][m], cams[u].real[..., :2][m],
                                      unknown="both" if both else "b", fov_deg=fov_deg, seed=seed)
         if res is None:

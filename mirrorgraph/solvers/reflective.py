@@ -18,7 +18,6 @@ returning homogeneous pixel epipoles of unit norm.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..geometry import signed_epipolar_distances, tangent_basis, to_homogeneous
 from .normalization import SimilarityNormalizer
@@ -106,6 +105,8 @@ def refine_epipole(e0_pixels: np.ndarray, u: np.ndarray, u_mirror: np.ndarray, *
 
     def residuals(theta: np.ndarray) -> np.ndarray:
         return signed_epipolar_distances(point(theta), a, b)
+
+    from scipy.optimize import least_squares    # ~0.5 s to import: at first use
 
     sol = least_squares(residuals, np.zeros(2), loss="cauchy", f_scale=scale,
                         max_nfev=10 * max_iterations, x_scale="jac")

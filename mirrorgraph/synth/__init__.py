@@ -8,7 +8,8 @@ bystanders, lens distortion) (:mod:`.scene`); :func:`write_scene` writes the
 detections in every supported format with the ground truth (:mod:`.writer`).
 Instead of the procedural exercises the person can move as a motion-capture
 take does: ``make_scene(motion="take.bvh")`` reads a CMU-skeleton BVH file and
-maps it to the body model's joints (:mod:`.bvh`). :func:`make_rig` films the
+maps it to the body model's joints (:mod:`.mocap`, the file read by
+:mod:`mirrorgraph.io.bvh`). :func:`make_rig` films the
 same person with several cameras and mirrors (four cameras; two cameras and a
 wall mirror; one camera and two mirrors at an angle; optionally bystanders
 with their own reflections) for ``mirrorgraph calibrate-rig``, and :func:`write_rig` writes such a rig with its ``rig.toml``

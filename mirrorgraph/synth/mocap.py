@@ -21,7 +21,7 @@ skeleton whose head is not above its hips in the rest pose is refused.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 from typing import Any

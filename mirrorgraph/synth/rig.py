@@ -142,7 +142,7 @@ KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
 _MIN_JOINTS = 5         # visible joints for a view to be detected in a frame
 
 # Importable from here as before the split, though not in __all__: the names of
-# the files write_rig writes, and placement helpers tests/test_synth_rig.py uses.
+# the files write_rig writes, and placement helpers tests/synth/test_synth_rig.py uses.
 CALIB_NAME, GROUND_TRUTH_NAME, JOINTS3D_NAME, RIG_NAME = (
     _files.CALIB_NAME, _files.GROUND_TRUTH_NAME, _files.JOINTS3D_NAME, _files.RIG_NAME)
 _Mirror, _path_visible = _placement._Mirror, _placement._path_visible

@@ -95,7 +95,6 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
@@ -363,6 +362,8 @@ def _hull_points(pts: np.ndarray) -> np.ndarray:
     """Vertices of the convex hull of ``pts`` (all points if that fails or is small)."""
     if len(pts) < _HULL_MIN_POINTS:
         return pts
+    from scipy.spatial import ConvexHull     # 0.3-0.8 s to import: at first use
+
     try:
         return pts[ConvexHull(pts).vertices]
     except Exception:  # degenerate input: fall back to every point

@@ -63,7 +63,7 @@ def cli_options(draw):
         fov = draw(st.floats(1e-3, 1000.0))
         args += ["--fov", repr(fov)]
         if fov >= 180:
-            wrong.append(field_re("fov_deg"))
+            wrong.append(field_re("--fov"))       # the library's fov_deg, said as the flag
     if camera == "none":
         wrong.append(lit(MM) + ".*image size")
     args += [draw(st.sampled_from(["--quiet", "--verbose", "--debug"]))]

@@ -242,6 +242,76 @@ def test_demo_prints_a_path_only_when_it_is_kept(tmp_path, monkeypatch):
     assert f"kept the scene and calibration.json in {keep}" in out
 
 
+# --------------------------------------------------------------------------- errors
+def test_the_library_names_arguments_and_the_command_line_names_flags(tmp_path, monkeypatch):
+    """One condition, one error type (an InputError, which is a ValueError), said in the
+    words of whoever was called: the argument from Python, the flag from the CLI."""
+    import dataclasses
+
+    import mirrorgraph as mg
+    from mirrorgraph.io import write_keypoints
+
+    scene = make_scene(frames=40, seed=4)
+    path = tmp_path / "no_size.json"                   # keypoints without an image size
+    write_keypoints(dataclasses.replace(scene.detections, image_size=None), path, "mmpose")
+    with pytest.raises(ValueError) as info:
+        mg.calibrate(str(path), None)
+    assert isinstance(info.value, mg.InputError)
+    assert str(info.value) == f"{path}: no intrinsics and no image size; pass intrinsics or " \
+                              "image_size"
+    code, _out, err = run_cli(["calibrate", str(path), "--out", str(tmp_path / "c.json")],
+                              monkeypatch)
+    assert code == 2
+    assert err == f"error: {path}: no intrinsics and no image size; pass --intrinsics FILE " \
+                  "or --image-size WxH\n"
+    assert not (tmp_path / "c.json").exists()
+
+
+def test_an_error_describes_its_arguments_as_a_front_end_calls_them():
+    from mirrorgraph.cli.args import FLAGS, error_message
+    from mirrorgraph.errors import InputError
+
+    e = InputError("must be at least 1, got 0", field="workers")
+    assert str(e) == "field 'workers': must be at least 1, got 0"
+    assert error_message(e) == "field '--workers': must be at least 1, got 0"
+    e = InputError("fits BODY_25 or BODY_25B", source="k.json",
+                   fix=("skeleton=BODY_25", "skeleton=BODY_25B"))
+    assert str(e) == "k.json: fits BODY_25 or BODY_25B; pass skeleton=BODY_25 or " \
+                     "skeleton=BODY_25B"
+    assert e.describe(FLAGS) == "k.json: fits BODY_25 or BODY_25B; pass --skeleton BODY_25 " \
+                                "or --skeleton BODY_25B"
+    # a field of a file keeps its name: image_size in camera.json is not --image-size
+    e = InputError("must be two positive integers", source="camera.json", field="image_size")
+    assert error_message(e) == str(e) == "camera.json, field 'image_size': must be two " \
+                                         "positive integers"
+    # unmapped arguments keep their names; errors that are not input errors are as they are
+    assert InputError("x", field="noise", fix=("seed",)).describe({}) == \
+        "field 'noise': x; pass seed"
+    assert error_message(RuntimeError("boom")) == "boom"
+
+
+def test_the_same_condition_raises_the_same_type():
+    """Unknown names of a skeleton, an estimator, a keypoint or camera file format: an
+    InputError (a ValueError) from whichever function is given them."""
+    import numpy as np
+
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.estimators import estimate_mirror
+    from mirrorgraph.io import write_keypoints
+    from mirrorgraph.io.camera_toml import camera_document
+    from mirrorgraph.skeletons import skeleton_by_name
+
+    scene = make_scene(frames=20, seed=1)
+    with pytest.raises(InputError, match="unknown skeleton 'H36M'"):
+        skeleton_by_name("H36M")
+    with pytest.raises(InputError, match="field 'estimator': unknown estimator 'best'"):
+        estimate_mirror(np.zeros((10, 2)), np.zeros((10, 2)), scene.K, estimator="best")
+    with pytest.raises(InputError, match="field 'fmt': unknown keypoint format 'csv'"):
+        write_keypoints(scene.detections, "x.csv", "csv")
+    with pytest.raises(InputError, match="field 'style': unknown camera file style 'vicon'"):
+        camera_document([], style="vicon")
+
+
 def test_an_error_after_a_progress_bar_starts_on_its_own_line(monkeypatch):
     """A step that raises before closing its bar: the error line is not glued to the bar."""
     from mirrorgraph.cli import calibrate as calibrate_cli

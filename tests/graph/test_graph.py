@@ -7,7 +7,6 @@ virtual camera's rotation.
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 import pytest
 

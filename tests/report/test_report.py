@@ -123,7 +123,7 @@ def test_video_of_another_size_is_refused(scene_run, tmp_path):
     _blank_video(video, (320, 240), frames=3)
     with pytest.raises(mg.InputError, match="320x240"):
         make_report(run, tmp_path / "rep", video=video)
-    with pytest.raises(mg.InputError, match="--video"):
+    with pytest.raises(mg.InputError, match="field 'render': .*; pass video$"):
         make_report(run, tmp_path / "rep2", render=tmp_path / "x.mp4")
 
 

@@ -14,7 +14,7 @@ from mirrorgraph.skeletons import BODY_25, COCO_17
 from mirrorgraph.synth import make_scene, write_scene
 from mirrorgraph.synth.body import FULL_INDEX
 from mirrorgraph.io.bvh import read_bvh
-from mirrorgraph.synth.mocap import CMU_UNIT_M, cmu_example_path, load_motion, pingpong_indices
+from mirrorgraph.synth.mocap import cmu_example_path, load_motion, pingpong_indices
 
 #: The CMU take shipped as package data (mirrorgraph/data/cmu_01_01.bvh): nothing
 #: outside the repository is needed.

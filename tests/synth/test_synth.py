@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import cv2
 import numpy as np
 import pytest
@@ -275,12 +273,6 @@ def test_distortion_is_opencv_consistent():
     assert not np.allclose(obs, s.real_clean, atol=1.0)
     und = s.intrinsics.undistort_points(np.concatenate([obs, s.mirror_observed[..., :2]]))
     assert np.allclose(und, np.concatenate([s.real_clean, s.mirror_clean]), atol=1e-4)
-
-
-def test_speed():
-    t0 = time.perf_counter()
-    make_scene(frames=1000, seed=1)
-    assert time.perf_counter() - t0 < 1.0
 
 
 def test_write_scene_and_read_back(tmp_path):
