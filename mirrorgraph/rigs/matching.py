@@ -56,8 +56,8 @@ from ..skeletons import Skeleton
 from ..geometry import skew
 from .relative import normalised_coordinates, refine_relative_pose, sampson_px
 
-__all__ = ["match_candidates", "match_people", "track_people", "subject_track", "track_motion",
-           "MATCH_THRESHOLD_PX"]
+__all__ = ["match_candidates", "match_people", "track_people", "track_labelled",
+           "continuity_labels", "subject_track", "track_motion", "MATCH_THRESHOLD_PX"]
 
 #: Median Sampson distance (px) above which no candidate of a frame is accepted.
 MATCH_THRESHOLD_PX = 12.0
@@ -93,51 +93,115 @@ TRACK_AGE_PX = 20.0
 TRACK_MAX_GAP = 30
 
 
-def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float
-                 ) -> list[np.ndarray]:
-    """Link detections into tracks frame to frame.
+def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
+                 flip: np.ndarray | None = None) -> list[np.ndarray]:
+    """Link detections into tracks frame to frame: :func:`track_labelled`'s track ids."""
+    return track_labelled(candidates, joints, min_confidence, flip)[0]
+
+
+def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
+                   flip: np.ndarray | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Link detections into tracks frame to frame, each detection's left/right labels
+    read against its track's.
+
+    A detector may swap a person's left and right labels from one frame to the next
+    (BlazePose on a subject turning on the spot: on Pose2Sim's Demo_SinglePerson the
+    mean joint distance between consecutive frames jumps from ~7 px to ~230 px where
+    it does, and was read as a new person). With ``flip`` a detection's distance to a
+    track is the smaller of its distance as labelled and with its labels swapped, and
+    the track carries on in its own labelling.
 
     Args:
-        candidates: ``T`` arrays ``(P_t, J, 3)``.
+        candidates: ``T`` arrays ``(P_t, J, 3)`` (x px, y px, confidence).
         joints: joints compared.
+        min_confidence: joints below it are not compared.
+        flip: ``(J,)`` left/right permutation of the labels
+            (:attr:`mirrorgraph.skeletons.Skeleton.flip`); ``None``: labels as given.
 
     Returns:
-        ``T`` int arrays ``(P_t,)``: the track id of each detection.
+        ``T`` int arrays ``(P_t,)``: the track id of each detection, and ``T`` bool
+        arrays ``(P_t,)``: the detection's labels are swapped relative to its track's
+        (the labelling of the track's first detection, carried on by continuity;
+        always ``False`` without ``flip``).
     """
     last: dict[int, np.ndarray] = {}
     seen_at: dict[int, int] = {}
-    ids, next_id = [], 0
+    ids, swaps, next_id = [], [], 0
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float)
         lab = np.full(len(p), -1)
+        swapped = np.zeros(len(p), dtype=int)
         for k in [k for k, s in seen_at.items() if t - s > TRACK_MAX_GAP]:
             del last[k], seen_at[k]                     # a track unseen for long has ended
         if len(p):
             xy = np.where((p[:, joints, 2:3] >= min_confidence), p[:, joints, :2], np.nan)
+            if flip is not None:
+                pf = p[:, flip]
+                xy = np.stack([xy, np.where((pf[:, joints, 2:3] >= min_confidence),
+                                            pf[:, joints, :2], np.nan)])      # (2, P, j, 2)
+            else:
+                xy = xy[None]                                                 # (1, P, j, 2)
             keys = list(last)
             if keys:
                 prev = np.stack([last[k] for k in keys])                       # (K, j, 2)
                 with warnings.catch_warnings():          # all-NaN rows: no joint in common
                     warnings.simplefilter("ignore", RuntimeWarning)
-                    dist = np.nanmean(np.linalg.norm(xy[:, None] - prev[None], axis=-1), -1)
+                    dist = np.nanmean(np.linalg.norm(xy[:, :, None] - prev[None, None],
+                                                     axis=-1), -1)             # (L, P, K)
                 dist = np.where(np.isfinite(dist), dist, 1e9)
+                how = np.argmin(dist, axis=0)                                  # (P, K)
+                dist = np.min(dist, axis=0)
                 # a track seen in the last frame is preferred to one that went missing
                 age = np.array([t - 1 - seen_at[k] for k in keys], dtype=float)
                 cost = dist + TRACK_AGE_PX * age[None, :]
                 r, c = linear_sum_assignment(cost)
                 for i, k in zip(r, c):
                     if dist[i, k] < TRACK_GATE_PX:
-                        lab[i] = keys[k]
+                        lab[i], swapped[i] = keys[k], how[i, k]
             for i in np.flatnonzero(lab < 0):
                 lab[i] = next_id
                 next_id += 1
             for i, k in enumerate(lab):
-                seen = np.isfinite(xy[i]).all(-1)
-                prev_xy = last.get(int(k), np.full(xy[i].shape, np.nan))
-                last[int(k)] = np.where(seen[:, None], xy[i], prev_xy)
+                mine = xy[swapped[i], i]                 # in the track's own labelling
+                seen = np.isfinite(mine).all(-1)
+                prev_xy = last.get(int(k), np.full(mine.shape, np.nan))
+                last[int(k)] = np.where(seen[:, None], mine, prev_xy)
                 seen_at[int(k)] = t
         ids.append(lab)
-    return ids
+        swaps.append(swapped.astype(bool))
+    return ids, swaps
+
+
+def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: float,
+                      flip: np.ndarray) -> np.ndarray:
+    """Where one person's left/right labels are swapped, read by continuity.
+
+    The person's detections (one a frame) are tracked with :func:`track_labelled`;
+    within each stretch the tracker follows, the frames whose labels disagree with
+    the stretch's labelling are swapped, the stretch's labelling being the one most
+    of its frames carry as detected (a detector is right more often than not).
+
+    Args:
+        person: ``(T, J, 3)`` x px, y px, confidence (frames without the person:
+            confidence 0).
+        joints: joints compared; min_confidence: joints below it are not compared.
+        flip: ``(J,)`` left/right permutation of the labels.
+
+    Returns:
+        ``(T,)`` bool: swap the frame's labels (``person[t, flip]``) to follow the
+        stretch's labelling.
+    """
+    T, J = person.shape[:2]
+    present = (np.asarray(person[..., 2]) >= min_confidence).any(axis=1)
+    people = [person[t][None] if present[t] else np.zeros((0, J, 3)) for t in range(T)]
+    ids, swaps = track_labelled(people, joints, min_confidence, flip)
+    track = np.array([i[0] if len(i) else -1 for i in ids])
+    swap = np.array([bool(s[0]) if len(s) else False for s in swaps])
+    out = np.zeros(T, dtype=bool)
+    for k in np.unique(track[track >= 0]):
+        mine = track == k
+        out[mine] = swap[mine] if swap[mine].mean() <= 0.5 else ~swap[mine]
+    return out
 
 
 #: Tracks seen in at least this share of the longest track's frames compete on motion
@@ -230,6 +294,94 @@ def _track_geometry(xa: np.ndarray, xb: np.ndarray, f: float, seed: int
     return E, float(np.mean(np.abs(sampson_px(E, xa, xb, f)) < TRACK_INLIER_PX))
 
 
+def _row_medians(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, f: float
+                 ) -> np.ndarray:
+    """``(M,)`` median absolute Sampson distance (px) of each candidate's joints ``(M, k, 2)``
+    (normalised) under ``E``; ``inf`` where fewer than 4 joints are ``seen`` ``(M, k)``."""
+    d = np.full(seen.shape, np.nan)
+    d[seen] = np.abs(sampson_px(E, xa[seen], xb[seen], f))
+    out = np.full(len(seen), np.inf)
+    enough = np.count_nonzero(seen, axis=1) >= 4
+    out[enough] = np.nanmedian(d[enough], axis=1)
+    return out
+
+
+def _group_bits(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray,
+                rel: np.ndarray, group: np.ndarray, f: float) -> np.ndarray:
+    """Per group, whether its detections fit ``E`` better with their relative labelling
+    ``rel`` inverted: the labelling under which more of the group's joints lie within
+    :data:`TRACK_INLIER_PX` (one decision a group, never frame by frame).
+
+    Args:
+        E: essential matrix; xa ``(M, k, 2)``, xb ``(2, M, k, 2)`` (as labelled, swapped),
+            seen ``(2, M, k)``: as :func:`_labelled_geometry`.
+        rel: ``(M,)`` bool, group: ``(M,)`` int ids ``0 .. G-1``.
+
+    Returns:
+        ``(G,)`` bool.
+    """
+    counts = np.zeros((2, group.max() + 1 if len(group) else 0))
+    for b in (0, 1):
+        lab = (rel ^ bool(b)).astype(int)
+        rows = np.arange(len(rel))
+        ok = seen[lab, rows]
+        d = np.full(ok.shape, np.inf)
+        d[ok] = np.abs(sampson_px(E, xa[ok], xb[lab, rows][ok], f))
+        np.add.at(counts[b], group, np.count_nonzero(d < TRACK_INLIER_PX, axis=1))
+    return counts[1] > counts[0]
+
+
+def _labelled_geometry(xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, rel: np.ndarray,
+                       group: np.ndarray, f: float, seed: int
+                       ) -> tuple[np.ndarray | None, float, np.ndarray]:
+    """One track's epipolar geometry with the reference person, its detections taken in
+    the labelling continuity gives them.
+
+    A detector swaps a turning person's left and right labels in one camera and not
+    in another, frame by frame; a swapped frame's limbs are outliers to the true
+    geometry. Tracking reads every swap against the track's own labelling (and the
+    reference person's against theirs, :func:`track_labelled`), which leaves one
+    unknown a group of frames (a track against one stretch of the reference person's
+    track): whether the two labellings agree. Both answers are tried, the geometry
+    estimated on each and every group's answer decided by the geometry; the one with
+    more inliers is kept. Frame by frame choices are not made: they let a wrong
+    geometry (a camera mirrored through the subject's plane of symmetry, which fits
+    a person's symmetric joints) pick the labelling that suits it in every frame.
+
+    Args:
+        xa: ``(M, k, 2)`` the reference person's joints, normalised coordinates.
+        xb: ``(2, M, k, 2)`` the track's detections as labelled and with the labels
+            swapped, normalised.
+        seen: ``(2, M, k)`` joints seen in both cameras, per labelling.
+        rel: ``(M,)`` bool: the detection's labels swapped relative to the reference
+            person's, up to its group's answer.
+        group: ``(M,)`` int ids ``0 .. G-1`` of the groups.
+        f: focal length (px) for the units; seed: OpenCV's RANSAC seed.
+
+    Returns:
+        the essential matrix (``None``: none found), the fraction of the chosen
+        correspondences within :data:`TRACK_INLIER_PX` of it, and ``(G,)`` bool: the
+        group's answer (invert ``rel``).
+    """
+    rows = np.arange(len(rel))
+    best: tuple[np.ndarray | None, float, np.ndarray] = (None, 0.0, np.zeros(0, bool))
+    for start in (False, True):
+        lab = (rel ^ start).astype(int)
+        use = seen[lab, rows]
+        E0, frac0 = _track_geometry(xa[use], xb[lab, rows][use], f, seed)
+        if E0 is None:
+            continue
+        bits = _group_bits(E0, xa, xb, seen, rel, group, f)
+        E, frac = E0, frac0
+        if np.any(bits != start):               # another answer for some group: again
+            lab = (rel ^ bits[group]).astype(int)
+            use = seen[lab, rows]
+            E, frac = _track_geometry(xa[use], xb[lab, rows][use], f, seed)
+        if E is not None and frac > best[1]:
+            best = (E, frac, bits)
+    return best
+
+
 def _other_people(track: np.ndarray, score: np.ndarray) -> np.ndarray:
     """``(M,)`` bool: the candidate is on a track that fits the reference person's
     geometry (median Sampson distance under :data:`MATCH_THRESHOLD_PX`) in fewer than
@@ -242,10 +394,13 @@ def _other_people(track: np.ndarray, score: np.ndarray) -> np.ndarray:
 
 def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
                      K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = DEFAULT_MIN_CONFIDENCE,
-                     seed: int = 0) -> tuple[np.ndarray, int]:
-    """Choose, per frame, which candidate detection is the reference camera's person.
+                     seed: int = 0) -> tuple[np.ndarray, np.ndarray, int]:
+    """Choose, per frame, which candidate detection is the reference camera's person,
+    and whether its left/right labels are swapped relative to that person's.
 
-    Steps 1-3 of the module docstring.
+    Steps 1-3 of the module docstring, every detection compared in both labellings
+    (a detector swaps a turning person's left and right in one camera and not in
+    another: :func:`_labelled_geometry`).
 
     Args:
         ref_person: ``(T, J, 3)`` the person in the reference camera (undistorted px),
@@ -253,15 +408,18 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         K_ref, K: ``(3, 3)`` intrinsics of the reference and of this camera.
         candidates: ``T`` arrays ``(P_t, J, 3)``: this camera's candidates per frame
             (every detection, or, with mirrors, those that pair with a reflection).
-        skeleton: the layout (its calibration joints are compared).
+        skeleton: the layout (its calibration joints are compared, its ``flip``
+            swaps the labels).
         min_confidence: joints below it are ignored.
         seed: OpenCV's RANSAC seed.
 
     Returns:
         ``(T,)`` int: the index of the chosen candidate per frame (-1: none; where
         no candidate fits and a frame has several, none is guessed; a frame's only
-        candidate is kept unless its track is another person's), and the number
-        of frames where the choice differs from the most confident candidate.
+        candidate is kept unless its track is another person's); ``(T,)`` bool: the
+        chosen candidate's labels are to be swapped (``candidate[skeleton.flip]``)
+        to match the reference person's; and the number of frames where the choice
+        differs from the most confident candidate.
 
     Raises:
         DegenerateGeometryError: no track can be matched: too few joints seen in
@@ -271,7 +429,9 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     """
     T, J = ref_person.shape[:2]
     joints = skeleton.calibration_joints
+    flip = np.asarray(skeleton.flip)
     chosen = np.full(T, -1)
+    swapped = np.zeros(T, dtype=bool)
     rows, cands, refs = [], [], []
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float).reshape(-1, J, 3)
@@ -283,45 +443,61 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         refs.append(np.repeat(ref_person[t][None], len(p), axis=0))
     best_conf = chosen.copy()
     if not rows:
-        return chosen, 0
+        return chosen, swapped, 0
     rows = np.asarray(rows)
     A = np.concatenate(refs)[:, joints]                               # (M, k, 3)
-    B = np.concatenate(cands)[:, joints]
-    seen = (A[..., 2] >= min_confidence) & (B[..., 2] >= min_confidence) \
-        & np.isfinite(A[..., :2]).all(-1) & np.isfinite(B[..., :2]).all(-1)
-    if np.count_nonzero(seen) < MIN_CORRESPONDENCES:
+    C = np.concatenate(cands)
+    B = np.stack([C[:, joints], C[:, flip][:, joints]])               # (2, M, k, 3)
+    ok_a = (A[..., 2] >= min_confidence) & np.isfinite(A[..., :2]).all(-1)
+    seen = ok_a[None] & (B[..., 2] >= min_confidence) & np.isfinite(B[..., :2]).all(-1)
+    if np.count_nonzero(seen[0]) < MIN_CORRESPONDENCES:
         raise DegenerateGeometryError(
-            f"too few joints ({np.count_nonzero(seen)}) seen at once with the reference "
+            f"too few joints ({np.count_nonzero(seen[0])}) seen at once with the reference "
             "camera's person to tell which detection is that person")
     f = 0.5 * (K_ref[0, 0] + K[0, 0])
     xa_all = np.full(A.shape[:-1] + (2,), np.nan)
     xb_all = np.full(B.shape[:-1] + (2,), np.nan)
-    xa_all[seen] = normalised_coordinates(np.asarray(K_ref, float), A[..., :2][seen])
-    xb_all[seen] = normalised_coordinates(np.asarray(K, float), B[..., :2][seen])
-    track = np.concatenate(track_people(candidates, joints, min_confidence))
+    xa_all[ok_a] = normalised_coordinates(np.asarray(K_ref, float), A[..., :2][ok_a])
+    for lab in range(2):
+        xb_all[lab][seen[lab]] = normalised_coordinates(np.asarray(K, float),
+                                                        B[lab][..., :2][seen[lab]])
+    ids, own = track_labelled(candidates, joints, min_confidence, flip)
+    track, own = np.concatenate(ids), np.concatenate(own)
+    ref_swap = continuity_labels(ref_person, joints, min_confidence, flip)
+    ref_ids, _ = track_labelled([ref_person[t][None] if (ref_person[t, :, 2] >= min_confidence).any()
+                                 else np.zeros((0, J, 3)) for t in range(T)],
+                                joints, min_confidence, flip)
+    ref_track = np.array([i[0] if len(i) else -1 for i in ref_ids])
+    rel = own ^ ref_swap[rows[:, 0]]          # up to one answer a (track, reference stretch)
+    _, group = np.unique(np.stack([track, ref_track[rows[:, 0]]], 1), axis=0,
+                         return_inverse=True)
+    group = group.ravel()
     best_E, best_fit, best_frac, tried = None, -1.0, 0.0, 0
     for k in np.unique(track):
-        sel = (track == k)[:, None] & seen
-        if np.count_nonzero(sel) < MIN_CORRESPONDENCES:
+        mine = track == k
+        n = np.count_nonzero(seen[0][mine])
+        if n < MIN_CORRESPONDENCES:
             continue
         tried += 1
-        E, frac = _track_geometry(xa_all[sel], xb_all[sel], f, seed)
-        fit = frac * np.sqrt(np.count_nonzero(sel))
+        _, g = np.unique(group[mine], return_inverse=True)
+        E, frac, _ = _labelled_geometry(xa_all[mine], xb_all[:, mine], seen[:, mine],
+                                        rel[mine], g.ravel(), f, seed)
+        fit = frac * np.sqrt(n)
         if E is not None and fit > best_fit:
             best_E, best_fit, best_frac = E, fit, frac
     if best_E is None or best_frac < MIN_TRACK_INLIERS:
         raise DegenerateGeometryError(
             f"none of its {tried} tracked people is consistent with the reference camera's "
             f"person (best: {100 * best_frac:.0f} % of the joints within "
-            f"{TRACK_INLIER_PX:g} px of an epipolar geometry, {100 * MIN_TRACK_INLIERS:.0f} % "
-            "needed)" if tried else
+            f"{TRACK_INLIER_PX:g} px of an epipolar geometry, left/right labels read by "
+            f"continuity, {100 * MIN_TRACK_INLIERS:.0f} % needed)" if tried else
             f"no tracked person shares {MIN_CORRESPONDENCES} joints with the reference "
             "camera's person")
-    d = np.full(seen.shape, np.nan)
-    d[seen] = np.abs(sampson_px(best_E, xa_all[seen], xb_all[seen], f))
-    enough = np.count_nonzero(seen, axis=1) >= 4
-    score = np.full(len(rows), np.inf)
-    score[enough] = np.nanmedian(d[enough], axis=1)
+    bits = _group_bits(best_E, xa_all, xb_all, seen, rel, group, f)
+    row_swap = rel ^ bits[group]              # relative to the reference person as given
+    lab = row_swap.astype(int)
+    score = _row_medians(best_E, xa_all, xb_all[lab, np.arange(len(lab))],
+                         seen[lab, np.arange(len(lab))], f)
     other = _other_people(track, score)
     chosen[np.unique(rows[other, 0])] = -1          # re-decided below, without them
     keep = np.flatnonzero(~other)
@@ -333,10 +509,11 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         if not np.isfinite(score[k]) or score[k] > MATCH_THRESHOLD_PX:
             if len(candidates[t]) == 1:         # a frame's only candidate is kept, but
                 chosen[t] = i                   # nobody is guessed among several
+                swapped[t] = row_swap[k]
             continue
-        chosen[t] = i
+        chosen[t], swapped[t] = i, row_swap[k]
     changed = int(np.count_nonzero((chosen >= 0) & (chosen != best_conf)))
-    return chosen, changed
+    return chosen, swapped, changed
 
 
 def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
@@ -344,7 +521,8 @@ def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.
                  seed: int = 0) -> tuple[np.ndarray, int]:
     """Choose, per frame, the candidate detection that is the reference camera's person.
 
-    :func:`match_candidates`, returning the detections themselves.
+    :func:`match_candidates`, returning the detections themselves, their left/right
+    labels swapped where that makes them the reference person's.
 
     Returns:
         ``(T, J, 3)`` the chosen person (NaN / confidence 0 where none fits), and the
@@ -354,10 +532,11 @@ def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.
         DegenerateGeometryError: no track can be matched (:func:`match_candidates`).
     """
     T, J = ref_person.shape[:2]
-    chosen, changed = match_candidates(ref_person, K_ref, candidates, K, skeleton,
-                                       min_confidence=min_confidence, seed=seed)
+    chosen, swapped, changed = match_candidates(ref_person, K_ref, candidates, K, skeleton,
+                                                min_confidence=min_confidence, seed=seed)
     out = np.full((T, J, 3), np.nan)
     out[..., 2] = 0.0
     for t in np.flatnonzero(chosen >= 0):
-        out[t] = np.asarray(candidates[t], dtype=float).reshape(-1, J, 3)[chosen[t]]
+        person = np.asarray(candidates[t], dtype=float).reshape(-1, J, 3)[chosen[t]]
+        out[t] = person[skeleton.flip] if swapped[t] else person
     return out, changed

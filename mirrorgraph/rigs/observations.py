@@ -58,7 +58,8 @@ from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candid
 from ..preprocess import check_image_size, undistort_keypoints
 from ..skeletons import Skeleton
 from .config import CameraEntry, RigConfig
-from .matching import match_candidates, subject_track, track_motion, track_people
+from .matching import (continuity_labels, match_candidates, subject_track, track_motion,
+                       track_people)
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -261,7 +262,7 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
-    tracks = track_people(sorting.people, joints, min_conf)
+    tracks = track_people(sorting.people, joints, min_conf, skeleton.flip)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
     subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
                                     conf)
@@ -277,40 +278,57 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
 
 
 def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
-                 skeleton: Skeleton, mirrors: list[str]) -> None:
+                 skeleton: Skeleton, mirrors: list[str], swapped: np.ndarray | None = None
+                 ) -> None:
     """Keep per frame the chosen candidate (``(T_c,)`` index into ``sorting.people[t]``,
-    -1: none) as the person, with its reflections, in place."""
+    -1: none) as the person, with its reflections, in place; where ``swapped``
+    (``(T_c,)`` bool) its left/right labels, and its reflections', are swapped (to the
+    reference camera's labelling: :func:`~mirrorgraph.rigs.matching.match_candidates`)."""
     if sorting.pairs is not None:
         person = np.array([idx[c] if c >= 0 else -1 for idx, c in zip(sorting.index, chosen)],
                           dtype=int)
         _keep_person(sorting, person, skeleton.flip, mirrors)
+    else:
+        J = skeleton.num_joints
+        real = np.full((len(chosen), J, 3), np.nan)
+        real[..., 2] = 0.0
+        for t in np.flatnonzero(chosen >= 0):
+            real[t] = sorting.people[t][chosen[t]]
+        most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
+        sorting.real = real
+        sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
+    if swapped is not None:
+        _relabel(sorting, swapped, skeleton.flip)
+
+
+def _relabel(sorting: _Sorting, swapped: np.ndarray, flip: np.ndarray) -> None:
+    """Swap the left/right labels of the person and of its reflections in the frames
+    ``swapped`` (``(T_c,)`` bool), in place."""
+    if not swapped.any():
         return
-    J = skeleton.num_joints
-    real = np.full((len(chosen), J, 3), np.nan)
-    real[..., 2] = 0.0
-    for t in np.flatnonzero(chosen >= 0):
-        real[t] = sorting.people[t][chosen[t]]
-    most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
-    sorting.real = real
-    sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
+    flip = np.asarray(flip)
+    sorting.real[swapped] = sorting.real[swapped][:, flip]
+    for a in sorting.reflections.values():
+        a[swapped] = a[swapped][:, flip]
 
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
                   K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str) -> None:
     """Another camera: keep per frame the candidate consistent with the first camera's
-    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
+    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in its labelling,
+    in place.
 
     Raises:
         DegenerateGeometryError: no candidate track fits, naming the camera.
     """
     try:
-        chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
+        chosen, swapped, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
     except DegenerateGeometryError as exc:
         raise DegenerateGeometryError(
             f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
             f"the person of camera {ref_name}: {exc}") from None
     conf = [np.nan_to_num(p[:, skeleton.calibration_joints, 2]).sum(1) for p in sorting.people]
-    _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors)
+    _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors, swapped)
 
 
 def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
@@ -374,6 +392,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
+    _relabel(ref, continuity_labels(ref.real, sk.calibration_joints,
+                                    PairingOptions().min_confidence, sk.flip), sk.flip)
     ref_person = _place(ref.real, rows[0], T)
     for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
         if sorting.people is not None:      # one candidate a frame may still be another person
