@@ -56,7 +56,8 @@ from ..keypoints import PairedKeypoints, RawDetections
 from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
                        paired_people)
 from ..preprocess import check_image_size, undistort_keypoints
-from ..skeletons import Skeleton
+from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
+from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
 from .matching import (continuity_labels, match_candidates, subject_track, track_motion,
                        track_people)
@@ -339,6 +340,63 @@ def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
     return out
 
 
+def _read_cameras(config: RigConfig, skeleton: Skeleton | str | None, progress, video,
+                  frame_progress) -> list:
+    """Every camera's keypoints (:func:`mirrorgraph.io.read_keypoints`), one layout for
+    the rig.
+
+    Where a camera's keypoint count fits several layouts (25: BODY_25 and BODY_25B)
+    and its own detections do not tell them apart (a camera seeing the subject from
+    behind has no confident face joints: :class:`~mirrorgraph.skeleton_guess.AmbiguousSkeletonError`),
+    the cameras that can tell decide for it, and where none can, all the undecided
+    cameras' detections are pooled (:func:`~mirrorgraph.skeleton_guess.decide_body25`);
+    such a camera is then read again in that layout.
+
+    Raises:
+        InputError: unreadable input; a layout that no camera's detections, nor all of
+            them together, resolve (naming the rig file and the cameras).
+    """
+    read: list = []
+    undecided: list[tuple[int, AmbiguousSkeletonError]] = []
+    for i, entry in enumerate(config.cameras):
+        if progress is not None:
+            progress(entry.name)
+        try:
+            read.append(_read_camera(entry, entry.skeleton or skeleton, video, frame_progress))
+        except AmbiguousSkeletonError as exc:
+            read.append(None)
+            undecided.append((i, exc))
+    if not undecided:
+        return read
+    candidates = {s.name for s in undecided[0][1].candidates}
+    decided = {d.skeleton.name for d in read if d is not None} & candidates
+    names = ", ".join(config.cameras[i].name for i, _ in undecided)
+    if len(decided) == 1:
+        layout = skeleton_by_name(decided.pop())
+    elif decided:                               # the cameras that tell disagree
+        raise InputError(f"the cameras' keypoints use different skeletons "
+                         f"({', '.join(sorted(decided))}) and cameras {names} cannot tell; "
+                         "name one with skeleton = ... in each [[cameras]] table",
+                         source=config.source, field="cameras")
+    else:
+        layout, why = decide_body25(np.concatenate([e.ratios for _, e in undecided]))
+        if layout is None:
+            fix = " or ".join(f'skeleton = "{n}"' for n in sorted(candidates))
+            raise InputError(f"25 keypoints fit BODY_25 and BODY_25B and no camera tells them "
+                             f"apart (cameras {names}: {why}); add {fix} to the cameras' "
+                             "[[cameras]] tables", source=config.source, field="skeleton")
+    for i, _ in undecided:
+        read[i] = _read_camera(config.cameras[i], layout, video, frame_progress)
+    return read
+
+
+def _read_camera(entry: CameraEntry, skeleton, video, frame_progress):
+    """One camera's keypoints (:func:`mirrorgraph.io.read_keypoints`)."""
+    on_frame = None if frame_progress is None else \
+        (lambda done, total, name=entry.name: frame_progress(name, done, total))
+    return read_keypoints(entry.keypoints, skeleton=skeleton, progress=on_frame, video=video)
+
+
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
@@ -358,33 +416,28 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
-            skeletons.
+            skeletons, a layout no camera resolves (:func:`_read_cameras`).
         DegenerateGeometryError: a camera's reflections cannot be sorted out, or
             none of the people a camera sees is the first camera's person (naming
             the camera).
     """
     warnings: list[str] = []
-    per_camera, layouts, fps = [], [], None
-    for entry in config.cameras:
-        if progress is not None:
-            progress(entry.name)
-        on_frame = None if frame_progress is None else \
-            (lambda done, total, name=entry.name: frame_progress(name, done, total))
-        data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton,
-                              progress=on_frame, video=video)
-        intr = _intrinsics(entry, data, warnings, estimate_focal)
-        data = undistort_keypoints(data, intr)
-        sorting = _sort_camera(entry, data, intr)
-        frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
-        per_camera.append((entry, intr, frames, sorting, data.source))
-        layouts.append(data.skeleton)
-        fps = fps or data.fps
+    per_camera, fps = [], None
+    read = _read_cameras(config, skeleton, progress, video, frame_progress)
+    layouts = [data.skeleton for data in read]
     names = {s.name for s in layouts}
     if len(names) > 1:
         raise InputError(f"the cameras' keypoints use different skeletons ({', '.join(sorted(names))});"
                          " name one with skeleton = ... in each [[cameras]] table",
                          source=config.source, field="cameras")
     sk = layouts[0]
+    for entry, data in zip(config.cameras, read):
+        intr = _intrinsics(entry, data, warnings, estimate_focal)
+        data = undistort_keypoints(data, intr)
+        sorting = _sort_camera(entry, data, intr)
+        frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
+        per_camera.append((entry, intr, frames, sorting, data.source))
+        fps = fps or data.fps
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
     rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]

@@ -359,3 +359,43 @@ def test_a_rig_takes_the_height_once(tmp_path):
         calibrate_rig(path, subject_height=1.8, options=RefineOptions(subject_height=1.7))
     with pytest.raises(InputError, match="not a human height"):
         calibrate_rig(path, options=RefineOptions(subject_height=175.0))
+
+
+def _unnamed_skeleton(path: Path) -> Path:
+    """The rig file without its ``skeleton = ...`` lines (the layout from the keypoints)."""
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(x for x in lines if not x.startswith("skeleton")) + "\n")
+    return path
+
+
+def _hide_eyes(rig, camera: str) -> None:
+    """``camera`` sees the subject from behind: BODY_25B's joints 1 and 2 (the eyes), which
+    tell it from BODY_25, never confident there (in place)."""
+    for p in rig.detections[camera].people:
+        if len(p):
+            p[:, 1:3, 2] = 0.0
+
+
+def test_one_skeleton_for_the_rig_from_the_cameras_that_tell(tmp_path, capsys):
+    """Pose2Sim's demo as OpenPose BODY_25B JSON: a camera that sees the subject from behind
+    cannot tell BODY_25B from BODY_25 on its own (issue #24: it was refused); the rig's
+    other cameras decide for it. Where no camera can tell, the rig is refused in one line
+    naming the rig file and the cameras."""
+    rig = make_rig("4cams", frames=120, seed=1, noise_std=4.0, skeleton="BODY_25B")
+    _hide_eyes(rig, "cam03")
+    path = _unnamed_skeleton(write_rig(rig, tmp_path / "one", "openpose"))
+    from mirrorgraph.io import read_keypoints
+    with pytest.raises(InputError, match="only 0 confident detections"):
+        read_keypoints(load_rig_config(path).cameras[2].keypoints)       # alone: refused
+    cal = calibrate_rig(path)
+    assert cal.skeleton == "BODY_25B"
+    cams, _, _ = _errors(cal, rig)
+    assert all(rot < 0.5 and aligned < 0.03 for rot, _, aligned in cams[1:]), cams
+    for camera in ("cam01", "cam02", "cam04"):
+        _hide_eyes(rig, camera)
+    path = _unnamed_skeleton(write_rig(rig, tmp_path / "none", "openpose"))
+    assert main(["calibrate-rig", str(path), "--out", str(tmp_path / "c.toml"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rig.toml" in err[0] and "cam01, cam02, cam03, cam04" in err[0], err
+    assert 'skeleton = "BODY_25B"' in err[0]
+
