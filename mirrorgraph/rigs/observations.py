@@ -151,7 +151,30 @@ def _intrinsics(entry: CameraEntry, data, warnings: list[str],
             warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
                             f"{DEFAULT_FOV_DEG:g} deg field of view")
     check_image_size(data, intr, warnings)
+    mismatch = _size_mismatch(entry, data, intr)
+    if mismatch:
+        warnings.append(mismatch)
     return intr
+
+
+def _size_mismatch(entry: CameraEntry, data, intr: Intrinsics) -> str | None:
+    """The warning, one line, where the image size the camera's intrinsics file (or its
+    rig-file ``image_size``) states differs from the size its keypoints carry (a
+    video's, or an MMPose file's ``meta_info``); ``None`` where they agree or either is
+    unknown. Pose2Sim's demo: the Qualisys calibration states 1088 x 1920 for cameras
+    whose videos are 1080 x 1920 (an encoder's padding to 16 rows): K is used as given,
+    the user should know."""
+    if data.image_size is None:
+        return None
+    stated = intr.image_size if entry.intrinsics is not None else entry.image_size
+    if stated is None or tuple(stated) == tuple(data.image_size):
+        return None
+    if entry.intrinsics is not None:
+        where, used = f"its intrinsics ({entry.intrinsics})", "the intrinsics are used as given"
+    else:
+        where, used = "the rig file's image_size", "the principal point is that size's centre"
+    return (f"camera {entry.name}: {where} state a {stated[0]}x{stated[1]} image, its "
+            f"keypoints ({data.source}) {data.image_size[0]}x{data.image_size[1]}; {used}")
 
 
 def _most_confident(raw: RawDetections, joints: np.ndarray) -> np.ndarray:
