@@ -6,6 +6,7 @@ Import them as ``from tests.helpers import ...``: pytest puts the repository on
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -31,3 +32,10 @@ def points_in_front(rng, n, d, count):
         P = P[(P @ n < d - 0.3) & (P[:, 2] > 1.0)]
         X = np.concatenate([X, P])
     return X[:count]
+
+
+def need_module(module: str, why: str) -> None:
+    """Skip the calling test, naming ``module`` and ``why``, where it is not installed."""
+    import pytest
+    if importlib.util.find_spec(module) is None:
+        pytest.skip(f"{module} is not installed: {why}")

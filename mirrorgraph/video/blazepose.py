@@ -41,13 +41,14 @@ import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from ..errors import InputError
+from .imageops import area_resize, warp_crop
 from .reader import quiet_stderr
 
 __all__ = ["AnchorConfig", "ssd_anchors", "decode_detections", "weighted_nms", "letterbox",
+           "detector_input", "landmark_input",
            "roi_from_keypoints", "crop_matrix", "refine_from_heatmap", "Pose", "Detection",
            "BlazePoseModels", "find_model_files", "INSTALL_HINT", "NUM_LANDMARKS"]
 
@@ -175,22 +176,57 @@ def weighted_nms(boxes: np.ndarray, keypoints: np.ndarray, scores: np.ndarray, *
 
 
 def letterbox(image: np.ndarray, size: int) -> tuple[np.ndarray, float, np.ndarray]:
-    """The image scaled to fit ``size x size``, centred, padded with zeros.
+    """The image scaled to fit ``size x size`` (area averaging,
+    :func:`mirrorgraph.video.imageops.area_resize`), centred, padded with zeros.
 
     Args:
         image: ``(H, W, 3)`` uint8.
 
     Returns:
-        ``(size, size, 3)`` uint8, the scale (input px per image px) and the offset
-        ``(2,)`` in input pixels: ``input = scale * image + offset``.
+        ``(size, size, 3)`` float32 in 0-255 (not rounded), the scale (input px per
+        image px) and the offset ``(2,)`` in input pixels: ``input = scale * image + offset``.
     """
     h, w = image.shape[:2]
     scale = size / max(h, w)
     nw, nh = max(1, round(w * scale)), max(1, round(h * scale))
-    out = np.zeros((size, size, 3), np.uint8)
+    out = np.zeros((size, size, 3), np.float32)
     ox, oy = (size - nw) // 2, (size - nh) // 2
-    out[oy:oy + nh, ox:ox + nw] = cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA)
+    out[oy:oy + nh, ox:ox + nw] = area_resize(image, nw, nh)
     return out, scale, np.array([ox, oy], float)
+
+
+def detector_input(image: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """The detector's input tensor of one ``(H, W, 3)`` uint8 RGB image.
+
+    Returns:
+        ``(1, 224, 224, 3)`` float32 in ``[-1, 1]`` (:func:`letterbox`, then
+        ``2 x / 255 - 1``), and the letterbox's scale and offset.
+    """
+    inp, scale, offset = letterbox(image, DETECTOR_SIZE)
+    return (inp * np.float32(2.0 / 255.0) - np.float32(1.0))[None], scale, offset
+
+
+def landmark_input(image: np.ndarray, roi: np.ndarray, *, gain: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The landmark model's input tensor: one ROI of an ``(H, W, 3)`` uint8 RGB image.
+
+    Args:
+        roi: ``(4,)`` ``cx, cy, side, rotation`` (px, radians).
+        gain: stretch a dim crop's intensities (at most 3x, so that its 99th
+            percentile reaches 1): a reflection is often darker than the person.
+
+    Returns:
+        ``(1, 256, 256, 3)`` float32 in ``[0, 1]`` (the bilinear crop,
+        :func:`mirrorgraph.video.imageops.warp_crop`, over 255, stretched), and the
+        ``(2, 3)`` crop-to-image map (:func:`crop_matrix`).
+    """
+    M = crop_matrix(roi, LANDMARK_SIZE)
+    x = warp_crop(image, M, LANDMARK_SIZE) * np.float32(1.0 / 255.0)
+    if gain:
+        top = float(np.percentile(x[::4, ::4], 99))
+        if 0 < top < 0.95:
+            x = np.minimum(x * np.float32(min(3.0, 1.0 / top)), np.float32(1.0))
+    return x[None], M
 
 
 def roi_from_keypoints(centre: np.ndarray, scale_point: np.ndarray,
@@ -219,8 +255,8 @@ def crop_matrix(roi: np.ndarray, size: int) -> np.ndarray:
 
     ``image = c + side * R(rotation) @ (crop / size - 1/2)``, with
     ``R = [[cos, -sin], [sin, cos]]`` (y down: a positive rotation turns clockwise
-    on screen). Use with ``cv2.warpAffine(..., flags=WARP_INVERSE_MAP)`` to cut the
-    crop, and directly to map landmarks back.
+    on screen). :func:`mirrorgraph.video.imageops.warp_crop` cuts the crop with it;
+    it maps landmarks back directly.
     """
     cx, cy, side, rot = (float(v) for v in roi)
     c, s = np.cos(rot), np.sin(rot)
@@ -397,8 +433,7 @@ class BlazePoseModels:
         """People in an ``(H, W, 3)`` uint8 RGB image: the detector's boxes scoring at
         least ``min_score`` (default :attr:`min_detection_score`) after NMS, best first,
         in image pixels."""
-        inp, scale, offset = letterbox(image, DETECTOR_SIZE)
-        x = inp.astype(np.float32)[None] * np.float32(2.0 / 255.0) - np.float32(1.0)
+        x, scale, offset = detector_input(image)
         self._det.set_tensor(self._det_in, x)
         self._det.invoke()
         boxes, kps, scores = decode_detections(
@@ -417,16 +452,8 @@ class BlazePoseModels:
             gain: stretch a dim crop's intensities (at most 3x, so that its 99th
                 percentile reaches 255): a reflection is often darker than the person.
         """
-        M = crop_matrix(roi, LANDMARK_SIZE)
-        crop = cv2.warpAffine(image, M, (LANDMARK_SIZE, LANDMARK_SIZE),
-                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
-        x = crop.astype(np.float32) * np.float32(1.0 / 255.0)
-        if gain:
-            top = float(np.percentile(x[::4, ::4], 99))
-            if 0 < top < 0.95:
-                x = np.minimum(x * np.float32(min(3.0, 1.0 / top)), np.float32(1.0))
-        self._lmk.set_tensor(self._lmk_in, x[None])
+        x, M = landmark_input(image, roi, gain=gain)
+        self._lmk.set_tensor(self._lmk_in, x)
         self._lmk.invoke()
         raw = self._lmk.get_tensor(self._lmk_out[0]).reshape(-1, 5)
         flag = float(self._lmk.get_tensor(self._lmk_out[1]).ravel()[0])

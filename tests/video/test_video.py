@@ -10,7 +10,6 @@ tests with a reason naming it (``pytest -ra`` lists them).
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 from pathlib import Path
@@ -21,31 +20,9 @@ import pytest
 from mirrorgraph.cli import main
 from mirrorgraph.io import read_keypoints
 from mirrorgraph.skeletons import BLAZEPOSE, COCO_17
+from tests.helpers import need_module
 
 cv2 = pytest.importorskip("cv2")
-
-
-def _need(module: str, why: str) -> None:
-    if importlib.util.find_spec(module) is None:
-        pytest.skip(f"{module} is not installed: {why}")
-
-
-@pytest.fixture(scope="module")
-def demo() -> Path:
-    _need("Pose2Sim", "the demo videos come with pose2sim (pip install --no-deps "
-                      "pose2sim==0.10.49, as the test command does)")
-    return Path(list(importlib.util.find_spec("Pose2Sim").submodule_search_locations)[0])
-
-
-@pytest.fixture(scope="module")
-def models():
-    _need("ai_edge_litert", "LiteRT runs BlazePose (the dev and video extras install it)")
-    from mirrorgraph.errors import InputError
-    from mirrorgraph.video.blazepose import BlazePoseModels
-    try:
-        return BlazePoseModels()
-    except InputError as exc:
-        pytest.skip(f"BlazePose's model files are missing ({exc})")
 
 
 @pytest.fixture(autouse=True)
@@ -309,9 +286,9 @@ def _tiny_models(folder: Path) -> tuple[Path, Path]:
 
 
 def test_rtmlib_path_on_tiny_onnx_models(tmp_path):
-    _need("onnx", "the test builds its ONNX models with it (dev extra)")
-    _need("onnxruntime", "rtmlib runs ONNX models with it (dev and rtm extras)")
-    _need("rtmlib", "pip install --no-deps rtmlib==0.0.16, as the test command does")
+    need_module("onnx", "the test builds its ONNX models with it (dev extra)")
+    need_module("onnxruntime", "rtmlib runs ONNX models with it (dev and rtm extras)")
+    need_module("rtmlib", "pip install --no-deps rtmlib==0.0.16, as the test command does")
     pose, det = _tiny_models(tmp_path)
     rng = np.random.default_rng(0)
     clip = _write_clip(tmp_path / "tiny.mp4",
