@@ -13,8 +13,13 @@ front of a mirror everyone pairs with their own reflection. So:
   between tracks seen nearly as long the one that moves most (:func:`track_motion`).
 * **Across cameras** (:func:`match_candidates`), for every other camera:
 
-  1. its candidates are linked into tracks (:func:`track_people`);
-  2. each long enough track is tested against the reference camera's person:
+  1. its candidates are linked into tracks (:func:`track_labelled`: a detector's
+     left/right swap of a turning person continues the track, and each detection's
+     labels are read against the track's);
+  2. each long enough track is tested against the reference camera's person, its
+     detections in the labels continuity gives them and with one answer per track
+     (and stretch of the reference person's track) for how those relate to the
+     reference person's (:func:`_labelled_geometry`):
      an essential matrix by MAGSAC++, refined robustly
      (:func:`mirrorgraph.rigs.relative.refine_relative_pose`); the track whose
      joints fit it best (largest fraction under :data:`TRACK_INLIER_PX`,
@@ -23,7 +28,8 @@ front of a mirror everyone pairs with their own reflection. So:
      and the person's small extent in the image leaves the minimal samples'
      essential matrices degrees off (bas-relief ambiguity), so the wrong pairs
      win;
-  3. with that track's geometry every frame's candidates are scored by their
+  3. with that track's geometry every frame's candidates, in their track's labelling,
+     are scored by their
      median Sampson distance (Hartley and Zisserman, *Multiple View Geometry*,
      2nd ed., sec. 11.4.3) to the reference person, and the best under
      :data:`MATCH_THRESHOLD_PX` is kept (track switches are repaired here),

@@ -36,6 +36,12 @@ Who the person is, camera by camera:
   frame: the subject may leave a camera's view while someone else walks in,
   and those frames are dropped. When no candidate track fits, a
   :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
+* **Left/right labels.** A detector swaps a turning person's left and right in one
+  camera and not in another. The first camera's person is relabelled to the
+  labelling most of its frames carry, read by continuity
+  (:func:`~mirrorgraph.rigs.matching.continuity_labels`); every other camera's
+  person (and its reflections) to that person's
+  (:func:`~mirrorgraph.rigs.matching.match_candidates`).
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
