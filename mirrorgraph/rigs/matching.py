@@ -22,7 +22,8 @@ front of a mirror everyone pairs with their own reflection. So:
      reference person's (:func:`_labelled_geometry`):
      an essential matrix by MAGSAC++, refined robustly
      (:func:`mirrorgraph.rigs.relative.refine_relative_pose`); the track whose
-     joints fit it best (largest fraction under :data:`TRACK_INLIER_PX`,
+     joints fit it best (largest fraction under :data:`TRACK_INLIER_PX`, or 2 %
+     of the reference person's size where larger: :func:`inlier_threshold_px`,
      weighted by the square root of its size) gives the geometry. Pooling every
      candidate pair instead fails: with two people half the pairs are wrong,
      and the person's small extent in the image leaves the minimal samples'
@@ -32,7 +33,8 @@ front of a mirror everyone pairs with their own reflection. So:
      are scored by their
      median Sampson distance (Hartley and Zisserman, *Multiple View Geometry*,
      2nd ed., sec. 11.4.3) to the reference person, and the best under
-     :data:`MATCH_THRESHOLD_PX` is kept (track switches are repaired here),
+     :data:`MATCH_THRESHOLD_PX` (scaled as the inlier threshold) is kept (track
+     switches are repaired here),
      except on tracks that fit in too few of their frames
      (:data:`MIN_TRACK_AGREEMENT`): those are other people, never kept, not even
      where the subject is missing and they are a frame's only candidate.
@@ -69,8 +71,22 @@ __all__ = ["match_candidates", "match_people", "track_people", "track_labelled",
 MATCH_THRESHOLD_PX = 12.0
 
 #: A track's joint pairs within this Sampson distance (px) of its epipolar geometry
-#: are inliers (MAGSAC's threshold too).
+#: are inliers (MAGSAC's threshold too), at least; for a person larger in the image
+#: than :data:`TRACK_INLIER_PX` / :data:`TRACK_INLIER_OF_SIZE` px, that fraction of
+#: their size (:func:`inlier_threshold_px`).
 TRACK_INLIER_PX = 8.0
+
+#: A detector's keypoint error grows with the person's size in the image (which is why
+#: OKS and PCK normalise by it): the inlier threshold is at least this fraction of the
+#: reference person's size (the median over the frames of the larger side of the box
+#: of their joints). BlazePose on Pose2Sim's Demo_MultiPerson (the subject 600-700 px
+#: tall in 1080 x 1920 video; the Qualisys cameras reproject its joints at a median
+#: 10-15 px): at 8 px the subject's track fitted 47 % in cam02 and the camera was
+#: refused, at 12 px 71 % (the other person's tracks 32 %); 1.5 % of the size (~10 px)
+#: calibrates every camera. Synthetic rigs (4 px noise, people 500-650 px): 8-9.5 px,
+#: where a camera seeing only another person's walk is still refused (at 2 %, 10-12
+#: px, it was not).
+TRACK_INLIER_OF_SIZE = 0.015
 
 #: The best track must have at least this fraction of inliers to be the person.
 MIN_TRACK_INLIERS = 0.5
@@ -113,9 +129,9 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     A detector may swap a person's left and right labels from one frame to the next
     (BlazePose on a subject turning on the spot: on Pose2Sim's Demo_SinglePerson the
     mean joint distance between consecutive frames jumps from ~7 px to ~230 px where
-    it does, and was read as a new person). With ``flip`` a detection's distance to a
-    track is the smaller of its distance as labelled and with its labels swapped, and
-    the track carries on in its own labelling.
+    it does, and was read as a new person). With ``flip`` the detections that the
+    assignment as labelled leaves without a track are assigned again, with their
+    labels swapped, among the tracks left, and a track carries on in its own labelling.
 
     Args:
         candidates: ``T`` arrays ``(P_t, J, 3)`` (x px, y px, confidence).
@@ -155,15 +171,21 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
                     dist = np.nanmean(np.linalg.norm(xy[:, :, None] - prev[None, None],
                                                      axis=-1), -1)             # (L, P, K)
                 dist = np.where(np.isfinite(dist), dist, 1e9)
-                how = np.argmin(dist, axis=0)                                  # (P, K)
-                dist = np.min(dist, axis=0)
                 # a track seen in the last frame is preferred to one that went missing
                 age = np.array([t - 1 - seen_at[k] for k in keys], dtype=float)
-                cost = dist + TRACK_AGE_PX * age[None, :]
-                r, c = linear_sum_assignment(cost)
-                for i, k in zip(r, c):
-                    if dist[i, k] < TRACK_GATE_PX:
-                        lab[i], swapped[i] = keys[k], how[i, k]
+                free = np.ones(len(keys), dtype=bool)
+                # as labelled first; only what that leaves is linked with swapped labels
+                # (swapped labels for all would let a duplicate or a passer-by take over
+                # a moving person's track: Demo_MultiPerson, every 2nd frame)
+                for how in range(len(dist)):
+                    rows, cols = np.flatnonzero(lab < 0), np.flatnonzero(free)
+                    if not len(rows) or not len(cols):
+                        break
+                    d = dist[how][np.ix_(rows, cols)]
+                    r, c = linear_sum_assignment(d + TRACK_AGE_PX * age[cols][None, :])
+                    for i, k in zip(rows[r], cols[c]):
+                        if dist[how, i, k] < TRACK_GATE_PX:
+                            lab[i], swapped[i], free[k] = keys[k], how, False
             for i in np.flatnonzero(lab < 0):
                 lab[i] = next_id
                 next_id += 1
@@ -285,19 +307,32 @@ def track_motion(tracks: list[np.ndarray], people: list[np.ndarray], joints: np.
     return out
 
 
-def _track_geometry(xa: np.ndarray, xb: np.ndarray, f: float, seed: int
-                    ) -> tuple[np.ndarray | None, float]:
+def inlier_threshold_px(person: np.ndarray, joints: np.ndarray, min_confidence: float) -> float:
+    """The inlier threshold (px) of :func:`match_candidates` for a reference person
+    ``(T, J, 3)``: :data:`TRACK_INLIER_PX`, or :data:`TRACK_INLIER_OF_SIZE` of the
+    person's size if larger (the median over frames of the larger side of the box of
+    their confident ``joints``)."""
+    xy = np.where(person[:, joints, 2:3] >= min_confidence, person[:, joints, :2], np.nan)
+    ok = np.count_nonzero(np.isfinite(xy).all(-1), axis=1) >= 2
+    if not ok.any():
+        return TRACK_INLIER_PX
+    side = np.nanmax(np.nanmax(xy[ok], axis=1) - np.nanmin(xy[ok], axis=1), axis=1)
+    return float(max(TRACK_INLIER_PX, TRACK_INLIER_OF_SIZE * np.median(side)))
+
+
+def _track_geometry(xa: np.ndarray, xb: np.ndarray, f: float, seed: int,
+                    inlier_px: float = TRACK_INLIER_PX) -> tuple[np.ndarray | None, float]:
     """Essential matrix of one track's correspondences with the reference person and
-    the fraction of them within :data:`TRACK_INLIER_PX` of it (``None, 0`` if none)."""
+    the fraction of them within ``inlier_px`` of it (``None, 0`` if none)."""
     cv2.setRNGSeed(int(seed))
     E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.USAC_MAGSAC, prob=0.9999,
-                                threshold=TRACK_INLIER_PX / f, maxIters=5000)
+                                threshold=inlier_px / f, maxIters=5000)
     if E is None or E.shape[0] < 3:
         return None, 0.0
     _, R, t, _ = cv2.recoverPose(E[:3], xa, xb, np.eye(3))
     R, t = refine_relative_pose(xa, xb, R, np.asarray(t, float).ravel(), f, 4.0)
     E = skew(t) @ R
-    return E, float(np.mean(np.abs(sampson_px(E, xa, xb, f)) < TRACK_INLIER_PX))
+    return E, float(np.mean(np.abs(sampson_px(E, xa, xb, f)) < inlier_px))
 
 
 def _row_medians(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, f: float
@@ -313,7 +348,8 @@ def _row_medians(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray
 
 
 def _group_bits(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray,
-                rel: np.ndarray, group: np.ndarray, f: float) -> np.ndarray:
+                rel: np.ndarray, group: np.ndarray, f: float,
+                inlier_px: float = TRACK_INLIER_PX) -> np.ndarray:
     """Per group, whether its detections fit ``E`` better with their relative labelling
     ``rel`` inverted: the labelling under which more of the group's joints lie within
     :data:`TRACK_INLIER_PX` (one decision a group, never frame by frame).
@@ -333,12 +369,13 @@ def _group_bits(E: np.ndarray, xa: np.ndarray, xb: np.ndarray, seen: np.ndarray,
         ok = seen[lab, rows]
         d = np.full(ok.shape, np.inf)
         d[ok] = np.abs(sampson_px(E, xa[ok], xb[lab, rows][ok], f))
-        np.add.at(counts[b], group, np.count_nonzero(d < TRACK_INLIER_PX, axis=1))
+        np.add.at(counts[b], group, np.count_nonzero(d < inlier_px, axis=1))
     return counts[1] > counts[0]
 
 
 def _labelled_geometry(xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, rel: np.ndarray,
-                       group: np.ndarray, f: float, seed: int
+                       group: np.ndarray, f: float, seed: int,
+                       inlier_px: float = TRACK_INLIER_PX
                        ) -> tuple[np.ndarray | None, float, np.ndarray]:
     """One track's epipolar geometry with the reference person, its detections taken in
     the labelling continuity gives them.
@@ -362,11 +399,12 @@ def _labelled_geometry(xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, rel: np
         rel: ``(M,)`` bool: the detection's labels swapped relative to the reference
             person's, up to its group's answer.
         group: ``(M,)`` int ids ``0 .. G-1`` of the groups.
-        f: focal length (px) for the units; seed: OpenCV's RANSAC seed.
+        f: focal length (px) for the units; seed: OpenCV's RANSAC seed;
+        inlier_px: the inlier threshold (px).
 
     Returns:
         the essential matrix (``None``: none found), the fraction of the chosen
-        correspondences within :data:`TRACK_INLIER_PX` of it, and ``(G,)`` bool: the
+        correspondences within ``inlier_px`` of it, and ``(G,)`` bool: the
         group's answer (invert ``rel``).
     """
     rows = np.arange(len(rel))
@@ -374,26 +412,27 @@ def _labelled_geometry(xa: np.ndarray, xb: np.ndarray, seen: np.ndarray, rel: np
     for start in (False, True):
         lab = (rel ^ start).astype(int)
         use = seen[lab, rows]
-        E0, frac0 = _track_geometry(xa[use], xb[lab, rows][use], f, seed)
+        E0, frac0 = _track_geometry(xa[use], xb[lab, rows][use], f, seed, inlier_px)
         if E0 is None:
             continue
-        bits = _group_bits(E0, xa, xb, seen, rel, group, f)
+        bits = _group_bits(E0, xa, xb, seen, rel, group, f, inlier_px)
         E, frac = E0, frac0
         if np.any(bits != start):               # another answer for some group: again
             lab = (rel ^ bits[group]).astype(int)
             use = seen[lab, rows]
-            E, frac = _track_geometry(xa[use], xb[lab, rows][use], f, seed)
+            E, frac = _track_geometry(xa[use], xb[lab, rows][use], f, seed, inlier_px)
         if E is not None and frac > best[1]:
             best = (E, frac, bits)
     return best
 
 
-def _other_people(track: np.ndarray, score: np.ndarray) -> np.ndarray:
+def _other_people(track: np.ndarray, score: np.ndarray, match_px: float = MATCH_THRESHOLD_PX
+                  ) -> np.ndarray:
     """``(M,)`` bool: the candidate is on a track that fits the reference person's
-    geometry (median Sampson distance under :data:`MATCH_THRESHOLD_PX`) in fewer than
+    geometry (median Sampson distance under ``match_px``) in fewer than
     :data:`MIN_TRACK_AGREEMENT` of its frames, i.e. another person."""
     ids, where = np.unique(track, return_inverse=True)
-    fits = np.bincount(where, weights=score <= MATCH_THRESHOLD_PX, minlength=len(ids))
+    fits = np.bincount(where, weights=score <= match_px, minlength=len(ids))
     agreement = fits / np.bincount(where, minlength=len(ids))
     return agreement[where] < MIN_TRACK_AGREEMENT
 
@@ -431,7 +470,7 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         DegenerateGeometryError: no track can be matched: too few joints seen in
             both cameras to estimate the epipolar geometry, or no track's joints
             fit one (fewer than :data:`MIN_TRACK_INLIERS` of them within
-            :data:`TRACK_INLIER_PX`).
+            :func:`inlier_threshold_px`).
     """
     T, J = ref_person.shape[:2]
     joints = skeleton.calibration_joints
@@ -478,6 +517,8 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     _, group = np.unique(np.stack([track, ref_track[rows[:, 0]]], 1), axis=0,
                          return_inverse=True)
     group = group.ravel()
+    inlier_px = inlier_threshold_px(ref_person, joints, min_confidence)
+    match_px = MATCH_THRESHOLD_PX * inlier_px / TRACK_INLIER_PX
     best_E, best_fit, best_frac, tried = None, -1.0, 0.0, 0
     for k in np.unique(track):
         mine = track == k
@@ -487,7 +528,7 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         tried += 1
         _, g = np.unique(group[mine], return_inverse=True)
         E, frac, _ = _labelled_geometry(xa_all[mine], xb_all[:, mine], seen[:, mine],
-                                        rel[mine], g.ravel(), f, seed)
+                                        rel[mine], g.ravel(), f, seed, inlier_px)
         fit = frac * np.sqrt(n)
         if E is not None and fit > best_fit:
             best_E, best_fit, best_frac = E, fit, frac
@@ -495,16 +536,16 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         raise DegenerateGeometryError(
             f"none of its {tried} tracked people is consistent with the reference camera's "
             f"person (best: {100 * best_frac:.0f} % of the joints within "
-            f"{TRACK_INLIER_PX:g} px of an epipolar geometry, left/right labels read by "
+            f"{inlier_px:.0f} px of an epipolar geometry, left/right labels read by "
             f"continuity, {100 * MIN_TRACK_INLIERS:.0f} % needed)" if tried else
             f"no tracked person shares {MIN_CORRESPONDENCES} joints with the reference "
             "camera's person")
-    bits = _group_bits(best_E, xa_all, xb_all, seen, rel, group, f)
+    bits = _group_bits(best_E, xa_all, xb_all, seen, rel, group, f, inlier_px)
     row_swap = rel ^ bits[group]              # relative to the reference person as given
     lab = row_swap.astype(int)
     score = _row_medians(best_E, xa_all, xb_all[lab, np.arange(len(lab))],
                          seen[lab, np.arange(len(lab))], f)
-    other = _other_people(track, score)
+    other = _other_people(track, score, match_px)
     chosen[np.unique(rows[other, 0])] = -1          # re-decided below, without them
     keep = np.flatnonzero(~other)
     order = keep[np.lexsort((score[keep], rows[keep, 0]))]
@@ -512,7 +553,7 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     first[1:] = rows[order][1:, 0] != rows[order][:-1, 0]
     for k in order[first]:                   # per frame the best candidate (a handful)
         t, i = rows[k]
-        if not np.isfinite(score[k]) or score[k] > MATCH_THRESHOLD_PX:
+        if not np.isfinite(score[k]) or score[k] > match_px:
             if len(candidates[t]) == 1:         # a frame's only candidate is kept, but
                 chosen[t] = i                   # nobody is guessed among several
                 swapped[t] = row_swap[k]

@@ -65,8 +65,8 @@ from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
-from .matching import (continuity_labels, match_candidates, subject_track, track_motion,
-                       track_people)
+from .matching import (continuity_labels, match_candidates, subject_track, track_labelled,
+                       track_motion)
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -292,10 +292,12 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
-    tracks = track_people(sorting.people, joints, min_conf, skeleton.flip)
+    tracks, swapped = track_labelled(sorting.people, joints, min_conf, skeleton.flip)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
-    subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
-                                    conf)
+    # motion in each track's own labelling: a detector's left/right swaps of a person
+    # standing still would otherwise count as the distance between their two sides
+    own = [np.where(s[:, None, None], p[:, skeleton.flip], p) for p, s in zip(sorting.people, swapped)]
+    subject, frames = subject_track(tracks, track_motion(tracks, own, joints, min_conf), conf)
     chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
                       dtype=int)                                # a handful per frame
     often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
