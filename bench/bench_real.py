@@ -229,7 +229,11 @@ def run_trial(root: Path, trial: str, cache: Path, joints_spec: str, divisor: fl
     with tempfile.TemporaryDirectory(prefix="bench_real_") as tmp:
         tmp = Path(tmp)
         rig0 = write_rig(tmp, root, trial, cams, sizes, None)
-        obs = load_observations(load_rig_config(rig0), video=vopts)
+        try:
+            obs = load_observations(load_rig_config(rig0), video=vopts)
+        except Exception as exc:  # noqa: BLE001 - a refused camera is a result
+            row["failed"] = f"{type(exc).__name__}: {exc}"
+            return row
         from mirrorgraph.joint_sets import resolve_joints
         joints = resolve_joints(obs.skeleton, joints_spec)
         gt = gt_reprojection(obs, true, joints[0])
@@ -441,8 +445,11 @@ def notes(rows: list[dict], extras: dict) -> list[str]:
     ok = {r["trial"]: r for r in rows if "failed" not in r}
     L = ["## Notes", ""]
     if extras.get("duplicates"):
+        reused = [r["trial"] for r in rows if r.get("same_as")]
         L.append(f"* The four trials are two recordings: {'; '.join(extras['duplicates'])} "
-                 "(the same video files byte for byte), so their rows repeat.")
+                 "(the same video files byte for byte), so their rows repeat"
+                 + (f" ({', '.join(reused)}: not detected again, the row is the recording's "
+                    "first trial's; `--every-trial` runs them too)." if reused else "."))
     for t, r in ok.items():
         if t not in ("Demo_SinglePerson", "Demo_MultiPerson"):
             continue
@@ -635,6 +642,9 @@ def main() -> None:
                          "temporary one, so that every video is detected and timed in this run)")
     ap.add_argument("--no-extras", action="store_true",
                     help="skip --every, the composited mirror frames and the speed runs")
+    ap.add_argument("--every-trial", action="store_true",
+                    help="detect and calibrate a trial whose videos are another's byte for byte "
+                         "too (default: its row is that trial's, and the notes say so)")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--report-only", metavar="JSON",
                     help="rewrite RESULTS_real.md from a RESULTS_real.json of an earlier run")
@@ -661,7 +671,15 @@ def main() -> None:
     extras: dict = {"duplicates": duplicates(root)}
     with tempfile.TemporaryDirectory(prefix="bench_real_cache_") as tmpcache:
         cache = Path(args.cache) if args.cache else Path(tmpcache)
+        same = dict(x.split(" = ") for x in extras["duplicates"])
         for trial in args.trials.split(","):
+            done = [r for r in rows if r["trial"] == same.get(trial)]
+            if done and not args.every_trial:
+                # the same video files byte for byte (and the same calibration file): the
+                # detector and calibrate_rig are deterministic, so the row is that trial's
+                print(f"... {trial} = {same[trial]}", file=sys.stderr, flush=True)
+                rows.append({**done[0], "trial": trial, "same_as": same[trial]})
+                continue
             print(f"... {trial}", file=sys.stderr, flush=True)
             rows.append(run_trial(root, trial, cache, args.joints, args.distortion_divisor))
         if not args.no_extras:
