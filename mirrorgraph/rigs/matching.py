@@ -129,9 +129,10 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     A detector may swap a person's left and right labels from one frame to the next
     (BlazePose on a subject turning on the spot: on Pose2Sim's Demo_SinglePerson the
     mean joint distance between consecutive frames jumps from ~7 px to ~230 px where
-    it does, and was read as a new person). With ``flip`` the detections that the
-    assignment as labelled leaves without a track are assigned again, with their
-    labels swapped, among the tracks left, and a track carries on in its own labelling.
+    it does, and was read as a new person). With ``flip`` the detections are assigned
+    to tracks as labelled, each taking the labelling closer to its track, and those
+    that assignment leaves without a track are assigned again, with their labels
+    swapped, among the tracks left; a track carries on in its own labelling.
 
     Args:
         candidates: ``T`` arrays ``(P_t, J, 3)`` (x px, y px, confidence).
@@ -185,7 +186,9 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
                     r, c = linear_sum_assignment(d + TRACK_AGE_PX * age[cols][None, :])
                     for i, k in zip(rows[r], cols[c]):
                         if dist[how, i, k] < TRACK_GATE_PX:
-                            lab[i], swapped[i], free[k] = keys[k], how, False
+                            # the track as labelled, its labels as they fit it best
+                            lab[i], free[k] = keys[k], False
+                            swapped[i] = how or (len(dist) > 1 and dist[1, i, k] < dist[0, i, k])
             for i in np.flatnonzero(lab < 0):
                 lab[i] = next_id
                 next_id += 1
