@@ -29,8 +29,8 @@ front of a mirror everyone pairs with their own reflection. So:
      and the person's small extent in the image leaves the minimal samples'
      essential matrices degrees off (bas-relief ambiguity), so the wrong pairs
      win;
-  3. with that track's geometry every frame's candidates, in their track's labelling,
-     are scored by their
+  3. with that track's geometry every frame's candidates, as labelled, are scored
+     by their
      median Sampson distance (Hartley and Zisserman, *Multiple View Geometry*,
      2nd ed., sec. 11.4.3) to the reference person, and the best under
      :data:`MATCH_THRESHOLD_PX` (scaled as the inlier threshold) is kept (track
@@ -442,13 +442,14 @@ def _other_people(track: np.ndarray, score: np.ndarray, match_px: float = MATCH_
 
 def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
                      K: np.ndarray, skeleton: Skeleton, *, min_confidence: float = DEFAULT_MIN_CONFIDENCE,
-                     seed: int = 0) -> tuple[np.ndarray, np.ndarray, int]:
-    """Choose, per frame, which candidate detection is the reference camera's person,
-    and whether its left/right labels are swapped relative to that person's.
+                     seed: int = 0) -> tuple[np.ndarray, int]:
+    """Choose, per frame, which candidate detection is the reference camera's person.
 
-    Steps 1-3 of the module docstring, every detection compared in both labellings
-    (a detector swaps a turning person's left and right in one camera and not in
-    another: :func:`_labelled_geometry`).
+    Steps 1-3 of the module docstring: the tracks and their geometry read a
+    detector's left/right swaps (a turning person's, in one camera and not in
+    another: :func:`_labelled_geometry`); per frame the candidates are scored as
+    labelled, so that a frame whose labels disagree with the reference person's is
+    not kept.
 
     Args:
         ref_person: ``(T, J, 3)`` the person in the reference camera (undistorted px),
@@ -464,10 +465,8 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     Returns:
         ``(T,)`` int: the index of the chosen candidate per frame (-1: none; where
         no candidate fits and a frame has several, none is guessed; a frame's only
-        candidate is kept unless its track is another person's); ``(T,)`` bool: the
-        chosen candidate's labels are to be swapped (``candidate[skeleton.flip]``)
-        to match the reference person's; and the number of frames where the choice
-        differs from the most confident candidate.
+        candidate is kept unless its track is another person's), and the number of
+        frames where the choice differs from the most confident candidate.
 
     Raises:
         DegenerateGeometryError: no track can be matched: too few joints seen in
@@ -479,7 +478,6 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     joints = skeleton.calibration_joints
     flip = np.asarray(skeleton.flip)
     chosen = np.full(T, -1)
-    swapped = np.zeros(T, dtype=bool)
     rows, cands, refs = [], [], []
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float).reshape(-1, J, 3)
@@ -491,7 +489,7 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         refs.append(np.repeat(ref_person[t][None], len(p), axis=0))
     best_conf = chosen.copy()
     if not rows:
-        return chosen, swapped, 0
+        return chosen, 0
     rows = np.asarray(rows)
     A = np.concatenate(refs)[:, joints]                               # (M, k, 3)
     C = np.concatenate(cands)
@@ -543,11 +541,14 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
             f"continuity, {100 * MIN_TRACK_INLIERS:.0f} % needed)" if tried else
             f"no tracked person shares {MIN_CORRESPONDENCES} joints with the reference "
             "camera's person")
-    bits = _group_bits(best_E, xa_all, xb_all, seen, rel, group, f, inlier_px)
-    row_swap = rel ^ bits[group]              # relative to the reference person as given
-    lab = row_swap.astype(int)
-    score = _row_medians(best_E, xa_all, xb_all[lab, np.arange(len(lab))],
-                         seen[lab, np.arange(len(lab))], f)
+    # frame by frame as labelled, and a detection whose labels disagree with the
+    # reference person's (by its track's answer) is not kept, not even as a frame's
+    # only candidate: relabelled, such frames put Demo_SinglePerson's cameras 0.1-0.8
+    # deg further from Qualisys (a detector that swaps a person seen from behind places
+    # the joints wrong, not only their names); kept as they are, they pair the wrong
+    # sides
+    disagree = rel ^ _group_bits(best_E, xa_all, xb_all, seen, rel, group, f, inlier_px)[group]
+    score = _row_medians(best_E, xa_all, xb_all[0], seen[0], f)
     other = _other_people(track, score, match_px)
     chosen[np.unique(rows[other, 0])] = -1          # re-decided below, without them
     keep = np.flatnonzero(~other)
@@ -557,13 +558,14 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     for k in order[first]:                   # per frame the best candidate (a handful)
         t, i = rows[k]
         if not np.isfinite(score[k]) or score[k] > match_px:
-            if len(candidates[t]) == 1:         # a frame's only candidate is kept, but
-                chosen[t] = i                   # nobody is guessed among several
-                swapped[t] = row_swap[k]
+            if len(candidates[t]) == 1 and not disagree[k]:   # a frame's only candidate
+                chosen[t] = i                   # is kept, but nobody is guessed among several
+            else:
+                chosen[t] = -1
             continue
-        chosen[t], swapped[t] = i, row_swap[k]
+        chosen[t] = i
     changed = int(np.count_nonzero((chosen >= 0) & (chosen != best_conf)))
-    return chosen, swapped, changed
+    return chosen, changed
 
 
 def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.ndarray],
@@ -571,8 +573,7 @@ def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.
                  seed: int = 0) -> tuple[np.ndarray, int]:
     """Choose, per frame, the candidate detection that is the reference camera's person.
 
-    :func:`match_candidates`, returning the detections themselves, their left/right
-    labels swapped where that makes them the reference person's.
+    :func:`match_candidates`, returning the detections themselves.
 
     Returns:
         ``(T, J, 3)`` the chosen person (NaN / confidence 0 where none fits), and the
@@ -582,11 +583,10 @@ def match_people(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list[np.
         DegenerateGeometryError: no track can be matched (:func:`match_candidates`).
     """
     T, J = ref_person.shape[:2]
-    chosen, swapped, changed = match_candidates(ref_person, K_ref, candidates, K, skeleton,
-                                                min_confidence=min_confidence, seed=seed)
+    chosen, changed = match_candidates(ref_person, K_ref, candidates, K, skeleton,
+                                       min_confidence=min_confidence, seed=seed)
     out = np.full((T, J, 3), np.nan)
     out[..., 2] = 0.0
     for t in np.flatnonzero(chosen >= 0):
-        person = np.asarray(candidates[t], dtype=float).reshape(-1, J, 3)[chosen[t]]
-        out[t] = person[skeleton.flip] if swapped[t] else person
+        out[t] = np.asarray(candidates[t], dtype=float).reshape(-1, J, 3)[chosen[t]]
     return out, changed

@@ -37,11 +37,10 @@ Who the person is, camera by camera:
   and those frames are dropped. When no candidate track fits, a
   :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
 * **Left/right labels.** A detector swaps a turning person's left and right in one
-  camera and not in another. The first camera's person is relabelled to the
-  labelling most of its frames carry, read by continuity
-  (:func:`~mirrorgraph.rigs.matching.continuity_labels`); every other camera's
-  person (and its reflections) to that person's
-  (:func:`~mirrorgraph.rigs.matching.match_candidates`).
+  camera and not in another: the other cameras' tracks and their geometry read the
+  swaps (:func:`~mirrorgraph.rigs.matching.match_candidates`), and a frame whose
+  labels disagree with the first camera's person's is not kept (relabelling it put
+  the cameras further from Qualisys on Pose2Sim's demo).
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
@@ -65,8 +64,7 @@ from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
-from .matching import (continuity_labels, match_candidates, subject_track, track_labelled,
-                       track_motion)
+from .matching import match_candidates, subject_track, track_motion, track_people
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -292,12 +290,13 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
-    tracks, swapped = track_labelled(sorting.people, joints, min_conf, skeleton.flip)
+    # tracks as labelled: reading swaps here too let a passer-by's or a duplicate's
+    # detections take over the moving person's track on Demo_MultiPerson (the person
+    # standing still was then followed, cameras 4-68 deg off)
+    tracks = track_people(sorting.people, joints, min_conf)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
-    # motion in each track's own labelling: a detector's left/right swaps of a person
-    # standing still would otherwise count as the distance between their two sides
-    own = [np.where(s[:, None, None], p[:, skeleton.flip], p) for p, s in zip(sorting.people, swapped)]
-    subject, frames = subject_track(tracks, track_motion(tracks, own, joints, min_conf), conf)
+    subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
+                                    conf)
     chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
                       dtype=int)                                # a handful per frame
     often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
@@ -310,12 +309,9 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
 
 
 def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
-                 skeleton: Skeleton, mirrors: list[str], swapped: np.ndarray | None = None
-                 ) -> None:
+                 skeleton: Skeleton, mirrors: list[str]) -> None:
     """Keep per frame the chosen candidate (``(T_c,)`` index into ``sorting.people[t]``,
-    -1: none) as the person, with its reflections, in place; where ``swapped``
-    (``(T_c,)`` bool) its left/right labels, and its reflections', are swapped (to the
-    reference camera's labelling: :func:`~mirrorgraph.rigs.matching.match_candidates`)."""
+    -1: none) as the person, with its reflections, in place."""
     if sorting.pairs is not None:
         person = np.array([idx[c] if c >= 0 else -1 for idx, c in zip(sorting.index, chosen)],
                           dtype=int)
@@ -329,38 +325,24 @@ def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
         most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
         sorting.real = real
         sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
-    if swapped is not None:
-        _relabel(sorting, swapped, skeleton.flip)
-
-
-def _relabel(sorting: _Sorting, swapped: np.ndarray, flip: np.ndarray) -> None:
-    """Swap the left/right labels of the person and of its reflections in the frames
-    ``swapped`` (``(T_c,)`` bool), in place."""
-    if not swapped.any():
-        return
-    flip = np.asarray(flip)
-    sorting.real[swapped] = sorting.real[swapped][:, flip]
-    for a in sorting.reflections.values():
-        a[swapped] = a[swapped][:, flip]
 
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
                   K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str) -> None:
     """Another camera: keep per frame the candidate consistent with the first camera's
-    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in its labelling,
-    in place.
+    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
 
     Raises:
         DegenerateGeometryError: no candidate track fits, naming the camera.
     """
     try:
-        chosen, swapped, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
+        chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
     except DegenerateGeometryError as exc:
         raise DegenerateGeometryError(
             f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
             f"the person of camera {ref_name}: {exc}") from None
     conf = [np.nan_to_num(p[:, skeleton.calibration_joints, 2]).sum(1) for p in sorting.people]
-    _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors, swapped)
+    _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors)
 
 
 def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
@@ -476,8 +458,6 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
-    _relabel(ref, continuity_labels(ref.real, sk.calibration_joints,
-                                    PairingOptions().min_confidence, sk.flip), sk.flip)
     ref_person = _place(ref.real, rows[0], T)
     for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
         if sorting.people is not None:      # one candidate a frame may still be another person

@@ -14,8 +14,8 @@ This is the test that catches a refusal or a wrong person on real detections (is
 the turning subject's left and right; on Demo_MultiPerson, following the person who
 stands still puts cameras 3.8-5.7 deg off, a camera seeing someone else is refused or
 tens of degrees off). Measured on the slice below (every 3rd frame of the 100: 34 a
-camera): Demo_SinglePerson 1.4 / 2.7 / 1.6 deg and 50 / 166 / 147 mm, Demo_MultiPerson
-2.8 / 2.0 / 0.7 deg and 154 / 113 / 87 mm (the whole take: ``bench/RESULTS_real.md``;
+camera): Demo_SinglePerson 1.05 / 2.61 / 1.37 deg and 55 / 164 / 142 mm, Demo_MultiPerson
+1.14 / 2.63 / 0.49 deg and 86 / 122 / 95 mm (the whole take: ``bench/RESULTS_real.md``;
 BlazePose's own bias limits them), so :data:`TOLERANCE_DEG` = 4 deg and
 :data:`TOLERANCE_MM` = 300 mm hold with a margin and still catch the wrong person.
 
@@ -44,7 +44,7 @@ CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 
 #: The frames detected: every ``EVERY``-th of ``START`` to ``END`` (the whole 100-frame
 #: take, thinned: the subject turns through it; the first 40 consecutive frames of
-#: Demo_MultiPerson left cam02 4.2 deg off).
+#: Demo_MultiPerson left cam02 4.2 deg off in an earlier version).
 START, END, EVERY = 0, 100, 3
 
 #: Every camera's rotation relative to the first, against Qualisys (deg).
