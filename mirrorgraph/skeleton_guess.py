@@ -92,6 +92,45 @@ def body25_ratios(keypoints: np.ndarray, min_confidence: float = MIN_CONFIDENCE)
     return a[s > 0] / s[s > 0]
 
 
+class AmbiguousSkeletonError(InputError):
+    """25 keypoints that one input's detections do not resolve into BODY_25 or BODY_25B.
+
+    An :class:`InputError` (its ``fix`` names the ``skeleton`` argument), carrying what a caller
+    holding several inputs of one layout (a rig's cameras) needs to decide from all of
+    them together (:func:`decide_body25`).
+
+    Attributes:
+        candidates: the layouts the count fits.
+        ratios: ``(M,)`` the input's usable ratios (:func:`body25_ratios`).
+    """
+
+    def __init__(self, message: str, *, source: Any, candidates: Sequence[Skeleton],
+                 ratios: np.ndarray, fix: tuple[str, ...] = ()) -> None:
+        super().__init__(message, source=source, fix=fix)
+        self.candidates = tuple(candidates)
+        self.ratios = np.asarray(ratios, dtype=float)
+
+
+def decide_body25(ratios: np.ndarray) -> tuple[Skeleton | None, str]:
+    """BODY_25, BODY_25B or neither from detections' ratios (:func:`body25_ratios`).
+
+    Args:
+        ratios: ``(M,)`` ratios, one a detection, from one input or several pooled.
+
+    Returns:
+        the layout (``None``: undecided) and, when undecided, why, in words.
+    """
+    r = np.asarray(ratios, dtype=float)
+    if len(r) < MIN_DETECTIONS:
+        return None, f"only {len(r)} confident detections to tell them apart"
+    m = float(np.median(r))
+    if m < BODY_25_BELOW:
+        return BODY_25, ""
+    if m > BODY_25B_ABOVE:
+        return BODY_25B, ""
+    return None, f"the joints do not tell them apart (median ratio {m:.2f})"
+
+
 def guess_skeleton(candidates: Sequence[Skeleton], people: np.ndarray | Iterable[Any], *,
                    source: Any) -> Skeleton:
     """The layout among ``candidates`` (same keypoint count) that ``people`` show.
@@ -104,9 +143,10 @@ def guess_skeleton(candidates: Sequence[Skeleton], people: np.ndarray | Iterable
         source: the file or folder, for the error message.
 
     Raises:
-        InputError: the candidates cannot be told apart, or the data do not decide
-            (fewer than :data:`MIN_DETECTIONS` usable detections, or a median ratio
-            between :data:`BODY_25_BELOW` and :data:`BODY_25B_ABOVE`).
+        InputError: the candidates cannot be told apart;
+            :class:`AmbiguousSkeletonError` where the data do not decide (fewer than
+            :data:`MIN_DETECTIONS` usable detections, or a median ratio between
+            :data:`BODY_25_BELOW` and :data:`BODY_25B_ABOVE`).
     """
     names = " or ".join(s.name for s in candidates)
     fix = tuple(f"skeleton={s.name}" for s in candidates)
@@ -118,14 +158,8 @@ def guess_skeleton(candidates: Sequence[Skeleton], people: np.ndarray | Iterable
         rows = [np.asarray(p, dtype=float).reshape(-1, 25, 3) for p in people if p is not None]
         kp = np.concatenate(rows) if rows else np.empty((0, 25, 3))
     r = body25_ratios(kp)
-    if len(r) >= MIN_DETECTIONS:
-        m = float(np.median(r))
-        if m < BODY_25_BELOW:
-            return BODY_25
-        if m > BODY_25B_ABOVE:
-            return BODY_25B
-        why = f"the joints do not tell them apart (median ratio {m:.2f})"
-    else:
-        why = f"only {len(r)} confident detections to tell them apart"
-    raise InputError(f"25 keypoints fit BODY_25 and BODY_25B and {why}", source=source,
-                     fix=fix)
+    found, why = decide_body25(r)
+    if found is not None:
+        return found
+    raise AmbiguousSkeletonError(f"25 keypoints fit BODY_25 and BODY_25B and {why}",
+                                 source=source, fix=fix, candidates=candidates, ratios=r)

@@ -36,6 +36,11 @@ Who the person is, camera by camera:
   frame: the subject may leave a camera's view while someone else walks in,
   and those frames are dropped. When no candidate track fits, a
   :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
+* **Left/right labels.** A detector swaps a turning person's left and right in one
+  camera and not in another: the other cameras' tracks and their geometry read the
+  swaps (:func:`~mirrorgraph.rigs.matching.match_candidates`), and a frame whose
+  labels disagree with the first camera's person's is not kept (relabelling it put
+  the cameras further from Qualisys on Pose2Sim's demo).
 
 Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
 frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
@@ -56,7 +61,8 @@ from ..keypoints import PairedKeypoints, RawDetections
 from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
                        paired_people)
 from ..preprocess import check_image_size, undistort_keypoints
-from ..skeletons import Skeleton
+from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
+from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates, subject_track, track_motion, track_people
 
@@ -149,7 +155,30 @@ def _intrinsics(entry: CameraEntry, data, warnings: list[str],
             warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
                             f"{DEFAULT_FOV_DEG:g} deg field of view")
     check_image_size(data, intr, warnings)
+    mismatch = _size_mismatch(entry, data, intr)
+    if mismatch:
+        warnings.append(mismatch)
     return intr
+
+
+def _size_mismatch(entry: CameraEntry, data, intr: Intrinsics) -> str | None:
+    """The warning, one line, where the image size the camera's intrinsics file (or its
+    rig-file ``image_size``) states differs from the size its keypoints carry (a
+    video's, or an MMPose file's ``meta_info``); ``None`` where they agree or either is
+    unknown. Pose2Sim's demo: the Qualisys calibration states 1088 x 1920 for cameras
+    whose videos are 1080 x 1920 (an encoder's padding to 16 rows): K is used as given,
+    the user should know."""
+    if data.image_size is None:
+        return None
+    stated = intr.image_size if entry.intrinsics is not None else entry.image_size
+    if stated is None or tuple(stated) == tuple(data.image_size):
+        return None
+    if entry.intrinsics is not None:
+        where, used = f"its intrinsics ({entry.intrinsics})", "the intrinsics are used as given"
+    else:
+        where, used = "the rig file's image_size", "the principal point is that size's centre"
+    return (f"camera {entry.name}: {where} state a {stated[0]}x{stated[1]} image, its "
+            f"keypoints ({data.source}) {data.image_size[0]}x{data.image_size[1]}; {used}")
 
 
 def _most_confident(raw: RawDetections, joints: np.ndarray) -> np.ndarray:
@@ -261,6 +290,9 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
+    # tracks as labelled: reading swaps here too let a passer-by's or a duplicate's
+    # detections take over the moving person's track on Demo_MultiPerson (the person
+    # standing still was then followed, cameras 4-68 deg off)
     tracks = track_people(sorting.people, joints, min_conf)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
     subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
@@ -284,15 +316,15 @@ def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
         person = np.array([idx[c] if c >= 0 else -1 for idx, c in zip(sorting.index, chosen)],
                           dtype=int)
         _keep_person(sorting, person, skeleton.flip, mirrors)
-        return
-    J = skeleton.num_joints
-    real = np.full((len(chosen), J, 3), np.nan)
-    real[..., 2] = 0.0
-    for t in np.flatnonzero(chosen >= 0):
-        real[t] = sorting.people[t][chosen[t]]
-    most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
-    sorting.real = real
-    sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
+    else:
+        J = skeleton.num_joints
+        real = np.full((len(chosen), J, 3), np.nan)
+        real[..., 2] = 0.0
+        for t in np.flatnonzero(chosen >= 0):
+            real[t] = sorting.people[t][chosen[t]]
+        most = np.array([int(np.argmax(c)) if len(c) else -1 for c in conf])
+        sorting.real = real
+        sorting.matched = int(np.count_nonzero((chosen >= 0) & (chosen != most)))
 
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
@@ -321,6 +353,63 @@ def _place(a: np.ndarray, rows: np.ndarray, T: int) -> np.ndarray:
     return out
 
 
+def _read_cameras(config: RigConfig, skeleton: Skeleton | str | None, progress, video,
+                  frame_progress) -> list:
+    """Every camera's keypoints (:func:`mirrorgraph.io.read_keypoints`), one layout for
+    the rig.
+
+    Where a camera's keypoint count fits several layouts (25: BODY_25 and BODY_25B)
+    and its own detections do not tell them apart (a camera seeing the subject from
+    behind has no confident face joints: :class:`~mirrorgraph.skeleton_guess.AmbiguousSkeletonError`),
+    the cameras that can tell decide for it, and where none can, all the undecided
+    cameras' detections are pooled (:func:`~mirrorgraph.skeleton_guess.decide_body25`);
+    such a camera is then read again in that layout.
+
+    Raises:
+        InputError: unreadable input; a layout that no camera's detections, nor all of
+            them together, resolve (naming the rig file and the cameras).
+    """
+    read: list = []
+    undecided: list[tuple[int, AmbiguousSkeletonError]] = []
+    for i, entry in enumerate(config.cameras):
+        if progress is not None:
+            progress(entry.name)
+        try:
+            read.append(_read_camera(entry, entry.skeleton or skeleton, video, frame_progress))
+        except AmbiguousSkeletonError as exc:
+            read.append(None)
+            undecided.append((i, exc))
+    if not undecided:
+        return read
+    candidates = {s.name for s in undecided[0][1].candidates}
+    decided = {d.skeleton.name for d in read if d is not None} & candidates
+    names = ", ".join(config.cameras[i].name for i, _ in undecided)
+    if len(decided) == 1:
+        layout = skeleton_by_name(decided.pop())
+    elif decided:                               # the cameras that tell disagree
+        raise InputError(f"the cameras' keypoints use different skeletons "
+                         f"({', '.join(sorted(decided))}) and cameras {names} cannot tell; "
+                         "name one with skeleton = ... in each [[cameras]] table",
+                         source=config.source, field="cameras")
+    else:
+        layout, why = decide_body25(np.concatenate([e.ratios for _, e in undecided]))
+        if layout is None:
+            fix = " or ".join(f'skeleton = "{n}"' for n in sorted(candidates))
+            raise InputError(f"25 keypoints fit BODY_25 and BODY_25B and no camera tells them "
+                             f"apart (cameras {names}: {why}); add {fix} to the cameras' "
+                             "[[cameras]] tables", source=config.source, field="skeleton")
+    for i, _ in undecided:
+        read[i] = _read_camera(config.cameras[i], layout, video, frame_progress)
+    return read
+
+
+def _read_camera(entry: CameraEntry, skeleton, video, frame_progress):
+    """One camera's keypoints (:func:`mirrorgraph.io.read_keypoints`)."""
+    on_frame = None if frame_progress is None else \
+        (lambda done, total, name=entry.name: frame_progress(name, done, total))
+    return read_keypoints(entry.keypoints, skeleton=skeleton, progress=on_frame, video=video)
+
+
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
@@ -340,33 +429,28 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
-            skeletons.
+            skeletons, a layout no camera resolves (:func:`_read_cameras`).
         DegenerateGeometryError: a camera's reflections cannot be sorted out, or
             none of the people a camera sees is the first camera's person (naming
             the camera).
     """
     warnings: list[str] = []
-    per_camera, layouts, fps = [], [], None
-    for entry in config.cameras:
-        if progress is not None:
-            progress(entry.name)
-        on_frame = None if frame_progress is None else \
-            (lambda done, total, name=entry.name: frame_progress(name, done, total))
-        data = read_keypoints(entry.keypoints, skeleton=entry.skeleton or skeleton,
-                              progress=on_frame, video=video)
-        intr = _intrinsics(entry, data, warnings, estimate_focal)
-        data = undistort_keypoints(data, intr)
-        sorting = _sort_camera(entry, data, intr)
-        frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
-        per_camera.append((entry, intr, frames, sorting, data.source))
-        layouts.append(data.skeleton)
-        fps = fps or data.fps
+    per_camera, fps = [], None
+    read = _read_cameras(config, skeleton, progress, video, frame_progress)
+    layouts = [data.skeleton for data in read]
     names = {s.name for s in layouts}
     if len(names) > 1:
         raise InputError(f"the cameras' keypoints use different skeletons ({', '.join(sorted(names))});"
                          " name one with skeleton = ... in each [[cameras]] table",
                          source=config.source, field="cameras")
     sk = layouts[0]
+    for entry, data in zip(config.cameras, read):
+        intr = _intrinsics(entry, data, warnings, estimate_focal)
+        data = undistort_keypoints(data, intr)
+        sorting = _sort_camera(entry, data, intr)
+        frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
+        per_camera.append((entry, intr, frames, sorting, data.source))
+        fps = fps or data.fps
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
     rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]

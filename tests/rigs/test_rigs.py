@@ -359,3 +359,72 @@ def test_a_rig_takes_the_height_once(tmp_path):
         calibrate_rig(path, subject_height=1.8, options=RefineOptions(subject_height=1.7))
     with pytest.raises(InputError, match="not a human height"):
         calibrate_rig(path, options=RefineOptions(subject_height=175.0))
+
+
+def _unnamed_skeleton(path: Path) -> Path:
+    """The rig file without its ``skeleton = ...`` lines (the layout from the keypoints)."""
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(x for x in lines if not x.startswith("skeleton")) + "\n")
+    return path
+
+
+def _hide_eyes(rig, camera: str) -> None:
+    """``camera`` sees the subject from behind: BODY_25B's joints 1 and 2 (the eyes), which
+    tell it from BODY_25, never confident there (in place)."""
+    for p in rig.detections[camera].people:
+        if len(p):
+            p[:, 1:3, 2] = 0.0
+
+
+def test_one_skeleton_for_the_rig_from_the_cameras_that_tell(tmp_path, capsys):
+    """Pose2Sim's demo as OpenPose BODY_25B JSON: a camera that sees the subject from behind
+    cannot tell BODY_25B from BODY_25 on its own (issue #24: it was refused); the rig's
+    other cameras decide for it. Where no camera can tell, the rig is refused in one line
+    naming the rig file and the cameras."""
+    rig = make_rig("4cams", frames=120, seed=1, noise_std=4.0, skeleton="BODY_25B")
+    _hide_eyes(rig, "cam03")
+    path = _unnamed_skeleton(write_rig(rig, tmp_path / "one", "openpose"))
+    from mirrorgraph.io import read_keypoints
+    with pytest.raises(InputError, match="only 0 confident detections"):
+        read_keypoints(load_rig_config(path).cameras[2].keypoints)       # alone: refused
+    cal = calibrate_rig(path)
+    assert cal.skeleton == "BODY_25B"
+    cams, _, _ = _errors(cal, rig)
+    assert all(rot < 0.5 and aligned < 0.03 for rot, _, aligned in cams[1:]), cams
+    for camera in ("cam01", "cam02", "cam04"):
+        _hide_eyes(rig, camera)
+    path = _unnamed_skeleton(write_rig(rig, tmp_path / "none", "openpose"))
+    assert main(["calibrate-rig", str(path), "--out", str(tmp_path / "c.toml"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rig.toml" in err[0] and "cam01, cam02, cam03, cam04" in err[0], err
+    assert 'skeleton = "BODY_25B"' in err[0]
+
+
+def test_an_image_size_that_disagrees_with_the_keypoints_is_reported(tmp_path):
+    """Pose2Sim's demo: its calibration states 1088 x 1920 where cameras 1 and 2 are 1080 x
+    1920 videos (issue #24: nothing said so). One warning line per such camera, naming the
+    camera, the intrinsics file (or the rig file's image_size), the keypoints and both
+    sizes; none where they agree."""
+    from mirrorgraph.rigs.observations import load_observations
+    rig = make_rig("4cams", frames=40, seed=1, noise_std=4.0)
+    path = write_rig(rig, tmp_path, "easymocap")            # its files carry the image size
+    w, h = rig.image_size
+    calib = tmp_path / "Calib.toml"
+    text = calib.read_text()
+    sections = text.split("[cam02]")
+    assert len(sections) == 2 and f"size = [ {w:.1f}, {h:.1f} ]" in sections[1], text
+    calib.write_text(sections[0] + "[cam02]" + sections[1].replace(
+        f"size = [ {w:.1f}, {h:.1f} ]", f"size = [ {w:.1f}, {h + 8:.1f} ]", 1))
+    rig_text = path.read_text().replace(          # cam04: no intrinsics, a wrong image_size
+        'intrinsics = "Calib.toml"\nintrinsics_section = "cam04"\n',
+        f"image_size = [{w}, {h - 8}]\n")
+    path.write_text(rig_text)
+    obs = load_observations(load_rig_config(path))
+    about_size = [x for x in obs.warnings if "image" in x]
+    assert len(about_size) == 2, obs.warnings
+    cam02, cam04 = sorted(about_size)
+    assert cam02.startswith("camera cam02: its intrinsics (") and str(calib) in cam02
+    assert f"{w}x{h + 8} image" in cam02 and f"cam02_json) {w}x{h};" in cam02
+    assert cam04.startswith("camera cam04: the rig file's image_size state") \
+        and f"{w}x{h - 8} image" in cam04 and f"cam04_json) {w}x{h};" in cam04
+    assert all("\n" not in x for x in about_size)

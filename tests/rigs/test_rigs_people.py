@@ -277,3 +277,53 @@ def test_between_people_seen_as_long_the_one_who_moves_most_is_the_subject():
     short = [np.array([0, 1]) if t < T // 2 else np.array([0]) for t in range(T)]
     people_short = [p if t < T // 2 else p[:1] for t, p in enumerate(people)]
     assert subject_track(short, track_motion(short, people_short, joints, 0.3))[0] == 0
+
+
+# --------------------------------------------------------------------------- left/right swaps
+def _swap_subject_labels(rig, camera: str, frames: np.ndarray) -> None:
+    """Swap the left/right labels of ``camera``'s subject detection in ``frames``, as a
+    detector does on a person turning (BlazePose on Pose2Sim's demo videos), in place."""
+    flip = rig.skeleton.flip
+    clean = rig.views[camera][PERSON].clean
+    joints = rig.skeleton.calibration_joints
+    for t in frames:
+        p = np.array(rig.detections[camera].people[t], dtype=float)
+        if not len(p):
+            continue
+        d = np.nanmedian(np.linalg.norm(p[:, joints, :2] - clean[t, joints], axis=-1), axis=1)
+        i = int(np.nanargmin(d))
+        if d[i] < 25.0:
+            p[i] = p[i][flip]
+            rig.detections[camera].people[t] = p
+
+
+def test_left_right_swaps_neither_split_the_subject_nor_refuse_a_camera(tmp_path):
+    """BlazePose swaps a turning subject's left and right labels in one camera and not in
+    another (Pose2Sim's Demo_SinglePerson, issue #24: each swap started a new track of
+    the rig's tracker and the swapped frames were outliers to every track's geometry, so
+    that a camera could be refused). Here the subject's labels are swapped in blocks of
+    frames, differently in every camera, a bystander in view: every camera keeps the
+    subject in the frames whose labels agree with the first camera's and never the
+    bystander. (Not asserted: the calibration from these; where a camera's labels
+    disagree with the first camera's in half the frames, frames with two candidates
+    that fit as labelled still pair the wrong sides: issue #24, what is left.)"""
+    kw = dict(frames=FRAMES, seed=SEEDS["4cams"], noise_std=4.0, bystanders=1)
+    rig = make_rig("4cams", **kw)
+    blocks = np.arange(FRAMES) // 10
+    swaps = {"cam01": blocks % 4 == 1, "cam02": blocks % 2 == 0, "cam03": blocks % 3 == 0,
+             "cam04": blocks % 3 == 2}
+    for cam, where in swaps.items():
+        _swap_subject_labels(rig, cam, np.flatnonzero(where))
+    path = write_rig(rig, tmp_path / "swapped")
+    obs = load_observations(load_rig_config(path))
+    joints, flip = rig.skeleton.calibration_joints, rig.skeleton.flip
+    for cam in obs.cameras:
+        truth = rig.views[cam.name][PERSON]
+        as_given = np.where(swaps[cam.name][:, None, None], truth.clean[:, flip], truth.clean)
+        picked = _picked(cam.real, as_given, joints)
+        agree = truth.detected & (swaps[cam.name] == swaps["cam01"])
+        assert picked[agree].mean() >= 0.95, cam.name
+        kept = (cam.real[..., 2] > 0).any(1)          # and whatever is kept is the subject
+        either = picked | _picked(cam.real, truth.clean[:, flip], joints) \
+            | _picked(cam.real, truth.clean, joints)
+        assert either[kept].all(), cam.name
