@@ -13,7 +13,7 @@ The Python API in a nutshell::
     rig = mg.calibrate_rig("rig.toml", subject_height=1.75)     # cameras and mirrors
     mg.write_rig_toml(rig, "Calib.toml")
 
-Every name in ``__all__`` is the public API (the README's *Python API* section); the
+Every name in ``__all__`` is the public API (``docs/api.md``, the *Python API* page); the
 rest is reachable through its module. Every name but the errors and the version is
 imported on first use (its module pulls NumPy, OpenCV, SciPy, GTSAM or an optional
 extra), so that ``import mirrorgraph`` stays fast and imports none of them.

@@ -72,7 +72,7 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
             default found from the keypoint count. A video's layout is its model's.
         progress: ``progress(done, total)`` called per file of a folder, per frame of
             a video.
-        video: :class:`mirrorgraph.video.VideoOptions` for a video (frame range,
+        video (mirrorgraph.video.VideoOptions | None): for a video (frame range,
             model, cache); ``None``: the defaults.
 
     Returns:

@@ -230,7 +230,7 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     """Write the report's PNG figures (and video overlays) of a calibration run.
 
     Args:
-        run: a :class:`~mirrorgraph.pipeline.CalibrationRun` (from
+        run (mirrorgraph.pipeline.CalibrationRun): a calibration run (from
             :func:`mirrorgraph.calibrate` or :func:`run_from_calibration`).
         out_dir: folder to write into (created if missing).
         video: the video the keypoints come from: draws the overlay on
@@ -249,8 +249,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         and ``video``.
 
     Raises:
-        MirrorgraphError: matplotlib missing; InputError: unreadable video,
-        ``render`` without ``video``.
+        MirrorgraphError: matplotlib missing.
+        InputError: unreadable video, ``render`` without ``video``.
     """
     if render is not None and video is None:
         raise InputError("needs the video to draw on", field="render", fix=("video",))

@@ -11,7 +11,7 @@ from ..errors import MirrorgraphError
 
 __all__ = ["INSTALL_HINT", "require_matplotlib"]
 
-#: How to install the ``plot`` extra, from PyPI or in a clone (as the README says).
+#: How to install the ``plot`` extra, from PyPI or in a clone (as docs/guide/report.md says).
 INSTALL_HINT = "pip install 'mirrorgraph[plot]' (in a clone: pip install -e '.[plot]')"
 
 

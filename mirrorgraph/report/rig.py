@@ -144,8 +144,8 @@ def write_rig_report(calib, out_dir, *, progress_bar: bool = True) -> list[Path]
     """Write the rig's figures as PNG files into ``out_dir``; returns their paths.
 
     Args:
-        calib: the :class:`~mirrorgraph.rigs.RigCalibration`.
-        out_dir: folder to write into (created if missing).
+        calib (mirrorgraph.rigs.RigCalibration): the calibrated rig.
+        out_dir (str | os.PathLike): folder to write into (created if missing).
         progress_bar: draw a progress bar on stderr (only on a terminal).
     """
     plt = require_matplotlib()

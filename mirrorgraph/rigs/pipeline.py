@@ -91,16 +91,17 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
             ``options.subject_height``; two different heights are refused). Without
             any, lengths are in units of the subject's height.
         skeleton: layout for cameras whose table names none.
-        joints: ``"auto"`` (the default: every keypoint in the direct views, the
-            limbs through mirrors), ``"limbs"`` (no face, hands or feet, as
-            MirrorCalib), ``"all"``, or joint names; overrides the file's ``joints``.
+        joints (str | Sequence[str] | None): ``"auto"`` (the default: every
+            keypoint in the direct views, the limbs through mirrors), ``"limbs"`` (no
+            face, hands or feet, as MirrorCalib), ``"all"``, or joint names; overrides
+            the file's ``joints``.
         options: weights and solver settings of the graph.
         seed: RANSAC seed.
         progress: called with a short description of each step (as
             :func:`mirrorgraph.calibrate`'s ``progress``).
         iteration_progress: ``(iteration, error)`` of the graph solve, after every
             iteration (as :func:`mirrorgraph.calibrate`'s).
-        video: :class:`mirrorgraph.video.VideoOptions` for cameras whose
+        video (mirrorgraph.video.VideoOptions | None): for cameras whose
             ``keypoints`` name a video (detected, or read from the cache).
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
         estimate_focal: estimate the focal length of every camera given without

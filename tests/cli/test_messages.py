@@ -211,7 +211,7 @@ def test_matplotlib_hint_matches_the_readme(monkeypatch, tmp_path, without_matpl
     from mirrorgraph.report import INSTALL_HINT
 
     assert "pip install 'mirrorgraph[plot]'" in INSTALL_HINT
-    assert "pip install -e '.[plot]'" in INSTALL_HINT          # the README's command in a clone
+    assert "pip install -e '.[plot]'" in INSTALL_HINT          # docs/guide/report.md, in a clone
     code, _, err = run_cli(["report", str(tmp_path / "c.json"), "--out", str(tmp_path / "r")],
                            monkeypatch)
     assert code == 2 and err.count("\n") == 1 and INSTALL_HINT in err
