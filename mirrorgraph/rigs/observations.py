@@ -137,7 +137,7 @@ class RigObservations:
 
 
 def _intrinsics(entry: CameraEntry, data, warnings: list[str],
-                estimate_focal: bool = True) -> Intrinsics:
+                estimate_focal: bool = True, fov_deg: float | None = None) -> Intrinsics:
     if entry.intrinsics is not None:
         section = entry.intrinsics_section
         if entry.intrinsics.suffix.lower() != ".toml" and section is not None:
@@ -150,10 +150,11 @@ def _intrinsics(entry: CameraEntry, data, warnings: list[str],
             raise InputError(f"camera {entry.name!r} has no intrinsics and its keypoints no "
                              "image size: add intrinsics = FILE or image_size = [W, H] to its "
                              "[[cameras]] table", source=data.source)
-        intr = intrinsics_from_fov(size, DEFAULT_FOV_DEG)
+        fov = DEFAULT_FOV_DEG if fov_deg is None else float(fov_deg)
+        intr = intrinsics_from_fov(size, fov)
         if not estimate_focal:
             warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
-                            f"{DEFAULT_FOV_DEG:g} deg field of view")
+                            f"{fov:g} deg field of view")
     check_image_size(data, intr, warnings)
     mismatch = _size_mismatch(entry, data, intr)
     if mismatch:
@@ -413,7 +414,8 @@ def _read_camera(entry: CameraEntry, skeleton, video, frame_progress):
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
-                      estimate_focal: bool = True) -> RigObservations:
+                      estimate_focal: bool = True,
+                      fov_deg: float | None = None) -> RigObservations:
     """Read, undistort and sort every camera's keypoints (see the module docstring).
 
     Args:
@@ -426,6 +428,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         estimate_focal: a camera without intrinsics gets a 60 deg field-of-view guess
             either way (``intrinsics.approximate``); without the estimate (``False``)
             a warning says so.
+        fov_deg: the field of view of that guess (default
+            :data:`~mirrorgraph.intrinsics.DEFAULT_FOV_DEG`).
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
@@ -445,7 +449,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
                          source=config.source, field="cameras")
     sk = layouts[0]
     for entry, data in zip(config.cameras, read):
-        intr = _intrinsics(entry, data, warnings, estimate_focal)
+        intr = _intrinsics(entry, data, warnings, estimate_focal, fov_deg)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)
         frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset

@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InputError
 from ..graph.options import RefineOptions, one_subject_height
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
@@ -82,7 +83,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
                   iteration_progress: Callable[[int, float], None] | None = None,
                   video=None,
                   frame_progress: Callable[[str, int, int], None] | None = None,
-                  estimate_focal: bool = True) -> RigCalibration:
+                  estimate_focal: bool = True,
+                  fov_deg: float | None = None) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
 
     Args:
@@ -111,6 +113,10 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
             cameras' views determine it with the bones; ``False``: keep the 60 deg
             field-of-view guess. A camera whose focal length the data do not
             determine keeps the guess, with a warning.
+        fov_deg: a horizontal field of view (degrees) known roughly for the cameras
+            given without intrinsics: their focal length is held near it (implies
+            ``estimate_focal=False``; its own spread enters every std), as
+            :func:`mirrorgraph.calibrate`'s ``fov_deg``.
 
     Returns:
         :class:`~.result.RigCalibration` (world frame = the first camera).
@@ -127,9 +133,15 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
     H = float(height) if height is not None else 1.0
     say = progress or (lambda s: None)
 
+    if fov_deg is not None:
+        if not 0 < float(fov_deg) < 180:
+            raise InputError(f"a field of view must lie between 0 and 180 deg, not {fov_deg}",
+                             field="fov_deg")
+        estimate_focal = False
     obs = load_observations(cfg, skeleton=skeleton,
                             progress=lambda name: say(f"reading camera {name}"), video=video,
-                            frame_progress=frame_progress, estimate_focal=estimate_focal)
+                            frame_progress=frame_progress, estimate_focal=estimate_focal,
+                            fov_deg=fov_deg)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)

@@ -78,3 +78,30 @@ def test_two_cameras_without_intrinsics_facing_the_calibrated_pair(tmp_path):
     for c, P in zip(cal.cameras, r.poses):
         assert rotation_error_deg(c.pose[:3, :3], np.asarray(P)[:3, :3]) < 1.0
     assert np.allclose(cal.cameras[2].intrinsics.K, r.K[2])
+
+
+def test_calibrate_rig_fov_holds_a_known_field_of_view(tmp_path):
+    """``calibrate-rig --fov DEG`` is ``calibrate --fov``: the camera without intrinsics
+    starts at that field of view and is held near it (not estimated), and says so;
+    ``--no-focal`` is ``--fov 60``. A wrong field of view is refused in one line."""
+    from mirrorgraph.cli import main
+    from mirrorgraph.rigs.config import load_rig_config
+    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.synth import make_rig, write_rig
+
+    r = make_rig("2cams1mirror", frames=150, seed=0, geometry="wide")
+    write_rig(r, tmp_path / "rig")
+    cfg = load_rig_config(tmp_path / "rig" / "rig.toml")
+    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
+                                                image_size=tuple(r.image_size)))
+    cfg = dataclasses.replace(cfg, cameras=cams)
+    true_fov = float(np.degrees(2 * np.arctan(r.image_size[0] / (2 * r.K[1][0, 0]))))
+    cal = calibrate_rig(cfg, subject_height=r.subject_height, fov_deg=true_fov)
+    f = cal.cameras[1].intrinsics.K[0, 0]
+    assert abs(f / r.K[1][0, 0] - 1.0) < 0.05
+    assert any(f"assumed a {true_fov:g} deg field of view" in w for w in cal.warnings)
+    with pytest.raises(InputError, match="field of view"):
+        calibrate_rig(cfg, fov_deg=200.0)
+    out = tmp_path / "c.toml"
+    assert main(["calibrate-rig", str(tmp_path / "rig" / "rig.toml"), "--out", str(out),
+                 "--no-focal", "--quiet"]) == 0       # every camera has intrinsics: no-op
