@@ -39,3 +39,19 @@ def need_module(module: str, why: str) -> None:
     import pytest
     if importlib.util.find_spec(module) is None:
         pytest.skip(f"{module} is not installed: {why}")
+
+
+def rig_without_intrinsics(rig, folder: Path):
+    """Write a synthetic ``rig`` (:func:`mirrorgraph.synth.make_rig`) into ``folder`` and
+    return its :class:`~mirrorgraph.rigs.config.RigConfig` with the second camera listed
+    without intrinsics (only its image size)."""
+    import dataclasses
+
+    from mirrorgraph.rigs.config import load_rig_config
+    from mirrorgraph.synth import write_rig
+
+    write_rig(rig, folder)
+    cfg = load_rig_config(folder / "rig.toml")
+    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
+                                                image_size=tuple(rig.image_size)))
+    return dataclasses.replace(cfg, cameras=cams)

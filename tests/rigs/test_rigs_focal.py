@@ -8,19 +8,16 @@ import numpy as np
 import pytest
 
 from mirrorgraph.errors import InputError
+from tests.helpers import rig_without_intrinsics
 
 
 def test_rig_camera_without_intrinsics(tmp_path):
-    from mirrorgraph.rigs.config import load_rig_config
     from mirrorgraph.rigs.pipeline import calibrate_rig
-    from mirrorgraph.synth import make_rig, write_rig
+    from mirrorgraph.synth import make_rig
 
     r = make_rig("2cams1mirror", frames=300, seed=0, geometry="wide")
-    write_rig(r, tmp_path / "rig")
-    cfg = load_rig_config(tmp_path / "rig" / "rig.toml")
-    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
-                                                image_size=tuple(r.image_size)))
-    cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams), subject_height=r.subject_height)
+    cfg = rig_without_intrinsics(r, tmp_path / "rig")
+    cal = calibrate_rig(cfg, subject_height=r.subject_height)
     c = cal.cameras[1]
     est = c.intrinsics.estimated
     assert est["estimated"] and est["initial"]["method"].startswith("search through its mirror")
@@ -85,16 +82,11 @@ def test_calibrate_rig_fov_holds_a_known_field_of_view(tmp_path):
     starts at that field of view and is held near it (not estimated), and says so;
     ``--no-focal`` is ``--fov 60``. A wrong field of view is refused in one line."""
     from mirrorgraph.cli import main
-    from mirrorgraph.rigs.config import load_rig_config
     from mirrorgraph.rigs.pipeline import calibrate_rig
-    from mirrorgraph.synth import make_rig, write_rig
+    from mirrorgraph.synth import make_rig
 
     r = make_rig("2cams1mirror", frames=150, seed=0, geometry="wide")
-    write_rig(r, tmp_path / "rig")
-    cfg = load_rig_config(tmp_path / "rig" / "rig.toml")
-    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
-                                                image_size=tuple(r.image_size)))
-    cfg = dataclasses.replace(cfg, cameras=cams)
+    cfg = rig_without_intrinsics(r, tmp_path / "rig")
     true_fov = float(np.degrees(2 * np.arctan(r.image_size[0] / (2 * r.K[1][0, 0]))))
     cal = calibrate_rig(cfg, subject_height=r.subject_height, fov_deg=true_fov)
     f = cal.cameras[1].intrinsics.K[0, 0]

@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 
+from tests.helpers import rig_without_intrinsics
+
 OFFSET = np.array([20.0, -6.0])          # px: camera 1's principal point off the centre
 
 
@@ -19,18 +21,14 @@ def _shifted(detections, d):
 
 def test_rig_camera_without_intrinsics_principal_point_off_centre(tmp_path):
     from mirrorgraph.metrics import rotation_error_deg
-    from mirrorgraph.rigs.config import load_rig_config
     from mirrorgraph.rigs.pipeline import calibrate_rig
-    from mirrorgraph.synth import make_rig, write_rig
+    from mirrorgraph.synth import make_rig
 
     r = make_rig("2cams1mirror", frames=300, seed=0, geometry="wide")
     name = r.camera_names[1]
     r.detections[name] = _shifted(r.detections[name], OFFSET)
-    write_rig(r, tmp_path / "rig")
-    cfg = load_rig_config(tmp_path / "rig" / "rig.toml")
-    cams = (cfg.cameras[0], dataclasses.replace(cfg.cameras[1], intrinsics=None,
-                                                image_size=tuple(r.image_size)))
-    cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams), subject_height=r.subject_height)
+    cfg = rig_without_intrinsics(r, tmp_path / "rig")
+    cal = calibrate_rig(cfg, subject_height=r.subject_height)
     c = cal.cameras[1]
     est = c.intrinsics.estimated
     sd = 0.01 * max(r.image_size)
