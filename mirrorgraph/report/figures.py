@@ -416,7 +416,7 @@ def bone_lengths(data):
             if data.refined else "the refinement did not run: the inlier pairs triangulated "
             "with the initial normal")
     fig.suptitle("Bone lengths over time: a rigid bone should be a flat line\n"
-                 f"{what}; sd = standard deviation over frames, and in % of the median"
+                 f"{what};\nsd = standard deviation over frames, and in % of the median"
                  + scale_note, fontsize=10)
     return fig
 
@@ -479,7 +479,7 @@ def uncertainty(data):
     if along:      # each axis its own scale, room for the legend above
         mid, half = (lo + hi) / 2, 0.6 * np.maximum(hi - lo, 1e-3)
         ax.set_xlim(mid[0] - half[0], mid[0] + half[0])
-        ax.set_ylim(mid[1] - half[1], mid[1] + 1.9 * half[1])
+        ax.set_ylim(mid[1] - 1.7 * half[1], mid[1] + 1.9 * half[1])   # legend, text box
         ang = np.degrees(np.arctan2(major[1], major[0]))
         ax.set_xlabel(f"along the major axis (px; {ang:+.0f} deg from the image's x, y down)")
         ax.set_ylabel("along the minor axis (px)")
