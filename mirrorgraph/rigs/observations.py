@@ -18,7 +18,9 @@ Who the person is, camera by camera:
   mirrors every detection is a candidate.
 * **The first camera** (the reference), when some frame holds several
   candidates, follows one person over time: its candidates are linked into
-  tracks (:func:`mirrorgraph.rigs.matching.track_people`) and the subject is
+  tracks (:func:`mirrorgraph.rigs.matching.track_labelled`: a detector's left/right
+  swap of a turning person continues their track, as in the other cameras, and each
+  track moves in its own labelling) and the subject is
   the track seen in the most frames, that is, with mirrors, the one that
   pairs with a reflection in the most frames; between tracks seen in nearly as
   many frames, the one that moves most (:func:`~mirrorgraph.rigs.matching.subject_track`:
@@ -64,7 +66,7 @@ from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
-from .matching import match_candidates, subject_track, track_motion, track_people
+from .matching import match_candidates, subject_track, track_labelled, track_motion
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -291,13 +293,20 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     ties broken by confidence (see the module docstring), in place."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
-    # tracks as labelled: reading swaps here too let a passer-by's or a duplicate's
-    # detections take over the moving person's track on Demo_MultiPerson (the person
-    # standing still was then followed, cameras 4-68 deg off)
-    tracks = track_people(sorting.people, joints, min_conf)
+    # tracks read a detector's left/right swaps (those the assignment as labelled leaves
+    # unlinked): tracked as labelled, a turning subject is split at each swap into
+    # shorter tracks and loses to a person standing still in every frame (Demo_MultiPerson
+    # since the detector's duplicate suppression: the subject's joints moved 208 px as
+    # labelled, 23 px swapped, at cam01's frame 56; 56 + 44 frames against 100). Reading
+    # swaps here was given up when the detector left duplicates of the subject, which the
+    # swapped pass linked into the subject's track (mirrorgraph.video.nms removes them).
+    tracks, swapped = track_labelled(sorting.people, joints, min_conf, skeleton.flip)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
-    subject, frames = subject_track(tracks, track_motion(tracks, sorting.people, joints, min_conf),
-                                    conf)
+    # motion in each track's own labelling: a swapping person standing still would
+    # otherwise move by the distance between their two sides
+    own = [np.where(s[:, None, None], p[:, skeleton.flip], p)
+           for p, s in zip(sorting.people, swapped)]
+    subject, frames = subject_track(tracks, track_motion(tracks, own, joints, min_conf), conf)
     chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
                       dtype=int)                                # a handful per frame
     often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())

@@ -327,3 +327,35 @@ def test_left_right_swaps_neither_split_the_subject_nor_refuse_a_camera(tmp_path
         either = picked | _picked(cam.real, truth.clean[:, flip], joints) \
             | _picked(cam.real, truth.clean, joints)
         assert either[kept].all(), cam.name
+
+
+def test_the_first_camera_follows_the_moving_subject_through_a_left_right_swap():
+    """Pose2Sim's Demo_MultiPerson (issue #24): in the first camera the subject turns and
+    the detector swaps their left and right labels from one frame on, moving the joints
+    as labelled by more than the tracker's gate (208 px, 23 px with the labels swapped),
+    while a second person stands still in every frame. Tracked as labelled, the subject
+    was split into two tracks (56 + 44 frames) and the person standing still, seen in all
+    100, was followed (cam02 then refused). The first camera's tracker reads the swap, as
+    the other cameras' do: the subject is one track, and the one who moves."""
+    from mirrorgraph.rigs.observations import _follow_subject, _Sorting
+    from mirrorgraph.skeletons import BLAZEPOSE
+    rng = np.random.default_rng(0)
+    T, J = 60, BLAZEPOSE.num_joints
+    side = np.array([-1.0 if n.startswith("left") else 1.0 if n.startswith("right") else 0.0
+                     for n in BLAZEPOSE.joints])
+    body = np.stack([120.0 * side, np.linspace(-300.0, 300.0, J)], -1)     # (J, 2), px
+
+    def person(x0: np.ndarray) -> np.ndarray:                              # (T, J, 3)
+        xy = body[None] + x0[:, None, :] + rng.normal(0, 2, (len(x0), J, 2))
+        return np.concatenate([xy, np.ones((len(x0), J, 1))], -1)
+
+    still = person(np.tile([900.0, 1000.0], (T, 1)))
+    walk = person(np.stack([np.linspace(300.0, 500.0, T), np.full(T, 900.0)], -1))
+    swapped = np.arange(T) >= T // 2
+    walk_as_detected = np.where(swapped[:, None, None], walk[:, BLAZEPOSE.flip], walk)
+    people = [np.stack([still[t], walk_as_detected[t]]) for t in range(T)]
+    sorting = _Sorting(real=np.zeros((T, J, 3)), reflections={}, lr_fixes=0,
+                       people=people)
+    warnings: list[str] = []
+    _follow_subject("cam01", sorting, BLAZEPOSE, [], warnings)
+    assert np.allclose(sorting.real, walk_as_detected)
