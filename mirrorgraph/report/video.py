@@ -69,7 +69,8 @@ def _ipt(p) -> tuple[int, int]:
 
 
 def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier: np.ndarray,
-                 valid: np.ndarray, run, *, label: str = "") -> np.ndarray:
+                 valid: np.ndarray, run, *, label: str = "",
+                 legend_points: np.ndarray | None = None) -> np.ndarray:
     """Draw one frame's pairs on a BGR image (in place; also returned).
 
     Args:
@@ -78,7 +79,10 @@ def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier
         inlier, valid: ``(J,)`` bool: pair kept by the run / pair usable.
         run: the :class:`~mirrorgraph.pipeline.CalibrationRun` (intrinsics, skeleton).
         label: text written first in the legend (drawn in the corner that hides fewest
-            joints, :func:`legend_corner`).
+            of ``legend_points``, :func:`legend_corner`).
+        legend_points: ``(N, 2)`` px the legend avoids (default: this frame's joints and
+            reflections; a video passes every frame's, :func:`joints_everywhere`, so that
+            its legend stays in one corner).
     """
     intr = run.calibration.intrinsics
     size = (frame.shape[1], frame.shape[0])
@@ -105,8 +109,15 @@ def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier
     if e_px is not None and 0 <= e_px[0] < size[0] and 0 <= e_px[1] < size[1]:
         cv2.drawMarker(frame, _ipt(distort(intr, e_px[None])[0]), EPIPOLE, cv2.MARKER_STAR,
                        20 * scale, 2 * scale)
-    _legend(frame, label, scale, np.vstack([real, mirror]))
+    _legend(frame, label, scale,
+            np.vstack([real, mirror]) if legend_points is None else legend_points)
     return frame
+
+
+def joints_everywhere(run) -> np.ndarray:
+    """``(N, 2)`` px: the joints and reflections of every frame of a run (undistorted)."""
+    p = run.paired
+    return np.concatenate([p.real[..., :2].reshape(-1, 2), p.mirror[..., :2].reshape(-1, 2)])
 
 
 def legend_corner(size: tuple[int, int], box: tuple[int, int], points: np.ndarray
@@ -196,6 +207,7 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
                              f"{int(p.frame_ids[0])}..{int(p.frame_ids[-1])}, video of "
                              f"{nframes} frames)", source=str(video), field="video")
         have = np.array(sorted(have))
+        everywhere = joints_everywhere(run)
         picks = np.unique(have[np.linspace(0, len(have) - 1, min(count, len(have)))
                                .round().astype(int)])
         out = {}
@@ -207,7 +219,8 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
                 if not ok:
                     continue
                 real, mirror, inl, valid = _pairs(run, rows[int(f)])
-                draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {int(f)}")
+                draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {int(f)}",
+                             legend_points=everywhere)
                 path = Path(out_dir) / f"overlay_{int(f):06d}.png"
                 cv2.imwrite(str(path), img)
                 out[f"overlay_{int(f):06d}"] = path
@@ -230,6 +243,7 @@ def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=
     try:
         check_size(run, size, video)
         rows = _frame_rows(run)
+        everywhere = joints_everywhere(run)
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
         if not writer.isOpened():
             raise InputError("cannot be written as mp4 (OpenCV)", source=str(out),
@@ -243,7 +257,8 @@ def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=
                     break
                 if k in rows:
                     real, mirror, inl, valid = _pairs(run, rows[k])
-                    draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {k}")
+                    draw_overlay(img, real, mirror, inl, valid, run, label=f"frame {k}",
+                                 legend_points=everywhere)
                 writer.write(img)
                 k += 1
                 bar.update()
