@@ -239,7 +239,7 @@ def rig_case(kind: str, seed: int, drop: list[int], folder: Path, frames: int = 
         t0 = time.perf_counter()
         try:
             cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams),
-                                subject_height=r.subject_height, seed=seed)
+                                mg.CalibrateOptions(subject_height=r.subject_height, seed=seed))
         except Exception as exc:  # noqa: BLE001
             out[name] = {"failed": f"{type(exc).__name__}: {exc}"}
             continue

@@ -74,8 +74,8 @@ def rig_cases(folder: Path) -> dict:
         cfg = load_rig_config(folder / kind / "rig.toml")
         cams = tuple(dataclasses.replace(c, intrinsics=None, image_size=tuple(r.image_size))
                      if i in drop else c for i, c in enumerate(cfg.cameras))
-        cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams), subject_height=r.subject_height,
-                            seed=seed)
+        cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams),
+                            mg.CalibrateOptions(subject_height=r.subject_height, seed=seed))
         text = json.dumps(_plain(cal.to_dict())).replace(str(folder), "<tmp>")
         out[f"rig_{kind}"] = {"json": json.loads(text)}
     return out

@@ -74,6 +74,7 @@ from results_blocks import replace_block  # noqa: E402
 from mirrorgraph.anthropometry import expected_bone_lengths  # noqa: E402
 from mirrorgraph.graph.options import RefineOptions  # noqa: E402
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg, translation_error  # noqa: E402
+from mirrorgraph.pipelines.options import CalibrateOptions  # noqa: E402
 from mirrorgraph.rigs import calibrate_rig, load_rig_config  # noqa: E402
 from mirrorgraph.rigs.initial import MIN_CONFIDENCE, initialise_rig  # noqa: E402
 from mirrorgraph.rigs.observations import load_observations  # noqa: E402
@@ -320,7 +321,7 @@ def run_kind(kind: str, seed: int, frames: int, noise: float, anipose: bool,
         path = write_rig(rig, tmp)
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            res = calibrate_rig(path, subject_height=rig.subject_height)
+            res = calibrate_rig(path, CalibrateOptions(subject_height=rig.subject_height))
         except Exception as exc:
             row.update(failed=f"{type(exc).__name__}: {exc}",
                        wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
@@ -762,7 +763,7 @@ def _with_noise_part(frames: int, seed: int, noise: float, part: str) -> list[fl
                     seen = row[:, 2] > 0
                     row[seen, :2] = xy[seen]
     with tempfile.TemporaryDirectory(prefix="bench_rig_split_") as tmp:
-        res = calibrate_rig(write_rig(rig, tmp), subject_height=rig.subject_height)
+        res = calibrate_rig(write_rig(rig, tmp), CalibrateOptions(subject_height=rig.subject_height))
     return [c["rot_deg"] for c in evaluate(res, rig)["cameras"]]
 
 

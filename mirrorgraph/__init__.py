@@ -10,7 +10,7 @@ The Python API in a nutshell::
     mg.write_calibration("calibration.json", run.calibration)
     mg.export_calibration("calibration.json", "pose2sim", "Calib.toml")
 
-    rig = mg.calibrate_rig("rig.toml", subject_height=1.75)     # cameras and mirrors
+    rig = mg.calibrate_rig("rig.toml", mg.CalibrateOptions(subject_height=1.75))  # a rig
     mg.write_rig_toml(rig, "Calib.toml")
 
 Every name in ``__all__`` is the public API (``docs/api.md``, the *Python API* page); the
@@ -39,7 +39,7 @@ _LAZY = {
     "Calibration": "mirrorgraph.calibration",
     "read_calibration": "mirrorgraph.calibration",
     "write_calibration": "mirrorgraph.calibration",
-    "CalibrateOptions": "mirrorgraph.pipeline",
+    "CalibrateOptions": "mirrorgraph.pipelines.options",
     "CalibrationRun": "mirrorgraph.pipeline",
     "calibrate": "mirrorgraph.pipeline",
     "load_intrinsics": "mirrorgraph.intrinsics",

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import time
 import warnings as _warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -21,87 +21,19 @@ from . import geometry as geo
 from .calibration import Calibration
 from .completion import complete_mirror_joints
 from .errors import DegenerateGeometryError, InputError
-from .estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS, estimate_mirror
-from .graph.options import RefineOptions, one_subject_height
+from .estimators import estimate_mirror
+from .graph.options import RefineOptions
+from .pipelines.options import CalibrateOptions
 from .graph.refine import refine_mirror
 from .graph.sensitivity import prior_weights
 from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
-from .intrinsics import DEFAULT_FOV_DEG, Intrinsics, estimated_intrinsics, intrinsics_from_fov
+from .intrinsics import Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from .io import read_keypoints
 from .joint_sets import mirror_joints
-from .keypoints import DEFAULT_MIN_CONFIDENCE, MIN_PAIRS, PairedKeypoints, RawDetections
+from .keypoints import MIN_PAIRS, PairedKeypoints, RawDetections
 from .pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
 from .preprocess import check_image_size, resolve_fps, undistort_keypoints
 
-
-
-@dataclass
-class CalibrateOptions:
-    """Options of :func:`calibrate`.
-
-    Attributes:
-        estimator: initial estimator, one of ``reflective`` (default),
-            ``eightpoint`` (MirrorCalib's Baseline1), ``reflective8`` (the
-            paper's 6-unknown eight-point with RANSAC).
-        threshold_px: inlier threshold on the epipolar distance, pixels.
-        min_confidence: joints below this detector confidence are ignored.
-        joints: the joints the calibration uses, in the words of ``calibrate-rig``
-            (:func:`mirrorgraph.joint_sets.resolve_joints`): ``None`` / ``"auto"`` /
-            ``"limbs"`` the skeleton's calibration joints (no face, hands or feet, as
-            MirrorCalib), ``"all"`` every keypoint, or joint names (a sequence or
-            one comma-separated string; at least 4).
-        refine: run the factor-graph refinement after the initialisation.
-        subject_height: subject's standing height in metres (metric prior); the one
-            home of this setting for :func:`calibrate` (a height in ``refine_options``
-            is taken when this is ``None``, and two different ones are refused).
-        seed: seed of every random choice (RANSAC).
-        fov_deg: horizontal field of view assumed when no intrinsics are given: the
-            guess the focal length's estimate starts from (and its weak prior's
-            centre), or, with ``estimate_focal=False``, the focal length used.
-        estimate_focal: without intrinsics, estimate the focal length from the person
-            and the reflection in the factor graph, about the ``fov_deg`` guess with a
-            wide prior (square pixels; the principal point a variable about the image
-            centre with the spread of real cameras, :class:`mirrorgraph.graph.options.
-            FocalOptions`): the bones' constant lengths determine it. Where the data do
-            not (a far or square-on mirror, little motion in depth) the estimate is kept
-            with its large std and a warning says so. ``False`` (the command line's
-            ``--fov DEG``): the focal length held near ``fov_deg`` by a prior of
-            ``FocalOptions.guess_rel_sigma``, its spread in every std. Either way every
-            reported std holds the unknown intrinsics. Needs the refinement (without
-            it the guess is used as it is, with a warning).
-        image_size: ``(width, height)`` used when no intrinsics are given and
-            the input does not carry it.
-        refine_options: :class:`mirrorgraph.graph.RefineOptions` (priors, schedule,
-            solver, gauge); ``None``: the defaults.
-        complete_joints: after the refinement, triangulate with the solved mirror
-            every keypoint outside ``joints`` seen in both views
-            (:func:`mirrorgraph.completion.complete_mirror_joints`), so that
-            :attr:`CalibrationRun.joints3d` holds face and feet too.
-        fps: frame rate of the video in Hz, given by the user; ``None``: from the
-            input, else from ``video``, else :data:`~mirrorgraph.preprocess.DEFAULT_FPS` with a warning
-            (:func:`mirrorgraph.preprocess.resolve_fps`).
-        video: the video the keypoints were detected on; read only for its frame
-            rate (:func:`~mirrorgraph.preprocess.fps_from_video`).
-        sensitivity_priors: also solve the graph again with each body prior's weight
-            halved and doubled (``calibration.sensitivity.prior_weights``; eight
-            calibrations more: off by default, ``--sensitivity`` on the command line).
-    """
-
-    estimator: str = "reflective"
-    threshold_px: float = DEFAULT_THRESHOLD_PX
-    min_confidence: float = DEFAULT_MIN_CONFIDENCE
-    joints: str | tuple[str, ...] | None = None
-    refine: bool = True
-    subject_height: float | None = None
-    seed: int = 0
-    fov_deg: float = DEFAULT_FOV_DEG
-    estimate_focal: bool = True
-    image_size: tuple[int, int] | None = None
-    refine_options: RefineOptions | None = None
-    complete_joints: bool = True
-    fps: float | None = None
-    video: str | os.PathLike | None = None
-    sensitivity_priors: bool = False
 
 
 @dataclass
@@ -202,18 +134,11 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         InputError: unusable input (the message names file, frame or field).
         DegenerateGeometryError: the data cannot determine the mirror.
     """
-    opts = options or CalibrateOptions()
-    if opts.estimator not in ESTIMATORS:
-        raise InputError(f"unknown estimator {opts.estimator!r}; choose one of "
-                         f"{', '.join(ESTIMATORS)}", field="estimator")
-    if isinstance(opts.seed, bool) or not isinstance(opts.seed, (int, np.integer)) or opts.seed < 0:
-        raise InputError(f"must be a non-negative integer, got {opts.seed!r}", field="seed")
-    opts = replace(opts, subject_height=one_subject_height(opts.subject_height,
-                                                           opts.refine_options, "refine_options"))
+    opts = (options or CalibrateOptions()).checked()
     step = progress or (lambda _name: None)
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
         step("reading keypoints")
-        keypoints = read_keypoints(keypoints)
+        keypoints = read_keypoints(keypoints, skeleton=opts.skeleton, video=opts.detection)
     warnings: list[str] = []
     joints = mirror_joints(keypoints.skeleton, opts.joints, source=keypoints.source or None)
     fps_warnings: list[str] = []
@@ -315,9 +240,7 @@ def _scale_from(opts: CalibrateOptions) -> str:
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None,
             estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
-    ropts = opts.refine_options or RefineOptions()
-    if opts.subject_height is not None:
-        ropts = replace(ropts, subject_height=opts.subject_height)
+    ropts = opts.graph
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
     guess = calib.intrinsics

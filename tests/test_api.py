@@ -8,6 +8,9 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 import mirrorgraph as mg
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,17 +41,26 @@ def test_the_notebook_imports_only_public_names():
     assert used <= set(mg.__all__), used - set(mg.__all__)
 
 
-def test_the_two_front_ends_name_their_callbacks_alike(tmp_path):
-    """``progress`` gets the step names, ``iteration_progress`` (iteration, error), in
-    ``calibrate`` and ``calibrate_rig`` alike."""
+def test_the_two_front_ends_take_one_options_object_and_name_their_callbacks_alike(tmp_path):
+    """One :class:`CalibrateOptions` for both front ends (the rig's old keywords still work,
+    with a DeprecationWarning, and mean the same); ``progress`` gets the step names,
+    ``iteration_progress`` (iteration, error), in ``calibrate`` and ``calibrate_rig`` alike."""
     import inspect
 
     from mirrorgraph.synth import make_rig, make_scene, write_rig
 
     one = inspect.signature(mg.calibrate).parameters
     rig = inspect.signature(mg.calibrate_rig).parameters
+    assert one["options"].annotation == rig["options"].annotation
     for name in ("progress", "iteration_progress"):
         assert str(one[name].annotation) == str(rig[name].annotation), name
+    small = write_rig(make_rig("2cams1mirror", frames=30, seed=2), tmp_path / "small")
+    new = mg.calibrate_rig(small, mg.CalibrateOptions(subject_height=1.7, seed=3))
+    with pytest.warns(DeprecationWarning, match="CalibrateOptions"):
+        old = mg.calibrate_rig(small, subject_height=1.7, seed=3)
+    assert np.array_equal(new.cameras[1].pose, old.cameras[1].pose)
+    with pytest.raises(TypeError, match="frames"):
+        mg.calibrate_rig(small, frames=3)
 
     calls: dict[str, list] = {"steps": [], "iterations": []}
     scene = make_scene(frames=60, seed=1)

@@ -98,6 +98,7 @@ def cmd_calibrate_rig(args) -> int:
     from ..io.motion import check_motion_path, write_joints3d
     from ..io.rig_calibration import write_rig_json, write_rig_toml
     from ..graph.options import RefineOptions
+    from ..pipelines.options import CalibrateOptions
     from ..rigs import calibrate_rig
 
     out = Path(args.out)
@@ -141,14 +142,14 @@ def cmd_calibrate_rig(args) -> int:
             for b in bars.values():
                 b.close()
             status(text)
-        calib = calibrate_rig(config, subject_height=args.subject_height,
-                              skeleton=args.skeleton, joints=args.joints, seed=args.seed,
-                              options=RefineOptions(scale_from=args.scale_from),
-                              progress=status_and_bars, iteration_progress=solve,
-                              video=vopts,
-                              frame_progress=frame_progress,
-                              fov_deg=args.fov if args.fov is not None
-                              else DEFAULT_FOV_DEG if args.no_focal else None)
+        held = args.fov is not None or args.no_focal      # the focal length near a guess
+        opts = CalibrateOptions(subject_height=args.subject_height, skeleton=args.skeleton,
+                                joints=args.joints, seed=args.seed, detection=vopts,
+                                refine_options=RefineOptions(scale_from=args.scale_from),
+                                estimate_focal=not held,
+                                fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG)
+        calib = calibrate_rig(config, opts, progress=status_and_bars,
+                              iteration_progress=solve, frame_progress=frame_progress)
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)

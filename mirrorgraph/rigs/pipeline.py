@@ -13,12 +13,13 @@ equals that height.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
-from ..graph.options import RefineOptions, one_subject_height
+from ..graph.options import RefineOptions
+from ..pipelines.options import CalibrateOptions
 from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
 from ..pipeline import DOMINANT_SHARE
@@ -29,7 +30,7 @@ from ..joint_sets import resolve_joints
 from .config import RigConfig, load_rig_config
 from .initial import initialise_rig
 from ..intrinsics import estimated_intrinsics
-from .observations import DEFAULT_FOV_DEG, load_observations
+from .observations import load_observations
 from .result import RigCalibration, RigCamera, RigMirror
 from .solve import RigSolution, build_rig, camera_std, plane_std, solve_rig
 
@@ -76,72 +77,83 @@ def _poorly_fitting_views(sol: RigSolution) -> list[str]:
     return out
 
 
-def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: float | None = None,
-                  skeleton: str | None = None, joints=None,
-                  options: RefineOptions | None = None,
-                  seed: int = 0, progress: Callable[[str], None] | None = None,
+#: The keywords :func:`calibrate_rig` took before it took :class:`CalibrateOptions`, and the
+#: fields they became (``options`` held a :class:`RefineOptions`: ``refine_options``).
+LEGACY_KEYWORDS = {"subject_height": "subject_height", "skeleton": "skeleton", "joints": "joints",
+                   "seed": "seed", "video": "detection", "estimate_focal": "estimate_focal",
+                   "fov_deg": "fov_deg"}
+
+
+def _legacy_options(options, legacy: dict) -> CalibrateOptions:
+    """:class:`CalibrateOptions` from the keywords of the old signature, with a
+    :class:`DeprecationWarning` (a :class:`RefineOptions` as ``options``, ``subject_height``,
+    ``skeleton``, ``joints``, ``seed``, ``video``, ``estimate_focal``, ``fov_deg``: a
+    ``fov_deg`` held the focal length near it, as ``estimate_focal=False`` does now)."""
+    unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
+    if unknown:
+        raise TypeError(f"calibrate_rig() got unexpected keyword argument(s) {', '.join(unknown)}")
+    import warnings as _w
+    if legacy or isinstance(options, RefineOptions):
+        _w.warn("calibrate_rig's keywords are CalibrateOptions fields now: pass "
+                "options=CalibrateOptions(...) (a RefineOptions goes in its refine_options)",
+                DeprecationWarning, stacklevel=3)
+    opts = CalibrateOptions(refine_options=options) if isinstance(options, RefineOptions) \
+        else (options or CalibrateOptions())
+    fields = {LEGACY_KEYWORDS[k]: v for k, v in legacy.items() if v is not None}
+    if fields.get("fov_deg") is not None:
+        fields["estimate_focal"] = False
+    return replace(opts, **fields)
+
+
+def calibrate_rig(config: RigConfig | str | os.PathLike,
+                  options: CalibrateOptions | None = None, *,
+                  progress: Callable[[str], None] | None = None,
                   iteration_progress: Callable[[int, float], None] | None = None,
-                  video=None,
                   frame_progress: Callable[[str, int, int], None] | None = None,
-                  estimate_focal: bool = True,
-                  fov_deg: float | None = None) -> RigCalibration:
+                  **legacy) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
 
     Args:
         config: a :class:`~.config.RigConfig` or the path of a rig TOML file.
-        subject_height: metres; overrides the file's ``subject_height`` (as does
-            ``options.subject_height``; two different heights are refused). Without
-            any, lengths are in units of the subject's height.
-        skeleton: layout for cameras whose table names none.
-        joints (str | Sequence[str] | None): ``"auto"`` (the default: every
-            keypoint in the direct views, the limbs through mirrors), ``"limbs"`` (no
-            face, hands or feet, as MirrorCalib), ``"all"``, or joint names; overrides
-            the file's ``joints``.
-        options: weights and solver settings of the graph.
-        seed: RANSAC seed.
+        options: :class:`~mirrorgraph.pipelines.options.CalibrateOptions`, the same object
+            :func:`mirrorgraph.calibrate` takes. A rig reads ``subject_height`` (else the
+            file's; without any, lengths are in units of the subject's height),
+            ``skeleton`` (for cameras whose table names none), ``joints`` (else the file's),
+            ``seed``, ``detection`` (cameras whose ``keypoints`` name a video),
+            ``estimate_focal`` and ``fov_deg`` (every camera listed without intrinsics:
+            its focal length estimated from an initial one, :func:`~.initial.initial_focals`,
+            in the one graph; or with ``estimate_focal=False`` held near ``fov_deg``, its
+            spread in every std) and ``refine_options``.
         progress: called with a short description of each step (as
             :func:`mirrorgraph.calibrate`'s ``progress``).
         iteration_progress: ``(iteration, error)`` of the graph solve, after every
             iteration (as :func:`mirrorgraph.calibrate`'s).
-        video (mirrorgraph.video.VideoOptions | None): for cameras whose
-            ``keypoints`` name a video (detected, or read from the cache).
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
-        estimate_focal: estimate the focal length of every camera given without
-            intrinsics (square pixels, the principal point at the image centre unless
-            ``options.focal.principal_point``), from an initial one
-            (:func:`~.initial.initial_focals`) in the one graph, where the other
-            cameras' views determine it with the bones; ``False``: keep the 60 deg
-            field-of-view guess. A camera whose focal length the data do not
-            determine keeps the guess, with a warning.
-        fov_deg: a horizontal field of view (degrees) known roughly for the cameras
-            given without intrinsics: their focal length is held near it (implies
-            ``estimate_focal=False``; its own spread enters every std), as
-            :func:`mirrorgraph.calibrate`'s ``fov_deg``.
+        legacy: the keywords of the old signature (``subject_height=``, ``seed=``, ...,
+            ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
 
     Returns:
         :class:`~.result.RigCalibration` (world frame = the first camera).
 
     Raises:
-        InputError: a malformed rig file or input, naming the file and field.
+        InputError: a malformed rig file, input or option, naming the file and field.
         DegenerateGeometryError: a camera that cannot be placed, a mirror that
             cannot be found, too few joints.
     """
     cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
-    opts = options or RefineOptions()
-    height = one_subject_height(subject_height, opts, "options", default=cfg.subject_height)
+    run = _legacy_options(options, legacy).checked(default_height=cfg.subject_height)
+    opts = run.graph
+    height = run.subject_height
+    estimate_focal = run.estimate_focal
     scale = "subject_height" if height is not None else "unit_height"
     H = float(height) if height is not None else 1.0
     say = progress or (lambda s: None)
+    seed, joints = run.seed, run.joints
 
-    if fov_deg is not None:
-        if not 0 < float(fov_deg) < 180:
-            raise InputError(f"a field of view must lie between 0 and 180 deg, not {fov_deg}",
-                             field="fov_deg")
-        estimate_focal = False
-    obs = load_observations(cfg, skeleton=skeleton,
-                            progress=lambda name: say(f"reading camera {name}"), video=video,
-                            frame_progress=frame_progress, estimate_focal=estimate_focal,
-                            fov_deg=fov_deg)
+    obs = load_observations(cfg, skeleton=run.skeleton,
+                            progress=lambda name: say(f"reading camera {name}"),
+                            video=run.detection, frame_progress=frame_progress,
+                            estimate_focal=estimate_focal, fov_deg=run.fov_deg)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
@@ -180,7 +192,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike, *, subject_height: floa
         if c.name in sol.focal:
             sol.focal[c.name]["initial"] = init.focals.get(c.name)
             intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
-                                        DEFAULT_FOV_DEG, warnings, camera=c.name,
+                                        run.fov_deg, warnings, camera=c.name,
                                         user_guess=not estimate_focal)
         cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,

@@ -13,6 +13,7 @@ from mirrorgraph.cli import main
 from mirrorgraph.errors import DegenerateGeometryError, InputError
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
 from mirrorgraph.rigs import calibrate_rig, load_rig_config, virtual_extrinsics
+from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.geometry import camera_projection, mirror_projection, triangulate
 from mirrorgraph.synth.rig import make_rig, write_rig
 
@@ -311,7 +312,7 @@ def test_every_joint_when_asked(tmp_path):
     """Face and feet too (the default in direct views): more data, a smaller std."""
     rig = make_rig("4cams", frames=120, seed=7)
     path = write_rig(rig, tmp_path)
-    limbs = calibrate_rig(path, joints="limbs")
+    limbs = calibrate_rig(path, CalibrateOptions(joints="limbs"))
     every = calibrate_rig(path)
     assert len(every.refinement["joints"]["direct"]) == rig.skeleton.num_joints
     assert len(limbs.refinement["joints"]["direct"]) == len(rig.skeleton.calibration_joints)
@@ -320,7 +321,7 @@ def test_every_joint_when_asked(tmp_path):
     cams, _, _ = _errors(every, rig)
     assert max(c[0] for c in cams) < 0.5
     with pytest.raises(InputError, match="unknown joint"):
-        calibrate_rig(path, joints="left_wrist,tail,nose,neck")
+        calibrate_rig(path, CalibrateOptions(joints="left_wrist,tail,nose,neck"))
 
 
 def test_rig_report_figures(tmp_path):
@@ -356,9 +357,10 @@ def test_a_rig_takes_the_height_once(tmp_path):
     rig = make_rig("2cams1mirror", frames=10, seed=0)
     path = write_rig(rig, tmp_path)
     with pytest.raises(InputError, match="give the height once"):
-        calibrate_rig(path, subject_height=1.8, options=RefineOptions(subject_height=1.7))
+        calibrate_rig(path, CalibrateOptions(subject_height=1.8,
+                                             refine_options=RefineOptions(subject_height=1.7)))
     with pytest.raises(InputError, match="not a human height"):
-        calibrate_rig(path, options=RefineOptions(subject_height=175.0))
+        calibrate_rig(path, CalibrateOptions(refine_options=RefineOptions(subject_height=175.0)))
 
 
 def _unnamed_skeleton(path: Path) -> Path:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mirrorgraph.errors import InputError
+from mirrorgraph.pipelines.options import CalibrateOptions
 from tests.helpers import rig_without_intrinsics
 
 
@@ -17,7 +18,7 @@ def test_rig_camera_without_intrinsics(tmp_path):
 
     r = make_rig("2cams1mirror", frames=300, seed=0, geometry="wide")
     cfg = rig_without_intrinsics(r, tmp_path / "rig")
-    cal = calibrate_rig(cfg, subject_height=r.subject_height)
+    cal = calibrate_rig(cfg, CalibrateOptions(subject_height=r.subject_height))
     c = cal.cameras[1]
     est = c.intrinsics.estimated
     assert est["estimated"] and est["initial"]["method"].startswith("search through its mirror")
@@ -66,7 +67,7 @@ def test_two_cameras_without_intrinsics_facing_the_calibrated_pair(tmp_path):
     cams = tuple(dataclasses.replace(c, intrinsics=None, image_size=tuple(r.image_size))
                  if i in drop else c for i, c in enumerate(cfg.cameras))
     cal = calibrate_rig(dataclasses.replace(cfg, cameras=cams),
-                        subject_height=r.subject_height, seed=1)
+                        CalibrateOptions(subject_height=r.subject_height, seed=1))
     for i in drop:
         c = cal.cameras[i]
         assert c.intrinsics.estimated["estimated"]
@@ -88,12 +89,13 @@ def test_calibrate_rig_fov_holds_a_known_field_of_view(tmp_path):
     r = make_rig("2cams1mirror", frames=150, seed=0, geometry="wide")
     cfg = rig_without_intrinsics(r, tmp_path / "rig")
     true_fov = float(np.degrees(2 * np.arctan(r.image_size[0] / (2 * r.K[1][0, 0]))))
-    cal = calibrate_rig(cfg, subject_height=r.subject_height, fov_deg=true_fov)
+    cal = calibrate_rig(cfg, CalibrateOptions(subject_height=r.subject_height,
+                                             fov_deg=true_fov, estimate_focal=False))
     f = cal.cameras[1].intrinsics.K[0, 0]
     assert abs(f / r.K[1][0, 0] - 1.0) < 0.05
     assert any(f"assumed a {true_fov:g} deg field of view" in w for w in cal.warnings)
     with pytest.raises(InputError, match="field of view"):
-        calibrate_rig(cfg, fov_deg=200.0)
+        calibrate_rig(cfg, CalibrateOptions(fov_deg=200.0, estimate_focal=False))
     out = tmp_path / "c.toml"
     assert main(["calibrate-rig", str(tmp_path / "rig" / "rig.toml"), "--out", str(out),
                  "--no-focal", "--quiet"]) == 0       # every camera has intrinsics: no-op

@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 
+from mirrorgraph.pipelines.options import CalibrateOptions
+
 from tests.helpers import rig_without_intrinsics
 
 OFFSET = np.array([20.0, -6.0])          # px: camera 1's principal point off the centre
@@ -28,7 +30,7 @@ def test_rig_camera_without_intrinsics_principal_point_off_centre(tmp_path):
     name = r.camera_names[1]
     r.detections[name] = _shifted(r.detections[name], OFFSET)
     cfg = rig_without_intrinsics(r, tmp_path / "rig")
-    cal = calibrate_rig(cfg, subject_height=r.subject_height)
+    cal = calibrate_rig(cfg, CalibrateOptions(subject_height=r.subject_height))
     c = cal.cameras[1]
     est = c.intrinsics.estimated
     sd = 0.01 * max(r.image_size)
