@@ -33,6 +33,10 @@ from .io.calibration import write_json
 __all__ = ["Calibration", "read_calibration", "write_calibration"]
 
 
+#: Version of the ``calibration.json`` schema :meth:`Calibration.to_dict` writes.
+SCHEMA_VERSION = 2
+
+
 @dataclass
 class Calibration:
     """A calibrated mirror (real camera frame).
@@ -54,7 +58,7 @@ class Calibration:
         input: description of the input (source, format, skeleton, joints, the frame
             rate ``fps`` and its ``fps_source``: option, input, video or default) and
             ``reflection_check`` (is the reflection a second person?
-            :class:`mirrorgraph.pipeline.ReflectionCheck`).
+            :class:`mirrorgraph.reflection_check.ReflectionCheck`).
         refinement: refinement report (priors, weights, residuals, timings; under
             ``completion`` the keypoints outside the graph triangulated with the solved
             mirror, :class:`mirrorgraph.completion.Completion`), or empty.
@@ -113,11 +117,16 @@ class Calibration:
         return self.pairs_used / self.pairs_total if self.pairs_total else 0.0
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``calibration.json`` schema (plain Python types)."""
+        """The ``calibration.json`` schema (plain Python types), version
+        :data:`SCHEMA_VERSION` (2: ``refinement.scale_source`` describes the metric
+        scale, as a rig's ``scale_source`` does; version 1, without ``schema_version``,
+        called it ``scale_method`` and wrote the scale's kind as ``scale_source``: both
+        are read)."""
 
         e_px = geo.epipole_pixels(self.epipole)
         return {
             "mirrorgraph_version": __version__,
+            "schema_version": SCHEMA_VERSION,
             "mirror": {
                 "normal": self.normal.tolist(),
                 "distance": self.distance,
@@ -281,6 +290,9 @@ def read_calibration(calibration: str | os.PathLike | Mapping | Calibration, *,
         if not isinstance(v, Mapping):
             raise InputError("expected an object", source=src, field=key)
         reports[key] = dict(v)
+    ref = reports["refinement"]
+    if "schema_version" not in obj and "scale_method" in ref:       # schema 1
+        ref["scale_source"] = ref.pop("scale_method")
     warnings = obj.get("warnings") or []
     if not isinstance(warnings, list):
         raise InputError("expected a list of strings", source=src, field="warnings")

@@ -31,22 +31,31 @@ truth (the graph's own joints: 1.0-2.6 cm), 0.4-1.7 % of them over 10 cm, most o
 those detector outliers that moved along the epipolar line. The joints NaN in
 ``--joints3d`` fell from 49 % to 14 % (the limbs' outliers the graph rejected).
 
-:func:`complete_mirror_joints` is written for one mirror; the rig's completion
-(:func:`mirrorgraph.rigs.completion.complete_joints`, any number of views) can use
-:func:`anchor_gate` for the same body test.
+:func:`complete_mirror_joints` is written for one mirror. A rig
+(:func:`complete_rig_joints`, any number of views, real or through a mirror) completes
+every joint its graph did not estimate by a linear triangulation from every view that
+observes it (:func:`mirrorgraph.geometry.triangulate`), one round of rejecting
+observations farther than the outlier threshold from the first solution, then the
+final triangulation; the completed joints give the stature estimate its eyes
+(:mod:`mirrorgraph.stature`) and take no part in the calibration.
 """
 
 from __future__ import annotations
 
 import warnings as _warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import geometry as geo
 from .keypoints import PairedKeypoints
 
-__all__ = ["Completion", "complete_mirror_joints", "anchor_gate", "BODY_GATE_MADS",
+if TYPE_CHECKING:
+    from .rigs.observations import RigObservations
+    from .rigs.solve import RigSolution
+
+__all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate", "BODY_GATE_MADS",
            "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
 
 #: Body gate: robust z-score (in scaled MADs) beyond which a completed joint's
@@ -200,3 +209,70 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
     points[new & ~keep] = np.nan
     out.joints3d, out.valid, out.completed = points, known | keep, keep
     return out
+
+
+# --------------------------------------------------------------------------- rigs
+def _rig_views(obs: "RigObservations", sol: "RigSolution"
+               ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Projection matrices ``(3, 4)`` and keypoints ``(T, J, 3)`` of every real and
+    mirror view of the solved rig."""
+    planes = dict(zip(sol.mirror_names, sol.planes))
+    projections, keypoints = [], []
+    for cam, pose in zip(obs.cameras, sol.poses):
+        K = cam.intrinsics.K
+        projections.append(geo.camera_projection(K, pose))
+        keypoints.append(cam.real)
+        for m, refl in cam.reflections.items():
+            if m in planes:
+                projections.append(geo.mirror_projection(K, pose, *planes[m]))
+                keypoints.append(refl)
+    return projections, keypoints
+
+
+def _view_residuals(P: np.ndarray, X: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel distance ``(N,)`` of ``uv`` ``(N, 2)`` to the projection of ``X`` ``(N, 3)``,
+    and whether ``X`` is in front of the view."""
+    h = np.nan_to_num(X) @ P[:, :3].T + P[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.linalg.norm(h[:, :2] / h[:, 2:3] - uv, axis=-1)
+    return dist, h[:, 2] > 0
+
+
+def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px: float
+                        ) -> "RigSolution":
+    """Fill the joints the solution lacks by triangulating them with its rig.
+
+    Args:
+        obs: the rig's sorted observations (frames = ``sol``'s frames).
+        sol: the solved rig; ``sol.points`` ``(T, J, 3)`` world frame, ``sol.used``
+            ``(T, J)``.
+        threshold_px: observations farther than this from the first triangulation
+            (pixels) are dropped before the second.
+
+    Returns:
+        ``sol`` with ``points`` and ``used`` filled where the graph had no joint and
+        two views or more (after rejection) observe it; the graph's joints unchanged.
+    """
+    missing = ~np.asarray(sol.used, bool)                                  # (T, J)
+    if not missing.any():
+        return sol
+    from .rigs.initial import observed
+
+    projections, keypoints = _rig_views(obs, sol)
+    masks = [observed(k) & missing for k in keypoints]
+    pixels = [k[..., :2] for k in keypoints]
+    X, ok = geo.triangulate(projections, pixels, masks)
+    if not ok.any():
+        return sol
+    kept = []
+    for P, uv, m in zip(projections, pixels, masks):
+        dist, ahead = _view_residuals(P, X[ok], uv[ok])
+        keep = m.copy()
+        keep[ok] &= (dist <= threshold_px) & ahead
+        kept.append(keep)
+    X, ok = geo.triangulate(projections, pixels, kept)
+    points = np.array(sol.points, dtype=float, copy=True)
+    used = np.array(sol.used, dtype=bool, copy=True)
+    points[ok] = X[ok]
+    used |= ok
+    return replace(sol, points=points, used=used)

@@ -42,7 +42,7 @@ meeting at an edge offer a false epipole on the horizon).
 
 :func:`frame_scores` scores every frame's best candidate against a mirror found,
 paired or not: how the frames that do not pair are spread tells a reflection from
-a second person standing where it should be (:func:`mirrorgraph.pipeline.check_reflection`).
+a second person standing where it should be (:func:`mirrorgraph.reflection_check.check_reflection`).
 """
 
 from __future__ import annotations
@@ -297,7 +297,7 @@ def frame_scores(data: RawDetections | PairedKeypoints, epipole: np.ndarray,
     labellings of the reflection, against ``epipole``. A frame where the person and
     their reflection are both seen scores at the detector's noise; a frame whose only
     candidates are the person and somebody else scores whatever the two people's poses
-    happen to give (:func:`mirrorgraph.pipeline.check_reflection` reads the distribution).
+    happen to give (:func:`mirrorgraph.reflection_check.check_reflection` reads the distribution).
     A lower quantile is less disturbed by the detector's gross errors on a few joints.
 
     Args:

@@ -11,22 +11,22 @@ from __future__ import annotations
 
 import os
 import time
-import warnings as _warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-from . import geometry as geo
 from .calibration import Calibration
 from .completion import complete_mirror_joints
 from .errors import DegenerateGeometryError, InputError
 from .estimators import estimate_mirror
 from .graph.options import RefineOptions
+from .pipelines.judge import judge_mirror, median_ray_angle_deg, motion_px
 from .pipelines.options import CalibrateOptions
+from .reflection_check import GREY_QUANTILE, check_reflection
 from .graph.refine import refine_mirror
 from .graph.sensitivity import prior_weights
-from .graph.uncertainty import POORLY_DETERMINED_DEG, region_rotation_deg
+from .graph.uncertainty import region_rotation_deg
 from .intrinsics import Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from .io import read_keypoints
 from .joint_sets import mirror_joints
@@ -227,8 +227,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
                                  calib.distance if calib.distance is not None else 1.0)
             if opts.refine else float("nan"))
-    _judge(calib, est.residuals[est.inliers], opts,
-           _motion_px(paired, joints, opts.min_confidence), check, rays)
+    judge_mirror(calib, est.residuals[est.inliers],
+                 motion_px(paired, joints, opts.min_confidence), check, rays)
     return run
 
 
@@ -264,8 +264,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         "rms_direct_px": float(res.rms_direct_px),
         "rms_mirror_px": float(res.rms_mirror_px),
         "bone_lengths": {k: float(v) for k, v in res.bone_lengths.items()},
-        "scale_source": res.scale,
-        "scale_method": res.scale_source,
+        "scale_source": res.scale_source,
         "stature": res.stature,
     })
     if res.scale == "subject_height" and res.stature is None and ropts.scale_from == "stature":
@@ -333,281 +332,3 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
 #: (tens of pixels off their epipolar line) out of the first solve; the graph's
 #: robust kernel and its own rejection (:mod:`mirrorgraph.graph.outliers`) do the rest.
 REFINE_GATE_FACTOR = 3.0
-
-#: Warn when the inliers' median epipolar distance exceeds this many pixels.
-SUSPICIOUS_RESIDUAL_PX = 6.0
-#: Warn when fewer of the pairs agree on one mirror: a true reflection, even
-#: with 30% detector outliers, keeps about 70%; a second person mistaken for
-#: the reflection keeps about half (chance alignments with a far epipole).
-MIN_INLIER_RATIO = 0.6
-#: Warn when the person's joints move less than this (median over joints of
-#: the standard deviation of their image position over time, pixels).
-MIN_MOTION_PX = 3.0
-
-
-# ------------------------------------------------------------ a second person?
-#: Frames a verdict on the reflection needs (frames holding a candidate pair).
-CHECK_MIN_FRAMES = 30
-#: Warn when fewer of the frames holding two detections or more pair up (their best
-#: candidate's median epipolar distance under the threshold) ...
-DOUBT_PAIRED_FRACTION = 0.80
-#: ... or when more of them fall in the grey zone: fitting neither as a reflection nor
-#: as an unrelated pair. The grey zone is read on a lower quantile of each frame's
-#: epipolar distances, :data:`GREY_QUANTILE` (the median lets a detector's gross errors
-#: on a few joints in: real reflections with 20 % outliers a view were in it in 39 of
-#: 40 scenes with the median, 0 of 40 with the 0.3 quantile); its bounds are
-#: :data:`GREY_LOW` times that score's median over the frames that pair, and
-#: :data:`GREY_HIGH` times the threshold.
-DOUBT_GREY_FRACTION = 0.08
-GREY_QUANTILE = 0.3
-GREY_LOW = 2.5
-GREY_HIGH = 3.0
-#: Refuse when both hold: the "reflection" pairs in fewer than this fraction of the
-#: frames ...
-REFUSE_PAIRED_FRACTION = 0.25
-#: ... and more than this fraction lie in the grey zone.
-REFUSE_GREY_FRACTION = 0.15
-
-
-@dataclass(frozen=True)
-class ReflectionCheck:
-    """Is the detection paired with the person their reflection? (:func:`check_reflection`)
-
-    Attributes:
-        frames: frames holding a candidate pair (two detections or more).
-        paired_fraction: of those, the fraction whose best pair fits the mirror (median
-            epipolar distance under the threshold).
-        grey_fraction: the fraction in the grey zone (see :func:`check_reflection`).
-        median_px: median score of the frames that pair, pixels (NaN if none).
-        verdict: ``"ok"``, ``"doubtful"`` (a warning), ``"second_person"`` (refused) or
-            ``"too_few_frames"`` (no verdict).
-    """
-
-    frames: int
-    paired_fraction: float
-    grey_fraction: float
-    median_px: float
-    verdict: str
-
-    def describe(self) -> str:
-        """One line for the warnings or the error."""
-        what = (f"the detection paired as the reflection fits one mirror in "
-                f"{100 * self.paired_fraction:.0f}% of the {self.frames} frames holding two "
-                f"people and fits badly in {100 * self.grey_fraction:.0f}% (a reflection "
-                "fits in nearly all, at the detector's noise)")
-        if self.verdict == "second_person":
-            return what + ": it is a second person, not the reflection"
-        return (what + ": the 'reflection' may be a second person, or the detector poor "
-                "(gross errors on many joints, noise beyond --threshold), or the reflection "
-                "often missing while somebody else is seen")
-
-    def to_dict(self) -> dict:
-        """The record in ``calibration.json`` (``input.reflection_check``)."""
-        def num(v: float) -> float | None:
-            return float(v) if np.isfinite(v) else None
-        return {"frames": self.frames, "paired_fraction": num(self.paired_fraction),
-                "grey_fraction": num(self.grey_fraction), "median_px": num(self.median_px),
-                "verdict": self.verdict}
-
-
-def check_reflection(scores: np.ndarray, threshold_px: float,
-                     grey_scores: np.ndarray | None = None) -> ReflectionCheck:
-    """Tell a reflection from a second person by how the frames fit the mirror.
-
-    ``scores`` is, per frame, the best candidate pair's median epipolar distance to the
-    estimated mirror (:func:`mirrorgraph.pairing.frame_scores`); ``grey_scores`` the
-    same with the :data:`GREY_QUANTILE` quantile over joints instead of the median. A
-    true reflection fits in nearly every frame holding it, at the detector's noise: the
-    scores gather around one value (about 3 px for 4 px noise), and the frames that do
-    not pair are frames without the reflection (the person and a bystander), scored by
-    two unrelated poses, mostly far off. A second person taken for the reflection fits
-    only by chance: in the frames where both stand in alike poses; elsewhere their
-    poses differ by a little or a lot, and the scores spread from the noise to tens of
-    pixels. Two fractions of the frames holding a candidate pair tell them apart:
-
-    * ``paired``: ``scores`` under ``threshold_px``;
-    * ``grey``: ``grey_scores`` above :data:`GREY_LOW` times their median over the
-      paired frames and under :data:`GREY_HIGH` times ``threshold_px``: too far for
-      noise, too close for most unrelated pairs.
-
-    Verdicts: refused (``second_person``) when ``paired < REFUSE_PAIRED_FRACTION`` and
-    ``grey > REFUSE_GREY_FRACTION``; doubtful (a warning) when
-    ``paired < DOUBT_PAIRED_FRACTION`` or ``grey > DOUBT_GREY_FRACTION``; no verdict on
-    fewer than :data:`CHECK_MIN_FRAMES` frames. Both fractions are ratios, free of the
-    detector's noise level as long as the noise stays under the threshold.
-
-    Measured with ``tests/test_second_person.py`` (its benchmark builds the scenes):
-    ``make_scene``, seeds 0-39, mirror angle 10-60 deg, distance 2.5-4.5 m, field of
-    view 50-75 deg, 4 px noise, 5-10 % outliers, 5 % left/right swaps, 300 frames unless
-    said. False alarms on real reflections, warned / refused of 40 each:
-    **0 / 0** with 4 px noise, 2 px, 8 px, AR(1) 0.95 correlated noise, a 2 px
-    per-joint bias, BODY_25, 100 and 1000 frames, the mirror at 10 and at 60 deg, an
-    unmodelled lens distortion (k1 = -0.2), 20 % outliers a view, 20 % and 40 % of
-    the frames with a bystander (with 20 % missing the reflection or the person, 10 %
-    missing joints); 30 % outliers a view: 40 / 0 (warned: the pairing loses 36-48 %
-    of the frames, whose median joint is then an outlier).
-
-    Second persons where the reflection should be, at the reflection's place and image
-    height, caught (warned or refused) / refused of 40 each:
-
-    ==================================================  ================  ================
-    the "reflection" is                                 300 frames        100 frames
-    ==================================================  ================  ================
-    another person, moving                              40 / 16           34 / 14
-    another person, standing still                      39 / 11           34 / 11
-    the reflection's own detections 1-5 s late          32 / 9            16 / 4
-    a still snapshot of the reflection                  30 / 6            15 / 1
-    ==================================================  ================  ================
-
-    Of those missed at 300 frames, the initial mirror was off by more than 0.5 deg in 0,
-    1, 3 and 10 scenes.
-
-    Not caught: a second person whose pose and place match the reflection's in nearly
-    every frame (a snapshot of the reflection while the subject rests, somebody doing
-    the same exercise in step), which no epipolar test tells from a reflection; short
-    videos (3 s) hold too few frames where the poses differ.
-
-    Args:
-        scores: ``(T,)`` px; NaN for frames without a candidate pair, inf for pairs
-            sharing too few joints.
-        threshold_px: the pairing's threshold, pixels.
-        grey_scores: ``(T,)`` px, the same frames scored by a lower quantile (default:
-            ``scores``).
-
-    Returns:
-        :class:`ReflectionCheck`.
-    """
-    s = np.asarray(scores, dtype=float)
-    g = s if grey_scores is None else np.asarray(grey_scores, dtype=float)
-    has = ~np.isnan(s)
-    s, g = s[has], g[has]
-    n = int(s.size)
-    if n == 0:
-        return ReflectionCheck(0, float("nan"), float("nan"), float("nan"), "too_few_frames")
-    ok = s < threshold_px
-    paired = float(np.mean(ok))
-    median = float(np.median(s[ok])) if ok.any() else float("nan")
-    low = GREY_LOW * (float(np.median(g[ok])) if ok.any() else float(threshold_px))
-    grey = float(np.mean((g > low) & (g < GREY_HIGH * threshold_px)))
-    if n < CHECK_MIN_FRAMES:
-        verdict = "too_few_frames"
-    elif paired < REFUSE_PAIRED_FRACTION and grey > REFUSE_GREY_FRACTION:
-        verdict = "second_person"
-    elif paired < DOUBT_PAIRED_FRACTION or grey > DOUBT_GREY_FRACTION:
-        verdict = "doubtful"
-    else:
-        verdict = "ok"
-    return ReflectionCheck(n, paired, grey, median, verdict)
-
-
-def _motion_px(paired: PairedKeypoints, joints: np.ndarray, min_confidence: float) -> float:
-    """Median over joints of the std of the person's image position over time, pixels."""
-    xy = paired.real[:, joints, :2].copy()
-    xy[~(paired.real[:, joints, 2] > min_confidence)] = np.nan
-    with np.errstate(invalid="ignore"), _warnings.catch_warnings():
-        _warnings.simplefilter("ignore", RuntimeWarning)      # all-NaN joints
-        spread = np.nanstd(xy, axis=0)                   # (k, 2)
-        return float(np.nanmedian(np.hypot(spread[:, 0], spread[:, 1])))
-
-
-#: A mirror whose normal is within this angle of the optical axis is "seen square-on"
-#: (the epipole near the image centre, the person in front of their reflection) ...
-SQUARE_ON_DEG = 15.0
-#: ... and beyond this one "edge-on" (the epipole far outside the image), in the words
-#: of the warnings (:func:`poor_mirror_cause`).
-EDGE_ON_DEG = 65.0
-#: A joint's two rays (direct and through the mirror) meeting at a median angle under
-#: this is "low parallax" in the warnings (each ray's depth error is ~1/sin of it).
-LOW_PARALLAX_DEG = 20.0
-#: The share of a rotation's variance (:func:`~mirrorgraph.graph.uncertainty.
-#: intrinsics_contributions`) above which an unknown intrinsic is named as the cause.
-DOMINANT_SHARE = 0.5
-
-
-def poor_mirror_cause(uncertainty: dict, normal: np.ndarray, ray_angle_deg: float = np.nan,
-                      motion_px: float = np.inf, frames: int | None = None) -> str:
-    """The cause of a poorly determined mirror, in words, from what dominates its std.
-
-    The unknown focal length or principal point where its share of the rotation's
-    variance (``uncertainty["contributions"]``) is the largest and above
-    :data:`DOMINANT_SHARE`; else the joint pairs' disagreement where the joint-pair
-    clusters gave the figure (a detector's per-joint bias); else what the geometry
-    shows: rays meeting at small angles (``ray_angle_deg``, the median angle between a
-    joint's two rays), a mirror seen edge-on or square-on (the normal's angle to the
-    optical axis), a person who hardly moves (``motion_px``), few frames.
-    """
-    share = {k: v for k, v in (uncertainty.get("contributions") or {}).items()
-             if np.isfinite(v)}
-    what = {"focal_length": "the unknown focal length", "principal_point":
-            "the unknown principal point (the image centre +- the spread of real cameras)"}
-    if share:
-        top = max(share, key=share.get)
-        if share[top] > DOMINANT_SHARE:
-            rest = [f"{what[k].split(' (')[0]} {100 * v:.0f}%" for k, v in share.items()]
-            return (f"{what[top]} dominates it ({', '.join(rest)} of its variance); "
-                    "pass --intrinsics FILE (a calibrated camera matrix) to remove it")
-    robust = uncertainty.get("robust") or {}
-    if robust.get("chosen") in ("joint", "two_way", "jack_joint"):
-        return ("the joint pairs disagree about the mirror (a detector placing some joints "
-                "consistently off: more frames do not help; see sensitivity.leave_out.joint_pairs)")
-    causes = []
-    if np.isfinite(ray_angle_deg) and ray_angle_deg < LOW_PARALLAX_DEG:
-        causes.append(f"low parallax (a joint's two rays meet at a median {ray_angle_deg:.0f} "
-                      "deg: the person near the line from the camera to the mirror)")
-    angle = float(np.degrees(np.arccos(min(abs(float(np.asarray(normal)[2])), 1.0))))
-    if angle < SQUARE_ON_DEG:
-        causes.append(f"a mirror seen square-on ({angle:.0f} deg off the optical axis)")
-    elif angle > EDGE_ON_DEG:
-        causes.append(f"a mirror seen edge-on ({angle:.0f} deg off the optical axis)")
-    if motion_px < 3 * MIN_MOTION_PX:
-        causes.append(f"too little motion (joints move {motion_px:.1f} px)")
-    if frames is not None and frames < 100:
-        causes.append(f"few frames ({frames})")
-    if causes:
-        return "; ".join(causes)
-    return ("a mirror seen almost edge-on or square-on, too few frames or too little motion; "
-            "more frames and motion help")
-
-
-def median_ray_angle_deg(joints3d: np.ndarray | None, valid: np.ndarray | None,
-                         normal: np.ndarray, distance: float) -> float:
-    """Median angle between a joint's two rays, degrees: from the real camera (origin)
-    and from the virtual one (``2 d n``), over the ``(T, J, 3)`` joints ``valid``
-    (real camera frame, the unit of ``distance``); NaN without joints."""
-    if joints3d is None or valid is None or not np.any(valid):
-        return float("nan")
-    X = np.asarray(joints3d, float)[np.asarray(valid, bool)]
-    a = X / np.linalg.norm(X, axis=-1, keepdims=True)
-    b = X - 2.0 * float(distance) * np.asarray(normal, float)
-    b /= np.linalg.norm(b, axis=-1, keepdims=True)
-    return float(np.degrees(np.median(np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0)))))
-
-
-def _judge(calib: Calibration, inlier_residuals: np.ndarray, opts: CalibrateOptions,
-           motion_px: float = np.inf, check: ReflectionCheck | None = None,
-           ray_angle_deg: float = np.nan) -> None:
-    """Put doubts about the result into its warnings."""
-    if check is not None and check.verdict == "doubtful":
-        calib.warnings.append(check.describe())
-    if calib.inlier_ratio < MIN_INLIER_RATIO:
-        calib.warnings.append(
-            f"only {100 * calib.inlier_ratio:.0f}% of the joint/reflection pairs agree on one "
-            "mirror: the 'reflection' may be a second person, or the detector poor")
-    med = float(np.median(inlier_residuals)) if inlier_residuals.size else np.inf
-    if med > SUSPICIOUS_RESIDUAL_PX:
-        calib.warnings.append(
-            f"median epipolar distance of the inliers is {med:.1f} px, far above typical "
-            "detector noise: the 'reflection' may be another person or the keypoints poor")
-    if calib.uncertainty.get("rotation_std_deg", 0.0) > POORLY_DETERMINED_DEG:
-        calib.warnings.append(
-            f"the mirror is poorly determined (rotation std "
-            f"{calib.uncertainty['rotation_std_deg']:.2f} deg): "
-            + poor_mirror_cause(calib.uncertainty, calib.normal, ray_angle_deg, motion_px,
-                                calib.frames_used))
-    if motion_px < MIN_MOTION_PX:
-        calib.warnings.append(
-            f"the person hardly moves (joints move {motion_px:.1f} px): the calibration rests "
-            "on a single pose, and its errors do not average out over frames")
-    e_px = geo.epipole_pixels(calib.epipole)
-    if e_px is None:
-        calib.warnings.append("the epipole is at infinity (mirror parallel to the optical axis)")

@@ -50,7 +50,8 @@ import numpy as np
 from .anthropometry import LANDMARK_HEIGHT
 from .skeletons import Skeleton
 
-__all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "MIN_FRAMES"]
+__all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale", "with_height_sigma", "MIN_FRAMES",
+           "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
@@ -176,3 +177,49 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     frames = int(np.sum(np.isfinite(trunk) & np.isfinite(head)))
     return StatureEstimate(height=sum(segments.values()) / (1.0 - unmeasured), segments=segments,
                            top=top_name, unmeasured_fraction=unmeasured, frames=frames)
+
+
+_LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"
+#: The scale's description when the stature cannot be measured.
+LIMB_PROPORTIONS = _LIMBS + ": the joints do not span ankle to eyes in enough frames"
+#: ... and when the user chose the limbs (``RefineOptions.scale_from = "limbs"``).
+LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
+
+
+def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, height: float
+                    ) -> tuple[float | None, str, StatureEstimate | None]:
+    """The factor that makes the stature measured on a solution's joints ``height``: the
+    metric scale of every front end (one mirror, :mod:`mirrorgraph.graph.stature_scale`;
+    a rig, :func:`mirrorgraph.rigs.calibrate_rig`).
+
+    The graph's gauge holds the limb bones' sum at Winter's fractions of the height, which
+    carries the subject's limb proportions into the scale; the stature measured on the
+    solved joints (:func:`estimate_stature`) depends on population proportions only for
+    the few percent of the height below the ankles and above the eyes.
+
+    Args:
+        points: ``(T, J, 3)`` the solution's joints (any length unit).
+        valid: ``(T, J)`` bool, where ``points`` hold a joint.
+        skeleton: their layout.
+        height: the subject's height in the unit wanted (metres).
+
+    Returns:
+        ``(factor, source, stature)``: the factor to multiply every length by, a description
+        of the scale's source, and the stature estimate after scaling; ``(None,
+        LIMB_PROPORTIONS, None)`` where the joints do not span ankle to eyes (the gauge's
+        limb-proportion scale stays).
+    """
+    est = estimate_stature(points, valid, skeleton)
+    if est is None:
+        return None, LIMB_PROPORTIONS, None
+    factor = float(height) / est.height
+    return factor, est.describe(), est.scaled(factor)
+
+
+def with_height_sigma(std: float, length: float, rel_sigma: float) -> float:
+    """A length's std with the metric scale's own uncertainty added: the subject's height
+    and proportions, a pure scale error of ``rel_sigma`` (relative,
+    ``RefineOptions.height_sigma``) on ``length``, independent of the data's ``std``:
+    ``sqrt(std^2 + (rel_sigma * |length|)^2)``, in the unit of ``length``."""
+    return float(np.hypot(std, rel_sigma * abs(float(length))))
+

@@ -331,5 +331,5 @@ def test_batch_scale_from_limbs_reaches_the_scale(scenes, scheduler, tmp_path, c
     assert code == 0, capsys.readouterr().out
     cal = json.loads((tmp_path / "gym.json").read_text())
     assert cal["input"]["scale_from"] == "limbs" and cal["input"]["subject_height"] == 1.75
-    assert cal["refinement"]["scale_method"].endswith("as asked (scale_from = limbs)")
+    assert cal["refinement"]["scale_source"].endswith("as asked (scale_from = limbs)")
     assert cal["mirror"]["distance"] is not None

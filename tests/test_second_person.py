@@ -13,7 +13,7 @@ the video), so that neither place nor size gives them away:
 
 ``MIRRORGRAPH_BENCH_SECOND_PERSON=1 pytest tests/test_second_person.py -k bench -s``
 measures the false-alarm and detection rates quoted in
-:func:`mirrorgraph.pipeline.check_reflection` (about 5 minutes on 2 cores).
+:func:`mirrorgraph.reflection_check.check_reflection` (about 5 minutes on 2 cores).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import pytest
 
 import mirrorgraph as mg
 from mirrorgraph.keypoints import PairedKeypoints, RawDetections
-from mirrorgraph.pipeline import check_reflection
+from mirrorgraph.reflection_check import check_reflection
 from mirrorgraph.synth import make_scene
 
 KINDS = ("moving", "still", "late", "snapshot")

@@ -95,9 +95,9 @@ def test_single_mirror_distance_in_metres_from_the_stature():
     scene = make_scene(frames=600, seed=0, skeleton="COCO_17")
     stat = _calibrate(scene, "stature")
     limbs = _calibrate(scene, "limbs")
-    assert stat.refinement["scale_method"].startswith("stature measured from ankle to eyes")
+    assert stat.refinement["scale_source"].startswith("stature measured from ankle to eyes")
     assert stat.refinement["stature"]["height"] == pytest.approx(scene.subject_height)
-    assert "as asked" in limbs.refinement["scale_method"] and limbs.refinement["stature"] is None
+    assert "as asked" in limbs.refinement["scale_source"] and limbs.refinement["stature"] is None
     err_stature = abs(stat.distance / scene.distance - 1)
     err_limbs = abs(limbs.distance / scene.distance - 1)
     assert err_stature < 0.01

@@ -32,7 +32,8 @@ from .sensitivity import sensitivity_report
 from .solve import solve
 from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
                      triangulate_rig, with_intrinsics)
-from .stature_scale import LIMB_CHOSEN, scale_by_stature
+from ..stature import LIMB_CHOSEN, with_height_sigma
+from .stature_scale import scale_by_stature
 from .uncertainty import robust_normal_cov
 
 __all__ = ["refine_mirror", "RefineOptions", "RefinementResult", "rotation_std_from_normal_cov",
@@ -220,7 +221,7 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
                                              rig.skeleton, rig.frame_ids)
         distance_std = float(np.sqrt(max(cov[2, 2], 0.0))) * inflation
         if state.scale == "subject_height":       # the gauge's honest uncertainty, a pure scale
-            distance_std = float(np.hypot(distance_std, opts.height_sigma * d))
+            distance_std = with_height_sigma(distance_std, d, opts.height_sigma)
         else:
             distance_std = 0.0                    # d = 1 by definition
         rot_std = rotation_std_from_normal_cov(normal_cov)

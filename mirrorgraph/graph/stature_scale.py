@@ -24,17 +24,10 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
-from ..stature import estimate_stature, stature_joints
+from ..stature import stature_joints, stature_rescale
 from .result import RefinementResult
 
-__all__ = ["scale_by_stature", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
-
-_LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"
-#: The scale's description when the stature cannot be measured.
-LIMB_PROPORTIONS = _LIMBS + ": the joints do not span ankle to eyes in enough frames"
-#: ... and when the user chose the limbs (``RefineOptions.scale_from = "limbs"``).
-LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
-
+__all__ = ["scale_by_stature"]
 
 def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -85,11 +78,10 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         raise InputError(f"must be a positive number of metres, got {height!r}",
                          field="subject_height")
     points, valid = _with_head(res, paired, K)
-    est = estimate_stature(points, valid, paired.skeleton)
-    if est is None:
-        return replace(res, scale_source=LIMB_PROPORTIONS)
-    f = float(height) / est.height
-    record = est.scaled(f).to_dict()
+    f, source, stature = stature_rescale(points, valid, paired.skeleton, height)
+    if f is None:
+        return replace(res, scale_source=source)
+    record = stature.to_dict()
     return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
                    bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
-                   distance_std=res.distance_std * f, scale_source=est.describe(), stature=record)
+                   distance_std=res.distance_std * f, scale_source=source, stature=record)

@@ -54,7 +54,7 @@ from .backend import INSTALL_HINT, require_matplotlib
 from .store import KEY, read_run, report_data_path
 
 if TYPE_CHECKING:                    # imported where used: the pipeline imports GTSAM
-    from ..pipeline import CalibrateOptions
+    from ..pipelines.options import CalibrateOptions
 
 __all__ = ["FIGURES", "INSTALL_HINT", "LoadedRun", "ReportData", "load_run", "make_report",
            "options_from_calibration", "report_data", "require_matplotlib",
@@ -330,7 +330,8 @@ def options_from_calibration(obj) -> CalibrateOptions:
     Args:
         obj: the parsed ``calibration.json``.
     """
-    from ..pipeline import CalibrateOptions     # GTSAM: at first use, not on importing
+    from ..pipelines.options import CalibrateOptions    # GTSAM: at first use
+    from ..stature import LIMB_CHOSEN
 
     info = obj.get("input") or {}
     ref = obj.get("refinement") or {}
@@ -340,8 +341,9 @@ def options_from_calibration(obj) -> CalibrateOptions:
         height = gauge.get("height_m") or (ref.get("stature") or {}).get("height")
     scale_from = info.get("scale_from")
     if scale_from is None:
-        scale_from = "limbs" if "scale_from = limbs" in str(ref.get("scale_method", "")) \
-            else "stature"
+        # files that did not record it (before input.scale_from): what the scale says
+        said = ref.get("scale_source" if "schema_version" in obj else "scale_method", "")
+        scale_from = "limbs" if str(said) == LIMB_CHOSEN else "stature"
     names = info.get("joints")
     return CalibrateOptions(
         estimator=str(obj.get("estimator") or "reflective"),

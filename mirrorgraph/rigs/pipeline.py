@@ -3,7 +3,7 @@
 Steps: read and sort every camera's keypoints (:mod:`.observations`), pairwise
 initialisation chained along a spanning tree (:mod:`.initial`), one factor graph
 over all joints, cameras and mirrors (:mod:`.solve`), the joints the graph did not
-use triangulated with its rig (:mod:`.completion`), and the result with its
+use triangulated with its rig (:func:`mirrorgraph.completion.complete_rig_joints`), and the result with its
 uncertainties (:mod:`.result`). The scale: the graph holds the limb bones at
 Winter's fractions of the subject's height, then the whole rig is rescaled so
 that the stature measured on the solved joints (:mod:`mirrorgraph.stature`)
@@ -20,62 +20,18 @@ import numpy as np
 
 from ..graph.options import RefineOptions
 from ..pipelines.options import CalibrateOptions
-from ..graph.stature_scale import LIMB_CHOSEN, LIMB_PROPORTIONS
-from ..graph.uncertainty import POORLY_DETERMINED_DEG
-from ..pipeline import DOMINANT_SHARE
-from ..skeletons import Skeleton
-from ..stature import StatureEstimate, estimate_stature
-from .completion import complete_joints
+from ..pipelines.judge import judge_rig
+from ..stature import LIMB_CHOSEN, stature_rescale, with_height_sigma
+from ..completion import complete_rig_joints
 from ..joint_sets import resolve_joints
 from .config import RigConfig, load_rig_config
 from .initial import initialise_rig
 from ..intrinsics import estimated_intrinsics
 from .observations import load_observations
 from .result import RigCalibration, RigCamera, RigMirror
-from .solve import RigSolution, build_rig, camera_std, plane_std, solve_rig
+from .solve import build_rig, camera_std, plane_std, solve_rig
 
 __all__ = ["calibrate_rig"]
-
-#: Above this angle (deg) between two cameras' initial views of one mirror, warn.
-MIRROR_SPREAD_WARN_DEG = 5.0
-
-#: Warn when a view keeps less than this fraction of its keypoints after the graph's
-#: outlier rejection (clean synthetic views keep over 99 %, with 30 % detector
-#: outliers about 70 %): its keypoints do not fit the rest of the rig.
-MIN_KEPT_FRACTION = 0.5
-
-
-def _stature_scale(sol: RigSolution, skeleton: Skeleton, height: float
-                   ) -> tuple[RigSolution, str, StatureEstimate | None]:
-    """Rescale the solution so that the subject's measured stature is ``height``.
-
-    The graph's gauge holds the limb bones' sum at Winter's fractions of the height,
-    which carries the subject's limb proportions into the scale; the stature measured
-    on the solved joints (:func:`mirrorgraph.stature.estimate_stature`) depends on
-    population proportions for only the few percent of the height below the ankles
-    and above the eyes. Without the joints it needs the gauge's scale stays.
-
-    Returns:
-        The (rescaled) solution, a description of the scale's source and the
-        stature estimate (``None``: the limb-proportion scale was kept).
-    """
-    stature = estimate_stature(sol.points, sol.used, skeleton)
-    if stature is None:
-        return sol, LIMB_PROPORTIONS, None
-    factor = height / stature.height
-    return sol.scaled(factor), stature.describe(), stature.scaled(factor)
-
-
-def _poorly_fitting_views(sol: RigSolution) -> list[str]:
-    """Warnings for the views whose keypoints the graph mostly rejected."""
-    out = []
-    for name, kept, offered in zip(sol.view_names, sol.view_counts, sol.view_observed):
-        if offered and kept < MIN_KEPT_FRACTION * offered:
-            out.append(f"view {name}: only {100 * kept / offered:.0f} % of its keypoints fit "
-                       "the rig (is it the same person as in the other cameras? the right "
-                       "intrinsics, frame offset, mirror?)")
-    return out
-
 
 #: The keywords :func:`calibrate_rig` took before it took :class:`CalibrateOptions`, and the
 #: fields they became (``options`` held a :class:`RefineOptions`: ``refine_options``).
@@ -159,18 +115,16 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                                  source=cfg.source)
     say("initialising: camera pairs, mirrors, spanning tree")
     init = initialise_rig(obs, H, seed=seed, joints=used_joints, estimate_focal=estimate_focal)
-    for m, spread in init.mirror_spread_deg.items():
-        if spread > MIRROR_SPREAD_WARN_DEG:
-            warnings.append(f"mirror {m}: the cameras' initial estimates differ by {spread:.1f} "
-                            "deg (is it the same mirror in all of them?)")
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")
     sol = solve_rig(rig, opts, H, progress=iteration_progress)
-    sol = complete_joints(obs, sol, opts.outlier_threshold)
+    sol = complete_rig_joints(obs, sol, opts.outlier_threshold)
     if opts.scale_from == "stature":
-        sol, scale_source, stature = _stature_scale(sol, obs.skeleton, H)
-        if stature is None:
+        factor, scale_source, stature = stature_rescale(sol.points, sol.used, obs.skeleton, H)
+        if factor is None:
             warnings.append(f"scale: {scale_source}")
+        else:
+            sol = sol.scaled(factor)
     else:
         scale_source, stature = LIMB_CHOSEN, None
 
@@ -181,13 +135,12 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     rel = opts.height_sigma if height is not None else 0.0
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
-    warnings += _poorly_fitting_views(sol)
     cameras = []
     marg_cams = sol.marginal_camera_cov or sol.camera_cov
     for i, (c, pose, cov, mcov) in enumerate(zip(obs.cameras, sol.poses, sol.camera_cov,
                                                  marg_cams)):
         rot, pos = camera_std(cov, pose)
-        pos = float(np.hypot(pos, rel * np.linalg.norm(np.asarray(pose)[:3, 3])))
+        pos = with_height_sigma(pos, np.linalg.norm(np.asarray(pose)[:3, 3]), rel)
         intr = c.intrinsics
         if c.name in sol.focal:
             sol.focal[c.name]["initial"] = init.focals.get(c.name)
@@ -206,7 +159,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         mrot = float("nan")
         if sol.plane_basis:
             ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
-            dstd = float(np.hypot(dstd, rel * abs(d)))
+            dstd = with_height_sigma(dstd, d, rel)
             mrot = plane_std((sol.marginal_plane_cov or sol.plane_cov)[i], sol.plane_basis[i])[1]
         else:
             ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")
@@ -217,20 +170,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                                  seen_by=seen_by,
                                  views_rms_px={c: rms.get(f"{c}/{name}", float("nan"))
                                                for c in seen_by}))
-    for what, items in (("camera", cameras[1:]), ("mirror", mirrors)):
-        for item in items:
-            if item.rotation_std_deg > POORLY_DETERMINED_DEG:
-                share = (sol.robust_parts.get(item.name) or {}).get("contributions") or {}
-                top = max(share, key=share.get) if share else None
-                cause = ("too few frames, too little motion, or a detector's error the frames "
-                         "do not average out")
-                if top is not None and share[top] > DOMINANT_SHARE:
-                    cause = (f"the unknown {top.replace('_', ' ')} of a camera listed without "
-                             f"intrinsics dominates it ({100 * share[top]:.0f}% of its "
-                             "variance): give that camera its intrinsics")
-                warnings.append(f"{what} {item.name} is poorly determined (rotation std "
-                                f"{item.rotation_std_deg:.2f} deg, {item.marginal_rotation_std_deg:.2f} "
-                                f"deg from the marginals alone): {cause}")
+    warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
+                          sol.view_observed, init.mirror_spread_deg)
     initialisation = {
         "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
                    "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],

@@ -89,7 +89,7 @@ def test_shares_of_a_rotation_variance():
 
 
 def test_the_warning_names_what_dominates_the_std():
-    from mirrorgraph.pipeline import poor_mirror_cause
+    from mirrorgraph.pipelines.judge import poor_mirror_cause
 
     n = np.array([0.0, np.sin(np.radians(40)), np.cos(np.radians(40))])   # 40 deg off axis
     u = {"contributions": {"focal_length": 0.8, "principal_point": 0.1}}

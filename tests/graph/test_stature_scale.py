@@ -20,7 +20,8 @@ from mirrorgraph import geometry as geo
 from mirrorgraph.errors import InputError
 from mirrorgraph.graph import RefineOptions
 from mirrorgraph.graph.result import RefinementResult
-from mirrorgraph.graph.stature_scale import LIMB_PROPORTIONS, scale_by_stature
+from mirrorgraph.graph.stature_scale import scale_by_stature
+from mirrorgraph.stature import LIMB_PROPORTIONS
 from mirrorgraph.keypoints import PairedKeypoints
 from mirrorgraph.stature import MIN_FRAMES, estimate_stature, stature_joints
 from mirrorgraph.synth import make_scene

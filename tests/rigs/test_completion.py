@@ -1,5 +1,5 @@
 """The joints a rig's graph left out, triangulated with the solved rig
-(mirrorgraph.rigs.completion) and compared with the synthetic truth.
+(mirrorgraph.completion.complete_rig_joints) and compared with the synthetic truth.
 
 Each test gives :func:`complete_joints` a rig solved exactly (the true camera poses and
 mirror planes of :func:`mirrorgraph.synth.make_rig`) whose graph estimated the limbs only,
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirrorgraph.rigs.completion import complete_joints
+from mirrorgraph.completion import complete_rig_joints as complete_joints
 from mirrorgraph.rigs.observations import CameraObservations, RigObservations
 from mirrorgraph.rigs.solve import RigSolution
 from mirrorgraph.synth.rig import KINDS, PERSON, make_rig

@@ -246,13 +246,11 @@ def test_a_camera_that_sometimes_sees_someone_else_drops_those_frames(tmp_path):
 
 
 def test_views_that_lost_most_keypoints_are_named():
-    from types import SimpleNamespace
+    from mirrorgraph.pipelines.judge import MIN_KEPT_FRACTION, judge_rig
 
-    from mirrorgraph.rigs.pipeline import MIN_KEPT_FRACTION, _poorly_fitting_views
-
-    sol = SimpleNamespace(view_names=["cam01", "cam02", "cam02/wall"],
-                          view_counts=[990, 300, 0], view_observed=[1000, 1000, 0])
-    out = _poorly_fitting_views(sol)
+    out = judge_rig([], [], {}, view_names=["cam01", "cam02", "cam02/wall"],
+                    view_counts=[990, 300, 0], view_observed=[1000, 1000, 0],
+                    mirror_spread_deg={"wall": 1.0})
     assert MIN_KEPT_FRACTION == 0.5
     assert len(out) == 1 and out[0].startswith("view cam02: only 30 % of its keypoints fit")
 
