@@ -84,6 +84,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -95,10 +96,12 @@ from .intrinsics import check_size
 from .io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 from .skeletons import Skeleton, skeleton_by_name
 
+if TYPE_CHECKING:
+    from .rigs.result import RigCalibration
+
 __all__ = ["FORMATS", "WORLD_FRAMES", "camera_sections", "export_calibration",
            "export_cameras", "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints",
-           "flipped_mirror_camera",
-           "world_rotation"]
+           "flipped_mirror_camera", "rig_cameras", "world_rotation"]
 
 #: Export formats: ``--to`` values and the camera-file style each writes.
 FORMATS = {"pose2sim": "pose2sim", "anipose": "anipose", "aniposelib": "anipose"}
@@ -270,41 +273,109 @@ def _style_distortion(d: np.ndarray, style: str, warnings: list[str]) -> np.ndar
     return d
 
 
+def _as_rig(calibration) -> tuple["RigCalibration", str | None, bool]:
+    """``(rig, source path or None, whether it is a single mirror)`` of any calibration:
+    a single mirror's (object, parsed ``calibration.json`` or its path) as the rig of one
+    camera and one mirror (:meth:`~mirrorgraph.rigs.result.RigCalibration.from_mirror`),
+    a rig's as it is (object, parsed rig JSON or its path)."""
+    from .io._common import load_json
+    from .rigs.result import RigCalibration, is_rig_document, read_rig_calibration
+
+    source = str(calibration) if isinstance(calibration, (str, os.PathLike)) else None
+    if isinstance(calibration, RigCalibration):
+        return calibration, source, False
+    obj = load_json(calibration) if source is not None else calibration
+    if is_rig_document(obj):
+        rig = read_rig_calibration(obj if source is None else calibration)
+        return rig, source, False
+    return RigCalibration.from_mirror(read_calibration(
+        calibration if source is not None else obj)), source, True
+
+
+def rig_cameras(rig: "RigCalibration", style: str = "pose2sim", *, world: str = "camera",
+                with_virtual: bool = True, keys: tuple | None = None,
+                image_size: tuple[int, int] | None = None,
+                warnings: list[str] | None = None) -> list[TomlCamera]:
+    """The cameras of a camera file for any calibration seen as a rig: every real camera,
+    then (``with_virtual``) every camera's view through every mirror it sees as the camera
+    of the horizontally flipped image (:func:`flipped_mirror_camera`, extrinsics
+    :func:`mirrorgraph.rigs.virtual_extrinsics`). The one construction behind
+    :func:`export_cameras` and :func:`mirrorgraph.io.rig_calibration.write_rig_toml`.
+
+    Args:
+        rig: the calibration (a single mirror: :meth:`RigCalibration.from_mirror`).
+        style: ``"pose2sim"`` or ``"anipose"``: section keys and distortion lengths.
+        world: a :data:`WORLD_FRAMES` name: the world is the first camera's frame rotated.
+        with_virtual: also the mirror views.
+        keys: ``((key, name) of the first camera, (key, name) of its first mirror view)``
+            (a single mirror's :func:`camera_sections`); default: the names, keys
+            ``<camera>`` / ``<camera>_<mirror>`` (Pose2Sim) or ``cam_<i>`` (aniposelib).
+        image_size: ``(W, H)`` px for cameras without one.
+        warnings: appended to (distortion terms a tool ignores).
+
+    Raises:
+        InputError: a camera without an image size (the flip and the file need it).
+    """
+    from .rigs.result import virtual_extrinsics
+
+    warnings = [] if warnings is None else warnings
+    At = world_rotation(world).T                # world -> first camera: X_cam = A^T X_world
+    views = [(c, None) for c in rig.cameras]
+    if with_virtual:
+        views += [(rig.camera(cname), m) for m in rig.mirrors for cname in m.seen_by]
+    out = []
+    for i, (c, m) in enumerate(views):
+        size = c.intrinsics.image_size if image_size is None else image_size
+        if size is None:
+            raise InputError(f"camera {c.name} has no image size, needed to write it (and to "
+                             "flip its mirror views, u -> W - u)", field="image_size")
+        name = c.name if m is None else f"{c.name}_{m.name}"
+        if keys is not None:
+            key, name = keys[0] if m is None else keys[1]
+        else:
+            key = f"cam_{i}" if style == "anipose" else name
+        dist = None if c.intrinsics.dist is None else np.asarray(c.intrinsics.dist, float)
+        if m is None:
+            cam = TomlCamera(key=key, name=name, matrix=c.intrinsics.K.copy(),
+                             distortions=_style_distortion(
+                                 np.zeros(0) if dist is None else dist.copy(), style, warnings),
+                             size=size, rotation=rotation_to_rodrigues(c.R @ At),
+                             translation=c.t + 0.0)
+        else:
+            R, t = virtual_extrinsics(c.pose, m.normal, m.distance)
+            cam = flipped_mirror_camera(key, name, c.intrinsics.K, dist, size, R @ At, t)
+            cam.distortions = _style_distortion(cam.distortions, style, [])
+        out.append(cam)
+    return out
+
+
 def _export(calibration, fmt, world, image_size):
     style = FORMATS.get(str(fmt).lower())
     if style is None:
         raise InputError(f"unknown export format {fmt!r}; choose one of "
                          f"{', '.join(FORMATS)}", field="format")
-    A = world_rotation(world)
-    calib = read_calibration(calibration)
-    n, d, intr = np.asarray(calib.normal, float), calib.distance, calib.intrinsics
-    source = str(calibration) if isinstance(calibration, (str, os.PathLike)) else None
-    size = image_size if image_size is not None else intr.image_size
-    if size is None:
+    world_rotation(world)
+    rig, source, single = _as_rig(calibration)
+    if image_size is None and any(c.intrinsics.image_size is None for c in rig.cameras):
         raise InputError("the image size is needed to flip the mirror view (u -> W - u) but "
-                         "the calibration has none: pass image_size=(W, H)",
+                         "the calibration has none: give image_size=(W, H)",
                          source=source, field="intrinsics.image_size")
-    size = check_size(size[0], size[1], source, "image_size")
+    size = None if image_size is None else check_size(image_size[0], image_size[1], source,
+                                                       "image_size")
     warnings: list[str] = []
-    if d is None:
-        warnings.append("the calibration has no metric scale (mirror.distance is null): "
-                        "translations are in units of the mirror distance (d = 1), not "
-                        "metres; calibrate with --subject-height for metres")
-    if intr.approximate:
+    metric = rig.scale == "subject_height"
+    if not metric:
+        unit = "the mirror distance (d = 1)" if single else "the subject's height"
+        warnings.append(f"the calibration has no metric scale: translations are in units of "
+                        f"{unit}, not metres; calibrate with a subject height for metres")
+    if any(c.intrinsics.approximate for c in rig.cameras):
         warnings.append("the intrinsics are approximate (a field-of-view guess, or a focal "
-                        "length the data do not determine): both cameras are approximate, "
-                        "and so is what the tools triangulate")
-    R_v, t_v = geo.virtual_camera_from_mirror(n, 1.0 if d is None else d)
-    At = A.T                                   # world -> real camera: X_cam = A^T X_world
-    dist = None if intr.dist is None else np.asarray(intr.dist, float)
-    real_dist = np.zeros(0) if dist is None else dist.copy()
-    (k_real, name_real), (k_mirror, name_mirror) = _KEYS[style]
-    real = TomlCamera(key=k_real, name=name_real, matrix=intr.K.copy(),
-                      distortions=_style_distortion(real_dist, style, warnings), size=size,
-                      rotation=rotation_to_rodrigues(At), translation=np.zeros(3))
-    mirror = flipped_mirror_camera(k_mirror, name_mirror, intr.K, dist, size, R_v @ At, t_v)
-    mirror.distortions = _style_distortion(mirror.distortions, style, [])
-    return [real, mirror], warnings, style, d, source
+                        "length the data do not determine): "
+                        + ("both cameras are" if single else "the cameras without a camera "
+                           "matrix are") + " approximate, and so is what the tools triangulate")
+    cameras = rig_cameras(rig, style, world=world, keys=_KEYS[style] if single else None,
+                          image_size=size, warnings=warnings)
+    return cameras, warnings, style, metric, source, single
 
 
 def export_cameras(calibration: Calibration | Mapping | str | os.PathLike, fmt: str, *,
@@ -374,15 +445,28 @@ def export_calibration(calibration: Calibration | Mapping | str | os.PathLike, f
         ...                               "Calib.toml")        # doctest: +SKIP
     """
 
-    cameras, warnings, style, d, source = _export(calibration, fmt, world, image_size)
-    real, mirror = cameras
-    header = _HEADER.format(
-        version=__version__,
-        source=Path(source).name if source else "a calibration in memory",
-        real=real.key, mirror=mirror.key,
-        W=f"{real.size[0]:d}",
-        world={"camera": "the real camera frame (x right, y down, z forward)",
-               "z_up": "X right, Y forward (depth), Z up (camera (x, z, -y))"}[world],
-        unit="metres" if d is not None else "mirror distance (scale unknown)")
+    cameras, warnings, style, metric, source, single = _export(calibration, fmt, world,
+                                                               image_size)
+    where = {"camera": "the real camera frame (x right, y down, z forward)",
+             "z_up": "X right, Y forward (depth), Z up (camera (x, z, -y))"}[world]
+    name = Path(source).name if source else "a calibration in memory"
+    if single:
+        real, mirror = cameras
+        header = _HEADER.format(
+            version=__version__, source=name, real=real.key, mirror=mirror.key,
+            W=f"{real.size[0]:d}", world=where,
+            unit="metres" if metric else "mirror distance (scale unknown)")
+    else:
+        header = _rig_header(name, cameras[0].name, where, metric)
     write_camera_toml(out_path, cameras, style, header=header)
     return warnings
+
+
+def _rig_header(source: str, first: str, world: str, metric: bool) -> str:
+    """The comment header of a rig's camera file."""
+    unit = "metres" if metric else "subject heights (no subject height given: NOT metres)"
+    return (f"Written by mirrorgraph {__version__} from {source}: every camera, then every\n"
+            "camera's view through a mirror, section <camera>_<mirror> (aniposelib: cam_<i>),\n"
+            "as the camera of the HORIZONTALLY FLIPPED image (u -> W - u): give it the\n"
+            "reflection's keypoints flipped the same way, left/right labels swapped.\n"
+            f"World frame: {world} of camera {first}. Translation unit: {unit}.")

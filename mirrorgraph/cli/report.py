@@ -30,7 +30,8 @@ def _add_report(sub) -> None:
                                    "'calibrate' kept beside the calibration (CALIBRATION with "
                                    ".report.npz), or, without it, from the keypoints calibrated "
                                    "again with the options the calibration records.")
-    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
+                                       "a rig's JSON written by 'calibrate-rig'")
     p.add_argument("keypoints", nargs="?", default=None,
                    help="the keypoints the calibration was made from (needed only without "
                         "the .report.npz beside the calibration, or with --recompute)")
@@ -46,10 +47,29 @@ def _add_report(sub) -> None:
     p.set_defaults(func=cmd_report)
 
 
+def _rig_document(path):
+    """The rig JSON at ``path`` as a :class:`~mirrorgraph.rigs.result.RigCalibration`, or
+    ``None`` where it is a single mirror's ``calibration.json``."""
+    from ..io._common import load_json
+    from ..rigs.result import is_rig_document, read_rig_calibration
+
+    return read_rig_calibration(path) if is_rig_document(load_json(path)) else None
+
+
 def cmd_report(args) -> int:
     from ..report import load_run, make_report, require_matplotlib
 
     require_matplotlib()
+    rig = _rig_document(args.calibration)
+    if rig is not None:             # a rig's JSON: its figures (the JSON holds no 3D joints)
+        from ..report.rig import write_rig_report
+
+        if args.keypoints or args.video or args.render or args.recompute:
+            raise InputError("a rig's report is drawn from its JSON alone: no keypoints, "
+                             "--video, --render or --recompute", field="calibration")
+        out = write_rig_report(rig, args.out, progress_bar=not args.quiet)
+        printer(args)(report_written({p.stem: p for p in out}, args.out))
+        return 0
     if args.recompute and args.keypoints is None:
         raise InputError("needs the keypoints the calibration was made from", field="--recompute")
     say = printer(args)
@@ -78,7 +98,9 @@ def _add_export(sub) -> None:
                                    "horizontally flipped image (u -> W - u): give those tools the "
                                    "reflection's keypoints with x -> W - x and left/right labels "
                                    "swapped (see the README).")
-    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate'")
+    p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
+                                       "a rig's JSON written by 'calibrate-rig' (every camera "
+                                       "and every view through a mirror)")
     # the file styles, without the API's alias "aniposelib"
     p.add_argument("--to", required=True, choices=tuple(dict.fromkeys(FORMATS.values())),
                    dest="fmt")
@@ -94,6 +116,11 @@ def cmd_export(args) -> int:
 
     warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
     warn(args, warnings)
+    if _rig_document(args.calibration) is not None:
+        printer(args)(f"wrote {args.out} ({args.fmt}): every camera of the rig, then each "
+                      "camera's view through a mirror as the camera of the flipped image (give "
+                      "it the reflection's keypoints with x -> W - x and left/right swapped)")
+        return 0
     (k_real, n_real), (k_mirror, n_mirror) = camera_sections(args.fmt)
     named = lambda key, name: f"[{key}]" + (f" '{name}'" if name != key else "")  # noqa: E731
     printer(args)(f"wrote {args.out} ({args.fmt}): {named(k_real, n_real)} the real camera, "

@@ -21,38 +21,23 @@ import os
 
 import numpy as np
 
-from ..export import flipped_mirror_camera
-from ..rigs.result import RigCalibration, virtual_extrinsics
+from ..export import rig_cameras
+from ..rigs.result import RigCalibration
 from .calibration import write_json
-from .camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
+from .camera_toml import TomlCamera, write_camera_toml
 
 __all__ = ["rig_toml_cameras", "write_rig_toml", "write_rig_json"]
 
 
 def rig_toml_cameras(calib: RigCalibration, *, with_virtual: bool = False) -> list[TomlCamera]:
-    """The cameras of the TOML file, in order (real cameras, then virtual ones).
+    """The cameras of the TOML file, in order (real cameras, then virtual ones): the one
+    construction of every camera file, :func:`mirrorgraph.export.rig_cameras`, in
+    Pose2Sim's style with the first camera's frame as the world.
 
     Raises:
-        ValueError: a camera without an image size (Pose2Sim needs it).
+        InputError: a camera without an image size (Pose2Sim needs it).
     """
-    out = []
-    for c in calib.cameras:
-        size = c.intrinsics.image_size
-        if size is None:
-            raise ValueError(f"camera {c.name} has no image size (give intrinsics with one)")
-        dist = np.zeros(4) if c.intrinsics.dist is None else np.asarray(c.intrinsics.dist, float)
-        out.append(TomlCamera(key=c.name, name=c.name, matrix=c.intrinsics.K.copy(),
-                              distortions=dist, size=size, rotation=rotation_to_rodrigues(c.R),
-                              translation=c.t.copy()))
-    if with_virtual:
-        for m in calib.mirrors:
-            for cname in m.seen_by:
-                c = calib.camera(cname)
-                R, t = virtual_extrinsics(c.pose, m.normal, m.distance)
-                out.append(flipped_mirror_camera(f"{c.name}_{m.name}", f"{c.name}_{m.name}",
-                                                 c.intrinsics.K, c.intrinsics.dist,
-                                                 c.intrinsics.image_size, R, t))
-    return out
+    return rig_cameras(calib, "pose2sim", with_virtual=with_virtual)
 
 
 def write_rig_toml(calib: RigCalibration, path: str | os.PathLike, *,
