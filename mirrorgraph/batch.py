@@ -19,6 +19,12 @@ A *manifest* lists the recordings (see :func:`read_manifest`):
   calibration goes to ``calibration.json`` in the subfolder (in
   ``<out_dir>/<subfolder>.calibration.json`` when ``out_dir`` is given).
 
+A recording may be a rig as well (a single mirror is the rig of one camera and one
+mirror, and both go through the same options): a ``rig.toml`` as a CSV row's
+``keypoints`` (its ``intrinsics`` left empty: the rig file lists every camera's), or a
+subfolder holding ``rig.toml``. Its rig JSON goes to ``out`` and Pose2Sim's camera file
+beside it (``out`` with ``.toml``), as ``mirrorgraph calibrate-rig`` writes them.
+
 :func:`run_batch` calibrates every recording on a Dask cluster: a local one by default
 (one single-threaded worker *process* per core: GTSAM holds the GIL, so threads would not
 run in parallel), or an existing cluster given by its scheduler address. Each task runs
@@ -47,6 +53,7 @@ from .errors import InputError, MirrorgraphError
 from .graph import RefineOptions
 from .intrinsics import load_intrinsics
 from .pipeline import CalibrateOptions, calibrate
+from .rigs.config import RIG_FILE
 from .report.store import write_calibration_and_run
 
 #: Columns a CSV manifest may have; ``keypoints`` is required.
@@ -71,8 +78,8 @@ class Recording:
     Attributes:
         name: label in the summary (the keypoints path as the manifest gives it, or the
             subfolder's name).
-        keypoints: keypoint input (file or folder), or ``None`` when a subfolder holds
-            none (the recording then fails with that message).
+        keypoints: keypoint input (file or folder) or a rig file (``.toml``), or ``None``
+            when a subfolder holds none (the recording then fails with that message).
         intrinsics: intrinsics file, or ``None`` (the pipeline then guesses K).
         out: calibration JSON to write.
         subject_height: metres, or ``None``.
@@ -103,6 +110,9 @@ class BatchResult:
         seconds: wall time of the task on its worker.
         warnings: the calibration's warnings.
         keypoints: the keypoint input, as a string.
+        cameras: the cameras of a rig recording (0: a single mirror; its ``normal`` and
+            ``distance`` are then ``None``, ``rotation_std_deg`` the largest of its
+            estimated cameras and mirrors).
     """
 
     name: str
@@ -116,6 +126,7 @@ class BatchResult:
     seconds: float = 0.0
     warnings: tuple[str, ...] = field(default_factory=tuple)
     keypoints: str | None = None
+    cameras: int = 0
 
     @property
     def ok(self) -> bool:
@@ -237,14 +248,18 @@ def _read_folder(path: Path, out_dir: Path | None) -> list[Recording]:
                          source=path)
     recordings = []
     for sub in subs:
-        camera = next((sub / c for c in FOLDER_CAMERAS if (sub / c).is_file()), None)
+        found = _folder_input(sub)
+        camera = None if found is not None and found.name == RIG_FILE else next(
+            (sub / c for c in FOLDER_CAMERAS if (sub / c).is_file()), None)
         out = sub / FOLDER_OUT if out_dir is None else out_dir / f"{sub.name}.calibration.json"
-        recordings.append(Recording(name=sub.name, keypoints=_folder_input(sub),
+        recordings.append(Recording(name=sub.name, keypoints=found,
                                     intrinsics=camera, out=out, where=str(sub)))
     return recordings
 
 
 def _folder_input(sub: Path) -> Path | None:
+    if (sub / RIG_FILE).is_file():
+        return sub / RIG_FILE
     for name in FOLDER_INPUTS:
         if (sub / name).exists():
             return sub / name
@@ -273,9 +288,13 @@ def calibrate_recording(recording: Recording, options: CalibrateOptions) -> Batc
         if rec.out.is_dir():
             raise InputError("is a folder; give a file name for the calibration JSON",
                              source=rec.out, field="out")
-        intr = None if rec.intrinsics is None else load_intrinsics(rec.intrinsics)
         opts = options if rec.subject_height is None else \
             replace(options, subject_height=rec.subject_height)
+        if Path(rec.keypoints).suffix.lower() == ".toml":
+            result = _calibrate_rig(rec, opts, result)
+            result.seconds = time.perf_counter() - t0
+            return result
+        intr = None if rec.intrinsics is None else load_intrinsics(rec.intrinsics)
         run = calibrate(rec.keypoints, intr, opts)
         cal = run.calibration
         cal.input.setdefault("subject_height", opts.subject_height)     # for a recomputation
@@ -297,6 +316,28 @@ def calibrate_recording(recording: Recording, options: CalibrateOptions) -> Batc
         result.message = _one_line(f"internal error: {type(e).__name__}: {e}")
     result.seconds = time.perf_counter() - t0
     return result
+
+
+def _calibrate_rig(rec: Recording, opts: CalibrateOptions, result: BatchResult) -> BatchResult:
+    """A rig recording: :func:`mirrorgraph.calibrate_rig` with the batch's options, the rig
+    JSON to ``rec.out`` and Pose2Sim's camera file beside it (the errors are the caller's
+    to report)."""
+    import numpy as np
+
+    from .io.rig_calibration import write_rig_json, write_rig_toml
+    from .rigs.pipeline import calibrate_rig
+
+    if rec.intrinsics is not None:
+        raise InputError("a rig file lists its cameras' intrinsics itself: leave "
+                         "'intrinsics' empty", source=rec.where, field="intrinsics")
+    cal = calibrate_rig(rec.keypoints, opts)
+    rec.out.parent.mkdir(parents=True, exist_ok=True)
+    write_rig_json(cal, rec.out)
+    write_rig_toml(cal, rec.out.with_suffix(".toml"))
+    stds = [c.rotation_std_deg for c in cal.cameras[1:]] + [m.rotation_std_deg for m in cal.mirrors]
+    stds = [v for v in stds if np.isfinite(v)]
+    return replace(result, status=OK, out=str(rec.out), cameras=len(cal.cameras),
+                   rotation_std_deg=max(stds) if stds else None, warnings=tuple(cal.warnings))
 
 
 def _one_line(text: str) -> str:
@@ -413,7 +454,13 @@ def format_summary(results: Sequence[BatchResult]) -> str:
             "output / error")
     rows = []
     for r in results:
-        if r.ok:
+        if r.ok and r.cameras:
+            std = "-" if r.rotation_std_deg is None else f"<= {r.rotation_std_deg:.3f} deg"
+            last = r.out + (f"  ({len(r.warnings)} warning{'s' * (len(r.warnings) != 1)})"
+                            if r.warnings else "")
+            rows.append((r.name, OK, f"rig of {r.cameras} cameras", "-", "-", std,
+                         f"{r.seconds:.1f} s", last))
+        elif r.ok:
             normal = "[" + ", ".join(f"{v:+.4f}" for v in r.normal) + "]"
             dist = "unknown" if r.distance is None else f"{r.distance:.3f} m"
             inl = f"{100 * r.inlier_ratio:.1f}%"

@@ -333,3 +333,31 @@ def test_batch_scale_from_limbs_reaches_the_scale(scenes, scheduler, tmp_path, c
     assert cal["input"]["scale_from"] == "limbs" and cal["input"]["subject_height"] == 1.75
     assert cal["refinement"]["scale_source"].endswith("as asked (scale_from = limbs)")
     assert cal["mirror"]["distance"] is not None
+
+
+def test_a_rig_is_a_recording_too(tmp_path):
+    """One options object, one batch: a folder holding a single mirror's recording and a
+    rig's (``rig.toml``) calibrates both, each as its front end does; the rig's cameras
+    come within the synthetic truth and its files are those of ``calibrate-rig``."""
+    from mirrorgraph.metrics import rotation_error_deg
+    from mirrorgraph.rigs.result import read_rig_calibration
+    from mirrorgraph.synth import make_rig, write_rig
+
+    root = tmp_path / "recs"
+    write_scene(make_scene(frames=60, seed=11), root / "gym", formats=("mmpose",))
+    rig = make_rig("2cams1mirror", frames=80, seed=3)
+    write_rig(rig, root / "studio")
+    recs = read_manifest(root)
+    assert recs[1].keypoints == root / "studio" / "rig.toml" and recs[1].intrinsics is None
+    res = calibrate_recording(recs[1], CalibrateOptions(subject_height=rig.subject_height))
+    assert res.ok and res.cameras == 2 and res.normal is None, res.message
+    cal = read_rig_calibration(res.out)
+    err = rotation_error_deg(cal.cameras[1].pose[:3, :3], np.asarray(rig.poses[1])[:3, :3])
+    assert err < 0.5
+    assert (root / "studio" / "calibration.toml").is_file()
+    assert "rig of 2 cameras" in format_summary([res])
+    # a CSV row naming a rig file with intrinsics is refused, naming the line and field
+    csv = write_csv(tmp_path / "m.csv", ["keypoints,intrinsics",
+                                         f"{root / 'studio' / 'rig.toml'},{root / 'gym' / 'camera.json'}"])
+    bad = calibrate_recording(read_manifest(csv)[0], FAST)
+    assert not bad.ok and "m.csv line 2" in bad.message and "intrinsics" in bad.message

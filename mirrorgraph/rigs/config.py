@@ -40,6 +40,10 @@ from ..skeletons import skeleton_by_name
 
 __all__ = ["CameraEntry", "RigConfig", "load_rig_config"]
 
+#: The conventional name of a rig file (what ``mirrorgraph synth --rig`` writes and
+#: ``mirrorgraph batch`` looks for in a recording's folder).
+RIG_FILE = "rig.toml"
+
 @dataclass(frozen=True)
 class CameraEntry:
     """One ``[[cameras]]`` table, paths resolved.

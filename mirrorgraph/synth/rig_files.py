@@ -19,6 +19,7 @@ from ..io.atomic import atomic_path, atomic_write_text
 from ..io.calibration import read_json, write_json
 from ..io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 from ..io.toml_writer import format_value
+from ..rigs.config import RIG_FILE
 from .rig_types import SyntheticRig
 from .writer import load_ground_truth_joints
 
@@ -26,7 +27,7 @@ __all__ = ["write_rig", "read_rig_ground_truth"]
 
 JOINTS3D_NAME = "joints3d.npz"
 GROUND_TRUTH_NAME = "ground_truth.json"
-RIG_NAME = "rig.toml"
+RIG_NAME = RIG_FILE
 CALIB_NAME = "Calib.toml"
 #: Keypoint formats :func:`write_rig` writes the cameras' detections in (``fmt``).
 KEYPOINT_FORMATS = ("openpose", "mmpose", "easymocap")
