@@ -51,6 +51,7 @@ _LAZY = {
     "load_rig_config": "mirrorgraph.rigs.config",
     "RigConfig": "mirrorgraph.rigs.config",
     "RigCalibration": "mirrorgraph.rigs.result",
+    "read_rig_calibration": "mirrorgraph.rigs.result",
     "write_rig_toml": "mirrorgraph.io.rig_calibration",
     "write_rig_json": "mirrorgraph.io.rig_calibration",
     "export_calibration": "mirrorgraph.export",
