@@ -265,7 +265,7 @@ def read_calibration(calibration: str | os.PathLike | Mapping | Calibration, *,
                              source=src, field="mirror.distance")
         d = float(d)
     if intrinsics is None:
-        intrinsics = _read_intrinsics(section("intrinsics"), src)
+        intrinsics = read_intrinsics_section(section("intrinsics"), src)
     n0 = obj.get("initial_normal")
     if n0 is None:
         n0 = n
@@ -302,7 +302,7 @@ def read_calibration(calibration: str | os.PathLike | Mapping | Calibration, *,
                        warnings=[str(w) for w in warnings], **counts, **reports)
 
 
-def _read_intrinsics(intr: Mapping, src: str | None) -> Intrinsics:
+def read_intrinsics_section(intr: Mapping, src: str | None) -> Intrinsics:
     """The ``intrinsics`` section of ``calibration.json`` (:meth:`Intrinsics.to_dict`)."""
     if "K" not in intr:
         raise InputError("missing (the 3x3 camera matrix)", source=src, field="intrinsics.K")

@@ -371,7 +371,7 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
     Raises:
         InputError: unreadable file or a missing / malformed field, naming both.
     """
-    from ..calibration import _read_intrinsics
+    from ..calibration import read_intrinsics_section
     from ..io._common import load_json, numeric_array
 
     if isinstance(calibration, RigCalibration):
@@ -405,7 +405,7 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
             raise InputError("expected an object with a name", source=src, field=at)
         u = c.get("uncertainty") or {}
         cameras.append(RigCamera(
-            name=str(c["name"]), intrinsics=_read_intrinsics(c.get("intrinsics") or {}, src),
+            name=str(c["name"]), intrinsics=read_intrinsics_section(c.get("intrinsics") or {}, src),
             pose=num(c.get("pose_camera_to_world"), 2, f"{at}.pose_camera_to_world", (4, 4)),
             rotation_std_deg=fnum(u.get("rotation_std_deg"), f"{at}.uncertainty"),
             position_std=fnum(u.get("position_std"), f"{at}.uncertainty"),
