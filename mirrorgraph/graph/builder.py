@@ -49,15 +49,14 @@ from ..factors import (AnthropometricRatioFactor, BoneLengthFactor, HeightPriorF
                        ReprojectionFactors, SmoothnessFactor, SymmetryFactor, calibration,
                        mirrored_calibration, plane_from_gtsam, plane_to_gtsam, reflected_pose,
                        robust_pixel_noise)
-from ..geometry import (camera_projection, mirror_projection, project, reflect_points,
-                        triangulation_covariance)
+from ..geometry import triangulation_covariance
 from .options import RefineOptions
-from .rig import Rig
+from .rig import Rig, view_projections
 
 __all__ = ["GraphProblem", "LENGTH_KEY", "build_problem", "with_motion_priors", "point_keys", "bone_table", "body_height_from_points",
-           "view_residuals", "debiased_bone_lengths", "extract_points", "extract_planes", "extract_camera_poses",
+           "debiased_bone_lengths", "extract_points", "extract_planes", "extract_camera_poses",
            "extract_intrinsics", "camera_matrix",
-           "snap_virtual_poses", "cheirality_guard", "points_array", "view_projections"]
+           "snap_virtual_poses", "cheirality_guard", "points_array"]
 
 _X_BASE = X_(0)
 
@@ -975,51 +974,3 @@ def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np
     return [plane_from_gtsam(values.atOrientedPlane3(k)) for k in problem.plane_keys]
 
 
-def view_projections(rig: Rig, poses: list[np.ndarray] | None = None,
-                     planes: list[tuple[np.ndarray, float]] | None = None) -> list[np.ndarray]:
-    """``(3, 4)`` world-to-pixel matrix of every view, real or through a mirror
-    (:func:`~mirrorgraph.geometry.camera_projection`,
-    :func:`~mirrorgraph.geometry.mirror_projection`); default: the rig's poses and planes."""
-    out = []
-    for v in rig.views:
-        ci = rig.camera_index(v.camera)
-        K = rig.cameras[ci].K
-        pose = rig.cameras[ci].pose if poses is None else poses[ci]
-        if v.mirror is None:
-            out.append(camera_projection(K, pose))
-        else:
-            m = rig.mirror_index(v.mirror)
-            n, d = ((rig.mirrors[m].normal, rig.mirrors[m].distance) if planes is None
-                    else planes[m])
-            out.append(mirror_projection(K, pose, n, d))
-    return out
-
-
-def view_residuals(rig: Rig, points: np.ndarray, used: np.ndarray,
-                   planes: list[tuple[np.ndarray, float]],
-                   poses: list[np.ndarray] | None = None) -> list[np.ndarray]:
-    """Reprojection residual norms of every view.
-
-    Args:
-        points: ``(T, J, 3)`` world-frame joints; used: ``(T, J)`` bool.
-        planes: ``(n, d)`` per mirror.
-        poses: ``(4, 4)`` camera-to-world pose per camera (default: the rig's).
-
-    Returns:
-        One ``(T, J)`` array per view, pixels, NaN where the view does not use the pair.
-    """
-    out = []
-    for view in rig.views:
-        ci = rig.camera_index(view.camera)
-        cam = rig.cameras[ci]
-        mask = used & np.asarray(view.mask, dtype=bool)
-        X = points[mask]
-        if view.mirror is not None:
-            n, d = planes[rig.mirror_index(view.mirror)]
-            X = reflect_points(X, n, d)
-        pose = np.asarray(cam.pose if poses is None else poses[ci], dtype=float)
-        Xc = (X - pose[:3, 3]) @ pose[:3, :3]
-        r = np.full(mask.shape, np.nan)
-        r[mask] = np.linalg.norm(project(cam.K, Xc) - np.asarray(view.pixels)[mask], axis=1)
-        out.append(r)
-    return out

@@ -57,11 +57,10 @@ from .builder import build_problem, extract_points, snap_virtual_poses
 from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import observation_outliers
-from .rig import Rig
+from .rig import Rig, seen_twice, with_views
 from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
 from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, floor_focal, joints_pass,
-                     optimize,
-                     reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
+                     optimize, reprojection_noise_px, solve_rows, undetermined)
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 

@@ -26,8 +26,7 @@ import numpy as np
 
 from dataclasses import replace
 
-from .builder import view_projections, view_residuals
-from .rig import Rig
+from .rig import Rig, view_projections, view_residuals
 
 __all__ = ["feasible", "observation_outliers", "bone_outliers"]
 

@@ -30,10 +30,8 @@ import numpy as np
 
 from .chunked import solve_chunked
 from .options import RefineOptions
-from .rig import Rig
-from .stages import (Counter, Progress, SolveConfig, SolveState, floor_focal, parallax_deg,
-                     solve_rows,
-                     spread_rows, triangulate_rig)
+from .rig import Rig, parallax_deg, spread_rows, triangulate_rig
+from .stages import Counter, Progress, SolveConfig, SolveState, floor_focal, solve_rows
 
 __all__ = ["solve", "undetermined_focal"]
 

@@ -71,25 +71,23 @@ import numpy as np
 
 from ..anthropometry import expected_bone_lengths
 from ..errors import DegenerateGeometryError
-from ..geometry import triangulate
 from ..keypoints import MIN_PAIRS
 from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
-                      debiased_bone_lengths,
-                      extract_camera_poses, extract_intrinsics, extract_planes, extract_points,
-                      point_keys,
-                      snap_virtual_poses, view_projections, view_residuals,
+                      debiased_bone_lengths, extract_camera_poses, extract_intrinsics,
+                      extract_planes, extract_points, point_keys, snap_virtual_poses,
                       with_motion_priors)
+from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, view_residuals,
+                  with_intrinsics, with_views)
 from .lengths import update_lengths
 from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_covariance
 from .options import RefineOptions
 from .outliers import bone_outliers, observation_outliers
 from .reduction import mirror_reduction
 from .result import residual_noise_px
-from .rig import Rig
 from .uncertainty import JointScores, joint_scores, robust_intrinsics_std
 
 __all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
-           "MIN_PAIRS", "triangulate_rig", "spread_rows", "lm_params", "solve_rows", "Counter"]
+           "MIN_PAIRS", "lm_params", "solve_rows", "Counter"]
 
 
 Progress = Callable[[int, float], None]
@@ -258,64 +256,6 @@ class SolveState:
     focal_undetermined: dict[str, dict] = field(default_factory=dict)
 
 
-# --------------------------------------------------------------------------- geometry
-def view_centres(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
-                 ) -> np.ndarray:
-    """``(V, 3)`` optical centre of every view: the camera's, or its reflection."""
-    out = []
-    for v in rig.views:
-        c = np.asarray(poses[rig.camera_index(v.camera)], float)[:3, 3]
-        if v.mirror is not None:
-            n, d = planes[rig.mirror_index(v.mirror)]
-            n = np.asarray(n, float)
-            c = c - 2.0 * (n @ c - d) * n
-        out.append(c)
-    return np.array(out)
-
-
-def triangulate_rig(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
-                    planes: list[tuple[np.ndarray, float]]) -> tuple[np.ndarray, np.ndarray]:
-    """``(T, J, 3)`` joints (world frame) and ``(T, J)`` mask: every estimated joint seen
-    in two of ``masks`` (per view), triangulated with the rig ``poses`` / ``planes``."""
-    jmask = np.zeros(rig.skeleton.num_joints, dtype=bool)
-    jmask[rig.joints] = True
-    return triangulate(view_projections(rig, poses, planes), [v.pixels for v in rig.views],
-                       [np.asarray(m, bool) & jmask[None, :] for m in masks])
-
-
-def parallax_deg(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, planes
-                 ) -> np.ndarray:
-    """``(T, J)`` largest angle between the *lines* of two rays that see a joint, degrees.
-
-    Rays pointing opposite ways (a joint between the camera and the mirror, seen
-    from the camera and from its virtual camera behind the mirror) are as
-    ill-conditioned as rays pointing the same way: a joint's depth standard
-    deviation grows as ``1 / sin(angle)``. 0 where under two views see it.
-    """
-    C = view_centres(rig, poses, planes)
-    X = np.nan_to_num(points)
-    dirs = X[None] - C[:, None, None, :]                                   # (V, T, J, 3)
-    dirs /= np.maximum(np.linalg.norm(dirs, axis=-1, keepdims=True), 1e-300)
-    m = np.stack([np.asarray(k, bool) for k in masks])
-    best = np.zeros(points.shape[:2])
-    for a in range(len(C)):
-        for b in range(a + 1, len(C)):
-            cos = np.abs(np.einsum("tjk,tjk->tj", dirs[a], dirs[b]))
-            ang = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
-            best = np.where(m[a] & m[b], np.maximum(best, ang), best)
-    return best
-
-
-def spread_rows(T: int, count: int) -> np.ndarray:
-    """``(T,)`` bool: ``count`` frame rows spread evenly over ``T`` (all if ``T <= count``)."""
-    mask = np.zeros(T, dtype=bool)
-    if count <= 0 or T <= count:
-        mask[:] = count > 0 or T == 0
-        return mask
-    mask[np.unique(np.linspace(0, T - 1, count).round().astype(int))] = True
-    return mask
-
-
 # --------------------------------------------------------------------------- pieces
 #: Halvings of an undamped step that overshoots where intrinsics are estimated
 #: (:attr:`~.optimizer.LMParams.backtrack`).
@@ -385,11 +325,6 @@ def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
     flat = flat[flat < T * J].astype(np.int64)
     out[flat] = True
     return out.reshape(T, J) & problem.used
-
-
-def seen_twice(masks: list[np.ndarray]) -> np.ndarray:
-    """``(T, J)`` bool: observed in at least two views."""
-    return np.sum([np.asarray(m, bool) for m in masks], axis=0) >= 2
 
 
 def gauge_scale(rig: Rig, points: np.ndarray, used: np.ndarray, height: float) -> float:
@@ -893,25 +828,6 @@ def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
             raise DegenerateGeometryError(
                 f"{head}: is it the same person as in the other cameras? the right "
                 "intrinsics, frame offset, mirror?")
-
-
-def with_intrinsics(rig: Rig, intrinsics: list[np.ndarray]) -> Rig:
-    """``rig`` with every camera's ``K`` replaced (``(3, 3)`` each, rig order)."""
-    return replace(rig, cameras=tuple(replace(c, K=np.asarray(K, float))
-                                      for c, K in zip(rig.cameras, intrinsics)))
-
-
-def with_views(rig: Rig, masks: list[np.ndarray], poses=None, planes=None) -> Rig:
-    """``rig`` with other view masks (and initial poses / planes)."""
-    out = replace(rig, views=tuple(replace(v, mask=m) for v, m in zip(rig.views, masks)))
-    if poses is not None:
-        out = replace(out, cameras=tuple(replace(c, pose=np.asarray(p, float))
-                                         for c, p in zip(out.cameras, poses)))
-    if planes is not None:
-        out = replace(out, mirrors=tuple(replace(m, normal=np.asarray(n, float),
-                                                 distance=float(d))
-                                         for m, (n, d) in zip(out.mirrors, planes)))
-    return out
 
 
 #: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the points start at the

@@ -399,7 +399,8 @@ def _bone_bias_rows(problem: GraphProblem, values: gtsam.Values, pixel_sigma: fl
     triangulation covariances at ``pixel_sigma``, ``P`` across the bone, ``L`` its
     length), over the bone factors' sigma (whitened), at the solution ``values``."""
     from ..geometry import triangulation_covariance
-    from .builder import extract_camera_poses, extract_planes, extract_points, view_projections
+    from .builder import extract_camera_poses, extract_planes, extract_points
+    from .rig import view_projections
 
     T, J = problem.used.shape
     points = extract_points(problem, values)

@@ -25,15 +25,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..graph.builder import view_residuals
+from ..graph.rig import Camera, Mirror, Rig, View, spread_rows, triangulate_rig, view_residuals
 from ..graph.refine import focal_record, guessed_camera
 from ..graph.options import FocalOptions, RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.sensitivity import rig_sensitivity_report
 from ..graph.uncertainty import robust_blocks
 from ..graph.solve import solve
-from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config, spread_rows, triangulate_rig
-from ..graph.rig import Camera, Mirror, Rig, View
+from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config
 from .initial import InitialRig, joint_masks, observed
 from .observations import RigObservations
 
