@@ -59,8 +59,10 @@ from .options import RefineOptions
 from .outliers import observation_outliers
 from .rig import Rig, seen_twice, with_views
 from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
-from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, floor_focal, joints_pass,
-                     optimize, reprojection_noise_px, solve_rows, undetermined)
+from .stages import (MIN_PAIRS, clean_views, floor_focal, joints_pass, optimize,
+                     reprojection_noise_px, solve_rows, undetermined)
+from .solve_state import SolveState
+from .stage_config import SolveConfig
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 

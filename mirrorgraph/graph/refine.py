@@ -31,7 +31,9 @@ from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .sensitivity import sensitivity_report
 from .solve import solve
-from .stages import MIN_PAIRS, Progress, SolveState, single_mirror_config
+from .stages import MIN_PAIRS, Progress
+from .solve_state import SolveState
+from .stage_config import single_mirror_config
 from .stature_scale import LIMB_CHOSEN, scale_by_stature
 from .uncertainty import robust_normal_cov
 

@@ -63,7 +63,7 @@ Stages (each recorded in :attr:`SolveState.stages`):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Callable
 
 import gtsam
@@ -84,176 +84,14 @@ from .options import RefineOptions
 from .outliers import bone_outliers, observation_outliers
 from .reduction import mirror_reduction
 from .result import residual_noise_px
-from .uncertainty import JointScores, joint_scores, robust_intrinsics_std
+from .uncertainty import joint_scores, robust_intrinsics_std
+from .stage_config import SolveConfig
+from .solve_state import SolveState
 
-__all__ = ["Stage", "SolveConfig", "SolveState", "single_mirror_config", "rig_config",
-           "MIN_PAIRS", "lm_params", "solve_rows", "Counter"]
+__all__ = ["MIN_PAIRS", "lm_params", "solve_rows", "Counter"]
 
 
 Progress = Callable[[int, float], None]
-
-
-# --------------------------------------------------------------------------- configuration
-@dataclass(frozen=True)
-class Stage:
-    """One solve of the full graph.
-
-    Attributes:
-        name: for the record.
-        kernel: robust kernel of the reprojection factors (``"auto"``, a kernel name
-            of :func:`mirrorgraph.factors.robust_pixel_noise`, or ``None``: least squares).
-        kernel_scale_px: the kernel's scale.
-        reject_px: after the stage, observations with a larger residual are dropped
-            (``None``: nothing is dropped).
-        bone_outliers: after the stage, joints whose bones are all implausible
-            (``options.bone_outlier_k``) are dropped too.
-        only_if_rejected: run the stage only when the previous one dropped something.
-        cap_if_outliers: the stage's most iterations when the first rejection found
-            outliers (it only has to expose the rest); ``None``: ``options.max_iterations``.
-    """
-
-    name: str
-    kernel: str | None
-    kernel_scale_px: float
-    reject_px: float | None
-    bone_outliers: bool = False
-    only_if_rejected: bool = False
-    cap_if_outliers: int | None = None
-
-
-@dataclass(frozen=True)
-class SolveConfig:
-    """What varies between rigs (one driver, :func:`solve`).
-
-    Attributes:
-        stages: the full-graph solves, in order.
-        first_rejection: drop observations beyond the outlier threshold and joints with
-            implausible bones after the first triangulation (needs an initial rig good
-            to a few pixels: a RANSAC mirror; a chained pairwise rig is not).
-        warm_start: reprojection-only iterations on spread frames first (only where
-            every camera pose is held: the first mirror's distance is its gauge).
-        joints_pass: solve the joints again with the tighter smoothness.
-        chunks: long videos of one camera and one mirror in chunks sharing the mirror
-            (otherwise: a spread subset of frames).
-        focal_search: where the camera's focal length is estimated (one held camera and
-            its mirrors), search the focal length that makes the body most rigid
-            before the stages (:func:`focal_search`); the stages then estimate it with
-            the rest, and the last stage always runs (the bones it keeps are chosen
-            at the new focal length).
-    """
-
-    stages: tuple[Stage, ...]
-    first_rejection: bool = True
-    warm_start: bool = True
-    joints_pass: bool = True
-    chunks: bool = True
-    focal_search: bool = True
-
-
-def single_mirror_config(opts: RefineOptions) -> SolveConfig:
-    """A RANSAC-initialised mirror: the first rejection at once, the kernel chosen by what
-    it found, a second solve only if the first exposed more outliers."""
-    thr = opts.outlier_threshold
-    stages = (Stage("full graph", opts.final_kernel, opts.final_kernel_scale_px, thr,
-                    bone_outliers=True, cap_if_outliers=opts.outlier_pass_iterations),
-              Stage("final (outliers removed)", opts.final_kernel, opts.final_kernel_scale_px,
-                    thr, bone_outliers=True, only_if_rejected=True))
-    return SolveConfig(stages=stages)
-
-
-#: The first solve's robust kernel is this many times wider than the final one, and
-#: only observations beyond this many outlier thresholds are dropped after it. The
-#: chained pairwise initialisation of a rig can be degrees and decimetres off
-#: (residuals of 50-150 px on a 120-frame four-camera rig), which that solve removes;
-#: a kernel or a rejection at the final scale would then discard good keypoints.
-INITIAL_REJECTION_FACTOR = 5.0
-
-
-def rig_config(opts: RefineOptions) -> SolveConfig:
-    """A rig chained from pairwise estimates: a shrinking kernel, then least squares on
-    the inliers; the rejection per observation (a wrong keypoint in one camera does
-    not cost the other views)."""
-    thr = opts.outlier_threshold
-    f = INITIAL_REJECTION_FACTOR
-    stages = (Stage("wide kernel", "geman_mcclure", f * opts.final_kernel_scale_px, f * thr,
-                    bone_outliers=True),
-              Stage("kernel", "geman_mcclure", opts.final_kernel_scale_px, thr),
-              Stage("least squares", None, opts.final_kernel_scale_px, None))
-    return SolveConfig(stages=stages, first_rejection=False, warm_start=False,
-                       joints_pass=False, chunks=False)
-
-
-# --------------------------------------------------------------------------- result
-@dataclass
-class SolveState:
-    """What :func:`solve` returns (graph units: metres with a subject height).
-
-    Attributes:
-        poses: ``(4, 4)`` camera-to-world pose per camera.
-        planes: ``(n, d)`` per mirror.
-        points: ``(T, J, 3)`` joints (NaN where not estimated); used: ``(T, J)``.
-        bone_lengths: bone name -> length.
-        scale: ``"subject_height"`` or ``"unit_distance"``.
-        camera_cov: per camera ``(6, 6)`` tangent covariance (zeros for a held pose,
-            NaN when not computed), scaled by ``variance_factor``.
-        plane_cov: per mirror ``(3, 3)`` tangent covariance ``(v1, v2, d)``, scaled.
-        plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
-        noise_px: the a posteriori pixel sigma; variance_factor: ``(noise / pixel_sigma)^2``.
-        view_masks: per view the observations kept.
-        rejected: observations dropped as outliers (all views, all stages).
-        undetermined: joints dropped because GTSAM found them undetermined.
-        prior_info: prior name -> description.
-        reprojection_factors: in the final graph(s).
-        iterations, final_error, stages, timings: bookkeeping.
-        body_height: subject height in graph units (the body priors' length scale).
-        information, z_keys, z_values: the reduced system of the last undamped solve.
-        scores: every joint's Schur complement and reduced score at the solution, for
-            the cluster-robust uncertainty (:mod:`.uncertainty`; ``None`` without
-            ``options.marginals``).
-        problem: the final graph (``None`` for chunked solves).
-        intrinsics: ``(3, 3)`` camera matrix per camera (the estimate where
-            :attr:`~.rig.Camera.estimate_focal`, else the given one).
-        intrinsics_cov: per camera the ``(d, d)`` covariance of its estimated
-            intrinsics ``(f[, cx, cy])``, px^2, scaled by ``variance_factor``
-            (``(0, 0)`` where held): the marginals.
-        intrinsics_std: per camera the ``(d,)`` standard deviations of its estimated
-            intrinsics, px: the larger of the marginal and the cluster-robust figures
-            (:func:`~.uncertainty.robust_intrinsics_std`; empty without ``scores``).
-        focal_undetermined: camera name -> ``{"focal_px", "std_px", "rel_std"}`` for the
-            cameras whose focal length the data did not determine; the solution holds
-            them at their guess (:func:`mirrorgraph.graph.solve.solve`).
-    """
-
-    poses: list[np.ndarray]
-    planes: list[tuple[np.ndarray, float]]
-    points: np.ndarray
-    used: np.ndarray
-    bone_lengths: dict[str, float]
-    scale: str
-    camera_cov: list[np.ndarray]
-    plane_cov: list[np.ndarray]
-    plane_basis: list[np.ndarray]
-    noise_px: float
-    variance_factor: float
-    view_masks: list[np.ndarray]
-    rejected: int
-    undetermined: int
-    prior_info: dict[str, dict]
-    reprojection_factors: int
-    iterations: int
-    final_error: float
-    stages: list[dict]
-    timings: dict[str, float]
-    body_height: float = float("nan")
-    information: np.ndarray | None = None
-    z_keys: list[tuple[int, int]] = field(default_factory=list)
-    z_values: gtsam.Values | None = None
-    problem: GraphProblem | None = None
-    scores: JointScores | None = None
-    intrinsics: list[np.ndarray] = field(default_factory=list)
-    intrinsics_cov: list[np.ndarray] = field(default_factory=list)
-    intrinsics_std: list[np.ndarray] = field(default_factory=list)
-    focal_undetermined: dict[str, dict] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- pieces

@@ -33,7 +33,8 @@ from ..errors import DegenerateGeometryError
 from ..geometry import camera_projection, triangulate
 from ..graph.options import RefineOptions
 from ..graph.rig import Camera, Mirror, Rig, View
-from ..graph.stages import focal_search, single_mirror_config
+from ..graph.stages import focal_search
+from ..graph.stage_config import single_mirror_config
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .observations import RigObservations
 from .relative import (MIN_CORRESPONDENCES, MirrorSighting, RelativePose, focal_from_fundamental,

@@ -32,7 +32,7 @@ from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.sensitivity import rig_sensitivity_report
 from ..graph.uncertainty import robust_blocks
 from ..graph.solve import solve
-from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config
+from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config
 from .initial import InitialRig, joint_masks, observed
 from .observations import RigObservations
 

@@ -24,7 +24,8 @@ from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_co
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.graph.refine import prepare
 from mirrorgraph.graph.solve import solve
-from mirrorgraph.graph.stages import optimize, single_mirror_config
+from mirrorgraph.graph.stages import optimize
+from mirrorgraph.graph.stage_config import single_mirror_config
 from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse
 from mirrorgraph.metrics import mirror_rotation_error_deg
 from mirrorgraph.synth import make_scene, make_wide_scene
