@@ -974,3 +974,14 @@ def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np
     return [plane_from_gtsam(values.atOrientedPlane3(k)) for k in problem.plane_keys]
 
 
+def gauge_scale(rig: Rig, points: np.ndarray, used: np.ndarray, height: float) -> float:
+    """Factor that makes the per-bone median lengths sum to Winter's lengths for ``height``."""
+    names, pairs = bone_table(rig)
+    expected = expected_bone_lengths(rig.skeleton, height)
+    total, want = 0.0, 0.0
+    for name, (a, b) in zip(names, pairs):
+        ok = used[:, a] & used[:, b]
+        if ok.any():
+            total += float(np.median(np.linalg.norm(points[ok, a] - points[ok, b], axis=1)))
+            want += expected[name]
+    return want / total if total > 0 else 1.0

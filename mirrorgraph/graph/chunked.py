@@ -53,16 +53,19 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam, plane_to_gtsam
+from ..keypoints import MIN_PAIRS
 from .builder import build_problem, extract_points, snap_virtual_poses
+from .marginals import floor_focal
+from .noise import reprojection_noise_px
 from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
-from .outliers import observation_outliers
+from .outliers import clean_views, observation_outliers
 from .rig import Rig, seen_twice, with_views
-from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
-from .stages import (MIN_PAIRS, clean_views, floor_focal, joints_pass, optimize,
-                     reprojection_noise_px, solve_rows, undetermined)
+from .solve_graph import optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig
+from .stages import joints_pass, solve_rows
+from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 

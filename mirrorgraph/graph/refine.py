@@ -31,7 +31,8 @@ from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
 from .sensitivity import sensitivity_report
 from .solve import solve
-from .stages import MIN_PAIRS, Progress
+from .stages import MIN_PAIRS
+from .solve_graph import Progress
 from .solve_state import SolveState
 from .stage_config import single_mirror_config
 from .stature_scale import LIMB_CHOSEN, scale_by_stature

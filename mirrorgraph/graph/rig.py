@@ -26,8 +26,7 @@ from dataclasses import dataclass, field, replace
 import gtsam
 import numpy as np
 
-from ..geometry import (camera_projection, mirror_projection, project, reflect_points,
-                        triangulate)
+from ..geometry import camera_projection, mirror_projection, project, reflect_points, triangulate
 from ..skeletons import Skeleton
 
 __all__ = ["Camera", "Mirror", "View", "Rig", "single_mirror_rig", "view_projections",

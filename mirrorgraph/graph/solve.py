@@ -31,7 +31,9 @@ import numpy as np
 from .chunked import solve_chunked
 from .options import RefineOptions
 from .rig import Rig, parallax_deg, spread_rows, triangulate_rig
-from .stages import Counter, Progress, floor_focal, solve_rows
+from .stages import Counter, solve_rows
+from .marginals import floor_focal
+from .solve_graph import Progress
 from .solve_state import SolveState
 from .stage_config import SolveConfig
 

@@ -64,118 +64,51 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Callable
 
 import gtsam
 import numpy as np
 
-from ..anthropometry import expected_bone_lengths
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .builder import (GraphProblem, bone_table, build_problem, cheirality_guard,
-                      debiased_bone_lengths, extract_camera_poses, extract_intrinsics,
-                      extract_planes, extract_points, point_keys, snap_virtual_poses,
-                      with_motion_priors)
-from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, view_residuals,
-                  with_intrinsics, with_views)
-from .lengths import update_lengths
-from .optimizer import LevenbergMarquardt, LMParams, LMResult, reduced_covariance
+from .builder import (
+    GraphProblem,
+    bone_table,
+    build_problem,
+    debiased_bone_lengths,
+    extract_camera_poses,
+    extract_intrinsics,
+    extract_planes,
+    extract_points,
+    gauge_scale,
+    snap_virtual_poses,
+    with_motion_priors,
+)
+from .focal_search import focal_search, focal_searchable
+from .marginals import covariances
+from .noise import residual_noise
+from .optimizer import LMResult
 from .options import RefineOptions
-from .outliers import bone_outliers, observation_outliers
-from .reduction import mirror_reduction
-from .result import residual_noise_px
-from .uncertainty import joint_scores, robust_intrinsics_std
-from .stage_config import SolveConfig
+from .outliers import bone_outliers, check_held, clean_views, observation_outliers
+from .rig import (
+    Rig,
+    parallax_deg,
+    seen_twice,
+    spread_rows,
+    triangulate_rig,
+    with_intrinsics,
+    with_views,
+)
+from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
+from .stage_config import SolveConfig
+from .uncertainty import joint_scores, robust_intrinsics_std
 
-__all__ = ["MIN_PAIRS", "lm_params", "solve_rows", "Counter"]
+__all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FRAMES",
+           "JOINTS_PASS_ITERATIONS"]
 
-
-Progress = Callable[[int, float], None]
 
 
 # --------------------------------------------------------------------------- pieces
-#: Halvings of an undamped step that overshoots where intrinsics are estimated
-#: (:attr:`~.optimizer.LMParams.backtrack`).
-FOCAL_BACKTRACK = 4
-
-
-def lm_params(opts: RefineOptions, problem: GraphProblem,
-              max_iterations: int | None = None) -> LMParams:
-    """:class:`LMParams` from the options; the points' damping scale is the typical
-    information of a point seen in two views, ``2 (f / Z)^2 / sigma^2`` (graph units)."""
-    K = problem.rig.cameras[0].K
-    depth = problem.median_depth
-    scale = 2.0 * (K[0, 0] / max(depth, 1e-9)) ** 2 / opts.pixel_sigma ** 2
-    return LMParams(max_iterations=opts.max_iterations if max_iterations is None
-                    else max_iterations, relative_tolerance=opts.relative_tolerance,
-                    global_step_tolerance=opts.global_step_tolerance, local_scale=scale,
-                    backtrack=FOCAL_BACKTRACK if problem.calibration_keys else 0)
-
-
-def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
-             *, distance_gauge: float | None, max_iterations=None,
-             hold_globals: bool = False, progress: Progress | None = None,
-             values: gtsam.Values | None = None) -> tuple[LMResult, list[tuple[int, int]]]:
-    """Levenberg-Marquardt on ``graph`` from ``values`` (default: the problem's initial
-    values) with the links exact, the cheirality guard on. Where the problem has bone
-    factors and the globals move, the bone lengths are set to their optimum after
-    every accepted step (:func:`~.lengths.update_lengths`; ``problem`` holds the last
-    ones, and ``graph`` must be its :meth:`~.builder.GraphProblem.full` graph)."""
-    red = mirror_reduction(problem, distance_gauge=distance_gauge)
-    refresh = None
-    if problem.lengths is not None and not hold_globals and problem.length_key is None:
-        current = [graph]
-
-        def refresh(v: gtsam.Values) -> gtsam.NonlinearFactorGraph:
-            # the bone factors are made again only when a length moved by more than
-            # the tolerance of the globals' steps, in its own standard deviations
-            L, std = update_lengths(problem, v)
-            if np.any(np.abs(L - problem.lengths) > opts.global_step_tolerance * std):
-                problem.set_lengths(L)
-                current[0] = problem.full()
-            return current[0]
-    lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
-                            ordering=problem.point_ordering(), hold_globals=hold_globals,
-                            guard=cheirality_guard(problem), refresh=refresh)
-    res = lm.optimize(problem.values if values is None else values, progress)
-    if problem.length_key is not None:       # the lengths are a variable: read them back
-        problem.lengths = np.asarray(res.values.atVector(problem.length_key), dtype=float)
-    return res, red.z_keys
-
-
-def information_at(problem: GraphProblem, values: gtsam.Values, opts: RefineOptions
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The reduced information and gradient of ``problem``'s full graph at ``values``
-    (:meth:`~.optimizer.LevenbergMarquardt.reduced_system`)."""
-    red = mirror_reduction(problem, distance_gauge=problem.distance_gauge)
-    lm = LevenbergMarquardt(problem.full(), red, lm_params(opts, problem),
-                            ordering=problem.point_ordering())
-    return lm.reduced_system(values)
-
-
-def undetermined(problem: GraphProblem, res: LMResult) -> np.ndarray:
-    """``(T, J)`` bool: the points GTSAM found (nearly) undetermined during ``res``
-    (:attr:`~.optimizer.LMResult.indeterminate`); they are dropped with their pairs."""
-    T, J = problem.used.shape
-    out = np.zeros(T * J, dtype=bool)
-    flat = np.array(sorted(res.indeterminate), dtype=np.uint64) - np.uint64(point_keys([0])[0])
-    flat = flat[flat < T * J].astype(np.int64)
-    out[flat] = True
-    return out.reshape(T, J) & problem.used
-
-
-def gauge_scale(rig: Rig, points: np.ndarray, used: np.ndarray, height: float) -> float:
-    """Factor that makes the per-bone median lengths sum to Winter's lengths for ``height``."""
-    names, pairs = bone_table(rig)
-    expected = expected_bone_lengths(rig.skeleton, height)
-    total, want = 0.0, 0.0
-    for name, (a, b) in zip(names, pairs):
-        ok = used[:, a] & used[:, b]
-        if ok.any():
-            total += float(np.median(np.linalg.norm(points[ok, a] - points[ok, b], axis=1)))
-            want += expected[name]
-    return want / total if total > 0 else 1.0
 
 
 class Counter:
@@ -200,136 +133,6 @@ def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
             "final_error": res.final_error, "converged": res.converged, "rejected": rejected,
             "failed_steps": res.rejected_steps, "guarded": res.guarded,
             "undetermined": len(res.indeterminate), **extra}
-
-
-# --------------------------------------------------------------------------- focal search
-def focal_searchable(rig: Rig) -> bool:
-    """A rig whose focal length the search (:func:`focal_search`) can start: one held camera
-    whose focal length is estimated, seen through its mirrors."""
-    return (len(rig.cameras) == 1 and rig.cameras[0].estimate_focal
-            and not rig.cameras[0].estimate_pose and len(rig.mirrors) > 0)
-
-
-def focal_candidates(K: np.ndarray, opts: RefineOptions) -> np.ndarray:
-    """``(S,)`` candidate focal lengths, px: log-spaced over the horizontal fields of view of
-    ``opts.focal.search_fov_deg`` for an image ``2 cx`` wide."""
-    lo, hi = opts.focal.search_fov_deg
-    width = 2.0 * float(K[0, 2])
-    fov = np.radians(np.geomspace(float(hi), float(lo), int(opts.focal.search_steps)))
-    return 0.5 * width / np.tan(0.5 * fov)
-
-
-def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
-                 planes: list[tuple[np.ndarray, float]], opts: RefineOptions,
-                 config: SolveConfig, height: float | None
-                 ) -> tuple[Rig, list[tuple[np.ndarray, float]], dict]:
-    """The focal length that makes the body most rigid, among candidates: the start of
-    the graph's own estimate.
-
-    For a camera at the origin the epipole ``e ~ K n`` of each mirror is what the
-    images fix; a candidate focal length ``f`` gives the normal ``n ~ K_f^-1 e`` (the
-    distance is a gauge). Each candidate's graph (every joint of
-    ``opts.focal.search_frames`` frames spread over the video, every bone in every
-    frame: one set of factors for all, so that their errors compare; the focal length
-    held) is solved for a few iterations, and the errors are the profile of the
-    objective over ``f`` (among the candidates that keep nearly all the observations, so
-    that the errors compare); a parabola in ``log f`` through the best and its neighbours
-    gives the start. With every bone the profile's minimum is biased where the bones
-    are measured with a curvature bias; the graph's estimate that follows keeps
-    the bones of ``opts.focal.bone_bias_limit``.
-
-    Args:
-        rig: one camera (held) with ``estimate_focal``, its mirrors, views; its ``K`` is
-            the initial guess (the principal point stays).
-        masks: per view the observations to use; poses, planes: the current rig.
-        opts, config: the solve's options and configuration.
-        height: the subject's height (the gauge), or ``None``.
-
-    Returns:
-        The rig with the chosen ``K``, the planes turned to it, and the stage's record
-        (``{"name", "candidates_px", "errors", "focal_px", ...}``).
-    """
-    K0 = np.asarray(rig.cameras[0].K, dtype=float)
-    epipoles = [K0 @ np.asarray(n, float) for n, _ in planes]
-    rows = spread_rows(rig.num_frames, opts.focal.search_frames)
-    sub = rig.subset(rows)
-    sub_masks = [np.asarray(m, bool)[rows] for m in masks]
-    sopts = replace(opts, bone_bias_limit=None, focal=replace(opts.focal, bone_bias_limit=None),
-                    use_bone_length=True)
-
-    def profile(f: float) -> tuple[float, int]:
-        K = K0.copy()
-        K[0, 0] = K[1, 1] = f
-        frig = with_intrinsics(sub, [K])
-        fplanes = [(_normal_from_epipole(K, e, n), d) for e, (n, d) in zip(epipoles, planes)]
-        pts, fm, _, _ = clean_views(frig, sub_masks, poses, fplanes, sopts, config,
-                                    opts.warm_start_min_parallax_deg)
-        used = seen_twice(fm) & np.isfinite(pts).all(-1)
-        kept = int(sum(np.count_nonzero(np.asarray(m, bool) & used) for m in fm))
-        if np.count_nonzero(used) < MIN_PAIRS:
-            return np.inf, kept
-        fposes = [np.asarray(p, float).copy() for p in poses]
-        if height is not None:
-            scale = gauge_scale(frig, pts, used, float(height))
-            pts, fplanes = pts * scale, [(n, d * scale) for n, d in fplanes]
-            for p in fposes:
-                p[:3, 3] *= scale
-        problem = build_problem(with_views(frig, fm, fposes, fplanes), pts, used, fplanes,
-                                sopts, body_height=height, hold_intrinsics=True,
-                                final_kernel=None)
-        snap_virtual_poses(problem, problem.values)
-        try:
-            res, _ = optimize(problem, problem.full(), sopts,
-                              distance_gauge=problem.distance_gauge,
-                              max_iterations=FOCAL_SEARCH_ITERATIONS)
-        except DegenerateGeometryError:
-            return np.inf, kept
-        return float(res.final_error), kept
-
-    fs = focal_candidates(K0, opts)
-    runs = [profile(f) for f in fs]
-    # the errors compare only on the same data: a candidate whose cleaning rejected more
-    # than FOCAL_SEARCH_MIN_KEPT of the observations the best-kept one has is out (a
-    # wrong focal length that rejects two thirds of the pairs must not win by the error
-    # it no longer counts)
-    kept = np.array([k for _, k in runs], dtype=float)
-    errors = np.array([e for e, _ in runs])
-    errors[kept < FOCAL_SEARCH_MIN_KEPT * kept.max()] = np.inf
-    best = int(np.argmin(errors))
-    f = float(fs[best])
-    if 0 < best < len(fs) - 1 and np.all(np.isfinite(errors[best - 1:best + 2])):
-        x = np.log(fs[best - 1:best + 2])
-        a, b, _ = np.polyfit(x, errors[best - 1:best + 2], 2)
-        if a > 0:
-            f = float(np.exp(np.clip(-b / (2 * a), x[0], x[2])))
-    K = K0.copy()
-    K[0, 0] = K[1, 1] = f
-    new_planes = [(_normal_from_epipole(K, e, n), d) for e, (n, d) in zip(epipoles, planes)]
-    record = {"name": "focal search (%d candidates, %d frames, focal held)"
-              % (len(fs), int(np.count_nonzero(rows))),
-              "iterations": 0, "initial_error": float("nan"),
-              "final_error": float(errors[best]), "converged": True, "rejected": 0,
-              "failed_steps": 0, "guarded": 0, "undetermined": 0,
-              "candidates_px": [float(x) for x in fs],
-              "errors": [float(x) for x in errors], "kept": [int(k) for k in kept],
-              "focal_px": f,
-              "initial_focal_px": float(K0[0, 0])}
-    return with_intrinsics(rig, [K]), new_planes, record
-
-
-#: Iterations of each candidate's solve in :func:`focal_search`.
-FOCAL_SEARCH_ITERATIONS = 3
-
-#: A candidate of :func:`focal_search` whose cleaning kept fewer than this fraction of the
-#: observations the best-kept candidate kept is not compared.
-FOCAL_SEARCH_MIN_KEPT = 0.9
-
-
-def _normal_from_epipole(K: np.ndarray, e: np.ndarray, like: np.ndarray) -> np.ndarray:
-    """Unit ``K^-1 e`` (3,), the sign of ``like`` (the normal it replaces)."""
-    n = np.linalg.solve(K, np.asarray(e, float))
-    n /= np.linalg.norm(n)
-    return n if n @ np.asarray(like, float) >= 0 else -n
 
 
 # --------------------------------------------------------------------------- the stages
@@ -385,7 +188,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
             opts.min_parallax_deg)
         stages.append(record)
         timings["solve"] += time.perf_counter() - t
-    _check_held(rig, masks, offered)
+    check_held(rig, masks, offered)
     used = seen_twice(masks) & np.isfinite(points).all(-1)
     if np.count_nonzero(used) < MIN_PAIRS:
         raise DegenerateGeometryError(
@@ -456,7 +259,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                 bad = bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
                 dropped += int(np.count_nonzero(bad))
                 masks = [m & ~bad for m in masks]
-            _check_held(rig, masks, offered)
+            check_held(rig, masks, offered)
         dropped += int(np.count_nonzero(lost))
         used &= seen_twice(masks)
         rejected += dropped
@@ -563,111 +366,6 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
 THIN_BONE_FRAMES = 10
 
 
-def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None:
-    """Variance floors of the estimated focal lengths, in every robust figure.
-
-    Two estimates of one focal length from the same data, the initial search's (every
-    bone in every frame) and the graph's (the bones whose curvature bias is small),
-    differ by what the bones' choice does to it; where that exceeds the graph's std the
-    std is no measure of the error (rays meeting at 16 deg: the search 2699 px, the
-    graph 1365 px at a std of 4 %, the truth 2186 px), and the difference squared is
-    the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
-    so does a principal point held at the centre
-    (:data:`~.builder.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
-    Sets the scores' :attr:`~.uncertainty.JointScores.prior_floor` and recomputes the
-    cameras' robust intrinsics stds with it.
-    """
-    sc, problem = state.scores, state.problem
-    if sc is None or problem is None or sc.prior_spread is None:
-        return
-    search = [s.get("focal_px") for s in state.stages if s.get("focal_px") is not None]
-    floor = (np.zeros(sc.scores.shape[1]) if sc.prior_floor is None
-             else np.asarray(sc.prior_floor, float).copy())
-    off = 0
-    keys = {int(pair[0]): c for c, pair in problem.calibration_keys.items()}
-    for key, dim in sc.z_keys:
-        c = keys.get(int(key))
-        if c is not None:
-            if dim == 3 and problem.rig.cameras[c].principal_point_prior is not None:
-                floor[off + 1:off + 3] = np.inf       # held at the centre: the prior's spread
-            f = float(np.asarray(state.intrinsics[c])[0, 0])
-            if c in undetermined:
-                floor[off] = np.inf                        # the prior's (capped there)
-            elif search and len(problem.calibration_keys) == 1:
-                floor[off] = max(floor[off], (float(search[-1]) - f) ** 2)
-        off += dim
-    sc.prior_floor = floor
-    marginal = {int(problem.calibration_keys[c][0]): state.intrinsics_cov[c]
-                for c in problem.calibration_keys}
-    robust = robust_intrinsics_std(sc, marginal)
-    state.intrinsics_std = [robust[int(problem.calibration_keys[c][0])][0]
-                            if c in problem.calibration_keys else np.zeros(0)
-                            for c in range(len(state.intrinsics))]
-
-
-def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,
-           config: SolveConfig, min_parallax: float):
-    """Triangulate; drop observations behind their camera, joints without parallax and,
-    with ``config.first_rejection``, outliers. Returns points, masks, the count dropped
-    and the count of outliers found (for the ``"auto"`` kernel)."""
-    offered = masks
-    points, ok = triangulate_rig(rig, masks, poses, planes)
-    masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)
-    if behind:           # again, only the joints that lost an observation
-        changed = np.any([a & ~b for a, b in zip(offered, masks)], axis=0)
-        again, again_ok = triangulate_rig(rig, [m & changed for m in masks], poses, planes)
-        points = np.where(changed[..., None], again, points)
-        ok = np.where(changed, again_ok, ok)
-    flat = ok & (parallax_deg(rig, points, masks, poses, planes) < min_parallax)
-    masks = [m & ~flat for m in masks]
-    found = 0
-    if config.first_rejection:
-        used = seen_twice(masks) & ok
-        masks, found = observation_outliers(rig, points, used, masks, poses, planes, opts.outlier_threshold)
-        if opts.bone_outlier_k > 0:
-            _, pairs = bone_table(rig)
-            bad = bone_outliers(points, used & seen_twice(masks), pairs, k=opts.bone_outlier_k)
-            found += int(np.count_nonzero(bad))
-            masks = [m & ~bad for m in masks]
-    return points, masks, behind + int(np.count_nonzero(flat)) + found, found
-
-
-#: An estimated camera or a mirror needs at least this many keypoints left in its
-#: views after outlier rejection (a pose has 6 unknowns, a plane 3).
-MIN_HELD_OBSERVATIONS = 30
-
-
-def _check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
-    """Raise when an estimated camera or a mirror has (almost) no keypoints left.
-
-    Raises:
-        DegenerateGeometryError: naming the camera or mirror, with the counts; for a
-            camera whose focal length is estimated, that its start (the initial focal
-            length and placement) may be what is too far off, not the user's input.
-    """
-    kept = np.array([int(np.count_nonzero(m)) for m in masks])
-    had = np.asarray(offered)
-    groups = [(c, f"camera {c.name}", [i for i, v in enumerate(rig.views)
-                                        if v.camera == c.name])
-              for c in rig.cameras if c.estimate_pose or c.estimate_focal]
-    groups += [(None, f"mirror {m.name}", [i for i, v in enumerate(rig.views)
-                                           if v.mirror == m.name])
-               for m in rig.mirrors]
-    for cam, what, idx in groups:
-        if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
-            head = (f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the "
-                    f"rest of the rig (need {MIN_HELD_OBSERVATIONS})")
-            if cam is not None and cam.estimate_focal:
-                raise DegenerateGeometryError(
-                    f"{head} at its initial focal length {cam.K[0, 0]:.0f} px and placement, "
-                    "which the graph starts its estimate from: the start is too far off for "
-                    "these views (give this camera's intrinsics), or it sees another person "
-                    "or needs a frame offset")
-            raise DegenerateGeometryError(
-                f"{head}: is it the same person as in the other cameras? the right "
-                "intrinsics, frame offset, mirror?")
-
-
 #: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the points start at the
 #: calibration's solution and the smoothness is linear in them, so one step lands
 #: within ~1 mm of the converged joints (error 15156.7 vs 15155.9 converged on a
@@ -705,75 +403,3 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     return jp, res
 
 
-def reprojection_noise_px(rig: Rig, masks: list[np.ndarray], poses, planes,
-                          global_unknowns: int) -> float:
-    """A posteriori pixel sigma of a whole video: :func:`residual_noise` of every joint of
-    ``masks`` triangulated from its views with the solved rig, in blocks of
-    :data:`NOISE_BLOCK_FRAMES` frames, so that a long video's temporaries stay small."""
-    rss, n_obs, n_points = 0.0, 0, 0
-    for a in range(0, rig.num_frames, NOISE_BLOCK_FRAMES):
-        rows = slice(a, a + NOISE_BLOCK_FRAMES)
-        block = rig.subset(rows)
-        bm = [np.asarray(m, bool)[rows] for m in masks]
-        X, ok = triangulate_rig(block, bm, poses, planes)
-        parts = _residual_sums(block, bm, X, ok, poses, planes)
-        rss, n_obs, n_points = rss + parts[0], n_obs + parts[1], n_points + parts[2]
-    return residual_noise_px(rss, 2 * n_obs, 3 * n_points + global_unknowns)
-
-
-def residual_noise(rig: Rig, masks: list[np.ndarray], points: np.ndarray, ok: np.ndarray,
-                   poses, planes, global_unknowns: int) -> float:
-    """A posteriori pixel sigma from the joints ``points`` ``(T, J, 3)`` (``ok``: ``(T, J)``)
-    triangulated from the views of ``masks`` with the solved rig (the maximum-likelihood
-    points of the reprojection alone): ``sqrt(RSS / dof)`` with
-    ``dof = 2 observations - 3 joints - global_unknowns``
-    (:func:`~.result.residual_noise_px`)."""
-    rss, n_obs, n_points = _residual_sums(rig, masks, points, ok, poses, planes)
-    return residual_noise_px(rss, 2 * n_obs, 3 * n_points + global_unknowns)
-
-
-def _residual_sums(rig: Rig, masks, points, ok, poses, planes) -> tuple[float, int, int]:
-    """Sum of squared residuals, observations and joints of triangulated ``points``."""
-    res = view_residuals(with_views(rig, [np.asarray(m, bool) & ok for m in masks]), points,
-                         ok, planes, poses)
-    r = np.concatenate([v[np.isfinite(v)] for v in res])
-    return float(np.sum(r ** 2)), len(r), int(np.count_nonzero(ok))
-
-
-#: Frames a block of :func:`reprojection_noise_px` holds.
-NOISE_BLOCK_FRAMES = 2000
-
-
-def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
-                z_keys, compute: bool = True):
-    """Per camera ``(6, 6)`` and per plane ``(3, 3)`` tangent covariance from the reduced
-    information (:func:`~.optimizer.reduced_covariance`), the planes' normal bases, the
-    reduced variables' values and per camera the ``(d, d)`` covariance of its estimated
-    intrinsics (``(0, 0)`` where held). Held cameras get zeros; NaN where not computed."""
-    rig = problem.rig
-    nan6, nan3 = np.full((6, 6), np.nan), np.full((3, 3), np.nan)
-    basis = [np.asarray(values.atOrientedPlane3(k).normal().basis()) for k in problem.plane_keys]
-    zv = gtsam.Values()
-    for k, _ in z_keys:
-        if k in problem.plane_keys:
-            zv.insert(k, values.atOrientedPlane3(k))
-        elif gtsam.Symbol(k).chr() == ord("k"):
-            zv.insert(k, values.atCal3_S2(k))
-        elif k == problem.length_key:
-            zv.insert(k, values.atVector(k))
-        else:
-            zv.insert(k, values.atPose3(k))
-    dims = [rig.cameras[i].intrinsics_dim if i in problem.calibration_keys else 0
-            for i in range(len(rig.cameras))]
-    if info is None or not compute:
-        return ([np.zeros((6, 6)) if i not in problem.camera_keys else nan6
-                 for i in range(len(rig.cameras))],
-                [nan3] * len(problem.plane_keys), basis, zv,
-                [np.full((d, d), np.nan) for d in dims])
-    cov = reduced_covariance(info, z_keys)
-    cams = [np.zeros((6, 6)) if problem.camera_keys.get(i) is None
-            else cov[int(problem.camera_keys[i])] for i in range(len(rig.cameras))]
-    planes = [cov[int(k)] for k in problem.plane_keys]
-    intr = [cov[int(problem.calibration_keys[i][0])] if d else np.zeros((0, 0))
-            for i, d in enumerate(dims)]
-    return cams, planes, basis, zv, intr

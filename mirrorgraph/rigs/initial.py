@@ -33,7 +33,7 @@ from ..errors import DegenerateGeometryError
 from ..geometry import camera_projection, triangulate
 from ..graph.options import RefineOptions
 from ..graph.rig import Camera, Mirror, Rig, View
-from ..graph.stages import focal_search
+from ..graph.focal_search import focal_search
 from ..graph.stage_config import single_mirror_config
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .observations import RigObservations

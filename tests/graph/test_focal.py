@@ -24,7 +24,7 @@ from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_co
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.graph.refine import prepare
 from mirrorgraph.graph.solve import solve
-from mirrorgraph.graph.stages import optimize
+from mirrorgraph.graph.solve_graph import optimize
 from mirrorgraph.graph.stage_config import single_mirror_config
 from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse
 from mirrorgraph.metrics import mirror_rotation_error_deg
@@ -215,7 +215,7 @@ def test_a_camera_left_without_keypoints_names_its_start():
     # user's intrinsics (it has none)
     from mirrorgraph.errors import DegenerateGeometryError
     from mirrorgraph.graph.rig import Camera, Rig, View
-    from mirrorgraph.graph.stages import _check_held
+    from mirrorgraph.graph.outliers import check_held
     from mirrorgraph.skeletons import skeleton_by_name
 
     sk = skeleton_by_name("COCO_17")
@@ -228,13 +228,13 @@ def test_a_camera_left_without_keypoints_names_its_start():
               frame_ids=np.arange(T), joints=np.arange(J))
     masks = [np.ones((T, J), bool), np.zeros((T, J), bool)]
     with pytest.raises(DegenerateGeometryError, match="camera b: 0 of its 340 keypoints") as e:
-        _check_held(rig, masks, [T * J, T * J])
+        check_held(rig, masks, [T * J, T * J])
     assert "initial focal length 1234 px" in str(e.value)
     assert "right intrinsics" not in str(e.value)
     cams = (cams[0], Camera("b", K, estimate_pose=True))
     with pytest.raises(DegenerateGeometryError, match="the right intrinsics"):
-        _check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
-                        frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
+        check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
+                       frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
 
 
 def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):

@@ -130,7 +130,7 @@ def test_indeterminate_point_is_a_failed_step_not_an_exception():
 
 
 def test_undetermined_points_are_dropped_from_the_refinement():
-    from mirrorgraph.graph.stages import undetermined
+    from mirrorgraph.graph.solve_graph import undetermined
     from mirrorgraph.graph.optimizer import LMResult
     from mirrorgraph.graph.builder import build_problem
     from mirrorgraph.graph.rig import single_mirror_rig
