@@ -70,34 +70,17 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .builder import (
-    GraphProblem,
-    bone_table,
-    build_problem,
-    debiased_bone_lengths,
-    extract_camera_poses,
-    extract_intrinsics,
-    extract_planes,
-    extract_points,
-    gauge_scale,
-    snap_virtual_poses,
-    with_motion_priors,
-)
+from .builder import (GraphProblem, bone_table, build_problem, debiased_bone_lengths,
+                      extract_camera_poses, extract_intrinsics, extract_planes, extract_points,
+                      gauge_scale, snap_virtual_poses, with_motion_priors)
 from .focal_search import focal_search, focal_searchable
 from .marginals import covariances
 from .noise import residual_noise
 from .optimizer import LMResult
 from .options import RefineOptions
 from .outliers import bone_outliers, check_held, clean_views, observation_outliers
-from .rig import (
-    Rig,
-    parallax_deg,
-    seen_twice,
-    spread_rows,
-    triangulate_rig,
-    with_intrinsics,
-    with_views,
-)
+from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, with_intrinsics,
+                  with_views)
 from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig
