@@ -1,11 +1,11 @@
-"""The stages of the one solve driver (:func:`mirrorgraph.graph.solve.solve`), and what varies.
+"""The stages of the one solve driver (:func:`mirrorgraph.graph.solve.solve`), one function each.
 
-A :class:`SolveConfig` says what differs between rigs: the full-graph
-:class:`Stage` s (kernel, scale, rejection after each), whether outliers are
-rejected before the first solve, the warm start, the joints pass, chunking.
-:func:`single_mirror_config` and :func:`rig_config` are the two in use.
+:func:`solve_rows` runs them in order on a working state handed from stage to stage;
+what varies between rigs (the full-graph stages, the first rejection, the warm start,
+the focal search, the joints pass) is the :class:`~.stage_config.SolveConfig`
+(:func:`~.stage_config.single_mirror_config`, :func:`~.stage_config.rig_config`).
 
-Stages (each recorded in :attr:`SolveState.stages`):
+Stages (each recorded in :attr:`~.solve_state.SolveState.stages`):
 
 1. **Triangulation** of every joint seen in two views or more with the initial rig
    (:func:`mirrorgraph.geometry.triangulate`, DLT then Gauss-Newton). An observation
@@ -24,15 +24,15 @@ Stages (each recorded in :attr:`SolveState.stages`):
 2b. **Focal search** (``config.focal_search``, one held camera whose focal length is
    estimated, :attr:`~.rig.Camera.estimate_focal`): the focal length that makes the body
    most rigid among log-spaced candidates, each with its normals from the epipoles
-   (:func:`focal_search`); then every joint triangulated again with it. The stages
-   that follow estimate it with the rest (the bone lengths then a variable of the
+   (:func:`~.focal_search.focal_search`); then every joint triangulated again with it.
+   The stages that follow estimate it with the rest (the bone lengths then a variable of the
    linear system, :mod:`.builder`), the last one always runs (its bones chosen at the
    estimated focal length), and an undamped step that overshoots is halved before the
    damping grows (:attr:`~.optimizer.LMParams.backtrack`).
 3. **Gauge.** With a subject height everything is scaled so that the per-bone median
    lengths sum to Winter's lengths for that height (the gauge's value).
-4. **Stages** of :attr:`SolveConfig.stages`: the full graph (every joint, every
-   estimated pose and plane, the bone lengths, the body priors) with the stage's
+4. **Stages** of :attr:`~.stage_config.SolveConfig.stages`: the full graph (every
+   joint, every estimated pose and plane, the bone lengths, the body priors) with the stage's
    robust kernel, then the observations beyond the stage's threshold (and behind
    their camera) are dropped, with the joints left in fewer than two views and the
    joints GTSAM found undetermined, before the next stage (built from this one's
@@ -48,7 +48,8 @@ Stages (each recorded in :attr:`SolveState.stages`):
 6. **Marginals and noise.** The reduced information of the last undamped solve is the
    Schur complement of every joint on (poses, bone lengths, planes) that GTSAM's
    elimination leaves; its inverse (:func:`~.optimizer.reduced_covariance`) gives each
-   estimated camera's ``6 x 6`` and each plane's ``3 x 3`` covariance, scaled by the noise the data show: every used joint
+   estimated camera's ``6 x 6`` and each plane's ``3 x 3`` covariance
+   (:mod:`.marginals`), scaled by the noise the data show (:mod:`.noise`): every used joint
    triangulated again from its kept views with the solved rig (the maximum-likelihood
    point of the reprojection alone, free of the body priors that pull the graph's
    joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
@@ -63,7 +64,7 @@ Stages (each recorded in :attr:`SolveState.stages`):
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -83,7 +84,7 @@ from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, w
                   with_views)
 from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
-from .stage_config import SolveConfig
+from .stage_config import SolveConfig, Stage
 from .uncertainty import joint_scores, robust_intrinsics_std
 
 __all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FRAMES",
@@ -91,9 +92,7 @@ __all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FR
 
 
 
-# --------------------------------------------------------------------------- pieces
-
-
+# --------------------------------------------------------------------------- bookkeeping
 class Counter:
     """Counts iterations over stages and chunks and forwards them to the user's callback.
 
@@ -118,157 +117,332 @@ def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
             "undetermined": len(res.indeterminate), **extra}
 
 
-# --------------------------------------------------------------------------- the stages
+# --------------------------------------------------------------------------- the driver
+@dataclass
+class _Run:
+    """The driver's working state, handed from stage to stage (:func:`solve_rows`).
+
+    Attributes:
+        rig: the rig (its ``K`` replaced where a focal length is estimated).
+        opts, config, height, counter: the arguments of :func:`solve_rows`.
+        poses: ``(4, 4)`` camera-to-world pose per camera; planes: ``(n, d)`` per mirror.
+        masks: per view the ``(T, J)`` observations kept; offered: per view the count
+            of observations the rig came with (for :func:`~.outliers.check_held`).
+        timings: seconds per part; t_start: :func:`time.perf_counter` at the start.
+        points: ``(T, J, 3)`` joints (world frame; graph units once on the gauge);
+            used: ``(T, J)`` the joints the next graph estimates.
+        rejected: observations dropped so far; found: outliers the first rejection
+            found (for the ``"auto"`` kernel).
+        stages: the stages' records (:func:`stage_record`).
+        problem, values, res, z_keys: the last full-graph stage's graph, solution,
+            solve and reduced keys.
+        lengths, body_height, length_sum: what the next full-graph stage starts from
+            (bone name -> length, the body priors' length scale, the gauge's sum).
+        iterations: iterations so far; n_undetermined: joints dropped as undetermined.
+    """
+
+    rig: Rig
+    opts: RefineOptions
+    config: SolveConfig
+    height: float | None
+    counter: Counter
+    poses: list[np.ndarray]
+    planes: list[tuple[np.ndarray, float]]
+    masks: list[np.ndarray]
+    offered: list[int]
+    timings: dict[str, float]
+    t_start: float
+    points: np.ndarray | None = None
+    used: np.ndarray | None = None
+    rejected: int = 0
+    found: int = 0
+    stages: list[dict] = field(default_factory=list)
+    problem: GraphProblem | None = None
+    values: gtsam.Values | None = None
+    res: LMResult | None = None
+    z_keys: list[tuple[int, int]] = field(default_factory=list)
+    lengths: dict[str, float] | None = None
+    body_height: float | None = None
+    length_sum: float | None = None
+    iterations: int = 0
+    n_undetermined: int = 0
+
+    def clean(self, masks: list[np.ndarray]) -> None:
+        """The joints triangulated from ``masks`` with the current rig and the views
+        cleaned (:func:`~.outliers.clean_views`)."""
+        self.points, self.masks, self.rejected, self.found = clean_views(
+            self.rig, masks, self.poses, self.planes, self.opts, self.config,
+            self.opts.min_parallax_deg)
+
+    def view_masks(self) -> list[np.ndarray]:
+        """Per view the ``(T, J)`` observations the rig came with."""
+        return [np.asarray(v.mask, bool) for v in self.rig.views]
+
+
 def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,
-                counter: Counter) -> SolveState:
+               counter: Counter) -> SolveState:
+    """The driver's stages (the module docstring's 1 to 6) on every frame row of ``rig``.
+
+    Args:
+        rig: cameras, mirrors, views and observations; its poses, planes and ``K`` are
+            the initial values.
+        opts: weights, kernels, thresholds; config: what varies between rigs
+            (:mod:`.stage_config`).
+        height: the subject's height, m (the gauge), or ``None``.
+        counter: counts the iterations for the user's progress callback.
+
+    Returns:
+        The solved rig, joints, covariances and bookkeeping (graph units: metres with a
+        subject height).
+
+    Raises:
+        DegenerateGeometryError: under :data:`~mirrorgraph.keypoints.MIN_PAIRS` joints
+            left in two views, or an estimated camera or a mirror left with (almost) no
+            keypoints (:func:`~.outliers.check_held`).
+    """
     timings = {"triangulate": 0.0, "build": 0.0, "solve": 0.0, "marginals": 0.0}
     t_start = time.perf_counter()
-    stages: list[dict] = []
     if height is not None:
         opts = replace(opts, subject_height=float(height))
-    poses = [np.asarray(c.pose, float).copy() for c in rig.cameras]
-    planes = [(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors]
     masks = [np.asarray(v.mask, bool) for v in rig.views]
-    offered = [int(np.count_nonzero(m)) for m in masks]
+    run = _Run(rig=rig, opts=opts, config=config, height=height, counter=counter,
+               poses=[np.asarray(c.pose, float).copy() for c in rig.cameras],
+               planes=[(np.asarray(m.normal, float), float(m.distance)) for m in rig.mirrors],
+               masks=masks, offered=[int(np.count_nonzero(m)) for m in masks],
+               timings=timings, t_start=t_start)
+    _triangulate(run)                                          # 1.
+    _warm_start(run)                                           # 2.
+    _search_focal(run)                                         # 2b.
+    _start_on_gauge(run)                                       # 3.
+    _full_graph_stages(run)                                    # 4.
+    final_error, final_used, state_points, intrinsics = _solution(run)
+    final_masks, tri, tri_ok = _retriangulate(run, final_used)
+    lengths = _joints_pass_lengths(run, tri, tri_ok)
+    state_points, joints_priors = _joints_pass_stage(run, lengths, state_points)   # 5.
+    unc = _marginals_and_noise(run, final_masks, tri, tri_ok)                        # 6.
+    timings["total"] = time.perf_counter() - t_start
+    problem, factor = run.problem, unc["factor"]
+    info = dict(problem.prior_info)
+    if joints_priors is not None:
+        info["joints_pass"] = joints_priors
+    if problem.distance_gauge is not None:
+        info["distance_gauge"] = {"sigma": 1e-6, "weight": 1e12, "unit": "d", "factors": 1,
+                                  "distance": problem.distance_gauge}
+    return SolveState(poses=run.poses, planes=run.planes, points=state_points,
+                      used=final_used, bone_lengths=lengths, scale=problem.scale,
+                      camera_cov=[C * factor for C in unc["cam_cov"]],
+                      plane_cov=[C * factor for C in unc["plane_cov"]],
+                      plane_basis=unc["basis"], noise_px=unc["noise_px"],
+                      variance_factor=factor, view_masks=final_masks,
+                      rejected=run.rejected, undetermined=run.n_undetermined,
+                      prior_info=info, reprojection_factors=int(problem.reprojection.size()),
+                      iterations=run.iterations, final_error=final_error, stages=run.stages,
+                      timings=timings, body_height=problem.body_height,
+                      information=run.res.reduced_information, z_keys=run.z_keys,
+                      z_values=unc["zv"], problem=problem, scores=unc["scores"],
+                      intrinsics=intrinsics,
+                      intrinsics_cov=[C * factor for C in unc["intr_cov"]],
+                      intrinsics_std=unc["intr_std"])
 
-    # 1. triangulate, cheirality, parallax, first rejection
+
+def _triangulate(run: _Run) -> None:
+    """Stage 1: triangulate, cheirality, parallax, the first rejection."""
     t = time.perf_counter()
-    points, masks, rejected, found = clean_views(rig, masks, poses, planes, opts, config,
-                                            opts.min_parallax_deg)
-    timings["triangulate"] += time.perf_counter() - t
+    run.clean(run.masks)
+    run.timings["triangulate"] += time.perf_counter() - t
 
-    # 2. warm start on spread frames, reprojection only, the first distance held
-    if (config.warm_start and opts.warm_start_iterations > 0 and planes
+
+def _warm_start(run: _Run) -> None:
+    """Stage 2: reprojection only on spread frames, the first mirror's distance held
+    (only where every camera pose is held); then every joint cleaned again with the
+    warm rig (the original masks: the first rejection is judged anew against the
+    better mirror)."""
+    rig, opts = run.rig, run.opts
+    if not (run.config.warm_start and opts.warm_start_iterations > 0 and run.planes
             and not any(c.estimate_pose for c in rig.cameras)):
+        return
+    t = time.perf_counter()
+    rows = spread_rows(rig.num_frames, opts.warm_start_frames)
+    used = seen_twice(run.masks) & rows[:, None]
+    used &= (parallax_deg(rig, run.points, run.masks, run.poses, run.planes)
+             >= opts.warm_start_min_parallax_deg)
+    if np.count_nonzero(used) >= MIN_PAIRS:
+        warm = build_problem(with_views(rig, run.masks), run.points, used, run.planes, opts,
+                             priors=False, hold_intrinsics=True)
+        run.timings["build"] += time.perf_counter() - t
         t = time.perf_counter()
-        rows = spread_rows(rig.num_frames, opts.warm_start_frames)
-        used = seen_twice(masks) & rows[:, None]
-        used &= parallax_deg(rig, points, masks, poses, planes) >= opts.warm_start_min_parallax_deg
-        if np.count_nonzero(used) >= MIN_PAIRS:
-            warm = build_problem(with_views(rig, masks), points, used, planes, opts, priors=False,
-                                 hold_intrinsics=True)
-            timings["build"] += time.perf_counter() - t
-            t = time.perf_counter()
-            res, _ = optimize(warm, warm.reprojection, opts,
-                              distance_gauge=planes[0][1],
-                              max_iterations=opts.warm_start_iterations, progress=counter)
-            planes = extract_planes(warm, res.values)
-            poses = extract_camera_poses(warm, res.values)
-            # every joint again with the warm rig (the original masks: the first
-            # rejection is judged anew against the better mirror)
-            points, masks, rejected, found = clean_views(
-                rig, [np.asarray(v.mask, bool) for v in rig.views], poses, planes, opts,
-                config, opts.min_parallax_deg)
-            stages.append(stage_record("warm start (reprojection only, %d frames)"
-                                       % np.count_nonzero(used.any(1)), res, rejected))
-        timings["solve"] += time.perf_counter() - t
-    # 2b. the focal length's initial search (one camera held, its mirrors)
-    if config.focal_search and focal_searchable(rig):
-        t = time.perf_counter()
-        rig, planes, record = focal_search(rig, masks, poses, planes, opts, config, height)
-        points, masks, rejected, found = clean_views(
-            rig, [np.asarray(v.mask, bool) for v in rig.views], poses, planes, opts, config,
-            opts.min_parallax_deg)
-        stages.append(record)
-        timings["solve"] += time.perf_counter() - t
-    check_held(rig, masks, offered)
-    used = seen_twice(masks) & np.isfinite(points).all(-1)
-    if np.count_nonzero(used) < MIN_PAIRS:
-        raise DegenerateGeometryError(
-            f"only {np.count_nonzero(used)} joints are seen in two views after the outliers "
-            f"and the joints without depth were removed (need {MIN_PAIRS})")
+        res, _ = optimize(warm, warm.reprojection, opts, distance_gauge=run.planes[0][1],
+                          max_iterations=opts.warm_start_iterations, progress=run.counter)
+        run.planes = extract_planes(warm, res.values)
+        run.poses = extract_camera_poses(warm, res.values)
+        run.clean(run.view_masks())
+        run.stages.append(stage_record("warm start (reprojection only, %d frames)"
+                                       % np.count_nonzero(used.any(1)), res, run.rejected))
+    run.timings["solve"] += time.perf_counter() - t
 
-    # 3. start on the gauge
-    if height is not None:
-        s = gauge_scale(rig, points, used, float(height))
-        points = points * s
-        planes = [(n, d * s) for n, d in planes]
-        for p in poses:
+
+def _search_focal(run: _Run) -> None:
+    """Stage 2b: the focal length's initial search (one camera held, its mirrors;
+    :func:`~.focal_search.focal_search`), then every joint cleaned again with it."""
+    if not (run.config.focal_search and focal_searchable(run.rig)):
+        return
+    t = time.perf_counter()
+    run.rig, run.planes, record = focal_search(run.rig, run.masks, run.poses, run.planes,
+                                               run.opts, run.config, run.height)
+    run.clean(run.view_masks())
+    run.stages.append(record)
+    run.timings["solve"] += time.perf_counter() - t
+
+
+def _start_on_gauge(run: _Run) -> None:
+    """Stage 3: the joints left in two views checked, and with a subject height the
+    joints, planes and camera positions scaled onto the gauge
+    (:func:`~.bones.gauge_scale`)."""
+    check_held(run.rig, run.masks, run.offered)
+    run.used = seen_twice(run.masks) & np.isfinite(run.points).all(-1)
+    if np.count_nonzero(run.used) < MIN_PAIRS:
+        raise DegenerateGeometryError(
+            f"only {np.count_nonzero(run.used)} joints are seen in two views after the "
+            f"outliers and the joints without depth were removed (need {MIN_PAIRS})")
+    if run.height is not None:
+        s = gauge_scale(run.rig, run.points, run.used, float(run.height))
+        run.points = run.points * s
+        run.planes = [(n, d * s) for n, d in run.planes]
+        for p in run.poses:
             p[:3, 3] *= s
 
-    # 4. the stages
-    problem, values, res, z_keys = None, None, None, []
-    lengths, body_height, length_sum = None, (None if height is None else float(height)), None
-    dropped_last, n_undetermined, iterations = True, 0, sum(s["iterations"] for s in stages)
-    focal = any(c.intrinsics_dim for c in rig.cameras)
-    for stage in config.stages:
+
+def _full_graph_stages(run: _Run) -> None:
+    """Stage 4: :attr:`~.stage_config.SolveConfig.stages` in order, each built from the
+    previous one's solution; a stage ``only_if_rejected`` runs when the previous one
+    dropped something, or where a focal length is estimated."""
+    run.body_height = None if run.height is None else float(run.height)
+    run.iterations = sum(s["iterations"] for s in run.stages)
+    dropped_last = True
+    focal = any(c.intrinsics_dim for c in run.rig.cameras)
+    for stage in run.config.stages:
         if stage.only_if_rejected and not dropped_last and not focal:
             continue
-        kernel = stage.kernel
-        if kernel == "auto":
-            kernel = ("geman_mcclure" if found > opts.auto_kernel_fraction * max(used.sum(), 1)
-                      else None)
-        if np.count_nonzero(used) < MIN_PAIRS:
-            raise DegenerateGeometryError(
-                f"only {int(np.count_nonzero(used))} joints left in two views after outlier "
-                f"rejection (need {MIN_PAIRS})")
-        t = time.perf_counter()
-        stage_opts = replace(opts, final_kernel_scale_px=stage.kernel_scale_px)
-        srig = with_views(rig, masks, poses, planes)
-        problem = build_problem(srig, points, used, planes, stage_opts,
-                                body_height=body_height, bone_lengths=lengths,
-                                length_sum=length_sum, final_kernel=kernel)
-        if height is not None:
-            problem.body_height = float(height)
-        snap_virtual_poses(problem, problem.values)
-        timings["build"] += time.perf_counter() - t
-        t = time.perf_counter()
-        # the cap only saves time where the globals converge in a few steps; an estimated
-        # focal length moves the whole reconstruction and needs the full count
-        cap = (stage.cap_if_outliers if (res is None and found and not problem.calibration_keys)
-               else None)
-        res, z_keys = optimize(problem, problem.full(), stage_opts,
+        dropped_last = _full_graph_stage(run, stage) > 0
+
+
+def _full_graph_stage(run: _Run, stage: Stage) -> int:
+    """One full-graph stage: build, solve, read back, reject; the count dropped."""
+    opts = run.opts
+    kernel = stage.kernel
+    if kernel == "auto":
+        kernel = ("geman_mcclure" if run.found > opts.auto_kernel_fraction * max(run.used.sum(), 1)
+                  else None)
+    if np.count_nonzero(run.used) < MIN_PAIRS:
+        raise DegenerateGeometryError(
+            f"only {int(np.count_nonzero(run.used))} joints left in two views after outlier "
+            f"rejection (need {MIN_PAIRS})")
+    t = time.perf_counter()
+    stage_opts = replace(opts, final_kernel_scale_px=stage.kernel_scale_px)
+    srig = with_views(run.rig, run.masks, run.poses, run.planes)
+    problem = build_problem(srig, run.points, run.used, run.planes, stage_opts,
+                            body_height=run.body_height, bone_lengths=run.lengths,
+                            length_sum=run.length_sum, final_kernel=kernel)
+    if run.height is not None:
+        problem.body_height = float(run.height)
+    snap_virtual_poses(problem, problem.values)
+    run.timings["build"] += time.perf_counter() - t
+    t = time.perf_counter()
+    # the cap only saves time where the globals converge in a few steps; an estimated
+    # focal length moves the whole reconstruction and needs the full count
+    cap = (stage.cap_if_outliers
+           if (run.res is None and run.found and not problem.calibration_keys) else None)
+    res, run.z_keys = optimize(problem, problem.full(), stage_opts,
                                distance_gauge=problem.distance_gauge, max_iterations=cap,
-                               progress=counter)
-        iterations += res.iterations
-        values = res.values
-        points = extract_points(problem, values)
-        planes = extract_planes(problem, values)
-        poses = extract_camera_poses(problem, values)
-        if problem.calibration_keys:      # every later triangulation and residual with the new K
-            rig = with_intrinsics(rig, extract_intrinsics(problem, values))
-        lengths = problem.bone_lengths()
-        body_height = problem.body_height
-        if problem.lengths is not None and height is None:
-            length_sum = problem.prior_info["length_sum_gauge"]["sum"]
-        lost = undetermined(problem, res)
-        n_undetermined += int(np.count_nonzero(lost))
-        used = problem.used & ~lost
-        dropped = 0
-        if stage.reject_px is not None:
-            masks, dropped = observation_outliers(rig, points, used, masks, poses, planes, stage.reject_px)
-            if stage.bone_outliers and opts.bone_outlier_k > 0:
-                _, pairs = bone_table(rig)
-                bad = bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
-                dropped += int(np.count_nonzero(bad))
-                masks = [m & ~bad for m in masks]
-            check_held(rig, masks, offered)
-        dropped += int(np.count_nonzero(lost))
-        used &= seen_twice(masks)
-        rejected += dropped
-        dropped_last = dropped > 0
-        stages.append(stage_record(stage.name, res, dropped, kernel=kernel))
-        timings["solve"] += time.perf_counter() - t
+                               progress=run.counter)
+    run.iterations += res.iterations
+    run.problem, run.values, run.res = problem, res.values, res
+    _read_back(run)
+    dropped = _reject(run, stage)
+    run.rejected += dropped
+    run.stages.append(stage_record(stage.name, res, dropped, kernel=kernel))
+    run.timings["solve"] += time.perf_counter() - t
+    return dropped
+
+
+def _read_back(run: _Run) -> None:
+    """The stage's solution as the next stage's start: joints, planes, poses, the
+    estimated ``K`` (every later triangulation and residual with it), bone lengths,
+    the body height and the gauge's sum."""
+    problem, values = run.problem, run.values
+    run.points = extract_points(problem, values)
+    run.planes = extract_planes(problem, values)
+    run.poses = extract_camera_poses(problem, values)
+    if problem.calibration_keys:
+        run.rig = with_intrinsics(run.rig, extract_intrinsics(problem, values))
+    run.lengths = problem.bone_lengths()
+    run.body_height = problem.body_height
+    if problem.lengths is not None and run.height is None:
+        run.length_sum = problem.prior_info["length_sum_gauge"]["sum"]
+
+
+def _reject(run: _Run, stage: Stage) -> int:
+    """After a stage: the joints GTSAM found undetermined, and with ``stage.reject_px``
+    the observations beyond it (and behind their camera) and with
+    ``stage.bone_outliers`` the joints whose bones are all implausible, dropped; the
+    joints left in under two views leave ``run.used``. Returns the count dropped."""
+    rig, opts, points = run.rig, run.opts, run.points
+    lost = undetermined(run.problem, run.res)
+    run.n_undetermined += int(np.count_nonzero(lost))
+    used = run.problem.used & ~lost
+    dropped = 0
+    if stage.reject_px is not None:
+        run.masks, dropped = observation_outliers(rig, points, used, run.masks, run.poses,
+                                                  run.planes, stage.reject_px)
+        if stage.bone_outliers and opts.bone_outlier_k > 0:
+            _, pairs = bone_table(rig)
+            bad = bone_outliers(points, used, pairs, k=opts.bone_outlier_k)
+            dropped += int(np.count_nonzero(bad))
+            run.masks = [m & ~bad for m in run.masks]
+        check_held(rig, run.masks, run.offered)
+    dropped += int(np.count_nonzero(lost))
+    used &= seen_twice(run.masks)
+    run.used = used
+    return dropped
+
+
+def _solution(run: _Run) -> tuple[float, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """The last stage's error, its ``(T, J)`` used joints, its ``(T, J, 3)`` joints and
+    every camera's ``(3, 3)`` ``K``; where every solve of the last stage was damped (it
+    met a nearly singular point) the reduced information at its solution, for the
+    covariances."""
+    problem, values, res = run.problem, run.values, run.res
     final_error = float(res.final_error)
-    if res.reduced_information is None and opts.marginals:
-        # every solve of the last stage was damped (it met a nearly singular point):
-        # the information at its solution, for the covariances
-        res.reduced_information, res.reduced_gradient = information_at(problem, values, opts)
+    if res.reduced_information is None and run.opts.marginals:
+        res.reduced_information, res.reduced_gradient = information_at(problem, values,
+                                                                       run.opts)
     final_used = problem.used.copy()
     state_points = extract_points(problem, values)
     intrinsics = extract_intrinsics(problem, values)
     if problem.calibration_keys:
         problem.rig = with_intrinsics(problem.rig, intrinsics)
+    return final_error, final_used, state_points, intrinsics
 
-    # every kept joint triangulated with the solved rig: the maximum-likelihood points of
-    # the reprojection alone (free of the priors' pull), for the noise and the lengths
+
+def _retriangulate(run: _Run, final_used: np.ndarray
+                   ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """Every kept joint triangulated with the solved rig: the maximum-likelihood points
+    of the reprojection alone (free of the priors' pull), for the noise and the
+    lengths. Returns the final view masks, ``(T, J, 3)`` joints and ``(T, J)`` mask."""
+    problem = run.problem
     t = time.perf_counter()
     final_masks = [np.asarray(v.mask, bool) & final_used for v in problem.rig.views]
-    tri, tri_ok = triangulate_rig(problem.rig, final_masks, poses, planes)
-    timings["triangulate"] += time.perf_counter() - t
+    tri, tri_ok = triangulate_rig(problem.rig, final_masks, run.poses, run.planes)
+    run.timings["triangulate"] += time.perf_counter() - t
+    return final_masks, tri, tri_ok
 
-    # the bones the calibration left out, or measured in too few frames to hold every
-    # frame of the joints pass to: their length measured without the curvature bias
+
+def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict[str, float]:
+    """Bone name -> length for the joints pass (and the result): the calibration's, and
+    for the bones it left out, or measured in under :data:`THIN_BONE_FRAMES` frames,
+    their length measured without the curvature bias
+    (:func:`~.bones.debiased_bone_lengths`)."""
+    problem, opts = run.problem, run.opts
     lengths = problem.bone_lengths()
     names, pairs = bone_table(problem.rig)
     frames = (dict(zip(problem.bone_names, np.bincount(problem.bone_rows[:, 2].astype(np.int64),
@@ -277,35 +451,51 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     other = [i for i, b in enumerate(names)
              if b not in lengths or frames.get(b, 0) < THIN_BONE_FRAMES]
     if other and opts.use_bone_length:
-        est = debiased_bone_lengths(problem.rig, tri, tri_ok, planes, pairs[other],
+        est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
                                     opts.pixel_sigma)
         lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
+    return lengths
 
-    # 5. joints pass: the joints with everything else held, tighter smoothness, every bone
+
+def _joints_pass_stage(run: _Run, lengths: dict[str, float], points: np.ndarray
+                       ) -> tuple[np.ndarray, dict | None]:
+    """Stage 5 (``config.joints_pass``): the joints with everything else held
+    (:func:`joints_pass`). Returns the joints (``points`` without a pass) and the
+    pass's body priors for the record (``None`` without one)."""
     joints_priors = None
-    if config.joints_pass:
+    if run.config.joints_pass:
         t = time.perf_counter()
-        jp = joints_pass(problem, values, lengths, opts)
+        jp = joints_pass(run.problem, run.values, lengths, run.opts)
         if jp is not None:
-            state_points = extract_points(jp[0], jp[1].values)
+            points = extract_points(jp[0], jp[1].values)
             joints_priors = {k: v for k, v in jp[0].prior_info.items()
                              if k in ("bone_length", "hip", "smoothness")}
-            stages.append(stage_record("joints pass (globals held, smoothness %g h)"
-                                       % opts.joints_smoothness_sigma, jp[1], 0))
-            iterations += jp[1].iterations
-        timings["solve"] += time.perf_counter() - t
+            run.stages.append(stage_record("joints pass (globals held, smoothness %g h)"
+                                           % run.opts.joints_smoothness_sigma, jp[1], 0))
+            run.iterations += jp[1].iterations
+        run.timings["solve"] += time.perf_counter() - t
+    return points, joints_priors
 
-    # 6. marginals, scaled by the noise the data show
+
+def _marginals_and_noise(run: _Run, final_masks: list[np.ndarray], tri: np.ndarray,
+                         tri_ok: np.ndarray) -> dict:
+    """Stage 6: the a posteriori noise (:func:`~.noise.residual_noise`), the marginal
+    covariances (:func:`~.marginals.covariances`, unscaled) and the variance factor
+    ``(noise / pixel_sigma)^2`` that scales them, the joints' scores and the estimated
+    intrinsics' robust stds (:func:`~.uncertainty.robust_intrinsics_std`). Returns
+    them by name (``noise_px``, ``factor``, ``cam_cov``, ``plane_cov``, ``basis``,
+    ``zv``, ``intr_cov``, ``scores``, ``intr_std``)."""
+    problem, values, opts = run.problem, run.values, run.opts
     t = time.perf_counter()
-    noise_px = residual_noise(problem.rig, final_masks, tri, tri_ok, poses, planes,
-                              6 * len(problem.camera_keys) + 3 * len(planes)
+    noise_px = residual_noise(problem.rig, final_masks, tri, tri_ok, run.poses, run.planes,
+                              6 * len(problem.camera_keys) + 3 * len(run.planes)
                               + sum(problem.rig.cameras[c].intrinsics_dim
                                     for c in problem.calibration_keys))
     factor = (noise_px / opts.pixel_sigma) ** 2 if np.isfinite(noise_px) else 1.0
     cam_cov, plane_cov, basis, zv, intr_cov = covariances(problem, values,
-                                                          res.reduced_information, z_keys,
-                                                          opts.marginals)
-    timings["marginals"] = time.perf_counter() - t
+                                                          run.res.reduced_information,
+                                                          run.z_keys, opts.marginals)
+    run.timings["marginals"] = time.perf_counter() - t
     t = time.perf_counter()
     scores = (joint_scores(problem, values, bias_pixel_sigma=noise_px
                            if np.isfinite(noise_px) else opts.pixel_sigma)
@@ -318,26 +508,10 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         intr_std = [robust[int(problem.calibration_keys[c][0])][0]
                     if c in problem.calibration_keys else np.zeros(0)
                     for c in range(len(problem.rig.cameras))]
-    timings["uncertainty"] = time.perf_counter() - t
-    timings["total"] = time.perf_counter() - t_start
-    info = dict(problem.prior_info)
-    if joints_priors is not None:
-        info["joints_pass"] = joints_priors
-    if problem.distance_gauge is not None:
-        info["distance_gauge"] = {"sigma": 1e-6, "weight": 1e12, "unit": "d", "factors": 1,
-                                  "distance": problem.distance_gauge}
-    return SolveState(poses=poses, planes=planes, points=state_points, used=final_used,
-                      bone_lengths=lengths, scale=problem.scale,
-                      camera_cov=[C * factor for C in cam_cov],
-                      plane_cov=[C * factor for C in plane_cov], plane_basis=basis,
-                      noise_px=noise_px, variance_factor=factor, view_masks=final_masks,
-                      rejected=rejected, undetermined=n_undetermined, prior_info=info,
-                      reprojection_factors=int(problem.reprojection.size()),
-                      iterations=iterations, final_error=final_error, stages=stages,
-                      timings=timings, body_height=problem.body_height,
-                      information=res.reduced_information, z_keys=z_keys, z_values=zv,
-                      problem=problem, scores=scores, intrinsics=intrinsics,
-                      intrinsics_cov=[C * factor for C in intr_cov], intrinsics_std=intr_std)
+    run.timings["uncertainty"] = time.perf_counter() - t
+    return {"noise_px": noise_px, "factor": factor, "cam_cov": cam_cov, "plane_cov": plane_cov,
+            "basis": basis, "zv": zv, "intr_cov": intr_cov, "scores": scores,
+            "intr_std": intr_std}
 
 
 #: A bone the calibration graph measured in fewer frames than this (its bone rule kept
