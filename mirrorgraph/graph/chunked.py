@@ -54,7 +54,8 @@ import numpy as np
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam, plane_to_gtsam
 from ..keypoints import MIN_PAIRS
-from .builder import build_problem, extract_points, snap_virtual_poses
+from .builder import build_problem
+from .problem import extract_points, snap_virtual_poses
 from .marginals import floor_focal
 from .noise import reprojection_noise_px
 from .optimizer import dense_system, reduced_covariance

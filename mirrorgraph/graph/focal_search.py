@@ -17,9 +17,11 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .builder import build_problem, gauge_scale, snap_virtual_poses
+from .bones import gauge_scale
+from .builder import build_problem
 from .options import RefineOptions
 from .outliers import clean_views
+from .problem import snap_virtual_poses
 from .rig import Rig, seen_twice, spread_rows, with_intrinsics, with_views
 from .solve_graph import optimize
 from .stage_config import SolveConfig

@@ -14,8 +14,8 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from .builder import GraphProblem
 from .optimizer import reduced_covariance
+from .problem import GraphProblem
 from .solve_state import SolveState
 from .uncertainty import robust_intrinsics_std
 
@@ -67,7 +67,7 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     graph 1365 px at a std of 4 %, the truth 2186 px), and the difference squared is
     the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
     so does a principal point held at the centre
-    (:data:`~.builder.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
+    (:data:`~.priors.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
     Sets the scores' :attr:`~.uncertainty.JointScores.prior_floor` and recomputes the
     cameras' robust intrinsics stds with it.
     """

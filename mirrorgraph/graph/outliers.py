@@ -26,7 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import DegenerateGeometryError
-from .builder import bone_table
+from .bones import bone_table
 from .options import RefineOptions
 from .rig import Rig, parallax_deg, seen_twice, triangulate_rig, view_projections, view_residuals
 from .stage_config import SolveConfig

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
 from ..keypoints import PairedKeypoints
-from .builder import body_height_from_points
+from .bones import body_height_from_points
 from .rig import (Camera, Rig, single_mirror_rig, spread_rows, triangulate_rig, view_residuals,
                   with_intrinsics)
 from .options import FocalOptions, RefineOptions

@@ -57,7 +57,7 @@ class Camera:
             ``sigma`` about ``(cx0, cy0)`` (the front ends: the image centre, with the
             spread of real cameras, :attr:`~.options.FocalOptions.principal_point_rel_sigma`);
             ``None``: about the initial ``K``'s at
-            :data:`~.builder.PRINCIPAL_POINT_PRIOR` of the image width.
+            :data:`~.priors.PRINCIPAL_POINT_PRIOR` of the image width.
     """
 
     name: str

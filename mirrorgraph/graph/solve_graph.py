@@ -1,4 +1,4 @@
-"""Solve one built graph: Levenberg-Marquardt (:mod:`.optimizer`) set up for a :class:`~.builder.GraphProblem`.
+"""Solve one built graph: Levenberg-Marquardt (:mod:`.optimizer`) set up for a :class:`~.problem.GraphProblem`.
 
 The solver's parameters from the options (:func:`lm_params`), the mirror links exact
 (:func:`~.reduction.mirror_reduction`), the cheirality guard on, and the bone lengths
@@ -15,10 +15,10 @@ from typing import Callable
 import gtsam
 import numpy as np
 
-from .builder import GraphProblem, cheirality_guard, point_keys
 from .lengths import update_lengths
 from .optimizer import LevenbergMarquardt, LMParams, LMResult
 from .options import RefineOptions
+from .problem import GraphProblem, cheirality_guard, point_keys
 from .reduction import mirror_reduction
 
 __all__ = ["Progress", "FOCAL_BACKTRACK", "lm_params", "optimize", "information_at",
@@ -54,7 +54,7 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
     values) with the links exact, the cheirality guard on. Where the problem has bone
     factors and the globals move, the bone lengths are set to their optimum after
     every accepted step (:func:`~.lengths.update_lengths`; ``problem`` holds the last
-    ones, and ``graph`` must be its :meth:`~.builder.GraphProblem.full` graph)."""
+    ones, and ``graph`` must be its :meth:`~.problem.GraphProblem.full` graph)."""
     red = mirror_reduction(problem, distance_gauge=distance_gauge)
     refresh = None
     if problem.lengths is not None and not hold_globals and problem.length_key is None:

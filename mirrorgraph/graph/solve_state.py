@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from .builder import GraphProblem
+from .problem import GraphProblem
 from .uncertainty import JointScores
 
 __all__ = ["SolveState"]

@@ -39,12 +39,12 @@ Stages (each recorded in :attr:`~.solve_state.SolveState.stages`):
    solution). ``"auto"`` is least squares when the first rejection found under
    ``options.auto_kernel_fraction`` outliers, else Geman-McClure. A bone enters a
    frame's factor only where its length is measured without bias
-   (``options.bone_bias_limit``, :func:`~.builder.bone_curvature_bias`).
+   (``options.bone_bias_limit``, :func:`~.bones.bone_curvature_bias`).
 5. **Joints pass** (``config.joints_pass``): the joints once more with every pose,
    plane and bone length held, the smoothness of ``options.joints_smoothness_sigma``
    and every bone in every frame; the bones the calibration left out entirely get
    the length their triangulations give without the curvature bias
-   (:func:`~.builder.debiased_bone_lengths`).
+   (:func:`~.bones.debiased_bone_lengths`).
 6. **Marginals and noise.** The reduced information of the last undamped solve is the
    Schur complement of every joint on (poses, bone lengths, planes) that GTSAM's
    elimination leaves; its inverse (:func:`~.optimizer.reduced_covariance`) gives each
@@ -71,15 +71,16 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .builder import (GraphProblem, bone_table, build_problem, debiased_bone_lengths,
-                      extract_camera_poses, extract_intrinsics, extract_planes, extract_points,
-                      gauge_scale, snap_virtual_poses, with_motion_priors)
+from .bones import bone_table, debiased_bone_lengths, gauge_scale
+from .builder import build_problem, with_motion_priors
 from .focal_search import focal_search, focal_searchable
 from .marginals import covariances
 from .noise import residual_noise
 from .optimizer import LMResult
 from .options import RefineOptions
 from .outliers import bone_outliers, check_held, clean_views, observation_outliers
+from .problem import (GraphProblem, extract_camera_poses, extract_intrinsics, extract_planes,
+                      extract_points, snap_virtual_poses)
 from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, with_intrinsics,
                   with_views)
 from .solve_graph import Progress, information_at, optimize, undetermined
@@ -517,7 +518,7 @@ def _marginals_and_noise(run: _Run, final_masks: list[np.ndarray], tri: np.ndarr
 #: A bone the calibration graph measured in fewer frames than this (its bone rule kept
 #: it there in a few frames only) gets, for the joints pass, the length its
 #: triangulations give in every frame without the curvature bias
-#: (:func:`~.builder.debiased_bone_lengths`, whose own minimum this is): a length from
+#: (:func:`~.bones.debiased_bone_lengths`, whose own minimum this is): a length from
 #: one frame held in every frame puts its error in all of them (a hip width measured
 #: in one frame of 960 was 30 % long, issue #17).
 THIN_BONE_FRAMES = 10

@@ -54,7 +54,8 @@ import gtsam
 import numpy as np
 from scipy.special import chdtri, fdtri
 
-from .builder import GraphProblem, intrinsics_prior_sigmas, point_keys
+from .priors import intrinsics_prior_sigmas
+from .problem import GraphProblem, point_keys
 from .reduction import mirror_reduction
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 
@@ -97,7 +98,7 @@ class JointScores:
             scores must later be moved to other globals (:meth:`moved`), else ``None``.
         prior_spread: ``(n, n)`` the information of the priors that stand for an
             unknown value drawn from a population (an estimated camera's focal length
-            and principal point about their guess, :func:`~.builder.intrinsics_prior`):
+            and principal point about their guess, :func:`~.priors.intrinsics_prior`):
             the spread of that value is added to the sandwich's meat
             (:func:`sandwich`), since the scores do not contain it; ``None``: none.
         prior_floor: ``(n,)`` the least variance of each intrinsic's coordinate (of
@@ -275,7 +276,7 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values,
 
     With ``bias_pixel_sigma`` the bones' curvature bias enters too
     (:attr:`JointScores.bias_score`): a bone's length measured from noisy joints is long
-    on average by ``tr(P S) / (2 L)`` (:func:`~.builder.bone_curvature_bias`, ``P`` the
+    on average by ``tr(P S) / (2 L)`` (:func:`~.bones.bone_curvature_bias`, ``P`` the
     projection across the bone at the solution), a bias that no std holds and that
     the bones pass to the focal length (a stretch along the lines of sight); each bone
     row's share of the reduced score, with its whitened bias in place of its residual,
@@ -399,7 +400,7 @@ def _bone_bias_rows(problem: GraphProblem, values: gtsam.Values, pixel_sigma: fl
     triangulation covariances at ``pixel_sigma``, ``P`` across the bone, ``L`` its
     length), over the bone factors' sigma (whitened), at the solution ``values``."""
     from ..geometry import triangulation_covariance
-    from .builder import extract_camera_poses, extract_planes, extract_points
+    from .problem import extract_camera_poses, extract_planes, extract_points
     from .rig import view_projections
 
     T, J = problem.used.shape
@@ -426,7 +427,7 @@ def _bone_bias_rows(problem: GraphProblem, values: gtsam.Values, pixel_sigma: fl
 def intrinsics_prior_spread(problem: GraphProblem, z_keys: list) -> np.ndarray | None:
     """``(n, n)`` the information of the estimated cameras' intrinsics priors in the
     reduced coordinates ``z_keys`` (diagonal: ``1 / sigma^2`` on ``f`` and on ``cx, cy``,
-    :func:`~.builder.intrinsics_prior_sigmas`), ``None`` where no camera has one.
+    :func:`~.priors.intrinsics_prior_sigmas`), ``None`` where no camera has one.
 
     A prior about a guess stands for the population the unknown true value comes from
     (cameras' focal lengths, principal points off the image centre): the estimate's

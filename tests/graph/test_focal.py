@@ -19,7 +19,8 @@ import pytest
 import mirrorgraph as mg
 from mirrorgraph.factors import mirror_residuals
 from mirrorgraph.graph import RefineOptions
-from mirrorgraph.graph.builder import build_problem, camera_matrix, extract_planes
+from mirrorgraph.graph.builder import build_problem
+from mirrorgraph.graph.problem import camera_matrix, extract_planes
 from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_covariance
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.graph.refine import prepare
@@ -245,7 +246,7 @@ def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):
     import gtsam
 
     from mirrorgraph.factors.mirror_link import plane_from_gtsam, plane_to_gtsam
-    from mirrorgraph.graph.builder import cheirality_guard, point_keys, snap_virtual_poses
+    from mirrorgraph.graph.problem import cheirality_guard, point_keys, snap_virtual_poses
 
     rig, o, X = _truth_problem(scene, frames=20, subject_height=scene.subject_height)
     prob = build_problem(rig, X, rig.views[0].mask, [(scene.normal, scene.distance)], o,
