@@ -357,7 +357,7 @@ def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dic
             ``smoothness_sigma`` as the joints pass wants them).
 
     Returns:
-        A :class:`GraphProblem` with new ``priors``, ``bones``, ``values`` and
+        A :class:`~.problem.GraphProblem` with new ``priors``, ``bones``, ``values`` and
         ``prior_info``.
     """
     rig, used = problem.rig, problem.used

@@ -66,7 +66,8 @@ from .solve_graph import optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig
 from .stages import joints_pass, solve_rows
-from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
+from .sandwich import held_intrinsics_cov
+from .scores import JointScores, joint_scores
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 
@@ -264,7 +265,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
         opts, config, height, counter: as :func:`mirrorgraph.graph.solve.solve`.
 
     Returns:
-        :class:`mirrorgraph.graph.stages.SolveState` for the whole video.
+        :class:`mirrorgraph.graph.solve_state.SolveState` for the whole video.
     """
     if height is not None:
         opts = replace(opts, subject_height=float(height))

@@ -68,7 +68,7 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
     so does a principal point held at the centre
     (:data:`~.priors.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
-    Sets the scores' :attr:`~.uncertainty.JointScores.prior_floor` and recomputes the
+    Sets the scores' :attr:`~.scores.JointScores.prior_floor` and recomputes the
     cameras' robust intrinsics stds with it.
     """
     sc, problem = state.scores, state.problem

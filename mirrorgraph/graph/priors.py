@@ -1,4 +1,4 @@
-"""The prior factors of the graph: body priors, bone-length sets, the gauge's weights, intrinsics priors.
+"""The graph's prior factors: body priors, bone sets, the gauge's weights, intrinsics priors.
 
 The builder (:mod:`.builder`) adds them: the bone factors of a set of (frame, bone)
 pairs (:class:`BoneSet`), the length-only priors on :data:`~.problem.LENGTH_KEY`
@@ -180,7 +180,7 @@ PRINCIPAL_POINT_PRIOR = 0.05
 #: (:attr:`~.rig.Camera.principal_point_prior`), the graph's factor holds it at this
 #: fraction of that prior's sigma: the estimate keeps the centre, and the uncertainty
 #: takes the population's spread (:func:`intrinsics_prior_sigmas`,
-#: :func:`~.uncertainty.intrinsics_prior_spread`: a "consider" parameter). The people
+#: :func:`~.scores.intrinsics_prior_spread`: a "consider" parameter). The people
 #: pull it, but wrongly: on the independent generator's scenes estimating it from them
 #: turned the mirror by 6.8 and 1.2 deg (0.008 and 0.016 with the true intrinsics), on a
 #: 20 px offset the data moved it 42 px the other way (tests/graph/

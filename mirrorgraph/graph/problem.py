@@ -1,4 +1,4 @@
-"""The built factor graph of a rig (:class:`GraphProblem`): its variables, factor graphs and values read back.
+"""The built factor graph of a rig (:class:`GraphProblem`): variables, factors, values read back.
 
 Variables (keys from :mod:`gtsam.symbol_shorthand`):
 
@@ -7,13 +7,13 @@ Variables (keys from :mod:`gtsam.symbol_shorthand`):
 * ``P(m)``: :class:`gtsam.OrientedPlane3`, mirror ``m``;
 * ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of view ``v`` (mirror views);
 * ``C(c)``: :class:`gtsam.Pose3`, the pose (camera-to-world) of camera ``c`` where
-  it is estimated (:attr:`Camera.estimate_pose`); a fixed camera has no variable,
+  it is estimated (:attr:`~.rig.Camera.estimate_pose`); a fixed camera has no variable,
   unless its intrinsics are estimated: then ``C(c)`` is a *held* variable (the
   factor that takes the calibration as a variable needs a pose key; the solver
   never moves it, :mod:`.reduction`);
 * ``K(c)``, ``Q(c)``: :class:`gtsam.Cal3_S2`, the calibration ``K`` of camera ``c``
   and the mirrored one ``K D = (-fx, fy, s, cx, cy)`` of its mirror views, where its
-  intrinsics are estimated (:attr:`Camera.estimate_focal`): two variables, one
+  intrinsics are estimated (:attr:`~.rig.Camera.estimate_focal`): two variables, one
   unknown ``f`` (and ``cx, cy``), kept equal by the solver (:mod:`.reduction`);
 * the bone lengths are not variables of the linear systems: the bone factors are
   range factors holding them, set between linearisations (:mod:`.lengths`);

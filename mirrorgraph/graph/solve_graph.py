@@ -1,8 +1,9 @@
-"""Solve one built graph: Levenberg-Marquardt (:mod:`.optimizer`) set up for a :class:`~.problem.GraphProblem`.
+"""Solve one built graph: Levenberg-Marquardt (:mod:`.optimizer`) set up for a problem.
 
-The solver's parameters from the options (:func:`lm_params`), the mirror links exact
-(:func:`~.reduction.mirror_reduction`), the cheirality guard on, and the bone lengths
-set to their optimum between steps (:func:`optimize`); the reduced information at a
+For a :class:`~.problem.GraphProblem`: the solver's parameters from the options
+(:func:`lm_params`), the mirror links exact (:func:`~.reduction.mirror_reduction`), the
+cheirality guard on, and the bone lengths set to their optimum between steps
+(:func:`optimize`); the reduced information at a
 solution (:func:`information_at`) and the joints GTSAM found undetermined
 (:func:`undetermined`). Every solve of the driver (:mod:`.stages`), the focal search
 and the chunks goes through :func:`optimize`.
@@ -35,7 +36,7 @@ FOCAL_BACKTRACK = 4
 
 def lm_params(opts: RefineOptions, problem: GraphProblem,
               max_iterations: int | None = None) -> LMParams:
-    """:class:`LMParams` from the options; the points' damping scale is the typical
+    """:class:`~.optimizer.LMParams` from the options; the points' damping scale is the typical
     information of a point seen in two views, ``2 (f / Z)^2 / sigma^2`` (graph units)."""
     K = problem.rig.cameras[0].K
     depth = problem.median_depth

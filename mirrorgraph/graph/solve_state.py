@@ -16,7 +16,7 @@ import gtsam
 import numpy as np
 
 from .problem import GraphProblem
-from .uncertainty import JointScores
+from .scores import JointScores
 
 __all__ = ["SolveState"]
 

@@ -56,7 +56,7 @@ Stages (each recorded in :attr:`~.solve_state.SolveState.stages`):
    this is the pairs' Sampson distances to first order). An estimated camera's
    intrinsics get their ``(d, d)`` covariance the same way (the bone lengths among the
    eliminated globals), and a headline std that is the larger of it and the
-   time-robust figure (:func:`~.uncertainty.frame_scores`,
+   time-robust figure (:func:`~.scores.frame_scores`,
    :func:`~.uncertainty.robust_intrinsics_std`).
 
 """
@@ -86,7 +86,8 @@ from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, w
 from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig, Stage
-from .uncertainty import joint_scores, robust_intrinsics_std
+from .uncertainty import robust_intrinsics_std
+from .scores import joint_scores
 
 __all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FRAMES",
            "JOINTS_PASS_ITERATIONS"]
@@ -111,7 +112,7 @@ class Counter:
 
 
 def stage_record(name: str, res: LMResult, rejected: int, **extra) -> dict:
-    """One entry of :attr:`SolveState.stages`."""
+    """One entry of :attr:`~.solve_state.SolveState.stages`."""
     return {"name": name, "iterations": res.iterations, "initial_error": res.initial_error,
             "final_error": res.final_error, "converged": res.converged, "rejected": rejected,
             "failed_steps": res.rejected_steps, "guarded": res.guarded,
@@ -538,7 +539,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     The calibration's variables and reprojection factors with other body priors
     (:func:`~.builder.with_motion_priors`): the smoothness of
     ``opts.joints_smoothness_sigma`` (tight: it halves the joints' error, where the
-    calibration wants none, see :class:`RefineOptions`), and every bone of ``lengths``
+    calibration wants none, see :class:`~.options.RefineOptions`), and every bone of ``lengths``
     in every frame, the frames that ``opts.bone_bias_limit`` left out of the
     calibration included (the mirror held, a bone's known length is what fixes the
     depth of joints whose rays meet at a small angle).

@@ -246,7 +246,7 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
       relative placement.
     * Otherwise, a camera that sees mirrors: the focal length that makes the body most
       rigid between the person and the reflections (the single mirror's search,
-      :func:`~mirrorgraph.graph.stages.focal_search`, on that camera alone): the
+      :func:`~mirrorgraph.graph.focal_search.focal_search`, on that camera alone): the
       relative pose of two cameras needs a focal length within ~10 % (a synthetic
       two-camera rig's started 99 deg off with the 60 deg guess, 8 % off).
     * Otherwise from the fundamental matrix with the camera sharing most joints

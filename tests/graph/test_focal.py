@@ -27,7 +27,8 @@ from mirrorgraph.graph.refine import prepare
 from mirrorgraph.graph.solve import solve
 from mirrorgraph.graph.solve_graph import optimize
 from mirrorgraph.graph.stage_config import single_mirror_config
-from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse
+from mirrorgraph.graph.sandwich import gauge_inverse
+from mirrorgraph.graph.scores import frame_scores
 from mirrorgraph.metrics import mirror_rotation_error_deg
 from mirrorgraph.synth import make_scene, make_wide_scene
 from mirrorgraph.synth.geometry import PRESETS

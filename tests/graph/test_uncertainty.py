@@ -59,7 +59,7 @@ def test_rig_reports_the_noise_it_saw(tmp_path):
 def test_long_run_covariance_of_an_ar1_series_is_its_theoretical_value():
     """The sum of an AR(1) series of coefficient rho and unit innovations has variance
     T / (1 - rho)^2 (long run); the Newey-West estimate with Andrews' bandwidth finds it."""
-    from mirrorgraph.graph.uncertainty import andrews_bandwidth, long_run_covariance
+    from mirrorgraph.graph.sandwich import andrews_bandwidth, long_run_covariance
     rng = np.random.default_rng(1)
     T, rho = 20000, 0.9
     e = rng.normal(size=(T, 1))
@@ -73,7 +73,7 @@ def test_long_run_covariance_of_an_ar1_series_is_its_theoretical_value():
 
 
 def test_covariance_max_is_at_least_both_in_every_direction():
-    from mirrorgraph.graph.uncertainty import covariance_max
+    from mirrorgraph.graph.sandwich import covariance_max
     rng = np.random.default_rng(2)
     for _ in range(20):
         A = rng.normal(size=(3, 3))
