@@ -261,42 +261,7 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values,
     for part in (problem.priors, problem.bones, problem.length_priors):
         graph.push_back(part)
     n_data = 2 * int(problem.reprojection.size())                # reprojection rows first
-    gfg = graph.linearize(values)
-    trip = np.asarray(gfg.sparseJacobian_(), dtype=float)                     # (3, nnz)
-    rows, cols, vals = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
-    n_rows = int(rows.max()) + 1 if len(rows) else 0
-    keys = sorted(int(k) for k in gfg.keyVector())
-    nb = 0 if problem.lengths is None else len(problem.lengths)
-    dims = [nb if k == problem.length_key else _dim(k) for k in keys]
-    offsets = np.cumsum([0] + dims)
-    b_col = offsets[-1]
-    key_of_col = np.repeat(np.arange(len(keys)), dims)
-    local_of_col = np.arange(b_col) - np.repeat(offsets[:-1], dims)
-    x0 = int(point_keys([0])[0])
-    is_point = np.array([gtsam.Symbol(k).chr() == ord("x") for k in keys])
-    flat_of_key = np.array([k - x0 if p else -1 for k, p in zip(keys, is_point)], dtype=np.int64)
-    Tb = red.basis(values)
-    row_of_key, off = {}, 0
-    for k, d in red.graph_keys:
-        row_of_key[int(k)] = off
-        off += d
-    glob_row = np.array([row_of_key.get(k, -1) for k in keys])
-    b = np.zeros(n_rows)
-    last = cols == b_col
-    b[rows[last]] = vals[last]
-    r, c, v = rows[~last], cols[~last], vals[~last]
-    kc = key_of_col[c]
-    pt = is_point[kc]
-    # every row's frame (the frame of the points it touches; -1: a row on globals only)
-    frame = np.full(n_rows, -1, dtype=np.int64)
-    frame[r[pt]] = flat_of_key[kc[pt]] // J
-    A = np.zeros((n_rows, 3 * J))
-    A[r[pt], (flat_of_key[kc[pt]] % J) * 3 + local_of_col[c[pt]]] = v[pt]
-    Bg = np.zeros((n_rows, Tb.shape[0]))
-    gr = glob_row[kc[~pt]]
-    ok = gr >= 0
-    Bg[r[~pt][ok], gr[ok] + local_of_col[c[~pt]][ok]] = v[~pt][ok]
-    B = Bg @ Tb                                                                  # (R, nz)
+    n_rows, b, r, kc, pt, flat_of_key, frame, A, B = _frame_rows(problem, values, red, graph)
     local = frame >= 0
     prior_information = B[~local].T @ B[~local]
     # the local rows padded frame by frame: (T, most rows of a frame, ...)
@@ -338,16 +303,8 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values,
     flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
     bias_score = None
     if bias_pixel_sigma is not None and problem.lengths is not None and len(problem.bone_rows):
-        beta = _bone_bias_rows(problem, values, float(bias_pixel_sigma))        # whitened
-        n_prior = sum(int(problem.priors.at(i).dim()) for i in range(problem.priors.size()))
-        first = n_data + n_prior
-        br = np.asarray(problem.bone_rows)
-        bframe = np.asarray(problem.flat_index, dtype=np.int64)[br[:, 0]] // J
-        order = np.argsort(bframe, kind="stable")          # the bone factors' row order
-        grow = first + np.arange(len(order))
-        keep = (grow < n_rows) & (pos[np.minimum(grow, n_rows - 1)] >= 0)
-        g = pos[grow[keep]]
-        bias_score = (Bt[fr[g], slot[g]] * beta[order[keep]][:, None]).sum(0)
+        bias_score = _bias_score(problem, values, float(bias_pixel_sigma), n_data, n_rows, pos,
+                                 Bt, fr, slot)
     return JointScores(frames=frames.astype(np.int64), joints=joints.astype(np.int64),
                        clusters=np.minimum(joints, flip[joints]), scores=scores,
                        frame_info=frame_info, joint_info=joint_info,
@@ -356,6 +313,79 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values,
                        prior_information=prior_information, joint_clusters=False,
                        prior_spread=intrinsics_prior_spread(problem, list(red.z_keys)),
                        bias_score=bias_score)
+
+
+def _frame_rows(problem: GraphProblem, values: gtsam.Values, red,
+                graph: gtsam.NonlinearFactorGraph) -> tuple:
+    """The rows of ``graph`` linearised at ``values`` (whitened, the kernel's weights
+    applied), read from GTSAM's sparse Jacobian for :func:`frame_scores`.
+
+    Returns:
+        ``n_rows``; ``b``: ``(R,)`` the right-hand side; ``r``, ``kc``, ``pt``: each
+        Jacobian entry's row, its key's index and whether that key is a joint;
+        ``flat_of_key``: per key the joint's ``t * J + j`` (-1 for a global); ``frame``:
+        ``(R,)`` each row's frame (-1: a row on globals only); ``A``: ``(R, 3 J)`` the
+        rows on the frame's joints; ``B``: ``(R, nz)`` the rows on the reduced globals
+        (:meth:`~.reduction.GlobalReduction.basis`).
+    """
+    J = problem.used.shape[1]
+    gfg = graph.linearize(values)
+    trip = np.asarray(gfg.sparseJacobian_(), dtype=float)                     # (3, nnz)
+    rows, cols, vals = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
+    n_rows = int(rows.max()) + 1 if len(rows) else 0
+    keys = sorted(int(k) for k in gfg.keyVector())
+    nb = 0 if problem.lengths is None else len(problem.lengths)
+    dims = [nb if k == problem.length_key else _dim(k) for k in keys]
+    offsets = np.cumsum([0] + dims)
+    b_col = offsets[-1]
+    key_of_col = np.repeat(np.arange(len(keys)), dims)
+    local_of_col = np.arange(b_col) - np.repeat(offsets[:-1], dims)
+    x0 = int(point_keys([0])[0])
+    is_point = np.array([gtsam.Symbol(k).chr() == ord("x") for k in keys])
+    flat_of_key = np.array([k - x0 if p else -1 for k, p in zip(keys, is_point)], dtype=np.int64)
+    Tb = red.basis(values)
+    row_of_key, off = {}, 0
+    for k, d in red.graph_keys:
+        row_of_key[int(k)] = off
+        off += d
+    glob_row = np.array([row_of_key.get(k, -1) for k in keys])
+    b = np.zeros(n_rows)
+    last = cols == b_col
+    b[rows[last]] = vals[last]
+    r, c, v = rows[~last], cols[~last], vals[~last]
+    kc = key_of_col[c]
+    pt = is_point[kc]
+    # every row's frame (the frame of the points it touches; -1: a row on globals only)
+    frame = np.full(n_rows, -1, dtype=np.int64)
+    frame[r[pt]] = flat_of_key[kc[pt]] // J
+    A = np.zeros((n_rows, 3 * J))
+    A[r[pt], (flat_of_key[kc[pt]] % J) * 3 + local_of_col[c[pt]]] = v[pt]
+    Bg = np.zeros((n_rows, Tb.shape[0]))
+    gr = glob_row[kc[~pt]]
+    ok = gr >= 0
+    Bg[r[~pt][ok], gr[ok] + local_of_col[c[~pt]][ok]] = v[~pt][ok]
+    B = Bg @ Tb                                                                  # (R, nz)
+    return n_rows, b, r, kc, pt, flat_of_key, frame, A, B
+
+
+def _bias_score(problem: GraphProblem, values: gtsam.Values, pixel_sigma: float, n_data: int,
+                n_rows: int, pos: np.ndarray, Bt: np.ndarray, fr: np.ndarray, slot: np.ndarray
+                ) -> np.ndarray:
+    """``(nz,)`` the score of the bones' curvature bias (:attr:`JointScores.bias_score`):
+    each bone row's share of its frame's reduced score (``Bt``, the frame-eliminated
+    rows, at ``fr``/``slot`` of the local row ``pos``) with its whitened bias
+    (:func:`_bone_bias_rows`) in place of its residual, summed."""
+    J = problem.used.shape[1]
+    beta = _bone_bias_rows(problem, values, pixel_sigma)        # whitened
+    n_prior = sum(int(problem.priors.at(i).dim()) for i in range(problem.priors.size()))
+    first = n_data + n_prior
+    br = np.asarray(problem.bone_rows)
+    bframe = np.asarray(problem.flat_index, dtype=np.int64)[br[:, 0]] // J
+    order = np.argsort(bframe, kind="stable")          # the bone factors' row order
+    grow = first + np.arange(len(order))
+    keep = (grow < n_rows) & (pos[np.minimum(grow, n_rows - 1)] >= 0)
+    g = pos[grow[keep]]
+    return (Bt[fr[g], slot[g]] * beta[order[keep]][:, None]).sum(0)
 
 
 def _bone_bias_rows(problem: GraphProblem, values: gtsam.Values, pixel_sigma: float
