@@ -305,22 +305,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
             if not good:
                 raise DegenerateGeometryError("no chunk of the video could be solved")
             iterations += sum(r.iterations for r in done)
-            H = sum(r.information for r in good)
-            g = sum(r.gradient for r in good)
-            final_error = sum(r.final_error for r in good)
-            z_keys = good[-1].z_keys
-            zv = gtsam.Values()
-            zv.insert(z_keys[0][0], plane_to_gtsam(*good[-1].plane))
-            glob = gtsam.NonlinearFactorGraph()          # the bone lengths are held
-            gauge = good[-1].distance_gauge
-            if gauge is not None:
-                glob.push_back(DistancePriorFactor(gauge).make(z_keys[0][0]))
-                Hg, gg = dense_system(glob.linearize(zv), z_keys)
-                H, g = H + Hg, g + gg
-                final_error += float(glob.error(zv))
-            z = np.linalg.solve(H, g)
-            zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
-            zv = _apply_step(zv, z_keys, z)
+            H, final_error, z_keys, zv, z, zlen = _global_step(good)
             plane = plane_from_gtsam(zv.atOrientedPlane3(z_keys[0][0]))
             seconds = time.perf_counter() - t_pass
             timings["solve"] += seconds
@@ -389,6 +374,34 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
 
 
 # --------------------------------------------------------------------------- helpers
+def _global_step(good: list[_ChunkResult]):
+    """One Gauss-Newton step of the shared plane from the chunks' reduced systems: their
+    sum, with the distance gauge's prior where the bone lengths do not hold the scale.
+
+    Returns:
+        The ``(n, n)`` information, the summed error, the reduced keys, the plane's
+        value after the step, the ``(n,)`` step and its length in its own standard
+        deviations (``sqrt(z^T H z)``).
+    """
+    H = sum(r.information for r in good)
+    g = sum(r.gradient for r in good)
+    final_error = sum(r.final_error for r in good)
+    z_keys = good[-1].z_keys
+    zv = gtsam.Values()
+    zv.insert(z_keys[0][0], plane_to_gtsam(*good[-1].plane))
+    glob = gtsam.NonlinearFactorGraph()          # the bone lengths are held
+    gauge = good[-1].distance_gauge
+    if gauge is not None:
+        glob.push_back(DistancePriorFactor(gauge).make(z_keys[0][0]))
+        Hg, gg = dense_system(glob.linearize(zv), z_keys)
+        H, g = H + Hg, g + gg
+        final_error += float(glob.error(zv))
+    z = np.linalg.solve(H, g)
+    zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
+    zv = _apply_step(zv, z_keys, z)
+    return H, final_error, z_keys, zv, z, zlen
+
+
 def _joined_scores(parts: list[_ChunkResult], T: int, z: np.ndarray) -> JointScores | None:
     """The chunks' joint scores as one record over the video's ``T`` frame rows.
 
