@@ -55,19 +55,19 @@ from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam, plane_to_gtsam
 from ..keypoints import MIN_PAIRS
 from .builder import build_problem
-from .problem import extract_points, snap_virtual_poses
 from .marginals import floor_focal
 from .noise import reprojection_noise_px
 from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
 from .outliers import clean_views, observation_outliers
+from .problem import extract_points, snap_virtual_poses
 from .rig import Rig, seen_twice, with_views
+from .sandwich import held_intrinsics_cov
+from .scores import JointScores, joint_scores
 from .solve_graph import optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig
 from .stages import joints_pass, solve_rows
-from .sandwich import held_intrinsics_cov
-from .scores import JointScores, joint_scores
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 

@@ -29,13 +29,13 @@ from __future__ import annotations
 import numpy as np
 
 from .chunked import solve_chunked
+from .marginals import floor_focal
 from .options import RefineOptions
 from .rig import Rig, parallax_deg, spread_rows, triangulate_rig
-from .stages import Counter, solve_rows
-from .marginals import floor_focal
 from .solve_graph import Progress
 from .solve_state import SolveState
 from .stage_config import SolveConfig
+from .stages import Counter, solve_rows
 
 __all__ = ["solve", "undetermined_focal"]
 

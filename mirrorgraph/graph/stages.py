@@ -83,15 +83,14 @@ from .problem import (GraphProblem, extract_camera_poses, extract_intrinsics, ex
                       extract_points, snap_virtual_poses)
 from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, with_intrinsics,
                   with_views)
+from .scores import joint_scores
 from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
 from .stage_config import SolveConfig, Stage
 from .uncertainty import robust_intrinsics_std
-from .scores import joint_scores
 
 __all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FRAMES",
            "JOINTS_PASS_ITERATIONS"]
-
 
 
 # --------------------------------------------------------------------------- bookkeeping
