@@ -4,7 +4,8 @@ Every used joint is triangulated again from its kept views with the solved rig (
 maximum-likelihood point of the reprojection alone, free of the body priors that pull
 the graph's joints off it), and ``sigma^2 = RSS / (2 observations - 3 joints - globals)``
 (:func:`residual_noise`; for one mirror this is the pairs' Sampson distances to first
-order; Hartley and Zisserman, *Multiple View Geometry*, 2nd ed., sec. 5.1.3). The
+order; the residual of a maximum-likelihood estimate, Hartley and Zisserman,
+*Multiple View Geometry*, 2nd ed., ch. 5). The
 marginal covariances are scaled by ``(sigma / pixel_sigma)^2`` (:mod:`.marginals`).
 Pixels throughout.
 """
