@@ -5,9 +5,8 @@ maximum-likelihood point of the reprojection alone, free of the body priors that
 the graph's joints off it), and ``sigma^2 = RSS / (2 observations - 3 joints - globals)``
 (:func:`residual_noise`; for one mirror this is the pairs' Sampson distances to first
 order; the residual of a maximum-likelihood estimate, Hartley and Zisserman,
-*Multiple View Geometry*, 2nd ed., ch. 5). The
-marginal covariances are scaled by ``(sigma / pixel_sigma)^2`` (:mod:`.marginals`).
-Pixels throughout.
+*Multiple View Geometry*, 2nd ed., ch. 5). The marginal covariances are scaled by
+``(sigma / pixel_sigma)^2`` (:mod:`.marginals`). Pixels throughout.
 """
 
 from __future__ import annotations
