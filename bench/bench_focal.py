@@ -14,7 +14,7 @@ Sections of ``bench/RESULTS_focal.md``:
 2. **The Cramer-Rao bound** of the focal length and of the mirror with the focal
    length unknown: the graph's information at the truth (every factor the refinement
    has, the bones with the rule the refinement uses, the bone lengths and the plane
-   eliminated with the joints: :func:`mirrorgraph.graph.uncertainty.frame_scores`),
+   eliminated with the joints: :func:`mirrorgraph.graph.scores.frame_scores`),
    against geometry (the slices of :func:`mirrorgraph.synth.make_wide_scene`, the
    mirror's angle), frames, motion (procedural, the CMU take, a person who holds one
    pose) and the bone rule (the focal-specific ``c = 1``, the known-intrinsics
@@ -75,7 +75,8 @@ from mirrorgraph.graph.builder import build_problem  # noqa: E402
 from mirrorgraph.graph.options import FocalOptions  # noqa: E402
 from mirrorgraph.graph.refine import prepare  # noqa: E402
 from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov  # noqa: E402
-from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse  # noqa: E402
+from mirrorgraph.graph.sandwich import gauge_inverse  # noqa: E402
+from mirrorgraph.graph.scores import frame_scores  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg, rotation_error_deg  # noqa: E402
 from mirrorgraph.synth import make_scene, make_wide_scene  # noqa: E402
 
@@ -97,7 +98,7 @@ def focal_bound(scene, *, bias_limit: float | None = 1.0, joints3d: np.ndarray |
     pixel sigma the scene's noise; the bones by the rule ``bias_limit`` (``None``:
     every bone in every frame); no prior on the focal length. Its information over
     (plane, focal length, bone lengths) with every frame's joints eliminated
-    (:func:`~mirrorgraph.graph.uncertainty.frame_scores`), the scale gauge projected
+    (:func:`~mirrorgraph.graph.scores.frame_scores`), the scale gauge projected
     out. ``joints3d`` replaces the scene's motion (the same observation masks).
 
     Returns:

@@ -5,7 +5,7 @@
     python bench/bench_priors.py --scenes 2 --draws 2 --frames 600 --out /tmp/priors.md
 
 A bone's length measured from noisy joints is too long on average by up to
-``tr(Sigma_a + Sigma_b) / (2 L)`` (:func:`mirrorgraph.graph.builder.bone_curvature_bias`),
+``tr(Sigma_a + Sigma_b) / (2 L)`` (:func:`mirrorgraph.graph.bones.bone_curvature_bias`),
 centimetres where a joint's two rays meet at a small angle, and the joint optimum of
 the mirror and the per-frame depths with such bones is biased however many frames
 there are. A bias shows only over noise draws of one scene (a single draw's error is

@@ -27,7 +27,7 @@ Where the lengths are strongly coupled to another global, the alternation conver
 too slowly: an estimated focal length changes every reconstructed bone's length
 (the focal length is determined by the bones' constancy alone), so that with the
 lengths held each step moves it by a fraction of its way. There the lengths are a
-variable ``L`` (the :data:`~mirrorgraph.graph.builder.LENGTH_KEY` vector) of the
+variable ``L`` (the :data:`~mirrorgraph.graph.problem.LENGTH_KEY` vector) of the
 linear systems, one :class:`gtsam.CustomFactor` per frame on that frame's joints and
 ``L`` (:meth:`BoneLengthFactor.add_frames`): residuals ``|X_a - X_b| - L_k`` of every
 bone of the frame, ``dr / dL_k = -1``. It costs ~30 us a frame per linearisation and

@@ -55,7 +55,7 @@ class HeightPriorFactor:
         expected_sum: ``sum_k w_k f_k H`` in metres (``w_k = 1`` without weights).
         rel_sigma: standard deviation relative to ``expected_sum`` (a gauge: tiny).
         weights: ``(n,)`` weight of each length in the sum (default: all 1); see
-            :func:`mirrorgraph.graph.builder.gauge_weights` for why and where.
+            :func:`mirrorgraph.graph.priors.gauge_weights` for why and where.
     """
 
     def __init__(self, expected_sum: float, rel_sigma: float = 1e-6,

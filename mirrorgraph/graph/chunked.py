@@ -53,15 +53,21 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..factors import DistancePriorFactor, plane_from_gtsam, plane_to_gtsam
-from .builder import build_problem, extract_points, snap_virtual_poses
+from ..keypoints import MIN_PAIRS
+from .builder import build_problem
+from .marginals import floor_focal
+from .noise import reprojection_noise_px
 from .optimizer import dense_system, reduced_covariance
 from .options import RefineOptions
-from .outliers import observation_outliers
-from .rig import Rig
-from .uncertainty import JointScores, held_intrinsics_cov, joint_scores
-from .stages import (MIN_PAIRS, SolveConfig, SolveState, clean_views, floor_focal, joints_pass,
-                     optimize,
-                     reprojection_noise_px, seen_twice, solve_rows, undetermined, with_views)
+from .outliers import clean_views, observation_outliers
+from .problem import extract_points, snap_virtual_poses
+from .rig import Rig, seen_twice, with_views
+from .sandwich import held_intrinsics_cov
+from .scores import JointScores, joint_scores
+from .solve_graph import optimize, undetermined
+from .solve_state import SolveState
+from .stage_config import SolveConfig
+from .stages import joints_pass, solve_rows
 
 __all__ = ["solve_chunked", "spread_blocks", "chunk_ranges", "worker_count"]
 
@@ -259,7 +265,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
         opts, config, height, counter: as :func:`mirrorgraph.graph.solve.solve`.
 
     Returns:
-        :class:`mirrorgraph.graph.stages.SolveState` for the whole video.
+        :class:`mirrorgraph.graph.solve_state.SolveState` for the whole video.
     """
     if height is not None:
         opts = replace(opts, subject_height=float(height))
@@ -299,22 +305,7 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
             if not good:
                 raise DegenerateGeometryError("no chunk of the video could be solved")
             iterations += sum(r.iterations for r in done)
-            H = sum(r.information for r in good)
-            g = sum(r.gradient for r in good)
-            final_error = sum(r.final_error for r in good)
-            z_keys = good[-1].z_keys
-            zv = gtsam.Values()
-            zv.insert(z_keys[0][0], plane_to_gtsam(*good[-1].plane))
-            glob = gtsam.NonlinearFactorGraph()          # the bone lengths are held
-            gauge = good[-1].distance_gauge
-            if gauge is not None:
-                glob.push_back(DistancePriorFactor(gauge).make(z_keys[0][0]))
-                Hg, gg = dense_system(glob.linearize(zv), z_keys)
-                H, g = H + Hg, g + gg
-                final_error += float(glob.error(zv))
-            z = np.linalg.solve(H, g)
-            zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
-            zv = _apply_step(zv, z_keys, z)
+            H, final_error, z_keys, zv, z, zlen = _global_step(good)
             plane = plane_from_gtsam(zv.atOrientedPlane3(z_keys[0][0]))
             seconds = time.perf_counter() - t_pass
             timings["solve"] += seconds
@@ -383,6 +374,34 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
 
 
 # --------------------------------------------------------------------------- helpers
+def _global_step(good: list[_ChunkResult]):
+    """One Gauss-Newton step of the shared plane from the chunks' reduced systems: their
+    sum, with the distance gauge's prior where the bone lengths do not hold the scale.
+
+    Returns:
+        The ``(n, n)`` information, the summed error, the reduced keys, the plane's
+        value after the step, the ``(n,)`` step and its length in its own standard
+        deviations (``sqrt(z^T H z)``).
+    """
+    H = sum(r.information for r in good)
+    g = sum(r.gradient for r in good)
+    final_error = sum(r.final_error for r in good)
+    z_keys = good[-1].z_keys
+    zv = gtsam.Values()
+    zv.insert(z_keys[0][0], plane_to_gtsam(*good[-1].plane))
+    glob = gtsam.NonlinearFactorGraph()          # the bone lengths are held
+    gauge = good[-1].distance_gauge
+    if gauge is not None:
+        glob.push_back(DistancePriorFactor(gauge).make(z_keys[0][0]))
+        Hg, gg = dense_system(glob.linearize(zv), z_keys)
+        H, g = H + Hg, g + gg
+        final_error += float(glob.error(zv))
+    z = np.linalg.solve(H, g)
+    zlen = float(np.sqrt(max(z @ H @ z, 0.0)))
+    zv = _apply_step(zv, z_keys, z)
+    return H, final_error, z_keys, zv, z, zlen
+
+
 def _joined_scores(parts: list[_ChunkResult], T: int, z: np.ndarray) -> JointScores | None:
     """The chunks' joint scores as one record over the video's ``T`` frame rows.
 

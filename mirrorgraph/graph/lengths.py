@@ -10,8 +10,8 @@ to their optimum given the joints:
 the first term being ``sum_k n_k (m_k - L_k)^2 / sigma^2`` up to a constant (``m_k``
 the mean length of bone ``k`` over its ``n_k`` frames). The length-only priors
 (symmetry, anthropometry) and the gauge (the lengths' sum) are the problem's
-:attr:`~.builder.GraphProblem.length_priors` and :attr:`~.builder.GraphProblem.gauge`
-on the vector :data:`~.builder.LENGTH_KEY`; a few Gauss-Newton steps on that
+:attr:`~.problem.GraphProblem.length_priors` and :attr:`~.problem.GraphProblem.gauge`
+on the vector :data:`~.problem.LENGTH_KEY`; a few Gauss-Newton steps on that
 ``B``-dimensional problem solve it (the anthropometric ratios are mildly
 nonlinear). The alternation of a Gauss-Newton step on the joints and planes with
 this exact step on the lengths has the joint optimum as its fixed point.
@@ -22,7 +22,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from .builder import LENGTH_KEY, GraphProblem, points_array
+from .problem import GraphProblem, LENGTH_KEY, points_array
 
 __all__ = ["update_lengths", "LENGTH_STEPS"]
 

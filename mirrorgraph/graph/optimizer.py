@@ -46,7 +46,7 @@ downweighted by the robust kernel, or one whose two rays are nearly one line.
 As in GTSAM's own LM this is a failed try: more damping, which makes every point
 block definite; the variable is reported (:attr:`LMResult.indeterminate`) so that
 the caller can drop it. An optional ``guard`` keeps points in front of every camera
-that sees them (:func:`mirrorgraph.graph.builder.cheirality_guard`): behind a
+that sees them (:func:`mirrorgraph.graph.problem.cheirality_guard`): behind a
 camera a projection factor's residual is constant with a zero Jacobian.
 
 The reduced information ``T^T Lambda T`` of the last undamped solve is kept: it

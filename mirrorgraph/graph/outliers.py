@@ -21,15 +21,18 @@ Shapes: ``(T, J, 3)`` points in the world frame, ``(T, J)`` masks.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
-from dataclasses import replace
+from ..errors import DegenerateGeometryError
+from .bones import bone_table
+from .options import RefineOptions
+from .rig import Rig, parallax_deg, seen_twice, triangulate_rig, view_projections, view_residuals
+from .stage_config import SolveConfig
 
-from .builder import view_projections, view_residuals
-from .rig import Rig
-
-__all__ = ["feasible", "observation_outliers", "bone_outliers"]
+__all__ = ["feasible", "observation_outliers", "bone_outliers", "clean_views", "check_held",
+           "MIN_HELD_OBSERVATIONS"]
 
 
 def feasible(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, planes
@@ -116,3 +119,66 @@ def bone_outliers(points: np.ndarray, used: np.ndarray, bones: np.ndarray, *, k:
         spare[both & (na > nb), b[i]] = True
         spare[both & (nb > na), a[i]] = True
     return cand & ~spare & used
+
+
+def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOptions,
+           config: SolveConfig, min_parallax: float):
+    """Triangulate; drop observations behind their camera, joints without parallax and,
+    with ``config.first_rejection``, outliers. Returns points, masks, the count dropped
+    and the count of outliers found (for the ``"auto"`` kernel)."""
+    offered = masks
+    points, ok = triangulate_rig(rig, masks, poses, planes)
+    masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)
+    if behind:           # again, only the joints that lost an observation
+        changed = np.any([a & ~b for a, b in zip(offered, masks)], axis=0)
+        again, again_ok = triangulate_rig(rig, [m & changed for m in masks], poses, planes)
+        points = np.where(changed[..., None], again, points)
+        ok = np.where(changed, again_ok, ok)
+    flat = ok & (parallax_deg(rig, points, masks, poses, planes) < min_parallax)
+    masks = [m & ~flat for m in masks]
+    found = 0
+    if config.first_rejection:
+        used = seen_twice(masks) & ok
+        masks, found = observation_outliers(rig, points, used, masks, poses, planes, opts.outlier_threshold)
+        if opts.bone_outlier_k > 0:
+            _, pairs = bone_table(rig)
+            bad = bone_outliers(points, used & seen_twice(masks), pairs, k=opts.bone_outlier_k)
+            found += int(np.count_nonzero(bad))
+            masks = [m & ~bad for m in masks]
+    return points, masks, behind + int(np.count_nonzero(flat)) + found, found
+
+
+#: An estimated camera or a mirror needs at least this many keypoints left in its
+#: views after outlier rejection (a pose has 6 unknowns, a plane 3).
+MIN_HELD_OBSERVATIONS = 30
+
+
+def check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
+    """Raise when an estimated camera or a mirror has (almost) no keypoints left.
+
+    Raises:
+        DegenerateGeometryError: naming the camera or mirror, with the counts; for a
+            camera whose focal length is estimated, that its start (the initial focal
+            length and placement) may be what is too far off, not the user's input.
+    """
+    kept = np.array([int(np.count_nonzero(m)) for m in masks])
+    had = np.asarray(offered)
+    groups = [(c, f"camera {c.name}", [i for i, v in enumerate(rig.views)
+                                        if v.camera == c.name])
+              for c in rig.cameras if c.estimate_pose or c.estimate_focal]
+    groups += [(None, f"mirror {m.name}", [i for i, v in enumerate(rig.views)
+                                           if v.mirror == m.name])
+               for m in rig.mirrors]
+    for cam, what, idx in groups:
+        if kept[idx].sum() < MIN_HELD_OBSERVATIONS:
+            head = (f"{what}: {kept[idx].sum()} of its {had[idx].sum()} keypoints fit the "
+                    f"rest of the rig (need {MIN_HELD_OBSERVATIONS})")
+            if cam is not None and cam.estimate_focal:
+                raise DegenerateGeometryError(
+                    f"{head} at its initial focal length {cam.K[0, 0]:.0f} px and placement, "
+                    "which the graph starts its estimate from: the start is too far off for "
+                    "these views (give this camera's intrinsics), or it sees another person "
+                    "or needs a frame offset")
+            raise DegenerateGeometryError(
+                f"{head}: is it the same person as in the other cameras? the right "
+                "intrinsics, frame offset, mirror?")

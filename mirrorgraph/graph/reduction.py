@@ -28,7 +28,7 @@ the principal point free) moves both:
 which keeps the pixels square, the skew zero and the two variables one camera.
 A fixed camera whose intrinsics are estimated has a held pose variable (the
 calibrated factor needs a pose key): zero rows of ``T``. The bone lengths are then
-a variable of the graph too (:attr:`~.builder.GraphProblem.length_key`), the last
+a variable of the graph too (:attr:`~.problem.GraphProblem.length_key`), the last
 block of ``z`` (identity rows).
 
 After every retraction the virtual poses are reset to the exact reflection of
@@ -45,7 +45,7 @@ import gtsam
 import numpy as np
 
 from ..factors import DistancePriorFactor, MirrorLinkFactor, plane_from_gtsam
-from .builder import GraphProblem, snap_virtual_poses
+from .problem import GraphProblem, snap_virtual_poses
 from .optimizer import GlobalReduction
 
 __all__ = ["mirror_reduction", "intrinsics_basis", "CALIBRATION_DIM"]

@@ -23,16 +23,19 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError, InputError
 from ..keypoints import PairedKeypoints
-from .builder import body_height_from_points, view_residuals
+from .bones import body_height_from_points
+from .rig import (Camera, Rig, single_mirror_rig, spread_rows, triangulate_rig, view_residuals,
+                  with_intrinsics)
 from .options import FocalOptions, RefineOptions
 from .outliers import feasible
 from .result import RefinementResult, normal_cov_from_tangent, rotation_std_from_normal_cov
-from .rig import Camera, Rig, single_mirror_rig
 from .sensitivity import sensitivity_report
 from .solve import solve
-from .stages import (MIN_PAIRS, Progress, SolveState, single_mirror_config, spread_rows,
-                     triangulate_rig, with_intrinsics)
+from ..keypoints import MIN_PAIRS
 from ..stature import LIMB_CHOSEN, with_height_sigma
+from .solve_graph import Progress
+from .solve_state import SolveState
+from .stage_config import single_mirror_config
 from .stature_scale import scale_by_stature
 from .uncertainty import robust_normal_cov
 

@@ -2,10 +2,10 @@
 ``sensitivity``).
 
 From the joints' scores and Schur complements at the solution
-(:func:`~.uncertainty.joint_scores`), without solving again:
+(:func:`~.scores.joint_scores`), without solving again:
 
 * **leave one out**: how the mirror moves when one left/right pair of joints, or one
-  segment of the video, is left out (:func:`~.uncertainty.leave_one_out`, the
+  segment of the video, is left out (:func:`~.sandwich.leave_one_out`, the
   linearised jackknife), as the virtual camera's rotation (degrees);
 * **information per segment**: the share of the normal's information each segment
   carries (trace of its ``2 x 2`` block) and the std that segment alone would give:
@@ -31,7 +31,8 @@ import numpy as np
 
 from ..metrics import mirror_rotation_error_deg
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
-from .uncertainty import JointScores, gauge_inverse, leave_one_out, sandwich
+from .sandwich import gauge_inverse, leave_one_out, sandwich
+from .scores import JointScores
 
 __all__ = ["sensitivity_report", "rig_sensitivity_report", "predicted_std", "TARGET_STDS_DEG", "FRAME_GRID",
            "REPORT_SEGMENTS", "prior_weights", "PRIORS"]
@@ -61,7 +62,7 @@ def sensitivity_report(scores: JointScores, basis: np.ndarray, parts: dict,
     """The ``sensitivity`` record of a single mirror (see the module docstring).
 
     Args:
-        scores: :func:`~.uncertainty.joint_scores` at the solution (one plane).
+        scores: :func:`~.scores.joint_scores` at the solution (one plane).
         basis: ``(3, 2)`` the plane normal's tangent basis of the scores.
         parts: :func:`~.uncertainty.robust_normal_cov`'s record (each figure's std).
         marginal_std: the marginal rotation std (deg), scaled by the noise.
@@ -154,7 +155,7 @@ def rig_sensitivity_report(scores: JointScores, blocks: list[tuple[str, str, obj
     :func:`sensitivity_report` for a single mirror.
 
     Args:
-        scores: :func:`~.uncertainty.joint_scores` of the rig at its solution.
+        scores: :func:`~.scores.joint_scores` of the rig at its solution.
         blocks: per reduced variable of ``scores.z_keys``, in order: ``(name, kind,
             basis)``, kind ``"camera"`` (a pose: rotation first) or ``"mirror"`` (a plane:
             the normal's tangent first, ``basis`` its ``(3, 2)`` tangent basis).

@@ -2,9 +2,9 @@
 
 :func:`solve` takes a :class:`~.rig.Rig` (cameras with their initial poses, which of
 them are estimated, mirrors with their initial planes, views with their keypoints)
-and a :class:`~.stages.SolveConfig` that says what varies between a well-initialised
-single mirror (:func:`~.stages.single_mirror_config`) and a rig chained from pairwise
-estimates (:func:`~.stages.rig_config`), as COLMAP's bundle adjuster takes one
+and a :class:`~.stage_config.SolveConfig` that says what varies between a well-initialised
+single mirror (:func:`~.stage_config.single_mirror_config`) and a rig chained from pairwise
+estimates (:func:`~.stage_config.rig_config`), as COLMAP's bundle adjuster takes one
 configuration for every problem. The stages themselves (triangulation and
 cleaning, warm start, gauge, the full-graph solves with rejection between them,
 the joints pass, marginals and noise) are in :mod:`.stages`.
@@ -19,9 +19,9 @@ whatever the data say about it, with its standard deviation (the posterior under
 priors of the guess, :class:`~.options.FocalOptions`), never replaced by the guess
 held exact. A camera whose focal length the data do not determine (its standard
 deviation above ``options.focal.fallback_rel_std`` of it, or an estimate at an end of
-the lenses searched) is named in :attr:`~.stages.SolveState.focal_undetermined` with
+the lenses searched) is named in :attr:`~.solve_state.SolveState.focal_undetermined` with
 the figures found (and the rays' median angle), for the warnings, and carries its
-prior's variance (:func:`floor_focal`).
+prior's variance (:func:`~.marginals.floor_focal`).
 """
 
 from __future__ import annotations
@@ -29,11 +29,13 @@ from __future__ import annotations
 import numpy as np
 
 from .chunked import solve_chunked
+from .marginals import floor_focal
 from .options import RefineOptions
-from .rig import Rig
-from .stages import (Counter, Progress, SolveConfig, SolveState, floor_focal, parallax_deg,
-                     solve_rows,
-                     spread_rows, triangulate_rig)
+from .rig import Rig, parallax_deg, spread_rows, triangulate_rig
+from .solve_graph import Progress
+from .solve_state import SolveState
+from .stage_config import SolveConfig
+from .stages import Counter, solve_rows
 
 __all__ = ["solve", "undetermined_focal"]
 
@@ -47,7 +49,8 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
         rig: cameras (initial poses; ``estimate_pose`` says which vary), mirrors (initial
             planes), views (pixels, observation masks), the joints to estimate.
         opts: weights, kernels, thresholds and solver settings.
-        config: what varies (:func:`single_mirror_config`, :func:`rig_config`).
+        config: what varies (:func:`~.stage_config.single_mirror_config`,
+            :func:`~.stage_config.rig_config`).
         height: the subject's height in the output unit: the gauge (``None``: the sum
             of the bone lengths keeps its initial value, lengths in the unit of the
             initial rig).
@@ -119,7 +122,7 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
 def _median_parallax(state: SolveState, rig: Rig, camera: int, ang: np.ndarray | None
                      ) -> float:
     """Median angle between the two rays of the joints camera ``camera`` sees, degrees,
-    of the ``(T, J)`` angles ``ang`` (:func:`~.stages.parallax_deg`; ``None``: nan)."""
+    of the ``(T, J)`` angles ``ang`` (:func:`~.rig.parallax_deg`; ``None``: nan)."""
     if ang is None:
         return float("nan")
     mine = np.zeros_like(state.used)

@@ -33,7 +33,8 @@ from ..errors import DegenerateGeometryError
 from ..geometry import camera_projection, triangulate
 from ..graph.options import RefineOptions
 from ..graph.rig import Camera, Mirror, Rig, View
-from ..graph.stages import focal_search, single_mirror_config
+from ..graph.focal_search import focal_search
+from ..graph.stage_config import single_mirror_config
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .observations import RigObservations
 from .relative import (MIN_CORRESPONDENCES, MirrorSighting, RelativePose, focal_from_fundamental,
@@ -245,7 +246,7 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
       relative placement.
     * Otherwise, a camera that sees mirrors: the focal length that makes the body most
       rigid between the person and the reflections (the single mirror's search,
-      :func:`~mirrorgraph.graph.stages.focal_search`, on that camera alone): the
+      :func:`~mirrorgraph.graph.focal_search.focal_search`, on that camera alone): the
       relative pose of two cameras needs a focal length within ~10 % (a synthetic
       two-camera rig's started 99 deg off with the 60 deg guess, 8 % off).
     * Otherwise from the fundamental matrix with the camera sharing most joints

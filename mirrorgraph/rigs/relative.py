@@ -30,7 +30,7 @@ do on a person: the graph then decides, the bones and every other view with it).
 Scale. Two views fix the geometry up to scale; the subject fixes it: the joints
 triangulated with a unit baseline (or ``d = 1``) give the subject's height in
 that unit from the median bone lengths and Winter's segment proportions
-(:func:`mirrorgraph.graph.builder.body_height_from_points`), so one edge's
+(:func:`mirrorgraph.graph.bones.body_height_from_points`), so one edge's
 length is ``H / h``. With every edge scaled by the same subject the chain of
 edges is consistent.
 """
@@ -47,7 +47,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import DegenerateGeometryError
 from ..estimators import estimate_mirror
 from ..geometry import camera_projection, sampson_distances, skew, triangulate, triangulate_mirror
-from ..graph.builder import body_height_from_points
+from ..graph.bones import body_height_from_points
 from ..graph.rig import Rig
 from ..skeletons import Skeleton
 

@@ -7,10 +7,10 @@ view's virtual camera is tied to its camera and plane exactly,
 :mod:`mirrorgraph.graph.reduction`), robust reprojection in every view, the body
 priors and the subject-height gauge. The world frame is the first camera's (its
 pose fixed: 6 of the 7 gauge freedoms), the scale is the subject's height (the
-seventh). The configuration (:func:`~mirrorgraph.graph.stages.rig_config`) says
+seventh). The configuration (:func:`~mirrorgraph.graph.stage_config.rig_config`) says
 what differs from a single mirror: a chained pairwise initialisation can be
 degrees off, so no rejection before the first solve, a kernel
-:data:`~mirrorgraph.graph.stages.INITIAL_REJECTION_FACTOR` times wider first,
+:data:`~mirrorgraph.graph.stage_config.INITIAL_REJECTION_FACTOR` times wider first,
 then the final kernel, then least squares on the inliers; the rejection per
 observation (a wrong keypoint in one camera does not cost the other views).
 
@@ -25,15 +25,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..graph.builder import view_residuals
+from ..graph.rig import Camera, Mirror, Rig, View, spread_rows, triangulate_rig, view_residuals
 from ..graph.refine import focal_record, guessed_camera
 from ..graph.options import FocalOptions, RefineOptions
 from ..graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from ..graph.sensitivity import rig_sensitivity_report
 from ..graph.uncertainty import robust_blocks
 from ..graph.solve import solve
-from ..graph.stages import INITIAL_REJECTION_FACTOR, rig_config, spread_rows, triangulate_rig
-from ..graph.rig import Camera, Mirror, Rig, View
+from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config
 from .initial import InitialRig, joint_masks, observed
 from .observations import RigObservations
 

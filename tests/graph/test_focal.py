@@ -19,13 +19,16 @@ import pytest
 import mirrorgraph as mg
 from mirrorgraph.factors import mirror_residuals
 from mirrorgraph.graph import RefineOptions
-from mirrorgraph.graph.builder import build_problem, camera_matrix, extract_planes
+from mirrorgraph.graph.builder import build_problem
+from mirrorgraph.graph.problem import camera_matrix, extract_planes
 from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_covariance
 from mirrorgraph.graph.reduction import mirror_reduction
 from mirrorgraph.graph.refine import prepare
 from mirrorgraph.graph.solve import solve
-from mirrorgraph.graph.stages import optimize, single_mirror_config
-from mirrorgraph.graph.uncertainty import frame_scores, gauge_inverse
+from mirrorgraph.graph.solve_graph import optimize
+from mirrorgraph.graph.stage_config import single_mirror_config
+from mirrorgraph.graph.sandwich import gauge_inverse
+from mirrorgraph.graph.scores import frame_scores
 from mirrorgraph.metrics import mirror_rotation_error_deg
 from mirrorgraph.synth import make_scene, make_wide_scene
 from mirrorgraph.synth.geometry import PRESETS
@@ -214,7 +217,7 @@ def test_a_camera_left_without_keypoints_names_its_start():
     # user's intrinsics (it has none)
     from mirrorgraph.errors import DegenerateGeometryError
     from mirrorgraph.graph.rig import Camera, Rig, View
-    from mirrorgraph.graph.stages import _check_held
+    from mirrorgraph.graph.outliers import check_held
     from mirrorgraph.skeletons import skeleton_by_name
 
     sk = skeleton_by_name("COCO_17")
@@ -227,13 +230,13 @@ def test_a_camera_left_without_keypoints_names_its_start():
               frame_ids=np.arange(T), joints=np.arange(J))
     masks = [np.ones((T, J), bool), np.zeros((T, J), bool)]
     with pytest.raises(DegenerateGeometryError, match="camera b: 0 of its 340 keypoints") as e:
-        _check_held(rig, masks, [T * J, T * J])
+        check_held(rig, masks, [T * J, T * J])
     assert "initial focal length 1234 px" in str(e.value)
     assert "right intrinsics" not in str(e.value)
     cams = (cams[0], Camera("b", K, estimate_pose=True))
     with pytest.raises(DegenerateGeometryError, match="the right intrinsics"):
-        _check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
-                        frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
+        check_held(Rig(cameras=cams, mirrors=(), views=views, skeleton=sk,
+                       frame_ids=np.arange(T), joints=np.arange(J)), masks, [T * J, T * J])
 
 
 def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):
@@ -244,7 +247,7 @@ def test_a_step_that_moves_the_mirror_past_the_joints_is_infeasible(scene):
     import gtsam
 
     from mirrorgraph.factors.mirror_link import plane_from_gtsam, plane_to_gtsam
-    from mirrorgraph.graph.builder import cheirality_guard, point_keys, snap_virtual_poses
+    from mirrorgraph.graph.problem import cheirality_guard, point_keys, snap_virtual_poses
 
     rig, o, X = _truth_problem(scene, frames=20, subject_height=scene.subject_height)
     prob = build_problem(rig, X, rig.views[0].mask, [(scene.normal, scene.distance)], o,

@@ -5,7 +5,7 @@ image size alone: the principal point is a variable of the graph with the spread
 real cameras as its prior, and the mirror's reported std holds the error the offset
 causes, where holding it at the centre (the old assumption) gave a std a small
 fraction of that error. Plus the pieces: the prior's information in the sandwich
-(:func:`~mirrorgraph.graph.uncertainty.intrinsics_prior_spread`) and the shares of a
+(:func:`~mirrorgraph.graph.scores.intrinsics_prior_spread`) and the shares of a
 rotation's variance (:func:`~mirrorgraph.graph.uncertainty.intrinsics_contributions`).
 """
 

@@ -13,7 +13,8 @@ import pytest
 from mirrorgraph import geometry as geo
 from mirrorgraph.graph import (Camera, Mirror, RefineOptions, Rig, View, refine_mirror,
                                rotation_std_from_normal_cov)
-from mirrorgraph.graph.builder import build_problem, extract_planes
+from mirrorgraph.graph.builder import build_problem
+from mirrorgraph.graph.problem import extract_planes
 from mirrorgraph.graph.chunked import chunk_ranges, spread_blocks
 from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams
 from mirrorgraph.graph.reduction import mirror_reduction

@@ -130,7 +130,7 @@ def test_indeterminate_point_is_a_failed_step_not_an_exception():
 
 
 def test_undetermined_points_are_dropped_from_the_refinement():
-    from mirrorgraph.graph.stages import undetermined
+    from mirrorgraph.graph.solve_graph import undetermined
     from mirrorgraph.graph.optimizer import LMResult
     from mirrorgraph.graph.builder import build_problem
     from mirrorgraph.graph.rig import single_mirror_rig
@@ -172,7 +172,7 @@ def test_triangulation_covariance_and_bone_bias_match_monte_carlo():
     quite linear in the pixel noise there), and noisy bones come out longer on average,
     by no more than the curvature bound ``tr(S) / (2 L)`` and by a good part of it."""
     from mirrorgraph.geometry import mirror_projection, triangulation_covariance
-    from mirrorgraph.graph.builder import bone_curvature_bias
+    from mirrorgraph.graph.bones import bone_curvature_bias
 
     paired, K, n, J3, rig, used = _calibration_joints_rig(0, 40)
     sk = paired.skeleton
@@ -207,7 +207,7 @@ def test_debiased_bone_lengths_are_unbiased_where_medians_are_not():
     """Joints 5-30 deg of parallax: the median length of noisy bones is decimetres too
     long for some, the corrected-score estimate (mean of |d|^2 - tr S) within 2 % of the
     truth for every bone."""
-    from mirrorgraph.graph.builder import debiased_bone_lengths
+    from mirrorgraph.graph.bones import debiased_bone_lengths
 
     paired, K, n, J3, rig, used = _calibration_joints_rig(2, 1000)
     sk = paired.skeleton
