@@ -36,26 +36,31 @@ at half the source's resolution (``cv2.INTER_AREA``):
 
 **Two calibrations a clip**, :func:`mirrorgraph.calibrate`, no intrinsics (the image
 size only: the focal length and principal point estimated), the same subject height
-(1.60 m: the stature ``bench_real.py`` measures on this trial) and frame rate:
+(1.60 m: the stature ``bench_real.py`` measures on this trial) and frame rate; then the
+same two with the clip's true K (the focal length out of the question):
 
 * **annotations**: the OpenPose subject (the tallest person of each file, as
-  ``bench_video_bias.py``) transformed exactly as the compositing transforms the frame:
-  the person ``x / 2 - 1/4`` (the half-pixel centres of ``INTER_AREA``), the reflection
-  the clip's homography of that, its left/right labels swapped (as a detector labels a
-  mirror image); joints where the composite does not show them (the person right of
-  the split, the reflection left of it or outside the frame) written with confidence
-  0. Written as an OpenPose JSON folder (two people a frame) and calibrated from that
-  folder, as a user would. OpenPose's file ``t`` is the video's frame ``t + 1``
-  (``bench_video_bias.py``): file ``t`` is written as the clip's frame ``t + 1``.
+  ``bench_video_bias.py``) transformed exactly as the compositing transforms the frame
+  (the halving ``x / 2 - 1/4``: the half-pixel centres of ``INTER_AREA``; then the
+  clip's mapping of A's pixels for the person, of B's, or of the person's through the
+  cut-out's homography, for the reflection), the reflection's left/right labels swapped
+  (as a detector labels a mirror image); joints the composite does not show (the person
+  on the mirror's side, the reflection behind the person or outside the frame) at
+  confidence 0. Written as an OpenPose JSON folder (two people a frame) and read back
+  with ``skeleton="BODY_25B"``, as a user would (``--skeleton``: the layout cannot be
+  guessed where the subject faces away). OpenPose's file ``t`` is the video's frame
+  ``t + 1`` (``bench_video_bias.py``): it is written as the clip's frame ``t + 1``.
 * **video**: :func:`mirrorgraph.video.detect_video` on the composited clip
-  (BlazePose, defaults, the detection cache), then :func:`mirrorgraph.calibrate`
-  on its detections, the frames the annotations have (1-99).
+  (BlazePose, defaults, the detection cache; on the two-camera clips also with the
+  detector on every frame and its tiles, which the figures use: the defaults keep the
+  half-hidden reflection in few frames), then :func:`mirrorgraph.calibrate` on its
+  detections, the frames the annotations have (1-99).
 
 **Agreement**: ``|f_a - f_v| / sqrt(std_a^2 + std_v^2)`` of the focal lengths (target
 <= 2), the same of the distances, and the angle between the two mirror normals
 against the rotation stds combined the same way.
 
-**Bias.** On each clip's person (the halved source frame, left of the split) BlazePose's
+**Bias.** On each clip's person (the frames' joints on the person's side) BlazePose's
 joints are compared with OpenPose's: per joint, the median offset in the subject's own
 frame (towards the head: mid-hip to mid-shoulder; across: its perpendicular) in units
 of the OpenPose torso, as ``bench_video_bias.py``. Two more calibrations a clip from
@@ -66,7 +71,7 @@ distance against the plain annotations' is what the bias does.
 
 Usage::
 
-    python bench/bench_agreement.py                      # ~4 min on 2 shared cores
+    python bench/bench_agreement.py                      # ~9 min on 2 shared cores
     python bench/bench_agreement.py --pairs cam02-cam03 --cutouts cam01@70 --no-write
 
 The OpenPose JSON is read from ``--openpose DIR`` (``cam01`` .. ``cam04`` folders), or
@@ -712,7 +717,8 @@ def report(rows, offsets, pooled, seconds, started, argv, args) -> None:
          "as a planar mirror from two of its cameras (exact; the reflection half hidden "
          "behind the person) or from one camera with a flat cut-out reflection (see the "
          "script's docstring); annotations: OpenPose BODY_25B of "
-         f"Pose2Sim commit {OP_COMMIT}; video: BlazePose (`mirrorgraph.video`, defaults); "
+         f"Pose2Sim commit {OP_COMMIT}; video: BlazePose (`mirrorgraph.video`, defaults; "
+         "on the two-camera clips with the detector on every frame, see the table); "
          f"both calibrated without intrinsics (image size only), subject height {HEIGHT} m, "
          "frames 1-99 (those with an OpenPose file)", "",
          "| clip | video: frames with 2+ people | truth f (px) | annotations f +- std | "
