@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
         f"- before: `{before_rev}` ({args.before}); after: `{after_rev}`"
         + (" + uncommitted changes" if dirty else ""),
         f"- {args.frames} frames a clip, BlazePose with each version's default options "
-        "(LiteRT threads: 2 before, 1 after), no cache", "",
+        "(its LiteRT threads included), no cache", "",
         "| clip | people (subjects-most) | in range | mean a frame | max | frames with "
         "duplicates | tracks | frames/s | CPU ms a frame | detector runs | landmark runs |",
         "|---|---|---|---|---|---|---|---|---|---|---|"]
