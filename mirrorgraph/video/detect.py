@@ -93,7 +93,7 @@ class VideoOptions:
     Attributes:
         start: first frame (0-based).
         end: frame to stop before (``None``: the last frame).
-        every: keep every ``every``-th frame from ``start`` (``--every N``: N times
+        every: keep every ``every``-th frame from ``start`` (N: N times
             faster detection, N times fewer frames for the calibration).
         pose_model: an RTMPose ``.onnx`` file for rtmlib (with ``det_model``);
             ``None`` uses BlazePose.
@@ -280,14 +280,14 @@ def detect_video(path: str | os.PathLike, options: VideoOptions | None = None, *
     opts = options or VideoOptions()
     info = probe(path)
     if opts.every < 1:
-        raise InputError("must be at least 1", field="--every")
+        raise InputError("must be at least 1", field="every")
     if opts.start < 0:
-        raise InputError("must be a frame number >= 0", field="--start")
+        raise InputError("must be a frame number >= 0", field="start")
     if opts.end is not None and opts.end <= opts.start:
-        raise InputError(f"must be after --start ({opts.start})", field="--end")
+        raise InputError(f"must be after start ({opts.start})", field="end")
     if info.frame_count and opts.start >= info.frame_count:
-        raise InputError(f"--start {opts.start} is past the video's {info.frame_count} frames",
-                         source=info.path, field="--start")
+        raise InputError(f"start {opts.start} is past the video's {info.frame_count} frames",
+                         source=info.path, field="start")
     model, files = _model_files(opts)
     key = _cache_key(info, opts, model, files)
     folder = Path(opts.cache_dir) if opts.cache_dir is not None else cache_dir()

@@ -110,7 +110,7 @@ def frames(path: str | os.PathLike, *, start: int = 0, end: int | None = None,
     path = Path(path)
     if start < 0 or every < 1 or (end is not None and end <= start):
         raise InputError(f"empty frame range: start {start}, end {end}, every {every}",
-                         source=path, field="--start/--end/--every")
+                         source=path, field="start")
     cap = _open(path)
     try:
         t = 0

@@ -40,9 +40,10 @@ RTM_INSTALL_HINT = "pip install onnxruntime && pip install --no-deps rtmlib==0.0
 def check_onnx_files(pose_model, det_model) -> tuple[Path, Path]:
     """Both model paths, checked to be existing ``.onnx`` files (InputError otherwise)."""
     out = []
-    for path, flag in ((pose_model, "--pose-model"), (det_model, "--det-model")):
+    for path, flag in ((pose_model, "pose_model"), (det_model, "det_model")):
         if path is None:
-            raise InputError("rtmlib needs both --pose-model and --det-model", field=flag)
+            raise InputError("rtmlib needs both a pose model and a person detector",
+                             field=flag, fix=(flag,))
         p = Path(path)
         if p.suffix.lower() != ".onnx":
             raise InputError("must be a local .onnx file (nothing is downloaded)", source=p,
@@ -66,23 +67,25 @@ def _load(pose_path: Path, det_path: Path):
         import onnxruntime  # noqa: F401
         from rtmlib import RTMDet, RTMPose, YOLOX
     except ImportError:
-        raise InputError(f"--pose-model needs rtmlib and onnxruntime: {RTM_INSTALL_HINT}",
-                         field="--pose-model") from None
+        raise InputError(f"pose_model needs rtmlib and onnxruntime: {RTM_INSTALL_HINT}",
+                         field="pose_model") from None
     quiet = io.StringIO()
+    loading = (det_path, "det_model")                # the model a load error is about
     try:
         with contextlib.redirect_stdout(quiet):      # rtmlib prints "load ..." on stdout
             det_cls = RTMDet if "rtmdet" in det_path.name.lower() else YOLOX
             det = det_cls(onnx_model=str(det_path), backend="onnxruntime", device="cpu")
-            det.model_input_size = _input_hw(det.session, det_path, "--det-model")
+            det.model_input_size = _input_hw(det.session, det_path, "det_model")
+            loading = (pose_path, "pose_model")
             pose = RTMPose(onnx_model=str(pose_path), backend="onnxruntime", device="cpu")
-            h, w = _input_hw(pose.session, pose_path, "--pose-model")
+            h, w = _input_hw(pose.session, pose_path, "pose_model")
             pose.model_input_size = (w, h)            # RTMPose takes (width, height)
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - onnxruntime's load errors have many types
         raise InputError(f"cannot be loaded by ONNX Runtime ({type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0][:200]})", source=pose_path,
-                         field="--pose-model/--det-model") from None
+                         f"{str(exc).splitlines()[0][:200]})", source=loading[0],
+                         field=loading[1]) from None
     return det, pose
 
 
@@ -161,7 +164,7 @@ def rtmlib_frames(info, opts, step: Callable[[], None]):
                 raise InputError(f"the pose model gives {kp.shape[1]} keypoints, which fit "
                                  f"{'no' if not found else 'more than one'} layout mirrorgraph "
                                  "knows (17: COCO-17, 26: HALPE_26)", source=pose_path,
-                                 field="--pose-model")
+                                 field="pose_model")
             skeleton = found[0]
         J = skeleton.num_joints if skeleton is not None else 0
         out = np.zeros((len(boxes), J, 3))
@@ -177,7 +180,7 @@ def rtmlib_frames(info, opts, step: Callable[[], None]):
         step()
     if skeleton is None:
         raise InputError("the detector found nobody in any frame", source=info.path,
-                         field="--det-model")
+                         field="det_model")
     people = [p if p.shape[1] == skeleton.num_joints else np.zeros((0, skeleton.num_joints, 3))
               for p in people]
     return skeleton, ids, people, tids, boxes_out, f"rtmlib:{pose_path.name}", runs

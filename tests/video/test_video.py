@@ -254,6 +254,31 @@ def test_bad_video_input_is_one_line(tmp_path, capsys):
     assert "--det-model" in capsys.readouterr().err
 
 
+def test_video_errors_name_the_python_arguments(tmp_path):
+    """The library's messages name ``VideoOptions``' fields and ``check_onnx_files``'
+    arguments, never a command-line flag (the CLI maps the names to its flags)."""
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.video import VideoOptions, detect_video
+    from mirrorgraph.video.reader import frames
+    from mirrorgraph.video.rtm import check_onnx_files
+    clip = _write_clip(tmp_path / "c.mp4", [np.zeros((32, 48, 3), np.uint8)] * 3)
+    (tmp_path / "p.onnx").write_bytes(b"")
+    cases = [(lambda: detect_video(clip, VideoOptions(every=0, cache=False)), "every"),
+             (lambda: detect_video(clip, VideoOptions(start=-1, cache=False)), "start"),
+             (lambda: detect_video(clip, VideoOptions(start=2, end=1, cache=False)), "end"),
+             (lambda: detect_video(clip, VideoOptions(start=5, cache=False)), "start"),
+             (lambda: list(frames(clip, start=2, end=2)), "start"),
+             (lambda: check_onnx_files(tmp_path / "p.onnx", None), "det_model"),
+             (lambda: check_onnx_files(tmp_path / "p.txt", None), "pose_model"),
+             (lambda: check_onnx_files(tmp_path / "q.onnx", None), "pose_model"),
+             (lambda: check_onnx_files(tmp_path / "p.onnx", tmp_path / "d.onnx"), "det_model")]
+    for run, field in cases:
+        with pytest.raises(InputError) as exc:
+            run()
+        assert exc.value.field == field, (field, str(exc.value))
+        assert "--" not in str(exc.value), str(exc.value)
+
+
 # ----------------------------------------------------------------------------- end to end
 def test_calibrate_a_mirror_video_end_to_end(demo, models, tmp_path, capsys):
     """A mirror clip: a demo video's frames with the scene's reflection in a mirror 70 deg
