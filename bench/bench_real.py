@@ -83,6 +83,7 @@ from mirrorgraph.geometry import triangulate  # noqa: E402
 from mirrorgraph.io.camera_toml import TomlCamera, write_camera_toml  # noqa: E402
 from mirrorgraph.io.qualisys import read_qca  # noqa: E402
 from mirrorgraph.metrics import rotation_error_deg  # noqa: E402
+from mirrorgraph.pipelines.options import CalibrateOptions  # noqa: E402
 from mirrorgraph.rigs import calibrate_rig, load_rig_config  # noqa: E402
 from mirrorgraph.rigs.initial import MIN_CONFIDENCE, initialise_rig  # noqa: E402
 from mirrorgraph.rigs.observations import load_observations  # noqa: E402
@@ -242,7 +243,7 @@ def run_trial(root: Path, trial: str, cache: Path, joints_spec: str, divisor: fl
         rig = write_rig(tmp, root, trial, cams, sizes, height)
         t0 = time.perf_counter()
         try:
-            res = calibrate_rig(rig, joints=joints_spec, video=vopts)
+            res = calibrate_rig(rig, CalibrateOptions(joints=joints_spec, detection=vopts))
         except Exception as exc:  # noqa: BLE001
             row["failed"] = f"{type(exc).__name__}: {exc}"
             return row
@@ -324,7 +325,7 @@ def subject_choice(root: Path, trial: str, cache: Path, joints_spec: str) -> lis
             video = str(root / trial / "videos" / f"{CAMERAS[0]}.mp4")
             rig.write_text(rig.read_text().replace(f'"{video}"', f'"{tmp / "cam01.json"}"'))
             try:
-                res = calibrate_rig(rig, joints=joints_spec, video=vopts)
+                res = calibrate_rig(rig, CalibrateOptions(joints=joints_spec, detection=vopts))
                 row.update(camera_errors([np.asarray(c.pose, float) for c in res.cameras], true))
             except Exception as exc:  # noqa: BLE001
                 row["failed"] = f"{type(exc).__name__}: {exc}"

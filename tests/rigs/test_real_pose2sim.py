@@ -46,6 +46,7 @@ import pytest
 from mirrorgraph.io.camera_toml import TomlCamera, write_camera_toml
 from mirrorgraph.io.qualisys import read_qca
 from mirrorgraph.metrics import rotation_error_deg
+from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.rigs import calibrate_rig
 
 pytestmark = pytest.mark.real_data
@@ -103,7 +104,7 @@ def test_calibrate_rig_on_real_videos_agrees_with_qualisys(trial, tmp_path, monk
     monkeypatch.setenv("MIRRORGRAPH_CACHE", str(tmp_path / "cache"))
     path, truth = _rig(tmp_path, root / trial)
     video = VideoOptions(start=START, end=END, every=EVERY, cache_dir=tmp_path / "cache")
-    cal = calibrate_rig(path, video=video)
+    cal = calibrate_rig(path, CalibrateOptions(detection=video))
     assert [c.name for c in cal.cameras] == list(CAMERAS)
     est = [np.asarray(c.pose, float) for c in cal.cameras]
     e, t = np.array([P[:3, 3] for P in est[1:]]), np.array([P[:3, 3] for P in truth[1:]])
