@@ -6,7 +6,9 @@ elimination leaves; its inverse (:func:`~.optimizer.reduced_covariance`) gives e
 estimated camera's ``6 x 6`` and each plane's ``3 x 3`` tangent covariance and each
 estimated camera's ``(d, d)`` intrinsics covariance (:func:`covariances`), which the
 driver scales by the noise the data show (:mod:`.noise`). :func:`floor_focal` puts a
-floor under the focal lengths' robust standard deviations (:mod:`.uncertainty`).
+floor under the focal lengths' robust standard deviations (:mod:`.uncertainty`), and
+:func:`intrinsics_spread` carries what that floor adds into every camera's and plane's
+covariance (a distance, a position), which the marginals alone do not hold.
 """
 
 from __future__ import annotations
@@ -14,12 +16,12 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from .optimizer import reduced_covariance
+from .optimizer import reduced_covariance, reduced_covariance_matrix
 from .problem import GraphProblem
 from .solve_state import SolveState
 from .uncertainty import robust_intrinsics_std
 
-__all__ = ["covariances", "floor_focal"]
+__all__ = ["covariances", "floor_focal", "intrinsics_spread"]
 
 
 def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | None,
@@ -77,11 +79,18 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     search = [s.get("focal_px") for s in state.stages if s.get("focal_px") is not None]
     floor = (np.zeros(sc.scores.shape[1]) if sc.prior_floor is None
              else np.asarray(sc.prior_floor, float).copy())
+    cap = np.zeros(sc.scores.shape[1])
     off = 0
     keys = {int(pair[0]): c for c, pair in problem.calibration_keys.items()}
     for key, dim in sc.z_keys:
         c = keys.get(int(key))
         if c is not None:
+            cam, K = problem.rig.cameras[c], np.asarray(state.intrinsics[c], float)
+            if cam.focal_prior is not None:         # the estimate's distance from the guess
+                cap[off] = cam.focal_prior[1] ** 2 + (K[0, 0] - cam.focal_prior[0]) ** 2
+            if dim == 3 and cam.principal_point_prior is not None:
+                cx0, cy0, sd = cam.principal_point_prior
+                cap[off + 1:off + 3] = sd ** 2 + (K[:2, 2] - (cx0, cy0)) ** 2
             if dim == 3 and problem.rig.cameras[c].principal_point_prior is not None:
                 floor[off + 1:off + 3] = np.inf       # held at the centre: the prior's spread
             f = float(np.asarray(state.intrinsics[c])[0, 0])
@@ -91,9 +100,69 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
                 floor[off] = max(floor[off], (float(search[-1]) - f) ** 2)
         off += dim
     sc.prior_floor = floor
+    sc.prior_cap = cap
     marginal = {int(problem.calibration_keys[c][0]): state.intrinsics_cov[c]
                 for c in problem.calibration_keys}
     robust = robust_intrinsics_std(sc, marginal)
     state.intrinsics_std = [robust[int(problem.calibration_keys[c][0])][0]
                             if c in problem.calibration_keys else np.zeros(0)
                             for c in range(len(state.intrinsics))]
+
+
+def intrinsics_spread(state: SolveState) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """What the estimated intrinsics' headline variance adds to every camera and plane.
+
+    The marginals hold each estimated intrinsic at its marginal variance ``C_kk``; its
+    headline figure (:func:`floor_focal`: the disagreement with the search, or the
+    prior's spread where the data do not determine it) can be far larger, and every
+    quantity correlated with it inherits the difference. With ``C`` the joint covariance
+    of the reduced coordinates (:func:`~.optimizer.reduced_covariance_matrix`, scaled by
+    the noise), ``D = diag(max(s^2 - diag C_kk, 0))`` the variance the headline stds
+    ``s`` add, and ``b`` a camera's or a plane's block, the covariance ``b`` gains is
+    ``C_bk C_kk^-1 D C_kk^-1 C_kb`` (the regression of ``b`` on the intrinsics: Gaussian
+    propagation of the extra spread, Bishop 2006, sec. 2.3.3). A focal length 20 % uncertain
+    makes a mirror's distance about 20 % uncertain too (depth scales with it for a
+    fixed image of a person of known height).
+
+    Returns:
+        per camera a ``(6, 6)`` and per plane a ``(3, 3)`` covariance to add (tangent
+        coordinates; zeros where nothing is estimated or nothing is added).
+    """
+    problem = state.problem
+    rig = problem.rig if problem is not None else None
+    cams = [np.zeros((6, 6)) for _ in (rig.cameras if rig is not None else ())]
+    planes = [np.zeros((3, 3)) for _ in state.planes]
+    if (problem is None or state.information is None or not problem.calibration_keys
+            or not state.intrinsics_std):
+        return cams, planes
+    C = reduced_covariance_matrix(state.information) * state.variance_factor
+    if not np.all(np.isfinite(C)):
+        return cams, planes
+    where, off = {}, 0
+    for key, dim in state.z_keys:
+        where[int(key)] = (off, dim)
+        off += dim
+    k_idx, extra = [], []
+    for c, pair in problem.calibration_keys.items():
+        o, dim = where[int(pair[0])]
+        std = np.asarray(state.intrinsics_std[c], float)[:dim]
+        if std.size != dim:
+            continue
+        var = np.diag(C)[o:o + dim]
+        add = np.where(np.isfinite(std), np.maximum(std ** 2 - var, 0.0), 0.0)
+        k_idx += range(o, o + dim)
+        extra += list(add)
+    if not k_idx or not np.any(np.asarray(extra) > 0):
+        return cams, planes
+    k = np.asarray(k_idx)
+    Ckk = C[np.ix_(k, k)]
+    gain = np.linalg.lstsq(Ckk, C[k, :], rcond=None)[0].T          # (n, |k|): C_bk C_kk^-1
+    add = (gain * np.asarray(extra)) @ gain.T
+    for i, key in problem.camera_keys.items():
+        o, dim = where[int(key)]
+        cams[i] = add[o:o + dim, o:o + dim]
+    for m, key in enumerate(problem.plane_keys):
+        o, dim = where[int(key)]
+        planes[m] = add[o:o + dim, o:o + dim]
+    return cams, planes
+

@@ -199,6 +199,19 @@ def reduced_covariance(information: np.ndarray, z_keys: list[tuple[int, int]]
         key -> ``(dim, dim)`` covariance block; all NaN when the information is not
         positive definite (a direction no observation fixes).
     """
+    cov = reduced_covariance_matrix(information)
+    out, off = {}, 0
+    for key, dim in z_keys:
+        out[int(key)] = cov[off:off + dim, off:off + dim].copy()
+        off += dim
+    return out
+
+
+def reduced_covariance_matrix(information: np.ndarray) -> np.ndarray:
+    """The ``(n, n)`` joint covariance of a reduced Gaussian, every cross term kept: the
+    inverse of ``information`` with Jacobi scaling and a symmetric eigensolver
+    (:func:`reduced_covariance`, which cuts it into blocks); all NaN when the
+    information is not positive definite."""
     H = 0.5 * (np.asarray(information, dtype=float) + np.asarray(information, dtype=float).T)
     n = H.shape[0]
     diag = np.diag(H)
@@ -208,11 +221,7 @@ def reduced_covariance(information: np.ndarray, z_keys: list[tuple[int, int]]
         w, V = np.linalg.eigh(H * s[:, None] * s[None, :])
         if w[0] > 1e-14 * w[-1]:
             cov = (V / w) @ V.T * s[:, None] * s[None, :]
-    out, off = {}, 0
-    for key, dim in z_keys:
-        out[int(key)] = cov[off:off + dim, off:off + dim].copy()
-        off += dim
-    return out
+    return cov
 
 
 @dataclass

@@ -130,6 +130,20 @@ def focal_record(state: SolveState, guess: Camera, index: int = 0,
     return rec
 
 
+def focal_rel_std(state: SolveState, index: int = 0) -> float:
+    """The headline relative std of camera ``index``'s estimated focal length (the larger
+    of its marginal and robust figures, as :func:`focal_record`), 0 where it is held."""
+    if index >= len(state.intrinsics_cov) or not np.size(state.intrinsics_cov[index]):
+        return 0.0
+    f = float(np.asarray(state.intrinsics[index], float)[0, 0])
+    marginal = float(np.sqrt(max(np.asarray(state.intrinsics_cov[index], float)[0, 0], 0.0)))
+    robust = (float(np.asarray(state.intrinsics_std[index], float)[0])
+              if index < len(state.intrinsics_std) and len(state.intrinsics_std[index])
+              else marginal)
+    std = max(marginal, robust)
+    return std / f if np.isfinite(std) and f > 0 else 0.0
+
+
 # --------------------------------------------------------------------------- steps
 def prepare(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray, inliers: np.ndarray,
             joints: np.ndarray | None, opts: RefineOptions, *,
@@ -222,7 +236,14 @@ def finish(rig: Rig, state: SolveState, opts: RefineOptions, t_start: float
             inflation = parts["ratio_to_marginal"]
             sensitivity = sensitivity_report(state.scores, basis, parts, marginal_std,
                                              rig.skeleton, rig.frame_ids)
-        distance_std = float(np.sqrt(max(cov[2, 2], 0.0))) * inflation
+        # the marginal, widened as the rotation was, and what the intrinsics' headline
+        # spread adds (a focal length the data hardly determine: the distance with it)
+        spread = state.plane_spread[0][2, 2] if state.plane_spread else 0.0
+        distance_var = max(cov[2, 2], 0.0) * inflation ** 2 + spread
+        # with the distance held as the gauge the graph shows no coupling: a person of
+        # known size imaged at a fixed size lies at a depth proportional to f
+        distance_var = max(distance_var, (d * focal_rel_std(state)) ** 2)
+        distance_std = float(np.sqrt(distance_var))
         if state.scale == "subject_height":       # the gauge's honest uncertainty, a pure scale
             distance_std = with_height_sigma(distance_std, d, opts.height_sigma)
         else:

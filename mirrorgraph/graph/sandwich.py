@@ -277,7 +277,9 @@ def _with_unknown_intrinsics(out: dict, scores: JointScores, H: np.ndarray, meat
     marginal (``H^-1``, which holds the prior) and at most the prior's spread in each
     coordinate: where the data hardly hold them (no bones, rays meeting at a few
     degrees) the scores' ``k`` part is numerically meaningless (it gave a focal std of
-    5e7 px), and the truth's spread about the guess is the prior's. So the reported
+    5e7 px), and the truth's spread about the guess is the prior's (about the estimate:
+    the prior's plus the estimate's squared distance from the guess,
+    :attr:`~.scores.JointScores.prior_cap`). So the reported
     figures hold the unknown intrinsics whether or not the data determine them.
     """
     P = np.asarray(scores.prior_spread, dtype=float)
@@ -291,10 +293,12 @@ def _with_unknown_intrinsics(out: dict, scores: JointScores, H: np.ndarray, meat
     bread_a = gauge_inverse(H[np.ix_(a, a)], gauge)
     G = -bread_a @ H[np.ix_(a, k)]
     prior_sd = 1.0 / np.sqrt(d[k])
+    if scores.prior_cap is not None:       # the prior's spread about the estimate, not the guess
+        prior_sd = np.sqrt(np.maximum(prior_sd ** 2, np.asarray(scores.prior_cap, float)[k]))
     marg_k = bread[np.ix_(k, k)]
     if scores.prior_floor is not None:
         # an intrinsic the data do not determine: its variance at least the floor
-        # (the prior's, or the disagreement of two estimates), at most the prior's
+        # (the prior's, or the disagreement of two estimates), at most the cap
         floor = np.minimum(np.asarray(scores.prior_floor, float)[k], prior_sd ** 2)
         sd = np.sqrt(np.maximum(np.diag(marg_k), 1e-300))
         up = np.maximum(np.sqrt(floor) / sd, 1.0)

@@ -70,6 +70,11 @@ class JointScores:
             do not determine a focal length its prior's, where two estimates of it from
             the same data disagree their difference squared
             (:func:`mirrorgraph.graph.solve.floor_focal`); ``None``: none.
+        prior_cap: ``(n,)`` the most variance of each intrinsic's coordinate about its
+            estimate (0: the prior's variance): the prior's variance plus the squared
+            distance of the estimate from the prior's centre, the expected squared error
+            of an estimate the data do not determine when the truth is drawn from the prior
+            (:func:`~.marginals.floor_focal`); ``None``: the prior's.
         bias_score: ``(n,)`` the reduced score of the bones' curvature bias
             (:func:`frame_scores`): the estimate's first-order bias is
             ``H^-1 bias_score``, whose outer product every figure of :func:`~.sandwich.sandwich`
@@ -92,6 +97,7 @@ class JointScores:
     row_info: np.ndarray | None = None
     prior_spread: np.ndarray | None = None
     prior_floor: np.ndarray | None = None
+    prior_cap: np.ndarray | None = None
     bias_score: np.ndarray | None = None
     added_cov: np.ndarray | None = None
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .chunked import solve_chunked
-from .marginals import floor_focal
+from .marginals import floor_focal, intrinsics_spread
 from .options import RefineOptions
 from .rig import Rig, parallax_deg, spread_rows, triangulate_rig
 from .solve_graph import Progress
@@ -67,6 +67,7 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
     state.focal_undetermined = {rig.cameras[i].name: v for i, v in undetermined.items()}
     if undetermined:
         floor_focal(state, set(undetermined))
+    state.camera_spread, state.plane_spread = intrinsics_spread(state)
     return state
 
 

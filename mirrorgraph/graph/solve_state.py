@@ -56,6 +56,10 @@ class SolveState:
         intrinsics_std: per camera the ``(d,)`` standard deviations of its estimated
             intrinsics, px: the larger of the marginal and the cluster-robust figures
             (:func:`~.uncertainty.robust_intrinsics_std`; empty without ``scores``).
+        camera_spread, plane_spread: per camera ``(6, 6)`` and per plane ``(3, 3)`` the
+            covariance the intrinsics' headline variance adds beyond the marginals
+            (:func:`~.marginals.intrinsics_spread`; empty where nothing is estimated):
+            the front ends add it to positions and distances.
         focal_undetermined: camera name -> ``{"focal_px", "std_px", "rel_std"}`` for the
             cameras whose focal length the data did not determine; the solution holds
             them at their guess (:func:`mirrorgraph.graph.solve.solve`).
@@ -90,4 +94,6 @@ class SolveState:
     intrinsics: list[np.ndarray] = field(default_factory=list)
     intrinsics_cov: list[np.ndarray] = field(default_factory=list)
     intrinsics_std: list[np.ndarray] = field(default_factory=list)
+    camera_spread: list[np.ndarray] = field(default_factory=list)
+    plane_spread: list[np.ndarray] = field(default_factory=list)
     focal_undetermined: dict[str, dict] = field(default_factory=dict)

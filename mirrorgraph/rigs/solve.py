@@ -233,6 +233,14 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                  for kind, i in order]
         sensitivity = rig_sensitivity_report(state.scores, named, marg, rig.skeleton,
                                              rig.frame_ids)
+    # what the intrinsics' headline spread adds to positions and distances (a camera whose
+    # focal length the data hardly determine: the lengths with it)
+    for i, extra in enumerate(state.camera_spread):
+        camera_cov[i] = np.array(camera_cov[i], float)
+        camera_cov[i][3:, 3:] += extra[3:, 3:]
+    for i, extra in enumerate(state.plane_spread):
+        plane_cov[i] = np.array(plane_cov[i], float)
+        plane_cov[i][2, 2] += extra[2, 2]
     focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
              if c.estimate_focal}
     return RigSolution(poses=state.poses, planes=state.planes,
