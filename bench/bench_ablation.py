@@ -65,7 +65,8 @@ def run_scene(case: tuple[str, str, int, int]) -> list[dict]:
     import warnings
     warnings.filterwarnings("ignore")
     import mirrorgraph as mg
-    from mirrorgraph.graph import RefineOptions, refine_mirror
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.pipelines.solve import refine_mirror
     from mirrorgraph.metrics import cramer_rao_mirror, mirror_rotation_error_deg, pa_mpjpe
     from mirrorgraph.synth import make_wide_scene
 

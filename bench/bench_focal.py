@@ -73,7 +73,7 @@ import mirrorgraph as mg  # noqa: E402
 from mirrorgraph.graph import RefineOptions  # noqa: E402
 from mirrorgraph.graph.builder import build_problem  # noqa: E402
 from mirrorgraph.graph.options import FocalOptions  # noqa: E402
-from mirrorgraph.graph.refine import prepare  # noqa: E402
+from mirrorgraph.pipelines.solve import prepare  # noqa: E402
 from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov  # noqa: E402
 from mirrorgraph.graph.sandwich import gauge_inverse  # noqa: E402
 from mirrorgraph.graph.scores import frame_scores  # noqa: E402
@@ -224,7 +224,7 @@ def run_scene(seed: int, slice_: str, frames: int, bound: bool = True) -> dict:
 # --------------------------------------------------------------------------- rigs
 def rig_case(kind: str, seed: int, drop: list[int], folder: Path, frames: int = 300) -> dict:
     from mirrorgraph.rigs.config import load_rig_config
-    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.pipelines.rig import calibrate_rig
     from mirrorgraph.synth import make_rig, write_rig
 
     r = make_rig(kind, frames=frames, seed=seed, geometry="wide")
@@ -308,7 +308,7 @@ def missing_detections(trials: list[str], cache: Path) -> str | None:
 def real_trials(trials: list[str], cache: Path) -> list[dict]:
     """Each camera of each trial without its intrinsics, against Qualisys."""
     import bench_real as br
-    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.pipelines.rig import calibrate_rig
     from mirrorgraph.video import VideoOptions, detect_video
 
     root = br.pose2sim_root()

@@ -46,7 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from mirrorgraph.graph import RefineOptions, refine_mirror  # noqa: E402
+from mirrorgraph.graph import RefineOptions  # noqa: E402
+from mirrorgraph.pipelines.solve import refine_mirror  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg  # noqa: E402
 from mirrorgraph.synth import make_scene, tilted_normal as tilted  # noqa: E402
 
@@ -56,7 +57,7 @@ def crb_rotation_deg(scene) -> float:
     from mirrorgraph.graph.builder import build_problem
     from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams
     from mirrorgraph.graph.reduction import mirror_reduction
-    from mirrorgraph.graph.refine import prepare
+    from mirrorgraph.pipelines.solve import prepare
     from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
     p = scene.paired()
     opts = RefineOptions(robust_kernel=None, pixel_sigma=float(scene.options["noise_std"]))

@@ -64,7 +64,7 @@ def single_cases() -> dict:
 
 def rig_cases(folder: Path) -> dict:
     from mirrorgraph.rigs.config import load_rig_config
-    from mirrorgraph.rigs.pipeline import calibrate_rig
+    from mirrorgraph.pipelines.rig import calibrate_rig
     from mirrorgraph.synth import make_rig, write_rig
 
     out = {}

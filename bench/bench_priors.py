@@ -52,7 +52,8 @@ def run_scene(args: tuple[str, int, int, int]) -> list[dict]:
     """Every variant on every draw of one scene."""
     import warnings
     warnings.filterwarnings("ignore")
-    from mirrorgraph.graph import RefineOptions, refine_mirror
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.pipelines.solve import refine_mirror
     from mirrorgraph.keypoints import PairedKeypoints
     from mirrorgraph.metrics import cramer_rao_mirror
     from mirrorgraph.synth import make_wide_scene

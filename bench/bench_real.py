@@ -84,8 +84,9 @@ from mirrorgraph.io.camera_toml import TomlCamera, write_camera_toml  # noqa: E4
 from mirrorgraph.io.qualisys import read_qca  # noqa: E402
 from mirrorgraph.metrics import rotation_error_deg  # noqa: E402
 from mirrorgraph.pipelines.options import CalibrateOptions  # noqa: E402
-from mirrorgraph.rigs import calibrate_rig, load_rig_config  # noqa: E402
-from mirrorgraph.rigs.initial import MIN_CONFIDENCE, initialise_rig  # noqa: E402
+from mirrorgraph.pipelines.rig import calibrate_rig  # noqa: E402
+from mirrorgraph.rigs.config import load_rig_config  # noqa: E402
+from mirrorgraph.initial.rig import MIN_CONFIDENCE, initialise_rig  # noqa: E402
 from mirrorgraph.rigs.observations import load_observations  # noqa: E402
 from mirrorgraph.stature import estimate_stature  # noqa: E402
 from mirrorgraph.video import VideoOptions, detect_video  # noqa: E402

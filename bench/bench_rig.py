@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Benchmark of whole-rig calibration (:func:`mirrorgraph.rigs.calibrate_rig`) against ground truth.
+"""Benchmark of whole-rig calibration (:func:`mirrorgraph.pipelines.rig.calibrate_rig`) against ground truth.
 
     python bench/bench_rig.py                       # 3 kinds x 10 seeds, 300 frames, 4 px
     python bench/bench_rig.py --seeds 3 --no-write  # quick look
@@ -31,7 +31,7 @@ over RMS reported std, pooled over seeds.
 On ``"4cams"`` the same keypoints (every camera's observations of the joints calibrate_rig
 used, undistorted pixels, confidence >= 0.3) also go to aniposelib's bundle adjustment (intrinsics fixed,
 ``only_extrinsics=True``), started from mirrorgraph's pairwise initialisation
-(:func:`mirrorgraph.rigs.initial.initialise_rig`, metric through the subject's height):
+(:func:`mirrorgraph.initial.rig.initialise_rig`, metric through the subject's height):
 ``CameraGroup.bundle_adjust_iter`` (anipose's default, iterative outlier rejection on
 resampled points) and one ``bundle_adjust`` on every point (linear loss). Its gauge is free
 (first camera and scale), so its poses are expressed relative to its first camera and
@@ -75,8 +75,9 @@ from mirrorgraph.anthropometry import expected_bone_lengths  # noqa: E402
 from mirrorgraph.graph.options import RefineOptions  # noqa: E402
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg, translation_error  # noqa: E402
 from mirrorgraph.pipelines.options import CalibrateOptions  # noqa: E402
-from mirrorgraph.rigs import calibrate_rig, load_rig_config  # noqa: E402
-from mirrorgraph.rigs.initial import MIN_CONFIDENCE, initialise_rig  # noqa: E402
+from mirrorgraph.pipelines.rig import calibrate_rig  # noqa: E402
+from mirrorgraph.rigs.config import load_rig_config  # noqa: E402
+from mirrorgraph.initial.rig import MIN_CONFIDENCE, initialise_rig  # noqa: E402
 from mirrorgraph.rigs.observations import load_observations  # noqa: E402
 from mirrorgraph.stature import estimate_stature  # noqa: E402
 from mirrorgraph.synth.rig import PERSON, make_rig, write_rig  # noqa: E402

@@ -37,7 +37,7 @@ from bench_rig import code_state, machine  # noqa: E402
 from mirrorgraph.anthropometry import expected_bone_lengths  # noqa: E402
 from mirrorgraph.graph.options import RefineOptions  # noqa: E402
 from mirrorgraph.intrinsics import Intrinsics  # noqa: E402
-from mirrorgraph.pipeline import CalibrateOptions, calibrate  # noqa: E402
+from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate  # noqa: E402
 from mirrorgraph.stature import estimate_stature  # noqa: E402
 from mirrorgraph.synth.scene import make_scene  # noqa: E402
 

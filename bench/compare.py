@@ -281,7 +281,7 @@ def _masked(arr, mask):
 
 def run_baseline1(prep: Prepared, seed: int) -> dict:
     from mirrorgraph.baselines import triangulate_virtual
-    from mirrorgraph.estimators import estimate_mirror
+    from mirrorgraph.initial.estimators import estimate_mirror
     p, K = prep.paired, prep.scene.K
     ok = _calib_mask(p)
     est = estimate_mirror(p.real[ok][:, :2], p.mirror[ok][:, :2], K, estimator="eightpoint")

@@ -52,7 +52,7 @@ from .anthropometry import height_problem
 from .errors import InputError, MirrorgraphError
 from .graph import RefineOptions
 from .intrinsics import load_intrinsics
-from .pipeline import CalibrateOptions, calibrate
+from .pipelines.mirror import CalibrateOptions, calibrate
 from .rigs.config import RIG_FILE
 from .report.store import write_calibration_and_run
 
@@ -324,8 +324,9 @@ def _calibrate_rig(rec: Recording, opts: CalibrateOptions, result: BatchResult) 
     to report)."""
     import numpy as np
 
-    from .io.rig_calibration import write_rig_json, write_rig_toml
-    from .rigs.pipeline import calibrate_rig
+    from .export import write_rig_toml
+    from .result.rig import write_rig_json
+    from .pipelines.rig import calibrate_rig
 
     if rec.intrinsics is not None:
         raise InputError("a rig file lists its cameras' intrinsics itself: leave "

@@ -53,7 +53,7 @@ from .keypoints import PairedKeypoints
 
 if TYPE_CHECKING:
     from .rigs.observations import RigObservations
-    from .rigs.solve import RigSolution
+    from .pipelines.solve import RigSolution
 
 __all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate", "BODY_GATE_MADS",
            "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
@@ -256,7 +256,7 @@ def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px
     missing = ~np.asarray(sol.used, bool)                                  # (T, J)
     if not missing.any():
         return sol
-    from .rigs.initial import observed
+    from .initial.rig import observed
 
     projections, keypoints = _rig_views(obs, sol)
     masks = [observed(k) & missing for k in keypoints]

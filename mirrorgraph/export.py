@@ -1,4 +1,5 @@
-"""Export a mirror calibration as a two-camera rig for Pose2Sim and aniposelib.
+"""Camera files for Pose2Sim and aniposelib: a mirror calibration as a two-camera rig, a rig
+with every camera and (optionally) every view through a mirror.
 
 The real camera and the mirror's virtual camera are written as two ordinary
 cameras of a Pose2Sim ``Calib.toml`` or an aniposelib ``calibration.toml``
@@ -90,18 +91,18 @@ import numpy as np
 
 from . import geometry as geo
 from ._version import __version__
-from .calibration import Calibration, read_calibration
+from .result.mirror import Calibration, read_calibration
 from .errors import InputError
 from .intrinsics import check_size
 from .io.camera_toml import TomlCamera, rotation_to_rodrigues, write_camera_toml
 from .skeletons import Skeleton, skeleton_by_name
 
 if TYPE_CHECKING:
-    from .rigs.result import RigCalibration
+    from .result.rig import RigCalibration
 
 __all__ = ["FORMATS", "WORLD_FRAMES", "camera_sections", "export_calibration",
            "export_cameras", "flip_camera_matrix", "flip_distortion", "flip_mirror_keypoints",
-           "flipped_mirror_camera", "rig_cameras", "world_rotation"]
+           "flipped_mirror_camera", "rig_cameras", "world_rotation", "write_rig_toml"]
 
 #: Export formats: ``--to`` values and the camera-file style each writes.
 FORMATS = {"pose2sim": "pose2sim", "anipose": "anipose", "aniposelib": "anipose"}
@@ -189,7 +190,7 @@ def flipped_mirror_camera(key: str, name: str, K: np.ndarray, dist: np.ndarray |
     """The camera file's section of a mirror's virtual camera, in the flipped image.
 
     The one construction of :func:`export_cameras` (one camera and its mirror) and of
-    :func:`mirrorgraph.io.rig_calibration.rig_toml_cameras` (every camera and mirror of a
+    :func:`mirrorgraph.export.rig_cameras` (every camera and mirror of a
     rig): the virtual camera of the horizontally flipped image (a proper rotation, see
     the module docstring), ``K' = F K D`` (:func:`flip_camera_matrix`) and the flipped
     distortion (:func:`flip_distortion`).
@@ -276,10 +277,10 @@ def _style_distortion(d: np.ndarray, style: str, warnings: list[str]) -> np.ndar
 def _as_rig(calibration) -> tuple["RigCalibration", str | None, bool]:
     """``(rig, source path or None, whether it is a single mirror)`` of any calibration:
     a single mirror's (object, parsed ``calibration.json`` or its path) as the rig of one
-    camera and one mirror (:meth:`~mirrorgraph.rigs.result.RigCalibration.from_mirror`),
+    camera and one mirror (:meth:`~mirrorgraph.result.rig.RigCalibration.from_mirror`),
     a rig's as it is (object, parsed rig JSON or its path)."""
     from .io._common import load_json
-    from .rigs.result import RigCalibration, is_rig_document, read_rig_calibration
+    from .result.rig import RigCalibration, is_rig_document, read_rig_calibration
 
     source = str(calibration) if isinstance(calibration, (str, os.PathLike)) else None
     if isinstance(calibration, RigCalibration):
@@ -299,8 +300,8 @@ def rig_cameras(rig: "RigCalibration", style: str = "pose2sim", *, world: str = 
     """The cameras of a camera file for any calibration seen as a rig: every real camera,
     then (``with_virtual``) every camera's view through every mirror it sees as the camera
     of the horizontally flipped image (:func:`flipped_mirror_camera`, extrinsics
-    :func:`mirrorgraph.rigs.virtual_extrinsics`). The one construction behind
-    :func:`export_cameras` and :func:`mirrorgraph.io.rig_calibration.write_rig_toml`.
+    :func:`mirrorgraph.result.rig.virtual_extrinsics`). The one construction behind
+    :func:`export_cameras` and :func:`mirrorgraph.export.write_rig_toml`.
 
     Args:
         rig: the calibration (a single mirror: :meth:`RigCalibration.from_mirror`).
@@ -316,7 +317,7 @@ def rig_cameras(rig: "RigCalibration", style: str = "pose2sim", *, world: str = 
     Raises:
         InputError: a camera without an image size (the flip and the file need it).
     """
-    from .rigs.result import virtual_extrinsics
+    from .result.rig import virtual_extrinsics
 
     warnings = [] if warnings is None else warnings
     At = world_rotation(world).T                # world -> first camera: X_cam = A^T X_world
@@ -385,7 +386,7 @@ def export_cameras(calibration: Calibration | Mapping | str | os.PathLike, fmt: 
 
     Args:
         calibration: a ``calibration.json`` path, its parsed dict, or a
-            :class:`~mirrorgraph.calibration.Calibration`.
+            :class:`~mirrorgraph.result.mirror.Calibration`.
         fmt: ``"pose2sim"`` or ``"anipose"`` (alias ``"aniposelib"``): section
             keys, names and distortion vector lengths follow that tool.
         world: ``"camera"`` (world = real camera frame) or ``"z_up"`` (see the
@@ -425,7 +426,7 @@ def export_calibration(calibration: Calibration | Mapping | str | os.PathLike, f
 
     Args:
         calibration: a ``calibration.json`` path, its parsed dict, or a
-            :class:`~mirrorgraph.calibration.Calibration`.
+            :class:`~mirrorgraph.result.mirror.Calibration`.
         fmt: ``"pose2sim"`` or ``"anipose"`` (alias ``"aniposelib"``).
         out_path: the ``.toml`` file to write.
         world: ``"camera"`` (default; triangulation gives mirrorgraph's
@@ -470,3 +471,32 @@ def _rig_header(source: str, first: str, world: str, metric: bool) -> str:
             "as the camera of the HORIZONTALLY FLIPPED image (u -> W - u): give it the\n"
             "reflection's keypoints flipped the same way, left/right labels swapped.\n"
             f"World frame: {world} of camera {first}. Translation unit: {unit}.")
+
+
+def write_rig_toml(calib: "RigCalibration", path: str | os.PathLike, *,
+                   with_virtual: bool = False) -> None:
+    """Write Pose2Sim's ``calibration.toml`` of a rig (atomically): one section per camera
+    named after it, ``name``, ``size``, ``matrix``, ``distortions`` (as given),
+    ``rotation`` (Rodrigues) and ``translation`` of the world-to-camera transform, the
+    first camera's frame the world (:func:`rig_cameras`). With ``with_virtual`` every
+    camera's view through a mirror follows as the camera of the horizontally flipped
+    image, section ``<camera>_<mirror>``. Translations in metres with a subject height,
+    else in subject heights (the header says which); ``[metadata] error`` the cameras'
+    mean reprojection RMS.
+
+    Raises:
+        InputError: a camera without an image size (Pose2Sim needs it).
+    """
+    cams = rig_cameras(calib, "pose2sim", with_virtual=with_virtual)
+    rms = [c.reprojection_rms_px for c in calib.cameras if np.isfinite(c.reprojection_rms_px)]
+    unit = ("metres" if calib.scale == "subject_height"
+            else "subject heights (no subject height given: NOT metres)")
+    header = (f"Calibrated by mirrorgraph from the people in view ({calib.source}).\n"
+              f"World frame: camera {calib.cameras[0].name}. Translation unit: {unit}.")
+    if with_virtual:
+        header += ("\nSections <camera>_<mirror> are virtual cameras of the horizontally "
+                   "flipped image (u -> W - u); give them the reflection's keypoints flipped "
+                   "the same way, left/right labels swapped.")
+    write_camera_toml(path, cams, "pose2sim", error=float(np.mean(rms)) if rms else 0.0,
+                      header=header)
+

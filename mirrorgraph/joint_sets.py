@@ -39,7 +39,7 @@ __all__ = ["JOINT_SETS", "MIN_JOINTS", "resolve_joints", "mirror_joints"]
 JOINT_SETS = ("auto", "limbs", "all")
 
 #: Fewest joints a list of names may hold: the pairing scores a candidate pair by the
-#: median over at least 4 shared joints (:class:`mirrorgraph.pairing.PairingOptions`).
+#: median over at least 4 shared joints (:class:`mirrorgraph.initial.pairing.PairingOptions`).
 MIN_JOINTS = 4
 
 

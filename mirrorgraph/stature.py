@@ -189,8 +189,8 @@ LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
 def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, height: float
                     ) -> tuple[float | None, str, StatureEstimate | None]:
     """The factor that makes the stature measured on a solution's joints ``height``: the
-    metric scale of every front end (one mirror, :mod:`mirrorgraph.graph.stature_scale`;
-    a rig, :func:`mirrorgraph.rigs.calibrate_rig`).
+    metric scale of every front end (one mirror, :mod:`mirrorgraph.pipelines.scale`;
+    a rig, :func:`mirrorgraph.pipelines.rig.calibrate_rig`).
 
     The graph's gauge holds the limb bones' sum at Winter's fractions of the height, which
     carries the subject's limb proportions into the scale; the stature measured on the

@@ -172,7 +172,7 @@ def _virtual_camera(name: str, K: np.ndarray, size, pose: np.ndarray, normal: np
                     distance: float) -> ViewCamera:
     """The flipped-image camera of ``pose`` through the mirror (``R = D R_c^T H``)."""
     from .export import flip_camera_matrix
-    from .rigs.result import virtual_extrinsics
+    from .result.rig import virtual_extrinsics
 
     R, t = virtual_extrinsics(pose, normal, distance)
     W = size[0] if size is not None else 2.0 * K[0, 2]
@@ -247,7 +247,7 @@ def scene_from_calibration(calib, *, joints3d: np.ndarray | None = None,
                            joint_names=(), fps: float | None = None,
                            keypoints: tuple[np.ndarray, np.ndarray] | None = None,
                            unit: str | None = None) -> ViewScene:
-    """The scene of a single-mirror :class:`~mirrorgraph.calibration.Calibration`.
+    """The scene of a single-mirror :class:`~mirrorgraph.result.mirror.Calibration`.
 
     The world frame is the real camera's. Without a metric scale the mirror is at
     distance 1 and lengths are in mirror distances (as the 3D joints then are).
@@ -294,8 +294,8 @@ def _add_joints(scene: ViewScene, joints3d, valid, frame_ids, joint_names, fps) 
 
 def scene_from_rig(rig, *, joints3d=None, valid=None, frame_ids=None, joint_names=(),
                    fps: float | None = None) -> ViewScene:
-    """The scene of a rig: a :class:`~mirrorgraph.rigs.result.RigCalibration` or its JSON
-    (path or parsed document, :meth:`~mirrorgraph.rigs.result.RigCalibration.to_dict`).
+    """The scene of a rig: a :class:`~mirrorgraph.result.rig.RigCalibration` or its JSON
+    (path or parsed document, :meth:`~mirrorgraph.result.rig.RigCalibration.to_dict`).
 
     The world frame is the first camera's; every camera that sees a mirror gets its
     virtual camera. Without ``joints3d`` a :class:`RigCalibration`'s own joints are
@@ -705,7 +705,7 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
                                                                "joint_names")}
         scene = scene_from_rig(doc, fps=fps, **kw)
         return record(scene, save=save, max_video_frames=max_video_frames)
-    from .calibration import read_calibration
+    from .result.mirror import read_calibration
     calib = read_calibration(path)
     keypoints = None
     run = _read_kept_run(path, calib)

@@ -19,7 +19,7 @@ from mirrorgraph.batch import (BatchResult, Recording, calibrate_recording, form
 from mirrorgraph.cli.batch import add_parsers as add_batch_parser
 from mirrorgraph.errors import InputError
 from mirrorgraph.metrics import normal_angle_deg
-from mirrorgraph.pipeline import CalibrateOptions
+from mirrorgraph.pipelines.mirror import CalibrateOptions
 from mirrorgraph.synth import make_scene, read_ground_truth, write_scene
 
 pytest.importorskip("dask.distributed")
@@ -340,7 +340,7 @@ def test_a_rig_is_a_recording_too(tmp_path):
     rig's (``rig.toml``) calibrates both, each as its front end does; the rig's cameras
     come within the synthetic truth and its files are those of ``calibrate-rig``."""
     from mirrorgraph.metrics import rotation_error_deg
-    from mirrorgraph.rigs.result import read_rig_calibration
+    from mirrorgraph.result.rig import read_rig_calibration
     from mirrorgraph.synth import make_rig, write_rig
 
     root = tmp_path / "recs"

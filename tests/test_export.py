@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mirrorgraph import geometry as geo
-from mirrorgraph.calibration import Calibration, write_calibration
+from mirrorgraph.result.mirror import Calibration, write_calibration
 from mirrorgraph.errors import InputError
 from mirrorgraph.export import (WORLD_FRAMES, camera_sections, export_calibration,
                                 export_cameras, flip_camera_matrix, flip_distortion,

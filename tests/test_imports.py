@@ -110,7 +110,7 @@ def test_the_import_graph_is_read():
     assert "mirrorgraph.cli.args" in graph["mirrorgraph.cli.calibrate"]
     assert "mirrorgraph.batch" in graph["mirrorgraph.cli.batch"]            # from ..batch
     assert "mirrorgraph.report.backend" in graph["mirrorgraph.report.figures"]
-    assert "mirrorgraph.pipeline" in graph["mirrorgraph.cli.calibrate"]     # inside a function
+    assert "mirrorgraph.pipelines.mirror" in graph["mirrorgraph.cli.calibrate"]     # inside a function
 
 
 def test_no_import_cycles():
@@ -177,6 +177,6 @@ def test_the_command_line_parser_imports_no_solver():
     neither GTSAM, SciPy's optimiser (which imports its spatial module), Matplotlib, Dask
     nor the video package; the commands import them when they run."""
     heavy = ("gtsam", "scipy.optimize", "scipy.spatial", "matplotlib", "dask",
-             "mirrorgraph.video", "mirrorgraph.pipeline")
+             "mirrorgraph.video", "mirrorgraph.pipelines.mirror")
     assert _imported_after("from mirrorgraph.cli import build_parser; build_parser()",
                            heavy) == []

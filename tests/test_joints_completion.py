@@ -137,7 +137,7 @@ def test_anchor_gate_keeps_consistent_points():
 # ------------------------------------------------------------------------- joints words
 @pytest.mark.parametrize("name", ["COCO_17", "BODY_25", "HALPE_26"])
 def test_single_mirror_and_rig_resolve_the_same_words(name):
-    from mirrorgraph.rigs import pipeline as rig_pipeline
+    from mirrorgraph.pipelines import rig as rig_pipeline
 
     assert rig_pipeline.resolve_joints is resolve_joints          # one parser for both
     sk = skeleton_by_name(name)

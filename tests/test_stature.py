@@ -78,7 +78,7 @@ def test_nothing_to_measure_gives_none():
 def _calibrate(scene, scale_from: str):
     from mirrorgraph.graph.options import RefineOptions
     from mirrorgraph.intrinsics import Intrinsics
-    from mirrorgraph.pipeline import CalibrateOptions, calibrate
+    from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate
 
     opts = CalibrateOptions(subject_height=scene.subject_height,
                             refine_options=RefineOptions(scale_from=scale_from))

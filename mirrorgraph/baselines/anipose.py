@@ -48,7 +48,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import DegenerateGeometryError
-from ..estimators import estimate_mirror
+from ..initial.estimators import estimate_mirror
 from . import require, triangulate_virtual
 
 INITS = ("essential", "reflective", "identity")

@@ -4,7 +4,7 @@ The paper's pipeline (sections "Initial estimation", "Refining 2D joint
 locations", "Outlier rejection", "Training"):
 
 1. **Initial estimate.** The 6-unknown reflective eight-point algorithm
-   (eq. 5-7, :func:`mirrorgraph.solvers.eightpoint.fundamental_reflective_eight_point`)
+   (eq. 5-7, :func:`mirrorgraph.initial.solvers.eightpoint.fundamental_reflective_eight_point`)
    on every joint pair, ``E = K^T F K``, the virtual camera ``(R, t)`` from the
    SVD of ``E`` (:func:`mirrorgraph.geometry.decompose_reflective_essential`).
 2. **Refinement of the 2D joints.** The *2D joints of both views* are the
@@ -92,7 +92,7 @@ from .. import geometry as geo
 from ..anthropometry import femur_ratios
 from ..errors import DegenerateGeometryError
 from ..skeletons import Skeleton
-from ..solvers.eightpoint import fundamental_reflective_eight_point
+from ..initial.solvers.eightpoint import fundamental_reflective_eight_point
 from . import require, triangulate_virtual
 
 LOSSES = ("var", "sym", "anth", "hip", "smooth", "repro")

@@ -3,7 +3,7 @@ number, a rate in [0, 1], a seed, a human height in metres, an image size, a lis
 of numbers: each an argparse ``type`` whose error is one line), the options every
 command has (``--quiet --verbose --debug``, :func:`add_common`), those of the
 calibration several commands have (``--joints``, ``--scale-from``) and the
-:class:`~mirrorgraph.pipeline.CalibrateOptions` of what ``calibrate`` and ``batch``
+:class:`~mirrorgraph.pipelines.mirror.CalibrateOptions` of what ``calibrate`` and ``batch``
 share (:func:`options_from_args`), and how a run speaks: the summary and its
 warnings (:func:`print_result`), steps under ``--verbose``, the solver's progress
 bars (:func:`solver_progress`).
@@ -125,13 +125,13 @@ def add_scale_from(p) -> None:
 
 
 def options_from_args(args):
-    """The :class:`~mirrorgraph.pipeline.CalibrateOptions` of the options ``calibrate``
+    """The :class:`~mirrorgraph.pipelines.mirror.CalibrateOptions` of the options ``calibrate``
     and ``batch`` share (``--estimator --threshold --min-confidence --joints
     --no-refine --subject-height --seed --image-size --fov --scale-from``, and
     ``--sensitivity`` and ``--principal-point`` where the command has them). Without
     intrinsics the focal length is estimated unless ``--fov`` gives one."""
     from ..graph.options import FocalOptions, RefineOptions
-    from ..pipeline import CalibrateOptions
+    from ..pipelines.mirror import CalibrateOptions
 
     free = getattr(args, "principal_point", "centre") == "free"
     opts = CalibrateOptions(estimator=args.estimator, min_confidence=args.min_confidence,

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .args import (add_joints, add_scale_from, height, image_size, options_from_args, positive,

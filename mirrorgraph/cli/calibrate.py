@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..preprocess import DEFAULT_FPS, DEFAULT_FPS_WARNING
@@ -102,7 +102,7 @@ def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
     from ..io.motion import check_motion_path, write_joints3d
-    from ..pipeline import calibrate
+    from ..pipelines.mirror import calibrate
     from ..report.store import write_calibration_and_run
 
     say = printer(args)

@@ -48,10 +48,10 @@ def _add_report(sub) -> None:
 
 
 def _rig_document(path):
-    """The rig JSON at ``path`` as a :class:`~mirrorgraph.rigs.result.RigCalibration`, or
+    """The rig JSON at ``path`` as a :class:`~mirrorgraph.result.rig.RigCalibration`, or
     ``None`` where it is a single mirror's ``calibration.json``."""
     from ..io._common import load_json
-    from ..rigs.result import is_rig_document, read_rig_calibration
+    from ..result.rig import is_rig_document, read_rig_calibration
 
     return read_rig_calibration(path) if is_rig_document(load_json(path)) else None
 

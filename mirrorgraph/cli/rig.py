@@ -96,10 +96,11 @@ def add_parsers(sub) -> None:
 
 def cmd_calibrate_rig(args) -> int:
     from ..io.motion import check_motion_path, write_joints3d
-    from ..io.rig_calibration import write_rig_json, write_rig_toml
+    from ..export import write_rig_toml
+    from ..result.rig import write_rig_json
     from ..graph.options import RefineOptions
     from ..pipelines.options import CalibrateOptions
-    from ..rigs import calibrate_rig
+    from ..pipelines.rig import calibrate_rig
 
     out = Path(args.out)
     if out.is_dir():

@@ -134,7 +134,7 @@ def _add_demo(sub) -> None:
 def cmd_demo(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..metrics import normal_angle_deg, rotation_error_deg, translation_error
-    from ..pipeline import CalibrateOptions, calibrate
+    from ..pipelines.mirror import CalibrateOptions, calibrate
     from ..report.store import write_calibration_and_run
     from ..synth import make_scene, write_scene
 

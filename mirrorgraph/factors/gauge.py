@@ -11,7 +11,7 @@ single pixel. One of two priors fixes it:
   *Biomechanics and Motor Control of Human Movement*, 4th ed., 2009, Fig. 4.1),
   and ``d``, the joints and the lengths come out in metres. Without a height
   the same factor holds the initial estimate of ``S`` and the solution is
-  rescaled to ``d = 1`` afterwards (:mod:`mirrorgraph.graph.refine`): fixing
+  rescaled to ``d = 1`` afterwards (:mod:`mirrorgraph.pipelines.solve`): fixing
   ``d`` directly lets the length-valued body priors shrink the body against
   the weak data coupling of the ratio body / mirror distance, which tilts the
   mirror (measured: 1.4 deg on a 1000-frame scene whose bound is 0.12 deg).
@@ -23,9 +23,9 @@ single pixel. One of two priors fixes it:
   smoothness) has its residuals shrink with the scene and would pull the
   scale towards zero against a soft prior. Being a pure scale, that
   uncertainty is exact to add afterwards: ``distance_std^2 += (rel_sigma d)^2``
-  (:mod:`mirrorgraph.graph.refine`). For the same reason the final scale need not be
+  (:mod:`mirrorgraph.pipelines.solve`). For the same reason the final scale need not be
   this gauge's: by default the solution is rescaled afterwards so that the stature
-  measured on its joints is ``H`` (:mod:`mirrorgraph.graph.stature_scale`), which
+  measured on its joints is ``H`` (:mod:`mirrorgraph.pipelines.scale`), which
   leaves the subject's limb proportions out of it; the gauge then only fixes the
   scale during the solve.
 * :class:`DistancePriorFactor` when there are no bone lengths (body priors

@@ -21,21 +21,22 @@
 * :mod:`.scores`, :mod:`.sandwich`, :mod:`.uncertainty`, :mod:`.sensitivity`: the
   joints' scores, the cluster-robust sandwich, the headline figures and regions, what
   the calibration rests on;
-* :mod:`.result`: :class:`RefinementResult` and the normal-to-rotation uncertainty;
-* :mod:`.refine`: :func:`refine_mirror`, the single-mirror front end (the rig front
-  end is :func:`mirrorgraph.rigs.solve.solve_rig`).
+* :mod:`.result`: :class:`RefinementResult` and the normal-to-rotation uncertainty.
+
+The engine only: what builds a rig from a front end's observations and reads its
+solution back is :mod:`mirrorgraph.pipelines.solve` (``refine_mirror``, ``solve_rig``).
 """
 
 from .options import RefineOptions
 
 #: Name -> its module here, imported on first use (``__getattr__``): they import GTSAM,
 #: which the options above (and so the command line's parser) do not need.
-_LAZY = {"refine_mirror": ".refine", "RefinementResult": ".result",
+_LAZY = {"RefinementResult": ".result",
          "rotation_std_from_normal_cov": ".result", "Camera": ".rig", "Mirror": ".rig",
          "Rig": ".rig", "View": ".rig", "single_mirror_rig": ".rig"}
 
 __all__ = ["Camera", "Mirror", "RefineOptions", "RefinementResult", "Rig", "View",
-           "refine_mirror", "rotation_std_from_normal_cov", "single_mirror_rig"]
+           "rotation_std_from_normal_cov", "single_mirror_rig"]
 
 
 def __getattr__(name: str):

@@ -6,7 +6,7 @@ and its mirrors, candidates log-spaced over a range of fields of view
 of the full graph on spread frames; the profile of the graph's error over ``log f`` is
 the criterion (:func:`focal_search`). The driver (:mod:`.stages`) starts the graph's
 own estimate of the focal length there; the rig front end uses it for one camera
-(:mod:`mirrorgraph.rigs.initial`).
+(:mod:`mirrorgraph.initial.rig`).
 """
 
 from __future__ import annotations

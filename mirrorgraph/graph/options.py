@@ -1,4 +1,4 @@
-"""Options of the factor-graph refinement (:func:`mirrorgraph.graph.refine_mirror`).
+"""Options of the factor-graph refinement (:func:`mirrorgraph.pipelines.solve.refine_mirror`).
 
 Every prior's weight is given as a standard deviation ``sigma`` (weight
 ``1 / sigma^2`` in the whitened least-squares objective). Lengths are relative
@@ -411,8 +411,9 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
     :class:`SolverOptions` (iterations, stopping, chunks, marginals) and
     :class:`GaugeOptions` (scale and mirror link), documented there, and ``focal``,
     a :class:`FocalOptions` (how the intrinsics of a camera given without them are
-    estimated; nested, as it applies to those cameras only); keyword arguments only. One object serves the single mirror (:func:`~.refine.refine_mirror`)
-    and rigs (:func:`mirrorgraph.rigs.solve.solve_rig`): one solve driver, one
+    estimated; nested, as it applies to those cameras only); keyword arguments only. One object serves the single mirror
+    (:func:`mirrorgraph.pipelines.solve.refine_mirror`)
+    and rigs (:func:`mirrorgraph.pipelines.solve.solve_rig`): one solve driver, one
     configuration.
 
     Example:

@@ -142,7 +142,7 @@ def _block_move_deg(kind: str, basis, d: np.ndarray) -> float:
 
 def _block_std_deg(kind: str, basis, C: np.ndarray) -> float:
     """The rotation std (deg) of a camera's ``(3, 3)`` or a mirror's ``(2, 2)`` tangent
-    covariance (as :func:`mirrorgraph.rigs.solve.camera_std` and ``plane_std``)."""
+    covariance (as :func:`mirrorgraph.pipelines.solve.camera_std` and ``plane_std``)."""
     if kind == "camera":
         return float(np.degrees(np.sqrt(max(np.trace(C), 0.0))))
     return rotation_std_from_normal_cov(normal_cov_from_tangent(basis, C))

@@ -2,7 +2,7 @@
 
 Only the mechanics live here: conversion of NumPy values to plain JSON types and
 atomic writing. The calibration's schema, reader and writer are
-:mod:`mirrorgraph.calibration`'s.
+:mod:`mirrorgraph.result.mirror`'s.
 """
 
 from __future__ import annotations

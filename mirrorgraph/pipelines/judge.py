@@ -18,10 +18,10 @@ from typing import Mapping
 import numpy as np
 
 from .. import geometry as geo
-from ..calibration import Calibration
+from ..result.mirror import Calibration
 from ..graph.uncertainty import POORLY_DETERMINED_DEG
 from ..keypoints import PairedKeypoints
-from ..reflection_check import ReflectionCheck
+from ..initial.reflection_check import ReflectionCheck
 
 __all__ = ["judge_mirror", "judge_rig", "poor_mirror_cause", "poorly_determined",
            "dominant_intrinsic", "median_ray_angle_deg", "motion_px"]
@@ -133,7 +133,7 @@ def judge_mirror(calib: Calibration, inlier_residuals: np.ndarray,
         calib: the result (its ``warnings`` are appended to).
         inlier_residuals: ``(N,)`` the initial inliers' epipolar distances, pixels.
         motion_px: :func:`motion_px` of the person.
-        check: the reflection check (:func:`mirrorgraph.reflection_check.check_reflection`).
+        check: the reflection check (:func:`mirrorgraph.initial.reflection_check.check_reflection`).
         ray_angle_deg: :func:`median_ray_angle_deg` of the refined joints.
     """
     if check is not None and check.verdict == "doubtful":
@@ -188,9 +188,9 @@ def judge_rig(cameras, mirrors, robust_parts: Mapping[str, dict], view_names, vi
     """The warnings about a solved rig.
 
     Args:
-        cameras: :class:`~mirrorgraph.rigs.result.RigCamera` list (the first is the world
+        cameras: :class:`~mirrorgraph.result.rig.RigCamera` list (the first is the world
             frame and is not judged).
-        mirrors: :class:`~mirrorgraph.rigs.result.RigMirror` list.
+        mirrors: :class:`~mirrorgraph.result.rig.RigMirror` list.
         robust_parts: camera or mirror name -> its uncertainty's parts (``contributions``:
             the unknown intrinsics' shares of its variance).
         view_names, view_counts, view_observed: per view, the observations the graph kept

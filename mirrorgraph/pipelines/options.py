@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
+from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..graph.options import RefineOptions, one_subject_height
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE

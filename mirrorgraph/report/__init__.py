@@ -1,6 +1,6 @@
 """A report a person looks at: figures of a calibration run, and video overlays.
 
-:func:`make_report` writes PNG figures of a :class:`~mirrorgraph.pipeline.CalibrationRun`:
+:func:`make_report` writes PNG figures of a :class:`~mirrorgraph.pipelines.mirror.CalibrationRun`:
 
 * ``image_plane.png``: the image with the epipole and a sample of the
   joint-to-reflection lines through it, inliers and outliers coloured;
@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from .. import geometry as geo
-from ..calibration import read_calibration
+from ..result.mirror import read_calibration
 from ..errors import InputError
-from ..estimators import DEFAULT_THRESHOLD_PX
+from ..initial.estimators import DEFAULT_THRESHOLD_PX
 from ..graph.options import RefineOptions
 from ..io import read_keypoints
 from ..io._common import load_json
@@ -230,7 +230,7 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     """Write the report's PNG figures (and video overlays) of a calibration run.
 
     Args:
-        run (mirrorgraph.pipeline.CalibrationRun): a calibration run (from
+        run (mirrorgraph.pipelines.mirror.CalibrationRun): a calibration run (from
             :func:`mirrorgraph.calibrate` or :func:`run_from_calibration`).
         out_dir: folder to write into (created if missing).
         video: the video the keypoints come from: draws the overlay on
@@ -302,7 +302,7 @@ class LoadedRun:
     """A calibration's run, read back for its report (see :func:`load_run`).
 
     Attributes:
-        run: the :class:`~mirrorgraph.pipeline.CalibrationRun` to draw.
+        run: the :class:`~mirrorgraph.pipelines.mirror.CalibrationRun` to draw.
         origin: ``"stored"`` (read from the ``.report.npz`` beside the calibration)
             or ``"recomputed"`` (calibrated again from the keypoints).
         message: one sentence saying where the figures' data come from.
@@ -319,7 +319,7 @@ class LoadedRun:
 
 
 def options_from_calibration(obj) -> CalibrateOptions:
-    """The :class:`~mirrorgraph.pipeline.CalibrateOptions` a ``calibration.json`` records.
+    """The :class:`~mirrorgraph.pipelines.mirror.CalibrateOptions` a ``calibration.json`` records.
 
     Estimator, threshold, minimum confidence, seed, joints and whether the graph
     ran come from the file; the subject height and ``scale_from`` from ``input``
@@ -384,7 +384,7 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         report_data: ``"auto"`` (the file beside the calibration), a path, or
             ``None`` to recompute whatever is stored.
         intrinsics: overrides the intrinsics stored in the calibration (recomputes).
-        overrides: :class:`~mirrorgraph.pipeline.CalibrateOptions` fields to change
+        overrides: :class:`~mirrorgraph.pipelines.mirror.CalibrateOptions` fields to change
             (recomputes; the mirror then need not be the file's).
         skeleton: keypoint layout to read ``keypoints`` with (default: the one
             the calibration records).
@@ -427,7 +427,7 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         raise InputError(f"no stored run to draw{where}: give the keypoints the "
                          "calibration was made from, to recompute it",
                          source=src, field="keypoints")
-    from ..pipeline import calibrate
+    from ..pipelines.mirror import calibrate
 
     opts = options_from_calibration(obj)
     if overrides:
@@ -457,7 +457,7 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
 
 def run_from_calibration(calibration, keypoints=None, *, intrinsics=None, min_confidence=None,
                          threshold_px=None):
-    """The :class:`~mirrorgraph.pipeline.CalibrationRun` of a ``calibration.json``.
+    """The :class:`~mirrorgraph.pipelines.mirror.CalibrationRun` of a ``calibration.json``.
 
     The run stored beside the calibration when there is one, else the keypoints
     calibrated again with the options the file records; see :func:`load_run`

@@ -1,4 +1,4 @@
-"""Figures of a calibrated rig (:class:`mirrorgraph.rigs.RigCalibration`).
+"""Figures of a calibrated rig (:class:`mirrorgraph.result.rig.RigCalibration`).
 
 * :func:`rig_top_view` -- the rig seen from above: every camera (centre and viewing
   direction, its 1-sigma position uncertainty as a circle), every mirror (its
@@ -144,7 +144,7 @@ def write_rig_report(calib, out_dir, *, progress_bar: bool = True) -> list[Path]
     """Write the rig's figures as PNG files into ``out_dir``; returns their paths.
 
     Args:
-        calib (mirrorgraph.rigs.RigCalibration): the calibrated rig.
+        calib (mirrorgraph.result.rig.RigCalibration): the calibrated rig.
         out_dir (str | os.PathLike): folder to write into (created if missing).
         progress_bar: draw a progress bar on stderr (only on a terminal).
     """

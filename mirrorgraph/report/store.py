@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..calibration import write_calibration
+from ..result.mirror import write_calibration
 from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..io.calibration import write_json
@@ -69,7 +69,7 @@ def save_run(file: str | os.PathLike, run) -> None:
 
     Args:
         file: path to write (its suffix should be ``.npz``).
-        run: a :class:`~mirrorgraph.pipeline.CalibrationRun`.
+        run: a :class:`~mirrorgraph.pipelines.mirror.CalibrationRun`.
     """
     calib, p = run.calibration, run.paired
     arrays: dict[str, Any] = {
@@ -135,7 +135,7 @@ def write_calibration_and_run(out: str | os.PathLike, run) -> Path:
 
     Args:
         out: the calibration JSON to write.
-        run: the :class:`~mirrorgraph.pipeline.CalibrationRun` it comes from.
+        run: the :class:`~mirrorgraph.pipelines.mirror.CalibrationRun` it comes from.
 
     Returns:
         The path of the ``.report.npz`` written.
@@ -154,11 +154,11 @@ def write_calibration_and_run(out: str | os.PathLike, run) -> Path:
 
 
 def read_run(path: str | os.PathLike, calibration):
-    """The :class:`~mirrorgraph.pipeline.CalibrationRun` kept in ``path`` for ``calibration``.
+    """The :class:`~mirrorgraph.pipelines.mirror.CalibrationRun` kept in ``path`` for ``calibration``.
 
     Args:
         path: the ``.report.npz`` file.
-        calibration: the :class:`~mirrorgraph.calibration.Calibration` read from
+        calibration: the :class:`~mirrorgraph.result.mirror.Calibration` read from
             ``calibration.json``; it becomes the run's calibration.
 
     Raises:
@@ -166,7 +166,7 @@ def read_run(path: str | os.PathLike, calibration):
             another calibration (its mirror differs from ``calibration``'s); the
             message names the file.
     """
-    from ..pipeline import CalibrationRun     # GTSAM: at first use, not on importing
+    from ..pipelines.mirror import CalibrationRun     # GTSAM: at first use, not on importing
 
     path = Path(path)
     try:

@@ -77,7 +77,7 @@ def draw_overlay(frame: np.ndarray, real: np.ndarray, mirror: np.ndarray, inlier
         frame: ``(H, W, 3)`` uint8 BGR.
         real, mirror: ``(J, 2)`` undistorted pixels of the joints and reflections.
         inlier, valid: ``(J,)`` bool: pair kept by the run / pair usable.
-        run: the :class:`~mirrorgraph.pipeline.CalibrationRun` (intrinsics, skeleton).
+        run: the :class:`~mirrorgraph.pipelines.mirror.CalibrationRun` (intrinsics, skeleton).
         label: text written first in the legend (drawn in the corner that hides fewest
             of ``legend_points``, :func:`legend_corner`).
         legend_points: ``(N, 2)`` px the legend avoids (default: this frame's joints and

@@ -1,28 +1,15 @@
-"""Rigs: several cameras and several mirrors calibrated together from the people in view.
+"""Rigs: the inputs of several cameras and mirrors calibrated together.
 
 * :mod:`.config` -- the rig TOML file;
 * :mod:`.observations` -- per-camera keypoints, person and reflections sorted, one clock;
-* :mod:`.relative` -- two-view initialisation (camera-camera, camera-mirror);
-* :mod:`.initial` -- the spanning-tree chaining into one initial rig;
-* :mod:`.solve` -- the factor graph of the whole rig;
-* :mod:`.result` -- the calibrated rig and its JSON schema;
-* :mod:`.pipeline` -- :func:`calibrate_rig`, the entry point.
+* :mod:`.matching` -- the same person in every camera (tracks matched through the
+  epipolar geometry, left/right swaps read).
+
+Their initialisation is :mod:`mirrorgraph.initial` (:mod:`~mirrorgraph.initial.relative`,
+:mod:`~mirrorgraph.initial.rig`), the run :func:`mirrorgraph.pipelines.rig.calibrate_rig`,
+the result :mod:`mirrorgraph.result.rig`.
 """
 
-#: Public name -> its module, imported on first use: reading a rig file (``.config``) does
-#: not import the solver.
-_LAZY = {"CameraEntry": ".config", "RigConfig": ".config", "load_rig_config": ".config",
-         "calibrate_rig": ".pipeline", "RigCalibration": ".result", "RigCamera": ".result",
-         "RigMirror": ".result", "virtual_extrinsics": ".result"}
+from .config import CameraEntry, RigConfig, load_rig_config
 
-__all__ = list(_LAZY)
-
-
-def __getattr__(name: str):
-    from importlib import import_module
-
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(_LAZY[name], __name__), name)
-    globals()[name] = value
-    return value
+__all__ = ["CameraEntry", "RigConfig", "load_rig_config"]

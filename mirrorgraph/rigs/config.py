@@ -53,7 +53,7 @@ class CameraEntry:
         keypoints: path of the keypoint input.
         intrinsics: path of the intrinsics file, or ``None`` (then the focal length is
             estimated from a 60 deg field of view guess, square pixels and the principal
-            point at the image centre: :func:`mirrorgraph.rigs.calibrate_rig`).
+            point at the image centre: :func:`mirrorgraph.pipelines.rig.calibrate_rig`).
         image_size: ``(width, height)`` px of a camera without intrinsics whose keypoints
             do not carry it (OpenPose folders), or ``None``.
         intrinsics_section: the camera's section in a TOML file holding several.

@@ -21,7 +21,7 @@ front of a mirror everyone pairs with their own reflection. So:
      (and stretch of the reference person's track) for how those relate to the
      reference person's (:func:`_labelled_geometry`):
      an essential matrix by MAGSAC++, refined robustly
-     (:func:`mirrorgraph.rigs.relative.refine_relative_pose`); the track whose
+     (:func:`mirrorgraph.initial.relative.refine_relative_pose`); the track whose
      joints fit it best (largest fraction under :data:`TRACK_INLIER_PX`, or 2 %
      of the reference person's size where larger: :func:`inlier_threshold_px`,
      weighted by the square root of its size) gives the geometry. Pooling every
@@ -72,7 +72,7 @@ from ..errors import DegenerateGeometryError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton
 from ..geometry import skew
-from .relative import normalised_coordinates, refine_relative_pose, sampson_px
+from ..initial.relative import normalised_coordinates, refine_relative_pose, sampson_px
 
 __all__ = ["match_candidates", "match_people", "track_people", "track_labelled",
            "continuity_labels", "subject_track", "track_motion", "tracklets",

@@ -10,9 +10,9 @@ Who the person is, camera by camera:
 
 * **Candidates.** In a camera with mirrors, every (person, reflection) pair of a
   frame that fits a mirror's epipole is kept
-  (:func:`mirrorgraph.pairing.pair_candidates`); the candidates for the person
+  (:func:`mirrorgraph.initial.pairing.pair_candidates`); the candidates for the person
   are the detections that are the person of such a pair
-  (:func:`mirrorgraph.pairing.paired_people`). In front of a mirror everyone
+  (:func:`mirrorgraph.initial.pairing.paired_people`). In front of a mirror everyone
   has a reflection: a bystander's pair fits the epipole as well as the
   subject's, so one frame alone cannot tell them apart. In a camera without
   mirrors every detection is a candidate.
@@ -25,12 +25,12 @@ Who the person is, camera by camera:
   pairs with a reflection in the most frames; between tracks seen in nearly as
   many frames, the one that moves most (:func:`~mirrorgraph.rigs.matching.subject_track`:
   a person standing still gives little geometry); then the more confident. Per frame only the pairs holding that track's detection compete
-  (:func:`mirrorgraph.pairing.choose_pairs`); frames without it have no
+  (:func:`mirrorgraph.initial.pairing.choose_pairs`); frames without it have no
   person. When another track is seen in more than
   :data:`SECOND_PERSON_FRACTION` of the frames a warning says so (the subject
   is then the person seen longest or moving most, which the user should know). With one
   candidate per frame, the frame's best pair (or most confident detection) is
-  kept, as :func:`mirrorgraph.pairing.pair_reflections` does.
+  kept, as :func:`mirrorgraph.initial.pairing.pair_reflections` does.
 * **Every other camera**, with or without mirrors, keeps per frame the
   candidate consistent with the first camera's person by epipolar geometry
   (:func:`mirrorgraph.rigs.matching.match_candidates`); with mirrors the
@@ -60,7 +60,7 @@ from ..errors import DegenerateGeometryError, InputError
 from ..intrinsics import Intrinsics, intrinsics_from_fov, load_intrinsics
 from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
-from ..pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
+from ..initial.pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
                        paired_people)
 from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
@@ -239,7 +239,7 @@ class _Sorting:
 def _sort_camera(entry: CameraEntry, data, intr: Intrinsics) -> _Sorting:
     """Each frame's person and reflections as the camera alone sees them: the most
     confident detection, or the person and reflections of the frame's best pairs
-    (:func:`mirrorgraph.pairing.pair_reflections`), with the candidates for later."""
+    (:func:`mirrorgraph.initial.pairing.pair_reflections`), with the candidates for later."""
     joints = data.skeleton.calibration_joints
     k = len(entry.mirrors)
     if isinstance(data, PairedKeypoints):
@@ -266,7 +266,7 @@ def _sort_camera(entry: CameraEntry, data, intr: Intrinsics) -> _Sorting:
 
 
 def _apply_pairing(sorting: _Sorting, pairing, mirrors: list[str]) -> None:
-    """Take a :class:`~mirrorgraph.pairing.MirrorPairing` as the camera's person and
+    """Take a :class:`~mirrorgraph.initial.pairing.MirrorPairing` as the camera's person and
     reflections (named in the rig file's order), in place."""
     by_name = dict(zip(sorting.mirror_of, pairing.reflections))
     sorting.real = pairing.real

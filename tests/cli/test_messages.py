@@ -296,7 +296,7 @@ def test_the_same_condition_raises_the_same_type():
     import numpy as np
 
     from mirrorgraph.errors import InputError
-    from mirrorgraph.estimators import estimate_mirror
+    from mirrorgraph.initial.estimators import estimate_mirror
     from mirrorgraph.io import write_keypoints
     from mirrorgraph.io.camera_toml import camera_document
     from mirrorgraph.skeletons import skeleton_by_name

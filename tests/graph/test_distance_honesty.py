@@ -3,7 +3,6 @@ reported std must cover its error where the focal length is poorly determined (#
 distance of 0.19 +- 0.004 m for a truth of 1.32 m on a real clip; here the wide
 generator's scenes that showed it, each 300 frames, the truth known)."""
 
-import numpy as np
 import pytest
 
 import mirrorgraph as mg

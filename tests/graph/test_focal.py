@@ -6,7 +6,7 @@ carry it), one where they do not (the warning fires, the estimate is kept with a
 that holds its error: issue 23); and the
 pieces: what the reprojection alone determines (not the focal length), the reduced
 coordinates of the two calibration variables, the frame scores against the solver's
-marginals. Rigs: tests/rigs/test_rigs_focal.py; the command line:
+marginals. Rigs: tests/pipelines/test_rig_focal.py; the command line:
 tests/cli/test_focal_cli.py.
 """
 
@@ -23,7 +23,7 @@ from mirrorgraph.graph.builder import build_problem
 from mirrorgraph.graph.problem import camera_matrix, extract_planes
 from mirrorgraph.graph.optimizer import LevenbergMarquardt, LMParams, reduced_covariance
 from mirrorgraph.graph.reduction import mirror_reduction
-from mirrorgraph.graph.refine import prepare
+from mirrorgraph.pipelines.solve import prepare
 from mirrorgraph.graph.solve import solve
 from mirrorgraph.graph.solve_graph import optimize
 from mirrorgraph.graph.stage_config import single_mirror_config

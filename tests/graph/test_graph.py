@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from mirrorgraph import geometry as geo
-from mirrorgraph.graph import (Camera, Mirror, RefineOptions, Rig, View, refine_mirror,
+from mirrorgraph.graph import (Camera, Mirror, RefineOptions, Rig, View,
                                rotation_std_from_normal_cov)
+from mirrorgraph.pipelines.solve import refine_mirror
 from mirrorgraph.graph.builder import build_problem
 from mirrorgraph.graph.problem import extract_planes
 from mirrorgraph.graph.chunked import chunk_ranges, spread_blocks

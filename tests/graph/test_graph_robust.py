@@ -18,7 +18,8 @@ import pytest
 from gtsam.symbol_shorthand import X
 
 from mirrorgraph import geometry as geo
-from mirrorgraph.graph import RefineOptions, refine_mirror
+from mirrorgraph.graph import RefineOptions
+from mirrorgraph.pipelines.solve import refine_mirror
 from mirrorgraph.graph.optimizer import GlobalReduction, LevenbergMarquardt, indeterminate_key
 from mirrorgraph.keypoints import PairedKeypoints
 from mirrorgraph.metrics import mirror_rotation_error_deg as rotation_error_deg

@@ -7,7 +7,7 @@ import pytest
 
 from mirrorgraph.graph.result import residual_noise_px
 from mirrorgraph.intrinsics import Intrinsics
-from mirrorgraph.pipeline import CalibrateOptions, calibrate
+from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate
 from mirrorgraph.synth.scene import make_scene
 
 
@@ -39,7 +39,7 @@ def test_single_mirror_std_scales_with_the_detector_noise():
 
 
 def test_rig_reports_the_noise_it_saw(tmp_path):
-    from mirrorgraph.rigs import calibrate_rig
+    from mirrorgraph.pipelines.rig import calibrate_rig
     from mirrorgraph.synth.rig import make_rig, write_rig
 
     rig = make_rig("4cams", frames=100, seed=2, noise_std=2.0)
@@ -167,7 +167,7 @@ def test_a_rig_reports_what_each_camera_and_mirror_rests_on(tmp_path):
     """Per estimated camera and mirror, as for one mirror: the information shares of the
     segments add up to one, a tenth of the video alone gives about sqrt(10) times the
     (iid) std of the whole, and the predicted std falls with more frames."""
-    from mirrorgraph.rigs import calibrate_rig
+    from mirrorgraph.pipelines.rig import calibrate_rig
     from mirrorgraph.synth.rig import make_rig, write_rig
 
     rig = make_rig("2cams1mirror", frames=200, seed=1, noise_std=3.0)

@@ -14,7 +14,7 @@ import pytest
 
 from mirrorgraph.completion import complete_rig_joints as complete_joints
 from mirrorgraph.rigs.observations import CameraObservations, RigObservations
-from mirrorgraph.rigs.solve import RigSolution
+from mirrorgraph.pipelines.solve import RigSolution
 from mirrorgraph.synth.rig import KINDS, PERSON, make_rig
 
 FRAMES = 120

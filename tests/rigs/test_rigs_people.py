@@ -16,8 +16,9 @@ import pytest
 from mirrorgraph.cli import main
 from mirrorgraph.errors import DegenerateGeometryError
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
-from mirrorgraph.pairing import pair_candidates, pair_reflections, paired_people
-from mirrorgraph.rigs import calibrate_rig, load_rig_config
+from mirrorgraph.initial.pairing import pair_candidates, pair_reflections, paired_people
+from mirrorgraph.pipelines.rig import calibrate_rig
+from mirrorgraph.rigs.config import load_rig_config
 from mirrorgraph.rigs.observations import load_observations
 from mirrorgraph.synth.rig import PERSON, make_rig, read_rig_ground_truth, write_rig
 

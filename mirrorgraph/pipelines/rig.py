@@ -1,0 +1,194 @@
+"""``calibrate_rig``: a rig file in, every camera and mirror calibrated out.
+
+The run of a rig, step for step as :mod:`.mirror`'s for one mirror: read and sort every
+camera's keypoints (observations, :mod:`mirrorgraph.rigs.observations`), pairwise
+initialisation chained along a spanning tree (:mod:`mirrorgraph.initial.rig`), one
+factor graph over all joints, cameras and mirrors (solve, :func:`.solve.solve_rig`), the
+joints the graph did not use triangulated with its rig (completion,
+:func:`mirrorgraph.completion.complete_rig_joints`), the scale (the graph holds the limb
+bones at Winter's fractions of the subject's height, then the whole rig is rescaled so
+that the stature measured on the solved joints equals that height,
+:func:`mirrorgraph.stature.stature_rescale`), and the result with its uncertainties
+(:mod:`mirrorgraph.result.rig`) judged by :func:`.judge.judge_rig`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from ..graph.options import RefineOptions
+from .options import CalibrateOptions
+from .judge import judge_rig
+from ..stature import with_height_sigma
+from .scale import scale_rig_by_stature
+from ..completion import complete_rig_joints
+from ..joint_sets import resolve_joints
+from ..rigs.config import RigConfig, load_rig_config
+from ..initial.rig import initialise_rig
+from ..intrinsics import estimated_intrinsics
+from ..rigs.observations import load_observations
+from ..result.rig import RigCalibration, RigCamera, RigMirror
+from .solve import build_rig, camera_std, plane_std, solve_rig
+
+__all__ = ["calibrate_rig"]
+
+#: The keywords :func:`calibrate_rig` took before it took :class:`CalibrateOptions`, and the
+#: fields they became (``options`` held a :class:`RefineOptions`: ``refine_options``).
+LEGACY_KEYWORDS = {"subject_height": "subject_height", "skeleton": "skeleton", "joints": "joints",
+                   "seed": "seed", "video": "detection", "estimate_focal": "estimate_focal",
+                   "fov_deg": "fov_deg"}
+
+
+def _legacy_options(options, legacy: dict) -> CalibrateOptions:
+    """:class:`CalibrateOptions` from the keywords of the old signature, with a
+    :class:`DeprecationWarning` (a :class:`RefineOptions` as ``options``, ``subject_height``,
+    ``skeleton``, ``joints``, ``seed``, ``video``, ``estimate_focal``, ``fov_deg``: a
+    ``fov_deg`` held the focal length near it, as ``estimate_focal=False`` does now)."""
+    unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
+    if unknown:
+        raise TypeError(f"calibrate_rig() got unexpected keyword argument(s) {', '.join(unknown)}")
+    import warnings as _w
+    if legacy or isinstance(options, RefineOptions):
+        _w.warn("calibrate_rig's keywords are CalibrateOptions fields now: pass "
+                "options=CalibrateOptions(...) (a RefineOptions goes in its refine_options)",
+                DeprecationWarning, stacklevel=3)
+    opts = CalibrateOptions(refine_options=options) if isinstance(options, RefineOptions) \
+        else (options or CalibrateOptions())
+    fields = {LEGACY_KEYWORDS[k]: v for k, v in legacy.items() if v is not None}
+    if fields.get("fov_deg") is not None:
+        fields["estimate_focal"] = False
+    return replace(opts, **fields)
+
+
+def calibrate_rig(config: RigConfig | str | os.PathLike,
+                  options: CalibrateOptions | None = None, *,
+                  progress: Callable[[str], None] | None = None,
+                  iteration_progress: Callable[[int, float], None] | None = None,
+                  frame_progress: Callable[[str, int, int], None] | None = None,
+                  **legacy) -> RigCalibration:
+    """Calibrate every camera and mirror of a rig from the people in its videos.
+
+    Args:
+        config: a :class:`~.config.RigConfig` or the path of a rig TOML file.
+        options: :class:`~mirrorgraph.pipelines.options.CalibrateOptions`, the same object
+            :func:`mirrorgraph.calibrate` takes. A rig reads ``subject_height`` (else the
+            file's; without any, lengths are in units of the subject's height),
+            ``skeleton`` (for cameras whose table names none), ``joints`` (else the file's),
+            ``seed``, ``detection`` (cameras whose ``keypoints`` name a video),
+            ``estimate_focal`` and ``fov_deg`` (every camera listed without intrinsics:
+            its focal length estimated from an initial one, :func:`mirrorgraph.initial.rig.initial_focals`,
+            in the one graph; or with ``estimate_focal=False`` held near ``fov_deg``, its
+            spread in every std) and ``refine_options``.
+        progress: called with a short description of each step (as
+            :func:`mirrorgraph.calibrate`'s ``progress``).
+        iteration_progress: ``(iteration, error)`` of the graph solve, after every
+            iteration (as :func:`mirrorgraph.calibrate`'s).
+        frame_progress: ``(camera, done, total)`` per frame of a video being detected.
+        legacy (Any): the keywords of the old signature (``subject_height=``, ``seed=``, ...,
+            ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
+
+    Returns:
+        :class:`~.result.RigCalibration` (world frame = the first camera).
+
+    Raises:
+        InputError: a malformed rig file, input or option, naming the file and field.
+        DegenerateGeometryError: a camera that cannot be placed, a mirror that
+            cannot be found, too few joints.
+    """
+    cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
+    run = _legacy_options(options, legacy).checked(default_height=cfg.subject_height)
+    opts = run.graph
+    height = run.subject_height
+    estimate_focal = run.estimate_focal
+    scale = "subject_height" if height is not None else "unit_height"
+    H = float(height) if height is not None else 1.0
+    say = progress or (lambda s: None)
+    seed, joints = run.seed, run.joints
+
+    obs = load_observations(cfg, skeleton=run.skeleton,
+                            progress=lambda name: say(f"reading camera {name}"),
+                            video=run.detection, frame_progress=frame_progress,
+                            estimate_focal=estimate_focal, fov_deg=run.fov_deg)
+    warnings = list(obs.warnings)
+    used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
+                                 source=cfg.source)
+    say("initialising: camera pairs, mirrors, spanning tree")
+    init = initialise_rig(obs, H, seed=seed, joints=used_joints, estimate_focal=estimate_focal)
+    rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
+    say("refining the rig in one factor graph")
+    sol = solve_rig(rig, opts, H, progress=iteration_progress)
+    sol = complete_rig_joints(obs, sol, opts.outlier_threshold)
+    sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H, opts.scale_from)
+    if opts.scale_from == "stature" and stature is None:
+        warnings.append(f"scale: {scale_source}")
+
+    # with a subject height the metric scale rests on the subject's proportions where the
+    # stature is not measured (or on the limbs'), the detector and the height itself: a
+    # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
+    # as the single-mirror refinement does; without one the unit is the height itself
+    rel = opts.height_sigma if height is not None else 0.0
+    rms = dict(zip(sol.view_names, sol.view_rms_px))
+    counts = dict(zip(sol.view_names, sol.view_counts))
+    cameras = []
+    marg_cams = sol.marginal_camera_cov or sol.camera_cov
+    for i, (c, pose, cov, mcov) in enumerate(zip(obs.cameras, sol.poses, sol.camera_cov,
+                                                 marg_cams)):
+        rot, pos = camera_std(cov, pose)
+        pos = with_height_sigma(pos, np.linalg.norm(np.asarray(pose)[:3, 3]), rel)
+        intr = c.intrinsics
+        if c.name in sol.focal:
+            sol.focal[c.name]["initial"] = init.focals.get(c.name)
+            intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
+                                        run.fov_deg, warnings, camera=c.name,
+                                        user_guess=not estimate_focal)
+        cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
+                                 rotation_std_deg=rot, position_std=pos,
+                                 marginal_rotation_std_deg=camera_std(mcov, pose)[0],
+                                 reprojection_rms_px=rms.get(c.name, float("nan")),
+                                 observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes,
+                                 matched_frames=c.matched))
+    mirrors = []
+    for i, name in enumerate(sol.mirror_names):
+        n, d = sol.planes[i]
+        mrot = float("nan")
+        if sol.plane_basis:
+            ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
+            dstd = with_height_sigma(dstd, d, rel)
+            mrot = plane_std((sol.marginal_plane_cov or sol.plane_cov)[i], sol.plane_basis[i])[1]
+        else:
+            ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")
+        seen_by = [c.name for c in obs.cameras if name in c.reflections]
+        mirrors.append(RigMirror(name=name, normal=np.asarray(n), distance=float(d),
+                                 normal_cov=ncov, rotation_std_deg=rot, distance_std=dstd,
+                                 marginal_rotation_std_deg=mrot,
+                                 seen_by=seen_by,
+                                 views_rms_px={c: rms.get(f"{c}/{name}", float("nan"))
+                                               for c in seen_by}))
+    warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
+                          sol.view_observed, init.mirror_spread_deg)
+    initialisation = {
+        "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
+                   "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],
+        "spanning_tree": [list(e) for e in init.tree],
+        "mirror_sightings": [{"camera": c, "mirror": m, "inliers": s.inliers}
+                             for (c, m), s in init.sightings.items()],
+        "mirror_spread_deg": init.mirror_spread_deg,
+    }
+    refinement = {"joints": {"direct": [obs.skeleton.joints[j] for j in used_joints[0]],
+                             "through_mirrors": [obs.skeleton.joints[j] for j in used_joints[1]]},
+                  "iterations": sol.iterations, "rejected_observations": sol.rejected,
+                  "priors": sol.priors,
+                  "views": {v: {"rms_px": rms[v], "observations": counts[v], "offered": n}
+                            for v, n in zip(sol.view_names, sol.view_observed)}}
+    refinement["stature"] = stature.to_dict() if stature is not None else None
+    return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+                          scale_source=scale_source,
+                          skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
+                          joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
+                          initialisation=initialisation, refinement=refinement,
+                          sensitivity=sol.sensitivity,
+                          warnings=warnings, source=str(cfg.source))

@@ -1,0 +1,112 @@
+"""The metric scale of a run from the subject's measured stature: one mirror's refinement
+(:func:`scale_by_stature`) and a rig's solution (:func:`scale_rig_by_stature`) alike.
+
+The graph's gauge holds the limb bones' sum at Winter's fractions of the subject's
+height (:mod:`mirrorgraph.factors.gauge`), so the subject's own limb proportions
+(a few percent off the population's) go straight into ``d`` and every length.
+Afterwards the solution is rescaled so that the stature measured on its joints
+(:func:`mirrorgraph.stature.estimate_stature`: ankle to eyes or head top, only the
+feet and the top of the head from population figures) equals the given height. A
+pure change of scale: reprojections, the mirror's normal and the body priors'
+ratios are unchanged, so it is the solution the graph would reach under that gauge.
+
+The chain needs the eyes (or the head top), which the calibration joints (the
+limbs) do not include: they are triangulated here from the person and the
+reflection with the refined mirror (:func:`mirrorgraph.geometry.triangulate_mirror`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import triangulate_mirror
+from ..keypoints import PairedKeypoints
+from ..stature import LIMB_CHOSEN, stature_joints, stature_rescale
+from ..graph.result import RefinementResult
+
+__all__ = ["scale_by_stature", "scale_rig_by_stature"]
+
+def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, J, 3)`` joints and ``(T, J)`` mask: the refinement's, plus the stature's joints
+    it did not estimate (the eyes or head top) triangulated from both views (in front of
+    the camera and the mirror). Only those joints: a long video's every joint would be
+    hundreds of MB of triangulation."""
+    points = np.array(res.joints3d, dtype=float, copy=True)
+    valid = np.array(res.valid, dtype=bool, copy=True)
+    chain = stature_joints(paired.skeleton)
+    if chain is None:
+        return points, valid
+    missing = paired.valid()[:, chain] & ~valid[:, chain]                    # (T, k)
+    if missing.any():
+        t, k = np.nonzero(missing)
+        j = chain[k]
+        X = triangulate_mirror(K, res.normal, res.distance, paired.real[t, j, :2],
+                               paired.mirror[t, j, :2])
+        with np.errstate(invalid="ignore"):
+            ok = (np.isfinite(X).all(-1) & (X[:, 2] > 0)
+                  & (X @ np.asarray(res.normal, float) < res.distance))
+        points[t[ok], j[ok]] = X[ok]
+        valid[t[ok], j[ok]] = True
+    return points, valid
+
+
+def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
+                     height: float) -> RefinementResult:
+    """Rescale a metric refinement so that the subject's measured stature is ``height``.
+
+    Args:
+        res: the refinement (``scale == "subject_height"``: metres through the gauge).
+        paired: its person and reflection keypoints (undistorted pixels).
+        K: ``(3, 3)`` intrinsics.
+        height: the subject's standing height, metres.
+
+    Returns:
+        ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
+        multiplied by ``height / measured stature`` and ``scale_source``/``stature``
+        set; unchanged but for ``scale_source`` when the stature cannot be measured.
+
+    Raises:
+        InputError: ``height`` is not a positive finite number.
+    """
+    h = height
+    if isinstance(h, bool) or not isinstance(h, (int, float, np.floating)) or not (
+            math.isfinite(h) and h > 0):
+        raise InputError(f"must be a positive number of metres, got {height!r}",
+                         field="subject_height")
+    points, valid = _with_head(res, paired, K)
+    f, source, stature = stature_rescale(points, valid, paired.skeleton, height)
+    if f is None:
+        return replace(res, scale_source=source)
+    record = stature.to_dict()
+    return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
+                   bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
+                   distance_std=res.distance_std * f, scale_source=source, stature=record)
+
+
+def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "stature"):
+    """A rig's solution rescaled so that the stature measured on its joints is ``height``.
+
+    Args:
+        sol (mirrorgraph.pipelines.solve.RigSolution): the solved rig, joints completed
+            (``points`` ``(T, J, 3)``, ``used`` ``(T, J)``).
+        skeleton: the joints' layout.
+        height: the subject's height in the output unit.
+        scale_from: ``"stature"``, or ``"limbs"`` (the gauge's limb proportions kept, as
+            asked: ``RefineOptions.scale_from``).
+
+    Returns:
+        ``(solution, source, stature)``: the (rescaled) solution, the scale's source in
+        words (:data:`mirrorgraph.stature.LIMB_PROPORTIONS` where the joints do not span
+        ankle to eyes) and the stature estimate after scaling (``None`` where the limbs
+        stay).
+    """
+    if scale_from != "stature":
+        return sol, LIMB_CHOSEN, None
+    factor, source, stature = stature_rescale(sol.points, sol.used, skeleton, height)
+    return (sol if factor is None else sol.scaled(factor)), source, stature
+

@@ -1,0 +1,184 @@
+"""The metric scale of a single-mirror refinement from the subject's measured stature
+(mirrorgraph.pipelines.scale), against synthetic scenes of known height.
+
+Each test hands :func:`scale_by_stature` a refinement that is the truth of
+:func:`mirrorgraph.synth.make_scene` at a wrong scale (``g`` times too large), with the
+limbs estimated (the calibration joints) and the eyes or head top not: those it
+triangulates from the person and the reflection itself.
+
+A height of 0, a negative or a non-finite one is refused, naming the field.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mirrorgraph import geometry as geo
+from mirrorgraph.errors import InputError
+from mirrorgraph.graph import RefineOptions
+from mirrorgraph.graph.result import RefinementResult
+from mirrorgraph.pipelines.scale import scale_by_stature
+from mirrorgraph.stature import LIMB_PROPORTIONS
+from mirrorgraph.keypoints import PairedKeypoints
+from mirrorgraph.stature import MIN_FRAMES, estimate_stature, stature_joints
+from mirrorgraph.synth import make_scene
+
+FRAMES = 150
+
+
+def _limbs_at_scale(scene, g: float) -> RefinementResult:
+    """The scene's mirror and limbs, every length ``g`` times the truth."""
+    sk = scene.skeleton
+    T, J = scene.joints3d.shape[:2]
+    valid = np.zeros((T, J), dtype=bool)
+    valid[:, sk.calibration_joints] = True
+    X = np.where(valid[..., None], scene.joints3d * g, np.nan)
+    return RefinementResult(
+        normal=np.asarray(scene.normal, float), distance=float(scene.distance) * g,
+        scale="subject_height", joints3d=X, valid=valid, inliers=valid.copy(),
+        bone_lengths={"left_femur": 0.43 * g, "right_humerus": 0.31 * g},
+        normal_cov=np.eye(3) * 1e-6, rotation_std_deg=0.1, distance_std=0.01 * g,
+        rms_direct_px=4.0, rms_mirror_px=4.0, iterations=5, final_error=1.0, priors={},
+        timings={})
+
+
+def _stature_on(res: RefinementResult, paired: PairedKeypoints, K) -> float:
+    """The stature measured on ``res``: its joints plus the chain's joints it lacks,
+    triangulated with its own mirror (what the rescaling measures)."""
+    X, valid = np.array(res.joints3d), np.array(res.valid)
+    chain = stature_joints(paired.skeleton)
+    seen = paired.valid()[:, chain] & ~valid[:, chain]
+    t, k = np.nonzero(seen)
+    Y = geo.triangulate_mirror(K, res.normal, res.distance, paired.real[t, chain[k], :2],
+                               paired.mirror[t, chain[k], :2])
+    X[t, chain[k]] = Y
+    valid[t, chain[k]] = np.isfinite(Y).all(-1)
+    return estimate_stature(X, valid, paired.skeleton).height
+
+
+@pytest.fixture(scope="module", params=["BODY_25", "COCO_17", "HALPE_26"])
+def scene(request):
+    """4 px detector noise; BODY_25 and COCO_17 measure to the eyes, HALPE_26 to the head top."""
+    return make_scene(frames=FRAMES, seed=2, skeleton=request.param)
+
+
+@pytest.mark.parametrize("g", [0.7, 1.13, 1.6])
+def test_the_rescaled_stature_is_the_given_height(scene, g):
+    paired = scene.paired()
+    res = _limbs_at_scale(scene, g)
+    H = scene.subject_height
+    out = scale_by_stature(res, paired, scene.K, H)
+    assert out.stature["height"] == pytest.approx(H, rel=1e-12)
+    # measured again, independently, on what came out
+    assert _stature_on(out, paired, scene.K) == pytest.approx(H, rel=1e-9)
+    # and that is the true scale: only the ankle-to-floor and eye-to-vertex parts rest
+    # on population figures, so the mirror lands within 1 % of the truth from 13-60 % off
+    assert out.distance == pytest.approx(scene.distance, rel=0.01)
+    used = out.valid
+    err = np.linalg.norm(out.joints3d[used] - scene.joints3d[used], axis=-1)
+    assert np.median(err) < 0.01 * np.median(np.linalg.norm(scene.joints3d[used], axis=-1))
+    top = "head_top" if "head_top" in scene.skeleton.joints else "eyes"
+    assert out.stature["top"] == top and top.replace("_", " ") in out.scale_source
+
+
+def test_the_rescaling_is_a_pure_change_of_scale(scene):
+    paired = scene.paired()
+    res = _limbs_at_scale(scene, 1.13)
+    out = scale_by_stature(res, paired, scene.K, scene.subject_height)
+    f = out.distance / res.distance
+    assert f == pytest.approx(1 / 1.13, rel=0.01)
+    np.testing.assert_array_equal(out.normal, res.normal)
+    np.testing.assert_array_equal(out.valid, res.valid)
+    np.testing.assert_allclose(out.joints3d[out.valid], f * res.joints3d[res.valid], rtol=1e-12)
+    assert out.distance_std == pytest.approx(f * res.distance_std, rel=1e-12)
+    assert out.bone_lengths == pytest.approx({b: f * v for b, v in res.bone_lengths.items()})
+    # the images do not change: the same pixels in the camera and in the mirror
+    X, Y = res.joints3d[res.valid], out.joints3d[out.valid]
+    np.testing.assert_allclose(geo.project(scene.K, Y), geo.project(scene.K, X), atol=1e-9)
+    np.testing.assert_allclose(
+        geo.project(scene.K, geo.reflect_points(Y, out.normal, out.distance)),
+        geo.project(scene.K, geo.reflect_points(X, res.normal, res.distance)), atol=1e-9)
+    # the input is left as it was
+    assert res.distance == pytest.approx(1.13 * scene.distance) and res.stature is None
+
+
+def test_the_result_does_not_depend_on_the_scale_it_started_from(scene):
+    paired = scene.paired()
+    outs = [scale_by_stature(_limbs_at_scale(scene, g), paired, scene.K, 1.8)
+            for g in (0.5, 1.0, 2.5)]
+    for o in outs[1:]:
+        assert o.distance == pytest.approx(outs[0].distance, rel=1e-9)
+        np.testing.assert_allclose(o.joints3d, outs[0].joints3d, rtol=1e-9)
+    # and the given height sets it: a 10 % taller subject, a 10 % larger scene
+    taller = scale_by_stature(_limbs_at_scale(scene, 1.0), paired, scene.K, 1.98)
+    assert taller.distance == pytest.approx(1.1 * outs[0].distance, rel=1e-9)
+
+
+def _kept_limb_scale(res: RefinementResult, out: RefinementResult) -> None:
+    assert out.scale_source == LIMB_PROPORTIONS and out.stature is None
+    assert out.distance == res.distance and out.distance_std == res.distance_std
+    np.testing.assert_array_equal(out.joints3d, res.joints3d)
+    assert out.bone_lengths == res.bone_lengths
+
+
+def test_without_the_eyes_in_the_mirror_the_limb_scale_stays():
+    """The eyes seen directly but never in the reflection: they cannot be triangulated,
+    the stature cannot be measured, the limb-proportion scale is kept and said so."""
+    scene = make_scene(frames=FRAMES, seed=2)
+    p = scene.paired()
+    mirror = p.mirror.copy()
+    for name in ("left_eye", "right_eye"):
+        mirror[:, scene.skeleton.index(name)] = [np.nan, np.nan, 0.0]
+    blind = PairedKeypoints(skeleton=p.skeleton, frame_ids=p.frame_ids, real=p.real,
+                            mirror=mirror, source=p.source)
+    res = _limbs_at_scale(scene, 1.13)
+    _kept_limb_scale(res, scale_by_stature(res, blind, scene.K, scene.subject_height))
+
+
+def test_too_few_frames_keep_the_limb_scale():
+    """Each segment needs MIN_FRAMES frames: a shorter video keeps the limb scale."""
+    scene = make_scene(frames=MIN_FRAMES - 1, seed=2)
+    res = _limbs_at_scale(scene, 1.13)
+    _kept_limb_scale(res, scale_by_stature(res, scene.paired(), scene.K, scene.subject_height))
+    # one frame more, and it is measured
+    scene = make_scene(frames=MIN_FRAMES + 5, seed=2)
+    out = scale_by_stature(_limbs_at_scale(scene, 1.13), scene.paired(), scene.K,
+                           scene.subject_height)
+    assert out.stature is not None and out.distance == pytest.approx(scene.distance, rel=0.02)
+
+
+def test_eyes_triangulated_behind_the_mirror_are_not_used():
+    """The eyes' rows of the person and of the reflection swapped: the two rays then meet
+    at the eyes' mirror image, behind the mirror. Those points are no eyes: without
+    others the stature cannot be measured and the limb scale stays."""
+    scene = make_scene(frames=FRAMES, seed=2)
+    p = scene.paired()
+    real, mirror = p.real.copy(), p.mirror.copy()
+    eyes = [scene.skeleton.index("left_eye"), scene.skeleton.index("right_eye")]
+    real[:, eyes], mirror[:, eyes] = p.mirror[:, eyes], p.real[:, eyes]
+    swapped = PairedKeypoints(skeleton=p.skeleton, frame_ids=p.frame_ids, real=real,
+                              mirror=mirror, source=p.source)
+    # (the same rows triangulated: behind the plane, where the reflection is)
+    ok = swapped.valid()[:, eyes]
+    Y = geo.triangulate_mirror(scene.K, scene.normal, scene.distance, real[:, eyes][ok][:, :2],
+                               mirror[:, eyes][ok][:, :2])
+    assert np.mean(Y @ scene.normal > scene.distance) > 0.99
+    res = _limbs_at_scale(scene, 1.13)
+    _kept_limb_scale(res, scale_by_stature(res, swapped, scene.K, scene.subject_height))
+
+
+@pytest.mark.parametrize("height", [0.0, -1.7, math.nan, math.inf])
+def test_a_height_that_is_no_height_is_refused(height):
+    scene = make_scene(frames=40, seed=2)
+    res = _limbs_at_scale(scene, 1.0)
+    with pytest.raises(InputError, match="subject_height"):
+        scale_by_stature(res, scene.paired(), scene.K, height)
+
+
+@pytest.mark.parametrize("height", [0.0, -1.7, math.nan])
+def test_refine_options_name_a_height_that_is_no_height(height):
+    with pytest.raises(InputError, match="subject_height"):
+        RefineOptions(subject_height=height, marginals=False)
