@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
-from scipy.special import chdtri, fdtri
+from ..stats import chdtri, fdtri
 
 from .builder import GraphProblem, intrinsics_prior_sigmas, point_keys
 from .reduction import mirror_reduction
