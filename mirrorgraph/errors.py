@@ -18,7 +18,7 @@ it with the install hint; every optional import of the library goes through it.
 
 from __future__ import annotations
 
-import importlib
+import sys
 from collections.abc import Mapping
 from types import ModuleType
 
@@ -129,8 +129,9 @@ def require_extra(module: str, extra: str | None, purpose: str, *, what: str | N
         MissingExtraError: ``module`` cannot be imported.
     """
     try:
-        return importlib.import_module(module)
+        __import__(module)               # as an import statement does (and what patches it)
     except ImportError:
         hint = hint or extra_hint(str(extra))
         raise MissingExtraError(f"{purpose} needs {what or module}: {hint}", module=module,
                                 extra=extra) from None
+    return sys.modules[module]
