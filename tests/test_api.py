@@ -86,7 +86,7 @@ def test_the_missing_extras_raise_it(monkeypatch):
 
     from mirrorgraph.batch import run_batch
     from mirrorgraph.errors import MissingExtraError
-    from mirrorgraph.io.c3d_writer import _import_c3d
+    from mirrorgraph.io.c3d_writer import require_c3d
     from mirrorgraph.io.motion import check_motion_path
     from mirrorgraph.report import require_matplotlib
     from mirrorgraph.viewer import require_rerun
@@ -97,7 +97,7 @@ def test_the_missing_extras_raise_it(monkeypatch):
                                             "'mirrorgraph[plot]'"),
                        (require_rerun, "the viewer needs the Rerun SDK: pip install "
                                        "'mirrorgraph[view]'"),
-                       (_import_c3d, "writing .c3d needs the c3d package: pip install "
+                       (require_c3d, "writing .c3d needs the c3d package: pip install "
                                      "'mirrorgraph[c3d]'"),
                        (lambda: check_motion_path("a.c3d", metric=True), "writing .c3d"),
                        (lambda: run_batch([object()]), "mirrorgraph batch needs Dask: pip "

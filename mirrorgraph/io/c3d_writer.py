@@ -38,13 +38,14 @@ import numpy as np
 from ..errors import InputError, extra_hint, require_extra
 from .atomic import atomic_path
 
-__all__ = ["C3D_INSTALL_HINT", "write_c3d"]
+__all__ = ["C3D_INSTALL_HINT", "require_c3d", "write_c3d"]
 
 #: How to get the C3D writer.
 C3D_INSTALL_HINT = extra_hint("c3d")
 
 
-def _import_c3d():
+def require_c3d():
+    """The ``c3d`` module, or :class:`MissingExtraError` saying how to install it."""
     return require_extra("c3d", "c3d", "writing .c3d", what="the c3d package")
 
 
@@ -80,7 +81,7 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
         raise ValueError(f"{len(markers)} marker names for {len(names)} joints")
     if not len(ids):
         raise InputError("no frame to write", source=path, field="joints3d")
-    c3d = _import_c3d()
+    c3d = require_c3d()
     rows, step = regular_frames(ids)
     T, J = len(rows), len(names)
     mm = np.zeros((T, J, 3))

@@ -95,8 +95,8 @@ def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
         raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres (a subject height)",
                          field="joints3d", fix=("subject_height",))
     if suffix == ".c3d":
-        from .c3d_writer import _import_c3d
-        _import_c3d()                    # MissingExtraError with the install hint
+        from .c3d_writer import require_c3d
+        require_c3d()                    # MissingExtraError with the install hint
 
 
 def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
