@@ -10,8 +10,8 @@ the repeats interleaved (the machine is shared and its load moves):
   ``python -X importtime`` reports for the package (its cumulative microseconds,
   from a second process);
 * ``mirrorgraph --help`` in a fresh process (the parser and every command's options);
-* ``python -c "import numpy, cv2, scipy.optimize, gtsam"``: what ``calibrate`` needs
-  from other packages, the floor of its start;
+* ``python -c "import numpy, cv2, gtsam"``: what ``calibrate`` needs from other
+  packages, the floor of its start (SciPy no more: #25);
 * ``mirrorgraph calibrate`` of a synthetic 1000-frame scene (MMPose JSON, the
   camera's intrinsics, the subject's height), in a fresh process and the very same
   ``main(argv)`` in a running process that has already run it once (its imports
@@ -50,14 +50,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 THIS = str(Path(__file__).resolve())
 
-#: What ``calibrate`` cannot start without (the epipole's robust fit is SciPy's
-#: ``least_squares``, the graph GTSAM's): the floor of a fresh process's start.
-JOB_IMPORTS = "numpy, cv2, scipy.optimize, gtsam"
+#: What ``calibrate`` cannot start without (OpenCV's geometry, the graph GTSAM's; the
+#: epipole's robust fit and the regions' quantiles are NumPy since #25, no SciPy): the
+#: floor of a fresh process's start.
+JOB_IMPORTS = "numpy, cv2, gtsam"
 JOB_ROW = f"python -c \"import {JOB_IMPORTS}\""
 
 #: Packages whose import a command pays for only where it needs them.
-HEAVY = ("gtsam", "scipy.optimize", "scipy.spatial", "cv2", "matplotlib", "dask",
-         "mirrorgraph.video", "mirrorgraph.synth", "mirrorgraph.batch")
+HEAVY = ("gtsam", "scipy", "scipy.special", "scipy.optimize", "scipy.spatial", "cv2",
+         "matplotlib", "dask", "mirrorgraph.video", "mirrorgraph.synth", "mirrorgraph.batch",
+         "mirrorgraph.viewer")
 
 
 def serve() -> None:

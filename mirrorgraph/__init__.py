@@ -32,7 +32,8 @@ Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 
 from ._version import __version__
 
-from .errors import DegenerateGeometryError, InputError, MirrorgraphError  # noqa: E402
+from .errors import (DegenerateGeometryError, InputError, MirrorgraphError,  # noqa: E402
+                     MissingExtraError)
 
 #: Public name -> the module it lives in, imported on first use (``__getattr__``).
 _LAZY = {
@@ -60,7 +61,7 @@ _LAZY = {
     "write_rig_report": "mirrorgraph.report.rig",
 }
 
-__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError",
+__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError", "MissingExtraError",
            "__version__"] + list(_LAZY)
 
 

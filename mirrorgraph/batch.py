@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from .anthropometry import height_problem
-from .errors import InputError, MirrorgraphError
+from .errors import InputError, MirrorgraphError, require_extra
 from .graph import RefineOptions
 from .intrinsics import load_intrinsics
 from .pipelines.mirror import CalibrateOptions, calibrate
@@ -380,8 +380,8 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
         never stops the others.
 
     Raises:
-        MirrorgraphError: Dask is not installed, ``workers`` is not positive, or the
-            scheduler cannot be reached.
+        MirrorgraphError: Dask is not installed (:class:`MissingExtraError`),
+            ``workers`` is not positive, or the scheduler cannot be reached.
     """
     recordings = list(recordings)
     options = options or CalibrateOptions()
@@ -392,13 +392,10 @@ def run_batch(recordings: Sequence[Recording], *, scheduler: str | None = None,
         return []
     if workers is not None and workers < 1:
         raise InputError(f"must be at least 1, got {workers}", field="workers")
-    try:
-        # the batch extra: Dask is optional, imported only to run a batch
-        from dask.distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise MirrorgraphError("mirrorgraph batch needs Dask: pip install "
-                               "'mirrorgraph[batch]' (in a clone: pip install -e '.[batch]')"
-                               ) from None
+    # the batch extra: Dask is optional, imported only to run a batch
+    distributed = require_extra("dask.distributed", "batch", "mirrorgraph batch", what="Dask")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
+    as_completed = distributed.as_completed
 
     cluster = None
     if scheduler:

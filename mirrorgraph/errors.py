@@ -10,11 +10,17 @@ for an argument that cannot be used), so that ``except ValueError`` catches a ba
 argument whichever function refused it. The library names the argument or field
 at fault (``field="intrinsics"``), never a command-line flag: the CLI says which
 flag gives it.
+
+:class:`MissingExtraError` is also an :class:`ImportError`: an optional dependency (an
+"extra" of the package) is not installed. :func:`require_extra` imports one or raises
+it with the install hint; every optional import of the library goes through it.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping
+from types import ModuleType
 
 
 class MirrorgraphError(Exception):
@@ -79,3 +85,53 @@ class InputError(MirrorgraphError, ValueError):
 
 class DegenerateGeometryError(MirrorgraphError):
     """The data cannot determine the mirror (too few pairs, parallel lines, ...)."""
+
+
+class MissingExtraError(MirrorgraphError, ImportError):
+    """An optional dependency (an extra of the package: ``plot``, ``view``, ``batch``,
+    ``c3d``, ``video``, ...) is not installed; the message says how to install it.
+
+    A :class:`MirrorgraphError`, so that the CLI prints its one line (exit status 2); and
+    an :class:`ImportError` (not an :class:`InputError`: nothing is wrong with the
+    input), so that ``except ImportError``, the usual guard of an optional feature,
+    catches it as it catches the failed import itself.
+
+    Attributes:
+        name: the module that could not be imported (:class:`ImportError`'s).
+        extra: the extra that installs it.
+    """
+
+    def __init__(self, message: str, *, module: str | None = None,
+                 extra: str | None = None) -> None:
+        super().__init__(message, name=module)
+        self.extra = extra
+
+
+def extra_hint(extra: str) -> str:
+    """How to install the extra ``extra``, from PyPI or in a clone."""
+    return f"pip install 'mirrorgraph[{extra}]' (in a clone: pip install -e '.[{extra}]')"
+
+
+def require_extra(module: str, extra: str | None, purpose: str, *, what: str | None = None,
+                  hint: str | None = None) -> ModuleType:
+    """Import the optional ``module`` and return it, or raise :class:`MissingExtraError`:
+    ``"{purpose} needs {what}: {hint}"``.
+
+    Args:
+        module: what to import, e.g. ``"dask.distributed"``.
+        extra: the package's extra that installs it (``"batch"``), or ``None`` (then
+            ``hint`` says how).
+        purpose: what needs it, the message's subject (``"mirrorgraph batch"``).
+        what: how the message names the dependency (default ``module``).
+        hint: how to install it (default :func:`extra_hint` of ``extra``).
+
+    Raises:
+        MissingExtraError: ``module`` cannot be imported.
+    """
+    try:
+        __import__(module)               # as an import statement does (and what patches it)
+    except ImportError:
+        hint = hint or extra_hint(str(extra))
+        raise MissingExtraError(f"{purpose} needs {what or module}: {hint}", module=module,
+                                extra=extra) from None
+    return sys.modules[module]

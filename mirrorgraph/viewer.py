@@ -65,13 +65,13 @@ from typing import Any
 import numpy as np
 
 from . import geometry as geo
-from .errors import InputError
+from .errors import InputError, extra_hint, require_extra
 
 __all__ = ["INSTALL_HINT", "ViewCamera", "ViewMirror", "ViewScene", "joint_covariances",
            "record", "require_rerun", "scene_from_calibration", "scene_from_rig", "view_file"]
 
 #: How to get the viewer's dependency.
-INSTALL_HINT = "pip install 'mirrorgraph[view]' (in a clone: pip install -e '.[view]')"
+INSTALL_HINT = extra_hint("view")
 
 PERSON = (60, 200, 90)
 REFLECTION = (240, 140, 40)
@@ -82,13 +82,8 @@ MIRROR_EDGE = (150, 200, 255)
 
 
 def require_rerun():
-    """The ``rerun`` module, or one :class:`InputError` line saying how to install it."""
-    try:
-        import rerun
-    except ImportError:
-        raise InputError(f"the viewer needs the Rerun SDK: {INSTALL_HINT}",
-                         field="--view") from None
-    return rerun
+    """The ``rerun`` module, or :class:`MissingExtraError` saying how to install it."""
+    return require_extra("rerun", "view", "the viewer", what="the Rerun SDK")
 
 
 # --------------------------------------------------------------------------- the scene
@@ -467,8 +462,8 @@ def open_viewer(path: str | os.PathLike, wait: float = 5.0) -> None:
     an error within ``wait`` seconds, raises :class:`InputError` naming the recording."""
     def no_display(why: str) -> InputError:
         return InputError(f"Rerun's viewer did not open ({why}): the recording is {path}; open "
-                          f"it where there is a display with 'rerun {path}', or write it with "
-                          "--save OUT.rrd")
+                          f"it where there is a display with 'rerun {path}', or write it to a "
+                          "file instead", fix=("save",))
 
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                  or os.environ.get("WAYLAND_DISPLAY")):
@@ -700,7 +695,7 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
     if "cameras" in doc:
         if video is not None:
             raise InputError("draws the video of a single-mirror calibration, not of a rig",
-                             field="--video")
+                             field="video")
         kw = {} if motion is None else {k: motion[k] for k in ("joints3d", "valid", "frame_ids",
                                                                "joint_names")}
         scene = scene_from_rig(doc, fps=fps, **kw)
@@ -730,7 +725,7 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
         **({} if motion is None else {k: motion[k] for k in ("joints3d", "valid", "frame_ids",
                                                               "joint_names")}))
     if video is not None and not Path(video).is_file():
-        raise InputError("no such video file", source=video, field="--video")
+        raise InputError("no such video file", source=video)
     return record(scene, save=save, video=video, max_video_frames=max_video_frames)
 
 
@@ -749,20 +744,19 @@ def _read_motion(path) -> dict[str, Any]:
     """A ``--joints3d`` ``.npz`` (:func:`mirrorgraph.io.motion.write_joints3d_npz`)."""
     path = Path(path)
     if path.suffix.lower() != ".npz":
-        raise InputError("give the .npz that --joints3d writes (it holds the joint names, "
-                         "the unit and the frame)", source=path, field="--joints3d")
+        raise InputError("give the .npz of the 3D joints that a calibration writes (it holds "
+                         "the joint names, the unit and the frame)", source=path)
     try:
         with np.load(path, allow_pickle=False) as z:
             d = {k: z[k] for k in z.files}
     except FileNotFoundError:
-        raise InputError("no such file", source=path, field="--joints3d") from None
+        raise InputError("no such file", source=path) from None
     except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"cannot be read as a .npz ({type(exc).__name__})", source=path,
-                         field="--joints3d") from None
+        raise InputError(f"cannot be read as a .npz ({type(exc).__name__})", source=path) from None
     missing = [k for k in ("joints3d", "joint_names") if k not in d]
     if missing:
-        raise InputError(f"missing {', '.join(missing)} (not a --joints3d file?)", source=path,
-                         field="--joints3d")
+        raise InputError(f"missing {', '.join(missing)} (not a .npz of 3D joints?)",
+                         source=path)
     X = d["joints3d"]
     fps = float(d["fps"]) if "fps" in d else float("nan")
     return {"joints3d": X, "valid": d.get("valid"), "frame_ids": d.get("frame_ids"),

@@ -73,3 +73,45 @@ def test_the_two_front_ends_take_one_options_object_and_name_their_callbacks_ali
     assert any("refin" in s for s in calls["steps"])
     assert calls["iterations"] and all(isinstance(i, int) and float(e) >= 0
                                        for i, e in calls["iterations"])
+
+
+def test_a_missing_extra_is_one_error_type(capsys):
+    """Every optional import goes through errors.require_extra: a MissingExtraError, both
+    an ImportError and a MirrorgraphError, naming what needs it and the install line."""
+    from mirrorgraph.errors import MissingExtraError, require_extra
+
+    with pytest.raises(MissingExtraError) as info:
+        require_extra("no_such_module_mg25", "plot", "the report", what="matplotlib")
+    err = info.value
+    assert isinstance(err, ImportError) and isinstance(err, mg.MirrorgraphError)
+    assert not isinstance(err, mg.InputError)
+    assert err.name == "no_such_module_mg25" and err.extra == "plot"
+    assert str(err) == ("the report needs matplotlib: pip install 'mirrorgraph[plot]' "
+                        "(in a clone: pip install -e '.[plot]')")
+    assert require_extra("json", "none", "x").dumps([]) == "[]"
+
+
+def test_the_missing_extras_raise_it(monkeypatch):
+    import sys
+
+    from mirrorgraph.batch import run_batch
+    from mirrorgraph.errors import MissingExtraError
+    from mirrorgraph.io.c3d_writer import require_c3d
+    from mirrorgraph.io.motion import check_motion_path
+    from mirrorgraph.report import require_matplotlib
+    from mirrorgraph.viewer import require_rerun
+
+    for module in ("matplotlib", "rerun", "c3d", "dask.distributed"):
+        monkeypatch.setitem(sys.modules, module, None)      # import raises ImportError
+    for call, text in ((require_matplotlib, "the report needs matplotlib: pip install "
+                                            "'mirrorgraph[plot]'"),
+                       (require_rerun, "the viewer needs the Rerun SDK: pip install "
+                                       "'mirrorgraph[view]'"),
+                       (require_c3d, "writing .c3d needs the c3d package: pip install "
+                                     "'mirrorgraph[c3d]'"),
+                       (lambda: check_motion_path("a.c3d", metric=True), "writing .c3d"),
+                       (lambda: run_batch([object()]), "mirrorgraph batch needs Dask: pip "
+                                                       "install 'mirrorgraph[batch]'")):
+        with pytest.raises(MissingExtraError) as info:
+            call()
+        assert str(info.value).startswith(text)

@@ -27,20 +27,24 @@ and running them (``cmd_*``): :mod:`.calibrate`, :mod:`.video` (``detect`` and
 the video options), :mod:`.synth` (``synth``, ``demo``), :mod:`.report`
 (``report``, ``export``), :mod:`.batch`, :mod:`.rig` (``calibrate-rig``,
 ``synth-rig``), :mod:`.view` (``view``, and ``--view`` of the calibrations); what they share (argument types, common options, how a run
-speaks) is in :mod:`.args`. Here: :func:`build_parser`, :func:`main` and the exit
-statuses.
+speaks) is in :mod:`.args`; which module has which command, and each command's
+one-line help, in :mod:`.commands`. Here: :func:`build_parser`, :func:`main` and the
+exit statuses. A run imports the module of its own command only (``mirrorgraph
+--help`` none of them): the others are listed by name and help.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
+from collections.abc import Collection
 
 from .._version import __version__
 from ..errors import MirrorgraphError
 from ..progress import end_open_lines
-from . import batch, calibrate, report, rig, synth, video, view
 from .args import error_message
+from .commands import COMMANDS, HELP, MODULES
 
 __all__ = ["EXIT_INPUT", "EXIT_INTERNAL", "build_parser", "main"]
 
@@ -55,21 +59,40 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"error: {self.prog}: {message} (see '{self.prog} --help')\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The ``mirrorgraph`` parser: every command with its options; or, given ``commands``,
+    the options of those only (and of their modules' other commands), the others by name
+    and help (:data:`.commands.COMMANDS`), their modules not imported."""
     parser = _Parser(
         prog="mirrorgraph",
         description="Calibrate a planar mirror's virtual camera from the people in the "
                     "video, and turn mirror videos into 3D motion.")
     parser.add_argument("--version", action="version", version=f"mirrorgraph {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for commands in (calibrate, synth, report, batch, rig, video, view):
-        commands.add_parsers(sub)
+    wanted = set(MODULES) if commands is None else {COMMANDS[c][0] for c in commands}
+    for module in MODULES:
+        if module in wanted:
+            importlib.import_module(f"{__name__}.{module}").add_parsers(sub)
+        else:
+            for name, (of, _) in COMMANDS.items():
+                if of == module:
+                    sub.add_parser(name, help=HELP[name])
     return parser
+
+
+def _command(argv: list[str]) -> str | None:
+    """The command ``argv`` runs: its first word that is not an option (the parser's own
+    options, ``--help`` and ``--version``, take no value), if it is one."""
+    word = next((a for a in argv if not a.startswith("-")), None)
+    return word if word in COMMANDS else None
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mirrorgraph`` command; returns the exit status."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = _command(argv)
+    # no command (--help, --version, a usage error): every command by name only
+    parser = build_parser([command] if command else [])
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:          # --help, --version, or a usage error

@@ -36,7 +36,8 @@ FLAGS = {"intrinsics": "--intrinsics FILE", "image_size": "--image-size WxH",
          "subject_height": "--subject-height METRES", "scale_from": "--scale-from WHAT",
          "seed": "--seed N", "fps": "--fps HZ", "video": "--video FILE",
          "render": "--render OUT.mp4", "workers": "--workers N",
-         "scheduler": "--scheduler ADDRESS"}
+         "scheduler": "--scheduler ADDRESS", "joints3d": "--joints3d FILE",
+         "save": "--save OUT.rrd"}
 
 
 def error_message(exc: BaseException) -> str:

@@ -17,6 +17,7 @@ from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .args import (add_joints, add_scale_from, height, image_size, options_from_args, positive,
                    rate, seed)
+from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_batch"]
 
@@ -24,7 +25,7 @@ __all__ = ["add_parsers", "cmd_batch"]
 def add_parsers(subparsers) -> None:
     """Add the ``batch`` command to ``mirrorgraph``'s sub-command parsers."""
     p = subparsers.add_parser(
-        "batch", help="calibrate many recordings in parallel (Dask)",
+        "batch", help=HELP["batch"],
         description="Calibrate every recording of a manifest in parallel with Dask: a CSV "
                     "(keypoints,intrinsics,out,subject_height; paths relative to it) or a "
                     "folder of recording subfolders. One failed recording is reported "

@@ -24,6 +24,7 @@ from ..skeletons import SKELETONS
 from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
                    step)
+from .commands import HELP
 from .video import add_video_options, describe, detect_with_progress, video_options
 from .view import add_view_option, check_view_option, view_after_run
 
@@ -32,7 +33,7 @@ __all__ = ["add_parsers", "cmd_calibrate"]
 
 def add_parsers(sub) -> None:
     """Add ``calibrate`` to the CLI's subparsers."""
-    p = sub.add_parser("calibrate", help="calibrate the mirror from 2D keypoints",
+    p = sub.add_parser("calibrate", help=HELP["calibrate"],
                        description="Calibrate the mirror's virtual camera from a pose "
                                    "detector's keypoints of a person and their reflection.")
     p.add_argument("keypoints", help="MMPose .json, OpenPose or EasyMocap folder, paired .npz, "
@@ -101,6 +102,7 @@ def add_parsers(sub) -> None:
 def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
+    from ..io._common import is_video_input
     from ..io.motion import check_motion_path, write_joints3d
     from ..pipelines.mirror import calibrate
     from ..report.store import write_calibration_and_run
@@ -133,8 +135,7 @@ def cmd_calibrate(args) -> int:
                                            or args.no_refine):
         raise InputError("estimates the principal point with the focal length: not with "
                          "--intrinsics, --fov or --no-refine", field="--principal-point")
-    from ..video.reader import is_video
-    from_video = is_video(args.keypoints)
+    from_video = is_video_input(args.keypoints)
     vopts = video_options(args, has_video=from_video)
     intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     t0 = time.perf_counter()

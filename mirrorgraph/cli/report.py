@@ -10,6 +10,7 @@ from __future__ import annotations
 from ..errors import InputError
 from ..export import FORMATS, WORLD_FRAMES
 from .args import add_common, printer, report_written, solver_progress, step, warn
+from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_export", "cmd_report"]
 
@@ -22,8 +23,7 @@ def add_parsers(sub) -> None:
 
 # --------------------------------------------------------------------------- report
 def _add_report(sub) -> None:
-    p = sub.add_parser("report", help="figures of a calibration: epipole, residuals, 3D view, "
-                                      "bone lengths, uncertainty",
+    p = sub.add_parser("report", help=HELP["report"],
                        description="Write PNG figures of a calibration and, with --video, "
                                    "overlays on the video (needs the plot extra). The figures "
                                    "are those of 'calibrate --report': drawn from the run "
@@ -91,7 +91,7 @@ def cmd_report(args) -> int:
 
 # --------------------------------------------------------------------------- export
 def _add_export(sub) -> None:
-    p = sub.add_parser("export", help="write the real and virtual camera for Pose2Sim / aniposelib",
+    p = sub.add_parser("export", help=HELP["export"],
                        description="Write the real camera and the mirror's virtual camera as two "
                                    "ordinary cameras of a Pose2Sim Calib.toml or an aniposelib "
                                    "calibration.toml. The virtual camera is the one that sees the "

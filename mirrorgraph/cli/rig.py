@@ -21,6 +21,7 @@ from ..synth.rig_files import KEYPOINT_FORMATS
 from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
 from .args import (add_common, add_scale_from, height, positive, print_result, printer, rate,
                    seed)
+from .commands import HELP
 from .video import add_video_options, video_options
 from .view import add_view_option, check_view_option, view_after_run
 
@@ -30,7 +31,7 @@ __all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
 def add_parsers(sub) -> None:
     """Add ``calibrate-rig`` and ``synth-rig`` to the CLI's subparsers."""
     p = sub.add_parser(
-        "calibrate-rig", help="calibrate several cameras and mirrors from the people in view",
+        "calibrate-rig", help=HELP["calibrate-rig"],
         description="Calibrate every camera and mirror of a rig (cameras synchronised frame "
                     "by frame) from a pose detector's keypoints: Pose2Sim's 'calibrate from "
                     "keypoints'. The first camera of RIG.toml defines the world frame.")
@@ -71,7 +72,7 @@ def add_parsers(sub) -> None:
     add_common(p)
     p.set_defaults(func=cmd_calibrate_rig)
 
-    s = sub.add_parser("synth-rig", help="write a synthetic rig with ground truth",
+    s = sub.add_parser("synth-rig", help=HELP["synth-rig"],
                        description="Write a synthetic multi-camera / multi-mirror rig: per-camera "
                                    "keypoints, Calib.toml (intrinsics), rig.toml, ground truth.")
     s.add_argument("kind", choices=KINDS)

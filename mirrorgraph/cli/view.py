@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from .args import add_common, positive, printer
+from .commands import HELP
 
 __all__ = ["add_parsers", "add_view_option", "cmd_view", "check_view_option", "view_after_run"]
 
@@ -18,7 +19,7 @@ def add_parsers(sub) -> None:
     """Add ``view`` to the CLI's subparsers."""
     from ..viewer import INSTALL_HINT
 
-    p = sub.add_parser("view", help="look at a calibration and its 3D motion in Rerun",
+    p = sub.add_parser("view", help=HELP["view"],
                        description="Open a calibration in Rerun's viewer: the real and virtual "
                                    "cameras, the mirror(s), the 3D skeleton over time with its "
                                    "reflection, and with --video the frames with the keypoints "

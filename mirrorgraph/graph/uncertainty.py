@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from scipy.special import chdtri, fdtri
+from ..stats import chdtri, fdtri
 
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from .sandwich import covariance_max, sandwich, sandwich_candidates

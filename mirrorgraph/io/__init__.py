@@ -39,7 +39,7 @@ import os
 from ..errors import InputError
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton
-from ._common import ProgressCallback
+from ._common import ProgressCallback, is_video_input
 from .atomic import atomic_dir, atomic_path, atomic_write_bytes, atomic_write_text
 from .calibration import read_json, to_jsonable, write_json
 from .detect import classify_json, detect_format, sniff
@@ -83,10 +83,8 @@ def read_keypoints(path: str | os.PathLike, *, skeleton: Skeleton | str | None =
     Raises:
         InputError: unknown format, or any malformed content.
     """
-    # lazy: mirrorgraph.video is the video extra's path, and importing it (the whole
-    # package: detector, tracker) adds ~13 ms to `import mirrorgraph`
-    from ..video.reader import is_video
-    if is_video(path):
+    # mirrorgraph.video is the video extra's path: imported for a video only
+    if is_video_input(path):
         from ..video.detect import detect_video
         return detect_video(path, video, progress=progress).to_raw()
     kind, obj = sniff(path)

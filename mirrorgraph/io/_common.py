@@ -56,6 +56,17 @@ MAX_IMAGE_SIDE = 1_000_000
 _TRAILING_INT = re.compile(r"(\d+)\D*$")
 
 
+def is_video_input(path: str | os.PathLike) -> bool:
+    """Whether a keypoint input is a video file (:func:`mirrorgraph.video.reader.is_video`).
+    A keypoint file's ending (``.json``, ``.npz``) or a folder never is one: the video
+    package (its detector and tracker, ~0.05 s to import) is not imported to ask."""
+    p = Path(path)
+    if p.suffix.lower() in (".json", ".npz") or p.is_dir():
+        return False
+    from ..video.reader import is_video
+    return is_video(p)
+
+
 def load_json(path: str | os.PathLike) -> Any:
     """Parse a JSON file; a missing, unreadable or malformed file is an InputError."""
     try:

@@ -35,22 +35,18 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, extra_hint, require_extra
 from .atomic import atomic_path
 
-__all__ = ["C3D_INSTALL_HINT", "write_c3d"]
+__all__ = ["C3D_INSTALL_HINT", "require_c3d", "write_c3d"]
 
 #: How to get the C3D writer.
-C3D_INSTALL_HINT = "pip install 'mirrorgraph[c3d]' (the c3d package)"
+C3D_INSTALL_HINT = extra_hint("c3d")
 
 
-def _import_c3d():
-    try:
-        import c3d
-    except ImportError:
-        raise InputError(f"writing .c3d needs the c3d package: {C3D_INSTALL_HINT}",
-                         field="--joints3d") from None
-    return c3d
+def require_c3d():
+    """The ``c3d`` module, or :class:`MissingExtraError` saying how to install it."""
+    return require_extra("c3d", "c3d", "writing .c3d", what="the c3d package")
 
 
 def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
@@ -70,7 +66,8 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
         marker_names: marker names instead of Pose2Sim's.
 
     Raises:
-        InputError: no frame rate, a non-metric unit, or the ``c3d`` package missing.
+        InputError: no frame rate, or a non-metric unit.
+        MissingExtraError: the ``c3d`` package is missing.
     """
     from .motion_base import (check_arrays, metres_factor, regular_frames, to_trc_axes,
                               trc_marker_names)
@@ -84,7 +81,7 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
         raise ValueError(f"{len(markers)} marker names for {len(names)} joints")
     if not len(ids):
         raise InputError("no frame to write", source=path, field="joints3d")
-    c3d = _import_c3d()
+    c3d = require_c3d()
     rows, step = regular_frames(ids)
     T, J = len(rows), len(names)
     mm = np.zeros((T, J, 3))

@@ -77,29 +77,26 @@ __all__ = ["write_joints3d", "write_joints3d_npz", "write_joints3d_csv", "write_
 
 #: The file suffixes :func:`write_joints3d` writes.
 MOTION_SUFFIXES = (".npz", ".csv", ".trc", ".c3d", ".bvh")
-#: Those whose format needs metres (a metric scale: ``--subject-height``).
+#: Those whose format needs metres (a metric scale: a subject height).
 METRIC_SUFFIXES = (".trc", ".c3d", ".bvh")
 _FORMAT_NAMES = {".trc": "OpenSim .trc", ".c3d": "C3D", ".bvh": "BVH"}
 
 
 def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
-    """Refuse, before a long run, a ``--joints3d`` file :func:`write_joints3d` cannot write:
+    """Refuse, before a long run, a 3D joints file :func:`write_joints3d` cannot write:
     an unknown suffix, or a format in metres (:data:`METRIC_SUFFIXES`) when ``metric`` is
     ``False`` (no subject height; ``None``: not known yet), or ``.c3d`` without the
     ``c3d`` package."""
     suffix = Path(path).suffix.lower()
     if suffix not in MOTION_SUFFIXES:
         raise InputError("must end in " + ", ".join(MOTION_SUFFIXES[:-1]) + " or "
-                         + MOTION_SUFFIXES[-1], source=path, field="--joints3d")
+                         + MOTION_SUFFIXES[-1], source=path)
     if suffix in METRIC_SUFFIXES and metric is False:
-        raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres: add --subject-height",
-                         field="--joints3d")
+        raise InputError(f"{_FORMAT_NAMES[suffix]} needs metres (a subject height)",
+                         field="joints3d", fix=("subject_height",))
     if suffix == ".c3d":
-        import importlib.util
-        if importlib.util.find_spec("c3d") is None:
-            from .c3d_writer import C3D_INSTALL_HINT
-            raise InputError(f"writing .c3d needs the c3d package: {C3D_INSTALL_HINT}",
-                             field="--joints3d")
+        from .c3d_writer import require_c3d
+        require_c3d()                    # MissingExtraError with the install hint
 
 
 def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
@@ -126,8 +123,8 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
 
     Raises:
         InputError: unknown suffix, ``.trc`` / ``.c3d`` / ``.bvh`` without a frame
-            rate or in a non-metric unit, bad frame rate, ``.c3d`` without the ``c3d``
-            package.
+            rate or in a non-metric unit, bad frame rate.
+        MissingExtraError: ``.c3d`` without the ``c3d`` package.
         ValueError: arrays of inconsistent shapes.
     """
     suffix = Path(path).suffix.lower()

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -53,11 +54,13 @@ from ..graph.solve_graph import Progress
 from ..graph.solve_state import SolveState
 from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config, single_mirror_config
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
-from ..initial.rig import InitialRig, joint_masks, observed
 from ..keypoints import MIN_PAIRS, PairedKeypoints
-from ..rigs.observations import RigObservations
 from ..stature import LIMB_CHOSEN, with_height_sigma
 from .scale import scale_by_stature
+
+if TYPE_CHECKING:         # a single mirror's run needs neither (they import SciPy and OpenCV)
+    from ..initial.rig import InitialRig
+    from ..rigs.observations import RigObservations
 
 __all__ = ["refine_mirror", "RefineOptions", "RefinementResult", "rotation_std_from_normal_cov",
            "MIN_PAIRS", "RigSolution", "build_rig", "triangulate_rig_views", "solve_rig",
@@ -398,7 +401,7 @@ class RigSolution:
                        bone_lengths={b: v * f for b, v in self.bone_lengths.items()})
 
 
-def build_rig(obs: RigObservations, init: InitialRig,
+def build_rig(obs: "RigObservations", init: "InitialRig",
               joints: tuple[np.ndarray, np.ndarray] | None = None,
               estimate_focal: bool = True, focal: FocalOptions | None = None) -> Rig:
     """The graph's :class:`~mirrorgraph.graph.rig.Rig`: cameras (all but the first
@@ -410,6 +413,8 @@ def build_rig(obs: RigObservations, init: InitialRig,
     has its focal length estimated (:attr:`~mirrorgraph.graph.rig.Camera.estimate_focal`),
     from its initial one (:attr:`InitialRig.K`), with the weak prior of ``focal``
     (:class:`~mirrorgraph.graph.options.FocalOptions`) about the field-of-view guess."""
+    from ..initial.rig import joint_masks, observed
+
     dmask, mmask = joint_masks(obs.skeleton, joints)
     focal = focal or FocalOptions()
     cams = []

@@ -7,25 +7,22 @@ without importing each other; :mod:`mirrorgraph.report` re-exports both names.
 
 from __future__ import annotations
 
-from ..errors import MirrorgraphError
+from ..errors import extra_hint, require_extra
 
 __all__ = ["INSTALL_HINT", "require_matplotlib"]
 
 #: How to install the ``plot`` extra, from PyPI or in a clone (as docs/guide/report.md says).
-INSTALL_HINT = "pip install 'mirrorgraph[plot]' (in a clone: pip install -e '.[plot]')"
+INSTALL_HINT = extra_hint("plot")
 
 
 def require_matplotlib():
     """Import matplotlib with the Agg backend and return ``matplotlib.pyplot``.
 
     Raises:
-        MirrorgraphError: matplotlib is not installed (the message says how to
+        MissingExtraError: matplotlib is not installed (the message says how to
             install it).
     """
-    try:
-        import matplotlib
-    except ImportError:
-        raise MirrorgraphError(f"the report needs matplotlib: {INSTALL_HINT}") from None
+    matplotlib = require_extra("matplotlib", "plot", "the report")
     # Agg unless a notebook (inline backend) or the user chose one already
     backend = str(matplotlib.get_backend()).lower()
     if "inline" not in backend and "ipympl" not in backend and "widget" not in backend:

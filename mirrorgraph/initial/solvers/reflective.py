@@ -21,6 +21,7 @@ import numpy as np
 
 from ...geometry import signed_epipolar_distances, tangent_basis, to_homogeneous
 from .normalization import SimilarityNormalizer
+from .robust_lsq import robust_least_squares
 
 
 def pair_lines(u: np.ndarray, u_mirror: np.ndarray) -> np.ndarray:
@@ -82,7 +83,8 @@ def refine_epipole(e0_pixels: np.ndarray, u: np.ndarray, u_mirror: np.ndarray, *
     Minimises ``sum_i rho(r_i(e))`` over the unit sphere of homogeneous
     epipoles, with ``r_i`` the signed Sampson epipolar distance of pair ``i``
     (:func:`mirrorgraph.geometry.signed_epipolar_distances`) in pixels and ``rho`` the Cauchy loss of scale ``loss_scale_px`` (SciPy
-    ``least_squares``, trust-region reflective).
+    ``least_squares``' trust-region method, step for step, without importing SciPy:
+    :func:`.robust_lsq.robust_least_squares`).
 
     Args:
         e0_pixels: ``(3,)`` initial homogeneous epipole in pixels.
@@ -106,8 +108,6 @@ def refine_epipole(e0_pixels: np.ndarray, u: np.ndarray, u_mirror: np.ndarray, *
     def residuals(theta: np.ndarray) -> np.ndarray:
         return signed_epipolar_distances(point(theta), a, b)
 
-    from scipy.optimize import least_squares    # ~0.5 s to import: at first use
-
-    sol = least_squares(residuals, np.zeros(2), loss="cauchy", f_scale=scale,
-                        max_nfev=10 * max_iterations, x_scale="jac")
+    sol = robust_least_squares(residuals, np.zeros(2), f_scale=scale,
+                               max_nfev=10 * max_iterations)
     return norm.epipole_to_pixels(point(sol.x))
