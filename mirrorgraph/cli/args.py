@@ -37,7 +37,9 @@ FLAGS = {"intrinsics": "--intrinsics FILE", "image_size": "--image-size WxH",
          "seed": "--seed N", "fps": "--fps HZ", "video": "--video FILE",
          "render": "--render OUT.mp4", "workers": "--workers N",
          "scheduler": "--scheduler ADDRESS", "joints3d": "--joints3d FILE",
-         "save": "--save OUT.rrd"}
+         "save": "--save OUT.rrd", "start": "--start N", "end": "--end N",
+         "every": "--every N", "pose_model": "--pose-model FILE.onnx",
+         "det_model": "--det-model FILE.onnx"}
 
 
 def error_message(exc: BaseException) -> str:

