@@ -28,7 +28,6 @@ from ..result.mirror import Calibration
 from ..completion import complete_mirror_joints
 from ..errors import DegenerateGeometryError, InputError
 from ..initial.estimators import estimate_mirror
-from ..graph.options import RefineOptions
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
@@ -144,6 +143,65 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     """
     opts = (options or CalibrateOptions()).checked()
     step = progress or (lambda _name: None)
+    obs = observe(keypoints, intrinsics, opts, step)                        # observations
+    init = initialise(obs, opts, step, ransac_progress)                     # initialisation
+    run = _initial_run(obs, init, opts)
+    if opts.refine:                             # solve, completion, scale (_refine)
+        step("factor-graph refinement")
+        # without intrinsics the focal length and principal point are always variables of
+        # the graph: about the 60 deg guess with a wide prior (estimated), or about the
+        # user's field of view with that guess's own spread (--fov)
+        _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
+                focal_rel_sigma=None if focal_estimated(opts) else
+                opts.graph.focal.guess_rel_sigma)
+    elif opts.subject_height is not None:
+        run.calibration.warnings.append(
+            "subject_height needs the refinement (it scales the body); without it the "
+            "distance stays unknown")
+    calib = run.calibration                                                 # result
+    rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
+                                 calib.distance if calib.distance is not None else 1.0)
+            if opts.refine else float("nan"))
+    est = init.estimate
+    judge_mirror(calib, est.residuals[est.inliers],
+                 motion_px(obs.paired, obs.joints, opts.min_confidence), init.check, rays)
+    return run
+
+
+@dataclass
+class Observations:
+    """A single mirror's observations, ready for the initialisation (:func:`observe`).
+
+    Attributes:
+        keypoints: the input as read (raw pixels).
+        data: the same, undistorted with ``intrinsics``.
+        paired: person and reflection paired, the reflection's labels in the person's.
+        joints: ``(k,)`` the joints the run uses.
+        intrinsics: the camera's (given, or the field-of-view guess).
+        fps, fps_source: the frame rate of the 3D motion and where it came from.
+        pairing: the pairing's options (threshold, confidence, seed).
+        warnings: what reading them found worth saying.
+        seconds: the pairing's wall time.
+    """
+
+    keypoints: RawDetections | PairedKeypoints
+    data: RawDetections | PairedKeypoints
+    paired: PairedKeypoints
+    joints: np.ndarray
+    intrinsics: Intrinsics
+    fps: float
+    fps_source: str
+    pairing: PairingOptions
+    warnings: list[str]
+    seconds: float
+
+
+def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
+            intrinsics: Intrinsics | None, opts: CalibrateOptions,
+            step: Callable[[str], None] = lambda _name: None) -> Observations:
+    """Read the keypoints, resolve the joints, frame rate and intrinsics, undistort, and
+    pair person and reflection (:mod:`mirrorgraph.initial.pairing`): the observations of
+    the rig of one camera and one mirror."""
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
         step("reading keypoints")
         keypoints = read_keypoints(keypoints, skeleton=opts.skeleton, video=opts.detection)
@@ -164,10 +222,48 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         paired = fix_left_right(data, joints, pair_opts)
     else:
         paired = pair_detections(data, joints, pair_opts)
+    return Observations(keypoints, data, paired, joints, intr, fps, fps_source, pair_opts,
+                        warnings, time.perf_counter() - clock)
 
-    t_pairing = time.perf_counter() - clock
+
+@dataclass
+class Initial:
+    """A single mirror's initialisation (:func:`initialise`).
+
+    Attributes:
+        estimate: the robust estimator's mirror (:func:`mirrorgraph.initial.estimators.
+            estimate_mirror`), over the pairs ``pairs``.
+        valid: ``(T, J)`` the pairs offered (both seen above the confidence, run joints).
+        pairs: ``(t_idx, j_idx)`` of the offered pairs, in ``estimate``'s order.
+        inliers: ``(T, J)`` the pairs it kept.
+        candidates: ``(T, J)`` the pairs handed to the graph (:data:`REFINE_GATE_FACTOR`).
+        check: the verdict on the reflection
+            (:func:`mirrorgraph.initial.reflection_check.check_reflection`).
+        seconds: wall time.
+    """
+
+    estimate: object
+    valid: np.ndarray
+    pairs: tuple[np.ndarray, np.ndarray]
+    inliers: np.ndarray
+    candidates: np.ndarray
+    check: object
+    seconds: float
+
+
+def initialise(obs: Observations, opts: CalibrateOptions,
+               step: Callable[[str], None] = lambda _name: None,
+               ransac_progress: Callable[[int, int], None] | None = None) -> Initial:
+    """The first mirror from the pairs alone: the reflective RANSAC (or the estimator
+    ``opts`` names) and the check that the reflection is no second person.
+
+    Raises:
+        DegenerateGeometryError: too few pairs, too few agreeing on one mirror, or a second
+            person where the reflection should be.
+    """
+    paired = obs.paired
     valid = paired.valid(opts.min_confidence)
-    valid[:, np.setdiff1d(np.arange(paired.skeleton.num_joints), joints)] = False
+    valid[:, np.setdiff1d(np.arange(paired.skeleton.num_joints), obs.joints)] = False
     t_idx, j_idx = np.nonzero(valid)
     if len(t_idx) < MIN_PAIRS:
         raise DegenerateGeometryError(
@@ -178,7 +274,7 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     step(f"initial estimate ({opts.estimator})")
     clock = time.perf_counter()
     try:
-        est = estimate_mirror(u, um, intr.K, estimator=opts.estimator,
+        est = estimate_mirror(u, um, obs.intrinsics.K, estimator=opts.estimator,
                               threshold_px=opts.threshold_px, seed=opts.seed,
                               progress=ransac_progress)
     except DegenerateGeometryError as exc:
@@ -188,61 +284,45 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     gate = est.residuals < REFINE_GATE_FACTOR * opts.threshold_px
     candidates = np.zeros_like(valid)
     candidates[t_idx[gate], j_idx[gate]] = True
-    t_init = time.perf_counter() - clock
+    seconds = time.perf_counter() - clock
     if np.count_nonzero(inliers) < MIN_PAIRS:
         raise DegenerateGeometryError(
             f"{paired.source}: only {np.count_nonzero(inliers)} pairs agree on one mirror "
             f"within {opts.threshold_px:g} px: the reflection may be another person, or the "
             "threshold too tight")
-    scores = frame_scores(data, est.epipole, joints, pair_opts,
+    scores = frame_scores(obs.data, est.epipole, obs.joints, obs.pairing,
                           quantile=(0.5, GREY_QUANTILE))
     check = check_reflection(scores[0], opts.threshold_px, scores[1])
     if check.verdict == "second_person":
         raise DegenerateGeometryError(f"{paired.source}: {check.describe()}")
-    frames_paired = int(np.count_nonzero(valid.any(1)))
+    return Initial(est, valid, (t_idx, j_idx), inliers, candidates, check, seconds)
+
+
+def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> CalibrationRun:
+    """The run's record after the initialisation: the :class:`Calibration` of the initial
+    mirror (no scale yet) and what the later steps need."""
+    paired, est, inliers, joints = obs.paired, init.estimate, init.inliers, obs.joints
     calib = Calibration(
         normal=est.normal, distance=None, scale="unknown", estimator=opts.estimator,
-        intrinsics=intr, initial_normal=est.normal.copy(), refined=False,
-        frames_read=paired.frames_read or len(paired), frames_paired=frames_paired,
-        frames_used=int(np.count_nonzero(inliers.any(1))), pairs_total=int(len(t_idx)),
+        intrinsics=obs.intrinsics, initial_normal=est.normal.copy(), refined=False,
+        frames_read=paired.frames_read or len(paired),
+        frames_paired=int(np.count_nonzero(init.valid.any(1))),
+        frames_used=int(np.count_nonzero(inliers.any(1))), pairs_total=int(len(init.pairs[0])),
         pairs_used=int(np.count_nonzero(inliers)), lr_fixes=paired.lr_fixes,
         ransac_iterations=est.iterations,
         input={"source": paired.source, "format": paired.format,
                "skeleton": paired.skeleton.name,
                "joints": [paired.skeleton.joints[j] for j in joints],
                "min_confidence": opts.min_confidence, "threshold_px": opts.threshold_px,
-               "seed": opts.seed, "fps": fps, "fps_source": fps_source,
-               "subject_height": opts.subject_height, "scale_from": _scale_from(opts),
-               "read_notes": keypoints.read_notes.as_dict()},
-        warnings=warnings)
-    run = CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
-                         candidates=candidates, fps=fps, fps_source=fps_source,
-                         timings={"pairing": t_pairing, "initialisation": t_init})
-    residual_median = float(np.median(est.residuals[est.inliers]))
-    calib.refinement = {"initial_epipolar_median_px": residual_median}
-    calib.input["reflection_check"] = check.to_dict()
-    if opts.refine:
-        step("factor-graph refinement")
-        # without intrinsics the focal length and principal point are always variables of
-        # the graph: about the 60 deg guess with a wide prior (estimated), or about the
-        # user's field of view with that guess's own spread (--fov)
-        _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
-                focal_rel_sigma=None if focal_estimated(opts) else
-                (opts.refine_options or RefineOptions()).focal.guess_rel_sigma)
-    elif opts.subject_height is not None:
-        warnings.append("--subject-height needs the refinement (it scales the body); "
-                        "without it the distance stays unknown")
-    rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
-                                 calib.distance if calib.distance is not None else 1.0)
-            if opts.refine else float("nan"))
-    judge_mirror(calib, est.residuals[est.inliers],
-                 motion_px(paired, joints, opts.min_confidence), check, rays)
-    return run
-
-
-def _scale_from(opts: CalibrateOptions) -> str:
-    """How a subject height becomes a length (``RefineOptions.scale_from``)."""
-    return (opts.refine_options or RefineOptions()).scale_from
+               "seed": opts.seed, "fps": obs.fps, "fps_source": obs.fps_source,
+               "subject_height": opts.subject_height, "scale_from": opts.graph.scale_from,
+               "read_notes": obs.keypoints.read_notes.as_dict()},
+        warnings=obs.warnings)
+    calib.refinement = {"initial_epipolar_median_px": float(np.median(est.residuals[est.inliers]))}
+    calib.input["reflection_check"] = init.check.to_dict()
+    return CalibrationRun(calibration=calib, paired=paired, inliers=inliers, joints=joints,
+                          candidates=init.candidates, fps=obs.fps, fps_source=obs.fps_source,
+                          timings={"pairing": obs.seconds, "initialisation": init.seconds})
 
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,

@@ -109,23 +109,58 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     say = progress or (lambda s: None)
     seed, joints = run.seed, run.joints
 
-    obs = load_observations(cfg, skeleton=run.skeleton,
+    obs = load_observations(cfg, skeleton=run.skeleton,                   # observations
                             progress=lambda name: say(f"reading camera {name}"),
                             video=run.detection, frame_progress=frame_progress,
                             estimate_focal=estimate_focal, fov_deg=run.fov_deg)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
-    say("initialising: camera pairs, mirrors, spanning tree")
+    say("initialising: camera pairs, mirrors, spanning tree")               # initialisation
     init = initialise_rig(obs, H, seed=seed, joints=used_joints, estimate_focal=estimate_focal)
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
-    say("refining the rig in one factor graph")
+    say("refining the rig in one factor graph")                             # solve
     sol = solve_rig(rig, opts, H, progress=iteration_progress)
-    sol = complete_rig_joints(obs, sol, opts.outlier_threshold)
-    sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H, opts.scale_from)
+    sol = complete_rig_joints(obs, sol, opts.outlier_threshold)            # completion
+    sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,  # scale
+                                                      opts.scale_from)
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
+    cameras, mirrors = _records(obs, init, sol, run, warnings)              # result
+    warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
+                          sol.view_observed, init.mirror_spread_deg)
+    initialisation = {
+        "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
+                   "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],
+        "spanning_tree": [list(e) for e in init.tree],
+        "mirror_sightings": [{"camera": c, "mirror": m, "inliers": s.inliers}
+                             for (c, m), s in init.sightings.items()],
+        "mirror_spread_deg": init.mirror_spread_deg,
+    }
+    refinement = {"joints": {"direct": [obs.skeleton.joints[j] for j in used_joints[0]],
+                             "through_mirrors": [obs.skeleton.joints[j] for j in used_joints[1]]},
+                  "iterations": sol.iterations, "rejected_observations": sol.rejected,
+                  "priors": sol.priors,
+                  "views": {v: {"rms_px": r, "observations": k, "offered": n}
+                            for v, r, k, n in zip(sol.view_names, sol.view_rms_px,
+                                                  sol.view_counts, sol.view_observed)}}
+    refinement["stature"] = stature.to_dict() if stature is not None else None
+    return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+                          scale_source=scale_source,
+                          skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
+                          joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
+                          initialisation=initialisation, refinement=refinement,
+                          sensitivity=sol.sensitivity,
+                          warnings=warnings, source=str(cfg.source))
+
+
+def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str]
+             ) -> tuple[list[RigCamera], list[RigMirror]]:
+    """The result's cameras and mirrors from the solution: poses, intrinsics (an estimated
+    focal length's record and warnings), stds (with the scale's own uncertainty), residuals.
+    """
+    height, opts = run.subject_height, run.graph
     # with a subject height the metric scale rests on the subject's proportions where the
     # stature is not measured (or on the limbs'), the detector and the height itself: a
     # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
@@ -144,7 +179,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
             sol.focal[c.name]["initial"] = init.focals.get(c.name)
             intr = estimated_intrinsics(c.intrinsics, sol.intrinsics[i], sol.focal[c.name],
                                         run.fov_deg, warnings, camera=c.name,
-                                        user_guess=not estimate_focal)
+                                        user_guess=not run.estimate_focal)
         cameras.append(RigCamera(name=c.name, intrinsics=intr, pose=np.asarray(pose),
                                  rotation_std_deg=rot, position_std=pos,
                                  marginal_rotation_std_deg=camera_std(mcov, pose)[0],
@@ -168,27 +203,4 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                                  seen_by=seen_by,
                                  views_rms_px={c: rms.get(f"{c}/{name}", float("nan"))
                                                for c in seen_by}))
-    warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
-                          sol.view_observed, init.mirror_spread_deg)
-    initialisation = {
-        "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
-                   "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],
-        "spanning_tree": [list(e) for e in init.tree],
-        "mirror_sightings": [{"camera": c, "mirror": m, "inliers": s.inliers}
-                             for (c, m), s in init.sightings.items()],
-        "mirror_spread_deg": init.mirror_spread_deg,
-    }
-    refinement = {"joints": {"direct": [obs.skeleton.joints[j] for j in used_joints[0]],
-                             "through_mirrors": [obs.skeleton.joints[j] for j in used_joints[1]]},
-                  "iterations": sol.iterations, "rejected_observations": sol.rejected,
-                  "priors": sol.priors,
-                  "views": {v: {"rms_px": rms[v], "observations": counts[v], "offered": n}
-                            for v, n in zip(sol.view_names, sol.view_observed)}}
-    refinement["stature"] = stature.to_dict() if stature is not None else None
-    return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
-                          scale_source=scale_source,
-                          skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
-                          joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
-                          initialisation=initialisation, refinement=refinement,
-                          sensitivity=sol.sensitivity,
-                          warnings=warnings, source=str(cfg.source))
+    return cameras, mirrors
