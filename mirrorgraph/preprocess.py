@@ -168,7 +168,7 @@ def resolve_fps(data: RawDetections | PairedKeypoints, warnings: list[str], *,
         if isinstance(f, bool) or not isinstance(f, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(float(f)) and float(f) > 0):
             raise InputError(f"frame rate must be a positive number, got {f!r}", field="fps")
-        given.append((float(f), "option", "--fps"))
+        given.append((float(f), "option", "fps"))
     if data.fps is not None and math.isfinite(float(data.fps)) and float(data.fps) > 0:
         given.append((float(data.fps), "input", f"the input ({data.source})"))
     if video is not None:

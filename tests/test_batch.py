@@ -151,7 +151,7 @@ def test_calibrate_recording_without_dask(scenes, tmp_path):
     res = calibrate_recording(good, FAST)
     check_good(res, scenes / "gym")
     assert res.out == str(good.out) and res.distance is None
-    assert any("subject-height" in w for w in res.warnings)     # needs the refinement
+    assert any("subject_height" in w for w in res.warnings)     # needs the refinement
     # beside it, the run its report draws from
     from mirrorgraph.report import load_run
     assert json.loads(good.out.read_text())["report_data"] == "gym.report.npz"
