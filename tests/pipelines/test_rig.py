@@ -432,3 +432,30 @@ def test_an_image_size_that_disagrees_with_the_keypoints_is_reported(tmp_path):
     assert cam04.startswith("camera cam04: the rig file's image_size state") \
         and f"{w}x{h - 8} image" in cam04 and f"cam04_json) {w}x{h};" in cam04
     assert all("\n" not in x for x in about_size)
+
+
+def test_a_single_mirror_calibrates_as_the_rig_of_one_camera(tmp_path):
+    """The single mirror is the rig of one camera and one mirror: its keypoints and camera
+    given to ``calibrate_rig`` as a one-camera rig file find the same mirror as
+    ``calibrate`` does, each within its std of the truth and of the other
+    (bench/bench_one_camera_rig.py: 30 of 30 wide scenes)."""
+    import mirrorgraph as mg
+    from mirrorgraph.metrics import mirror_rotation_error_deg, normal_angle_deg
+    from mirrorgraph.synth import make_wide_scene, write_scene
+
+    s = make_wide_scene(6, frames=300)
+    write_scene(s, tmp_path, formats=("mmpose",))
+    (tmp_path / "rig.toml").write_text(
+        f'subject_height = {s.subject_height}\n[[cameras]]\nname = "camera"\n'
+        'keypoints = "keypoints_mmpose.json"\nintrinsics = "camera.json"\nmirrors = ["mirror"]\n'
+        '[[mirrors]]\nname = "mirror"\n')
+    one = mg.calibrate(tmp_path / "keypoints_mmpose.json", s.intrinsics,
+                       mg.CalibrateOptions(subject_height=s.subject_height)).calibration
+    rig = mg.calibrate_rig(tmp_path / "rig.toml")
+    m = rig.mirrors[0]
+    std = np.hypot(one.uncertainty["rotation_std_deg"], m.rotation_std_deg)
+    assert 2 * normal_angle_deg(one.normal, m.normal) < 2 * std
+    assert mirror_rotation_error_deg(m.normal, s.normal) < 3 * m.rotation_std_deg
+    assert abs(m.distance / s.distance - 1) < 0.02 and abs(m.distance / one.distance - 1) < 0.02
+    view = rig.mirror_view()                  # and back: the rig's view is a Calibration
+    np.testing.assert_allclose(view.normal, m.normal, atol=1e-12)
