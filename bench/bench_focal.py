@@ -40,6 +40,15 @@ Sections of ``bench/RESULTS_focal.md``:
    assumption alone costs), and with ``principal_point`` estimated too.
 7. **Targets**: the issue's, each against its measurement above.
 
+By default only issue 23's section runs (``--issue17`` adds the sections above): scenes
+given the image size alone, what the output reports against the truth: per scene the
+rotation's, the mirror distance's (``uncertainty.distance_std``) and the focal length's
+(``uncertainty.focal_std_px``) |error| / reported std, summarised as median, scenes above
+2 and above 4, largest, share within 2 std (issue 24). A before column on the same scenes:
+run this script against another checkout (``MIRRORGRAPH_ROOT=/path/to/tree``; the section
+imports only names that tree has too) with ``--no-write --json FILE``, then
+``--report-only AFTER.json ... --before FILE[,FILE] --before-label WHAT``.
+
 Writes ``bench/RESULTS_focal.md`` and ``bench/RESULTS_focal.json`` unless ``--no-write``.
 """
 
@@ -54,6 +63,7 @@ import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
+import shlex  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -69,14 +79,12 @@ for _p in (Path(os.environ.get("MIRRORGRAPH_ROOT", ROOT)), ROOT / "bench"):
 
 from results_blocks import machine  # noqa: E402
 
+# Issue 23's section imports only names every checkout it compares has (the package's
+# top level, graph.options, intrinsics, io, metrics, synth): the graph's internals, whose
+# modules moved (#25: pipelines/solve.py was graph/refine.py), only where issue 17 needs them.
 import mirrorgraph as mg  # noqa: E402
 from mirrorgraph.graph import RefineOptions  # noqa: E402
-from mirrorgraph.graph.builder import build_problem  # noqa: E402
 from mirrorgraph.graph.options import FocalOptions  # noqa: E402
-from mirrorgraph.pipelines.solve import prepare  # noqa: E402
-from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov  # noqa: E402
-from mirrorgraph.graph.sandwich import gauge_inverse  # noqa: E402
-from mirrorgraph.graph.scores import frame_scores  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg, rotation_error_deg  # noqa: E402
 from mirrorgraph.synth import make_scene, make_wide_scene  # noqa: E402
 
@@ -105,6 +113,11 @@ def focal_bound(scene, *, bias_limit: float | None = 1.0, joints3d: np.ndarray |
         ``{"f_rel", "rot_deg", "bones"}``: the focal length's relative std, the virtual
         camera's RMS rotation std (deg), the bone factors used; inf where singular.
     """
+    from mirrorgraph.graph.builder import build_problem
+    from mirrorgraph.graph.result import normal_cov_from_tangent, rotation_std_from_normal_cov
+    from mirrorgraph.graph.sandwich import gauge_inverse
+    from mirrorgraph.graph.scores import frame_scores
+    from mirrorgraph.pipelines.solve import prepare
     p = scene.paired()
     X = np.asarray(scene.joints3d if joints3d is None else joints3d, float)
     if frames is not None:
@@ -150,6 +163,8 @@ def known_bound(scene) -> float:
 def reprojection_only_singular(scene) -> dict:
     """The graph's information of the reprojection terms alone, focal length unknown:
     its smallest eigenvalue against its largest (Jacobi-scaled), and what the bones add."""
+    from mirrorgraph.graph.builder import build_problem
+    from mirrorgraph.pipelines.solve import prepare
     p = scene.paired()
     opts = RefineOptions(robust_kernel=None, pixel_sigma=float(scene.options["noise_std"]),
                          use_bone_length=False, subject_height=None)
@@ -548,6 +563,14 @@ def honest_case(sc: dict) -> dict:
                if cal.distance else float("nan"),
                "dist_std_rel": float((u.get("distance_std") or np.nan) / cal.distance)
                if cal.distance else float("nan"),
+               # the figures as the output states them: calibration.distance (m) and
+               # uncertainty.distance_std, uncertainty.focal_std_px (absent: not estimated)
+               "dist_m": float(cal.distance) if cal.distance else float("nan"),
+               "dist_std_m": float(u["distance_std"]) if u.get("distance_std") is not None
+               else float("nan"),
+               "f_px": float(cal.intrinsics.K[0, 0]),
+               "focal_std_px": float(u["focal_std_px"]) if u.get("focal_std_px") is not None
+               else float("nan"),
                "warnings": list(cal.warnings)}
         est = cal.intrinsics.estimated
         if est is not None:
@@ -565,6 +588,37 @@ def honest_case(sc: dict) -> dict:
     return out
 
 
+def ratio_stats(z) -> dict:
+    """The summary of |error| / reported std over scenes: median, how many above 2 and
+    above 4 (\"confidently wrong\"), the largest, the share within 2 std (about 95 % for an
+    honest Gaussian std). A missing or zero std counts as an infinite ratio."""
+    z = np.array([np.inf if x is None or np.isnan(x) else x for x in z], float)
+    return {"n": int(len(z)), "median": float(np.median(z)) if len(z) else float("nan"),
+            "over2": int(np.sum(z > 2)), "over4": int(np.sum(z > 4)),
+            "max": float(np.max(z)) if len(z) else float("nan"),
+            "within2": float(np.mean(z <= 2)) if len(z) else float("nan")}
+
+
+def scene_ratios(r: dict, which: str = "size") -> dict:
+    """One scene's |error| / reported std as the output states them: the mirror's
+    rotation (``rotation_std_deg``), its distance (``calibration.distance`` against the
+    truth, ``uncertainty.distance_std``) and the focal length (``K[0, 0]`` against the
+    truth, ``uncertainty.focal_std_px``); ``nan`` where the run failed, ``inf`` where the
+    output states no std or a zero one."""
+    v = r.get(which, {})
+    if "rot_err_deg" not in v:
+        return {"rot": np.nan, "dist": np.nan, "focal": np.nan}
+
+    def q(err, std):
+        return abs(err) / std if std is not None and np.isfinite(std) and std > 0 else np.inf
+    out = {"rot": q(v["rot_err_deg"], v["rot_std_deg"]),
+           "dist": q(v["dist_rel_err"] * r["distance"], v.get("dist_std_m",
+                                                             v["dist_std_rel"] * r["distance"]))}
+    out["focal"] = (q(v["f_px"] - r["f_true"], v.get("focal_std_px")) if "f_px" in v and
+                    which == "size" else np.nan)
+    return out
+
+
 def honest_summary(rows: list[dict]) -> dict:
     ok = [r for r in rows if "rot_err_deg" in r.get("size", {}) and "rot_err_deg" in r.get("known", {})]
     S = [r["size"] for r in ok]
@@ -574,7 +628,9 @@ def honest_summary(rows: list[dict]) -> dict:
     kratio = np.array([k["rot_err_deg"] / k["rot_std_deg"] if k["rot_std_deg"] > 0 else np.inf
                        for k in Kn])
     det = [s for s in S if s.get("determined")]
-    fr = np.array([abs(s["f_rel_err"]) / s["f_std_rel"] if s["f_std_rel"] > 0 else np.inf
+    # |error| / std in px: the error is relative to the truth, the std to the estimate
+    fr = np.array([abs(s["f_rel_err"]) / ((1 + s["f_rel_err"]) * s["f_std_rel"])
+                   if s["f_std_rel"] > 0 else np.inf
                    for s in S])
     return {
         "scenes": len(rows), "solved": len(ok),
@@ -596,27 +652,119 @@ def honest_summary(rows: list[dict]) -> dict:
         "within90_known": float(np.mean([k["rot_err_deg"] <= k["rot90_deg"] for k in Kn])) if Kn else np.nan,
         "dist_err_median": _med([abs(s["dist_rel_err"]) for s in S]),
         "dist_err_median_known": _med([abs(k["dist_rel_err"]) for k in Kn]),
-        "dist_ratio_median": _med([abs(s["dist_rel_err"]) / s["dist_std_rel"] for s in S]),
+        "dist_ratio_median": _med([abs(s["dist_rel_err"]) / ((1 + s["dist_rel_err"])
+                                                             * s["dist_std_rel"]) for s in S]),
         "from_guess": int(sum(bool(s.get("f_std_from_guess")) for s in S)),
+        # error / reported std as the output states it (scene_ratios), image size only
+        # and, for the distance, the true intrinsics
+        **({"z_" + k: ratio_stats([scene_ratios(r)[k] for r in ok])
+            for k in ("rot", "dist", "focal")} if ok and "dist_std_m" in ok[0]["size"] else {}),
+        **({"z_dist_known": ratio_stats([scene_ratios(r, "known")["dist"] for r in ok])}
+           if ok and "dist_std_m" in ok[0]["known"] else {}),
         "failed": [(r["index"], r.get("size", {}).get("failed") or r.get("known", {}).get("failed"))
                    for r in rows if r not in ok],
     }
 
 
-def _row_line(r: dict) -> str:
+def _row_line(r: dict, before: dict | None = None) -> str:
     k, s = r.get("known", {}), r.get("size", {})
     if "rot_err_deg" not in s or "rot_err_deg" not in k:
         return (f"| {r['index']} | {r['kind']} | | | | failed: "
-                f"{s.get('failed') or k.get('failed')} | | | | |")
+                f"{s.get('failed') or k.get('failed')} | | | | | | | | |")
     c = s.get("contributions") or {}
     top = max(c, key=c.get) if c else "–"
+    z = scene_ratios(r)
+    zb = scene_ratios(before) if before is not None else None
     return (f"| {r['index']} | {r['kind']} | {r['f_true']:.0f} | "
             f"{r['pp_offset_px'][0]:+.0f}, {r['pp_offset_px'][1]:+.0f} | {r['angle_deg']:.0f} | "
             f"{100 * s['f_rel_err']:+.1f} ({_pct(s['f_std_rel'])}{'' if s.get('determined') else ', undetermined'}) | "
             f"{s['rot_err_deg']:.2f} / {s['rot_std_deg']:.2f} / {s['rot90_deg']:.2f} | "
             f"{_f(s['rot_err_deg'] / s['rot_std_deg'])} | "
             f"{k['rot_err_deg']:.3f} / {k['rot_std_deg']:.3f} | "
-            f"{top.replace('_', ' ')} {_pct(c.get(top, np.nan), 0)} % |")
+            f"{top.replace('_', ' ')} {_pct(c.get(top, np.nan), 0)} % | "
+            f"{r['distance']:.2f} | {100 * s['dist_rel_err']:+.1f} ({_pct(s['dist_std_rel'])}) | "
+            f"{_f(z['dist'])} | {_f(z['focal'])} | "
+            + (f"{_f(zb['dist'])} / {_f(zb['focal'])} |" if zb is not None else "– |"))
+
+
+def _z_cell(t: dict | None, key: str) -> str:
+    if not t or key not in t:
+        return "– | – | – | – | – |"
+    z = t[key]
+    return (f"{_f(z['median'])} | {z['over2']} | {z['over4']} | {_f(z['max'])} | "
+            f"{_pct(z['within2'], 0)} % |")
+
+
+def honest_z_report(data: dict) -> list[str]:
+    """Issue 24: the mirror's distance and the focal length, |error| / the std the output
+    reports, before against after on the same scenes, and the worst scenes after."""
+    s, b = data["honest_summary"], data.get("honest_before_summary")
+    if "z_dist" not in s:
+        return []
+    label = data.get("before_label", "before")
+    a = data.get("honest_after_common_summary") or s
+    L = ["### The mirror's distance and the focal length: error / reported std, before and "
+         "after (issue 24)", "",
+         "Each scene's |error| / the standard deviation the output states: the rotation "
+         "(`rotation_std_deg`), the mirror's distance (`calibration.distance` against the "
+         "truth, `uncertainty.distance_std`; the subject's height given) and the focal length "
+         "(`K[0, 0]` against the truth, `uncertainty.focal_std_px`). A std that covers the "
+         "error: median about 0.67, about 5 % of scenes above 2, none above 4 (*confidently "
+         "wrong*). " + (f"Before: {label}, on the same scenes ({b['solved']} of them); "
+                        f"after: {data.get('after_label', 'this checkout')}." if b else ""), "",
+         "| figure | code | scenes | median | > 2 | > 4 | largest | within 2 std |",
+         "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for key, name in (("z_dist", "distance, image size only"),
+                      ("z_focal", "focal length, image size only"),
+                      ("z_rot", "rotation, image size only"),
+                      ("z_dist_known", "distance, true intrinsics")):
+        if b is not None:
+            L.append(f"| {name} | before | {b.get(key, {}).get('n', '–')} | {_z_cell(b, key)}")
+        L.append(f"| {name} | after | {a.get(key, {}).get('n', '–')} | {_z_cell(a, key)}")
+    L.append("")
+    before = {str(r["index"]): r for r in data.get("honest_before", [])}
+    ok = [r for r in data["honest"] if "rot_err_deg" in r.get("size", {})]
+    worst = sorted(ok, key=lambda r: -max(scene_ratios(r)["dist"], scene_ratios(r)["focal"]))
+    worst = [r for r in worst if max(scene_ratios(r)["dist"], scene_ratios(r)["focal"]) > 2][:20]
+    if worst:
+        L += ["The scenes whose distance or focal length is beyond 2 std after (the largest "
+              "first; the focal std `uncertainty.focal_std_px`, the distance std "
+              "`uncertainty.distance_std`):", "",
+              "| scene | generator | focal px | focal error % (std %), after | focal error / "
+              "std: before / after | distance m | distance error % (std %): before / after | "
+              "distance error / std: before / after |",
+              "|---|---|---:|---|---|---:|---|---|"]
+        for r in worst:
+            v, z = r["size"], scene_ratios(r)
+            rb = before.get(str(r["index"]))
+            vb = rb.get("size", {}) if rb else {}
+            zb = scene_ratios(rb) if rb else {"dist": np.nan, "focal": np.nan}
+            fs = v["focal_std_px"] / v["f_px"] if np.isfinite(v["focal_std_px"]) else np.nan
+            L.append(f"| {r['index']} | {r['kind']} | {r['f_true']:.0f} | "
+                     f"{100 * v['f_rel_err']:+.1f} ({_pct(fs)}"
+                     f"{'' if v.get('determined') else ', undetermined'}) | "
+                     f"{_f(zb['focal'])} / {_f(z['focal'])} | {r['distance']:.2f} | "
+                     + (f"{100 * vb['dist_rel_err']:+.1f} ({_pct(vb['dist_std_rel'])})"
+                        if 'dist_rel_err' in vb else "–")
+                     + f" / {100 * v['dist_rel_err']:+.1f} ({_pct(v['dist_std_rel'])}) | "
+                     f"{_f(zb['dist'])} / {_f(z['dist'])} |")
+        L.append("")
+    zs = [(r, scene_ratios(r)) for r in ok]
+    far = [(r, z) for r, z in zs if z["dist"] > 4]
+    if far:
+        both = [(r, z) for r, z in far if z["focal"] > 4]
+        det = sum(bool(r["size"].get("determined")) for r, _ in far)
+        ratio = [(1 + r["size"]["dist_rel_err"]) / (1 + r["size"]["f_rel_err"]) for r, _ in far]
+        names = ", ".join(str(r["index"]) for r, _ in both)
+        L += [f"**Still confidently wrong about the distance: {len(far)} scenes**, "
+              f"{len(both)} of them with the focal length itself beyond 4 std ({names}); "
+              f"{det} of the {len(far)} are focal lengths the output calls determined. The "
+              "distance's std is at least the focal length's relative std (depth ~ f), and "
+              "the distance's error mostly follows the focal length's (estimated / true distance "
+              "over estimated / true focal length: "
+              + ", ".join(f"{x:.2f}" for x in ratio) + "): where the focal length's own "
+              "std is too thin, so is the distance's.", ""]
+    return L
 
 
 def honest_report(data: dict) -> list[str]:
@@ -642,9 +790,10 @@ def honest_report(data: dict) -> list[str]:
          f"{_f(s['rot_std_median'], '{:.3f}')} | {_f(s['ratio_median'])} | {_f(s['ratio_max'])} | "
          f"{s['over4']} | {_pct(s['within90'], 0)} % | {_pct(s['dist_err_median'])} % | "
          f"{_f(s['f_ratio_median'])} (largest {_f(s['f_ratio_max'])}) |",
-         ] + ([f"| image size only, before (`main`) | {_pct(b0['f_err_median'])} % "
+         ] + ([f"| image size only, before ({data.get('before_label', 'before')}) | "
+               f"{_pct(b0['f_err_median'])} % "
                f"({_pct(b0['f_err_median_determined'])} % on the {b0['determined']} it called "
-               f"determined, the guess kept on the others) | {_f(b0['rot_err_median'], '{:.3f}')} | "
+               f"determined) | {_f(b0['rot_err_median'], '{:.3f}')} | "
                f"{_f(b0['rot_std_median'], '{:.3f}')} | {_f(b0['ratio_median'])} | "
                f"{_f(b0['ratio_max'])} | {b0['over4']} | {_pct(b0['within90'], 0)} % | "
                f"{_pct(b0['dist_err_median'])} % | {_f(b0['f_ratio_median'])} |"]
@@ -655,6 +804,7 @@ def honest_report(data: dict) -> list[str]:
          f"{_pct(s['dist_err_median_known'])} % | – |", ""]
     if s["failed"]:
         L += ["Failed: " + "; ".join(f"{i}: {m}" for i, m in s["failed"]), ""]
+    L += honest_z_report(data)
     by = {}
     for r in rows:
         by.setdefault(r["kind"].split(" (")[0], []).append(r)
@@ -691,9 +841,12 @@ def honest_report(data: dict) -> list[str]:
         L.append("")
     L += ["| scene | generator | focal px | principal point off px | mirror angle deg | "
           "focal error % (std %) | rotation error / std / 90 % deg | error / std | "
-          "known: error / std deg | largest share of the rotation's variance |",
-          "|---|---|---:|---|---:|---|---|---:|---|---|"]
-    L += [_row_line(r) for r in rows]
+          "known: error / std deg | largest share of the rotation's variance | distance m | "
+          "distance error % (std %) | distance error / std | focal error / std | "
+          "before: distance / focal error / std |",
+          "|---|---|---:|---|---:|---|---|---:|---|---|---:|---|---:|---:|---|"]
+    before = {str(r["index"]): r for r in data.get("honest_before", [])}
+    L += [_row_line(r, before.get(str(r["index"]))) for r in rows]
     L.append("")
     return L
 
@@ -706,14 +859,20 @@ def honest_targets(data: dict) -> list[str]:
     pairs = [(after[str(r["index"])], r.get("known", {})) for r in data.get("honest_before", [])
              if str(r["index"]) in after and "rot_err_deg" in r.get("known", {})
              and "rot_err_deg" in after[str(r["index"])]]
-    same = sum(a["rot_err_deg"] == k["rot_err_deg"] and a["rot_std_deg"] == k["rot_std_deg"]
-               for a, k in pairs)
-    L = ["## Targets of issue 23", ""]
+    # the same to rounding (another checkout's arithmetic may differ in the last bits)
+    rel = [max(abs(a[q] - k[q]) / max(abs(k[q]), 1e-12) for q in ("rot_err_deg", "rot_std_deg"))
+           for a, k in pairs]
+    same = sum(x <= 1e-6 for x in rel)
+    label = data.get("before_label", "before")
+    L = ["## Targets of issues 23 and 24", ""]
     if b is not None:
-        L += [f"Before: the code of `main` (commit 3bc81c6) on the same scenes "
+        L += [f"Before: {label}, on the same scenes "
               f"({b['solved']} of them: every scene both runs hold; the after column is all "
               f"{s['solved']}).", ""]
-    L += ["| target | before (main) | after | met |",
+
+    def z4(t, key):
+        return (f"{t[key]['over4']} (largest {_f(t[key]['max'])})" if t and key in t else "–")
+    L += ["| target | before | after | met |",
          "|---|---:|---:|:---:|",
          f"| error / reported rotation std, median in [0.5, 2] | "
          f"{_f(b['ratio_median']) if b else '–'} | {_f(s['ratio_median'])} | "
@@ -721,6 +880,11 @@ def honest_targets(data: dict) -> list[str]:
          f"| no scene above 4 | {b['over4'] if b else '–'} scenes (largest "
          f"{_f(b['ratio_max']) if b else '–'}) | {s['over4']} (largest {_f(s['ratio_max'])}) | "
          f"{yes(s['over4'] == 0)} |",
+         f"| no scene's distance error / reported std above 4 (image size only) | "
+         f"{z4(b, 'z_dist')} | {z4(s, 'z_dist')} | "
+         f"{yes(s.get('z_dist', {}).get('over4', 1) == 0)} |",
+         f"| no scene's focal error / reported std above 4 | {z4(b, 'z_focal')} | "
+         f"{z4(s, 'z_focal')} | {yes(s.get('z_focal', {}).get('over4', 1) == 0)} |",
          f"| truth within `rotation_90_deg` in 80-97 % | {_pct(b['within90'], 0) if b else '–'} % | "
          f"{_pct(s['within90'], 0)} % | {yes(0.8 <= s['within90'] <= 0.97)} |",
          f"| focal error median <= 3 % where determined | "
@@ -730,9 +894,10 @@ def honest_targets(data: dict) -> list[str]:
          f"{s['from_guess']} | {yes(s['from_guess'] == 0)} |",
          f"| known intrinsics unchanged | rotation error {_f(b['rot_err_median_known'], '{:.4f}') if b else '–'}, "
          f"std {_f(b['rot_std_median_known'], '{:.4f}') if b else '–'} | "
-         f"{_f(s['rot_err_median_known'], '{:.4f}')}, {_f(s['rot_std_median_known'], '{:.4f}')} | "
-         + (f"{same} of {len(pairs)} scenes bit-identical (normal error and std) | "
-            f"{yes(same == len(pairs))} |" if b else "– | – |"),
+         f"{_f(s['rot_err_median_known'], '{:.4f}')}, {_f(s['rot_std_median_known'], '{:.4f}')}; "
+         + (f"{same} of {len(pairs)} scenes the same to 1e-6 relative (normal error and "
+            f"std; largest difference {max(rel, default=0.0):.1e}) | "
+            f"{yes(same == len(pairs))} |" if b else "– |"),
          ""]
     return L
 
@@ -925,6 +1090,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--before", default=None,
                     help="a RESULTS_focal.json of the same scenes measured on the code before "
                          "(MIRRORGRAPH_ROOT=/path/to/checkout ... --no-write --json FILE)")
+    ap.add_argument("--before-label", default="the code before",
+                    help="what --before measured, for the report (e.g. a commit)")
+    ap.add_argument("--after-label", default="this checkout",
+                    help="what the run (or --report-only's files) measured, for the report")
+    ap.add_argument("--note", default=None,
+                    help="a sentence for the report after the data's provenance (--report-only)")
     ap.add_argument("--json", default=None, help="write the data to this file too")
     ap.add_argument("--issue17", action="store_true",
                     help="also the sections of issue 17 (bounds, end to end, rigs, real trials, "
@@ -946,14 +1117,9 @@ def main(argv: list[str] | None = None) -> int:
         data["honest_summary"] = honest_summary(data["honest"])
         data.setdefault("honest_frames", args.honest_frames)
         if args.before:
-            before = _by_scene([r for f in args.before.split(",")
-                                for r in json.loads(Path(f).read_text())["honest"]])
-            common = {str(r["index"]) for r in before} & {str(r["index"]) for r in data["honest"]}
-            before = [r for r in before if str(r["index"]) in common]
-            data["honest_before_summary"] = honest_summary(before)
-            data["honest_before"] = before
-            data["honest_after_common_summary"] = honest_summary(
-                [r for r in data["honest"] if str(r["index"]) in common])
+            before_parts = [json.loads(Path(f).read_text()) for f in args.before.split(",")]
+            _attach_before(data, [r for p in before_parts for r in p["honest"]], args)
+            data["before_seconds"] = max(float(p.get("seconds", 0.0)) for p in before_parts)
         md = report_honest(data, args, float(data.get("seconds", 0.0)))
         print(md)
         if not args.no_write:
@@ -992,8 +1158,8 @@ def main(argv: list[str] | None = None) -> int:
     data["honest"], data["honest_frames"] = honest, args.honest_frames
     data["honest_summary"] = honest_summary(honest)
     if args.before:
-        before = json.loads(Path(args.before).read_text())
-        data["honest_before_summary"] = honest_summary(before["honest"])
+        _attach_before(data, [r for f in args.before.split(",")
+                              for r in json.loads(Path(f).read_text())["honest"]], args)
     if not args.issue17:
         seconds = time.perf_counter() - t_start
         data["seconds"] = seconds
@@ -1127,6 +1293,19 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _attach_before(data: dict, rows: list[dict], args) -> None:
+    """The before column: the scenes both runs hold (the rows of --before's files)."""
+    before = _by_scene(rows)
+    common = {str(r["index"]) for r in before} & {str(r["index"]) for r in data["honest"]}
+    before = [r for r in before if str(r["index"]) in common]
+    data["before_label"] = args.before_label
+    data["after_label"] = args.after_label
+    data["honest_before_summary"] = honest_summary(before)
+    data["honest_before"] = before
+    data["honest_after_common_summary"] = honest_summary(
+        [r for r in data["honest"] if str(r["index"]) in common])
+
+
 def _by_scene(rows: list[dict]) -> list[dict]:
     """The rows of shards in one order, each scene once: the fixtures, then the scenes
     by index."""
@@ -1149,18 +1328,23 @@ def report_honest(data: dict, args, seconds: float) -> str:
     L = ["# Unknown intrinsics: the focal length and the principal point from the person "
          "(issues 17 and 23)", "",
          f"Machine: {machine()}  ",
-         f"Command: `python bench/bench_focal.py {' '.join(sys.argv[1:])}`  ",
+         f"Command: `python bench/bench_focal.py {shlex.join(sys.argv[1:])}`  ",
          f"Date: {datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {seconds / 60:.0f} min", ""]
     if args.report_only:
-        L += ["The data: `python bench/bench_focal.py --honest-scenes 60 --honest-frames 200 "
-              "--shard I/2 --no-write --json after_sI.json` for I = 0, 1 side by side (this "
-              "branch), the same with `MIRRORGRAPH_ROOT=/path/to/main` and `before_sI.json` "
-              "(the code of `main`, for the before column), joined by the command above; the "
-              "machine shared with other work (load average 12-15 during the runs: the "
-              "minutes are not this benchmark's own).", ""]
+        n = sum(isinstance(r["index"], int) for r in data["honest"])
+        L += [f"The data: `python bench/bench_focal.py --honest-scenes {n} --honest-frames "
+              f"{data['honest_frames']} --shard I/2 --no-write --json after_sI.json` for I = 0, "
+              f"1 side by side ({data.get('after_label', 'this checkout')}"
+              + (f", {data['seconds'] / 60:.0f} min" if data.get("seconds") else "") + ")"
+              + (f", the same script with `MIRRORGRAPH_ROOT=` a tree of {data['before_label']} "
+                 "into `before_sI.json` (the before column"
+                 + (f", {data['before_seconds'] / 60:.0f} min" if data.get("before_seconds")
+                    else "") + ")" if data.get("honest_before") else "")
+              + ", joined by the command above." + (f" {args.note}" if args.note else ""), ""]
     L += ["The sections of issue 17 (what determines the focal length, its Cramer-Rao bound, "
          "rigs, the real trials) are written with `--issue17`; their last figures are in this "
-         "file's history (commit 4cadf82).", ""]
+         "file's history (commit 4cadf82); issue 23's first before-and-after (60 scenes and "
+         "the fixtures, 200 frames, before: `main` at 3bc81c6) in commit 8914127.", ""]
     L += honest_report(data)
     L += honest_targets(data)
     return "\n".join(L) + "\n"
@@ -1170,7 +1354,7 @@ def report(data: dict, args, seconds: float) -> str:
     s = data["summary"]
     L = ["# Unknown intrinsics: the focal length from the person and the reflection (issue 17)", "",
          f"Machine: {machine()}  ",
-         f"Command: `python bench/bench_focal.py {' '.join(sys.argv[1:])}`  ",
+         f"Command: `python bench/bench_focal.py {shlex.join(sys.argv[1:])}`  ",
          f"Date: {datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {seconds / 60:.0f} min", ""]
     L += ["## 1. What determines the focal length", "",
           "The reflective fundamental matrix is `[e]x` with `e ~ K n`: the images fix the "
