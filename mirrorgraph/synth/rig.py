@@ -131,7 +131,8 @@ from .rig_placement import (PERSON, TORSOS_APART, MAX_ATTEMPTS, PERSON_FULL, REF
                             build_2cams1mirror, build_4cams, camera_views, full_fraction,
                             mirror_distances_ok, resolve_rig_ranges)
 from .rig_types import RigBystander, RigView, SyntheticRig, bystander_name
-from .scene import random_camera_matrix, observe_keypoints, check_camera_args
+from .camera import check_camera_args, random_camera_matrix
+from .detector import observe_keypoints
 
 __all__ = ["KINDS", "RigView", "RigBystander", "SyntheticRig", "make_rig", "write_rig",
            "read_rig_ground_truth", "bystander_name"]
