@@ -60,8 +60,8 @@ from ..errors import DegenerateGeometryError, InputError
 from ..intrinsics import Intrinsics, intrinsics_from_fov, load_intrinsics
 from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
-from ..initial.pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
-                       paired_people)
+from ..initial.pair_candidates import PairingOptions
+from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, paired_people
 from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
