@@ -484,7 +484,7 @@ def notes(rows: list[dict], extras: dict) -> list[str]:
                  + " mm (1 scale), the other " + " / ".join(
                      f"{c['rot_deg']:.2f}" for c in good[0]["cameras"]) + " deg. calibrate_rig "
                  "now follows the one who moves most among people seen nearly as long "
-                 "(`rigs.matching.subject_track`), and its tracker no longer splits the moving "
+                 "(`rigs.tracking.subject_track`), and its tracker no longer splits the moving "
                  "person when brief false detections come and go (the table at the top).")
     s = summary(rows)
     if s["trials"] and s["mg_target"] == s["trials"]:

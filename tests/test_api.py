@@ -99,7 +99,7 @@ def test_the_missing_extras_raise_it(monkeypatch):
     from mirrorgraph.io.c3d_writer import require_c3d
     from mirrorgraph.io.motion import check_motion_path
     from mirrorgraph.report import require_matplotlib
-    from mirrorgraph.viewer import require_rerun
+    from mirrorgraph.viewer.recording import require_rerun
 
     for module in ("matplotlib", "rerun", "c3d", "dask.distributed"):
         monkeypatch.setitem(sys.modules, module, None)      # import raises ImportError

@@ -171,7 +171,7 @@ def cmd_calibrate(args) -> int:
         report_line = report_written(written, args.report)
     view_line = None
     if args.view is not None:
-        from ..viewer import scene_from_calibration
+        from ..viewer.scene import scene_from_calibration
         scene = scene_from_calibration(calib, joints3d=run.joints3d, valid=run.valid3d,
                                        frame_ids=run.paired.frame_ids,
                                        joint_names=run.paired.skeleton.joints, fps=run.fps,

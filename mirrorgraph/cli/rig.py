@@ -170,7 +170,7 @@ def cmd_calibrate_rig(args) -> int:
         written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
     view_line = None
     if args.view is not None:
-        from ..viewer import scene_from_rig
+        from ..viewer.scene import scene_from_rig
         view_line = view_after_run(args, scene_from_rig(calib, fps=args.fps))
     print_result(args, calib.summary(), calib.warnings)
     if view_line:

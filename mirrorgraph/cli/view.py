@@ -17,7 +17,7 @@ __all__ = ["add_parsers", "add_view_option", "cmd_view", "check_view_option", "v
 
 def add_parsers(sub) -> None:
     """Add ``view`` to the CLI's subparsers."""
-    from ..viewer import INSTALL_HINT
+    from ..viewer.recording import INSTALL_HINT
 
     p = sub.add_parser("view", help=HELP["view"],
                        description="Open a calibration in Rerun's viewer: the real and virtual "
@@ -49,7 +49,7 @@ def _check_save(path) -> None:
 
 
 def cmd_view(args) -> int:
-    from ..viewer import view_file
+    from ..viewer.files import view_file
 
     _check_save(args.save)
     out = view_file(args.calibration, joints3d=args.joints3d, video=args.video, save=args.save,
@@ -79,13 +79,13 @@ def check_view_option(args) -> None:
         if Path(args.view).suffix.lower() != ".rrd":
             raise InputError("must end in .rrd (a Rerun recording)", source=args.view,
                              field="--view")
-    from ..viewer import require_rerun
+    from ..viewer.recording import require_rerun
     require_rerun()
 
 
 def view_after_run(args, scene, video=None) -> str:
     """Record ``scene`` as ``--view`` asks; returns the line naming what was written."""
-    from ..viewer import record
+    from ..viewer.recording import record
 
     out = record(scene, save=args.view or None, video=video)
     return _written(out, args.view)

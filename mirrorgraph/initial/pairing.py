@@ -40,304 +40,35 @@ spare ones besides; the set that best explains the frames as people with a
 reflection in each mirror is kept (:func:`_consistent_mirrors`: two mirrors
 meeting at an edge offer a false epipole on the horizon).
 
-:func:`frame_scores` scores every frame's best candidate against a mirror found,
-paired or not: how the frames that do not pair are spread tells a reflection from
-a second person standing where it should be (:func:`mirrorgraph.initial.reflection_check.check_reflection`).
+:func:`~mirrorgraph.initial.pair_scores.frame_scores` scores every frame's best candidate
+against a mirror found, paired or not: how the frames that do not pair are spread tells
+a reflection from a second person standing where it should be
+(:func:`mirrorgraph.initial.reflection_check.check_reflection`).
+
+Modules: this one pairs (steps 2 and 3, the mirrors' epipoles and the choice per frame);
+:mod:`.pair_candidates` holds the candidates, their score and which of the two is the
+reflection (steps 1 and 4, and :class:`~.pair_candidates.PairingOptions`);
+:mod:`.left_right` the detector's left/right confusions
+(:func:`~.left_right.fix_left_right` for keypoints already paired); :mod:`.pair_scores`
+the frames' scores against a mirror found.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 
-from .. import geometry as geo
-from ..errors import DegenerateGeometryError, InputError
-from .estimators import DEFAULT_THRESHOLD_PX, estimate_epipole
-from ..keypoints import DEFAULT_MIN_CONFIDENCE, PairedKeypoints, RawDetections
+from ..errors import DegenerateGeometryError
+from ..keypoints import PairedKeypoints, RawDetections
+from .estimators import estimate_epipole
+from .left_right import is_swap
+from .pair_candidates import (Candidates, PairingOptions, b_is_reflection_of, candidates,
+                              median_distance, spread_subset)
 
-
-@dataclass(frozen=True)
-class PairingOptions:
-    """Options of :func:`pair_detections`.
-
-    Attributes:
-        min_confidence: joints below this detector confidence are ignored.
-        threshold_px: inlier threshold on the epipolar distance, pixels.
-        max_people: detections considered per frame (most confident first).
-        ransac_frames: frames sampled (evenly spread) to find the epipole.
-        min_joints: joints a candidate pair needs in common to be scored.
-        seed: RANSAC seed.
-    """
-
-    min_confidence: float = DEFAULT_MIN_CONFIDENCE
-    threshold_px: float = DEFAULT_THRESHOLD_PX
-    max_people: int = 6
-    ransac_frames: int = 400
-    min_joints: int = 4
-    seed: int = 0
-
-
-@dataclass
-class _Candidates:
-    frame: np.ndarray      # (M,) frame index
-    a: np.ndarray          # (M, J, 3) first detection
-    b: np.ndarray          # (M, J, 3) second detection, labels flipped
-    ia: np.ndarray         # (M,) index of the first detection in its frame's list
-    ib: np.ndarray         # (M,) index of the second
-
-
-def _masked(people: np.ndarray, min_conf: float) -> np.ndarray:
-    p = np.array(people, dtype=float, copy=True)
-    low = ~(p[..., 2] >= min_conf) | ~np.isfinite(p[..., :2]).all(-1)
-    p[low] = (np.nan, np.nan, 0.0)
-    return p
-
-
-def _candidates(raw: RawDetections, opts: PairingOptions) -> _Candidates:
-    """Every unordered pair of detections of every frame (at most ``max_people`` a frame,
-    the most confident), the second one's labels flipped; frame by frame, in
-    ``np.triu_indices`` order within a frame. Vectorised over the frames holding the
-    same number of people (a long video has tens of thousands of frames)."""
-    flip = raw.skeleton.flip
-    J = raw.skeleton.num_joints
-    counts = np.array([len(p) for p in raw.people], dtype=int)
-    frames_with = np.flatnonzero(counts >= 2)
-    if frames_with.size == 0:
-        raise InputError("no frame holds two people (a person and their reflection): "
-                         "the reflection is missing in every frame", source=raw.source)
-    people = _masked(np.concatenate([np.asarray(raw.people[t], dtype=float).reshape(-1, J, 3)
-                                     for t in frames_with]), opts.min_confidence)
-    start = np.concatenate([[0], np.cumsum(counts[frames_with])[:-1]])  # first row a frame
-    frame, ia, ib, rank = [], [], [], []
-    for c in np.unique(counts[frames_with]):
-        sel = counts[frames_with] == c
-        f, base = frames_with[sel], start[sel]                          # (F,)
-        if c <= opts.max_people:
-            index = np.broadcast_to(np.arange(c), (len(f), c))          # (F, c)
-        else:                                  # the most confident max_people, in order
-            conf = people[base[:, None] + np.arange(c), :, 2].mean(-1)  # (F, c)
-            index = np.sort(np.argsort(-conf, axis=1, kind="stable")[:, :opts.max_people],
-                            axis=1)
-        i, k = np.triu_indices(index.shape[1], 1)
-        frame.append(np.repeat(f, len(i)))
-        ia.append(index[:, i].ravel())
-        ib.append(index[:, k].ravel())
-        rank.append(np.tile(np.arange(len(i)), len(f)))
-        start_rows = np.repeat(base, len(i))
-        ia[-1] = np.stack([ia[-1], start_rows + ia[-1]])                # (2, P): index, row
-        ib[-1] = np.stack([ib[-1], start_rows + ib[-1]])
-    frame, rank = np.concatenate(frame), np.concatenate(rank)
-    ia, ib = np.concatenate(ia, axis=1), np.concatenate(ib, axis=1)
-    order = np.lexsort((rank, frame))
-    ia, ib = ia[:, order], ib[:, order]
-    return _Candidates(frame[order], people[ia[1]], people[ib[1]][:, flip], ia[0], ib[0])
-
-
-def _median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
-                     min_joints: int) -> np.ndarray:
-    """``(M,)`` median epipolar distance over shared joints (inf if too few)."""
-    d = geo.epipolar_distances(e, a[:, joints, :2], b[:, joints, :2])
-    d[~np.isfinite(d)] = np.nan
-    enough = np.count_nonzero(np.isfinite(d), axis=1) >= min_joints
-    out = np.full(len(a), np.inf)
-    if enough.any():
-        out[enough] = np.nanmedian(d[enough], axis=1)
-    return out
-
-
-def _spread_subset(frames: np.ndarray, count: int) -> np.ndarray:
-    """Bool mask over candidates keeping those of ``count`` evenly spread frames."""
-    unique = np.unique(frames)
-    if len(unique) <= count:
-        return np.ones(len(frames), bool)
-    keep = unique[np.linspace(0, len(unique) - 1, count).round().astype(int)]
-    return np.isin(frames, keep)
-
-
-#: A reflection's labels count as confused by the detector only when the
-#: swapped labeling fits the epipole this much better (median distance ratio):
-#: for a person seen from the side both labelings fit about equally, and the
-#: usual case must win.
-SWAP_MARGIN = 0.5
-
-#: ... and only when the detector's labeling (flipped) fits badly: its median
-#: distance exceeds this fraction of the threshold. Where the flipped labeling
-#: fits within the noise (a person seen from the side: both labelings fit), the
-#: detector's labels stand. Measured on the paper's protocol (no confusions at
-#: all): without this floor 6 of 1000 frames of one scene were "fixed", and the
-#: refined mirror was 0.44 deg off instead of 0.26.
-SWAP_MIN_FRACTION = 0.6
-
-
-def _is_swap(flipped: np.ndarray, swapped: np.ndarray, threshold_px: float) -> np.ndarray:
-    """``(M,)`` bool: the swapped labeling of a reflection is the right one (see
-    :data:`SWAP_MARGIN`, :data:`SWAP_MIN_FRACTION`)."""
-    return (swapped < SWAP_MARGIN * flipped) & (flipped > SWAP_MIN_FRACTION * threshold_px)
-
-
-#: Beyond this distance from the joints (pixels) the epipole is treated as at
-#: infinity and the reflection is told apart by its smaller size instead.
-FAR_EPIPOLE_PX = 1e5
-
-
-def _b_is_reflection(e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(M,)`` bool: detection ``b`` (not ``a``) is the reflection.
-
-    Votes over joints for the detection closer to the epipole. The distances
-    are compared in homogeneous form ``|x e_z - e| = |e_z| |u - e_pix|`` so the
-    unknown sign of ``e`` cancels. When the epipole is (nearly) at infinity the
-    reflection, farther from the camera, is the smaller detection.
-    """
-    ah = geo.to_homogeneous(a[..., :2])
-    bh = geo.to_homogeneous(b[..., :2])
-    da = np.linalg.norm(ah * e[2] - e, axis=-1)
-    db = np.linalg.norm(bh * e[2] - e, axis=-1)
-    votes = np.where(np.isfinite(da) & np.isfinite(db), np.sign(da - db), 0.0)
-    by_epipole = votes.sum(axis=1) >= 0
-    far = np.nanmedian(np.where(np.isfinite(da), da, np.nan), axis=1) > FAR_EPIPOLE_PX * abs(e[2])
-    if not np.any(far):
-        return by_epipole
-    size_a = np.nansum(np.nanstd(a[..., :2], axis=1), axis=-1)
-    size_b = np.nansum(np.nanstd(b[..., :2], axis=1), axis=-1)
-    return np.where(far, size_b <= size_a, by_epipole)
-
-
-def pair_detections(raw: RawDetections, joints: np.ndarray | None = None,
-                    options: PairingOptions | None = None) -> PairedKeypoints:
-    """Pair person and reflection in every frame (see the module docstring).
-
-    Args:
-        raw: detections per frame, pixel coordinates (undistorted if the camera
-            has distortion).
-        joints: ``(k,)`` joint indices used to judge pairs (default: the
-            skeleton's calibration joints).
-        options: :class:`PairingOptions`.
-
-    Returns:
-        :class:`PairedKeypoints` over all frames of ``raw``; unpaired frames have
-        confidence 0 and NaN coordinates.
-
-    Raises:
-        InputError: no frame holds two people.
-        DegenerateGeometryError: the candidates do not determine an epipole.
-    """
-    pairing = pair_reflections(raw, 1, joints, options)
-    return PairedKeypoints(skeleton=raw.skeleton, frame_ids=np.asarray(raw.frame_ids),
-                           real=pairing.real, mirror=pairing.reflections[0], source=raw.source,
-                           format=raw.format, image_size=raw.image_size, fps=raw.fps,
-                           lr_fixes=pairing.lr_fixes, frames_read=len(raw.people))
-
-
-def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
-                   options: PairingOptions | None = None) -> PairedKeypoints:
-    """Undo the detector's left/right confusions of the reflection, per frame.
-
-    For already paired input (e.g. ``.npz``): finds the epipole on a spread
-    subset of frames, then keeps, frame by frame, the labeling of the
-    reflection (as given, or left/right swapped) with the smaller median
-    epipolar distance. Returns a new :class:`PairedKeypoints`.
-    """
-    opts = options or PairingOptions()
-    sk = paired.skeleton
-    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    real = _masked(paired.real, opts.min_confidence)
-    mirror = _masked(paired.mirror, opts.min_confidence)
-    frames = np.arange(len(real))
-    sub = _spread_subset(frames, opts.ransac_frames)
-    try:
-        e, _, _, _ = estimate_epipole(real[sub][:, joints, :2].reshape(-1, 2),
-                                      mirror[sub][:, joints, :2].reshape(-1, 2),
-                                      threshold_px=opts.threshold_px, seed=opts.seed)
-    except DegenerateGeometryError as exc:
-        raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
-    flip = sk.flip
-    keep = _median_distance(e, real, mirror, joints, opts.min_joints)
-    swap = _median_distance(e, real, mirror[:, flip], joints, opts.min_joints)
-    swapped = _is_swap(keep, swap, opts.threshold_px)
-    fixed = np.where(swapped[:, None, None], mirror[:, flip], mirror)
-    return PairedKeypoints(skeleton=sk, frame_ids=paired.frame_ids, real=real, mirror=fixed,
-                           source=paired.source, format=paired.format,
-                           image_size=paired.image_size, fps=paired.fps,
-                           lr_fixes=int(np.count_nonzero(swapped)),
-                           frames_read=paired.frames_read or len(real))
-
-
-def _quantile_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
-                       min_joints: int, quantiles: np.ndarray) -> np.ndarray:
-    """``(Q, M)`` quantiles of the epipolar distance over shared joints (inf if too few);
-    the 0.5 quantile is :func:`_median_distance`."""
-    d = geo.epipolar_distances(e, a[:, joints, :2], b[:, joints, :2])
-    d = np.sort(np.where(np.isfinite(d), d, np.inf), axis=1)       # unknown joints last
-    count = np.count_nonzero(np.isfinite(d), axis=1)                 # (M,)
-    enough = count >= min_joints
-    out = np.full((len(quantiles), len(a)), np.inf)
-    if enough.any():            # numpy's "linear" quantile, vectorised over candidates
-        d, count = d[enough], count[enough]
-        pos = np.asarray(quantiles, dtype=float)[:, None] * (count - 1)      # (Q, M')
-        lo = np.floor(pos).astype(int)
-        hi = np.minimum(lo + 1, count - 1)
-        rows = np.arange(len(d))
-        frac = pos - lo
-        out[:, enough] = d[rows, lo] * (1.0 - frac) + d[rows, hi] * frac
-    return out
-
-
-def frame_scores(data: RawDetections | PairedKeypoints, epipole: np.ndarray,
-                 joints: np.ndarray | None = None, options: PairingOptions | None = None,
-                 quantile: float | Sequence[float] = 0.5) -> np.ndarray:
-    """How well each frame's best candidate pair fits one mirror, pixels.
-
-    Per frame, the smallest ``quantile`` of the epipolar distances over the joints both
-    detections show above the confidence threshold (at least ``min_joints``; the median,
-    ``quantile=0.5``, is the score the pairing thresholds, step 3 of the module
-    docstring), over every candidate pair of detections (:func:`_candidates`) and both
-    labellings of the reflection, against ``epipole``. A frame where the person and
-    their reflection are both seen scores at the detector's noise; a frame whose only
-    candidates are the person and somebody else scores whatever the two people's poses
-    happen to give (:func:`mirrorgraph.initial.reflection_check.check_reflection` reads the distribution).
-    A lower quantile is less disturbed by the detector's gross errors on a few joints.
-
-    Args:
-        data: the detections (undistorted pixels), or already paired keypoints (the one
-            candidate per frame is ``real`` with ``mirror``).
-        epipole: ``(3,)`` homogeneous epipole, pixels.
-        joints: joints scored (default: the calibration joints).
-        options: :class:`PairingOptions` (``min_confidence``, ``min_joints``,
-            ``max_people``).
-        quantile: the quantile over joints, or a sequence of them.
-
-    Returns:
-        ``(T,)`` float (``(Q, T)`` for a sequence of ``Q`` quantiles): the score; ``inf``
-        where the frame holds a candidate pair but none shares ``min_joints`` joints; NaN
-        where it holds fewer than two detections.
-    """
-    opts = options or PairingOptions()
-    sk = data.skeleton
-    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    e = np.asarray(epipole, dtype=float).reshape(3)
-    q = np.atleast_1d(np.asarray(quantile, dtype=float))
-    if isinstance(data, PairedKeypoints):
-        a = _masked(data.real, opts.min_confidence)
-        b = _masked(data.mirror, opts.min_confidence)
-        score = np.minimum(_quantile_distance(e, a, b, joints, opts.min_joints, q),
-                           _quantile_distance(e, a, b[:, sk.flip], joints, opts.min_joints, q))
-        both = (a[..., 2] > 0).any(1) & (b[..., 2] > 0).any(1)
-        best = np.where(both, score, np.nan)
-    else:
-        best = np.full((len(q), len(data.people)), np.nan)
-        if any(len(p) >= 2 for p in data.people):
-            cand = _candidates(data, opts)
-            score = np.minimum(
-                _quantile_distance(e, cand.a, cand.b, joints, opts.min_joints, q),
-                _quantile_distance(e, cand.a, cand.b[:, sk.flip], joints, opts.min_joints, q))
-            best[:, np.unique(cand.frame)] = np.inf
-            for row, sc in zip(best, score):
-                np.fmin.at(row, cand.frame, sc)
-    return best[0] if np.ndim(quantile) == 0 else best
-
+__all__ = ["MirrorPairing", "PairCandidates", "choose_pairs", "pair_candidates",
+           "pair_detections", "pair_reflections", "paired_people"]
 
 @dataclass
 class MirrorPairing:
@@ -380,7 +111,7 @@ class PairCandidates:
             confused the reflection's left and right).
         valid: ``(K, M)`` the pair fits the mirror: ``score`` under the threshold.
         b_is_reflection: ``(K, M)`` in a valid pair, ``ib`` (not ``ia``) is the
-            reflection (:func:`_b_is_reflection`); False where not valid.
+            reflection (:func:`b_is_reflection_of`); False where not valid.
         num_frames: ``T``.
     """
 
@@ -416,21 +147,21 @@ class _Epipole:
     b_refl: np.ndarray     # (M,) in a valid pair, b is the reflection
 
 
-def _score_epipole(e: np.ndarray, cand: _Candidates, joints: np.ndarray, flip: np.ndarray,
+def _score_epipole(e: np.ndarray, cand: Candidates, joints: np.ndarray, flip: np.ndarray,
                    opts: PairingOptions) -> _Epipole:
     """Every candidate scored against one epipole (step 3 and 4 of the module docstring)."""
-    flipped = _median_distance(e, cand.a, cand.b, joints, opts.min_joints)
-    swapped_score = _median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
-    swapped = _is_swap(flipped, swapped_score, opts.threshold_px)
+    flipped = median_distance(e, cand.a, cand.b, joints, opts.min_joints)
+    swapped_score = median_distance(e, cand.a, cand.b[:, flip], joints, opts.min_joints)
+    swapped = is_swap(flipped, swapped_score, opts.threshold_px)
     score = np.where(swapped, swapped_score, flipped)
     ok = score < opts.threshold_px
     b_refl = np.zeros(len(ok), dtype=bool)
     b_label = np.where(swapped[ok, None, None], cand.b[ok][:, flip], cand.b[ok])
-    b_refl[ok] = _b_is_reflection(e, cand.a[ok][:, joints], b_label[:, joints])
+    b_refl[ok] = b_is_reflection_of(e, cand.a[ok][:, joints], b_label[:, joints])
     return _Epipole(e, score, swapped, ok, b_refl)
 
 
-def _find_epipoles(cand: _Candidates, num_mirrors: int, joints: np.ndarray, flip: np.ndarray,
+def _find_epipoles(cand: Candidates, num_mirrors: int, joints: np.ndarray, flip: np.ndarray,
                    opts: PairingOptions, source: str) -> list[_Epipole]:
     """Sequential RANSAC: the epipole explaining most candidates, then the next among
     those it does not explain, ... ``num_mirrors`` of them (errors naming ``source``),
@@ -442,7 +173,7 @@ def _find_epipoles(cand: _Candidates, num_mirrors: int, joints: np.ndarray, flip
         pool = np.flatnonzero(remaining)
         if not needed and len(pool) == 0:
             break
-        sub = pool[_spread_subset(cand.frame[pool], opts.ransac_frames)]
+        sub = pool[spread_subset(cand.frame[pool], opts.ransac_frames)]
         try:
             e, _, _, _ = estimate_epipole(cand.a[sub][:, joints, :2].reshape(-1, 2),
                                           cand.b[sub][:, joints, :2].reshape(-1, 2),
@@ -465,7 +196,7 @@ def _find_epipoles(cand: _Candidates, num_mirrors: int, joints: np.ndarray, flip
     return found
 
 
-def _consistency(cand: _Candidates, epipoles: list[_Epipole]) -> int:
+def _consistency(cand: Candidates, epipoles: list[_Epipole]) -> int:
     """How well a set of epipoles explains the frames as people and their reflections:
     summed over frames, the largest number of mirrors in which one detection is the
     person (the one farther from the epipole) of a valid pair while it is the
@@ -485,7 +216,7 @@ def _consistency(cand: _Candidates, epipoles: list[_Epipole]) -> int:
     return int(np.where(reflection, 0, person).max(1).sum())
 
 
-def _consistent_mirrors(cand: _Candidates, found: list[_Epipole], num_mirrors: int
+def _consistent_mirrors(cand: Candidates, found: list[_Epipole], num_mirrors: int
                         ) -> list[_Epipole]:
     """The ``num_mirrors`` epipoles among those found that are most consistent
     (:func:`_consistency`); the first ones found unless another set is strictly better.
@@ -538,7 +269,7 @@ def pair_candidates(raw: RawDetections, num_mirrors: int, joints: np.ndarray | N
     opts = options or PairingOptions()
     sk = raw.skeleton
     joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    cand = _candidates(raw, opts)
+    cand = candidates(raw, opts)
     found = _find_epipoles(cand, num_mirrors, joints, sk.flip, opts, str(raw.source))
     chosen = _consistent_mirrors(cand, found, num_mirrors)
     return PairCandidates(frame=cand.frame, ia=cand.ia, ib=cand.ib, a=cand.a, b=cand.b,
@@ -673,3 +404,29 @@ def pair_reflections(raw: RawDetections, num_mirrors: int, joints: np.ndarray | 
     """
     cands = pair_candidates(raw, num_mirrors, joints, options)
     return choose_pairs(cands, raw.skeleton.flip)
+
+
+def pair_detections(raw: RawDetections, joints: np.ndarray | None = None,
+                    options: PairingOptions | None = None) -> PairedKeypoints:
+    """Pair person and reflection in every frame (see the module docstring).
+
+    Args:
+        raw: detections per frame, pixel coordinates (undistorted if the camera
+            has distortion).
+        joints: ``(k,)`` joint indices used to judge pairs (default: the
+            skeleton's calibration joints).
+        options: :class:`PairingOptions`.
+
+    Returns:
+        :class:`PairedKeypoints` over all frames of ``raw``; unpaired frames have
+        confidence 0 and NaN coordinates.
+
+    Raises:
+        InputError: no frame holds two people.
+        DegenerateGeometryError: the candidates do not determine an epipole.
+    """
+    pairing = pair_reflections(raw, 1, joints, options)
+    return PairedKeypoints(skeleton=raw.skeleton, frame_ids=np.asarray(raw.frame_ids),
+                           real=pairing.real, mirror=pairing.reflections[0], source=raw.source,
+                           format=raw.format, image_size=raw.image_size, fps=raw.fps,
+                           lr_fixes=pairing.lr_fixes, frames_read=len(raw.people))

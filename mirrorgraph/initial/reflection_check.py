@@ -2,7 +2,7 @@
 
 Before the refinement, every frame holding two detections or more is scored by how
 well its best candidate pair fits the initial mirror's epipolar geometry
-(:func:`mirrorgraph.initial.pairing.frame_scores`). A true reflection pairs in nearly every
+(:func:`mirrorgraph.initial.pair_scores.frame_scores`). A true reflection pairs in nearly every
 frame; a second person standing still pairs by chance in some and lies in a *grey
 zone* (fitting neither as a reflection nor as an unrelated pair) in many. The verdict
 (:func:`check_reflection`): ``ok``, ``doubtful`` (a warning) or ``second_person``
@@ -86,7 +86,7 @@ def check_reflection(scores: np.ndarray, threshold_px: float,
     """Tell a reflection from a second person by how the frames fit the mirror.
 
     ``scores`` is, per frame, the best candidate pair's median epipolar distance to the
-    estimated mirror (:func:`mirrorgraph.initial.pairing.frame_scores`); ``grey_scores`` the
+    estimated mirror (:func:`mirrorgraph.initial.pair_scores.frame_scores`); ``grey_scores`` the
     same with the :data:`GREY_QUANTILE` quantile over joints instead of the median. A
     true reflection fits in nearly every frame holding it, at the detector's noise: the
     scores gather around one value (about 3 px for 4 px noise), and the frames that do

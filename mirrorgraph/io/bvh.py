@@ -343,6 +343,120 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
         if head.upper() == "MOTION" or head.upper().startswith("MOTION "):
             motion_line = k
             break
+    joints = _read_hierarchy(text, lines, motion_line, source)
+    if motion_line is None:
+        raise InputError(f"line {len(lines)}: no MOTION section after the hierarchy",
+                         source=source)
+    F, dt, k = _read_motion_header(lines, motion_line, source)
+    counts = np.array([len(c) for c in joints.channels], dtype=int)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    values = _read_motion_values(lines, k, F, int(counts.sum()), source)
+    return BvhMotion(source=source, names=tuple(joints.names),
+                     parents=np.array(joints.parents, dtype=int),
+                     offsets=np.array(joints.offsets, dtype=float),
+                     channels=tuple(joints.channels), channel_start=starts,
+                     end_site=np.array(joints.end_site, dtype=bool), frame_time=dt,
+                     values=values)
+
+
+class _Hierarchy:
+    """The joints of a BVH hierarchy, in the order they are read (:func:`parse_bvh`)."""
+
+    def __init__(self, toks: _Tokens) -> None:
+        self.toks = toks
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[tuple[float, float, float]] = []
+        self.channels: list[tuple[str, ...]] = []
+        self.end_site: list[bool] = []
+        self.seen: dict[str, int] = {}
+
+    def node(self, name: str, line: int, parent: int, is_end: bool) -> None:
+        """Read a joint (or End Site) from its ``{`` to its ``}``, its children with it."""
+        toks = self.toks
+        if name in self.seen:
+            raise toks.fail(f"joint name {name!r} is used twice (first on line "
+                            f"{self.seen[name]})", line)
+        self.seen[name] = line
+        idx = len(self.names)
+        self.names.append(name)
+        self.parents.append(parent)
+        self.offsets.append((0.0, 0.0, 0.0))
+        self.channels.append(())
+        self.end_site.append(is_end)
+        toks.expect("{")
+        have_offset = have_channels = False
+        while True:
+            tok, ln = toks.next("'}'")
+            key = tok.upper()
+            if tok == "}":
+                break
+            if key == "OFFSET":
+                if have_offset:
+                    raise toks.fail(f"{name}: a second OFFSET", ln)
+                self.offsets[idx] = tuple(toks.number(f"OFFSET {a} of {name}") for a in "xyz")
+                have_offset = True
+            elif key == "CHANNELS":
+                if is_end:
+                    raise toks.fail(f"End Site of {self.names[parent]} cannot have CHANNELS",
+                                    ln)
+                if have_channels:
+                    raise toks.fail(f"{name}: a second CHANNELS", ln)
+                self.channels[idx] = _read_channels(toks, name)
+                have_channels = True
+            elif key == "JOINT":
+                if is_end:
+                    raise toks.fail("an End Site cannot have children", ln)
+                child, cl = toks.next("a joint name")
+                if child in ("{", "}"):
+                    raise toks.fail("JOINT without a name", cl)
+                self.node(child, cl, idx, False)
+            elif key == "END":
+                if is_end:
+                    raise toks.fail("an End Site cannot have children", ln)
+                site, sl = toks.next("'Site'")
+                if site.upper() != "SITE":
+                    raise toks.fail(f"expected 'End Site', got 'End {site}'", sl)
+                self.node(name + END_SITE_SUFFIX, sl, idx, True)
+            elif key in ("ROOT", "MOTION", "HIERARCHY"):
+                raise toks.fail(f"{tok!r} inside {name}: missing '}}'", ln)
+            else:
+                raise toks.fail(f"unexpected {tok!r} in {name} (expected OFFSET, CHANNELS, "
+                                "JOINT, End Site or '}')", ln)
+        if not have_offset:
+            raise toks.fail(f"{name} has no OFFSET", line)
+
+
+def _read_channels(toks: _Tokens, name: str) -> tuple[str, ...]:
+    """The channels of joint ``name`` after its ``CHANNELS`` keyword: the count, then the
+    names (capitalised as ``Xrotation``)."""
+    ntok, nl = toks.next("the number of channels")
+    try:
+        n = int(ntok)
+    except ValueError:
+        raise toks.fail(f"expected the number of channels of {name}, got {ntok!r}",
+                        nl) from None
+    if not 0 <= n <= 6:
+        raise toks.fail(f"{name} has {n} channels; a joint has 0 to 6", nl)
+    got = []
+    for _ in range(n):
+        ch, cl = toks.next(f"a channel name of {name}")
+        norm = ch.lower()
+        if norm not in _CHANNEL_NAMES:
+            raise toks.fail(
+                f"unknown channel {ch!r} of {name} (the CHANNELS line declares "
+                f"{n}; known: Xposition Yposition Zposition Xrotation Yrotation "
+                "Zrotation)", cl)
+        pretty = norm[0].upper() + norm[1:]
+        if pretty in got:
+            raise toks.fail(f"channel {ch} of {name} listed twice", cl)
+        got.append(pretty)
+    return tuple(got)
+
+
+def _read_hierarchy(text: str, lines: list[str], motion_line: int | None, source: str
+                    ) -> _Hierarchy:
+    """The HIERARCHY section: the lines before ``motion_line`` (every line without one)."""
     toks = _Tokens(lines, source)
     stop = len(lines) if motion_line is None else motion_line
     for k in range(stop):
@@ -356,87 +470,7 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
     tok, line = toks.next("'HIERARCHY'")
     if tok.upper() != "HIERARCHY":
         raise toks.fail(f"a BVH file starts with 'HIERARCHY', got {tok!r}", line)
-
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[tuple[float, float, float]] = []
-    channels: list[tuple[str, ...]] = []
-    end_site: list[bool] = []
-    seen: dict[str, int] = {}
-
-    def node(name: str, line: int, parent: int, is_end: bool) -> None:
-        if name in seen:
-            raise toks.fail(f"joint name {name!r} is used twice (first on line {seen[name]})",
-                            line)
-        seen[name] = line
-        idx = len(names)
-        names.append(name)
-        parents.append(parent)
-        offsets.append((0.0, 0.0, 0.0))
-        channels.append(())
-        end_site.append(is_end)
-        toks.expect("{")
-        have_offset = have_channels = False
-        while True:
-            tok, ln = toks.next("'}'")
-            key = tok.upper()
-            if tok == "}":
-                break
-            if key == "OFFSET":
-                if have_offset:
-                    raise toks.fail(f"{name}: a second OFFSET", ln)
-                offsets[idx] = tuple(toks.number(f"OFFSET {a} of {name}") for a in "xyz")
-                have_offset = True
-            elif key == "CHANNELS":
-                if is_end:
-                    raise toks.fail(f"End Site of {names[parent]} cannot have CHANNELS", ln)
-                if have_channels:
-                    raise toks.fail(f"{name}: a second CHANNELS", ln)
-                ntok, nl = toks.next("the number of channels")
-                try:
-                    n = int(ntok)
-                except ValueError:
-                    raise toks.fail(f"expected the number of channels of {name}, got {ntok!r}",
-                                    nl) from None
-                if not 0 <= n <= 6:
-                    raise toks.fail(f"{name} has {n} channels; a joint has 0 to 6", nl)
-                got = []
-                for _ in range(n):
-                    ch, cl = toks.next(f"a channel name of {name}")
-                    norm = ch.lower()
-                    if norm not in _CHANNEL_NAMES:
-                        raise toks.fail(
-                            f"unknown channel {ch!r} of {name} (the CHANNELS line declares "
-                            f"{n}; known: Xposition Yposition Zposition Xrotation Yrotation "
-                            "Zrotation)", cl)
-                    pretty = norm[0].upper() + norm[1:]
-                    if pretty in got:
-                        raise toks.fail(f"channel {ch} of {name} listed twice", cl)
-                    got.append(pretty)
-                channels[idx] = tuple(got)
-                have_channels = True
-            elif key == "JOINT":
-                if is_end:
-                    raise toks.fail("an End Site cannot have children", ln)
-                child, cl = toks.next("a joint name")
-                if child in ("{", "}"):
-                    raise toks.fail("JOINT without a name", cl)
-                node(child, cl, idx, False)
-            elif key == "END":
-                if is_end:
-                    raise toks.fail("an End Site cannot have children", ln)
-                site, sl = toks.next("'Site'")
-                if site.upper() != "SITE":
-                    raise toks.fail(f"expected 'End Site', got 'End {site}'", sl)
-                node(name + END_SITE_SUFFIX, sl, idx, True)
-            elif key in ("ROOT", "MOTION", "HIERARCHY"):
-                raise toks.fail(f"{tok!r} inside {name}: missing '}}'", ln)
-            else:
-                raise toks.fail(f"unexpected {tok!r} in {name} (expected OFFSET, CHANNELS, "
-                                "JOINT, End Site or '}')", ln)
-        if not have_offset:
-            raise toks.fail(f"{name} has no OFFSET", line)
-
+    joints = _Hierarchy(toks)
     roots = 0
     while toks.peek() is not None:
         tok, line = toks.next("'ROOT'")
@@ -445,15 +479,17 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
                 raise toks.fail("unbalanced '}'", line)
             raise toks.fail(f"expected 'ROOT' or 'MOTION', got {tok!r}", line)
         name, nl = toks.next("the root's name")
-        node(name, nl, -1, False)
+        joints.node(name, nl, -1, False)
         roots += 1
     if roots == 0:
         raise toks.fail("the hierarchy has no ROOT", toks.items[-1][1])
-    if motion_line is None:
-        raise InputError(f"line {len(lines)}: no MOTION section after the hierarchy",
-                         source=source)
+    return joints
 
-    # ------------------------------------------------------------------ MOTION
+
+def _read_motion_header(lines: list[str], motion_line: int, source: str
+                        ) -> tuple[int, float, int]:
+    """The ``Frames:`` and ``Frame Time:`` lines after ``MOTION``: ``(F, dt, k)``, ``k`` the
+    index of the line after them."""
     k = motion_line + 1
     header: dict[str, tuple[str, int]] = {}
     for key in ("frames", "frame time"):
@@ -486,10 +522,11 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
                          source=source) from None
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"line {ln}: Frame Time must be positive, got {val!r}", source=source)
+    return F, dt, k
 
-    counts = np.array([len(c) for c in channels], dtype=int)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-    C = int(counts.sum())
+
+def _read_motion_values(lines: list[str], k: int, F: int, C: int, source: str) -> np.ndarray:
+    """``(F, C)`` the frame lines from line index ``k`` on, ``C`` values each."""
     data_lines = [(i + 1, lines[i]) for i in range(k, len(lines)) if lines[i].strip()]
     if len(data_lines) < F:
         last = data_lines[-1][0] if data_lines else k
@@ -520,7 +557,4 @@ def parse_bvh(text: str, source: str = "<string>") -> BvhMotion:
                     raise InputError(f"line {num}: frame {f}: {p!r} is not finite",
                                      source=source)
         raise InputError("cannot read the motion values", source=source)  # pragma: no cover
-    return BvhMotion(source=source, names=tuple(names), parents=np.array(parents, dtype=int),
-                     offsets=np.array(offsets, dtype=float), channels=tuple(channels),
-                     channel_start=starts, end_site=np.array(end_site, dtype=bool),
-                     frame_time=dt, values=values)
+    return values

@@ -38,7 +38,10 @@ from ..intrinsics import Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from ..io import read_keypoints
 from ..joint_sets import mirror_joints
 from ..keypoints import MIN_PAIRS, PairedKeypoints, RawDetections
-from ..initial.pairing import PairingOptions, fix_left_right, frame_scores, pair_detections
+from ..initial.left_right import fix_left_right
+from ..initial.pair_candidates import PairingOptions
+from ..initial.pair_scores import frame_scores
+from ..initial.pairing import pair_detections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
 
 

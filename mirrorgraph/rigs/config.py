@@ -121,7 +121,30 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
         raise InputError(f"not valid TOML: {exc}", source=path) from None
     except UnicodeDecodeError:
         raise InputError("not a text file", source=path) from None
-    base = path.parent
+    joints, height = _rig_settings(doc, path)
+    mirror_names = _mirror_names(doc, path)
+    cams_doc = doc.get("cameras")
+    if not isinstance(cams_doc, list) or not cams_doc or \
+            not all(isinstance(c, dict) for c in cams_doc):
+        raise InputError("needs at least one [[cameras]] table", source=path, field="cameras")
+    cameras: list[CameraEntry] = []
+    for i, c in enumerate(cams_doc):
+        cameras.append(_camera_entry(c, f"cameras[{i}]", path, mirror_names, cameras))
+    seen_mirrors = {m for e in cameras for m in e.mirrors}
+    unused = [m for m in mirror_names if m not in seen_mirrors]
+    if unused:
+        raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "
+                         "camera's mirrors list)", source=path, field="mirrors")
+    skeletons = {e.skeleton for e in cameras if e.skeleton is not None}
+    if len(skeletons) > 1:
+        raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
+                         "one layout per rig", source=path, field="cameras")
+    return RigConfig(source=path, cameras=tuple(cameras), mirrors=tuple(mirror_names),
+                     subject_height=height, joints=joints)
+
+
+def _rig_settings(doc: dict, path: Path) -> tuple[str | tuple[str, ...] | None, float | None]:
+    """The rig file's top-level keys checked: ``(joints, subject_height)``."""
     unknown = set(doc) - {"subject_height", "joints", "cameras", "mirrors"}
     if unknown:
         raise InputError(f"unknown key(s) {', '.join(sorted(unknown))}; expected "
@@ -142,7 +165,11 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
             raise InputError("must be a height in metres between 0.3 and 3",
                              source=path, field="subject_height")
         height = float(height)
+    return joints, height
 
+
+def _mirror_names(doc: dict, path: Path) -> list[str]:
+    """The names of the ``[[mirrors]]`` tables, checked."""
     mirrors_doc = doc.get("mirrors", [])
     if not isinstance(mirrors_doc, list) or not all(isinstance(m, dict) for m in mirrors_doc):
         raise InputError("must be an array of tables [[mirrors]]", source=path, field="mirrors")
@@ -156,78 +183,65 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
             raise InputError(f"mirror {name!r} declared twice", source=path,
                              field=f"mirrors[{i}].name")
         mirror_names.append(name)
+    return mirror_names
 
-    cams_doc = doc.get("cameras")
-    if not isinstance(cams_doc, list) or not cams_doc or \
-            not all(isinstance(c, dict) for c in cams_doc):
-        raise InputError("needs at least one [[cameras]] table", source=path, field="cameras")
-    cameras: list[CameraEntry] = []
-    seen_mirrors: set[str] = set()
-    for i, c in enumerate(cams_doc):
-        where = f"cameras[{i}]"
-        extra = set(c) - _CAMERA_KEYS
-        if extra:
-            raise InputError(f"unknown key(s) {', '.join(sorted(extra))}; known: "
-                             f"{', '.join(sorted(_CAMERA_KEYS))}", source=path, field=where)
-        name = _string(c.get("name"), path, f"{where}.name")
-        if any(e.name == name for e in cameras):
-            raise InputError(f"camera {name!r} declared twice", source=path,
-                             field=f"{where}.name")
-        kp = base / _string(c.get("keypoints"), path, f"{where}.keypoints")
-        if not kp.exists():
-            raise InputError(f"keypoints {kp} not found", source=path,
-                             field=f"{where}.keypoints")
-        intr = None
-        if c.get("intrinsics") is not None:
-            intr = base / _string(c.get("intrinsics"), path, f"{where}.intrinsics")
-            if not intr.is_file():
-                raise InputError(f"intrinsics {intr} not found", source=path,
-                                 field=f"{where}.intrinsics")
-        section = c.get("intrinsics_section")
-        if section is not None:
-            section = _string(section, path, f"{where}.intrinsics_section")
-        skeleton = c.get("skeleton")
-        if skeleton is not None:
-            skeleton = _string(skeleton, path, f"{where}.skeleton")
-            try:
-                skeleton_by_name(skeleton)
-            except ValueError as exc:
-                raise InputError(str(exc), source=path, field=f"{where}.skeleton") from None
-        mirrors = c.get("mirrors", [])
-        if not isinstance(mirrors, list) or not all(isinstance(m, str) for m in mirrors):
-            raise InputError("must be a list of mirror names", source=path,
+
+def _camera_entry(c: dict, where: str, path: Path, mirror_names: list[str],
+                  cameras: list[CameraEntry]) -> CameraEntry:
+    """One ``[[cameras]]`` table (``where``: its field name), checked against the mirrors
+    declared and the cameras before it."""
+    base = path.parent
+    extra = set(c) - _CAMERA_KEYS
+    if extra:
+        raise InputError(f"unknown key(s) {', '.join(sorted(extra))}; known: "
+                         f"{', '.join(sorted(_CAMERA_KEYS))}", source=path, field=where)
+    name = _string(c.get("name"), path, f"{where}.name")
+    if any(e.name == name for e in cameras):
+        raise InputError(f"camera {name!r} declared twice", source=path,
+                         field=f"{where}.name")
+    kp = base / _string(c.get("keypoints"), path, f"{where}.keypoints")
+    if not kp.exists():
+        raise InputError(f"keypoints {kp} not found", source=path,
+                         field=f"{where}.keypoints")
+    intr = None
+    if c.get("intrinsics") is not None:
+        intr = base / _string(c.get("intrinsics"), path, f"{where}.intrinsics")
+        if not intr.is_file():
+            raise InputError(f"intrinsics {intr} not found", source=path,
+                             field=f"{where}.intrinsics")
+    section = c.get("intrinsics_section")
+    if section is not None:
+        section = _string(section, path, f"{where}.intrinsics_section")
+    skeleton = c.get("skeleton")
+    if skeleton is not None:
+        skeleton = _string(skeleton, path, f"{where}.skeleton")
+        try:
+            skeleton_by_name(skeleton)
+        except ValueError as exc:
+            raise InputError(str(exc), source=path, field=f"{where}.skeleton") from None
+    mirrors = c.get("mirrors", [])
+    if not isinstance(mirrors, list) or not all(isinstance(m, str) for m in mirrors):
+        raise InputError("must be a list of mirror names", source=path,
+                         field=f"{where}.mirrors")
+    for m in mirrors:
+        if m not in mirror_names:
+            raise InputError(f"mirror {m!r} is not declared in [[mirrors]]", source=path,
                              field=f"{where}.mirrors")
-        for m in mirrors:
-            if m not in mirror_names:
-                raise InputError(f"mirror {m!r} is not declared in [[mirrors]]", source=path,
-                                 field=f"{where}.mirrors")
-        if len(set(mirrors)) != len(mirrors):
-            raise InputError("a mirror is listed twice", source=path, field=f"{where}.mirrors")
-        seen_mirrors.update(mirrors)
-        offset = c.get("frame_offset", 0)
-        if isinstance(offset, bool) or not isinstance(offset, int):
-            raise InputError("must be an integer number of frames", source=path,
-                             field=f"{where}.frame_offset")
-        size = c.get("image_size")
-        if size is not None:
-            if not (isinstance(size, list) and len(size) == 2):
-                raise InputError(f"expected [width, height], got {size!r}", source=path,
-                                 field=f"{where}.image_size")
-            size = check_size(size[0], size[1], path, f"{where}.image_size")
-            if intr is not None:
-                raise InputError("applies to a camera without intrinsics (the intrinsics file "
-                                 "holds its size)", source=path, field=f"{where}.image_size")
-        cameras.append(CameraEntry(name=name, keypoints=kp, intrinsics=intr,
-                                   intrinsics_section=section, skeleton=skeleton,
-                                   mirrors=tuple(mirrors), frame_offset=int(offset),
-                                   image_size=size))
-    unused = [m for m in mirror_names if m not in seen_mirrors]
-    if unused:
-        raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "
-                         "camera's mirrors list)", source=path, field="mirrors")
-    skeletons = {e.skeleton for e in cameras if e.skeleton is not None}
-    if len(skeletons) > 1:
-        raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
-                         "one layout per rig", source=path, field="cameras")
-    return RigConfig(source=path, cameras=tuple(cameras), mirrors=tuple(mirror_names),
-                     subject_height=height, joints=joints)
+    if len(set(mirrors)) != len(mirrors):
+        raise InputError("a mirror is listed twice", source=path, field=f"{where}.mirrors")
+    offset = c.get("frame_offset", 0)
+    if isinstance(offset, bool) or not isinstance(offset, int):
+        raise InputError("must be an integer number of frames", source=path,
+                         field=f"{where}.frame_offset")
+    size = c.get("image_size")
+    if size is not None:
+        if not (isinstance(size, list) and len(size) == 2):
+            raise InputError(f"expected [width, height], got {size!r}", source=path,
+                             field=f"{where}.image_size")
+        size = check_size(size[0], size[1], path, f"{where}.image_size")
+        if intr is not None:
+            raise InputError("applies to a camera without intrinsics (the intrinsics file "
+                             "holds its size)", source=path, field=f"{where}.image_size")
+    return CameraEntry(name=name, keypoints=kp, intrinsics=intr, intrinsics_section=section,
+                       skeleton=skeleton, mirrors=tuple(mirrors), frame_offset=int(offset),
+                       image_size=size)

@@ -18,12 +18,12 @@ Who the person is, camera by camera:
   mirrors every detection is a candidate.
 * **The first camera** (the reference), when some frame holds several
   candidates, follows one person over time: its candidates are linked into
-  tracks (:func:`mirrorgraph.rigs.matching.track_labelled`: a detector's left/right
+  tracks (:func:`mirrorgraph.rigs.tracking.track_labelled`: a detector's left/right
   swap of a turning person continues their track, as in the other cameras, and each
   track moves in its own labelling) and the subject is
   the track seen in the most frames, that is, with mirrors, the one that
   pairs with a reflection in the most frames; between tracks seen in nearly as
-  many frames, the one that moves most (:func:`~mirrorgraph.rigs.matching.subject_track`:
+  many frames, the one that moves most (:func:`~mirrorgraph.rigs.tracking.subject_track`:
   a person standing still gives little geometry); then the more confident. Per frame only the pairs holding that track's detection compete
   (:func:`mirrorgraph.initial.pairing.choose_pairs`); frames without it have no
   person. When another track is seen in more than
@@ -60,13 +60,14 @@ from ..errors import DegenerateGeometryError, InputError
 from ..intrinsics import Intrinsics, intrinsics_from_fov, load_intrinsics
 from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
-from ..initial.pairing import (PairCandidates, PairingOptions, choose_pairs, pair_candidates,
-                       paired_people)
+from ..initial.pair_candidates import PairingOptions
+from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, paired_people
 from ..preprocess import check_image_size, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
-from .matching import match_candidates, subject_track, track_labelled, track_motion
+from .matching import match_candidates
+from .tracking import subject_track, track_labelled, track_motion
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 

@@ -4,8 +4,10 @@ A person with individually varied, left/right symmetric proportions
 (:mod:`.body`) exercises (:mod:`.motion`) between a camera and a planar mirror;
 :func:`make_scene` places them, projects joints and reflection, and simulates a
 pose detector (noise, outliers, left/right swaps, missing joints and people,
-bystanders, lens distortion) (:mod:`.scene`); :func:`write_scene` writes the
-detections in every supported format with the ground truth (:mod:`.writer`).
+bystanders, lens distortion) (:mod:`.scene`; the camera in :mod:`.camera`, the
+placement in :mod:`.placement`, the detector in :mod:`.detector`);
+:func:`write_scene` writes the detections in every supported format with the
+ground truth (:mod:`.writer`).
 Instead of the procedural exercises the person can move as a motion-capture
 take does: ``make_scene(motion="take.bvh")`` reads a CMU-skeleton BVH file and
 maps it to the body model's joints (:mod:`.mocap`, the file read by
@@ -35,7 +37,8 @@ makes the scene of a seed in a geometry slice and detector model
 from .geometry import DEFAULT_GEOMETRY, PRESETS, GeometryPreset, scene_geometry_stats
 from .rig import SyntheticRig, make_rig, read_rig_ground_truth, write_rig
 from .sampling import NOISE_MODELS, SLICES, make_wide_scene, sample_scene_params
-from .scene import SyntheticScene, make_scene, tilted_normal
+from .camera import tilted_normal
+from .scene import SyntheticScene, make_scene
 from .writer import read_ground_truth, write_scene
 
 __all__ = ["DEFAULT_GEOMETRY", "GeometryPreset", "NOISE_MODELS", "PRESETS", "SLICES",

@@ -1,7 +1,8 @@
 """Detector models of the synthetic scenes beyond MirrorCalib's Gaussian noise.
 
 :func:`mirrorgraph.synth.make_scene` simulates a pose detector (its module
-docstring has the model). This module adds the errors of real detectors that
+docstring has the model; :func:`observe_keypoints` and :func:`bystander_keypoints`
+here). This module adds the errors of real detectors that
 are hardest for a mirror calibration, and names two detector presets:
 
 * outliers along the epipolar line (:func:`displace_along_epipolar_lines`): a
@@ -35,8 +36,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .camera import Z_MIN, project
+
 __all__ = ["DETECTORS", "sample_detector_params", "displace_along_epipolar_lines",
-           "EPIPOLAR_OUTLIER_PX"]
+           "EPIPOLAR_OUTLIER_PX", "bystander_keypoints", "observe_keypoints"]
 
 #: Length of a displacement along the epipolar line, px (uniform, either direction).
 EPIPOLAR_OUTLIER_PX = (15.0, 100.0)
@@ -124,3 +127,124 @@ def displace_along_epipolar_lines(rng: np.random.Generator, xy: np.ndarray, conf
     np.clip(xy[..., 1], 0.0, h - 1.0, out=xy[..., 1])
     conf[sel] = 0.3 + 0.7 * rng.beta(2.0, 2.0, k)
     return sel
+
+
+def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
+    conf = rng.beta(4.0, 1.2, outlier.shape)
+    k = int(outlier.sum())
+    if k:
+        conf[outlier] = rng.beta(2.0, 2.0, k)
+    conf *= 0.7
+    conf += 0.3
+    return conf
+
+
+def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: float
+                      ) -> np.ndarray:
+    """Unit-variance AR(1) noise along axis 1 (frames): ``e_t = rho e_(t-1) + sqrt(1-rho^2) w_t``."""
+    # lazy: importing scipy.signal costs ~0.35 s, and this module is loaded by
+    # `import mirrorgraph.synth` and `mirrorgraph --help`
+    from scipy.signal import lfilter
+
+    w = rng.standard_normal(shape)
+    w[:, 0] /= np.sqrt(1.0 - rho ** 2)          # start in the stationary distribution
+    return lfilter([np.sqrt(1.0 - rho ** 2)], [1.0, -rho], w, axis=1)
+
+
+def observe_keypoints(rng: np.random.Generator, clean: np.ndarray, size: tuple[int, int],
+             noise_mean: float, noise_std: float, outlier_rate: float, missing_rate: float,
+             single_person_rate: float, noise_correlation: float = 0.0,
+             joint_bias_px: float = 0.0, rng_detector: np.random.Generator | None = None,
+             bias_flip: np.ndarray | None = None):
+    """Noisy detections ``(V, T, J, 3)`` of clean points ``(V, T, J, 2)``.
+
+    With ``bias_flip`` (the skeleton's left/right map; ``V = 2``, view 1 the
+    reflection in real-joint labels) the per-joint bias follows the detector's
+    label: label ``j`` is off by ``b_j`` on the person and by ``b_j`` mirrored
+    horizontally on the reflection, whose real joint ``k`` the detector labels
+    ``flip[k]``.
+    """
+    V, T, J, _ = clean.shape
+    if noise_correlation > 0 or joint_bias_px > 0:
+        xy = clean + noise_mean
+        if noise_std > 0:
+            xy = xy + noise_std * _correlated_noise(rng_detector, clean.shape, noise_correlation)
+        if joint_bias_px > 0 and bias_flip is None:
+            xy = xy + rng_detector.normal(0.0, joint_bias_px, (V, 1, J, 2))
+        elif joint_bias_px > 0:
+            b = rng_detector.normal(0.0, joint_bias_px, (J, 2))
+            xy = xy + np.stack([b, b[bias_flip] * np.array([-1.0, 1.0])])[:, None]
+    elif noise_std > 0:
+        xy = rng.normal(noise_mean, noise_std, clean.shape)
+        xy += clean
+    else:
+        xy = clean + noise_mean
+    outl = rng.random((V, T, J)) < outlier_rate if outlier_rate > 0 \
+        else np.zeros((V, T, J), bool)
+    k = int(outl.sum())
+    if k:
+        ang = rng.uniform(0.0, 2 * np.pi, k)
+        rad = rng.uniform(30.0, 150.0, k)
+        xy[outl] = clean[outl] + np.stack([np.cos(ang), np.sin(ang)], -1) * rad[:, None]
+    w, h = size
+    np.clip(xy[..., 0], 0.0, w - 1.0, out=xy[..., 0])
+    np.clip(xy[..., 1], 0.0, h - 1.0, out=xy[..., 1])
+    conf = _confidences(rng, outl)
+    p_person = missing_rate / 5.0
+    p_joint = max(0.0, (missing_rate - p_person) / (1.0 - p_person)) if p_person < 1 else 1.0
+    drop = rng.random((V, T)) < p_person if p_person > 0 else np.zeros((V, T), bool)
+    if single_person_rate > 0:
+        single = np.flatnonzero(rng.random(T) < single_person_rate)
+        drop[rng.integers(0, V, len(single)), single] = True
+    miss = rng.random((V, T, J)) < p_joint if p_joint > 0 else np.zeros((V, T, J), bool)
+    detected = ~drop & ~miss.all(-1)
+    miss |= ~detected[..., None]
+    outl &= ~miss
+    obs = np.empty(xy.shape[:-1] + (3,))
+    obs[..., :2] = xy
+    obs[..., 2] = conf
+    del xy, conf
+    obs[miss] = (np.nan, np.nan, 0.0)
+    return obs, miss, outl, detected
+
+
+def bystander_keypoints(rng: np.random.Generator, poses: np.ndarray, frames: np.ndarray,
+                K: np.ndarray, size: tuple[int, int], margin: float, R_cw: np.ndarray,
+                noise_mean: float, noise_std: float, missing_rate: float) -> np.ndarray:
+    """Keypoints ``(E, J, 3)`` of unrelated people, whole inside the image."""
+    E, J = len(frames), poses.shape[1]
+    if E == 0:
+        return np.zeros((0, J, 3))
+    w, h = size
+    T = poses.shape[0]
+    p = poses[rng.integers(0, T, E)]                    # (E, J, 3) units of height, copy
+    p[..., [0, 2]] -= p[..., [0, 2]].mean(1, keepdims=True)
+    height = rng.uniform(1.50, 1.95, E)
+    yaw = rng.uniform(-np.pi, np.pi, E)
+    c, s = np.cos(yaw), np.sin(yaw)
+    Ry = np.zeros((E, 3, 3))
+    Ry[:, 0, 0], Ry[:, 0, 2], Ry[:, 1, 1], Ry[:, 2, 0], Ry[:, 2, 2] = c, s, 1.0, -s, c
+    Rb = R_cw @ Ry                                       # (E, 3, 3) body -> camera
+    X = np.einsum("eij,ekj->eki", Rb, p) * height[:, None, None]
+    depth = rng.uniform(3.0, 9.0, E)
+    X = X + np.stack([np.zeros(E), 0.9 * height, depth], -1)[:, None, :]
+    X[..., 2] = np.maximum(X[..., 2], Z_MIN)
+    uv = project(K, X)
+    lo, hi = uv.min(1), uv.max(1)                        # (E, 2) bounding boxes
+    box = np.maximum(hi - lo, 1e-6)
+    avail = np.array([w - 2 * margin, h - 2 * margin])
+    frac = rng.uniform(0.35, 0.8, E)
+    scale = np.minimum(np.minimum(1.0, avail[1] * frac / box[:, 1]), avail[0] / box[:, 0])
+    uv = (uv - lo[:, None]) * scale[:, None, None]
+    box = box * scale[:, None]
+    corner = margin + rng.random((E, 2)) * np.maximum(avail - box, 0.0)
+    uv = uv + corner[:, None]
+    xy = uv + rng.normal(noise_mean, noise_std, uv.shape) if noise_std > 0 else uv + noise_mean
+    xy[..., 0] = np.clip(xy[..., 0], 0.0, w - 1.0)
+    xy[..., 1] = np.clip(xy[..., 1], 0.0, h - 1.0)
+    conf = _confidences(rng, np.zeros((E, J), bool))
+    miss = rng.random((E, J)) < missing_rate
+    miss[miss.all(1), 0] = False                         # keep at least one joint
+    out = np.concatenate([xy, conf[..., None]], -1)
+    out[miss] = (np.nan, np.nan, 0.0)
+    return out

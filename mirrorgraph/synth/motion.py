@@ -190,12 +190,25 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
     act = _schedule(rng, t)
     yaw = _yaw_curve(rng, t, max_yaw_deg)
     P = np.zeros((T, len(FULL_JOINTS), 3))
-    I = FULL_INDEX
+    feet_xz, feet_yaw, feet_lift = _foot_steps(rng, t, fps, L, yaw)
+    ankles, fwd, lat = _ankles(t, fps, L, act, yaw, feet_xz, feet_lift)
+    pelvis, R_pel, hips = _pelvis(P, rng, t, L, act, yaw, ankles, fwd, lat)
+    _legs(P, body, hips, ankles, R_pel, feet_yaw)
+    neck, R_ch, shoulders = _trunk(P, rng, t, L, act, pelvis, R_pel)
+    _head(P, rng, t, body, act, neck, R_ch)
+    _arms(P, rng, t, L, act, R_ch, shoulders)
+    return P
 
-    # ---------------------------------------------------------------- feet
+
+# --------------------------------------------------------------------------- its parts
+# Each part draws from ``rng`` in the order generate_motion calls them: the same seed, the
+# same motion.
+def _foot_steps(rng: np.random.Generator, t: np.ndarray, fps: float, L: dict, yaw: np.ndarray):
+    """The feet's steps on the floor: ``(feet_xz, feet_yaw, feet_lift)``, one ``(T, 3)``
+    position, ``(T,)`` yaw and ``(T,)`` lift a foot (left, right)."""
+    T = len(t)
     hw = L["hip_width"] / 2
     stance = hw + 0.012
-    leg = L["femur"] + L["tibia"]
     wander = np.stack([_wiggle(rng, t, 0.12, 1 / 60, 1 / 8), np.zeros(T),
                        _wiggle(rng, t, 0.12, 1 / 60, 1 / 8)], -1)
     total = float(t[-1]) + 1.0 if T else 1.0
@@ -220,8 +233,14 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
         feet_xz.append(pos)
         feet_yaw.append(fy)
         feet_lift.append(lift)
+    return feet_xz, feet_yaw, feet_lift
 
-    # exercise offsets of the feet, in the current facing (yaw) frame
+
+def _ankles(t: np.ndarray, fps: float, L: dict, act: dict, yaw: np.ndarray, feet_xz: list,
+            feet_lift: list):
+    """The ankles ``(T, 3)`` (left, right) with the exercises' offsets of the feet, in the
+    current facing (yaw) frame, and that frame's forward and lateral axes ``(T, 3)``."""
+    T = len(t)
     jack, lun_l, lun_r = act["jack"], act["lunge_l"], act["lunge_r"]
     fwd = np.stack([np.sin(yaw), np.zeros(T), np.cos(yaw)], -1)
     lat = np.stack([np.cos(yaw), np.zeros(T), -np.sin(yaw)], -1)   # body +x (left)
@@ -241,8 +260,16 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
         a = feet_xz[side] + off
         a[:, 1] = L["ankle_height"] + feet_lift[side] + ex_lift
         ankles.append(a)
+    return ankles, fwd, lat
 
-    # ---------------------------------------------------------------- pelvis
+
+def _pelvis(P: np.ndarray, rng: np.random.Generator, t: np.ndarray, L: dict, act: dict,
+            yaw: np.ndarray, ankles: list, fwd: np.ndarray, lat: np.ndarray):
+    """The pelvis over the ankles (``mid_hip`` set in ``P``): ``(pelvis, R_pel, hips)``."""
+    I = FULL_INDEX
+    hw = L["hip_width"] / 2
+    leg = L["femur"] + L["tibia"]
+    jack, lun_l, lun_r = act["jack"], act["lunge_l"], act["lunge_r"]
     squat, bend = act["squat"], act["bend"]
     lunge = lun_l + lun_r
     mid = (ankles[0] + ankles[1]) / 2
@@ -257,8 +284,13 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
     R_pel = _ry(yaw + _wiggle(rng, t, 3 * _DEG)) @ _rx(p_pitch) @ _rz(p_roll)
     P[:, I["mid_hip"]] = pelvis
     hips = [pelvis + _mv(R_pel, np.array([sx * hw, 0.0, 0.0])) for sx in (1.0, -1.0)]
+    return pelvis, R_pel, hips
 
-    # ---------------------------------------------------------------- legs (IK)
+
+def _legs(P: np.ndarray, body: BodyModel, hips: list, ankles: list, R_pel: np.ndarray,
+          feet_yaw: list) -> None:
+    """Knees by two-bone IK between hips and ankles, and the feet's points, set in ``P``."""
+    T, I, L = len(P), FULL_INDEX, body.lengths
     L1, L2 = L["femur"], L["tibia"]
     reach = 0.998 * (L1 + L2)
     kk = 0.004
@@ -291,7 +323,12 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
             o = body.foot[pt] * np.array([sx, 1.0, 1.0])
             P[:, I[f"{name}_{pt}"]] = A2 + _mv(R_foot, o)
 
-    # ---------------------------------------------------------------- trunk
+
+def _trunk(P: np.ndarray, rng: np.random.Generator, t: np.ndarray, L: dict, act: dict,
+           pelvis: np.ndarray, R_pel: np.ndarray):
+    """The spine up to the neck and shoulders (set in ``P``): ``(neck, R_ch, shoulders)``."""
+    I = FULL_INDEX
+    squat, bend = act["squat"], act["bend"]
     side, twist = act["side"], act["twist"]
     R_lum = R_pel @ _ry(15 * twist * _DEG + _wiggle(rng, t, 3 * _DEG)) @ _rx(
         (10 * squat + 20 * bend) * _DEG + _wiggle(rng, t, 2 * _DEG)) @ _rz(10 * side * _DEG)
@@ -304,8 +341,14 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
     sw = L["shoulder_width"] / 2
     shoulders = [neck + _mv(R_ch, np.array([sx * sw, 0.0, 0.0])) for sx in (1.0, -1.0)]
     P[:, I["left_shoulder"]], P[:, I["right_shoulder"]] = shoulders
+    return neck, R_ch, shoulders
 
-    # ---------------------------------------------------------------- head
+
+def _head(P: np.ndarray, rng: np.random.Generator, t: np.ndarray, body: BodyModel, act: dict,
+          neck: np.ndarray, R_ch: np.ndarray) -> None:
+    """The head's points (eyes, ears, nose), set in ``P``."""
+    I, L = FULL_INDEX, body.lengths
+    bend = act["bend"]
     R_head = R_ch @ _ry(_wiggle(rng, t, 20 * _DEG, 0.03, 0.2)) @ _rx(
         _wiggle(rng, t, 10 * _DEG, 0.03, 0.3) - 12 * bend * _DEG) @ _rz(_wiggle(rng, t, 5 * _DEG))
     pivot = neck + _mv(R_head, np.array([0.0, L["neck"], 0.0]))
@@ -314,7 +357,12 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
             P[:, I[f"{name}_{pt}"]] = pivot + _mv(R_head, body.head[pt] * np.array([sx, 1, 1]))
     P[:, I["nose"]] = pivot + _mv(R_head, body.head["nose"])
 
-    # ---------------------------------------------------------------- arms
+
+def _arms(P: np.ndarray, rng: np.random.Generator, t: np.ndarray, L: dict, act: dict,
+          R_ch: np.ndarray, shoulders: list) -> None:
+    """Elbows and wrists, set in ``P``."""
+    I = FULL_INDEX
+    bend, jack = act["bend"], act["jack"]
     hang = 60 * bend + 85 * act["squat_arms"]
     for side_i, (sx, name) in enumerate(((1.0, "left"), (-1.0, "right"))):
         raise_ = act["raise_l"] if side_i == 0 else act["raise_r"]
@@ -329,4 +377,3 @@ def generate_motion(body: BodyModel, frames: int, fps: float = 30.0,
         wri = elb + _mv(R_el, np.array([0.0, -L["ulna"], 0.0]))
         P[:, I[f"{name}_elbow"]] = elb
         P[:, I[f"{name}_wrist"]] = wri
-    return P

@@ -131,7 +131,8 @@ from .rig_placement import (PERSON, TORSOS_APART, MAX_ATTEMPTS, PERSON_FULL, REF
                             build_2cams1mirror, build_4cams, camera_views, full_fraction,
                             mirror_distances_ok, resolve_rig_ranges)
 from .rig_types import RigBystander, RigView, SyntheticRig, bystander_name
-from .scene import random_camera_matrix, observe_keypoints, check_camera_args
+from .camera import check_camera_args, random_camera_matrix
+from .detector import observe_keypoints
 
 __all__ = ["KINDS", "RigView", "RigBystander", "SyntheticRig", "make_rig", "write_rig",
            "read_rig_ground_truth", "bystander_name"]
@@ -255,23 +256,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     g = resolve_rig_ranges(geometry)
     if RIG_PRESETS.get(g.name) is not g or g.name != "favourable":
         options["geometry"] = g.name if RIG_PRESETS.get(g.name) is g else asdict(g)
-    if kind not in KINDS:
-        raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
-    T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
-    for name, v in (("outlier_rate", outlier_rate), ("lr_swap_rate", lr_swap_rate),
-                    ("missing_rate", missing_rate)):
-        if not 0.0 <= v <= 1.0:
-            raise ValueError(f"{name} must be in [0, 1], got {v}")
-    if subject_height is not None and not subject_height > 0:
-        raise ValueError(f"subject_height must be positive, got {subject_height}")
-    if not 60.0 <= corner_angle_deg <= 140.0:
-        raise ValueError(f"corner_angle_deg must be in [60, 140], got {corner_angle_deg}")
-    if not joint_bias_px >= 0:
-        raise ValueError(f"joint_bias_px must be >= 0, got {joint_bias_px}")
-    if int(bystanders) != bystanders or bystanders < 0:
-        raise ValueError(f"bystanders must be a non-negative integer, got {bystanders}")
+    T, w, h = _check_rig_args(options, image_size, joint_bias_px, bystanders)
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
-    J = skel.num_joints
     size = (w, h)
     n_cams = {"1cam2mirrors": 1, "2cams1mirror": 2, "4cams": 4}[kind]
     names = [f"cam{i + 1:02d}" for i in range(n_cams)]
@@ -284,8 +270,65 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
 
     torso = np.array([skel.index(f"{s}_{j}") for s in ("left", "right")
                       for j in ("shoulder", "hip")])
+    X_r, cams, mirrors_r, info, views_r = _place_rig(
+        rng, kind, g, Ks, size, local, H, np.radians(corner_angle_deg), double_reflections,
+        torso, fov_deg)
+    rng_b = bystander_rng(seed)
+    extra = make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
+                             mirrors_r, double_reflections, views_r, torso)
+    if extra:
+        info["bystanders"] = [b[3] for b in extra]
+    frame = _in_camera0_frame(names, cams, X_r, mirrors_r, extra)
+    detect = dict(size=size, noise_std=noise_std, outlier_rate=outlier_rate,
+                  missing_rate=missing_rate, lr_swap_rate=lr_swap_rate, flip=skel.flip,
+                  joint_bias_px=float(joint_bias_px),
+                  rng_bias=np.random.default_rng([0 if seed is None else seed, 2])
+                  if joint_bias_px else None)
+    detections, views, det_views = _detect_rig(rng, rng_b, names, views_r, extra, skel, T,
+                                               f"synthetic-rig({kind}, seed={seed})", fps,
+                                               detect)
+    return SyntheticRig(
+        kind=kind, skeleton=skel, frame_ids=np.arange(T, dtype=np.int64), camera_names=names,
+        K=Ks, image_size=size, subject_height=H, detections=detections,
+        options=options, fps=float(fps), seed=seed, views=views,
+        detection_views=det_views, body=body,
+        placement=dict(info, room_to_world=frame.pop("room_to_world")), **frame)
 
-    # ------------------------------------------------------------- placement (room frame)
+
+# --------------------------------------------------------------------------- make_rig's steps
+def _check_rig_args(options: dict, image_size: tuple[int, int], joint_bias_px: float,
+                    bystanders) -> tuple[int, int, int]:
+    """Raise ValueError naming the first of :func:`make_rig`'s options out of range
+    (``options``: the ones it records); ``(T, width, height)``."""
+    kind = options["kind"]
+    if kind not in KINDS:
+        raise ValueError(f"unknown rig kind {kind!r}; known: {', '.join(KINDS)}")
+    T, w, h = check_camera_args(options["frames"], image_size, options["fov_deg"],
+                                options["fps"], options["noise_std"])
+    for name in ("outlier_rate", "lr_swap_rate", "missing_rate"):
+        v = options[name]
+        if not 0.0 <= v <= 1.0:
+            raise ValueError(f"{name} must be in [0, 1], got {v}")
+    subject_height = options["subject_height"]
+    if subject_height is not None and not subject_height > 0:
+        raise ValueError(f"subject_height must be positive, got {subject_height}")
+    corner_angle_deg = options["corner_angle_deg"]
+    if not 60.0 <= corner_angle_deg <= 140.0:
+        raise ValueError(f"corner_angle_deg must be in [60, 140], got {corner_angle_deg}")
+    if not joint_bias_px >= 0:
+        raise ValueError(f"joint_bias_px must be >= 0, got {joint_bias_px}")
+    if int(bystanders) != bystanders or bystanders < 0:
+        raise ValueError(f"bystanders must be a non-negative integer, got {bystanders}")
+    return T, w, h
+
+
+def _place_rig(rng: np.random.Generator, kind: str, g: RigRanges, Ks: list, size: tuple[int, int],
+               local: np.ndarray, H: float, corner_angle: float, double_reflections: bool,
+               torso: np.ndarray, fov_deg: float):
+    """Place cameras, mirrors and the person in the room frame, drawn again until every
+    camera sees the person (and the reflections) whole and apart:
+    ``(X_r, cams, mirrors_r, info, views_r)`` (``Ks`` get the drawn focal lengths)."""
+    w, h = size
     built = None
     for attempt in range(MAX_ATTEMPTS):
         if g.focal_px is not None:
@@ -296,7 +339,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         elif kind == "2cams1mirror":
             built = build_2cams1mirror(rng, local, H, g)
         else:
-            built = build_1cam2mirrors(rng, local, H, np.radians(corner_angle_deg), g)
+            built = build_1cam2mirrors(rng, local, H, corner_angle, g)
         if built is None:
             continue
         X_r, cams, mirrors_r, info = built
@@ -321,13 +364,14 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     info["attempts"] = attempt + 1
     if g.focal_px is not None:
         info["focal_px"] = [float(K[0, 0]) for K in Ks]
-    rng_b = bystander_rng(seed)
-    extra = make_bystanders(rng_b, int(bystanders), skel, fps, cams, Ks, size, X_r,
-                             mirrors_r, double_reflections, views_r, torso)
-    if extra:
-        info["bystanders"] = [b[3] for b in extra]
+    return X_r, cams, mirrors_r, info, views_r
 
-    # ------------------------------------------------------------- to camera 0's frame
+
+def _in_camera0_frame(names: list[str], cams: list, X_r: np.ndarray, mirrors_r: dict,
+                      extra: list) -> dict:
+    """The rig from the room frame to camera 0's: the :class:`SyntheticRig` fields
+    ``joints3d``, ``poses``, ``mirror_names``, ``mirrors``, ``mirror_limits``, ``sees`` and
+    ``bystanders``, and ``room_to_world``."""
     R0, C0 = cams[0].R, cams[0].C
     room_to_world = np.eye(4)
     room_to_world[:3, :3] = R0.T
@@ -352,14 +396,18 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
     for cname, c, P in zip(names, cams, poses):
         xs = [(P[:3, :3].T @ mirrors[mirror_names.index(m)][0])[0] for m in c.sees]
         sees[cname] = [c.sees[i] for i in np.argsort(xs, kind="stable")]
+    truth = [RigBystander(name=bname, joints3d=(Xb - C0) @ R0, height=Hb, present=present,
+                          body=bbody) for bname, (Xb, Hb, present, bbody), _, _ in extra]
+    return dict(joints3d=joints3d, poses=poses, mirror_names=mirror_names, mirrors=mirrors,
+                mirror_limits=limits, sees=sees, bystanders=truth, room_to_world=room_to_world)
 
-    # ------------------------------------------------------------- detector
-    flip = skel.flip
-    detect = dict(size=size, noise_std=noise_std, outlier_rate=outlier_rate,
-                  missing_rate=missing_rate, lr_swap_rate=lr_swap_rate, flip=flip,
-                  joint_bias_px=float(joint_bias_px),
-                  rng_bias=np.random.default_rng([0 if seed is None else seed, 2])
-                  if joint_bias_px else None)
+
+def _detect_rig(rng: np.random.Generator, rng_b: np.random.Generator, names: list[str],
+                views_r: list, extra: list, skel: Skeleton, T: int, source: str, fps: float,
+                detect: dict):
+    """The detector on every camera: ``(detections, views, det_views)`` by camera name,
+    the subject's and the bystanders' rows in random order per frame."""
+    J = skel.num_joints
     detections, views, det_views = {}, {}, {}
     for c, (cname, vs) in enumerate(zip(names, views_r)):
         rows_by_view, cam_views, detected = _detect(rng, vs, **detect)
@@ -384,16 +432,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         det_views[cname] = [tuple(x) for x in np.split(vnames, splits)]
         detections[cname] = RawDetections(
             skeleton=skel, frame_ids=np.arange(T, dtype=np.int64), people=people,
-            source=f"synthetic-rig({kind}, seed={seed}):{cname}", format="synthetic",
-            image_size=size, fps=float(fps))
+            source=f"{source}:{cname}", format="synthetic",
+            image_size=detect["size"], fps=float(fps))
         views[cname] = cam_views
-
-    placement = dict(info, room_to_world=room_to_world)
-    truth = [RigBystander(name=bname, joints3d=(Xb - C0) @ R0, height=Hb, present=present,
-                          body=bbody) for bname, (Xb, Hb, present, bbody), _, _ in extra]
-    return SyntheticRig(
-        kind=kind, skeleton=skel, frame_ids=np.arange(T, dtype=np.int64), camera_names=names,
-        K=Ks, image_size=size, poses=poses, mirror_names=mirror_names, mirrors=mirrors,
-        sees=sees, joints3d=joints3d, subject_height=H, detections=detections,
-        options=options, fps=float(fps), seed=seed, mirror_limits=limits, views=views,
-        detection_views=det_views, body=body, placement=placement, bystanders=truth)
+    return detections, views, det_views

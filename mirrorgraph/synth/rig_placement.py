@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..geometry import reflect_points
-from .scene import project, rot_y, rot_z
+from .camera import project, rot_y, rot_z
 
 _Z_MIN = 0.5            # m: nearest a visible point may be to the camera plane
 _MIRROR_GAP = 0.2       # m: nearest a joint may come to a mirror

@@ -20,7 +20,7 @@ from ..skeletons import Skeleton
 from .body import BodyModel
 from ..geometry import reflect_points
 from .rig_placement import PERSON
-from .scene import project
+from .camera import project
 
 __all__ = ["PERSON", "RigView", "RigBystander", "SyntheticRig", "bystander_name"]
 

@@ -30,7 +30,8 @@ import numpy as np
 from ..io import write_keypoints, write_paired_npz
 from ..io.atomic import atomic_path
 from ..io.calibration import read_json, write_json
-from .scene import D_FLIP, SyntheticScene
+from .camera import D_FLIP
+from .scene import SyntheticScene
 
 FORMATS = ("mmpose", "openpose", "easymocap", "npz")
 _NAMES = {"mmpose": "keypoints_mmpose.json", "openpose": "openpose",

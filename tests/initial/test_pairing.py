@@ -5,7 +5,8 @@ import pytest
 
 from mirrorgraph.errors import InputError
 from mirrorgraph.keypoints import RawDetections
-from mirrorgraph.initial.pairing import fix_left_right, pair_detections
+from mirrorgraph.initial.left_right import fix_left_right
+from mirrorgraph.initial.pairing import pair_detections
 from mirrorgraph.synth import make_scene
 
 
@@ -69,7 +70,7 @@ def test_reflection_missing_everywhere_is_an_input_error():
 
 def test_candidates_are_every_pair_of_every_frame_in_order():
     """The vectorised candidate list equals the plain loop over frames and pairs."""
-    from mirrorgraph.initial.pairing import PairingOptions, _candidates, _masked
+    from mirrorgraph.initial.pair_candidates import PairingOptions, candidates, masked
 
     s = make_scene(frames=300, seed=9, extra_person_rate=0.3, single_person_rate=0.2,
                    missing_rate=0.1)
@@ -80,12 +81,12 @@ def test_candidates_are_every_pair_of_every_frame_in_order():
         people[t] = np.concatenate([people[t], extra])
     raw = RawDetections(skeleton=s.skeleton, frame_ids=s.frame_ids, people=people)
     opts = PairingOptions(max_people=4)
-    got = _candidates(raw, opts)
+    got = candidates(raw, opts)
     frame, a, b, ia, ib = [], [], [], [], []
     for t, p in enumerate(people):
         if len(p) < 2:
             continue
-        p = _masked(p, opts.min_confidence)
+        p = masked(p, opts.min_confidence)
         index = np.arange(len(p))
         if len(p) > opts.max_people:
             index = np.sort(np.argsort(-p[..., 2].mean(1), kind="stable")[:opts.max_people])
@@ -102,7 +103,7 @@ def test_candidates_are_every_pair_of_every_frame_in_order():
 
 
 def test_frame_scores_are_the_noise_for_a_reflection():
-    from mirrorgraph.initial.pairing import frame_scores
+    from mirrorgraph.initial.pair_scores import frame_scores
 
     s = make_scene(frames=200, seed=4, single_person_rate=0.2)
     from mirrorgraph.geometry import epipole_from_normal

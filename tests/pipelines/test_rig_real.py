@@ -24,7 +24,7 @@ cam03 was refused on this slice: the subject walks into the person standing stil
 rig's tracker links those frames into the subject's track through the swap (21 + 7 + 2 of
 34 frames: the longest track's best geometry fits 45 % of its joints, the bystander's 46
 %, 50 % needed). The rig now matches the pieces of a track between its swaps
-(:func:`mirrorgraph.rigs.matching.tracklets`: the subject's first 14 frames fit 92 %):
+(:func:`mirrorgraph.rigs.tracking.tracklets`: the subject's first 14 frames fit 92 %):
 1.05 / 2.61 / 1.37 deg and 55 / 164 / 142 mm for Demo_SinglePerson, 0.83 / 2.79 / 0.64 deg
 and 71 / 128 / 105 mm for Demo_MultiPerson.
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mirrorgraph.rigs.matching import match_candidates, track_labelled, tracklets
+from mirrorgraph.rigs.matching import match_candidates
+from mirrorgraph.rigs.tracking import track_labelled, tracklets
 from mirrorgraph.synth.rig import make_rig
 
 FRAMES, CLEAN = 60, 20

@@ -260,7 +260,7 @@ def test_between_people_seen_as_long_the_one_who_moves_most_is_the_subject():
     """Two people in every frame (track 0 found first, standing still; track 1 walking):
     the subject is the one who moves; a person seen in far fewer frames does not win
     on motion."""
-    from mirrorgraph.rigs.matching import subject_track, track_motion
+    from mirrorgraph.rigs.tracking import subject_track, track_motion
     rng = np.random.default_rng(0)
     T, J = 60, 17
     still = np.concatenate([rng.normal(500, 2, (T, J, 2)), np.ones((T, J, 1))], -1)
