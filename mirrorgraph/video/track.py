@@ -6,7 +6,10 @@ MediaPipe's pose graph does for one person, extended to several:
 
 1. every track's crop comes from its landmarks of the frame before (the auxiliary
    mid-hip and body-circle landmarks): a person once found is followed by the
-   landmark model alone, and a track ends where it no longer sees a person;
+   landmark model alone, and a track ends where it no longer sees a person, or where
+   its body circle jumps (:attr:`TrackerOptions.max_jump`: the crop's landmarks went
+   over to someone else, a reflection's crop to the person in front of it; that pose
+   starts a new track);
 2. the person detector runs only to find people not yet tracked: on every frame
    where a track was lost or nobody is tracked; every
    :attr:`TrackerOptions.search_every` frames while a track lost in the last
@@ -20,12 +23,15 @@ MediaPipe's pose graph does for one person, extended to several:
    than the person, which one pass over the whole frame misses (the tiles show it
    at up to 2.7 times the scale). The views' boxes are merged by weighted NMS on
    the boxes, then by their body circles (:func:`same_body`: one person seen whole
-   and in a tile gives two face boxes that need not overlap);
-3. a detection whose body circle lies on a person already found (or, for a few
-   frames, on one where the landmark model found nobody) is not looked at again,
-   except, while searching, one on a person already found: a reflection half
-   hidden behind the person (someone filmed from behind, standing in front of
-   the mirror) has its body circle on theirs;
+   and in a tile gives two face boxes that need not overlap; one merged into a
+   detection of another size, :attr:`TrackerOptions.merged_ratio`, is kept aside in
+   :attr:`PoseTracker.merged` and looked at too: a reflection half hidden behind the
+   person, someone filmed from behind in front of the mirror, has its smaller body
+   circle on theirs);
+3. each tracked person claims the one detection whose body circle lies on theirs
+   nearest (:meth:`PoseTracker._claimed`), which is not looked at again; nor is one
+   lying on a new pose of this frame (or, for a few frames, where the landmark model
+   found nobody); a second detection on a tracked person is (the reflection behind);
    the landmark model runs on each other one's crop (a dim crop's intensities
    stretched; retried upright, then turned by 180 deg, where it finds nobody: the
    detector's rotation of a reflection is often upside down); a pose whose
@@ -107,15 +113,13 @@ class TrackerOptions:
             the last ``recall_frames`` processed frames (a reflection the landmark
             model lost, or whose track slid onto the person and ended there as a
             duplicate), it searches: the detector on the whole frame and the tiles
-            every ``search_every``-th frame, and the landmark model also on
-            detections lying on a person already found (pose NMS then drops the
-            person's duplicates). A reflection half hidden behind the person is
-            found by the detector in few frames, and its mid-hip then lies within
-            0.3 body-circle radii of the person's (measured on the Pose2Sim pair
-            clips of ``bench_agreement.py``: 0.05-0.30); without this the person's
-            detection covers it. Bounded: a clip where the count never drops pays
-            nothing, one where it drops pays at most ``recall_frames`` frames of
-            searching after the last frame that held more. 0: off.
+            every ``search_every``-th frame. A reflection half hidden behind the
+            person is separated by the detector in few frames (on
+            ``bench_agreement.py``'s pair clips 3-26 % even on every frame), and
+            held by the landmark model for a few frames only. Bounded: a clip where
+            the count never drops pays nothing, one where it drops pays at most
+            ``recall_frames`` frames of searching after the last frame that held
+            more. 0: off.
         max_jump: a followed track whose body circle moves by more than this times
             its radius, or whose radius changes by more than a factor ``1 +
             max_jump``, from one frame to the next has gone over to someone else (the
