@@ -133,7 +133,8 @@ class VideoDetections:
         seconds: detection time (of the run that made them, when read from the cache).
         cached: whether they were read from the cache.
         cache_file: the cache entry, if any.
-        stats: model runs (``detector_runs``, ``landmark_runs``).
+        stats: model runs (``detector_runs``, ``landmark_runs``) and ``search_frames``
+            (frames the tracker searched for someone it held before).
     """
 
     skeleton: Skeleton

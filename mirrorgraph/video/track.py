@@ -6,11 +6,16 @@ MediaPipe's pose graph does for one person, extended to several:
 
 1. every track's crop comes from its landmarks of the frame before (the auxiliary
    mid-hip and body-circle landmarks): a person once found is followed by the
-   landmark model alone, and a track ends where it no longer sees a person;
+   landmark model alone, and a track ends where it no longer sees a person, or where
+   its body circle jumps (:attr:`TrackerOptions.max_jump`: the crop's landmarks went
+   over to someone else, a reflection's crop to the person in front of it; that pose
+   starts a new track);
 2. the person detector runs only to find people not yet tracked: on every frame
    where a track was lost or nobody is tracked; every
    :attr:`TrackerOptions.search_every` frames while a track lost in the last
-   :attr:`TrackerOptions.relink_frames` frames is still missing; else on the whole
+   :attr:`TrackerOptions.relink_frames` frames is still missing, or while the
+   tracker holds fewer people than it did in the last
+   :attr:`TrackerOptions.recall_frames` frames (searching); else on the whole
    frame every :attr:`TrackerOptions.detect_every` frames and on the tiles every
    :attr:`TrackerOptions.tiles_every` frames. It runs on the whole frame and on
    overlapping square tiles (:func:`detection_views`), each view's intensities
@@ -18,9 +23,15 @@ MediaPipe's pose graph does for one person, extended to several:
    than the person, which one pass over the whole frame misses (the tiles show it
    at up to 2.7 times the scale). The views' boxes are merged by weighted NMS on
    the boxes, then by their body circles (:func:`same_body`: one person seen whole
-   and in a tile gives two face boxes that need not overlap);
-3. a detection whose body circle lies on a person already found (or, for a few
-   frames, on one where the landmark model found nobody) is not looked at again;
+   and in a tile gives two face boxes that need not overlap; one merged into a
+   detection of another size, :attr:`TrackerOptions.merged_ratio`, is kept aside in
+   :attr:`PoseTracker.merged` and looked at too: a reflection half hidden behind the
+   person, someone filmed from behind in front of the mirror, has its smaller body
+   circle on theirs);
+3. each tracked person claims the one detection whose body circle lies on theirs
+   nearest (:meth:`PoseTracker._claimed`), which is not looked at again; nor is one
+   lying on a new pose of this frame (or, for a few frames, where the landmark model
+   found nobody); a second detection on a tracked person is (the reflection behind);
    the landmark model runs on each other one's crop (a dim crop's intensities
    stretched; retried upright, then turned by 180 deg, where it finds nobody: the
    detector's rotation of a reflection is often upside down); a pose whose
@@ -40,6 +51,7 @@ All coordinates are image pixels (x right, y down).
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,6 +109,30 @@ class TrackerOptions:
         relink_frames: a new pose takes the id of a track lost at most this many
             frames before, where their boxes overlap.
         max_people: most people tracked in one frame (the best detections first).
+        recall_frames: while the tracker holds fewer people than it held in one of
+            the last ``recall_frames`` processed frames (a reflection the landmark
+            model lost, or whose track slid onto the person and ended there as a
+            duplicate), it searches: the detector on the whole frame and the tiles
+            every ``search_every``-th frame. A reflection half hidden behind the
+            person is separated by the detector in few frames (on
+            ``bench_agreement.py``'s pair clips 3-26 % even on every frame), and
+            held by the landmark model for a few frames only. Bounded: a clip where
+            the count never drops pays nothing, one where it drops pays at most
+            ``recall_frames`` frames of searching after the last frame that held
+            more. 0: off.
+        max_jump: a followed track whose body circle moves by more than this times
+            its radius, or whose radius changes by more than a factor ``1 +
+            max_jump``, from one frame to the next has gone over to someone else (the
+            crop of a reflection half hidden behind the person holds the person too,
+            and the landmark model takes them): its pose starts a new track and the
+            track is lost (the detector runs, then searches for it). 0: off.
+        merged_ratio: a detection that :func:`same_body` merges into a better one
+            whose body-circle radius differs from its by more than this factor is
+            looked at too (:attr:`PoseTracker.merged`), unless a tracked person
+            claims it: one person seen in two views gives two circles of about one
+            size, a reflection half hidden behind them a smaller one on theirs
+            (measured on the Pose2Sim pair clips of ``bench_agreement.py``: such a
+            merge held the reflection in 3-31 of 99 frames). ``inf``: off.
     """
 
     detect_every: int = 10
@@ -112,6 +148,9 @@ class TrackerOptions:
     nms_on_body: float | None = 0.85
     relink_frames: int = 30
     max_people: int = 12
+    recall_frames: int = 60
+    max_jump: float = 0.3
+    merged_ratio: float = 1.2
 
     def key(self) -> dict:
         """The options as a dict (for the detection cache's key)."""
@@ -133,6 +172,29 @@ class _Track:
     box: np.ndarray
     last_frame: int
     lost: bool = False
+    circle: np.ndarray | None = None      # (mid-hip x, y, radius) of the last pose
+
+
+#: Marks a pose of :meth:`PoseTracker.step` that starts a track of its own (never relinked).
+_NEW = _Track(track_id=-1, roi=np.zeros(4), box=np.zeros(4), last_frame=-1)
+
+
+def _circle(pose: Pose) -> np.ndarray:
+    """``(3,)`` a pose's body circle: mid-hip x, y and radius (its auxiliary landmarks)."""
+    return np.array([*pose.aux[0], np.linalg.norm(pose.aux[1] - pose.aux[0])])
+
+
+def _jumped(circle: np.ndarray | None, pose: Pose, max_jump: float) -> bool:
+    """Whether a track's pose moved from its body circle of the frame before by more than
+    ``max_jump`` times the larger radius, or changed its radius by more than a factor
+    ``1 + max_jump``: no body does that between two frames, a crop whose landmarks
+    went over to another person does."""
+    if circle is None or max_jump <= 0:
+        return False
+    now = _circle(pose)
+    big, small = max(now[2], circle[2]), max(min(now[2], circle[2]), 1e-9)
+    return bool(np.linalg.norm(now[:2] - circle[:2]) > max_jump * big
+                or big / small > 1.0 + max_jump)
 
 
 def detection_views(width: int, height: int, *, flip: bool, tiles: bool
@@ -229,12 +291,18 @@ class PoseTracker:
         self._next_id = 0
         self._count = 0
         self._rejected: list[tuple[np.ndarray, float, int]] = []   # (mid-hip, radius, frame)
-        self.stats = {"detector_runs": 0, "landmark_runs": 0}
+        self._held: deque[int] = deque(maxlen=max(1, self.options.recall_frames))  # people a frame
+        self.stats = {"detector_runs": 0, "landmark_runs": 0, "search_frames": 0}
+        #: the last :meth:`detect_all`'s detections merged into a kept one of another size
+        self.merged: list[Detection] = []
 
     def detect_all(self, rgb: np.ndarray, *, tiles: bool = True) -> list[Detection]:
         """The detector's people over the views of :func:`detection_views` (without the
         tiles where ``tiles`` is false), best first: merged by weighted NMS on their
-        boxes, then one a body (:func:`same_body`, the best-scoring kept)."""
+        boxes, then one a body (:func:`same_body`, the best-scoring kept). Those merged
+        into a kept one whose body circle's radius differs from its by more than
+        :attr:`TrackerOptions.merged_ratio` are left in :attr:`merged`: a reflection
+        half hidden behind the person, smaller, has its body circle on theirs."""
         h, w = rgb.shape[:2]
         boxes, kps, scores = [], [], []
         for flipped, (x0, y0, x1, y1) in detection_views(w, h, flip=self.options.flip,
@@ -261,13 +329,18 @@ class PoseTracker:
                                iou_threshold=0.3)
         same = same_body(k)
         keep: list[int] = []
+        self.merged = []
+        r = np.linalg.norm(k[:, 1] - k[:, 0], axis=1)
         for i in range(len(s)):                          # best first
-            if not any(same[i, j] for j in keep):
+            on = [j for j in keep if same[i, j]]
+            if not on:
                 keep.append(i)
+            elif max(r[i], r[on[0]]) > self.options.merged_ratio * max(min(r[i], r[on[0]]), 1e-9):
+                self.merged.append(Detection(box=b[i], keypoints=k[i], score=float(s[i])))
         return [Detection(box=b[i], keypoints=k[i], score=float(s[i])) for i in keep]
 
     def _covered(self, det: Detection, poses: list[Pose], frame: int) -> bool:
-        """Whether a detection's mid-hip lies on a pose already found, at its size, or
+        """Whether a detection's mid-hip lies on a pose of ``poses``, at its size, or
         where the landmark model found nobody in the last :attr:`REJECT_FRAMES` frames."""
         hip = det.keypoints[0]
         radius = np.linalg.norm(det.keypoints[1] - det.keypoints[0])
@@ -278,6 +351,34 @@ class PoseTracker:
                     and 0.6 < radius / max(r, 1e-9) < 1.6:
                 return True
         return False
+
+    @staticmethod
+    def _claimed(dets: list[Detection], poses: list[Pose]) -> set[int]:
+        """Indices of the detections that are tracked people: each pose claims the one
+        detection whose body circle lies on its own (as :meth:`_covered`) nearest it
+        (mid-hip distance over the larger radius plus the radii's log ratio), each
+        detection once. A second detection on a tracked person is looked at: a
+        reflection half hidden behind the person has its body circle on theirs
+        (measured on the Pose2Sim pair clips of ``bench_agreement.py``: mid-hips
+        0.05-0.30 radii apart, radii 0.61-1.17 of the person's), and the person's own
+        detection is the nearer one."""
+        pairs = []
+        for i, det in enumerate(dets):
+            hip = det.keypoints[0]
+            radius = np.linalg.norm(det.keypoints[1] - det.keypoints[0])
+            for j, p in enumerate(poses):
+                r = np.linalg.norm(p.aux[1] - p.aux[0])
+                d = np.linalg.norm(p.aux[0] - hip) / max(r, radius, 1e-9)
+                ratio = radius / max(r, 1e-9)
+                if d < 0.3 and 0.6 < ratio < 1.6:
+                    pairs.append((d + abs(np.log(ratio)), i, j))
+        claimed: set[int] = set()
+        posed: set[int] = set()
+        for _, i, j in sorted(pairs):
+            if i not in claimed and j not in posed:
+                claimed.add(i)
+                posed.add(j)
+        return claimed
 
     def _one_each(self, poses: list[Pose]) -> np.ndarray:
         """Indices of ``poses`` kept by :func:`~mirrorgraph.video.nms.pose_nms` (the
@@ -291,13 +392,19 @@ class PoseTracker:
                         flip=BLAZEPOSE.flip if len(poses[0].xy) == BLAZEPOSE.num_joints
                         else None)
 
-    def _detector_due(self, lost_now: bool, tracked: int, frame: int) -> tuple[bool, bool]:
+    def _searching(self, tracked: int) -> bool:
+        """Whether fewer people are tracked than in one of the last
+        :attr:`TrackerOptions.recall_frames` frames."""
+        return self.options.recall_frames > 0 and bool(self._held) and max(self._held) > tracked
+
+    def _detector_due(self, lost_now: bool, tracked: int, frame: int,
+                      searching: bool = False) -> tuple[bool, bool]:
         """``(run the detector, on the tiles too)`` this frame (the module docstring, 2)."""
         o, n = self.options, self._count
         if lost_now or tracked == 0:
             return True, True
         missing = any(t.lost and frame - t.last_frame <= o.relink_frames for t in self._tracks)
-        if missing and n % o.search_every == 0:
+        if (missing or searching) and n % o.search_every == 0:
             return True, True
         tiles = n % o.tiles_every == 0
         return tiles or n % o.detect_every == 0, tiles
@@ -306,28 +413,45 @@ class PoseTracker:
         """Every person in one ``(H, W, 3)`` uint8 RGB frame, with track ids."""
         o = self.options
         followed: list[tuple[_Track, Pose]] = []
+        jumped: list[Pose] = []
         lost_now = False
         for tr in sorted(self._tracks, key=lambda t: t.track_id):      # the oldest first
             if tr.lost:
                 continue
             self.stats["landmark_runs"] += 1
             pose = self.model.landmarks(rgb, tr.roi)
-            if pose.score >= o.min_pose_score:
-                followed.append((tr, pose))
-            else:
+            if pose.score < o.min_pose_score:
                 tr.lost, lost_now = True, True
+            elif _jumped(tr.circle, pose, o.max_jump):
+                # the crop's landmarks went over to someone else (a reflection's crop
+                # onto the person in front of it): that pose is a new track's, the
+                # track's own subject is lost and searched for
+                tr.lost, lost_now = True, True
+                jumped.append(pose)
+            else:
+                followed.append((tr, pose))
         # one person followed twice (two tracks converged): the older track goes on
         keep = set(self._one_each([p for _, p in followed]).tolist())
         for i, (tr, _) in enumerate(followed):
             if i not in keep:
                 tr.lost = True
         unique: list[tuple[_Track | None, Pose]] = [followed[i] for i in sorted(keep)]
-        run, tiles = self._detector_due(lost_now, len(unique), frame)
+        if jumped:
+            every = [p for _, p in unique] + jumped
+            unique += [(_NEW, every[i]) for i in self._one_each(every).tolist()
+                       if i >= len(unique)]
+        searching = self._searching(len(unique))
+        self.stats["search_frames"] += searching
+        run, tiles = self._detector_due(lost_now, len(unique), frame, searching)
         if run:
             new: list[Pose] = []
-            for det in self.detect_all(rgb, tiles=tiles)[:o.max_people]:
-                if len(unique) + len(new) >= o.max_people or \
-                        self._covered(det, [p for _, p in unique] + new, frame):
+            dets = self.detect_all(rgb, tiles=tiles)[:o.max_people]
+            first = len(dets)
+            dets += self.merged[:o.max_people]        # bodies behind another one's
+            claimed = self._claimed(dets, [p for _, p in unique])
+            for i, det in enumerate(dets):
+                if len(unique) + len(new) >= o.max_people or i in claimed or \
+                        self._covered(det, new if i < first else [], frame):
                     continue
                 pose = self._landmarks_of(rgb, det)
                 if pose.score < o.min_pose_score or extent(pose) < o.min_extent:
@@ -340,11 +464,15 @@ class PoseTracker:
                 unique += [(None, every[i]) for i in self._one_each(every).tolist()
                            if i >= len(unique)]
         self._count += 1
+        self._held.append(len(unique))
         out = []
         for tr, pose in unique:
             if tr is None:
                 tr = self._relink(pose, frame)
+            elif tr is _NEW:
+                tr = self._new_track(pose)
             tr.roi, tr.box, tr.last_frame, tr.lost = pose.next_roi, pose.bbox(), frame, False
+            tr.circle = _circle(pose)
             out.append(TrackedPose(tr.track_id, pose))
         self._tracks = [t for t in self._tracks
                         if not t.lost or frame - t.last_frame <= o.relink_frames]
@@ -382,7 +510,10 @@ class PoseTracker:
                     best, best_iou = t, iou
         if best is not None:
             return best
-        tr = _Track(track_id=self._next_id, roi=pose.roi, box=box, last_frame=frame)
+        return self._new_track(pose)
+
+    def _new_track(self, pose: Pose) -> _Track:
+        tr = _Track(track_id=self._next_id, roi=pose.roi, box=pose.bbox(), last_frame=-1)
         self._next_id += 1
         self._tracks.append(tr)
         return tr
