@@ -152,6 +152,8 @@ class LiveFrame:
         paired: a person and their reflection were found in this frame.
         skipped: why the frame was skipped (bad input), else ``None``.
         latency_s: wall seconds of this frame's own work (pairing, triangulation).
+        cpu_s: the thread's CPU seconds of the same (the latency without what other
+            processes on the machine took from it).
         solve_s: wall seconds spent in a window's solve during this call (``0`` in the
             background mode, where the worker solves).
     """
@@ -166,6 +168,7 @@ class LiveFrame:
     skipped: str | None = None
     latency_s: float = 0.0
     solve_s: float = 0.0
+    cpu_s: float = 0.0
 
     @property
     def status(self) -> str:
@@ -308,7 +311,7 @@ class LiveCalibrator:
             number not after the last one) is skipped with its reason, counted in
             :attr:`counts`.
         """
-        clock = time.perf_counter()
+        clock, cpu = time.perf_counter(), time.thread_time()
         index = self.frames
         self.frames += 1
         fid = index if frame_id is None else int(frame_id)
@@ -324,7 +327,7 @@ class LiveCalibrator:
                          else "frame number not increasing"] += 1
             return LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
                              skipped=reason, latency_s=time.perf_counter() - clock,
-                             solve_s=solve_s)
+                             solve_s=solve_s, cpu_s=time.thread_time() - cpu)
         self._last_id = fid
         if self.intrinsics is not None and self.intrinsics.dist is not None and len(p):
             p[..., :2] = self.intrinsics.undistort_points(p[..., :2])
@@ -338,10 +341,10 @@ class LiveCalibrator:
             self.unpaired += 1
         if np.isfinite(joints3d).any():
             self.with_joints += 1
-        latency = time.perf_counter() - clock
+        latency, cpu = time.perf_counter() - clock, time.thread_time() - cpu
         solve_s += self._schedule()
         return LiveFrame(index, fid, t, self.mirror, joints3d, std, paired=paired,
-                         latency_s=latency, solve_s=solve_s)
+                         latency_s=latency, solve_s=solve_s, cpu_s=cpu)
 
     # ------------------------------------------------------------------ per frame
     def _joints(self, fid: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
