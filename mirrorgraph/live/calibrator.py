@@ -102,7 +102,8 @@ class LiveMirror:
         normal: ``(3,)`` unit normal, camera frame; ``None`` before the first window.
         distance: mirror distance (metres with a subject height, else 1).
         rotation_std_deg: the virtual camera's rotation std, deg.
-        distance_std: the distance's std (the height's share included).
+        distance_std: the distance's std (the height's share included); ``None``
+            without a subject height (the distance is the unit).
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
@@ -259,7 +260,8 @@ class LiveCalibrator:
         status = "calibrated" if std <= self.options.calibrated_std_deg else "initialising"
         metric = self._copts.subject_height is not None
         return LiveMirror(status=status, normal=fu.normal.copy(), distance=fu.distance,
-                          rotation_std_deg=std, distance_std=fu.distance_std,
+                          rotation_std_deg=std,
+                          distance_std=fu.distance_std if metric else None,
                           focal_px=fu.focal_px, focal_std_px=fu.focal_std_px,
                           windows=fu.windows, rejected=fu.rejected, failed=fu.failed,
                           resets=fu.resets,
@@ -276,22 +278,24 @@ class LiveCalibrator:
                 "buffered": len(self._buffer_ids)}
 
     # ------------------------------------------------------------------ input
-    def _checked(self, people) -> tuple[np.ndarray | None, str | None]:
+    def _checked(self, people) -> tuple[np.ndarray | None, tuple[str, str] | None]:
+        """The frame as ``(P, J, 3)`` floats, or ``(reason, message)`` why not."""
         J = self.skeleton.num_joints
         try:
             p = np.array(people, dtype=float)
         except (TypeError, ValueError):
-            return None, "not a numeric array"
+            return None, ("not numeric", "the people are not a numeric array")
         if p.ndim == 2:
             p = p[None]
         if p.ndim != 3 or p.shape[-1] != 3:
-            return None, f"shape {p.shape} is not (people, {J}, 3)"
+            return None, ("bad shape", f"shape {p.shape} is not (people, {J}, 3)")
         if p.shape[1] != J:
-            return None, f"{p.shape[1]} joints, the skeleton has {J}"
+            return None, ("wrong joint count", f"{p.shape[1]} joints, the skeleton "
+                          f"{self.skeleton.name} has {J}")
         conf = p[..., 2]
         bad = ~np.isfinite(conf) | (conf <= 0) | ~np.isfinite(p[..., :2]).all(-1)
         if np.any(np.abs(p[..., :2][~bad]) > 1e6):
-            return None, "coordinates beyond 1e6 px"
+            return None, ("coordinates out of range", "coordinates beyond 1e6 px")
         p[..., 2] = np.clip(np.where(np.isfinite(conf), conf, 0.0), 0.0, 1.0)
         p[bad] = (np.nan, np.nan, 0.0)
         return p, None
@@ -321,12 +325,12 @@ class LiveCalibrator:
         solve_s = self._poll()
         p, reason = self._checked(people)
         if reason is None and self._last_id is not None and fid <= self._last_id:
-            reason = f"frame number {fid} not after {self._last_id}"
+            reason = ("frame number not increasing",
+                      f"frame number {fid} not after {self._last_id}")
         if reason is not None:
-            self.skipped[reason.split(" ")[0] if "frame number" not in reason
-                         else "frame number not increasing"] += 1
+            self.skipped[reason[0]] += 1
             return LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
-                             skipped=reason, latency_s=time.perf_counter() - clock,
+                             skipped=f"frame {fid}: {reason[1]}", latency_s=time.perf_counter() - clock,
                              solve_s=solve_s, cpu_s=time.thread_time() - cpu)
         self._last_id = fid
         if self.intrinsics is not None and self.intrinsics.dist is not None and len(p):
