@@ -21,15 +21,25 @@ reprojection noise the last window's graph found) and the mirror distance's rela
 std.
 
 **The mirror** (:mod:`.estimator`): the frames holding two people or more are
-buffered; the first ``first_window_frames`` of them are calibrated by the offline run
-(the reflective RANSAC, then the one graph), and every further ``window_frames`` again,
-each window fused into the mirror carried from the older ones (their information on the
-plane: what a fixed-lag smoother with a lag of one window keeps). Windows are solved in
+buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the
+offline run (pairing, the reflective RANSAC, the one graph with its body priors, robust
+reprojection, rejection, left/right fixes, the stature scale), and again on every
+frame so far each time their number has doubled, up to a first block of
+``window_frames``: until then the live mirror *is* the offline calibration of the
+frames seen (at the last doubling). Every later block of ``window_frames`` is
+calibrated the same way and fused into the mirror carried from the older ones (their
+information on the plane: what a fixed-lag smoother with a lag of one block keeps,
+:class:`~.estimator.MirrorFusion`); memory holds one block. Windows are solved in
 the calling thread (``background=False``: deterministic, what the tests and the
-benchmark replay) or in one worker process (``background=True``: GTSAM holds the GIL, so
-a thread would stall the frames; the frames keep flowing while a window solves, and
-a buffer that outgrows ``max_buffer_frames`` while the worker is busy is thinned evenly,
-so memory stays flat).
+benchmark replay) or in one worker process (``background=True``: GTSAM holds the GIL,
+so a thread would stall the frames; the frames keep flowing while a window solves, and
+a buffer that outgrows ``max_buffer_frames`` while the worker is busy is thinned
+evenly, so memory stays flat).
+
+Measured (``bench/RESULTS_live.md``): short windows fused as they came (60, 150 or
+300 frames each) were biased by their few frames, 0.53-0.95 deg off on a realistic
+wide scene where the offline calibration of the same 1800 frames was 0.35 deg off;
+the doubling first block and 900-frame windows are the choice.
 
 **Status**: ``initialising`` until the fused mirror's rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``. Joints are given as soon as a first window
@@ -65,22 +75,23 @@ class LiveOptions:
             graph's settings); ``None``: the defaults.
         first_window_frames: frames holding two people or more that the first solve
             (the RANSAC and the graph) waits for.
-        window_frames: most such frames in a window. Windows grow: each as long as
-            every frame before it, from ``first_window_frames`` up to this (a short
-            window's graph is biased by its few frames; the long ones carry the result).
+        window_frames: such frames per window. The first block of this many is
+            calibrated whole, again each time it has doubled (60, 120, 240, ... frames:
+            until then the live mirror *is* the offline calibration of every frame so
+            far); every later window of this many is fused into it.
         calibrated_std_deg: the rotation std at which the status becomes ``calibrated``.
         background: solve windows in one worker process (see the module docstring).
         max_buffer_frames: most frames buffered while the worker is busy (thinned evenly
-            beyond).
+            beyond; at least ``window_frames``).
         fps: frame rate for frame times where the caller gives none.
     """
 
     calibrate: object | None = None
     first_window_frames: int = 60
     window_frames: int = 900
+    max_buffer_frames: int = 1800
     calibrated_std_deg: float = 2.0
     background: bool = False
-    max_buffer_frames: int = 600
     fps: float = 30.0
 
     @classmethod
@@ -233,7 +244,9 @@ class LiveCalibrator:
         self._pool = None
         self._last_id: int | None = None
         self.frames = 0
-        self._solved_frames = 0
+        self._provisional = True                # the first block: re-solved as it grows
+        self._next = opts.first_window_frames
+        self._job: tuple = ()
         self.skipped: Counter = Counter()
         self.unpaired = 0
         self.with_joints = 0
@@ -393,37 +406,44 @@ class LiveCalibrator:
         return out, std, True
 
     # ------------------------------------------------------------------ windows
-    def _window(self) -> RawDetections:
+    def _window(self, clear: bool) -> RawDetections:
         raw = RawDetections(self.skeleton, np.asarray(self._buffer_ids, dtype=np.int64),
                             list(self._buffer_people), source=f"live window "
                             f"{self._buffer_ids[0]}-{self._buffer_ids[-1]}",
                             format="live", image_size=self._copts.image_size,
                             fps=self._copts.fps)
-        self._buffer_ids, self._buffer_people = [], []
-        self._solved_frames += len(raw.people)
+        if clear:
+            self._buffer_ids, self._buffer_people = [], []
         return raw
 
-    def _target(self) -> int:
-        if self.fusion.normal is None:
-            return self.options.first_window_frames
-        return int(np.clip(self._solved_frames, self.options.first_window_frames,
-                           self.options.window_frames))
-
     def _schedule(self) -> float:
-        if len(self._buffer_ids) < self._target():
+        """Start a window's solve when one is due (see the module docstring)."""
+        n = len(self._buffer_ids)
+        busy = self._future is not None
+        if busy:
+            if n > max(self.options.max_buffer_frames, self.options.window_frames):
+                keep = slice(None, None, 2)                # thin evenly: memory flat
+                self._buffer_ids = self._buffer_ids[keep]
+                self._buffer_people = self._buffer_people[keep]
             return 0.0
-        if not self.options.background:
-            clock = time.perf_counter()
-            self._absorb(solve_window(self._window(), self._window_intr, self._copts))
-            return time.perf_counter() - clock
-        if self._future is None:
-            self._future = self._executor().submit(solve_window, self._window(),
-                                                   self._window_intr, self._copts)
-        elif len(self._buffer_ids) > self.options.max_buffer_frames:
-            keep = slice(None, None, 2)                    # thin evenly, memory flat
-            self._buffer_ids = self._buffer_ids[keep]
-            self._buffer_people = self._buffer_people[keep]
-        return 0.0
+        if self._provisional:
+            if n < self._next:
+                return 0.0
+            block = n >= self.options.window_frames
+            job = (self._window(clear=block), True, block)
+        else:
+            if n < self.options.window_frames:
+                return 0.0
+            job = (self._window(clear=True), False, False)
+        if self.options.background:
+            self._future = self._executor().submit(solve_window, job[0], self._window_intr,
+                                                   self._copts)
+            self._job = job[1:] + (len(job[0].people),)
+            return 0.0
+        clock = time.perf_counter()
+        est = solve_window(job[0], self._window_intr, self._copts)
+        self._absorb(est, *job[1:], len(job[0].people))
+        return time.perf_counter() - clock
 
     def _executor(self):
         if self._pool is None:
@@ -443,23 +463,36 @@ class LiveCalibrator:
         except Exception as exc:  # noqa: BLE001 - a worker's crash is a failed window
             est = WindowEstimate(ok=False, reason=f"worker: {type(exc).__name__}: {exc}")
         self._future = None
-        self._absorb(est)
+        self._absorb(est, *self._job)
         return time.perf_counter() - clock if wait else 0.0
 
-    def _absorb(self, est: WindowEstimate) -> None:
-        what = self.fusion.add(est)
+    def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
+        if provisional:
+            # the calibration of every frame so far replaces the one of fewer frames
+            what = self.fusion.restart(est)
+            self._next = min(max(self.options.first_window_frames, 2 * size),
+                             self.options.window_frames)
+            if block:          # the first block is done: from now on windows are fused
+                self._provisional = self.fusion.normal is None
+                self._next = self.options.first_window_frames
+        else:
+            what = self.fusion.add(est)
         if len(self.window_log) < self._log_cap:
             self.window_log.append({"frames": [est.first_frame, est.last_frame],
-                                    "result": what, "reason": est.reason,
+                                    "size": size, "result": what, "reason": est.reason,
                                     "rotation_std_deg": est.rotation_std_deg,
                                     "seconds": est.seconds, "pairs": est.pairs})
 
     def finish(self) -> LiveMirror:
-        """End of the stream: wait for a window in flight, solve what is buffered (if it
-        holds at least half a window), and return the final mirror."""
+        """End of the stream: wait for a window in flight, solve what is buffered (the
+        whole buffer while the first block is still provisional, else if it holds at
+        least half a window), and return the final mirror."""
         self._poll(wait=True)
-        if len(self._buffer_ids) >= max(2, self._target() // 2):
-            self._absorb(solve_window(self._window(), self._window_intr, self._copts))
+        n = len(self._buffer_ids)
+        if n >= 2 and (self._provisional or n >= self.options.window_frames // 2):
+            job = (self._window(clear=True), self._provisional, self._provisional)
+            self._absorb(solve_window(job[0], self._window_intr, self._copts), *job[1:],
+                         len(job[0].people))
         return self.mirror
 
     def close(self) -> None:

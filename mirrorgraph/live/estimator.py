@@ -247,6 +247,27 @@ class MirrorFusion:
         self.distance_info, self.focal_px, self.focal_info = 0.0, None, 0.0
         self._fuse(w)
 
+    def restart(self, w: WindowEstimate) -> str:
+        """Replace the fused mirror by one window's (the calibration of every frame so
+        far, while the first block grows); a failed window leaves it as it is. Returns
+        ``"started"`` or ``"failed"``."""
+        if not w.ok or not self._usable(w):
+            self.failed += 1
+            self.last_reason = w.reason or "the window's covariance is singular"
+            return "failed"
+        self._start(w)
+        return "started"
+
+    @staticmethod
+    def _usable(w: WindowEstimate) -> bool:
+        try:
+            B = geo.tangent_basis(w.normal)
+            np.linalg.cholesky(_tangent(w.cov_marginal, B))
+            np.linalg.cholesky(_tangent(w.cov_indep, B))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
     def _mahalanobis2(self, w: WindowEstimate) -> float:
         B = self.basis
         n_w = w.normal if w.normal @ self.normal >= 0 else -w.normal
@@ -261,11 +282,7 @@ class MirrorFusion:
             self.failed += 1
             self.last_reason = w.reason
             return "failed"
-        try:
-            B = geo.tangent_basis(w.normal)
-            np.linalg.cholesky(_tangent(w.cov_marginal, B))
-            np.linalg.cholesky(_tangent(w.cov_indep, B))
-        except np.linalg.LinAlgError:
+        if not self._usable(w):
             self.failed += 1
             self.last_reason = "the window's covariance is singular"
             return "failed"
