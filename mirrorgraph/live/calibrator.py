@@ -51,6 +51,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -58,6 +59,10 @@ from .. import geometry as geo
 from ..errors import InputError
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
+
+if TYPE_CHECKING:
+    from ..intrinsics import Intrinsics
+    from ..skeletons import Skeleton
 
 __all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES"]
 
@@ -212,7 +217,8 @@ class LiveCalibrator:
         InputError: an unknown skeleton, no intrinsics and no image size.
     """
 
-    def __init__(self, skeleton, intrinsics=None, options: LiveOptions | None = None):
+    def __init__(self, skeleton: "Skeleton | str", intrinsics: "Intrinsics | None" = None,
+                 options: LiveOptions | None = None):
         from ..intrinsics import intrinsics_from_fov
         from ..joint_sets import mirror_joints
         from ..pipelines.options import CalibrateOptions
@@ -313,8 +319,8 @@ class LiveCalibrator:
         p[bad] = (np.nan, np.nan, 0.0)
         return p, None
 
-    def update(self, people, frame_id: int | None = None, time_s: float | None = None
-               ) -> LiveFrame:
+    def update(self, people: "np.ndarray | list", frame_id: int | None = None,
+               time_s: float | None = None) -> LiveFrame:
         """Feed one frame's detections; returns that frame's 3D joints and the mirror.
 
         Args:
