@@ -71,14 +71,15 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
     from mirrorgraph.metrics import cramer_rao_mirror, mirror_rotation_error_deg
     from mirrorgraph.synth import make_wide_scene
 
-    seed, noise, frames, checkpoints, offline_at = case
+    seed, noise, frames, checkpoints, offline_at, window = case
     sc = make_wide_scene(seed, "wide", noise, frames)
     det = sc.detections
     intr = sc.intrinsics
     calib = np.zeros(sc.skeleton.num_joints, bool)
     calib[sc.skeleton.calibration_joints] = True
     seen = ~sc.missing_real & ~sc.missing_mirror & calib[None]
-    live = LiveCalibrator(sc.skeleton, intr, LiveOptions.of(subject_height=sc.subject_height))
+    live = LiveCalibrator(sc.skeleton, intr, LiveOptions.of(subject_height=sc.subject_height,
+                                                            window_frames=window))
     marks = sorted({min(int(round(c * FPS)), frames) for c in checkpoints} | {frames})
     rows, wall, cpu, solves = [], [], [], []
     first = None
@@ -117,7 +118,7 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
                     row["offline_error"] = f"{type(exc).__name__}: {exc}"
                 row["offline_seconds"] = time.perf_counter() - clock
             rows.append(row)
-    return dict(seed=seed, noise=noise, frames=frames, first_calibrated_s=first,
+    return dict(seed=seed, noise=noise, frames=frames, window=window, first_calibrated_s=first,
                 checkpoints=rows, counts=live.counts,
                 windows=[dict(w) for w in live.window_log],
                 latency_ms=np.percentile(np.array(wall) * 1e3, [50, 95, 99]).tolist(),
@@ -269,6 +270,50 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
     return "\n".join(lines) + "\n"
 
 
+def lag_sweep(args, started: str, clock: float) -> int:
+    """The block length chosen by measurement: each length's live error at 60 s and at the
+    end over the offline error of the same frames, and its largest solve."""
+    lags = [int(x) for x in args.lag_sweep.split(",")]
+    cases = [(s, n, args.frames, (60.0,), (60.0,), w) for w in lags
+             for n in args.noise.split(",") for s in _seeds(args.seeds)]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        results = list(pool.map(run_scene, cases))
+    load = os.getloadavg()
+    lines = ["# The block length of the live run (`bench/bench_live.py --lag-sweep`)", "",
+             f"* date: {started}",
+             f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
+             f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
+             f"{platform.python_version()}; load average at the end {load[0]:.2f}; "
+             f"{time.perf_counter() - clock:.0f} s",
+             f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
+             f"{args.seeds}; the first block re-solved as it doubles up to the block length, "
+             "later blocks fused. Pooled: RMS of the live errors over RMS of the offline "
+             "errors of the same frames.", "",
+             "| block frames | noise | at | pooled live / offline | median live / offline | "
+             "RMS live err / std | largest solve s |", "|---:|---|---|---:|---:|---:|---:|"]
+    for w in lags:
+        for noise in args.noise.split(","):
+            res = [r for r in results if r["window"] == w and r["noise"] == noise]
+            for label, idx in (("60 s", 0), ("end", -1)):
+                cs = [r["checkpoints"][idx] for r in res]
+                cs = [c for c in cs if "offline_err" in c and "live_err" in c]
+                if not cs:
+                    continue
+                le = np.array([c["live_err"] for c in cs])
+                oe = np.array([c["offline_err"] for c in cs])
+                z = le / np.array([c["live_std"] for c in cs])
+                solve = max((max(r["solve_s"]) for r in res if r["solve_s"]), default=np.nan)
+                lines.append(f"| {w} | {noise} | {label} | "
+                             f"{np.sqrt(np.mean(le ** 2)) / np.sqrt(np.mean(oe ** 2)):.2f} | "
+                             f"{np.median(le / oe):.2f} | {np.sqrt(np.mean(z ** 2)):.2f} | "
+                             f"{solve:.2f} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if not args.no_write:
+        (ROOT / "bench" / "RESULTS_live_lag.md").write_text(text)
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="0-5")
@@ -278,13 +323,20 @@ def main() -> int:
     ap.add_argument("--offline-at", default="10,30,60")
     ap.add_argument("--long-frames", type=int, default=54000)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--window", type=int, default=900,
+                    help="frames a block (LiveOptions.window_frames)")
+    ap.add_argument("--lag-sweep", default=None, metavar="N,N,...",
+                    help="instead: the end-of-stream and 60 s errors for each block length, "
+                         "written to bench/RESULTS_live_lag.md")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     started = _dt.datetime.now().isoformat(timespec="seconds")
     clock = time.perf_counter()
     checkpoints = tuple(float(x) for x in args.checkpoints.split(","))
     offline_at = tuple(float(x) for x in args.offline_at.split(","))
-    cases = [(s, n, args.frames, checkpoints, offline_at)
+    if args.lag_sweep:
+        return lag_sweep(args, started, clock)
+    cases = [(s, n, args.frames, checkpoints, offline_at, args.window)
              for n in args.noise.split(",") for s in _seeds(args.seeds)]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         results = []
