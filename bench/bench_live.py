@@ -140,13 +140,13 @@ def run_long(frames: int, seed: int, noise: str, background: bool, sample_every:
     live = LiveCalibrator(sc.skeleton, sc.intrinsics,
                           LiveOptions.of(subject_height=sc.subject_height,
                                          background=background))
-    samples, wall, cpu = [], [], []
+    samples = []
+    wall, cpu = np.empty(frames), np.empty(frames)     # preallocated: this run's memory flat
     clock = time.perf_counter()
     try:
         for t in range(frames):
             f = live.update(people[t % base], frame_id=t, time_s=t / FPS)
-            wall.append(f.latency_s)
-            cpu.append(f.cpu_s)
+            wall[t], cpu[t] = f.latency_s, f.cpu_s
             if (t + 1) % sample_every == 0 or t == 0:
                 workers = ([p for p in live._pool._processes] if live._pool is not None
                            and live._pool._processes else [])
@@ -177,8 +177,9 @@ def _fmt(v, spec=".3f"):
     return "-" if v is None or (isinstance(v, float) and not np.isfinite(v)) else format(v, spec)
 
 
-def report(results: list[dict], long: dict | None, args, started: str, seconds: float) -> str:
-    load = os.getloadavg()
+def report(results: list[dict], long: dict | None, args, started: str, seconds: float,
+           load=None, meta_long: str = "with the scenes above") -> str:
+    load = load or os.getloadavg()
     lines = ["# The live run against the offline calibration (`bench/bench_live.py`)", "",
              f"* date: {started}",
              f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
@@ -249,7 +250,12 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
                      + "/".join(f"{v:.2f}" for v in r["cpu_ms"]) + " |")
     if long:
         s = long["samples"]
+        steady = [x for x in s if x["windows"] >= 1] or s
+        steady_fps = ((s[-1]["frame"] - steady[0]["frame"])
+                      / max(s[-1]["wall_s"] - steady[0]["wall_s"], 1e-9))
         lines += ["", "## A long stream flat out, windows in the background worker", "",
+                  f"* run {meta_long} (the per-frame latencies kept in preallocated arrays, so "
+                  "that the run's own bookkeeping does not grow)",
                   f"* {long['frames']} frames (scene seed {long['seed']}, {long['noise']}, "
                   f"1800 frames tiled), background={long['background']}: "
                   f"{long['seconds']:.1f} s, **{long['fps']:.0f} frames/s** sustained; "
@@ -258,10 +264,21 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
                   + "/".join(f"{v:.2f}" for v in long["cpu_ms"]) + "; wall p95 of the first / "
                   f"last 5000 frames {long['latency_first_last_ms'][0]:.2f} / "
                   f"{long['latency_first_last_ms'][1]:.2f} ms",
+                  f"* steady state (from the first fused window, sample "
+                  f"{steady[0]['frame']}, to the end): **{steady_fps:.0f} frames/s** with the "
+                  "worker solving 900-frame blocks on the other core (the first samples are "
+                  "faster: no mirror yet, so no pairing or triangulation, while the worker "
+                  "process starts)",
                   f"* windows fused {long['counts']['windows']}, rejected "
                   f"{long['counts']['windows_rejected']}, failed "
                   f"{long['counts']['windows_failed']}; final error "
-                  f"{long['final_err']:.3f} deg at a std of {long['final_std']:.3f} deg", "",
+                  f"{long['final_err']:.3f} deg at a std of {long['final_std']:.3f} deg (not "
+                  "a test of the std: the stream repeats one 1800-frame scene, so the same "
+                  "frames are fused 30 times as if they were new)",
+                  f"* memory: this process {s[1]['rss_mb']:.1f} MB at frame {s[1]['frame']}, "
+                  f"{s[-1]['rss_mb']:.1f} MB at {s[-1]['frame']}; the worker "
+                  f"{_fmt(steady[0]['worker_rss_mb'], '.1f')} MB after its first solve, "
+                  f"{_fmt(s[-1]['worker_rss_mb'], '.1f')} MB at the end", "",
                   "| frame | RSS MB (this process) | RSS MB (worker) | wall s | windows | "
                   "buffered frames |", "|---:|---:|---:|---:|---:|---:|"]
         for x in s:
@@ -328,6 +345,10 @@ def main() -> int:
     ap.add_argument("--lag-sweep", default=None, metavar="N,N,...",
                     help="instead: the end-of-stream and 60 s errors for each block length, "
                          "written to bench/RESULTS_live_lag.md")
+    ap.add_argument("--from-json", metavar="FILE",
+                    help="write the report again from a RESULTS_live.json (no measuring)")
+    ap.add_argument("--long-only", action="store_true",
+                    help="run the long stream again into the existing RESULTS_live.json")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     started = _dt.datetime.now().isoformat(timespec="seconds")
@@ -336,6 +357,29 @@ def main() -> int:
     offline_at = tuple(float(x) for x in args.offline_at.split(","))
     if args.lag_sweep:
         return lag_sweep(args, started, clock)
+    if args.long_only:
+        path = ROOT / "bench" / "RESULTS_live.json"
+        data = json.loads(path.read_text())
+        data["long"] = run_long(args.long_frames, _seeds(args.seeds)[0], "realistic", True,
+                                max(args.long_frames // 18, 1000))
+        data["meta"]["long_argv"] = sys.argv[1:]
+        data["meta"]["long_started"] = started
+        path.write_text(json.dumps(data, indent=1, default=float))
+        args.from_json = str(path)
+    if args.from_json:
+        data = json.loads(Path(args.from_json).read_text())
+        meta = data.get("meta", {})
+        sys.argv[1:] = meta.get("argv", sys.argv[1:])
+        text = report(data["results"], data["long"], argparse.Namespace(**meta.get("args", {})),
+                      meta.get("started", started), meta.get("seconds", 0.0),
+                      load=meta.get("load"),
+                      meta_long=(f"{meta['long_started']}, `python bench/bench_live.py "
+                                 f"{' '.join(meta['long_argv'])}`" if "long_argv" in meta
+                                 else "with the scenes above"))
+        print(text)
+        if not args.no_write:
+            (ROOT / "bench" / "RESULTS_live.md").write_text(text)
+        return 0
     cases = [(s, n, args.frames, checkpoints, offline_at, args.window)
              for n in args.noise.split(",") for s in _seeds(args.seeds)]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
@@ -358,8 +402,10 @@ def main() -> int:
     print(text)
     if not args.no_write:
         (ROOT / "bench" / "RESULTS_live.md").write_text(text)
+        meta = dict(argv=sys.argv[1:], args=vars(args), started=started, seconds=seconds,
+                    load=list(os.getloadavg()))
         (ROOT / "bench" / "RESULTS_live.json").write_text(json.dumps(
-            dict(results=results, long=long), indent=1, default=float))
+            dict(results=results, long=long, meta=meta), indent=1, default=float))
     return 0
 
 
