@@ -39,7 +39,9 @@ evenly, so memory stays flat).
 Measured (``bench/RESULTS_live.md``): short windows fused as they came (60, 150 or
 300 frames each) were biased by their few frames, 0.53-0.95 deg off on a realistic
 wide scene where the offline calibration of the same 1800 frames was 0.35 deg off;
-the doubling first block and 900-frame windows are the choice.
+the doubling first block and 900-frame windows are the choice (300-frame blocks were
+as accurate but their std too wide, 1800-frame ones as accurate with solves up to 7.8 s:
+``bench/RESULTS_live_lag.md``).
 
 **Status**: ``initialising`` until the fused mirror's rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``. Joints are given as soon as a first window

@@ -70,3 +70,25 @@ def test_refusals_name_the_field(scene_dir, tmp_path, capsys):
     assert "--view" in err or "rerun" in err.lower()
     assert main(["live", kp, "--jsonl", str(tmp_path)]) == 2
     assert "folder" in capsys.readouterr().err
+
+
+def test_view_records_the_stream_to_an_rrd(scene_dir, tmp_path):
+    pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
+    rrd = tmp_path / "live.rrd"
+    assert main(["live", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--jsonl", str(tmp_path / "v.jsonl"),
+                 "--as-fast-as-possible", "--view", str(rrd), "--quiet"]) == 0
+    assert rrd.stat().st_size > 10000
+
+
+def test_the_live_viewer_without_a_display_is_refused_before_the_stream(scene_dir, tmp_path,
+                                                                      capsys, monkeypatch):
+    pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
+    monkeypatch.setattr("sys.platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "n.jsonl"
+    assert main(["live", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--jsonl", str(out), "--view"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "display" in err[0] and not out.exists()
