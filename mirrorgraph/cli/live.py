@@ -53,7 +53,7 @@ def add_parsers(sub) -> None:
                    help="rotation std at which the status becomes 'calibrated' (default 2)")
     p.add_argument("--background", action="store_true",
                    help="solve the mirror's windows in a worker process (the frames keep "
-                        "flowing meanwhile; default for a camera and a real-time video)")
+                        "flowing meanwhile; the default unless --as-fast-as-possible)")
     p.add_argument("--threshold", type=positive, default=DEFAULT_THRESHOLD_PX, metavar="PX",
                    help=f"inlier threshold in pixels (default {DEFAULT_THRESHOLD_PX:g})")
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
@@ -94,7 +94,7 @@ def cmd_live(args) -> int:
                              subject_height=args.subject_height,
                              joints=tuple(j.strip() for j in args.joints.split(","))
                              if args.joints else None)
-    realtime = camera or (source.kind == "video" and not args.as_fast_as_possible)
+    realtime = camera or not args.as_fast_as_possible
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
                        calibrated_std_deg=args.calibrated_std,
                        background=bool(args.background or realtime))

@@ -34,6 +34,11 @@ and reports their sum. The distance is fused the same way with the subject's hei
 as the shared part (``RefineOptions.height_sigma``, a pure scale every window has), and
 the focal length, where it is estimated, by its windows' information alone.
 
+While the first block grows (:class:`~.calibrator.LiveCalibrator` re-solves every frame
+so far as their number doubles) each solve replaces the fused mirror
+(:meth:`MirrorFusion.restart`); from the first full block on, blocks are fused
+(:meth:`MirrorFusion.add`).
+
 A window far from the fused mirror (Mahalanobis distance over :data:`REJECT_CHI2`
 with both covariances) is rejected and counted; :data:`RESET_AFTER` rejected windows in
 a row that agree with each other restart the fusion from them (the camera or the mirror
