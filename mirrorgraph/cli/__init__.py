@@ -10,6 +10,7 @@
     mirrorgraph calibrate-rig RIG.toml --out calibration.toml [--with-virtual]
     mirrorgraph synth-rig KIND --out DIR
     mirrorgraph view CALIBRATION [--joints3d FILE] [--video FILE] [--save OUT.rrd]
+    mirrorgraph live SOURCE [--intrinsics FILE | --image-size WxH] --jsonl OUT.jsonl [--view]
 
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
@@ -26,7 +27,8 @@ One module per family of commands, each adding its parsers (``add_parsers``)
 and running them (``cmd_*``): :mod:`.calibrate`, :mod:`.video` (``detect`` and
 the video options), :mod:`.synth` (``synth``, ``demo``), :mod:`.report`
 (``report``, ``export``), :mod:`.batch`, :mod:`.rig` (``calibrate-rig``,
-``synth-rig``), :mod:`.view` (``view``, and ``--view`` of the calibrations); what they share (argument types, common options, how a run
+``synth-rig``), :mod:`.view` (``view``, and ``--view`` of the calibrations), :mod:`.live`
+(``live``); what they share (argument types, common options, how a run
 speaks) is in :mod:`.args`; which module has which command, and each command's
 one-line help, in :mod:`.commands`. Here: :func:`build_parser`, :func:`main` and the
 exit statuses. A run imports the module of its own command only (``mirrorgraph

@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "synth-rig": ("rig", "write a synthetic rig with ground truth"),
     "detect": ("video", "detect every person's 2D keypoints in a video (offline)"),
     "view": ("view", "look at a calibration and its 3D motion in Rerun"),
+    "live": ("live", "calibrate while the video streams: 3D joints frame by frame "
+                     "(JSON lines)"),
 }
 
 #: command -> its one-line help.

@@ -281,6 +281,45 @@ def pair_candidates(raw: RawDetections, num_mirrors: int, joints: np.ndarray | N
                           num_frames=len(raw.people))
 
 
+def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
+                       joints: np.ndarray | None = None, options: PairingOptions | None = None
+                       ) -> MirrorPairing:
+    """Pair person and reflection(s) against epipoles already known (step 3 and 4 of the
+    module docstring, no RANSAC): what a live run does frame by frame once its mirror
+    is estimated (:mod:`mirrorgraph.pipelines.live`).
+
+    Args:
+        raw: detections (undistorted pixels); frames holding fewer than two people stay
+            unpaired.
+        epipoles: ``(3,)`` homogeneous epipole of each mirror, pixels.
+        joints: joints judging the pairs (default: the calibration joints).
+        options: :class:`PairingOptions`.
+
+    Returns:
+        :class:`MirrorPairing` over the frames of ``raw`` (unpaired frames: NaN / 0).
+    """
+    opts = options or PairingOptions()
+    sk = raw.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    T, J = len(raw.people), sk.num_joints
+    if not any(len(p) >= 2 for p in raw.people):
+        empty = np.full((T, J, 3), np.nan)
+        empty[..., 2] = 0.0
+        return MirrorPairing(real=empty, reflections=[empty.copy() for _ in epipoles],
+                             epipoles=[np.asarray(e, float) for e in epipoles])
+    cand = _candidates(raw, opts)
+    found = [_score_epipole(np.asarray(e, float).reshape(3), cand, joints, sk.flip, opts)
+             for e in epipoles]
+    cands = PairCandidates(frame=cand.frame, ia=cand.ia, ib=cand.ib, a=cand.a, b=cand.b,
+                           epipoles=[ep.e for ep in found],
+                           score=np.array([ep.score for ep in found]),
+                           swapped=np.array([ep.swapped for ep in found]),
+                           valid=np.array([ep.valid for ep in found]),
+                           b_is_reflection=np.array([ep.b_refl for ep in found]),
+                           num_frames=T)
+    return choose_pairs(cands, sk.flip)
+
+
 def paired_people(cands: PairCandidates) -> list[np.ndarray]:
     """The detections of each frame that may be the person: those that are the person
     (the one farther from the epipole) of a valid pair of some mirror and the

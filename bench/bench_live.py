@@ -1,0 +1,413 @@
+"""The live run (``mirrorgraph.live``) against the offline calibration of the same frames.
+
+Wide random scenes (:func:`mirrorgraph.synth.make_wide_scene`, slice ``wide``, the
+``iid`` and ``realistic`` detector models) replayed as 30 fps streams through
+:class:`mirrorgraph.live.LiveCalibrator`, frame by frame:
+
+* **accuracy over time** (windows solved in the calling thread, so that a window ends
+  at the same stream time whatever the machine's load): at stream times
+  ``--checkpoints`` the live mirror's rotation error against the truth, against the
+  offline calibration of the frames seen so far (``mirrorgraph.calibrate`` on them, the
+  same options), against the Cramer-Rao bound of those frames
+  (:func:`mirrorgraph.metrics.cramer_rao_mirror`, reprojection only, 4 px), and the
+  live error over the live reported std; the time to ``calibrated``;
+* **latency and throughput**: per-frame wall and CPU (thread) time of the frame's own
+  path (pairing and triangulation; a window's solve is counted apart), and one long
+  stream fed flat out with the windows solved in the background worker process (the
+  2-core setting: frames in this process, the graph in the other) for the sustained
+  frames/s;
+* **memory**: the resident set size of this process (and of the worker) over that
+  long stream (``--long-frames``, a scene tiled with increasing frame numbers).
+
+Writes ``bench/RESULTS_live.md`` (machine, command, date) and ``RESULTS_live.json``
+unless ``--no-write``.
+
+Run:  python bench/bench_live.py [--seeds 0-5] [--frames 3600] [--long-frames 54000]
+          [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import platform
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 30.0
+
+
+def _rss_mb(pid: int | str = "self") -> float:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _seeds(text: str) -> list[int]:
+    out = []
+    for part in text.split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
+def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) -> dict:
+    import warnings
+    warnings.filterwarnings("ignore")
+    import mirrorgraph as mg
+    from mirrorgraph.keypoints import RawDetections
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.metrics import cramer_rao_mirror, mirror_rotation_error_deg
+    from mirrorgraph.synth import make_wide_scene
+
+    seed, noise, frames, checkpoints, offline_at, window = case
+    sc = make_wide_scene(seed, "wide", noise, frames)
+    det = sc.detections
+    intr = sc.intrinsics
+    calib = np.zeros(sc.skeleton.num_joints, bool)
+    calib[sc.skeleton.calibration_joints] = True
+    seen = ~sc.missing_real & ~sc.missing_mirror & calib[None]
+    live = LiveCalibrator(sc.skeleton, intr, LiveOptions.of(subject_height=sc.subject_height,
+                                                            window_frames=window))
+    marks = sorted({min(int(round(c * FPS)), frames) for c in checkpoints} | {frames})
+    rows, wall, cpu, solves = [], [], [], []
+    first = None
+    for t, people in enumerate(det.people):
+        f = live.update(people, frame_id=int(det.frame_ids[t]), time_s=t / FPS)
+        wall.append(f.latency_s)
+        cpu.append(f.cpu_s)
+        if f.solve_s:
+            solves.append(f.solve_s)
+        if first is None and f.status == "calibrated":
+            first = (t + 1) / FPS
+        if t + 1 in marks:
+            m = live.mirror if t + 1 < frames else live.finish()
+            n = t + 1
+            row = dict(seconds=n / FPS, frames=n, status=m.status, windows=m.windows)
+            if m.normal is not None:
+                row["live_err"] = mirror_rotation_error_deg(m.normal, sc.normal)
+                row["live_std"] = float(m.rotation_std_deg)
+                row["live_distance_rel_err"] = abs(m.distance - sc.distance) / sc.distance
+            row["bound"] = cramer_rao_mirror(sc.K, sc.normal, sc.distance,
+                                             sc.joints3d[:n][seen[:n]], 4.0)["rot_rms_deg"]
+            if any(abs(n - round(s * FPS)) < 1 for s in offline_at) or n == frames:
+                sub = RawDetections(det.skeleton, det.frame_ids[:n], det.people[:n],
+                                    image_size=det.image_size, fps=FPS)
+                clock = time.perf_counter()
+                try:
+                    run = mg.calibrate(sub, intr,
+                                       mg.CalibrateOptions(subject_height=sc.subject_height))
+                    row["offline_err"] = mirror_rotation_error_deg(run.calibration.normal,
+                                                                   sc.normal)
+                    row["offline_std"] = float(run.calibration.uncertainty["rotation_std_deg"])
+                    if m.normal is not None:
+                        row["live_vs_offline"] = mirror_rotation_error_deg(
+                            m.normal, run.calibration.normal)
+                except Exception as exc:  # noqa: BLE001 - a failure is a result here
+                    row["offline_error"] = f"{type(exc).__name__}: {exc}"
+                row["offline_seconds"] = time.perf_counter() - clock
+            rows.append(row)
+    return dict(seed=seed, noise=noise, frames=frames, window=window, first_calibrated_s=first,
+                checkpoints=rows, counts=live.counts,
+                windows=[dict(w) for w in live.window_log],
+                latency_ms=np.percentile(np.array(wall) * 1e3, [50, 95, 99]).tolist(),
+                cpu_ms=np.percentile(np.array(cpu) * 1e3, [50, 95, 99]).tolist(),
+                mean_cpu_ms=float(np.mean(cpu) * 1e3),
+                solve_s=solves)
+
+
+def run_long(frames: int, seed: int, noise: str, background: bool, sample_every: int) -> dict:
+    import warnings
+    warnings.filterwarnings("ignore")
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.metrics import mirror_rotation_error_deg
+    from mirrorgraph.synth import make_wide_scene
+
+    base = 1800
+    sc = make_wide_scene(seed, "wide", noise, base)
+    people = sc.detections.people
+    live = LiveCalibrator(sc.skeleton, sc.intrinsics,
+                          LiveOptions.of(subject_height=sc.subject_height,
+                                         background=background))
+    samples = []
+    wall, cpu = np.empty(frames), np.empty(frames)     # preallocated: this run's memory flat
+    clock = time.perf_counter()
+    try:
+        for t in range(frames):
+            f = live.update(people[t % base], frame_id=t, time_s=t / FPS)
+            wall[t], cpu[t] = f.latency_s, f.cpu_s
+            if (t + 1) % sample_every == 0 or t == 0:
+                workers = ([p for p in live._pool._processes] if live._pool is not None
+                           and live._pool._processes else [])
+                samples.append(dict(frame=t + 1, rss_mb=_rss_mb(),
+                                    worker_rss_mb=sum(_rss_mb(p) for p in workers)
+                                    if workers else None,
+                                    wall_s=time.perf_counter() - clock,
+                                    windows=live.counts["windows"],
+                                    buffered=live.counts["buffered"]))
+        seconds = time.perf_counter() - clock
+        final = live.finish()
+    finally:
+        live.close()
+    lat = np.array(wall) * 1e3
+    c = np.array(cpu) * 1e3
+    return dict(frames=frames, seed=seed, noise=noise, background=background,
+                seconds=seconds, fps=frames / seconds,
+                latency_ms=np.percentile(lat, [50, 95, 99]).tolist(),
+                cpu_ms=np.percentile(c, [50, 95, 99]).tolist(),
+                latency_first_last_ms=[float(np.percentile(lat[:5000], 95)),
+                                       float(np.percentile(lat[-5000:], 95))],
+                samples=samples, counts=live.counts,
+                final_err=mirror_rotation_error_deg(final.normal, sc.normal),
+                final_std=float(final.rotation_std_deg))
+
+
+def _fmt(v, spec=".3f"):
+    return "-" if v is None or (isinstance(v, float) and not np.isfinite(v)) else format(v, spec)
+
+
+def report(results: list[dict], long: dict | None, args, started: str, seconds: float,
+           load=None, meta_long: str = "with the scenes above") -> str:
+    load = load or os.getloadavg()
+    lines = ["# The live run against the offline calibration (`bench/bench_live.py`)", "",
+             f"* date: {started}",
+             f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
+             f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
+             f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
+             f"{load[1]:.2f} / {load[2]:.2f}; {seconds:.0f} s of measuring. The machine is "
+             "shared: the wall latencies include what other processes took; the CPU (thread) "
+             "times are the steadier figure.",
+             f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
+             f"{args.seeds}, noise iid and realistic, replayed as {FPS:g} fps streams with the "
+             "intrinsics and the subject's height; live options the defaults (first window "
+             "60 frames holding two people, windows growing to 900, `calibrated` at a "
+             "rotation std of 2 deg).",
+             "* offline: `mirrorgraph.calibrate` of the frames seen so far, the same options. "
+             "Bound: Cramer-Rao of the same frames' joints (reprojection only, 4 px; the "
+             "realistic detector's bias is not in it).", ""]
+    lines += ["## Accuracy over time (medians over the scenes)", "",
+              "| noise | stream s | live err deg | offline err deg | live / offline | "
+              "live vs offline deg | bound deg | live err / live std (RMS) | calibrated |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for noise in ("iid", "realistic"):
+        res = [r for r in results if r["noise"] == noise]
+        if not res:
+            continue
+        times = sorted({c["seconds"] for r in res for c in r["checkpoints"]})
+        for s in times:
+            cs = [c for r in res for c in r["checkpoints"] if c["seconds"] == s]
+            le = [c.get("live_err", np.nan) for c in cs]
+            oe = [c.get("offline_err", np.nan) for c in cs]
+            ratio = [a / b for a, b in zip(le, oe) if np.isfinite(a) and np.isfinite(b) and b > 0]
+            z = [c["live_err"] / c["live_std"] for c in cs
+                 if "live_err" in c and c.get("live_std", 0) > 0]
+            lines.append(
+                f"| {noise} | {s:g} | {_fmt(float(np.nanmedian(le)) if np.isfinite(le).any() else None)} "
+                f"| {_fmt(float(np.nanmedian(oe)) if np.isfinite(oe).any() else None)} "
+                f"| {_fmt(float(np.median(ratio)) if ratio else None, '.2f')} "
+                f"| {_fmt(float(np.nanmedian([c.get('live_vs_offline', np.nan) for c in cs])) if any('live_vs_offline' in c for c in cs) else None)} "
+                f"| {_fmt(float(np.median([c['bound'] for c in cs])))} "
+                f"| {_fmt(float(np.sqrt(np.mean(np.square(z)))) if z else None, '.2f')} "
+                f"| {sum(c['status'] == 'calibrated' for c in cs)}/{len(cs)} |")
+    lines += ["", "Ratios over the scenes at 60 s and at the end (the targets: 1.5x and 1.1x "
+              "the offline error of the same frames):", "",
+              "| noise | at | live / offline per scene | pooled RMS live / RMS offline |",
+              "|---|---|---|---:|"]
+    for noise in ("iid", "realistic"):
+        res = [r for r in results if r["noise"] == noise]
+        for label, pick in (("60 s", lambda r: next((c for c in r["checkpoints"]
+                                                      if c["seconds"] == 60.0), None)),
+                            ("end", lambda r: r["checkpoints"][-1])):
+            cs = [pick(r) for r in res]
+            cs = [c for c in cs if c and "offline_err" in c and "live_err" in c]
+            if not cs:
+                continue
+            per = ", ".join(f"{c['live_err'] / c['offline_err']:.2f}" for c in cs)
+            pooled = (np.sqrt(np.mean([c["live_err"] ** 2 for c in cs]))
+                      / np.sqrt(np.mean([c["offline_err"] ** 2 for c in cs])))
+            lines.append(f"| {noise} | {label} | {per} | {pooled:.2f} |")
+    lines += ["", "## Time to `calibrated`, windows, per-frame cost", "",
+              "| noise | seed | calibrated at s | windows fused / rejected / failed | "
+              "window solve s (max) | frame wall ms p50/p95/p99 | frame CPU ms p50/p95/p99 |",
+              "|---|---:|---:|---|---:|---|---|"]
+    for r in results:
+        c = r["counts"]
+        lines.append(f"| {r['noise']} | {r['seed']} | {_fmt(r['first_calibrated_s'], '.1f')} | "
+                     f"{c['windows']} / {c['windows_rejected']} / {c['windows_failed']} | "
+                     f"{_fmt(max(r['solve_s']) if r['solve_s'] else None, '.2f')} | "
+                     + "/".join(f"{v:.2f}" for v in r["latency_ms"]) + " | "
+                     + "/".join(f"{v:.2f}" for v in r["cpu_ms"]) + " |")
+    if long:
+        s = long["samples"]
+        steady = [x for x in s if x["windows"] >= 1] or s
+        steady_fps = ((s[-1]["frame"] - steady[0]["frame"])
+                      / max(s[-1]["wall_s"] - steady[0]["wall_s"], 1e-9))
+        lines += ["", "## A long stream flat out, windows in the background worker", "",
+                  f"* run {meta_long} (the per-frame latencies kept in preallocated arrays, so "
+                  "that the run's own bookkeeping does not grow)",
+                  f"* {long['frames']} frames (scene seed {long['seed']}, {long['noise']}, "
+                  f"1800 frames tiled), background={long['background']}: "
+                  f"{long['seconds']:.1f} s, **{long['fps']:.0f} frames/s** sustained; "
+                  "per-frame wall ms p50/p95/p99 "
+                  + "/".join(f"{v:.2f}" for v in long["latency_ms"]) + ", CPU "
+                  + "/".join(f"{v:.2f}" for v in long["cpu_ms"]) + "; wall p95 of the first / "
+                  f"last 5000 frames {long['latency_first_last_ms'][0]:.2f} / "
+                  f"{long['latency_first_last_ms'][1]:.2f} ms",
+                  f"* steady state (from the first fused window, sample "
+                  f"{steady[0]['frame']}, to the end): **{steady_fps:.0f} frames/s** with the "
+                  "worker solving 900-frame blocks on the other core (the first samples are "
+                  "faster: no mirror yet, so no pairing or triangulation, while the worker "
+                  "process starts)",
+                  f"* windows fused {long['counts']['windows']}, rejected "
+                  f"{long['counts']['windows_rejected']}, failed "
+                  f"{long['counts']['windows_failed']}; final error "
+                  f"{long['final_err']:.3f} deg at a std of {long['final_std']:.3f} deg (not "
+                  "a test of the std: the stream repeats one 1800-frame scene, so the same "
+                  "frames are fused 30 times as if they were new)",
+                  f"* memory: this process {s[1]['rss_mb']:.1f} MB at frame {s[1]['frame']}, "
+                  f"{s[-1]['rss_mb']:.1f} MB at {s[-1]['frame']}; the worker "
+                  f"{_fmt(steady[0]['worker_rss_mb'], '.1f')} MB after its first solve, "
+                  f"{_fmt(s[-1]['worker_rss_mb'], '.1f')} MB at the end", "",
+                  "| frame | RSS MB (this process) | RSS MB (worker) | wall s | windows | "
+                  "buffered frames |", "|---:|---:|---:|---:|---:|---:|"]
+        for x in s:
+            lines.append(f"| {x['frame']} | {x['rss_mb']:.1f} | {_fmt(x['worker_rss_mb'], '.1f')} "
+                         f"| {x['wall_s']:.1f} | {x['windows']} | {x['buffered']} |")
+    return "\n".join(lines) + "\n"
+
+
+def lag_sweep(args, started: str, clock: float) -> int:
+    """The block length chosen by measurement: each length's live error at 60 s and at the
+    end over the offline error of the same frames, and its largest solve."""
+    lags = [int(x) for x in args.lag_sweep.split(",")]
+    cases = [(s, n, args.frames, (60.0,), (60.0,), w) for w in lags
+             for n in args.noise.split(",") for s in _seeds(args.seeds)]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        results = list(pool.map(run_scene, cases))
+    load = os.getloadavg()
+    lines = ["# The block length of the live run (`bench/bench_live.py --lag-sweep`)", "",
+             f"* date: {started}",
+             f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
+             f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
+             f"{platform.python_version()}; load average at the end {load[0]:.2f}; "
+             f"{time.perf_counter() - clock:.0f} s",
+             f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
+             f"{args.seeds}; the first block re-solved as it doubles up to the block length, "
+             "later blocks fused. Pooled: RMS of the live errors over RMS of the offline "
+             "errors of the same frames.", "",
+             "| block frames | noise | at | pooled live / offline | median live / offline | "
+             "RMS live err / std | largest solve s |", "|---:|---|---|---:|---:|---:|---:|"]
+    for w in lags:
+        for noise in args.noise.split(","):
+            res = [r for r in results if r["window"] == w and r["noise"] == noise]
+            for label, idx in (("60 s", 0), ("end", -1)):
+                cs = [r["checkpoints"][idx] for r in res]
+                cs = [c for c in cs if "offline_err" in c and "live_err" in c]
+                if not cs:
+                    continue
+                le = np.array([c["live_err"] for c in cs])
+                oe = np.array([c["offline_err"] for c in cs])
+                z = le / np.array([c["live_std"] for c in cs])
+                solve = max((max(r["solve_s"]) for r in res if r["solve_s"]), default=np.nan)
+                lines.append(f"| {w} | {noise} | {label} | "
+                             f"{np.sqrt(np.mean(le ** 2)) / np.sqrt(np.mean(oe ** 2)):.2f} | "
+                             f"{np.median(le / oe):.2f} | {np.sqrt(np.mean(z ** 2)):.2f} | "
+                             f"{solve:.2f} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if not args.no_write:
+        (ROOT / "bench" / "RESULTS_live_lag.md").write_text(text)
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="0-5")
+    ap.add_argument("--noise", default="iid,realistic")
+    ap.add_argument("--frames", type=int, default=3600)
+    ap.add_argument("--checkpoints", default="2,5,10,20,30,60,90,120")
+    ap.add_argument("--offline-at", default="10,30,60")
+    ap.add_argument("--long-frames", type=int, default=54000)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--window", type=int, default=900,
+                    help="frames a block (LiveOptions.window_frames)")
+    ap.add_argument("--lag-sweep", default=None, metavar="N,N,...",
+                    help="instead: the end-of-stream and 60 s errors for each block length, "
+                         "written to bench/RESULTS_live_lag.md")
+    ap.add_argument("--from-json", metavar="FILE",
+                    help="write the report again from a RESULTS_live.json (no measuring)")
+    ap.add_argument("--long-only", action="store_true",
+                    help="run the long stream again into the existing RESULTS_live.json")
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args()
+    started = _dt.datetime.now().isoformat(timespec="seconds")
+    clock = time.perf_counter()
+    checkpoints = tuple(float(x) for x in args.checkpoints.split(","))
+    offline_at = tuple(float(x) for x in args.offline_at.split(","))
+    if args.lag_sweep:
+        return lag_sweep(args, started, clock)
+    if args.long_only:
+        path = ROOT / "bench" / "RESULTS_live.json"
+        data = json.loads(path.read_text())
+        data["long"] = run_long(args.long_frames, _seeds(args.seeds)[0], "realistic", True,
+                                max(args.long_frames // 18, 1000))
+        data["meta"]["long_argv"] = sys.argv[1:]
+        data["meta"]["long_started"] = started
+        path.write_text(json.dumps(data, indent=1, default=float))
+        args.from_json = str(path)
+    if args.from_json:
+        data = json.loads(Path(args.from_json).read_text())
+        meta = data.get("meta", {})
+        sys.argv[1:] = meta.get("argv", sys.argv[1:])
+        text = report(data["results"], data["long"], argparse.Namespace(**meta.get("args", {})),
+                      meta.get("started", started), meta.get("seconds", 0.0),
+                      load=meta.get("load"),
+                      meta_long=(f"{meta['long_started']}, `python bench/bench_live.py "
+                                 f"{' '.join(meta['long_argv'])}`" if "long_argv" in meta
+                                 else "with the scenes above"))
+        print(text)
+        if not args.no_write:
+            (ROOT / "bench" / "RESULTS_live.md").write_text(text)
+        return 0
+    cases = [(s, n, args.frames, checkpoints, offline_at, args.window)
+             for n in args.noise.split(",") for s in _seeds(args.seeds)]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        results = []
+        for r in pool.map(run_scene, cases):
+            results.append(r)
+            end = r["checkpoints"][-1]
+            print(f"{r['noise']:9s} seed {r['seed']}: calibrated at {r['first_calibrated_s']} s; "
+                  f"end live {end.get('live_err', float('nan')):.3f} offline "
+                  f"{end.get('offline_err', float('nan')):.3f} std {end.get('live_std', float('nan')):.3f}",
+                  flush=True)
+    long = None
+    if args.long_frames:
+        long = run_long(args.long_frames, _seeds(args.seeds)[0], "realistic", True,
+                        max(args.long_frames // 18, 1000))
+        print(f"long stream: {long['fps']:.0f} frames/s, latency {long['latency_ms']}, "
+              f"RSS {[round(x['rss_mb']) for x in long['samples']]}", flush=True)
+    seconds = time.perf_counter() - clock
+    text = report(results, long, args, started, seconds)
+    print(text)
+    if not args.no_write:
+        (ROOT / "bench" / "RESULTS_live.md").write_text(text)
+        meta = dict(argv=sys.argv[1:], args=vars(args), started=started, seconds=seconds,
+                    load=list(os.getloadavg()))
+        (ROOT / "bench" / "RESULTS_live.json").write_text(json.dumps(
+            dict(results=results, long=long, meta=meta), indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""The ``live`` command: calibrate while the video streams, 3D joints frame by frame, one
+JSON line per frame (a thin layer over :mod:`mirrorgraph.live`).
+
+    mirrorgraph live 0 --image-size 1280x720 --subject-height 1.75 --jsonl out.jsonl
+    mirrorgraph live clip.mp4 --intrinsics camera.json --jsonl out.jsonl --view
+    mirrorgraph live keypoints.json --intrinsics camera.json --jsonl out.jsonl \\
+        --as-fast-as-possible
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+from ..initial.estimators import DEFAULT_THRESHOLD_PX
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from ..progress import Progress
+from .args import add_common, add_joints, height, image_size, positive, printer, rate, seed
+from .commands import HELP
+
+__all__ = ["add_parsers", "cmd_live"]
+
+
+def add_parsers(sub) -> None:
+    """Add ``live`` to the CLI's subparsers."""
+    p = sub.add_parser(
+        "live", help=HELP["live"],
+        description="Calibrate the mirror while the frames arrive and write each frame's 3D "
+                    "joints and the current mirror as one JSON line (NaN as null). SOURCE: a "
+                    "camera index (0), a video file (played at its frame rate; BlazePose, the "
+                    "video extra) or any keypoint input calibrate reads (replayed frame by "
+                    "frame).")
+    p.add_argument("source", help="camera index, video file, or keypoints (MMPose .json, "
+                                  "OpenPose / EasyMocap folder, paired .npz)")
+    p.add_argument("--jsonl", required=True, metavar="OUT.jsonl",
+                   help="JSON-lines file: one line per frame, written as the frames arrive")
+    p.add_argument("--intrinsics", help="camera intrinsics (as calibrate reads them)")
+    p.add_argument("--camera", metavar="NAME",
+                   help="camera (section or name) to read from a TOML with several cameras")
+    p.add_argument("--image-size", type=image_size, metavar="WxH",
+                   help="image size when no intrinsics are given and the source lacks it "
+                        "(the focal length is then estimated from the person)")
+    p.add_argument("--subject-height", type=height, metavar="METRES",
+                   help="subject's standing height in metres: lengths in metres")
+    p.add_argument("--as-fast-as-possible", action="store_true",
+                   help="process a video or keypoint file flat out instead of at its frame rate")
+    p.add_argument("--fps", type=positive, default=None,
+                   help="frame rate of a keypoint input that carries none (default 30)")
+    p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
+    p.add_argument("--window", type=lambda t: int(positive(t)), default=900, metavar="N",
+                   help="most frames in a window of the mirror's solve (default 900)")
+    p.add_argument("--calibrated-std", type=positive, default=2.0, metavar="DEG",
+                   help="rotation std at which the status becomes 'calibrated' (default 2)")
+    p.add_argument("--background", action="store_true",
+                   help="solve the mirror's windows in a worker process (the frames keep "
+                        "flowing meanwhile; the default unless --as-fast-as-possible)")
+    p.add_argument("--threshold", type=positive, default=DEFAULT_THRESHOLD_PX, metavar="PX",
+                   help=f"inlier threshold in pixels (default {DEFAULT_THRESHOLD_PX:g})")
+    p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
+                   help=f"ignore joints below this confidence (default {DEFAULT_MIN_CONFIDENCE:g})")
+    add_joints(p)
+    p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
+    p.add_argument("--view", nargs="?", const="", default=None, metavar="OUT.rrd",
+                   help="stream to Rerun's live viewer, or with a file name record the stream "
+                        "to that .rrd (needs the view extra)")
+    add_common(p)
+    p.set_defaults(func=cmd_live)
+
+
+def cmd_live(args) -> int:
+    from ..intrinsics import load_intrinsics
+    from ..live import LiveOptions
+    from ..live.sources import is_camera, open_source
+    from ..live.stream import check_view, run_live
+    from ..pipelines.options import CalibrateOptions
+
+    say = printer(args)
+    if Path(args.jsonl).is_dir():
+        raise InputError("is a folder; give a file name", source=args.jsonl, field="--jsonl")
+    if args.camera and not args.intrinsics:
+        raise InputError("needs --intrinsics FILE.toml", field="--camera")
+    check_view(args.view)
+    intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
+    camera = is_camera(args.source)
+    if not camera and not Path(args.source).exists():
+        raise InputError("no such file or folder (nor a camera index)", source=args.source)
+    source = open_source(args.source, skeleton=args.skeleton, fps=args.fps,
+                         realtime=not args.as_fast_as_possible)
+    if intr is None and args.image_size is None and source.image_size is None:
+        raise InputError("no intrinsics and no image size: give --intrinsics FILE or "
+                         "--image-size WxH", source=source.name, field="--image-size")
+    copts = CalibrateOptions(min_confidence=args.min_confidence, threshold_px=args.threshold,
+                             seed=args.seed, image_size=args.image_size,
+                             subject_height=args.subject_height,
+                             joints=tuple(j.strip() for j in args.joints.split(","))
+                             if args.joints else None)
+    realtime = camera or not args.as_fast_as_possible
+    opts = LiveOptions(calibrate=copts, window_frames=args.window,
+                       calibrated_std_deg=args.calibrated_std,
+                       background=bool(args.background or realtime))
+    with Progress(f"live from {source.name}", total=source.total,
+                  enabled=not args.quiet) as bar:
+        def on_frame(frame) -> None:
+            m = frame.mirror
+            info = m.status if m.rotation_std_deg is None else \
+                f"{m.status}, std {m.rotation_std_deg:.2f} deg"
+            bar.update(info=info)
+        summary = run_live(source, intr, opts, args.jsonl, view=args.view, on_frame=on_frame)
+    say(summary.describe())
+    say(f"wrote {summary.frames} lines to {args.jsonl}")
+    return 0

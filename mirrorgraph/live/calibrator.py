@@ -1,0 +1,517 @@
+"""The live run: one frame of keypoints in, that frame's 3D joints and the current mirror out.
+
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    live = LiveCalibrator("COCO_17", intrinsics, LiveOptions.of(subject_height=1.75))
+    for people in detector_frames:          # (P, J, 3) x, y, confidence per frame
+        out = live.update(people)
+        out.status, out.joints3d, out.joints_std, out.mirror.normal
+    live.close()
+
+**Per frame** (the fixed-latency path, no solver): the detections are checked (a bad
+frame is skipped and counted, never an exception), undistorted, and paired against the
+current mirror's epipole ``e ~ K n``
+(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`: the candidate pairs of the
+frame, both labellings of the reflection, the one under the threshold with the
+smallest median epipolar distance, the reflection the detection nearer the epipole);
+every joint seen in both views is triangulated with the mirror
+(:func:`mirrorgraph.geometry.triangulate_mirror`), kept where it reprojects within the
+threshold in both views and lies in front of the camera and the mirror, with its std
+from the two rays (:func:`mirrorgraph.geometry.triangulation_covariance` at the
+reprojection noise the last window's graph found) and the mirror distance's relative
+std.
+
+**The mirror** (:mod:`.estimator`): the frames holding two people or more are
+buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the
+offline run (pairing, the reflective RANSAC, the one graph with its body priors, robust
+reprojection, rejection, left/right fixes, the stature scale), and again on every
+frame so far each time their number has doubled, up to a first block of
+``window_frames``: until then the live mirror *is* the offline calibration of the
+frames seen (at the last doubling). Every later block of ``window_frames`` is
+calibrated the same way and fused into the mirror carried from the older ones (their
+information on the plane: what a fixed-lag smoother with a lag of one block keeps,
+:class:`~.estimator.MirrorFusion`); memory holds one block. Windows are solved in
+the calling thread (``background=False``: deterministic, what the tests and the
+benchmark replay) or in one worker process (``background=True``: GTSAM holds the GIL,
+so a thread would stall the frames; the frames keep flowing while a window solves, and
+a buffer that outgrows ``max_buffer_frames`` while the worker is busy is thinned
+evenly, so memory stays flat).
+
+Measured (``bench/RESULTS_live.md``): short windows fused as they came (60, 150 or
+300 frames each) were biased by their few frames, 0.53-0.95 deg off on a realistic
+wide scene where the offline calibration of the same 1800 frames was 0.35 deg off;
+the doubling first block and 900-frame windows are the choice (300-frame blocks were
+as accurate but their std too wide, 1800-frame ones as accurate with solves up to 7.8 s:
+``bench/RESULTS_live_lag.md``).
+
+**Status**: ``initialising`` until the fused mirror's rotation std is at most
+``calibrated_std_deg``, then ``calibrated``. Joints are given as soon as a first window
+has calibrated (their std says how far to trust them).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .. import geometry as geo
+from ..errors import InputError
+from ..keypoints import RawDetections
+from .estimator import MirrorFusion, WindowEstimate, solve_window
+
+if TYPE_CHECKING:
+    from ..intrinsics import Intrinsics
+    from ..skeletons import Skeleton
+
+__all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES"]
+
+#: The statuses of a live mirror.
+STATUSES = ("initialising", "calibrated")
+
+
+@dataclass
+class LiveOptions:
+    """Options of :class:`LiveCalibrator`.
+
+    Attributes:
+        calibrate: :class:`~mirrorgraph.pipelines.options.CalibrateOptions` of every
+            window's solve (subject height, image size, joints, thresholds, seed, the
+            graph's settings); ``None``: the defaults.
+        first_window_frames: frames holding two people or more that the first solve
+            (the RANSAC and the graph) waits for.
+        window_frames: such frames per window. The first block of this many is
+            calibrated whole, again each time it has doubled (60, 120, 240, ... frames:
+            until then the live mirror *is* the offline calibration of every frame so
+            far); every later window of this many is fused into it.
+        calibrated_std_deg: the rotation std at which the status becomes ``calibrated``.
+        background: solve windows in one worker process (see the module docstring).
+        max_buffer_frames: most frames buffered while the worker is busy (thinned evenly
+            beyond; at least ``window_frames``).
+        fps: frame rate for frame times where the caller gives none.
+    """
+
+    calibrate: object | None = None
+    first_window_frames: int = 60
+    window_frames: int = 900
+    max_buffer_frames: int = 1800
+    calibrated_std_deg: float = 2.0
+    background: bool = False
+    fps: float = 30.0
+
+    @classmethod
+    def of(cls, **kwargs) -> "LiveOptions":
+        """Live options with the given ``CalibrateOptions`` fields (``subject_height``,
+        ``image_size``, ...) and live fields (``window_frames``, ...) by name."""
+        from ..pipelines.options import CalibrateOptions
+
+        mine = {k: kwargs.pop(k) for k in list(kwargs) if k in cls.__dataclass_fields__}
+        return cls(calibrate=CalibrateOptions(**kwargs), **mine)
+
+
+@dataclass
+class LiveMirror:
+    """The current mirror of a live run (a snapshot).
+
+    Attributes:
+        status: ``initialising`` or ``calibrated``.
+        normal: ``(3,)`` unit normal, camera frame; ``None`` before the first window.
+        distance: mirror distance (metres with a subject height, else 1).
+        rotation_std_deg: the virtual camera's rotation std, deg.
+        distance_std: the distance's std (the height's share included); ``None``
+            without a subject height (the distance is the unit).
+        focal_px, focal_std_px: the estimated focal length (``None``: given).
+        windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
+        scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
+    """
+
+    status: str = "initialising"
+    normal: np.ndarray | None = None
+    distance: float | None = None
+    rotation_std_deg: float | None = None
+    distance_std: float | None = None
+    focal_px: float | None = None
+    focal_std_px: float | None = None
+    windows: int = 0
+    rejected: int = 0
+    failed: int = 0
+    resets: int = 0
+    scale: str = "unit_distance"
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN as ``None``)."""
+        return {"status": self.status,
+                "normal": None if self.normal is None else [float(v) for v in self.normal],
+                "distance": _num(self.distance), "rotation_std_deg": _num(self.rotation_std_deg),
+                "distance_std": _num(self.distance_std), "focal_px": _num(self.focal_px),
+                "focal_std_px": _num(self.focal_std_px), "windows": self.windows,
+                "windows_rejected": self.rejected, "windows_failed": self.failed,
+                "resets": self.resets, "scale": self.scale}
+
+
+def _num(v) -> float | None:
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+@dataclass
+class LiveFrame:
+    """What :meth:`LiveCalibrator.update` returns for one frame.
+
+    Attributes:
+        index: 0-based count of frames fed.
+        frame_id: the frame's number (the caller's, else ``index``).
+        time: seconds (the caller's, else ``frame_id / fps``).
+        mirror: :class:`LiveMirror` after this frame.
+        joints3d: ``(J, 3)`` real camera frame (metres with a subject height, else
+            mirror distances), NaN where not estimated.
+        joints_std: ``(J,)`` each joint's position std (RMS over the axes), NaN where
+            not estimated.
+        paired: a person and their reflection were found in this frame.
+        skipped: why the frame was skipped (bad input), else ``None``.
+        latency_s: wall seconds of this frame's own work (pairing, triangulation).
+        cpu_s: the thread's CPU seconds of the same (the latency without what other
+            processes on the machine took from it).
+        solve_s: wall seconds spent in a window's solve during this call (``0`` in the
+            background mode, where the worker solves).
+    """
+
+    index: int
+    frame_id: int
+    time: float
+    mirror: LiveMirror
+    joints3d: np.ndarray
+    joints_std: np.ndarray
+    paired: bool = False
+    skipped: str | None = None
+    latency_s: float = 0.0
+    solve_s: float = 0.0
+    cpu_s: float = 0.0
+
+    @property
+    def status(self) -> str:
+        return self.mirror.status
+
+    def to_dict(self) -> dict:
+        """The frame's JSON line: NaN written as ``null`` (JSON has no NaN)."""
+        ok = np.isfinite(self.joints3d).all(1)
+        return {"frame": self.index, "frame_id": self.frame_id, "time": round(self.time, 6),
+                "status": self.mirror.status, "mirror": self.mirror.to_dict(),
+                "joints3d": [[round(float(c), 6) for c in p] if k else None
+                             for p, k in zip(self.joints3d, ok)],
+                "joints_std": [round(float(s), 6) if k and np.isfinite(s) else None
+                               for s, k in zip(self.joints_std, ok)],
+                "paired": self.paired, "skipped": self.skipped}
+
+
+class LiveCalibrator:
+    """A mirror calibrated while the frames arrive, and each frame's 3D joints.
+
+    Args:
+        skeleton: the keypoint layout: a :class:`~mirrorgraph.skeletons.Skeleton` or its
+            name (``"COCO_17"``, ``"BLAZEPOSE"``, ...).
+        intrinsics: :class:`~mirrorgraph.intrinsics.Intrinsics`; ``None``: the focal
+            length is estimated from the person (``calibrate.image_size`` needed).
+        options: :class:`LiveOptions`.
+
+    Raises:
+        InputError: an unknown skeleton, no intrinsics and no image size.
+    """
+
+    def __init__(self, skeleton: "Skeleton | str", intrinsics: "Intrinsics | None" = None,
+                 options: LiveOptions | None = None):
+        from ..intrinsics import intrinsics_from_fov
+        from ..joint_sets import mirror_joints
+        from ..pipelines.options import CalibrateOptions
+        from ..skeletons import skeleton_by_name
+
+        self.options = opts = options or LiveOptions()
+        copts = (opts.calibrate or CalibrateOptions()).checked()
+        # windows are solved without completion (the frames' joints are triangulated
+        # here) and keypoints are undistorted once, here
+        self._copts = replace(copts, complete_joints=False, sensitivity_priors=False,
+                              fps=copts.fps or opts.fps)
+        self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
+        self.joints = mirror_joints(self.skeleton, copts.joints)
+        self.intrinsics = intrinsics
+        if intrinsics is None:
+            if copts.image_size is None:
+                raise InputError("no intrinsics and no image size: give one of them",
+                                 fix=("intrinsics", "image_size"))
+            self._guess = intrinsics_from_fov(copts.image_size, copts.fov_deg)
+            self._window_intr = None
+        else:
+            self._guess = intrinsics
+            self._window_intr = replace(intrinsics, dist=None)     # undistorted here
+        self.fusion = MirrorFusion(height_sigma=self._copts.graph.height_sigma,
+                                   metric=self._copts.subject_height is not None)
+        self._buffer_ids: list[int] = []
+        self._buffer_people: list[np.ndarray] = []
+        self._future = None
+        self._pool = None
+        self._last_id: int | None = None
+        self.frames = 0
+        self._provisional = True                # the first block: re-solved as it grows
+        self._next = opts.first_window_frames
+        self._job: tuple = ()
+        self.skipped: Counter = Counter()
+        self.unpaired = 0
+        self.with_joints = 0
+        self.window_log: list[dict] = []
+        self._log_cap = 1000
+
+    # ------------------------------------------------------------------ state
+    @property
+    def K(self) -> np.ndarray:
+        """The current camera matrix (the fused focal length where it is estimated)."""
+        K = np.array(self._guess.K, dtype=float)
+        f = self.fusion.focal_px
+        if self.intrinsics is None and f is not None:
+            K[0, 0] = K[1, 1] = f
+        return K
+
+    @property
+    def mirror(self) -> LiveMirror:
+        """The current mirror (:class:`LiveMirror`)."""
+        fu = self.fusion
+        if fu.normal is None:
+            return LiveMirror(failed=fu.failed)
+        std = fu.rotation_std_deg
+        status = "calibrated" if std <= self.options.calibrated_std_deg else "initialising"
+        metric = self._copts.subject_height is not None
+        return LiveMirror(status=status, normal=fu.normal.copy(), distance=fu.distance,
+                          rotation_std_deg=std,
+                          distance_std=fu.distance_std if metric else None,
+                          focal_px=fu.focal_px, focal_std_px=fu.focal_std_px,
+                          windows=fu.windows, rejected=fu.rejected, failed=fu.failed,
+                          resets=fu.resets,
+                          scale="subject_height" if metric else "unit_distance")
+
+    @property
+    def counts(self) -> dict:
+        """Frames fed, skipped (by reason), without a pair, with joints; window counts."""
+        return {"frames": self.frames, "skipped": sum(self.skipped.values()),
+                "skipped_by_reason": dict(self.skipped), "unpaired": self.unpaired,
+                "with_joints": self.with_joints, "windows": self.fusion.windows,
+                "windows_rejected": self.fusion.rejected,
+                "windows_failed": self.fusion.failed, "resets": self.fusion.resets,
+                "buffered": len(self._buffer_ids)}
+
+    # ------------------------------------------------------------------ input
+    def _checked(self, people) -> tuple[np.ndarray | None, tuple[str, str] | None]:
+        """The frame as ``(P, J, 3)`` floats, or ``(reason, message)`` why not."""
+        J = self.skeleton.num_joints
+        try:
+            p = np.array(people, dtype=float)
+        except (TypeError, ValueError):
+            return None, ("not numeric", "the people are not a numeric array")
+        if p.ndim == 2:
+            p = p[None]
+        if p.ndim != 3 or p.shape[-1] != 3:
+            return None, ("bad shape", f"shape {p.shape} is not (people, {J}, 3)")
+        if p.shape[1] != J:
+            return None, ("wrong joint count", f"{p.shape[1]} joints, the skeleton "
+                          f"{self.skeleton.name} has {J}")
+        conf = p[..., 2]
+        bad = ~np.isfinite(conf) | (conf <= 0) | ~np.isfinite(p[..., :2]).all(-1)
+        if np.any(np.abs(p[..., :2][~bad]) > 1e6):
+            return None, ("coordinates out of range", "coordinates beyond 1e6 px")
+        p[..., 2] = np.clip(np.where(np.isfinite(conf), conf, 0.0), 0.0, 1.0)
+        p[bad] = (np.nan, np.nan, 0.0)
+        return p, None
+
+    def update(self, people: "np.ndarray | list", frame_id: int | None = None,
+               time_s: float | None = None) -> LiveFrame:
+        """Feed one frame's detections; returns that frame's 3D joints and the mirror.
+
+        Args:
+            people: ``(P, J, 3)`` every person the detector found (x px, y px,
+                confidence; NaN / 0 where missing), in any order; ``(J, 3)`` for one.
+            frame_id: the frame's number (increasing); default: the count of frames fed.
+            time_s: the frame's time, seconds; default ``frame_id / fps``.
+
+        Returns:
+            :class:`LiveFrame`. A frame that cannot be used (a wrong shape, a frame
+            number not after the last one) is skipped with its reason, counted in
+            :attr:`counts`.
+        """
+        clock, cpu = time.perf_counter(), time.thread_time()
+        index = self.frames
+        self.frames += 1
+        fid = index if frame_id is None else int(frame_id)
+        t = fid / self.options.fps if time_s is None else float(time_s)
+        J = self.skeleton.num_joints
+        nan = np.full((J, 3), np.nan)
+        solve_s = self._poll()
+        p, reason = self._checked(people)
+        if reason is None and self._last_id is not None and fid <= self._last_id:
+            reason = ("frame number not increasing",
+                      f"frame number {fid} not after {self._last_id}")
+        if reason is not None:
+            self.skipped[reason[0]] += 1
+            return LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
+                             skipped=f"frame {fid}: {reason[1]}", latency_s=time.perf_counter() - clock,
+                             solve_s=solve_s, cpu_s=time.thread_time() - cpu)
+        self._last_id = fid
+        if self.intrinsics is not None and self.intrinsics.dist is not None and len(p):
+            p[..., :2] = self.intrinsics.undistort_points(p[..., :2])
+        joints3d, std, paired = nan, np.full(J, np.nan), False
+        if self.fusion.normal is not None and len(p) >= 2:
+            joints3d, std, paired = self._joints(fid, p)
+        if len(p) >= 2:
+            self._buffer_ids.append(fid)
+            self._buffer_people.append(p)
+        if not paired:
+            self.unpaired += 1
+        if np.isfinite(joints3d).any():
+            self.with_joints += 1
+        latency, cpu = time.perf_counter() - clock, time.thread_time() - cpu
+        solve_s += self._schedule()
+        return LiveFrame(index, fid, t, self.mirror, joints3d, std, paired=paired,
+                         latency_s=latency, solve_s=solve_s, cpu_s=cpu)
+
+    # ------------------------------------------------------------------ per frame
+    def _joints(self, fid: int, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        from ..initial.pairing import PairingOptions, pair_with_epipoles
+
+        J = self.skeleton.num_joints
+        out, std = np.full((J, 3), np.nan), np.full(J, np.nan)
+        K = self.K
+        n, d = self.fusion.normal, float(self.fusion.distance)
+        co = self._copts
+        raw = RawDetections(self.skeleton, np.array([fid]), [p])
+        pairing = pair_with_epipoles(raw, [K @ n], self.joints,
+                                     PairingOptions(min_confidence=co.min_confidence,
+                                                    threshold_px=co.threshold_px))
+        real, mirror = pairing.real[0], pairing.reflections[0][0]
+        seen = ((real[:, 2] >= co.min_confidence) & (mirror[:, 2] >= co.min_confidence)
+                & np.isfinite(real[:, :2]).all(1) & np.isfinite(mirror[:, :2]).all(1))
+        if not seen.any():
+            return out, std, False
+        u, um = real[seen, :2], mirror[seen, :2]
+        X = geo.triangulate_mirror(K, n, d, u, um, iterations=1)
+        S = geo.reflect_points(X, n, d)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
+            ok &= np.linalg.norm(geo.project(K, X) - u, axis=1) <= co.threshold_px
+            ok &= np.linalg.norm(geo.project(K, S) - um, axis=1) <= co.threshold_px
+        idx = np.flatnonzero(seen)[ok]
+        if idx.size == 0:
+            return out, std, True
+        X = X[ok]
+        eye = np.eye(4)
+        sigma = self.fusion.noise_px if np.isfinite(self.fusion.noise_px) else \
+            self._copts.graph.pixel_sigma
+        views = [geo.camera_projection(K, eye), geo.mirror_projection(K, eye, n, d)]
+        ones = np.ones(len(X), bool)
+        cov = geo.triangulation_covariance(views, X, [ones, ones], sigma)
+        s = np.sqrt(np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0))
+        d_std = self.fusion.distance_std
+        if np.isfinite(d_std) and d > 0:        # the distance's share: a scale on X
+            s = np.hypot(s, np.linalg.norm(X, axis=1) * d_std / d)
+        out[idx], std[idx] = X, s
+        return out, std, True
+
+    # ------------------------------------------------------------------ windows
+    def _window(self, clear: bool) -> RawDetections:
+        raw = RawDetections(self.skeleton, np.asarray(self._buffer_ids, dtype=np.int64),
+                            list(self._buffer_people), source=f"live window "
+                            f"{self._buffer_ids[0]}-{self._buffer_ids[-1]}",
+                            format="live", image_size=self._copts.image_size,
+                            fps=self._copts.fps)
+        if clear:
+            self._buffer_ids, self._buffer_people = [], []
+        return raw
+
+    def _schedule(self) -> float:
+        """Start a window's solve when one is due (see the module docstring)."""
+        n = len(self._buffer_ids)
+        busy = self._future is not None
+        if busy:
+            if n > max(self.options.max_buffer_frames, self.options.window_frames):
+                keep = slice(None, None, 2)                # thin evenly: memory flat
+                self._buffer_ids = self._buffer_ids[keep]
+                self._buffer_people = self._buffer_people[keep]
+            return 0.0
+        if self._provisional:
+            if n < self._next:
+                return 0.0
+            block = n >= self.options.window_frames
+            job = (self._window(clear=block), True, block)
+        else:
+            if n < self.options.window_frames:
+                return 0.0
+            job = (self._window(clear=True), False, False)
+        if self.options.background:
+            self._future = self._executor().submit(solve_window, job[0], self._window_intr,
+                                                   self._copts)
+            self._job = job[1:] + (len(job[0].people),)
+            return 0.0
+        clock = time.perf_counter()
+        est = solve_window(job[0], self._window_intr, self._copts)
+        self._absorb(est, *job[1:], len(job[0].people))
+        return time.perf_counter() - clock
+
+    def _executor(self):
+        if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+        return self._pool
+
+    def _poll(self, wait: bool = False) -> float:
+        if self._future is None or not (wait or self._future.done()):
+            return 0.0
+        clock = time.perf_counter()
+        try:
+            est = self._future.result()
+        except Exception as exc:  # noqa: BLE001 - a worker's crash is a failed window
+            est = WindowEstimate(ok=False, reason=f"worker: {type(exc).__name__}: {exc}")
+        self._future = None
+        self._absorb(est, *self._job)
+        return time.perf_counter() - clock if wait else 0.0
+
+    def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
+        if provisional:
+            # the calibration of every frame so far replaces the one of fewer frames
+            what = self.fusion.restart(est)
+            self._next = min(max(self.options.first_window_frames, 2 * size),
+                             self.options.window_frames)
+            if block:          # the first block is done: from now on windows are fused
+                self._provisional = self.fusion.normal is None
+                self._next = self.options.first_window_frames
+        else:
+            what = self.fusion.add(est)
+        if len(self.window_log) < self._log_cap:
+            self.window_log.append({"frames": [est.first_frame, est.last_frame],
+                                    "size": size, "result": what, "reason": est.reason,
+                                    "rotation_std_deg": est.rotation_std_deg,
+                                    "seconds": est.seconds, "pairs": est.pairs})
+
+    def finish(self) -> LiveMirror:
+        """End of the stream: wait for a window in flight, solve what is buffered (the
+        whole buffer while the first block is still provisional, else if it holds at
+        least half a window), and return the final mirror."""
+        self._poll(wait=True)
+        n = len(self._buffer_ids)
+        if n >= 2 and (self._provisional or n >= self.options.window_frames // 2):
+            job = (self._window(clear=True), self._provisional, self._provisional)
+            self._absorb(solve_window(job[0], self._window_intr, self._copts), *job[1:],
+                         len(job[0].people))
+        return self.mirror
+
+    def close(self) -> None:
+        """Stop the worker process (if any)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+            self._future = None
+
+    def __enter__(self) -> "LiveCalibrator":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

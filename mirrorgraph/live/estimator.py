@@ -1,0 +1,353 @@
+"""The mirror of a live run: windows of frames solved by the offline run, fused.
+
+A window is the next ``window_frames`` frames holding two people or more. It is
+calibrated by the very run ``calibrate`` makes (:func:`mirrorgraph.pipelines.mirror.calibrate`:
+pairing, the reflective RANSAC, the one graph with its body priors, robust reprojection,
+outlier rejection and left/right fixes, the stature scale, the robust uncertainty);
+:func:`solve_window` returns what the fusion needs (:class:`WindowEstimate`).
+
+:class:`MirrorFusion` carries the older windows as a Gaussian prior on the mirror: the
+frames are independent given the mirror (the graph's joints of one window share nothing
+with another's), so marginalising a window's joints leaves its information on the plane,
+and the information of disjoint windows adds. That is what a fixed-lag smoother whose
+lag is one window amounts to; the difference to one graph over every frame is the
+linearisation point (each window's own optimum instead of the common one, a second-order
+effect, measured in ``bench/RESULTS_live.md``).
+
+What does *not* add up is a detector's bias that every window shares (a joint placed
+consistently off): it does not shrink with more windows. Each window's robust
+uncertainty separates it (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`): the
+time-series sandwich (``time``) sees the noise that averages out, the headline (the
+largest of it, the joint-pair clusters and their jackknife) the noise *and* the
+per-joint bias. The fusion therefore keeps
+
+* the **independent** part: the windows' normals weighted by their marginal information
+  (as one graph over every frame weighs them: measured, weighting by the noisier
+  sandwich figures pulled the fused normal towards the windows whose figure came out
+  small, 0.95 deg off against 0.35 offline on wide scene 1, realistic detector), with
+  the sandwich covariance of that weighted mean, each window's
+  ``max(marginal_w, time_w)`` in it (it shrinks like 1 / windows);
+* the **shared** part: the mean over windows of ``headline_w - max(marginal_w, time_w)``
+  (its PSD part: the bias's own covariance; it does not shrink),
+
+and reports their sum. The distance is fused the same way with the subject's height
+as the shared part (``RefineOptions.height_sigma``, a pure scale every window has), and
+the focal length, where it is estimated, by its windows' information alone.
+
+While the first block grows (:class:`~.calibrator.LiveCalibrator` re-solves every frame
+so far as their number doubles) each solve replaces the fused mirror
+(:meth:`MirrorFusion.restart`); from the first full block on, blocks are fused
+(:meth:`MirrorFusion.add`).
+
+A window far from the fused mirror (Mahalanobis distance over :data:`REJECT_CHI2`
+with both covariances) is rejected and counted; :data:`RESET_AFTER` rejected windows in
+a row that agree with each other restart the fusion from them (the camera or the mirror
+moved: a cut in the video).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import geometry as geo
+
+__all__ = ["WindowEstimate", "MirrorFusion", "solve_window", "REJECT_CHI2", "RESET_AFTER"]
+
+#: A window whose normal lies beyond this squared Mahalanobis distance from the fused
+#: one (2 degrees of freedom, both covariances) is rejected: chi-square 0.9999.
+REJECT_CHI2 = 18.4
+#: Rejected windows in a row (agreeing with each other) that restart the fusion.
+RESET_AFTER = 3
+
+
+@dataclass
+class WindowEstimate:
+    """One window's calibration, what the fusion needs of it.
+
+    Attributes:
+        ok: the window calibrated; ``reason`` says why not otherwise.
+        normal: ``(3,)`` unit normal (camera frame, away from the camera).
+        distance: mirror distance (metres with a subject height, else 1).
+        cov_marginal: ``(3, 3)`` the graph's marginal covariance of the normal (its
+            inverse weighs the window, as one graph over every frame weighs them).
+        cov_indep: ``(3, 3)`` the normal's covariance that averages over windows (the
+            larger of the marginals and the time-series sandwich).
+        cov_shared: ``(3, 3)`` the window's headline covariance beyond it (a bias every
+            window shares; PSD part).
+        rotation_std_deg: the window's own headline std (as ``calibrate`` reports it).
+        distance_std: the distance's std without the height's share.
+        focal_px, focal_std_px: the estimated focal length and its std (``None`` where
+            the intrinsics were given).
+        noise_px: the reprojection noise the window's solve found, pixels.
+        frames, pairs: frames and pairs the window's graph used.
+        first_frame, last_frame: frame ids the window spans.
+        seconds: wall time of the solve.
+    """
+
+    ok: bool
+    reason: str = ""
+    normal: np.ndarray | None = None
+    distance: float = float("nan")
+    cov_marginal: np.ndarray | None = None
+    cov_indep: np.ndarray | None = None
+    cov_shared: np.ndarray | None = None
+    rotation_std_deg: float = float("nan")
+    distance_std: float = float("nan")
+    focal_px: float | None = None
+    focal_std_px: float | None = None
+    noise_px: float = float("nan")
+    frames: int = 0
+    pairs: int = 0
+    first_frame: int = -1
+    last_frame: int = -1
+    seconds: float = 0.0
+
+
+def _psd(C: np.ndarray) -> np.ndarray:
+    w, V = np.linalg.eigh(0.5 * (C + C.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def solve_window(raw, intrinsics, options) -> WindowEstimate:
+    """Calibrate one window with the offline run; never raises for the data's sake.
+
+    Args:
+        raw: :class:`~mirrorgraph.keypoints.RawDetections` of the window (undistorted).
+        intrinsics: :class:`~mirrorgraph.intrinsics.Intrinsics`, or ``None`` (the focal
+            length estimated from ``options.image_size``).
+        options: :class:`~mirrorgraph.pipelines.options.CalibrateOptions`.
+
+    Returns:
+        :class:`WindowEstimate` (``ok`` False with the reason where the window does not
+        determine the mirror: too few pairs, no reflection, a second person).
+    """
+    from ..errors import MirrorgraphError
+    from ..graph.sandwich import covariance_max
+    from ..pipelines.mirror import calibrate
+
+    clock = time.perf_counter()
+    ids = np.asarray(raw.frame_ids)
+    span = dict(first_frame=int(ids[0]) if len(ids) else -1,
+                last_frame=int(ids[-1]) if len(ids) else -1)
+    try:
+        run = calibrate(raw, intrinsics, options)
+    except (MirrorgraphError, ValueError, np.linalg.LinAlgError) as exc:
+        return WindowEstimate(ok=False, reason=str(exc).splitlines()[0][:200], **span,
+                              seconds=time.perf_counter() - clock)
+    cal = run.calibration
+    unc = cal.uncertainty or {}
+    parts = run.refine_parts or {}
+    marginal = np.asarray(unc.get("marginal_normal_cov") or np.full((3, 3), np.nan), float)
+    if not np.all(np.isfinite(marginal)):
+        return WindowEstimate(ok=False, reason="the window's marginals are undetermined",
+                              **span, seconds=time.perf_counter() - clock)
+    t_cov = np.asarray(parts.get("time_normal_cov", marginal), float)
+    j_cov = np.asarray(parts.get("joint_normal_cov", t_cov), float)
+    if not np.all(np.isfinite(t_cov)):
+        t_cov = marginal
+    indep = covariance_max(marginal, t_cov)
+    # the headline (the largest of the marginals, the time series, the joint-pair
+    # clusters, both, and the jackknifes) beyond the part that averages out: what a
+    # detector's bias shared by every window adds (measured: the joint-pair clusters
+    # alone left the realistic detector's live error at 1.7-2.4 times the live std)
+    head = np.asarray(unc.get("normal_cov") or j_cov, float)
+    if not np.all(np.isfinite(head)):
+        head = j_cov
+    shared = _psd(head - indep) if np.all(np.isfinite(head)) else np.zeros((3, 3))
+    d = float(cal.distance) if cal.distance is not None else 1.0
+    d_std = unc.get("distance_std")
+    hs = options.graph.height_sigma if cal.distance is not None else 0.0
+    d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
+    focal = cal.intrinsics.estimated or None
+    priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})
+    return WindowEstimate(
+        ok=True, normal=np.asarray(cal.normal, float), distance=d, cov_marginal=marginal,
+        cov_indep=indep,
+        cov_shared=shared, rotation_std_deg=float(unc.get("rotation_std_deg", np.nan)),
+        distance_std=float(np.sqrt(max(d_var, 1e-12 * d * d))),
+        focal_px=float(cal.intrinsics.K[0, 0]) if focal else None,
+        focal_std_px=float(unc.get("focal_std_px", np.nan)) if focal else None,
+        noise_px=float(priors.get("a_posteriori_sigma_px") or options.graph.pixel_sigma),
+        frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
+        seconds=time.perf_counter() - clock)
+
+
+def _tangent(C: np.ndarray, B: np.ndarray) -> np.ndarray:
+    return B.T @ C @ B
+
+
+@dataclass
+class MirrorFusion:
+    """The fused mirror of the windows so far (see the module docstring).
+
+    In the tangent basis of the current normal: ``info`` = sum of the windows' marginal
+    information ``W_w`` (the weights: one graph over every frame weighs each pixel
+    alike, and the marginal information is what it gives each window), ``meat`` = sum
+    of ``W_w V_w W_w`` with ``V_w`` the window's independent covariance, so that the
+    fused normal's independent covariance is the sandwich ``info^-1 meat info^-1``;
+    ``shared_sum`` the sum of the windows' shared covariances (their mean is added).
+
+    Attributes:
+        height_sigma: the metric scale's relative std (shared by every window).
+        metric: lengths in metres (a subject height), else mirror distances.
+        normal: ``(3,)`` fused normal, or ``None`` before the first window.
+        distance, distance_info: fused distance and its information.
+        focal_px, focal_info: fused focal length and its information (``None``: held).
+        noise_px: the latest window's reprojection noise (pixels).
+        windows, rejected, failed, resets: counts.
+    """
+
+    height_sigma: float = 0.02
+    metric: bool = False
+    normal: np.ndarray | None = None
+    info: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    meat: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    shared_sum: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    distance: float = 1.0
+    distance_info: float = 0.0
+    focal_px: float | None = None
+    focal_info: float = 0.0
+    noise_px: float = float("nan")
+    windows: int = 0
+    rejected: int = 0
+    failed: int = 0
+    resets: int = 0
+    last_reason: str = ""
+    _pending: list = field(default_factory=list)
+
+    @property
+    def basis(self) -> np.ndarray:
+        return geo.tangent_basis(self.normal)
+
+    @property
+    def normal_cov(self) -> np.ndarray:
+        """``(3, 3)`` the fused normal's covariance: independent + shared parts."""
+        if self.normal is None or self.windows == 0:
+            return np.full((3, 3), np.nan)
+        B = self.basis
+        inv = np.linalg.inv(self.info)
+        indep = B @ (inv @ self.meat @ inv) @ B.T
+        return indep + self.shared_sum / self.windows
+
+    @property
+    def rotation_std_deg(self) -> float:
+        """The virtual camera's rotation std, deg (twice the normal's angle)."""
+        from ..graph.result import rotation_std_from_normal_cov
+
+        C = self.normal_cov
+        return float(rotation_std_from_normal_cov(C)) if np.all(np.isfinite(C)) else float("nan")
+
+    @property
+    def distance_std(self) -> float:
+        if self.distance_info <= 0:
+            return float("nan")
+        scale = self.height_sigma * self.distance if self.metric else 0.0
+        return float(np.sqrt(1.0 / self.distance_info + scale ** 2))
+
+    @property
+    def focal_std_px(self) -> float | None:
+        return None if self.focal_px is None else float(np.sqrt(1.0 / self.focal_info))
+
+    def _start(self, w: WindowEstimate) -> None:
+        self.normal = w.normal / np.linalg.norm(w.normal)
+        self.info = np.zeros((2, 2))
+        self.meat = np.zeros((2, 2))
+        self.shared_sum = np.zeros((3, 3))
+        self.windows = 0
+        self.distance_info, self.focal_px, self.focal_info = 0.0, None, 0.0
+        self._fuse(w)
+
+    def restart(self, w: WindowEstimate) -> str:
+        """Replace the fused mirror by one window's (the calibration of every frame so
+        far, while the first block grows); a failed window leaves it as it is. Returns
+        ``"started"`` or ``"failed"``."""
+        if not w.ok or not self._usable(w):
+            self.failed += 1
+            self.last_reason = w.reason or "the window's covariance is singular"
+            return "failed"
+        self._start(w)
+        return "started"
+
+    @staticmethod
+    def _usable(w: WindowEstimate) -> bool:
+        try:
+            B = geo.tangent_basis(w.normal)
+            np.linalg.cholesky(_tangent(w.cov_marginal, B))
+            np.linalg.cholesky(_tangent(w.cov_indep, B))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+
+    def _mahalanobis2(self, w: WindowEstimate) -> float:
+        B = self.basis
+        n_w = w.normal if w.normal @ self.normal >= 0 else -w.normal
+        r = B.T @ (n_w - self.normal)
+        C = _tangent(self.normal_cov, B) + _tangent(w.cov_indep + w.cov_shared, B)
+        return float(r @ np.linalg.solve(C, r))
+
+    def add(self, w: WindowEstimate) -> str:
+        """Fuse one window. Returns ``"fused"``, ``"started"``, ``"rejected"``,
+        ``"reset"`` or ``"failed"``."""
+        if not w.ok:
+            self.failed += 1
+            self.last_reason = w.reason
+            return "failed"
+        if not self._usable(w):
+            self.failed += 1
+            self.last_reason = "the window's covariance is singular"
+            return "failed"
+        if self.normal is None:
+            self._start(w)
+            return "started"
+        if self._mahalanobis2(w) > REJECT_CHI2:
+            self.rejected += 1
+            self._pending.append(w)
+            if len(self._pending) >= RESET_AFTER and self._agree(self._pending[-RESET_AFTER:]):
+                recent = self._pending[-RESET_AFTER:]
+                self._pending.clear()
+                self.resets += 1
+                self._start(recent[0])
+                for other in recent[1:]:
+                    self._fuse(other)
+                return "reset"
+            return "rejected"
+        self._pending.clear()
+        self._fuse(w)
+        return "fused"
+
+    @staticmethod
+    def _agree(ws: list[WindowEstimate]) -> bool:
+        probe = MirrorFusion()
+        probe._start(ws[0])
+        return all(probe._mahalanobis2(w) <= REJECT_CHI2 for w in ws[1:])
+
+    def _fuse(self, w: WindowEstimate) -> None:
+        B = self.basis
+        n_w = w.normal if w.normal @ self.normal >= 0 else -w.normal
+        W = np.linalg.inv(_tangent(w.cov_marginal, B))
+        V = _tangent(w.cov_indep, B)
+        r = B.T @ (n_w - self.normal)
+        info = self.info + W
+        x = np.linalg.solve(info, W @ r)
+        n_new = self.normal + B @ x
+        n_new /= np.linalg.norm(n_new)
+        R = geo.tangent_basis(n_new).T @ B               # old tangent -> new (2 x 2)
+        self.info = R @ info @ R.T
+        self.meat = R @ (self.meat + W @ V @ W) @ R.T
+        self.normal = n_new
+        self.shared_sum = self.shared_sum + w.cov_shared
+        self.windows += 1
+        iw = 1.0 / w.distance_std ** 2
+        self.distance = (self.distance * self.distance_info + w.distance * iw) / (
+            self.distance_info + iw)
+        self.distance_info += iw
+        if w.focal_px is not None and np.isfinite(w.focal_std_px or np.nan):
+            fw = 1.0 / w.focal_std_px ** 2
+            f0 = self.focal_px if self.focal_px is not None else 0.0
+            self.focal_px = (f0 * self.focal_info + w.focal_px * fw) / (self.focal_info + fw)
+            self.focal_info += fw
+        if np.isfinite(w.noise_px):
+            self.noise_px = w.noise_px

@@ -1,0 +1,236 @@
+"""The live run: a replayed stream against the offline calibration, streams that start
+without a reflection, lose the person or cut to another camera, and bad frames."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import mirrorgraph as mg
+from mirrorgraph.keypoints import RawDetections
+from mirrorgraph.live import LiveCalibrator, LiveOptions
+from mirrorgraph.live.estimator import MirrorFusion, WindowEstimate
+from mirrorgraph.metrics import mirror_rotation_error_deg
+from mirrorgraph.synth import make_wide_scene
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_wide_scene(3, noise="iid", frames=900)
+
+
+def _intr(sc):
+    return mg.Intrinsics(K=sc.K, image_size=sc.image_size)
+
+
+def _live(sc, **kw):
+    kw.setdefault("subject_height", sc.subject_height)
+    return LiveCalibrator(sc.skeleton, _intr(sc), LiveOptions.of(**kw))
+
+
+def _feed(live, people, start=0):
+    return [live.update(p, frame_id=start + t) for t, p in enumerate(people)]
+
+
+def test_a_replayed_stream_converges_to_the_offline_result(scene):
+    live = _live(scene)
+    frames = _feed(live, scene.detections.people)
+    final = live.finish()
+    run = mg.calibrate(scene.detections, _intr(scene),
+                       mg.CalibrateOptions(subject_height=scene.subject_height))
+    off = run.calibration
+    assert final.status == "calibrated"
+    # the live mirror lies within the offline one's own uncertainty of it
+    gap = mirror_rotation_error_deg(final.normal, off.normal)
+    assert gap < max(off.uncertainty["rotation_std_deg"], 0.1), gap
+    live_err = mirror_rotation_error_deg(final.normal, scene.normal)
+    off_err = mirror_rotation_error_deg(off.normal, scene.normal)
+    assert live_err < 2.0 * off_err + 0.05
+    assert abs(final.distance - off.distance) < 3 * final.distance_std
+    # calibrated within 10 s of a 30 fps stream; then every paired frame has joints
+    first = next(f.index for f in frames if f.status == "calibrated")
+    assert first < 300
+    late = [f for f in frames[first:] if f.paired]
+    assert len(late) > 0.8 * (len(frames) - first)
+    err = [np.nanmedian(np.linalg.norm(f.joints3d - scene.joints3d[f.index], axis=1))
+           for f in late]
+    assert np.median(err) < 0.1                    # metres, a wide scene's median joint
+    std = np.concatenate([f.joints_std[np.isfinite(f.joints_std)] for f in late])
+    assert np.all(std > 0)
+    assert live.counts["skipped"] == 0
+
+
+def test_a_stream_without_a_reflection_at_first_waits_then_calibrates(scene):
+    people = [p[:1] for p in scene.detections.people[:200]] + list(scene.detections.people)
+    live = _live(scene)
+    frames = _feed(live, people)
+    assert all(f.status == "initialising" and not np.isfinite(f.joints3d).any()
+               for f in frames[:200])
+    assert live.counts["windows_failed"] == 0       # nothing to solve: no window at all
+    assert frames[-1].status == "calibrated"
+    assert mirror_rotation_error_deg(frames[-1].mirror.normal, scene.normal) < 1.0
+
+
+def test_a_stream_that_loses_the_person_goes_on(scene):
+    people = list(scene.detections.people)
+    J = scene.skeleton.num_joints
+    for t in range(300, 500):
+        people[t] = np.zeros((0, J, 3))
+    live = _live(scene)
+    frames = _feed(live, people)
+    assert all(not f.paired and f.skipped is None for f in frames[300:500])
+    assert np.isfinite(frames[-1].joints3d).any()
+    assert frames[-1].status == "calibrated"
+    assert live.counts["unpaired"] >= 200
+
+
+def test_a_cut_to_another_mirror_restarts_the_fusion(scene):
+    """The video cuts to the same room seen in a mirror image (the picture flipped about
+    the principal point, the labels with it): another mirror, ``n' = (-nx, ny, nz)``,
+    for the same camera matrix."""
+    cx = scene.K[0, 2]
+    flip = scene.skeleton.flip
+
+    def flipped(p):
+        q = np.array(p, dtype=float)[:, flip]
+        q[..., 0] = 2 * cx - q[..., 0]
+        return q
+    other = scene.normal * np.array([-1.0, 1.0, 1.0])
+    assert mirror_rotation_error_deg(scene.normal, other) > 20
+    live = _live(scene, window_frames=120)
+    _feed(live, scene.detections.people[:450])
+    assert mirror_rotation_error_deg(live.mirror.normal, scene.normal) < 1.0
+    frames = _feed(live, [flipped(p) for p in scene.detections.people[450:]], start=450)
+    assert live.counts["resets"] == 1 and live.counts["windows_rejected"] >= 3
+    assert mirror_rotation_error_deg(frames[-1].mirror.normal, other) < 1.0
+    assert np.isfinite(frames[-1].joints3d).any()
+
+
+def test_a_person_jumping_within_the_scene_is_followed(scene):
+    """Frames out of their order (a jump in the video, same mirror): no time model to break."""
+    order = np.r_[0:300, 600:900, 300:600]
+    live = _live(scene)
+    frames = [live.update(scene.detections.people[t], frame_id=i) for i, t in enumerate(order)]
+    assert frames[-1].status == "calibrated"
+    assert live.counts["windows_rejected"] == 0
+    t = order[-1]
+    assert np.nanmedian(np.linalg.norm(frames[-1].joints3d - scene.joints3d[t], axis=1)) < 0.1
+
+
+def test_bad_frames_are_skipped_and_counted_never_raised(scene):
+    live = _live(scene)
+    J = scene.skeleton.num_joints
+    good = scene.detections.people
+    bad = ["text", None, np.zeros((2, J + 1, 3)), np.zeros((2, J, 2)), np.full((2, J, 3), np.inf),
+           [[1, 2, 3]], np.full((2, J, 3), 1e9), {"a": 1}]
+    fid = 0
+    outs = []
+    for t in range(300):
+        outs.append(live.update(good[t], frame_id=fid))
+        fid += 1
+        if t % 30 == 5:
+            for b in bad:
+                outs.append(live.update(b, frame_id=fid))
+                fid += 1
+            outs.append(live.update(good[t], frame_id=0))       # a frame number going back
+    skipped = [o for o in outs if o.skipped]
+    counts = live.counts
+    # inf and 1e9 coordinates: the first is read as missing joints, not skipped
+    assert counts["skipped"] == len(skipped) > 0
+    assert counts["skipped_by_reason"]["frame number not increasing"] == 10
+    assert set(counts["skipped_by_reason"]) == {"frame number not increasing", "not numeric",
+                                                "bad shape", "wrong joint count",
+                                                "coordinates out of range"}
+    assert all(not np.isfinite(o.joints3d).any() for o in skipped)
+    assert live.mirror.normal is not None                  # the good frames still calibrate
+    line = json.loads(json.dumps(skipped[0].to_dict()))
+    assert line["skipped"] and all(j is None for j in line["joints3d"])
+
+
+def test_the_json_line_writes_nan_as_null(scene):
+    live = _live(scene)
+    frames = _feed(live, scene.detections.people[:200])
+    line = frames[-1].to_dict()
+    text = json.dumps(line, allow_nan=False)                # no NaN anywhere
+    back = json.loads(text)
+    assert len(back["joints3d"]) == scene.skeleton.num_joints
+    for X, s in zip(back["joints3d"], back["joints_std"]):
+        assert (X is None) == (s is None)
+        if X is not None:
+            assert all(math.isfinite(c) for c in X)
+    first = frames[0].to_dict()
+    assert first["mirror"]["normal"] is None and first["status"] == "initialising"
+
+
+def test_fusion_of_two_equal_windows_is_their_mean_and_half_the_variance():
+    n1 = np.array([0.0, 0.01, 1.0]) / np.linalg.norm([0.0, 0.01, 1.0])
+    n2 = np.array([0.0, -0.01, 1.0]) / np.linalg.norm([0.0, -0.01, 1.0])
+    C = np.diag([1e-4, 1e-4, 0.0])
+    w = [WindowEstimate(ok=True, normal=n, distance=2.0, cov_marginal=C, cov_indep=C,
+                        cov_shared=np.zeros((3, 3)), distance_std=0.1) for n in (n1, n2)]
+    fu = MirrorFusion(metric=True, height_sigma=0.0)
+    assert fu.add(w[0]) == "started"
+    std1 = fu.rotation_std_deg
+    assert fu.add(w[1]) == "fused"
+    assert np.allclose(fu.normal, [0, 0, 1], atol=1e-6)
+    assert fu.rotation_std_deg == pytest.approx(std1 / np.sqrt(2), rel=1e-3)
+    assert fu.distance_std == pytest.approx(0.1 / np.sqrt(2), rel=1e-6)
+    assert fu.add(WindowEstimate(ok=False, reason="no pairs")) == "failed"
+    assert fu.failed == 1
+
+
+def test_a_window_far_off_is_rejected_and_three_agreeing_reset():
+    C = np.diag([1e-6, 1e-6, 0.0])
+
+    def win(n):
+        n = np.asarray(n, float) / np.linalg.norm(n)
+        return WindowEstimate(ok=True, normal=n, distance=1.0, cov_marginal=C, cov_indep=C,
+                              cov_shared=np.zeros((3, 3)), distance_std=0.01)
+    fu = MirrorFusion()
+    fu.add(win([0, 0, 1]))
+    assert [fu.add(win([0.2, 0, 1])) for _ in range(3)] == ["rejected", "rejected", "reset"]
+    assert fu.resets == 1 and fu.normal[0] > 0.19
+
+
+def test_without_intrinsics_the_focal_length_is_estimated(scene):
+    live = LiveCalibrator(scene.skeleton, None,
+                          LiveOptions.of(image_size=tuple(scene.image_size)))
+    frames = _feed(live, scene.detections.people[:400])
+    m = frames[-1].mirror
+    assert m.focal_px is not None and m.focal_std_px > 0
+    assert abs(m.focal_px - scene.K[0, 0]) < 4 * m.focal_std_px + 0.05 * scene.K[0, 0]
+    assert m.distance_std is None and m.scale == "unit_distance"
+
+
+def test_no_intrinsics_and_no_image_size_is_refused(scene):
+    with pytest.raises(mg.InputError, match="image size"):
+        LiveCalibrator(scene.skeleton, None, LiveOptions())
+
+
+def test_a_window_in_the_background_process(scene):
+    live = _live(scene, background=True)
+    try:
+        _feed(live, scene.detections.people[:300])
+        final = live.finish()
+    finally:
+        live.close()
+    assert final.normal is not None and live.counts["windows"] >= 1
+    assert mirror_rotation_error_deg(final.normal, scene.normal) < 1.5
+
+
+def test_raw_window_of_paired_keypoints_replays(tmp_path, scene):
+    """A paired input (.npz) replays as two detections a frame."""
+    from mirrorgraph.io import write_keypoints
+    from mirrorgraph.live.sources import open_source
+
+    raw = RawDetections(scene.skeleton, scene.detections.frame_ids[:200],
+                        scene.detections.people[:200], image_size=scene.image_size, fps=30.0)
+    path = tmp_path / "kp.json"
+    write_keypoints(raw, path, "mmpose", meta=True)
+    src = open_source(path, realtime=False)
+    frames = list(src.frames)
+    assert len(frames) == 200 and src.kind == "keypoints" and src.fps == 30.0
+    assert frames[10].time == pytest.approx(10 / 30.0)
