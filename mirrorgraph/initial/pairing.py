@@ -56,6 +56,7 @@ the frames' scores against a mirror found.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from collections.abc import Sequence
 from itertools import combinations
 
 import numpy as np
@@ -307,7 +308,7 @@ def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
         empty[..., 2] = 0.0
         return MirrorPairing(real=empty, reflections=[empty.copy() for _ in epipoles],
                              epipoles=[np.asarray(e, float) for e in epipoles])
-    cand = _candidates(raw, opts)
+    cand = candidates(raw, opts)
     found = [_score_epipole(np.asarray(e, float).reshape(3), cand, joints, sk.flip, opts)
              for e in epipoles]
     cands = PairCandidates(frame=cand.frame, ia=cand.ia, ib=cand.ib, a=cand.a, b=cand.b,

@@ -42,7 +42,7 @@ def check_view(view: str | None) -> None:
     the live viewer (one line each)."""
     if view is None:
         return
-    from ..viewer import require_rerun
+    from ..viewer.recording import require_rerun
 
     require_rerun()
     if view:
@@ -59,7 +59,7 @@ class LiveView:
     """The live run in Rerun: ``save`` an ``.rrd`` path, or ``None`` for the live viewer."""
 
     def __init__(self, skeleton, save: str | None = None):
-        from ..viewer import require_rerun
+        from ..viewer.recording import require_rerun
 
         rr = self.rr = require_rerun()
         self.rec = rr.RecordingStream("mirrorgraph-live")
