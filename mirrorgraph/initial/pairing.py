@@ -273,13 +273,19 @@ def pair_candidates(raw: RawDetections, num_mirrors: int, joints: np.ndarray | N
     cand = candidates(raw, opts)
     found = _find_epipoles(cand, num_mirrors, joints, sk.flip, opts, str(raw.source))
     chosen = _consistent_mirrors(cand, found, num_mirrors)
+    return _scored_candidates(cand, chosen, len(raw.people))
+
+
+def _scored_candidates(cand: Candidates, epipoles: list, num_frames: int) -> PairCandidates:
+    """The candidate pairs with their scores against each of ``epipoles`` (the records
+    :func:`_score_epipole` returns), as :func:`choose_pairs` takes them."""
     return PairCandidates(frame=cand.frame, ia=cand.ia, ib=cand.ib, a=cand.a, b=cand.b,
-                          epipoles=[ep.e for ep in chosen],
-                          score=np.array([ep.score for ep in chosen]),
-                          swapped=np.array([ep.swapped for ep in chosen]),
-                          valid=np.array([ep.valid for ep in chosen]),
-                          b_is_reflection=np.array([ep.b_refl for ep in chosen]),
-                          num_frames=len(raw.people))
+                          epipoles=[ep.e for ep in epipoles],
+                          score=np.array([ep.score for ep in epipoles]),
+                          swapped=np.array([ep.swapped for ep in epipoles]),
+                          valid=np.array([ep.valid for ep in epipoles]),
+                          b_is_reflection=np.array([ep.b_refl for ep in epipoles]),
+                          num_frames=num_frames)
 
 
 def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
@@ -311,14 +317,7 @@ def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
     cand = candidates(raw, opts)
     found = [_score_epipole(np.asarray(e, float).reshape(3), cand, joints, sk.flip, opts)
              for e in epipoles]
-    cands = PairCandidates(frame=cand.frame, ia=cand.ia, ib=cand.ib, a=cand.a, b=cand.b,
-                           epipoles=[ep.e for ep in found],
-                           score=np.array([ep.score for ep in found]),
-                           swapped=np.array([ep.swapped for ep in found]),
-                           valid=np.array([ep.valid for ep in found]),
-                           b_is_reflection=np.array([ep.b_refl for ep in found]),
-                           num_frames=T)
-    return choose_pairs(cands, sk.flip)
+    return choose_pairs(_scored_candidates(cand, found, T), sk.flip)
 
 
 def paired_people(cands: PairCandidates) -> list[np.ndarray]:
