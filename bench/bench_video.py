@@ -43,7 +43,7 @@ Usage::
     python bench/bench_video.py                       # ~15 min on 2 cores
     python bench/bench_video.py --clips mirror1080 --frames 60 --no-write
 
-Writes ``bench/RESULTS_video.md`` (machine, command, date, table).
+Writes ``bench/RESULTS_video.md`` (machine, command, date, table), or ``--out FILE``.
 """
 
 from __future__ import annotations
@@ -200,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
                                   for i in range(1, 5))])
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "RESULTS_video.md",
+                    help="the results file (default bench/RESULTS_video.md)")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))                       # this tree's mirrorgraph for the figures
     before_rev = _git("rev-parse", "--short", args.before)
@@ -258,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.no_write:
-        (ROOT / "bench" / "RESULTS_video.md").write_text(text)
+        args.out.write_text(text)
     return 0
 
 
