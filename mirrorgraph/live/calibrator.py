@@ -44,8 +44,14 @@ as accurate but their std too wide, 1800-frame ones as accurate with solves up t
 ``bench/RESULTS_live_lag.md``).
 
 **Status**: ``initialising`` until the fused mirror's rotation std is at most
-``calibrated_std_deg``, then ``calibrated``. Joints are given as soon as a first window
-has calibrated (their std says how far to trust them).
+``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
+fused fails the offline run's reflection check
+(:mod:`mirrorgraph.initial.reflection_check`: the detection paired as the reflection fits
+one mirror in too few frames, as a second person does; the mirror's ``doubt`` says so).
+Two people in view and no mirror fit a "mirror" at a rotation std of about 1.2 deg
+(``bench/RESULTS_live_video.md``, clip ``nomirror2``): the std alone would call it
+calibrated. Joints are given as soon as a first window has calibrated (their std says
+how far to trust them).
 """
 
 from __future__ import annotations
@@ -116,7 +122,7 @@ class LiveMirror:
     """The current mirror of a live run (a snapshot).
 
     Attributes:
-        status: ``initialising`` or ``calibrated``.
+        status: ``initialising`` or ``calibrated`` (never while ``doubt`` is said).
         normal: ``(3,)`` unit normal, camera frame; ``None`` before the first window.
         distance: mirror distance (metres with a subject height, else 1).
         rotation_std_deg: the virtual camera's rotation std, deg.
@@ -125,6 +131,9 @@ class LiveMirror:
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
+        doubt: the reflection check's line where the latest window fused doubted that
+            the detection paired as the reflection is one (a second person, or the
+            detector too poor to tell); ``None`` otherwise.
     """
 
     status: str = "initialising"
@@ -139,6 +148,7 @@ class LiveMirror:
     failed: int = 0
     resets: int = 0
     scale: str = "unit_distance"
+    doubt: str | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready (NaN as ``None``)."""
@@ -148,7 +158,7 @@ class LiveMirror:
                 "distance_std": _num(self.distance_std), "focal_px": _num(self.focal_px),
                 "focal_std_px": _num(self.focal_std_px), "windows": self.windows,
                 "windows_rejected": self.rejected, "windows_failed": self.failed,
-                "resets": self.resets, "scale": self.scale}
+                "resets": self.resets, "scale": self.scale, "doubt": self.doubt}
 
 
 def _num(v) -> float | None:
@@ -278,7 +288,10 @@ class LiveCalibrator:
         if fu.normal is None:
             return LiveMirror(failed=fu.failed)
         std = fu.rotation_std_deg
-        status = "calibrated" if std <= self.options.calibrated_std_deg else "initialising"
+        # a mirror the reflection check doubts is no calibration, however small its std
+        # (two people in view and no mirror: their "mirror" fits at a std of 1.2 deg)
+        calibrated = std <= self.options.calibrated_std_deg and not fu.doubt
+        status = "calibrated" if calibrated else "initialising"
         metric = self._copts.subject_height is not None
         return LiveMirror(status=status, normal=fu.normal.copy(), distance=fu.distance,
                           rotation_std_deg=std,
@@ -286,7 +299,8 @@ class LiveCalibrator:
                           focal_px=fu.focal_px, focal_std_px=fu.focal_std_px,
                           windows=fu.windows, rejected=fu.rejected, failed=fu.failed,
                           resets=fu.resets,
-                          scale="subject_height" if metric else "unit_distance")
+                          scale="subject_height" if metric else "unit_distance",
+                          doubt=fu.doubt or None)
 
     @property
     def counts(self) -> dict:

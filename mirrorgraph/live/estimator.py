@@ -85,6 +85,11 @@ class WindowEstimate:
         frames, pairs: frames and pairs the window's graph used.
         first_frame, last_frame: frame ids the window spans.
         seconds: wall time of the solve.
+        check: the window's reflection check's verdict (``ok``, ``doubtful``,
+            ``too_few_frames``; :func:`~mirrorgraph.initial.reflection_check.check_reflection`:
+            is the detection paired as the reflection a second person?), ``""`` where
+            none ran (keypoints given as pairs).
+        check_text: the check's one line where it is doubtful.
     """
 
     ok: bool
@@ -104,6 +109,8 @@ class WindowEstimate:
     first_frame: int = -1
     last_frame: int = -1
     seconds: float = 0.0
+    check: str = ""
+    check_text: str = ""
 
 
 def _psd(C: np.ndarray) -> np.ndarray:
@@ -163,6 +170,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
     priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})
+    check = _reflection_check(cal.input.get("reflection_check"))
     return WindowEstimate(
         ok=True, normal=np.asarray(cal.normal, float), distance=d, cov_marginal=marginal,
         cov_indep=indep,
@@ -172,7 +180,23 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         focal_std_px=float(unc.get("focal_std_px", np.nan)) if focal else None,
         noise_px=float(priors.get("a_posteriori_sigma_px") or options.graph.pixel_sigma),
         frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
-        seconds=time.perf_counter() - clock)
+        seconds=time.perf_counter() - clock,
+        check=check.verdict if check is not None else "",
+        check_text=check.describe() if check is not None and check.verdict == "doubtful"
+        else "")
+
+
+def _reflection_check(record: dict | None):
+    """The :class:`~mirrorgraph.initial.reflection_check.ReflectionCheck` of a
+    calibration's ``input.reflection_check`` record (``None`` where there is none)."""
+    from ..initial.reflection_check import ReflectionCheck
+
+    if not record:
+        return None
+    num = {k: float("nan") if record.get(k) is None else float(record[k])
+           for k in ("paired_fraction", "grey_fraction", "median_px")}
+    return ReflectionCheck(frames=int(record.get("frames") or 0), verdict=record["verdict"],
+                           **num)
 
 
 def _tangent(C: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -198,6 +222,9 @@ class MirrorFusion:
         focal_px, focal_info: fused focal length and its information (``None``: held).
         noise_px: the latest window's reprojection noise (pixels).
         windows, rejected, failed, resets: counts.
+        doubt: the reflection check's line of the latest window fused (or started
+            from) where it doubted that the "reflection" is one (a second person
+            paired as the reflection), ``""`` where it did not.
     """
 
     height_sigma: float = 0.02
@@ -216,6 +243,7 @@ class MirrorFusion:
     failed: int = 0
     resets: int = 0
     last_reason: str = ""
+    doubt: str = ""
     _pending: list = field(default_factory=list)
 
     @property
@@ -351,3 +379,4 @@ class MirrorFusion:
             self.focal_info += fw
         if np.isfinite(w.noise_px):
             self.noise_px = w.noise_px
+        self.doubt = w.check_text

@@ -121,6 +121,8 @@ class LiveSummary:
             lines.append(f"mirror normal [{m.normal[0]:.4f}, {m.normal[1]:.4f}, "
                          f"{m.normal[2]:.4f}], rotation std {m.rotation_std_deg:.3f} deg, "
                          f"distance {m.distance:.3f} {unit}")
+        if m.doubt:
+            lines.append(f"warning: {m.doubt}")
         c = self.counts
         lines.append(f"windows: {c['windows']} fused, {c['windows_rejected']} rejected, "
                      f"{c['windows_failed']} failed, {c['resets']} restarts; frames skipped "

@@ -234,3 +234,26 @@ def test_raw_window_of_paired_keypoints_replays(tmp_path, scene):
     frames = list(src.frames)
     assert len(frames) == 200 and src.kind == "keypoints" and src.fps == 30.0
     assert frames[10].time == pytest.approx(10 / 30.0)
+
+
+def test_a_second_person_taken_for_the_reflection_is_never_calibrated():
+    """No mirror, two people: the second where the reflection would be, moving as a
+    person does (tests/initial/test_reflection_check.py's scenes). Their "mirror" fits at
+    a rotation std under the 2 deg of ``calibrated`` while it is 13 deg off; the offline
+    run's reflection check doubts it in every window, and the live status stays
+    ``initialising`` with the check's line as the mirror's ``doubt``."""
+    from tests.initial.test_reflection_check import (outcome, real_scene, second_person,
+                                                     with_second_person)
+
+    s = real_scene(1, frames=600)
+    rng = np.random.default_rng(1)
+    raw = with_second_person(s, second_person(s, "moving", rng), rng)
+    assert outcome(raw, s.intrinsics) == "warned"              # offline: a warning
+    live = LiveCalibrator(s.skeleton, s.intrinsics, LiveOptions.of(subject_height=1.7))
+    frames = _feed(live, raw.people)
+    final = live.finish()
+    err = mirror_rotation_error_deg(final.normal, s.normal)
+    assert final.rotation_std_deg < 2.0 < err               # small std, far off: no mirror
+    assert not any(f.status == "calibrated" for f in frames)
+    assert final.status == "initialising" and "second person" in final.doubt
+    assert json.loads(json.dumps(final.to_dict()))["doubt"] == final.doubt
