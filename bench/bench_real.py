@@ -24,7 +24,8 @@ and ``Trial_2`` (the Batch trials share one calibration). For each trial:
    the detector's bias), the same bundle adjustment started from the Qualisys
    poses (the least-squares optimum near the truth: how far the keypoints alone
    pull the cameras), and how much the subject moves;
-6. **oracle ablation** (in the default run: ~40 s on 2 cores; ``--no-oracle`` skips it):
+6. **oracle ablation** (in the default run: 36-42 s on 2 cores, 66 s under load 6;
+   ``--no-oracle`` skips it):
    whether the detector's systematic error per joint is what keeps a camera (cam03) from
    Qualisys. An oracle, it uses the truth: a measurement of the cause, not a method. The
    same ``calibrate_rig`` on the same rig file with every camera's kept person changed after
@@ -52,7 +53,7 @@ Besides the rigs (``--no-extras`` skips these, not 6.):
 
 Usage::
 
-    python bench/bench_real.py                 # from scratch: ~10 min on 2 cores
+    python bench/bench_real.py                 # from scratch: 4-6 min on 2 cores
     python bench/bench_real.py --trials Demo_SinglePerson --no-extras --no-write
     python bench/bench_real.py --cache DIR     # reuse (and fill) a detection cache
 
@@ -998,7 +999,7 @@ def main() -> None:
                     help="skip --every, the composited mirror frames and the speed runs")
     ap.add_argument("--no-oracle", action="store_true",
                     help="skip the oracle ablation (the detector's bias removed with the "
-                         "Qualisys truth, its controls and the noise-only runs; ~40 s)")
+                         "Qualisys truth, its controls and the noise-only runs; ~40-70 s)")
     ap.add_argument("--every-trial", action="store_true",
                     help="detect and calibrate a trial whose videos are another's byte for byte "
                          "too (default: its row is that trial's, and the notes say so)")
