@@ -33,8 +33,8 @@ time, and the figures are computed here, the same way for both:
   in front, up to those in view in either order (and a subject not triangulated in
   a frame) plus the bystanders; "nearer in front" is the count with the nearer
   person hiding the farther. Also: the frames where a person in view has no
-  detection on them (:func:`match_detections`) and those with more detections than
-  people possibly in view plus bystanders. ``--draw DIR`` writes PNGs of the frames
+  detection on them (:func:`match_detections`), those with more detections than
+  people possibly in view plus bystanders, and the share of frames with neither. ``--draw DIR`` writes PNGs of the frames
   where the reference or the count differs from the subjects';
 * **duplicates**: frames holding two poses of one person by the criteria of
   :func:`mirrorgraph.video.nms.pose_nms` (object keypoint similarity above 0.5,
@@ -524,7 +524,8 @@ def reference_figures(counts: np.ndarray, people: list[np.ndarray], ref: dict,
     hides the farther) and in ``[certainly in view, possibly in view + bystanders]``
     (``in_range_ref``: whichever is drawn in front, :func:`in_view`); frames where a person
     certainly in view has no detection on them (:func:`match_detections`), frames with
-    more detections than people possibly in view plus bystanders (their numbers)."""
+    more detections than people possibly in view plus bystanders (their numbers), and
+    the share of frames with neither (``right``)."""
     T = min(len(counts), len(ref["count"]))
     n, lo, hi = ref["count"][:T], ref["lo"][:T], ref["hi"][:T]
     c = counts[:T]
@@ -535,7 +536,9 @@ def reference_figures(counts: np.ndarray, people: list[np.ndarray], ref: dict,
             "ref_not_subjects": int(np.sum((lo != subjects) | (hi != subjects))),
             "depth_not_subjects": int(np.sum(n != subjects)),
             "untriangulated": int(np.sum(ref["untriangulated"][:T] > 0)),
-            "missed": missed, "extra": np.flatnonzero(c > hi + bystanders).tolist()}
+            "missed": missed, "extra": np.flatnonzero(c > hi + bystanders).tolist(),
+            "right": float(np.mean([t not in missed and c[t] <= hi[t] + bystanders
+                                    for t in range(T)])) if T else 0.0}
 
 
 def figures(res: dict, lo: int, hi: int, ref: dict | None = None) -> dict:
@@ -625,7 +628,8 @@ def main(argv: list[str] | None = None) -> int:
                       f"-> {a['in_range_depth']:6.1%}); frames with a person in view missed "
                       f"{_ranges(b['missed'])} -> {_ranges(a['missed'])}; with more than the "
                       f"people in view and bystanders {_ranges(b['extra'])} -> "
-                      f"{_ranges(a['extra'])}", flush=True)
+                      f"{_ranges(a['extra'])}; neither {b['right']:.0%} -> {a['right']:.0%}",
+                      flush=True)
             loads.append(os.getloadavg()[0])
     lines = [
         "# Video detection: people a frame, tracks, speed (before / after)", "",
@@ -676,8 +680,9 @@ def main(argv: list[str] | None = None) -> int:
                   "| clip | in range, fixed count (as above) | in range, nearer in front | "
                   "in range, per-frame reference | frames whose reference is not the "
                   "subjects' count (nearer in front / reference) | frames with a person in "
-                  "view missed | frames with more than the people in view + bystanders |",
-                  "|---|---|---|---|---|---|---|"]
+                  "view missed | frames with more than the people in view + bystanders | "
+                  "frames with neither |",
+                  "|---|---|---|---|---|---|---|---|"]
 
         def frames_(x):
             return f"{len(x)}" + (f" ({_ranges(x)})" if x else "")
@@ -689,7 +694,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"{b['in_range_ref']:.0%} / **{a['in_range_ref']:.0%}** | "
                 f"{a['depth_not_subjects']} / {a['ref_not_subjects']} | "
                 f"{frames_(b['missed'])} / {frames_(a['missed'])} | "
-                f"{frames_(b['extra'])} / {frames_(a['extra'])} |")
+                f"{frames_(b['extra'])} / {frames_(a['extra'])} | "
+                f"{b['right']:.0%} / **{a['right']:.0%}** |")
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.no_write:
