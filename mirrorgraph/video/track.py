@@ -58,7 +58,7 @@ import numpy as np
 
 from ..skeletons import BLAZEPOSE
 from .blazepose import Detection, Pose, weighted_nms
-from .nms import pose_nms
+from .nms import oks_matrix, pose_boxes, pose_nms
 
 __all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_body",
            "extent"]
@@ -135,12 +135,13 @@ class TrackerOptions:
             merge held the reflection in 3-31 of 99 frames). ``inf``: off.
         prefer_detected: where the detector runs on the whole frame and a tracked pose
             claims none of its detections, while a new pose from an unclaimed one is the
-            same person by :func:`~mirrorgraph.video.nms.pose_nms`, the new pose
-            replaces the tracked one in its track where their body circles are not one
-            body's (``False``: the tracked pose is kept
+            same person by :func:`~mirrorgraph.video.nms.pose_nms` (on its body) with
+            neither their joints (object keypoint similarity under ``nms_oks``) nor their
+            body circles agreeing, the new pose replaces the tracked one in its track
+            (``False``: the tracked pose is kept
             and the new one dropped). Measured on Pose2Sim's Demo_MultiPerson cam03,
             where two people cross: from frame 40 the man's track held a skeleton half
-            on the woman standing behind (body circle 150-200 px from his), while the
+            on the woman beside him (body circle 150-200 px from his), while the
             detector found him whole (score 0.94-0.97) at every run and the landmark
             model on its crop gave his skeleton (score 1.0), dropped as the track's
             duplicate, in 14 runs over 60 frames.
@@ -409,13 +410,18 @@ class PoseTracker:
         tracked pose claimed), one each (:meth:`_one_each`, the tracked ones first). A
         tracked pose that claimed no detection (not in ``supported``, indices into
         ``unique``) is replaced in its track by a new pose whose body circle lies
-        elsewhere (not as :meth:`_covered`) and of which it is a duplicate by pose NMS
-        (the new one first), where the new pose duplicates no other
+        elsewhere (not as :meth:`_covered`), whose joints it does not match (object
+        keypoint similarity under :attr:`TrackerOptions.nms_oks`) and of which it is a
+        duplicate by pose NMS all the same (on its body, the new one first), where the
+        new pose duplicates no other
         (:attr:`TrackerOptions.prefer_detected`): that track's crop slid off its person
         into a skeleton half on a neighbour, where the detector, run on the whole frame,
-        finds the person whole elsewhere. Where the circles agree the tracked pose
-        stays (a reflection the detector does not find, whose new pose from another
-        box is no better)."""
+        finds the person whole elsewhere (cam03 of Demo_MultiPerson, frame 48: circles
+        0.35 radii apart, OKS 0.11, 94 % of the track's keypoints on the new body).
+        Where the circles or the joints agree the tracked pose stays (a reflection the
+        detector does not find, whose new pose from another box is no better; a person
+        cut by the image's edge whose detector box is shifted: cam02, frame 80, circles
+        0.34 radii apart, OKS 0.55)."""
         every = [p for _, p in unique] + new
         out = unique + [(None, every[i]) for i in self._one_each(every).tolist()
                         if i >= len(unique)]
@@ -428,8 +434,8 @@ class PoseTracker:
                 if any(q is pose for j, (tr, q) in enumerate(out) if j != i and tr is not None
                        and j < len(unique)):
                     continue                            # already given to a track
-                if _same_circle(pose, unique[i][1]) or \
-                        len(self._one_each([pose, unique[i][1]])) != 1:
+                if _same_circle(pose, unique[i][1]) or self._oks(pose, unique[i][1]) \
+                        >= self.options.nms_oks or len(self._one_each([pose, unique[i][1]])) != 1:
                     continue
                 others = [q for j, (_, q) in enumerate(out) if j != i and q is not pose]
                 if len(self._one_each(others + [pose])) <= len(others):
@@ -452,6 +458,14 @@ class PoseTracker:
                         on_body=self.options.nms_on_body,
                         flip=BLAZEPOSE.flip if len(poses[0].xy) == BLAZEPOSE.num_joints
                         else None)
+
+    @staticmethod
+    def _oks(a: Pose, b: Pose) -> float:
+        """Object keypoint similarity of two poses (:func:`~mirrorgraph.video.nms.oks_matrix`,
+        left/right swaps included)."""
+        xy, vis = np.stack([a.xy, b.xy]), np.stack([a.visibility, b.visibility])
+        flip = BLAZEPOSE.flip if len(a.xy) == BLAZEPOSE.num_joints else None
+        return float(oks_matrix(xy, vis, pose_boxes(xy, vis, 0.5), flip=flip)[0, 1])
 
     def _converged(self, poses: list[Pose]) -> set[int]:
         """Indices of the followed ``poses`` (in the order of preference) kept: a pose that
