@@ -42,6 +42,8 @@ time, and the figures are computed here, the same way for both:
   other's body): the "after" code applies them, so its count is 0 by construction;
   the "people a frame" figure, against the counts by eye, is the independent one;
 * **tracks**: track ids over the clip (the subjects' count is the ideal);
+* **frames whose poses changed**: between the two runs (another count, or a keypoint
+  moved by more than 1 px): where the figures agree, whether the skeletons do;
 * **frames/s**: frames over the detection's wall time (decoding included, model
   loading and the one-time import of ``scipy.sparse`` not), under whatever else the machine runs (the load average is
   written); **CPU ms a frame**: the process's CPU time (all threads) a frame, which
@@ -565,6 +567,27 @@ def figures(res: dict, lo: int, hi: int, ref: dict | None = None) -> dict:
             "stats": json.loads(str(res["stats"]))}
 
 
+def changed_frames(before: dict, after: dict, px: float = 1.0) -> int:
+    """Frames whose poses differ between two runs: another count, or a keypoint (of the
+    poses in the order found) more than ``px`` away or seen in one run only (the
+    detection is deterministic: one tree run twice gives the same keypoints)."""
+    cb, ca = before["counts"], after["counts"]
+    pb = np.split(before["keypoints"], np.cumsum(cb)[:-1])
+    pa = np.split(after["keypoints"], np.cumsum(ca)[:-1])
+    n = 0
+    for x, y in zip(pb, pa):
+        if len(x) != len(y):
+            n += 1
+            continue
+        if not len(x):
+            continue
+        ok = np.isfinite(x[..., :2]).all(-1)
+        if (ok != np.isfinite(y[..., :2]).all(-1)).any() or \
+                (np.abs(x[..., :2] - y[..., :2])[ok] > px).any():
+            n += 1
+    return n + abs(len(cb) - len(ca))
+
+
 def _git(*args: str) -> str:
     return subprocess.run(["git", "-C", str(ROOT), *args], check=True, capture_output=True,
                           text=True).stdout.strip()
@@ -608,18 +631,20 @@ def main(argv: list[str] | None = None) -> int:
                           "others", flush=True)
                     refs.update(multi_person_reference(args.frames))
                 ref = refs[name.split("/")[1]]
-            got = {}
+            got, raw = {}, {}
             for side, root in (("before", old), ("after", ROOT)):
-                res = _run(root, video, args.frames, tmp, side)
+                res = raw[side] = _run(root, video, args.frames, tmp, side)
                 got[side] = figures(res, lo, hi, ref)
                 if args.draw and ref is not None and side == "after":
                     draw_frames(args.draw, name, video, res, ref, lo, hi)
+            got["after"]["changed"] = changed_frames(raw["before"], raw["after"])
             rows.append((name, lo, hi, got))
             b, a = got["before"], got["after"]
             print(f"{name:28s} people {lo}-{hi}: in range {b['in_range']:6.1%} -> "
                   f"{a['in_range']:6.1%}, mean {b['mean']:.2f} -> {a['mean']:.2f}, dup frames "
                   f"{b['dup_frames']} -> {a['dup_frames']}, tracks {b['tracks']} -> "
-                  f"{a['tracks']}, {b['fps']:.1f} -> {a['fps']:.1f} frames/s, CPU "
+                  f"{a['tracks']}, frames whose poses changed {a['changed']}, "
+                  f"{b['fps']:.1f} -> {a['fps']:.1f} frames/s, CPU "
                   f"{b['cpu_ms']:.0f} -> {a['cpu_ms']:.0f} ms a frame (load "
                   f"{os.getloadavg()[0]:.1f})", flush=True)
             if ref is not None:
@@ -645,14 +670,16 @@ def main(argv: list[str] | None = None) -> int:
         f"- {args.frames} frames a clip, BlazePose with each version's default options "
         "(its LiteRT threads included), no cache", "",
         "| clip | people (subjects-most) | in range | mean a frame | max | frames with "
-        "duplicates | tracks | frames/s | CPU ms a frame | detector runs | landmark runs |",
-        "|---|---|---|---|---|---|---|---|---|---|---|"]
+        "duplicates | tracks | frames whose poses changed | frames/s | CPU ms a frame | "
+        "detector runs | landmark runs |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, lo, hi, got in rows:
         b, a = got["before"], got["after"]
         lines.append(
             f"| {name} | {lo}-{hi} | {b['in_range']:.0%} / **{a['in_range']:.0%}** | "
             f"{b['mean']:.2f} / {a['mean']:.2f} | {b['max']} / {a['max']} | "
             f"{b['dup_frames']} / {a['dup_frames']} | {b['tracks']} / {a['tracks']} | "
+            f"{a['changed']} | "
             f"{b['fps']:.1f} / **{a['fps']:.1f}** | {b['cpu_ms']:.0f} / {a['cpu_ms']:.0f} | "
             f"{b['stats'].get('detector_runs', '')} / "
             f"{a['stats'].get('detector_runs', '')} | {b['stats'].get('landmark_runs', '')} / "
