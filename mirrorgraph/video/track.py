@@ -58,7 +58,7 @@ import numpy as np
 
 from ..skeletons import BLAZEPOSE
 from .blazepose import Detection, Pose, weighted_nms
-from .nms import pose_nms
+from .nms import oks_matrix, pose_boxes, pose_nms
 
 __all__ = ["TrackerOptions", "PoseTracker", "TrackedPose", "detection_views", "same_body",
            "extent"]
@@ -133,6 +133,18 @@ class TrackerOptions:
             size, a reflection half hidden behind them a smaller one on theirs
             (measured on the Pose2Sim pair clips of ``bench_agreement.py``: such a
             merge held the reflection in 3-31 of 99 frames). ``inf``: off.
+        prefer_detected: where the detector runs on the whole frame and a tracked pose
+            claims none of its detections, while a new pose from an unclaimed one is the
+            same person by :func:`~mirrorgraph.video.nms.pose_nms` (on its body) with
+            neither their joints (object keypoint similarity under ``nms_oks``) nor their
+            body circles agreeing, the new pose replaces the tracked one in its track
+            (``False``: the tracked pose is kept
+            and the new one dropped). Measured on Pose2Sim's Demo_MultiPerson cam03,
+            where two people cross: from frame 40 the man's track held a skeleton half
+            on the woman beside him (body circle 150-200 px from his), while the
+            detector found him whole (score 0.94-0.97) at every run and the landmark
+            model on its crop gave his skeleton (score 1.0), dropped as the track's
+            duplicate, in 14 runs over 60 frames.
     """
 
     detect_every: int = 10
@@ -151,6 +163,7 @@ class TrackerOptions:
     recall_frames: int = 60
     max_jump: float = 0.3
     merged_ratio: float = 1.2
+    prefer_detected: bool = True
 
     def key(self) -> dict:
         """The options as a dict (for the detection cache's key)."""
@@ -182,6 +195,14 @@ _NEW = _Track(track_id=-1, roi=np.zeros(4), box=np.zeros(4), last_frame=-1)
 def _circle(pose: Pose) -> np.ndarray:
     """``(3,)`` a pose's body circle: mid-hip x, y and radius (its auxiliary landmarks)."""
     return np.array([*pose.aux[0], np.linalg.norm(pose.aux[1] - pose.aux[0])])
+
+
+def _same_circle(a: Pose, b: Pose) -> bool:
+    """Whether two poses' body circles are one body's: mid-hips within 0.3 times the
+    larger radius, radii within a factor 0.6-1.6 (as :meth:`PoseTracker._covered`)."""
+    ca, cb = _circle(a), _circle(b)
+    return bool(np.linalg.norm(ca[:2] - cb[:2]) < 0.3 * max(ca[2], cb[2])
+                and 0.6 < ca[2] / max(cb[2], 1e-9) < 1.6)
 
 
 def _jumped(circle: np.ndarray | None, pose: Pose, max_jump: float) -> bool:
@@ -354,7 +375,12 @@ class PoseTracker:
 
     @staticmethod
     def _claimed(dets: list[Detection], poses: list[Pose]) -> set[int]:
-        """Indices of the detections that are tracked people: each pose claims the one
+        """Indices of the detections that are tracked people (:meth:`_claims`)."""
+        return set(PoseTracker._claims(dets, poses).values())
+
+    @staticmethod
+    def _claims(dets: list[Detection], poses: list[Pose]) -> dict[int, int]:
+        """``{pose index: detection index}``, the detections that are tracked people: each pose claims the one
         detection whose body circle lies on its own (as :meth:`_covered`) nearest it
         (mid-hip distance over the larger radius plus the radii's log ratio), each
         detection once. A second detection on a tracked person is looked at: a
@@ -372,13 +398,54 @@ class PoseTracker:
                 ratio = radius / max(r, 1e-9)
                 if d < 0.3 and 0.6 < ratio < 1.6:
                     pairs.append((d + abs(np.log(ratio)), i, j))
-        claimed: set[int] = set()
-        posed: set[int] = set()
+        claims: dict[int, int] = {}
         for _, i, j in sorted(pairs):
-            if i not in claimed and j not in posed:
-                claimed.add(i)
-                posed.add(j)
-        return claimed
+            if i not in claims.values() and j not in claims:
+                claims[j] = i
+        return claims
+
+    def _with_new(self, unique: list[tuple[_Track | None, Pose]], new: list[Pose],
+                  supported: set[int]) -> list[tuple[_Track | None, Pose]]:
+        """The frame's tracked poses ``unique`` with the ``new`` ones (from detections no
+        tracked pose claimed), one each (:meth:`_one_each`, the tracked ones first). A
+        tracked pose that claimed no detection (not in ``supported``, indices into
+        ``unique``) is replaced in its track by a new pose whose body circle lies
+        elsewhere (not as :meth:`_covered`), whose joints it does not match (object
+        keypoint similarity under :attr:`TrackerOptions.nms_oks`) and of which it is a
+        duplicate by pose NMS all the same (on its body, the new one first), where the
+        new pose duplicates no other
+        (:attr:`TrackerOptions.prefer_detected`): that track's crop slid off its person
+        into a skeleton half on a neighbour, where the detector, run on the whole frame,
+        finds the person whole elsewhere (cam03 of Demo_MultiPerson, frame 48: circles
+        0.35 radii apart, OKS 0.11, 94 % of the track's keypoints on the new body).
+        Where the circles or the joints agree the tracked pose stays (a reflection the
+        detector does not find, whose new pose from another box is no better; a person
+        cut by the image's edge whose detector box is shifted: cam02, frame 80, circles
+        0.34 radii apart, OKS 0.55)."""
+        every = [p for _, p in unique] + new
+        out = unique + [(None, every[i]) for i in self._one_each(every).tolist()
+                        if i >= len(unique)]
+        if not self.options.prefer_detected:
+            return out
+        for i in range(len(unique)):
+            if i in supported:
+                continue
+            for pose in new:
+                if any(q is pose for j, (tr, q) in enumerate(out) if j != i and tr is not None
+                       and j < len(unique)):
+                    continue                            # already given to a track
+                if _same_circle(pose, unique[i][1]) or self._oks(pose, unique[i][1]) \
+                        >= self.options.nms_oks or len(self._one_each([pose, unique[i][1]])) != 1:
+                    continue
+                others = [q for j, (_, q) in enumerate(out) if j != i and q is not pose]
+                if len(self._one_each(others + [pose])) <= len(others):
+                    continue                            # someone else's duplicate
+                out[i] = (unique[i][0], pose)           # the track follows the detected body
+                out = [(tr, q) for j, (tr, q) in enumerate(out)
+                       if j < len(unique) or q is not pose]
+                break
+        return out
+
 
     def _one_each(self, poses: list[Pose]) -> np.ndarray:
         """Indices of ``poses`` kept by :func:`~mirrorgraph.video.nms.pose_nms` (the
@@ -391,6 +458,29 @@ class PoseTracker:
                         on_body=self.options.nms_on_body,
                         flip=BLAZEPOSE.flip if len(poses[0].xy) == BLAZEPOSE.num_joints
                         else None)
+
+    @staticmethod
+    def _oks(a: Pose, b: Pose) -> float:
+        """Object keypoint similarity of two poses (:func:`~mirrorgraph.video.nms.oks_matrix`,
+        left/right swaps included)."""
+        xy, vis = np.stack([a.xy, b.xy]), np.stack([a.visibility, b.visibility])
+        flip = BLAZEPOSE.flip if len(a.xy) == BLAZEPOSE.num_joints else None
+        return float(oks_matrix(xy, vis, pose_boxes(xy, vis, 0.5), flip=flip)[0, 1])
+
+    def _converged(self, poses: list[Pose]) -> set[int]:
+        """Indices of the followed ``poses`` (in the order of preference) kept: a pose that
+        :meth:`_one_each` drops is dropped where its body circle also lies on a kept
+        one's (as :meth:`_covered`: two tracks that converged onto one person follow
+        one body). Two people one in front of the other have skeletons that pose NMS
+        may call one (measured on Pose2Sim's Demo_MultiPerson cam03, the woman drawn
+        over the man: object keypoint similarity 0.52, 73-88 % of her keypoints on his
+        body) while their body circles lie 0.36-0.55 radii apart, radii 1.3-1.4 times
+        one another's."""
+        keep = set(self._one_each(poses).tolist())
+        for i in range(len(poses)):
+            if i not in keep and not any(_same_circle(poses[i], poses[k]) for k in keep):
+                keep.add(i)
+        return keep
 
     def _searching(self, tracked: int) -> bool:
         """Whether fewer people are tracked than in one of the last
@@ -430,8 +520,13 @@ class PoseTracker:
                 jumped.append(pose)
             else:
                 followed.append((tr, pose))
-        # one person followed twice (two tracks converged): the older track goes on
-        keep = set(self._one_each([p for _, p in followed]).tolist())
+        # one person followed twice (two tracks converged): the track whose body circle
+        # moved least from its last goes on (the other slid over), the older first at a tie
+        moved = [0.0 if tr.circle is None else float(
+            np.linalg.norm(_circle(p)[:2] - tr.circle[:2]) / max(tr.circle[2], 1e-9))
+            for tr, p in followed]
+        order = sorted(range(len(followed)), key=lambda i: moved[i])
+        keep = {order[i] for i in self._converged([followed[i][1] for i in order])}
         for i, (tr, _) in enumerate(followed):
             if i not in keep:
                 tr.lost = True
@@ -448,7 +543,8 @@ class PoseTracker:
             dets = self.detect_all(rgb, tiles=tiles)[:o.max_people]
             first = len(dets)
             dets += self.merged[:o.max_people]        # bodies behind another one's
-            claimed = self._claimed(dets, [p for _, p in unique])
+            claims = self._claims(dets, [p for _, p in unique])
+            claimed = set(claims.values())
             for i, det in enumerate(dets):
                 if len(unique) + len(new) >= o.max_people or i in claimed or \
                         self._covered(det, new if i < first else [], frame):
@@ -460,9 +556,7 @@ class PoseTracker:
                     continue
                 new.append(pose)
             if new:
-                every = [p for _, p in unique] + new
-                unique += [(None, every[i]) for i in self._one_each(every).tolist()
-                           if i >= len(unique)]
+                unique = self._with_new(unique, new, set(claims))
         self._count += 1
         self._held.append(len(unique))
         out = []
