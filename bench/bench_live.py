@@ -238,6 +238,55 @@ def offline_trace(case: tuple[int, str, int, tuple[float, ...]]) -> dict:
     return dict(seed=seed, noise=noise, frames=frames, rows=rows)
 
 
+def block_check(case: tuple[int, str, int, float, int]) -> dict:
+    """The live mirror at ``at`` seconds taken apart: each block's own solution (what the
+    live run fuses) against the offline calibration of the same frames, their fusion, and
+    the offline calibration of every frame so far and of nested parts of them."""
+    import warnings
+    warnings.filterwarnings("ignore")
+    from dataclasses import replace
+
+    import mirrorgraph as mg
+    from mirrorgraph.keypoints import RawDetections
+    from mirrorgraph.live.estimator import MirrorFusion, solve_window
+    from mirrorgraph.metrics import mirror_rotation_error_deg as err
+    from mirrorgraph.synth import make_wide_scene
+
+    seed, noise, frames, at, window = case
+    sc = make_wide_scene(seed, "wide", noise, frames)
+    det = sc.detections
+    n = int(round(at * FPS))
+    opts = mg.CalibrateOptions(subject_height=sc.subject_height)
+    wopts = replace(opts.checked(), complete_joints=False, sensitivity_priors=False, fps=FPS)
+    intr = replace(sc.intrinsics, dist=None)
+
+    def part(a, b):
+        return RawDetections(det.skeleton, det.frame_ids[a:b], det.people[a:b],
+                             image_size=det.image_size, fps=FPS)
+
+    def offline(a, b):
+        cal = mg.calibrate(part(a, b), sc.intrinsics, opts).calibration
+        return dict(frames=[a, b], err=err(cal.normal, sc.normal),
+                    std=float(cal.uncertainty["rotation_std_deg"]),
+                    marginal_std=float(cal.uncertainty["marginal_rotation_std_deg"]),
+                    normal=[float(v) for v in cal.normal])
+
+    blocks, fusion = [], MirrorFusion(metric=True)
+    for a in range(0, n - window + 1, window):
+        w = solve_window(part(a, a + window), intr, wopts)
+        (fusion.restart if not blocks else fusion.add)(w)
+        off = offline(a, a + window)
+        blocks.append(dict(frames=[a, a + window], err=err(w.normal, sc.normal),
+                           std=w.rotation_std_deg, offline_err=off["err"],
+                           block_vs_offline=err(w.normal, np.asarray(off["normal"]))))
+    whole = offline(0, n)
+    nested = [offline(a, b) for a, b in ((0, 2 * n // 3), (0, 5 * n // 6), (n // 3, n))]
+    return dict(seed=seed, noise=noise, at=at, blocks=blocks,
+                fused_err=err(fusion.normal, sc.normal), fused_std=fusion.rotation_std_deg,
+                fused_vs_offline=err(fusion.normal, np.asarray(whole["normal"])),
+                offline=whole, nested=nested)
+
+
 def run_long(frames: int, seed: int, noise: str, background: bool, sample_every: int) -> dict:
     import warnings
     warnings.filterwarnings("ignore")
@@ -284,11 +333,13 @@ def run_long(frames: int, seed: int, noise: str, background: bool, sample_every:
                 final_std=float(final.rotation_std_deg))
 
 
-def _loo(cs: list[dict]) -> float:
+def _boot(cs: list[dict], draws: int = 10000) -> tuple[float, float]:
+    """10 and 90 % points of the pooled ratio with the scenes resampled."""
     le = np.array([c["live_err"] for c in cs]) ** 2
     oe = np.array([c["offline_err"] for c in cs]) ** 2
-    keep = ~np.eye(len(cs), dtype=bool)
-    return float(np.median([np.sqrt(le[k].mean() / oe[k].mean()) for k in keep]))
+    i = np.random.default_rng(0).integers(0, len(cs), (draws, len(cs)))
+    r = np.sqrt(le[i].mean(1) / oe[i].mean(1))
+    return float(np.percentile(r, 10)), float(np.percentile(r, 90))
 
 
 def _fmt(v, spec=".3f"):
@@ -350,11 +401,14 @@ def joints_section(results: list[dict]) -> list[str]:
     return lines
 
 
-def trace_section(traces: list[dict] | None) -> list[str]:
+def trace_section(traces: list[dict] | None, results: list[dict] = ()) -> list[str]:
     if not traces:
         return []
     lines = []
     for tr in traces:
+        live = next((r for r in results if r["seed"] == tr["seed"]
+                     and r["noise"] == tr["noise"]), None)
+        under = next((r["seconds"] for r in tr["rows"] if r.get("std", np.inf) <= 2.0), None)
         lines += ["", f"## The offline calibration of the first seconds ({tr['noise']} seed "
                       f"{tr['seed']})", "",
                   "What the frames of the first seconds determine: `mirrorgraph.calibrate` of "
@@ -368,12 +422,43 @@ def trace_section(traces: list[dict] | None) -> list[str]:
             lines.append(f"| {row['seconds']:g} | {row['frames']} | {_fmt(row.get('err'))} | "
                          f"{_fmt(row.get('std'))} | {_fmt(row.get('marginal_std'))} | "
                          f"{_fmt(row['bound'])} |")
+        lines += ["", f"The offline calibration's own std first reaches 2 deg at "
+                      f"{_fmt(under, 'g')} s of the traced times"
+                  + (f"; the live run became `calibrated` at "
+                     f"{_fmt(live['first_calibrated_s'], '.1f')} s" if live else "")
+                  + ": the live status follows what the frames determine."]
+    return lines
+
+
+def check_section(checks: list[dict] | None) -> list[str]:
+    lines = []
+    for c in checks or []:
+        lines += ["", f"## The live mirror at {c['at']:g} s taken apart ({c['noise']} seed "
+                      f"{c['seed']})", "",
+                  "Each block solved alone (what the live run fuses) against the offline "
+                  "calibration of the same frames, the blocks' fusion, and the offline "
+                  "calibration of every frame so far and of nested parts of them (rotation "
+                  "error deg; std: the headline, marginal in brackets).", "",
+                  "| frames | block err | block std | offline err (same frames) | "
+                  "block vs offline deg |", "|---|---:|---:|---:|---:|"]
+        for b in c["blocks"]:
+            lines.append(f"| {b['frames'][0]}-{b['frames'][1]} | {b['err']:.3f} | "
+                         f"{b['std']:.3f} | {b['offline_err']:.3f} | "
+                         f"{b['block_vs_offline']:.3f} |")
+        o = c["offline"]
+        lines += ["", f"* the blocks fused: error {c['fused_err']:.3f} deg, std "
+                      f"{c['fused_std']:.3f}; {c['fused_vs_offline']:.3f} deg from the offline "
+                      f"calibration of frames {o['frames'][0]}-{o['frames'][1]}, whose error is "
+                      f"{o['err']:.3f} deg at a std of {o['std']:.3f} ({o['marginal_std']:.3f})",
+                  "* the offline calibration of nested parts of the same frames: "
+                  + "; ".join(f"{x['frames'][0]}-{x['frames'][1]}: {x['err']:.3f} deg, std "
+                              f"{x['std']:.3f} ({x['marginal_std']:.3f})" for x in c["nested"])]
     return lines
 
 
 def report(results: list[dict], long: dict | None, args, started: str, seconds: float,
            load=None, meta_long: str = "with the scenes above",
-           traces: list[dict] | None = None) -> str:
+           traces: list[dict] | None = None, checks: list[dict] | None = None) -> str:
     load = load or os.getloadavg()
     lines = ["# The live run against the offline calibration (`bench/bench_live.py`)", "",
              f"* date: {started}",
@@ -426,7 +511,9 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
         for label, pick in (("60 s", lambda r: next((c for c in r["checkpoints"]
                                                       if c["seconds"] == 60.0), None)),
                             ("end", lambda r: r["checkpoints"][-1])):
-            cs = [pick(r) for r in res]
+            if label == "end" and all(r["checkpoints"][-1]["seconds"] == 60.0 for r in res):
+                continue
+            cs = [dict(pick(r), seed=r["seed"]) if pick(r) else None for r in res]
             cs = [c for c in cs if c and "offline_err" in c and "live_err" in c]
             if not cs:
                 continue
@@ -437,13 +524,21 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
             lines.append(f"| {noise} | {label} | {per} | {pooled:.2f} |")
             if len(cs) >= 8:
                 q = np.percentile(r_all, [10, 50, 90])
+                gap = [(c["seed"], c.get("live_vs_offline", np.nan),
+                        c.get("offline_std", np.nan)) for c in cs]
+                near = sum(g[1] <= 0.01 for g in gap)
+                far = ", ".join(f"seed {g[0]}: {g[1]:.2f} deg at an offline std of {g[2]:.2f}"
+                                for g in gap if g[1] > 0.05)
+                b = _boot(cs)
                 lines.append(f"| {noise} | {label}: distribution | median {q[1]:.2f}, "
                              f"10-90 % {q[0]:.2f}-{q[2]:.2f}, max {r_all.max():.2f}, "
-                             f"{int(np.sum(r_all > 1.5))}/{len(r_all)} above 1.5 | "
-                             f"median of the pooled ratio over the scenes left out one at a "
-                             f"time {_loo(cs):.2f} |")
+                             f"{int(np.sum(r_all > 1.5))}/{len(r_all)} above 1.5; the live "
+                             f"mirror within 0.01 deg of the offline one in {near}/{len(cs)}"
+                             + (f", apart by {far}" if far else "") + " | "
+                             f"bootstrap over the scenes: 10-90 % {b[0]:.2f}-{b[1]:.2f} |")
     lines += joints_section(results)
-    lines += trace_section(traces)
+    lines += check_section(checks)
+    lines += trace_section(traces, results)
     lines += ["", "## Time to `calibrated`, windows, per-frame cost", "",
               "| noise | seed | calibrated at s | windows fused / rejected / failed | "
               "window solve s (max) | frame wall ms p50/p95/p99 | frame CPU ms p50/p95/p99 |",
@@ -563,6 +658,10 @@ def main() -> int:
                     help="scenes whose offline calibration of the first seconds is traced "
                          "at --trace-at ('' for none)")
     ap.add_argument("--trace-at", default="5,10,20,30,45,60,90,120")
+    ap.add_argument("--block-check", default="iid:4", metavar="NOISE:SEED,...",
+                    help="scenes whose live mirror at --check-at is taken apart block by "
+                         "block against the offline calibration ('' for none)")
+    ap.add_argument("--check-at", type=float, default=60.0)
     ap.add_argument("--out", metavar="FILE.md", default=None,
                     help="write the report here (and FILE.json) instead of "
                          "bench/RESULTS_live.md / .json")
@@ -595,7 +694,7 @@ def main() -> int:
                       meta_long=(f"{meta['long_started']}, `python bench/bench_live.py "
                                  f"{' '.join(meta['long_argv'])}`" if "long_argv" in meta
                                  else "with the scenes above"),
-                      traces=data.get("traces"))
+                      traces=data.get("traces"), checks=data.get("checks"))
         print(text)
         if not args.no_write:
             out_md.write_text(text)
@@ -608,6 +707,10 @@ def main() -> int:
                    for spec in args.offline_trace.split(",") if spec.strip()]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         traces = list(pool.map(offline_trace, trace_cases)) if trace_cases else []
+        check_cases = [(int(spec.split(":")[1]), spec.split(":")[0], args.frames,
+                        args.check_at, args.window)
+                       for spec in args.block_check.split(",") if spec.strip()]
+        checks = list(pool.map(block_check, check_cases)) if check_cases else []
         for tr in traces:
             print(f"offline trace {tr['noise']} seed {tr['seed']}: "
                   + ", ".join(f"{r['seconds']:g} s std {r.get('std', float('nan')):.2f}"
@@ -627,14 +730,14 @@ def main() -> int:
         print(f"long stream: {long['fps']:.0f} frames/s, latency {long['latency_ms']}, "
               f"RSS {[round(x['rss_mb']) for x in long['samples']]}", flush=True)
     seconds = time.perf_counter() - clock
-    text = report(results, long, args, started, seconds, traces=traces)
+    text = report(results, long, args, started, seconds, traces=traces, checks=checks)
     print(text)
     if not args.no_write:
         out_md.write_text(text)
         meta = dict(argv=sys.argv[1:], args=vars(args), started=started, seconds=seconds,
                     load=list(os.getloadavg()))
         out_json.write_text(json.dumps(
-            dict(results=results, long=long, meta=meta, traces=traces), indent=1,
+            dict(results=results, long=long, meta=meta, traces=traces, checks=checks), indent=1,
             default=float))
     return 0
 
