@@ -138,7 +138,7 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
             planted |= np.asarray(m, bool)
     if getattr(sc, "lr_swapped", None) is not None:
         planted |= np.asarray(sc.lr_swapped, bool).reshape(len(planted), -1)
-    zs: dict = {k: [] for k in Z_KINDS + ("clean",)}
+    zs: dict = {k: [] for k in Z_KINDS + ("clean", "scaled")}
     zbins = []
     bins = _joint_bins(marks)
     for t, people in enumerate(det.people[:stop]):
@@ -155,6 +155,10 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
             zs["metric"].append(e / f.joints_std_metric[ok])
             zs["before"].append(e / before)
             zs["clean"].append((e / f.joints_std[ok])[~planted[t][ok]])
+            # the frame's common scale error taken out (the least-squares factor on X)
+            Xt = sc.joints3d[t][ok]
+            a = float(np.sum(X * Xt) / np.sum(X * X))
+            zs["scaled"].append(np.linalg.norm(a * X - Xt, axis=1) / f.joints_std[ok])
         if t + 1 == bins[len(zbins)][1]:
             zbins.append(dict(frames=list(bins[len(zbins)]),
                               **{k: _zstats(np.concatenate(v) if v else np.zeros(0))
@@ -362,10 +366,13 @@ def joints_section(results: list[dict]) -> list[str]:
              "height's share, on |X|), rebuilt from the same frames; `clean`: `joints_std` "
              "on the joints of neither a planted epipolar outlier nor a left/right-swapped "
              "frame (the realistic detector's 5 % and 3 %, which reproject within the "
-             "threshold and no per-frame check can see).", "",
+             "threshold and no per-frame check can see); `scale out`: `joints_std` against "
+             "the error left once each frame's common scale error is taken out (the "
+             "least-squares factor on the frame's joints): the metric scale's error is "
+             "`scale_rel_std`'s to cover.", "",
              "| noise | stream s | joints | joints_std RMS / median / >3 | metric RMS / "
-             "median | before RMS / median | clean RMS |",
-             "|---|---|---:|---|---|---|---:|"]
+             "median | before RMS / median | clean RMS | scale out RMS / median |",
+             "|---|---|---:|---|---|---|---:|---|"]
     for noise in ("iid", "realistic"):
         res = [r for r in results if r["noise"] == noise and r.get("joints")]
         if not res:
@@ -374,7 +381,7 @@ def joints_section(results: list[dict]) -> list[str]:
         for span in spans + [None]:
             pick = [b for r in res for b in r["joints"]
                     if span is None or tuple(b["frames"]) == span]
-            z = {k: _zmerge([b[k] for b in pick]) for k in Z_KINDS + ("clean",)}
+            z = {k: _zmerge([b.get(k) for b in pick]) for k in Z_KINDS + ("clean", "scaled")}
             if z["std"] is None:
                 continue
             label = ("all" if span is None else
@@ -383,7 +390,8 @@ def joints_section(results: list[dict]) -> list[str]:
             lines.append(f"| {noise} | {label} | {z['std']['n']} | {z['std']['rms']:.2f} / "
                          f"{z['std']['median']:.2f} / {100 * z['std']['over3']:.1f} % | "
                          f"{cell(z['metric'])} | {cell(z['before'])} | "
-                         f"{'-' if z['clean'] is None else format(z['clean']['rms'], '.2f')} |")
+                         f"{'-' if z['clean'] is None else format(z['clean']['rms'], '.2f')} | "
+                         f"{cell(z['scaled'])} |")
     lines += ["", "Per scene, all frames (joints_std RMS; before RMS):", "",
               "| noise | " + " | ".join(f"seed {r['seed']}" for r in results
                                        if r["noise"] == results[0]["noise"]) + " |",
