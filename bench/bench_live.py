@@ -392,6 +392,14 @@ def joints_section(results: list[dict]) -> list[str]:
                          f"{cell(z['metric'])} | {cell(z['before'])} | "
                          f"{'-' if z['clean'] is None else format(z['clean']['rms'], '.2f')} | "
                          f"{cell(z['scaled'])} |")
+    for noise in ("iid", "realistic"):
+        res = [r for r in results if r["noise"] == noise]
+        de = [(r["seed"], r["checkpoints"][-1].get("live_distance_rel_err")) for r in res]
+        if de and all(v is not None for _, v in de):
+            lines += ["", f"The metric scale ({noise}): the live distance's relative error at "
+                          f"the end, per scene, against the 2 % `scale_rel_std` claims: "
+                          + ", ".join(f"{100 * v:.1f} %" for _, v in de)
+                          + f" (RMS {100 * np.sqrt(np.mean([v ** 2 for _, v in de])):.1f} %)."]
     lines += ["", "Per scene, all frames (joints_std RMS; before RMS):", "",
               "| noise | " + " | ".join(f"seed {r['seed']}" for r in results
                                        if r["noise"] == results[0]["noise"]) + " |",

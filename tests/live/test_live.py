@@ -217,6 +217,21 @@ def test_fusion_of_two_equal_windows_is_their_mean_and_half_the_variance():
     assert fu.failed == 1
 
 
+def test_the_distance_is_the_windows_median_not_their_gauge_weighted_mean():
+    """A window's distance std under the stature gauge is next to nothing and says
+    nothing about its scale: the fused distance is the windows' median (by frames), its
+    data std at least their spread's."""
+    C = np.diag([1e-6, 1e-6, 0.0])
+    fu = MirrorFusion(metric=True)
+    for d, s in ((1.00, 1e-7), (1.02, 1e-9), (1.50, 1e-12), (1.01, 1e-8)):
+        fu.add(WindowEstimate(ok=True, normal=np.array([0.0, 0.0, 1.0]), distance=d,
+                              cov_marginal=C, cov_indep=C, cov_shared=np.zeros((3, 3)),
+                              distance_std=s, frames=900))
+    assert fu.distance == pytest.approx(1.015)
+    assert 0.003 < fu.distance_data_std < 0.05
+    assert fu.distance_std == pytest.approx(np.hypot(fu.distance_data_std, 0.02 * 1.015))
+
+
 def test_a_window_far_off_is_rejected_and_three_agreeing_reset():
     C = np.diag([1e-6, 1e-6, 0.0])
 
