@@ -178,6 +178,7 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
                 row["live_err"] = mirror_rotation_error_deg(m.normal, sc.normal)
                 row["live_std"] = float(m.rotation_std_deg)
                 row["live_distance_rel_err"] = abs(m.distance - sc.distance) / sc.distance
+                row["live_distance_signed"] = (m.distance - sc.distance) / sc.distance
             row["bound"] = cramer_rao_mirror(sc.K, sc.normal, sc.distance,
                                              sc.joints3d[:n][seen[:n]], 4.0)["rot_rms_deg"]
             if any(abs(n - round(s * FPS)) < 1 for s in offline_at) or n == stop:
@@ -190,6 +191,9 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
                     row["offline_err"] = mirror_rotation_error_deg(run.calibration.normal,
                                                                    sc.normal)
                     row["offline_std"] = float(run.calibration.uncertainty["rotation_std_deg"])
+                    if run.calibration.distance is not None:
+                        row["offline_distance_signed"] = (
+                            (run.calibration.distance - sc.distance) / sc.distance)
                     if m.normal is not None:
                         row["live_vs_offline"] = mirror_rotation_error_deg(
                             m.normal, run.calibration.normal)
@@ -396,10 +400,16 @@ def joints_section(results: list[dict]) -> list[str]:
         res = [r for r in results if r["noise"] == noise]
         de = [(r["seed"], r["checkpoints"][-1].get("live_distance_rel_err")) for r in res]
         if de and all(v is not None for _, v in de):
+            end = [r["checkpoints"][-1] for r in res]
+            off = [c.get("offline_distance_signed") for c in end]
             lines += ["", f"The metric scale ({noise}): the live distance's relative error at "
                           f"the end, per scene, against the 2 % `scale_rel_std` claims: "
-                          + ", ".join(f"{100 * v:.1f} %" for _, v in de)
-                          + f" (RMS {100 * np.sqrt(np.mean([v ** 2 for _, v in de])):.1f} %)."]
+                          + ", ".join(f"{100 * c.get('live_distance_signed', v):+.1f} %"
+                                      for (_, v), c in zip(de, end))
+                          + f" (RMS {100 * np.sqrt(np.mean([v ** 2 for _, v in de])):.1f} %)"
+                          + ("; the offline calibration of the same frames: "
+                             + ", ".join(f"{100 * v:+.1f} %" for v in off)
+                             if all(v is not None for v in off) else "") + "."]
     lines += ["", "Per scene, all frames (joints_std RMS; before RMS):", "",
               "| noise | " + " | ".join(f"seed {r['seed']}" for r in results
                                        if r["noise"] == results[0]["noise"]) + " |",
@@ -443,6 +453,78 @@ def trace_section(traces: list[dict] | None, results: list[dict] = ()) -> list[s
                   + (f"; the live run became `calibrated` at "
                      f"{_fmt(live['first_calibrated_s'], '.1f')} s" if live else "")
                   + ": the live status follows what the frames determine."]
+    return lines
+
+
+def findings_section(results: list[dict], traces, checks) -> list[str]:
+    """What the tables below show about the three open points of #26's live run."""
+    def z(noise, kind):
+        return _zmerge([b.get(kind) for r in results if r["noise"] == noise
+                        for b in r.get("joints", [])])
+    lines = ["", "## Findings", ""]
+    zi, zb, zr = z("iid", "std"), z("iid", "before"), z("realistic", "std")
+    if zi and zb:
+        zm, zrb, zrs = z("realistic", "metric"), z("realistic", "before"), z("realistic", "scaled")
+        lines += [
+            f"* **The joints' std** (the table below): under iid noise the joints' error over "
+            f"their std is {zi['rms']:.2f} RMS, {zi['median']:.2f} median (before: "
+            f"{zb['rms']:.2f}, {zb['median']:.2f}). The reprojection noise was right (the "
+            "windows' a posteriori sigma, 4.0 px under 4 px noise, no robust threshold); "
+            "the std was wide because the distance's std was put on every joint as a scale: "
+            "with a subject height it is the 2 % metric-scale prior (`height_sigma`, the "
+            "windows' graph holds the bone lengths' sum, so their own distance std is next "
+            "to nothing), 1.2-5 times the rays' share at these depths (8-10 m), where the "
+            "actual scale error is well under 2 % (below). The mirror's own uncertainty did "
+            "not enter. Now: the "
+            "rays plus the normal's covariance through the triangulation at the body's size "
+            "(a tilted normal moves the distance with it, since the scale is the stature), "
+            "the scale's prior apart (`scale_rel_std`, `joints_std_metric`).",
+            f"* Under the realistic detector `joints_std` alone is too thin against the true "
+            f"joints ({zr['rms']:.2f} RMS, {zr['median']:.2f} median): the metric scale is "
+            "off by far more than its 2 %, and the offline calibration of the same frames "
+            "by as much (the live and offline distances' errors per scene below: the "
+            "stature measured on a biased detector's joints comes out too tall, the distance "
+            "too short). With each frame's scale error taken out the joints' error is "
+            f"{zrs['rms']:.2f} RMS, {zrs['median']:.2f} median over `joints_std` (the RMS "
+            "from the planted epipolar outliers and swaps); `joints_std_metric` is "
+            f"{zm['rms']:.2f} / {zm['median']:.2f} (before {zrb['rms']:.2f} / "
+            f"{zrb['median']:.2f}). An honest metric std there needs the offline scale's own "
+            "std (its `height_sigma`), not the live run's."]
+    for c in checks or []:
+        if c["seed"] == 4 and c["noise"] == "iid":
+            o = c["offline"]
+            lines.append(
+                f"* **iid seed 4 at 60 s** (the live mirror {c['fused_err']:.3f} deg off, the "
+                f"offline {o['err']:.3f}): each 900-frame block solved alone is exactly the "
+                "offline calibration of its frames (0.000 deg apart) and the two agree with "
+                "each other; their fusion lies between them. The offline calibration of all "
+                f"1800 frames lies {c['fused_vs_offline']:.2f} deg from it, nearer the truth, "
+                f"at a headline std of {o['std']:.2f} deg ({o['std'] / o['marginal_std']:.1f} "
+                "times its marginal: its own robust figure sees the spread), and nested parts "
+                "of the same frames move it by as much ("
+                + ", ".join(f"{x['err']:.2f}" for x in c["nested"]) + " deg). Not a defect of "
+                "the blocks, their weights or the shared part (which sets the std, not the "
+                "normal): the reference's own noise. Over iid seeds 0-11 at 60 s "
+                "(`RESULTS_live_seeds.md`) the live mirror is within 0.01 deg of the offline "
+                "one on 10 of 12 scenes; seeds 4 and 8 make the pooled ratio.")
+    for tr in traces or []:
+        live = next((r for r in results if r["seed"] == tr["seed"]
+                     and r["noise"] == tr["noise"]), None)
+        row10 = next((r for r in tr["rows"] if r["seconds"] == 10), None)
+        if row10 and live:
+            live60 = next((c for c in live["checkpoints"] if c["seconds"] == 60), {})
+            lines.append(
+                f"* **{tr['noise']} seed {tr['seed']}, `calibrated` at "
+                f"{_fmt(live['first_calibrated_s'], '.0f')} s**: the offline calibration of "
+                f"the first 10 s has a rotation std of {row10.get('std', np.nan):.1f} deg "
+                f"(error {row10.get('err', np.nan):.1f} deg): the frames of 10 s do not "
+                "determine the mirror to 2 deg, and no live run can be `calibrated` honestly "
+                "there (table below). Its std falls under 2 deg at 20 s, rises to 2.7 at 30 s "
+                "and stays under from 45 s; the live std is "
+                f"{live60.get('live_std', np.nan):.2f} deg at 60 s (the offline "
+                f"{live60.get('offline_std', np.nan):.2f}): the first block's own headline "
+                "(2.7 deg, the 30 s calibration) stays in the fused shared part, which is the "
+                "mean of the blocks' and does not shrink. No change made.")
     return lines
 
 
@@ -552,6 +634,7 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
                              f"mirror within 0.01 deg of the offline one in {near}/{len(cs)}"
                              + (f", apart by {far}" if far else "") + " | "
                              f"bootstrap over the scenes: 10-90 % {b[0]:.2f}-{b[1]:.2f} |")
+    lines += findings_section(results, traces, checks)
     lines += joints_section(results)
     lines += check_section(checks)
     lines += trace_section(traces, results)
