@@ -34,9 +34,13 @@ scale's own uncertainty (the subject's height and proportions,
 ``RefineOptions.height_sigma``: 2 % by default, a prior, not a measurement), which is
 one factor on every length of every frame: :attr:`LiveMirror.scale_rel_std`, and
 :attr:`LiveFrame.joints_std_metric` with it, ``hypot(std, |X| scale_rel_std)``. Added
-to each joint, as it was (with the distance's std), it made 60-90 % of the std on the
-wide scenes and left the joints' error at 0.23-0.69 of their std under iid noise,
-where the stature's actual scale error is 0.3 % RMS (``bench/RESULTS_live.md``).
+to each joint, as it was (with the distance's std), it outweighed the rays' share on
+the wide scenes (joints 8-10 m away) and left the joints' error at 0.5 of their std
+RMS, 0.3 median, under iid noise, where the actual scale error is well under 2 %; now
+1.3 RMS, 1.0 median (``bench/RESULTS_live.md``). Under the realistic detector the
+scale itself is off by 1-18 % (the offline calibration's as much: the stature on a
+biased detector's joints), which no per-frame std sees: there ``joints_std`` is too
+thin against the true joints and ``joints_std_metric`` about as honest as the std was.
 
 **The mirror** (:mod:`.estimator`): the frames holding two people or more are
 buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the

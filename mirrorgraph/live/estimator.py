@@ -38,7 +38,7 @@ frames, with the subject's height as a shared part (``RefineOptions.height_sigma
 pure scale every window has). With a subject height a window's distance is the one at
 which the stature measured on its joints (a median over its frames) is the height;
 its graph's own distance std is the gauge's (the bone lengths' sum held), next to
-nothing (1e-5 % of the distance on the realistic detector), so weighing the windows
+nothing (3e-6 of the distance on realistic scene 3), so weighing the windows
 by it, as before, picked one window by its rounding: 32.8 % off after 120 s on wide
 scene 3, realistic detector, where the offline calibration of the same frames is
 18.4 % off and three of its four 900-frame blocks 16-19 % (the fourth 52 %). The
