@@ -42,6 +42,7 @@ import datetime as _dt
 import json
 import os
 import platform
+import shlex
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -593,7 +594,7 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
     load = load or os.getloadavg()
     lines = ["# The live run against the offline calibration (`bench/bench_live.py`)", "",
              f"* date: {started}",
-             f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
+             f"* command: `python bench/bench_live.py {shlex.join(sys.argv[1:])}`",
              f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
              f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
              f"{load[1]:.2f} / {load[2]:.2f}; {seconds:.0f} s of measuring. The machine is "
@@ -732,7 +733,7 @@ def lag_sweep(args, started: str, clock: float) -> int:
     load = os.getloadavg()
     lines = ["# The block length of the live run (`bench/bench_live.py --lag-sweep`)", "",
              f"* date: {started}",
-             f"* command: `python bench/bench_live.py {' '.join(sys.argv[1:])}`",
+             f"* command: `python bench/bench_live.py {shlex.join(sys.argv[1:])}`",
              f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
              f"{platform.python_version()}; load average at the end {load[0]:.2f}; "
              f"{time.perf_counter() - clock:.0f} s",
