@@ -5,10 +5,12 @@ done, so another program can follow it): :meth:`mirrorgraph.live.LiveFrame.to_di
 
     {"frame": 0, "frame_id": 0, "time": 0.0, "status": "initialising",
      "mirror": {"status": ..., "normal": [nx, ny, nz] | null, "distance": d | null,
-                "rotation_std_deg": s | null, "distance_std": ..., "focal_px": ...,
+                "rotation_std_deg": s | null, "distance_std": ...,
+                "scale_rel_std": ..., "focal_px": ...,
                 "focal_std_px": ..., "windows": ..., "windows_rejected": ...,
                 "windows_failed": ..., "resets": ..., "scale": "subject_height"},
      "joints3d": [[x, y, z] | null, ...], "joints_std": [s | null, ...],
+     "joints_std_metric": [s | null, ...],
      "paired": true, "skipped": null}
 
 A joint not estimated, and any figure not known yet, is JSON ``null`` (JSON has no
