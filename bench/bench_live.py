@@ -12,7 +12,7 @@ Wide random scenes (:func:`mirrorgraph.synth.make_wide_scene`, slice ``wide``, t
   (:func:`mirrorgraph.metrics.cramer_rao_mirror`, reprojection only, 4 px), and the
   live error over the live reported std; the time to ``calibrated``;
 * **the joints' honesty**: every joint the live run gives, its error against the
-  scene's true joint over its reported std (``joints_std``, ``joints_std_metric`` and
+  scene's true joint over its reported std (``joints_std_shape``, ``joints_std`` and
   the std as it was before, rebuilt from the same frames), RMS and median per noise
   model over the stretches of the stream between the checkpoints;
 * **what the first seconds determine** (``--offline-trace``): the offline calibration
@@ -66,8 +66,8 @@ def _rss_mb(pid: int | str = "self") -> float:
 
 #: log10(error / std) histogram edges of the joints' honesty (pooled medians over scenes)
 Z_EDGES = np.linspace(-3.0, 3.0, 601)
-#: the joints' std variants measured: ``std`` (``LiveFrame.joints_std``), ``metric``
-#: (``joints_std_metric``) and ``before`` (the std as it was before the fix, rebuilt from
+#: the joints' std variants measured: ``std`` (``LiveFrame.joints_std_shape``), ``metric``
+#: (``joints_std``) and ``before`` (the std as it was before the fix, rebuilt from
 #: the same frame: the two rays' share and the fused distance's relative std as a scale
 #: on the point, ``hypot(rays, |X| distance_std / d)``)
 Z_KINDS = ("std", "metric", "before")
@@ -161,21 +161,21 @@ def run_scene(case: tuple[int, str, int, tuple[float, ...], tuple[float, ...]]) 
     for t, people in enumerate(det.people[:stop]):
         live.last_variances = {}
         f = live.update(people, frame_id=int(det.frame_ids[t]), time_s=t / FPS)
-        ok = np.isfinite(f.joints_std)
+        ok = np.isfinite(f.joints_std_shape)
         if ok.any():
             X = f.joints3d[ok]
             e = np.linalg.norm(X - sc.joints3d[t][ok], axis=1)
             fu = live.fusion
             rays = np.sqrt(live.last_variances["pixels"])
             before = np.hypot(rays, np.linalg.norm(X, axis=1) * fu.distance_std / fu.distance)
-            zs["std"].append(e / f.joints_std[ok])
-            zs["metric"].append(e / f.joints_std_metric[ok])
+            zs["std"].append(e / f.joints_std_shape[ok])
+            zs["metric"].append(e / f.joints_std[ok])
             zs["before"].append(e / before)
-            zs["clean"].append((e / f.joints_std[ok])[~planted[t][ok]])
+            zs["clean"].append((e / f.joints_std_shape[ok])[~planted[t][ok]])
             # the frame's common scale error taken out (the least-squares factor on X)
             Xt = sc.joints3d[t][ok]
             a = float(np.sum(X * Xt) / np.sum(X * X))
-            zs["scaled"].append(np.linalg.norm(a * X - Xt, axis=1) / f.joints_std[ok])
+            zs["scaled"].append(np.linalg.norm(a * X - Xt, axis=1) / f.joints_std_shape[ok])
         if t + 1 == bins[len(zbins)][1]:
             zbins.append(dict(frames=list(bins[len(zbins)]),
                               **{k: _zstats(np.concatenate(v) if v else np.zeros(0))
@@ -367,6 +367,11 @@ def _boot(cs: list[dict], draws: int = 10000) -> tuple[float, float]:
     return float(np.percentile(r, 10)), float(np.percentile(r, 90))
 
 
+def _cell(q) -> str:
+    """``RMS / median`` of an error-over-std summary, ``-`` where there is none."""
+    return "-" if q is None else f"{q['rms']:.2f} / {q['median']:.2f}"
+
+
 def _fmt(v, spec=".3f"):
     return "-" if v is None or (isinstance(v, float) and not np.isfinite(v)) else format(v, spec)
 
@@ -380,18 +385,18 @@ def joints_section(results: list[dict]) -> list[str]:
              "the scene's true joint, metres) over its reported std (the RMS length of the "
              "error it claims), pooled over the scenes in each stretch of the stream; RMS "
              "(the honesty target: 0.5-2), median (about 0.7-0.9 for a Gaussian error "
-             "elongated along the rays) and the share beyond 3 std. `joints_std`: the rays "
-             "and the mirror's normal at the body's size; `metric`: `joints_std_metric`, with "
+             "elongated along the rays) and the share beyond 3 std. `joints_std_shape`: the rays "
+             "and the mirror's normal at the body's size; `metric`: `joints_std`, with "
              "the metric scale's prior (`height_sigma`, 2 %) on |X|; `before`: the std as it "
              "was before (the rays and the fused distance's relative std, 2 % with the "
-             "height's share, on |X|), rebuilt from the same frames; `clean`: `joints_std` "
+             "height's share, on |X|), rebuilt from the same frames; `clean`: `joints_std_shape` "
              "on the joints of neither a planted epipolar outlier nor a left/right-swapped "
              "frame (the realistic detector's 5 % and 3 %, which reproject within the "
-             "threshold and no per-frame check can see); `scale out`: `joints_std` against "
+             "threshold and no per-frame check can see); `scale out`: `joints_std_shape` against "
              "the error left once each frame's common scale error is taken out (the "
              "least-squares factor on the frame's joints): the metric scale's error is "
              "`scale_rel_std`'s to cover.", "",
-             "| noise | stream s | joints | joints_std RMS / median / >3 | metric RMS / "
+             "| noise | stream s | joints | joints_std_shape RMS / median / >3 | metric RMS / "
              "median | before RMS / median | clean RMS | scale out RMS / median |",
              "|---|---|---:|---|---|---|---:|---|"]
     for noise in ("iid", "realistic"):
@@ -407,12 +412,11 @@ def joints_section(results: list[dict]) -> list[str]:
                 continue
             label = ("all" if span is None else
                      f"{span[0] / FPS:g}-{span[1] / FPS:g}")
-            cell = lambda q: "-" if q is None else f"{q['rms']:.2f} / {q['median']:.2f}"
             lines.append(f"| {noise} | {label} | {z['std']['n']} | {z['std']['rms']:.2f} / "
                          f"{z['std']['median']:.2f} / {100 * z['std']['over3']:.1f} % | "
-                         f"{cell(z['metric'])} | {cell(z['before'])} | "
+                         f"{_cell(z['metric'])} | {_cell(z['before'])} | "
                          f"{'-' if z['clean'] is None else format(z['clean']['rms'], '.2f')} | "
-                         f"{cell(z['scaled'])} |")
+                         f"{_cell(z['scaled'])} |")
     for noise in ("iid", "realistic"):
         res = [r for r in results if r["noise"] == noise]
         de = [(r["seed"], r["checkpoints"][-1].get("live_distance_rel_err")) for r in res]
@@ -427,7 +431,7 @@ def joints_section(results: list[dict]) -> list[str]:
                           + ("; the offline calibration of the same frames: "
                              + ", ".join(f"{100 * v:+.1f} %" for v in off)
                              if all(v is not None for v in off) else "") + "."]
-    lines += ["", "Per scene, all frames (joints_std RMS; before RMS):", "",
+    lines += ["", "Per scene, all frames (joints_std_shape RMS; before RMS):", "",
               "| noise | " + " | ".join(f"seed {r['seed']}" for r in results
                                        if r["noise"] == results[0]["noise"]) + " |",
               "|---|" + "---:|" * sum(r["noise"] == results[0]["noise"] for r in results)]
@@ -494,18 +498,18 @@ def findings_section(results: list[dict], traces, checks) -> list[str]:
             "not enter. Now: the "
             "rays plus the normal's covariance through the triangulation at the body's size "
             "(a tilted normal moves the distance with it, since the scale is the stature), "
-            "the scale's prior apart (`scale_rel_std`, `joints_std_metric`)."]
+            "the scale's prior apart (`scale_rel_std`, `joints_std`)."]
     if zr:
         zm, zrb, zrs = z("realistic", "metric"), z("realistic", "before"), z("realistic", "scaled")
         lines += [
-            f"* Under the realistic detector `joints_std` alone is too thin against the true "
+            f"* Under the realistic detector `joints_std_shape` alone is too thin against the true "
             f"joints ({zr['rms']:.2f} RMS, {zr['median']:.2f} median): the metric scale is "
             "off by far more than its 2 %, and the offline calibration of the same frames "
             "by as much (the live and offline distances' errors per scene below: the "
             "stature measured on a biased detector's joints comes out too tall, the distance "
             "too short). With each frame's scale error taken out the joints' error is "
-            f"{zrs['rms']:.2f} RMS, {zrs['median']:.2f} median over `joints_std` (the RMS "
-            "from the planted epipolar outliers and swaps); `joints_std_metric` is "
+            f"{zrs['rms']:.2f} RMS, {zrs['median']:.2f} median over `joints_std_shape` (the RMS "
+            "from the planted epipolar outliers and swaps); `joints_std` is "
             f"{zm['rms']:.2f} / {zm['median']:.2f} (before {zrb['rms']:.2f} / "
             f"{zrb['median']:.2f}). An honest metric std there needs the offline scale's own "
             "std (its `height_sigma`), not the live run's."]

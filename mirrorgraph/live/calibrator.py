@@ -32,15 +32,20 @@ The distance's std is not added on top: with a subject height it is that same
 normal error seen through the body's size (counted twice before), plus the metric
 scale's own uncertainty (the subject's height and proportions,
 ``RefineOptions.height_sigma``: 2 % by default, a prior, not a measurement), which is
-one factor on every length of every frame: :attr:`LiveMirror.scale_rel_std`, and
-:attr:`LiveFrame.joints_std_metric` with it, ``hypot(std, |X| scale_rel_std)``. Added
+one factor on every length of every frame: :attr:`LiveMirror.scale_rel_std`.
+:attr:`LiveFrame.joints_std` holds it, ``hypot(shape, |X| scale_rel_std)`` (the std of a
+position in metres); :attr:`LiveFrame.joints_std_shape` is without it (the body's
+shape and relative positions at the calibration's scale). Added
 to each joint, as it was (with the distance's std), it outweighed the rays' share on
 the wide scenes (joints 8-10 m away) and left the joints' error at 0.5 of their std
 RMS, 0.3 median, under iid noise, where the actual scale error is well under 2 %; now
-1.3 RMS, 1.0 median (``bench/RESULTS_live.md``). Under the realistic detector the
-scale itself is off by 1-18 % (the offline calibration's as much: the stature on a
-biased detector's joints), which no per-frame std sees: there ``joints_std`` is too
-thin against the true joints and ``joints_std_metric`` about as honest as the std was.
+1.3 RMS, 1.0 median for ``joints_std_shape`` (``bench/RESULTS_live.md``, where it is
+``joints_std`` and the metric one ``joints_std_metric``: the names before they were
+swapped). Under the realistic detector the scale itself is off by 1-18 % (the offline
+calibration's as much: the stature on a biased detector's joints), which no per-frame
+std sees: there ``joints_std_shape`` is too thin against the true joints (3.97 RMS)
+and ``joints_std`` about as honest as the std was (1.84; 0.49 under iid, wide): hence
+the metric one is ``joints_std``, the figure a position in metres needs.
 
 **The mirror** (:mod:`.estimator`): the frames holding two people or more are
 buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the
@@ -152,7 +157,7 @@ class LiveMirror:
             without a subject height (the distance is the unit).
         scale_rel_std: the metric scale's relative std (``height_sigma``: the subject's
             height and proportions), shared by every length of every frame and not in
-            :attr:`LiveFrame.joints_std`; ``None`` without a subject height.
+            :attr:`LiveFrame.joints_std_shape`; ``None`` without a subject height.
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
@@ -203,13 +208,15 @@ class LiveFrame:
         mirror: :class:`LiveMirror` after this frame.
         joints3d: ``(J, 3)`` real camera frame (metres with a subject height, else
             mirror distances), NaN where not estimated.
-        joints_std: ``(J,)`` each joint's position std: the RMS length of its 3D error
-            (``sqrt`` of its covariance's trace: the rays, the mirror's normal and the
-            data's share of the distance), at the calibration's scale (the metric
-            scale's share is :attr:`LiveMirror.scale_rel_std`); NaN where not estimated.
-        joints_std_metric: ``(J,)`` the same with the metric scale's share,
-            ``hypot(joints_std, |X| scale_rel_std)``: the std of the position in metres
-            (``joints_std`` without a subject height).
+        joints_std: ``(J,)`` each joint's position std in the output's unit (metres with
+            a subject height): the RMS length of its 3D error (``sqrt`` of its
+            covariance's trace) with the metric scale's share,
+            ``hypot(joints_std_shape, |X| scale_rel_std)``; NaN where not estimated.
+        joints_std_shape: ``(J,)`` the same without the metric scale's share
+            (:attr:`LiveMirror.scale_rel_std`, one factor on every length): the rays,
+            the mirror's normal and the data's share of the distance, at the
+            calibration's scale (the body's shape and relative positions; equal to
+            ``joints_std`` without a subject height).
         paired: a person and their reflection were found in this frame.
         skipped: why the frame was skipped (bad input), else ``None``.
         latency_s: wall seconds of this frame's own work (pairing, triangulation).
@@ -225,7 +232,7 @@ class LiveFrame:
     mirror: LiveMirror
     joints3d: np.ndarray
     joints_std: np.ndarray
-    joints_std_metric: np.ndarray | None = None
+    joints_std_shape: np.ndarray | None = None
     paired: bool = False
     skipped: str | None = None
     latency_s: float = 0.0
@@ -239,15 +246,15 @@ class LiveFrame:
     def to_dict(self) -> dict:
         """The frame's JSON line: NaN written as ``null`` (JSON has no NaN)."""
         ok = np.isfinite(self.joints3d).all(1)
-        metric = self.joints_std if self.joints_std_metric is None else self.joints_std_metric
+        shape = self.joints_std if self.joints_std_shape is None else self.joints_std_shape
         return {"frame": self.index, "frame_id": self.frame_id, "time": round(self.time, 6),
                 "status": self.mirror.status, "mirror": self.mirror.to_dict(),
                 "joints3d": [[round(float(c), 6) for c in p] if k else None
                              for p, k in zip(self.joints3d, ok)],
                 "joints_std": [round(float(s), 6) if k and np.isfinite(s) else None
                                for s, k in zip(self.joints_std, ok)],
-                "joints_std_metric": [round(float(s), 6) if k and np.isfinite(s) else None
-                                      for s, k in zip(metric, ok)],
+                "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
+                                     for s, k in zip(shape, ok)],
                 "paired": self.paired, "skipped": self.skipped}
 
 
@@ -421,7 +428,7 @@ class LiveCalibrator:
             self.with_joints += 1
         latency, cpu = time.perf_counter() - clock, time.thread_time() - cpu
         solve_s += self._schedule()
-        return LiveFrame(index, fid, t, self.mirror, joints3d, std, metric, paired=paired,
+        return LiveFrame(index, fid, t, self.mirror, joints3d, metric, std, paired=paired,
                          latency_s=latency, solve_s=solve_s, cpu_s=cpu)
 
     # ------------------------------------------------------------------ per frame
