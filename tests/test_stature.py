@@ -113,3 +113,55 @@ def test_unknown_scale_source_is_refused():
 
     with pytest.raises(InputError, match="scale_from"):
         RefineOptions(scale_from="bones")
+
+
+def test_a_leg_measured_long_on_one_side_is_the_measurements_spread():
+    """The two legs of a body agree (its segments vary by kind, not by side); a detector
+    that places one side's joints with a bias measures one leg long: ``side_rel_diff`` is
+    ``|L - R| / (L + R)``, the spread :func:`~mirrorgraph.stature.measurement_rel_std`
+    adds to the metric scale."""
+    from mirrorgraph.stature import measurement_rel_std
+
+    sk, pts, valid, _ = _subject(3)
+    est = estimate_stature(pts, valid, sk)
+    assert est.side_rel_diff < 0.005 and measurement_rel_std(est) == est.side_rel_diff
+    long = pts.copy()
+    hip = long[:, [sk.index("right_hip")]]
+    for j in ("right_knee", "right_ankle"):                 # the right leg 30 % longer
+        long[:, sk.index(j)] = hip[:, 0] + 1.3 * (long[:, sk.index(j)] - hip[:, 0])
+    est = estimate_stature(long, valid, sk)
+    assert est.side_rel_diff == pytest.approx(0.3 / 2.3, abs=0.01)
+    assert est.scaled(2.0).side_rel_diff == est.side_rel_diff
+    assert measurement_rel_std(None) == 0.0
+
+
+def test_the_distance_std_holds_the_legs_disagreement():
+    """A detector placing the reflection's right knee and ankle 20 px off: the legs
+    measured 2.6 % apart, the distance's std widened by that spread over the height's
+    2 % (the scale's measurement error the data show), and it still covers the error."""
+    from mirrorgraph.keypoints import PairedKeypoints
+    from mirrorgraph.synth.scene import make_scene
+
+    s = make_scene(frames=300, seed=0, skeleton="COCO_17")
+    stds = {}
+    for px in (0.0, 20.0):
+        m = s.mirror_observed.copy()
+        for j in ("right_knee", "right_ankle"):
+            m[:, s.skeleton.index(j), 0] += px
+        paired = PairedKeypoints(skeleton=s.skeleton, frame_ids=s.frame_ids,
+                                 real=s.real_observed, mirror=m, source="biased.npz",
+                                 image_size=s.image_size)
+        c = _calibrate_paired(paired, s)
+        side = c.refinement["stature"]["side_rel_diff"]
+        stds[px] = c.uncertainty["distance_std"] / c.distance
+        assert abs(c.distance / s.distance - 1) < 2 * stds[px]
+    assert side > 0.01
+    assert stds[20.0] >= np.hypot(0.02, side) - 1e-4
+    assert stds[20.0] > stds[0.0] + 0.003
+
+
+def _calibrate_paired(paired, scene):
+    from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate
+
+    return calibrate(paired, scene.intrinsics,
+                     CalibrateOptions(subject_height=scene.subject_height)).calibration

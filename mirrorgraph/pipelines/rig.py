@@ -23,7 +23,7 @@ import numpy as np
 from ..graph.options import RefineOptions
 from .options import CalibrateOptions
 from .judge import judge_rig
-from ..stature import with_height_sigma
+from ..stature import measurement_rel_std, with_height_sigma
 from .scale import scale_rig_by_stature
 from ..completion import complete_rig_joints
 from ..joint_sets import resolve_joints
@@ -127,7 +127,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
-    cameras, mirrors = _records(obs, init, sol, run, warnings)              # result
+    cameras, mirrors = _records(obs, init, sol, run, warnings, stature)     # result
     warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
                           sol.view_observed, init.mirror_spread_deg)
     initialisation = {
@@ -155,7 +155,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                           warnings=warnings, source=str(cfg.source))
 
 
-def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str]
+def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_stature=None
              ) -> tuple[list[RigCamera], list[RigMirror]]:
     """The result's cameras and mirrors from the solution: poses, intrinsics (an estimated
     focal length's record and warnings), stds (with the scale's own uncertainty), residuals.
@@ -166,6 +166,8 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str]
     # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
     # as the single-mirror refinement does; without one the unit is the height itself
     rel = opts.height_sigma if height is not None else 0.0
+    if height is not None and sol_stature is not None:  # the measurement's own spread
+        rel = float(np.hypot(rel, measurement_rel_std(sol_stature)))
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []

@@ -25,7 +25,8 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
-from ..stature import LIMB_CHOSEN, stature_joints, stature_rescale
+from ..stature import (LIMB_CHOSEN, measurement_rel_std, stature_joints, stature_rescale,
+                       with_height_sigma)
 from ..graph.result import RefinementResult
 
 __all__ = ["scale_by_stature", "scale_rig_by_stature"]
@@ -67,8 +68,10 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
 
     Returns:
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
-        multiplied by ``height / measured stature`` and ``scale_source``/``stature``
-        set; unchanged but for ``scale_source`` when the stature cannot be measured.
+        multiplied by ``height / measured stature`` (the std widened by the
+        measurement's own spread, :func:`mirrorgraph.stature.measurement_rel_std`) and
+        ``scale_source``/``stature`` set; unchanged but for ``scale_source`` when the
+        stature cannot be measured.
 
     Raises:
         InputError: ``height`` is not a positive finite number.
@@ -83,9 +86,12 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
     if f is None:
         return replace(res, scale_source=source)
     record = stature.to_dict()
+    # the measurement's own spread (the legs measured apart) on top of the height's prior
+    dstd = with_height_sigma(res.distance_std * f, res.distance * f,
+                             measurement_rel_std(stature))
     return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
                    bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
-                   distance_std=res.distance_std * f, scale_source=source, stature=record)
+                   distance_std=dstd, scale_source=source, stature=record)
 
 
 def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "stature"):
