@@ -71,8 +71,8 @@ def main(argv: list[str] | None = None) -> int:
              "", f"- date: {started:%Y-%m-%d %H:%M} UTC",
              f"- machine: {platform.machine()}, {os.cpu_count()} cores, Python "
              f"{platform.python_version()}; load average {os.getloadavg()[0]:.1f} at the end",
-             f"- command: `python bench/bench_scale_spread.py {' '.join(argv or sys.argv[1:])}`"
-             .replace(" `", "`"),
+             "- command: `" + f"python bench/bench_scale_spread.py "
+             f"{' '.join(argv or sys.argv[1:])}".rstrip() + "`",
              f"- code: `{head}`",
              "- scenes: `make_wide_scene(seed, 'wide', noise, frames)`, the camera matrix and "
              "the subject's height given; `side`: the legs' relative difference; `z`: the "
