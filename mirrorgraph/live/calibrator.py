@@ -155,9 +155,11 @@ class LiveMirror:
         rotation_std_deg: the virtual camera's rotation std, deg.
         distance_std: the distance's std (the height's share included); ``None``
             without a subject height (the distance is the unit).
-        scale_rel_std: the metric scale's relative std (``height_sigma``: the subject's
-            height and proportions), shared by every length of every frame and not in
-            :attr:`LiveFrame.joints_std_shape`; ``None`` without a subject height.
+        scale_rel_std: the metric scale's relative std: ``height_sigma`` (the subject's
+            height and proportions) with the stature measurement's spread the latest
+            window found (:func:`mirrorgraph.stature.measurement_rel_std`); shared by
+            every length of every frame and not in :attr:`LiveFrame.joints_std_shape`;
+            ``None`` without a subject height.
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
@@ -340,7 +342,7 @@ class LiveCalibrator:
         return LiveMirror(status=status, normal=fu.normal.copy(), distance=fu.distance,
                           rotation_std_deg=std,
                           distance_std=fu.distance_std if metric else None,
-                          scale_rel_std=fu.height_sigma if metric else None,
+                          scale_rel_std=fu.scale_rel_std if metric else None,
                           focal_px=fu.focal_px, focal_std_px=fu.focal_std_px,
                           windows=fu.windows, rejected=fu.rejected, failed=fu.failed,
                           resets=fu.resets,
@@ -505,7 +507,7 @@ class LiveCalibrator:
             J = np.stack(J, axis=-1)                                      # (N, 3, 2)
             var["normal"] = np.maximum(np.einsum("nik,kl,nil->n", J, C, J), 0.0)
         if metric:
-            var["scale"] = (np.linalg.norm(X, axis=1) * fu.height_sigma) ** 2
+            var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
         return var
 
     # ------------------------------------------------------------------ windows

@@ -102,6 +102,8 @@ class WindowEstimate:
             is the detection paired as the reflection a second person?), ``""`` where
             none ran (keypoints given as pairs).
         check_text: the check's one line where it is doubtful.
+        scale_side: the stature measurement's spread in the window's calibration (its
+            legs' relative difference, :func:`mirrorgraph.stature.measurement_rel_std`).
     """
 
     ok: bool
@@ -123,6 +125,7 @@ class WindowEstimate:
     seconds: float = 0.0
     check: str = ""
     check_text: str = ""
+    scale_side: float = 0.0
 
 
 def _psd(C: np.ndarray) -> np.ndarray:
@@ -178,7 +181,10 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     shared = _psd(head - indep) if np.all(np.isfinite(head)) else np.zeros((3, 3))
     d = float(cal.distance) if cal.distance is not None else 1.0
     d_std = unc.get("distance_std")
-    hs = options.graph.height_sigma if cal.distance is not None else 0.0
+    # the scale's shared part out of the window's own: the height's prior and the
+    # stature's measured spread (the legs apart), one factor on every window alike
+    side = float(((cal.refinement or {}).get("stature") or {}).get("side_rel_diff") or 0.0)
+    hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
     priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})
@@ -193,7 +199,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         noise_px=float(priors.get("a_posteriori_sigma_px") or options.graph.pixel_sigma),
         frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
         seconds=time.perf_counter() - clock,
-        check=check.verdict if check is not None else "",
+        check=check.verdict if check is not None else "", scale_side=side,
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
 
@@ -257,6 +263,7 @@ class MirrorFusion:
     resets: int = 0
     last_reason: str = ""
     doubt: str = ""
+    scale_side: float = 0.0
     _pending: list = field(default_factory=list)
 
     @property
@@ -302,8 +309,14 @@ class MirrorFusion:
     def distance_std(self) -> float:
         if self.distance_info <= 0:
             return float("nan")
-        scale = self.height_sigma * self.distance if self.metric else 0.0
+        scale = self.scale_rel_std * self.distance if self.metric else 0.0
         return float(np.hypot(self.distance_data_std, scale))
+
+    @property
+    def scale_rel_std(self) -> float:
+        """The metric scale's relative std: the height's prior and the latest fused
+        window's measured stature spread (:attr:`WindowEstimate.scale_side`)."""
+        return float(np.hypot(self.height_sigma, self.scale_side))
 
     def _median_distance(self) -> float:
         d = np.array([x for x, _ in self.distances])
@@ -421,3 +434,4 @@ class MirrorFusion:
         if np.isfinite(w.noise_px):
             self.noise_px = w.noise_px
         self.doubt = w.check_text
+        self.scale_side = w.scale_side

@@ -85,9 +85,12 @@ def test_the_joints_std_is_honest_against_the_true_joints():
     assert np.mean(z > 3) < 0.02
     assert np.sqrt(np.mean(zm ** 2)) < rms                  # the scale's prior widens it
     m = live.mirror
-    assert m.scale_rel_std == pytest.approx(0.02)
+    # the height's 2 % and the stature's measured spread (the legs apart: small under iid)
+    side = live.fusion.scale_side
+    assert 0.0 <= side < 0.01
+    assert m.scale_rel_std == pytest.approx(np.hypot(0.02, side))
     line = json.loads(json.dumps(f.to_dict(), allow_nan=False))
-    assert line["mirror"]["scale_rel_std"] == pytest.approx(0.02)
+    assert line["mirror"]["scale_rel_std"] == pytest.approx(np.hypot(0.02, side))
     assert [s is None for s in line["joints_std"]] == [s is None for s in line["joints_std_shape"]]
 
 
