@@ -94,6 +94,7 @@ from .. import geometry as geo
 from ..errors import InputError
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
+from .frame_prior import refine_with_bones
 
 if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
@@ -124,6 +125,8 @@ class LiveOptions:
         max_buffer_frames: most frames buffered while the worker is busy (thinned evenly
             beyond; at least ``window_frames``).
         fps: frame rate for frame times where the caller gives none.
+        bone_prior: refine each frame's joints with the latest window's bone lengths
+            (:mod:`.frame_prior`); ``False``: the two rays alone.
     """
 
     calibrate: object | None = None
@@ -133,6 +136,7 @@ class LiveOptions:
     calibrated_std_deg: float = 2.0
     background: bool = False
     fps: float = 30.0
+    bone_prior: bool = True
 
     @classmethod
     def of(cls, **kwargs) -> "LiveOptions":
@@ -289,6 +293,11 @@ class LiveCalibrator:
                               fps=copts.fps or opts.fps)
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
+        self._bone_names = list(self.skeleton.bones)
+        self._bones = np.array([[self.skeleton.index(a), self.skeleton.index(b)]
+                                for a, b in self.skeleton.bones.values()], dtype=np.int64
+                               ).reshape(-1, 2)
+        self._lengths_of, self._lengths = None, None
         self.intrinsics = intrinsics
         if intrinsics is None:
             if copts.image_size is None:
@@ -462,27 +471,59 @@ class LiveCalibrator:
         idx = np.flatnonzero(seen)[ok]
         if idx.size == 0:
             return out, std, metric, True
-        X = X[ok]
-        var = self._variances(K, n, d, X, u[ok], um[ok])
+        X = rays = X[ok]
+        cov = None
+        lengths = self._bone_lengths() if self.options.bone_prior else None
+        if lengths is not None:                 # the body's bones: the per-frame prior
+            X, cov = refine_with_bones(K, n, d, rays, u[ok], um[ok], idx, self._bones,
+                                       lengths[0], self._sigma_px(), lengths[1])
+        var = self._variances(K, n, d, rays, u[ok], um[ok], cov)
         self.last_variances = var
         out[idx] = X
         std[idx] = np.sqrt(sum(v for k, v in var.items() if k != "scale"))
         metric[idx] = np.sqrt(sum(var.values()))
         return out, std, metric, True
 
-    def _variances(self, K, n, d, X, u, um) -> dict:
+    def _sigma_px(self) -> float:
+        fu = self.fusion
+        return fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
+
+    def _bone_lengths(self) -> tuple[np.ndarray, float] | None:
+        """``(lengths, sigma)``: the latest window's length of each bone of
+        ``self._bones`` (NaN where it has none) and the bones' spread, the graph's
+        ``bone_sigma`` of the height they make (Winter's fractions); ``None`` without a
+        window's lengths."""
+        found = self.fusion.bone_lengths
+        if not found:
+            return None
+        if self._lengths_of is not found:
+            from ..anthropometry import height_fractions
+
+            L = np.array([found.get(b, np.nan) for b in self._bone_names], float)
+            frac = height_fractions(self.skeleton)
+            f = np.array([frac.get(b, np.nan) for b in self._bone_names], float)
+            both = np.isfinite(L) & np.isfinite(f)
+            h = float(L[both].sum() / f[both].sum()) if both.any() else float("nan")
+            sigma = self._copts.graph.priors.bone_sigma * h
+            self._lengths = (L, sigma) if np.isfinite(sigma) and sigma > 0 else None
+            self._lengths_of = found
+        return self._lengths
+
+    def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length
-        unit squared): ``pixels`` (the two rays at the windows' reprojection noise),
+        unit squared) of the joints ``X`` triangulated from their rays ``u``, ``um``:
+        ``pixels`` (the two rays at the windows' reprojection noise, or ``cov`` where the
+        frame's joints were refined with the bones' lengths),
         ``normal`` (the fused normal's covariance through the triangulation, at what
         the windows' gauge holds fixed: the body's size with a subject height, else
         the distance) and ``scale`` (the metric scale's prior, kept apart: see the
         module docstring)."""
         fu = self.fusion
-        eye = np.eye(4)
-        sigma = fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
-        views = [geo.camera_projection(K, eye), geo.mirror_projection(K, eye, n, d)]
-        ones = np.ones(len(X), bool)
-        cov = geo.triangulation_covariance(views, X, [ones, ones], sigma)
+        if cov is None:
+            eye = np.eye(4)
+            views = [geo.camera_projection(K, eye), geo.mirror_projection(K, eye, n, d)]
+            ones = np.ones(len(X), bool)
+            cov = geo.triangulation_covariance(views, X, [ones, ones], self._sigma_px())
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
         B = geo.tangent_basis(n)
         C = B.T @ fu.normal_cov @ B

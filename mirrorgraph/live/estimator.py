@@ -104,6 +104,8 @@ class WindowEstimate:
         check_text: the check's one line where it is doubtful.
         scale_side: the stature measurement's spread in the window's calibration (its
             legs' relative difference, :func:`mirrorgraph.stature.measurement_rel_std`).
+        bone_lengths: bone name -> length the window's graph held (the unit of
+            ``distance``), for the per-frame prior (:mod:`.frame_prior`).
     """
 
     ok: bool
@@ -126,6 +128,7 @@ class WindowEstimate:
     check: str = ""
     check_text: str = ""
     scale_side: float = 0.0
+    bone_lengths: dict = field(default_factory=dict)
 
 
 def _psd(C: np.ndarray) -> np.ndarray:
@@ -200,6 +203,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
         seconds=time.perf_counter() - clock,
         check=check.verdict if check is not None else "", scale_side=side,
+        bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
 
@@ -243,6 +247,9 @@ class MirrorFusion:
         doubt: the reflection check's line of the latest window fused (or started
             from) where it doubted that the "reflection" is one (a second person
             paired as the reflection), ``""`` where it did not.
+        scale_side: the latest fused window's stature measurement spread
+            (:attr:`WindowEstimate.scale_side`).
+        bone_lengths: the latest fused window's bone lengths (the per-frame prior).
     """
 
     height_sigma: float = 0.02
@@ -264,6 +271,7 @@ class MirrorFusion:
     last_reason: str = ""
     doubt: str = ""
     scale_side: float = 0.0
+    bone_lengths: dict = field(default_factory=dict)
     _pending: list = field(default_factory=list)
 
     @property
@@ -435,3 +443,5 @@ class MirrorFusion:
             self.noise_px = w.noise_px
         self.doubt = w.check_text
         self.scale_side = w.scale_side
+        if w.bone_lengths:
+            self.bone_lengths = w.bone_lengths
