@@ -205,7 +205,9 @@ def measurement_rel_std(stature: StatureEstimate | None) -> float:
     epipolar outliers) one 3600-frame scene's right thigh came out 42 % long, the left
     5 % short, the distance 18.4 % off where the height's 2 % was its std; with this term
     its std is 14.4 % (12 scenes: largest error/std 9.2 -> 3.0). A bias that lengthens both
-    legs alike is not seen (a scene 6.1 % off at 2 %). ``0`` for ``None``."""
+    legs alike is not seen: another realistic scene's distance is 23.5 % off at 2.6 %
+    (``bench/RESULTS_scale_spread.md``; the metric scale's open problem). ``0`` for
+    ``None``."""
     return 0.0 if stature is None else float(stature.side_rel_diff)
 
 
