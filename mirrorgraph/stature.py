@@ -158,9 +158,12 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     def joint(name: str) -> np.ndarray:
         return P[:, idx[name]]
 
+    sides = ("left", "right")
+    bone = {(s, a, b): np.linalg.norm(joint(f"{s}_{a}") - joint(f"{s}_{b}"), axis=-1)
+            for s in sides for a, b in (("knee", "ankle"), ("hip", "knee"))}
+
     def both(a: str, b: str) -> np.ndarray:               # (2T,) lengths, both sides
-        return np.concatenate([np.linalg.norm(joint(f"{s}_{a}") - joint(f"{s}_{b}"), axis=-1)
-                               for s in ("left", "right")])
+        return np.concatenate([bone[(s, a, b)] for s in sides])
 
     mid_hip = 0.5 * (joint("left_hip") + joint("right_hip"))
     mid_shoulder = 0.5 * (joint("left_shoulder") + joint("right_shoulder"))
@@ -184,9 +187,8 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     unmeasured = LANDMARK_HEIGHT["ankle"] + above
     frames = int(np.sum(np.isfinite(trunk) & np.isfinite(head)))
     legs = []
-    for s in ("left", "right"):
-        parts = [_median(np.linalg.norm(joint(f"{s}_{a}") - joint(f"{s}_{b}"), axis=-1))
-                 for a, b in (("knee", "ankle"), ("hip", "knee"))]
+    for s in sides:
+        parts = [_median(bone[(s, a, b)]) for a, b in (("knee", "ankle"), ("hip", "knee"))]
         legs.append(sum(v for v, _ in parts) if min(n for _, n in parts) >= min_frames
                     else float("nan"))
     side = abs(legs[0] - legs[1]) / (legs[0] + legs[1])

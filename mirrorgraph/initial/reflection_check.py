@@ -72,6 +72,13 @@ class ReflectionCheck:
                 "(gross errors on many joints, noise beyond --threshold), or the reflection "
                 "often missing while somebody else is seen")
 
+    @classmethod
+    def from_dict(cls, record: dict) -> "ReflectionCheck":
+        """The check of its :meth:`to_dict` record (``None`` figures read as NaN)."""
+        num = {k: float("nan") if record.get(k) is None else float(record[k])
+               for k in ("paired_fraction", "grey_fraction", "median_px")}
+        return cls(frames=int(record.get("frames") or 0), verdict=record["verdict"], **num)
+
     def to_dict(self) -> dict:
         """The record in ``calibration.json`` (``input.reflection_check``)."""
         def num(v: float) -> float | None:

@@ -421,15 +421,15 @@ class LiveCalibrator:
         if reason is not None:
             self.skipped[reason[0]] += 1
             return LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
-                             np.full(J, np.nan), skipped=f"frame {fid}: {reason[1]}", latency_s=time.perf_counter() - clock,
-                             solve_s=solve_s, cpu_s=time.thread_time() - cpu)
+                             np.full(J, np.nan), skipped=f"frame {fid}: {reason[1]}",
+                             latency_s=time.perf_counter() - clock, solve_s=solve_s,
+                             cpu_s=time.thread_time() - cpu)
         self._last_id = fid
         if self.intrinsics is not None and self.intrinsics.dist is not None and len(p):
             p[..., :2] = self.intrinsics.undistort_points(p[..., :2])
-        joints3d, std, paired = nan, np.full(J, np.nan), False
-        metric = std
+        joints3d, total, shape, paired = nan, np.full(J, np.nan), np.full(J, np.nan), False
         if self.fusion.normal is not None and len(p) >= 2:
-            joints3d, std, metric, paired = self._joints(fid, p)
+            joints3d, total, shape, paired = self._joints(fid, p)
         if len(p) >= 2:
             self._buffer_ids.append(fid)
             self._buffer_people.append(p)
@@ -439,16 +439,18 @@ class LiveCalibrator:
             self.with_joints += 1
         latency, cpu = time.perf_counter() - clock, time.thread_time() - cpu
         solve_s += self._schedule()
-        return LiveFrame(index, fid, t, self.mirror, joints3d, metric, std, paired=paired,
+        return LiveFrame(index, fid, t, self.mirror, joints3d, total, shape, paired=paired,
                          latency_s=latency, solve_s=solve_s, cpu_s=cpu)
 
     # ------------------------------------------------------------------ per frame
     def _joints(self, fid: int, p: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """The frame's ``(J, 3)`` joints, their stds with and without the metric scale's
+        share (``joints_std``, ``joints_std_shape``) and whether a pair was found."""
         from ..initial.pairing import PairingOptions, pair_with_epipoles
 
         J = self.skeleton.num_joints
-        out, std, metric = np.full((J, 3), np.nan), np.full(J, np.nan), np.full(J, np.nan)
+        out, total, shape = np.full((J, 3), np.nan), np.full(J, np.nan), np.full(J, np.nan)
         K = self.K
         n, d = self.fusion.normal, float(self.fusion.distance)
         co = self._copts
@@ -460,7 +462,7 @@ class LiveCalibrator:
         seen = ((real[:, 2] >= co.min_confidence) & (mirror[:, 2] >= co.min_confidence)
                 & np.isfinite(real[:, :2]).all(1) & np.isfinite(mirror[:, :2]).all(1))
         if not seen.any():
-            return out, std, metric, False
+            return out, total, shape, False
         u, um = real[seen, :2], mirror[seen, :2]
         X = geo.triangulate_mirror(K, n, d, u, um, iterations=1)
         S = geo.reflect_points(X, n, d)
@@ -470,7 +472,7 @@ class LiveCalibrator:
             ok &= np.linalg.norm(geo.project(K, S) - um, axis=1) <= co.threshold_px
         idx = np.flatnonzero(seen)[ok]
         if idx.size == 0:
-            return out, std, metric, True
+            return out, total, shape, True
         X = rays = X[ok]
         cov = None
         lengths = self._bone_lengths() if self.options.bone_prior else None
@@ -480,9 +482,9 @@ class LiveCalibrator:
         var = self._variances(K, n, d, rays, u[ok], um[ok], cov)
         self.last_variances = var
         out[idx] = X
-        std[idx] = np.sqrt(sum(v for k, v in var.items() if k != "scale"))
-        metric[idx] = np.sqrt(sum(var.values()))
-        return out, std, metric, True
+        shape[idx] = np.sqrt(sum(v for k, v in var.items() if k != "scale"))
+        total[idx] = np.sqrt(sum(var.values()))
+        return out, total, shape, True
 
     def _sigma_px(self) -> float:
         fu = self.fusion

@@ -151,6 +151,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     """
     from ..errors import MirrorgraphError
     from ..graph.sandwich import covariance_max
+    from ..initial.reflection_check import ReflectionCheck
     from ..pipelines.mirror import calibrate
 
     clock = time.perf_counter()
@@ -191,7 +192,8 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
     priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})
-    check = _reflection_check(cal.input.get("reflection_check"))
+    record = cal.input.get("reflection_check")
+    check = ReflectionCheck.from_dict(record) if record else None
     return WindowEstimate(
         ok=True, normal=np.asarray(cal.normal, float), distance=d, cov_marginal=marginal,
         cov_indep=indep,
@@ -206,19 +208,6 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
-
-
-def _reflection_check(record: dict | None):
-    """The :class:`~mirrorgraph.initial.reflection_check.ReflectionCheck` of a
-    calibration's ``input.reflection_check`` record (``None`` where there is none)."""
-    from ..initial.reflection_check import ReflectionCheck
-
-    if not record:
-        return None
-    num = {k: float("nan") if record.get(k) is None else float(record[k])
-           for k in ("paired_fraction", "grey_fraction", "median_px")}
-    return ReflectionCheck(frames=int(record.get("frames") or 0), verdict=record["verdict"],
-                           **num)
 
 
 def _tangent(C: np.ndarray, B: np.ndarray) -> np.ndarray:
