@@ -43,6 +43,7 @@ from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
 from ..initial.pairing import pair_detections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
+from ..graph.joints_uncertainty import position_std, with_scale
 
 
 
@@ -74,6 +75,13 @@ class CalibrationRun:
         refine_parts: the refinement's uncertainty figures with their covariances
             (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`); the JSON holds
             their standard deviations (``uncertainty.robust``).
+        joints_std: ``(T, J)`` each joint's own uncertainty, the RMS length of its 3D
+            error ``sqrt(trace(joints_cov))`` (the unit of :attr:`joints3d`): the graph's
+            joints from the graph's information with the mirror's and the metric
+            scale's uncertainty, the completed ones from their two rays
+            (:mod:`mirrorgraph.graph.joints_uncertainty`); NaN where
+            :attr:`joints3d` is; ``None`` without refinement or marginals.
+        joints_cov: ``(T, J, 3, 3)`` the covariances behind :attr:`joints_std`.
     """
 
     calibration: Calibration
@@ -88,6 +96,8 @@ class CalibrationRun:
     fps_source: str = "default"
     timings: dict[str, float] = field(default_factory=dict)
     refine_parts: dict | None = None
+    joints_std: np.ndarray | None = None
+    joints_cov: np.ndarray | None = None
 
     @property
     def joints_completed(self) -> int:
@@ -404,15 +414,27 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
             "rotation's variance each unknown intrinsic makes")
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
+    cov = res.joints_cov
     if opts.complete_joints:
         clock = time.perf_counter()
+        noise = (res.priors.get("reprojection") or {}).get("a_posteriori_sigma_px")
+        noise = float(noise) if noise is not None and np.isfinite(noise) else ropts.pixel_sigma
         done = complete_mirror_joints(run.paired, calib.intrinsics.K, calib.normal,
                                       float(res.distance), res.joints3d, res.valid,
                                       joints=run.joints, min_confidence=opts.min_confidence,
-                                      threshold_px=opts.threshold_px)
+                                      threshold_px=opts.threshold_px,
+                                      pixel_sigma=noise if cov is not None else None,
+                                      plane_cov=res.plane_cov,
+                                      body_gauge=res.scale == "subject_height")
         run.joints3d, run.valid3d, run.completed = done.joints3d, done.valid, done.completed
+        if cov is not None and done.cov is not None:
+            cov = np.where(done.completed[..., None, None], done.cov, cov)
         calib.refinement["completion"] = done.to_dict()
         run.timings["completion"] = time.perf_counter() - clock
+    if cov is not None:
+        cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
+        cov[~run.valid3d] = np.nan
+        run.joints_cov, run.joints_std = cov, position_std(cov)
 
 
 #: The refinement gets every pair within this many RANSAC thresholds of the initial

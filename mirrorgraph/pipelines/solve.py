@@ -53,6 +53,7 @@ from ..graph.solve import solve
 from ..graph.solve_graph import Progress
 from ..graph.solve_state import SolveState
 from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config, single_mirror_config
+from ..graph.joints_uncertainty import graph_joints_covariance
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
 from ..keypoints import MIN_PAIRS, PairedKeypoints
 from ..stature import LIMB_CHOSEN, with_height_sigma
@@ -128,10 +129,37 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     res = finish(rig, state, opts, t_start)
     if estimate_focal:
         res.focal = focal_record(state, guess, options=opts)
+    res = with_joints_cov(res, state, opts, single_mirror_config(opts).joints_pass)
     if res.scale == "subject_height":
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
+        # the scale's relative std: the height's prior and the legs' disagreement
+        # (mirrorgraph.stature.measurement_rel_std), as the distance's std holds it
+        side = float((res.stature or {}).get("side_rel_diff", 0.0))
+        res = replace(res, scale_rel_std=float(np.hypot(opts.height_sigma, side)))
     return res
+
+
+def with_joints_cov(res: RefinementResult, state: SolveState, opts: RefineOptions,
+                    joints_pass: bool) -> RefinementResult:
+    """``res`` with each joint's covariance (:func:`~mirrorgraph.graph.joints_uncertainty.
+    graph_joints_covariance`, the globals at the headline's ratio to their marginal std)
+    and the plane's tangent covariance, in ``res``'s unit; unchanged without marginals."""
+    if not opts.marginals:
+        return res
+    t = time.perf_counter()
+    inflation = float(res.uncertainty_parts.get("ratio_to_marginal", 1.0))
+    if not np.isfinite(inflation) or inflation <= 0:
+        inflation = 1.0
+    unit = res.distance / float(state.planes[0][1])
+    cov = graph_joints_covariance(state, opts, joints_pass=joints_pass, inflation=inflation)
+    plane = np.array(state.plane_cov[0], float) * inflation ** 2
+    if state.plane_spread:
+        plane = plane + state.plane_spread[0]
+    plane[2, :] *= unit
+    plane[:, 2] *= unit
+    timings = dict(res.timings, joints_uncertainty=time.perf_counter() - t)
+    return replace(res, joints_cov=cov * unit ** 2, plane_cov=plane, timings=timings)
 
 
 def focal_record(state: SolveState, guess: Camera, index: int = 0,
