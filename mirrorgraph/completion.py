@@ -277,7 +277,10 @@ def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px
 
     Returns:
         ``sol`` with ``points`` and ``used`` filled where the graph had no joint and
-        two views or more (after rejection) observe it; the graph's joints unchanged.
+        two views or more (after rejection) observe it, and their covariance in
+        ``joints_cov`` (their rays at the solve's pixel noise,
+        :func:`~mirrorgraph.geometry.triangulation_covariance`; the rig's own
+        uncertainty not added); the graph's joints unchanged.
     """
     missing = ~np.asarray(sol.used, bool)                                  # (T, J)
     if not missing.any():
@@ -301,4 +304,11 @@ def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px
     used = np.array(sol.used, dtype=bool, copy=True)
     points[ok] = X[ok]
     used |= ok
-    return replace(sol, points=points, used=used)
+    cov = sol.joints_cov
+    if cov is not None:
+        # their rays' share at the solve's noise (the rig's own uncertainty not added)
+        cov = np.array(cov, dtype=float, copy=True)
+        noise = sol.noise_px if np.isfinite(sol.noise_px) else threshold_px / 3.0
+        cov[ok] = geo.triangulation_covariance(projections, X[ok], [k[ok] for k in kept],
+                                               noise)
+    return replace(sol, points=points, used=used, joints_cov=cov)

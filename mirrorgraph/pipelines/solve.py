@@ -377,6 +377,11 @@ class RigSolution:
         focal: camera name -> its focal length's record
             (:func:`mirrorgraph.pipelines.solve.focal_record`) for the cameras whose focal
             length was estimated.
+        joints_cov: ``(T, J, 3, 3)`` each joint's covariance
+            (:func:`~mirrorgraph.graph.joints_uncertainty.graph_joints_covariance`; the
+            completed joints' from their rays, :func:`~mirrorgraph.completion.complete_rig_joints`),
+            NaN where unknown; ``None``: not computed.
+        noise_px: the a posteriori pixel noise.
     """
 
     poses: list[np.ndarray]
@@ -402,6 +407,8 @@ class RigSolution:
     intrinsics: list[np.ndarray] = field(default_factory=list)
     focal: dict[str, dict] = field(default_factory=dict)
     sensitivity: dict = field(default_factory=dict)
+    joints_cov: np.ndarray | None = None
+    noise_px: float = float("nan")
 
     def scaled(self, factor: float) -> "RigSolution":
         """The same solution with every length multiplied by ``factor`` (> 0).
@@ -426,6 +433,7 @@ class RigSolution:
                        marginal_camera_cov=[unit @ C @ unit for C in self.marginal_camera_cov],
                        marginal_plane_cov=[d_unit @ C @ d_unit for C in self.marginal_plane_cov],
                        points=self.points * f,
+                       joints_cov=None if self.joints_cov is None else self.joints_cov * f * f,
                        bone_lengths={b: v * f for b, v in self.bone_lengths.items()})
 
 
@@ -564,7 +572,14 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
         plane_cov[i][2, 2] += extra[2, 2]
     focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
              if c.estimate_focal}
-    return RigSolution(poses=state.poses, planes=state.planes,
+    joints_cov = None
+    if options.marginals:
+        ratios = [float(p.get("ratio_to_marginal", 1.0)) for p in robust_parts.values()]
+        ratios = [r for r in ratios if np.isfinite(r) and r > 0]
+        joints_cov = graph_joints_covariance(state, options,
+                                             joints_pass=solve_config(rig, options).joints_pass,
+                                             inflation=max(ratios, default=1.0))
+    return RigSolution(joints_cov=joints_cov, noise_px=float(state.noise_px),poses=state.poses, planes=state.planes,
                        intrinsics=list(state.intrinsics), focal=focal,
                        mirror_names=[m.name for m in rig.mirrors],
                        camera_cov=camera_cov, plane_cov=plane_cov,
