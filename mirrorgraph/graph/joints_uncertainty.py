@@ -211,6 +211,7 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     offsets = np.concatenate([[0], np.cumsum(dims)])
     ncol = int(offsets[-1])
     keep = c < ncol                                            # the right-hand side aside
+    rhs_rows, rhs = r[~keep], v[~keep]
     r, c, v = r[keep], c[keep], v[keep]
     key_of_col = np.repeat(np.arange(len(keys)), dims)
     local_col = np.arange(ncol) - np.repeat(offsets[:-1], dims)
@@ -238,6 +239,7 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         off += d
     glob_row = np.array([row_of_key.get(k, -1) for k in keys])
     nz = Tb.shape[1]
+    bias_w = _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows, n_data, J, is_point)
 
     # per-frame blocks from the local rows: H_xx (Tg, 3J, 3J), H_xz (Tg, 3J, nz)
     lr_idx = np.flatnonzero(local_row)
@@ -266,6 +268,7 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     start = np.searchsorted(fr_sorted, np.arange(Tg + 1))
     marg = np.full((Tg, J, 3, 3), np.nan)           # each joint's info in its frame, inverted
     G_all = np.zeros((Tg, J, 3, nz))
+    bias = np.zeros((Tg, J, 3, 3))
     usedc = used[:, jsel]
     for a in range(0, Tg, FRAME_BATCH):
         b = min(a + FRAME_BATCH, Tg)
@@ -291,21 +294,26 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         P = _inverse(Hxx)                                                  # (n, 3Jc, 3Jc)
         blocks = P.reshape(b - a, Jc, 3, Jc, 3)[:, np.arange(Jc), :, np.arange(Jc), :]
         marg[a:b, jsel] = blocks.transpose(1, 0, 2, 3)
+        # each joint's own rays (its reprojection rows alone)
+        data = slot_data(f, slot, lr_idx[rr] < n_data, b - a, width)
+        Ad = (Ap * data[..., None]).reshape(b - a, width, Jc, 3)
+        Hjj = np.einsum("twja,twjb->tjab", Ad, Ad)
+        lam = np.linalg.eigvalsh(Hjj)
+        own = (lam[..., 0] > 1e-6 * np.maximum(lam[..., -1], 1e-300)) & usedc[a:b]
+        Hinv = np.zeros_like(Hjj)
+        Hinv[own] = np.linalg.inv(Hjj[own])
+        # the detector's bias: its rays' response, not averaged over frames
+        wb = np.zeros((b - a, width))
+        wb[f, slot] = bias_w[lr_idx[rr]]
+        Hb = np.einsum("twja,tw,twjb->tjab", Ad, wb, Ad)
+        bias[a:b, jsel] = Hinv @ Hb @ Hinv
         if nz:
-            # the response of each joint's own rays (its reprojection rows alone): a
-            # joint re-triangulated with the moved globals; where one view is left
-            # (the other down-weighted), the frame's, bones and all
+            # the globals: a joint re-triangulated with the moved globals; where one
+            # view is left (the other down-weighted), the frame's, bones and all
             G = -(P @ Hxz).reshape(b - a, Jc, 3, nz)
-            data = (lr_idx[rr] < n_data).astype(float)
-            Ad = Ap * np.where(slot_data(f, slot, data, b - a, width), 1.0, 0.0)[..., None]
-            Ad = Ad.reshape(b - a, width, Jc, 3)
             Bd = Bp * (Ad.any(-1).any(-1))[..., None]
-            Hjj = np.einsum("twja,twjb->tjab", Ad, Ad)
             Hjz = np.einsum("twja,twn->tjan", Ad, Bd)
-            lam = np.linalg.eigvalsh(Hjj)
-            own = (lam[..., 0] > 1e-6 * np.maximum(lam[..., -1], 1e-300)) & usedc[a:b]
-            Gown = np.zeros_like(G)
-            Gown[own] = -np.linalg.solve(Hjj[own], Hjz[own])
+            Gown = -(Hinv @ Hjz)
             G_all[a:b, jsel] = np.where(own[..., None, None], Gown, G)
     # the smoothness: each joint's chain of frames
     rows = None
@@ -323,7 +331,7 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         glob = np.einsum("tjan,nm,tjbm->tjab", G_all, Cz, G_all)
     elif nz:
         glob[:] = np.nan
-    cov = factor * marg + glob
+    cov = factor * marg + bias + glob
     cov[~used] = np.nan
     return cov
 
@@ -351,8 +359,47 @@ def slot_data(f: np.ndarray, slot: np.ndarray, data: np.ndarray, n: int, width: 
               ) -> np.ndarray:
     """``(n, width)`` bool: the padded rows that are reprojection rows."""
     out = np.zeros((n, width), bool)
-    out[f, slot] = data > 0
+    out[f, slot] = data
     return out
+
+
+def _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows: int, n_data: int, J: int,
+                  is_point) -> np.ndarray:
+    """``(n_rows,)`` the detector's bias variance of every reprojection row (whitened,
+    per coordinate; 0 for the other rows): ``2 |m|^2``, ``m`` the mean whitened residual
+    of the row's joint in the row's view over the video.
+
+    A detector's per-joint bias that the frames share shows in the residuals' mean across
+    the epipolar line (the two views split that inconsistency, so each residual is about
+    half of it); along the line it is invisible, and taken as large as across. Under iid
+    noise ``|m|^2`` is ``~2 / frames``."""
+    w = np.zeros(n_rows)
+    if n_data == 0:
+        return w
+    res = np.zeros(n_rows)
+    res[rhs_rows] = rhs
+    rows = np.arange(min(n_data, n_rows))
+    joint = np.full(n_rows, -1)
+    m = pt & (r < n_data)
+    joint[r[m]] = flat[m] % J
+    view = np.full(n_rows, -1)                   # the view: the largest global key it touches
+    g = ~pt & (r < n_data)
+    np.maximum.at(view, r[g], kc[g])
+    pair = rows // 2
+    fj = joint[0::2][:len(rows) // 2]
+    fv = view[0::2][:len(rows) // 2]
+    fr = res[rows].reshape(-1, 2)                                   # (factors, 2)
+    ok = fj >= 0
+    key = fj * (int(view.max()) + 2) + (fv + 1)
+    uniq, inv = np.unique(key[ok], return_inverse=True)
+    count = np.bincount(inv, minlength=len(uniq)).astype(float)
+    mean = np.stack([np.bincount(inv, fr[ok, i], minlength=len(uniq)) for i in range(2)],
+                    axis=1) / count[:, None]
+    var = 2.0 * np.sum(mean ** 2, axis=1)
+    per_factor = np.zeros(len(fr))
+    per_factor[np.flatnonzero(ok)] = var[inv]
+    w[rows] = per_factor[pair]
+    return w
 
 
 def _inverse(H: np.ndarray) -> np.ndarray:

@@ -82,6 +82,9 @@ class CalibrationRun:
             (:mod:`mirrorgraph.graph.joints_uncertainty`); NaN where
             :attr:`joints3d` is; ``None`` without refinement or marginals.
         joints_cov: ``(T, J, 3, 3)`` the covariances behind :attr:`joints_std`.
+        joints_std_shape: ``(T, J)`` :attr:`joints_std` without the metric scale's
+            share (one factor on every length, ``relative std x |X|``): the body's shape
+            and its place at the calibration's scale.
     """
 
     calibration: Calibration
@@ -98,6 +101,7 @@ class CalibrationRun:
     refine_parts: dict | None = None
     joints_std: np.ndarray | None = None
     joints_cov: np.ndarray | None = None
+    joints_std_shape: np.ndarray | None = None
 
     @property
     def joints_completed(self) -> int:
@@ -432,8 +436,9 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         calib.refinement["completion"] = done.to_dict()
         run.timings["completion"] = time.perf_counter() - clock
     if cov is not None:
+        cov = np.where(run.valid3d[..., None, None], cov, np.nan)
+        run.joints_std_shape = position_std(cov)
         cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
-        cov[~run.valid3d] = np.nan
         run.joints_cov, run.joints_std = cov, position_std(cov)
 
 
