@@ -72,6 +72,10 @@ __all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covarianc
 #: entry on its diagonal (a relative std of ~3e4 where nothing in the frame fixes it).
 RIDGE = 1e-9
 
+#: Frames per group of :func:`chain_marginals` (its loop runs ``2 N / g`` times, each a
+#: batch of ``3 g x 3 g`` solves: 2 is the fastest, measured against 3-8).
+CHAIN_GROUP = 2
+
 #: Frames whose per-frame blocks are formed at once (memory: ``frames x (3 J)^2``).
 FRAME_BATCH = 2048
 
@@ -206,8 +210,10 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     gfg = graph.linearize(values)
     trip = np.asarray(gfg.sparseJacobian_(), dtype=float)
     r, c, v = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
-    keys = sorted(int(k) for k in gfg.keyVector())
-    dims = np.array([_dim(k) for k in keys])
+    keys = np.sort(np.asarray(gfg.keyVector(), dtype=np.uint64))
+    chars = (keys >> np.uint64(56)).astype(np.int64)           # gtsam.Symbol's character
+    dims = np.where(np.isin(chars, (ord("x"), ord("p"))), 3,
+                    np.where(np.isin(chars, (ord("k"), ord("q"))), 5, 6))
     offsets = np.concatenate([[0], np.cumsum(dims)])
     ncol = int(offsets[-1])
     keep = c < ncol                                            # the right-hand side aside
@@ -215,9 +221,8 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     r, c, v = r[keep], c[keep], v[keep]
     key_of_col = np.repeat(np.arange(len(keys)), dims)
     local_col = np.arange(ncol) - np.repeat(offsets[:-1], dims)
-    is_point = np.array([gtsam.Symbol(k).chr() == ord("x") for k in keys])
-    flat_of_key = np.array([k - int(X_BASE) if p else -1 for k, p in zip(keys, is_point)],
-                           dtype=np.int64)
+    is_point = chars == ord("x")
+    flat_of_key = np.where(is_point, (keys - np.uint64(X_BASE) * is_point).astype(np.int64), -1)
     kc = key_of_col[c]
     pt = is_point[kc]
     flat = np.where(pt, flat_of_key[kc], -1)
@@ -237,7 +242,11 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     for k, d in red.graph_keys:
         row_of_key[int(k)] = off
         off += d
-    glob_row = np.array([row_of_key.get(k, -1) for k in keys])
+    glob_row = np.full(len(keys), -1, dtype=np.int64)
+    at = np.searchsorted(keys, np.array(list(row_of_key), dtype=np.uint64))
+    hit = at < len(keys)
+    hit[hit] = keys[at[hit]] == np.array(list(row_of_key), dtype=np.uint64)[hit]
+    glob_row[at[hit]] = np.array(list(row_of_key.values()), dtype=np.int64)[hit]
     nz = Tb.shape[1]
     bias_w = _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows, n_data, J, is_point)
 
@@ -266,9 +275,40 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     order = np.argsort(fr, kind="stable")
     fr_sorted = fr[order]
     start = np.searchsorted(fr_sorted, np.arange(Tg + 1))
+    # each joint's own rays (its reprojection rows alone), summed row by row
+    dr = sel & pt & (r < n_data)
+    dpos = pos[r[dr]]
+    dcol = compact[flat[dr] % J] * 3 + local_col[c[dr]]
+    Ad = np.zeros((len(lr_idx), 3))
+    Ad[dpos, dcol % 3] = v[dr]
+    cell = np.full(len(lr_idx), -1)
+    cell[dpos] = (flat[dr] // J) * Jc + dcol // 3
+    rows_d = np.flatnonzero(cell >= 0)
+    cell, Ad, Bd = cell[rows_d], Ad[rows_d], B[rows_d]
+    wb = bias_w[lr_idx[rows_d]]
+    n_cells = Tg * Jc
+
+    def summed(x: np.ndarray) -> np.ndarray:
+        flat_x = x.reshape(len(x), -1)
+        return np.stack([np.bincount(cell, flat_x[:, i], minlength=n_cells)
+                         for i in range(flat_x.shape[1])], axis=1)
+
+    outer = Ad[:, :, None] * Ad[:, None, :]
+    Hjj = summed(outer).reshape(Tg, Jc, 3, 3)
+    Hb = summed(outer * wb[:, None, None]).reshape(Tg, Jc, 3, 3)
+    lam = np.linalg.eigvalsh(Hjj)
+    own = (lam[..., 0] > 1e-6 * np.maximum(lam[..., -1], 1e-300)) & used[:, jsel]
+    Hinv = np.zeros_like(Hjj)
+    Hinv[own] = np.linalg.inv(Hjj[own])
+    # the detector's bias: its rays' response, not averaged over frames
+    bias = np.zeros((Tg, J, 3, 3))
+    bias[:, jsel] = Hinv @ Hb @ Hinv
+    Gown = None
+    if nz:
+        Hjz = summed(Ad[:, :, None] * Bd[:, None, :]).reshape(Tg, Jc, 3, nz)
+        Gown = -(Hinv @ Hjz)
     marg = np.full((Tg, J, 3, 3), np.nan)           # each joint's info in its frame, inverted
     G_all = np.zeros((Tg, J, 3, nz))
-    bias = np.zeros((Tg, J, 3, 3))
     usedc = used[:, jsel]
     for a in range(0, Tg, FRAME_BATCH):
         b = min(a + FRAME_BATCH, Tg)
@@ -294,27 +334,11 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         P = _inverse(Hxx)                                                  # (n, 3Jc, 3Jc)
         blocks = P.reshape(b - a, Jc, 3, Jc, 3)[:, np.arange(Jc), :, np.arange(Jc), :]
         marg[a:b, jsel] = blocks.transpose(1, 0, 2, 3)
-        # each joint's own rays (its reprojection rows alone)
-        data = slot_data(f, slot, lr_idx[rr] < n_data, b - a, width)
-        Ad = (Ap * data[..., None]).reshape(b - a, width, Jc, 3)
-        Hjj = np.einsum("twja,twjb->tjab", Ad, Ad)
-        lam = np.linalg.eigvalsh(Hjj)
-        own = (lam[..., 0] > 1e-6 * np.maximum(lam[..., -1], 1e-300)) & usedc[a:b]
-        Hinv = np.zeros_like(Hjj)
-        Hinv[own] = np.linalg.inv(Hjj[own])
-        # the detector's bias: its rays' response, not averaged over frames
-        wb = np.zeros((b - a, width))
-        wb[f, slot] = bias_w[lr_idx[rr]]
-        Hb = np.einsum("twja,tw,twjb->tjab", Ad, wb, Ad)
-        bias[a:b, jsel] = Hinv @ Hb @ Hinv
         if nz:
             # the globals: a joint re-triangulated with the moved globals; where one
             # view is left (the other down-weighted), the frame's, bones and all
             G = -(P @ Hxz).reshape(b - a, Jc, 3, nz)
-            Bd = Bp * (Ad.any(-1).any(-1))[..., None]
-            Hjz = np.einsum("twja,twn->tjan", Ad, Bd)
-            Gown = -(Hinv @ Hjz)
-            G_all[a:b, jsel] = np.where(own[..., None, None], Gown, G)
+            G_all[a:b, jsel] = np.where(own[a:b, :, None, None], Gown[a:b], G)
     # the smoothness: each joint's chain of frames
     rows = None
     if cross_row.any():
@@ -353,14 +377,6 @@ def _without_scale(G: np.ndarray, points: np.ndarray, used: np.ndarray) -> np.nd
         return G
     k = np.einsum("tja,tjan->n", dX, (G - Gc) * w[..., None]) / den
     return G - X[..., None] * k[None, None, None, :]
-
-
-def slot_data(f: np.ndarray, slot: np.ndarray, data: np.ndarray, n: int, width: int
-              ) -> np.ndarray:
-    """``(n, width)`` bool: the padded rows that are reprojection rows."""
-    out = np.zeros((n, width), bool)
-    out[f, slot] = data
-    return out
 
 
 def _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows: int, n_data: int, J: int,
@@ -487,19 +503,19 @@ def _with_smoothness(marg: np.ndarray, used: np.ndarray, rows: tuple, J: int) ->
     bounds = np.flatnonzero(np.diff(rs)) + 1
     starts = np.concatenate([[0], bounds])
     counts = np.diff(np.concatenate([starts, [len(rs)]]))
-    diag = np.zeros((J, N, 3, 3))
-    off1 = np.zeros((J, N, 3, 3))
-    off2 = np.zeros((J, N, 3, 3))
+    band = np.zeros((3, J, N, 3, 3))                 # H[i, i + k] for k = 0, 1, 2
+    size = band.size
     width = int(counts.max()) if len(counts) else 0
     for p in range(width):
         for q in range(width):
             m = counts > max(p, q)
             ip, iq = starts[m] + p, starts[m] + q
-            w = vs[ip] * vs[iq]
             dk = idx[iq] - idx[ip]
-            for k, target in ((0, diag), (1, off1), (2, off2)):
-                s = dk == k
-                np.add.at(target, (j[ip][s], idx[ip][s], axis[ip][s], axis[iq][s]), w[s])
+            s = (dk >= 0) & (dk <= 2)
+            ip, iq, dk = ip[s], iq[s], dk[s]
+            at = np.ravel_multi_index((dk, j[ip], idx[ip], axis[ip], axis[iq]), band.shape)
+            band += np.bincount(at, vs[ip] * vs[iq], minlength=size).reshape(band.shape)
+    diag, off1, off2 = band
     # the per-frame information on the diagonal, identity on the padding
     t_of = np.full((J, N), -1)
     for jj in range(J):
@@ -520,46 +536,52 @@ def _with_smoothness(marg: np.ndarray, used: np.ndarray, rows: tuple, J: int) ->
     return out
 
 
-def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray) -> np.ndarray:
+def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
+                    group: int = CHAIN_GROUP) -> np.ndarray:
     """The diagonal ``3 x 3`` blocks of the inverse of block-banded information matrices.
 
     Each of ``B`` chains of ``N`` blocks has ``H[i, i] = diag[i]``, ``H[i, i + 1] =
     off1[i]``, ``H[i, i + 2] = off2[i]`` (and their transposes): the smoothness over a
-    joint's consecutive estimates. Pairs of blocks make it block-tridiagonal with
-    ``6 x 6`` blocks ``D_k``, ``U_k = H[k, k + 1]``; the information the chain above
-    block ``k`` leaves on it, ``F_k = D_k - U_{k-1}^T F_{k-1}^-1 U_{k-1}``, and the chain
-    below, ``E_k = D_k - U_k E_{k+1}^-1 U_k^T``, give its marginal covariance
-    ``(F_k + E_k - D_k)^-1`` (the two sides are independent given block ``k``).
-    ``O(N)`` batched ``6 x 6`` solves.
+    joint's consecutive estimates. Groups of ``g`` blocks (``g >= 2``) make it
+    block-tridiagonal with ``3 g x 3 g`` blocks ``D_k``, ``U_k = H[k, k + 1]``; the
+    information the chain above block ``k`` leaves on it, ``F_k = D_k - U_{k-1}^T
+    F_{k-1}^-1 U_{k-1}``, and the chain below, ``E_k = D_k - U_k E_{k+1}^-1 U_k^T``, give
+    its marginal covariance ``(F_k + E_k - D_k)^-1`` (the two sides are independent
+    given block ``k``). ``2 N / g`` batched solves.
 
     Args:
         diag, off1, off2: ``(B, N, 3, 3)``; the entries past a chain's end are ignored
             (``off1[N-1]``, ``off2[N-2:]``).
+        group: ``g``, blocks per group.
 
     Returns:
         ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``.
     """
+    g = max(int(group), 2)
     Bn, N = diag.shape[:2]
-    M = (N + 1) // 2
-    pad = 2 * M - N
-    if pad:
-        eye = np.broadcast_to(np.eye(3), (Bn, pad, 3, 3))
-        diag = np.concatenate([diag, eye], axis=1)
-        off1 = np.concatenate([off1, np.zeros((Bn, pad, 3, 3))], axis=1)
-        off2 = np.concatenate([off2, np.zeros((Bn, pad, 3, 3))], axis=1)
-    off1 = off1.copy()
-    off2 = off2.copy()
-    off1[:, -1] = 0.0
-    off2[:, -2:] = 0.0
-    D = np.zeros((Bn, M, 6, 6))
-    D[:, :, :3, :3] = diag[:, 0::2]
-    D[:, :, 3:, 3:] = diag[:, 1::2]
-    D[:, :, :3, 3:] = off1[:, 0::2]
-    D[:, :, 3:, :3] = np.swapaxes(off1[:, 0::2], -1, -2)
-    U = np.zeros((Bn, M, 6, 6))                      # U[k] = H[pair k, pair k + 1]
-    U[:, :, :3, :3] = off2[:, 0::2]
-    U[:, :, 3:, :3] = off1[:, 1::2]
-    U[:, :, 3:, 3:] = off2[:, 1::2]
+    M = -(-N // g)
+    pad = M * g - N
+    eye = np.broadcast_to(np.eye(3), (Bn, pad, 3, 3))
+    zero = np.zeros((Bn, pad, 3, 3))
+    diag = np.concatenate([diag, eye], axis=1)
+    off1 = np.concatenate([off1, zero], axis=1)
+    off2 = np.concatenate([off2, zero], axis=1)
+    off1[:, N - 1:] = 0.0
+    off2[:, max(N - 2, 0):] = 0.0
+    # H as (B, M, g, 3, 3) blocks within a group (D) and to the next group (U)
+    D = np.zeros((Bn, M, g, g, 3, 3))
+    U = np.zeros((Bn, M, g, g, 3, 3))
+    d, o1, o2 = (x.reshape(Bn, M, g, 3, 3) for x in (diag, off1, off2))
+    for i in range(g):
+        D[:, :, i, i] = d[:, :, i]
+        for k, o in ((1, o1), (2, o2)):
+            if i + k < g:
+                D[:, :, i, i + k] = o[:, :, i]
+                D[:, :, i + k, i] = np.swapaxes(o[:, :, i], -1, -2)
+            else:
+                U[:, :, i, i + k - g] = o[:, :, i]
+    D = D.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
+    U = U.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
     Ut = np.swapaxes(U, -1, -2)
     F = np.empty_like(D)
     E = np.empty_like(D)
@@ -569,11 +591,9 @@ def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray) -> np.
     E[:, M - 1] = D[:, M - 1]
     for k in range(M - 2, -1, -1):
         E[:, k] = D[:, k] - U[:, k] @ np.linalg.solve(E[:, k + 1], Ut[:, k])
-    C = np.linalg.inv(F + E - D)                                            # (B, M, 6, 6)
-    out = np.empty((Bn, 2 * M, 3, 3))
-    out[:, 0::2] = C[:, :, :3, :3]
-    out[:, 1::2] = C[:, :, 3:, 3:]
-    return out[:, :N]
+    C = np.linalg.inv(F + E - D).reshape(Bn, M, g, 3, g, 3)
+    out = C[:, :, np.arange(g), :, np.arange(g), :]                    # (g, B, M, 3, 3)
+    return out.transpose(1, 2, 0, 3, 4).reshape(Bn, M * g, 3, 3)[:, :N]
 
 
 # --------------------------------------------------------------------------- triangulated
