@@ -62,11 +62,12 @@ from .optimizer import reduced_covariance_matrix
 from .options import RefineOptions
 from .problem import X_BASE, GraphProblem, snap_virtual_poses
 from .reduction import mirror_reduction
-from .rig import spread_rows
+from .rig import Rig, spread_rows, with_views
 from .solve_state import SolveState
 
 __all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covariance",
-           "mirror_plane_projections", "with_scale", "position_std", "globals_covariance"]
+           "mirror_plane_projections", "view_projections", "with_scale", "position_std",
+           "globals_covariance"]
 
 #: A joint's per-frame information gets this fraction of its frame's largest diagonal
 #: entry on its diagonal (a relative std of ~3e4 where nothing in the frame fixes it).
@@ -155,15 +156,18 @@ def _dim(key: int) -> int:
 
 
 def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pass: bool,
-                            inflation: float = 1.0) -> np.ndarray:
+                            inflation: float = 1.0, rig: Rig | None = None) -> np.ndarray:
     """The covariance of every joint the graph estimated (the module docstring).
 
     Args:
-        state: the driver's solution (:func:`~.solve.solve`), its ``problem`` kept.
+        state: the driver's solution (:func:`~.solve.solve`), its ``problem`` kept; a
+            long video's chunks (``problem`` ``None``, :mod:`.chunked`) are built again
+            chunk by chunk, as the chunks' joints pass builds them, from ``rig``.
         opts: the solve's options (the joints pass's priors: its smoothness, bones, hip).
         joints_pass: the output joints come from the joints pass
             (:func:`~.stages.joints_pass`; else from the last full-graph stage).
         inflation: the globals' headline std over their marginal one.
+        rig: the solved rig (its intrinsics the solution's): needed for chunked solves.
 
     Returns:
         ``(T, J, 3, 3)`` graph units squared, the frames of ``state.points``; NaN where
@@ -176,7 +180,7 @@ def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pa
     T, J = np.shape(state.used)
     out = np.full((T, J, 3, 3), np.nan)
     if problem is None:
-        return out
+        return _chunked(state, opts, joints_pass, inflation, rig, out)
     Tg = problem.used.shape[0]
     rows = np.arange(T) if Tg == T else np.flatnonzero(spread_rows(T, opts.max_graph_frames))
     if len(rows) != Tg:
@@ -198,6 +202,63 @@ def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pa
                             state.scale == "subject_height", smooth)
     out[rows] = cov
     out[~np.asarray(state.used, bool)] = np.nan
+    return out
+
+
+def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflation: float,
+             rig: Rig | None, out: np.ndarray) -> np.ndarray:
+    """:func:`graph_joints_covariance` of a long video solved in chunks: each chunk's
+    graph built again as :mod:`.chunked` builds its joints pass (the final mirror and
+    bone lengths held, the last stage's kernel), one chunk in memory at a time."""
+    from .builder import build_problem, with_motion_priors
+    from .chunked import chunk_ranges
+
+    if rig is None or len(state.planes) != 1 or not len(state.view_masks):
+        return out
+    T = out.shape[0]
+    kernel = next((s.get("kernel") for s in reversed(state.stages) if "kernel" in s), None)
+    sigma = opts.joints_smoothness_sigma
+    use_pass = joints_pass and sigma is not None
+    smooth = (SmoothnessFactor(state.body_height * sigma, opts.smoothness_max_gap)
+              if use_pass else None)
+    used = np.asarray(state.used, bool)
+    for a, b in chunk_ranges(T, opts.max_graph_frames):
+        keep = used[a:b] & np.isfinite(state.points[a:b]).all(-1)
+        masks = [np.asarray(m, bool)[a:b] for m in state.view_masks]
+        if np.count_nonzero(keep) == 0:
+            continue
+        crig = with_views(rig.subset(slice(a, b)), masks)
+        base = build_problem(crig, np.asarray(state.points[a:b], float), keep, state.planes,
+                             replace(opts, use_bone_length=False, subject_height=None),
+                             body_height=state.body_height, final_kernel=kernel)
+        snap_virtual_poses(base, base.values)
+        graph_problem, values = base, base.values
+        if use_pass:
+            graph_problem = with_motion_priors(base, values, state.bone_lengths,
+                                               replace(opts, use_smoothness=False))
+            values = graph_problem.values
+        red = mirror_reduction(graph_problem, distance_gauge=None)
+        Cz = globals_covariance(state, list(red.z_keys), inflation)
+        out[a:b] = _graph_covariance(graph_problem, values, red, Cz,
+                                     float(state.variance_factor),
+                                     np.asarray(state.points[a:b], float),
+                                     state.scale == "subject_height", smooth)
+    out[~used] = np.nan
+    return out
+
+
+def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
+                     ) -> list[np.ndarray]:
+    """Each view's ``(3, 4)`` world-to-pixel matrix of a solved rig (a camera's own, or
+    through its mirror)."""
+    out = []
+    for v in rig.views:
+        c = rig.camera_index(v.camera)
+        K = np.asarray(rig.cameras[c].K, float)
+        if v.mirror is None:
+            out.append(geo.camera_projection(K, poses[c]))
+        else:
+            out.append(geo.mirror_projection(K, poses[c], *planes[rig.mirror_index(v.mirror)]))
     return out
 
 

@@ -53,7 +53,8 @@ from ..graph.solve import solve
 from ..graph.solve_graph import Progress
 from ..graph.solve_state import SolveState
 from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config, single_mirror_config
-from ..graph.joints_uncertainty import graph_joints_covariance
+from .. import geometry as geo
+from ..graph.joints_uncertainty import graph_joints_covariance, view_projections
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
 from ..keypoints import MIN_PAIRS, PairedKeypoints
 from ..stature import LIMB_CHOSEN, with_height_sigma
@@ -129,7 +130,7 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     res = finish(rig, state, opts, t_start)
     if estimate_focal:
         res.focal = focal_record(state, guess, options=opts)
-    res = with_joints_cov(res, state, opts, single_mirror_config(opts).joints_pass)
+    res = with_joints_cov(res, state, opts, single_mirror_config(opts).joints_pass, rig)
     if res.scale == "subject_height":
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
@@ -141,7 +142,7 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
 
 
 def with_joints_cov(res: RefinementResult, state: SolveState, opts: RefineOptions,
-                    joints_pass: bool) -> RefinementResult:
+                    joints_pass: bool, rig: Rig | None = None) -> RefinementResult:
     """``res`` with each joint's covariance (:func:`~mirrorgraph.graph.joints_uncertainty.
     graph_joints_covariance`, the globals at the headline's ratio to their marginal std)
     and the plane's tangent covariance, in ``res``'s unit; unchanged without marginals."""
@@ -152,7 +153,8 @@ def with_joints_cov(res: RefinementResult, state: SolveState, opts: RefineOption
     if not np.isfinite(inflation) or inflation <= 0:
         inflation = 1.0
     unit = res.distance / float(state.planes[0][1])
-    cov = graph_joints_covariance(state, opts, joints_pass=joints_pass, inflation=inflation)
+    cov = graph_joints_covariance(state, opts, joints_pass=joints_pass, inflation=inflation,
+                                  rig=rig)
     plane = np.array(state.plane_cov[0], float) * inflation ** 2
     if state.plane_spread:
         plane = plane + state.plane_spread[0]
@@ -578,7 +580,17 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
         ratios = [r for r in ratios if np.isfinite(r) and r > 0]
         joints_cov = graph_joints_covariance(state, options,
                                              joints_pass=solve_config(rig, options).joints_pass,
-                                             inflation=max(ratios, default=1.0))
+                                             inflation=max(ratios, default=1.0),
+                                             rig=with_intrinsics(rig, state.intrinsics))
+        # the frames outside the graph (a long video's spread subset): their rays
+        outside = state.used & ~np.isfinite(joints_cov).all((-2, -1))
+        if outside.any():
+            views = view_projections(with_intrinsics(rig, state.intrinsics), state.poses,
+                                     state.planes)
+            joints_cov[outside] = geo.triangulation_covariance(
+                views, state.points[outside],
+                [np.asarray(v.mask, bool)[outside] for v in rig.views],
+                state.noise_px if np.isfinite(state.noise_px) else options.pixel_sigma)
     return RigSolution(joints_cov=joints_cov, noise_px=float(state.noise_px),poses=state.poses, planes=state.planes,
                        intrinsics=list(state.intrinsics), focal=focal,
                        mirror_names=[m.name for m in rig.mirrors],
