@@ -41,7 +41,10 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-FIXTURES = ROOT.parent / "shared" / "fixtures"
+#: ``../shared/fixtures`` beside the clone (a worktree's clone one level deeper)
+FIXTURES = next((p for p in (ROOT.parent / "shared" / "fixtures",
+                             ROOT.parents[1] / "shared" / "fixtures") if p.is_dir()),
+                ROOT.parent / "shared" / "fixtures")
 
 
 def score(run, truth: np.ndarray) -> dict:
@@ -138,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--noise", nargs="+", default=["iid", "realistic"])
     ap.add_argument("--no-fixtures", action="store_true")
+    ap.add_argument("--fixtures", type=Path, default=FIXTURES, help="the fixtures' folder")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
     warnings.filterwarnings("ignore")
@@ -152,8 +156,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{noise} {seed}: {type(exc).__name__}: {exc}", flush=True)
                 continue
             print("\n".join(table([rows[-1]])[2:]), flush=True)
-    if not args.no_fixtures and FIXTURES.is_dir():
-        for folder in sorted(p for p in FIXTURES.iterdir() if (p / "truth.json").is_file()):
+    if not args.no_fixtures and args.fixtures.is_dir():
+        for folder in sorted(p for p in args.fixtures.iterdir() if (p / "truth.json").is_file()):
             rows.append(fixture_case(folder))
             print("\n".join(table([rows[-1]])[2:]), flush=True)
     lines = table(rows)

@@ -67,7 +67,7 @@ from .solve_state import SolveState
 
 __all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covariance",
            "mirror_plane_projections", "view_projections", "with_scale", "position_std",
-           "globals_covariance"]
+           "globals_covariance", "with_disagreement", "DISAGREEMENT_CHI2"]
 
 #: A joint's per-frame information gets this fraction of its frame's largest diagonal
 #: entry on its diagonal (a relative std of ~3e4 where nothing in the frame fixes it).
@@ -94,6 +94,51 @@ def with_scale(cov: np.ndarray, points: np.ndarray, rel_std: float) -> np.ndarra
     point: the camera, or a rig's world frame)."""
     X = np.asarray(points, float)
     return np.asarray(cov, float) + float(rel_std) ** 2 * X[..., :, None] * X[..., None, :]
+
+
+#: A joint whose graph estimate and its own rays' triangulation differ by more than this
+#: squared Mahalanobis distance (their two covariances summed) is one the data do not
+#: support (:func:`with_disagreement`): ``chi^2`` of three degrees of freedom at 0.99, the
+#: usual level of an outlier test (at 0.999, 16.27, the fixtures' joints' error/std had a
+#: 99th percentile of 3.54 against 3.01 here: ``bench/RESULTS_joints_std.md``).
+DISAGREEMENT_CHI2 = 11.34
+
+
+def with_disagreement(cov: np.ndarray, points: np.ndarray, rays: np.ndarray,
+                      rays_cov: np.ndarray, threshold: float = DISAGREEMENT_CHI2
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Covariances widened where a joint and its own rays disagree.
+
+    The graph's joint ``X`` rests on its rays and the priors; where its two observations'
+    own triangulation ``X_r`` lies farther from it than both covariances allow
+    (``d^T (C + C_r)^-1 d > threshold``, ``d = X - X_r``), either the priors hold the joint
+    somewhere its data are not (a depth the bones and the smoothness chose wrongly, a
+    run of frames the graph followed off its observations) or the observations are
+    wrong (an outlier the graph set aside): which, nothing in the frame says, and the
+    covariance gains ``d d^T``. On one of the independent generator's scenes the joints
+    more than 0.3 m off had a median squared distance of 18.6, the others 0.7
+    (``bench/RESULTS_joints_std.md``).
+
+    Args:
+        cov: ``(..., 3, 3)`` the joints' covariances; points: ``(..., 3)`` the joints.
+        rays, rays_cov: ``(..., 3)`` their two-ray triangulations and ``(..., 3, 3)``
+            covariances (NaN where not seen in both views: unchanged).
+        threshold: the squared distance beyond which a joint is widened.
+
+    Returns:
+        the covariances and ``(...,)`` bool, the joints widened.
+    """
+    cov = np.array(cov, dtype=float, copy=True)
+    d = np.asarray(points, float) - np.asarray(rays, float)
+    C = cov + np.asarray(rays_cov, float)
+    ok = np.isfinite(d).all(-1) & np.isfinite(C).all((-2, -1))
+    m2 = np.zeros(ok.shape)
+    if ok.any():
+        Ci = np.linalg.pinv(C[ok], hermitian=True)
+        m2[ok] = np.einsum("ni,nij,nj->n", d[ok], Ci, d[ok])
+    wide = ok & (m2 > float(threshold))
+    cov[wide] += d[wide][:, :, None] * d[wide][:, None, :]
+    return cov, wide
 
 
 # --------------------------------------------------------------------------- globals

@@ -43,7 +43,9 @@ from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
 from ..initial.pairing import pair_detections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
-from ..graph.joints_uncertainty import position_std, with_scale
+from ..geometry import triangulate_mirror
+from ..graph.joints_uncertainty import (mirror_plane_projections, position_std,
+                                       triangulated_covariance, with_disagreement, with_scale)
 
 
 
@@ -419,10 +421,12 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
     cov = res.joints_cov
+    noise = (res.priors.get("reprojection") or {}).get("a_posteriori_sigma_px")
+    noise = float(noise) if noise is not None and np.isfinite(noise) else ropts.pixel_sigma
+    if cov is not None:
+        cov = _with_own_rays(run, calib, res, cov, noise, opts.min_confidence)
     if opts.complete_joints:
         clock = time.perf_counter()
-        noise = (res.priors.get("reprojection") or {}).get("a_posteriori_sigma_px")
-        noise = float(noise) if noise is not None and np.isfinite(noise) else ropts.pixel_sigma
         done = complete_mirror_joints(run.paired, calib.intrinsics.K, calib.normal,
                                       float(res.distance), res.joints3d, res.valid,
                                       joints=run.joints, min_confidence=opts.min_confidence,
@@ -440,6 +444,26 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         run.joints_std_shape = position_std(cov)
         cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
         run.joints_cov, run.joints_std = cov, position_std(cov)
+
+
+def _with_own_rays(run: CalibrationRun, calib: Calibration, res, cov: np.ndarray,
+                   noise: float, min_confidence: float) -> np.ndarray:
+    """The graph's joints' covariances widened where their own two observations disagree
+    with them (:func:`mirrorgraph.graph.joints_uncertainty.with_disagreement`)."""
+    P = run.paired
+    seen = (res.valid & (P.real[..., 2] >= min_confidence) & (P.mirror[..., 2] >= min_confidence)
+            & np.isfinite(P.real[..., :2]).all(-1) & np.isfinite(P.mirror[..., :2]).all(-1))
+    if not seen.any():
+        return cov
+    t, j = np.nonzero(seen)
+    K = calib.intrinsics.K
+    u, um = P.real[t, j, :2], P.mirror[t, j, :2]
+    Xr = triangulate_mirror(K, calib.normal, float(res.distance), u, um)
+    Cr = triangulated_covariance(mirror_plane_projections(K, calib.normal, float(res.distance)),
+                                 None, Xr, [u, um], [np.ones(len(t), bool)] * 2, noise)
+    out = np.array(cov, dtype=float, copy=True)
+    out[t, j], _ = with_disagreement(cov[t, j], res.joints3d[t, j], Xr, Cr)
+    return out
 
 
 #: The refinement gets every pair within this many RANSAC thresholds of the initial
