@@ -19,8 +19,8 @@ the share of joints more than 0.3 m off with their ratio.
 
 Usage::
 
-    python bench/bench_joints_std.py                         # ~6 min on 2 busy cores
-    python bench/bench_joints_std.py --seeds 3 --frames 300 --no-write
+    python bench/bench_joints_std.py                         # ~10 min on 2 busy cores
+    python bench/bench_joints_std.py --seeds 3 --frames 300 --cost --no-write
 
 Writes ``bench/RESULTS_joints_std.md`` (machine, command, date, tables).
 """
@@ -101,6 +101,32 @@ def fixture_case(folder: Path) -> dict:
     return out
 
 
+def cost_case(frames: int) -> dict:
+    """One wide iid scene of ``frames`` frames: the whole call's wall and CPU seconds (this
+    process: a long video's chunk workers are not counted) and the joints' uncertainty's."""
+    import mirrorgraph as mg
+    from mirrorgraph.synth import make_wide_scene
+
+    sc = make_wide_scene(0, "wide", "iid", frames)
+    c, t = time.process_time(), time.perf_counter()
+    run = mg.calibrate(sc.detections, mg.Intrinsics(K=sc.K, image_size=sc.image_size),
+                       mg.CalibrateOptions(subject_height=sc.subject_height))
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+    ok = run.valid3d
+    return {"frames": frames, "wall": wall, "cpu": cpu,
+            "std": float(run.timings.get("joints_uncertainty", np.nan)),
+            "covered": f"{int(np.isfinite(run.joints_std[ok]).sum())} / {int(ok.sum())}"}
+
+
+def cost_table(rows: list[dict]) -> list[str]:
+    out = ["| frames | calibrate wall s | CPU s (this process) | joints' uncertainty s | share "
+           "of wall | joints with a std |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['frames']} | {r['wall']:.1f} | {r['cpu']:.1f} | {r['std']:.2f} | "
+                   f"{100 * r['std'] / r['wall']:.0f} % | {r['covered']} |")
+    return out
+
+
 def summary(z: np.ndarray) -> str:
     if not len(z):
         return "- | - | - | -"
@@ -143,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-fixtures", action="store_true")
     ap.add_argument("--fixtures", type=Path, default=FIXTURES, help="the fixtures' folder")
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--cost", type=int, nargs="*", default=[1000, 16000],
+                    help="frames of the scenes timed alone (none: no timing)")
     args = ap.parse_args(argv)
     warnings.filterwarnings("ignore")
     started = datetime.datetime.now(datetime.timezone.utc)
@@ -160,7 +188,11 @@ def main(argv: list[str] | None = None) -> int:
         for folder in sorted(p for p in args.fixtures.iterdir() if (p / "truth.json").is_file()):
             rows.append(fixture_case(folder))
             print("\n".join(table([rows[-1]])[2:]), flush=True)
-    lines = table(rows)
+    lines = table(rows) if rows else []
+    costs = [cost_case(f) for f in args.cost]
+    if costs:
+        lines += ["", "Time (one wide iid scene each, timed alone; wall seconds on the shared "
+                  "machine):", ""] + cost_table(costs)
     print("\n".join(lines))
     if args.no_write:
         return 0

@@ -203,11 +203,6 @@ def _solution_values(state: SolveState, rows: np.ndarray) -> gtsam.Values:
     return values
 
 
-def _dim(key: int) -> int:
-    c = gtsam.Symbol(key).chr()
-    return 3 if c in (ord("x"), ord("p")) else 5 if c in (ord("k"), ord("q")) else 6
-
-
 def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pass: bool,
                             inflation: float = 1.0, rig: Rig | None = None) -> np.ndarray:
     """The covariance of every joint the graph estimated (the module docstring).
@@ -351,7 +346,7 @@ def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.nd
 def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.ndarray,
                       factor: float, points: np.ndarray, body_gauge: bool,
                       smooth: SmoothnessFactor | None = None) -> np.ndarray:
-    """``(Tg, J, 3, 3)`` of the graph's joints (the module docstring's two terms)."""
+    """``(Tg, J, 3, 3)`` of the graph's joints: the module docstring's first three parts."""
     Tg, J = problem.used.shape
     graph = problem.full()
     gfg = graph.linearize(values)

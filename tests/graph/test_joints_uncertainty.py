@@ -140,3 +140,32 @@ def test_low_parallax_joints_are_covered_too(wide_run):
     z = np.linalg.norm(f * X - truth, axis=-1) / (f * run.joints_std_shape[ok])
     low = angle <= np.percentile(angle, 10)
     assert np.median(z[low]) < 1.5 and np.percentile(z[low], 99) < 3.0
+
+
+def test_a_video_solved_in_chunks_has_its_stds_too(monkeypatch):
+    """Longer than one graph (here 200 frames a graph): the chunks' joints get theirs."""
+    from mirrorgraph.graph import RefineOptions
+
+    warnings.filterwarnings("ignore")
+    sc = make_wide_scene(1, "wide", "iid", 450)
+    opts = mg.CalibrateOptions(subject_height=sc.subject_height)
+    opts.refine_options = RefineOptions(max_graph_frames=200, chunk_block_frames=50)
+    import mirrorgraph.graph.joints_uncertainty as ju
+
+    seen = []
+    chunked = ju._chunked
+
+    def spy(*args):
+        seen.append(True)
+        return chunked(*args)
+
+    monkeypatch.setattr(ju, "_chunked", spy)
+    run = mg.calibrate(sc.detections, mg.Intrinsics(K=sc.K, image_size=sc.image_size), opts)
+    assert seen                                        # the chunks' path was taken
+    ok = run.valid3d
+    assert np.isfinite(run.joints_std[ok]).all() and np.isnan(run.joints_std[~ok]).all()
+    truth = np.asarray(sc.joints3d, float)
+    f = np.sum(truth[ok] * run.joints3d[ok]) / np.sum(run.joints3d[ok] ** 2)
+    zs = (np.linalg.norm(f * run.joints3d - truth, axis=-1)[ok]
+          / (f * run.joints_std_shape[ok]))
+    assert 0.3 < np.median(zs) < 1.5 and np.percentile(zs, 99) < 3.0
