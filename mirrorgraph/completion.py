@@ -82,6 +82,10 @@ class Completion:
         completed: ``(T, J)`` bool, the entries filled here.
         candidates: entries seen in both views that the graph did not estimate.
         rejected_reprojection, rejected_body: candidates dropped by each gate.
+        cov: ``(T, J, 3, 3)`` the completed entries' covariance (their two rays at the
+            pixel noise and the plane's uncertainty through the triangulation,
+            :func:`mirrorgraph.graph.joints_uncertainty.triangulated_covariance`), NaN
+            elsewhere; ``None`` where no pixel noise was given.
     """
 
     joints3d: np.ndarray
@@ -90,6 +94,7 @@ class Completion:
     candidates: int = 0
     rejected_reprojection: int = 0
     rejected_body: int = 0
+    cov: np.ndarray | None = None
 
     @property
     def count(self) -> int:
@@ -162,8 +167,10 @@ def anchor_gate(points: np.ndarray, known: np.ndarray, new: np.ndarray, *,
 
 def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.ndarray,
                            distance: float, joints3d: np.ndarray, valid: np.ndarray, *,
-                           joints: np.ndarray, min_confidence: float, threshold_px: float
-                           ) -> Completion:
+                           joints: np.ndarray, min_confidence: float, threshold_px: float,
+                           pixel_sigma: float | None = None,
+                           plane_cov: np.ndarray | None = None,
+                           body_gauge: bool = False) -> Completion:
     """Triangulate, with the solved mirror, the keypoints outside the graph's joint set.
 
     Args:
@@ -179,6 +186,13 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
             rejections stand).
         min_confidence: both detections need at least this confidence.
         threshold_px: reprojection gate, pixels in each view.
+        pixel_sigma: the keypoints' noise, px: with it, each completed point's
+            covariance (:attr:`Completion.cov`).
+        plane_cov: ``(3, 3)`` the plane's covariance in GTSAM's tangent of
+            :class:`gtsam.OrientedPlane3` (normal directions, then the distance, the
+            distance in the unit of ``joints3d``); ``None``: the rays' share alone.
+        body_gauge: the scale is the subject's (its stature on the joints takes back a
+            change of the body's size, which the plane's share then leaves out).
 
     Returns:
         :class:`Completion`.
@@ -208,6 +222,18 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
     out.rejected_body = int(np.count_nonzero(new & ~keep))
     points[new & ~keep] = np.nan
     out.joints3d, out.valid, out.completed = points, known | keep, keep
+    if pixel_sigma is not None:
+        from .graph.joints_uncertainty import mirror_plane_projections, triangulated_covariance
+
+        tk, jk = np.nonzero(keep)
+        cov = np.full((T, J, 3, 3), np.nan)
+        cov[tk, jk] = triangulated_covariance(
+            mirror_plane_projections(K, n, float(distance)),
+            None if plane_cov is None else np.asarray(plane_cov, float), points[tk, jk],
+            [paired.real[tk, jk, :2], paired.mirror[tk, jk, :2]],
+            [np.ones(len(tk), bool)] * 2, float(pixel_sigma),
+            frames=tk if body_gauge else None)
+        out.cov = cov
     return out
 
 
@@ -251,7 +277,10 @@ def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px
 
     Returns:
         ``sol`` with ``points`` and ``used`` filled where the graph had no joint and
-        two views or more (after rejection) observe it; the graph's joints unchanged.
+        two views or more (after rejection) observe it, and their covariance in
+        ``joints_cov`` (their rays at the solve's pixel noise,
+        :func:`~mirrorgraph.geometry.triangulation_covariance`; the rig's own
+        uncertainty not added); the graph's joints unchanged.
     """
     missing = ~np.asarray(sol.used, bool)                                  # (T, J)
     if not missing.any():
@@ -275,4 +304,11 @@ def complete_rig_joints(obs: "RigObservations", sol: "RigSolution", threshold_px
     used = np.array(sol.used, dtype=bool, copy=True)
     points[ok] = X[ok]
     used |= ok
-    return replace(sol, points=points, used=used)
+    cov = sol.joints_cov
+    if cov is not None:
+        # their rays' share at the solve's noise (the rig's own uncertainty not added)
+        cov = np.array(cov, dtype=float, copy=True)
+        noise = sol.noise_px if np.isfinite(sol.noise_px) else threshold_px / 3.0
+        cov[ok] = geo.triangulation_covariance(projections, X[ok], [k[ok] for k in kept],
+                                               noise)
+    return replace(sol, points=points, used=used, joints_cov=cov)

@@ -162,7 +162,8 @@ def cmd_calibrate(args) -> int:
             raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
         write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
                        run.paired.skeleton.joints, run.fps,
-                       unit="m" if calib.distance is not None else "mirror distance")
+                       unit="m" if calib.distance is not None else "mirror distance",
+                       joints_std=run.joints_std)
     report_line = None
     if args.report:
         from ..report import make_report

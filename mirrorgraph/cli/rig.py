@@ -163,7 +163,8 @@ def cmd_calibrate_rig(args) -> int:
         from ..skeletons import skeleton_by_name
         write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
                        skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
-                       unit="m" if calib.scale == "subject_height" else "subject height")
+                       unit="m" if calib.scale == "subject_height" else "subject height",
+                       joints_std=calib.joints_std)
     written = None
     if args.report:
         from ..report.rig import write_rig_report

@@ -126,6 +126,15 @@ class RefinementResult:
             search's), ``principal_point`` (and ``principal_point_std_px`` where it was
             estimated), ``undetermined`` (the figures found, where the guess was kept);
             empty where the intrinsics were given.
+        joints_cov: ``(T, J, 3, 3)`` each joint's covariance (unit of ``distance``
+            squared; :mod:`.joints_uncertainty`), the metric scale's share left out
+            (``scale_rel_std``); NaN where not estimated; ``None``: not computed.
+        plane_cov: ``(3, 3)`` the plane's covariance in GTSAM's tangent of
+            :class:`gtsam.OrientedPlane3` (two normal directions, the distance), the
+            headline's, scaled as ``distance``: what a joint triangulated with the
+            plane inherits; ``None``: not computed.
+        scale_rel_std: the metric scale's relative std (the subject's height and
+            the stature measured on the joints; 0 without a subject height).
     """
 
     normal: np.ndarray
@@ -153,3 +162,6 @@ class RefinementResult:
     sensitivity: dict = field(default_factory=dict)
     intrinsics: np.ndarray | None = None
     focal: dict = field(default_factory=dict)
+    joints_cov: np.ndarray | None = None
+    plane_cov: np.ndarray | None = None
+    scale_rel_std: float = 0.0

@@ -13,9 +13,18 @@ What is in the file, as Pose2Sim's ``common.create_c3d_file`` writes it from a
 * the point rate is the frame rate of the motion.
 
 Two differences, both for fidelity: the points are stored as 32-bit floats
-(``POINT:SCALE = -1``; Pose2Sim's ``point_scale=1.0`` stores 16-bit integers of
+(``POINT:SCALE`` negative; Pose2Sim's ``point_scale=1.0`` stores 16-bit integers of
 1 mm, which rounds every marker by up to 0.5 mm), and a joint missing in a frame
-is written as C3D's invalid point (residual ``-1``) rather than NaN. C3D counts
+is written as C3D's invalid point (residual ``-1``) rather than NaN.
+
+**Residuals**: given each joint's std (``joints_std``, the run's
+:attr:`~mirrorgraph.pipelines.mirror.CalibrationRun.joints_std`), a valid point's
+residual is that std in millimetres; otherwise 0 (C3D's "no estimate"). C3D stores a
+residual as one byte times ``|POINT:SCALE|`` (the scale applies to nothing else for
+float points), which readers (``c3d``, ``ezc3d``) return in the point's unit: the
+scale is ``-s`` with ``s`` the smallest whole number of millimetres that holds the
+largest std in 255 steps (``s = 1``: steps of 1 mm up to 255 mm), every residual at
+least one step (a residual of 0 marks a modelled point). C3D counts
 frames from 1 at the point rate: the first frame (``TRIAL:ACTUAL_START_FIELD`` and
 the header) is ``f // step + 1`` for the input's first frame number ``f``, so that
 C3D frame ``k`` is at time ``(k - 1) / rate`` as frame ``f`` is at ``f / fps``
@@ -51,7 +60,8 @@ def require_c3d():
 
 def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
               frame_ids: np.ndarray | None, joint_names: Sequence[str], fps: float | None,
-              unit: str = "m", *, marker_names: Sequence[str] | None = None) -> None:
+              unit: str = "m", *, marker_names: Sequence[str] | None = None,
+              joints_std: np.ndarray | None = None) -> None:
     """Write 3D joints as a C3D file (millimetres, Y up; see the module docstring).
 
     Args:
@@ -64,6 +74,8 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
         fps: frame rate of the frame numbers, Hz (required).
         unit: ``m``, ``cm`` or ``mm`` (anything else is refused: C3D needs lengths).
         marker_names: marker names instead of Pose2Sim's.
+        joints_std: ``(T, J)`` each joint's std in ``unit`` (NaN: unknown), written as
+            the points' residuals (the module docstring); ``None``: residuals 0.
 
     Raises:
         InputError: no frame rate, or a non-metric unit.
@@ -89,10 +101,11 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     at = (ids - rows[0]) // step
     mm[at] = 1000.0 * factor * to_trc_axes(np.where(ok[..., None], X, 0.0))
     good[at] = ok
+    residual, scale = _residuals(joints_std, ok, at, (T, J), 1000.0 * factor)
     # per point: x, y, z, residual (-1: invalid), camera mask
-    points = np.concatenate([mm, np.where(good, 0.0, -1.0)[..., None], np.zeros((T, J, 1))],
-                            axis=-1)
-    writer = c3d.Writer(point_rate=float(fps) / step, analog_rate=0, point_scale=-1.0,
+    points = np.concatenate([mm, np.where(good, residual, -1.0)[..., None],
+                             np.zeros((T, J, 1))], axis=-1)
+    writer = c3d.Writer(point_rate=float(fps) / step, analog_rate=0, point_scale=-scale,
                         point_units="mm", gen_scale=1.0)
     writer.set_point_labels(markers)
     writer.set_screen_axis(X="+Z", Y="+Y")
@@ -103,3 +116,22 @@ def write_c3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray |
     with atomic_path(path) as tmp, open(tmp, "wb") as fh, warnings.catch_warnings():
         warnings.simplefilter("ignore")     # c3d warns about fields it fills itself
         writer.write(fh)
+
+
+def _residuals(joints_std: np.ndarray | None, ok: np.ndarray, at: np.ndarray,
+               shape: tuple[int, int], to_mm: float) -> tuple[np.ndarray, float]:
+    """``(T, J)`` residuals in millimetres on C3D's byte grid and the grid's step ``s``
+    (mm, ``POINT:SCALE = -s``): the stds rounded to steps of ``s``, at least one step; 0
+    where unknown."""
+    out = np.zeros(shape)
+    if joints_std is None:
+        return out, 1.0
+    std = np.asarray(joints_std, dtype=float)
+    if std.shape != ok.shape:
+        raise ValueError(f"joints_std has shape {std.shape}, the joints {ok.shape}")
+    mm = np.where(ok & np.isfinite(std), std * to_mm, np.nan)
+    top = float(np.nanmax(mm)) if np.isfinite(mm).any() else 0.0
+    scale = max(1.0, float(np.ceil(top / 255.0)))
+    steps = np.where(np.isfinite(mm), np.clip(np.rint(mm / scale), 1, 255), 0.0)
+    out[at] = steps * scale
+    return out, scale

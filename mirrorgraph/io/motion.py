@@ -9,14 +9,18 @@ format      content
 ``.npz``    ``joints3d`` ``(T, J, 3)`` float (NaN where invalid), ``valid``
             ``(T, J)`` bool, ``frame_ids`` ``(T,)`` int64, ``joint_names``
             ``(J,)`` str, ``fps`` float (NaN if unknown), ``unit`` str,
-            ``frame`` str (the coordinate frame, in words). Real camera frame.
+            ``frame`` str (the coordinate frame, in words); with each joint's
+            uncertainty ``joints_std`` ``(T, J)`` float, ``unit`` (NaN where
+            invalid or unknown). Real camera frame.
 ``.csv``    header ``frame,time,<joint>_x,<joint>_y,<joint>_z,...`` (canonical
             joint names), one row per frame; ``time = frame / fps`` (empty if
             the frame rate is unknown); empty fields where a joint is invalid.
             Real camera frame, the unit of the data.
 ``.trc``    OpenSim marker file as Pose2Sim writes it (below). Metres, Y up.
+            The format has no field for a marker's uncertainty: none is written.
 ``.c3d``    C3D with the ``.trc``'s markers, axes and Pose2Sim's units
-            (millimetres), :mod:`mirrorgraph.io.c3d_writer` (``c3d`` extra).
+            (millimetres), :mod:`mirrorgraph.io.c3d_writer` (``c3d`` extra);
+            each joint's std as its point's residual (mm).
 ``.bvh``    BVH: a hierarchy built from the skeleton, one length a bone,
             joint rotations from the 3D positions, root translation in metres,
             the ``.trc``'s axes (Y up), :mod:`mirrorgraph.io.bvh_writer`.
@@ -102,7 +106,8 @@ def check_motion_path(path: str | os.PathLike, metric: bool | None) -> None:
 def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
                    frame_ids: np.ndarray | None, joint_names: Sequence[str],
                    fps: float | None, unit: str = "m", *,
-                   marker_names: Sequence[str] | None = None) -> None:
+                   marker_names: Sequence[str] | None = None,
+                   joints_std: np.ndarray | None = None) -> None:
     """Write 3D joints over time; the format follows the suffix of ``path``.
 
     Args:
@@ -120,6 +125,9 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
             ``m``, ``cm``, ``mm`` (converted to their own unit).
         marker_names: ``.trc`` and ``.c3d`` only: marker names to use instead of
             :func:`trc_marker_name` of ``joint_names``.
+        joints_std: ``(T, J)`` each joint's std in ``unit``: ``.npz`` (``joints_std``)
+            and ``.c3d`` (the points' residuals) only; the other formats have no place
+            for it.
 
     Raises:
         InputError: unknown suffix, ``.trc`` / ``.c3d`` / ``.bvh`` without a frame
@@ -129,7 +137,8 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     """
     suffix = Path(path).suffix.lower()
     if suffix == ".npz":
-        write_joints3d_npz(path, joints3d, valid, frame_ids, joint_names, fps, unit)
+        write_joints3d_npz(path, joints3d, valid, frame_ids, joint_names, fps, unit,
+                           joints_std=joints_std)
     elif suffix == ".csv":
         write_joints3d_csv(path, joints3d, valid, frame_ids, joint_names, fps)
     elif suffix == ".trc":
@@ -138,7 +147,7 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     elif suffix == ".c3d":
         from .c3d_writer import write_c3d
         write_c3d(path, joints3d, valid, frame_ids, joint_names, fps, unit,
-                  marker_names=marker_names)
+                  marker_names=marker_names, joints_std=joints_std)
     elif suffix == ".bvh":
         from .bvh_writer import write_bvh
         write_bvh(path, joints3d, valid, frame_ids, joint_names, fps, unit)
@@ -149,16 +158,24 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
 
 def write_joints3d_npz(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
                        frame_ids: np.ndarray | None, joint_names: Sequence[str],
-                       fps: float | None, unit: str = "m") -> None:
+                       fps: float | None, unit: str = "m", *,
+                       joints_std: np.ndarray | None = None) -> None:
     """``.npz`` with ``joints3d``, ``valid``, ``frame_ids``, ``joint_names``, ``fps``,
-    ``unit`` and ``frame`` (see the module docstring)."""
+    ``unit`` and ``frame``, and ``joints_std`` where given (see the module docstring)."""
     X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
+    extra = {}
+    if joints_std is not None:
+        std = np.asarray(joints_std, dtype=float)
+        if std.shape != ok.shape:
+            raise ValueError(f"joints_std has shape {std.shape}, the joints {ok.shape}")
+        extra["joints_std"] = np.where(ok, std, np.nan)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, joints3d=X, valid=ok, frame_ids=ids,
                                 joint_names=np.array(names, dtype=str),
                                 fps=np.float64(np.nan if fps is None else fps),
-                                unit=np.array(str(unit)), frame=np.array(CAMERA_FRAME))
+                                unit=np.array(str(unit)), frame=np.array(CAMERA_FRAME),
+                                **extra)
 
 
 def write_joints3d_csv(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,

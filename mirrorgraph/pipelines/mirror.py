@@ -44,6 +44,9 @@ from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
 from ..initial.pairing import pair_detections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
+from ..geometry import triangulate_mirror
+from ..graph.joints_uncertainty import (mirror_plane_projections, position_std,
+                                       triangulated_covariance, with_disagreement, with_scale)
 
 
 
@@ -75,6 +78,16 @@ class CalibrationRun:
         refine_parts: the refinement's uncertainty figures with their covariances
             (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`); the JSON holds
             their standard deviations (``uncertainty.robust``).
+        joints_std: ``(T, J)`` each joint's own uncertainty, the RMS length of its 3D
+            error ``sqrt(trace(joints_cov))`` (the unit of :attr:`joints3d`): the graph's
+            joints from the graph's information with the mirror's and the metric
+            scale's uncertainty, the completed ones from their two rays
+            (:mod:`mirrorgraph.graph.joints_uncertainty`); NaN where
+            :attr:`joints3d` is; ``None`` without refinement or marginals.
+        joints_cov: ``(T, J, 3, 3)`` the covariances behind :attr:`joints_std`.
+        joints_std_shape: ``(T, J)`` :attr:`joints_std` without the metric scale's
+            share (one factor on every length, ``relative std x |X|``): the body's shape
+            and its place at the calibration's scale.
     """
 
     calibration: Calibration
@@ -89,6 +102,9 @@ class CalibrationRun:
     fps_source: str = "default"
     timings: dict[str, float] = field(default_factory=dict)
     refine_parts: dict | None = None
+    joints_std: np.ndarray | None = None
+    joints_cov: np.ndarray | None = None
+    joints_std_shape: np.ndarray | None = None
 
     @property
     def joints_completed(self) -> int:
@@ -410,15 +426,50 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
             "rotation's variance each unknown intrinsic makes")
     run.joints3d, run.valid3d = res.joints3d, res.valid
     run.inliers = res.inliers
+    cov = res.joints_cov
+    noise = (res.priors.get("reprojection") or {}).get("a_posteriori_sigma_px")
+    noise = float(noise) if noise is not None and np.isfinite(noise) else ropts.pixel_sigma
+    if cov is not None:
+        cov = _with_own_rays(run, calib, res, cov, noise, opts.min_confidence)
     if opts.complete_joints:
         clock = time.perf_counter()
         done = complete_mirror_joints(run.paired, calib.intrinsics.K, calib.normal,
                                       float(res.distance), res.joints3d, res.valid,
                                       joints=run.joints, min_confidence=opts.min_confidence,
-                                      threshold_px=opts.threshold_px)
+                                      threshold_px=opts.threshold_px,
+                                      pixel_sigma=noise if cov is not None else None,
+                                      plane_cov=res.plane_cov,
+                                      body_gauge=res.scale == "subject_height")
         run.joints3d, run.valid3d, run.completed = done.joints3d, done.valid, done.completed
+        if cov is not None and done.cov is not None:
+            cov = np.where(done.completed[..., None, None], done.cov, cov)
         calib.refinement["completion"] = done.to_dict()
         run.timings["completion"] = time.perf_counter() - clock
+    if cov is not None:
+        cov = np.where(run.valid3d[..., None, None], cov, np.nan)
+        run.joints_std_shape = position_std(cov)
+        cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
+        run.joints_cov, run.joints_std = cov, position_std(cov)
+
+
+def _with_own_rays(run: CalibrationRun, calib: Calibration, res, cov: np.ndarray,
+                   noise: float, min_confidence: float) -> np.ndarray:
+    """The graph's joints' covariances widened where their own two observations disagree
+    with them (:func:`mirrorgraph.graph.joints_uncertainty.with_disagreement`)."""
+    P = run.paired
+    seen = (res.valid & (P.real[..., 2] >= min_confidence) & (P.mirror[..., 2] >= min_confidence)
+            & np.isfinite(P.real[..., :2]).all(-1) & np.isfinite(P.mirror[..., :2]).all(-1))
+    if not seen.any():
+        return cov
+    t, j = np.nonzero(seen)
+    K = calib.intrinsics.K
+    u, um = P.real[t, j, :2], P.mirror[t, j, :2]
+    Xr = triangulate_mirror(K, calib.normal, float(res.distance), u, um)
+    Cr = triangulated_covariance(mirror_plane_projections(K, calib.normal, float(res.distance)),
+                                 None, Xr, [u, um], [np.ones(len(t), bool)] * 2, noise)
+    out = np.array(cov, dtype=float, copy=True)
+    out[t, j], _ = with_disagreement(cov[t, j], res.joints3d[t, j], Xr, Cr)
+    return out
 
 
 #: The refinement gets every pair within this many RANSAC thresholds of the initial

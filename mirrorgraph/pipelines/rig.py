@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..graph.joints_uncertainty import position_std, with_scale
 from ..graph.options import RefineOptions
 from .options import CalibrateOptions
 from .judge import judge_rig
@@ -146,7 +147,15 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                             for v, r, k, n in zip(sol.view_names, sol.view_rms_px,
                                                   sol.view_counts, sol.view_observed)}}
     refinement["stature"] = stature.to_dict() if stature is not None else None
-    return RigCalibration(cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+    joints_std = None
+    if sol.joints_cov is not None:
+        # the metric scale's share: the height's prior and the legs' disagreement
+        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature)))
+               if height is not None else 0.0)
+        cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
+        cov[~np.asarray(sol.used, bool)] = np.nan
+        joints_std = position_std(cov)
+    return RigCalibration(joints_std=joints_std,cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
                           scale_source=scale_source,
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
                           joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,

@@ -68,7 +68,8 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
 
     Returns:
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
-        multiplied by ``height / measured stature`` (the std widened by the
+        multiplied by ``height / measured stature`` (``joints_cov`` by its square, the
+        distance's part of ``plane_cov`` as the distance) (the std widened by the
         measurement's own spread, :func:`mirrorgraph.stature.measurement_rel_std`) and
         ``scale_source``/``stature`` set; unchanged but for ``scale_source`` when the
         stature cannot be measured.
@@ -89,7 +90,14 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
     # the measurement's own spread (the legs measured apart) on top of the height's prior
     dstd = with_height_sigma(res.distance_std * f, res.distance * f,
                              measurement_rel_std(stature))
+    plane = None
+    if res.plane_cov is not None:
+        plane = np.array(res.plane_cov, float)
+        plane[2, :] *= f
+        plane[:, 2] *= f
     return replace(res, distance=res.distance * f, joints3d=res.joints3d * f,
+                   joints_cov=None if res.joints_cov is None else res.joints_cov * f * f,
+                   plane_cov=plane,
                    bone_lengths={b: v * f for b, v in res.bone_lengths.items()},
                    distance_std=dstd, scale_source=source, stature=record)
 

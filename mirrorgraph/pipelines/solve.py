@@ -53,6 +53,8 @@ from ..graph.solve import solve
 from ..graph.solve_graph import Progress
 from ..graph.solve_state import SolveState
 from ..graph.stage_config import INITIAL_REJECTION_FACTOR, rig_config, single_mirror_config
+from .. import geometry as geo
+from ..graph.joints_uncertainty import graph_joints_covariance, view_projections
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
 from ..keypoints import MIN_PAIRS, PairedKeypoints
 from ..stature import LIMB_CHOSEN, with_height_sigma
@@ -128,10 +130,38 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     res = finish(rig, state, opts, t_start)
     if estimate_focal:
         res.focal = focal_record(state, guess, options=opts)
+    res = with_joints_cov(res, state, opts, single_mirror_config(opts).joints_pass, rig)
     if res.scale == "subject_height":
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
+        # the scale's relative std: the height's prior and the legs' disagreement
+        # (mirrorgraph.stature.measurement_rel_std), as the distance's std holds it
+        side = float((res.stature or {}).get("side_rel_diff", 0.0))
+        res = replace(res, scale_rel_std=float(np.hypot(opts.height_sigma, side)))
     return res
+
+
+def with_joints_cov(res: RefinementResult, state: SolveState, opts: RefineOptions,
+                    joints_pass: bool, rig: Rig | None = None) -> RefinementResult:
+    """``res`` with each joint's covariance (:func:`~mirrorgraph.graph.joints_uncertainty.
+    graph_joints_covariance`, the globals at the headline's ratio to their marginal std)
+    and the plane's tangent covariance, in ``res``'s unit; unchanged without marginals."""
+    if not opts.marginals:
+        return res
+    t = time.perf_counter()
+    inflation = float(res.uncertainty_parts.get("ratio_to_marginal", 1.0))
+    if not np.isfinite(inflation) or inflation <= 0:
+        inflation = 1.0
+    unit = res.distance / float(state.planes[0][1])
+    cov = graph_joints_covariance(state, opts, joints_pass=joints_pass, inflation=inflation,
+                                  rig=rig)
+    plane = np.array(state.plane_cov[0], float) * inflation ** 2
+    if state.plane_spread:
+        plane = plane + state.plane_spread[0]
+    plane[2, :] *= unit
+    plane[:, 2] *= unit
+    timings = dict(res.timings, joints_uncertainty=time.perf_counter() - t)
+    return replace(res, joints_cov=cov * unit ** 2, plane_cov=plane, timings=timings)
 
 
 def focal_record(state: SolveState, guess: Camera, index: int = 0,
@@ -349,6 +379,11 @@ class RigSolution:
         focal: camera name -> its focal length's record
             (:func:`mirrorgraph.pipelines.solve.focal_record`) for the cameras whose focal
             length was estimated.
+        joints_cov: ``(T, J, 3, 3)`` each joint's covariance
+            (:func:`~mirrorgraph.graph.joints_uncertainty.graph_joints_covariance`; the
+            completed joints' from their rays, :func:`~mirrorgraph.completion.complete_rig_joints`),
+            NaN where unknown; ``None``: not computed.
+        noise_px: the a posteriori pixel noise.
     """
 
     poses: list[np.ndarray]
@@ -374,6 +409,8 @@ class RigSolution:
     intrinsics: list[np.ndarray] = field(default_factory=list)
     focal: dict[str, dict] = field(default_factory=dict)
     sensitivity: dict = field(default_factory=dict)
+    joints_cov: np.ndarray | None = None
+    noise_px: float = float("nan")
 
     def scaled(self, factor: float) -> "RigSolution":
         """The same solution with every length multiplied by ``factor`` (> 0).
@@ -398,6 +435,7 @@ class RigSolution:
                        marginal_camera_cov=[unit @ C @ unit for C in self.marginal_camera_cov],
                        marginal_plane_cov=[d_unit @ C @ d_unit for C in self.marginal_plane_cov],
                        points=self.points * f,
+                       joints_cov=None if self.joints_cov is None else self.joints_cov * f * f,
                        bone_lengths={b: v * f for b, v in self.bone_lengths.items()})
 
 
@@ -536,7 +574,24 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
         plane_cov[i][2, 2] += extra[2, 2]
     focal = {c.name: focal_record(state, c, i, options) for i, c in enumerate(rig.cameras)
              if c.estimate_focal}
-    return RigSolution(poses=state.poses, planes=state.planes,
+    joints_cov = None
+    if options.marginals:
+        ratios = [float(p.get("ratio_to_marginal", 1.0)) for p in robust_parts.values()]
+        ratios = [r for r in ratios if np.isfinite(r) and r > 0]
+        joints_cov = graph_joints_covariance(state, options,
+                                             joints_pass=solve_config(rig, options).joints_pass,
+                                             inflation=max(ratios, default=1.0),
+                                             rig=with_intrinsics(rig, state.intrinsics))
+        # the frames outside the graph (a long video's spread subset): their rays
+        outside = state.used & ~np.isfinite(joints_cov).all((-2, -1))
+        if outside.any():
+            views = view_projections(with_intrinsics(rig, state.intrinsics), state.poses,
+                                     state.planes)
+            joints_cov[outside] = geo.triangulation_covariance(
+                views, state.points[outside],
+                [np.asarray(v.mask, bool)[outside] for v in rig.views],
+                state.noise_px if np.isfinite(state.noise_px) else options.pixel_sigma)
+    return RigSolution(joints_cov=joints_cov, noise_px=float(state.noise_px),poses=state.poses, planes=state.planes,
                        intrinsics=list(state.intrinsics), focal=focal,
                        mirror_names=[m.name for m in rig.mirrors],
                        camera_cov=camera_cov, plane_cov=plane_cov,

@@ -139,6 +139,10 @@ class RigCalibration:
         frame_ids: ``(T,)`` rig frames.
         joints3d: ``(T, J, 3)`` joints, world frame, length unit; NaN where unknown.
         valid: ``(T, J)`` bool.
+        joints_std: ``(T, J)`` each joint's own uncertainty, the RMS length of its 3D
+            error (the length unit; :mod:`mirrorgraph.graph.joints_uncertainty`, the
+            metric scale's share included), NaN where unknown; ``None``: not computed
+            (not kept in the JSON).
         bone_lengths: bone -> length.
         initialisation: the pairwise edges, spanning tree and mirror sightings.
         refinement: iterations, rejected observations, priors, timings.
@@ -164,6 +168,7 @@ class RigCalibration:
     source: str = ""
     scale_source: str = ""
     sensitivity: dict[str, Any] = field(default_factory=dict)
+    joints_std: np.ndarray | None = None
 
     def camera(self, name: str) -> RigCamera:
         """The camera called ``name``."""

@@ -172,3 +172,15 @@ def test_same_input_gives_byte_identical_output(scene_dir, tmp_path):
         outs.append((out.read_bytes(), j3d.read_bytes(),
                      (tmp_path / str(k) / "cal.report.npz").read_bytes()))
     assert outs[0] == outs[1]
+
+
+def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
+    j3d = tmp_path / "j.npz"
+    assert main(["calibrate", str(scene_dir / "easymocap"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--out", str(tmp_path / "cal.json"),
+                 "--subject-height", "1.7", "--joints3d", str(j3d), "--quiet"]) == 0
+    z = np.load(j3d)
+    valid, std = z["valid"], z["joints_std"]
+    assert std.shape == valid.shape and valid.any()
+    assert np.isfinite(std[valid]).all() and np.isnan(std[~valid]).all()
+    assert np.all(std[valid] > 0) and np.median(std[valid]) < 1.0      # metres, sane

@@ -90,6 +90,17 @@ def test_three_dimensional_joints_in_the_world_frame(four_cams):
     assert np.median(err) < 0.03
 
 
+def test_every_joint_has_a_std_that_covers_its_error(four_cams):
+    rig, _, cal = four_cams
+    assert cal.joints_std is not None and cal.joints_std.shape == cal.valid.shape
+    ok = cal.valid
+    assert np.isfinite(cal.joints_std[ok]).all() and np.isnan(cal.joints_std[~ok]).all()
+    err = np.linalg.norm(cal.joints3d[ok] - rig.joints3d[ok], axis=-1)
+    z = err / cal.joints_std[ok]
+    # the metric std (the height known to 2 %) never thin; not wildly wide either
+    assert np.percentile(z, 99) < 3.0 and np.median(z) > 0.05
+
+
 @pytest.mark.parametrize("kind", ["2cams1mirror", "1cam2mirrors"])
 def test_rigs_with_mirrors(tmp_path, kind):
     rig = make_rig(kind, frames=200, seed=1, noise_std=4.0)

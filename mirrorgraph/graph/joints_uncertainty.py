@@ -1,0 +1,830 @@
+"""Each output joint's own uncertainty: its ``3 x 3`` covariance in every frame.
+
+The joints a run outputs are the graph's (the joints pass: every global held, the tight
+smoothness, every bone in every frame; or the last full-graph stage where a
+configuration has no joints pass). Their covariance is that graph's, linearised at the
+solution (whitened rows, the robust kernel's weights applied, so an observation the
+kernel gave up on carries no information), in four parts:
+
+    Cov(x) = s^2 H_xx^-1  +  B  +  G C_z G^T   (+ d d^T where the rays disagree)
+
+* **the data and the priors**, ``H_xx^-1``: the joints' information from their views,
+  the bones, the hip and the smoothness, scaled by the noise the data show
+  (``s^2 = (noise / pixel_sigma)^2``, the driver's variance factor). Each frame's joints
+  are eliminated together (the bones and the hip couple them), each joint keeps its own
+  ``3 x 3`` information in that frame, and the chain of one joint's frames with its
+  smoothness factors (second differences over three consecutive estimates: a block band
+  of width two) is inverted exactly by a two-sweep block recursion
+  (:func:`chain_marginals`). Left out is the smoothness of a joint's neighbours reaching
+  it through the bones: information dropped, so this part is larger than the exact
+  marginal, never smaller (an exact one needs a ``(3 T J)^2`` inverse);
+* **the detector's bias**, ``B``: a per-joint offset the frames share does not average
+  out over the smoothness's frames as noise does; its size is read from the residuals'
+  mean per joint and view (:func:`_bias_weights`) and taken through the joint's own rays;
+* **the globals**, ``G C_z G^T``: ``C_z`` the covariance of the reduced globals (planes,
+  estimated camera poses and intrinsics, :func:`~.reduction.mirror_reduction`): the
+  calibration's marginal one (:func:`~.optimizer.reduced_covariance_matrix`, scaled by
+  the noise), widened as the headline figure was (``inflation``: the sandwich's ratio
+  to the marginal std, :mod:`.uncertainty`), plus the spread the estimated intrinsics'
+  headline adds (:func:`~.marginals.intrinsics_spread`); ``G`` the joint's response, each
+  joint re-triangulated from its own rays (the frame's system where one view is left).
+  With a subject height the change of the body's size is taken out of ``G``
+  (:func:`_without_scale`): the stature's rescale takes it back, and the metric scale's
+  own uncertainty is a part of its own. (Propagated with the bones held instead, a tilt
+  of the mirror that the data allow pulled the joints against their bones: 3 times
+  their true error on a wide scene);
+* **disagreement** (the single-mirror run): where the graph's joint and its own two
+  rays' triangulation lie farther apart than both covariances allow, ``d d^T``
+  (:func:`with_disagreement`).
+
+This is the marginal of a Gaussian whose joints are independent given the globals
+(Bishop 2006, sec. 2.3.3), cheap: ``O(T J^3)``. The joints that the graph left out and
+a triangulation filled in (:mod:`mirrorgraph.completion`, the frames outside a long
+video's graph) have their two or more rays' covariance
+(:func:`~mirrorgraph.geometry.triangulation_covariance`) with the globals propagated
+the same way (:func:`triangulated_covariance`). The metric scale's relative std ``r``
+(the subject's height known to ``height_sigma`` and the stature's own spread, one factor
+on every length) adds ``r^2 X X^T`` (:func:`with_scale`).
+
+The figure a user reads, :func:`position_std`, is the RMS length of the joint's 3D
+error, ``sqrt(trace(Sigma))`` (metres with a subject height), as the live run's
+``joints_std`` (:mod:`mirrorgraph.live.calibrator`): ``|X - X_true| / std`` then has an
+RMS of 1 whatever the covariance's shape, a median of 0.89 for an isotropic one and 0.67
+for one long axis (the usual low-parallax depth), 99 % under 1.9-2.6. (The per-axis
+``sqrt(trace / 3)`` puts a Gaussian's median ratio at 1.54; the largest axis's std at
+0.67-1.54 by the shape.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable
+
+import gtsam
+import numpy as np
+
+from .. import geometry as geo
+from ..factors import plane_from_gtsam, plane_to_gtsam
+from ..factors.smoothness import SmoothnessFactor
+from .optimizer import reduced_covariance_matrix
+from .options import RefineOptions
+from .problem import X_BASE, GraphProblem, snap_virtual_poses
+from .reduction import mirror_reduction
+from .rig import Rig, spread_rows
+from .solve_state import SolveState
+
+__all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covariance",
+           "mirror_plane_projections", "view_projections", "with_scale", "position_std",
+           "globals_covariance", "with_disagreement", "DISAGREEMENT_CHI2"]
+
+#: A joint's per-frame information gets this fraction of its frame's largest diagonal
+#: entry on its diagonal (a relative std of ~3e4 where nothing in the frame fixes it).
+RIDGE = 1e-9
+
+#: Frames per group of :func:`chain_marginals` (its loop runs ``2 N / g`` times, each a
+#: batch of ``3 g x 3 g`` solves: 2 is the fastest, measured against 3-8).
+CHAIN_GROUP = 2
+
+#: Frames whose per-frame blocks are formed at once (memory: ``frames x (3 J)^2``).
+FRAME_BATCH = 2048
+
+
+def position_std(cov: np.ndarray) -> np.ndarray:
+    """``(...,)`` the RMS length of a point's 3D error, ``sqrt(trace(cov))``, from
+    ``(..., 3, 3)`` covariances (NaN stays NaN)."""
+    tr = np.trace(np.asarray(cov, float), axis1=-2, axis2=-1)
+    return np.sqrt(np.where(np.isfinite(tr), np.maximum(tr, 0.0), np.nan))
+
+
+def with_scale(cov: np.ndarray, points: np.ndarray, rel_std: float) -> np.ndarray:
+    """``(..., 3, 3)`` covariances with a pure scale error of relative std ``rel_std``
+    added: ``cov + rel_std^2 X X^T`` (``X`` ``(..., 3)``, the origin the scale's fixed
+    point: the camera, or a rig's world frame)."""
+    X = np.asarray(points, float)
+    return np.asarray(cov, float) + float(rel_std) ** 2 * X[..., :, None] * X[..., None, :]
+
+
+#: A joint whose graph estimate and its own rays' triangulation differ by more than this
+#: squared Mahalanobis distance (their two covariances summed) is one the data do not
+#: support (:func:`with_disagreement`): ``chi^2`` of three degrees of freedom at 0.99, the
+#: usual level of an outlier test (at 0.999, 16.27, the fixtures' joints' error/std had a
+#: 99th percentile of 3.54 against 3.01 here: ``bench/RESULTS_joints_std.md``).
+DISAGREEMENT_CHI2 = 11.34
+
+
+def with_disagreement(cov: np.ndarray, points: np.ndarray, rays: np.ndarray,
+                      rays_cov: np.ndarray, threshold: float = DISAGREEMENT_CHI2
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Covariances widened where a joint and its own rays disagree.
+
+    The graph's joint ``X`` rests on its rays and the priors; where its two observations'
+    own triangulation ``X_r`` lies farther from it than both covariances allow
+    (``d^T (C + C_r)^-1 d > threshold``, ``d = X - X_r``), either the priors hold the joint
+    somewhere its data are not (a depth the bones and the smoothness chose wrongly, a
+    run of frames the graph followed off its observations) or the observations are
+    wrong (an outlier the graph set aside): which, nothing in the frame says, and the
+    covariance gains ``d d^T``. On one of the independent generator's scenes the joints
+    more than 0.3 m off had a median squared distance of 18.6, the others 0.7
+    (``bench/RESULTS_joints_std.md``).
+
+    Args:
+        cov: ``(..., 3, 3)`` the joints' covariances; points: ``(..., 3)`` the joints.
+        rays, rays_cov: ``(..., 3)`` their two-ray triangulations and ``(..., 3, 3)``
+            covariances (NaN where not seen in both views: unchanged).
+        threshold: the squared distance beyond which a joint is widened.
+
+    Returns:
+        the covariances and ``(...,)`` bool, the joints widened.
+    """
+    cov = np.array(cov, dtype=float, copy=True)
+    d = np.asarray(points, float) - np.asarray(rays, float)
+    C = cov + np.asarray(rays_cov, float)
+    ok = np.isfinite(d).all(-1) & np.isfinite(C).all((-2, -1))
+    m2 = np.zeros(ok.shape)
+    if ok.any():
+        Ci = np.linalg.pinv(C[ok], hermitian=True)
+        m2[ok] = np.einsum("ni,nij,nj->n", d[ok], Ci, d[ok])
+    wide = ok & (m2 > float(threshold))
+    cov[wide] += d[wide][:, :, None] * d[wide][:, None, :]
+    return cov, wide
+
+
+# --------------------------------------------------------------------------- globals
+def globals_covariance(state: SolveState, z_keys: list[tuple[int, int]],
+                       inflation: float = 1.0) -> np.ndarray:
+    """``(n, n)`` the covariance of the reduced globals ``z_keys`` (a subset of the
+    solve's :attr:`~.solve_state.SolveState.z_keys`: the bone lengths, held in the joints
+    pass, are marginalised out by leaving them out), scaled by the noise, times
+    ``inflation^2`` (the headline's ratio to the marginal std), with the intrinsics'
+    headline spread on the planes' and cameras' blocks. NaN where not computed."""
+    n = sum(d for _, d in z_keys)
+    if state.information is None or not n:
+        return np.full((n, n), np.nan)
+    C = reduced_covariance_matrix(state.information) * state.variance_factor
+    where, off = {}, 0
+    for key, dim in state.z_keys:
+        where[int(key)] = np.arange(off, off + dim)
+        off += dim
+    if any(int(k) not in where for k, _ in z_keys):
+        return np.full((n, n), np.nan)
+    idx = np.concatenate([where[int(k)] for k, _ in z_keys])
+    out = C[np.ix_(idx, idx)] * float(inflation) ** 2
+    problem = state.problem
+    extra = {}
+    if problem is not None:
+        extra.update({int(k): s for k, s in zip(problem.plane_keys, state.plane_spread)})
+        extra.update({int(problem.camera_keys[i]): s for i, s in enumerate(state.camera_spread)
+                      if i in problem.camera_keys})
+    off = 0
+    for key, dim in z_keys:
+        s = extra.get(int(key))
+        if s is not None and np.shape(s) == (dim, dim) and np.all(np.isfinite(s)):
+            out[off:off + dim, off:off + dim] += s
+        off += dim
+    return out
+
+
+# --------------------------------------------------------------------------- graph joints
+def _solution_values(state: SolveState, rows: np.ndarray) -> gtsam.Values:
+    """The solve's values at its solution: the globals of ``state.z_values``, the virtual
+    poses snapped onto their planes, the output joints of the graph's frame ``rows``."""
+    problem = state.problem
+    values = gtsam.Values(problem.values)
+    if state.z_values is not None:
+        values.update(state.z_values)
+    snap_virtual_poses(problem, values)
+    pts = np.asarray(state.points, float)[rows].reshape(-1, 3)
+    fi = np.asarray(problem.flat_index, dtype=np.int64)
+    fi = fi[np.isfinite(pts[fi]).all(1)]
+    base = int(X_BASE)
+    for i, X in zip(fi.tolist(), pts[fi]):
+        values.erase(base + i)
+        values.insertPoint3(base + i, X)
+    return values
+
+
+def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pass: bool,
+                            inflation: float = 1.0, rig: Rig | None = None) -> np.ndarray:
+    """The covariance of every joint the graph estimated (the module docstring).
+
+    Args:
+        state: the driver's solution (:func:`~.solve.solve`), its ``problem`` kept; a
+            long video solved in chunks (``problem`` ``None``, :mod:`.chunked`) gets its
+            joints' own rays with the smoothness (:func:`_chunked`).
+        opts: the solve's options (the joints pass's priors: its smoothness, bones, hip).
+        joints_pass: the output joints come from the joints pass
+            (:func:`~.stages.joints_pass`; else from the last full-graph stage).
+        inflation: the globals' headline std over their marginal one.
+        rig: the solved rig (its intrinsics the solution's): needed for chunked solves.
+
+    Returns:
+        ``(T, J, 3, 3)`` graph units squared, the frames of ``state.points``; NaN where
+        the graph holds no joint (a frame outside a long video's graph, a joint the graph
+        did not estimate) or its information is singular.
+    """
+    from .builder import with_motion_priors
+
+    problem = state.problem
+    T, J = np.shape(state.used)
+    out = np.full((T, J, 3, 3), np.nan)
+    if problem is None:
+        return _chunked(state, opts, joints_pass, inflation, rig, out)
+    Tg = problem.used.shape[0]
+    rows = np.arange(T) if Tg == T else np.flatnonzero(spread_rows(T, opts.max_graph_frames))
+    if len(rows) != Tg:
+        return out
+    values = _solution_values(state, rows)
+    sigma = opts.joints_smoothness_sigma
+    graph_problem, smooth = problem, None
+    if joints_pass and sigma is not None:
+        # the joints pass's graph but for its smoothness, whose rows (linear, known) are
+        # added to each joint's chain directly (SmoothnessFactor's own triples)
+        jopts = replace(opts, use_smoothness=False)
+        graph_problem = with_motion_priors(problem, values, state.bone_lengths, jopts)
+        values = graph_problem.values
+        smooth = SmoothnessFactor(problem.body_height * sigma, opts.smoothness_max_gap)
+    red = mirror_reduction(graph_problem, distance_gauge=None)
+    Cz = globals_covariance(state, list(red.z_keys), inflation)
+    cov = _graph_covariance(graph_problem, values, red, Cz, float(state.variance_factor),
+                            np.asarray(state.points, float)[rows],
+                            state.scale == "subject_height", smooth)
+    out[rows] = cov
+    out[~np.asarray(state.used, bool)] = np.nan
+    return out
+
+
+def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflation: float,
+             rig: Rig | None, out: np.ndarray) -> np.ndarray:
+    """:func:`graph_joints_covariance` of a long video solved in chunks (:mod:`.chunked`,
+    whose graphs are not kept; one camera, one mirror): each joint's own rays (the
+    chunks' kept observations) with the smoothness over its frames (:func:`chain_marginals`),
+    the detector's bias and the mirror's uncertainty as for the graph; the bones and the
+    hip are left out (information dropped: the std is wider than the graph's, not
+    thinner). Vectorised over every frame: a fraction of a second for 16,000 frames,
+    where rebuilding every chunk's graph took a quarter of the run."""
+    if rig is None or len(state.planes) != 1 or len(rig.views) != 2:
+        return out
+    used = np.asarray(state.used, bool) & np.isfinite(state.points).all(-1)
+    if not used.any():
+        return out
+    n, d = state.planes[0]
+    K = np.asarray(rig.cameras[0].K, float)
+    views = mirror_plane_projections(K, n, float(d))
+    masks = [np.asarray(m, bool) & used for m in state.view_masks]
+    pixels = [np.asarray(v.pixels, float) for v in rig.views]
+    t, j = np.nonzero(used)
+    X = np.asarray(state.points, float)[t, j]
+    m = [mk[t, j] for mk in masks]
+    u = [px[t, j] for px in pixels]
+    sigma = float(opts.pixel_sigma)               # whitened as the graph's rows, scaled below
+    P0 = views(np.zeros(0))
+    Jv, r = [], []
+    for P, uv in zip(P0, u):
+        y = X @ P[:, :3].T + P[:, 3]
+        Jv.append((P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3])
+                  / y[:, 2, None, None] / sigma)
+        r.append((y[:, :2] / y[:, 2:3] - uv) / sigma)
+    Hv = [np.where(mk[:, None, None], np.einsum("nri,nrj->nij", Jx, Jx), 0.0)
+          for mk, Jx in zip(m, Jv)]
+    H = Hv[0] + Hv[1]
+    ok = np.linalg.det(H) > 0
+    Hinv = np.zeros_like(H)
+    Hinv[ok] = np.linalg.inv(H[ok])
+    # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
+    T, J = used.shape
+    Hb = np.zeros_like(H)
+    for mk, rv, Hk in zip(m, r, Hv):
+        cnt = np.maximum(np.bincount(j[mk], minlength=J), 1)
+        mean = np.stack([np.bincount(j[mk], rv[mk, i], minlength=J) for i in range(2)], 1)
+        Hb += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j][:, None, None] * Hk
+    marg = np.full((T, J, 3, 3), np.nan)
+    marg[t[ok], j[ok]] = Hinv[ok]
+    used_ok = np.zeros((T, J), bool)
+    used_ok[t[ok], j[ok]] = True
+    if joints_pass and opts.joints_smoothness_sigma is not None:
+        smooth = SmoothnessFactor(state.body_height * opts.joints_smoothness_sigma,
+                                  opts.smoothness_max_gap)
+        problem = _FrameIds(rig.frame_ids)
+        rows = _smoothness_rows(problem, used_ok, smooth, 0)
+        if len(rows[0]):
+            marg = _with_smoothness(marg, used_ok, rows, J)
+    plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
+    Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
+    glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
+        state.scale == "subject_height") else None) - triangulated_covariance(
+        views, None, X, u, m, 1.0)
+    cov = np.full((T, J, 3, 3), np.nan)
+    cov[t, j] = (float(state.variance_factor) * marg[t, j] + Hinv @ Hb @ Hinv
+                 + np.nan_to_num(glob))
+    cov[~used_ok] = np.nan
+    return cov
+
+
+class _FrameIds:
+    """What :func:`_smoothness_rows` reads of a problem: its rig's frame numbers."""
+
+    def __init__(self, frame_ids) -> None:
+        self.rig = self
+        self.frame_ids = np.asarray(frame_ids, dtype=np.int64)
+
+
+def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
+                     ) -> list[np.ndarray]:
+    """Each view's ``(3, 4)`` world-to-pixel matrix of a solved rig (a camera's own, or
+    through its mirror)."""
+    out = []
+    for v in rig.views:
+        c = rig.camera_index(v.camera)
+        K = np.asarray(rig.cameras[c].K, float)
+        if v.mirror is None:
+            out.append(geo.camera_projection(K, poses[c]))
+        else:
+            out.append(geo.mirror_projection(K, poses[c], *planes[rig.mirror_index(v.mirror)]))
+    return out
+
+
+def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.ndarray,
+                      factor: float, points: np.ndarray, body_gauge: bool,
+                      smooth: SmoothnessFactor | None = None) -> np.ndarray:
+    """``(Tg, J, 3, 3)`` of the graph's joints: the module docstring's first three parts."""
+    Tg, J = problem.used.shape
+    graph = problem.full()
+    gfg = graph.linearize(values)
+    trip = np.asarray(gfg.sparseJacobian_(), dtype=float)
+    r, c, v = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
+    keys = np.sort(np.asarray(gfg.keyVector(), dtype=np.uint64))
+    chars = (keys >> np.uint64(56)).astype(np.int64)           # gtsam.Symbol's character
+    dims = np.where(np.isin(chars, (ord("x"), ord("p"))), 3,
+                    np.where(np.isin(chars, (ord("k"), ord("q"))), 5, 6))
+    offsets = np.concatenate([[0], np.cumsum(dims)])
+    ncol = int(offsets[-1])
+    keep = c < ncol                                            # the right-hand side aside
+    rhs_rows, rhs = r[~keep], v[~keep]
+    r, c, v = r[keep], c[keep], v[keep]
+    key_of_col = np.repeat(np.arange(len(keys)), dims)
+    local_col = np.arange(ncol) - np.repeat(offsets[:-1], dims)
+    is_point = chars == ord("x")
+    flat_of_key = np.where(is_point, (keys - np.uint64(X_BASE) * is_point).astype(np.int64), -1)
+    kc = key_of_col[c]
+    pt = is_point[kc]
+    flat = np.where(pt, flat_of_key[kc], -1)
+    n_rows = int(r.max()) + 1 if len(r) else 0
+    n_data = 2 * int(problem.reprojection.size())           # the reprojection rows come first
+    # each row's frames: one (a view, a bone, the hip) or several (the smoothness)
+    big = np.iinfo(np.int64).max
+    fmin = np.full(n_rows, big)
+    fmax = np.full(n_rows, -1)
+    np.minimum.at(fmin, r[pt], flat[pt] // J)
+    np.maximum.at(fmax, r[pt], flat[pt] // J)
+    local_row = (fmax >= 0) & (fmin == fmax)
+    cross_row = (fmax >= 0) & (fmin != fmax)
+    # the globals' columns through the reduction: B = Bg T
+    Tb = red.basis(values)
+    row_of_key, off = {}, 0
+    for k, d in red.graph_keys:
+        row_of_key[int(k)] = off
+        off += d
+    glob_row = np.full(len(keys), -1, dtype=np.int64)
+    at = np.searchsorted(keys, np.array(list(row_of_key), dtype=np.uint64))
+    hit = at < len(keys)
+    hit[hit] = keys[at[hit]] == np.array(list(row_of_key), dtype=np.uint64)[hit]
+    glob_row[at[hit]] = np.array(list(row_of_key.values()), dtype=np.int64)[hit]
+    nz = Tb.shape[1]
+    bias_w = _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows, n_data, J, is_point)
+
+    # per-frame blocks from the local rows: H_xx (Tg, 3J, 3J), H_xz (Tg, 3J, nz)
+    lr_idx = np.flatnonzero(local_row)
+    frame_of_row = np.where(local_row, fmin, -1)
+    sel = local_row[r]
+    rp, cp, vp = r[sel & pt], c[sel & pt], v[sel & pt]
+    used = np.asarray(problem.used, bool)
+    jsel = np.flatnonzero(used.any(0))              # the graph's joints: the dense blocks' columns
+    Jc = len(jsel)
+    compact = np.full(J, -1)
+    compact[jsel] = np.arange(Jc)
+    colx = compact[flat_of_key[key_of_col[cp]] % J] * 3 + local_col[cp]
+    sg = sel & ~pt & (glob_row[kc] >= 0)
+    rg, vg = r[sg], v[sg]
+    colg = glob_row[kc[sg]] + local_col[c[sg]]
+    pos = np.full(n_rows, -1, dtype=np.int64)
+    pos[lr_idx] = np.arange(len(lr_idx))
+    A = np.zeros((len(lr_idx), 3 * Jc))
+    A[pos[rp], colx] = vp
+    Bg = np.zeros((len(lr_idx), Tb.shape[0]))
+    Bg[pos[rg], colg] = vg                          # one entry per row and column
+    B = Bg @ Tb
+    fr = frame_of_row[lr_idx]
+    order = np.argsort(fr, kind="stable")
+    fr_sorted = fr[order]
+    start = np.searchsorted(fr_sorted, np.arange(Tg + 1))
+    # each joint's own rays (its reprojection rows alone), summed row by row
+    dr = sel & pt & (r < n_data)
+    dpos = pos[r[dr]]
+    dcol = compact[flat[dr] % J] * 3 + local_col[c[dr]]
+    Ad = np.zeros((len(lr_idx), 3))
+    Ad[dpos, dcol % 3] = v[dr]
+    cell = np.full(len(lr_idx), -1)
+    cell[dpos] = (flat[dr] // J) * Jc + dcol // 3
+    rows_d = np.flatnonzero(cell >= 0)
+    cell, Ad, Bd = cell[rows_d], Ad[rows_d], B[rows_d]
+    wb = bias_w[lr_idx[rows_d]]
+    n_cells = Tg * Jc
+
+    def summed(x: np.ndarray) -> np.ndarray:
+        flat_x = x.reshape(len(x), -1)
+        return np.stack([np.bincount(cell, flat_x[:, i], minlength=n_cells)
+                         for i in range(flat_x.shape[1])], axis=1)
+
+    outer = Ad[:, :, None] * Ad[:, None, :]
+    Hjj = summed(outer).reshape(Tg, Jc, 3, 3)
+    Hb = summed(outer * wb[:, None, None]).reshape(Tg, Jc, 3, 3)
+    lam = np.linalg.eigvalsh(Hjj)
+    own = (lam[..., 0] > 1e-6 * np.maximum(lam[..., -1], 1e-300)) & used[:, jsel]
+    Hinv = np.zeros_like(Hjj)
+    Hinv[own] = np.linalg.inv(Hjj[own])
+    # the detector's bias: its rays' response, not averaged over frames
+    bias = np.zeros((Tg, J, 3, 3))
+    bias[:, jsel] = Hinv @ Hb @ Hinv
+    Gown = None
+    if nz:
+        Hjz = summed(Ad[:, :, None] * Bd[:, None, :]).reshape(Tg, Jc, 3, nz)
+        Gown = -(Hinv @ Hjz)
+    marg = np.full((Tg, J, 3, 3), np.nan)           # each joint's info in its frame, inverted
+    G_all = np.zeros((Tg, J, 3, nz))
+    usedc = used[:, jsel]
+    for a in range(0, Tg, FRAME_BATCH):
+        b = min(a + FRAME_BATCH, Tg)
+        rr = order[start[a]:start[b]]
+        f = fr_sorted[start[a]:start[b]] - a
+        slot = np.arange(len(rr)) - (start[f + a] - start[a])
+        width = int(slot.max()) + 1 if len(rr) else 1
+        Ap = np.zeros((b - a, width, 3 * Jc))
+        Bp = np.zeros((b - a, width, nz))
+        Ap[f, slot], Bp[f, slot] = A[rr], B[rr]
+        At = Ap.transpose(0, 2, 1)
+        Hxx, Hxz = At @ Ap, At @ Bp
+        absent = ~np.repeat(usedc[a:b], 3, axis=1)
+        ti, ji = np.nonzero(absent | (np.einsum("tii->ti", Hxx) <= 0.0))
+        Hxx[ti, ji, :] = 0.0
+        Hxx[ti, :, ji] = 0.0
+        Hxx[ti, ji, ji] = 1.0
+        Hxz[ti, ji, :] = 0.0
+        # a ridge far below any joint's information: a joint only the smoothness fixes
+        # (one view, no bone) keeps a finite, very large covariance in its frame
+        ridge = RIDGE * np.max(np.einsum("tii->ti", Hxx), axis=1)
+        Hxx += ridge[:, None, None] * np.eye(3 * Jc)
+        P = _inverse(Hxx)                                                  # (n, 3Jc, 3Jc)
+        blocks = P.reshape(b - a, Jc, 3, Jc, 3)[:, np.arange(Jc), :, np.arange(Jc), :]
+        marg[a:b, jsel] = blocks.transpose(1, 0, 2, 3)
+        if nz:
+            # the globals: a joint re-triangulated with the moved globals; where one
+            # view is left (the other down-weighted), the frame's, bones and all
+            G = -(P @ Hxz).reshape(b - a, Jc, 3, nz)
+            G_all[a:b, jsel] = np.where(own[a:b, :, None, None], Gown[a:b], G)
+    # the smoothness: each joint's chain of frames
+    rows = None
+    if cross_row.any():
+        rows = _cross_rows(used, r, c, v, pt, flat, local_col, cross_row, J)
+    if smooth is not None:
+        extra = _smoothness_rows(problem, used, smooth, 0 if rows is None else rows[0].max() + 1)
+        rows = extra if rows is None else tuple(np.concatenate([a, b]) for a, b in zip(rows, extra))
+    if rows is not None and len(rows[0]):
+        marg = _with_smoothness(marg, used, rows, J)
+    glob = np.zeros((Tg, J, 3, 3))
+    if nz and np.all(np.isfinite(Cz)):
+        if body_gauge:
+            G_all = _without_scale(G_all, points, used)
+        glob = np.einsum("tjan,nm,tjbm->tjab", G_all, Cz, G_all)
+    elif nz:
+        glob[:] = np.nan
+    cov = factor * marg + bias + glob
+    cov[~used] = np.nan
+    return cov
+
+
+def _without_scale(G: np.ndarray, points: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """The globals' response ``G`` ``(T, J, 3, n)`` less its change of the body's size:
+    ``G - X k^T``, ``k`` the relative change of the body's spread about each frame's
+    centroid, ``sum (X - c) . (G - G_c) / sum |X - c|^2`` (a scale the gauge and the
+    stature's rescale take back)."""
+    w = used[..., None].astype(float)
+    cnt = np.maximum(w.sum(1, keepdims=True), 1.0)
+    X = np.where(used[..., None], points, 0.0)
+    c = (X * w).sum(1, keepdims=True) / cnt
+    Gw = G * w[..., None]
+    Gc = Gw.sum(1, keepdims=True) / cnt[..., None]
+    dX = (X - c) * w
+    den = float(np.sum(dX ** 2))
+    if den <= 0:
+        return G
+    k = np.einsum("tja,tjan->n", dX, (G - Gc) * w[..., None]) / den
+    return G - X[..., None] * k[None, None, None, :]
+
+
+def _bias_weights(r, kc, pt, flat, rhs_rows, rhs, n_rows: int, n_data: int, J: int,
+                  is_point) -> np.ndarray:
+    """``(n_rows,)`` the detector's bias variance of every reprojection row (whitened,
+    per coordinate; 0 for the other rows): ``2 |m|^2``, ``m`` the mean whitened residual
+    of the row's joint in the row's view over the video.
+
+    A detector's per-joint bias that the frames share shows in the residuals' mean across
+    the epipolar line (the two views split that inconsistency, so each residual is about
+    half of it); along the line it is invisible, and taken as large as across. Under iid
+    noise ``|m|^2`` is ``~2 / frames``."""
+    w = np.zeros(n_rows)
+    if n_data == 0:
+        return w
+    res = np.zeros(n_rows)
+    res[rhs_rows] = rhs
+    rows = np.arange(min(n_data, n_rows))
+    joint = np.full(n_rows, -1)
+    m = pt & (r < n_data)
+    joint[r[m]] = flat[m] % J
+    view = np.full(n_rows, -1)                   # the view: the largest global key it touches
+    g = ~pt & (r < n_data)
+    np.maximum.at(view, r[g], kc[g])
+    pair = rows // 2
+    fj = joint[0::2][:len(rows) // 2]
+    fv = view[0::2][:len(rows) // 2]
+    fr = res[rows].reshape(-1, 2)                                   # (factors, 2)
+    ok = fj >= 0
+    key = fj * (int(view.max()) + 2) + (fv + 1)
+    uniq, inv = np.unique(key[ok], return_inverse=True)
+    count = np.bincount(inv, minlength=len(uniq)).astype(float)
+    mean = np.stack([np.bincount(inv, fr[ok, i], minlength=len(uniq)) for i in range(2)],
+                    axis=1) / count[:, None]
+    var = 2.0 * np.sum(mean ** 2, axis=1)
+    per_factor = np.zeros(len(fr))
+    per_factor[np.flatnonzero(ok)] = var[inv]
+    w[rows] = per_factor[pair]
+    return w
+
+
+def _inverse(H: np.ndarray) -> np.ndarray:
+    """Batched inverse of symmetric ``(n, k, k)`` blocks; NaN where singular."""
+    out = np.full_like(H, np.nan)
+    try:
+        return np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        for i in range(len(H)):
+            try:
+                out[i] = np.linalg.inv(H[i])
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
+
+def _smoothness_rows(problem: GraphProblem, used: np.ndarray, smooth: SmoothnessFactor,
+                     first: int) -> tuple:
+    """The whitened rows of ``smooth`` on every joint's track (its consecutive triples,
+    :meth:`~mirrorgraph.factors.SmoothnessFactor.triples`), as :func:`_cross_rows`
+    gives them: ``(row, chain index, joint, value, axis)``, rows numbered from ``first``."""
+    fid = np.asarray(problem.rig.frame_ids, dtype=np.int64)
+    rank = np.cumsum(used, axis=0) - 1
+    parts = []
+    for j in np.flatnonzero(used.any(0)):
+        t = np.flatnonzero(used[:, j])
+        tri = t[smooth.triples(fid[t])]                                        # (M, 3)
+        if len(tri):
+            parts.append((tri, j, smooth.coefficients(fid[tri]) / smooth.sigma))
+    if not parts:
+        return tuple(np.zeros(0, dtype=np.int64) for _ in range(5))
+    idx, jj, cc = [], [], []
+    for tri, j, coef in parts:
+        idx.append(rank[tri, j])
+        jj.append(np.full(tri.shape, j))
+        cc.append(coef)
+    idx, jj, cc = (np.concatenate(a) for a in (idx, jj, cc))                   # (M, 3)
+    M = len(idx)
+    # three rows a factor (x, y, z), each with one coordinate of its three points
+    row = first + np.arange(3 * M).reshape(M, 3)[:, :, None].repeat(3, axis=2)   # (M, axis, k)
+    axis = np.broadcast_to(np.arange(3)[None, :, None], (M, 3, 3))
+    return (row.ravel(), np.broadcast_to(idx[:, None, :], (M, 3, 3)).ravel(),
+            np.broadcast_to(jj[:, None, :], (M, 3, 3)).ravel(),
+            np.broadcast_to(cc[:, None, :], (M, 3, 3)).ravel(), axis.ravel())
+
+
+def _cross_rows(used: np.ndarray, r, c, v, pt, flat, local_col, cross_row: np.ndarray,
+                J: int) -> tuple:
+    """The linearised rows spanning several frames (a smoothness in the graph) as
+    ``(row, chain index, joint, value, axis)`` per entry."""
+    rank = np.cumsum(used, axis=0) - 1                    # a joint's index in its own chain
+    sel = cross_row[r] & pt
+    rs, fs, vs, axis = r[sel], flat[sel], v[sel], local_col[c[sel]]
+    t, j = fs // J, fs % J
+    return rs, rank[t, j], j, vs, axis
+
+
+def _with_smoothness(marg: np.ndarray, used: np.ndarray, rows: tuple, J: int) -> np.ndarray:
+    """Each joint's per-frame covariance ``marg`` ``(Tg, J, 3, 3)`` with the rows across
+    frames ``rows`` (:func:`_cross_rows`) of its own chain (:func:`chain_marginals`)."""
+    n = used.sum(0)
+    N = int(n.max()) if n.size else 0
+    if N == 0:
+        return marg
+    ok = np.isfinite(marg).all((-2, -1)) & used
+    info = np.zeros_like(marg)
+    info[ok] = np.linalg.inv(marg[ok])
+    rs, idx, j, vs, axis = rows
+    # a row spanning more than two chain steps (not the smoothness's consecutive triples)
+    # or two joints is left out: dropping information keeps the covariance an upper bound
+    nr = int(rs.max()) + 1
+    lo = np.full(nr, np.iinfo(np.int64).max)
+    hi = np.full(nr, -1)
+    np.minimum.at(lo, rs, idx)
+    np.maximum.at(hi, rs, idx)
+    jl = np.full(nr, -1)
+    jl[rs] = j
+    same = np.ones(nr, bool)
+    np.logical_and.at(same, rs, jl[rs] == j)
+    good = (hi[rs] - lo[rs] <= 2) & same[rs]
+    rs, idx, j, vs, axis = rs[good], idx[good], j[good], vs[good], axis[good]
+    # H_s entries between the entries of one row: (joint, chain i, chain k, axis a, axis b)
+    order = np.argsort(rs, kind="stable")
+    rs, idx, j, vs, axis = rs[order], idx[order], j[order], vs[order], axis[order]
+    bounds = np.flatnonzero(np.diff(rs)) + 1
+    starts = np.concatenate([[0], bounds])
+    counts = np.diff(np.concatenate([starts, [len(rs)]]))
+    band = np.zeros((3, J, N, 3, 3))                 # H[i, i + k] for k = 0, 1, 2
+    size = band.size
+    width = int(counts.max()) if len(counts) else 0
+    for p in range(width):
+        for q in range(width):
+            m = counts > max(p, q)
+            ip, iq = starts[m] + p, starts[m] + q
+            dk = idx[iq] - idx[ip]
+            s = (dk >= 0) & (dk <= 2)
+            ip, iq, dk = ip[s], iq[s], dk[s]
+            at = np.ravel_multi_index((dk, j[ip], idx[ip], axis[ip], axis[iq]), band.shape)
+            band += np.bincount(at, vs[ip] * vs[iq], minlength=size).reshape(band.shape)
+    diag, off1, off2 = band
+    # the per-frame information on the diagonal, identity on the padding
+    t_of = np.full((J, N), -1)
+    for jj in range(J):
+        tt = np.flatnonzero(used[:, jj])
+        t_of[jj, :len(tt)] = tt
+    has = t_of >= 0
+    jj, kk = np.nonzero(has)
+    diag[jj, kk] += info[t_of[jj, kk], jj]
+    bad = ~has | ~ok[np.maximum(t_of, 0), np.arange(J)[:, None]]
+    diag[bad] = np.eye(3)
+    off1[bad] = 0.0
+    off2[bad] = 0.0
+    off1[:, :-1][bad[:, 1:]] = 0.0                 # H[i - 1, i] and H[i - 2, i] of a bad i
+    off2[:, :-2][bad[:, 2:]] = 0.0
+    C = chain_marginals(diag, off1, off2)
+    out = np.array(marg)
+    out[t_of[jj, kk], jj] = np.where(ok[t_of[jj, kk], jj][:, None, None], C[jj, kk], np.nan)
+    return out
+
+
+def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
+                    group: int = CHAIN_GROUP) -> np.ndarray:
+    """The diagonal ``3 x 3`` blocks of the inverse of block-banded information matrices.
+
+    Each of ``B`` chains of ``N`` blocks has ``H[i, i] = diag[i]``, ``H[i, i + 1] =
+    off1[i]``, ``H[i, i + 2] = off2[i]`` (and their transposes): the smoothness over a
+    joint's consecutive estimates. Groups of ``g`` blocks (``g >= 2``) make it
+    block-tridiagonal with ``3 g x 3 g`` blocks ``D_k``, ``U_k = H[k, k + 1]``; the
+    information the chain above block ``k`` leaves on it, ``F_k = D_k - U_{k-1}^T
+    F_{k-1}^-1 U_{k-1}``, and the chain below, ``E_k = D_k - U_k E_{k+1}^-1 U_k^T``, give
+    its marginal covariance ``(F_k + E_k - D_k)^-1`` (the two sides are independent
+    given block ``k``). ``2 N / g`` batched solves.
+
+    Args:
+        diag, off1, off2: ``(B, N, 3, 3)``; the entries past a chain's end are ignored
+            (``off1[N-1]``, ``off2[N-2:]``).
+        group: ``g``, blocks per group.
+
+    Returns:
+        ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``.
+    """
+    g = max(int(group), 2)
+    Bn, N = diag.shape[:2]
+    M = -(-N // g)
+    pad = M * g - N
+    eye = np.broadcast_to(np.eye(3), (Bn, pad, 3, 3))
+    zero = np.zeros((Bn, pad, 3, 3))
+    diag = np.concatenate([diag, eye], axis=1)
+    off1 = np.concatenate([off1, zero], axis=1)
+    off2 = np.concatenate([off2, zero], axis=1)
+    off1[:, N - 1:] = 0.0
+    off2[:, max(N - 2, 0):] = 0.0
+    # H as (B, M, g, 3, 3) blocks within a group (D) and to the next group (U)
+    D = np.zeros((Bn, M, g, g, 3, 3))
+    U = np.zeros((Bn, M, g, g, 3, 3))
+    d, o1, o2 = (x.reshape(Bn, M, g, 3, 3) for x in (diag, off1, off2))
+    for i in range(g):
+        D[:, :, i, i] = d[:, :, i]
+        for k, o in ((1, o1), (2, o2)):
+            if i + k < g:
+                D[:, :, i, i + k] = o[:, :, i]
+                D[:, :, i + k, i] = np.swapaxes(o[:, :, i], -1, -2)
+            else:
+                U[:, :, i, i + k - g] = o[:, :, i]
+    D = D.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
+    U = U.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
+    Ut = np.swapaxes(U, -1, -2)
+    F = np.empty_like(D)
+    E = np.empty_like(D)
+    F[:, 0] = D[:, 0]
+    for k in range(1, M):
+        F[:, k] = D[:, k] - Ut[:, k - 1] @ np.linalg.solve(F[:, k - 1], U[:, k - 1])
+    E[:, M - 1] = D[:, M - 1]
+    for k in range(M - 2, -1, -1):
+        E[:, k] = D[:, k] - U[:, k] @ np.linalg.solve(E[:, k + 1], Ut[:, k])
+    C = np.linalg.inv(F + E - D).reshape(Bn, M, g, 3, g, 3)
+    out = C[:, :, np.arange(g), :, np.arange(g), :]                    # (g, B, M, 3, 3)
+    return out.transpose(1, 2, 0, 3, 4).reshape(Bn, M * g, 3, 3)[:, :N]
+
+
+# --------------------------------------------------------------------------- triangulated
+def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]],
+                            Cz: np.ndarray | None, points: np.ndarray, pixels: list,
+                            masks: list, pixel_sigma: float, step: float = 1e-6,
+                            frames: np.ndarray | None = None) -> np.ndarray:
+    """The covariance of points triangulated from two views or more, the globals' share
+    included.
+
+    The rays' share is :func:`~mirrorgraph.geometry.triangulation_covariance`; a change
+    ``dz`` of the globals moves the least-squares point by ``G dz``,
+    ``G = -(J_x^T J_x)^-1 J_x^T J_z`` (the implicit function of the normal equations,
+    ``J_x``, ``J_z`` the reprojection's derivatives in the point and in ``z``, the
+    latter by central differences of the views' matrices), which adds ``G C_z G^T``.
+
+    Args:
+        projections: ``z`` ``(n,)`` -> the ``V`` views' ``(3, 4)`` world-to-pixel matrices
+            (``z = 0``: the solution).
+        Cz: ``(n, n)`` the globals' covariance (``None``: the rays alone).
+        points: ``(N, 3)`` the triangulated points; pixels: ``V`` arrays ``(N, 2)``;
+            masks: ``V`` bool ``(N,)``.
+        pixel_sigma: the pixels' std.
+        step: the central differences' step in ``z``.
+        frames: ``(N,)`` each point's frame: with them the change of the body's size is
+            taken out of the globals' response (a metric scale set by the subject's
+            stature: :func:`graph_joints_covariance`); ``None``: kept (the distance the
+            unit).
+
+    Returns:
+        ``(N, 3, 3)``; NaN where fewer than two views see a point.
+    """
+    X = np.asarray(points, float).reshape(-1, 3)
+    P0 = projections(np.zeros(0 if Cz is None else len(Cz)))
+    cov = geo.triangulation_covariance(P0, X, masks, pixel_sigma)
+    if Cz is None or not len(Cz) or not len(X):
+        return cov
+    if not np.all(np.isfinite(Cz)):
+        cov[:] = np.nan
+        return cov
+    n = len(Cz)
+    Xs = np.nan_to_num(X)
+    info = np.zeros((len(X), 3, 3))
+    rhs = np.zeros((len(X), 3, n))
+    for vi, (P, m) in enumerate(zip(P0, masks)):
+        m = np.asarray(m, bool).reshape(-1)
+        y = Xs @ P[:, :3].T + P[:, 3]
+        Jx = (P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3]) \
+            / y[:, 2, None, None]
+        Jz = np.zeros((len(X), 2, n))
+        for k in range(n):
+            e = np.zeros(n)
+            e[k] = step
+            Pp, Pm = projections(e)[vi], projections(-e)[vi]
+            yp, ym = Xs @ Pp[:, :3].T + Pp[:, 3], Xs @ Pm[:, :3].T + Pm[:, 3]
+            Jz[:, :, k] = (yp[:, :2] / yp[:, 2:3] - ym[:, :2] / ym[:, 2:3]) / (2 * step)
+        info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
+        rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
+    good = np.isfinite(cov).all((1, 2))
+    G = np.zeros((len(X), 3, n))
+    G[good] = -np.linalg.solve(info[good], rhs[good])
+    if frames is not None and good.any():
+        rows, inv = np.unique(np.asarray(frames)[good], return_inverse=True)
+        cols = np.zeros(int(good.sum()), dtype=np.int64)
+        order = np.argsort(inv, kind="stable")
+        start = np.searchsorted(inv[order], np.arange(len(rows)))
+        cols[order] = np.arange(len(order)) - start[inv[order]]
+        width = int(cols.max()) + 1
+        Gp = np.zeros((len(rows), width, 3, n))
+        Xp = np.zeros((len(rows), width, 3))
+        up = np.zeros((len(rows), width), bool)
+        Gp[inv, cols], Xp[inv, cols], up[inv, cols] = G[good], Xs[good], True
+        G[good] = _without_scale(Gp, Xp, up)[inv, cols]
+    return cov + np.einsum("nik,kl,njl->nij", G, Cz, G)
+
+
+def mirror_plane_projections(K: np.ndarray, normal: np.ndarray, distance: float
+                             ) -> Callable[[np.ndarray], list[np.ndarray]]:
+    """``z`` -> the real camera's and the mirror view's ``(3, 4)`` matrices, the plane
+    moved by ``z`` ``(3,)`` in GTSAM's tangent of :class:`gtsam.OrientedPlane3` (the
+    coordinates of the solve's plane covariance); ``z`` of length 0: the plane as is."""
+    K = np.asarray(K, float)
+    plane = plane_to_gtsam(normal, distance)
+    P_real = geo.camera_projection(K, np.eye(4))
+
+    def views(z: np.ndarray) -> list[np.ndarray]:
+        z = np.asarray(z, float)
+        n, d = (plane_from_gtsam(plane.retract(z)) if z.size == 3
+                else (np.asarray(normal, float), float(distance)))
+        return [P_real, geo.mirror_projection(K, np.eye(4), n, d)]
+
+    return views
