@@ -38,6 +38,7 @@ from ..intrinsics import Intrinsics, estimated_intrinsics, intrinsics_from_fov
 from ..io import read_keypoints
 from ..joint_sets import mirror_joints
 from ..keypoints import MIN_PAIRS, PairedKeypoints, RawDetections
+from ..initial.body_left_right import undo_body_swaps
 from ..initial.left_right import fix_left_right
 from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
@@ -201,6 +202,8 @@ class Observations:
         pairing: the pairing's options (threshold, confidence, seed).
         warnings: what reading them found worth saying.
         seconds: the pairing's wall time.
+        body_lr_fixes: (frame, left/right pair) entries whose labels the detector swapped
+            in both views, swapped back (:mod:`mirrorgraph.initial.body_left_right`).
     """
 
     keypoints: RawDetections | PairedKeypoints
@@ -213,6 +216,7 @@ class Observations:
     pairing: PairingOptions
     warnings: list[str]
     seconds: float
+    body_lr_fixes: int = 0
 
 
 def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
@@ -241,8 +245,9 @@ def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         paired = fix_left_right(data, joints, pair_opts)
     else:
         paired = pair_detections(data, joints, pair_opts)
+    paired, body_swaps = undo_body_swaps(paired, opts.min_confidence)
     return Observations(keypoints, data, paired, joints, intr, fps, fps_source, pair_opts,
-                        warnings, time.perf_counter() - clock)
+                        warnings, time.perf_counter() - clock, body_swaps)
 
 
 @dataclass
@@ -335,7 +340,8 @@ def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Ca
                "min_confidence": opts.min_confidence, "threshold_px": opts.threshold_px,
                "seed": opts.seed, "fps": obs.fps, "fps_source": obs.fps_source,
                "subject_height": opts.subject_height, "scale_from": opts.graph.scale_from,
-               "read_notes": obs.keypoints.read_notes.as_dict()},
+               "read_notes": obs.keypoints.read_notes.as_dict(),
+               "body_lr_fixes": obs.body_lr_fixes},
         warnings=obs.warnings)
     calib.refinement = {"initial_epipolar_median_px": float(np.median(est.residuals[est.inliers]))}
     calib.input["reflection_check"] = init.check.to_dict()
