@@ -55,7 +55,8 @@ if TYPE_CHECKING:
     from .rigs.observations import RigObservations
     from .pipelines.solve import RigSolution
 
-__all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate", "BODY_GATE_MADS",
+__all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate",
+           "smooth_tracks", "BODY_GATE_MADS",
            "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
 
 #: Body gate: robust z-score (in scaled MADs) beyond which a completed joint's
@@ -170,7 +171,8 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
                            joints: np.ndarray, min_confidence: float, threshold_px: float,
                            pixel_sigma: float | None = None,
                            plane_cov: np.ndarray | None = None,
-                           body_gauge: bool = False) -> Completion:
+                           body_gauge: bool = False,
+                           smoothness: tuple[float, int] | None = None) -> Completion:
     """Triangulate, with the solved mirror, the keypoints outside the graph's joint set.
 
     Args:
@@ -193,6 +195,11 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
             distance in the unit of ``joints3d``); ``None``: the rays' share alone.
         body_gauge: the scale is the subject's (its stature on the joints takes back a
             change of the body's size, which the plane's share then leaves out).
+        smoothness: ``(sigma, max_gap)``, with ``pixel_sigma``: each joint's completed
+            points smoothed over time with their rays' information
+            (:func:`smooth_tracks`; ``sigma`` in the unit of ``joints3d`` per frame^2),
+            as the joints pass smooths the graph's joints; ``None``: each frame its
+            own triangulation.
 
     Returns:
         :class:`Completion`.
@@ -226,15 +233,118 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
         from .graph.joints_uncertainty import mirror_plane_projections, triangulated_covariance
 
         tk, jk = np.nonzero(keep)
+        projections = mirror_plane_projections(K, n, float(distance))
+        pixels, masks = [paired.real[tk, jk, :2], paired.mirror[tk, jk, :2]], [np.ones(len(tk), bool)] * 2
+        rays = triangulated_covariance(projections, None, points[tk, jk], pixels, masks,
+                                       float(pixel_sigma))
         cov = np.full((T, J, 3, 3), np.nan)
         cov[tk, jk] = triangulated_covariance(
-            mirror_plane_projections(K, n, float(distance)),
-            None if plane_cov is None else np.asarray(plane_cov, float), points[tk, jk],
-            [paired.real[tk, jk, :2], paired.mirror[tk, jk, :2]],
-            [np.ones(len(tk), bool)] * 2, float(pixel_sigma),
+            projections, None if plane_cov is None else np.asarray(plane_cov, float),
+            points[tk, jk], pixels, masks, float(pixel_sigma),
             frames=tk if body_gauge else None)
+        if smoothness is not None and len(tk):
+            # the plane's share is common to a track's frames: the smoothing averages
+            # the rays' noise, not it
+            shared = cov[tk, jk] - rays
+            good = np.isfinite(rays).all((1, 2))
+            info = np.zeros((T, J, 3, 3))
+            info[tk[good], jk[good]] = np.linalg.inv(rays[good])
+            track = np.zeros((T, J), dtype=bool)
+            track[tk[good], jk[good]] = True
+            points, smoothed = smooth_tracks(points, info, track, paired.frame_ids,
+                                             float(smoothness[0]), int(smoothness[1]))
+            cov[tk[good], jk[good]] = smoothed[tk[good], jk[good]] + shared[good]
+            out.joints3d = points
         out.cov = cov
     return out
+
+
+def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
+                  frame_ids: np.ndarray, sigma: float, max_gap: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's track of measured points smoothed as the joints pass smooths the
+    graph's joints.
+
+    The maximum a posteriori points of the measurements ``x_t ~ N(X_t, info_t^-1)``
+    under the second-difference prior of
+    :class:`~mirrorgraph.factors.smoothness.SmoothnessFactor` (``sigma`` per frame^2, no
+    triple across a step over ``max_gap``): linear, one sparse symmetric solve over every
+    joint at once (a Rauch-Tung-Striebel smoother's answer; Sarkka, *Bayesian Filtering
+    and Smoothing*, 2013, ch. 8), and the exact marginal covariance of each point
+    (:func:`~mirrorgraph.graph.joints_uncertainty.chain_marginals`). Where two rays meet
+    at a small angle the measurement is weak along them, and the neighbouring frames
+    decide the depth.
+
+    Args:
+        points: ``(T, J, 3)`` the measured points (read where ``mask``).
+        info: ``(T, J, 3, 3)`` their information (inverse covariance, read where ``mask``).
+        mask: ``(T, J)`` bool, the entries to smooth.
+        frame_ids: ``(T,)`` increasing frame numbers.
+        sigma: the acceleration's std, the points' unit per frame^2.
+        max_gap: the longest frame step a triple spans.
+
+    Returns:
+        ``(T, J, 3)`` the points, smoothed where ``mask``, and ``(T, J, 3, 3)`` their
+        covariance (NaN outside ``mask``).
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    from .factors.smoothness import SmoothnessFactor
+    from .graph.joints_uncertainty import chain_marginals
+
+    points = np.array(points, dtype=float, copy=True)
+    cov = np.full(points.shape + (3,), np.nan)
+    fid = np.asarray(frame_ids, dtype=np.int64)
+    chains = [(j, np.flatnonzero(mask[:, j])) for j in np.flatnonzero(mask.any(0))]
+    if not chains:
+        return points, cov
+    B, N = len(chains), max(len(rows) for _, rows in chains)
+    diag = np.broadcast_to(np.eye(3), (B, N, 3, 3)).copy()
+    off1, off2 = np.zeros((B, N, 3, 3)), np.zeros((B, N, 3, 3))
+    rhs = np.zeros((B, N, 3))
+    smooth = SmoothnessFactor(sigma, max_gap)
+    w = 1.0 / float(sigma) ** 2
+    for b, (j, rows) in enumerate(chains):
+        L = np.nan_to_num(info[rows, j])
+        diag[b, :len(rows)] = L
+        rhs[b, :len(rows)] = np.einsum("nij,nj->ni", L, np.nan_to_num(points[rows, j]))
+        tri = smooth.triples(fid[rows])
+        if not len(tri):
+            continue
+        c = smooth.coefficients(fid[rows][tri]) * np.sqrt(w)                  # (M, 3)
+        i = tri[:, 0]
+        I3 = np.eye(3)
+        for a in range(3):
+            np.add.at(diag[b], i + a, (c[:, a] ** 2)[:, None, None] * I3)
+        np.add.at(off1[b], i, (c[:, 0] * c[:, 1])[:, None, None] * I3)
+        np.add.at(off1[b], i + 1, (c[:, 1] * c[:, 2])[:, None, None] * I3)
+        np.add.at(off2[b], i, (c[:, 0] * c[:, 2])[:, None, None] * I3)
+    # the chains' block band as one sparse matrix (each chain its own block)
+    base = (np.arange(B)[:, None] * N + np.arange(N)[None, :]) * 3             # (B, N)
+    r3, c3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    rows_i, cols_i, vals = [], [], []
+    for k, blk in ((0, diag), (1, off1), (2, off2)):
+        valid = np.arange(N) + k < N
+        rr = (base[:, valid][..., None, None] + r3)
+        cc = (base[:, np.roll(np.arange(N), -k)[valid]][..., None, None] + c3) if k else \
+            (base[..., None, None] + c3)
+        v = blk[:, valid] if k else blk
+        rows_i.append(rr.ravel())
+        cols_i.append(cc.ravel())
+        vals.append(v.ravel())
+        if k:
+            rows_i.append(cc.ravel())
+            cols_i.append(rr.ravel())
+            vals.append(np.swapaxes(v, -1, -2).ravel())
+    H = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
+                      shape=(B * N * 3, B * N * 3))
+    x = spsolve(H, rhs.ravel()).reshape(B, N, 3)
+    marg = chain_marginals(diag, off1, off2)
+    for b, (j, rows) in enumerate(chains):
+        points[rows, j] = x[b, :len(rows)]
+        cov[rows, j] = marg[b, :len(rows)]
+    return points, cov
 
 
 # --------------------------------------------------------------------------- rigs

@@ -174,3 +174,47 @@ def test_the_cli_takes_all(tmp_path):
     assert main(["calibrate", str(kp), "--intrinsics", str(cam), "--out", str(out),
                  "--joints", "all", "--no-refine", "--quiet", "--skeleton", "BODY_25"]) == 0
     assert len(json.loads(out.read_text())["input"]["joints"]) == 25
+
+
+def test_smoothed_tracks_fix_a_low_parallax_depth_and_their_std_covers_it():
+    # one joint moving smoothly 5 m away, measured with a depth std 40 times its lateral
+    # one (two rays meeting at a small angle); the smoothing takes the depth's noise
+    # down, and the reported std covers what is left
+    from mirrorgraph.completion import smooth_tracks
+
+    rng = np.random.default_rng(3)
+    T = 600
+    t = np.arange(T)
+    truth = np.stack([0.3 * np.sin(t / 40.0), 0.1 * np.cos(t / 25.0), 5.0 + 0.2 * np.sin(t / 60.0)], -1)
+    sd = np.array([0.005, 0.005, 0.2])
+    meas = truth + rng.normal(size=(T, 3)) * sd
+    info = np.broadcast_to(np.diag(1.0 / sd ** 2), (T, 3, 3)).copy()
+    frames = np.delete(t, np.arange(100, 110))             # a gap the chain must not span
+    keep = np.isin(t, frames)
+    pts, cov = smooth_tracks(meas[keep][:, None], info[keep][:, None], np.ones((keep.sum(), 1), bool),
+                             frames, sigma=0.002, max_gap=4)
+    err = np.linalg.norm(pts[:, 0] - truth[keep], axis=-1)
+    raw = np.linalg.norm(meas[keep] - truth[keep], axis=-1)
+    assert np.median(err) < 0.4 * np.median(raw)
+    assert (err > 0.3).mean() == 0 and (raw > 0.3).mean() > 0.05
+    z = err / np.sqrt(np.trace(cov[:, 0], axis1=-2, axis2=-1))
+    assert 0.4 < np.median(z) < 1.5 and np.quantile(z, 0.99) < 3.0
+
+
+def test_completed_face_joints_are_smoothed_where_their_rays_meet_at_a_small_angle():
+    # a far mirror behind the person (rays meeting at 8 deg): the face, outside the graph,
+    # has a two-view depth std of ~0.17 m in each frame
+    from mirrorgraph.synth import make_wide_scene
+    from mirrorgraph.synth.mocap import cmu_example_path
+
+    s = make_wide_scene(0, "wide", "iid", 400, motion=str(cmu_example_path()))
+    assert s.placement["parallax_deg"] < 10
+    run = mg.calibrate(s.detections, s.intrinsics,
+                       mg.CalibrateOptions(subject_height=s.subject_height))
+    truth = s.joints3d[np.searchsorted(s.frame_ids, run.paired.frame_ids)]
+    err = np.linalg.norm(run.joints3d - truth, axis=-1)
+    done = run.completed
+    assert done.sum() > 1000
+    assert (err[done] > 0.3).mean() < 0.01
+    ratio = err[done] / run.joints_std[done]
+    assert 0.4 < np.median(ratio) < 1.5

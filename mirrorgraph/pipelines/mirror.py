@@ -25,6 +25,7 @@ from typing import Callable
 import numpy as np
 
 from ..result.mirror import Calibration
+from ..anthropometry import height_fractions
 from ..completion import complete_mirror_joints
 from ..errors import DegenerateGeometryError, InputError
 from ..initial.estimators import estimate_mirror
@@ -439,7 +440,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
                                       threshold_px=opts.threshold_px,
                                       pixel_sigma=noise if cov is not None else None,
                                       plane_cov=res.plane_cov,
-                                      body_gauge=res.scale == "subject_height")
+                                      body_gauge=res.scale == "subject_height",
+                                      smoothness=_completion_smoothness(run, res, ropts))
         run.joints3d, run.valid3d, run.completed = done.joints3d, done.valid, done.completed
         if cov is not None and done.cov is not None:
             cov = np.where(done.completed[..., None, None], done.cov, cov)
@@ -450,6 +452,19 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
         run.joints_std_shape = position_std(cov)
         cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
         run.joints_cov, run.joints_std = cov, position_std(cov)
+
+
+def _completion_smoothness(run: CalibrationRun, res, ropts) -> tuple[float, int] | None:
+    """``(sigma, max_gap)`` of the completed joints' smoothing: the joints pass's
+    (``joints_smoothness_sigma`` of the body's height, measured on the bone lengths with
+    Winter's fractions, :func:`mirrorgraph.anthropometry.height_fractions`)."""
+    if ropts.joints_smoothness_sigma is None:
+        return None
+    fr = height_fractions(run.paired.skeleton)
+    est = [v / fr[k] for k, v in res.bone_lengths.items() if fr.get(k, 0) > 0]
+    if not est:
+        return None
+    return float(ropts.joints_smoothness_sigma * np.median(est)), int(ropts.smoothness_max_gap)
 
 
 def _with_own_rays(run: CalibrationRun, calib: Calibration, res, cov: np.ndarray,
