@@ -57,6 +57,10 @@ def add_parsers(sub) -> None:
                    help="without intrinsics: the principal point about the image centre "
                         "with the spread of real cameras, 1%% of the larger side (default), or "
                         "a loose prior (free: the people decide it, poorly)")
+    p.add_argument("--no-lines", action="store_true",
+                   help="without intrinsics, on a video: leave the scene's straight lines out "
+                        "(by default their vanishing points are a second witness of the focal "
+                        "length beside the person's, reported apart in focal_sources)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,

@@ -25,7 +25,9 @@ The steps, on line segments of a static camera's frames (:mod:`mirrorgraph.video
   vanishing points on different axes;
 * the standard deviation by a bootstrap: the edges of each vanishing point resampled
   (a cluster bootstrap: one edge's pieces move together) and the principal point drawn
-  from its prior (the image centre with the spread of real cameras).
+  from its prior (the image centre with the spread of real cameras); where the pairs'
+  orthogonality misfits more than that scatter explains (three axes: three pairs for
+  one unknown), the std widens by the misfit's Birge ratio.
 """
 
 from __future__ import annotations
@@ -86,6 +88,10 @@ class LinesFocal:
             for one at infinity), with their axis and their edges' count.
         segments_used: segments of the chosen vanishing points.
         principal_point: the principal point assumed (the prior's centre), px.
+        misfit: the orthogonality's misfit at the estimate, the sum over the pairs on
+            different axes of their squared cosine over its bootstrap variance, per
+            degree of freedom (pairs - 1); above 1 it widens ``std_px`` by its square
+            root (a Birge ratio); nan with one pair.
     """
 
     focal_px: float | None
@@ -97,6 +103,7 @@ class LinesFocal:
     vanishing_points_px: list = field(default_factory=list)
     segments_used: int = 0
     principal_point: tuple[float, float] | None = None
+    misfit: float = float("nan")
 
     @property
     def usable(self) -> bool:
@@ -111,6 +118,7 @@ class LinesFocal:
         return {"f": float(self.focal_px), "std": float(self.std_px),
                 "n_segments": int(self.n_segments), "n_vps": int(self.n_vps),
                 "n_axes": int(self.n_axes), "segments_used": int(self.segments_used),
+                "misfit": None if not np.isfinite(self.misfit) else float(self.misfit),
                 "vanishing_points_px": self.vanishing_points_px}
 
 
@@ -264,12 +272,17 @@ def _pair_focal(p: np.ndarray, q: np.ndarray) -> float:
     return float(np.sqrt(F2)) if F2 > 0 else float("nan")
 
 
+def _pairs(axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(i, j)``, ``i < j``, of the pairs on different ``axes``."""
+    i, j = np.nonzero(axes[:, None] != axes[None, :])
+    keep = i < j
+    return i[keep], j[keep]
+
+
 def _fit_focal(points: np.ndarray, axes: np.ndarray, lo: float, hi: float) -> float:
     """The normalised focal length in ``[lo, hi]`` minimising the squared cosines between
     every pair of ``points`` on different ``axes``."""
-    i, j = np.nonzero(axes[:, None] != axes[None, :])
-    keep = i < j
-    i, j = i[keep], j[keep]
+    i, j = _pairs(axes)
 
     def cost(logF):
         d = _directions(points, float(np.exp(logF)))
@@ -370,8 +383,10 @@ def focal_from_lines(segments: np.ndarray, image_size: tuple[int, int], *,
         base.reason = "the vanishing points found lie along one direction"
         return base
     used = [vps[i] for i in chosen]
+    pi, pj = _pairs(axes)
     rng = np.random.default_rng(seed)
     draws = np.full(bootstrap, np.nan)
+    cosines = np.full((bootstrap, len(pi)), np.nan)
     for b in range(bootstrap):
         shift = rng.normal(0.0, principal_point_sigma_px / s, 2)
         pts = []
@@ -381,9 +396,22 @@ def focal_from_lines(segments: np.ndarray, image_size: tuple[int, int], *,
             idx = np.concatenate([vp.segments[vp.edges == e] for e in pick])
             v = _refit(vp.point, seg[idx])
             pts.append([v[0] - shift[0] * v[2], v[1] - shift[1] * v[2], v[2]])
-        draws[b] = _fit_focal(np.array(pts), axes, lo, hi)
+        pts = np.array(pts)
+        draws[b] = _fit_focal(pts, axes, lo, hi)
+        d = _directions(pts, F)
+        cosines[b] = np.einsum("ij,ij->i", d[pi], d[pj])
     draws = draws[np.isfinite(draws)]
     std = float(np.std(draws, ddof=1) * s) if len(draws) > 2 else float("nan")
+    # the orthogonality's misfit at the estimate against its bootstrap spread (a Birge
+    # ratio): pairs that disagree more than their vanishing points' scatter explains
+    # (lens distortion, lines not quite at right angles) widen the std
+    d = _directions(np.array([vp.point for vp in used]), F)
+    c = np.einsum("ij,ij->i", d[pi], d[pj])
+    sc = np.nanstd(cosines, axis=0, ddof=1)
+    dof = len(pi) - 1
+    misfit = (float(np.sum((c / np.maximum(sc, 1e-12)) ** 2)) / dof) if dof > 0 else float("nan")
+    if np.isfinite(misfit) and misfit > 1.0:
+        std *= np.sqrt(misfit)
     vps_px = []
     for vp, ax in zip(used, axes):
         p = vp.point
@@ -391,6 +419,7 @@ def focal_from_lines(segments: np.ndarray, image_size: tuple[int, int], *,
         vps_px.append({"point_px": px, "axis": int(ax), "edges": vp.num_edges,
                        "segments": int(len(vp.segments))})
     return LinesFocal(focal_px=float(F * s), std_px=std, n_segments=n, n_vps=len(used),
+                      misfit=misfit,
                       n_axes=int(len(np.unique(axes))), vanishing_points_px=vps_px,
                       segments_used=int(sum(len(vp.segments) for vp in used)),
                       principal_point=(cx, cy))

@@ -31,6 +31,8 @@ from ..initial.estimators import estimate_mirror
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
+from ..initial.vanishing import LinesFocal
+from .lines import disagreement_warning, focal_sources, fuse_gaussians, lines_witness, video_of
 from .solve import refine_mirror
 from ..graph.sensitivity import prior_weights
 from ..graph.uncertainty import region_rotation_deg
@@ -154,9 +156,16 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         # without intrinsics the focal length and principal point are always variables of
         # the graph: about the 60 deg guess with a wide prior (estimated), or about the
         # user's field of view with that guess's own spread (--fov)
+        lines = None
+        if intrinsics is None and focal_estimated(opts):     # the scene's lines, a witness
+            if opts.graph.focal.lines:
+                step("the scene's straight lines")
+            lines = lines_witness(video_of(keypoints, opts.video),
+                                  getattr(obs.keypoints, "people", None),
+                                  obs.intrinsics.image_size, opts.graph.focal, seed=opts.seed)
         _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
                 focal_rel_sigma=None if focal_estimated(opts) else
-                opts.graph.focal.guess_rel_sigma)
+                opts.graph.focal.guess_rel_sigma, lines=lines)
     elif opts.subject_height is not None:
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "
@@ -330,18 +339,49 @@ def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Ca
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None,
-            estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
+            estimate_focal: bool = False, focal_rel_sigma: float | None = None,
+            lines: LinesFocal | None = None) -> None:
+    """The graph's solve and what it gives the run's record. ``lines``: the scene's
+    witness of the focal length (:mod:`.lines`): where it has an estimate the graph is
+    solved a second time with it joined to the guess's prior, and both cues are
+    recorded apart (``intrinsics.estimated.focal_sources``)."""
     ropts = opts.graph
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
     guess = calib.intrinsics
-    res = refine_mirror(run.paired, guess.K, calib.normal, pairs,
+    start_K, start_rel = guess.K, focal_rel_sigma
+    res = refine_mirror(run.paired, start_K, calib.normal, pairs,
                         joints=run.joints, options=ropts, progress=iteration_progress,
-                        estimate_focal=estimate_focal, focal_rel_sigma=focal_rel_sigma)
+                        estimate_focal=estimate_focal, focal_rel_sigma=start_rel)
+    sources = None
+    if estimate_focal and lines is not None:
+        person = dict(res.focal)
+        fused = None
+        if lines.usable:
+            f0 = float(guess.K[0, 0])
+            rel0 = ropts.focal.prior_rel_sigma if focal_rel_sigma is None else focal_rel_sigma
+            f, std = fuse_gaussians((f0, rel0 * f0), (lines.focal_px, lines.std_px))
+            start_K = np.array(guess.K, dtype=float)
+            start_K[0, 0] = start_K[1, 1] = f
+            start_rel = std / f
+            res = refine_mirror(run.paired, start_K, calib.normal, pairs,
+                                joints=run.joints, options=ropts, progress=iteration_progress,
+                                estimate_focal=True, focal_rel_sigma=start_rel)
+            fused = res.focal
+        sources = focal_sources(person, lines, fused)
     if estimate_focal:
         calib.intrinsics = estimated_intrinsics(guess, res.intrinsics, res.focal,
                                                 opts.fov_deg, calib.warnings,
                                                 user_guess=focal_rel_sigma is not None)
+    if sources is not None:
+        calib.intrinsics.estimated["focal_sources"] = sources
+        if sources["fused"]["with_lines"]:
+            calib.intrinsics.source = calib.intrinsics.source.replace(
+                "from the person and the reflection",
+                "from the person and the reflection with the scene's straight lines")
+        warning = disagreement_warning(sources)
+        if warning:
+            calib.warnings.append(warning)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
     if res.scale == "subject_height":
@@ -366,9 +406,9 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib.sensitivity = dict(res.sensitivity or {})
     if opts.sensitivity_priors and calib.sensitivity:
         def again(o):
-            return refine_mirror(run.paired, guess.K, calib.initial_normal, pairs,
+            return refine_mirror(run.paired, start_K, calib.initial_normal, pairs,
                                  joints=run.joints, options=o, estimate_focal=estimate_focal,
-                                 focal_rel_sigma=focal_rel_sigma)
+                                 focal_rel_sigma=start_rel)
         clock = time.perf_counter()
         calib.sensitivity["prior_weights"] = prior_weights(again, res.normal, ropts, res.priors)
         run.timings["sensitivity"] = time.perf_counter() - clock
