@@ -15,20 +15,30 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..graph.options import FocalOptions
+from ..graph.options import FocalOptions, RefineOptions
 from ..initial.vanishing import LinesFocal, focal_from_lines
 
 __all__ = ["lines_witness", "fuse_gaussians", "focal_sources", "disagreement_warning",
-           "video_of", "DISAGREEMENT_SIGMA"]
+           "video_of", "searched_near", "DISAGREEMENT_SIGMA", "SEARCH_SIGMAS",
+           "SEARCH_MIN_REL"]
 
 #: Person and lines disagree where their focal lengths lie more than this many combined
 #: standard deviations apart.
 DISAGREEMENT_SIGMA = 2.0
+
+#: The fused solve's initial search of the focal length spans the fused prior's mean
+#: this many of its standard deviations either way, and at least :data:`SEARCH_MIN_REL`
+#: of it (within the options' range): an estimate within a few per cent of the
+#: prior's mean lies inside the span, away from its ends (where
+#: :func:`~mirrorgraph.graph.solve.undetermined_focal` calls it undetermined).
+SEARCH_SIGMAS = 5.0
+SEARCH_MIN_REL = 0.25
 
 
 def video_of(keypoints, video: str | os.PathLike | None) -> Path | None:
@@ -76,6 +86,27 @@ def lines_witness(video: Path | None, people: list[np.ndarray] | None,
                             principal_point_sigma_px=(focal.principal_point_rel_sigma
                                                       * max(scene.image_size)),
                             seed=seed)
+
+
+def searched_near(options: RefineOptions, f: float, std: float, K: np.ndarray
+                  ) -> RefineOptions:
+    """``options`` whose focal search (:attr:`~mirrorgraph.graph.options.FocalOptions.
+    search_fov_deg`) spans ``f +- max(SEARCH_SIGMAS std, SEARCH_MIN_REL f)`` (within its
+    own range) for the
+    image of ``K``: the start of the fused solve among the focal lengths its prior
+    allows, not at the person's own best, whose bones may hold the solve in a minimum
+    the prior does not reach."""
+    half_width = float(K[0, 2])
+    lo_deg, hi_deg = options.focal.search_fov_deg
+
+    def fov(x):
+        return float(np.degrees(2.0 * np.arctan(half_width / max(x, 1e-9))))
+
+    rel = max(SEARCH_SIGMAS * std / f, SEARCH_MIN_REL)
+    span = (max(lo_deg, fov(f * (1.0 + rel))), min(hi_deg, fov(f * max(1.0 - rel, 1e-3))))
+    if span[0] >= span[1]:
+        return options
+    return replace(options, focal=replace(options.focal, search_fov_deg=span))
 
 
 def fuse_gaussians(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:

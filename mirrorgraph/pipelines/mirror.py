@@ -32,7 +32,8 @@ from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
 from ..initial.vanishing import LinesFocal
-from .lines import disagreement_warning, focal_sources, fuse_gaussians, lines_witness, video_of
+from .lines import (disagreement_warning, focal_sources, fuse_gaussians, lines_witness,
+                    searched_near, video_of)
 from .solve import refine_mirror
 from ..graph.sensitivity import prior_weights
 from ..graph.uncertainty import region_rotation_deg
@@ -365,8 +366,9 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
             start_K[0, 0] = start_K[1, 1] = f
             start_rel = std / f
             res = refine_mirror(run.paired, start_K, calib.normal, pairs,
-                                joints=run.joints, options=ropts, progress=iteration_progress,
-                                estimate_focal=True, focal_rel_sigma=start_rel)
+                                joints=run.joints, options=searched_near(ropts, f, std, start_K),
+                                progress=iteration_progress, estimate_focal=True,
+                                focal_rel_sigma=start_rel)
             fused = res.focal
         sources = focal_sources(person, lines, fused)
     if estimate_focal:

@@ -15,6 +15,8 @@ import pytest
 import mirrorgraph as mg
 from mirrorgraph.cli import main
 from mirrorgraph.graph.options import FocalOptions
+from mirrorgraph.initial.vanishing import LinesFocal
+from mirrorgraph.pipelines.lines import disagreement_warning, focal_sources, fuse_gaussians
 from tests.video.test_lines import _rotation, render_room
 
 SIZE = (1920, 1080)
@@ -65,15 +67,34 @@ def test_lines_join_the_person_in_the_graph(scene, tmp_path):
 
 
 def test_lines_of_another_camera_are_flagged(scene, tmp_path):
-    """A room drawn with a 40 % longer focal length: person and lines disagree, and a
-    warning says so."""
+    """A room drawn with a 40 % shorter focal length (a wide lens the person's estimate,
+    itself high on this scene, lies far from): person and lines disagree by more than 2
+    combined std, and a warning says so."""
     d, K = scene
     K2 = K.copy()
-    K2[0, 0] = K2[1, 1] = 1.4 * K[0, 0]
+    K2[0, 0] = K2[1, 1] = 0.6 * K[0, 0]
     calib = _calibrate(d, _room_video(tmp_path / "other.mp4", K2))
     src = calib.intrinsics.estimated["focal_sources"]
+    assert abs(src["lines"]["f"] - K2[0, 0]) / K2[0, 0] < 0.015
     assert abs(src["agreement_sigma"]) > 2
     assert any("disagree" in w for w in calib.warnings)
+
+
+def test_fusion_and_the_warning_rule():
+    """Two Gaussians make one (inverse-variance weights); the warning past 2 combined std
+    only, naming both estimates."""
+    f, s = fuse_gaussians((1000.0, 300.0), (1200.0, 40.0))
+    w1, w2 = 1 / 300.0 ** 2, 1 / 40.0 ** 2
+    assert f == pytest.approx((w1 * 1000 + w2 * 1200) / (w1 + w2))
+    assert s == pytest.approx((w1 + w2) ** -0.5)
+    lines = LinesFocal(1200.0, 40.0, 100, n_vps=3, n_axes=3)
+    near = focal_sources({"focal_px": 1100.0, "std_px": 60.0}, lines, None)
+    assert near["agreement_sigma"] == pytest.approx(-100 / np.hypot(60, 40))
+    assert disagreement_warning(near) is None
+    far = focal_sources({"focal_px": 900.0, "std_px": 60.0}, lines,
+                        {"focal_px": 1150.0, "std_px": 30.0})
+    text = disagreement_warning(far)
+    assert text and "900" in text and "1200" in text and far["fused"]["with_lines"]
 
 
 def test_without_lines_the_person_alone_and_the_reason(scene, tmp_path):
