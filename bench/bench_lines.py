@@ -17,7 +17,8 @@ Two measurements, side by side in one run, written to ``bench/RESULTS_lines.md``
    BlazePose (the detector every frame with its tiles, as ``bench_agreement.py``) and
    calibrated with :func:`mirrorgraph.calibrate` without intrinsics (the image size, the
    subject's 1.60 m, the clip as ``CalibrateOptions.video``): ``focal_sources`` against
-   840 px. Needs the Pose2Sim git history for the OpenPose subjects the composite is
+   840 px; the same from the OpenPose annotations of the clip (``bench_agreement.py``'s,
+   BODY_25B): the person's evidence from two detectors beside the lines'. Needs the Pose2Sim git history for the OpenPose subjects the composite is
    placed by (``--pose2sim-git``, as ``bench_agreement.py``); ``--no-mirror`` skips it.
 
 Run: ``nice -n 10 python bench/bench_lines.py`` (~10 min on 2 shared cores, detection
@@ -121,13 +122,18 @@ def mirror_rows(pairs: list[str], frames: int, work: Path, git: Path) -> list[di
             detect_every=1, tiles_every=1))).to_raw()
         t_det = time.perf_counter() - t0
         row = {"clip": clip.name, "truth": float(clip.F), "detect_seconds": t_det}
-        for tag, lines in (("with lines", True), ("person alone", False)):
+        folder = work / f"ann_pair_{A}_{B}_{clip.size[0]}x{clip.size[1]}"
+        ba.write_keypoints(ba.annotations(clip, subjects[A], subjects[B]), folder, "openpose",
+                           meta=True)
+        ann = ba.read_annotations(folder)
+        for tag, lines, keypoints in (("with lines", True, det), ("person alone", False, det),
+                                      ("OpenPose with lines", True, ann)):
             opts = mg.CalibrateOptions(
                 image_size=clip.size, subject_height=HEIGHT, fps=FPS, video=video,
                 refine_options=mg.RefineOptions(focal=FocalOptions(lines=lines)))
             t0 = time.perf_counter()
             try:
-                run = mg.calibrate(det, None, opts)
+                run = mg.calibrate(keypoints, None, opts)
                 est = run.calibration.intrinsics.estimated or {}
                 row[tag] = {"sources": est.get("focal_sources"),
                             "focal": float(run.calibration.intrinsics.K[0, 0]),
@@ -195,28 +201,30 @@ def report(cam_rows, mir_rows, seconds, started, argv, args) -> str:
     else:
         L += ["`mirrorgraph.calibrate` without intrinsics on the two-camera composites (truth "
               "f = 840 px); `person alone`: the same with `FocalOptions(lines=False)`.", "",
-              "| clip | person f +- std | lines f +- std | fused f +- std | person, lines, "
-              "fused error | agreement (person - lines) / std | normal error with lines / "
+              "| clip | keypoints | person f +- std | lines f +- std | fused f +- std | person, "
+              "lines, fused error | agreement (person - lines) / std | normal error fused / "
               "person alone | disagreement warned |",
-              "|---|---:|---:|---:|---:|---:|---:|---|"]
-        for r in mir_rows:
-            w, a = r["with lines"], r["person alone"]
+              "|---|---|---:|---:|---:|---:|---:|---:|---|"]
+        rows = [(r, det, r[tag], r["person alone"] if tag == "with lines" else {})
+                for r in mir_rows for det, tag in (("BlazePose", "with lines"),
+                                                  ("OpenPose", "OpenPose with lines"))]
+        for r, det, w, a in rows:
             s = w.get("sources")
             if not s:
-                L.append(f"| {r['clip']} | refused: {w.get('refused', a.get('refused', '?'))} "
-                         "| | | | | | |")
+                L.append(f"| {r['clip']} | {det} | refused: "
+                         f"{w.get('refused', a.get('refused', '?'))} | | | | | | |")
                 continue
             t = r["truth"]
             p, li, fu = s["person"], s["lines"], s["fused"]
             lt = f"{li['f']:.0f} +- {li['std']:.0f}" if "f" in li else f"none: {li['reason']}"
             le = f"{100 * (li['f'] - t) / t:+.1f} %" if "f" in li else "-"
             ang = [float(np.degrees(np.arccos(min(1.0, abs(np.dot(x["normal"], r["normal_truth"]))))))
-                   if "normal" in x else float("nan") for x in (w, a)]
+                   if "normal" in x else float("nan") for x in (w, a or {})]
             warned = any("disagree" in x for x in w.get("warnings", []))
-            L.append(f"| {r['clip']} | {p['f']:.0f} +- {p['std']:.0f} | {lt} | "
+            L.append(f"| {r['clip']} | {det} | {p['f']:.0f} +- {p['std']:.0f} | {lt} | "
                      f"{fu['f']:.0f} +- {fu['std']:.0f} | {100 * (p['f'] - t) / t:+.1f} %, {le}, "
                      f"{100 * (fu['f'] - t) / t:+.1f} % | "
-                     f"{_fmt(s.get('agreement_sigma'), 2)} | {ang[0]:.2f} / {ang[1]:.2f} deg | "
+                     f"{_fmt(s.get('agreement_sigma'), 2)} | {ang[0]:.2f} / {_fmt(ang[1], 2)} deg | "
                      f"{'yes' if warned else 'no'} |")
     return "\n".join(L) + "\n"
 

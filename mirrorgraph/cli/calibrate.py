@@ -93,8 +93,9 @@ def add_parsers(sub) -> None:
                    help="write the report's figures (PNG) into DIR (needs matplotlib: "
                         f"{INSTALL_HINT})")
     p.add_argument("--video", metavar="FILE",
-                   help="the video the keypoints come from: its frame rate, and with "
-                        "--report the overlay on sampled frames")
+                   help="the video the keypoints come from: its frame rate, its straight "
+                        "lines where the focal length is estimated, and with --report the "
+                        "overlay on sampled frames")
     p.add_argument("--render", metavar="OUT.mp4",
                    help="with --report and --video: write the whole overlay video")
     add_view_option(p)
