@@ -1,6 +1,6 @@
 """The scene's straight lines as a witness of the focal length, on real footage with a known camera.
 
-Two measurements, side by side in one run, written to ``bench/RESULTS_lines.md``:
+Three measurements, side by side in one run, written to ``bench/RESULTS_lines.md``:
 
 1. **Camera clips** (the lines alone): the Pose2Sim demo's 8 distinct camera videos
    (``Demo_SinglePerson`` and ``Demo_MultiPerson``, 4 cameras each, 1080 or 1088 x 1920 at
@@ -11,7 +11,9 @@ Two measurements, side by side in one run, written to ``bench/RESULTS_lines.md``
    with the spread of real cameras, 1 % of the larger side) against Qualisys' focal length;
    on the raw pixels (what a user has) and on the pixels undistorted with Qualisys'
    distortion (what the distortion costs).
-2. **Mirror clips** (person, lines, fused): ``bench_agreement.py``'s exact two-camera
+2. **Rendered rooms** (:mod:`mirrorgraph.synth.room`): random cameras, the truth exact:
+   whether the std is honest (error / std) where the reference is not in question.
+3. **Mirror clips** (person, lines, fused): ``bench_agreement.py``'s exact two-camera
    composites (the mirror bisects cameras A and B; the clip's camera f = 840 px,
    1280 x 960; B's undistorted frame fills the mirror, A's person in front), detected with
    BlazePose (the detector every frame with its tiles, as ``bench_agreement.py``) and
@@ -99,6 +101,30 @@ def camera_rows(frames: int, bootstrap: int) -> list[dict]:
     return rows
 
 
+def room_rows(n: int, bootstrap: int) -> list[dict]:
+    """Part 3: rendered rooms (:mod:`mirrorgraph.synth.room`) with random cameras: focal
+    700-2200 px (log-uniform), landscape or portrait 1920 x 1080, turned 45 deg either way,
+    looking 5-25 deg down, rolled up to 5 deg, placed anywhere in the room's front, the
+    principal point off the centre by 1 % of the larger side (a standard deviation per
+    coordinate: the prior's spread), 3 grey levels of image noise."""
+    from mirrorgraph.synth.room import render_room, rotation_ypr
+    from mirrorgraph.video.lines import image_segments
+    rows = []
+    for seed in range(n):
+        rng = np.random.default_rng(1000 + seed)
+        size = (1920, 1080) if rng.random() < 0.5 else (1080, 1920)
+        f = float(np.exp(rng.uniform(np.log(700), np.log(2200))))
+        off = rng.normal(0.0, 0.01, 2) * max(size)
+        K = np.array([[f, 0, size[0] / 2 + off[0]], [0, f, size[1] / 2 + off[1]], [0, 0, 1]])
+        R = rotation_ypr(rng.uniform(-45, 45), rng.uniform(5, 25), rng.uniform(-5, 5))
+        C = (rng.uniform(-2, 2), rng.uniform(-0.5, 0.5), rng.uniform(-1.5, 2))
+        img = render_room(K, R, size, C, noise=3.0, seed=seed)
+        res = focal_from_lines(image_segments(img), size, bootstrap=bootstrap, seed=seed,
+                               principal_point_sigma_px=0.01 * max(size))
+        rows.append({"seed": seed, "truth": f, **res.to_dict()})
+    return rows
+
+
 def mirror_rows(pairs: list[str], frames: int, work: Path, git: Path) -> list[dict]:
     """Part 2: ``calibrate`` without intrinsics on the two-camera mirror composites."""
     import bench_agreement as ba
@@ -154,7 +180,7 @@ def _fmt(v, d=0):
     return "-" if v is None or not np.isfinite(v) else f"{v:.{d}f}"
 
 
-def report(cam_rows, mir_rows, seconds, started, argv, args) -> str:
+def report(cam_rows, room_rows_, mir_rows, seconds, started, argv, args) -> str:
     cmd = "python bench/bench_lines.py " + " ".join(argv if argv is not None else sys.argv[1:])
     rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                          capture_output=True, text=True).stdout.strip()
@@ -195,7 +221,24 @@ def report(cam_rows, mir_rows, seconds, started, argv, args) -> str:
               f"({sum(e <= TARGET_REL for e in errs)} within {100 * TARGET_REL:.0f} %); "
               f"|error|/std median {np.median(zs):.2f}, max {np.max(zs):.2f} "
               f"({sum(z <= 2 for z in zs)} within 2 std)."]
-    L += ["", "## 2. Mirror clips: person, lines and fused (`focal_sources`)", ""]
+    L += ["", f"## 2. Rendered rooms: the std's honesty ({len(room_rows_)} random cameras)", ""]
+    ok = [r for r in room_rows_ if "f" in r]
+    if ok:
+        e = np.array([(r["f"] - r["truth"]) / r["truth"] for r in ok])
+        z = np.array([(r["f"] - r["truth"]) / r["std"] for r in ok])
+        what = room_rows.__doc__.split(": ", 1)[1].replace("\n    ", " ").strip()
+        L += [what[0].upper() + what[1:] + f" {args.bootstrap} bootstrap draws.", "",
+              "| rooms with an estimate | abs error median | abs error max | within 3 % | "
+              "abs error/std median | within 2 std | within 3 std |",
+              "|---:|---:|---:|---:|---:|---:|---:|",
+              f"| {len(ok)} of {len(room_rows_)} | {100 * np.median(abs(e)):.2f} % | "
+              f"{100 * np.max(abs(e)):.2f} % | {np.mean(abs(e) <= 0.03):.0%} | "
+              f"{np.median(abs(z)):.2f} | {np.mean(abs(z) <= 2):.0%} | "
+              f"{np.mean(abs(z) <= 3):.0%} |"]
+        none = [r["reason"] for r in room_rows_ if "f" not in r]
+        if none:
+            L += ["", "Without an estimate: " + "; ".join(sorted(set(none)))]
+    L += ["", "## 3. Mirror clips: person, lines and fused (`focal_sources`)", ""]
     if not mir_rows:
         L.append("Not run (`--no-mirror`).")
     else:
@@ -234,7 +277,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lines-frames", type=int, default=31)
     ap.add_argument("--bootstrap", type=int, default=200)
     ap.add_argument("--frames", type=int, default=100, help="frames of each mirror clip")
-    ap.add_argument("--pairs", nargs="*", default=["cam01-cam04", "cam02-cam03"])
+    ap.add_argument("--rooms", type=int, default=40, help="rendered rooms of part 2")
+    ap.add_argument("--pairs", nargs="*", default=["cam01-cam04", "cam02-cam03", "cam01-cam03",
+                                                    "cam02-cam04"])
     ap.add_argument("--no-mirror", action="store_true", help="part 1 only")
     ap.add_argument("--pose2sim-git", type=Path,
                     default=Path("/work/.mirror/perfanalytics+pose2sim/repo"))
@@ -244,10 +289,11 @@ def main(argv: list[str] | None = None) -> int:
     started = datetime.datetime.now(datetime.timezone.utc)
     t0 = time.perf_counter()
     args.work.mkdir(parents=True, exist_ok=True)
+    rooms = room_rows(args.rooms, args.bootstrap)
     cam_rows = camera_rows(args.lines_frames, args.bootstrap)
     mir_rows = [] if args.no_mirror else mirror_rows(args.pairs, args.frames, args.work,
                                                      args.pose2sim_git)
-    text = report(cam_rows, mir_rows, time.perf_counter() - t0, started, argv, args)
+    text = report(cam_rows, rooms, mir_rows, time.perf_counter() - t0, started, argv, args)
     print(text)
     if not args.no_write:
         (ROOT / "bench" / "RESULTS_lines.md").write_text(text)

@@ -17,7 +17,7 @@ from mirrorgraph.cli import main
 from mirrorgraph.graph.options import FocalOptions
 from mirrorgraph.initial.vanishing import LinesFocal
 from mirrorgraph.pipelines.lines import disagreement_warning, focal_sources, fuse_gaussians
-from tests.video.test_lines import _rotation, render_room
+from mirrorgraph.synth.room import render_room, rotation_ypr as _rotation
 
 SIZE = (1920, 1080)
 

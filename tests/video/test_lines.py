@@ -13,64 +13,9 @@ import numpy as np
 import pytest
 
 from mirrorgraph.initial.vanishing import focal_from_lines
+from mirrorgraph.synth.room import render_room
+from mirrorgraph.synth.room import rotation_ypr as _rotation
 from mirrorgraph.video.lines import image_segments, person_mask, scene_segments
-
-
-def _rotation(yaw: float, pitch: float, roll: float) -> np.ndarray:
-    """World-to-camera rotation: yaw about y, pitch about x, roll about z (degrees)."""
-    a, b, c = np.radians([yaw, pitch, roll])
-    Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-    Rx = np.array([[1, 0, 0], [0, np.cos(b), -np.sin(b)], [0, np.sin(b), np.cos(b)]])
-    Rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
-    return Rz @ Rx @ Ry
-
-
-def room_edges(width: float = 8.0, depth: float = 10.0, height: float = 3.0,
-               tile: float = 1.0) -> list[tuple[np.ndarray, np.ndarray]]:
-    """3D segments (world frame, y down, the camera near the origin) of a box room: its
-    edges, floor tiles, vertical door and window frames on the walls."""
-    x0, x1, z0, z1, yf, yc = -width / 2, width / 2, -2.0, depth, 1.5, 1.5 - height
-    out = []
-    for x in np.arange(x0, x1 + 1e-9, tile):                     # floor tiles along z
-        out.append(((x, yf, z0), (x, yf, z1)))
-    for z in np.arange(z0, z1 + 1e-9, tile):                     # and along x
-        out.append(((x0, yf, z), (x1, yf, z)))
-    for x in (x0, x1):                                            # wall-ceiling edges
-        out.append(((x, yc, z0), (x, yc, z1)))
-    out.append(((x0, yc, z1), (x1, yc, z1)))
-    for x in np.linspace(x0 + 1, x1 - 1, 5):                     # far wall: frames
-        out.append(((x, yf, z1), (x, yc + 0.5, z1)))
-    for z in np.linspace(1.0, depth - 1, 6):                     # side walls: frames
-        for x in (x0, x1):
-            out.append(((x, yf, z), (x, yc + 0.7, z)))
-    for y in (yc + 0.7, 0.2):                                     # a rail along each side wall
-        for x in (x0, x1):
-            out.append(((x, y, 0.5), (x, y, depth - 0.5)))
-    return [(np.array(a, float), np.array(b, float)) for a, b in out]
-
-
-def render_room(K: np.ndarray, R: np.ndarray, size: tuple[int, int], C=(0.0, 0.0, 0.0),
-                thickness: int = 2) -> np.ndarray:
-    """``(H, W)`` uint8: the room's segments drawn (anti-aliased, dark on light) with
-    camera ``K``, world-to-camera rotation ``R`` and centre ``C``."""
-    W, H = size
-    img = np.full((H, W), 200, np.uint8)
-    for a, b in room_edges():
-        pa, pb = R @ (a - C), R @ (b - C)
-        near = 0.2
-        if pa[2] < near and pb[2] < near:
-            continue
-        if pa[2] < near or pb[2] < near:                          # clip at the near plane
-            s = (near - pa[2]) / (pb[2] - pa[2])
-            p = pa + s * (pb - pa)
-            pa, pb = (p, pb) if pa[2] < near else (pa, p)
-        ua, ub = K @ pa, K @ pb
-        ua, ub = ua[:2] / ua[2], ub[:2] / ub[2]
-        ok, p1, p2 = cv2.clipLine((0, 0, W, H), tuple(int(round(v)) for v in ua),
-                                  tuple(int(round(v)) for v in ub))
-        if ok:
-            cv2.line(img, p1, p2, 40, thickness, cv2.LINE_AA)
-    return img
 
 
 def _camera(f: float, size: tuple[int, int]) -> np.ndarray:
