@@ -35,8 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares, minimize_scalar
-
 from .ransac import RansacOptions, ransac
 
 __all__ = ["LinesFocal", "VanishingPoint", "detect_vanishing_points", "focal_from_lines",
@@ -150,6 +148,7 @@ def vp_residuals(v: np.ndarray, seg: np.ndarray) -> np.ndarray:
 def _refit(v0: np.ndarray, seg: np.ndarray) -> np.ndarray:
     """The unit homogeneous point minimising the squared residuals (:func:`vp_residuals`)
     of the segments, from ``v0`` (a chart on the sphere about it)."""
+    from scipy.optimize import least_squares
     v0 = np.asarray(v0, float) / np.linalg.norm(v0)
     if len(seg) < 2:
         return v0
@@ -282,6 +281,7 @@ def _pairs(axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _fit_focal(points: np.ndarray, axes: np.ndarray, lo: float, hi: float) -> float:
     """The normalised focal length in ``[lo, hi]`` minimising the squared cosines between
     every pair of ``points`` on different ``axes``."""
+    from scipy.optimize import minimize_scalar
     i, j = _pairs(axes)
 
     def cost(logF):

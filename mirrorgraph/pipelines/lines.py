@@ -20,9 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ..errors import InputError
 from ..graph.options import FocalOptions, RefineOptions
-from ..initial.vanishing import LinesFocal, focal_from_lines
+
+if TYPE_CHECKING:
+    from ..initial.vanishing import LinesFocal
 
 __all__ = ["lines_witness", "fuse_gaussians", "focal_sources", "disagreement_warning",
            "video_of", "searched_near", "DISAGREEMENT_SIGMA", "SEARCH_SIGMAS",
@@ -65,6 +69,7 @@ def lines_witness(video: Path | None, people: list[np.ndarray] | None,
         focal: ``lines``, ``lines_frames``, ``search_fov_deg``, ``principal_point_rel_sigma``.
         seed: RANSAC's and the bootstrap's seed.
     """
+    from ..initial.vanishing import LinesFocal, focal_from_lines
     from ..video.lines import scene_segments
     if not focal.lines:
         return LinesFocal(None, None, 0, reason="switched off (--no-lines)")

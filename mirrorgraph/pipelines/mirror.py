@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -31,7 +31,6 @@ from ..initial.estimators import estimate_mirror
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
-from ..initial.vanishing import LinesFocal
 from .lines import (disagreement_warning, focal_sources, fuse_gaussians, lines_witness,
                     searched_near, video_of)
 from .solve import refine_mirror
@@ -46,6 +45,9 @@ from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
 from ..initial.pairing import pair_detections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
+
+if TYPE_CHECKING:
+    from ..initial.vanishing import LinesFocal
 
 
 

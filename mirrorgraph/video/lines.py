@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .reader import _open, probe
+from .reader import probe, quiet_stderr
 
 __all__ = ["SceneSegments", "background", "person_mask", "scene_segments", "image_segments",
            "SEEK_GAP"]
@@ -57,7 +57,8 @@ def background(path: str | os.PathLike, frames: int = 31) -> tuple[np.ndarray, i
     info = probe(path)
     n = max(info.frame_count, 1)
     wanted = np.unique(np.linspace(0, n - 1, max(1, min(frames, n))).round().astype(int))
-    cap = _open(Path(path))
+    with quiet_stderr():                    # probe has checked that it opens
+        cap = cv2.VideoCapture(str(Path(path)))
     grey = []
     at = 0                                  # the next frame the decoder gives
     try:
