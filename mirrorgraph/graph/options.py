@@ -172,6 +172,12 @@ class FocalOptions:
     lines: bool = True
     lines_frames: int = 31
 
+    def __post_init__(self) -> None:
+        if isinstance(self.lines_frames, bool) or not isinstance(self.lines_frames, int) \
+                or self.lines_frames < 1:
+            raise InputError(f"must be a positive number of frames, got {self.lines_frames!r}",
+                             field="lines_frames")
+
 
 @dataclass(frozen=True, kw_only=True)
 class PriorOptions:

@@ -108,3 +108,4 @@ def test_pose2sim_frames_give_the_qualisys_focal_length():
         assert res.usable, res.reason
         assert abs(res.focal_px - f) / f < 0.03, (name, res.focal_px, f)
         assert abs(res.focal_px - f) < 3.0 * res.std_px, (name, res.focal_px, res.std_px, f)
+
