@@ -74,7 +74,9 @@ class CalibrationRun:
         fps_source: where it came from: ``"option"``, ``"input"``, ``"video"`` or
             ``"default"``.
         timings: wall seconds per step (``pairing``, ``initialisation``,
-            ``build``, ``solve``, ``marginals``, ``uncertainty``); kept out of the JSON
+            ``build``, ``solve``, ``marginals``, ``uncertainty``; ``lines`` and
+            ``solve_person``: the scene's lines and the person-alone solve before the
+            fused one, where the focal length is estimated on a video); kept out of the JSON
             so that the same input gives byte-identical output.
         refine_parts: the refinement's uncertainty figures with their covariances
             (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`); the JSON holds
@@ -163,9 +165,11 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         if intrinsics is None and focal_estimated(opts):     # the scene's lines, a witness
             if opts.graph.focal.lines:
                 step("the scene's straight lines")
+            clock = time.perf_counter()
             lines = lines_witness(video_of(keypoints, opts.video),
                                   getattr(obs.keypoints, "people", None),
                                   obs.intrinsics.image_size, opts.graph.focal, seed=opts.seed)
+            run.timings["lines"] = time.perf_counter() - clock
         _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
                 focal_rel_sigma=None if focal_estimated(opts) else
                 opts.graph.focal.guess_rel_sigma, lines=lines)
@@ -352,7 +356,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
     guess = calib.intrinsics
-    start_K, start_rel = guess.K, focal_rel_sigma
+    start_K, start_rel, near = guess.K, focal_rel_sigma, None
     res = refine_mirror(run.paired, start_K, calib.normal, pairs,
                         joints=run.joints, options=ropts, progress=iteration_progress,
                         estimate_focal=estimate_focal, focal_rel_sigma=start_rel)
@@ -366,7 +370,8 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
             f, std = fuse_gaussians((f0, rel0 * f0), (lines.focal_px, lines.std_px))
             start_K = np.array(guess.K, dtype=float)
             start_K[0, 0] = start_K[1, 1] = f
-            start_rel = std / f
+            start_rel, near = std / f, (f, std)
+            run.timings["solve_person"] = float(res.timings.get("solve", 0.0))
             res = refine_mirror(run.paired, start_K, calib.normal, pairs,
                                 joints=run.joints, options=searched_near(ropts, f, std, start_K),
                                 progress=iteration_progress, estimate_focal=True,
@@ -410,6 +415,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib.sensitivity = dict(res.sensitivity or {})
     if opts.sensitivity_priors and calib.sensitivity:
         def again(o):
+            o = o if near is None else searched_near(o, near[0], near[1], start_K)
             return refine_mirror(run.paired, start_K, calib.initial_normal, pairs,
                                  joints=run.joints, options=o, estimate_focal=estimate_focal,
                                  focal_rel_sigma=start_rel)
