@@ -179,8 +179,11 @@ class Calibration:
         est = self.intrinsics.estimated
         if est:
             if est.get("estimated") and "std_px" in est:
+                lines_used = (est.get("focal_sources") or {}).get("fused", {}).get("with_lines")
                 lines.append(f"focal length    {est['focal_px']:.1f} +- {est['std_px']:.1f} px "
-                             + ("(estimated from the person and the reflection)"
+                             + ("(estimated from the person, the reflection and the scene's "
+                                "lines)" if lines_used and est.get("determined", True) else
+                                "(estimated from the person and the reflection)"
                                 if est.get("determined", True) else
                                 "(not determined by the data: the estimate and its std)"))
             else:
