@@ -144,7 +144,8 @@ def options_from_args(args):
                             if args.joints else None,
                             refine_options=RefineOptions(
                                 scale_from=args.scale_from,
-                                focal=FocalOptions(principal_point=free)),
+                                focal=FocalOptions(principal_point=free,
+                                                   lines=not getattr(args, "no_lines", False))),
                             sensitivity_priors=getattr(args, "sensitivity", False))
     if args.threshold is not None:
         opts.threshold_px = args.threshold

@@ -57,6 +57,10 @@ def add_parsers(sub) -> None:
                    help="without intrinsics: the principal point about the image centre "
                         "with the spread of real cameras, 1%% of the larger side (default), or "
                         "a loose prior (free: the people decide it, poorly)")
+    p.add_argument("--no-lines", action="store_true",
+                   help="without intrinsics, on a video: leave the scene's straight lines out "
+                        "(by default their vanishing points are a second witness of the focal "
+                        "length beside the person's, reported apart in focal_sources)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,
@@ -89,8 +93,9 @@ def add_parsers(sub) -> None:
                    help="write the report's figures (PNG) into DIR (needs matplotlib: "
                         f"{INSTALL_HINT})")
     p.add_argument("--video", metavar="FILE",
-                   help="the video the keypoints come from: its frame rate, and with "
-                        "--report the overlay on sampled frames")
+                   help="the video the keypoints come from: its frame rate, its straight "
+                        "lines where the focal length is estimated, and with --report the "
+                        "overlay on sampled frames")
     p.add_argument("--render", metavar="OUT.mp4",
                    help="with --report and --video: write the whole overlay video")
     add_view_option(p)

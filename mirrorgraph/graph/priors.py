@@ -225,7 +225,13 @@ def intrinsics_prior_sigmas(camera) -> np.ndarray:
 def add_focal_prior(camera, key, graph, info):
     """The prior of :func:`intrinsics_prior` on ``K(c)``: the weak one of
     :attr:`~.rig.Camera.focal_prior` on the focal length, and where the principal point
-    is estimated its :attr:`~.rig.Camera.principal_point_prior`."""
+    is estimated its :attr:`~.rig.Camera.principal_point_prior`.
+
+    Where the scene's straight lines witness the focal length
+    (:attr:`~.options.FocalOptions.lines`), ``focal_prior`` is the product of the
+    guess's Gaussian and the lines' (:func:`mirrorgraph.pipelines.lines.fuse_gaussians`):
+    two Gaussian priors on one variable are this one factor, so its record in ``info``
+    (``focal_prior_<camera>``: sigma, weight) is the two together."""
     prior = intrinsics_prior(camera)
     if prior is None:
         return

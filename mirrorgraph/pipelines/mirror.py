@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -32,6 +32,8 @@ from ..initial.estimators import estimate_mirror
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
+from .lines import (disagreement_warning, focal_sources, fuse_gaussians, lines_witness,
+                    searched_near, video_of)
 from .solve import refine_mirror
 from ..graph.sensitivity import prior_weights
 from ..graph.uncertainty import region_rotation_deg
@@ -48,6 +50,9 @@ from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
 from ..geometry import triangulate_mirror
 from ..graph.joints_uncertainty import (mirror_plane_projections, position_std,
                                        triangulated_covariance, with_disagreement, with_scale)
+
+if TYPE_CHECKING:
+    from ..initial.vanishing import LinesFocal
 
 
 
@@ -74,7 +79,9 @@ class CalibrationRun:
         fps_source: where it came from: ``"option"``, ``"input"``, ``"video"`` or
             ``"default"``.
         timings: wall seconds per step (``pairing``, ``initialisation``,
-            ``build``, ``solve``, ``marginals``, ``uncertainty``); kept out of the JSON
+            ``build``, ``solve``, ``marginals``, ``uncertainty``; ``lines`` and
+            ``solve_person``: the scene's lines and the person-alone solve before the
+            fused one, where the focal length is estimated on a video); kept out of the JSON
             so that the same input gives byte-identical output.
         refine_parts: the refinement's uncertainty figures with their covariances
             (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`); the JSON holds
@@ -172,9 +179,18 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         # without intrinsics the focal length and principal point are always variables of
         # the graph: about the 60 deg guess with a wide prior (estimated), or about the
         # user's field of view with that guess's own spread (--fov)
+        lines = None
+        if intrinsics is None and focal_estimated(opts):     # the scene's lines, a witness
+            if opts.graph.focal.lines:
+                step("the scene's straight lines")
+            clock = time.perf_counter()
+            lines = lines_witness(video_of(keypoints, opts.video),
+                                  getattr(obs.keypoints, "people", None),
+                                  obs.intrinsics.image_size, opts.graph.focal, seed=opts.seed)
+            run.timings["lines"] = time.perf_counter() - clock
         _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
                 focal_rel_sigma=None if focal_estimated(opts) else
-                opts.graph.focal.guess_rel_sigma)
+                opts.graph.focal.guess_rel_sigma, lines=lines)
     elif opts.subject_height is not None:
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "
@@ -353,18 +369,51 @@ def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Ca
 
 def _refine(run: CalibrationRun, opts: CalibrateOptions,
             iteration_progress: Callable[[int, float], None] | None = None,
-            estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
+            estimate_focal: bool = False, focal_rel_sigma: float | None = None,
+            lines: LinesFocal | None = None) -> None:
+    """The graph's solve and what it gives the run's record. ``lines``: the scene's
+    witness of the focal length (:mod:`.lines`): where it has an estimate the graph is
+    solved a second time with it joined to the guess's prior, and both cues are
+    recorded apart (``intrinsics.estimated.focal_sources``)."""
     ropts = opts.graph
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
     guess = calib.intrinsics
-    res = refine_mirror(run.paired, guess.K, calib.normal, pairs,
+    start_K, start_rel, near = guess.K, focal_rel_sigma, None
+    res = refine_mirror(run.paired, start_K, calib.normal, pairs,
                         joints=run.joints, options=ropts, progress=iteration_progress,
-                        estimate_focal=estimate_focal, focal_rel_sigma=focal_rel_sigma)
+                        estimate_focal=estimate_focal, focal_rel_sigma=start_rel)
+    sources = None
+    if estimate_focal and lines is not None:
+        person = dict(res.focal)
+        fused = None
+        if lines.usable:
+            f0 = float(guess.K[0, 0])
+            rel0 = ropts.focal.prior_rel_sigma if focal_rel_sigma is None else focal_rel_sigma
+            f, std = fuse_gaussians((f0, rel0 * f0), (lines.focal_px, lines.std_px))
+            start_K = np.array(guess.K, dtype=float)
+            start_K[0, 0] = start_K[1, 1] = f
+            start_rel, near = std / f, (f, std)
+            run.timings["solve_person"] = float(res.timings.get("solve", 0.0))
+            res = refine_mirror(run.paired, start_K, calib.normal, pairs,
+                                joints=run.joints, options=searched_near(ropts, f, std, start_K),
+                                progress=iteration_progress, estimate_focal=True,
+                                focal_rel_sigma=start_rel)
+            fused = res.focal
+        sources = focal_sources(person, lines, fused)
     if estimate_focal:
         calib.intrinsics = estimated_intrinsics(guess, res.intrinsics, res.focal,
                                                 opts.fov_deg, calib.warnings,
                                                 user_guess=focal_rel_sigma is not None)
+    if sources is not None:
+        calib.intrinsics.estimated["focal_sources"] = sources
+        if sources["fused"]["with_lines"]:
+            calib.intrinsics.source = calib.intrinsics.source.replace(
+                "from the person and the reflection",
+                "from the person and the reflection with the scene's straight lines")
+        warning = disagreement_warning(sources)
+        if warning:
+            calib.warnings.append(warning)
     calib.normal = np.asarray(res.normal, dtype=float)
     calib.refined = True
     if res.scale == "subject_height":
@@ -389,9 +438,10 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
     calib.sensitivity = dict(res.sensitivity or {})
     if opts.sensitivity_priors and calib.sensitivity:
         def again(o):
-            return refine_mirror(run.paired, guess.K, calib.initial_normal, pairs,
+            o = o if near is None else searched_near(o, near[0], near[1], start_K)
+            return refine_mirror(run.paired, start_K, calib.initial_normal, pairs,
                                  joints=run.joints, options=o, estimate_focal=estimate_focal,
-                                 focal_rel_sigma=focal_rel_sigma)
+                                 focal_rel_sigma=start_rel)
         clock = time.perf_counter()
         calib.sensitivity["prior_weights"] = prior_weights(again, res.normal, ropts, res.priors)
         run.timings["sensitivity"] = time.perf_counter() - clock

@@ -46,8 +46,10 @@ class CalibrateOptions:
         fps: frame rate of the 3D motion in Hz, given by the user; ``None``: from the
             input, else from ``video``, else :data:`~mirrorgraph.preprocess.DEFAULT_FPS`
             with a warning (:func:`mirrorgraph.preprocess.resolve_fps`; one mirror).
-        video: the video the keypoints were detected on, read only for its frame rate
-            (:func:`~mirrorgraph.preprocess.fps_from_video`; one mirror).
+        video: the video the keypoints were detected on, read for its frame rate
+            (:func:`~mirrorgraph.preprocess.fps_from_video`; one mirror) and, where the
+            focal length is estimated, for the scene's straight lines
+            (``FocalOptions.lines``).
 
     **Initialisation**
 

@@ -179,13 +179,17 @@ class Calibration:
         est = self.intrinsics.estimated
         if est:
             if est.get("estimated") and "std_px" in est:
+                lines_used = (est.get("focal_sources") or {}).get("fused", {}).get("with_lines")
                 lines.append(f"focal length    {est['focal_px']:.1f} +- {est['std_px']:.1f} px "
-                             + ("(estimated from the person and the reflection)"
+                             + ("(estimated from the person, the reflection and the scene's "
+                                "lines)" if lines_used and est.get("determined", True) else
+                                "(estimated from the person and the reflection)"
                                 if est.get("determined", True) else
                                 "(not determined by the data: the estimate and its std)"))
             else:
                 lines.append(f"focal length    {self.intrinsics.K[0, 0]:.1f} px (a guess: the "
                              "data do not determine it)")
+            lines.extend(_focal_sources_lines(est.get("focal_sources")))
         lines.append(f"estimator       {self.estimator}" + (" + factor graph" if self.refined else ""))
         completion = self.refinement.get("completion")
         if completion:
@@ -200,6 +204,23 @@ class Calibration:
         for w in self.warnings:
             lines.append(f"warning: {w}")
         return "\n".join(lines)
+
+
+def _focal_sources_lines(sources: Mapping | None) -> list[str]:
+    """The summary's line of the focal length's witnesses (``focal_sources``): the
+    person's, the lines' (or why there is none) and the fused estimate."""
+    if not sources:
+        return []
+    p, li, fu = sources.get("person", {}), sources.get("lines", {}), sources.get("fused", {})
+    text = f"  sources       person {p.get('f', float('nan')):.0f} +- {p.get('std', float('nan')):.0f} px"
+    if "f" in li:
+        text += (f", lines {li['f']:.0f} +- {li['std']:.0f} px ({li.get('n_vps', 0)} vanishing "
+                 f"points, {li.get('n_segments', 0)} segments)")
+        if fu.get("with_lines"):
+            text += f", fused {fu.get('f', float('nan')):.0f} +- {fu.get('std', float('nan')):.0f} px"
+    else:
+        text += f"; lines: none ({li.get('reason', 'not measured')})"
+    return [text]
 
 
 def write_calibration(path: str | os.PathLike, calibration: Calibration) -> None:

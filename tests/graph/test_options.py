@@ -76,3 +76,12 @@ def test_calibrate_takes_the_height_once():
     run = mg.calibrate(scene.detections, scene.intrinsics, inner)
     # the refinement's height is the run's: recorded, not silently dropped
     assert run.calibration.input["subject_height"] == pytest.approx(1.70)
+
+
+def test_lines_frames_must_be_positive():
+    """``FocalOptions(lines_frames=0)`` is refused by name."""
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.graph.options import FocalOptions
+    with pytest.raises(InputError) as info:
+        FocalOptions(lines_frames=0)
+    assert info.value.field == "lines_frames"
