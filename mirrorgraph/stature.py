@@ -43,19 +43,39 @@ lying or bent over shortens the trunk and the legs' stack and the estimate with 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .anthropometry import LANDMARK_HEIGHT
+from .anthropometry import HEIGHT_FRACTION, HEIGHT_FRACTION_CV, LANDMARK_HEIGHT, bone_kind
 from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
-           "with_height_sigma", "measurement_rel_std", "MIN_FRAMES", "LIMB_PROPORTIONS",
-           "LIMB_CHOSEN"]
+           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "MIN_FRAMES",
+           "BONES_ALPHA", "WILD_RATIO", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
+
+#: The bones' disagreement about the height is the measurement's own where it exceeds
+#: what the adult population's proportions give with this probability (one-sided: a body
+#: measured right is taken as distorted in 5 % of cases; :func:`bones_rel_spread`).
+BONES_ALPHA = 0.05
+
+#: A segment kind outside the chain (arms, widths) whose height is this factor or more off
+#: the chain's (half as long again, or two thirds) lies beyond any adult's proportions
+#: (their spread is 3-6 %: over 7 std): a limb the reconstruction failed, which the chain
+#: does not use; it is left out of :func:`bones_rel_spread`.
+WILD_RATIO = 1.5
+#: The segment kinds the stature chain is made of (never left out).
+_CHAIN_KINDS = ("femur", "tibia", "trunk")
+
+#: Half widths (from a neck or a mid-hip joint) are the widths' kind in
+#: :data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`.
+_WIDTH_KIND = {"scapular": "shoulder_width", "pelvis": "hip_width"}
+#: ``Phi^-1(0.75)``: the median of ``|z|`` for a standard normal ``z``.
+_MAD_NORMAL = 0.6744897501960817
 
 _LEGS = ("knee", "ankle", "hip")
 _TRUNK = ("shoulder", "hip")
@@ -78,6 +98,13 @@ class StatureEstimate:
             detector places one side's joints with a bias (a body's legs differ by
             under 1 %), ``0`` where a side is not measured in enough frames
             (:func:`measurement_rel_std`).
+        bone_ratios: segment kind (``femur``, ``tibia``, ``humerus``, ``ulna``,
+            ``shoulder_width``, ``hip_width``, ``trunk``) -> the height that segment's
+            median length gives at its Winter fraction, over :attr:`height`
+            (dimensionless; kinds measured in fewer than ``min_frames`` frames absent).
+        bones_rel_spread: the bones' disagreement about the height beyond the adult
+            population's (:func:`bones_rel_spread` of :attr:`bone_ratios`), relative;
+            ``0`` where it is within the population's.
     """
 
     height: float
@@ -86,6 +113,8 @@ class StatureEstimate:
     unmeasured_fraction: float
     frames: int
     side_rel_diff: float = 0.0
+    bone_ratios: dict[str, float] = field(default_factory=dict)
+    bones_rel_spread: float = 0.0
 
     def describe(self) -> str:
         """One line for reports: what was measured and what was assumed."""
@@ -99,14 +128,18 @@ class StatureEstimate:
         return StatureEstimate(height=self.height * f,
                                segments={k: v * f for k, v in self.segments.items()},
                                top=self.top, unmeasured_fraction=self.unmeasured_fraction,
-                               frames=self.frames, side_rel_diff=self.side_rel_diff)
+                               frames=self.frames, side_rel_diff=self.side_rel_diff,
+                               bone_ratios=dict(self.bone_ratios),
+                               bones_rel_spread=self.bones_rel_spread)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
         return {"height": float(self.height), "segments": {k: float(v) for k, v in self.segments.items()},
                 "top": self.top, "unmeasured_fraction": float(self.unmeasured_fraction),
                 "frames": int(self.frames), "side_rel_diff": float(self.side_rel_diff),
-                "method": self.describe()}
+                "bone_ratios": {k: float(v) for k, v in self.bone_ratios.items()},
+                "bones_rel_spread": float(self.bones_rel_spread),
+                "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
 def _required(skeleton: Skeleton) -> dict[str, int] | None:
@@ -192,25 +225,133 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
         legs.append(sum(v for v, _ in parts) if min(n for _, n in parts) >= min_frames
                     else float("nan"))
     side = abs(legs[0] - legs[1]) / (legs[0] + legs[1])
-    return StatureEstimate(height=sum(segments.values()) / (1.0 - unmeasured), segments=segments,
-                           top=top_name, unmeasured_fraction=unmeasured, frames=frames,
-                           side_rel_diff=float(side) if np.isfinite(side) else 0.0)
+    height = sum(segments.values()) / (1.0 - unmeasured)
+    ratios = {k: v / height for k, v in _bone_statures(P, skeleton, trunk, min_frames).items()}
+    return StatureEstimate(height=height, segments=segments, top=top_name,
+                           unmeasured_fraction=unmeasured, frames=frames,
+                           side_rel_diff=float(side) if np.isfinite(side) else 0.0,
+                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios))
 
 
-def measurement_rel_std(stature: StatureEstimate | None) -> float:
-    """The stature measurement's own relative std, as far as the data show it: the two
-    legs' relative difference (:attr:`StatureEstimate.side_rel_diff`). Each leg measured
-    with a relative error of std ``s``: ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as
-    has the legs' mean, so one draw of the first stands for the second. A detector's
-    per-joint bias makes the 3D joints (depth along the rays) and the stature measured on
-    them wrong by as much: on the realistic synthetic detector (per-label bias 2-4 px,
-    epipolar outliers) one 3600-frame scene's right thigh came out 42 % long, the left
-    5 % short, the distance 18.4 % off where the height's 2 % was its std; with this term
-    its std is 14.4 % (12 scenes: largest error/std 9.2 -> 3.0). A bias that lengthens both
-    legs alike is not seen: another realistic scene's distance is 23.5 % off at 2.6 %
-    (``bench/RESULTS_scale_spread.md``; the metric scale's open problem). ``0`` for
-    ``None``."""
-    return 0.0 if stature is None else float(stature.side_rel_diff)
+def _bone_statures(P: np.ndarray, skeleton: Skeleton, trunk: np.ndarray, min_frames: int
+                   ) -> dict[str, float]:
+    """Segment kind -> the height its bones give: the median over frames and sides of
+    ``length / Winter fraction`` (``P`` ``(T, J, 3)`` with NaN where not valid, ``trunk``
+    ``(T,)`` mid-hip to mid-shoulder), the joints' unit; kinds with fewer than
+    ``min_frames`` lengths left out."""
+    per_kind: dict[str, list[np.ndarray]] = {}
+    for name, (a, b) in skeleton.bones.items():
+        kind = bone_kind(name)
+        if kind not in HEIGHT_FRACTION:
+            continue
+        length = np.linalg.norm(P[:, skeleton.index(a)] - P[:, skeleton.index(b)], axis=-1)
+        per_kind.setdefault(_WIDTH_KIND.get(kind, kind), []).append(length / HEIGHT_FRACTION[kind])
+    per_kind["trunk"] = [trunk / (LANDMARK_HEIGHT["shoulder"] - LANDMARK_HEIGHT["hip"])]
+    out = {}
+    for kind, parts in per_kind.items():
+        value, n = _median(np.concatenate(parts))
+        if n >= min_frames and value > 0:
+            out[kind] = value
+    return out
+
+
+def _median_abs_quantile(n: int, alpha: float) -> float:
+    """The ``1 - alpha`` point of ``median |z| / Phi^-1(0.75)`` over ``n`` independent
+    standard normal ``z`` (``~1`` on average; the median the ``k = n // 2 + 1``-th smallest,
+    the upper of the two middle ones for even ``n``): at least ``k`` of the ``n`` below
+    ``x`` is a binomial tail in ``p = P(|z| <= x) = erf(x / sqrt(2))``, solved for ``x``
+    by bisection."""
+    k = n // 2 + 1
+
+    def below(x: float) -> float:
+        p = math.erf(x / math.sqrt(2.0))
+        return sum(math.comb(n, j) * p ** j * (1.0 - p) ** (n - j) for j in range(k, n + 1))
+
+    lo, hi = 0.0, 10.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if below(mid) >= 1.0 - alpha else (mid, hi)
+    return hi / _MAD_NORMAL
+
+
+def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) -> float:
+    """The bones' disagreement about the height beyond the adult population's: the stature
+    measurement's spread where the reconstruction distorts the body.
+
+    Each segment kind's bones give a height (their length over Winter's fraction,
+    :attr:`StatureEstimate.bone_ratios` ``r_k`` of the chain's); over adults the log ratio
+    ``ln r_k`` has std ``c_k`` (:data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`,
+    2.6-6 %). An arm or a width ``WILD_RATIO`` or more off (beyond any adult body: a limb
+    the reconstruction failed, which the chain does not use) is left out; the chain's own
+    kinds (thigh, shank, trunk) always count. Normalised, ``z_k = ln r_k / c_k``, their
+    robust scale ``s = median |z_k| / Phi^-1(0.75)`` (the upper of the two middle values
+    for an even count) is ``~1`` for a body measured right.
+    Where
+    ``s`` exceeds its ``1 - alpha`` point for that many kinds (a one-sided test: the
+    binomial tail of the middle order statistic), the reconstruction stretches segments
+    against each other beyond any adult body, and the chain's segments (legs, trunk) are
+    measured the same way: the excess, ``c sqrt(s^2 - 1)`` with ``c`` the RMS of the
+    ``c_k``, is the measurement's relative std. A bias that lengthens both legs alike
+    (invisible to :attr:`StatureEstimate.side_rel_diff`) shows here against the arms,
+    the widths and the trunk.
+
+    Args:
+        bone_ratios: segment kind -> height it gives over the chain's (dimensionless).
+        alpha: the test's false-alarm probability on a body measured right.
+
+    Returns:
+        The relative std (dimensionless), ``0`` within the population's spread or with
+        fewer than three kinds of known spread left.
+    """
+    wild = math.log(WILD_RATIO)
+    kinds = [k for k, r in bone_ratios.items() if k in HEIGHT_FRACTION_CV and r > 0
+             and (k in _CHAIN_KINDS or abs(math.log(r)) < wild)]
+    if len(kinds) < 3:
+        return 0.0
+    cv = np.array([HEIGHT_FRACTION_CV[k] for k in kinds])
+    z = np.log([bone_ratios[k] for k in kinds]) / cv
+    s = float(np.sort(np.abs(z))[len(z) // 2]) / _MAD_NORMAL     # the (high) median
+    if s <= _median_abs_quantile(len(kinds), alpha):
+        return 0.0
+    return float(np.sqrt(np.mean(cv ** 2)) * np.sqrt(s * s - 1.0))
+
+
+def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
+    """The stature measurement's own relative std, as far as the data show it: the metric
+    scale's share beyond the height's prior (``RefineOptions.height_sigma``), for a single
+    mirror, a rig and the live scale alike.
+
+    Two views of a distorted reconstruction, added in quadrature:
+
+    - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
+      a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
+      the legs' mean, so one draw of the first stands for the second;
+    - the bones' disagreement about the height beyond the adult population's
+      (:attr:`StatureEstimate.bones_rel_spread`, :func:`bones_rel_spread`): seen where a
+      bias lengthens both legs alike, against the arms, the widths and the trunk.
+
+    A detector's per-joint bias makes the 3D joints (depth along the rays) and the stature
+    measured on them wrong: on the realistic synthetic detector (per-label bias 2-4 px,
+    epipolar outliers) one 1800-frame scene's legs come out 12-19 % long and its arms 7-35 %
+    short, the distance 23.5 % off where the height's 2 % and the legs' 1.7 % apart gave a
+    std of 2.6 %. ``bench/RESULTS_scale_spread.md`` measures both terms on iid and
+    realistic scenes and the Pose2Sim trials.
+
+    Args:
+        stature: the estimate, or its :meth:`StatureEstimate.to_dict` record (as a
+            calibration's ``refinement["stature"]`` holds it), or ``None``.
+
+    Returns:
+        The relative std (dimensionless); ``0`` for ``None``.
+    """
+    if stature is None:
+        return 0.0
+    if isinstance(stature, dict):
+        side = stature.get("side_rel_diff") or 0.0
+        bones = stature.get("bones_rel_spread") or 0.0
+    else:
+        side, bones = stature.side_rel_diff, stature.bones_rel_spread
+    return float(np.hypot(float(side), float(bones)))
 
 
 _LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"
