@@ -45,8 +45,8 @@ HEIGHT_FRACTION: dict[str, float] = {
 
 #: How much a segment's length over stature varies among adults: the relative std (the
 #: coefficient of variation) of a stature estimated from that one segment at its
-#: :data:`HEIGHT_FRACTION` (``length / fraction``), by segment kind (``trunk``: mid-hip to
-#: mid-shoulder, :data:`LANDMARK_HEIGHT` ``shoulder - hip``).
+#: :data:`HEIGHT_FRACTION` (``length / fraction``), by segment kind (``trunk``: hip to
+#: shoulder height, :data:`LANDMARK_HEIGHT` ``shoulder - hip``), anatomical landmarks.
 #:
 #: The long bones from M. Trotter and G. C. Gleser, "Estimation of stature from long bones
 #: of American Whites and Negroes", *Am. J. Phys. Anthropol.* 10, 1952 (white males: stature
@@ -71,6 +71,17 @@ HEIGHT_FRACTION_CV: dict[str, float] = {
     "hip_width": 0.06,
     "trunk": 0.04,
 }
+
+#: Where a keypoint detector places a joint against the anatomical landmark Winter's
+#: fractions are measured between, as a fraction of the height: 3 cm for a 1.75 m adult.
+#: Video-based 3D joint centres (OpenPose and others, triangulated from many cameras) lie
+#: a few centimetres from the marker-based ones, systematically, the hips the most (L.
+#: Needham et al., "The accuracy of several pose estimation methods for 3D joint centre
+#: localisation", *Sci. Rep.* 11, 20673, 2021). A segment between two such joints is
+#: ``sqrt(2)`` times that off its anatomical length (independent ends), a width twice
+#: (both sides moved alike by a symmetric convention); the joint inside a limb (knee,
+#: elbow) cancels in the limb's length.
+KEYPOINT_OFFSET = 0.017
 
 #: Height of a landmark above the floor / standing height, standing upright
 #: (Winter 2009, Fig. 4.1).
