@@ -5,8 +5,9 @@ With the subject's height the scale is the stature measured on the 3D joints
 the joints, and the stature on them, wrong, and the height's prior (``height_sigma``, 2 %)
 does not say so. The measurement's spread (:func:`mirrorgraph.stature.measurement_rel_std`)
 adds two terms in quadrature to the scale's relative std: the two legs' relative difference
-(``side``) and the bones' disagreement about the height beyond the adult population's
-(``bones``, :func:`mirrorgraph.stature.bones_rel_spread`). This script calibrates wide
+(``side``) and the body's segments' (limbs, trunk, widths) disagreement about the height
+beyond what adults and keypoints give (``bones``,
+:func:`mirrorgraph.stature.bones_rel_spread`). This script calibrates wide
 scenes (``make_wide_scene``, the camera matrix and the subject's height given) under both
 detector models and reports each distance's error over its std, side by side: the std as
 it is, without the bones' term, and without either (the height's prior alone). The terms
@@ -21,7 +22,7 @@ on the camera positions.
 
 Usage::
 
-    python bench/bench_scale_spread.py              # ~8 min on 2 cores (+ the trials)
+    python bench/bench_scale_spread.py              # ~8 min on 2 cores (+ ~6 min the trials)
     python bench/bench_scale_spread.py --seeds 4 --no-real --no-write
     python bench/bench_scale_spread.py --cache DIR  # the trials' detections reused
 
@@ -153,10 +154,13 @@ def main(argv: list[str] | None = None) -> int:
              "the subject's height given; error and std of the mirror's distance. Pose2Sim: "
              "the four demo trials through `calibrate_rig` as `bench_real.py` runs them, the "
              "error of the rig's scale against Qualisys' camera positions",
-             "- `side`: the legs' relative difference; `bones`: the bones' disagreement about "
-             "the height beyond the adult population's (`stature.bones_rel_spread`); `std`: "
-             "the scale's relative std with both, `legs only`: without the bones' term, "
-             "`height only`: the 2 % prior alone; `z`: error / std",
+             "- `side`: the legs' relative difference; `bones`: the body's segments' "
+             "disagreement about the height beyond what adults and keypoints give "
+             "(`stature.bones_rel_spread`); `std`: the scale's relative std with both, `legs "
+             "only`: without the bones' term, `height only`: the 2 % prior alone; `z`: error "
+             "/ std",
+             "- Pose2Sim's `Demo_Batch` trials are byte-identical copies of `Demo_SinglePerson` "
+             "(Trial_1) and `Demo_MultiPerson` (Trial_2): two distinct trials",
              "", "| case | seed / trial | error | side | bones | std | std legs only | "
              "std height only | z | z legs only | z height only |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
