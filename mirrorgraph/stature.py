@@ -64,23 +64,23 @@ __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_res
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
 
-#: The bones' disagreement about the height is the measurement's own where it exceeds
-#: what the adult population's proportions give with this probability (one-sided: a body
-#: measured right is taken as distorted in 5 % of cases; :func:`bones_rel_spread`).
+#: The segments' disagreement about the height is the measurement's own where it exceeds
+#: what adults and keypoints give with this probability (one-sided: a body measured right
+#: is taken as distorted in 5 % of cases; :func:`bones_rel_spread`).
 BONES_ALPHA = 0.05
 
 #: A segment kind outside the chain (arms, widths) whose height is this factor or more off
-#: the chain's (half as long again, or two thirds) lies beyond any adult's proportions and
-#: keypoints' conventions (their spread is 6-19 %: :data:`SEGMENT_REL_STD`): a limb the
-#: reconstruction failed, which the chain does not use; it is left out of
-#: :func:`bones_rel_spread`.
+#: the chain's (half as long again, or two thirds) is taken as a limb the reconstruction
+#: failed, which the chain does not use, and left out of :func:`bones_rel_spread`: an arm
+#: that far is over 5 std of adults and keypoints (:data:`SEGMENT_REL_STD`), a width over 2
+#: (the hips' keypoints may lie far inside Winter's hip width).
 WILD_RATIO = 1.5
 #: The segment kinds the stature chain is made of (never left out).
 _CHAIN_KINDS = ("leg", "trunk")
 #: The limbs measured whole (the inner joint's placement cancels): kind -> the bones'
 #: kinds in :data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION` and their joints.
 _WHOLE_LIMBS = {"leg": (("femur", "hip", "knee"), ("tibia", "knee", "ankle")),
-          "arm": (("humerus", "shoulder", "elbow"), ("ulna", "elbow", "wrist"))}
+                "arm": (("humerus", "shoulder", "elbow"), ("ulna", "elbow", "wrist"))}
 #: Width bones (a half width from a neck or a mid-hip joint, or the whole) -> their kind.
 _WIDTH_KIND = {"scapular": "shoulder_width", "pelvis": "hip_width",
                "shoulder_width": "shoulder_width", "hip_width": "hip_width"}
@@ -338,9 +338,9 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
     adult body, and the same reconstruction holds the chain and the mirror's geometry:
     the distortion's own relative spread ``e``, the one that brings the robust scale of
     ``ln r_k / sqrt(c_k^2 + e^2)`` back to 1 (each kind distorted by ``e`` on top of its
-    population spread), is the measurement's relative std. A bias that lengthens both legs alike (invisible to
-    :attr:`StatureEstimate.side_rel_diff`) shows here against the arms, the widths and
-    the trunk.
+    population spread), is the measurement's relative std. A bias that lengthens both
+    legs alike (invisible to :attr:`StatureEstimate.side_rel_diff`) shows here against
+    the arms, the widths and the trunk.
 
     Args:
         bone_ratios: segment kind -> height it gives over the chain's (dimensionless).
@@ -380,9 +380,10 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
     - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
       a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
       the legs' mean, so one draw of the first stands for the second;
-    - the bones' disagreement about the height beyond the adult population's
-      (:attr:`StatureEstimate.bones_rel_spread`, :func:`bones_rel_spread`): seen where a
-      bias lengthens both legs alike, against the arms, the widths and the trunk.
+    - the body's segments' (limbs, trunk, widths) disagreement about the height beyond
+      what adults and keypoints give (:attr:`StatureEstimate.bones_rel_spread`,
+      :func:`bones_rel_spread`): seen where a bias lengthens both legs alike, against the
+      arms, the widths and the trunk.
 
     A detector's per-joint bias makes the 3D joints (depth along the rays) and the stature
     measured on them wrong: on the realistic synthetic detector (per-label bias 2-4 px,
