@@ -43,6 +43,46 @@ HEIGHT_FRACTION: dict[str, float] = {
     "pelvis": 0.191 / 2,
 }
 
+#: How much a segment's length over stature varies among adults: the relative std (the
+#: coefficient of variation) of a stature estimated from that one segment at its
+#: :data:`HEIGHT_FRACTION` (``length / fraction``), by segment kind (``trunk``: hip to
+#: shoulder height, :data:`LANDMARK_HEIGHT` ``shoulder - hip``), anatomical landmarks.
+#:
+#: The long bones from M. Trotter and G. C. Gleser, "Estimation of stature from long bones
+#: of American Whites and Negroes", *Am. J. Phys. Anthropol.* 10, 1952 (white males: stature
+#: ``H = b L + a`` +- SEE, cm: femur 2.38, 61.41, 3.27; tibia 2.52, 78.62, 3.37; humerus
+#: 3.08, 70.45, 4.05; ulna 3.70, 74.05, 4.32). A proportional estimate ``L / f`` (no
+#: intercept, ``f`` the mean ratio) errs by the regression's residual and by its own
+#: misfit of the line, ``(H / L - b) (L - mean L)``; with a stature mean of 174 cm and
+#: std of 6.7 cm (``std L = sqrt(std H^2 - SEE^2) / b``) that is
+#: ``sqrt(SEE^2 + ((H / L - b) std L)^2) / H``: femur 2.6 %, tibia 3.4 %, humerus 3.1 %,
+#: ulna 3.3 %. Breadths (shoulders, hips) correlate weakly with stature in adult surveys,
+#: so their ratio to it spreads about as much as the breadth itself, 5-6 % (biacromial
+#: and hip breadth: C. C. Gordon et al., *2012 Anthropometric Survey of U.S. Army
+#: Personnel* (ANSUR II), NATICK/TR-15/007, 2014). The trunk's height (hip joints to
+#: shoulders) has no such survey figure at hand: 4 %, between the long bones' and the
+#: breadths'. Dimensionless.
+HEIGHT_FRACTION_CV: dict[str, float] = {
+    "femur": 0.026,
+    "tibia": 0.034,
+    "humerus": 0.031,
+    "ulna": 0.033,
+    "shoulder_width": 0.05,
+    "hip_width": 0.06,
+    "trunk": 0.04,
+}
+
+#: Where a keypoint detector places a joint against the anatomical landmark Winter's
+#: fractions are measured between, as a fraction of the height: 3 cm for a 1.75 m adult.
+#: Video-based 3D joint centres (OpenPose and others, triangulated from many cameras) lie
+#: a few centimetres from the marker-based ones, systematically, the hips the most (L.
+#: Needham et al., "The accuracy of several pose estimation methods for 3D joint centre
+#: localisation", *Sci. Rep.* 11, 20673, 2021). A segment between two such joints is
+#: ``sqrt(2)`` times that off its anatomical length (independent ends), a width twice
+#: (both sides moved alike by a symmetric convention); the joint inside a limb (knee,
+#: elbow) cancels in the limb's length.
+KEYPOINT_OFFSET = 0.017
+
 #: Height of a landmark above the floor / standing height, standing upright
 #: (Winter 2009, Fig. 4.1).
 LANDMARK_HEIGHT: dict[str, float] = {

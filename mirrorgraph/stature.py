@@ -39,23 +39,79 @@ limb proportions (measured on the synthetic subjects of :mod:`mirrorgraph.synth`
 ``bench/RESULTS_rig.md``). The medians assume the subject stands or moves upright
 for most of the frames (walking, exercises standing): a video spent sitting,
 lying or bent over shortens the trunk and the legs' stack and the estimate with it.
+
+The measurement's own spread (:func:`measurement_rel_std`) is what the joints show of a
+distorted reconstruction: the two legs apart, and the body's segments (limbs, trunk,
+widths) disagreeing about the height beyond what adults and keypoints give
+(:func:`bones_rel_spread`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .anthropometry import LANDMARK_HEIGHT
+from .anthropometry import (HEIGHT_FRACTION, HEIGHT_FRACTION_CV, KEYPOINT_OFFSET,
+                            LANDMARK_HEIGHT, bone_kind)
 from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
-           "with_height_sigma", "measurement_rel_std", "MIN_FRAMES", "LIMB_PROPORTIONS",
-           "LIMB_CHOSEN"]
+           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "MIN_FRAMES",
+           "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
+
+#: The segments' disagreement about the height is the measurement's own where it exceeds
+#: what adults and keypoints give with this probability (one-sided: a body measured right
+#: is taken as distorted in 5 % of cases; :func:`bones_rel_spread`).
+BONES_ALPHA = 0.05
+
+#: A segment kind outside the chain (arms, widths) whose height is this factor or more off
+#: the chain's (half as long again, or two thirds) is taken as a limb the reconstruction
+#: failed, which the chain does not use, and left out of :func:`bones_rel_spread`: an arm
+#: that far is over 5 std of adults and keypoints (:data:`SEGMENT_REL_STD`), a width over 2
+#: (the hips' keypoints may lie far inside Winter's hip width).
+WILD_RATIO = 1.5
+#: The segment kinds the stature chain is made of (never left out).
+_CHAIN_KINDS = ("leg", "trunk")
+#: The limbs measured whole (the inner joint's placement cancels): kind -> the bones'
+#: kinds in :data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION` and their joints.
+_WHOLE_LIMBS = {"leg": (("femur", "hip", "knee"), ("tibia", "knee", "ankle")),
+                "arm": (("humerus", "shoulder", "elbow"), ("ulna", "elbow", "wrist"))}
+#: Width bones (a half width from a neck or a mid-hip joint, or the whole) -> their kind.
+_WIDTH_KIND = {"scapular": "shoulder_width", "pelvis": "hip_width",
+               "shoulder_width": "shoulder_width", "hip_width": "hip_width"}
+
+
+def _segment_rel_std() -> dict[str, float]:
+    """Segment kind -> the relative std of the height it gives over adults and detectors:
+    the anatomical spread (:data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`; a limb's
+    the length-weighted mean of its bones', an upper bound for a sum) and the keypoints'
+    placement (:data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` ``o``: ``sqrt(2) o / f``
+    for a limb or the trunk, ``2 o / f`` for a width, ``f`` its fraction), in quadrature."""
+    out = {}
+    for kind, parts in _WHOLE_LIMBS.items():
+        f = sum(HEIGHT_FRACTION[b] for b, _, _ in parts)
+        cv = sum(HEIGHT_FRACTION[b] * HEIGHT_FRACTION_CV[b] for b, _, _ in parts) / f
+        out[kind] = math.hypot(cv, math.sqrt(2.0) * KEYPOINT_OFFSET / f)
+    f = LANDMARK_HEIGHT["shoulder"] - LANDMARK_HEIGHT["hip"]
+    out["trunk"] = math.hypot(HEIGHT_FRACTION_CV["trunk"], math.sqrt(2.0) * KEYPOINT_OFFSET / f)
+    for kind in ("shoulder_width", "hip_width"):
+        out[kind] = math.hypot(HEIGHT_FRACTION_CV[kind], 2.0 * KEYPOINT_OFFSET / HEIGHT_FRACTION[kind])
+    return out
+
+
+#: Segment kind (``leg``, ``arm``, ``trunk``, ``shoulder_width``, ``hip_width``) -> the
+#: relative std of the height it gives (its length over Winter's fraction) among adults
+#: measured by keypoints: leg 5.7 %, arm 7.9 %, trunk 9.3 %, shoulder width 14 %, hip
+#: width 19 % (dimensionless).
+SEGMENT_REL_STD: dict[str, float] = _segment_rel_std()
+
+#: ``Phi^-1(0.75)``: the median of ``|z|`` for a standard normal ``z``.
+_MAD_NORMAL = 0.6744897501960817
 
 _LEGS = ("knee", "ankle", "hip")
 _TRUNK = ("shoulder", "hip")
@@ -78,6 +134,13 @@ class StatureEstimate:
             detector places one side's joints with a bias (a body's legs differ by
             under 1 %), ``0`` where a side is not measured in enough frames
             (:func:`measurement_rel_std`).
+        bone_ratios: segment kind (``leg``: hip to ankle, ``arm``: shoulder to wrist,
+            ``trunk``, ``shoulder_width``, ``hip_width``) -> the height its median length
+            gives at Winter's fraction, over :attr:`height` (dimensionless; kinds measured
+            in fewer than ``min_frames`` frames absent).
+        bones_rel_spread: the segments' disagreement about the height beyond the spread
+            of adults and keypoints (:func:`bones_rel_spread` of :attr:`bone_ratios`),
+            relative; ``0`` where it is within it.
     """
 
     height: float
@@ -86,6 +149,8 @@ class StatureEstimate:
     unmeasured_fraction: float
     frames: int
     side_rel_diff: float = 0.0
+    bone_ratios: dict[str, float] = field(default_factory=dict)
+    bones_rel_spread: float = 0.0
 
     def describe(self) -> str:
         """One line for reports: what was measured and what was assumed."""
@@ -99,14 +164,18 @@ class StatureEstimate:
         return StatureEstimate(height=self.height * f,
                                segments={k: v * f for k, v in self.segments.items()},
                                top=self.top, unmeasured_fraction=self.unmeasured_fraction,
-                               frames=self.frames, side_rel_diff=self.side_rel_diff)
+                               frames=self.frames, side_rel_diff=self.side_rel_diff,
+                               bone_ratios=dict(self.bone_ratios),
+                               bones_rel_spread=self.bones_rel_spread)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
         return {"height": float(self.height), "segments": {k: float(v) for k, v in self.segments.items()},
                 "top": self.top, "unmeasured_fraction": float(self.unmeasured_fraction),
                 "frames": int(self.frames), "side_rel_diff": float(self.side_rel_diff),
-                "method": self.describe()}
+                "bone_ratios": {k: float(v) for k, v in self.bone_ratios.items()},
+                "bones_rel_spread": float(self.bones_rel_spread),
+                "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
 def _required(skeleton: Skeleton) -> dict[str, int] | None:
@@ -192,25 +261,155 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
         legs.append(sum(v for v, _ in parts) if min(n for _, n in parts) >= min_frames
                     else float("nan"))
     side = abs(legs[0] - legs[1]) / (legs[0] + legs[1])
-    return StatureEstimate(height=sum(segments.values()) / (1.0 - unmeasured), segments=segments,
-                           top=top_name, unmeasured_fraction=unmeasured, frames=frames,
-                           side_rel_diff=float(side) if np.isfinite(side) else 0.0)
+    height = sum(segments.values()) / (1.0 - unmeasured)
+    ratios = {k: v / height for k, v in _segment_statures(P, skeleton, trunk, min_frames).items()}
+    return StatureEstimate(height=height, segments=segments, top=top_name,
+                           unmeasured_fraction=unmeasured, frames=frames,
+                           side_rel_diff=float(side) if np.isfinite(side) else 0.0,
+                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios))
 
 
-def measurement_rel_std(stature: StatureEstimate | None) -> float:
-    """The stature measurement's own relative std, as far as the data show it: the two
-    legs' relative difference (:attr:`StatureEstimate.side_rel_diff`). Each leg measured
-    with a relative error of std ``s``: ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as
-    has the legs' mean, so one draw of the first stands for the second. A detector's
-    per-joint bias makes the 3D joints (depth along the rays) and the stature measured on
-    them wrong by as much: on the realistic synthetic detector (per-label bias 2-4 px,
-    epipolar outliers) one 3600-frame scene's right thigh came out 42 % long, the left
-    5 % short, the distance 18.4 % off where the height's 2 % was its std; with this term
-    its std is 14.4 % (12 scenes: largest error/std 9.2 -> 3.0). A bias that lengthens both
-    legs alike is not seen: another realistic scene's distance is 23.5 % off at 2.6 %
-    (``bench/RESULTS_scale_spread.md``; the metric scale's open problem). ``0`` for
-    ``None``."""
-    return 0.0 if stature is None else float(stature.side_rel_diff)
+def _segment_statures(P: np.ndarray, skeleton: Skeleton, trunk: np.ndarray, min_frames: int
+                      ) -> dict[str, float]:
+    """Segment kind -> the height it gives: the median over frames (and sides) of its
+    length over Winter's fraction (``P`` ``(T, J, 3)`` with NaN where not valid, ``trunk``
+    ``(T,)`` mid-hip to mid-shoulder), the joints' unit. The limbs (``leg``: hip, knee,
+    ankle; ``arm``: shoulder, elbow, wrist) are measured whole, the widths from the
+    skeleton's width bones; kinds with fewer than ``min_frames`` lengths left out."""
+    def joint(name: str) -> np.ndarray:
+        return P[:, skeleton.index(name)]
+
+    per_kind: dict[str, list[np.ndarray]] = {}
+    for kind, parts in _WHOLE_LIMBS.items():
+        f = sum(HEIGHT_FRACTION[b] for b, _, _ in parts)
+        for side in ("left", "right"):
+            if all(f"{side}_{j}" in skeleton.joints for _, a, b in parts for j in (a, b)):
+                length = sum(np.linalg.norm(joint(f"{side}_{a}") - joint(f"{side}_{b}"), axis=-1)
+                             for _, a, b in parts)
+                per_kind.setdefault(kind, []).append(length / f)
+    for name, (a, b) in skeleton.bones.items():
+        kind = bone_kind(name)
+        if kind in _WIDTH_KIND:
+            length = np.linalg.norm(joint(a) - joint(b), axis=-1)
+            per_kind.setdefault(_WIDTH_KIND[kind], []).append(length / HEIGHT_FRACTION[kind])
+    per_kind["trunk"] = [trunk / (LANDMARK_HEIGHT["shoulder"] - LANDMARK_HEIGHT["hip"])]
+    out = {}
+    for kind, parts in per_kind.items():
+        value, n = _median(np.concatenate(parts))
+        if n >= min_frames and value > 0:
+            out[kind] = value
+    return out
+
+
+def _median_abs_quantile(n: int, alpha: float) -> float:
+    """The ``1 - alpha`` point of ``median |z| / Phi^-1(0.75)`` over ``n`` independent
+    standard normal ``z`` (``~1`` on average; the median the ``k = n // 2 + 1``-th smallest,
+    the upper of the two middle ones for even ``n``): at least ``k`` of the ``n`` below
+    ``x`` is a binomial tail in ``p = P(|z| <= x) = erf(x / sqrt(2))``, solved for ``x``
+    by bisection."""
+    k = n // 2 + 1
+
+    def below(x: float) -> float:
+        p = math.erf(x / math.sqrt(2.0))
+        return sum(math.comb(n, j) * p ** j * (1.0 - p) ** (n - j) for j in range(k, n + 1))
+
+    lo, hi = 0.0, 10.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if below(mid) >= 1.0 - alpha else (mid, hi)
+    return hi / _MAD_NORMAL
+
+
+def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) -> float:
+    """The body's segments' disagreement about the height beyond what adults and keypoints
+    give: the stature measurement's spread where the reconstruction distorts the body.
+
+    Each segment kind gives a height, its length over Winter's fraction
+    (:attr:`StatureEstimate.bone_ratios` ``r_k``, over the chain's); the log ratio
+    ``ln r_k`` has std ``c_k`` over adults measured by keypoints (:data:`SEGMENT_REL_STD`:
+    the population's proportions and the keypoints' placement against the anatomical
+    landmarks, 6-19 %). An arm or a width ``WILD_RATIO`` or more off (a limb the
+    reconstruction failed, which the chain does not use) is left out; the chain's own
+    kinds (leg, trunk) always count. Normalised, ``z_k = ln r_k / c_k``, their robust
+    scale ``s = median |z_k| / Phi^-1(0.75)`` (the upper of the two middle values for an
+    even count) is ``~1`` for a body measured right. Where ``s`` exceeds its ``1 - alpha``
+    point for that many kinds (a one-sided test: the binomial tail of the median's order
+    statistic), the reconstruction stretches segments against each other beyond any
+    adult body, and the same reconstruction holds the chain and the mirror's geometry:
+    the distortion's own relative spread ``e``, the one that brings the robust scale of
+    ``ln r_k / sqrt(c_k^2 + e^2)`` back to 1 (each kind distorted by ``e`` on top of its
+    population spread), is the measurement's relative std. A bias that lengthens both
+    legs alike (invisible to :attr:`StatureEstimate.side_rel_diff`) shows here against
+    the arms, the widths and the trunk.
+
+    Args:
+        bone_ratios: segment kind -> height it gives over the chain's (dimensionless).
+        alpha: the test's false-alarm probability on a body measured right.
+
+    Returns:
+        The relative std (dimensionless), ``0`` within the spread of adults and keypoints
+        or with fewer than three kinds left.
+    """
+    wild = math.log(WILD_RATIO)
+    kinds = [k for k, r in bone_ratios.items() if k in SEGMENT_REL_STD and r > 0
+             and (k in _CHAIN_KINDS or abs(math.log(r)) < wild)]
+    if len(kinds) < 3:
+        return 0.0
+    cv = np.array([SEGMENT_REL_STD[k] for k in kinds])
+    r = np.abs(np.log([bone_ratios[k] for k in kinds]))
+
+    def scale(extra: float) -> float:                    # the (high) median of |z|, normalised
+        return float(np.sort(r / np.hypot(cv, extra))[len(r) // 2]) / _MAD_NORMAL
+
+    if scale(0.0) <= _median_abs_quantile(len(kinds), alpha):
+        return 0.0
+    lo, hi = 0.0, 10.0                                   # scale(extra) = 1, decreasing
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if scale(mid) > 1.0 else (lo, mid)
+    return float(hi)
+
+
+def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
+    """The stature measurement's own relative std, as far as the data show it: the metric
+    scale's share beyond the height's prior (``RefineOptions.height_sigma``), for a single
+    mirror, a rig and the live scale alike.
+
+    Two views of a distorted reconstruction, added in quadrature:
+
+    - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
+      a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
+      the legs' mean, so one draw of the first stands for the second;
+    - the body's segments' (limbs, trunk, widths) disagreement about the height beyond
+      what adults and keypoints give (:attr:`StatureEstimate.bones_rel_spread`,
+      :func:`bones_rel_spread`): seen where a bias lengthens both legs alike, against the
+      arms, the widths and the trunk.
+
+    A detector's per-joint bias makes the 3D joints (depth along the rays) and the stature
+    measured on them wrong: on the realistic synthetic detector (per-label bias 2-4 px,
+    epipolar outliers) one 1800-frame scene's legs come out 18 % long, its arms 14 % and
+    trunk 20 % short, the distance 23.5 % off: the height's 2 % and the legs' 1.7 % apart
+    give 2.6 %, the segments' term 21.1 % (``bench/RESULTS_scale_spread.md``: largest
+    error/std over 12 such scenes 9.0 -> 2.4, over 12 of 3600 frames 3.0, 12 iid scenes
+    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %). A
+    distortion within the spread of adults and keypoints (up to ~10 % of the stature) is
+    not seen: a 3600-frame scene's distance is 6.1 % off at 2.0 %.
+
+    Args:
+        stature: the estimate, or its :meth:`StatureEstimate.to_dict` record (as a
+            calibration's ``refinement["stature"]`` holds it), or ``None``.
+
+    Returns:
+        The relative std (dimensionless); ``0`` for ``None``.
+    """
+    if stature is None:
+        return 0.0
+    if isinstance(stature, dict):
+        side = stature.get("side_rel_diff") or 0.0
+        bones = stature.get("bones_rel_spread") or 0.0
+    else:
+        side, bones = stature.side_rel_diff, stature.bones_rel_spread
+    return float(np.hypot(float(side), float(bones)))
 
 
 _LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"

@@ -165,3 +165,104 @@ def _calibrate_paired(paired, scene):
 
     return calibrate(paired, scene.intrinsics,
                      CalibrateOptions(subject_height=scene.subject_height)).calibration
+
+
+def _legs_stretched(pts: np.ndarray, sk, factor: float) -> np.ndarray:
+    """``pts`` with each knee and ankle moved away from its hip by ``factor``: both legs
+    lengthened alike (``(..., 2)`` image points or ``(..., 3)`` joints)."""
+    out = pts.copy()
+    for side in ("left", "right"):
+        hip = out[:, sk.index(f"{side}_hip")].copy()
+        for j in ("knee", "ankle"):
+            i = sk.index(f"{side}_{j}")
+            out[:, i] = hip + factor * (out[:, i] - hip)
+    return out
+
+
+def test_bodies_measured_right_agree_with_the_population():
+    """Twenty synthetic subjects (each segment kind 3 % off Winter's): the segments'
+    heights over the chain's stay within the spread of adults and keypoints, nothing is
+    added."""
+    from mirrorgraph.stature import bones_rel_spread
+
+    spreads = []
+    for seed in range(20):
+        sk, pts, valid, _ = _subject(seed)
+        est = estimate_stature(pts, valid, sk)
+        assert set(est.bone_ratios) == {"leg", "arm", "trunk", "shoulder_width", "hip_width"}
+        assert bones_rel_spread(est.bone_ratios) == est.bones_rel_spread
+        spreads.append(est.bones_rel_spread)
+    assert sum(s > 0 for s in spreads) <= 1
+
+
+def test_legs_lengthened_alike_are_the_measurements_spread():
+    """Both legs 40 % long (a detector's bias the legs' difference cannot see): the stature
+    comes out ~22 % long, the legs agree, and the segments' disagreement (legs long against
+    arms, widths and trunk) holds the error; 20 % long (stature +11 %) stays within what
+    adults and keypoints' placement give (nothing added)."""
+    from mirrorgraph.stature import measurement_rel_std
+
+    sk, pts, valid, _ = _subject(3)
+    est = estimate_stature(_legs_stretched(pts, sk, 1.4), valid, sk)
+    err = est.height / 1.75 - 1
+    assert err > 0.15 and est.side_rel_diff < 0.005
+    assert err / 2 < est.bones_rel_spread < 2 * err
+    assert estimate_stature(_legs_stretched(pts, sk, 1.2), valid, sk).bones_rel_spread == 0.0
+    assert measurement_rel_std(est) == pytest.approx(np.hypot(est.side_rel_diff,
+                                                              est.bones_rel_spread))
+    assert measurement_rel_std(est.to_dict()) == pytest.approx(measurement_rel_std(est))
+    assert est.scaled(3.0).bones_rel_spread == est.bones_rel_spread
+
+
+def test_an_upper_body_gone_wild_leaves_the_spread_alone():
+    """Arms reconstructed 2.5 times too long and the legs, trunk and widths right: the
+    stature is right and the arms, beyond any adult's proportions, are left out of the
+    segments' disagreement."""
+    sk, pts, valid, _ = _subject(3)
+    wild = pts.copy()
+    for side in ("left", "right"):
+        sh = wild[:, sk.index(f"{side}_shoulder")].copy()
+        for j in ("elbow", "wrist"):
+            i = sk.index(f"{side}_{j}")
+            wild[:, i] = sh + 2.5 * (wild[:, i] - sh)
+    est = estimate_stature(wild, valid, sk)
+    assert est.bone_ratios["arm"] > 2.0
+    assert est.height == pytest.approx(estimate_stature(pts, valid, sk).height, rel=1e-9)
+    assert est.bones_rel_spread == 0.0
+
+
+def test_the_tests_threshold_is_the_normal_samples():
+    """The one-sided point of the bones' robust scale: a seeded Monte Carlo of normal
+    samples exceeds it in ``alpha`` of draws."""
+    from mirrorgraph.stature import _median_abs_quantile
+
+    rng = np.random.default_rng(0)
+    for n, alpha in ((7, 0.05), (6, 0.05), (9, 0.2)):
+        high_median = np.sort(np.abs(rng.standard_normal((40000, n))), axis=1)[:, n // 2]
+        q = _median_abs_quantile(n, alpha)
+        assert np.mean(high_median / 0.6744897501960817 > q) == pytest.approx(alpha, abs=0.006)
+
+
+def test_the_distance_std_holds_legs_lengthened_alike():
+    """A detector placing every knee and ankle 40 % further from its hip in both views:
+    the distance comes out ~18 % short; the legs agree with each other, so their term
+    adds nothing, and the segments' disagreement widens the std to cover the error (the
+    height's 2 % alone: error/std ~9)."""
+    from mirrorgraph.keypoints import PairedKeypoints
+    from mirrorgraph.synth.scene import make_scene
+
+    s = make_scene(frames=300, seed=0, skeleton="COCO_17")
+    out = {}
+    for k in (1.0, 1.4):
+        paired = PairedKeypoints(skeleton=s.skeleton, frame_ids=s.frame_ids,
+                                 real=_legs_stretched(s.real_observed, s.skeleton, k),
+                                 mirror=_legs_stretched(s.mirror_observed, s.skeleton, k),
+                                 source="biased.npz", image_size=s.image_size)
+        c = _calibrate_paired(paired, s)
+        out[k] = (c.distance / s.distance - 1, c.uncertainty["distance_std"] / c.distance,
+                  c.refinement["stature"])
+    err, std, stature = out[1.4]
+    assert abs(err) > 0.1 and stature["side_rel_diff"] < 0.005
+    assert abs(err) < 2 * std
+    assert stature["rel_std"] > 0.1 and out[1.0][2]["bones_rel_spread"] == 0.0
+    assert abs(out[1.0][0]) < 2 * out[1.0][1] and out[1.0][1] < 0.025

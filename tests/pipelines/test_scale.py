@@ -12,6 +12,7 @@ A height of 0, a negative or a non-finite one is refused, naming the field.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -182,3 +183,28 @@ def test_a_height_that_is_no_height_is_refused(height):
 def test_refine_options_name_a_height_that_is_no_height(height):
     with pytest.raises(InputError, match="subject_height"):
         RefineOptions(subject_height=height, marginals=False)
+
+
+def test_legs_reconstructed_long_widen_the_distance_std(scene):
+    """The truth with every knee and ankle 40 % further from its hip (a reconstruction
+    stretched along both legs alike): the stature comes out long and the distance short;
+    the legs agree, and the segments' disagreement (legs against arms, trunk, widths) is
+    the std's measurement term, which covers the error."""
+    from mirrorgraph.stature import measurement_rel_std
+
+    sk, paired = scene.skeleton, scene.paired()
+    res = _limbs_at_scale(scene, 1.0)
+    X = np.array(res.joints3d)
+    for side in ("left", "right"):
+        hip = X[:, sk.index(f"{side}_hip")].copy()
+        for j in ("knee", "ankle"):
+            i = sk.index(f"{side}_{j}")
+            X[:, i] = hip + 1.4 * (X[:, i] - hip)
+    out = scale_by_stature(replace(res, joints3d=X), paired, scene.K, scene.subject_height)
+    err = out.distance / scene.distance - 1
+    assert err < -0.1 and out.stature["side_rel_diff"] < 0.005
+    rel = measurement_rel_std(out.stature)
+    assert rel == pytest.approx(out.stature["bones_rel_spread"]) and rel > 0.1
+    f = out.distance / res.distance
+    assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance))
+    assert abs(err) < 2 * out.distance_std / out.distance
