@@ -488,7 +488,7 @@ def _refine(run: CalibrationRun, opts: CalibrateOptions,
                                       float(res.distance), res.joints3d, res.valid,
                                       joints=run.joints, min_confidence=opts.min_confidence,
                                       threshold_px=opts.threshold_px,
-                                      pixel_sigma=noise if cov is not None else None,
+                                      pixel_sigma=noise,
                                       plane_cov=res.plane_cov,
                                       body_gauge=res.scale == "subject_height",
                                       smoothness=_completion_smoothness(run, res, ropts))
