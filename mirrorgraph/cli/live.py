@@ -97,7 +97,8 @@ def cmd_live(args) -> int:
     realtime = camera or not args.as_fast_as_possible
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
                        calibrated_std_deg=args.calibrated_std,
-                       background=bool(args.background or realtime))
+                       background=bool(args.background or realtime),
+                       wait_first_mirror=not realtime)
     with Progress(f"live from {source.name}", total=source.total,
                   enabled=not args.quiet) as bar:
         def on_frame(frame) -> None:

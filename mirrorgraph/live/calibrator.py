@@ -83,6 +83,7 @@ how far to trust them).
 
 from __future__ import annotations
 
+import copy
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
@@ -100,7 +101,8 @@ if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
     from ..skeletons import Skeleton
 
-__all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES"]
+__all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES",
+           "joints_normal_jacobian"]
 
 #: The statuses of a live mirror.
 STATUSES = ("initialising", "calibrated")
@@ -127,6 +129,10 @@ class LiveOptions:
         fps: frame rate for frame times where the caller gives none.
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
+        wait_first_mirror: in the background mode, hold the frame that starts a solve
+            until it returns while there is no mirror yet (a file replayed flat out:
+            the frames after the first window then have joints, as inline); ``False``
+            for a live feed, whose frames cannot wait.
     """
 
     calibrate: object | None = None
@@ -137,6 +143,7 @@ class LiveOptions:
     background: bool = False
     fps: float = 30.0
     bone_prior: bool = True
+    wait_first_mirror: bool = False
 
     @classmethod
     def of(cls, **kwargs) -> "LiveOptions":
@@ -228,8 +235,8 @@ class LiveFrame:
         latency_s: wall seconds of this frame's own work (pairing, triangulation).
         cpu_s: the thread's CPU seconds of the same (the latency without what other
             processes on the machine took from it).
-        solve_s: wall seconds spent in a window's solve during this call (``0`` in the
-            background mode, where the worker solves).
+        solve_s: wall seconds spent in a window's solve during this call (in the
+            background mode only the wait for the first mirror, ``wait_first_mirror``).
     """
 
     index: int
@@ -262,6 +269,70 @@ class LiveFrame:
                 "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
                                      for s, k in zip(shape, ok)],
                 "paired": self.paired, "skipped": self.skipped}
+
+
+def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
+                           X: np.ndarray, u: np.ndarray, um: np.ndarray, basis: np.ndarray,
+                           *, keep_spread: bool = False) -> np.ndarray:
+    """The derivative of joints triangulated with a mirror in the normal's tangent
+    directions.
+
+    ``X`` is the maximum-likelihood point of its two rays (the camera's ``K [I | 0]``
+    and the mirror's ``K [H | 2 d n]``, :func:`mirrorgraph.geometry.triangulate_mirror`);
+    by the implicit function theorem at the Gauss-Newton normal equations,
+    ``dX / dt_k = -(J_1^T J_1 + J_2^T J_2)^-1 J_2^T Q dY / dt_k`` with ``J_1``, ``J_2``
+    the views' ``2 x 3`` Jacobians in ``X``, ``Q`` the mirror view's in the virtual
+    point ``Y = X + 2 (d - n . X) n`` and ``dY / dt_k = 2 (d - n . X) b_k - 2 (b_k . X) n``
+    for the unit normal moved along ``b_k`` (Hartley and Zisserman, *Multiple View
+    Geometry*, 2nd ed., sec. 5.2 for the first-order propagation).
+
+    Args:
+        K: ``(3, 3)`` intrinsics, px; normal: ``(3,)`` unit ``n``; distance: ``d``.
+        X: ``(N, 3)`` the points (camera frame, unit of ``d``); u, um: ``(N, 2)`` their
+            pixels in the camera and in the mirror (undistorted; only ``X`` enters the
+            first-order derivative).
+        basis: ``(3, 2)`` tangent directions ``b_k`` of the normal
+            (:func:`mirrorgraph.geometry.tangent_basis`).
+        keep_spread: hold the points' spread ``sum_i |X_i - mean|^2`` (the body's size,
+            the scale a subject height sets) instead of the distance: each derivative
+            loses its share along ``X``, ``- X sum_i (X_i - mean) . dX_i / spread``.
+
+    Returns:
+        ``(N, 3, 2)`` ``dX_i / dt_k``, the unit of ``d`` per radian.
+    """
+    n = np.asarray(normal, float).reshape(3)
+    X = np.asarray(X, float).reshape(-1, 3)
+    H = np.eye(3) - 2.0 * np.outer(n, n)
+    off = distance - X @ n                                              # (N,)
+    Y = X + 2.0 * off[:, None] * n
+
+    def jac(P: np.ndarray) -> np.ndarray:                               # (N, 2, 3)
+        q = P @ K.T
+        p = q[:, :2] / q[:, 2:3]
+        return (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
+
+    J1, Q = jac(X), jac(Y)
+    J2 = Q @ H
+    A = np.einsum("nri,nrj->nij", J1, J1) + np.einsum("nri,nrj->nij", J2, J2)
+    dY = (2.0 * off[:, None, None] * basis[None]
+          - 2.0 * n[None, :, None] * (X @ basis)[:, None, :])          # (N, 3, 2)
+    rhs = np.einsum("nri,nrs,nsk->nik", J2, Q, dY)                      # (N, 3, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dX = -np.linalg.solve(A, rhs)
+    if keep_spread and len(X) >= 2:
+        c = X - X.mean(0)
+        spread = float(np.sum(c * c))
+        if spread > 0:
+            dX = dX - X[:, :, None] * (np.einsum("ni,nik->k", c, dX) / spread)[None, None]
+    return dX
+
+
+def _warm_up() -> None:
+    """The worker's imports (GTSAM, SciPy's optimiser, the offline run), done while the
+    first window's frames arrive."""
+    import scipy.optimize  # noqa: F401
+
+    from ..pipelines import mirror  # noqa: F401
 
 
 class LiveCalibrator:
@@ -325,11 +396,23 @@ class LiveCalibrator:
         self.window_log: list[dict] = []
         self._log_cap = 1000
         self.last_variances: dict = {}
+        self._cache: dict = {}                  # what the fused mirror gives every frame
+        if opts.background:                     # the worker's start off the first window
+            self._executor().submit(_warm_up)
 
     # ------------------------------------------------------------------ state
+    def _cached(self, name: str, make):
+        """A figure of the fused mirror, computed once between two windows."""
+        if name not in self._cache:
+            self._cache[name] = make()
+        return self._cache[name]
+
     @property
     def K(self) -> np.ndarray:
         """The current camera matrix (the fused focal length where it is estimated)."""
+        return self._cached("K", self._camera_matrix)
+
+    def _camera_matrix(self) -> np.ndarray:
         K = np.array(self._guess.K, dtype=float)
         f = self.fusion.focal_px
         if self.intrinsics is None and f is not None:
@@ -338,7 +421,10 @@ class LiveCalibrator:
 
     @property
     def mirror(self) -> LiveMirror:
-        """The current mirror (:class:`LiveMirror`)."""
+        """The current mirror (:class:`LiveMirror`, a snapshot)."""
+        return copy.copy(self._cached("mirror", self._snapshot))
+
+    def _snapshot(self) -> LiveMirror:
         fu = self.fusion
         if fu.normal is None:
             return LiveMirror(failed=fu.failed)
@@ -527,27 +613,15 @@ class LiveCalibrator:
             ones = np.ones(len(X), bool)
             cov = geo.triangulation_covariance(views, X, [ones, ones], self._sigma_px())
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
-        B = geo.tangent_basis(n)
-        C = B.T @ fu.normal_cov @ B
+        B, C = self._cached("normal_tangent", self._normal_tangent)
         metric = self._copts.subject_height is not None
         if np.all(np.isfinite(C)):
-            # the derivative of the joints in the normal's two tangent directions. With a
-            # subject height every window's scale is the subject's stature measured on
-            # its joints: a tilted normal changes the distance with it so that the body
-            # keeps its size, so the body's spread is held (the distance's own std is
+            # with a subject height every window's scale is the subject's stature
+            # measured on its joints, so a tilted normal changes the distance with it
+            # and the body keeps its size: the spread is held (the distance's own std is
             # that same error seen through the body: not added again); without one the
             # distance is the unit and is held
-            eps = 1e-5
-            spread = np.sum((X - X.mean(0)) ** 2) if len(X) >= 2 else 0.0
-            J = []
-            for k in range(2):
-                m = n + eps * B[:, k]
-                Xp = geo.triangulate_mirror(K, m / np.linalg.norm(m), d, u, um, iterations=1)
-                sp = np.sum((Xp - Xp.mean(0)) ** 2)
-                if metric and spread > 0 and sp > 0:
-                    Xp = Xp * np.sqrt(spread / sp)
-                J.append((Xp - X) / eps)
-            J = np.stack(J, axis=-1)                                      # (N, 3, 2)
+            J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
             var["normal"] = np.maximum(np.einsum("nik,kl,nil->n", J, C, J), 0.0)
         if metric:
             var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
@@ -587,6 +661,8 @@ class LiveCalibrator:
             self._future = self._executor().submit(solve_window, job[0], self._window_intr,
                                                    self._copts)
             self._job = job[1:] + (len(job[0].people),)
+            if self.options.wait_first_mirror and self.fusion.normal is None:
+                return self._poll(wait=True)
             return 0.0
         clock = time.perf_counter()
         est = solve_window(job[0], self._window_intr, self._copts)
@@ -614,7 +690,13 @@ class LiveCalibrator:
         self._absorb(est, *self._job)
         return time.perf_counter() - clock if wait else 0.0
 
+    def _normal_tangent(self) -> tuple[np.ndarray, np.ndarray]:
+        """The fused normal's ``(3, 2)`` tangent basis and its ``(2, 2)`` covariance there."""
+        B = geo.tangent_basis(self.fusion.normal)
+        return B, B.T @ self.fusion.normal_cov @ B
+
     def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
+        self._cache.clear()
         if provisional:
             # the calibration of every frame so far replaces the one of fewer frames
             what = self.fusion.restart(est)
