@@ -33,11 +33,13 @@ def _add_report(sub) -> None:
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
                                        "a rig's JSON written by 'calibrate-rig'")
     p.add_argument("keypoints", nargs="?", default=None,
-                   help="the keypoints the calibration was made from (needed only without "
-                        "the .report.npz beside the calibration, or with --recompute)")
+                   help="the keypoints the calibration was made from (read only without a "
+                        "usable .report.npz beside the calibration, or with --recompute; "
+                        "default: the input calibration.json records)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the figures into")
     p.add_argument("--recompute", action="store_true",
-                   help="calibrate the keypoints again even where the run is stored")
+                   help="calibrate the keypoints again even where the run is stored (the "
+                        "ones given, else the input calibration.json records)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--video", metavar="FILE",
                    help="draw joints, reflections and epipolar lines on sampled frames")
@@ -70,8 +72,6 @@ def cmd_report(args) -> int:
         out = write_rig_report(rig, args.out, progress_bar=not args.quiet)
         printer(args)(report_written({p.stem: p for p in out}, args.out))
         return 0
-    if args.recompute and args.keypoints is None:
-        raise InputError("needs the keypoints the calibration was made from", field="--recompute")
     say = printer(args)
     with solver_progress(args) as callbacks:
         loaded = load_run(args.calibration, args.keypoints,

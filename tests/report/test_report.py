@@ -223,11 +223,25 @@ def test_stale_or_missing_report_data(scene_files, tmp_path, capsys):
     assert loaded.origin == "recomputed"
     assert any("c.report.npz" in w and "another calibration" in w for w in loaded.warnings)
     assert any("recomputed mirror is" in w for w in loaded.warnings)
-    # without keypoints it is one line naming the file
+    # without keypoints: the ones calibration.json records, with the same warning
     capsys.readouterr()
+    assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 0
+    captured = capsys.readouterr()
+    said = captured.out + captured.err
+    assert "another calibration" in said and f"recomputing the run from {kp}" in said
+    # --recompute alone: the recorded keypoints
+    assert main(["report", str(cal), "--recompute", "--out", str(tmp_path / "r3")]) == 0
+    assert f"recomputed from {kp}" in capsys.readouterr().out
+    # the recorded keypoints gone: one line saying what to do
+    doc["input"]["source"] = str(tmp_path / "moved.json")
+    cal.write_text(json.dumps(doc))
     assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "c.report.npz" in err
+    assert "KEYPOINTS" in err and "--report" in err
+    assert main(["report", str(cal), "--recompute", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "moved.json" in err
     (tmp_path / "c.report.npz").unlink()
     assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
