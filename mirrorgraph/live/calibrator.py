@@ -7,78 +7,33 @@
         out.status, out.joints3d, out.joints_std, out.mirror.normal
     live.close()
 
-**Per frame** (the fixed-latency path, no solver): the detections are checked (a bad
-frame is skipped and counted, never an exception), undistorted, and paired against the
-current mirror's epipole ``e ~ K n``
-(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`: the candidate pairs of the
-frame, both labellings of the reflection, the one under the threshold with the
-smallest median epipolar distance, the reflection the detection nearer the epipole);
-every joint seen in both views is triangulated with the mirror
-(:func:`mirrorgraph.geometry.triangulate_mirror`), kept where it reprojects within the
-threshold in both views and lies in front of the camera and the mirror. Its std (the
-RMS length of its 3D error, ``sqrt(trace(cov))``) holds
+**Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
+skipped and counted), undistorted, paired against the current mirror's epipole
+``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), triangulated with the
+mirror (:func:`mirrorgraph.geometry.triangulate_mirror`), kept where they reproject within
+the threshold in both views and lie in front of the camera and the mirror, and refined
+with the latest window's bone lengths (:mod:`.frame_prior`). Each joint's std (metres with
+a subject height; ``sqrt`` of its covariance's trace) holds the two rays' share at the
+window's a-posteriori pixel noise and the fused normal's share through
+:func:`joints_normal_jacobian`; with a subject height the body's size is held (the
+scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric scale's
+own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
+:attr:`LiveFrame.joints_std_shape` leaves it out.
 
-* the two rays' share (:func:`mirrorgraph.geometry.triangulation_covariance` at the
-  reprojection noise the last window's graph found, its a posteriori sigma: 4.0 px
-  under 4 px iid noise, not a robust threshold), and
-* the mirror normal's share: the fused normal's covariance (its detector-bias part
-  included) through the triangulation's derivative in the normal's two tangent
-  directions, taken at what the windows' gauge holds: with a subject height every
-  window's scale is the subject's stature measured on its joints, so a tilted normal
-  moves the distance with it and the body keeps its size (the derivative holds the
-  frame's body spread); without one the distance (the unit) is held.
+**The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
+calibrated by the offline run: every frame so far each time their number doubles (from
+``first_window_frames`` up to ``window_frames``), then each later block of
+``window_frames`` fused into the mirror carried from the older ones
+(:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
+(``background=False``: deterministic) or in one worker process started with the
+calibrator (``background=True``: the frames keep flowing; a buffer beyond
+``max_buffer_frames`` while the worker is busy is thinned evenly).
 
-The distance's std is not added on top: with a subject height it is that same
-normal error seen through the body's size (counted twice before), plus the metric
-scale's own uncertainty (the subject's height and proportions,
-``RefineOptions.height_sigma``: 2 % by default, a prior, not a measurement), which is
-one factor on every length of every frame: :attr:`LiveMirror.scale_rel_std`.
-:attr:`LiveFrame.joints_std` holds it, ``hypot(shape, |X| scale_rel_std)`` (the std of a
-position in metres); :attr:`LiveFrame.joints_std_shape` is without it (the body's
-shape and relative positions at the calibration's scale). Added
-to each joint, as it was (with the distance's std), it outweighed the rays' share on
-the wide scenes (joints 8-10 m away) and left the joints' error at 0.5 of their std
-RMS, 0.3 median, under iid noise, where the actual scale error is well under 2 %; now
-1.3 RMS, 1.0 median for ``joints_std_shape`` (``bench/RESULTS_live.md``, where it is
-``joints_std`` and the metric one ``joints_std_metric``: the names before they were
-swapped). Under the realistic detector the scale itself is off by 1-18 % (the offline
-calibration's as much: the stature on a biased detector's joints), which no per-frame
-std sees: there ``joints_std_shape`` is too thin against the true joints (3.97 RMS)
-and ``joints_std`` about as honest as the std was (1.84; 0.49 under iid, wide): hence
-the metric one is ``joints_std``, the figure a position in metres needs.
-
-**The mirror** (:mod:`.estimator`): the frames holding two people or more are
-buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the
-offline run (pairing, the reflective RANSAC, the one graph with its body priors, robust
-reprojection, rejection, left/right fixes, the stature scale), and again on every
-frame so far each time their number has doubled, up to a first block of
-``window_frames``: until then the live mirror *is* the offline calibration of the
-frames seen (at the last doubling). Every later block of ``window_frames`` is
-calibrated the same way and fused into the mirror carried from the older ones (their
-information on the plane: what a fixed-lag smoother with a lag of one block keeps,
-:class:`~.estimator.MirrorFusion`); memory holds one block. Windows are solved in
-the calling thread (``background=False``: deterministic, what the tests and the
-benchmark replay) or in one worker process (``background=True``: GTSAM holds the GIL,
-so a thread would stall the frames; the frames keep flowing while a window solves, and
-a buffer that outgrows ``max_buffer_frames`` while the worker is busy is thinned
-evenly, so memory stays flat).
-
-Measured (``bench/RESULTS_live.md``): short windows fused as they came (60, 150 or
-300 frames each) were biased by their few frames, 0.53-0.95 deg off on a realistic
-wide scene where the offline calibration of the same 1800 frames was 0.35 deg off;
-the doubling first block and 900-frame windows are the choice (300-frame blocks were
-as accurate but their std too wide, 1800-frame ones as accurate with solves up to 7.8 s:
-``bench/RESULTS_live_lag.md``).
-
-**Status**: ``initialising`` until the fused mirror's rotation std is at most
+**Status**: ``initialising`` until the fused rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
-fused fails the offline run's reflection check
-(:mod:`mirrorgraph.initial.reflection_check`: the detection paired as the reflection fits
-one mirror in too few frames, as a second person does; the mirror's ``doubt`` says so).
-Two people in view and no mirror fit a "mirror" at a rotation std of about 1.2 deg
-(``bench/RESULTS_live_video.md``, clip ``nomirror2``): the std alone would call it
-calibrated. Joints are given as soon as a first window has calibrated (their std says
-how far to trust them).
+fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mirror's
+``doubt`` says so). Accuracy, std honesty and window sizes: ``bench/RESULTS_live.md``,
+``bench/RESULTS_live_lag.md``, ``bench/RESULTS_live_video.md``.
 """
 
 from __future__ import annotations
