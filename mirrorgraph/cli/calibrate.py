@@ -23,7 +23,7 @@ from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
 from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
-                   step)
+                   step, warn)
 from .commands import HELP
 from .video import add_video_options, describe, detect_with_progress, video_options
 from .view import add_view_option, check_view_option, view_after_run
@@ -118,8 +118,8 @@ def cmd_calibrate(args) -> int:
         require_matplotlib()          # fail before the long run, with the install hint
     if args.video and not Path(args.video).is_file():
         raise InputError("no such video file", source=args.video, field="--video")
-    if args.render and Path(args.render).suffix.lower() != ".mp4":
-        raise InputError("must end in .mp4", source=args.render, field="--render")
+    if args.render and Path(args.render).suffix.lower() not in (".mp4", ".webm"):
+        raise InputError("must end in .mp4 or .webm", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
     if args.joints3d:
@@ -167,7 +167,8 @@ def cmd_calibrate(args) -> int:
     if args.report:
         from ..report import make_report
         written = make_report(run, args.report, video=args.video, render=args.render,
-                              progress=lambda s: step(args, s), progress_bar=not args.quiet)
+                              progress=lambda s: step(args, s), progress_bar=not args.quiet,
+                              warn=lambda line: warn(args, [line]))
         report_line = report_written(written, args.report)
     view_line = None
     if args.view is not None:

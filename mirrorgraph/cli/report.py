@@ -43,7 +43,9 @@ def _add_report(sub) -> None:
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--video", metavar="FILE",
                    help="draw joints, reflections and epipolar lines on sampled frames")
-    p.add_argument("--render", metavar="OUT.mp4", help="write the whole overlay video (needs --video)")
+    p.add_argument("--render", metavar="OUT.mp4",
+                   help="write the whole overlay video (needs --video): .mp4 (H.264 where "
+                        "OpenCV has it, else mp4v, which browsers do not play) or .webm (VP9)")
     p.add_argument("--frames", type=int, default=6, help="video frames to sample (default 6)")
     add_common(p)
     p.set_defaults(func=cmd_report)
@@ -84,7 +86,7 @@ def cmd_report(args) -> int:
     say(loaded.message + note)
     out = make_report(loaded.run, args.out, video=args.video, render=args.render,
                       max_frames=args.frames, progress=lambda s: step(args, s),
-                      progress_bar=not args.quiet)
+                      progress_bar=not args.quiet, warn=lambda line: warn(args, [line]))
     say(report_written(out, args.out))
     return 0
 

@@ -226,7 +226,8 @@ FIGURES = ("image_plane", "residuals", "scene3d", "bone_lengths", "uncertainty",
 def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | None = None,
                 render: str | os.PathLike | None = None, max_frames: int = 6,
                 progress: Callable[[str], None] | None = None,
-                progress_bar: bool = True, dpi: int = 110) -> dict[str, Path]:
+                progress_bar: bool = True, dpi: int = 110,
+                warn: Callable[[str], None] | None = None) -> dict[str, Path]:
     """Write the report's PNG figures (and video overlays) of a calibration run.
 
     Args:
@@ -235,12 +236,15 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         out_dir: folder to write into (created if missing).
         video: the video the keypoints come from: draws the overlay on
             ``max_frames`` sampled frames (``overlay_<frame>.png``).
-        render: ``.mp4`` to write the whole overlay video to (needs ``video``).
+        render: ``.mp4`` (H.264 where OpenCV has it, else ``mp4v``) or ``.webm`` (VP9,
+            which browsers play) to write the whole overlay video to (needs ``video``).
         max_frames: frames of the skeleton in the 3D view (at most 4) and of
             the video sampled for overlays.
         progress: optional callback receiving the name of each step.
         progress_bar: draw progress bars on stderr while drawing the figures,
             sampling and rendering video frames (only on a terminal).
+        warn: receives a line where the rendered video is in a codec browsers do not
+            play (this OpenCV build without H.264).
         dpi: resolution of the PNGs.
 
     Returns:
@@ -254,8 +258,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     """
     if render is not None and video is None:
         raise InputError("needs the video to draw on", field="render", fix=("video",))
-    if render is not None and Path(render).suffix.lower() != ".mp4":
-        raise InputError("must end in .mp4", source=str(render), field="render")
+    if render is not None and Path(render).suffix.lower() not in (".mp4", ".webm"):
+        raise InputError("must end in .mp4 or .webm", source=str(render), field="render")
     if video is not None and not Path(video).is_file():
         raise InputError("no such video file", source=str(video), field="video")
     plt = require_matplotlib()
@@ -292,7 +296,7 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         if render is not None:
             step(f"report: rendering {render}")
             written["video"] = vid.render_video(video, run, render, data=data,
-                                                progress_bar=progress_bar)
+                                                progress_bar=progress_bar, warn=warn)
     return written
 
 

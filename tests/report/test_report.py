@@ -117,6 +117,29 @@ def test_video_overlay_and_render(scene_run, tmp_path):
     assert n == 20 and not list(tmp_path.glob(".*part*"))
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".webm"])
+def test_the_rendered_video_is_in_a_codec_browsers_play_or_says_not(scene_run, tmp_path,
+                                                                      suffix):
+    """H.264 in .mp4 where OpenCV has it, else mp4v and one line saying browsers do not
+    play it; VP9 in .webm (no line)."""
+    scene, run = scene_run
+    video = tmp_path / "in.mp4"
+    _blank_video(video, scene.image_size, frames=5)
+    said = []
+    out = make_report(run, tmp_path / "rep", video=video, render=tmp_path / f"out{suffix}",
+                      max_frames=1, progress_bar=False, warn=said.append)
+    cap = cv2.VideoCapture(str(out["video"]))
+    fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode().lower()
+    cap.release()
+    if suffix == ".webm":
+        assert fourcc in ("vp90", "vp80") and said == []
+    elif fourcc in ("avc1", "h264"):
+        assert said == []
+    else:
+        assert fourcc in ("mp4v", "fmp4") and len(said) == 1
+        assert "out.mp4" in said[0] and "browsers" in said[0] and ".webm" in said[0]
+
+
 def test_video_of_another_size_is_refused(scene_run, tmp_path):
     _scene, run = scene_run
     video = tmp_path / "small.mp4"
