@@ -99,7 +99,7 @@ def _add_export(sub) -> None:
                                    "calibration.toml. The virtual camera is the one that sees the "
                                    "horizontally flipped image (u -> W - u): give those tools the "
                                    "reflection's keypoints with x -> W - x and left/right labels "
-                                   "swapped (see the README).")
+                                   "swapped (docs/guide/exports.md).")
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
                                        "a rig's JSON written by 'calibrate-rig' (every camera "
                                        "and every view through a mirror)")
