@@ -353,6 +353,13 @@ def test_scene3d_is_readable(scene_run):
     assert max(max(ln.get_xdata()) for ln in lines["skeleton"]) < data.distance
     assert min(min(ln.get_xdata()) for ln in lines["reflection"]) > data.distance
     assert [ln for ln in top.get_lines() if ln.get_gid() == "mirror"]
+    # the gap's label sits above every joint of the skeletons drawn, in display pixels
+    fig.canvas.draw()
+    (label,) = [t for t in edge.texts if t.get_gid() == "gap"]
+    box = label.get_window_extent()
+    tops = [edge.transData.transform(np.c_[ln.get_xdata(), ln.get_ydata()])[:, 1].max()
+            for ln in lines["skeleton"]]
+    assert box.y0 >= max(tops)
     plt.close(fig)
     # without a metric scale the unit is said once, and is not "metres"
     from dataclasses import replace
