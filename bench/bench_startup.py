@@ -11,7 +11,7 @@ the repeats interleaved (the machine is shared and its load moves):
   from a second process);
 * ``mirrorgraph --help`` in a fresh process (the parser and every command's options);
 * ``python -c "import numpy, cv2, gtsam"``: what ``calibrate`` needs from other
-  packages, the floor of its start (SciPy no more: #25);
+  packages, the floor of its start;
 * ``mirrorgraph calibrate`` of a synthetic 1000-frame scene (MMPose JSON, the
   camera's intrinsics, the subject's height), in a fresh process and the very same
   ``main(argv)`` in a running process that has already run it once (its imports
@@ -50,10 +50,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 THIS = str(Path(__file__).resolve())
 
-#: What ``calibrate`` cannot start without (OpenCV's geometry, the graph GTSAM's; the
-#: epipole's robust fit and the regions' quantiles are NumPy since #25, no SciPy): the
-#: floor of a fresh process's start.
-JOB_IMPORTS = "numpy, cv2, gtsam"
+#: What ``calibrate`` cannot start without (OpenCV's geometry, the graph GTSAM's, the
+#: epipole's robust fit SciPy's ``least_squares``): the floor of a fresh process's start.
+JOB_IMPORTS = "numpy, cv2, gtsam, scipy.optimize"
 JOB_ROW = f"python -c \"import {JOB_IMPORTS}\""
 
 #: Packages whose import a command pays for only where it needs them.
