@@ -10,7 +10,7 @@ the repeats interleaved (the machine is shared and its load moves):
   ``python -X importtime`` reports for the package (its cumulative microseconds,
   from a second process);
 * ``mirrorgraph --help`` in a fresh process (the parser and every command's options);
-* ``python -c "import numpy, cv2, gtsam"``: what ``calibrate`` needs from other
+* ``python -c "import numpy, cv2, gtsam, scipy.optimize"``: what ``calibrate`` needs from other
   packages, the floor of its start;
 * ``mirrorgraph calibrate`` of a synthetic 1000-frame scene (MMPose JSON, the
   camera's intrinsics, the subject's height), in a fresh process and the very same
