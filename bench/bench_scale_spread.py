@@ -23,14 +23,15 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import os
-import platform
 import subprocess
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import header  # noqa: E402  (one header for every results file)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -68,11 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                           capture_output=True, text=True).stdout.strip()
     lines = ["# The metric scale's std against a biased detector (`bench/bench_scale_spread.py`)",
-             "", f"- date: {started:%Y-%m-%d %H:%M} UTC",
-             f"- machine: {platform.machine()}, {os.cpu_count()} cores, Python "
-             f"{platform.python_version()}; load average {os.getloadavg()[0]:.1f} at the end",
-             "- command: `" + f"python bench/bench_scale_spread.py "
-             f"{' '.join(argv or sys.argv[1:])}".rstrip() + "`",
+             "", *header(started=f"{started:%Y-%m-%d %H:%M} UTC", argv=argv, bullet="-"),
              f"- code: `{head}`",
              "- scenes: `make_wide_scene(seed, 'wide', noise, frames)`, the camera matrix and "
              "the subject's height given; `side`: the legs' relative difference; `z`: the "

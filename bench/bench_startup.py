@@ -33,7 +33,6 @@ Run:  python bench/bench_startup.py [--repeats 7] [--frames 1000]
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
 import re
@@ -283,13 +282,11 @@ def main() -> None:
     if args.no_write:
         return
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from results_blocks import machine
+    from _report import header
     cmd = "python bench/bench_startup.py " + shlex.join(sys.argv[1:])
     doc = ["# Start-up of the command line (`bench/bench_startup.py`)", "",
-           f"* date: {_dt.datetime.now().isoformat(timespec='seconds')}",
-           f"* command: `{cmd}`",
-           f"* machine: {machine()}; at the start {load0[0]:.2f} (1 min); {elapsed:.0f} s of "
-           "measuring",
+           *header(cmd=cmd, note=f"at the start {load0[0]:.2f} (1 min); {elapsed:.0f} s of "
+                                 "measuring"),
            f"* {args.repeats} repeats, interleaved (every measure of every tree once a "
            "repeat, the order reversed every other repeat); wall from `time.perf_counter`, "
            "CPU as user + system of the process and its threads (`getrusage` of the child; "
