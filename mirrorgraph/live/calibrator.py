@@ -681,9 +681,11 @@ class LiveCalibrator:
         return self.mirror
 
     def close(self) -> None:
-        """Stop the worker process (if any)."""
+        """Stop the worker process (if any): joined where no window is in flight (a pool
+        left to the interpreter's exit can fail there on its closed pipe), else left to
+        end its solve."""
         if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool.shutdown(wait=self._future is None, cancel_futures=True)
             self._pool = None
             self._future = None
 
