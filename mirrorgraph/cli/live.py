@@ -98,7 +98,7 @@ def cmd_live(args) -> int:
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
                        calibrated_std_deg=args.calibrated_std,
                        background=bool(args.background or realtime),
-                       wait_first_mirror=not realtime)
+                       can_wait=not realtime)
     with Progress(f"live from {source.name}", total=source.total,
                   enabled=not args.quiet) as bar:
         def on_frame(frame) -> None:

@@ -84,10 +84,12 @@ class LiveOptions:
         fps: frame rate for frame times where the caller gives none.
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
-        wait_first_mirror: in the background mode, hold the frame that starts a solve
-            until it returns while there is no mirror yet (a file replayed flat out:
-            the frames after the first window then have joints, as inline); ``False``
-            for a live feed, whose frames cannot wait.
+        can_wait: the source can wait (a file replayed flat out). In the background
+            mode the frame that starts the first solve then waits for its mirror, and a
+            window due while the worker is busy waits for it instead of thinning the
+            buffer: the windows are those of the calling thread's run and every frame
+            after the first window has joints. ``False`` for a live feed, whose frames
+            cannot wait.
     """
 
     calibrate: object | None = None
@@ -98,7 +100,7 @@ class LiveOptions:
     background: bool = False
     fps: float = 30.0
     bone_prior: bool = True
-    wait_first_mirror: bool = False
+    can_wait: bool = False
 
     @classmethod
     def of(cls, **kwargs) -> "LiveOptions":
@@ -191,7 +193,7 @@ class LiveFrame:
         cpu_s: the thread's CPU seconds of the same (the latency without what other
             processes on the machine took from it).
         solve_s: wall seconds spent in a window's solve during this call (in the
-            background mode only the wait for the first mirror, ``wait_first_mirror``).
+            background mode only the waits of a source that can wait, ``can_wait``).
     """
 
     index: int
@@ -598,6 +600,10 @@ class LiveCalibrator:
         n = len(self._buffer_ids)
         busy = self._future is not None
         if busy:
+            due = n >= (self._next if self._provisional else self.options.window_frames)
+            if self.options.can_wait and due:      # a file: wait, never thin
+                waited = self._poll(wait=True)
+                return waited + self._schedule()
             if n > max(self.options.max_buffer_frames, self.options.window_frames):
                 keep = slice(None, None, 2)                # thin evenly: memory flat
                 self._buffer_ids = self._buffer_ids[keep]
@@ -616,7 +622,7 @@ class LiveCalibrator:
             self._future = self._executor().submit(solve_window, job[0], self._window_intr,
                                                    self._copts)
             self._job = job[1:] + (len(job[0].people),)
-            if self.options.wait_first_mirror and self.fusion.normal is None:
+            if self.options.can_wait and self.fusion.normal is None:
                 return self._poll(wait=True)
             return 0.0
         clock = time.perf_counter()
