@@ -56,7 +56,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
                    help="without intrinsics: the principal point about the image centre "
                         "with the spread of real cameras, 1%% of the larger side (default), or "
-                        "a loose prior (free: the people decide it, poorly)")
+                        "a loose prior, 5%% of the width (free: the person and the reflection "
+                        "estimate it, well on some scenes, badly on others: "
+                        "docs/guide/unknown-intrinsics.md)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--estimator", default="reflective", choices=ESTIMATORS,
