@@ -31,7 +31,6 @@ refinement and its linear solves; then the error per slice.
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import sys
 import time
@@ -159,7 +158,7 @@ def tables(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import machine
+    from _report import header, now
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=4)
     ap.add_argument("--frames", type=int, default=1000)
@@ -187,11 +186,10 @@ def main() -> None:
             print(f"[{i}/{len(cases)}] {part[0]['slice']}/{part[0]['noise']}/{part[0]['seed']}: "
                   + ", ".join(f"{r['variant']} {r['err']:.2f}" for r in part), flush=True)
     lines = ["# Ablation of the body priors (`bench/bench_ablation.py`)", "",
-             f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
-             f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {machine()} ({args.workers} scenes at a time: CPU times are the steadier figure)",
-             f"* command: `python bench/bench_ablation.py --seeds {args.seeds} --frames {args.frames} "
-             f"--workers {args.workers}`",
+             *header(started=f"{now()} ({(time.perf_counter() - t0) / 60:.1f} min)",
+                     cmd=f"python bench/bench_ablation.py --seeds {args.seeds} --frames "
+                         f"{args.frames} --workers {args.workers}",
+                     note=f"{args.workers} scenes at a time: CPU times are the steadier figure"),
              f"* scenes: `make_wide_scene(seed, slice, noise, {args.frames}, skeleton='BODY_25')`, "
              f"seeds 0-{args.seeds - 1}, slices {', '.join(SLICES)}; every variant refines the same "
              "initialisation, no subject height (see the script's docstring).", "",

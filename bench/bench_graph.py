@@ -32,7 +32,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
 import resource  # noqa: E402
 import subprocess  # noqa: E402
@@ -109,7 +108,7 @@ def child(frames: int, seed: int, crb: bool) -> dict:
 
 
 # --------------------------------------------------------------------------- report
-from results_blocks import machine  # noqa: E402  (one machine line for every results file)
+from _report import header  # noqa: E402  (one header for every results file)
 
 
 def table_sizes(rows: list[dict]) -> list[str]:
@@ -186,9 +185,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"CRB {r['crb_deg']:.4f}, distance {100 * r['dist_rel_err']:+.2f} %, "
                   f"wall {r['wall_s']:.2f} s", flush=True)
     lines = ["# Factor-graph refinement benchmark", "",
-             f"* date: {datetime.datetime.now().isoformat(timespec='seconds')}",
-             f"* machine: {machine()}",
-             f"* command: `{command.strip()}`",
+             *header(cmd=command.strip()),
              "* scenes: `make_scene(frames=T, seed=s, noise_std=4, noise_mean=0.076)` (COCO-17, "
              "1920x1080), subject height given; initial normal = truth tilted by 1 deg (2 deg of "
              "virtual-camera rotation); every pair an inlier. Each run in a fresh process.", ""]

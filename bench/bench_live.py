@@ -41,14 +41,15 @@ import argparse
 import datetime as _dt
 import json
 import os
-import platform
-import shlex
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import header  # noqa: E402  (one header for every results file)
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 30.0
@@ -597,13 +598,10 @@ def report(results: list[dict], long: dict | None, args, started: str, seconds: 
            traces: list[dict] | None = None, checks: list[dict] | None = None) -> str:
     load = load or os.getloadavg()
     lines = ["# The live run against the offline calibration (`bench/bench_live.py`)", "",
-             f"* date: {started}",
-             f"* command: `python bench/bench_live.py {shlex.join(sys.argv[1:])}`",
-             f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
-             f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
-             f"{load[1]:.2f} / {load[2]:.2f}; {seconds:.0f} s of measuring. The machine is "
-             "shared: the wall latencies include what other processes took; the CPU (thread) "
-             "times are the steadier figure.",
+             *header(started=started,
+                     note=f"{seconds:.0f} s of measuring. The machine is shared: the wall "
+                          "latencies include what other processes took; the CPU (thread) "
+                          "times are the steadier figure."),
              f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
              f"{args.seeds}, noise {getattr(args, 'noise', 'iid,realistic')}"
              + (f", the first {args.until:g} s of each" if getattr(args, "until", None) else "")
@@ -734,13 +732,8 @@ def lag_sweep(args, started: str, clock: float) -> int:
              for n in args.noise.split(",") for s in _seeds(args.seeds)]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         results = list(pool.map(run_scene, cases))
-    load = os.getloadavg()
     lines = ["# The block length of the live run (`bench/bench_live.py --lag-sweep`)", "",
-             f"* date: {started}",
-             f"* command: `python bench/bench_live.py {shlex.join(sys.argv[1:])}`",
-             f"* machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
-             f"{platform.python_version()}; load average at the end {load[0]:.2f}; "
-             f"{time.perf_counter() - clock:.0f} s",
+             *header(started=started, note=f"{time.perf_counter() - clock:.0f} s"),
              f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
              f"{args.seeds}; the first block re-solved as it doubles up to the block length, "
              "later blocks fused. Pooled: RMS of the live errors over RMS of the offline "

@@ -19,14 +19,15 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import os
-import platform
 import subprocess
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import header  # noqa: E402  (one header for every results file)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -80,10 +81,8 @@ def main(argv: list[str] | None = None) -> int:
                           capture_output=True, text=True).stdout.strip()
     cmd = f"python bench/bench_live_frame_prior.py {' '.join(argv or sys.argv[1:])}".rstrip()
     lines = ["# The live per-frame joints with and without the bones (`bench/bench_live_frame_prior.py`)",
-             "", f"- date: {started:%Y-%m-%d %H:%M} UTC",
-             f"- machine: {platform.machine()}, {os.cpu_count()} cores, Python "
-             f"{platform.python_version()}; load average {os.getloadavg()[0]:.1f} at the end",
-             f"- command: `{cmd}`", f"- code: `{head}`",
+             "", *header(started=f"{started:%Y-%m-%d %H:%M} UTC", cmd=cmd, bullet="-"),
+             f"- code: `{head}`",
              f"- scenes: `make_wide_scene(seed, 'wide', noise, {FRAMES})` replayed with the "
              "camera matrix and the subject's height, the frames after the first "
              f"{SKIP // 30} s; each cell: rays alone / with the bones",

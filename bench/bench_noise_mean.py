@@ -29,7 +29,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime as _dt  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -108,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-write", action="store_true")
     a = ap.parse_args(argv)
-    from results_blocks import machine
+    from _report import header, now
 
     t0 = time.time()
     cases = [(s, seed, a.frames) for s in a.slices for seed in range(a.scenes)]
@@ -124,9 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     cmd = "python bench/bench_noise_mean.py " + " ".join(argv if argv is not None else sys.argv[1:])
     L = ["# The iid detector's mean offset and the low-parallax target (`bench/bench_noise_mean.py`)",
          "",
-         f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} ({minutes:.1f} min)",
-         f"* machine: {machine()}",
-         f"* command: `{cmd.strip()}`",
+         *header(started=f"{now()} ({minutes:.1f} min)", cmd=cmd.strip()),
          f"* scenes: `make_wide_scene(seed, slice, 'iid', {a.frames})`, seeds 0..{a.scenes - 1}, "
          "each made twice: with the generator's mean of 0.076 px (MirrorCalib's protocol) and "
          "with `noise_mean=0`, the same geometry and the same noise draws otherwise.",

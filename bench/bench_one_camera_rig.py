@@ -16,7 +16,6 @@ Writes ``bench/RESULTS_one_camera_rig.md`` (machine, command, date).
 from __future__ import annotations
 
 import argparse
-import datetime
 import sys
 import tempfile
 import time
@@ -26,7 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from results_blocks import machine  # noqa: E402
+from _report import header  # noqa: E402
 
 import mirrorgraph as mg  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg, normal_angle_deg  # noqa: E402
@@ -103,9 +102,8 @@ def main(argv=None) -> int:
     print(summary)
     if not a.no_write:
         text = ("# One mirror two ways: `calibrate` and `calibrate_rig` on the one-camera rig\n\n"
-                f"* date: {datetime.datetime.now().isoformat(timespec='seconds')}\n"
-                f"* command: `python bench/bench_one_camera_rig.py --seeds {a.seeds} --frames {a.frames}`\n"
-                f"* machine: {machine()}\n"
+                + "\n".join(header(cmd=f"python bench/bench_one_camera_rig.py --seeds {a.seeds} "
+                                       f"--frames {a.frames}")) + "\n"
                 f"* scenes: `make_wide_scene(seed, frames={a.frames})` (the wide slice, iid detector "
                 "noise), camera matrix and subject height given\n\n"
                 + "\n".join(lines) + f"\n\n{summary}\n")

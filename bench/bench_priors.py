@@ -29,7 +29,6 @@ every bone in every frame (``None``), no bone.
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import sys
 import time
@@ -118,7 +117,7 @@ def summary(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import machine
+    from _report import header, now
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=6, help="scenes a slice")
@@ -136,11 +135,9 @@ def main() -> None:
         if r["variant"] == "c = 0.3 (default)" and r["left_out"] is not None:
             left.setdefault(r["slice"], []).append(r["left_out"])
     lines = ["# The bone prior and the mirror's bias (`bench/bench_priors.py`)", "",
-             f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
-             f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {machine()}",
-             f"* command: `python bench/bench_priors.py --scenes {args.scenes} --draws {args.draws} "
-             f"--frames {args.frames} --workers {args.workers}`",
+             *header(started=f"{now()} ({(time.perf_counter() - t0) / 60:.1f} min)",
+                     cmd=f"python bench/bench_priors.py --scenes {args.scenes} --draws "
+                         f"{args.draws} --frames {args.frames} --workers {args.workers}"),
              "* scenes: `make_wide_scene(seed, slice, 'iid', frames)`'s true joints and mirror, "
              "observed again with fresh iid 4 px noise per draw (every joint, no outlier); every "
              "variant refines each draw from the true mirror, no subject height.",

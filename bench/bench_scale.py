@@ -13,7 +13,6 @@ Run:  python bench/bench_scale.py [--frames 1000 10000 54000]
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
 import resource
@@ -123,13 +122,11 @@ def main() -> None:
                      + " | ".join(f"{r.get(k, float('nan')):.2f}" for k in keys)
                      + f" | {1000 * r['total'] / r['frames']:.2f} | {r['tree_pss_mb']:.0f} | "
                      f"{r['rot_err']:.4f} |")
-    from results_blocks import machine
+    from _report import header
     text = "\n".join([
         "# End-to-end scaling (`bench/bench_scale.py`)", "",
-        f"* date: {_dt.datetime.now().isoformat(timespec='seconds')}",
-        f"* machine: {machine()}",
-        f"* command: `python bench/bench_scale.py --frames {' '.join(map(str, args.frames))} "
-        f"--workers {args.workers}`",
+        *header(cmd=f"python bench/bench_scale.py --frames {' '.join(map(str, args.frames))} "
+                    f"--workers {args.workers}"),
         "* input: an OpenPose folder (one JSON file a frame) of `make_scene(frames=T, seed=0)`, "
         "COCO-17, 4 px noise; reading and the whole `calibrate` in a fresh process, subject "
         "height given; `workers`: `RefineOptions.workers` (videos over 2000 frames are solved "

@@ -34,8 +34,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import importlib.util
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -43,6 +41,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import header  # noqa: E402  (one header for every results file)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -144,11 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                           capture_output=True, text=True).stdout.strip()
     lines = ["# The metric scale's std against a biased detector (`bench/bench_scale_spread.py`)",
-             "", f"- date: {started:%Y-%m-%d %H:%M} UTC",
-             f"- machine: {platform.machine()}, {os.cpu_count()} cores, Python "
-             f"{platform.python_version()}; load average {os.getloadavg()[0]:.1f} at the end",
-             "- command: `" + f"python bench/bench_scale_spread.py "
-             f"{' '.join(argv or sys.argv[1:])}".rstrip() + "`",
+             "", *header(started=f"{started:%Y-%m-%d %H:%M} UTC", argv=argv, bullet="-"),
              f"- code: `{head}`",
              "- scenes: `make_wide_scene(seed, 'wide', noise, frames)`, the camera matrix and "
              "the subject's height given; error and std of the mirror's distance. Pose2Sim: "

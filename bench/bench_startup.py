@@ -10,8 +10,8 @@ the repeats interleaved (the machine is shared and its load moves):
   ``python -X importtime`` reports for the package (its cumulative microseconds,
   from a second process);
 * ``mirrorgraph --help`` in a fresh process (the parser and every command's options);
-* ``python -c "import numpy, cv2, gtsam"``: what ``calibrate`` needs from other
-  packages, the floor of its start (SciPy no more: #25);
+* ``python -c "import numpy, cv2, gtsam, scipy.optimize"``: what ``calibrate`` needs from other
+  packages, the floor of its start;
 * ``mirrorgraph calibrate`` of a synthetic 1000-frame scene (MMPose JSON, the
   camera's intrinsics, the subject's height), in a fresh process and the very same
   ``main(argv)`` in a running process that has already run it once (its imports
@@ -33,7 +33,6 @@ Run:  python bench/bench_startup.py [--repeats 7] [--frames 1000]
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
 import re
@@ -50,10 +49,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 THIS = str(Path(__file__).resolve())
 
-#: What ``calibrate`` cannot start without (OpenCV's geometry, the graph GTSAM's; the
-#: epipole's robust fit and the regions' quantiles are NumPy since #25, no SciPy): the
-#: floor of a fresh process's start.
-JOB_IMPORTS = "numpy, cv2, gtsam"
+#: What ``calibrate`` cannot start without (OpenCV's geometry, the graph GTSAM's, the
+#: epipole's robust fit SciPy's ``least_squares``): the floor of a fresh process's start.
+JOB_IMPORTS = "numpy, cv2, gtsam, scipy.optimize"
 JOB_ROW = f"python -c \"import {JOB_IMPORTS}\""
 
 #: Packages whose import a command pays for only where it needs them.
@@ -284,13 +282,11 @@ def main() -> None:
     if args.no_write:
         return
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from results_blocks import machine
+    from _report import header
     cmd = "python bench/bench_startup.py " + shlex.join(sys.argv[1:])
     doc = ["# Start-up of the command line (`bench/bench_startup.py`)", "",
-           f"* date: {_dt.datetime.now().isoformat(timespec='seconds')}",
-           f"* command: `{cmd}`",
-           f"* machine: {machine()}; at the start {load0[0]:.2f} (1 min); {elapsed:.0f} s of "
-           "measuring",
+           *header(cmd=cmd, note=f"at the start {load0[0]:.2f} (1 min); {elapsed:.0f} s of "
+                                 "measuring"),
            f"* {args.repeats} repeats, interleaved (every measure of every tree once a "
            "repeat, the order reversed every other repeat); wall from `time.perf_counter`, "
            "CPU as user + system of the process and its threads (`getrusage` of the child; "

@@ -13,8 +13,6 @@ Run:  python bench/bench_synth_speed.py [--repeats 9] [--frames 1000]
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
-import shlex
 import statistics
 import sys
 import time
@@ -54,11 +52,9 @@ def main() -> None:
     print(text)
     if args.no_write:
         return
-    from results_blocks import machine
+    from _report import header
     doc = ["# Synthetic scene generator speed (`bench/bench_synth_speed.py`)", "",
-           f"* date: {_dt.datetime.now().isoformat(timespec='seconds')}",
-           f"* command: `{' '.join(['python bench/bench_synth_speed.py', *map(shlex.quote, sys.argv[1:])])}`",
-           f"* machine: {machine()}",
+           *header(),
            f"* what: `mirrorgraph.synth.make_scene(frames={args.frames}, seed=1)` in one "
            "process, timed after a first call (imports, first calls); wall from "
            "`time.perf_counter`, CPU from `time.process_time`", "", text]

@@ -35,7 +35,6 @@ And the headline's std over the marginal one (median), and the uncertainty's cos
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import sys
 import time
@@ -134,7 +133,7 @@ def table(rows: list[dict]) -> list[str]:
 
 
 def main() -> None:
-    from results_blocks import machine
+    from _report import header, now
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", type=int, default=50, help="scenes per noise model")
     ap.add_argument("--frames", type=int, default=1000)
@@ -155,11 +154,9 @@ def main() -> None:
         if "chosen" in r:
             chosen.setdefault(r["model"], []).append(r["chosen"])
     lines = ["# Calibration of the reported uncertainty (`bench/bench_uncertainty.py`)", "",
-             f"* date: {_dt.datetime.now().isoformat(timespec='seconds')} "
-             f"({(time.perf_counter() - t0) / 60:.1f} min)",
-             f"* machine: {machine()}",
-             f"* command: `python bench/bench_uncertainty.py --scenes {args.scenes} --frames "
-             f"{args.frames} --workers {args.workers}`",
+             *header(started=f"{now()} ({(time.perf_counter() - t0) / 60:.1f} min)",
+                     cmd=f"python bench/bench_uncertainty.py --scenes {args.scenes} --frames "
+                         f"{args.frames} --workers {args.workers}"),
              f"* scenes: `make_wide_scene(seed, slice, 'iid', {args.frames}, **noise)`, seeds "
              f"0-{args.scenes - 1}, slices {', '.join(SLICES)} in turn; `calibrate` without a "
              "subject height. Targets: error / headline std within [0.5, 2] and 90 % coverage "

@@ -100,13 +100,9 @@ def main() -> int:
     cams = read_qca(trial / "calibration" / "Calib.qca.txt")
     names = ["cam01", "cam02", "cam03", "cam04"]
     along_all, tri = {n: [] for n in COMMON}, {}
-    import datetime
-    import platform
+    from _report import header
     print("# BlazePose vs OpenPose BODY_25B on Demo_SinglePerson\n")
-    print(f"- date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC")
-    print(f"- machine: {platform.machine()}, {platform.system()}, Python "
-          f"{platform.python_version()}")
-    print(f"- command: `python bench/bench_video_bias.py {' '.join(sys.argv[1:])}`\n")
+    print("\n".join(header(bullet="-")) + "\n")
     print("| camera | frame offset | frames | median distance, all common joints (px) | "
           "torso (px) |")
     print("|---|---|---|---|---|")

@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from _report import cpu_model, machine  # noqa: F401  (one header for every results file)
+
 __all__ = ["replace_block", "keep_blocks", "cpu_model", "machine"]
 
 _BLOCK = re.compile(r"<!-- block:(?P<name>[\w-]+) -->\n.*?<!-- /block:(?P=name) -->\n?", re.S)
@@ -42,26 +44,3 @@ def keep_blocks(path: str | Path, new_text: str) -> str:
     kept = [m.group(0) for m in _BLOCK.finditer(path.read_text()) if m.group("name") not in have]
     return new_text.rstrip("\n") + "\n\n" + "\n".join(kept) if kept else new_text
 
-
-def cpu_model() -> str:
-    """The processor's model name (``/proc/cpuinfo``), for the machine line of a results file."""
-    import platform
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "?"
-
-
-def machine() -> str:
-    """The machine line of a results file: platform, processor, cores, Python, and the load
-    average when it is written (the machines are shared: a high load means contended times)."""
-    import os
-    import platform
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    return (f"{platform.platform()}, {cpu_model()}, {os.cpu_count()} CPUs, Python "
-            f"{platform.python_version()}; load average at the end {load[0]:.2f} / "
-            f"{load[1]:.2f} / {load[2]:.2f} (1/5/15 min)")

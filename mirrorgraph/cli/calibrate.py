@@ -23,7 +23,7 @@ from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
 from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
-                   step)
+                   step, warn)
 from .commands import HELP
 from .video import add_video_options, describe, detect_with_progress, video_options
 from .view import add_view_option, check_view_option, view_after_run
@@ -56,7 +56,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--principal-point", choices=("centre", "free"), default="centre",
                    help="without intrinsics: the principal point about the image centre "
                         "with the spread of real cameras, 1%% of the larger side (default), or "
-                        "a loose prior (free: the people decide it, poorly)")
+                        "a loose prior, 5%% of the width (free: the person and the reflection "
+                        "estimate it, well on some scenes, badly on others: "
+                        "docs/guide/unknown-intrinsics.md)")
     p.add_argument("--no-lines", action="store_true",
                    help="without intrinsics, on a video: leave the scene's straight lines out "
                         "(by default their vanishing points are a second witness of the focal "
@@ -123,8 +125,8 @@ def cmd_calibrate(args) -> int:
         require_matplotlib()          # fail before the long run, with the install hint
     if args.video and not Path(args.video).is_file():
         raise InputError("no such video file", source=args.video, field="--video")
-    if args.render and Path(args.render).suffix.lower() != ".mp4":
-        raise InputError("must end in .mp4", source=args.render, field="--render")
+    if args.render and Path(args.render).suffix.lower() not in (".mp4", ".webm"):
+        raise InputError("must end in .mp4 or .webm", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
     if args.joints3d:
@@ -173,7 +175,8 @@ def cmd_calibrate(args) -> int:
     if args.report:
         from ..report import make_report
         written = make_report(run, args.report, video=args.video, render=args.render,
-                              progress=lambda s: step(args, s), progress_bar=not args.quiet)
+                              progress=lambda s: step(args, s), progress_bar=not args.quiet,
+                              warn=lambda line: warn(args, [line]))
         report_line = report_written(written, args.report)
     view_line = None
     if args.view is not None:

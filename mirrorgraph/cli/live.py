@@ -9,6 +9,7 @@ JSON line per frame (a thin layer over :mod:`mirrorgraph.live`).
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from ..errors import InputError
@@ -51,9 +52,12 @@ def add_parsers(sub) -> None:
                    help="most frames in a window of the mirror's solve (default 900)")
     p.add_argument("--calibrated-std", type=positive, default=2.0, metavar="DEG",
                    help="rotation std at which the status becomes 'calibrated' (default 2)")
-    p.add_argument("--background", action="store_true",
-                   help="solve the mirror's windows in a worker process (the frames keep "
-                        "flowing meanwhile; the default unless --as-fast-as-possible)")
+    solve = p.add_mutually_exclusive_group()
+    solve.add_argument("--inline", action="store_true",
+                       help="solve the mirror's windows between frames, in this process "
+                            "(every line the same from run to run; a file only); by default a "
+                            "worker process solves them while the frames flow")
+    solve.add_argument("--background", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--threshold", type=positive, default=DEFAULT_THRESHOLD_PX, metavar="PX",
                    help=f"inlier threshold in pixels (default {DEFAULT_THRESHOLD_PX:g})")
     p.add_argument("--min-confidence", type=rate, default=DEFAULT_MIN_CONFIDENCE,
@@ -95,9 +99,12 @@ def cmd_live(args) -> int:
                              joints=tuple(j.strip() for j in args.joints.split(","))
                              if args.joints else None)
     realtime = camera or not args.as_fast_as_possible
+    if args.inline and realtime:
+        raise InputError("a source played at its frame rate cannot wait for a solve: give "
+                         "--as-fast-as-possible with a file", field="--inline")
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
-                       calibrated_std_deg=args.calibrated_std,
-                       background=bool(args.background or realtime))
+                       calibrated_std_deg=args.calibrated_std, background=not args.inline,
+                       can_wait=not realtime)
     with Progress(f"live from {source.name}", total=source.total,
                   enabled=not args.quiet) as bar:
         def on_frame(frame) -> None:

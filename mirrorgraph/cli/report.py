@@ -33,15 +33,19 @@ def _add_report(sub) -> None:
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
                                        "a rig's JSON written by 'calibrate-rig'")
     p.add_argument("keypoints", nargs="?", default=None,
-                   help="the keypoints the calibration was made from (needed only without "
-                        "the .report.npz beside the calibration, or with --recompute)")
+                   help="the keypoints the calibration was made from (read only without a "
+                        "usable .report.npz beside the calibration, or with --recompute; "
+                        "default: the input calibration.json records)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write the figures into")
     p.add_argument("--recompute", action="store_true",
-                   help="calibrate the keypoints again even where the run is stored")
+                   help="calibrate the keypoints again even where the run is stored (the "
+                        "ones given, else the input calibration.json records)")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--video", metavar="FILE",
                    help="draw joints, reflections and epipolar lines on sampled frames")
-    p.add_argument("--render", metavar="OUT.mp4", help="write the whole overlay video (needs --video)")
+    p.add_argument("--render", metavar="OUT.mp4",
+                   help="write the whole overlay video (needs --video): .mp4 (H.264 where "
+                        "OpenCV has it, else mp4v, which browsers do not play) or .webm (VP9)")
     p.add_argument("--frames", type=int, default=6, help="video frames to sample (default 6)")
     add_common(p)
     p.set_defaults(func=cmd_report)
@@ -70,8 +74,6 @@ def cmd_report(args) -> int:
         out = write_rig_report(rig, args.out, progress_bar=not args.quiet)
         printer(args)(report_written({p.stem: p for p in out}, args.out))
         return 0
-    if args.recompute and args.keypoints is None:
-        raise InputError("needs the keypoints the calibration was made from", field="--recompute")
     say = printer(args)
     with solver_progress(args) as callbacks:
         loaded = load_run(args.calibration, args.keypoints,
@@ -84,7 +86,7 @@ def cmd_report(args) -> int:
     say(loaded.message + note)
     out = make_report(loaded.run, args.out, video=args.video, render=args.render,
                       max_frames=args.frames, progress=lambda s: step(args, s),
-                      progress_bar=not args.quiet)
+                      progress_bar=not args.quiet, warn=lambda line: warn(args, [line]))
     say(report_written(out, args.out))
     return 0
 
@@ -97,7 +99,7 @@ def _add_export(sub) -> None:
                                    "calibration.toml. The virtual camera is the one that sees the "
                                    "horizontally flipped image (u -> W - u): give those tools the "
                                    "reflection's keypoints with x -> W - x and left/right labels "
-                                   "swapped (see the README).")
+                                   "swapped (docs/guide/exports.md).")
     p.add_argument("calibration", help="calibration.json written by 'mirrorgraph calibrate', or "
                                        "a rig's JSON written by 'calibrate-rig' (every camera "
                                        "and every view through a mirror)")

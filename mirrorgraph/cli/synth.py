@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..synth.body import SUPPORTED_SKELETONS
 from ..synth.geometry import PRESETS
 from ..synth.writer import FORMATS as SCENE_FORMATS
+from ..progress import Progress
 from .args import (add_common, floats, image_size, positive, print_result, printer, rate, seed,
                    solver_progress)
 from .commands import HELP
@@ -85,6 +86,11 @@ def _add_synth(sub) -> None:
                         "of the procedural exercise motion; resampled to 30 fps")
     p.add_argument("--formats", default=",".join(SCENE_FORMATS),
                    help="comma-separated formats to write")
+    p.add_argument("--video-frames", type=lambda t: int(positive(t)) if t != "0" else 0,
+                   default=150, metavar="N",
+                   help="also write clip.mp4: the first N frames drawn as a video (the person "
+                        "and the reflection as simple bodies a pose detector finds), to try "
+                        "'calibrate clip.mp4' and 'live clip.mp4' on (default 150; 0: none)")
     add_common(p)
     p.set_defaults(func=cmd_synth)
 
@@ -113,6 +119,14 @@ def cmd_synth(args) -> int:
                        joint_bias_px=args.joint_bias)
     paths = write_scene(scene, args.out, formats=tuple(f.strip() for f in args.formats.split(",")))
     say = printer(args)
+    if args.video_frames:
+        from ..synth.video import write_scene_video
+
+        count = min(args.video_frames, args.frames)
+        with Progress("drawing clip.mp4", total=count, enabled=not args.quiet) as bar:
+            # for mirrorgraph's own reader: the codec need not be one browsers play
+            paths["video"], _ = write_scene_video(scene, Path(args.out) / "clip.mp4", count,
+                                                  progress=bar.update)
     say(f"wrote a {args.frames}-frame {args.skeleton} {args.geometry} scene to {args.out}:")
     for name, path in paths.items():
         say(f"  {name:18s} {path}")

@@ -113,25 +113,16 @@ def so3_log(R: np.ndarray) -> np.ndarray:
     return np.asarray(gtsam.Rot3.Logmap(gtsam.Rot3(np.asarray(R, dtype=float))), dtype=float)
 
 
-def _inverse_jacobian(theta: np.ndarray, sign: float) -> np.ndarray:
-    th = np.asarray(theta, dtype=float).reshape(3)
-    a = float(np.linalg.norm(th))
-    W = skew(th)
-    if a < 1e-6:
-        coeff = 1.0 / 12.0 + a * a / 720.0
-    else:
-        coeff = 1.0 / (a * a) - (1.0 + np.cos(a)) / (2.0 * a * np.sin(a))
-    return np.eye(3) + sign * 0.5 * W + coeff * (W @ W)
-
-
 def so3_right_jacobian_inverse(theta: np.ndarray) -> np.ndarray:
-    """``Jr^-1(theta)`` (3, 3): ``Log(Exp(theta) Exp(d)) = theta + Jr^-1(theta) d + O(d^2)``."""
-    return _inverse_jacobian(theta, +1.0)
+    """``Jr^-1(theta)`` (3, 3): ``Log(Exp(theta) Exp(d)) = theta + Jr^-1(theta) d + O(d^2)``
+    (GTSAM's :meth:`gtsam.SO3.LogmapDerivative`)."""
+    return np.asarray(gtsam.SO3.LogmapDerivative(np.asarray(theta, dtype=float).reshape(3)))
 
 
 def so3_left_jacobian_inverse(theta: np.ndarray) -> np.ndarray:
-    """``Jl^-1(theta)`` (3, 3): ``Log(Exp(d) Exp(theta)) = theta + Jl^-1(theta) d + O(d^2)``."""
-    return _inverse_jacobian(theta, -1.0)
+    """``Jl^-1(theta)`` (3, 3): ``Log(Exp(d) Exp(theta)) = theta + Jl^-1(theta) d + O(d^2)``
+    (``Jl(theta) = Jr(-theta)``)."""
+    return np.asarray(gtsam.SO3.LogmapDerivative(-np.asarray(theta, dtype=float).reshape(3)))
 
 
 # --------------------------------------------------------------------------- the factor

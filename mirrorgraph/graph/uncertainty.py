@@ -14,9 +14,10 @@ degrees, intrinsics in pixels.
 
 from __future__ import annotations
 
+import math
+
 import gtsam
 import numpy as np
-from ..stats import chdtri, fdtri
 
 from .result import normal_cov_from_tangent, rotation_std_from_normal_cov
 from .sandwich import covariance_max, sandwich, sandwich_candidates
@@ -181,19 +182,30 @@ def region_threshold(dim: int, clusters: int | None, level: float = REGION_LEVEL
     Hotelling's ``T^2 = dim (G - 1) / (G - dim) F(dim, G - dim)`` (Cameron and Miller
     2015, small-cluster inference), wider than the Gaussian's ``chi^2(dim)``, which it
     is for ``G`` large or for the marginals and the time series' long-run covariance
-    (``clusters=None``).
+    (``clusters=None``). For ``dim = 2`` both quantiles have closed forms
+    (``chi^2(2)`` is exponential: ``-2 log(1 - level)``; ``F(2, d)``'s survival function
+    is ``(1 + 2 x / d)^(-d / 2)``); any other ``dim`` asks :mod:`scipy.special`.
 
     Args:
         dim: parameters (2 for a unit normal); clusters: ``G``, or ``None``.
-        level: the confidence level.
+        level: the confidence level, in ``(0, 1)``.
 
     Returns:
         the threshold ``c``: the region is ``delta^T Sigma^-1 delta <= c``.
     """
-    if clusters is None or clusters <= dim:
-        return float(chdtri(dim, 1.0 - level))
+    gaussian = clusters is None or clusters <= dim
+    if dim == 2:
+        if gaussian:
+            return -2.0 * math.log1p(-level)
+        d = int(clusters) - 2
+        quantile = 0.5 * d * math.expm1(-2.0 / d * math.log1p(-level))
+    else:
+        from scipy.special import chdtri, fdtri     # only here: ~0.3 s of a command's start
+        if gaussian:
+            return float(chdtri(dim, 1.0 - level))
+        quantile = float(fdtri(dim, int(clusters) - dim, level))
     G = int(clusters)
-    return float(dim * (G - 1) / (G - dim) * fdtri(dim, G - dim, level))
+    return float(dim * (G - 1) / (G - dim) * quantile)
 
 
 def region_rotation_deg(normal_cov: np.ndarray, clusters: int | None = None,

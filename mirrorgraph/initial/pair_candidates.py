@@ -101,6 +101,22 @@ def candidates(raw: RawDetections, opts: PairingOptions) -> Candidates:
     return Candidates(frame[order], people[ia[1]], people[ib[1]][:, flip], ia[0], ib[0])
 
 
+def nanmedian_rows(x: np.ndarray) -> np.ndarray:
+    """``(M,)`` the median of each row of ``x`` ``(M, N)`` over its non-NaN entries (NaN
+    where a row has none): :func:`numpy.nanmedian` along ``axis=1``, equal to it, by one
+    sort. NumPy takes rows shorter than 600 through masked arrays, ~0.7 ms a call for
+    the two candidates of a frame against ~0.05 ms here (the live run scores every frame).
+    """
+    x = np.asarray(x, dtype=float)
+    if x.shape[1] == 0:
+        return np.full(len(x), np.nan)
+    s = np.sort(x, axis=1)                              # NaN sorts last
+    k = np.count_nonzero(~np.isnan(x), axis=1)
+    r = np.arange(len(x))
+    lo, hi = s[r, np.maximum(k - 1, 0) // 2], s[r, np.minimum(k // 2, x.shape[1] - 1)]
+    return np.where(k > 0, 0.5 * (lo + hi), np.nan)
+
+
 def median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
                      min_joints: int) -> np.ndarray:
     """``(M,)`` median epipolar distance over shared joints (inf if too few)."""
@@ -109,7 +125,7 @@ def median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndar
     enough = np.count_nonzero(np.isfinite(d), axis=1) >= min_joints
     out = np.full(len(a), np.inf)
     if enough.any():
-        out[enough] = np.nanmedian(d[enough], axis=1)
+        out[enough] = nanmedian_rows(d[enough])
     return out
 
 
@@ -141,7 +157,7 @@ def b_is_reflection_of(e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarra
     db = np.linalg.norm(bh * e[2] - e, axis=-1)
     votes = np.where(np.isfinite(da) & np.isfinite(db), np.sign(da - db), 0.0)
     by_epipole = votes.sum(axis=1) >= 0
-    far = np.nanmedian(np.where(np.isfinite(da), da, np.nan), axis=1) > FAR_EPIPOLE_PX * abs(e[2])
+    far = nanmedian_rows(np.where(np.isfinite(da), da, np.nan)) > FAR_EPIPOLE_PX * abs(e[2])
     if not np.any(far):
         return by_epipole
     size_a = np.nansum(np.nanstd(a[..., :2], axis=1), axis=-1)

@@ -7,82 +7,38 @@
         out.status, out.joints3d, out.joints_std, out.mirror.normal
     live.close()
 
-**Per frame** (the fixed-latency path, no solver): the detections are checked (a bad
-frame is skipped and counted, never an exception), undistorted, and paired against the
-current mirror's epipole ``e ~ K n``
-(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`: the candidate pairs of the
-frame, both labellings of the reflection, the one under the threshold with the
-smallest median epipolar distance, the reflection the detection nearer the epipole);
-every joint seen in both views is triangulated with the mirror
-(:func:`mirrorgraph.geometry.triangulate_mirror`), kept where it reprojects within the
-threshold in both views and lies in front of the camera and the mirror. Its std (the
-RMS length of its 3D error, ``sqrt(trace(cov))``) holds
+**Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
+skipped and counted), undistorted, paired against the current mirror's epipole
+``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), triangulated with the
+mirror (:func:`mirrorgraph.geometry.triangulate_mirror`), kept where they reproject within
+the threshold in both views and lie in front of the camera and the mirror, and refined
+with the latest window's bone lengths (:mod:`.frame_prior`). Each joint's std (metres with
+a subject height; ``sqrt`` of its covariance's trace) holds the two rays' share at the
+window's a-posteriori pixel noise and the fused normal's share through
+:func:`joints_normal_jacobian`; with a subject height the body's size is held (the
+scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric scale's
+own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
+:attr:`LiveFrame.joints_std_shape` leaves it out.
 
-* the two rays' share (:func:`mirrorgraph.geometry.triangulation_covariance` at the
-  reprojection noise the last window's graph found, its a posteriori sigma: 4.0 px
-  under 4 px iid noise, not a robust threshold), and
-* the mirror normal's share: the fused normal's covariance (its detector-bias part
-  included) through the triangulation's derivative in the normal's two tangent
-  directions, taken at what the windows' gauge holds: with a subject height every
-  window's scale is the subject's stature measured on its joints, so a tilted normal
-  moves the distance with it and the body keeps its size (the derivative holds the
-  frame's body spread); without one the distance (the unit) is held.
+**The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
+calibrated by the offline run: every frame so far each time their number doubles (from
+``first_window_frames`` up to ``window_frames``), then each later block of
+``window_frames`` fused into the mirror carried from the older ones
+(:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
+(``background=False``: deterministic) or in one worker process started with the
+calibrator (``background=True``: the frames keep flowing; a buffer beyond
+``max_buffer_frames`` while the worker is busy is thinned evenly).
 
-The distance's std is not added on top: with a subject height it is that same
-normal error seen through the body's size (counted twice before), plus the metric
-scale's own uncertainty (the subject's height and proportions,
-``RefineOptions.height_sigma``: 2 % by default, a prior, not a measurement), which is
-one factor on every length of every frame: :attr:`LiveMirror.scale_rel_std`.
-:attr:`LiveFrame.joints_std` holds it, ``hypot(shape, |X| scale_rel_std)`` (the std of a
-position in metres); :attr:`LiveFrame.joints_std_shape` is without it (the body's
-shape and relative positions at the calibration's scale). Added
-to each joint, as it was (with the distance's std), it outweighed the rays' share on
-the wide scenes (joints 8-10 m away) and left the joints' error at 0.5 of their std
-RMS, 0.3 median, under iid noise, where the actual scale error is well under 2 %; now
-1.3 RMS, 1.0 median for ``joints_std_shape`` (``bench/RESULTS_live.md``, where it is
-``joints_std`` and the metric one ``joints_std_metric``: the names before they were
-swapped). Under the realistic detector the scale itself is off by 1-18 % (the offline
-calibration's as much: the stature on a biased detector's joints), which no per-frame
-std sees: there ``joints_std_shape`` is too thin against the true joints (3.97 RMS)
-and ``joints_std`` about as honest as the std was (1.84; 0.49 under iid, wide): hence
-the metric one is ``joints_std``, the figure a position in metres needs.
-
-**The mirror** (:mod:`.estimator`): the frames holding two people or more are
-buffered. Once ``first_window_frames`` of them have arrived they are calibrated by the
-offline run (pairing, the reflective RANSAC, the one graph with its body priors, robust
-reprojection, rejection, left/right fixes, the stature scale), and again on every
-frame so far each time their number has doubled, up to a first block of
-``window_frames``: until then the live mirror *is* the offline calibration of the
-frames seen (at the last doubling). Every later block of ``window_frames`` is
-calibrated the same way and fused into the mirror carried from the older ones (their
-information on the plane: what a fixed-lag smoother with a lag of one block keeps,
-:class:`~.estimator.MirrorFusion`); memory holds one block. Windows are solved in
-the calling thread (``background=False``: deterministic, what the tests and the
-benchmark replay) or in one worker process (``background=True``: GTSAM holds the GIL,
-so a thread would stall the frames; the frames keep flowing while a window solves, and
-a buffer that outgrows ``max_buffer_frames`` while the worker is busy is thinned
-evenly, so memory stays flat).
-
-Measured (``bench/RESULTS_live.md``): short windows fused as they came (60, 150 or
-300 frames each) were biased by their few frames, 0.53-0.95 deg off on a realistic
-wide scene where the offline calibration of the same 1800 frames was 0.35 deg off;
-the doubling first block and 900-frame windows are the choice (300-frame blocks were
-as accurate but their std too wide, 1800-frame ones as accurate with solves up to 7.8 s:
-``bench/RESULTS_live_lag.md``).
-
-**Status**: ``initialising`` until the fused mirror's rotation std is at most
+**Status**: ``initialising`` until the fused rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
-fused fails the offline run's reflection check
-(:mod:`mirrorgraph.initial.reflection_check`: the detection paired as the reflection fits
-one mirror in too few frames, as a second person does; the mirror's ``doubt`` says so).
-Two people in view and no mirror fit a "mirror" at a rotation std of about 1.2 deg
-(``bench/RESULTS_live_video.md``, clip ``nomirror2``): the std alone would call it
-calibrated. Joints are given as soon as a first window has calibrated (their std says
-how far to trust them).
+fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mirror's
+``doubt`` says so). Accuracy, std honesty and window sizes: ``bench/RESULTS_live.md``,
+``bench/RESULTS_live_lag.md``, ``bench/RESULTS_live_video.md``.
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
@@ -100,7 +56,8 @@ if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
     from ..skeletons import Skeleton
 
-__all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES"]
+__all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES",
+           "joints_normal_jacobian"]
 
 #: The statuses of a live mirror.
 STATUSES = ("initialising", "calibrated")
@@ -127,6 +84,12 @@ class LiveOptions:
         fps: frame rate for frame times where the caller gives none.
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
+        can_wait: the source can wait (a file replayed flat out). In the background
+            mode the frame that starts the first solve then waits for its mirror, and a
+            window due while the worker is busy waits for it instead of thinning the
+            buffer: the windows are those of the calling thread's run and every frame
+            after the first window has joints. ``False`` for a live feed, whose frames
+            cannot wait.
     """
 
     calibrate: object | None = None
@@ -137,6 +100,7 @@ class LiveOptions:
     background: bool = False
     fps: float = 30.0
     bone_prior: bool = True
+    can_wait: bool = False
 
     @classmethod
     def of(cls, **kwargs) -> "LiveOptions":
@@ -228,8 +192,8 @@ class LiveFrame:
         latency_s: wall seconds of this frame's own work (pairing, triangulation).
         cpu_s: the thread's CPU seconds of the same (the latency without what other
             processes on the machine took from it).
-        solve_s: wall seconds spent in a window's solve during this call (``0`` in the
-            background mode, where the worker solves).
+        solve_s: wall seconds spent in a window's solve during this call (in the
+            background mode only the waits of a source that can wait, ``can_wait``).
     """
 
     index: int
@@ -262,6 +226,70 @@ class LiveFrame:
                 "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
                                      for s, k in zip(shape, ok)],
                 "paired": self.paired, "skipped": self.skipped}
+
+
+def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
+                           X: np.ndarray, u: np.ndarray, um: np.ndarray, basis: np.ndarray,
+                           *, keep_spread: bool = False) -> np.ndarray:
+    """The derivative of joints triangulated with a mirror in the normal's tangent
+    directions.
+
+    ``X`` is the maximum-likelihood point of its two rays (the camera's ``K [I | 0]``
+    and the mirror's ``K [H | 2 d n]``, :func:`mirrorgraph.geometry.triangulate_mirror`);
+    by the implicit function theorem at the Gauss-Newton normal equations,
+    ``dX / dt_k = -(J_1^T J_1 + J_2^T J_2)^-1 J_2^T Q dY / dt_k`` with ``J_1``, ``J_2``
+    the views' ``2 x 3`` Jacobians in ``X``, ``Q`` the mirror view's in the virtual
+    point ``Y = X + 2 (d - n . X) n`` and ``dY / dt_k = 2 (d - n . X) b_k - 2 (b_k . X) n``
+    for the unit normal moved along ``b_k`` (Hartley and Zisserman, *Multiple View
+    Geometry*, 2nd ed., sec. 5.2 for the first-order propagation).
+
+    Args:
+        K: ``(3, 3)`` intrinsics, px; normal: ``(3,)`` unit ``n``; distance: ``d``.
+        X: ``(N, 3)`` the points (camera frame, unit of ``d``); u, um: ``(N, 2)`` their
+            pixels in the camera and in the mirror (undistorted; only ``X`` enters the
+            first-order derivative).
+        basis: ``(3, 2)`` tangent directions ``b_k`` of the normal
+            (:func:`mirrorgraph.geometry.tangent_basis`).
+        keep_spread: hold the points' spread ``sum_i |X_i - mean|^2`` (the body's size,
+            the scale a subject height sets) instead of the distance: each derivative
+            loses its share along ``X``, ``- X sum_i (X_i - mean) . dX_i / spread``.
+
+    Returns:
+        ``(N, 3, 2)`` ``dX_i / dt_k``, the unit of ``d`` per radian.
+    """
+    n = np.asarray(normal, float).reshape(3)
+    X = np.asarray(X, float).reshape(-1, 3)
+    H = np.eye(3) - 2.0 * np.outer(n, n)
+    off = distance - X @ n                                              # (N,)
+    Y = X + 2.0 * off[:, None] * n
+
+    def jac(P: np.ndarray) -> np.ndarray:                               # (N, 2, 3)
+        q = P @ K.T
+        p = q[:, :2] / q[:, 2:3]
+        return (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
+
+    J1, Q = jac(X), jac(Y)
+    J2 = Q @ H
+    A = np.einsum("nri,nrj->nij", J1, J1) + np.einsum("nri,nrj->nij", J2, J2)
+    dY = (2.0 * off[:, None, None] * basis[None]
+          - 2.0 * n[None, :, None] * (X @ basis)[:, None, :])          # (N, 3, 2)
+    rhs = np.einsum("nri,nrs,nsk->nik", J2, Q, dY)                      # (N, 3, 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dX = -np.linalg.solve(A, rhs)
+    if keep_spread and len(X) >= 2:
+        c = X - X.mean(0)
+        spread = float(np.sum(c * c))
+        if spread > 0:
+            dX = dX - X[:, :, None] * (np.einsum("ni,nik->k", c, dX) / spread)[None, None]
+    return dX
+
+
+def _warm_up() -> None:
+    """The worker's imports (GTSAM, SciPy's optimiser, the offline run), done while the
+    first window's frames arrive."""
+    import scipy.optimize  # noqa: F401
+
+    from ..pipelines import mirror  # noqa: F401
 
 
 class LiveCalibrator:
@@ -325,11 +353,23 @@ class LiveCalibrator:
         self.window_log: list[dict] = []
         self._log_cap = 1000
         self.last_variances: dict = {}
+        self._cache: dict = {}                  # what the fused mirror gives every frame
+        if opts.background:                     # the worker's start off the first window
+            self._executor().submit(_warm_up)
 
     # ------------------------------------------------------------------ state
+    def _cached(self, name: str, make):
+        """A figure of the fused mirror, computed once between two windows."""
+        if name not in self._cache:
+            self._cache[name] = make()
+        return self._cache[name]
+
     @property
     def K(self) -> np.ndarray:
         """The current camera matrix (the fused focal length where it is estimated)."""
+        return self._cached("K", self._camera_matrix)
+
+    def _camera_matrix(self) -> np.ndarray:
         K = np.array(self._guess.K, dtype=float)
         f = self.fusion.focal_px
         if self.intrinsics is None and f is not None:
@@ -338,7 +378,10 @@ class LiveCalibrator:
 
     @property
     def mirror(self) -> LiveMirror:
-        """The current mirror (:class:`LiveMirror`)."""
+        """The current mirror (:class:`LiveMirror`, a snapshot)."""
+        return copy.copy(self._cached("mirror", self._snapshot))
+
+    def _snapshot(self) -> LiveMirror:
         fu = self.fusion
         if fu.normal is None:
             return LiveMirror(failed=fu.failed)
@@ -527,27 +570,15 @@ class LiveCalibrator:
             ones = np.ones(len(X), bool)
             cov = geo.triangulation_covariance(views, X, [ones, ones], self._sigma_px())
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
-        B = geo.tangent_basis(n)
-        C = B.T @ fu.normal_cov @ B
+        B, C = self._cached("normal_tangent", self._normal_tangent)
         metric = self._copts.subject_height is not None
         if np.all(np.isfinite(C)):
-            # the derivative of the joints in the normal's two tangent directions. With a
-            # subject height every window's scale is the subject's stature measured on
-            # its joints: a tilted normal changes the distance with it so that the body
-            # keeps its size, so the body's spread is held (the distance's own std is
+            # with a subject height every window's scale is the subject's stature
+            # measured on its joints, so a tilted normal changes the distance with it
+            # and the body keeps its size: the spread is held (the distance's own std is
             # that same error seen through the body: not added again); without one the
             # distance is the unit and is held
-            eps = 1e-5
-            spread = np.sum((X - X.mean(0)) ** 2) if len(X) >= 2 else 0.0
-            J = []
-            for k in range(2):
-                m = n + eps * B[:, k]
-                Xp = geo.triangulate_mirror(K, m / np.linalg.norm(m), d, u, um, iterations=1)
-                sp = np.sum((Xp - Xp.mean(0)) ** 2)
-                if metric and spread > 0 and sp > 0:
-                    Xp = Xp * np.sqrt(spread / sp)
-                J.append((Xp - X) / eps)
-            J = np.stack(J, axis=-1)                                      # (N, 3, 2)
+            J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
             var["normal"] = np.maximum(np.einsum("nik,kl,nil->n", J, C, J), 0.0)
         if metric:
             var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
@@ -569,6 +600,10 @@ class LiveCalibrator:
         n = len(self._buffer_ids)
         busy = self._future is not None
         if busy:
+            due = n >= (self._next if self._provisional else self.options.window_frames)
+            if self.options.can_wait and due:      # a file: wait, never thin
+                waited = self._poll(wait=True)
+                return waited + self._schedule()
             if n > max(self.options.max_buffer_frames, self.options.window_frames):
                 keep = slice(None, None, 2)                # thin evenly: memory flat
                 self._buffer_ids = self._buffer_ids[keep]
@@ -587,6 +622,8 @@ class LiveCalibrator:
             self._future = self._executor().submit(solve_window, job[0], self._window_intr,
                                                    self._copts)
             self._job = job[1:] + (len(job[0].people),)
+            if self.options.can_wait and self.fusion.normal is None:
+                return self._poll(wait=True)
             return 0.0
         clock = time.perf_counter()
         est = solve_window(job[0], self._window_intr, self._copts)
@@ -614,7 +651,13 @@ class LiveCalibrator:
         self._absorb(est, *self._job)
         return time.perf_counter() - clock if wait else 0.0
 
+    def _normal_tangent(self) -> tuple[np.ndarray, np.ndarray]:
+        """The fused normal's ``(3, 2)`` tangent basis and its ``(2, 2)`` covariance there."""
+        B = geo.tangent_basis(self.fusion.normal)
+        return B, B.T @ self.fusion.normal_cov @ B
+
     def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
+        self._cache.clear()
         if provisional:
             # the calibration of every frame so far replaces the one of fewer frames
             what = self.fusion.restart(est)
@@ -644,9 +687,11 @@ class LiveCalibrator:
         return self.mirror
 
     def close(self) -> None:
-        """Stop the worker process (if any)."""
+        """Stop the worker process (if any): joined where no window is in flight (a pool
+        left to the interpreter's exit can fail there on its closed pipe), else left to
+        end its solve."""
         if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool.shutdown(wait=self._future is None, cancel_futures=True)
             self._pool = None
             self._future = None
 

@@ -1,60 +1,33 @@
 """The mirror of a live run: windows of frames solved by the offline run, fused.
 
-A window is the next ``window_frames`` frames holding two people or more. It is
-calibrated by the very run ``calibrate`` makes (:func:`mirrorgraph.pipelines.mirror.calibrate`:
-pairing, the reflective RANSAC, the one graph with its body priors, robust reprojection,
-outlier rejection and left/right fixes, the stature scale, the robust uncertainty);
-:func:`solve_window` returns what the fusion needs (:class:`WindowEstimate`).
+A window (the next frames holding two people or more) is calibrated by the run
+``calibrate`` makes (:func:`mirrorgraph.pipelines.mirror.calibrate`); :func:`solve_window`
+returns what the fusion needs of it (:class:`WindowEstimate`).
 
-:class:`MirrorFusion` carries the older windows as a Gaussian prior on the mirror: the
-frames are independent given the mirror (the graph's joints of one window share nothing
-with another's), so marginalising a window's joints leaves its information on the plane,
-and the information of disjoint windows adds. That is what a fixed-lag smoother whose
-lag is one window amounts to; the difference to one graph over every frame is the
-linearisation point (each window's own optimum instead of the common one, a second-order
-effect, measured in ``bench/RESULTS_live.md``).
+:class:`MirrorFusion` carries the older windows as a Gaussian on the mirror: the frames
+are independent given the mirror, so marginalising a window's joints leaves its
+information on the plane, and the information of disjoint windows adds (a fixed-lag
+smoother whose lag is one window). A detector's bias that every window shares does not
+average out, so the normal's covariance has two parts:
 
-What does *not* add up is a detector's bias that every window shares (a joint placed
-consistently off): it does not shrink with more windows. Each window's robust
-uncertainty separates it (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`): the
-time-series sandwich (``time``) sees the noise that averages out, the headline (the
-largest of it, the joint-pair clusters and their jackknife) the noise *and* the
-per-joint bias. The fusion therefore keeps
+* **independent**: the windows' normals weighted by their marginal information (as one
+  graph over every frame weighs them), with the sandwich covariance of that weighted mean,
+  each window's ``max(marginal_w, time_w)`` in it (it shrinks like 1 / windows);
+* **shared**: the mean over windows of ``headline_w - max(marginal_w, time_w)`` (its PSD
+  part; it does not shrink), ``headline_w`` the window's robust figure
+  (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`).
 
-* the **independent** part: the windows' normals weighted by their marginal information
-  (as one graph over every frame weighs them: measured, weighting by the noisier
-  sandwich figures pulled the fused normal towards the windows whose figure came out
-  small, 0.95 deg off against 0.35 offline on wide scene 1, realistic detector), with
-  the sandwich covariance of that weighted mean, each window's
-  ``max(marginal_w, time_w)`` in it (it shrinks like 1 / windows);
-* the **shared** part: the mean over windows of ``headline_w - max(marginal_w, time_w)``
-  (its PSD part: the bias's own covariance; it does not shrink),
+The focal length, where estimated, is fused by its windows' information. The **distance**
+is the frame-weighted median of the windows' distances (with a subject height each is the
+one at which the stature measured on the window's joints is the height); its data std is
+the larger of the windows' own, combined, and their spread (from the median absolute
+deviation, from three windows on); the subject's height is a shared relative part.
 
-and reports their sum. The focal length, where it is estimated, is fused by its
-windows' information alone.
-
-The **distance** is the median of the windows' distances, each weighted by its
-frames, with the subject's height as a shared part (``RefineOptions.height_sigma``, a
-pure scale every window has). With a subject height a window's distance is the one at
-which the stature measured on its joints (a median over its frames) is the height;
-its graph's own distance std is the gauge's (the bone lengths' sum held), next to
-nothing (3e-6 of the distance on realistic scene 3), so weighing the windows
-by it, as before, picked one window by its rounding: 32.8 % off after 120 s on wide
-scene 3, realistic detector, where the offline calibration of the same frames is
-18.4 % off and three of its four 900-frame blocks 16-19 % (the fourth 52 %). The
-median over the windows is the live counterpart of the offline median over frames.
-Its data std is the larger of the windows' own (combined by information) and their
-spread (the median's, from the median absolute deviation, from three windows on).
-
-While the first block grows (:class:`~.calibrator.LiveCalibrator` re-solves every frame
-so far as their number doubles) each solve replaces the fused mirror
-(:meth:`MirrorFusion.restart`); from the first full block on, blocks are fused
-(:meth:`MirrorFusion.add`).
-
-A window far from the fused mirror (Mahalanobis distance over :data:`REJECT_CHI2`
-with both covariances) is rejected and counted; :data:`RESET_AFTER` rejected windows in
-a row that agree with each other restart the fusion from them (the camera or the mirror
-moved: a cut in the video).
+While the first block grows each solve replaces the fused mirror
+(:meth:`MirrorFusion.restart`); later blocks are fused (:meth:`MirrorFusion.add`). A window
+beyond :data:`REJECT_CHI2` (squared Mahalanobis distance, both covariances) is rejected;
+:data:`RESET_AFTER` rejected windows in a row that agree restart the fusion from them (the
+camera or the mirror moved). Figures: ``bench/RESULTS_live.md``.
 """
 
 from __future__ import annotations

@@ -226,7 +226,8 @@ FIGURES = ("image_plane", "residuals", "scene3d", "bone_lengths", "uncertainty",
 def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | None = None,
                 render: str | os.PathLike | None = None, max_frames: int = 6,
                 progress: Callable[[str], None] | None = None,
-                progress_bar: bool = True, dpi: int = 110) -> dict[str, Path]:
+                progress_bar: bool = True, dpi: int = 110,
+                warn: Callable[[str], None] | None = None) -> dict[str, Path]:
     """Write the report's PNG figures (and video overlays) of a calibration run.
 
     Args:
@@ -235,12 +236,15 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         out_dir: folder to write into (created if missing).
         video: the video the keypoints come from: draws the overlay on
             ``max_frames`` sampled frames (``overlay_<frame>.png``).
-        render: ``.mp4`` to write the whole overlay video to (needs ``video``).
+        render: ``.mp4`` (H.264 where OpenCV has it, else ``mp4v``) or ``.webm`` (VP9,
+            which browsers play) to write the whole overlay video to (needs ``video``).
         max_frames: frames of the skeleton in the 3D view (at most 4) and of
             the video sampled for overlays.
         progress: optional callback receiving the name of each step.
         progress_bar: draw progress bars on stderr while drawing the figures,
             sampling and rendering video frames (only on a terminal).
+        warn: receives a line where the rendered video is in a codec browsers do not
+            play (this OpenCV build without H.264).
         dpi: resolution of the PNGs.
 
     Returns:
@@ -254,8 +258,8 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
     """
     if render is not None and video is None:
         raise InputError("needs the video to draw on", field="render", fix=("video",))
-    if render is not None and Path(render).suffix.lower() != ".mp4":
-        raise InputError("must end in .mp4", source=str(render), field="render")
+    if render is not None and Path(render).suffix.lower() not in (".mp4", ".webm"):
+        raise InputError("must end in .mp4 or .webm", source=str(render), field="render")
     if video is not None and not Path(video).is_file():
         raise InputError("no such video file", source=str(video), field="video")
     plt = require_matplotlib()
@@ -292,7 +296,7 @@ def make_report(run, out_dir: str | os.PathLike, *, video: str | os.PathLike | N
         if render is not None:
             step(f"report: rendering {render}")
             written["video"] = vid.render_video(video, run, render, data=data,
-                                                progress_bar=progress_bar)
+                                                progress_bar=progress_bar, warn=warn)
     return written
 
 
@@ -362,6 +366,23 @@ def _stored_path(obj, calibration_path: Path) -> Path:
     return report_data_path(calibration_path)   # also where a renamed pair is found
 
 
+def recorded_keypoints(obj, calibration_path: Path | None) -> Path | None:
+    """The keypoints a ``calibration.json`` records as its input (``input.source``), where
+    that file or folder exists: as written (absolute, or relative to the working folder
+    the calibration ran in, taken to be this one), else beside the calibration.
+
+    Args:
+        obj: the parsed ``calibration.json``; calibration_path: its path, or ``None``.
+    """
+    source = (obj.get("input") or {}).get("source") if isinstance(obj, dict) else None
+    if not isinstance(source, str) or not source or source.startswith("live window"):
+        return None
+    candidates = [Path(source)]
+    if calibration_path is not None and not Path(source).is_absolute():
+        candidates += [calibration_path.parent / source, calibration_path.parent / Path(source).name]
+    return next((c for c in candidates if c.exists()), None)
+
+
 def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None,
              overrides: dict | None = None, skeleton: str | None = None, progress: Callable[[str], None] | None = None,
              iteration_progress: Callable[[int, float], None] | None = None,
@@ -380,7 +401,8 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
         calibration: path of ``calibration.json`` (or its parsed dict: then only
             ``report_data`` given as a path is read).
         keypoints: a keypoint path or what :func:`mirrorgraph.read_keypoints`
-            returned; needed only when there is no stored run.
+            returned; needed only when there is no usable stored run, and then by
+            default the ones the calibration records (:func:`recorded_keypoints`).
         report_data: ``"auto"`` (the file beside the calibration), a path, or
             ``None`` to recompute whatever is stored.
         intrinsics: overrides the intrinsics stored in the calibration (recomputes).
@@ -420,12 +442,21 @@ def load_run(calibration, keypoints=None, *, report_data="auto", intrinsics=None
                              message=f"figures of the run stored in {stored}")
         except InputError as exc:
             if keypoints is None:
-                raise
-            warnings.append(f"{exc}; recomputing the run from the keypoints instead")
+                keypoints = recorded_keypoints(obj, path)
+            if keypoints is None:
+                raise InputError(f"{exc}; give the keypoints the calibration was made "
+                                 "from to draw it from them (mirrorgraph report "
+                                 f"{src or 'CALIBRATION'} KEYPOINTS --out DIR), or calibrate "
+                                 "again with --report") from None
+            warnings.append(f"{exc}; recomputing the run from {keypoints} instead")
+    if keypoints is None:
+        keypoints = recorded_keypoints(obj, path)
     if keypoints is None:
         where = f" ({stored} is missing)" if stored is not None else ""
+        recorded = (obj.get("input") or {}).get("source")
+        seen = f" (the recorded {recorded} is not there)" if recorded else ""
         raise InputError(f"no stored run to draw{where}: give the keypoints the "
-                         "calibration was made from, to recompute it",
+                         f"calibration was made from{seen}, to recompute it",
                          source=src, field="keypoints")
     from ..pipelines.mirror import calibrate
 

@@ -300,11 +300,14 @@ def scene3d(data, *, frames: int = 4):
     edge.axvline(d, color="#3182bd", lw=4, alpha=0.55, gid="mirror")
     gap = mirror_gap(data)
     if gap is not None:
-        h = float(np.median(body @ up))
+        # above the body's top, the label a few points higher still: off the skeleton
+        # however small it is drawn (a far virtual camera widens the axes)
+        h = float(np.max(body @ up))
         edge.annotate("", xy=(d, h), xytext=(d - gap, h),
                       arrowprops=dict(arrowstyle="<->", color="0.3", lw=1))
-        edge.text(d - gap / 2, h, f"{gap:.2f} {'m' if metric else ''}".strip(), ha="center",
-                  va="bottom", fontsize=8, color="0.2")
+        edge.annotate(f"{gap:.2f} {'m' if metric else ''}".strip(), (d - gap / 2, h),
+                      textcoords="offset points", xytext=(0, 4), ha="center", va="bottom",
+                      fontsize=8, color="0.2", gid="gap")
     top.set_xlabel(f"x, right ({u})")
     top.set_ylabel(f"z, forward ({u})")
     top.set_title("From above (real camera's x and z); mirror at the subject's height",

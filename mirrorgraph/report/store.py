@@ -190,8 +190,8 @@ def read_run(path: str | os.PathLike, calibration):
             and ((np.isnan(d) and calibration.distance is None)
                  or (calibration.distance is not None and d == float(calibration.distance))))
     if not same:
-        raise InputError("belongs to another calibration (its mirror is not the file's): "
-                         "calibrated again since?", source=str(path))
+        raise InputError("belongs to another calibration (its mirror is not the file's: "
+                         "calibrated again since it was written)", source=str(path))
     try:
         skeleton = skeleton_by_name(str(arrays["skeleton"]))
     except ValueError as exc:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import InputError
+from ..io.video_out import open_video_writer
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
 
@@ -230,11 +231,14 @@ def overlay_samples(video: str | os.PathLike, run, out_dir: str | os.PathLike, *
 
 
 def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=None,
-                 progress_bar: bool = True) -> Path:
-    """Write the whole video with the overlay to ``out`` (mp4, codec ``mp4v``).
+                 progress_bar: bool = True, warn=None) -> Path:
+    """Write the whole video with the overlay to ``out``: H.264 in ``.mp4`` where the
+    OpenCV build has it (browsers play it), else ``mp4v`` with a note to ``warn``; VP9 in
+    ``.webm`` (:func:`mirrorgraph.io.video_out.open_video_writer`).
 
     Frames are written as read (same size and frame rate); a progress bar is
     drawn on stderr when it is a terminal. The file appears only when complete.
+    ``warn(line)`` receives what a browser will not play (default: ignored).
     """
     cap, nframes, size, fps = _open(video)
     out = Path(out)
@@ -244,10 +248,9 @@ def render_video(video: str | os.PathLike, run, out: str | os.PathLike, *, data=
         check_size(run, size, video)
         rows = _frame_rows(run)
         everywhere = joints_everywhere(run)
-        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
-        if not writer.isOpened():
-            raise InputError("cannot be written as mp4 (OpenCV)", source=str(out),
-                             field="render")
+        writer, _, note = open_video_writer(tmp, fps, size)
+        if note is not None and warn is not None:
+            warn(note.replace(tmp.name, out.name))
         with Progress("rendering overlay", total=nframes if nframes > 0 else None,
                       enabled=progress_bar) as bar:
             k = 0

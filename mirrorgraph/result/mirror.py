@@ -167,7 +167,8 @@ class Calibration:
         n = self.normal
         lines = [f"mirror normal   [{n[0]:+.5f}, {n[1]:+.5f}, {n[2]:+.5f}]  (real camera frame)"]
         if self.distance is None:
-            lines.append("mirror distance unknown (no metric prior: give subject_height)")
+            lines.append("mirror distance unknown (no metric scale: give --subject-height "
+                         "METRES, CalibrateOptions(subject_height=...) from Python)")
         else:
             lines.append(f"mirror distance {self.distance:.4f} m  (scale from {self.scale})")
         e_px = geo.epipole_pixels(self.epipole)

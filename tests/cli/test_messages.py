@@ -330,3 +330,16 @@ def test_an_error_after_a_progress_bar_starts_on_its_own_line(monkeypatch):
     last = err.rstrip("\n").split("\n")[-1]
     assert last.startswith("error: kp.json") and "frame 4" in last
     assert "reading frames" in err and "\rerror" not in err
+
+
+def test_the_summary_and_help_name_the_flag_and_the_page(scene_dir, tmp_path, capsys):
+    """Without a subject height the summary names the flag a user types; ``export
+    --help`` points at the page that holds the conventions."""
+    assert main(["calibrate", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--no-refine", "--out",
+                 str(tmp_path / "c.json")]) == 0
+    out = capsys.readouterr().out
+    assert "give --subject-height METRES" in out and "give subject_height)" not in out
+    assert main(["export", "--help"]) == 0
+    assert "docs/guide/exports.md" in capsys.readouterr().out.replace("\n", " ").replace(
+        "  ", " ")

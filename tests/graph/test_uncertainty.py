@@ -185,3 +185,19 @@ def test_a_rig_reports_what_each_camera_and_mirror_rests_on(tmp_path):
         assert all(p["rotation_change_deg"] >= 0 for p in s["leave_out"]["joint_pairs"])
         assert np.all(np.diff(s["frames_needed"]["rotation_std_deg"]) < 0)
     assert cal.to_dict()["sensitivity"] == sens
+
+
+def test_the_regions_closed_forms_are_scipys_quantiles():
+    """dim = 2 in closed form, any other dim through scipy.special: Hotelling's T^2 and
+    chi^2 against SciPy's quantiles for every cluster count and a few levels."""
+    from scipy.special import chdtri, fdtri
+
+    from mirrorgraph.graph.uncertainty import region_threshold
+    for level in (0.5, 0.9, 0.95, 0.99):
+        for dim in (1, 2, 3, 6):
+            assert region_threshold(dim, None, level) == pytest.approx(
+                chdtri(dim, 1 - level), rel=1e-13)
+            G = np.arange(dim + 1, 3000)
+            ours = np.array([region_threshold(dim, int(g), level) for g in G])
+            theirs = dim * (G - 1) / (G - dim) * fdtri(dim, G - dim, level)
+            np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=0)

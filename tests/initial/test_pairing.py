@@ -1,5 +1,7 @@
 """Pairing person and reflection on synthetic detections with known truth."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -117,3 +119,18 @@ def test_frame_scores_are_the_noise_for_a_reflection():
     assert np.allclose(paired_scores[both], raw_scores[both])
     low = frame_scores(s.detections, e, quantile=(0.5, 0.3))
     assert low.shape == (2, 200) and np.all(low[1][both] <= low[0][both])
+
+
+def test_nanmedian_rows_is_numpys_nanmedian():
+    from mirrorgraph.initial.pair_candidates import nanmedian_rows
+
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 7, 12, 17):
+        x = rng.normal(0, 10, (300, n))
+        x[rng.random(x.shape) < 0.3] = np.nan
+        x[0] = np.nan
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            expected = np.nanmedian(x, axis=1)
+        np.testing.assert_array_equal(nanmedian_rows(x), expected)
+    assert nanmedian_rows(np.zeros((3, 0))).shape == (3,)

@@ -312,3 +312,69 @@ def test_a_second_person_taken_for_the_reflection_is_never_calibrated():
     assert not any(f.status == "calibrated" for f in frames)
     assert final.status == "initialising" and "second person" in final.doubt
     assert json.loads(json.dumps(final.to_dict()))["doubt"] == final.doubt
+
+
+@pytest.mark.parametrize("keep_spread", [False, True])
+def test_the_joints_normal_jacobian_is_the_triangulations_derivative(keep_spread):
+    """Noiseless rays: the closed form equals central differences of the triangulated
+    joints (the spread held by rescaling where asked), to 1e-5 of its size."""
+    from mirrorgraph import geometry as geo
+    from mirrorgraph.live.calibrator import joints_normal_jacobian
+
+    rng = np.random.default_rng(1)
+    K = np.array([[1400.0, 0, 960], [0, 1400, 540], [0, 0, 1]])
+    n = np.array([0.3, 0.05, 0.95])
+    n /= np.linalg.norm(n)
+    d = 6.0
+    X = rng.normal([0, 0, 4], [0.3, 0.5, 0.2], (12, 3))
+    u, um = geo.project(K, X), geo.project(K, geo.reflect_points(X, n, d))
+    B = geo.tangent_basis(n)
+
+    def tri(m):
+        Y = geo.triangulate_mirror(K, m / np.linalg.norm(m), d, u, um, iterations=5)
+        if keep_spread:
+            c = Y - Y.mean(0)
+            Y = Y * np.sqrt(np.sum((X - X.mean(0)) ** 2) / np.sum(c * c))
+        return Y
+
+    eps = 1e-6
+    fd = np.stack([(tri(n + eps * B[:, k]) - tri(n - eps * B[:, k])) / (2 * eps)
+                   for k in range(2)], axis=-1)
+    J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=keep_spread)
+    assert J.shape == (12, 3, 2)
+    np.testing.assert_allclose(J, fd, rtol=0, atol=1e-5 * np.abs(fd).max())
+
+
+def test_the_worker_starts_with_the_calibrator_not_at_the_first_window(scene):
+    """The background worker's start (a process, GTSAM's and the offline run's imports:
+    seconds) runs while the first window's frames arrive, so that a short live input
+    gets its mirror before it ends."""
+    live = _live(scene, background=True)
+    try:
+        assert live._pool is not None
+        _feed(live, scene.detections.people[:5])
+        assert live._future is None
+    finally:
+        live.close()
+
+
+def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker(scene):
+    """A file replayed flat out with the worker (``can_wait``): the first mirror is waited
+    for and no frame is thinned, so the windows are the inline run's, window for window,
+    the final mirror the same, and every frame after the first window has joints."""
+    worker = _live(scene, background=True, can_wait=True, max_buffer_frames=100,
+                   window_frames=300)
+    inline = _live(scene, window_frames=300)
+    try:
+        frames = _feed(worker, scene.detections.people[:400])
+        final = worker.finish()
+    finally:
+        worker.close()
+    frames_inline = _feed(inline, scene.detections.people[:400])
+    final_inline = inline.finish()
+    assert [w["size"] for w in worker.window_log] == [w["size"] for w in inline.window_log]
+    np.testing.assert_allclose(final.normal, final_inline.normal, rtol=0, atol=1e-12)
+    first = next(i for i, f in enumerate(frames_inline) if np.isfinite(f.joints3d).any())
+    assert first == 60
+    assert all(np.isfinite(f.joints3d).any() for f in frames[first:] if f.paired)
+    assert sum(f.paired for f in frames[first:]) >= 0.9 * (400 - first)

@@ -92,3 +92,30 @@ def test_the_live_viewer_without_a_display_is_refused_before_the_stream(scene_di
                  str(scene_dir / "camera.json"), "--jsonl", str(out), "--view"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "display" in err[0] and not out.exists()
+
+
+@pytest.mark.parametrize("inline", [False, True])
+def test_a_short_file_has_joints_on_every_frame_after_the_first_window(tmp_path, inline):
+    """100 frames replayed flat out, inline and with the worker: every frame from the
+    first window's end on (frame 60: the first 60 frames with two people) has 3D joints
+    and the mirror, in the worker's case too (the stream waits for the first mirror)."""
+    scene = tmp_path / "s"
+    assert main(["synth", "--out", str(scene), "--frames", "100", "--seed", "1",
+                 "--formats", "mmpose", "--quiet"]) == 0
+    out = tmp_path / "l.jsonl"
+    assert main(["live", str(scene / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene / "camera.json"), "--subject-height", "1.75", "--jsonl", str(out),
+                 "--as-fast-as-possible", "--quiet"] + ["--inline"] * inline) == 0
+    lines = [json.loads(line) for line in out.read_text().splitlines()]
+    with_joints = [ln["frame"] for ln in lines
+                   if any(X is not None for X in ln["joints3d"])]
+    assert with_joints == list(range(60, 100))
+    assert all(ln["mirror"]["normal"] is not None for ln in lines[59:])
+
+
+def test_inline_needs_a_file_replayed_flat_out(scene_dir, tmp_path, capsys):
+    assert main(["live", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                 str(scene_dir / "camera.json"), "--jsonl", str(tmp_path / "i.jsonl"),
+                 "--inline"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--inline" in err[0] and "--as-fast-as-possible" in err[0]

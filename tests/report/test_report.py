@@ -117,6 +117,29 @@ def test_video_overlay_and_render(scene_run, tmp_path):
     assert n == 20 and not list(tmp_path.glob(".*part*"))
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".webm"])
+def test_the_rendered_video_is_in_a_codec_browsers_play_or_says_not(scene_run, tmp_path,
+                                                                      suffix):
+    """H.264 in .mp4 where OpenCV has it, else mp4v and one line saying browsers do not
+    play it; VP9 in .webm (no line)."""
+    scene, run = scene_run
+    video = tmp_path / "in.mp4"
+    _blank_video(video, scene.image_size, frames=5)
+    said = []
+    out = make_report(run, tmp_path / "rep", video=video, render=tmp_path / f"out{suffix}",
+                      max_frames=1, progress_bar=False, warn=said.append)
+    cap = cv2.VideoCapture(str(out["video"]))
+    fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode().lower()
+    cap.release()
+    if suffix == ".webm":
+        assert fourcc in ("vp90", "vp80") and said == []
+    elif fourcc in ("avc1", "h264"):
+        assert said == []
+    else:
+        assert fourcc in ("mp4v", "fmp4") and len(said) == 1
+        assert "out.mp4" in said[0] and "browsers" in said[0] and ".webm" in said[0]
+
+
 def test_video_of_another_size_is_refused(scene_run, tmp_path):
     _scene, run = scene_run
     video = tmp_path / "small.mp4"
@@ -223,11 +246,25 @@ def test_stale_or_missing_report_data(scene_files, tmp_path, capsys):
     assert loaded.origin == "recomputed"
     assert any("c.report.npz" in w and "another calibration" in w for w in loaded.warnings)
     assert any("recomputed mirror is" in w for w in loaded.warnings)
-    # without keypoints it is one line naming the file
+    # without keypoints: the ones calibration.json records, with the same warning
     capsys.readouterr()
+    assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 0
+    captured = capsys.readouterr()
+    said = captured.out + captured.err
+    assert "another calibration" in said and f"recomputing the run from {kp}" in said
+    # --recompute alone: the recorded keypoints
+    assert main(["report", str(cal), "--recompute", "--out", str(tmp_path / "r3")]) == 0
+    assert f"recomputed from {kp}" in capsys.readouterr().out
+    # the recorded keypoints gone: one line saying what to do
+    doc["input"]["source"] = str(tmp_path / "moved.json")
+    cal.write_text(json.dumps(doc))
     assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "c.report.npz" in err
+    assert "KEYPOINTS" in err and "--report" in err
+    assert main(["report", str(cal), "--recompute", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "moved.json" in err
     (tmp_path / "c.report.npz").unlink()
     assert main(["report", str(cal), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
@@ -316,6 +353,13 @@ def test_scene3d_is_readable(scene_run):
     assert max(max(ln.get_xdata()) for ln in lines["skeleton"]) < data.distance
     assert min(min(ln.get_xdata()) for ln in lines["reflection"]) > data.distance
     assert [ln for ln in top.get_lines() if ln.get_gid() == "mirror"]
+    # the gap's label sits above every joint of the skeletons drawn, in display pixels
+    fig.canvas.draw()
+    (label,) = [t for t in edge.texts if t.get_gid() == "gap"]
+    box = label.get_window_extent()
+    tops = [edge.transData.transform(np.c_[ln.get_xdata(), ln.get_ydata()])[:, 1].max()
+            for ln in lines["skeleton"]]
+    assert box.y0 >= max(tops)
     plt.close(fig)
     # without a metric scale the unit is said once, and is not "metres"
     from dataclasses import replace
