@@ -75,8 +75,9 @@ class WindowEstimate:
             is the detection paired as the reflection a second person?), ``""`` where
             none ran (keypoints given as pairs).
         check_text: the check's one line where it is doubtful.
-        scale_side: the stature measurement's spread in the window's calibration (its
-            legs' relative difference, :func:`mirrorgraph.stature.measurement_rel_std`).
+        scale_side: the stature measurement's spread in the window's calibration
+            (:func:`mirrorgraph.stature.measurement_rel_std`: the legs apart and the
+            segments' disagreement about the height).
         bone_lengths: bone name -> length the window's graph held (the unit of
             ``distance``), for the per-frame prior (:mod:`.frame_prior`).
     """
@@ -126,6 +127,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     from ..graph.sandwich import covariance_max
     from ..initial.reflection_check import ReflectionCheck
     from ..pipelines.mirror import calibrate
+    from ..stature import measurement_rel_std
 
     clock = time.perf_counter()
     ids = np.asarray(raw.frame_ids)
@@ -159,8 +161,8 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     d = float(cal.distance) if cal.distance is not None else 1.0
     d_std = unc.get("distance_std")
     # the scale's shared part out of the window's own: the height's prior and the
-    # stature's measured spread (the legs apart), one factor on every window alike
-    side = float(((cal.refinement or {}).get("stature") or {}).get("side_rel_diff") or 0.0)
+    # stature's measured spread, one factor on every window alike
+    side = measurement_rel_std((cal.refinement or {}).get("stature"))
     hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
