@@ -1,0 +1,669 @@
+"""The 3D joints users take home, against the true joints: offline ``calibrate`` and ``live``.
+
+Every scene is calibrated as a user runs it (the camera matrix and the subject's height
+given, 30 fps): ``calibrate`` through the Python API in this process, as the command line
+runs it (:func:`mirrorgraph.calibrate`, its ``joints3d`` where ``valid3d``: what
+``--joints3d`` writes), and ``live`` (:class:`mirrorgraph.live.LiveCalibrator` fed the
+keypoints frame by frame, windows solved in the calling thread: every frame's
+``joints3d`` as the JSON lines carry it). Each output joint is scored against the
+scene's true joint:
+
+* **MPJPE** (mm, no alignment: the metric scale's error included) and **PA-MPJPE** (mm,
+  each frame's similarity alignment, :func:`mirrorgraph.metrics.pa_mpjpe`, the paper's
+  Table 2 metric);
+* the **oracle**: each frame triangulated with the TRUE mirror from the same 2D
+  observations, the outliers removed with the truth
+  (:func:`mirrorgraph.geometry.triangulate_mirror`), its PA-MPJPE, and the run's over it;
+* the **tail**: the share of the output joints more than 0.3 m and 1 m from the truth,
+  the worst joint (m); the share of the scene's joints given;
+* the joints' **error / std** (median, 99th percentile: the error's length over the
+  joint's std, the RMS length of the error it claims) where the result carries per-joint
+  stds (``run.joints_std`` / the npz's ``joints_std``, ``LiveFrame.joints_std``;
+  ``n/a`` otherwise); the metric **distance's** error and error / std;
+* **time** per run (wall and CPU seconds of this process).
+
+The gross joints (more than 0.3 m off) are broken down by joint name and by *mode*,
+judged against the joint's own 2D observations (in the true labels) with the run's
+mirror: ``depth`` (reprojects within ``MODE_PX`` in both views, both observations
+clean: on its two rays, off in depth), ``off`` (more than ``MODE_PX`` from a clean
+observation: the graph left it), ``outlier`` (within ``MODE_PX`` of a planted outlier:
+it followed one), ``one view`` (at most one clean observation: the depth is the body's).
+
+Scenes (``--kinds``):
+
+* ``iid``, ``realistic``: :func:`mirrorgraph.synth.make_wide_scene` (slice ``wide``,
+  the two detector models);
+* ``cmu``: the same wide scenes (iid detector) moved by the CMU motion-capture take the
+  package ships (``mirrorgraph/data/cmu_01_01.bvh``);
+* ``paper``: MirrorCalib's protocol on the project's generator (``make_scene``: the
+  ``favourable`` geometry, 4 px iid noise of mean 0.076 px, 3 % outliers);
+* ``fixtures``: the scenes of an independent generator in ``--fixtures`` (default
+  ``../shared/fixtures`` beside the repository; skipped when absent): their
+  ``keypoints.json``, ``camera.json``, ``truth.json`` (the subject's height),
+  ``joints3d_truth.npz``. Their observations are put in the true labels and pairs with
+  the truth (each detection matched to the projection of the true joints, either
+  labelling), an observation more than ``FIXTURE_OUTLIER_PX`` from it an outlier.
+
+Usage::
+
+    python bench/bench_joints.py                       # ~5 min on 2 busy cores
+    python bench/bench_joints.py --full                # the wide run (~40 min)
+    python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
+    python bench/bench_joints.py --json after.json --out /tmp/after.md
+    python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
+
+Writes ``--out`` (default ``bench/RESULTS_joints.md``: machine, command, date, tables)
+and ``--json`` (every number) unless ``--no-write``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import platform
+import shlex
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 30.0
+#: a joint more than this far from the truth is gross (m), and badly gross
+GROSS_M, FAR_M = 0.3, 1.0
+#: a reprojection within this of its observation (px) is "on" it (the 95 % circle of
+#: 4 px iid noise per coordinate is 9.8 px)
+MODE_PX = 10.0
+#: a fixture observation this far (px) from the true joint's projection is an outlier
+#: (their detector: 4 px noise, outliers of 20-200 px)
+FIXTURE_OUTLIER_PX = 15.0
+MODES = ("depth", "off", "outlier", "one view")
+KINDS = ("iid", "realistic", "cmu", "paper", "fixtures")
+METHODS = ("calibrate", "live")
+#: the default run: (kind, seeds); ``--full``: the wide run
+DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-2", "cmu": "0-1", "paper": "0-2"}
+FULL_SEEDS = {"iid": "0-11", "realistic": "0-11", "cmu": "0-5", "paper": "0-9"}
+
+
+def _seeds(text: str) -> list[int]:
+    out = []
+    for part in str(text).split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
+# =========================================================================== scenes
+class Truth:
+    """One scene's inputs and its truth, in one frame order.
+
+    Attributes:
+        name, kind: the scene's label and kind.
+        detections: the :class:`~mirrorgraph.keypoints.RawDetections` a user has.
+        intrinsics: the camera's.
+        height: the subject's height (m).
+        joints3d: ``(T, J, 3)`` true joints (m, real camera frame) of ``frame_ids``.
+        frame_ids: ``(T,)``.
+        names: ``(J,)`` joint names.
+        normal, distance: the true mirror.
+        real, mirror: ``(T, J, 2)`` undistorted observations in the true labels (NaN
+            where missing); ``out_real``, ``out_mirror``: ``(T, J)`` planted outliers.
+    """
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+def _synthetic(kind: str, seed: int, frames: int) -> Truth:
+    from mirrorgraph.synth import make_scene, make_wide_scene
+    from mirrorgraph.synth.mocap import cmu_example_path
+
+    if kind in ("iid", "realistic"):
+        sc = make_wide_scene(seed, "wide", kind, frames)
+    elif kind == "cmu":
+        sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()))
+    elif kind == "paper":
+        sc = make_scene(frames=frames, seed=seed, noise_std=4.0, noise_mean=0.076,
+                        outlier_rate=0.03)
+    else:
+        raise ValueError(kind)
+    intr = sc.intrinsics
+
+    def obs(o, missing):
+        uv = np.where(missing[..., None], np.nan, o[..., :2].astype(float))
+        if intr.has_distortion:
+            flat = uv.reshape(-1, 2)
+            ok = np.isfinite(flat).all(1)
+            flat[ok] = intr.undistort_points(flat[ok])
+            uv = flat.reshape(uv.shape)
+        return uv
+
+    out_r = np.asarray(sc.outlier_mask_real, bool).copy()
+    out_m = np.asarray(sc.outlier_mask_mirror, bool).copy()
+    return Truth(name=f"{kind} {seed}", kind=kind, seed=seed, detections=sc.detections,
+                 intrinsics=intr, height=float(sc.subject_height), joints3d=sc.joints3d,
+                 frame_ids=np.asarray(sc.frame_ids), names=list(sc.skeleton.joints),
+                 normal=np.asarray(sc.normal, float), distance=float(sc.distance),
+                 real=obs(sc.real_observed, sc.missing_real),
+                 mirror=obs(sc.mirror_observed, sc.missing_mirror),
+                 out_real=out_r, out_mirror=out_m)
+
+
+def default_fixtures() -> Path:
+    """``shared/fixtures`` in the nearest folder above the repository that has one."""
+    for up in ROOT.parents:
+        if (up / "shared" / "fixtures").is_dir():
+            return up / "shared" / "fixtures"
+    return ROOT.parent / "shared" / "fixtures"
+
+
+def fixture_dirs(root: Path) -> list[Path]:
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir()
+                  if (p / "keypoints.json").is_file() and (p / "joints3d_truth.npz").is_file())
+
+
+def _fixture(path: Path) -> Truth:
+    """A fixture scene, its observations matched to the truth's projections."""
+    from mirrorgraph.geometry import project, reflect_points
+    from mirrorgraph.intrinsics import load_intrinsics
+    from mirrorgraph.io import read_keypoints
+
+    det = read_keypoints(str(path / "keypoints.json"))
+    intr = load_intrinsics(str(path / "camera.json"))
+    truth = json.loads((path / "truth.json").read_text())
+    z = np.load(path / "joints3d_truth.npz")
+    ids = list(np.asarray(z["frame_ids"]))
+    where = {int(f): i for i, f in enumerate(ids)}
+    n = np.asarray(truth["normal"], float)
+    d = float(truth["distance"])
+    X = np.asarray(z["joints3d"], float)
+    names = [str(s) for s in z["joint_names"]]
+    skel = det.skeleton
+    if list(skel.joints) != names:
+        raise ValueError(f"{path}: joint names differ from the keypoints' skeleton")
+    flip = np.asarray(skel.flip)
+    T, J = X.shape[:2]
+    pr = project(intr.K, X.reshape(-1, 3)).reshape(T, J, 2)
+    pm = project(intr.K, reflect_points(X.reshape(-1, 3), n, d)).reshape(T, J, 2)
+    real = np.full((T, J, 2), np.nan)
+    mirror = np.full((T, J, 2), np.nan)
+    for k, fid in enumerate(det.frame_ids):
+        t = where.get(int(fid))
+        if t is None:
+            continue
+        for target, proj in ((real, pr[t]), (mirror, pm[t])):
+            best = (np.inf, None)
+            for p in det.people[k]:
+                uv = np.asarray(p[:, :2], float)
+                ok = np.isfinite(uv).all(1) & (p[:, 2] > 0)
+                if intr.has_distortion and ok.any():
+                    uv = uv.copy()
+                    uv[ok] = intr.undistort_points(uv[ok])
+                for labels in (uv, uv[flip]):
+                    okl = ok if labels is uv else ok[flip]
+                    if okl.sum() < 3:
+                        continue
+                    cost = float(np.median(np.linalg.norm(labels[okl] - proj[okl], axis=1)))
+                    if cost < best[0]:
+                        best = (cost, np.where(okl[:, None], labels, np.nan))
+            if best[1] is not None and best[0] < 4 * FIXTURE_OUTLIER_PX:
+                target[t] = best[1]
+    with np.errstate(invalid="ignore"):
+        out_r = np.linalg.norm(real - pr, axis=-1) > FIXTURE_OUTLIER_PX
+        out_m = np.linalg.norm(mirror - pm, axis=-1) > FIXTURE_OUTLIER_PX
+    return Truth(name=f"fixture {path.name}", kind="fixtures", seed=path.name, detections=det,
+                 intrinsics=intr, height=float(truth["height"]), joints3d=X,
+                 frame_ids=np.asarray(ids), names=names, normal=n, distance=d,
+                 real=real, mirror=mirror, out_real=out_r, out_mirror=out_m)
+
+
+def make_truth(kind: str, seed, frames: int, fixtures: Path) -> Truth:
+    if kind == "fixtures":
+        return _fixture(fixtures / str(seed))
+    return _synthetic(kind, int(seed), frames)
+
+
+# =========================================================================== scoring
+def oracle(tr: Truth) -> dict:
+    """Each frame triangulated with the true mirror from the clean observations."""
+    from mirrorgraph.geometry import camera_projection, mirror_projection, triangulate
+    from mirrorgraph.metrics import pa_mpjpe
+
+    eye = np.eye(4)
+    P = [camera_projection(tr.intrinsics.K, eye),
+         mirror_projection(tr.intrinsics.K, eye, tr.normal, tr.distance)]
+    X, ok = triangulate(P, [tr.real, tr.mirror], [~tr.out_real, ~tr.out_mirror])
+    err = np.linalg.norm(X - tr.joints3d, axis=-1)[ok]
+    return dict(pa_mpjpe_mm=1e3 * pa_mpjpe(X, tr.joints3d, ok),
+                mpjpe_mm=1e3 * float(err.mean()) if err.size else float("nan"),
+                given=float(ok.mean()))
+
+
+def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
+           distance: np.ndarray) -> np.ndarray:
+    """The mode index (:data:`MODES`) of each gross joint, ``(G,)``.
+
+    ``normal`` ``(T, 3)`` and ``distance`` ``(T,)``: the run's mirror at each frame.
+    """
+    from mirrorgraph.geometry import project
+
+    t, j = np.nonzero(gross)
+    K = tr.intrinsics.K
+    P = X[t, j]
+    n, d = normal[t], distance[t]
+    S = P - 2.0 * ((P * n).sum(1) - d)[:, None] * n
+    res = []
+    for pts, obs, bad in ((P, tr.real, tr.out_real), (S, tr.mirror, tr.out_mirror)):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.linalg.norm(project(K, pts) - obs[t, j], axis=1)
+        seen = np.isfinite(r)
+        res.append((r, seen & ~bad[t, j], seen & bad[t, j]))
+    (r1, c1, o1), (r2, c2, o2) = res
+    off = (c1 & (r1 > MODE_PX)) | (c2 & (r2 > MODE_PX))
+    follow = (o1 & (r1 <= MODE_PX)) | (o2 & (r2 <= MODE_PX))
+    both = c1 & c2
+    return np.where(off, 1, np.where(follow, 2, np.where(both, 0, 3)))
+
+
+def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
+          normal: np.ndarray, distance: np.ndarray, extra: dict) -> dict:
+    """The figures of one run's joints ``X`` ``(T, J, 3)`` (aligned with the truth)."""
+    from mirrorgraph.metrics import pa_mpjpe
+
+    truth = tr.joints3d
+    given = given & np.isfinite(X).all(-1)
+    e = np.linalg.norm(np.where(given[..., None], X, 0.0) - truth, axis=-1)
+    eg = e[given]
+    out = dict(given=float(given.mean()), n_given=int(given.sum()),
+               mpjpe_mm=1e3 * float(eg.mean()) if eg.size else float("nan"),
+               pa_mpjpe_mm=1e3 * pa_mpjpe(X, truth, given),
+               gross=float((eg > GROSS_M).mean()) if eg.size else float("nan"),
+               far=float((eg > FAR_M).mean()) if eg.size else float("nan"),
+               worst_m=float(eg.max()) if eg.size else float("nan"))
+    out["z_median"] = out["z_p99"] = None
+    if std is not None:
+        s = np.asarray(std, float)
+        ok = given & np.isfinite(s) & (s > 0)
+        if ok.any():
+            z = e[ok] / s[ok]
+            out["z_median"] = float(np.median(z))
+            out["z_p99"] = float(np.percentile(z, 99))
+            out["z_share"] = float(ok.sum() / max(given.sum(), 1))
+    gross = given & (e > GROSS_M)
+    out["gross_by_joint"] = {tr.names[j]: [int(gross[:, j].sum()), int(given[:, j].sum())]
+                             for j in range(len(tr.names)) if gross[:, j].any()}
+    modes = _modes(tr, X, gross, normal, distance) if gross.any() else np.zeros(0, int)
+    out["gross_by_mode"] = {m: int((modes == i).sum()) for i, m in enumerate(MODES)}
+    frames = np.flatnonzero(gross.any(1))
+    out["gross_frames"] = int(frames.size)
+    out["longest_gross_run"] = _longest_run(frames)
+    out.update(extra)
+    return out
+
+
+def _longest_run(frames: np.ndarray) -> int:
+    if frames.size == 0:
+        return 0
+    breaks = np.flatnonzero(np.diff(frames) != 1)
+    lengths = np.diff(np.concatenate([[-1], breaks, [frames.size - 1]]))
+    return int(lengths.max())
+
+
+def _distance_figures(tr: Truth, distance: float | None, std: float | None) -> dict:
+    if distance is None:
+        return dict(distance_err=None, distance_z=None)
+    err = distance / tr.distance - 1.0
+    z = abs(distance - tr.distance) / std if std else None
+    return dict(distance_err=float(err), distance_z=None if z is None else float(z),
+                distance_rel_std=None if not std else float(std / distance))
+
+
+# =========================================================================== runs
+def run_calibrate(tr: Truth) -> dict:
+    import mirrorgraph as mg
+
+    opts = mg.CalibrateOptions(subject_height=tr.height, fps=FPS)
+    wall, cpu = time.perf_counter(), time.process_time()
+    run = mg.calibrate(tr.detections, tr.intrinsics, opts)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    cal = run.calibration
+    T, J = tr.joints3d.shape[:2]
+    X = np.full((T, J, 3), np.nan)
+    given = np.zeros((T, J), bool)
+    std = None
+    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
+    rows = np.array([where.get(int(f), -1) for f in run.paired.frame_ids])
+    keep = rows >= 0
+    if run.joints3d is not None:
+        X[rows[keep]] = run.joints3d[keep]
+        valid = run.valid3d if run.valid3d is not None else np.isfinite(run.joints3d).all(-1)
+        given[rows[keep]] = valid[keep]
+    js = getattr(run, "joints_std", None)
+    if js is not None:
+        std = np.full((T, J), np.nan)
+        std[rows[keep]] = np.asarray(js, float)[keep]
+    completed = np.zeros((T, J), bool)
+    if run.completed is not None:
+        completed[rows[keep]] = run.completed[keep]
+    normal = np.broadcast_to(np.asarray(cal.normal, float), (T, 3))
+    dist = np.full(T, float(cal.distance if cal.distance is not None else 1.0))
+    dstd = (cal.uncertainty or {}).get("distance_std")
+    out = score(tr, X, given, std, normal, dist,
+                dict(wall_s=wall, cpu_s=cpu, **_distance_figures(tr, cal.distance, dstd)))
+    e = np.linalg.norm(np.nan_to_num(X) - tr.joints3d, axis=-1)
+    gross = given & (e > GROSS_M)
+    out["gross_completed"] = int((gross & completed).sum())
+    out["completed"] = int((given & completed).sum())
+    return out
+
+
+def run_live(tr: Truth) -> dict:
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+
+    det = tr.detections
+    live = LiveCalibrator(det.skeleton, tr.intrinsics, LiveOptions.of(subject_height=tr.height))
+    T, J = tr.joints3d.shape[:2]
+    X = np.full((T, J, 3), np.nan)
+    std = np.full((T, J), np.nan)
+    normal = np.tile(np.array([0.0, 0.0, 1.0]), (T, 1))
+    dist = np.ones(T)
+    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        for k, people in enumerate(det.people):
+            f = live.update(people, frame_id=int(det.frame_ids[k]),
+                            time_s=float(det.frame_ids[k]) / FPS)
+            t = where.get(int(det.frame_ids[k]))
+            if t is None:
+                continue
+            X[t] = f.joints3d
+            if f.joints_std is not None:
+                std[t] = f.joints_std
+            if f.mirror.normal is not None:
+                normal[t] = f.mirror.normal
+                dist[t] = f.mirror.distance if f.mirror.distance is not None else 1.0
+        final = live.finish()
+    finally:
+        live.close()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    given = np.isfinite(X).all(-1)
+    return score(tr, X, given, std, normal, dist,
+                 dict(wall_s=wall, cpu_s=cpu,
+                      **_distance_figures(tr, final.distance, final.distance_std)))
+
+
+def run_scene(case: tuple) -> dict:
+    import warnings
+    warnings.filterwarnings("ignore")
+    kind, seed, frames, methods, fixtures = case
+    clock = time.perf_counter()
+    tr = make_truth(kind, seed, frames, Path(fixtures))
+    out = dict(kind=kind, seed=seed, name=tr.name, frames=int(len(tr.frame_ids)),
+               joints=int(tr.joints3d.shape[1]), oracle=oracle(tr),
+               truth=dict(distance=tr.distance, height=tr.height))
+    for m in methods:
+        try:
+            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr)
+        except Exception as exc:  # noqa: BLE001 - a failure is a result here
+            out[m] = dict(error=f"{type(exc).__name__}: {exc}")
+        r = out[m]
+        if "pa_mpjpe_mm" in r:
+            r["oracle_ratio"] = r["pa_mpjpe_mm"] / out["oracle"]["pa_mpjpe_mm"]
+    out["seconds"] = time.perf_counter() - clock
+    return out
+
+
+# =========================================================================== summary
+#: (key, label, direction of "worst": max or min, format)
+FIGURES = (("mpjpe_mm", "MPJPE mm", max, ".1f"), ("pa_mpjpe_mm", "PA-MPJPE mm", max, ".1f"),
+           ("oracle_pa_mm", "oracle PA mm", max, ".1f"), ("oracle_ratio", "/ oracle", max, ".2f"),
+           ("gross_pct", "> 0.3 m %", max, ".2f"), ("far_pct", "> 1 m %", max, ".2f"),
+           ("worst_m", "worst m", max, ".2f"), ("given_pct", "given %", min, ".1f"),
+           ("z_median", "err/std med", None, ".2f"), ("z_p99", "err/std p99", max, ".1f"),
+           ("distance_err_pct", "distance err %", None, "+.1f"),
+           ("distance_z", "distance err/std", max, ".1f"), ("wall_s", "wall s", max, ".1f"),
+           ("cpu_s", "CPU s", max, ".1f"))
+
+
+def flat(scene: dict, method: str) -> dict | None:
+    """One scene's figures of one method under the :data:`FIGURES` keys."""
+    r = scene.get(method)
+    if not r or "error" in r:
+        return None
+    pct = lambda v: None if v is None else 100.0 * v  # noqa: E731
+    return dict(mpjpe_mm=r["mpjpe_mm"], pa_mpjpe_mm=r["pa_mpjpe_mm"],
+                oracle_pa_mm=scene["oracle"]["pa_mpjpe_mm"], oracle_ratio=r.get("oracle_ratio"),
+                gross_pct=pct(r["gross"]), far_pct=pct(r["far"]), worst_m=r["worst_m"],
+                given_pct=pct(r["given"]), z_median=r.get("z_median"), z_p99=r.get("z_p99"),
+                distance_err_pct=pct(r.get("distance_err")), distance_z=r.get("distance_z"),
+                wall_s=r["wall_s"], cpu_s=r["cpu_s"])
+
+
+def _num(v) -> bool:
+    return v is not None and isinstance(v, (int, float)) and np.isfinite(v)
+
+
+def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
+    """Per kind and method: the median over scenes and the worst scene of each figure."""
+    out = {}
+    for kind in kinds:
+        for m in methods:
+            sel = [s for s in scenes if s["kind"] == kind and m in s]
+            rows = [flat(s, m) for s in sel]
+            good = [r for r in rows if r is not None]
+            if not sel:
+                continue
+            agg = dict(scenes=len(sel), failed=len(sel) - len(good))
+            for key, _, worst, _ in FIGURES:
+                vals = [r[key] for r in good if _num(r.get(key))]
+                if not vals:
+                    agg[key] = dict(median=None, worst=None)
+                    continue
+                if key == "distance_err_pct":
+                    w = max(vals, key=abs)
+                elif key == "z_median":
+                    w = max(vals, key=lambda v: abs(np.log(max(v, 1e-9))))
+                else:
+                    w = worst(vals)
+                agg[key] = dict(median=float(np.median(vals)), worst=float(w))
+            by_joint: dict = {}
+            by_mode = {k: 0 for k in MODES}
+            gross = completed = 0
+            for s in sel:
+                r = s[m]
+                for name, (g, n) in r.get("gross_by_joint", {}).items():
+                    a = by_joint.setdefault(name, [0, 0])
+                    a[0] += g
+                for k, v in r.get("gross_by_mode", {}).items():
+                    by_mode[k] += v
+                gross += sum(r.get("gross_by_mode", {}).values())
+                completed += r.get("gross_completed", 0)
+            agg["gross_joints"] = gross
+            agg["gross_by_joint"] = dict(sorted(by_joint.items(), key=lambda kv: -kv[1][0]))
+            agg["gross_by_mode"] = by_mode
+            agg["gross_completed"] = completed if m == "calibrate" else None
+            out[f"{kind}/{m}"] = agg
+    return out
+
+
+def _f(v, spec: str) -> str:
+    return "n/a" if not _num(v) else format(v, spec)
+
+
+def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
+    heads = [label for _, label, _, _ in FIGURES]
+    L = ["## Per scene", "",
+         "| scene | run | " + " | ".join(heads) + " |",
+         "|---|---|" + "---:|" * len(heads)]
+    for s in scenes:
+        for m in methods:
+            if m not in s:
+                continue
+            r = flat(s, m)
+            if r is None:
+                L.append(f"| {s['name']} | {m} | failed: {s[m].get('error', '?')} |")
+                continue
+            L.append(f"| {s['name']} | {m} | " + " | ".join(
+                _f(r[k], spec) for k, _, _, spec in FIGURES) + " |")
+    L += ["", "## Over scenes: median / worst scene", "",
+          "| scenes | run | n | " + " | ".join(heads) + " |",
+          "|---|---|---:|" + "---:|" * len(heads)]
+    for key, a in agg.items():
+        kind, m = key.split("/")
+        cells = [f"{_f(a[k]['median'], spec)} / {_f(a[k]['worst'], spec)}"
+                 for k, _, _, spec in FIGURES]
+        n = f"{a['scenes']}" + (f" ({a['failed']} failed)" if a["failed"] else "")
+        L.append(f"| {kind} | {m} | {n} | " + " | ".join(cells) + " |")
+    L += ["", "## The gross joints (> 0.3 m off), pooled over the scenes", "",
+          "By mode (see the script's docstring): `depth` on both rays within "
+          f"{MODE_PX:g} px, off in depth; `off` more than {MODE_PX:g} px from a clean "
+          "observation; `outlier` on a planted outlier; `one view` at most one clean "
+          "observation. `completed`: of them, the joints triangulated after the graph "
+          "(calibrate only).", "",
+          "| scenes | run | gross joints | " + " | ".join(MODES) + " | completed | "
+          "by joint name (count) |", "|---|---|---:|" + "---:|" * len(MODES) + "---:|---|"]
+    for key, a in agg.items():
+        kind, m = key.split("/")
+        g = a["gross_joints"]
+        modes = " | ".join(f"{a['gross_by_mode'][k]}" + (f" ({100 * a['gross_by_mode'][k] / g:.0f} %)"
+                                                          if g else "") for k in MODES)
+        names = ", ".join(f"{n} {c[0]}" for n, c in list(a["gross_by_joint"].items())[:10])
+        comp = "-" if a["gross_completed"] is None else str(a["gross_completed"])
+        L.append(f"| {kind} | {m} | {g} | {modes} | {comp} | {names or '-'} |")
+    return L
+
+
+# =========================================================================== compare
+def compare(a_path: str, b_path: str) -> list[str]:
+    """Side by side: each kind and run's medians and worst scenes in two JSON files."""
+    A = json.loads(Path(a_path).read_text())
+    B = json.loads(Path(b_path).read_text())
+    L = [f"# `{a_path}` (A) against `{b_path}` (B)", "",
+         f"A: {A['meta'].get('date')} `{A['meta'].get('code')}`; "
+         f"B: {B['meta'].get('date')} `{B['meta'].get('code')}`. Cells: A -> B (B / A).", ""]
+    for key in [k for k in A["summary"] if k in B["summary"]]:
+        a, b = A["summary"][key], B["summary"][key]
+        L += [f"## {key} ({a['scenes']} / {b['scenes']} scenes)", "",
+              "| figure | median A -> B | ratio | worst A -> B | ratio |",
+              "|---|---:|---:|---:|---:|"]
+        for k, label, _, spec in FIGURES:
+            cells = []
+            for part in ("median", "worst"):
+                va, vb = a[k][part], b[k][part]
+                ratio = (f"{vb / va:.2f}" if _num(va) and _num(vb) and va != 0 else "-")
+                cells += [f"{_f(va, spec)} -> {_f(vb, spec)}", ratio]
+            L.append(f"| {label} | " + " | ".join(cells) + " |")
+        L += ["", f"gross joints {a['gross_joints']} -> {b['gross_joints']}; by mode: "
+              + ", ".join(f"{m} {a['gross_by_mode'][m]} -> {b['gross_by_mode'][m]}"
+                          for m in MODES), ""]
+    only = sorted(set(A["summary"]) ^ set(B["summary"]))
+    if only:
+        L.append("In one file only: " + ", ".join(only))
+    return L
+
+
+# =========================================================================== main
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kinds", default="iid,realistic,cmu,paper,fixtures",
+                    help=f"comma-separated, of {', '.join(KINDS)}")
+    ap.add_argument("--methods", default="calibrate,live", help="calibrate, live")
+    ap.add_argument("--seeds", default=None,
+                    help="seeds of every synthetic kind, e.g. 0-5 or 0,3,7 (default: "
+                         + ", ".join(f"{k} {v}" for k, v in DEFAULT_SEEDS.items()) + ")")
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--full", action="store_true",
+                    help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
+    ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
+                    help="folder of fixture scenes (default: shared/fixtures in a folder "
+                         "above the repository)")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--json", metavar="OUT", default=None, help="every number, as JSON")
+    ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_joints.md"))
+    ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--compare", nargs=2, metavar=("A.json", "B.json"),
+                    help="print A and B side by side (ratios B / A) and exit")
+    args = ap.parse_args(argv)
+    if args.compare:
+        print("\n".join(compare(*args.compare)))
+        return 0
+    kinds = [k for k in args.kinds.split(",") if k]
+    methods = [m for m in args.methods.split(",") if m]
+    for k in kinds:
+        if k not in KINDS:
+            ap.error(f"--kinds: unknown {k!r}; known: {', '.join(KINDS)}")
+    for m in methods:
+        if m not in METHODS:
+            ap.error(f"--methods: unknown {m!r}; known: {', '.join(METHODS)}")
+    cases = []
+    for k in kinds:
+        if k == "fixtures":
+            cases += [(k, p.name, args.frames, methods, str(args.fixtures))
+                      for p in fixture_dirs(Path(args.fixtures))]
+        else:
+            seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
+            cases += [(k, s, args.frames, methods, str(args.fixtures)) for s in _seeds(seeds)]
+    started = _dt.datetime.now(_dt.timezone.utc)
+    clock = time.perf_counter()
+    with ProcessPoolExecutor(max(1, args.workers)) as pool:
+        scenes = []
+        for s in pool.map(run_scene, cases):
+            scenes.append(s)
+            brief = "; ".join(
+                f"{m} PA {s[m].get('pa_mpjpe_mm', float('nan')):.1f} mm, "
+                f">0.3 m {100 * s[m].get('gross', float('nan')):.2f} %"
+                if "error" not in s[m] else f"{m} failed" for m in methods)
+            print(f"{s['name']}: oracle PA {s['oracle']['pa_mpjpe_mm']:.1f} mm; {brief} "
+                  f"({s['seconds']:.0f} s)", file=sys.stderr, flush=True)
+    agg = aggregate(scenes, kinds, methods)
+    code = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True).stdout.strip()
+    dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "mirrorgraph"],
+                           capture_output=True, text=True).stdout.strip()
+    meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=code + (" (modified)" if dirty else ""),
+                command="python bench/bench_joints.py " + shlex.join(argv),
+                machine=f"{platform.machine()}, {os.cpu_count()} cores, Python "
+                        f"{platform.python_version()}",
+                load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
+                frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
+                mode_px=MODE_PX)
+    L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
+         f"- date: {meta['date']}; code `{meta['code']}`",
+         f"- machine: {meta['machine']}; load average {meta['load']:.1f} at the end; "
+         f"{meta['minutes']:.1f} min with {args.workers} workers",
+         f"- command: `{meta['command'].rstrip()}`",
+         "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
+         "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "
+         "noise, 3 % outliers; `fixtures`: the independent generator's scenes; "
+         f"{args.frames} frames, the camera matrix and the subject's height given",
+         "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
+         "given; `oracle PA`: each frame triangulated with the true mirror from the same "
+         "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "
+         "joints given; `given`: share of the scene's joints; `err/std`: the error's length "
+         "over the joint's std (`n/a`: the run carries none); `distance`: the metric mirror "
+         "distance's error and error / std; time: wall and CPU s of the run in its process",
+         ""] + tables(scenes, agg, methods)
+    text = "\n".join(L) + "\n"
+    print(text)
+    if not args.no_write:
+        Path(args.out).write_text(text)
+        if args.json:
+            Path(args.json).write_text(json.dumps(dict(meta=meta, summary=agg, scenes=scenes),
+                                                  indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
