@@ -26,8 +26,10 @@ The gross joints (more than 0.3 m off) are broken down by joint name and by *mod
 judged against the joint's own 2D observations (in the true labels) with the run's
 mirror: ``depth`` (reprojects within ``MODE_PX`` in both views, both observations
 clean: on its two rays, off in depth), ``off`` (more than ``MODE_PX`` from a clean
-observation: the graph left it), ``outlier`` (within ``MODE_PX`` of a planted outlier:
-it followed one), ``one view`` (at most one clean observation: the depth is the body's).
+observation: the graph left it), ``swap`` (off, but within ``MODE_PX`` of the
+left/right partner's observation in that view: the pair was labelled the wrong way round),
+``outlier`` (within ``MODE_PX`` of a planted outlier: it followed one), ``one view`` (at
+most one clean observation: the depth is the body's).
 
 Scenes (``--kinds``):
 
@@ -86,11 +88,11 @@ MODE_PX = 10.0
 #: a fixture observation this far (px) from the true joint's projection is an outlier
 #: (their detector: 4 px noise, outliers of 20-200 px)
 FIXTURE_OUTLIER_PX = 15.0
-MODES = ("depth", "off", "outlier", "one view")
+MODES = ("depth", "off", "outlier", "one view", "swap")
 KINDS = ("iid", "realistic", "cmu", "paper", "fixtures")
 METHODS = ("calibrate", "live")
 #: the default run: (kind, seeds); ``--full``: the wide run
-DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-2", "cmu": "0-1", "paper": "0-2"}
+DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-1", "cmu": "0-1", "paper": "0-1"}
 FULL_SEEDS = {"iid": "0-11", "realistic": "0-11", "cmu": "0-5", "paper": "0-9"}
 
 
@@ -115,6 +117,7 @@ class Truth:
         frame_ids: ``(T,)``.
         names: ``(J,)`` joint names.
         normal, distance: the true mirror.
+        flip: ``(J,)`` each joint's left/right partner.
         real, mirror: ``(T, J, 2)`` undistorted observations in the true labels (NaN
             where missing); ``out_real``, ``out_mirror``: ``(T, J)`` planted outliers.
     """
@@ -153,6 +156,7 @@ def _synthetic(kind: str, seed: int, frames: int) -> Truth:
                  intrinsics=intr, height=float(sc.subject_height), joints3d=sc.joints3d,
                  frame_ids=np.asarray(sc.frame_ids), names=list(sc.skeleton.joints),
                  normal=np.asarray(sc.normal, float), distance=float(sc.distance),
+                 flip=np.asarray(sc.skeleton.flip),
                  real=obs(sc.real_observed, sc.missing_real),
                  mirror=obs(sc.mirror_observed, sc.missing_mirror),
                  out_real=out_r, out_mirror=out_m)
@@ -224,7 +228,7 @@ def _fixture(path: Path) -> Truth:
         out_m = np.linalg.norm(mirror - pm, axis=-1) > FIXTURE_OUTLIER_PX
     return Truth(name=f"fixture {path.name}", kind="fixtures", seed=path.name, detections=det,
                  intrinsics=intr, height=float(truth["height"]), joints3d=X,
-                 frame_ids=np.asarray(ids), names=names, normal=n, distance=d,
+                 frame_ids=np.asarray(ids), names=names, normal=n, distance=d, flip=flip,
                  real=real, mirror=mirror, out_real=out_r, out_mirror=out_m)
 
 
@@ -251,8 +255,10 @@ def oracle(tr: Truth) -> dict:
 
 
 def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
-           distance: np.ndarray) -> np.ndarray:
-    """The mode index (:data:`MODES`) of each gross joint, ``(G,)``.
+           distance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mode index (:data:`MODES`) of each gross joint, ``(G,)``; its largest
+    reprojection residual against a clean observation (px, NaN: none), and where an
+    ``off`` joint is off (0 the real view, 1 the reflection, 2 both).
 
     ``normal`` ``(T, 3)`` and ``distance`` ``(T,)``: the run's mirror at each frame.
     """
@@ -266,14 +272,22 @@ def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
     res = []
     for pts, obs, bad in ((P, tr.real, tr.out_real), (S, tr.mirror, tr.out_mirror)):
         with np.errstate(invalid="ignore", divide="ignore"):
-            r = np.linalg.norm(project(K, pts) - obs[t, j], axis=1)
+            uv = project(K, pts)
+            r = np.linalg.norm(uv - obs[t, j], axis=1)
+            flipped = np.linalg.norm(uv - obs[t, tr.flip[j]], axis=1) <= MODE_PX
         seen = np.isfinite(r)
-        res.append((r, seen & ~bad[t, j], seen & bad[t, j]))
-    (r1, c1, o1), (r2, c2, o2) = res
-    off = (c1 & (r1 > MODE_PX)) | (c2 & (r2 > MODE_PX))
+        res.append((r, seen & ~bad[t, j], seen & bad[t, j], flipped & (tr.flip[j] != j)))
+    (r1, c1, o1, f1), (r2, c2, o2, f2) = res
+    off1, off2 = c1 & (r1 > MODE_PX), c2 & (r2 > MODE_PX)
+    swap = (off1 & f1) | (off2 & f2)
+    off = off1 | off2
     follow = (o1 & (r1 <= MODE_PX)) | (o2 & (r2 <= MODE_PX))
     both = c1 & c2
-    return np.where(off, 1, np.where(follow, 2, np.where(both, 0, 3)))
+    mode = np.where(swap, 4, np.where(off, 1, np.where(follow, 2, np.where(both, 0, 3))))
+    with np.errstate(invalid="ignore"):
+        resid = np.fmax(np.where(c1, r1, np.nan), np.where(c2, r2, np.nan))
+    view = np.where(off1 & off2, 2, np.where(off2, 1, 0))
+    return mode, resid, view
 
 
 def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
@@ -302,9 +316,24 @@ def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
             out["z_share"] = float(ok.sum() / max(given.sum(), 1))
     gross = given & (e > GROSS_M)
     out["gross_by_joint"] = {tr.names[j]: [int(gross[:, j].sum()), int(given[:, j].sum())]
-                             for j in range(len(tr.names)) if gross[:, j].any()}
-    modes = _modes(tr, X, gross, normal, distance) if gross.any() else np.zeros(0, int)
+                             for j in range(len(tr.names))}
+    if gross.any():
+        modes, resid, view = _modes(tr, X, gross, normal, distance)
+    else:
+        modes, resid, view = np.zeros(0, int), np.zeros(0), np.zeros(0, int)
     out["gross_by_mode"] = {m: int((modes == i).sum()) for i, m in enumerate(MODES)}
+    jt = np.nonzero(gross)[1]
+    out["gross_by_joint_mode"] = {
+        tr.names[j]: {m: int(((jt == j) & (modes == i)).sum())
+                      for i, m in enumerate(MODES) if ((jt == j) & (modes == i)).any()}
+        for j in np.unique(jt)}
+    off = modes == 1
+    out["off_views"] = {v: int((off & (view == i)).sum())
+                        for i, v in enumerate(("real", "mirror", "both"))}
+    out["off_residual_px"] = (np.percentile(resid[off], [50, 90]).tolist()
+                              if off.any() else None)
+    out["depth_error_m"] = (float(np.median(np.linalg.norm(X[gross] - truth[gross], axis=1)[
+        modes == 0])) if (modes == 0).any() else None)
     frames = np.flatnonzero(gross.any(1))
     out["gross_frames"] = int(frames.size)
     out["longest_gross_run"] = _longest_run(frames)
@@ -478,21 +507,36 @@ def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
                     w = worst(vals)
                 agg[key] = dict(median=float(np.median(vals)), worst=float(w))
             by_joint: dict = {}
+            by_joint_mode: dict = {}
             by_mode = {k: 0 for k in MODES}
-            gross = completed = 0
+            views = {"real": 0, "mirror": 0, "both": 0}
+            completed, resid, longest = 0, [], 0
             for s in sel:
                 r = s[m]
                 for name, (g, n) in r.get("gross_by_joint", {}).items():
                     a = by_joint.setdefault(name, [0, 0])
                     a[0] += g
+                    a[1] += n
+                for name, md in r.get("gross_by_joint_mode", {}).items():
+                    d = by_joint_mode.setdefault(name, {})
+                    for k, v in md.items():
+                        d[k] = d.get(k, 0) + v
                 for k, v in r.get("gross_by_mode", {}).items():
                     by_mode[k] += v
-                gross += sum(r.get("gross_by_mode", {}).values())
+                for k, v in (r.get("off_views") or {}).items():
+                    views[k] += v
+                if r.get("off_residual_px"):
+                    resid.append(r["off_residual_px"][0])
                 completed += r.get("gross_completed", 0)
-            agg["gross_joints"] = gross
+                longest = max(longest, r.get("longest_gross_run", 0))
+            agg["gross_joints"] = sum(by_mode.values())
             agg["gross_by_joint"] = dict(sorted(by_joint.items(), key=lambda kv: -kv[1][0]))
+            agg["gross_by_joint_mode"] = by_joint_mode
             agg["gross_by_mode"] = by_mode
+            agg["off_views"] = views
+            agg["off_residual_px"] = [float(np.median(resid))] if resid else None
             agg["gross_completed"] = completed if m == "calibrate" else None
+            agg["longest_gross_run"] = longest
             out[f"{kind}/{m}"] = agg
     return out
 
@@ -525,22 +569,34 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
                  for k, _, _, spec in FIGURES]
         n = f"{a['scenes']}" + (f" ({a['failed']} failed)" if a["failed"] else "")
         L.append(f"| {kind} | {m} | {n} | " + " | ".join(cells) + " |")
-    L += ["", "## The gross joints (> 0.3 m off), pooled over the scenes", "",
+    L += ["", "## The gross joints (> 0.3 m off)", "",
           "By mode (see the script's docstring): `depth` on both rays within "
           f"{MODE_PX:g} px, off in depth; `off` more than {MODE_PX:g} px from a clean "
-          "observation; `outlier` on a planted outlier; `one view` at most one clean "
-          "observation. `completed`: of them, the joints triangulated after the graph "
-          "(calibrate only).", "",
-          "| scenes | run | gross joints | " + " | ".join(MODES) + " | completed | "
-          "by joint name (count) |", "|---|---|---:|" + "---:|" * len(MODES) + "---:|---|"]
-    for key, a in agg.items():
-        kind, m = key.split("/")
-        g = a["gross_joints"]
-        modes = " | ".join(f"{a['gross_by_mode'][k]}" + (f" ({100 * a['gross_by_mode'][k] / g:.0f} %)"
-                                                          if g else "") for k in MODES)
-        names = ", ".join(f"{n} {c[0]}" for n, c in list(a["gross_by_joint"].items())[:10])
-        comp = "-" if a["gross_completed"] is None else str(a["gross_completed"])
-        L.append(f"| {kind} | {m} | {g} | {modes} | {comp} | {names or '-'} |")
+          "observation (`off in`: the view(s), real / reflection / both; `px`: the median "
+          "largest residual); `swap` off but on the left/right partner's observation; "
+          "`outlier` on a planted outlier; `one view` at most one clean observation. "
+          "`completed`: of them, the joints triangulated after the graph (calibrate only); "
+          "`run`: the longest run of consecutive frames holding one.", "",
+          "| scene | run | gross | " + " | ".join(MODES) + " | off in | px | completed | "
+          "run | by joint name: count (share of that joint given) |",
+          "|---|---|---:|" + "---:|" * len(MODES) + "---|---:|---:|---:|---|"]
+    rows = [(key.replace("/", " (all) | "), a) for key, a in agg.items()]
+    rows += [(f"{s['name']} | {m}", s[m]) for s in scenes for m in methods
+             if m in s and "gross_by_mode" in s[m] and sum(s[m]["gross_by_mode"].values())]
+    for label, a in rows:
+        g = sum(a["gross_by_mode"].values())
+        modes = " | ".join(f"{a['gross_by_mode'][k]}" + (
+            f" ({100 * a['gross_by_mode'][k] / g:.0f} %)" if g and a["gross_by_mode"][k]
+            else "") for k in MODES)
+        names = ", ".join(f"{n} {c[0]} ({100 * c[0] / max(c[1], 1):.1f} %)" for n, c in sorted(
+            a["gross_by_joint"].items(), key=lambda kv: -kv[1][0])[:8] if c[0])
+        comp = a.get("gross_completed")
+        ov = a.get("off_views") or {}
+        px = a.get("off_residual_px")
+        L.append(f"| {label} | {g} | {modes} | "
+                 f"{ov.get('real', 0)} / {ov.get('mirror', 0)} / {ov.get('both', 0)} | "
+                 f"{_f(px[0] if px else None, '.0f')} | {'-' if comp is None else comp} | "
+                 f"{a.get('longest_gross_run', '-')} | {names or '-'} |")
     return L
 
 
