@@ -359,6 +359,16 @@ def _distance_figures(tr: Truth, distance: float | None, std: float | None) -> d
 
 
 # =========================================================================== runs
+def _rms_length(std: np.ndarray) -> np.ndarray:
+    """``(T, J)`` RMS error lengths from ``(T, J)`` stds, ``(T, J, 3)`` per-axis stds or
+    ``(T, J, 3, 3)`` covariances."""
+    if std.ndim == 4:
+        return np.sqrt(np.einsum("...ii->...", std))
+    if std.ndim == 3:
+        return np.sqrt((std ** 2).sum(-1))
+    return std
+
+
 def run_calibrate(tr: Truth) -> dict:
     import mirrorgraph as mg
 
@@ -381,7 +391,7 @@ def run_calibrate(tr: Truth) -> dict:
     js = getattr(run, "joints_std", None)
     if js is not None:
         std = np.full((T, J), np.nan)
-        std[rows[keep]] = np.asarray(js, float)[keep]
+        std[rows[keep]] = _rms_length(np.asarray(js, float))[keep]
     completed = np.zeros((T, J), bool)
     if run.completed is not None:
         completed[rows[keep]] = run.completed[keep]
