@@ -21,7 +21,8 @@ scene's true joint:
 * the joints' **error / std** (median, 99th percentile: the error's length over the
   joint's std, the RMS length of the error it claims) where the result carries per-joint
   stds (``run.joints_std`` / the npz's ``joints_std``, ``LiveFrame.joints_std``;
-  ``n/a`` otherwise); the metric **distance's** error and error / std;
+  ``n/a`` otherwise), and the same over the std without the metric scale's share
+  (``joints_std_shape``) where given; the metric **distance's** error and error / std;
 * **time** per run (wall and CPU seconds of this process).
 
 Over the scenes of each kind: the median and the worst scene of every figure, and the
@@ -298,8 +299,13 @@ def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
 
 
 def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
-          normal: np.ndarray, distance: np.ndarray, extra: dict) -> dict:
-    """The figures of one run's joints ``X`` ``(T, J, 3)`` (aligned with the truth)."""
+          normal: np.ndarray, distance: np.ndarray, extra: dict,
+          std_shape: np.ndarray | None = None) -> dict:
+    """The figures of one run's joints ``X`` ``(T, J, 3)`` (aligned with the truth).
+
+    ``std``, ``std_shape``: ``(T, J)`` the joints' stds with and without the metric
+    scale's share (``None``: the run gives none).
+    """
     from mirrorgraph.metrics import pa_mpjpe
 
     truth = tr.joints3d
@@ -312,15 +318,19 @@ def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
                gross=float((eg > GROSS_M).mean()) if eg.size else float("nan"),
                far=float((eg > FAR_M).mean()) if eg.size else float("nan"),
                worst_m=float(eg.max()) if eg.size else float("nan"))
-    out["z_median"] = out["z_p99"] = None
-    if std is not None:
-        s = np.asarray(std, float)
-        ok = given & np.isfinite(s) & (s > 0)
+    for tag, sd in (("z", std), ("z_shape", std_shape)):
+        out[f"{tag}_median"] = out[f"{tag}_p99"] = None
+        if sd is None:
+            continue
+        sd = np.asarray(sd, float)
+        ok = given & np.isfinite(sd) & (sd > 0)
         if ok.any():
-            z = e[ok] / s[ok]
-            out["z_median"] = float(np.median(z))
-            out["z_p99"] = float(np.percentile(z, 99))
-            out["z_share"] = float(ok.sum() / max(given.sum(), 1))
+            z = e[ok] / sd[ok]
+            out[f"{tag}_median"] = float(np.median(z))
+            out[f"{tag}_p99"] = float(np.percentile(z, 99))
+            out[f"{tag}_share"] = float(ok.sum() / max(given.sum(), 1))
+            g = e[ok] > GROSS_M
+            out[f"{tag}_gross_median"] = float(np.median(z[g])) if g.any() else None
     gross = given & (e > GROSS_M)
     out["gross_by_joint"] = {tr.names[j]: [int(gross[:, j].sum()), int(given[:, j].sum())]
                              for j in range(len(tr.names))}
@@ -388,7 +398,6 @@ def run_calibrate(tr: Truth) -> dict:
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     given = np.zeros((T, J), bool)
-    std = None
     where = {int(f): i for i, f in enumerate(tr.frame_ids)}
     rows = np.array([where.get(int(f), -1) for f in run.paired.frame_ids])
     keep = rows >= 0
@@ -396,10 +405,15 @@ def run_calibrate(tr: Truth) -> dict:
         X[rows[keep]] = run.joints3d[keep]
         valid = run.valid3d if run.valid3d is not None else np.isfinite(run.joints3d).all(-1)
         given[rows[keep]] = valid[keep]
-    js = getattr(run, "joints_std", None)
-    if js is not None:
-        std = np.full((T, J), np.nan)
-        std[rows[keep]] = _rms_length(np.asarray(js, float))[keep]
+    stds = []
+    for name in ("joints_std", "joints_std_shape"):
+        js = getattr(run, name, None)
+        if js is not None:
+            js_full = np.full((T, J), np.nan)
+            js_full[rows[keep]] = _rms_length(np.asarray(js, float))[keep]
+            js = js_full
+        stds.append(js)
+    std, std_shape = stds
     completed = np.zeros((T, J), bool)
     if run.completed is not None:
         completed[rows[keep]] = run.completed[keep]
@@ -407,7 +421,8 @@ def run_calibrate(tr: Truth) -> dict:
     dist = np.full(T, float(cal.distance if cal.distance is not None else 1.0))
     dstd = (cal.uncertainty or {}).get("distance_std")
     out = score(tr, X, given, std, normal, dist,
-                dict(wall_s=wall, cpu_s=cpu, **_distance_figures(tr, cal.distance, dstd)))
+                dict(wall_s=wall, cpu_s=cpu, **_distance_figures(tr, cal.distance, dstd)),
+                std_shape)
     e = np.linalg.norm(np.nan_to_num(X) - tr.joints3d, axis=-1)
     gross = given & (e > GROSS_M)
     out["gross_completed"] = int((gross & completed).sum())
@@ -423,6 +438,7 @@ def run_live(tr: Truth) -> dict:
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
+    std_shape = np.full((T, J), np.nan)
     normal = np.tile(np.array([0.0, 0.0, 1.0]), (T, 1))
     dist = np.ones(T)
     where = {int(f): i for i, f in enumerate(tr.frame_ids)}
@@ -437,6 +453,8 @@ def run_live(tr: Truth) -> dict:
             X[t] = f.joints3d
             if f.joints_std is not None:
                 std[t] = f.joints_std
+            if getattr(f, "joints_std_shape", None) is not None:
+                std_shape[t] = f.joints_std_shape
             if f.mirror.normal is not None:
                 normal[t] = f.mirror.normal
                 dist[t] = f.mirror.distance if f.mirror.distance is not None else 1.0
@@ -447,7 +465,7 @@ def run_live(tr: Truth) -> dict:
     given = np.isfinite(X).all(-1)
     return score(tr, X, given, std, normal, dist,
                  dict(wall_s=wall, cpu_s=cpu,
-                      **_distance_figures(tr, final.distance, final.distance_std)))
+                      **_distance_figures(tr, final.distance, final.distance_std)), std_shape)
 
 
 def run_scene(case: tuple) -> dict:
@@ -491,6 +509,8 @@ FIGURES = (("mpjpe_mm", "MPJPE mm", max, ".1f"), ("pa_mpjpe_mm", "PA-MPJPE mm", 
            ("gross_pct", "> 0.3 m %", max, ".2f"), ("far_pct", "> 1 m %", max, ".2f"),
            ("worst_m", "worst m", max, ".2f"), ("given_pct", "given %", min, ".1f"),
            ("z_median", "err/std med", None, ".2f"), ("z_p99", "err/std p99", max, ".1f"),
+           ("z_shape_median", "shape err/std med", None, ".2f"),
+           ("z_shape_p99", "shape err/std p99", max, ".1f"),
            ("distance_err_pct", "distance err %", None, "+.1f"),
            ("distance_z", "distance err/std", max, ".1f"), ("wall_s", "wall s", max, ".1f"),
            ("cpu_s", "CPU s", max, ".1f"))
@@ -510,6 +530,7 @@ def flat(scene: dict, method: str) -> dict | None:
                 common_oracle_ratio=r.get("common_oracle_ratio"), vs_offline=vs,
                 gross_pct=pct(r["gross"]), far_pct=pct(r["far"]), worst_m=r["worst_m"],
                 given_pct=pct(r["given"]), z_median=r.get("z_median"), z_p99=r.get("z_p99"),
+                z_shape_median=r.get("z_shape_median"), z_shape_p99=r.get("z_shape_p99"),
                 distance_err_pct=pct(r.get("distance_err")), distance_z=r.get("distance_z"),
                 wall_s=r["wall_s"], cpu_s=r["cpu_s"])
 
@@ -536,7 +557,7 @@ def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
                     continue
                 if key == "distance_err_pct":
                     w = max(vals, key=abs)
-                elif key == "z_median":
+                elif key in ("z_median", "z_shape_median"):
                     w = max(vals, key=lambda v: abs(np.log(max(v, 1e-9))))
                 else:
                     w = worst(vals)
@@ -866,7 +887,8 @@ def main(argv: list[str] | None = None) -> int:
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "
          "joints given; `given`: share of the scene's joints; `err/std`: the error's length "
-         "over the joint's std (`n/a`: the run carries none); `distance`: the metric mirror "
+         "over the joint's std (`n/a`: the run carries none), `shape`: over the std without the "
+         "metric scale's share (`joints_std_shape`); `distance`: the metric mirror "
          "distance's error and error / std; time: wall and CPU s of the run in its process; "
          "`/ oracle, same joints`: both PA-MPJPEs over the joints both give (the oracle's few "
          "joints of near-parallel rays, metres off, and the run's left-out ones out of the "
