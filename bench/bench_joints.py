@@ -737,11 +737,16 @@ def compare(a_path: str, b_path: str) -> list[str]:
     """Side by side: each kind and run's medians and worst scenes in two JSON files."""
     A = json.loads(Path(a_path).read_text())
     B = json.loads(Path(b_path).read_text())
-    for D in (A, B):        # the summaries recomputed: the figures of this script's version
+    common = ({s["name"] for s in A["scenes"]} & {s["name"] for s in B["scenes"]})
+    dropped = len(A["scenes"]) + len(B["scenes"]) - 2 * len(common)
+    for D in (A, B):        # the summaries recomputed on the common scenes, this version's figures
+        D["scenes"] = [s for s in D["scenes"] if s["name"] in common]
         D["summary"] = aggregate(D["scenes"], D["meta"]["kinds"], D["meta"]["methods"])
     L = [f"# `{a_path}` (A) against `{b_path}` (B)", "",
          f"A: {A['meta'].get('date')} `{A['meta'].get('code')}`; "
-         f"B: {B['meta'].get('date')} `{B['meta'].get('code')}`. Cells: A -> B (B / A).", ""]
+         f"B: {B['meta'].get('date')} `{B['meta'].get('code')}`. Cells: A -> B (B / A), over "
+         f"the {len(common)} scenes in both" + (f" ({dropped} in one file only left out)"
+                                                 if dropped else "") + ".", ""]
     for key in [k for k in A["summary"] if k in B["summary"]]:
         a, b = A["summary"][key], B["summary"][key]
         L += [f"## {key} ({a['scenes']} / {b['scenes']} scenes)", "",
@@ -796,11 +801,33 @@ def compare(a_path: str, b_path: str) -> list[str]:
     L.append("")
     only = sorted(set(A["summary"]) ^ set(B["summary"]))
     if only:
-        L.append("In one file only: " + ", ".join(only))
+        L.append("Scenes and runs in one file only: " + ", ".join(only))
     return L
 
 
 # =========================================================================== main
+def code_version() -> str:
+    """The measured code: the imported package's repository commit (its last commit of
+    ``mirrorgraph/`` beside HEAD, ``modified`` with uncommitted changes), else its path."""
+    import mirrorgraph
+
+    pkg = Path(mirrorgraph.__file__).resolve().parent
+
+    def git(*a):
+        return subprocess.run(["git", "-C", str(pkg.parent), *a], capture_output=True,
+                              text=True).stdout.strip()
+
+    head = git("rev-parse", "--short", "HEAD")
+    if not head or not (pkg.parent / ".git").exists():
+        return f"mirrorgraph from {pkg}"
+    last = git("log", "-1", "--format=%h", "--", "mirrorgraph")
+    dirty = git("status", "--porcelain", "mirrorgraph")
+    code = f"{head}, mirrorgraph/ at {last}" if last and last != head else head
+    where = "" if pkg.parent == ROOT else f" ({pkg.parent})"
+    return code + where + (" (modified)" if dirty else "")
+
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -860,14 +887,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{s['name']}: oracle PA {s['oracle']['pa_mpjpe_mm']:.1f} mm; {brief} "
                   f"({s['seconds']:.0f} s)", file=sys.stderr, flush=True)
     agg = aggregate(scenes, kinds, methods)
-    code = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True).stdout.strip()
-    dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "mirrorgraph"],
-                           capture_output=True, text=True).stdout.strip()
-    pkg = subprocess.run(["git", "-C", str(ROOT), "log", "-1", "--format=%h", "--", "mirrorgraph"],
-                         capture_output=True, text=True).stdout.strip()
-    code = f"{code}, mirrorgraph/ at {pkg}" if pkg and pkg != code else code
-    meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=code + (" (modified)" if dirty else ""),
+    code = code_version()
+    meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=code,
                 command="python bench/bench_joints.py " + shlex.join(argv),
                 machine=f"{platform.machine()}, {os.cpu_count()} cores, Python "
                         f"{platform.python_version()}",
