@@ -27,9 +27,9 @@ scene's true joint:
 
 Over the scenes of each kind: the median and the worst scene of every figure, and the
 targets (``PA-MPJPE`` against the oracle's, the gross shares, the stds' honesty, live
-against offline) met or not. The gross joints (more than 0.3 m off) are broken down by joint name and by *mode*,
-judged against the joint's own 2D observations (in the true labels) with the run's
-mirror: ``depth`` (reprojects within ``MODE_PX`` in both views, both observations
+against offline) met or not. The gross joints (more than 0.3 m off) are broken down by
+joint name and by *mode*, judged against the joint's own 2D observations (in the true
+labels) with the run's mirror: ``depth`` (reprojects within ``MODE_PX`` in both views, both observations
 clean: on its two rays, off in depth), ``off`` (more than ``MODE_PX`` from a clean
 observation: the graph left it), ``swap`` (off, but within ``MODE_PX`` of the
 left/right partner's observation in that view: the pair was labelled the wrong way round),
@@ -45,7 +45,7 @@ Scenes (``--kinds``):
 * ``paper``: MirrorCalib's protocol on the project's generator (``make_scene``: the
   ``favourable`` geometry, 4 px iid noise of mean 0.076 px, 3 % outliers);
 * ``fixtures``: the scenes of an independent generator in ``--fixtures`` (default
-  ``../shared/fixtures`` beside the repository; skipped when absent): their
+  ``shared/fixtures`` in the nearest folder above the repository; none when absent): their
   ``keypoints.json``, ``camera.json``, ``truth.json`` (the subject's height),
   ``joints3d_truth.npz``. Their observations are put in the true labels and pairs with
   the truth (each detection matched to the projection of the true joints, either
@@ -53,8 +53,8 @@ Scenes (``--kinds``):
 
 Usage::
 
-    python bench/bench_joints.py                       # 14 scenes, ~5 min on 2 busy cores
-    python bench/bench_joints.py --full                # 62 scenes, ~25 min on 2 busy cores
+    python bench/bench_joints.py                       # 14 scenes, ~7 min on 2 busy cores
+    python bench/bench_joints.py --full                # 62 scenes, ~35 min on 2 busy cores
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
