@@ -869,11 +869,16 @@ def main(argv: list[str] | None = None) -> int:
     cases = []
     for k in kinds:
         if k == "fixtures":
-            cases += [(k, p.name, args.frames, methods, str(args.fixtures))
-                      for p in fixture_dirs(Path(args.fixtures))]
+            found = fixture_dirs(Path(args.fixtures))
+            if not found:
+                print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
+            cases += [(k, p.name, args.frames, methods, str(args.fixtures)) for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures)) for s in _seeds(seeds)]
+    if not cases:
+        print("no scene to run", file=sys.stderr)
+        return 2
     started = _dt.datetime.now(_dt.timezone.utc)
     clock = time.perf_counter()
     with ProcessPoolExecutor(max(1, args.workers)) as pool:
