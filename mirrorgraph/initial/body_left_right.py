@@ -24,13 +24,14 @@ the person's (:class:`~mirrorgraph.keypoints.PairedKeypoints`).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..keypoints import PairedKeypoints
 
-__all__ = ["BodySwapOptions", "undo_body_swaps", "swap_states"]
+__all__ = ["BodySwapOptions", "BodySwapFilter", "undo_body_swaps", "swap_states"]
 
 
 @dataclass(frozen=True)
@@ -62,17 +63,17 @@ def _pairs(flip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return left, flip[left]
 
 
-def _points(paired: PairedKeypoints, min_confidence: float, left: np.ndarray,
+def _points(real: np.ndarray, mirror: np.ndarray, min_confidence: float, left: np.ndarray,
             right: np.ndarray) -> np.ndarray:
-    """``(T, P, 4, 2)``: per pair the real left, real right, mirror left, mirror right
-    keypoints, NaN where unseen."""
+    """``(..., P, 4, 2)``: per pair the real left, real right, mirror left, mirror right
+    keypoints of ``(..., J, 3)`` views, NaN where unseen."""
     out = []
-    for view in (paired.real, paired.mirror):
+    for view in (real, mirror):
         v = np.array(view[..., :2], dtype=float)
         low = ~(view[..., 2] > min_confidence) | ~np.isfinite(v).all(-1)
         v[low] = np.nan
-        out += [v[:, left], v[:, right]]
-    return np.stack(out, axis=2)
+        out += [v[..., left, :], v[..., right, :]]
+    return np.stack(out, axis=-2)
 
 
 def _motion_scale(pts: np.ndarray, step: np.ndarray, floor: float) -> np.ndarray:
@@ -82,6 +83,51 @@ def _motion_scale(pts: np.ndarray, step: np.ndarray, floor: float) -> np.ndarray
     with np.errstate(all="ignore"):
         med = np.nanmedian(d, axis=0) if len(d) else np.full(pts.shape[1:3], np.nan)
     return np.where(np.isfinite(med), np.maximum(med, floor), floor)
+
+
+class _Chain:
+    """The chains' forward state: per pair the cost of each state so far, the last
+    keypoints seen and their frame (the Viterbi recursion's, one frame a step)."""
+
+    def __init__(self, P: int, opts: BodySwapOptions) -> None:
+        self.opts = opts
+        self.cost = np.zeros((P, 2))
+        self.last = np.full((P, 4, 2), np.nan)
+        self.last_frame = np.full(P, -(10 ** 12), dtype=np.int64)
+        self.started = np.zeros(P, bool)
+
+    def step(self, pts: np.ndarray, frame: int, scale: np.ndarray) -> tuple[np.ndarray,
+                                                                          np.ndarray]:
+        """Take one frame's ``(P, 4, 2)`` keypoints (NaN unseen) at ``frame`` with the
+        keypoints' typical motions ``(P, 4)``. Returns ``(P,)`` whether the pair was seen
+        and ``(P, 2)`` each state's best predecessor (a pair unseen keeps its state)."""
+        opts, P = self.opts, len(self.cost)
+        obs = np.isfinite(pts).all(-1).any(-1)
+        gap = frame - self.last_frame
+        fresh = obs & (~self.started | (gap > opts.max_gap))
+        s = (scale * np.maximum(gap, 1)[:, None])[..., None]
+        cap = opts.truncation ** 2
+        with np.errstate(invalid="ignore"):
+            same = np.minimum(np.sum(((pts - self.last) / s) ** 2, axis=-1), cap)
+            cross = np.minimum(np.sum(((pts[:, [1, 0, 3, 2]] - self.last) / s) ** 2, axis=-1),
+                               cap)
+        same, cross = np.nansum(same, axis=-1), np.nansum(cross, axis=-1)   # (P,)
+        # trans[p, prev, cur]: the motion under (prev, cur) plus the switch's cost
+        trans = np.stack([np.stack([same, cross + opts.switch_cost], -1),
+                          np.stack([cross + opts.switch_cost, same], -1)], 1)
+        total = self.cost[:, :, None] + trans                                 # (P, prev, cur)
+        best_prev = np.argmin(total, axis=1)                                  # (P, cur)
+        chained = total[np.arange(P)[:, None], best_prev, np.arange(2)[None, :]]
+        restart = self.cost.min(1)[:, None] + np.zeros((1, 2))
+        restart_prev = np.repeat(np.argmin(self.cost, 1)[:, None], 2, 1)
+        new_cost = np.where(fresh[:, None], restart, chained) + [0.0, opts.swapped_cost]
+        back = np.where(fresh[:, None], restart_prev, best_prev)
+        self.cost = np.where(obs[:, None], new_cost, self.cost)
+        self.last = np.where(obs[:, None, None], np.where(np.isfinite(pts), pts, self.last),
+                             self.last)
+        self.last_frame = np.where(obs, frame, self.last_frame)
+        self.started |= obs
+        return obs, np.where(obs[:, None], back, np.arange(2)[None, :])
 
 
 def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
@@ -94,52 +140,79 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     T, P = len(paired), len(left)
     if T == 0 or P == 0:
         return np.zeros((T, P), bool)
-    pts = _points(paired, min_confidence, left, right)              # (T, P, 4, 2)
+    pts = _points(paired.real, paired.mirror, min_confidence, left, right)   # (T, P, 4, 2)
     frames = np.asarray(paired.frame_ids, dtype=np.int64)
     step = np.diff(frames, prepend=frames[0] - 1)
     scale = _motion_scale(pts, step, opts.min_scale_px)             # (P, 4)
-    crossed = pts[:, :, [1, 0, 3, 2]]                               # labels swapped
-    seen = np.isfinite(pts).all(-1).any(-1)                         # (T, P)
-    cap = opts.truncation ** 2
-    unary = np.array([0.0, opts.swapped_cost])
-    cost = np.zeros((P, 2))
+    chain = _Chain(P, opts)
+    seen = np.zeros((T, P), bool)
     back = np.zeros((T, P, 2), dtype=np.int8)
-    last = np.full((P, 4, 2), np.nan)
-    last_frame = np.full(P, -(10 ** 12), dtype=np.int64)
-    started = np.zeros(P, bool)
-    ar = np.arange(P)
     for t in range(T):
-        obs = seen[t]
-        gap = frames[t] - last_frame
-        fresh = obs & (~started | (gap > opts.max_gap))
-        s = (scale * np.maximum(gap, 1)[:, None])[..., None]
-        with np.errstate(invalid="ignore"):
-            same = np.minimum(np.sum(((pts[t] - last) / s) ** 2, axis=-1), cap)
-            cross = np.minimum(np.sum(((crossed[t] - last) / s) ** 2, axis=-1), cap)
-        same = np.nansum(same, axis=-1)                             # (P,)
-        cross = np.nansum(cross, axis=-1)
-        # trans[p, prev, cur]: the motion under (prev, cur) plus the switch's cost
-        trans = np.stack([np.stack([same, cross + opts.switch_cost], -1),
-                          np.stack([cross + opts.switch_cost, same], -1)], 1)
-        total = cost[:, :, None] + trans                            # (P, prev, cur)
-        best_prev = np.argmin(total, axis=1)                        # (P, cur)
-        chained = total[ar[:, None], best_prev, np.arange(2)[None, :]]
-        restart = cost.min(1)[:, None] + np.zeros((1, 2))
-        restart_prev = np.repeat(np.argmin(cost, 1)[:, None], 2, 1)
-        new_cost = np.where(fresh[:, None], restart, chained) + unary
-        new_back = np.where(fresh[:, None], restart_prev, best_prev)
-        # frames where the pair is unseen carry the state on unchanged
-        cost = np.where(obs[:, None], new_cost, cost)
-        back[t] = np.where(obs[:, None], new_back, np.arange(2)[None, :])
-        last = np.where(obs[:, None, None], np.where(np.isfinite(pts[t]), pts[t], last), last)
-        last_frame = np.where(obs, frames[t], last_frame)
-        started |= obs
+        seen[t], back[t] = chain.step(pts[t], frames[t], scale)
     state = np.zeros((T, P), dtype=np.int8)
-    cur = np.argmin(cost, axis=1).astype(np.int8)
+    cur = np.argmin(chain.cost, axis=1).astype(np.int8)
+    ar = np.arange(P)
     for t in range(T - 1, -1, -1):
         state[t] = cur
         cur = back[t, ar, cur]
     return state.astype(bool) & seen
+
+
+#: The stream's typical motions are taken anew every this many frames.
+SCALE_EVERY = 30
+
+
+class BodySwapFilter:
+    """The chain of :func:`swap_states` run forward, one frame at a time, for a stream
+    (the live run): each frame's decision is the state the frames so far make likelier
+    (the forward recursion's, without the later frames' say).
+
+    Args:
+        skeleton: the keypoint layout (its flip map gives the pairs).
+        min_confidence: keypoints below it are unseen.
+        options: :class:`BodySwapOptions`.
+        history: frames of displacements each keypoint's typical motion is the median of.
+    """
+
+    def __init__(self, skeleton, min_confidence: float = 0.0,
+                 options: BodySwapOptions | None = None, history: int = 300) -> None:
+        self.opts = options or BodySwapOptions()
+        self.left, self.right = _pairs(np.asarray(skeleton.flip))
+        self.min_confidence = float(min_confidence)
+        self._chain = _Chain(len(self.left), self.opts)
+        self._moves = np.full((int(history), len(self.left), 4), np.nan)
+        self._n = 0
+        self._prev: tuple[int, np.ndarray] | None = None
+        self._scale: np.ndarray | None = None
+
+    def update(self, real: np.ndarray, mirror: np.ndarray, frame_id: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """One frame's paired ``(J, 3)`` keypoints (the reflection's labels in the
+        person's) with the pairs the chain finds swapped exchanged in both views."""
+        pts = _points(np.asarray(real), np.asarray(mirror), self.min_confidence, self.left,
+                      self.right)                                                # (P, 4, 2)
+        if self._prev is not None and frame_id - self._prev[0] == 1:
+            self._moves[self._n % len(self._moves)] = np.linalg.norm(pts - self._prev[1], axis=-1)
+            self._n += 1
+        self._prev = (int(frame_id), pts)
+        if self._scale is None or self._n % SCALE_EVERY == 0:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)             # all-NaN columns
+                med = (np.nanmedian(self._moves[:min(self._n, len(self._moves))], axis=0)
+                       if self._n else np.full(pts.shape[:2], np.nan))
+            self._scale = np.where(np.isfinite(med), np.maximum(med, self.opts.min_scale_px),
+                                   self.opts.min_scale_px)
+        seen, _ = self._chain.step(pts, int(frame_id), self._scale)
+        swapped = seen & (np.argmin(self._chain.cost, axis=1) == 1)
+        if not swapped.any():
+            return real, mirror
+        out = []
+        for view in (real, mirror):
+            v = np.array(view, copy=True)
+            p = np.flatnonzero(swapped)
+            v[self.left[p]], v[self.right[p]] = view[self.right[p]], view[self.left[p]]
+            out.append(v)
+        return out[0], out[1]
 
 
 def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,

@@ -9,7 +9,9 @@
 
 **Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
 skipped and counted), undistorted, paired against the current mirror's epipole
-``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), triangulated with the
+``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
+right swapped back where the frames so far say the detector confused them in both views
+(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), triangulated with the
 mirror (:func:`mirrorgraph.geometry.triangulate_mirror`), kept where they reproject within
 the threshold in both views and lie in front of the camera and the mirror, and refined
 with the latest window's bone lengths (:mod:`.frame_prior`). Each joint's std (metres with
@@ -48,6 +50,7 @@ import numpy as np
 
 from .. import geometry as geo
 from ..errors import InputError
+from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
 from .frame_prior import refine_with_bones
@@ -338,6 +341,7 @@ class LiveCalibrator:
             self._window_intr = replace(intrinsics, dist=None)     # undistorted here
         self.fusion = MirrorFusion(height_sigma=self._copts.graph.height_sigma,
                                    metric=self._copts.subject_height is not None)
+        self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -502,6 +506,9 @@ class LiveCalibrator:
                                      PairingOptions(min_confidence=co.min_confidence,
                                                     threshold_px=co.threshold_px))
         real, mirror = pairing.real[0], pairing.reflections[0][0]
+        # the person's left and right as the frames so far say (the detector's
+        # confusions in both views, :mod:`mirrorgraph.initial.body_left_right`)
+        real, mirror = self._swaps.update(real, mirror, fid)
         seen = ((real[:, 2] >= co.min_confidence) & (mirror[:, 2] >= co.min_confidence)
                 & np.isfinite(real[:, :2]).all(1) & np.isfinite(mirror[:, :2]).all(1))
         if not seen.any():
