@@ -90,6 +90,27 @@ def video_options(args, *, has_video: bool = True):
                         cache_dir=Path(args.cache_dir) if args.cache_dir else None)
 
 
+def check_video(path, field: str) -> None:
+    """Refuse, before any work, a ``--video`` that is no video: missing, a folder, a file
+    OpenCV cannot open (its FFmpeg lines silenced), or a single image under a video's
+    name. One line each (:class:`InputError`)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a folder, not a video file", source=p, field=field)
+    if not p.exists():
+        raise InputError("no such video file", source=p, field=field)
+    if not p.is_file():
+        raise InputError("is not a regular file (a FIFO or a device?), not a video file",
+                         source=p, field=field)
+    try:
+        from ..video.reader import probe
+    except ImportError:                     # OpenCV missing: the reader says so later
+        return
+    info = probe(p)
+    if info.frame_count == 1:
+        raise InputError("holds a single image, not a video", source=p, field=field)
+
+
 def describe(det) -> str:
     """One line: what was detected, how fast, and whether it came from the cache."""
     import numpy as np
