@@ -50,34 +50,12 @@ def _add_report(sub) -> None:
 
 
 def check_schema(path) -> dict:
-    """The calibration JSON at ``path``, parsed, if this version reads its schema.
-
-    A single mirror's ``calibration.json`` carries ``schema_version`` (1 where it is
-    missing, in files of mirrorgraph's first versions, which carry
-    ``mirrorgraph_version``); a rig's JSON carries ``mirrorgraph_version``. A schema
-    newer than :data:`~mirrorgraph.result.mirror.SCHEMA_VERSION`, a value that is no
-    version, or a document with neither field is refused in one line.
-    """
-    from ..io._common import load_json
+    """The calibration JSON at ``path``, parsed, if this version reads its schema
+    (:func:`mirrorgraph.io.calibration.read_calibration_document`)."""
+    from ..io.calibration import read_calibration_document
     from ..result.mirror import SCHEMA_VERSION
 
-    doc = load_json(path)
-    if not isinstance(doc, dict):
-        raise InputError("not a calibration written by mirrorgraph (expected a JSON object)",
-                         source=path)
-    if "schema_version" in doc:
-        v = doc["schema_version"]
-        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-            raise InputError(f"expected a schema version (a whole number >= 1), got {v!r}",
-                             source=path, field="schema_version")
-        if v > SCHEMA_VERSION:
-            raise InputError(f"schema {v} is newer than this mirrorgraph reads (1 to "
-                             f"{SCHEMA_VERSION}): upgrade mirrorgraph", source=path,
-                             field="schema_version")
-    elif "mirrorgraph_version" not in doc:
-        raise InputError("neither schema_version nor mirrorgraph_version: not a calibration "
-                         "written by mirrorgraph", source=path)
-    return doc
+    return read_calibration_document(path, SCHEMA_VERSION)
 
 
 def _rig_document(path):

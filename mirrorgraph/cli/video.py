@@ -103,12 +103,16 @@ def check_video(path, field: str) -> None:
         raise InputError("is not a regular file (a FIFO or a device?), not a video file",
                          source=p, field=field)
     try:
-        from ..video.reader import probe
+        from ..video.reader import frames
     except ImportError:                     # OpenCV missing: the reader says so later
         return
-    info = probe(p)
-    if info.frame_count == 1:
-        raise InputError("holds a single image, not a video", source=p, field=field)
+    try:
+        read = sum(1 for _ in zip(range(2), frames(p)))
+    except InputError as exc:
+        raise InputError(exc.reason, source=p, field=field) from None
+    if read < 2:
+        raise InputError("holds a single image, not a video" if read else
+                         "holds no frame that can be read", source=p, field=field)
 
 
 def describe(det) -> str:

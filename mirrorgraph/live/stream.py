@@ -158,17 +158,21 @@ class LiveSummary:
 LATENCY_KEEP = 10000
 
 
-def _no_mirror(live: LiveCalibrator) -> str | None:
-    """Why the stream gave no mirror, in words (``None`` where it gave one)."""
+def _no_mirror(live: LiveCalibrator, people: dict[int, int]) -> str | None:
+    """Why the stream gave no mirror, in words (``None`` where it gave one); ``people``:
+    how many frames had 0, 1 and 2 or more people."""
     if live.mirror.normal is not None:
         return None
     c = live.counts
     if c["frames"] == 0:
         return "the source gave no frame"
-    if c["skipped"] + c["unpaired"] >= c["frames"]:
+    if c["skipped"] >= c["frames"]:
         by = ", ".join(f"{n} {r}" for r, n in sorted(c["skipped_by_reason"].items()))
-        return (f"no frame of {c['frames']} holds a person and their reflection "
-                f"({c['unpaired']} without a pair" + (f", skipped: {by}" if by else "") + ")")
+        return f"every frame of {c['frames']} was skipped as bad input ({by})"
+    if people.get(2, 0) == 0:
+        return (f"no frame of {c['frames']} holds two people, the person and their "
+                f"reflection ({people.get(0, 0)} with nobody, {people.get(1, 0)} with one "
+                "person)")
     failed = [w for w in live.window_log if w["result"] != "fused" and w["reason"]]
     if failed:
         return (f"every window's solve failed ({c['windows_failed']} failed, "
@@ -237,6 +241,7 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
     first = (None, None)
     interrupted = False
     lines = 0
+    people: dict[int, int] = {}
     viewer = None
     clock = time.perf_counter()
     to_stdout = os.fspath(jsonl) == "-"
@@ -247,6 +252,11 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
         try:
             for sf in source.frames:
                 frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
+                try:
+                    n = min(len(sf.people), 2)
+                except TypeError:
+                    n = 0
+                people[n] = people.get(n, 0) + 1
                 fh.write(json.dumps(frame.to_dict(), allow_nan=False) + "\n")
                 fh.flush()
                 lines += 1
@@ -276,4 +286,4 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
                        seconds=time.perf_counter() - clock, first_calibrated_frame=first[0],
                        first_calibrated_time=first[1], latency_ms=q,
                        source_stats=dict(source.stats), lines=lines, interrupted=interrupted,
-                       no_mirror=None if interrupted else _no_mirror(live))
+                       no_mirror=None if interrupted else _no_mirror(live, people))
