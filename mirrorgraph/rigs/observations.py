@@ -421,6 +421,32 @@ def _read_camera(entry: CameraEntry, skeleton, video, frame_progress):
     return read_keypoints(entry.keypoints, skeleton=skeleton, progress=on_frame, video=video)
 
 
+def _refuse_duplicates(config: RigConfig, read: list) -> None:
+    """Refuse two cameras whose keypoints are identical (the same frames, the same people
+    to the last digit): one camera's observations read twice put the second camera at
+    the first's place, with confident stds.
+
+    Raises:
+        InputError: naming both cameras.
+    """
+    import hashlib
+
+    seen: dict[str, str] = {}
+    for entry, data in zip(config.cameras, read):
+        h = hashlib.sha1(np.asarray(data.frame_ids, np.int64).tobytes())
+        for p in data.people:
+            a = np.ascontiguousarray(np.asarray(p, float))
+            h.update(str(a.shape).encode())
+            h.update(a.tobytes())
+        key = h.hexdigest()
+        if key in seen:
+            raise InputError(f"cameras {seen[key]} and {entry.name} read identical keypoints "
+                             "(the same frames and people): one camera's observations "
+                             f"twice; give {entry.name} its own keypoints",
+                             source=config.source, field="cameras")
+        seen[key] = entry.name
+
+
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
@@ -451,6 +477,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     warnings: list[str] = []
     per_camera, fps = [], None
     read = _read_cameras(config, skeleton, progress, video, frame_progress)
+    _refuse_duplicates(config, read)
     layouts = [data.skeleton for data in read]
     names = {s.name for s in layouts}
     if len(names) > 1:
