@@ -58,6 +58,9 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
     doc = read_calibration_document(path, SCHEMA_VERSION)
     if not isinstance(doc, dict) or not ("mirror" in doc or "cameras" in doc):
         raise InputError("neither a mirrorgraph calibration.json nor a rig's JSON", source=path)
+    if video is not None and "cameras" in doc:
+        raise InputError("draws the video of a single-mirror calibration, not of a rig",
+                         field="video")
     if video is not None:
         if Path(video).is_dir():
             raise InputError("is a folder, not a video file", source=video, field="video")
@@ -67,9 +70,6 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
     if motion is not None and fps is None:
         fps = motion["fps"]
     if "cameras" in doc:
-        if video is not None:
-            raise InputError("draws the video of a single-mirror calibration, not of a rig",
-                             field="video")
         if motion is not None:
             _check_belongs(motion, joints3d, path, skeleton=doc.get("skeleton"),
                            frames=doc.get("frames"), metric=doc.get("scale") == "subject_height",
