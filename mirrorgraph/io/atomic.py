@@ -245,7 +245,8 @@ class Staging:
             for target, aside in reversed(kept):
                 if aside is not None:
                     os.replace(aside, target)
-                else:
+                    aside.unlink(missing_ok=True)  # rename between hard links of one file
+                else:                              # does nothing: the link stays
                     target.unlink(missing_ok=True)
             self.discard()
             raise
