@@ -80,6 +80,9 @@ def video_options(args, *, has_video: bool = True):
                          field="--det-model" if args.det_model is None else "--pose-model")
     if args.end is not None and args.end <= args.start:
         raise InputError(f"must be after --start ({args.start})", field="--end")
+    if args.cache_dir is not None:
+        from ..io.atomic import check_output
+        check_output(args.cache_dir, field="--cache-dir", folder=True)
     if not has_video:
         return None
     from ..video.detect import VideoOptions

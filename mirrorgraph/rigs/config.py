@@ -146,6 +146,10 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
     if unused:
         raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "
                          "camera's mirrors list)", source=path, field="mirrors")
+    if sum(1 + len(e.mirrors) for e in cameras) < 2:
+        raise InputError("one camera and no mirror: one view of the person, nothing to "
+                         "calibrate (add a camera, or the mirror the camera sees to its "
+                         "mirrors list)", source=path, field="cameras")
     skeletons = {e.skeleton for e in cameras if e.skeleton is not None}
     if len(skeletons) > 1:
         raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "

@@ -386,3 +386,54 @@ def test_live_ctrl_c_one_line_and_complete_lines(scene, tmp_path):
     lines = out.read_text().splitlines()
     assert str(out) in err and f"after {len(lines)} frames" in err, err
     assert [json.loads(line)["frame"] for line in lines] == list(range(len(lines)))
+
+
+# ----------------------------------------------------------------------------- rig files
+def _rig_variant(rig: Path, name: str, edit) -> Path:
+    path = rig / name
+    path.write_text(edit((rig / "rig.toml").read_text()))
+    return path
+
+
+def test_rig_of_one_view_says_why(rig, capfd):
+    def one_camera(text: str) -> str:
+        second = text.index("[[cameras]]", text.index("[[cameras]]") + 1)
+        return text[:second].replace('mirrors = [ "wall" ]', "mirrors = []")
+    refused(["calibrate-rig", _rig_variant(rig, "one.toml", one_camera), "--out",
+             rig / "o.toml"], capfd, rig, names=("one camera and no mirror",))
+
+
+def test_rig_frame_offset_beyond_every_frame_says_so(rig, capfd):
+    def offset(text: str) -> str:
+        last = text.rindex("frame_offset = 0")
+        return text[:last] + "frame_offset = 1000000000" + text[last + len("frame_offset = 0"):]
+    refused(["calibrate-rig", _rig_variant(rig, "off.toml", offset), "--out", rig / "o.toml"],
+            capfd, rig, names=("frame_offset", "share none"))
+
+
+def test_rig_intrinsics_leaving_keypoints_outside_warned(rig, capfd):
+    """An intrinsics image size that leaves about a third of a camera's keypoints outside
+    (less than the half that is refused): the run goes on and a warning names the camera."""
+    from mirrorgraph.io import read_keypoints
+
+    data = read_keypoints(rig / "pose" / "cam02_json")
+    x = np.concatenate([p[..., 0].ravel() for p in data.people])
+    width = int(np.nanpercentile(x, 65) / 1.1)
+    calib = (rig / "Calib.toml").read_text()
+    at = calib.rindex("size = [")
+    end = calib.index("]", at)
+    (rig / "Calib_small.toml").write_text(calib[:at] + f"size = [ {width}.0, 1080.0 ]"
+                                          + calib[end + 1:])
+    path = _rig_variant(rig, "small.toml", lambda t: t.replace('"Calib.toml"',
+                                                               '"Calib_small.toml"'))
+    code = main(["calibrate-rig", str(path), "--out", str(rig / "s.toml")])
+    err = capfd.readouterr().err
+    assert code == 0, err
+    assert "camera cam02" in err and "lie outside its" in err, err
+
+
+def test_cache_dir_that_is_a_file_refused(scene, work, capfd):
+    (work / "cachefile").write_bytes(PRECIOUS)
+    (work / "clip.mp4").write_bytes(b"\x00" * 64)
+    refused(["calibrate", work / "clip.mp4", "--out", work / "c.json", "--cache-dir",
+             work / "cachefile"], capfd, work, names=("--cache-dir", "is a file"))
