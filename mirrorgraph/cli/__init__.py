@@ -45,6 +45,7 @@ import importlib
 import sys
 import warnings
 import zipfile
+import zlib
 from collections.abc import Collection
 
 from .._version import __version__
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_INPUT
-    except zipfile.BadZipFile as exc:
+    except (zipfile.BadZipFile, zlib.error) as exc:
         print(f"error: a .npz file is damaged (not a complete zip archive: {exc})",
               file=sys.stderr)
         return EXIT_INPUT

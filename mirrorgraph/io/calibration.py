@@ -57,6 +57,16 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
     atomic_write_text(path, text + "\n")
 
 
+#: The counts of a single mirror's calibration.json, and the largest one read (a billion
+#: frames: over a year of video at 30 frames/s).
+COUNT_FIELDS = ("frames_read", "frames_paired", "frames_used", "pairs_total", "pairs_used",
+                "lr_fixes", "ransac_iterations")
+MAX_COUNT = 10**9
+#: The largest magnitude of any number of a calibration JSON (lengths in metres, pixels,
+#: counts, seconds: all far below).
+MAX_NUMBER = 1e12
+
+
 def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
     """A calibration JSON (a single mirror's or a rig's), parsed, if its schema is one
     that a reader of schemas 1 to ``newest`` reads.
@@ -67,7 +77,9 @@ def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
 
     Raises:
         InputError: not a JSON object, a ``schema_version`` that is no whole number
-            >= 1 or is newer than ``newest``, or neither field (not mirrorgraph's).
+            >= 1 or is newer than ``newest``, or neither field (not mirrorgraph's); a NaN,
+            an infinity or a number beyond :data:`MAX_NUMBER` anywhere; a count (:data:`COUNT_FIELDS`) beyond
+            :data:`MAX_COUNT`.
     """
     doc = load_json(path)
     if not isinstance(doc, dict):
@@ -85,7 +97,37 @@ def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
     elif "mirrorgraph_version" not in doc:
         raise InputError("neither schema_version nor mirrorgraph_version: not a calibration "
                          "written by mirrorgraph", source=path)
+    for key in COUNT_FIELDS:
+        v = doc.get(key)
+        if v is not None and not isinstance(v, bool) and isinstance(v, (int, float)) \
+                and not 0 <= v <= MAX_COUNT:
+            raise InputError(f"{v!r} is not a count of frames or pairs (0 to {MAX_COUNT:.0e})",
+                             source=path, field=key)
+    where = _unreadable_number(doc)
+    if where is not None:
+        raise InputError(f"NaN, an infinity or a number beyond {MAX_NUMBER:g}, which "
+                         "mirrorgraph never writes (an unknown figure is null)", source=path,
+                         field=where)
     return doc
+
+
+def _unreadable_number(obj: Any, where: str = "") -> str | None:
+    """The key path of the first NaN, infinity or number beyond :data:`MAX_NUMBER` in a
+    parsed JSON document, or ``None``."""
+    if isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        return None if math.isfinite(obj) and abs(obj) <= MAX_NUMBER else \
+            (where or "(the document)")
+    if isinstance(obj, dict):
+        items = ((f"{where}.{k}" if where else str(k), v) for k, v in obj.items())
+    elif isinstance(obj, list):
+        items = ((f"{where}[{i}]", v) for i, v in enumerate(obj))
+    else:
+        return None
+    for key, v in items:
+        found = _unreadable_number(v, key)
+        if found is not None:
+            return found
+    return None
 
 
 def read_json(path: str | os.PathLike) -> Any:

@@ -9,7 +9,6 @@ calibration with its 2D keypoints) and the video, made into a
 from __future__ import annotations
 
 import os
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +18,14 @@ from ..errors import InputError
 from .recording import record, require_rerun
 from .scene import scene_from_calibration, scene_from_rig
 
-__all__ = ["view_file", "MAX_COORDINATE"]
+__all__ = ["view_file", "MAX_COORDINATE", "MIN_DEPTH"]
 
 #: The largest coordinate a joint may have (metres or mirror distances / subject heights):
 #: beyond it a joints file is no person's motion.
 MAX_COORDINATE = 1e4
+#: The nearest a joint may be to a single mirror's camera (depth, the calibration's unit:
+#: a millimetre, or a thousandth of the mirror's distance).
+MIN_DEPTH = 1e-3
 
 
 def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | None = None,
@@ -157,12 +159,13 @@ def _check_belongs(motion: dict, joints3d, calibration: Path, *, skeleton, frame
     if in_front:
         valid = motion["valid"]
         with np.errstate(invalid="ignore"):
-            behind = valid & ~(X[..., 2] > 0)
+            behind = valid & ~(X[..., 2] > MIN_DEPTH)
         if behind.any():
             t, j = np.argwhere(behind)[0]
             fid = motion["frame_ids"][t] if motion["frame_ids"] is not None else t
-            raise InputError(f"joint {names[j]} at depth {X[t, j, 2]:g}, on or behind the "
-                             "camera: not the joints of this calibration", source=joints3d,
+            raise InputError(f"joint {names[j]} at depth {X[t, j, 2]:g}, on, behind or "
+                             "against the camera: not the joints of this calibration",
+                             source=joints3d,
                              frame=int(fid))
 
 
@@ -175,11 +178,18 @@ def _read_motion(path) -> dict[str, Any]:
     if path.is_dir():
         raise InputError("is a folder; give the .npz of the 3D joints", source=path)
     try:
-        with np.load(path, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
+        with open(path, "rb") as fh:           # closed whatever np.load makes of it
+            z = np.load(fh, allow_pickle=False)
+            if not hasattr(z, "files"):
+                raise InputError("a single array, not the .npz of 3D joints", source=path)
+            with z:
+                d = {k: z[k] for k in z.files}
     except FileNotFoundError:
         raise InputError("no such file", source=path) from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - numpy's parsers of damaged bytes raise many kinds
+        # (BadZipFile, zlib.error, EOFError, ValueError, tokenize's TokenError, ...)
         raise InputError(f"cannot be read as a .npz ({type(exc).__name__}: damaged or "
                          "truncated?)", source=path) from None
     missing = [k for k in ("joints3d", "joint_names") if k not in d]
@@ -191,6 +201,7 @@ def _read_motion(path) -> dict[str, Any]:
         raise InputError(f"expected (T, J, 3) numbers, got {X.dtype} {X.shape}", source=path,
                          field="joints3d")
     X = X.astype(float)
+    X[~np.isfinite(X)] = np.nan            # an infinity is a joint not estimated, as NaN
     T, J = X.shape[:2]
     names = d["joint_names"]
     if names.ndim != 1 or len(names) != J:
