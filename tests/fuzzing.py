@@ -62,8 +62,8 @@ from mirrorgraph.io import read_keypoints
 from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.synth import make_scene, write_scene
 
-#: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (about a minute and a
-#: half on a 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20
+#: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (about a minute on a
+#: 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20
 #: + 8 + 80 + 80 + 100 + 80 = 2468.
 EXAMPLES = {
     "mmpose": 400,

@@ -145,6 +145,8 @@ def cmd_calibrate(args) -> int:
                          "--intrinsics, --fov or --no-refine", field="--principal-point")
     from_video = is_video_input(args.keypoints)
     vopts = video_options(args, has_video=from_video)
+    if from_video:
+        check_video(args.keypoints, "keypoints")
     intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     t0 = time.perf_counter()
     if from_video:

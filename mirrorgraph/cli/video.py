@@ -176,7 +176,11 @@ def cmd_detect(args) -> int:
     if args.fmt == "openpose" and out.exists() and not out.is_dir():
         raise InputError("is a file; --format openpose writes a folder", source=out,
                          field="--out")
+    from ..io.atomic import check_outputs
+    check_outputs([(out, "--out")], inputs=[args.video],
+                  folders=("--out",) if args.fmt == "openpose" else ())
     opts = video_options(args)
+    check_video(args.video, "video")
     t0 = time.perf_counter()
     det = detect_with_progress(args.video, opts, quiet=args.quiet)
     write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids, meta=True)

@@ -62,8 +62,11 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 COUNT_FIELDS = ("frames_read", "frames_paired", "frames_used", "pairs_total", "pairs_used",
                 "lr_fixes", "ransac_iterations")
 MAX_COUNT = 10**9
-#: The largest magnitude of any number of a calibration JSON (lengths in metres, pixels,
-#: counts, seconds: all far below).
+#: The geometry of a calibration JSON (a single mirror's and a rig's): no number in it
+#: beyond :data:`MAX_NUMBER` (lengths in metres or subject heights, pixels: all far below;
+#: the reports' weights and figures are not bounded).
+GEOMETRY_FIELDS = ("mirror", "intrinsics", "virtual_camera", "fundamental_matrix",
+                   "epipole_px", "initial_normal", "cameras", "mirrors")
 MAX_NUMBER = 1e12
 
 
@@ -77,8 +80,9 @@ def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
 
     Raises:
         InputError: not a JSON object, a ``schema_version`` that is no whole number
-            >= 1 or is newer than ``newest``, or neither field (not mirrorgraph's); a NaN,
-            an infinity or a number beyond :data:`MAX_NUMBER` anywhere; a count (:data:`COUNT_FIELDS`) beyond
+            >= 1 or is newer than ``newest``, or neither field (not mirrorgraph's); a NaN
+            or an infinity anywhere, a number beyond :data:`MAX_NUMBER` in the geometry
+            (:data:`GEOMETRY_FIELDS`); a count (:data:`COUNT_FIELDS`) beyond
             :data:`MAX_COUNT`.
     """
     doc = load_json(path)
@@ -103,7 +107,10 @@ def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
                 and not 0 <= v <= MAX_COUNT:
             raise InputError(f"{v!r} is not a count of frames or pairs (0 to {MAX_COUNT:.0e})",
                              source=path, field=key)
-    where = _unreadable_number(doc)
+    where = _unreadable_number(doc, bounded=False)
+    for key in GEOMETRY_FIELDS:
+        if where is None and key in doc:
+            where = _unreadable_number(doc[key], key)
     if where is not None:
         raise InputError(f"NaN, an infinity or a number beyond {MAX_NUMBER:g}, which "
                          "mirrorgraph never writes (an unknown figure is null)", source=path,
@@ -111,12 +118,12 @@ def read_calibration_document(path: str | os.PathLike, newest: int) -> dict:
     return doc
 
 
-def _unreadable_number(obj: Any, where: str = "") -> str | None:
-    """The key path of the first NaN, infinity or number beyond :data:`MAX_NUMBER` in a
-    parsed JSON document, or ``None``."""
+def _unreadable_number(obj: Any, where: str = "", bounded: bool = True) -> str | None:
+    """The key path of the first NaN or infinity (or, ``bounded``, number beyond
+    :data:`MAX_NUMBER`) in a parsed JSON document, or ``None``."""
     if isinstance(obj, (int, float)) and not isinstance(obj, bool):
-        return None if math.isfinite(obj) and abs(obj) <= MAX_NUMBER else \
-            (where or "(the document)")
+        ok = math.isfinite(obj) and (not bounded or abs(obj) <= MAX_NUMBER)
+        return None if ok else (where or "(the document)")
     if isinstance(obj, dict):
         items = ((f"{where}.{k}" if where else str(k), v) for k, v in obj.items())
     elif isinstance(obj, list):
@@ -124,7 +131,7 @@ def _unreadable_number(obj: Any, where: str = "") -> str | None:
     else:
         return None
     for key, v in items:
-        found = _unreadable_number(v, key)
+        found = _unreadable_number(v, key, bounded)
         if found is not None:
             return found
     return None

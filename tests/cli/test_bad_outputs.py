@@ -244,7 +244,7 @@ def _set(X, t, j, c, v):
 
 @pytest.mark.parametrize("what,change,says", [
     ("huge", {"joints3d": lambda X: _set(X, 3, 4, 0, 1e300)}, "beyond"),
-    ("depth0", {"joints3d": lambda X: _set(X, 3, 4, 2, 0.0)}, "behind the camera"),
+    ("depth0", {"joints3d": lambda X: _set(X, 3, 4, 2, 0.0)}, "against the camera"),
     ("frames", {"joints3d": lambda X: X[:-5], "valid": lambda v: v[:-5],
                 "frame_ids": lambda f: f[:-5]}, "frames"),
     ("unit", {"unit": np.array("m")}, "metric scale"),
@@ -437,3 +437,13 @@ def test_cache_dir_that_is_a_file_refused(scene, work, capfd):
     (work / "clip.mp4").write_bytes(b"\x00" * 64)
     refused(["calibrate", work / "clip.mp4", "--out", work / "c.json", "--cache-dir",
              work / "cachefile"], capfd, work, names=("--cache-dir", "is a file"))
+
+
+def test_image_named_as_a_video_refused_as_input(work, capfd):
+    import cv2
+    cv2.imwrite(str(work / "img.png"), np.zeros((32, 32, 3), np.uint8))
+    shutil.copy(work / "img.png", work / "img.mp4")
+    refused(["calibrate", work / "img.mp4", "--out", work / "c.json"], capfd, work,
+            names=("img.mp4", "single image"))
+    refused(["detect", work / "img.mp4", "--out", work / "k.json"], capfd, work,
+            names=("img.mp4", "single image"))
