@@ -201,8 +201,8 @@ def _start_worker(live: LiveCalibrator) -> None:
     traceback); the main process stops the worker (:meth:`LiveCalibrator.close`)."""
     if not live.options.background:
         return
-    with _sigint_ignored():
-        live._executor().submit(os.getpid).result()
+    with _sigint_ignored():           # the pool starts its process in submit: no wait
+        live._executor().submit(os.getpid)
 
 
 def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.PathLike,
