@@ -447,3 +447,30 @@ def test_image_named_as_a_video_refused_as_input(work, capfd):
             names=("img.mp4", "single image"))
     refused(["detect", work / "img.mp4", "--out", work / "k.json"], capfd, work,
             names=("img.mp4", "single image"))
+
+
+def test_viewer_failing_after_the_run_keeps_summary_and_files(scene, work, capfd, monkeypatch):
+    """A display is set but Rerun's viewer exits at once: the calibration is written, the
+    summary and the 'wrote' line are printed, and one warning names the recording (exit
+    0: the calibration did not fail)."""
+    import mirrorgraph.viewer.recording as recording
+
+    def fails(path, wait=5.0):
+        raise recording.InputError(f"Rerun's viewer did not open (exit status 1): the "
+                                   f"recording is {path}; open it where there is a display "
+                                   f"with 'rerun {path}', or write it to a file instead",
+                                   fix=("save",))
+
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(recording, "open_viewer", fails)
+    argv = calibrate_args(scene, work / "keep.json", "--view")
+    argv.remove("--quiet")
+    code = main([str(a) for a in argv])
+    cap = capfd.readouterr()
+    assert code == 0, cap.err
+    assert json.loads((work / "keep.json").read_text())["mirror"]["normal"]
+    assert "mirror normal" in cap.out.lower() or "normal" in cap.out
+    assert f"wrote {work / 'keep.json'}" in cap.out
+    warnings_ = [ln for ln in cap.err.splitlines() if ln.startswith("warning: Rerun")]
+    assert len(warnings_) == 1 and ".rrd" in warnings_[0] and "--view OUT.rrd" in warnings_[0]
+    assert "--save" not in cap.err and "error:" not in cap.err
