@@ -9,6 +9,10 @@ The suite fuzzes every reader and ``mirrorgraph calibrate``, one test module per
 * ``tests/test_fuzz_calibrate.py``: what the calibration makes of odd inputs (0 to 5
   people a frame, the factor graph, image sizes, degenerate geometry);
 * ``tests/cli/test_fuzz_cli.py``: the options of ``calibrate``;
+* ``tests/cli/test_fuzz_outputs.py``: the output paths of ``export``, ``view``, ``live``
+  and ``calibrate`` (missing folders, folders, FIFOs, devices, symbolic links, the input
+  itself, ``-``), damaged calibration JSONs (``export``, ``view``) and 3D joints files
+  (``view --joints3d``);
 * ``tests/test_fuzzing.py``: the plan below (every planned test exists, the total).
 
 Each test draws a small valid input (a 16-frame synthetic scene, COCO-17 or BODY_25) and,
@@ -58,8 +62,9 @@ from mirrorgraph.io import read_keypoints
 from mirrorgraph.metrics import normal_angle_deg
 from mirrorgraph.synth import make_scene, write_scene
 
-#: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (well under a minute
-#: on a 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20 + 8 + 80 = 2208.
+#: Generated examples per test. The suite runs TOTAL_EXAMPLES cases (about a minute on a
+#: 2-core machine): 400 + 250 + 250 + 350 + 350 + 120 + 150 + 150 + 60 + 20 + 20
+#: + 8 + 80 + 80 + 100 + 80 = 2468.
 EXAMPLES = {
     "mmpose": 400,
     "openpose": 250,
@@ -74,6 +79,9 @@ EXAMPLES = {
     "image_size_impossible": 20,
     "joints3d_without_refine": 8,
     "usage_errors": 80,
+    "output_paths": 80,
+    "calibration_json": 100,
+    "joints_npz": 80,
 }
 TOTAL_EXAMPLES = sum(EXAMPLES.values())
 
@@ -266,6 +274,7 @@ def run_cli(args: list[str], out: Path, capfd, *, prior: bytes | None):
     assert not caught, f"Python warning reached the user: {caught[0].message!r}"
     assert "Traceback" not in cap.err and "Traceback" not in cap.out
     assert "internal error" not in cap.err, cap.err
+    assert "Python warning" not in cap.err, cap.err      # the CLI's line for NumPy's warnings
     left = {n for n in set(os.listdir(out.parent)) - before if n.startswith(".")}
     assert not left, f"temporary files left behind: {left}"
     if code == 0:

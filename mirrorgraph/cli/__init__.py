@@ -14,7 +14,10 @@
 
 Every error that input can cause ends in one line ``error: ...`` on stderr and
 exit status 2 (1 for an unexpected internal error; ``--debug`` shows its
-traceback). No output file is written by a failed run.
+traceback): I/O errors (a full disk, a missing folder) and damaged archives
+included. Every output is checked before the work starts and moves into place at
+the end of the run (:func:`mirrorgraph.io.atomic.staged_outputs`): a failed run
+leaves the user's files as they were. Python's warnings are one ``warning:`` line.
 
 What a run says: its summary on stdout, each warning once on stderr (neither under
 ``--quiet``: the warnings stay in the JSON the run writes), progress bars on stderr only when it is a terminal
@@ -40,6 +43,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
+import zipfile
+import zlib
 from collections.abc import Collection
 
 from .._version import __version__
@@ -101,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     try:
         try:
-            return int(args.func(args) or 0)
+            return _run(args)
         finally:
             end_open_lines()           # an error printed next starts on a line of its own
     except MirrorgraphError as exc:
@@ -117,8 +123,17 @@ def main(argv: list[str] | None = None) -> int:
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as exc:   # a full disk, a quota, an I/O error: the file and the cause
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except (zipfile.BadZipFile, zlib.error) as exc:
+        print(f"error: a .npz file is damaged (not a complete zip archive: {exc})",
+              file=sys.stderr)
+        return EXIT_INPUT
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print("interrupted: nothing written (a run's files move into place at its end)",
+              file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - last line of defence of the CLI
         if getattr(args, "debug", False):
@@ -126,6 +141,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug and "
               "please report it)", file=sys.stderr)
         return EXIT_INTERNAL
+
+
+def _run(args) -> int:
+    """Run the command; Python's warnings (NumPy's on overflow or a division by zero)
+    never reach the terminal one by one: a run that raised them says so in one
+    ``warning:`` line (``--debug`` shows them all, where they were raised)."""
+    if getattr(args, "debug", False):
+        return int(args.func(args) or 0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)    # NumPy's floating-point ones
+        code = int(args.func(args) or 0)      # an error: its one line, not the warnings
+    if caught and not getattr(args, "quiet", False):
+        first = caught[0]
+        text = str(first.message).splitlines()[0] if str(first.message) else ""
+        print(f"warning: {len(caught)} Python warning{'s' * (len(caught) != 1)} (the first: "
+              f"{first.category.__name__}: {text}): a figure may be off; rerun with --debug "
+              "to see where, and please report it", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

@@ -23,7 +23,8 @@ from ..progress import Progress, SolveProgress
 
 __all__ = ["FLAGS", "add_common", "add_joints", "add_scale_from", "error_message", "floats",
            "height", "image_size", "options_from_args", "positive", "print_result", "printer",
-           "rate", "report_written", "seed", "solver_progress", "step", "warn"]
+           "rate", "report_written", "seed", "solver_progress", "staged_names", "step",
+           "warn"]
 
 
 #: The library's argument names -> the flags that give them (with a metavar where the flag
@@ -203,6 +204,14 @@ def report_written(written: dict, out) -> str:
     if "video" in written:
         text += f", and the overlay video {written['video']}"
     return text
+
+
+def staged_names(written: dict, folder, render=None) -> dict:
+    """The files a report wrote into its staging folder (:meth:`mirrorgraph.io.atomic.
+    Staging.folder`), named where they land: ``folder/<name>``, the video at ``render``."""
+    from pathlib import Path
+    return {k: Path(render) if k == "video" and render else Path(folder) / Path(p).name
+            for k, p in written.items()}
 
 
 @contextmanager

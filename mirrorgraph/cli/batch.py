@@ -7,11 +7,9 @@ recording was calibrated and 2 when any failed (or the manifest itself is bad).
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
-from pathlib import Path
-
-from ..errors import InputError
 from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
@@ -20,6 +18,14 @@ from .args import (add_joints, add_scale_from, height, image_size, options_from_
 from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_batch"]
+
+
+def _workers(text: str) -> int:
+    """``--workers``: a whole number of processes, at least 1."""
+    v = positive(text)
+    if v != int(v):
+        raise argparse.ArgumentTypeError(f"must be a whole number of workers, got {text!r}")
+    return int(v)
 
 
 def add_parsers(subparsers) -> None:
@@ -34,7 +40,7 @@ def add_parsers(subparsers) -> None:
     p.add_argument("manifest", help="CSV manifest, or folder of recording subfolders")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of an existing Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, metavar="N",
+    p.add_argument("--workers", type=_workers, metavar="N",
                    help="local worker processes (default: one per core)")
     p.add_argument("--out-dir", metavar="DIR",
                    help="folder for calibrations the manifest gives no 'out' for")
@@ -70,11 +76,12 @@ def cmd_batch(args) -> int:
     from ..batch import (BatchResult, default_workers, format_summary, read_manifest,
                          results_to_json, run_batch)
 
+    from ..io.atomic import check_outputs
+
+    check_outputs([(args.summary, "--summary"), (args.out_dir, "--out-dir")],
+                  inputs=[args.manifest], folders=("--out-dir",))
     recordings = read_manifest(args.manifest, out_dir=args.out_dir)
     opts = options_from_args(args)
-    if args.summary and Path(args.summary).is_dir():
-        raise InputError("is a folder; give a file name for the summary", source=args.summary,
-                         field="--summary")
 
     def report(res: BatchResult, done: int, total: int) -> None:
         if args.quiet:

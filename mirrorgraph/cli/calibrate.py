@@ -23,9 +23,10 @@ from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
 from .args import (add_common, add_joints, add_scale_from, height, image_size, options_from_args,
                    positive, print_result, printer, rate, report_written, seed, solver_progress,
-                   step, warn)
+                   staged_names, step, warn)
 from .commands import HELP
-from .video import add_video_options, describe, detect_with_progress, video_options
+from .video import (add_video_options, check_video, describe, detect_with_progress,
+                    video_options)
 from .view import add_view_option, check_view_option, view_after_run
 
 __all__ = ["add_parsers", "cmd_calibrate"]
@@ -110,9 +111,10 @@ def cmd_calibrate(args) -> int:
     from ..intrinsics import load_intrinsics
     from ..io import read_keypoints
     from ..io._common import is_video_input
+    from ..io.atomic import check_outputs, staged_outputs
     from ..io.motion import check_motion_path, write_joints3d
     from ..pipelines.mirror import calibrate
-    from ..report.store import write_calibration_and_run
+    from ..report.store import report_data_path, write_calibration_and_run
 
     say = printer(args)
     if Path(args.out).is_dir():
@@ -123,8 +125,8 @@ def cmd_calibrate(args) -> int:
     if args.report:
         from ..report import require_matplotlib
         require_matplotlib()          # fail before the long run, with the install hint
-    if args.video and not Path(args.video).is_file():
-        raise InputError("no such video file", source=args.video, field="--video")
+    if args.video:
+        check_video(args.video, "--video")
     if args.render and Path(args.render).suffix.lower() not in (".mp4", ".webm"):
         raise InputError("must end in .mp4 or .webm", source=args.render, field="--render")
     if args.joints3d and args.no_refine:
@@ -134,6 +136,12 @@ def cmd_calibrate(args) -> int:
     if args.view is not None and args.no_refine:
         raise InputError("needs the refinement's 3D joints: drop --no-refine", field="--view")
     check_view_option(args)
+    # every output before any work: a failed run leaves the user's files as they were
+    check_outputs([(args.out, "--out"), (report_data_path(args.out), "--out"),
+                   (args.joints3d, "--joints3d"), (args.view or None, "--view"),
+                   (args.report, "--report"), (args.render, "--render")],
+                  inputs=[args.keypoints, args.intrinsics, args.video],
+                  folders=("--report",))
     if args.sensitivity and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
@@ -144,6 +152,8 @@ def cmd_calibrate(args) -> int:
                          "--intrinsics, --fov or --no-refine", field="--principal-point")
     from_video = is_video_input(args.keypoints)
     vopts = video_options(args, has_video=from_video)
+    if from_video:
+        check_video(args.keypoints, "keypoints")
     intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     t0 = time.perf_counter()
     if from_video:
@@ -163,29 +173,34 @@ def cmd_calibrate(args) -> int:
     calib = run.calibration
     if args.joints3d and run.fps_source == "default":
         calib.warnings.append(DEFAULT_FPS_WARNING)
-    write_calibration_and_run(args.out, run)     # with the run its report draws from
-    if args.joints3d:
-        if run.joints3d is None:
-            raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
-        write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
-                       run.paired.skeleton.joints, run.fps,
-                       unit="m" if calib.distance is not None else "mirror distance",
-                       joints_std=run.joints_std)
-    report_line = None
-    if args.report:
-        from ..report import make_report
-        written = make_report(run, args.report, video=args.video, render=args.render,
-                              progress=lambda s: step(args, s), progress_bar=not args.quiet,
-                              warn=lambda line: warn(args, [line]))
-        report_line = report_written(written, args.report)
-    view_line = None
+    if args.joints3d and run.joints3d is None:
+        raise InputError("needs the refinement: drop --no-refine", field="--joints3d")
+    scene = None
     if args.view is not None:
         from ..viewer.scene import scene_from_calibration
         scene = scene_from_calibration(calib, joints3d=run.joints3d, valid=run.valid3d,
                                        frame_ids=run.paired.frame_ids,
                                        joint_names=run.paired.skeleton.joints, fps=run.fps,
                                        keypoints=(run.paired.real, run.paired.mirror))
-        view_line = view_after_run(args, scene, video=args.video)
+    report_line = view_line = None
+    with staged_outputs() as stage:              # every file moves into place at the end
+        write_calibration_and_run(args.out, run)     # with the run its report draws from
+        if args.joints3d:
+            write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
+                           run.paired.skeleton.joints, run.fps,
+                           unit="m" if calib.distance is not None else "mirror distance",
+                           joints_std=run.joints_std)
+        if args.report:
+            from ..report import make_report
+            written = make_report(run, stage.folder(args.report), video=args.video,
+                                  render=stage.file(args.render) if args.render else None,
+                                  progress=lambda s: step(args, s),
+                                  progress_bar=not args.quiet,
+                                  warn=lambda line: warn(args, [line]))
+            report_line = report_written(staged_names(written, args.report, args.render),
+                                         args.report)
+        if args.view:                            # a recording to a file: one more output
+            view_line = view_after_run(args, scene, video=args.video)
     print_result(args, calib.summary(), calib.warnings)
     if args.verbose and not args.quiet:
         print("timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in run.timings.items()),
@@ -195,6 +210,10 @@ def cmd_calibrate(args) -> int:
     if view_line:
         say(view_line)
     say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
+    if args.view == "":                          # the viewer, once the files are in place
+        view_line = view_after_run(args, scene, video=args.video)
+        if view_line:
+            say(view_line)
     return 0
 
 

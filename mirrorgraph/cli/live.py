@@ -34,7 +34,9 @@ def add_parsers(sub) -> None:
     p.add_argument("source", help="camera index, video file, or keypoints (MMPose .json, "
                                   "OpenPose / EasyMocap folder, paired .npz)")
     p.add_argument("--jsonl", required=True, metavar="OUT.jsonl",
-                   help="JSON-lines file: one line per frame, written as the frames arrive")
+                   help="JSON-lines file: one line per frame, written as the frames arrive "
+                        "(an existing file is replaced; after Ctrl-C it holds every frame "
+                        "done, each line complete); '-' writes to standard output")
     p.add_argument("--intrinsics", help="camera intrinsics (as calibrate reads them)")
     p.add_argument("--camera", metavar="NAME",
                    help="camera (section or name) to read from a TOML with several cameras")
@@ -72,22 +74,29 @@ def add_parsers(sub) -> None:
 
 
 def cmd_live(args) -> int:
+    import sys
+
     from ..intrinsics import load_intrinsics
+    from ..io.atomic import check_outputs
     from ..live import LiveOptions
     from ..live.sources import is_camera, open_source
     from ..live.stream import check_view, run_live
     from ..pipelines.options import CalibrateOptions
 
-    say = printer(args)
-    if Path(args.jsonl).is_dir():
-        raise InputError("is a folder; give a file name", source=args.jsonl, field="--jsonl")
+    to_stdout = args.jsonl == "-"
+    # the summary goes where the JSON lines do not
+    say = printer(args) if not to_stdout else \
+        (lambda *a, **k: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     if args.camera and not args.intrinsics:
         raise InputError("needs --intrinsics FILE.toml", field="--camera")
     check_view(args.view)
-    intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     camera = is_camera(args.source)
     if not camera and not Path(args.source).exists():
         raise InputError("no such file or folder (nor a camera index)", source=args.source)
+    check_outputs([(args.jsonl, "--jsonl"), (args.view or None, "--view")],
+                  inputs=[None if camera else args.source, args.intrinsics],
+                  stdout_ok=("--jsonl",))
+    intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     source = open_source(args.source, skeleton=args.skeleton, fps=args.fps,
                          realtime=not args.as_fast_as_possible)
     if intr is None and args.image_size is None and source.image_size is None:
@@ -113,6 +122,14 @@ def cmd_live(args) -> int:
                 f"{m.status}, std {m.rotation_std_deg:.2f} deg"
             bar.update(info=info)
         summary = run_live(source, intr, opts, args.jsonl, view=args.view, on_frame=on_frame)
+    where = "standard output" if to_stdout else args.jsonl
     say(summary.describe())
-    say(f"wrote {summary.frames} lines to {args.jsonl}")
+    if summary.interrupted:
+        print(f"interrupted after {summary.lines} frames: {where} holds their "
+              f"{summary.lines} lines, each complete", file=sys.stderr)
+        return 130
+    say(f"wrote {summary.lines} lines to {where}")
+    if summary.no_mirror is not None:
+        raise InputError(f"no mirror found: {summary.no_mirror}",
+                         source=None if camera else args.source)
     return 0

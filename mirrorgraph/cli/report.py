@@ -6,13 +6,15 @@ Pose2Sim or aniposelib (:mod:`mirrorgraph.export`).
 
 from __future__ import annotations
 
+from pathlib import Path
 
 from ..errors import InputError
 from ..export import FORMATS, WORLD_FRAMES
-from .args import add_common, printer, report_written, solver_progress, step, warn
+from .args import (add_common, printer, report_written, solver_progress, staged_names, step,
+                   warn)
 from .commands import HELP
 
-__all__ = ["add_parsers", "cmd_export", "cmd_report"]
+__all__ = ["add_parsers", "check_schema", "cmd_export", "cmd_report"]
 
 
 def add_parsers(sub) -> None:
@@ -51,29 +53,51 @@ def _add_report(sub) -> None:
     p.set_defaults(func=cmd_report)
 
 
+def check_schema(path) -> dict:
+    """The calibration JSON at ``path``, parsed, if this version reads its schema
+    (:func:`mirrorgraph.io.calibration.read_calibration_document`)."""
+    from ..io.calibration import read_calibration_document
+    from ..result.mirror import SCHEMA_VERSION
+
+    return read_calibration_document(path, SCHEMA_VERSION)
+
+
 def _rig_document(path):
     """The rig JSON at ``path`` as a :class:`~mirrorgraph.result.rig.RigCalibration`, or
     ``None`` where it is a single mirror's ``calibration.json``."""
-    from ..io._common import load_json
     from ..result.rig import is_rig_document, read_rig_calibration
 
-    return read_rig_calibration(path) if is_rig_document(load_json(path)) else None
+    return read_rig_calibration(path) if is_rig_document(check_schema(path)) else None
 
 
 def cmd_report(args) -> int:
+    from ..io.atomic import check_outputs, staged_outputs
     from ..report import load_run, make_report, require_matplotlib
+    from .video import check_video
 
     require_matplotlib()
     rig = _rig_document(args.calibration)
+    check_outputs([(args.out, "--out"), (args.render, "--render")],
+                  inputs=[args.calibration, args.keypoints, args.video], folders=("--out",))
     if rig is not None:             # a rig's JSON: its figures (the JSON holds no 3D joints)
         from ..report.rig import write_rig_report
 
         if args.keypoints or args.video or args.render or args.recompute:
             raise InputError("a rig's report is drawn from its JSON alone: no keypoints, "
                              "--video, --render or --recompute", field="calibration")
-        out = write_rig_report(rig, args.out, progress_bar=not args.quiet)
+        with staged_outputs() as stage:
+            out = write_rig_report(rig, stage.folder(args.out), progress_bar=not args.quiet)
         printer(args)(report_written({p.stem: p for p in out}, args.out))
         return 0
+    if args.render and not args.video:
+        raise InputError("needs --video FILE to draw on", field="--render")
+    if args.render and Path(args.render).suffix.lower() not in (".mp4", ".webm"):
+        raise InputError("must end in .mp4 or .webm", source=args.render, field="--render")
+    if args.frames < 1:
+        raise InputError(f"must be a positive number of frames, got {args.frames}",
+                         field="--frames")
+    if args.video:
+        check_video(args.video, "--video")
     say = printer(args)
     with solver_progress(args) as callbacks:
         loaded = load_run(args.calibration, args.keypoints,
@@ -84,10 +108,12 @@ def cmd_report(args) -> int:
     if loaded.origin == "stored" and args.keypoints is not None:
         note = f" ({args.keypoints} not read; --recompute calibrates it again)"
     say(loaded.message + note)
-    out = make_report(loaded.run, args.out, video=args.video, render=args.render,
-                      max_frames=args.frames, progress=lambda s: step(args, s),
-                      progress_bar=not args.quiet, warn=lambda line: warn(args, [line]))
-    say(report_written(out, args.out))
+    with staged_outputs() as stage:              # every file moves into place at the end
+        out = make_report(loaded.run, stage.folder(args.out), video=args.video,
+                          render=stage.file(args.render) if args.render else None,
+                          max_frames=args.frames, progress=lambda s: step(args, s),
+                          progress_bar=not args.quiet, warn=lambda line: warn(args, [line]))
+    say(report_written(staged_names(out, args.out, args.render), args.out))
     return 0
 
 
@@ -115,7 +141,10 @@ def _add_export(sub) -> None:
 
 def cmd_export(args) -> int:
     from ..export import camera_sections, export_calibration
+    from ..io.atomic import check_output
 
+    check_schema(args.calibration)
+    check_output(args.out, field="out", inputs=[args.calibration])
     warnings = export_calibration(args.calibration, args.fmt, args.out, world=args.world)
     warn(args, warnings)
     if _rig_document(args.calibration) is not None:

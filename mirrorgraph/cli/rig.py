@@ -96,6 +96,7 @@ def add_parsers(sub) -> None:
 
 
 def cmd_calibrate_rig(args) -> int:
+    from ..io.atomic import check_outputs, staged_outputs
     from ..io.motion import check_motion_path, write_joints3d
     from ..export import write_rig_toml
     from ..result.rig import write_rig_json
@@ -122,6 +123,13 @@ def cmd_calibrate_rig(args) -> int:
     from ..rigs.config import load_rig_config
     from ..video.reader import is_video
     config = load_rig_config(args.rig)
+    # every output before any work: a failed run leaves the user's files as they were
+    inputs = [args.rig] + [c.keypoints for c in config.cameras] + \
+        [getattr(c, "intrinsics", None) for c in config.cameras]
+    check_outputs([(out, "--out"), (json_path, "--json"), (args.joints3d, "--joints3d"),
+                   (args.view or None, "--view"), (args.report, "--report")],
+                  inputs=[i for i in inputs if isinstance(i, (str, Path))],
+                  folders=("--report",))
     vopts = video_options(args, has_video=any(is_video(c.keypoints) for c in config.cameras))
     bars: dict[str, Progress] = {}
 
@@ -157,28 +165,36 @@ def cmd_calibrate_rig(args) -> int:
         bar.close(solve.info or None)
     if args.joints3d:
         check_motion_path(args.joints3d, metric=calib.scale == "subject_height")
-    write_rig_toml(calib, out, with_virtual=args.with_virtual)
-    write_rig_json(calib, json_path)
-    if args.joints3d:
-        from ..skeletons import skeleton_by_name
-        write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
-                       skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
-                       unit="m" if calib.scale == "subject_height" else "subject height",
-                       joints_std=calib.joints_std)
-    written = None
-    if args.report:
-        from ..report.rig import write_rig_report
-        written = write_rig_report(calib, args.report, progress_bar=not args.quiet)
-    view_line = None
+    scene = None
     if args.view is not None:
         from ..viewer.scene import scene_from_rig
-        view_line = view_after_run(args, scene_from_rig(calib, fps=args.fps))
+        scene = scene_from_rig(calib, fps=args.fps)
+    written = view_line = None
+    with staged_outputs() as stage:              # every file moves into place at the end
+        write_rig_toml(calib, out, with_virtual=args.with_virtual)
+        write_rig_json(calib, json_path)
+        if args.joints3d:
+            from ..skeletons import skeleton_by_name
+            write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
+                           skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
+                           unit="m" if calib.scale == "subject_height" else "subject height",
+                           joints_std=calib.joints_std)
+        if args.report:
+            from ..report.rig import write_rig_report
+            written = write_rig_report(calib, stage.folder(args.report),
+                                       progress_bar=not args.quiet)
+        if args.view:                            # a recording to a file: one more output
+            view_line = view_after_run(args, scene)
     print_result(args, calib.summary(), calib.warnings)
     if view_line:
         say(view_line)
     if written is not None:
         say(f"wrote {len(written)} figure{'s' * (len(written) != 1)} to {args.report}")
     say(f"wrote {out} and {json_path} in {time.perf_counter() - t0:.2f} s")
+    if args.view == "":                          # the viewer, once the files are in place
+        view_line = view_after_run(args, scene)
+        if view_line:
+            say(view_line)
     return 0
 
 

@@ -80,6 +80,9 @@ def video_options(args, *, has_video: bool = True):
                          field="--det-model" if args.det_model is None else "--pose-model")
     if args.end is not None and args.end <= args.start:
         raise InputError(f"must be after --start ({args.start})", field="--end")
+    if args.cache_dir is not None:
+        from ..io.atomic import check_output
+        check_output(args.cache_dir, field="--cache-dir", folder=True)
     if not has_video:
         return None
     from ..video.detect import VideoOptions
@@ -88,6 +91,31 @@ def video_options(args, *, has_video: bool = True):
                         det_model=Path(args.det_model) if args.det_model else None,
                         cache=not args.no_cache,
                         cache_dir=Path(args.cache_dir) if args.cache_dir else None)
+
+
+def check_video(path, field: str) -> None:
+    """Refuse, before any work, a ``--video`` that is no video: missing, a folder, a file
+    OpenCV cannot open (its FFmpeg lines silenced), or a single image under a video's
+    name. One line each (:class:`InputError`)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a folder, not a video file", source=p, field=field)
+    if not p.exists():
+        raise InputError("no such video file", source=p, field=field)
+    if not p.is_file():
+        raise InputError("is not a regular file (a FIFO or a device?), not a video file",
+                         source=p, field=field)
+    try:
+        from ..video.reader import frames
+    except ImportError:                     # OpenCV missing: the reader says so later
+        return
+    try:
+        read = sum(1 for _ in zip(range(2), frames(p)))
+    except InputError as exc:
+        raise InputError(exc.reason, source=p, field=field) from None
+    if read < 2:
+        raise InputError("holds a single image, not a video" if read else
+                         "holds no frame that can be read", source=p, field=field)
 
 
 def describe(det) -> str:
@@ -148,7 +176,11 @@ def cmd_detect(args) -> int:
     if args.fmt == "openpose" and out.exists() and not out.is_dir():
         raise InputError("is a file; --format openpose writes a folder", source=out,
                          field="--out")
+    from ..io.atomic import check_outputs
+    check_outputs([(out, "--out")], inputs=[args.video],
+                  folders=("--out",) if args.fmt == "openpose" else ())
     opts = video_options(args)
+    check_video(args.video, "video")
     t0 = time.perf_counter()
     det = detect_with_progress(args.video, opts, quiet=args.quiet)
     write_keypoints(det.to_raw(), out, args.fmt, track_ids=det.track_ids, meta=True)

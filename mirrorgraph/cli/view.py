@@ -6,10 +6,12 @@ over :mod:`mirrorgraph.viewer` (the ``view`` extra).
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 from ..errors import InputError
-from .args import add_common, positive, printer
+from .args import add_common, positive, printer, warn
 from .commands import HELP
 
 __all__ = ["add_parsers", "add_view_option", "cmd_view", "check_view_option", "view_after_run"]
@@ -51,7 +53,11 @@ def _check_save(path) -> None:
 def cmd_view(args) -> int:
     from ..viewer.files import view_file
 
+    from ..io.atomic import check_outputs
+
     _check_save(args.save)
+    check_outputs([(args.save, "--save")],
+                  inputs=[args.calibration, args.joints3d, args.video])
     out = view_file(args.calibration, joints3d=args.joints3d, video=args.video, save=args.save,
                     fps=args.fps, max_video_frames=args.max_video_frames)
     printer(args)(_written(out, args.save))
@@ -71,8 +77,16 @@ def add_view_option(p) -> None:
                         "write that recording instead (needs the view extra)")
 
 
+def has_display() -> bool:
+    """Whether a window can open: anywhere but on Linux without ``DISPLAY`` or
+    ``WAYLAND_DISPLAY``."""
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY")
+                                                        or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def check_view_option(args) -> None:
-    """Fail before the long run: a bad ``--view`` file name or the Rerun SDK missing."""
+    """Fail before the long run: a bad ``--view`` file name, the Rerun SDK missing, or
+    the viewer asked for where no window can open (``--view OUT.rrd`` is the way)."""
     if args.view is None:
         return
     if args.view:
@@ -81,11 +95,26 @@ def check_view_option(args) -> None:
                              field="--view")
     from ..viewer.recording import require_rerun
     require_rerun()
+    if not args.view and not has_display():
+        raise InputError("Rerun's viewer needs a display (neither DISPLAY nor WAYLAND_DISPLAY "
+                         "is set): give --view OUT.rrd to write the recording instead, and "
+                         "open it where there is a display with 'rerun OUT.rrd'",
+                         field="--view")
 
 
-def view_after_run(args, scene, video=None) -> str:
-    """Record ``scene`` as ``--view`` asks; returns the line naming what was written."""
+def view_after_run(args, scene, video=None) -> str | None:
+    """Record ``scene`` as ``--view`` asks; returns the line naming what was written.
+
+    A viewer that does not open after the run (the calibration and its files are
+    written by then) is a warning naming the recording, not an error."""
     from ..viewer.recording import record
 
-    out = record(scene, save=args.view or None, video=video)
+    try:
+        out = record(scene, save=args.view or None, video=video)
+    except InputError as exc:
+        if args.view:
+            raise
+        warn(args, [f"{exc.reason}; or give --view OUT.rrd to write the recording"
+                    .replace(", or write it to a file instead", "")])
+        return None
     return _written(out, args.view)

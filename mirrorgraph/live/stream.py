@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -65,10 +67,15 @@ class LiveView:
 
         rr = self.rr = require_rerun()
         self.rec = rr.RecordingStream("mirrorgraph-live")
-        if save:
-            self.rec.save(str(save))
-        else:
-            self.rec.spawn()
+        try:
+            if save:
+                self.rec.save(str(save))
+            else:
+                self.rec.spawn()
+        except Exception as exc:  # noqa: BLE001 - Rerun raises RuntimeError and others
+            raise InputError(f"Rerun could not {'write' if save else 'start its viewer'}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
+                             source=save, field="--view") from None
         self.skeleton = skeleton
         names = skeleton.joints
         idx = {n: i for i, n in enumerate(names)}
@@ -99,7 +106,12 @@ class LiveView:
 
 @dataclass
 class LiveSummary:
-    """What a live run did: the final mirror, counts, timings."""
+    """What a live run did: the final mirror, counts, timings.
+
+    ``lines``: the JSON lines written, one a frame, each complete; ``interrupted``: the run
+    stopped on Ctrl-C (``KeyboardInterrupt``) after those; ``no_mirror``: why no mirror
+    was found (``None`` where one was), in words.
+    """
 
     mirror: LiveMirror
     counts: dict
@@ -109,6 +121,9 @@ class LiveSummary:
     first_calibrated_time: float | None
     latency_ms: dict = field(default_factory=dict)
     source_stats: dict = field(default_factory=dict)
+    lines: int = 0
+    interrupted: bool = False
+    no_mirror: str | None = None
 
     def describe(self) -> str:
         m = self.mirror
@@ -143,16 +158,68 @@ class LiveSummary:
 LATENCY_KEEP = 10000
 
 
+def _no_mirror(live: LiveCalibrator, people: dict[int, int]) -> str | None:
+    """Why the stream gave no mirror, in words (``None`` where it gave one); ``people``:
+    how many frames had 0, 1 and 2 or more people."""
+    if live.mirror.normal is not None:
+        return None
+    c = live.counts
+    if c["frames"] == 0:
+        return "the source gave no frame"
+    if c["skipped"] >= c["frames"]:
+        by = ", ".join(f"{n} {r}" for r, n in sorted(c["skipped_by_reason"].items()))
+        return f"every frame of {c['frames']} was skipped as bad input ({by})"
+    if people.get(2, 0) == 0:
+        return (f"no frame of {c['frames']} holds two people, the person and their "
+                f"reflection ({people.get(0, 0)} with nobody, {people.get(1, 0)} with one "
+                "person)")
+    failed = [w for w in live.window_log if w["result"] != "fused" and w["reason"]]
+    if failed:
+        return (f"every window's solve failed ({c['windows_failed']} failed, "
+                f"{c['windows_rejected']} rejected); the last: {failed[-1]['reason']}")
+    return (f"{c['frames']} frames gave no mirror ({c['windows_failed']} windows failed, "
+            f"{c['windows_rejected']} rejected, {c['buffered']} frames buffered)")
+
+
+@contextmanager
+def _sigint_ignored():
+    """SIGINT ignored for a moment (the main thread only; elsewhere nothing changes)."""
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:                    # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _start_worker(live: LiveCalibrator) -> None:
+    """Start the background worker with SIGINT ignored: a process spawned so inherits
+    the disposition, and Ctrl-C stops the main process alone (one line, no worker
+    traceback); the main process stops the worker (:meth:`LiveCalibrator.close`)."""
+    if not live.options.background:
+        return
+    with _sigint_ignored():           # the pool starts its process in submit: no wait
+        live._executor().submit(os.getpid)
+
+
 def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.PathLike,
              *, view: str | None = None, on_frame=None) -> LiveSummary:
     """Run a source through :class:`LiveCalibrator`, a JSON line per frame.
+
+    The JSON-lines file is opened (an existing file replaced: the stream is written
+    where it can be followed, not staged) when the first frame comes; ``"-"`` writes
+    to standard output. Ctrl-C ends the run with :attr:`LiveSummary.interrupted` set:
+    the file then holds every frame done, each a complete line.
 
     Args:
         source: :func:`~.sources.open_source`.
         intrinsics: :class:`~mirrorgraph.intrinsics.Intrinsics` or ``None``.
         options: :class:`LiveOptions` (its ``calibrate.image_size`` is filled from the
             source where missing).
-        jsonl: the file to write (one line per frame, flushed as it goes).
+        jsonl: the file to write (one line per frame, flushed as it goes), or ``"-"``.
         view: ``None`` (no viewer), ``""`` (Rerun's live viewer) or an ``.rrd`` path.
         on_frame: ``on_frame(LiveFrame)`` after each frame (progress).
 
@@ -170,17 +237,29 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
         options = replace(options, fps=float(source.fps))
     options = replace(options, calibrate=copts)
     live = LiveCalibrator(source.skeleton, intrinsics, options)
-    viewer = LiveView(source.skeleton, view or None) if view is not None else None
     latencies: list[float] = []
     first = (None, None)
+    interrupted = False
+    lines = 0
+    people: dict[int, int] = {}
+    viewer = None
     clock = time.perf_counter()
-    out = Path(jsonl)
+    to_stdout = os.fspath(jsonl) == "-"
     try:
-        with open(out, "w", encoding="utf-8") as fh:
+        _start_worker(live)
+        viewer = LiveView(source.skeleton, view or None) if view is not None else None
+        fh = sys.stdout if to_stdout else open(Path(jsonl), "w", encoding="utf-8")
+        try:
             for sf in source.frames:
                 frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
+                try:
+                    n = min(len(sf.people), 2)
+                except TypeError:
+                    n = 0
+                people[n] = people.get(n, 0) + 1
                 fh.write(json.dumps(frame.to_dict(), allow_nan=False) + "\n")
                 fh.flush()
+                lines += 1
                 latencies.append(frame.latency_s)
                 if len(latencies) > 2 * LATENCY_KEEP:
                     del latencies[:LATENCY_KEEP]
@@ -190,7 +269,12 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
                     viewer.log(frame)
                 if on_frame is not None:
                     on_frame(frame)
-            mirror = live.finish()
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            if not to_stdout:
+                fh.close()
+        mirror = live.mirror if interrupted else live.finish()
     finally:
         live.close()
         if viewer is not None:
@@ -201,4 +285,5 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
     return LiveSummary(mirror=mirror, counts=live.counts, frames=live.frames,
                        seconds=time.perf_counter() - clock, first_calibrated_frame=first[0],
                        first_calibrated_time=first[1], latency_ms=q,
-                       source_stats=dict(source.stats))
+                       source_stats=dict(source.stats), lines=lines, interrupted=interrupted,
+                       no_mirror=None if interrupted else _no_mirror(live, people))

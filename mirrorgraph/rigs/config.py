@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
+from ..anthropometry import height_problem
 from ..errors import InputError
 from ..intrinsics import check_size
 from ..joint_sets import JOINT_SETS
@@ -130,11 +131,25 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
     cameras: list[CameraEntry] = []
     for i, c in enumerate(cams_doc):
         cameras.append(_camera_entry(c, f"cameras[{i}]", path, mirror_names, cameras))
+    for i, e in enumerate(cameras):
+        for other in cameras[:i]:
+            try:
+                same = os.path.samefile(e.keypoints, other.keypoints)
+            except OSError:
+                same = False
+            if same:
+                raise InputError(f"cameras {other.name} and {e.name} read the same keypoints "
+                                 f"({e.keypoints}): one camera's observations twice; give "
+                                 f"{e.name} its own", source=path, field=f"cameras[{i}].keypoints")
     seen_mirrors = {m for e in cameras for m in e.mirrors}
     unused = [m for m in mirror_names if m not in seen_mirrors]
     if unused:
         raise InputError(f"mirror(s) {', '.join(unused)} seen by no camera (add them to a "
                          "camera's mirrors list)", source=path, field="mirrors")
+    if sum(1 + len(e.mirrors) for e in cameras) < 2:
+        raise InputError("one camera and no mirror: one view of the person, nothing to "
+                         "calibrate (add a camera, or the mirror the camera sees to its "
+                         "mirrors list)", source=path, field="cameras")
     skeletons = {e.skeleton for e in cameras if e.skeleton is not None}
     if len(skeletons) > 1:
         raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
@@ -160,10 +175,11 @@ def _rig_settings(doc: dict, path: Path) -> tuple[str | tuple[str, ...] | None, 
 
     height = doc.get("subject_height")
     if height is not None:
-        if isinstance(height, bool) or not isinstance(height, (int, float)) \
-                or not 0.3 < float(height) < 3.0:
-            raise InputError("must be a height in metres between 0.3 and 3",
-                             source=path, field="subject_height")
+        if isinstance(height, bool) or not isinstance(height, (int, float)):
+            raise InputError("must be a height in metres", source=path, field="subject_height")
+        problem = height_problem(float(height))      # the range of --subject-height
+        if problem is not None:
+            raise InputError(problem, source=path, field="subject_height")
         height = float(height)
     return joints, height
 

@@ -62,7 +62,7 @@ from ..io import read_keypoints
 from ..keypoints import PairedKeypoints, RawDetections
 from ..initial.pair_candidates import PairingOptions
 from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, paired_people
-from ..preprocess import check_image_size, undistort_keypoints
+from ..preprocess import check_image_size, fraction_outside, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
@@ -139,6 +139,11 @@ class RigObservations:
     warnings: list[str] = field(default_factory=list)
 
 
+#: The share of a camera's keypoints outside its image (enlarged by 10 % each side) above
+#: which a warning says so; above half the rig is refused (:func:`check_image_size`).
+OUTSIDE_WARNING = 0.10
+
+
 def _intrinsics(entry: CameraEntry, data, warnings: list[str],
                 estimate_focal: bool = True, fov_deg: float | None = None) -> Intrinsics:
     if entry.intrinsics is not None:
@@ -159,6 +164,13 @@ def _intrinsics(entry: CameraEntry, data, warnings: list[str],
             warnings.append(f"camera {entry.name}: no intrinsics given, assumed a "
                             f"{fov:g} deg field of view")
     check_image_size(data, intr, warnings)
+    if intr.image_size is not None:
+        frac = fraction_outside(data, intr.image_size)
+        if frac > OUTSIDE_WARNING:                  # refused above half (check_image_size)
+            w, h = intr.image_size
+            warnings.append(f"camera {entry.name}: {100 * frac:.0f}% of its keypoints lie "
+                            f"outside its {w}x{h} image: are the keypoints and the "
+                            "intrinsics in the same pixels?")
     mismatch = _size_mismatch(entry, data, intr)
     if mismatch:
         warnings.append(mismatch)
@@ -421,6 +433,45 @@ def _read_camera(entry: CameraEntry, skeleton, video, frame_progress):
     return read_keypoints(entry.keypoints, skeleton=skeleton, progress=on_frame, video=video)
 
 
+def _refuse_duplicates(config: RigConfig, read: list) -> None:
+    """Refuse two cameras whose keypoints are identical (the same frames, the same people
+    to the last digit): one camera's observations read twice put the second camera at
+    the first's place, with confident stds.
+
+    Raises:
+        InputError: naming both cameras.
+    """
+    import hashlib
+
+    seen: dict[str, str] = {}
+    for entry, data in zip(config.cameras, read):
+        h = hashlib.sha1(np.asarray(data.frame_ids, np.int64).tobytes())
+        for p in data.people:
+            a = np.ascontiguousarray(np.asarray(p, float))
+            h.update(str(a.shape).encode())
+            h.update(a.tobytes())
+        key = h.hexdigest()
+        if key in seen:
+            raise InputError(f"cameras {seen[key]} and {entry.name} read identical keypoints "
+                             "(the same frames and people): one camera's observations "
+                             f"twice; give {entry.name} its own keypoints",
+                             source=config.source, field="cameras")
+        seen[key] = entry.name
+
+
+def _refuse_disjoint(per_camera: list, config: RigConfig) -> None:
+    """Refuse a camera whose frames (after its ``frame_offset``) share none with the first
+    camera's: nothing is seen at once, whatever the people."""
+    ref_entry, _, ref_frames, *_ = per_camera[0]
+    for entry, _, frames, *_ in per_camera[1:]:
+        if len(frames) and len(ref_frames) and not np.intersect1d(frames, ref_frames).size:
+            raise InputError(f"camera {entry.name}'s frames {int(frames.min())}.."
+                             f"{int(frames.max())} (after its frame_offset "
+                             f"{entry.frame_offset}) share none with camera {ref_entry.name}'s "
+                             f"{int(ref_frames.min())}..{int(ref_frames.max())}: check "
+                             "frame_offset", source=config.source, field="frame_offset")
+
+
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
@@ -451,6 +502,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     warnings: list[str] = []
     per_camera, fps = [], None
     read = _read_cameras(config, skeleton, progress, video, frame_progress)
+    _refuse_duplicates(config, read)
     layouts = [data.skeleton for data in read]
     names = {s.name for s in layouts}
     if len(names) > 1:
@@ -465,6 +517,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
         per_camera.append((entry, intr, frames, sorting, data.source))
         fps = fps or data.fps
+    _refuse_disjoint(per_camera, config)
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
     rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]
