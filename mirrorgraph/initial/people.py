@@ -1,0 +1,352 @@
+"""Every person before one mirror paired with their own reflection, and followed over time.
+
+Where several people stand before a mirror (a gym, a dance studio) each of them pairs
+with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a frame.
+:func:`pair_people` keeps them all:
+
+1. **The mirror's epipole** from every candidate pair of detections
+   (:func:`~.pairing.pair_candidates`, the reflective RANSAC over their lines): with
+   ``P`` people and their reflections a frame offers ``P`` true pairs among
+   ``2P (2P - 1) / 2`` candidates, enough for a RANSAC of two lines. People standing
+   side by side offer a false epipole (the lines joining them meet near the horizon):
+   of a few RANSAC runs the epipole under which most candidates pair is kept.
+2. **Each person with their own reflection, per frame.** Against the epipole a valid
+   candidate (median epipolar distance under the threshold) has a person (the detection
+   farther from the epipole) and a reflection (:func:`~.pair_candidates.b_is_reflection_of`);
+   a person's reflection is the detection whose joints lie on the epipolar lines through
+   theirs. Per frame the pairs are a bipartite assignment of persons to reflections
+   minimising the summed epipolar distances (:func:`scipy.optimize.linear_sum_assignment`;
+   invalid pairs cost more than any valid one and are dropped); a detection that comes
+   out as the person of one pair and the reflection of another keeps the better pair.
+3. **Tracks.** Pairs are linked frame to frame to the tracks last seen at most
+   ``max_gap`` frames before (frame numbers, not rows: frames far apart are never
+   assumed continuous) by a second assignment whose cost is the larger of the two views'
+   median joint displacement, relative to the track's size in the image (a person
+   crossing another in the direct view is still told apart in the reflection); a pair
+   further than ``gate_frame`` a frame unseen (at most ``gate``) from every track
+   starts a new one. Tracks of fewer than
+   ``min_frames`` frames are left out (their pairs are counted).
+
+The people come out side by side in one :class:`~mirrorgraph.keypoints.PairedKeypoints`
+of the layout :func:`~mirrorgraph.skeletons.people_skeleton` (person ``p``'s joint ``j``
+is column ``p * J + j``), ordered by their first frame, so that the one graph holds each
+person's own joints and bone lengths (:func:`split_people` takes them apart again).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..errors import DegenerateGeometryError
+from ..keypoints import PairedKeypoints, RawDetections
+from ..skeletons import Skeleton, people_skeleton
+from .pair_candidates import PairingOptions
+from .pairing import PairCandidates, pair_candidates
+
+__all__ = ["PeopleOptions", "PeoplePairing", "assign_pairs", "pair_people", "split_people",
+           "track_pairs"]
+
+
+@dataclass(frozen=True)
+class PeopleOptions:
+    """Options of :func:`pair_people` beyond the pairing's own.
+
+    Attributes:
+        max_detections: detections considered per frame (most confident first): at
+            least twice the people before the mirror.
+        ransac_candidates: candidate pairs the epipole's RANSAC samples its lines from
+            (frames evenly spread until about this many).
+        max_gap: frames a track may go unseen and still continue (frame numbers).
+        gate: largest displacement, relative to the person's size in the image, of a
+            pair continuing a track.
+        gate_frame: largest relative displacement a frame (a track unseen for ``g``
+            frames continues within ``min(gate, gate_frame (1 + g))``): people who
+            come near each other are not taken for one another.
+        min_frames: fewest frames a track needs to be kept.
+        epipole_attempts: RANSAC runs for the epipole (seeds ``seed + 7919 k``); the one
+            under which most candidates pair is kept.
+    """
+
+    max_detections: int = 24
+    ransac_candidates: int = 8000
+    max_gap: int = 60
+    gate: float = 0.35
+    gate_frame: float = 0.04
+    min_frames: int = 10
+    epipole_attempts: int = 3
+
+
+@dataclass
+class PeoplePairing:
+    """Every person with their reflection, tracked (:func:`pair_people`).
+
+    Attributes:
+        paired: person and reflection of every kept track side by side, layout
+            :func:`~mirrorgraph.skeletons.people_skeleton` of ``base`` (``(T, P J, 3)``).
+        base: one person's layout.
+        detections: ``(T, P, 2)`` int, the person's and the reflection's detection
+            index in ``raw.people[t]`` of each kept track (-1: not seen).
+        epipole: ``(3,)`` homogeneous epipole, pixels.
+        pairs_per_frame: ``(T,)`` pairs found per frame (before tracking).
+        tracks_found: tracks before leaving out the short ones.
+        pairs_left_out: pairs of the tracks left out.
+    """
+
+    paired: PairedKeypoints
+    base: Skeleton
+    detections: np.ndarray
+    epipole: np.ndarray
+    pairs_per_frame: np.ndarray
+    tracks_found: int
+    pairs_left_out: int
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def num_people(self) -> int:
+        """``P``, the people kept."""
+        return int(self.detections.shape[1])
+
+
+def assign_pairs(cands: PairCandidates, threshold_px: float) -> list[np.ndarray]:
+    """Per frame, the candidate of each person's pair (step 2 of the module docstring).
+
+    Args:
+        cands: :func:`~.pairing.pair_candidates` with one epipole.
+        threshold_px: the largest median epipolar distance of a pair.
+
+    Returns:
+        ``T`` int arrays of candidate indices into ``cands``, one per pair kept.
+    """
+    T = cands.num_frames
+    out = [np.zeros(0, dtype=int) for _ in range(T)]
+    ok = np.flatnonzero(cands.valid[0] & (cands.score[0] < threshold_px))
+    if len(ok) == 0:
+        return out
+    person, refl = cands.roles(0)
+    order = ok[np.argsort(cands.frame[ok], kind="stable")]
+    frames = cands.frame[order]
+    starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]])
+    for s, e in zip(starts, np.r_[starts[1:], len(order)]):
+        c = order[s:e]
+        p, r, score = person[c], refl[c], cands.score[0][c]
+        n = int(max(p.max(), r.max())) + 1
+        big = 1e6 * (1.0 + float(score.max()))
+        cost = np.full((n, n), big)
+        cost[p, r] = score
+        index = np.full((n, n), -1)
+        index[p, r] = c
+        rows, cols = linear_sum_assignment(cost)
+        keep = cost[rows, cols] < big
+        chosen = index[rows[keep], cols[keep]]
+        # a detection the person of one pair and the reflection of another: the better
+        # pair stays (the assignment treats the two roles as different nodes)
+        chosen = chosen[np.argsort(cands.score[0][chosen], kind="stable")]
+        used: set[int] = set()
+        final = []
+        for k in chosen:
+            a, b = int(person[k]), int(refl[k])
+            if a in used or b in used:
+                continue
+            used.update((a, b))
+            final.append(k)
+        out[int(frames[s])] = np.array(sorted(final), dtype=int)
+    return out
+
+
+def _pair_keypoints(cands: PairCandidates, c: np.ndarray, flip: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``(n, J, 3)`` person and reflection (labels of the real joints) of candidates ``c``,
+    as :func:`~.pairing.choose_pairs` lays them out."""
+    a, b_own = cands.a[c], cands.b[c][:, flip]
+    b_is_mirror = cands.b_is_reflection[0, c][:, None, None]
+    mirror_own = np.where(b_is_mirror, b_own, a)
+    mirror = np.where(cands.swapped[0, c, None, None], mirror_own, mirror_own[:, flip])
+    return np.where(b_is_mirror, a, b_own), mirror
+
+
+def _view_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(..., )`` median over the joints both show of the pixel distance (inf: none)."""
+    d = np.linalg.norm(a[..., :2] - b[..., :2], axis=-1)
+    d = np.where(np.isfinite(d), d, np.nan)
+    seen = np.isfinite(d).any(-1)
+    out = np.full(d.shape[:-1], np.inf)
+    if seen.any():
+        out[seen] = np.nanmedian(d[seen], axis=-1)
+    return out
+
+
+def _size(real: np.ndarray) -> float:
+    """A person's size in the image: the diagonal of their joints' box, px."""
+    xy = real[..., :2][np.isfinite(real[..., :2]).all(-1)]
+    if len(xy) < 2:
+        return float("nan")
+    return float(np.linalg.norm(xy.max(0) - xy.min(0)))
+
+
+def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.ndarray],
+                max_gap: int, gate: float, gate_frame: float) -> list[np.ndarray]:
+    """Link each frame's pairs into tracks (step 3 of the module docstring).
+
+    Args:
+        frame_ids: ``(T,)`` frame numbers.
+        real, mirror: ``T`` arrays ``(n_t, J, 3)``: the pairs' person and reflection.
+        max_gap: frames a track may go unseen.
+        gate: largest relative displacement of a pair continuing a track.
+        gate_frame: largest relative displacement a frame: a track unseen for ``g``
+            frames continues within ``min(gate, gate_frame (1 + g))``.
+
+    Returns:
+        ``T`` int arrays ``(n_t,)``: the track of each pair.
+    """
+    last_real: list[np.ndarray] = []
+    last_mirror: list[np.ndarray] = []
+    last_frame: list[int] = []
+    size: list[float] = []
+    out = []
+    for t, fid in enumerate(np.asarray(frame_ids, dtype=np.int64)):
+        R, M = real[t], mirror[t]
+        ids = np.full(len(R), -1, dtype=int)
+        live = [k for k in range(len(last_frame)) if fid - last_frame[k] <= max_gap]
+        if live and len(R):
+            LR = np.stack([last_real[k] for k in live])
+            LM = np.stack([last_mirror[k] for k in live])
+            s = np.array([size[k] for k in live])
+            cost = np.maximum(_view_distance(LR[:, None], R[None]),
+                              _view_distance(LM[:, None], M[None])) / s[:, None]
+            cost = np.where(np.isfinite(cost), cost, 1e9)
+            rows, cols = linear_sum_assignment(cost)
+            gap = fid - np.array([last_frame[k] for k in live])
+            allowed = np.minimum(gate, gate_frame * (1.0 + gap))       # (live,)
+            for i, j in zip(rows, cols):
+                if cost[i, j] < allowed[i]:
+                    ids[j] = live[i]
+        for j in range(len(R)):
+            if ids[j] < 0:
+                ids[j] = len(last_frame)
+                last_real.append(R[j].copy())
+                last_mirror.append(M[j].copy())
+                last_frame.append(int(fid))
+                size.append(_size(R[j]))
+                continue
+            k = ids[j]
+            # a joint not seen now keeps its last position
+            seen_r = np.isfinite(R[j][:, :2]).all(-1)
+            seen_m = np.isfinite(M[j][:, :2]).all(-1)
+            last_real[k][seen_r] = R[j][seen_r]
+            last_mirror[k][seen_m] = M[j][seen_m]
+            last_frame[k] = int(fid)
+            new = _size(R[j])
+            if np.isfinite(new):
+                size[k] = new if not np.isfinite(size[k]) else 0.8 * size[k] + 0.2 * new
+        out.append(ids)
+    return out
+
+
+def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
+                options: PairingOptions | None = None,
+                people: PeopleOptions | None = None) -> PeoplePairing:
+    """Pair every person with their reflection and follow them (the module docstring).
+
+    Args:
+        raw: detections per frame (undistorted pixels).
+        joints: ``(k,)`` joints judging the pairs and the tracks (default: the calibration
+            joints).
+        options: the pairing's options (threshold, confidence, joints in common).
+        people: :class:`PeopleOptions`.
+
+    Returns:
+        :class:`PeoplePairing`.
+
+    Raises:
+        InputError: no frame holds two detections.
+        DegenerateGeometryError: no epipole, or no track long enough.
+    """
+    opts = options or PairingOptions()
+    pops = people or PeopleOptions()
+    sk = raw.skeleton
+    joints = sk.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    counts = np.array([len(p) for p in raw.people], dtype=int)
+    most = int(min(max(counts.max(initial=0), 2), pops.max_detections))
+    per_frame = max(most * (most - 1) // 2, 1)
+    frames_with = int(np.count_nonzero(counts >= 2))
+    ransac_frames = int(np.clip(pops.ransac_candidates // per_frame, 20,
+                                max(frames_with, 20)))
+    opts = replace(opts, max_people=max(opts.max_people, most),
+                   ransac_frames=min(opts.ransac_frames, ransac_frames))
+    # the lines joining two people standing side by side meet near the horizon too: of a
+    # few RANSAC runs, the epipole under which most candidates pair (every person's own
+    # pair does under the mirror's)
+    cands = None
+    for k in range(pops.epipole_attempts):
+        found = pair_candidates(raw, 1, joints, replace(opts, seed=opts.seed + 7919 * k))
+        if cands is None or found.valid[0].sum() > cands.valid[0].sum():
+            cands = found
+    chosen = assign_pairs(cands, opts.threshold_px)
+    flip = sk.flip
+    T, J = len(raw.people), sk.num_joints
+    real, mirror = [], []
+    for c in chosen:
+        if len(c):
+            r, m = _pair_keypoints(cands, c, flip)
+        else:
+            r = m = np.zeros((0, J, 3))
+        real.append(r)
+        mirror.append(m)
+    # tracks follow the judging joints only (faces and feet are the least stable)
+    track = track_pairs(raw.frame_ids, [r[:, joints] for r in real],
+                        [m[:, joints] for m in mirror], pops.max_gap, pops.gate, pops.gate_frame)
+    n_tracks = 1 + max((int(ids.max()) for ids in track if len(ids)), default=-1)
+    frames_of = np.zeros(n_tracks, dtype=int)
+    first = np.full(n_tracks, np.iinfo(np.int64).max)
+    for t, ids in enumerate(track):
+        np.add.at(frames_of, ids, 1)
+        first[ids] = np.minimum(first[ids], t)
+    kept = np.flatnonzero(frames_of >= pops.min_frames)
+    if len(kept) == 0:
+        raise DegenerateGeometryError(
+            f"{raw.source}: no person is paired with their reflection in {pops.min_frames} "
+            f"frames or more ({n_tracks} tracks, the longest {int(frames_of.max(initial=0))} "
+            "frames)")
+    kept = kept[np.argsort(first[kept], kind="stable")]
+    slot = np.full(n_tracks, -1)
+    slot[kept] = np.arange(len(kept))
+    P = len(kept)
+    R = np.full((T, P, J, 3), np.nan)
+    R[..., 2] = 0.0
+    M = R.copy()
+    det = np.full((T, P, 2), -1, dtype=int)
+    person_idx, refl_idx = cands.roles(0)
+    lr_fixes = 0
+    for t, (ids, c) in enumerate(zip(track, chosen)):
+        if not len(ids):
+            continue
+        s = slot[ids]
+        k = s >= 0
+        R[t, s[k]] = real[t][k]
+        M[t, s[k]] = mirror[t][k]
+        det[t, s[k], 0] = person_idx[c[k]]
+        det[t, s[k], 1] = refl_idx[c[k]]
+        lr_fixes += int(np.count_nonzero(cands.swapped[0, c[k]]))
+    left_out = int(frames_of[frames_of < pops.min_frames].sum())
+    psk = people_skeleton(sk, P)
+    paired = PairedKeypoints(skeleton=psk, frame_ids=np.asarray(raw.frame_ids),
+                             real=R.reshape(T, P * J, 3), mirror=M.reshape(T, P * J, 3),
+                             source=raw.source, format=raw.format, image_size=raw.image_size,
+                             fps=raw.fps, lr_fixes=lr_fixes, frames_read=T)
+    notes = []
+    if left_out:
+        notes.append(f"{n_tracks - P} short tracks ({left_out} pairs) under "
+                     f"{pops.min_frames} frames left out")
+    return PeoplePairing(paired=paired, base=sk, detections=det, epipole=cands.epipoles[0],
+                         pairs_per_frame=np.array([len(c) for c in chosen]),
+                         tracks_found=n_tracks, pairs_left_out=left_out, notes=notes)
+
+
+def split_people(values: np.ndarray, count: int) -> np.ndarray:
+    """``(T, P J, ...)`` arrays of the layout of several people to ``(P, T, J, ...)``."""
+    v = np.asarray(values)
+    T, PJ = v.shape[:2]
+    return np.moveaxis(v.reshape(T, count, PJ // count, *v.shape[2:]), 1, 0)
