@@ -8,8 +8,10 @@ with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a fr
    (:func:`~.pairing.pair_candidates`, the reflective RANSAC over their lines): with
    ``P`` people and their reflections a frame offers ``P`` true pairs among
    ``2P (2P - 1) / 2`` candidates, enough for a RANSAC of two lines. People standing
-   side by side offer a false epipole (the lines joining them meet near the horizon):
-   of a few RANSAC runs the epipole under which most candidates pair is kept.
+   side by side offer a false epipole (the lines joining them meet near the horizon,
+   and more candidates may fit it than the mirror's): of a few RANSAC runs the epipole
+   that pairs the most detections in step 2 is kept (a false one pairs people with
+   each other, each detection at most once).
 2. **Each person with their own reflection, per frame.** Against the epipole a valid
    candidate (median epipolar distance under the threshold) has a person (the detection
    farther from the epipole) and a reflection (:func:`~.pair_candidates.b_is_reflection_of`);
@@ -67,7 +69,7 @@ class PeopleOptions:
             come near each other are not taken for one another.
         min_frames: fewest frames a track needs to be kept.
         epipole_attempts: RANSAC runs for the epipole (seeds ``seed + 7919 k``); the one
-            under which most candidates pair is kept.
+            whose assignment (step 2) pairs the most detections is kept.
     """
 
     max_detections: int = 24
@@ -76,7 +78,7 @@ class PeopleOptions:
     gate: float = 0.35
     gate_frame: float = 0.04
     min_frames: int = 10
-    epipole_attempts: int = 3
+    epipole_attempts: int = 4
 
 
 @dataclass
@@ -279,12 +281,13 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
     # the lines joining two people standing side by side meet near the horizon too: of a
     # few RANSAC runs, the epipole under which most candidates pair (every person's own
     # pair does under the mirror's)
-    cands = None
+    cands, chosen, best = None, None, (-1, -1)
     for k in range(pops.epipole_attempts):
         found = pair_candidates(raw, 1, joints, replace(opts, seed=opts.seed + 7919 * k))
-        if cands is None or found.valid[0].sum() > cands.valid[0].sum():
-            cands = found
-    chosen = assign_pairs(cands, opts.threshold_px)
+        pairs = assign_pairs(found, opts.threshold_px)
+        score = (sum(len(c) for c in pairs), int(found.valid[0].sum()))
+        if score > best:
+            cands, chosen, best = found, pairs, score
     flip = sk.flip
     T, J = len(raw.people), sk.num_joints
     real, mirror = [], []
