@@ -20,14 +20,23 @@ with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a fr
    minimising the summed epipolar distances (:func:`scipy.optimize.linear_sum_assignment`;
    invalid pairs cost more than any valid one and are dropped); a detection that comes
    out as the person of one pair and the reflection of another keeps the better pair.
+   Where people stand in a row with the epipole at their height, every person's joints
+   lie near the epipolar lines of everyone's reflection in some frames: a candidate is
+   scored over time instead (``pair_over_time``): every detection is followed on its
+   own (:func:`track_detections`), and a candidate's score is the median over the frames
+   its two detections' tracks share (:func:`pair_track_scores`); its own frame's score
+   must stay under ``frame_limit`` thresholds.
 3. **Tracks.** Pairs are linked frame to frame to the tracks last seen at most
    ``max_gap`` frames before (frame numbers, not rows: frames far apart are never
    assumed continuous) by a second assignment whose cost is the larger of the two views'
    median joint displacement, relative to the track's size in the image (a person
    crossing another in the direct view is still told apart in the reflection); a pair
    further than ``gate_frame`` a frame unseen (at most ``gate``) from every track
-   starts a new one. Tracks of fewer than
-   ``min_frames`` frames are left out (their pairs are counted).
+   starts a new one.
+4. **Fragments.** A track that starts after another ended (no frame in common, at
+   most ``merge_gap`` frames later, within ``merge_gate``) continues it
+   (:func:`merge_fragments`): a person hidden for a while, who moved meanwhile. Tracks
+   of fewer than ``min_frames`` frames are left out (their pairs are counted).
 
 The people come out side by side in one :class:`~mirrorgraph.keypoints.PairedKeypoints`
 of the layout :func:`~mirrorgraph.skeletons.people_skeleton` (person ``p``'s joint ``j``
@@ -45,11 +54,11 @@ from scipy.optimize import linear_sum_assignment
 from ..errors import DegenerateGeometryError
 from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton, people_skeleton
-from .pair_candidates import PairingOptions
+from .pair_candidates import PairingOptions, masked
 from .pairing import PairCandidates, pair_candidates
 
-__all__ = ["PeopleOptions", "PeoplePairing", "assign_pairs", "pair_people", "split_people",
-           "track_pairs"]
+__all__ = ["PeopleOptions", "PeoplePairing", "assign_pairs", "merge_fragments", "pair_people",
+           "pair_track_scores", "split_people", "track_detections", "track_pairs"]
 
 
 @dataclass(frozen=True)
@@ -67,7 +76,14 @@ class PeopleOptions:
         gate_frame: largest relative displacement a frame (a track unseen for ``g``
             frames continues within ``min(gate, gate_frame (1 + g))``): people who
             come near each other are not taken for one another.
+        merge_gap, merge_gate: a track that starts at most ``merge_gap`` frames after
+            another ended, within ``merge_gate`` of it, continues it
+            (:func:`merge_fragments`).
         min_frames: fewest frames a track needs to be kept.
+        pair_over_time: each candidate pair scored over time (:func:`pair_track_scores`:
+            every detection tracked on its own, the median over the frames two tracks
+            share) instead of in its frame alone.
+        min_common_frames: fewest frames two tracks share for their score over time.
         epipole_attempts: RANSAC runs for the epipole (seeds ``seed + 7919 k``); the one
             whose assignment (step 2) pairs the most detections is kept.
     """
@@ -77,7 +93,11 @@ class PeopleOptions:
     max_gap: int = 60
     gate: float = 0.35
     gate_frame: float = 0.04
+    merge_gap: int = 150
+    merge_gate: float = 0.6
     min_frames: int = 10
+    pair_over_time: bool = True
+    min_common_frames: int = 5
     epipole_attempts: int = 4
 
 
@@ -112,19 +132,57 @@ class PeoplePairing:
         return int(self.detections.shape[1])
 
 
-def assign_pairs(cands: PairCandidates, threshold_px: float) -> list[np.ndarray]:
+def pair_track_scores(cands: PairCandidates, tracks: np.ndarray, min_frames: int
+                      ) -> np.ndarray:
+    """``(M,)`` each candidate's score over time: the median, over every frame where the
+    two detections' tracks are both seen, of that pair of tracks' epipolar distance (its
+    own frame's where the two tracks share fewer than ``min_frames`` frames).
+
+    Args:
+        cands: :func:`~.pairing.pair_candidates` with one epipole.
+        tracks: ``(M, 2)`` the track of each candidate's two detections
+            (:func:`track_detections`).
+        min_frames: fewest frames in common for the median to replace the frame's score.
+    """
+    score = np.asarray(cands.score[0], dtype=float)
+    lo, hi = tracks.min(1), tracks.max(1)
+    key = lo.astype(np.int64) * (int(hi.max(initial=0)) + 1) + hi
+    groups, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    order = np.lexsort((score, inverse))                 # by group, then score
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    s = score[order]
+    lower = s[starts + (counts - 1) // 2]
+    upper = s[starts + counts // 2]
+    median = 0.5 * (lower + upper) if np.isfinite(s).all() else np.where(
+        np.isfinite(lower) & np.isfinite(upper), 0.5 * (lower + upper), np.inf)
+    return np.where(counts[inverse] >= min_frames, median[inverse], score)
+
+
+def assign_pairs(cands: PairCandidates, threshold_px: float,
+                 scores: np.ndarray | None = None, frame_limit: float = 3.0
+                 ) -> list[np.ndarray]:
     """Per frame, the candidate of each person's pair (step 2 of the module docstring).
 
     Args:
         cands: :func:`~.pairing.pair_candidates` with one epipole.
         threshold_px: the largest median epipolar distance of a pair.
+        scores: ``(M,)`` the candidates' scores (default: their own frame's,
+            ``cands.score``; :func:`pair_track_scores`: over time); a candidate's own
+            frame's score must then stay under ``frame_limit`` thresholds.
+        frame_limit: see ``scores``.
 
     Returns:
         ``T`` int arrays of candidate indices into ``cands``, one per pair kept.
     """
     T = cands.num_frames
     out = [np.zeros(0, dtype=int) for _ in range(T)]
-    ok = np.flatnonzero(cands.valid[0] & (cands.score[0] < threshold_px))
+    own = np.asarray(cands.score[0], dtype=float)
+    if scores is None:
+        scores = own
+        ok = cands.valid[0] & (own < threshold_px)
+    else:
+        ok = (scores < threshold_px) & (own < frame_limit * threshold_px)
+    ok = np.flatnonzero(ok)
     if len(ok) == 0:
         return out
     person, refl = cands.roles(0)
@@ -133,7 +191,7 @@ def assign_pairs(cands: PairCandidates, threshold_px: float) -> list[np.ndarray]
     starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]])
     for s, e in zip(starts, np.r_[starts[1:], len(order)]):
         c = order[s:e]
-        p, r, score = person[c], refl[c], cands.score[0][c]
+        p, r, score = person[c], refl[c], scores[c]
         n = int(max(p.max(), r.max())) + 1
         big = 1e6 * (1.0 + float(score.max()))
         cost = np.full((n, n), big)
@@ -145,7 +203,7 @@ def assign_pairs(cands: PairCandidates, threshold_px: float) -> list[np.ndarray]
         chosen = index[rows[keep], cols[keep]]
         # a detection the person of one pair and the reflection of another: the better
         # pair stays (the assignment treats the two roles as different nodes)
-        chosen = chosen[np.argsort(cands.score[0][chosen], kind="stable")]
+        chosen = chosen[np.argsort(scores[chosen], kind="stable")]
         used: set[int] = set()
         final = []
         for k in chosen:
@@ -156,6 +214,17 @@ def assign_pairs(cands: PairCandidates, threshold_px: float) -> list[np.ndarray]
             final.append(k)
         out[int(frames[s])] = np.array(sorted(final), dtype=int)
     return out
+
+
+def track_detections(raw: RawDetections, joints: np.ndarray, min_confidence: float,
+                     max_gap: int, gate: float, gate_frame: float) -> list[np.ndarray]:
+    """Every detection followed over time on its own (person or reflection alike), as
+    :func:`track_pairs` follows pairs: ``T`` int arrays, the track of each detection of
+    ``raw.people[t]``."""
+    J = raw.skeleton.num_joints
+    dets = [masked(np.asarray(p, dtype=float).reshape(-1, J, 3), min_confidence)[:, joints]
+            for p in raw.people]
+    return track_pairs(raw.frame_ids, dets, dets, max_gap, gate, gate_frame)
 
 
 def _pair_keypoints(cands: PairCandidates, c: np.ndarray, flip: np.ndarray
@@ -247,6 +316,66 @@ def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.n
     return out
 
 
+def merge_fragments(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.ndarray],
+                    track: list[np.ndarray], max_gap: int, gate: float) -> list[np.ndarray]:
+    """Join a track that ended to one that starts later (step 4 of the module docstring).
+
+    A person hidden longer than the tracker's gap, or moving further meanwhile, starts a
+    new track. A track that starts within ``max_gap`` frames of another's end, no frame
+    in common, continues it where the two views' larger median joint displacement
+    between the one's last pair and the other's first, relative to the person's size,
+    is under ``gate``; each ended track continues at most once, the closest first. A
+    person whose own track goes on is never a candidate: two tracks seen in one frame
+    are two people.
+
+    Returns:
+        ``track`` with the joined tracks renumbered (the earlier one's number).
+    """
+    fid = np.asarray(frame_ids, dtype=np.int64)
+    n = 1 + max((int(ids.max()) for ids in track if len(ids)), default=-1)
+    if n < 2:
+        return track
+    first = np.full(n, -1)
+    last = np.full(n, -1)
+    for t, ids in enumerate(track):
+        for j, k in enumerate(ids):
+            if first[k] < 0:
+                first[k] = t
+            last[k] = t
+    ends = {}
+    starts = {}
+    for t, ids in enumerate(track):
+        for j, k in enumerate(ids):
+            if t == last[k]:
+                ends[k] = (real[t][j], mirror[t][j])
+            if t == first[k]:
+                starts[k] = (real[t][j], mirror[t][j])
+    cand = []
+    for b in range(n):
+        for a in range(n):
+            if a == b or last[a] >= first[b] or fid[first[b]] - fid[last[a]] > max_gap:
+                continue
+            (ra, ma), (rb, mb) = ends[a], starts[b]
+            size = _size(ra)
+            cost = max(float(_view_distance(ra, rb)), float(_view_distance(ma, mb))) / size
+            if np.isfinite(cost) and cost < gate:
+                cand.append((cost, a, b))
+    root = np.arange(n)
+    taken_end, taken_start = set(), set()
+    for cost, a, b in sorted(cand):
+        if a in taken_end or b in taken_start:
+            continue
+        taken_end.add(a)
+        taken_start.add(b)
+        root[b] = a
+    for k in range(n):                         # follow the chains to their first track
+        r = k
+        while root[r] != r:
+            r = root[r]
+        root[k] = r
+    return [root[ids] if len(ids) else ids for ids in track]
+
+
 def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
                 options: PairingOptions | None = None,
                 people: PeopleOptions | None = None) -> PeoplePairing:
@@ -281,6 +410,8 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
     # the lines joining two people standing side by side meet near the horizon too: of a
     # few RANSAC runs, the epipole under which most candidates pair (every person's own
     # pair does under the mirror's)
+    det_track = track_detections(raw, joints, opts.min_confidence, pops.max_gap, pops.gate,
+                                 pops.gate_frame)
     cands, chosen, best = None, None, (-1, -1)
     for k in range(pops.epipole_attempts):
         found = pair_candidates(raw, 1, joints, replace(opts, seed=opts.seed + 7919 * k))
@@ -288,6 +419,11 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
         score = (sum(len(c) for c in pairs), int(found.valid[0].sum()))
         if score > best:
             cands, chosen, best = found, pairs, score
+    if pops.pair_over_time:
+        tracks = np.stack([[det_track[f][i] for f, i in zip(cands.frame, cands.ia)],
+                           [det_track[f][i] for f, i in zip(cands.frame, cands.ib)]], axis=1)
+        chosen = assign_pairs(cands, opts.threshold_px,
+                              pair_track_scores(cands, tracks, pops.min_common_frames))
     flip = sk.flip
     T, J = len(raw.people), sk.num_joints
     real, mirror = [], []
@@ -301,6 +437,9 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
     # tracks follow the judging joints only (faces and feet are the least stable)
     track = track_pairs(raw.frame_ids, [r[:, joints] for r in real],
                         [m[:, joints] for m in mirror], pops.max_gap, pops.gate, pops.gate_frame)
+    track = merge_fragments(raw.frame_ids, [r[:, joints] for r in real],
+                            [m[:, joints] for m in mirror], track, pops.merge_gap,
+                            pops.merge_gate)
     n_tracks = 1 + max((int(ids.max()) for ids in track if len(ids)), default=-1)
     frames_of = np.zeros(n_tracks, dtype=int)
     first = np.full(n_tracks, np.iinfo(np.int64).max)

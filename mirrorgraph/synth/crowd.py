@@ -10,7 +10,11 @@ proportions and height (1.55-1.95 m), exercise (:mod:`.motion`, each their own m
 on the floor ``1-4 m`` in front of the mirror (``person_to_mirror``), facing the camera or
 the mirror, at least ``min_spacing`` metres apart; a position is drawn again until every
 joint of the person and of their reflection projects inside the image (4 % margin) in
-every frame and lies 0.5 m or more in front of the camera.
+every frame, lies 0.5 m or more in front of the camera, and the person's image and their
+reflection's lie apart (centroids :data:`APART` of the person's image height or more:
+a person standing before their own reflection hides it, which the detector model does
+not simulate). Occlusions of one person by another are not simulated either, only the
+scripted ones below.
 
 Detector (:func:`~.detector.observe_keypoints`, the model of :mod:`.scene`): each person
 and each reflection gets Gaussian noise, outliers, missing joints, left/right swaps of
@@ -34,6 +38,10 @@ from .detector import observe_keypoints
 from .motion import generate_motion
 
 __all__ = ["SyntheticCrowd", "make_crowd"]
+
+#: Least distance between a person's and their reflection's centroids in the image, in
+#: units of the person's height there: a person does not stand before their reflection.
+APART = 0.4
 
 #: Body/world frame (x left, y up, z forward) to a level camera (x right, y down, z fwd).
 _WORLD_TO_LEVEL_CAMERA = np.diag([-1.0, -1.0, 1.0])
@@ -97,10 +105,12 @@ def _mirror(rng: np.random.Generator, R_cw: np.ndarray, angle_deg: float, distan
 
 
 def _inside(K, size, margin, X, n, d) -> bool:
-    """Every joint of ``X`` ``(..., 3)`` and of its reflection in front of the camera,
-    inside the image with ``margin`` px, and in front of the mirror."""
+    """Every joint of ``X`` ``(T, J, 3)`` and of its reflection in front of the camera,
+    inside the image with ``margin`` px, in front of the mirror, and the two images
+    :data:`APART`."""
     w, h = size
     S = X - 2.0 * ((X @ n) - d)[..., None] * n
+    seen = []
     for P in (X, S):
         if not np.all(P[..., 2] > Z_MIN):
             return False
@@ -108,7 +118,11 @@ def _inside(K, size, margin, X, n, d) -> bool:
         if not (np.all(uv[..., 0] >= margin) and np.all(uv[..., 0] <= w - margin)
                 and np.all(uv[..., 1] >= margin) and np.all(uv[..., 1] <= h - margin)):
             return False
-    return bool(np.all(X @ n < d - 0.2))
+        seen.append(uv)
+    # the person does not hide their own reflection: the two lie apart in every frame
+    tall = np.ptp(seen[0][..., 1], axis=-1)                                  # (T,)
+    apart = np.linalg.norm(seen[0].mean(-2) - seen[1].mean(-2), axis=-1)     # (T,)
+    return bool(np.all(X @ n < d - 0.2) and np.all(apart >= APART * tall))
 
 
 def _place_people(rng, K, size, R_cw, n, d, locals_, heights, camera_height, to_mirror,
