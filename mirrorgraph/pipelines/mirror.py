@@ -148,13 +148,13 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     step = progress or (lambda _name: None)
     obs = observe(keypoints, intrinsics, opts, step)                        # observations
     init = initialise(obs, opts, step, ransac_progress)                     # initialisation
-    run = _initial_run(obs, init, opts)
+    run = initial_run(obs, init, opts)
     if opts.refine:                             # solve, completion, scale (_refine)
         step("factor-graph refinement")
         # without intrinsics the focal length and principal point are always variables of
         # the graph: about the 60 deg guess with a wide prior (estimated), or about the
         # user's field of view with that guess's own spread (--fov)
-        _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
+        refine_run(run, opts, iteration_progress, estimate_focal=intrinsics is None,
                 focal_rel_sigma=None if focal_estimated(opts) else
                 opts.graph.focal.guess_rel_sigma)
     elif opts.subject_height is not None:
@@ -301,7 +301,7 @@ def initialise(obs: Observations, opts: CalibrateOptions,
     return Initial(est, valid, (t_idx, j_idx), inliers, candidates, check, seconds)
 
 
-def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> CalibrationRun:
+def initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> CalibrationRun:
     """The run's record after the initialisation: the :class:`Calibration` of the initial
     mirror (no scale yet) and what the later steps need."""
     paired, est, inliers, joints = obs.paired, init.estimate, init.inliers, obs.joints
@@ -328,9 +328,11 @@ def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Ca
                           timings={"pairing": obs.seconds, "initialisation": init.seconds})
 
 
-def _refine(run: CalibrationRun, opts: CalibrateOptions,
-            iteration_progress: Callable[[int, float], None] | None = None,
-            estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
+def refine_run(run: CalibrationRun, opts: CalibrateOptions,
+               iteration_progress: Callable[[int, float], None] | None = None,
+               estimate_focal: bool = False, focal_rel_sigma: float | None = None) -> None:
+    """Solve, complete and scale ``run`` in place (the graph of :func:`.solve.refine_mirror`
+    from its pairs; ``estimate_focal``: the intrinsics a guess, estimated)."""
     ropts = opts.graph
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers

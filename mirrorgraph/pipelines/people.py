@@ -42,8 +42,8 @@ from ..keypoints import PairedKeypoints, RawDetections
 from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
 from ..stature import estimate_stature, with_height_sigma
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
-from .mirror import (CalibrationRun, Observations, _initial_run, _refine, focal_estimated,
-                     initialise, resolve_intrinsics)
+from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
+                     refine_run, resolve_intrinsics)
 from .options import CalibrateOptions
 
 __all__ = ["PeopleRun", "calibrate_people"]
@@ -201,7 +201,7 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
     obs, pairing = _observe_people(keypoints, intrinsics, run_opts, people or PeopleOptions(),
                                    step)
     init = initialise(obs, run_opts, step)
-    run = _initial_run(obs, init, run_opts)
+    run = initial_run(obs, init, run_opts)
     calib = run.calibration
     calib.input["subject_height"] = height
     calib.input["people"] = {"count": pairing.num_people, "tracks_found": pairing.tracks_found,
@@ -214,7 +214,7 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
     person = None
     if opts.refine:
         step("factor-graph refinement")
-        _refine(run, run_opts, estimate_focal=intrinsics is None,
+        refine_run(run, run_opts, estimate_focal=intrinsics is None,
                 focal_rel_sigma=None if focal_estimated(run_opts) else
                 run_opts.graph.focal.guess_rel_sigma)
         joints3d = split_people(run.joints3d, P)
