@@ -112,11 +112,12 @@ def run_scene(people: int, seed: int, frames: int, known: bool) -> dict:
     return row
 
 
-def render(rows: list[dict], command: str) -> str:
+def render(rows: list[dict], command: str, load: float) -> str:
     lines = ["# Every person before one mirror (bench_multiperson)", "",
              f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
              f"{platform.python_version()}; date {datetime.date.today()}; command "
-             f"`{command}`.", "",
+             f"`{command}`; load average at the end {load:.1f} (the machine shared: the "
+             "times are wall seconds under that load, compare them within a row).", "",
              "Scenes: `mirrorgraph.synth.crowd.make_crowd` (COCO-17, 1920x1080, 70 deg, 4 px "
              "noise, half of the people occluded in one view or both for 5-40 frames, one "
              "to three times). *one*: `calibrate` (one pair a frame); *all*: "
@@ -130,12 +131,12 @@ def render(rows: list[dict], command: str) -> str:
         sub = [r for r in rows if r["known_K"] == known]
         if not sub:
             continue
-        lines += [f"## Camera matrix {'given' if known else 'not given (focal estimated)'}",
-                  "", "| people | seed | to mirror (m) | rot one | rot all | "
+        header = ("| people | seed | to mirror (m) | rot one | rot all | "
                   + ("" if known else "focal one | focal all | ")
                   + "pairs one | pairs all | found / tracks | switches | wrong | "
-                  "PA-MPJPE (mm) | s one | s all |",
-                  "|" + "---|" * (14 if known else 16)]
+                  "PA-MPJPE (mm) | s one | s all |")
+        lines += [f"## Camera matrix {'given' if known else 'not given (focal estimated)'}",
+                  "", header, "|" + "---|" * (header.count("|") - 1)]
         for r in sub:
             o, a = r["one"], r["all"]
             lines.append(
@@ -168,7 +169,14 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--camera", choices=("both", "known", "unknown"), default="both")
     ap.add_argument("--out", default=str(HERE / "RESULTS_multiperson.md"))
+    ap.add_argument("--report-only", action="store_true",
+                    help="render --out from its .json beside it, run nothing")
     args = ap.parse_args(argv)
+    if args.report_only:
+        data = json.loads(Path(args.out).with_suffix(".json").read_text())
+        Path(args.out).write_text(render(data["rows"], data["command"], data["load"]))
+        print(Path(args.out).read_text())
+        return 0
     modes = {"both": (True, False), "known": (True,), "unknown": (False,)}[args.camera]
     rows = []
     for known in modes:
@@ -183,9 +191,11 @@ def main(argv=None) -> int:
                       f"switches {row['all']['switches']}", flush=True)
     command = "python bench/bench_multiperson.py " + shlex.join(sys.argv[1:] if argv is None
                                                                else argv)
-    text = render(rows, command)
+    load = os.getloadavg()[0]
+    Path(args.out).with_suffix(".json").write_text(
+        json.dumps({"rows": rows, "command": command, "load": load}, indent=1))
+    text = render(rows, command, load)
     Path(args.out).write_text(text)
-    Path(args.out).with_suffix(".json").write_text(json.dumps(rows, indent=1))
     print(text)
     return 0
 
