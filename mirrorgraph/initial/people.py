@@ -25,17 +25,21 @@ with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a fr
    scored over time instead (``pair_over_time``): every detection is followed on its
    own (:func:`track_detections`), and a candidate's score is the median over the frames
    its two detections' tracks share (:func:`pair_track_scores`); its own frame's score
-   must stay under ``frame_limit`` thresholds.
+   must stay under ``frame_limit`` thresholds. A pair whose two tracks each pair mostly
+   with another track is left out (:func:`partners_only`).
 3. **Tracks.** Pairs are linked frame to frame to the tracks last seen at most
    ``max_gap`` frames before (frame numbers, not rows: frames far apart are never
    assumed continuous) by a second assignment whose cost is the larger of the two views'
    median joint displacement, relative to the track's size in the image (a person
-   crossing another in the direct view is still told apart in the reflection); a pair
+   crossing another in the direct view is still told apart in the reflection; a
+   left/right confusion of the detector's, which the epipole cannot always tell where it
+   lies level with the people, is no other person: the better way round counts); a pair
    further than ``gate_frame`` a frame unseen (at most ``gate``) from every track
    starts a new one.
-4. **Fragments.** A track that starts after another ended (no frame in common, at
-   most ``merge_gap`` frames later, within ``merge_gate``) continues it
-   (:func:`merge_fragments`): a person hidden for a while, who moved meanwhile. Tracks
+4. **Fragments.** A track whose first pair lies within ``merge_gate`` of another
+   track's last pair before it (at most ``merge_gap`` frames back, no frame in common)
+   continues it (:func:`merge_fragments`): a person hidden for a while, who moved
+   meanwhile, or two tracks taking one person's pair in turns. Tracks
    of fewer than ``min_frames`` frames are left out (their pairs are counted).
 
 The people come out side by side in one :class:`~mirrorgraph.keypoints.PairedKeypoints`
@@ -58,7 +62,7 @@ from .pair_candidates import PairingOptions, masked
 from .pairing import PairCandidates, pair_candidates
 
 __all__ = ["PeopleOptions", "PeoplePairing", "assign_pairs", "merge_fragments", "pair_people",
-           "pair_track_scores", "split_people", "track_detections", "track_pairs"]
+           "pair_track_scores", "partners_only", "split_people", "track_detections", "track_pairs"]
 
 
 @dataclass(frozen=True)
@@ -217,14 +221,44 @@ def assign_pairs(cands: PairCandidates, threshold_px: float,
 
 
 def track_detections(raw: RawDetections, joints: np.ndarray, min_confidence: float,
-                     max_gap: int, gate: float, gate_frame: float) -> list[np.ndarray]:
+                     max_gap: int, gate: float, gate_frame: float,
+                     flip: np.ndarray | None = None) -> list[np.ndarray]:
     """Every detection followed over time on its own (person or reflection alike), as
     :func:`track_pairs` follows pairs: ``T`` int arrays, the track of each detection of
     ``raw.people[t]``."""
     J = raw.skeleton.num_joints
     dets = [masked(np.asarray(p, dtype=float).reshape(-1, J, 3), min_confidence)[:, joints]
             for p in raw.people]
-    return track_pairs(raw.frame_ids, dets, dets, max_gap, gate, gate_frame)
+    return track_pairs(raw.frame_ids, dets, dets, max_gap, gate, gate_frame, flip)
+
+
+def partners_only(cands: PairCandidates, tracks: np.ndarray, chosen: list[np.ndarray]
+                  ) -> list[np.ndarray]:
+    """The chosen pairs but those that pair neither detection with its partner.
+
+    A detection's track pairs, over the frames, mostly with one other track (in either
+    role): the person's with their reflection's. Where a person's reflection is hidden and another person is
+    hidden, the person and the other's reflection may fit the epipole for a while; such a
+    pair joins two tracks each of which pairs mostly with another: it is left out.
+
+    Args:
+        cands: :func:`~.pairing.pair_candidates` with one epipole.
+        tracks: ``(M, 2)`` the tracks of each candidate's detections.
+        chosen: :func:`assign_pairs`.
+    """
+    c = np.concatenate(chosen) if chosen else np.zeros(0, dtype=int)
+    if len(c) == 0:
+        return chosen
+    person, refl = cands.roles(0)
+    own_a = np.where(person[c] == cands.ia[c], tracks[c, 0], tracks[c, 1])     # person's
+    own_b = np.where(person[c] == cands.ia[c], tracks[c, 1], tracks[c, 0])     # reflection's
+    n = int(max(own_a.max(), own_b.max())) + 1
+    count = np.zeros((n, n), dtype=np.int64)
+    np.add.at(count, (own_a, own_b), 1)
+    partner = (count + count.T).argmax(1)            # in either role
+    keep = (partner[own_a] == own_b) | (partner[own_b] == own_a)
+    kept = set(c[keep].tolist())
+    return [np.array([k for k in ch if k in kept], dtype=int) for ch in chosen]
 
 
 def _pair_keypoints(cands: PairCandidates, c: np.ndarray, flip: np.ndarray
@@ -238,8 +272,13 @@ def _pair_keypoints(cands: PairCandidates, c: np.ndarray, flip: np.ndarray
     return np.where(b_is_mirror, a, b_own), mirror
 
 
-def _view_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(..., )`` median over the joints both show of the pixel distance (inf: none)."""
+def _view_distance(a: np.ndarray, b: np.ndarray, flip: np.ndarray | None = None
+                   ) -> np.ndarray:
+    """``(..., )`` median over the joints both show of the pixel distance (inf: none); with
+    ``flip`` (the joints' left/right map) the smaller of that and the same with ``b``'s
+    left and right swapped: a detector's left/right confusion is no other person."""
+    if flip is not None:
+        return np.minimum(_view_distance(a, b), _view_distance(a, b[..., flip, :]))
     d = np.linalg.norm(a[..., :2] - b[..., :2], axis=-1)
     d = np.where(np.isfinite(d), d, np.nan)
     seen = np.isfinite(d).any(-1)
@@ -258,7 +297,8 @@ def _size(real: np.ndarray) -> float:
 
 
 def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.ndarray],
-                max_gap: int, gate: float, gate_frame: float) -> list[np.ndarray]:
+                max_gap: int, gate: float, gate_frame: float,
+                flip: np.ndarray | None = None) -> list[np.ndarray]:
     """Link each frame's pairs into tracks (step 3 of the module docstring).
 
     Args:
@@ -268,6 +308,8 @@ def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.n
         gate: largest relative displacement of a pair continuing a track.
         gate_frame: largest relative displacement a frame: a track unseen for ``g``
             frames continues within ``min(gate, gate_frame (1 + g))``.
+        flip: the joints' left/right map: displacements are taken the better way round
+            (:func:`_view_distance`).
 
     Returns:
         ``T`` int arrays ``(n_t,)``: the track of each pair.
@@ -285,8 +327,8 @@ def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.n
             LR = np.stack([last_real[k] for k in live])
             LM = np.stack([last_mirror[k] for k in live])
             s = np.array([size[k] for k in live])
-            cost = np.maximum(_view_distance(LR[:, None], R[None]),
-                              _view_distance(LM[:, None], M[None])) / s[:, None]
+            cost = np.maximum(_view_distance(LR[:, None], R[None], flip),
+                              _view_distance(LM[:, None], M[None], flip)) / s[:, None]
             cost = np.where(np.isfinite(cost), cost, 1e9)
             rows, cols = linear_sum_assignment(cost)
             gap = fid - np.array([last_frame[k] for k in live])
@@ -317,16 +359,18 @@ def track_pairs(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.n
 
 
 def merge_fragments(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[np.ndarray],
-                    track: list[np.ndarray], max_gap: int, gate: float) -> list[np.ndarray]:
-    """Join a track that ended to one that starts later (step 4 of the module docstring).
+                    track: list[np.ndarray], max_gap: int, gate: float,
+                    flip: np.ndarray | None = None) -> list[np.ndarray]:
+    """Join tracks of one person (step 4 of the module docstring).
 
     A person hidden longer than the tracker's gap, or moving further meanwhile, starts a
-    new track. A track that starts within ``max_gap`` frames of another's end, no frame
-    in common, continues it where the two views' larger median joint displacement
-    between the one's last pair and the other's first, relative to the person's size,
-    is under ``gate``; each ended track continues at most once, the closest first. A
-    person whose own track goes on is never a candidate: two tracks seen in one frame
-    are two people.
+    new track; so may a pair whose joints the detector misplaced, and the two tracks then
+    take the person's pair in turns. Two tracks that share no frame join where the later
+    one's first pair lies within ``gate`` of the earlier one's last pair before it, at most
+    ``max_gap`` frames back (the larger of the two views' median joint displacement,
+    relative to the person's size); the closest first, each track's start joined once,
+    and never two tracks that would then share a frame: two tracks seen in one frame are
+    two people.
 
     Returns:
         ``track`` with the joined tracks renumbered (the earlier one's number).
@@ -335,45 +379,52 @@ def merge_fragments(frame_ids: np.ndarray, real: list[np.ndarray], mirror: list[
     n = 1 + max((int(ids.max()) for ids in track if len(ids)), default=-1)
     if n < 2:
         return track
-    first = np.full(n, -1)
-    last = np.full(n, -1)
+    rows: list[list[int]] = [[] for _ in range(n)]
+    where: list[list[int]] = [[] for _ in range(n)]
     for t, ids in enumerate(track):
         for j, k in enumerate(ids):
-            if first[k] < 0:
-                first[k] = t
-            last[k] = t
-    ends = {}
-    starts = {}
-    for t, ids in enumerate(track):
-        for j, k in enumerate(ids):
-            if t == last[k]:
-                ends[k] = (real[t][j], mirror[t][j])
-            if t == first[k]:
-                starts[k] = (real[t][j], mirror[t][j])
+            rows[k].append(t)
+            where[k].append(j)
+    rows_a = [np.asarray(r, dtype=np.int64) for r in rows]
     cand = []
     for b in range(n):
+        if not len(rows_a[b]):
+            continue
+        t0 = int(rows_a[b][0])
+        rb, mb = real[t0][where[b][0]], mirror[t0][where[b][0]]
         for a in range(n):
-            if a == b or last[a] >= first[b] or fid[first[b]] - fid[last[a]] > max_gap:
+            if a == b or not len(rows_a[a]):
                 continue
-            (ra, ma), (rb, mb) = ends[a], starts[b]
-            size = _size(ra)
-            cost = max(float(_view_distance(ra, rb)), float(_view_distance(ma, mb))) / size
+            i = int(np.searchsorted(rows_a[a], t0)) - 1
+            if i < 0 or fid[t0] - fid[rows_a[a][i]] > max_gap:
+                continue
+            if np.intersect1d(rows_a[a], rows_a[b], assume_unique=True).size:
+                continue
+            ta = int(rows_a[a][i])
+            ra, ma = real[ta][where[a][i]], mirror[ta][where[a][i]]
+            cost = max(float(_view_distance(ra, rb, flip)),
+                       float(_view_distance(ma, mb, flip))) / _size(ra)
             if np.isfinite(cost) and cost < gate:
                 cand.append((cost, a, b))
     root = np.arange(n)
-    taken_end, taken_start = set(), set()
-    for cost, a, b in sorted(cand):
-        if a in taken_end or b in taken_start:
+
+    def find(k: int) -> int:
+        while root[k] != k:
+            k = int(root[k])
+        return k
+
+    frames = {k: set(rows[k]) for k in range(n)}
+    started: set[int] = set()
+    for _cost, a, b in sorted(cand):
+        ra_, rb_ = find(a), find(b)
+        if b in started or ra_ == rb_ or frames[ra_] & frames[rb_]:
             continue
-        taken_end.add(a)
-        taken_start.add(b)
-        root[b] = a
-    for k in range(n):                         # follow the chains to their first track
-        r = k
-        while root[r] != r:
-            r = root[r]
-        root[k] = r
-    return [root[ids] if len(ids) else ids for ids in track]
+        started.add(b)
+        keep, gone = (ra_, rb_) if rows_a[ra_][0] <= rows_a[rb_][0] else (rb_, ra_)
+        root[gone] = keep
+        frames[keep] |= frames.pop(gone)
+    final = np.array([find(k) for k in range(n)])
+    return [final[ids] if len(ids) else ids for ids in track]
 
 
 def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
@@ -410,8 +461,11 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
     # the lines joining two people standing side by side meet near the horizon too: of a
     # few RANSAC runs, the epipole under which most candidates pair (every person's own
     # pair does under the mirror's)
+    # the joints' left/right map among themselves (a joint without its partner: itself)
+    where = {int(j): i for i, j in enumerate(joints)}
+    sub_flip = np.array([where.get(int(sk.flip[j]), i) for i, j in enumerate(joints)])
     det_track = track_detections(raw, joints, opts.min_confidence, pops.max_gap, pops.gate,
-                                 pops.gate_frame)
+                                 pops.gate_frame, sub_flip)
     cands, chosen, best = None, None, (-1, -1)
     for k in range(pops.epipole_attempts):
         found = pair_candidates(raw, 1, joints, replace(opts, seed=opts.seed + 7919 * k))
@@ -424,6 +478,7 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
                            [det_track[f][i] for f, i in zip(cands.frame, cands.ib)]], axis=1)
         chosen = assign_pairs(cands, opts.threshold_px,
                               pair_track_scores(cands, tracks, pops.min_common_frames))
+        chosen = partners_only(cands, tracks, chosen)
     flip = sk.flip
     T, J = len(raw.people), sk.num_joints
     real, mirror = [], []
@@ -436,10 +491,11 @@ def pair_people(raw: RawDetections, joints: np.ndarray | None = None,
         mirror.append(m)
     # tracks follow the judging joints only (faces and feet are the least stable)
     track = track_pairs(raw.frame_ids, [r[:, joints] for r in real],
-                        [m[:, joints] for m in mirror], pops.max_gap, pops.gate, pops.gate_frame)
+                        [m[:, joints] for m in mirror], pops.max_gap, pops.gate, pops.gate_frame,
+                        sub_flip)
     track = merge_fragments(raw.frame_ids, [r[:, joints] for r in real],
                             [m[:, joints] for m in mirror], track, pops.merge_gap,
-                            pops.merge_gate)
+                            pops.merge_gate, sub_flip)
     n_tracks = 1 + max((int(ids.max()) for ids in track if len(ids)), default=-1)
     frames_of = np.zeros(n_tracks, dtype=int)
     first = np.full(n_tracks, np.iinfo(np.int64).max)
