@@ -79,3 +79,14 @@ def test_one_height_scales_everyone(crowd, runs):
 def test_height_of_refuses_nonsense(crowd):
     with pytest.raises(InputError, match="height_of"):
         calibrate_people(crowd.detections, None, height_of="oldest")
+
+
+def test_a_list_of_heights(crowd, runs):
+    _, run = runs
+    owners = _owners(crowd, run)
+    heights = [float(crowd.heights[owners[0]]), None, None]
+    again = calibrate_people(crowd.detections, Intrinsics(K=crowd.K, image_size=crowd.image_size),
+                             CalibrateOptions(image_size=crowd.image_size), heights=heights)
+    assert again.height_person is None
+    assert abs(again.calibration.distance / crowd.distance - 1.0) < 0.03
+    assert abs(again.statures[0] - heights[0]) < 1e-9
