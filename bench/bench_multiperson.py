@@ -9,10 +9,12 @@ Figures: the mirror's rotation error (the virtual camera's, deg), the focal leng
 error (%), the pairs the graph used, the people found, identity switches (a track whose
 person detection changes owner from one of its frames to the next, summed over tracks),
 pairs of a wrong reflection, each person's PA-MPJPE (mm; the track matched to the true
-person who owns most of its frames) and the wall time.
+person who owns most of its frames) and the wall time; with ``--oracle`` also the same
+graph from the true pairs (identities known: the best the pairing can give it).
 
     python bench/bench_multiperson.py                       # 3, 4, 5 people, 2 seeds
     python bench/bench_multiperson.py --people 3,5 --seeds 0-5 --frames 600
+    python bench/bench_multiperson.py --people 5 --seeds 2,4 --camera unknown --oracle
 """
 
 from __future__ import annotations
@@ -25,15 +27,18 @@ import platform
 import shlex
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from mirrorgraph.intrinsics import Intrinsics
+from mirrorgraph.keypoints import PairedKeypoints
 from mirrorgraph.metrics import mirror_rotation_error_deg, pa_mpjpe
 from mirrorgraph.pipelines.mirror import calibrate
 from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.pipelines.people import calibrate_people
+from mirrorgraph.skeletons import people_skeleton
 from mirrorgraph.synth.crowd import make_crowd
 
 HERE = Path(__file__).resolve().parent
@@ -86,7 +91,28 @@ def person_errors(crowd, people_run, owner) -> list[float]:
     return out
 
 
-def run_scene(people: int, seed: int, frames: int, known: bool) -> dict:
+def oracle_paired(crowd) -> tuple[PairedKeypoints, tuple[str, ...]]:
+    """Every person with their reflection by the truth (identities known), side by side as
+    :func:`~mirrorgraph.initial.people.pair_people` lays them out, and the joints to use."""
+    T, J, P = len(crowd.frame_ids), crowd.skeleton.num_joints, crowd.num_people
+    R = np.full((T, P, J, 3), np.nan)
+    R[..., 2] = 0.0
+    M = R.copy()
+    for t in range(T):
+        for det, p, refl in zip(crowd.detections.people[t], crowd.truth_person[t],
+                                crowd.truth_reflection[t]):
+            if refl:
+                M[t, p] = det[crowd.skeleton.flip]
+            else:
+                R[t, p] = det
+    sk = people_skeleton(crowd.skeleton, P)
+    joints = (crowd.skeleton.calibration_joints[None] + J * np.arange(P)[:, None]).ravel()
+    paired = PairedKeypoints(skeleton=sk, frame_ids=crowd.frame_ids, real=R.reshape(T, -1, 3),
+                             mirror=M.reshape(T, -1, 3), image_size=crowd.image_size)
+    return paired, tuple(sk.joints[j] for j in joints)
+
+
+def run_scene(people: int, seed: int, frames: int, known: bool, oracle: bool = False) -> dict:
     crowd = make_crowd(people=people, frames=frames, seed=seed, occluded_rate=0.5)
     intr = Intrinsics(K=crowd.K, image_size=crowd.image_size) if known else None
     opts = CalibrateOptions(image_size=crowd.image_size)
@@ -98,6 +124,13 @@ def run_scene(people: int, seed: int, frames: int, known: bool) -> dict:
     row["one"] = {"rot_deg": mirror_rotation_error_deg(one.normal, crowd.normal),
                   "focal_pct": 100.0 * (one.intrinsics.K[0, 0] / crowd.K[0, 0] - 1.0),
                   "pairs": int(one.pairs_used), "seconds": time.perf_counter() - clock}
+    if oracle:
+        clock = time.perf_counter()
+        paired, joints = oracle_paired(crowd)
+        cal = calibrate(paired, intr, replace(opts, joints=joints)).calibration
+        row["oracle"] = {"rot_deg": mirror_rotation_error_deg(cal.normal, crowd.normal),
+                         "focal_pct": 100.0 * (cal.intrinsics.K[0, 0] / crowd.K[0, 0] - 1.0),
+                         "pairs": int(cal.pairs_used), "seconds": time.perf_counter() - clock}
     clock = time.perf_counter()
     run = calibrate_people(crowd.detections, intr, opts)
     seconds = time.perf_counter() - clock
@@ -159,6 +192,21 @@ def render(rows: list[dict], command: str, load: float) -> str:
                 lines.append(f"{p} people: median |focal error| one {np.median(fo):.2f} %, "
                              f"all {np.median(fa):.2f} %.")
         lines.append("")
+    orc = [r for r in rows if "oracle" in r]
+    if orc:
+        lines += ["## Identities known", "",
+                  "*oracle*: the same graph from every person paired with their reflection by "
+                  "the truth (`calibrate` on the people side by side), the best the pairing "
+                  "can give it.", "",
+                  "| people | seed | camera | rot oracle | rot all | focal oracle | focal all |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in orc:
+            o, a = r["oracle"], r["all"]
+            lines.append(f"| {r['people']} | {r['seed']} | "
+                         f"{'given' if r['known_K'] else 'estimated'} | {o['rot_deg']:.3f} | "
+                         f"{a['rot_deg']:.3f} | {o['focal_pct']:+.2f} % | "
+                         f"{a['focal_pct']:+.2f} % |")
+        lines.append("")
     return "\n".join(lines)
 
 
@@ -169,6 +217,8 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--camera", choices=("both", "known", "unknown"), default="both")
     ap.add_argument("--out", default=str(HERE / "RESULTS_multiperson.md"))
+    ap.add_argument("--oracle", action="store_true",
+                    help="also the graph from the true pairs (identities known)")
     ap.add_argument("--report-only", action="store_true",
                     help="render --out from its .json beside it, run nothing")
     args = ap.parse_args(argv)
@@ -182,7 +232,7 @@ def main(argv=None) -> int:
     for known in modes:
         for p in _range(args.people):
             for s in _range(args.seeds):
-                row = run_scene(p, s, args.frames, known)
+                row = run_scene(p, s, args.frames, known, args.oracle)
                 rows.append(row)
                 print(json.dumps({k: row[k] for k in ("people", "seed", "known_K")}),
                       f"rot one {row['one']['rot_deg']:.3f} all {row['all']['rot_deg']:.3f}",
