@@ -149,14 +149,14 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     obs = observe(keypoints, intrinsics, opts, step)                        # observations
     init = initialise(obs, opts, step, ransac_progress)                     # initialisation
     run = initial_run(obs, init, opts)
-    if opts.refine:                             # solve, completion, scale (_refine)
+    if opts.refine:                             # solve, completion, scale (refine_run)
         step("factor-graph refinement")
         # without intrinsics the focal length and principal point are always variables of
         # the graph: about the 60 deg guess with a wide prior (estimated), or about the
         # user's field of view with that guess's own spread (--fov)
         refine_run(run, opts, iteration_progress, estimate_focal=intrinsics is None,
-                focal_rel_sigma=None if focal_estimated(opts) else
-                opts.graph.focal.guess_rel_sigma)
+                   focal_rel_sigma=None if focal_estimated(opts) else
+                   opts.graph.focal.guess_rel_sigma)
     elif opts.subject_height is not None:
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "
