@@ -29,7 +29,7 @@ keypoint of BODY_25 or COCO spans.
 
 from __future__ import annotations
 
-from .skeletons import Skeleton
+from .skeletons import Skeleton, person_of
 
 #: Segment length / standing height, by segment kind (Winter 2009, Fig. 4.1).
 HEIGHT_FRACTION: dict[str, float] = {
@@ -97,7 +97,9 @@ LANDMARK_HEIGHT: dict[str, float] = {
 
 
 def bone_kind(bone_name: str) -> str:
-    """Segment kind of a bone name: ``"left_femur"`` -> ``"femur"``."""
+    """Segment kind of a bone name: ``"left_femur"`` -> ``"femur"`` (a person's tag of
+    :func:`~mirrorgraph.skeletons.people_skeleton` left out: ``"left_femur@1"`` too)."""
+    bone_name = bone_name[:len(bone_name) - len(person_of(bone_name))]
     for prefix in ("left_", "right_"):
         if bone_name.startswith(prefix):
             return bone_name[len(prefix):]

@@ -244,3 +244,50 @@ def skeleton_for_count(num_joints: int) -> Skeleton | None:
 def known_counts() -> str:
     """``"COCO_17: 17, BODY_25: 25, ..."``: every layout and its count, for messages."""
     return ", ".join(f"{s.name}: {s.num_joints}" for s in SKELETONS.values())
+
+
+# --------------------------------------------------------------------------- several people
+#: Separates a joint's or bone's name from its person's number in the layout of several
+#: people (:func:`people_skeleton`): ``left_wrist@2``.
+PERSON_TAG = "@"
+
+
+def people_skeleton(skeleton: Skeleton, count: int) -> Skeleton:
+    """The layout of ``count`` people side by side: one body per person in one array.
+
+    Person ``p``'s joint ``j`` is joint ``p * J + j`` (``J`` of ``skeleton``), named
+    ``f"{name}@{p}"``; each person has their own bones (``left_femur@p``), their own
+    symmetric pairs and calibration joints, so that every body prior, bone length and
+    left/right flip stays within one person. ``mid_hip`` is ``None`` (the hip prior
+    names one mid-hip). One person: ``skeleton`` itself.
+
+    Args:
+        skeleton: one person's layout.
+        count: people (>= 1).
+    """
+    if count == 1:
+        return skeleton
+    if count < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+
+    def tag(name: str, p: int) -> str:
+        return f"{name}{PERSON_TAG}{p}"
+
+    people = range(count)
+    return Skeleton(
+        name=f"{skeleton.name}{PERSON_TAG}{count}",
+        joints=tuple(tag(n, p) for p in people for n in skeleton.joints),
+        bones={tag(b, p): (tag(a, p), tag(c, p)) for p in people
+               for b, (a, c) in skeleton.bones.items()},
+        symmetric_bones=tuple((tag(a, p), tag(b, p)) for p in people
+                              for a, b in skeleton.symmetric_bones),
+        mid_hip=None,
+        calibration_joint_names=tuple(tag(n, p) for p in people
+                                      for n in skeleton.calibration_joint_names))
+
+
+def person_of(name: str) -> str:
+    """The person's tag of a joint or bone name of :func:`people_skeleton` (``"@2"``), or
+    ``""`` for a name of one person's layout."""
+    i = name.rfind(PERSON_TAG)
+    return "" if i < 0 else name[i:]

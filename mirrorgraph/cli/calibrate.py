@@ -79,6 +79,14 @@ def add_parsers(sub) -> None:
     p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
     add_scale_from(p)
+    p.add_argument("--people", choices=("one", "all"), default="one",
+                   help="one: a person and their reflection a frame (default); all: every "
+                        "person before the mirror paired with their own reflection and "
+                        "tracked, each with their own joints and bones in the one graph "
+                        "(--joints3d: .npz with a person axis, else one file a person)")
+    p.add_argument("--height-of", type=_height_of, default="tallest", metavar="WHO",
+                   help="with --people all: whose height --subject-height is: tallest "
+                        "(default), first (the first person tracked) or a person's number")
     p.add_argument("--no-refine", action="store_true",
                    help="keep the robust initialisation, skip the factor graph")
     p.add_argument("--sensitivity", action="store_true",
@@ -142,6 +150,10 @@ def cmd_calibrate(args) -> int:
                    (args.report, "--report"), (args.render, "--render")],
                   inputs=[args.keypoints, args.intrinsics, args.video],
                   folders=("--report",))
+    if args.people == "all":
+        for flag, given in (("--report", args.report), ("--view", args.view is not None)):
+            if given:
+                raise InputError("draws one person: not with --people all", field=flag)
     if args.sensitivity and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:
@@ -168,8 +180,15 @@ def cmd_calibrate(args) -> int:
     _verbose_input(args, data)
     opts = options_from_args(args)
     opts.fps, opts.video = args.fps, args.video           # the frame rate of the 3D motion
+    people = None
     with solver_progress(args) as callbacks:
-        run = calibrate(data, intr, opts, **callbacks)
+        if args.people == "all":
+            from ..pipelines.people import calibrate_people
+            people = calibrate_people(data, intr, opts, height_of=args.height_of,
+                                      progress=callbacks["progress"])
+            run = people.run
+        else:
+            run = calibrate(data, intr, opts, **callbacks)
     calib = run.calibration
     if args.joints3d and run.fps_source == "default":
         calib.warnings.append(DEFAULT_FPS_WARNING)
@@ -186,10 +205,16 @@ def cmd_calibrate(args) -> int:
     with staged_outputs() as stage:              # every file moves into place at the end
         write_calibration_and_run(args.out, run)     # with the run its report draws from
         if args.joints3d:
-            write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
-                           run.paired.skeleton.joints, run.fps,
-                           unit="m" if calib.distance is not None else "mirror distance",
-                           joints_std=run.joints_std)
+            unit = "m" if calib.distance is not None else "mirror distance"
+            if people is not None:
+                from ..io.people_motion import write_people_joints3d
+                write_people_joints3d(args.joints3d, people.joints3d, people.valid3d,
+                                      run.paired.frame_ids, people.pairing.base.joints,
+                                      run.fps, unit=unit)
+            else:
+                write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
+                               run.paired.skeleton.joints, run.fps, unit=unit,
+                               joints_std=run.joints_std)
         if args.report:
             from ..report import make_report
             written = make_report(run, stage.folder(args.report), video=args.video,
@@ -215,6 +240,17 @@ def cmd_calibrate(args) -> int:
         if view_line:
             say(view_line)
     return 0
+
+
+def _height_of(text: str):
+    """``--height-of``: ``tallest``, ``first`` or a person's number."""
+    import argparse
+    if text in ("tallest", "first"):
+        return text
+    if text.isdigit():
+        return int(text)
+    raise argparse.ArgumentTypeError(f"must be tallest, first or a person's number, not "
+                                     f"{text!r}")
 
 
 def _verbose_input(args, data) -> None:

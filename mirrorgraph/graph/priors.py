@@ -17,6 +17,7 @@ import gtsam
 import numpy as np
 
 from ..anthropometry import femur_ratios, height_fractions
+from ..skeletons import person_of
 from ..factors import (AnthropometricRatioFactor, HipColinearityFactor, SmoothnessFactor,
                        SymmetryFactor)
 from .bones import median_bone_lengths
@@ -114,17 +115,22 @@ def add_anthropometry(rig, graph, bone_names, options, info):
     if not options.use_anthropometry:
         return
     index = {b: i for i, b in enumerate(bone_names)}
-    femurs = [index[b] for b in ("left_femur", "right_femur") if b in index]
-    if not femurs:
-        return
     ratios = femur_ratios(rig.skeleton)
     factor = AnthropometricRatioFactor(options.anthropometry_sigma)
-    count = 0
-    for name, i in index.items():
-        if name.endswith("femur"):
+    count, bodies = 0, 0
+    # each person's bones against their own femurs (several people: skeletons.people_skeleton)
+    for tag in dict.fromkeys(person_of(b) for b in index):
+        femurs = [index[b + tag] for b in ("left_femur", "right_femur") if b + tag in index]
+        if not femurs:
             continue
-        graph.push_back(factor.make(LENGTH_KEY, i, femurs, ratios[name]))
-        count += 1
+        bodies += 1
+        for name, i in index.items():
+            if name.endswith("femur" + tag) or person_of(name) != tag:
+                continue
+            graph.push_back(factor.make(LENGTH_KEY, i, femurs, ratios[name]))
+            count += 1
+    if not bodies:
+        return
     record_prior(info, "anthropometry", options.anthropometry_sigma, "ratio (Winter 2009)",
                  count)
 

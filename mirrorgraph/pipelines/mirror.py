@@ -173,8 +173,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     step = progress or (lambda _name: None)
     obs = observe(keypoints, intrinsics, opts, step)                        # observations
     init = initialise(obs, opts, step, ransac_progress)                     # initialisation
-    run = _initial_run(obs, init, opts)
-    if opts.refine:                             # solve, completion, scale (_refine)
+    run = initial_run(obs, init, opts)
+    if opts.refine:                             # solve, completion, scale (refine_run)
         step("factor-graph refinement")
         # without intrinsics the focal length and principal point are always variables of
         # the graph: about the 60 deg guess with a wide prior (estimated), or about the
@@ -188,9 +188,9 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                                   getattr(obs.keypoints, "people", None),
                                   obs.intrinsics.image_size, opts.graph.focal, seed=opts.seed)
             run.timings["lines"] = time.perf_counter() - clock
-        _refine(run, opts, iteration_progress, estimate_focal=intrinsics is None,
-                focal_rel_sigma=None if focal_estimated(opts) else
-                opts.graph.focal.guess_rel_sigma, lines=lines)
+        refine_run(run, opts, iteration_progress, estimate_focal=intrinsics is None,
+                   focal_rel_sigma=None if focal_estimated(opts) else
+                   opts.graph.focal.guess_rel_sigma, lines=lines)
     elif opts.subject_height is not None:
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "
@@ -339,7 +339,7 @@ def initialise(obs: Observations, opts: CalibrateOptions,
     return Initial(est, valid, (t_idx, j_idx), inliers, candidates, check, seconds)
 
 
-def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> CalibrationRun:
+def initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> CalibrationRun:
     """The run's record after the initialisation: the :class:`Calibration` of the initial
     mirror (no scale yet) and what the later steps need."""
     paired, est, inliers, joints = obs.paired, init.estimate, init.inliers, obs.joints
@@ -367,13 +367,14 @@ def _initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Ca
                           timings={"pairing": obs.seconds, "initialisation": init.seconds})
 
 
-def _refine(run: CalibrationRun, opts: CalibrateOptions,
-            iteration_progress: Callable[[int, float], None] | None = None,
-            estimate_focal: bool = False, focal_rel_sigma: float | None = None,
-            lines: LinesFocal | None = None) -> None:
-    """The graph's solve and what it gives the run's record. ``lines``: the scene's
-    witness of the focal length (:mod:`.lines`): where it has an estimate the graph is
-    solved a second time with it joined to the guess's prior, and both cues are
+def refine_run(run: CalibrationRun, opts: CalibrateOptions,
+               iteration_progress: Callable[[int, float], None] | None = None,
+               estimate_focal: bool = False, focal_rel_sigma: float | None = None,
+               lines: LinesFocal | None = None) -> None:
+    """Solve, complete and scale ``run`` in place (the graph of :func:`.solve.refine_mirror`
+    from its pairs; ``estimate_focal``: the intrinsics a guess, estimated). ``lines``: the
+    scene's witness of the focal length (:mod:`.lines`): where it has an estimate the graph
+    is solved a second time with it joined to the guess's prior, and both cues are
     recorded apart (``intrinsics.estimated.focal_sources``)."""
     ropts = opts.graph
     calib = run.calibration

@@ -1,0 +1,250 @@
+"""``calibrate`` from every person before one mirror: each with their own reflection, their
+own 3D joints and bone lengths, all in the one graph of the mirror.
+
+The run is :func:`.mirror.calibrate`'s, step for step, on other observations:
+
+    observations (read, undistort; every person paired with their own reflection and
+       tracked, :func:`mirrorgraph.initial.people.pair_people`)
+    -> initialisation (the reflective RANSAC over every person's pairs)
+    -> solve (the one graph: the people side by side in the layout
+       :func:`mirrorgraph.skeletons.people_skeleton`, so that each person has their own
+       joints, bone lengths, symmetry and proportions, and no prior links two people;
+       the mirror, and the focal length where it is estimated, shared)
+    -> completion -> scale -> result
+
+**The metric scale.** Everyone's stature is unknown but one: ``subject_height`` applies to
+one person, ``height_of`` says which: ``"tallest"`` (the default: the person of the
+largest stature measured on the solved joints, ankle to eyes or head top,
+:func:`mirrorgraph.stature.estimate_stature`), ``"first"`` (the first person tracked,
+:attr:`PeopleRun.people` order), or a person's index. Given a list ``heights`` (metres,
+one per person in that order, ``None`` for unknown ones), the scale is the median of their
+ratios. The others' statures then follow from the shared mirror: the graph holds every
+person in the same unit (the mirror's distance), so one length fixes them all.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, replace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..initial.pair_candidates import PairingOptions
+from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
+from ..intrinsics import Intrinsics
+from ..io import read_keypoints
+from ..joint_sets import mirror_joints
+from ..keypoints import PairedKeypoints, RawDetections
+from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
+from ..stature import estimate_stature, with_height_sigma
+from .judge import judge_mirror, median_ray_angle_deg, motion_px
+from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
+                     refine_run, resolve_intrinsics)
+from .options import CalibrateOptions
+
+__all__ = ["PeopleRun", "calibrate_people"]
+
+HEIGHT_OF = ("tallest", "first")
+
+
+@dataclass
+class PeopleRun:
+    """A calibration from every person (:func:`calibrate_people`).
+
+    Attributes:
+        run: the run of the one graph (:class:`~.mirror.CalibrationRun`; its keypoints and
+            joints in the layout of several people).
+        pairing: every person with their reflection, tracked.
+        joints3d: ``(P, T, J, 3)`` each person's joints (metres with a subject height, else
+            in units of the mirror's distance), real camera frame, NaN where not estimated;
+            ``None`` without refinement.
+        valid3d: ``(P, T, J)`` bool.
+        statures: ``(P,)`` each person's stature measured on their joints (the output's
+            unit; NaN where the joints do not span ankle to eyes).
+        height_person: the person the subject height applies to (``None``: no height, or
+            a list of heights).
+    """
+
+    run: CalibrationRun
+    pairing: PeoplePairing
+    joints3d: np.ndarray | None
+    valid3d: np.ndarray | None
+    statures: np.ndarray
+    height_person: int | None = None
+
+    @property
+    def num_people(self) -> int:
+        """``P``."""
+        return self.pairing.num_people
+
+    @property
+    def calibration(self):
+        """The :class:`~mirrorgraph.result.mirror.Calibration`."""
+        return self.run.calibration
+
+
+def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: PeopleOptions,
+                    step) -> tuple[Observations, PeoplePairing]:
+    """Read, undistort, pair every person with their reflection and track them."""
+    if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
+        step("reading keypoints")
+        keypoints = read_keypoints(keypoints, skeleton=opts.skeleton, video=opts.detection)
+    if isinstance(keypoints, PairedKeypoints):
+        raise InputError("every person's pairing needs the detections of every frame, not "
+                         "keypoints already paired (one person)", source=keypoints.source)
+    warnings: list[str] = []
+    joints = mirror_joints(keypoints.skeleton, opts.joints, source=keypoints.source or None)
+    fps_warnings: list[str] = []
+    fps, fps_source = resolve_fps(keypoints, fps_warnings, fps=opts.fps, video=opts.video)
+    if opts.refine:
+        warnings.extend(fps_warnings)
+    intr = resolve_intrinsics(intrinsics, keypoints, opts, warnings)
+    check_image_size(keypoints, intr, warnings)
+    data = undistort_keypoints(keypoints, intr)
+    pair_opts = PairingOptions(min_confidence=opts.min_confidence,
+                               threshold_px=opts.threshold_px, seed=opts.seed)
+    step("pairing every person with their reflection")
+    clock = time.perf_counter()
+    pairing = pair_people(data, joints, pair_opts, people)
+    warnings.extend(pairing.notes)
+    P, J = pairing.num_people, keypoints.skeleton.num_joints
+    all_joints = (np.asarray(joints, dtype=int)[None, :] + J * np.arange(P)[:, None]).ravel()
+    obs = Observations(keypoints, pairing.paired, pairing.paired, all_joints, intr, fps,
+                       fps_source, pair_opts, warnings, time.perf_counter() - clock)
+    return obs, pairing
+
+
+def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
+                  height_of) -> tuple[float | None, np.ndarray, int | None, str]:
+    """The factor that makes the chosen person's stature (or the list's) the given one:
+    ``(factor, statures before scaling, person, source)``; ``factor`` ``None`` where no
+    stature can be measured."""
+    P = points.shape[0]
+    est = [estimate_stature(points[p], valid[p], base) for p in range(P)]
+    measured = np.array([np.nan if e is None else e.height for e in est])
+    if heights is not None:
+        ratios = [float(h) / measured[p] for p, h in enumerate(heights)
+                  if h is not None and p < P and np.isfinite(measured[p])]
+        if not ratios:
+            return None, measured, None, "no person of the given heights has a stature"
+        return (float(np.median(ratios)), measured, None,
+                f"the median of {len(ratios)} people's given heights over their statures")
+    if not np.isfinite(measured).any():
+        return None, measured, None, "no person's joints span ankle to eyes"
+    if height_of == "tallest":
+        person = int(np.nanargmax(measured))
+    elif height_of == "first":
+        person = 0
+    else:
+        person = int(height_of)
+    if height is None:
+        return None, measured, None, "no height given"
+    if not np.isfinite(measured[person]):
+        return None, measured, person, f"person {person}'s joints do not span ankle to eyes"
+    return (float(height) / measured[person], measured, person,
+            f"person {person}'s stature ({height_of})")
+
+
+def _check_height_of(height_of, heights) -> None:
+    if heights is not None:
+        for h in heights:
+            if h is not None and not (isinstance(h, (int, float)) and math.isfinite(h)
+                                      and h > 0):
+                raise InputError(f"every height must be a positive number of metres, got "
+                                 f"{h!r}", field="heights")
+        return
+    if height_of in HEIGHT_OF:
+        return
+    if isinstance(height_of, bool) or not isinstance(height_of, (int, np.integer)) \
+            or height_of < 0:
+        raise InputError(f"must be 'tallest', 'first' or a person's index, got "
+                         f"{height_of!r}", field="height_of")
+
+
+def calibrate_people(keypoints: RawDetections | str | os.PathLike,
+                     intrinsics: Intrinsics | None = None,
+                     options: CalibrateOptions | None = None,
+                     people: PeopleOptions | None = None, *, height_of: str | int = "tallest",
+                     heights: Sequence[float | None] | None = None,
+                     progress: Callable[[str], None] | None = None) -> PeopleRun:
+    """Calibrate the mirror from every person before it (the module docstring).
+
+    Args:
+        keypoints: a path to any supported keypoint input, or the detections.
+        intrinsics: camera intrinsics; ``None``: the focal length estimated (as
+            :func:`~.mirror.calibrate`).
+        options: :class:`~.options.CalibrateOptions`; ``subject_height`` is one person's
+            (``height_of``).
+        people: :class:`~mirrorgraph.initial.people.PeopleOptions`.
+        height_of: whose height ``subject_height`` is: ``"tallest"``, ``"first"`` or a
+            person's index.
+        heights: instead, every person's height (metres, ``None``: unknown), in
+            :attr:`PeopleRun.people` order.
+        progress: optional callback receiving the name of each step.
+
+    Raises:
+        InputError: unusable input or options (the message names the field).
+        DegenerateGeometryError: the data cannot determine the mirror.
+    """
+    _check_height_of(height_of, heights)
+    opts = (options or CalibrateOptions()).checked()
+    height = opts.subject_height
+    # the graph runs in units of the mirror's distance: the height is one person's, known
+    # only once the statures are measured
+    run_opts = replace(opts, subject_height=None,
+                       refine_options=replace(opts.graph, subject_height=None))
+    step = progress or (lambda _name: None)
+    obs, pairing = _observe_people(keypoints, intrinsics, run_opts, people or PeopleOptions(),
+                                   step)
+    init = initialise(obs, run_opts, step)
+    run = initial_run(obs, init, run_opts)
+    calib = run.calibration
+    calib.input["subject_height"] = height
+    calib.input["people"] = {"count": pairing.num_people, "tracks_found": pairing.tracks_found,
+                             "pairs_left_out": pairing.pairs_left_out,
+                             "height_of": None if heights is not None else height_of,
+                             "heights": None if heights is None else list(heights)}
+    P = pairing.num_people
+    joints3d = valid3d = None
+    statures = np.full(P, np.nan)
+    person = None
+    if opts.refine:
+        step("factor-graph refinement")
+        refine_run(run, run_opts, estimate_focal=intrinsics is None,
+                focal_rel_sigma=None if focal_estimated(run_opts) else
+                run_opts.graph.focal.guess_rel_sigma)
+        joints3d = split_people(run.joints3d, P)
+        valid3d = split_people(run.valid3d, P)
+        factor, measured, person, source = _scale_people(joints3d, valid3d, pairing.base,
+                                                         height, heights, height_of)
+        statures = measured
+        if (height is not None or heights is not None) and factor is not None:
+            joints3d = joints3d * factor
+            run.joints3d = run.joints3d * factor
+            statures = measured * factor
+            calib.distance, calib.scale = float(factor), "subject_height"
+            calib.refinement["bone_lengths"] = {
+                b: v * factor for b, v in calib.refinement["bone_lengths"].items()}
+            calib.uncertainty["distance_std"] = with_height_sigma(
+                0.0, float(factor), opts.graph.height_sigma)
+            calib.refinement["scale_source"] = source
+        elif height is not None or heights is not None:
+            calib.warnings.append(f"scale: {source}; the distance stays unknown")
+        calib.input["people"]["statures"] = [None if not np.isfinite(s) else float(s)
+                                             for s in statures]
+        calib.input["people"]["height_person"] = person
+    elif height is not None:
+        calib.warnings.append("subject_height needs the refinement (it scales the body); "
+                              "without it the distance stays unknown")
+    rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
+                                 calib.distance if calib.distance is not None else 1.0)
+            if opts.refine else float("nan"))
+    est = init.estimate
+    judge_mirror(calib, est.residuals[est.inliers],
+                 motion_px(obs.paired, obs.joints, opts.min_confidence), init.check, rays)
+    return PeopleRun(run=run, pairing=pairing, joints3d=joints3d, valid3d=valid3d,
+                     statures=statures, height_person=person)

@@ -1,0 +1,92 @@
+"""Every person before one mirror in the one graph (mirrorgraph.pipelines.people), against
+the ground truth of a synthetic gym scene."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mirrorgraph.errors import InputError
+from mirrorgraph.intrinsics import Intrinsics
+from mirrorgraph.metrics import mirror_rotation_error_deg, pa_mpjpe
+from mirrorgraph.pipelines.mirror import calibrate
+from mirrorgraph.pipelines.options import CalibrateOptions
+from mirrorgraph.pipelines.people import calibrate_people
+from mirrorgraph.synth.crowd import make_crowd
+
+
+@pytest.fixture(scope="module")
+def crowd():
+    return make_crowd(people=3, frames=240, seed=3, occluded_rate=0.5)
+
+
+def _owners(crowd, run):
+    """Each track's true person (the owner of most of its person detections)."""
+    out = []
+    for k in range(run.num_people):
+        own = [crowd.truth_person[t][a] for t, (a, _) in enumerate(run.pairing.detections[:, k])
+               if a >= 0]
+        out.append(int(np.bincount(own).argmax()))
+    return out
+
+
+@pytest.fixture(scope="module")
+def runs(crowd):
+    intr = Intrinsics(K=crowd.K, image_size=crowd.image_size)
+    opts = CalibrateOptions(image_size=crowd.image_size, subject_height=None)
+    one = calibrate(crowd.detections, intr, opts)
+    tallest = float(crowd.heights.max())
+    every = calibrate_people(crowd.detections, intr,
+                             CalibrateOptions(image_size=crowd.image_size,
+                                              subject_height=tallest))
+    return one, every
+
+
+def test_every_person_has_their_joints(crowd, runs):
+    _, run = runs
+    owners = _owners(crowd, run)
+    assert sorted(set(owners)) == [0, 1, 2]
+    limbs = np.zeros(crowd.skeleton.num_joints, dtype=bool)
+    limbs[crowd.skeleton.calibration_joints] = True
+    for p in range(3):
+        k = owners.index(p)
+        err = pa_mpjpe(run.joints3d[k], crowd.joints3d[p], run.valid3d[k] & limbs)
+        assert err < 0.030, (p, err)                        # metres
+        seen = ~crowd.occluded[p].any(0)                # both views of the person
+        assert run.valid3d[k].any(-1)[seen].mean() > 0.9
+
+
+def test_the_mirror_at_least_as_good_as_one_persons(crowd, runs):
+    one, run = runs
+    e_one = mirror_rotation_error_deg(one.calibration.normal, crowd.normal)
+    e_all = mirror_rotation_error_deg(run.calibration.normal, crowd.normal)
+    assert e_all <= e_one
+    assert e_all < 0.1
+    assert run.calibration.pairs_used > 2 * one.calibration.pairs_used
+
+
+def test_one_height_scales_everyone(crowd, runs):
+    _, run = runs
+    cal = run.calibration
+    assert cal.scale == "subject_height"
+    assert abs(cal.distance / crowd.distance - 1.0) < 0.03
+    owners = _owners(crowd, run)
+    assert owners[run.height_person] == int(np.argmax(crowd.heights))
+    for k, p in enumerate(owners):           # the others' statures follow from the mirror
+        assert abs(run.statures[k] / crowd.heights[p] - 1.0) < 0.04, (k, run.statures)
+
+
+def test_height_of_refuses_nonsense(crowd):
+    with pytest.raises(InputError, match="height_of"):
+        calibrate_people(crowd.detections, None, height_of="oldest")
+
+
+def test_a_list_of_heights(crowd, runs):
+    _, run = runs
+    owners = _owners(crowd, run)
+    heights = [float(crowd.heights[owners[0]]), None, None]
+    again = calibrate_people(crowd.detections, Intrinsics(K=crowd.K, image_size=crowd.image_size),
+                             CalibrateOptions(image_size=crowd.image_size), heights=heights)
+    assert again.height_person is None
+    assert abs(again.calibration.distance / crowd.distance - 1.0) < 0.03
+    assert abs(again.statures[0] - heights[0]) < 1e-9
