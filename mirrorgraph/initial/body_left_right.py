@@ -85,9 +85,45 @@ def _motion_scale(pts: np.ndarray, step: np.ndarray, floor: float) -> np.ndarray
     return np.where(np.isfinite(med), np.maximum(med, floor), floor)
 
 
+def _transitions(pts: np.ndarray, last: np.ndarray, gap: np.ndarray, fresh: np.ndarray,
+                 scale: np.ndarray, opts: BodySwapOptions) -> np.ndarray:
+    """``(..., P, 2, 2)`` the chain's min-plus transition matrices ``M[prev, cur]``: the
+    keypoints' motion from ``last`` to ``pts`` (both ``(..., P, 4, 2)``, NaN unseen) under
+    the two labellings, over ``gap`` frames, plus a switch's cost and the swapped state's;
+    where ``fresh`` (a chain's start) any state follows any; where a pair is unseen the
+    state carries on (``0`` on the diagonal, ``inf`` off it)."""
+    s = (scale * np.maximum(gap, 1)[..., None])[..., None]
+    cap = opts.truncation ** 2
+    with np.errstate(invalid="ignore"):
+        same = np.minimum(np.sum(((pts - last) / s) ** 2, axis=-1), cap)
+        cross = np.minimum(np.sum(((pts[..., [1, 0, 3, 2], :] - last) / s) ** 2, axis=-1), cap)
+    same, cross = np.nansum(same, axis=-1), np.nansum(cross, axis=-1)
+    M = np.stack([np.stack([same, cross + opts.switch_cost], -1),
+                  np.stack([cross + opts.switch_cost, same], -1)], -2)
+    M = np.where(fresh[..., None, None], 0.0, M) + np.array([0.0, opts.swapped_cost])
+    seen = np.isfinite(pts).all(-1).any(-1)
+    return np.where(seen[..., None, None], M, np.array([[0.0, np.inf], [np.inf, 0.0]]))
+
+
+def _minplus(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The min-plus product of stacks of ``2 x 2`` matrices (``A`` may have one row)."""
+    return np.minimum(A[..., :, 0:1] + B[..., 0:1, :], A[..., :, 1:2] + B[..., 1:2, :])
+
+
+def _scan(M: np.ndarray) -> np.ndarray:
+    """``(T, ...)`` inclusive prefix min-plus products ``M[0] M[1] ... M[t]`` (an
+    associative scan in ``log2 T`` vectorised steps, Hillis and Steele 1986)."""
+    out = np.array(M, copy=True)
+    k = 1
+    while k < len(out):
+        out[k:] = _minplus(out[:-k], out[k:])
+        k *= 2
+    return out
+
+
 class _Chain:
-    """The chains' forward state: per pair the cost of each state so far, the last
-    keypoints seen and their frame (the Viterbi recursion's, one frame a step)."""
+    """The chains' forward state for a stream: per pair the cost of each state so far,
+    the last keypoints seen and their frame (the Viterbi recursion, one frame a step)."""
 
     def __init__(self, P: int, opts: BodySwapOptions) -> None:
         self.opts = opts
@@ -96,45 +132,37 @@ class _Chain:
         self.last_frame = np.full(P, -(10 ** 12), dtype=np.int64)
         self.started = np.zeros(P, bool)
 
-    def step(self, pts: np.ndarray, frame: int, scale: np.ndarray) -> tuple[np.ndarray,
-                                                                          np.ndarray]:
+    def step(self, pts: np.ndarray, frame: int, scale: np.ndarray) -> np.ndarray:
         """Take one frame's ``(P, 4, 2)`` keypoints (NaN unseen) at ``frame`` with the
-        keypoints' typical motions ``(P, 4)``. Returns ``(P,)`` whether the pair was seen
-        and ``(P, 2)`` each state's best predecessor (a pair unseen keeps its state)."""
-        opts, P = self.opts, len(self.cost)
+        keypoints' typical motions ``(P, 4)``. Returns ``(P,)`` whether the pair was seen."""
         obs = np.isfinite(pts).all(-1).any(-1)
         gap = frame - self.last_frame
-        fresh = obs & (~self.started | (gap > opts.max_gap))
-        s = (scale * np.maximum(gap, 1)[:, None])[..., None]
-        cap = opts.truncation ** 2
-        with np.errstate(invalid="ignore"):
-            same = np.minimum(np.sum(((pts - self.last) / s) ** 2, axis=-1), cap)
-            cross = np.minimum(np.sum(((pts[:, [1, 0, 3, 2]] - self.last) / s) ** 2, axis=-1),
-                               cap)
-        same, cross = np.nansum(same, axis=-1), np.nansum(cross, axis=-1)   # (P,)
-        # trans[p, prev, cur]: the motion under (prev, cur) plus the switch's cost
-        trans = np.stack([np.stack([same, cross + opts.switch_cost], -1),
-                          np.stack([cross + opts.switch_cost, same], -1)], 1)
-        total = self.cost[:, :, None] + trans                                 # (P, prev, cur)
-        best_prev = np.argmin(total, axis=1)                                  # (P, cur)
-        chained = total[np.arange(P)[:, None], best_prev, np.arange(2)[None, :]]
-        restart = self.cost.min(1)[:, None] + np.zeros((1, 2))
-        restart_prev = np.repeat(np.argmin(self.cost, 1)[:, None], 2, 1)
-        new_cost = np.where(fresh[:, None], restart, chained) + [0.0, opts.swapped_cost]
-        back = np.where(fresh[:, None], restart_prev, best_prev)
-        self.cost = np.where(obs[:, None], new_cost, self.cost)
-        self.last = np.where(obs[:, None, None], np.where(np.isfinite(pts), pts, self.last),
-                             self.last)
+        fresh = obs & (~self.started | (gap > self.opts.max_gap))
+        M = _transitions(pts, self.last, gap, fresh, scale, self.opts)
+        self.cost = _minplus(self.cost[:, None, :], M)[:, 0]
+        self.last = np.where(np.isfinite(pts), pts, self.last)
         self.last_frame = np.where(obs, frame, self.last_frame)
         self.started |= obs
-        return obs, np.where(obs[:, None], back, np.arange(2)[None, :])
+        return obs
+
+
+def _carried(pts: np.ndarray) -> np.ndarray:
+    """``(T, ...)`` each keypoint's last finite value before frame ``t`` (NaN: none)."""
+    T = len(pts)
+    ok = np.isfinite(pts).all(-1)                                       # (T, P, 4)
+    idx = np.where(ok, np.arange(T)[:, None, None], -1)
+    idx = np.maximum.accumulate(idx, axis=0)
+    prev = np.concatenate([np.full((1,) + idx.shape[1:], -1), idx[:-1]])   # strictly before
+    out = np.take_along_axis(pts, np.maximum(prev, 0)[..., None], axis=0)
+    return np.where((prev >= 0)[..., None], out, np.nan)
 
 
 def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
                 options: BodySwapOptions | None = None) -> np.ndarray:
     """``(T, P)`` bool: the frames where the detector swapped pair ``p``'s labels in both
-    views (the Viterbi path of the module docstring's chain); pairs in the order of
-    ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
+    views (the most likely path of the module docstring's chain: each frame's state the
+    smaller of the forward and backward min-plus messages' sums, by associative scans);
+    pairs in the order of ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
     opts = options or BodySwapOptions()
     left, right = _pairs(np.asarray(paired.skeleton.flip))
     T, P = len(paired), len(left)
@@ -144,18 +172,18 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     frames = np.asarray(paired.frame_ids, dtype=np.int64)
     step = np.diff(frames, prepend=frames[0] - 1)
     scale = _motion_scale(pts, step, opts.min_scale_px)             # (P, 4)
-    chain = _Chain(P, opts)
-    seen = np.zeros((T, P), bool)
-    back = np.zeros((T, P, 2), dtype=np.int8)
-    for t in range(T):
-        seen[t], back[t] = chain.step(pts[t], frames[t], scale)
-    state = np.zeros((T, P), dtype=np.int8)
-    cur = np.argmin(chain.cost, axis=1).astype(np.int8)
-    ar = np.arange(P)
-    for t in range(T - 1, -1, -1):
-        state[t] = cur
-        cur = back[t, ar, cur]
-    return state.astype(bool) & seen
+    seen = np.isfinite(pts).all(-1).any(-1)                         # (T, P)
+    last_obs = np.maximum.accumulate(np.where(seen, np.arange(T)[:, None], -1), axis=0)
+    before = np.concatenate([np.full((1, P), -1), last_obs[:-1]])   # last seen before t
+    gap = np.where(before >= 0, frames[:, None] - frames[np.maximum(before, 0)], 10 ** 12)
+    fresh = seen & ((before < 0) | (gap > opts.max_gap))
+    M = _transitions(pts, _carried(pts), gap, fresh, scale, opts)   # (T, P, 2, 2)
+    forward = _scan(M).min(axis=-2)                                 # (T, P, cur)
+    backward = np.zeros((T, P, 2))
+    if T > 1:
+        rest = _scan(np.swapaxes(M[1:][::-1], -1, -2))[::-1]        # M[t+1] ... M[T-1], transposed
+        backward[:-1] = rest.min(axis=-2)
+    return (np.argmin(forward + backward, axis=-1) == 1) & seen
 
 
 #: The stream's typical motions are taken anew every this many frames.
@@ -202,7 +230,7 @@ class BodySwapFilter:
                        if self._n else np.full(pts.shape[:2], np.nan))
             self._scale = np.where(np.isfinite(med), np.maximum(med, self.opts.min_scale_px),
                                    self.opts.min_scale_px)
-        seen, _ = self._chain.step(pts, int(frame_id), self._scale)
+        seen = self._chain.step(pts, int(frame_id), self._scale)
         swapped = seen & (np.argmin(self._chain.cost, axis=1) == 1)
         if not swapped.any():
             return real, mirror
