@@ -1,83 +1,30 @@
 """Camera files for Pose2Sim and aniposelib: a mirror calibration as a two-camera rig, a rig
 with every camera and (optionally) every view through a mirror.
 
-The real camera and the mirror's virtual camera are written as two ordinary
-cameras of a Pose2Sim ``Calib.toml`` or an aniposelib ``calibration.toml``
-(see :mod:`mirrorgraph.io.camera_toml`), so that those tools triangulate the
-person from the direct view and the reflection and get mirrorgraph's own 3D
-joints back.
+The real camera and the mirror's virtual camera are written as two ordinary cameras of a
+Pose2Sim ``Calib.toml`` or an aniposelib ``calibration.toml``
+(:mod:`mirrorgraph.io.camera_toml`), so that those tools triangulate the person from the
+direct view and the reflection and get mirrorgraph's own 3D joints back.
 
-The flip
---------
-Both tools assume right-handed cameras, ``u ~ K (R X + t)``. The mirror view
-is not one: a point ``X`` (real camera frame) is imaged in the mirror at
-(:mod:`mirrorgraph.geometry`)
+The flip: a mirror view is a left-handed camera, ``u = pi(K D (R X + t))`` with
+``D = diag(-1, 1, 1)``, ``R = D (I - 2 n n^T)``, ``t = 2 d D n``
+(:mod:`mirrorgraph.geometry`). Mirroring the image, ``u' = W - u`` (``W`` the image width
+in pixels), makes it an ordinary right-handed camera with the same ``R``, ``t`` and
 
-    u = pi(K S(X)) = pi(K D (R X + t)),   D = diag(-1, 1, 1),
-    R = D (I - 2 n n^T),  t = 2 d D n,
+    K' = [[fx, -s, W - cx], [0, fy, cy], [0, 0, 1]],
 
-a camera with a left-handed frame. Mirror the *image* horizontally,
-``u' = W - u`` (``W`` the image width in pixels), i.e. ``u' ~ F u`` with
-``F = [[-1, 0, W], [0, 1, 0], [0, 0, 1]]``. ``F`` does not touch the third
-homogeneous coordinate, so ``pi(F y) = F pi(y)`` and
+and lens distortion with ``p2, s1, s2, tauY`` negated (:func:`flip_distortion`); the flip
+is exact on the raw (distorted) pixels. The mirror camera's keypoints are the
+reflection's with ``x -> W - x`` and left/right labels swapped
+(:func:`flip_mirror_keypoints`); the real view is the first camera.
 
-    u' = pi(F K D (R X + t)) = pi(K' (R X + t)),
+World frame: ``world="camera"`` (default) is the real camera frame (x right, y down,
+z forward; the real camera ``R = I, t = 0``); ``world="z_up"`` is ``(x, z, -y)`` of it,
+what Pose2Sim's OpenSim steps assume. Translations in metres with a metric scale, else in
+units of the mirror distance (:func:`export_calibration` warns).
 
-    F K D = [[-1, 0, W], [0, 1, 0], [0, 0, 1]] [[-fx, s, cx], [0, fy, cy], [0, 0, 1]]
-          = [[fx, -s, W - cx], [0, fy, cy], [0, 0, 1]] = K'.
-
-``K'`` has positive focal lengths and ``R`` is a proper rotation (``det D =
-det H = -1``), so the flipped mirror view is an ordinary right-handed camera
-with rotation ``R``, translation ``t`` and camera matrix ``K'``: the principal
-point moves to ``W - cx`` and the skew changes sign. Points in front of the
-mirror camera have depth ``(R X + t)_z = S(X)_z > 0``, as required.
-
-Lens distortion happens in the real lens, in the real camera's normalised
-coordinates ``(x, y) = (S_x / S_z, S_y / S_z)``; the flipped camera's normalised
-coordinates are ``(x', y') = (-x, y)`` and its distorted ``x`` is ``-x_d``.
-Substituting ``x = -x'`` into OpenCV's model: the radial terms (``k1..k6``)
-depend on ``r^2`` and keep their sign; ``x_d`` gets ``2 p1 x y`` (even in
-``x``, unchanged after the sign of ``x_d``) and ``p2 (r^2 + 2 x^2)`` (odd:
-changes sign), ``y_d`` gets ``p1 (r^2 + 2 y^2)`` (unchanged) and ``2 p2 x y``
-(changes sign): **p2 flips, p1 does not**. Of the thin-prism terms ``s1, s2``
-(in ``x_d``) flip and ``s3, s4`` do not; of the tilted-sensor angles ``tauY``
-(a rotation about the y axis) flips and ``tauX`` does not. So the flipped
-camera's coefficients are those of the real lens with ``p2, s1, s2, tauY``
-negated (:func:`flip_distortion`), and the flip ``u' = W - u`` is exact on the
-*raw* (distorted) detector pixels.
-
-What users do with their keypoints
-----------------------------------
-* Real camera (``cam_01`` / ``cam_0``): the person's keypoints as detected,
-  unchanged.
-* Mirror camera (``cam_02`` / ``cam_1``): the reflection's keypoints with
-  ``x -> W - x`` (``y`` unchanged, confidences unchanged; missing joints stay
-  missing) **and** the left/right labels swapped: the keypoint the detector
-  called ``right_wrist`` on the reflection becomes ``left_wrist``. A detector
-  labels the reflection as it sees it, as a person: the real left wrist
-  appears as the reflection's right wrist. The horizontally flipped image of
-  the reflection shows the real person un-mirrored, so there the labels are
-  the true anatomical ones. :func:`flip_mirror_keypoints` does both steps.
-* Equivalently, run the detector on the horizontally flipped video and take
-  the reflection's keypoints as they come (no relabelling). Mind the pixel
-  convention: a flipped *video* maps pixel centres ``x -> W - 1 - x`` when the
-  detector puts pixel centres at integers, a sub-pixel-to-1-px offset from the
-  exact ``x -> W - x`` that the exported ``K'`` assumes.
-* Keep the frames of the two views in step (same frame numbers) and feed the
-  real view as the first camera: Pose2Sim pairs the calibration's cameras with
-  its pose folders in order, so name them so that the real view sorts first.
-
-World frame and scale
----------------------
-``world="camera"`` (default): the world is the real camera frame (x right,
-y down, z forward); the real camera has ``R = I, t = 0``, and triangulated
-points are exactly mirrorgraph's ``joints3d``. ``world="z_up"``: the world is
-``(x, z, -y)`` of the camera frame (X right, Y forward/depth, Z up, for a level
-camera), which is what Pose2Sim's OpenSim steps assume (they turn Z-up into
-Y-up before writing ``.trc``). Translations are in metres when the calibration
-has a metric scale; with ``mirror.distance = null`` they are in units of the
-mirror distance (``d = 1``, the unit of mirrorgraph's ``joints3d`` then) and
-:func:`export_calibration` warns.
+The derivation of ``K'`` and of the distortion's signs, and what users do with their
+keypoints: ``docs/internals.md`` and ``docs/guide/exports.md``.
 """
 
 from __future__ import annotations

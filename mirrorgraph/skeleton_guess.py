@@ -1,8 +1,8 @@
 """Tell keypoint layouts of the same count apart from the detections themselves.
 
 Only one count is ambiguous: 25, OpenPose's ``BODY_25`` and its experimental
-``BODY_25B`` (Pose2Sim's default). Both write the same OpenPose JSON; only the
-order of the joints differs. Joints 0, 1, 2 and 5 are
+``BODY_25B`` (Pose2Sim's default), which differ in the order of the joints. Joints 0, 1,
+2 and 5 are
 
 =====  ============================  =========================
 index  BODY_25                       BODY_25B
@@ -13,36 +13,19 @@ index  BODY_25                       BODY_25B
 5      left shoulder                 left shoulder
 =====  ============================  =========================
 
-For one detection let ``a = |p1 - (p2 + p5) / 2|`` and
-``b = max(|p1 - p0|, |p2 - p0|)`` (pixels). In BODY_25 the neck is the midpoint
-of the shoulders (its training label is their mean), so ``a`` is detector noise while
-``b`` is at least the nose-to-neck distance; in BODY_25B joints 1 and 2 are the
-eyes beside the nose, so ``b`` is an eye-to-nose distance while ``a`` is half
-the distance from an eye to a shoulder. The ratio ``r = a / (a + b)`` in
-``[0, 1]`` does not depend on image scale, rotation or the left/right labelling of
-a reflection. The median of ``r`` over the file's confident detections decides; a
-file with too few of them, or a median between the two thresholds, is refused
-with a message asking for the ``skeleton`` argument (``--skeleton`` on the command
-line).
+For one detection let ``a = |p1 - (p2 + p5) / 2|`` and ``b = max(|p1 - p0|, |p2 - p0|)``
+(pixels). In BODY_25 the neck is the midpoint of the shoulders, so ``a`` is detector
+noise while ``b`` is at least the nose-to-neck distance; in BODY_25B joints 1 and 2 are
+the eyes, so ``b`` is an eye-to-nose distance while ``a`` is half an eye-to-shoulder
+distance. The ratio ``r = a / (a + b)`` in ``[0, 1]`` does not depend on image scale,
+rotation or a reflection's labelling. The median of ``r`` over the file's confident
+detections decides (BODY_25 under 0.30, BODY_25B over 0.45); a file with fewer than
+:data:`MIN_DETECTIONS` of them, or a median in between, is refused with a message asking
+for the ``skeleton`` argument (``--skeleton`` on the command line).
 
-Measured on synthetic scenes (:func:`mirrorgraph.synth.make_scene`, the person
-and the reflection, 4 px noise, 5 % outliers; BODY_25B labels projected from the
-same 3D joints, see ``tests/test_skeletons_extra.py``), median ``r`` per file:
-
-=================================================  ============  ============
-scenes                                             BODY_25       BODY_25B
-=================================================  ============  ============
-40 x 200 frames, 1920x1080, swaps and bystanders   0.05 - 0.12   0.57 - 0.69
-30 x 100 frames, 640x360 (people ~4x smaller)      0.12 - 0.26   0.48 - 0.62
-30 x 100 frames, 640x360, 8 px noise, 15 % out.    0.25 - 0.36   0.41 - 0.50
-joints drawn uniformly in the image                0.41
-=================================================  ============  ============
-
-so the thresholds 0.30 and 0.45 decide the first two rows and refuse random
-joints; the last row (tiny people, heavy noise) is partly refused. Per detection,
-1 % of BODY_25 detections exceed 0.55 and 1 % of BODY_25B ones fall below 0.17
-(outliers); medians of 10 consecutive detections were never wrong in 20 000 draws
-per layout, which sets :data:`MIN_DETECTIONS`.
+The thresholds come from the medians measured on synthetic scenes (BODY_25 0.05-0.36,
+BODY_25B 0.41-0.69, random joints 0.41; ``tests/test_skeletons_extra.py``); the table of
+them: ``docs/internals.md``.
 """
 
 from __future__ import annotations

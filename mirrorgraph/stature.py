@@ -1,19 +1,11 @@
 """Standing height from 3D joints: the anatomical (segment-sum) method.
 
-Reflections and views carry no absolute scale; it comes from the subject's
-standing height ``H`` given by the user. To turn ``H`` into a length of the
-reconstruction one needs the same height *measured* in the reconstruction's
-units. Summing limb bones with population proportions (femur 0.245 H, humerus
-0.186 H, ...) mixes in parts that do not make up stature (the arms, the
-shoulder and hip widths), so an individual's proportions bias the scale by
-their full deviation from the average (a few percent per segment).
-
-Stature is the sum of the heights of the segments stacked from the floor to
-the vertex (the *anatomical method*: G. Fully, "Une nouvelle methode de
-determination de la taille", *Ann. Med. Leg.* 36, 1956; M. H. Raxter, B. M.
-Auerbach and C. B. Ruff, "Revision of the Fully technique for estimating
-statures", *Am. J. Phys. Anthropol.* 130, 2006). Measured here per frame and
-summarised by the median over frames:
+Reflections and views carry no absolute scale; it comes from the subject's standing
+height ``H``, which needs the same height measured in the reconstruction's units.
+Stature is the sum of the heights of the segments stacked from the floor to the vertex
+(G. Fully, "Une nouvelle methode de determination de la taille", *Ann. Med. Leg.* 36,
+1956; Raxter, Auerbach and Ruff, "Revision of the Fully technique for estimating
+statures", *Am. J. Phys. Anthropol.* 130, 2006), measured per frame, median over frames:
 
 ==========  =========================================================  ============
 segment     measured as                                                Winter, H
@@ -24,26 +16,19 @@ trunk       ``|mid-shoulder - mid-hip|``                               0.288
 head        ``(top - mid-shoulder) . u``, ``u`` the unit trunk axis    0.118 / 0.182
 ==========  =========================================================  ============
 
-``top`` is the skeleton's ``head_top`` where it has one (BODY_25B, HALPE_26),
-else the midpoint of the eyes. Mid-points are computed from the left and right
-joints (every skeleton has them; BODY_25's ``neck`` and BODY_25B's upper neck
-differ). What no keypoint spans is taken from Winter's landmark heights
-(:data:`mirrorgraph.anthropometry.LANDMARK_HEIGHT`): the ankle above the floor
-(0.039 H) and, with the eyes as top, the vertex above the eyes (0.064 H), so
+``top`` is ``head_top`` where the skeleton has one (BODY_25B, HALPE_26), else the
+midpoint of the eyes; mid-points come from the left and right joints. What no keypoint
+spans comes from Winter's landmark heights
+(:data:`mirrorgraph.anthropometry.LANDMARK_HEIGHT`): the ankle above the floor (0.039 H)
+and, with the eyes as top, the vertex above the eyes (0.064 H):
 
     H = (shank + thigh + trunk + head) / (1 - unmeasured fraction).
 
-Only those ~4-10 % of the height rest on population proportions; a 3 % per
-segment individual variation leaves ~0.3 % of scale error instead of ~1 % from
-limb proportions (measured on the synthetic subjects of :mod:`mirrorgraph.synth`:
-``bench/RESULTS_rig.md``). The medians assume the subject stands or moves upright
-for most of the frames (walking, exercises standing): a video spent sitting,
-lying or bent over shortens the trunk and the legs' stack and the estimate with it.
-
-The measurement's own spread (:func:`measurement_rel_std`) is what the joints show of a
-distorted reconstruction: the two legs apart, and the body's segments (limbs, trunk,
-widths) disagreeing about the height beyond what adults and keypoints give
-(:func:`bones_rel_spread`).
+On synthetic subjects with 3 % individual variation per segment this gives ~0.2 % RMS
+scale error against ~1.1 % from limb proportions (``bench/RESULTS_rig.md``). The medians
+assume the subject is upright for most frames; a video spent sitting or bent over
+shortens the estimate. The measurement's own spread: :func:`measurement_rel_std`,
+:func:`bones_rel_spread`.
 """
 
 from __future__ import annotations

@@ -1,80 +1,30 @@
 """MirrorCalib (Liao, Zheng and Mitchell) as the paper writes it, for comparison.
 
-The paper's pipeline (sections "Initial estimation", "Refining 2D joint
-locations", "Outlier rejection", "Training"):
+The paper's pipeline (sections "Initial estimation", "Refining 2D joint locations",
+"Outlier rejection", "Training"):
 
-1. **Initial estimate.** The 6-unknown reflective eight-point algorithm
-   (eq. 5-7, :func:`mirrorgraph.initial.solvers.eightpoint.fundamental_reflective_eight_point`)
-   on every joint pair, ``E = K^T F K``, the virtual camera ``(R, t)`` from the
-   SVD of ``E`` (:func:`mirrorgraph.geometry.decompose_reflective_essential`).
-2. **Refinement of the 2D joints.** The *2D joints of both views* are the
-   variables. Each evaluation triangulates them with the real camera and the
-   current virtual camera ``Theta'`` and scores the 3D joints with six losses:
-   bone-length variation ``L_var``, left/right symmetry ``L_sym``,
-   anthropometric ratios ``L_anth``, hip colinearity ``L_hip``, smoothness
-   ``L_smooth`` and a Geman-McClure reprojection term ``L_repro``. L-BFGS with
-   learning rate 1 and at most 20 iterations per optimisation step (PyTorch's
-   ``torch.optim.LBFGS``, whose defaults these are); ``Theta'`` is re-estimated
-   by the eight-point algorithm from the refined joints after every step.
-3. **RANSAC.** Samples of six refined pairs, the 6-unknown eight-point, inliers
-   by the epipolar distance ``g(F) = d(x', F x) + d(x, F^T x')`` under a
-   threshold; the final ``F`` from the largest inlier set, and the pose from it.
+1. **Initial estimate.** The 6-unknown reflective eight-point algorithm (eq. 5-7,
+   :func:`mirrorgraph.initial.solvers.eightpoint.fundamental_reflective_eight_point`) on
+   every joint pair, ``E = K^T F K``, the virtual camera ``(R, t)`` from the SVD of ``E``
+   (:func:`mirrorgraph.geometry.decompose_reflective_essential`).
+2. **Refinement of the 2D joints** of both views: each evaluation triangulates them with
+   the current virtual camera ``Theta'`` and scores the 3D joints with six losses (bone
+   length variation, symmetry, anthropometric ratios, hip colinearity, smoothness and a
+   Geman-McClure reprojection term); L-BFGS (``torch.optim.LBFGS``, learning rate 1, at
+   most 20 iterations a step), ``Theta'`` re-estimated by the eight-point algorithm after
+   every step.
+3. **RANSAC** on samples of six refined pairs, inliers by the summed epipolar distance
+   ``g(F) = d(x', F x) + d(x, F^T x')``; the final ``F`` and pose from the largest set.
 
-Where the text is ambiguous or silent, this implementation chooses as follows
-(each choice is also an option of :class:`PaperOptions`):
+Where the text is ambiguous or silent (the variation of a bone length, eq. 12's
+smoothness, the reprojection term's reading, the weights ``lambda``, the RANSAC threshold
+and iterations, ...), each choice is an option of :class:`PaperOptions`; the choices and
+their reasons are listed in ``docs/internals.md``. The relative weights were picked on
+tuning scenes never used in the benchmark (``bench/compare.py --tune-paper``).
 
-* **Variation of a bone length, Delta l_k** ("the variation of bone length over
-  T frames"): the standard deviation over the frames in which the bone is
-  seen (not max - min, which only two frames would drive).
-* **The sums of eq. 9 and 13** (``L_sym``, ``L_hip``) take the norm as written;
-  eq. 12 (``L_smooth = sum of X''``) sums a vector as printed, which cannot be
-  minimised: we use the squared norm of the central second difference
-  ``X_{t+1} - 2 X_t + X_{t-1}``, over three consecutive frames that all see the joint.
-* **Reprojection term** (eq. 13): ``u_i^t`` there is read as the *original*
-  detection ("should not deviate too much from the initial estimation"), ``X``
-  as the triangulation of the current, refined joints; ``rho`` is Geman-McClure
-  in the form ``c^2 e^2 / (c^2 + e^2)`` applied to the *sum* of the two
-  reprojection distances as printed, with ``c = 10`` px (not given; the same
-  scale as mirrorgraph's default inlier threshold).
-* **Anthropometric ratios sigma_k** come from CAESAR in the paper; that table is
-  not public, so Winter's segment lengths (:mod:`mirrorgraph.anthropometry`)
-  are used, divided by the femur. "The longest femur" is the longer of the two
-  femurs in that frame.
-* **Hip loss** needs a mid-hip joint; as the paper does for HRNet (COCO-17 has
-  none) it is dropped when the skeleton has no mid-hip.
-* **Differentiable triangulation**: linear, inhomogeneous least squares
-  (the DLT with ``X_4 = 1``, normal equations solved in closed form) in
-  normalised camera coordinates; no SVD, so gradients are stable.
-* **Weights lambda** ("empirically chosen", values not given): each loss is
-  divided by its value at the detections (so every term starts at 1), times a
-  relative weight ``w``. ``w_repro = 10`` and every other ``w = 1`` were picked on
-  tuning scenes (seeds 900-909 of the paper protocol, never used in the
-  benchmark) from the grid ``w_repro in {1, 3, 10, 30, 100}`` by the lowest mean
-  rotation error (medians 0.78, 0.96, 0.68 deg for 3, 10, 30, against 2.34 deg
-  without refinement; 1 and 30 diverged on one scene each, 100 on most; 10 never
-  did); see ``bench/compare.py --tune-paper``.
-* **Scale**: the decomposition gives ``|t| = 1``; the 3D joints inside the
-  losses are in that unit. ``L_var`` and ``L_anth`` are scale-free, the
-  others are normalised by the balancing above.
-* **Outer steps**: not given ("the maximum number of iterations in one
-  optimization step equals 20"); 10 steps of ``LBFGS.step`` (20 iterations
-  each), stopping early when the re-estimated virtual camera turns by less than
-  0.001 deg. ``Theta'`` is constant inside a step (not differentiated through the
-  eight-point algorithm) and re-estimated after it.
-* **L-BFGS line search**: none (PyTorch's default; the paper gives only the
-  learning rate). A step that makes the loss non-finite is undone and the
-  refinement stops there.
-* **RANSAC threshold and iterations**: not given. The threshold is on the *sum*
-  of the two distances, as written: 28 px, the sum-equivalent of mirrorgraph's
-  10 px on one distance (2 x sqrt 2 x 10), i.e. about 2.5 sigma for the 4 px
-  detector noise the paper assumes. Iterations adapt to the inlier ratio for a
-  99 % chance of one clean sample (at least 50, at most 1000); the largest
-  inlier set wins (no MSAC scoring), and ``F`` is refitted once on it.
-* **Which pairs**: every pair of the calibration joints seen in both views;
-  the detector's confidences are not used (the paper does not mention them).
-* **Reported pose**: the ``R`` and ``t`` of the decomposition, as the paper
-  reports them (``R`` is not forced to ``D (I - 2 n n^T)``); the normal is
-  ``D t``, oriented by cheirality.
+Scale: the decomposition gives ``|t| = 1`` and the losses' 3D joints are in that unit.
+The reported pose is the decomposition's ``R`` and ``t``; the normal is ``D t``,
+oriented by cheirality.
 
 PyTorch is imported lazily; without it :func:`mirrorcalib` raises
 :class:`~mirrorgraph.baselines.BenchDependencyError` saying

@@ -1,60 +1,32 @@
 """The mirror link: the virtual camera is the reflection of the real one across the plane.
 
-The mirror view is modelled as an ordinary GTSAM camera (see
-:mod:`mirrorgraph.factors.reprojection`): a :class:`gtsam.Pose3` variable ``V``
-(camera-to-world, world = real camera frame) with the mirrored calibration
-``Cal3_S2(-fx, fy, s, cx, cy)``. Its pose is not free: it is the reflection of
-the real camera pose ``C = (R_c, t_c)`` across the mirror plane ``n . X = d``:
+The mirror view is an ordinary GTSAM camera (:mod:`mirrorgraph.factors.reprojection`): a
+:class:`gtsam.Pose3` variable ``V`` (camera-to-world, world = real camera frame) with the
+mirrored calibration ``Cal3_S2(-fx, fy, s, cx, cy)``, whose pose is the reflection of the
+real camera pose ``C = (R_c, t_c)`` across the mirror plane ``n . X = d``:
 
     R_v = H R_c D,    c_v = S(t_c) = H t_c + 2 d n,    H = I - 2 n n^T,  D = diag(-1, 1, 1).
 
-For the real camera at the origin this is ``R_v = H D`` and ``c_v = 2 d n``: the
-same virtual camera as :func:`mirrorgraph.geometry.virtual_camera_from_mirror`
-(whose extrinsics ``X_virtual = D (R X + t)`` are the inverse pose, ``R = D H``,
-``t = 2 d D n``). One :class:`MirrorLinkFactor` per mirror view ties ``V`` to the
-plane variable (and to the real camera pose when that is a variable too), so
-that the thousands of reprojection factors of the mirror view can be GTSAM's
-built-in projection factors while the plane stays the estimated quantity.
+For the real camera at the origin this is the virtual camera of
+:func:`mirrorgraph.geometry.virtual_camera_from_mirror`. One :class:`MirrorLinkFactor` per
+mirror view ties ``V`` to the plane variable (and to the real camera pose where that is a
+variable), so that the mirror view's reprojection factors are GTSAM's built-in projection
+factors while the plane stays the estimated quantity. The refinement enforces the link
+exactly (:mod:`mirrorgraph.graph.reduction` substitutes ``dV = -J_V^-1 J_P dP`` with this
+factor's Jacobians); :meth:`MirrorLinkFactor.make` builds the soft factor.
 
-How the refinement uses it: as a *constraint*. A soft factor tight enough to be
-unbiased (sigma ~1e-6, information ~1e12 next to ~1e4 for the weakest data
-direction) trips GTSAM's indeterminacy check in the Cholesky of the root clique
-for most orderings, and a looser one lets the virtual camera absorb part of the
-data. :mod:`mirrorgraph.graph.reduction` therefore substitutes
-``dV = -J_V^-1 J_P dP`` (this factor's analytic Jacobians) in every solve and
-resets ``V`` to the exact reflection after every step. :meth:`MirrorLinkFactor.make`
-still builds the soft factor, e.g. for GTSAM's own optimisers.
+The plane is a :class:`gtsam.OrientedPlane3`, ``n . X + d_gtsam = 0``, so
+``d_gtsam = -d`` (:func:`plane_to_gtsam`, :func:`plane_from_gtsam`); tangent
+``(v1, v2, v3)``: ``n <- n.retract((v1, v2))``, ``d <- d - v3``.
 
-The plane variable is a :class:`gtsam.OrientedPlane3`. GTSAM writes a plane as
-``n . X + d_gtsam = 0``; with our ``n . X = d`` that is ``d_gtsam = -d``
-(:func:`plane_to_gtsam`, :func:`plane_from_gtsam`). Its tangent space is
-``(v1, v2, v3)``: ``n <- n.retract((v1, v2))`` (``n + B (v1, v2)`` to first order,
-``B`` the ``(3, 2)`` basis of :meth:`gtsam.Unit3.basis`), ``d_gtsam <- d_gtsam + v3``
-(so ``d <- d - v3``).
+Residual (6,): ``e = [Log(R_p^T R_v), R_p^T (c_v - c_p)]``, ``(R_p, c_p)`` the reflection
+predicted from ``C`` and the plane; zero exactly when ``V`` is the reflection of ``C``.
+Jacobians are analytic in GTSAM's tangent spaces (``Pose3``: ``R <- R Exp(w)``,
+``t <- t + R v``); their derivation is in ``docs/internals.md``.
 
-Residual (6,): ``e = [Log(R_p^T R_v), R_p^T (c_v - c_p)]`` where ``(R_p, c_p)`` is
-the reflection predicted from ``C`` and the plane. It is zero exactly when
-``V`` is the reflection of ``C``, and agrees to first order with GTSAM's
-``Pose3.localCoordinates(predicted, V)``. Jacobians are analytic, with respect
-to the tangent spaces GTSAM retracts in (``Pose3``: ``R <- R Exp(w)``,
-``t <- t + R v`` to first order, tangent ``(w, v)``).
-
-Derivation (right perturbations, ``[.]x`` the cross-product matrix):
-
-* virtual pose: ``d e_rot = Jr^-1(e_rot) dw``, ``d e_tr = R_p^T R_v dv``;
-* predicted rotation ``R_p <- R_p Exp(phi)``: ``d e_rot = -Jl^-1(e_rot) phi``,
-  ``d e_tr = [e_tr]x phi``; predicted centre: ``d e_tr = -R_p^T dc_p``;
-* camera rotation ``R_c <- R_c Exp(a)``: ``phi = D a`` conjugated by the reflection,
-  ``D Exp(a) D = Exp(-D a)``, so ``phi = -D a``; camera centre ``t_c <- t_c + R_c b``:
-  ``dc_p = H R_c b``;
-* normal ``n <- n + dn`` (``dn = B (v1, v2)``, ``n . dn = 0``): ``H dH = 2 [dn x n]x``
-  gives ``phi = 2 D R_c^T (n x dn)`` -- a normal tilted by an angle ``theta`` turns
-  the virtual camera by ``2 theta``; ``dc_p = -2 (n t_c^T + (n . t_c - d) I) dn``;
-* distance ``d <- d - v3``: ``dc_p = -2 n v3``.
-
-Reference: MirrorCalib (Liao, Zheng and Mitchell), sec. "Reflective essential
-matrix decomposition" for ``D``; Sola, Deray and Atchuthan, "A micro Lie theory
-for state estimation in robotics" (2018), eqs. 143-146 for ``Jr^-1``, ``Jl^-1``.
+Reference: MirrorCalib (Liao, Zheng and Mitchell), sec. "Reflective essential matrix
+decomposition" for ``D``; Sola, Deray and Atchuthan, "A micro Lie theory for state
+estimation in robotics" (2018), eqs. 143-146 for ``Jr^-1``, ``Jl^-1``.
 """
 
 from __future__ import annotations

@@ -1,58 +1,30 @@
 """Each output joint's own uncertainty: its ``3 x 3`` covariance in every frame.
 
-The joints a run outputs are the graph's (the joints pass: every global held, the tight
-smoothness, every bone in every frame; or the last full-graph stage where a
-configuration has no joints pass). Their covariance is that graph's, linearised at the
-solution (whitened rows, the robust kernel's weights applied, so an observation the
-kernel gave up on carries no information), in four parts:
+The covariance is that of the graph that outputs the joints (the joints pass, or the last
+full-graph stage), linearised at the solution with the robust kernel's weights applied,
+in four parts:
 
     Cov(x) = s^2 H_xx^-1  +  B  +  G C_z G^T   (+ d d^T where the rays disagree)
 
-* **the data and the priors**, ``H_xx^-1``: the joints' information from their views,
-  the bones, the hip and the smoothness, scaled by the noise the data show
-  (``s^2 = (noise / pixel_sigma)^2``, the driver's variance factor). Each frame's joints
-  are eliminated together (the bones and the hip couple them), each joint keeps its own
-  ``3 x 3`` information in that frame, and the chain of one joint's frames with its
-  smoothness factors (second differences over three consecutive estimates: a block band
-  of width two) is inverted exactly by a two-sweep block recursion
-  (:func:`chain_marginals`). Left out is the smoothness of a joint's neighbours reaching
-  it through the bones: information dropped, so this part is larger than the exact
-  marginal, never smaller (an exact one needs a ``(3 T J)^2`` inverse);
-* **the detector's bias**, ``B``: a per-joint offset the frames share does not average
-  out over the smoothness's frames as noise does; its size is read from the residuals'
-  mean per joint and view (:func:`_bias_weights`) and taken through the joint's own rays;
-* **the globals**, ``G C_z G^T``: ``C_z`` the covariance of the reduced globals (planes,
-  estimated camera poses and intrinsics, :func:`~.reduction.mirror_reduction`): the
-  calibration's marginal one (:func:`~.optimizer.reduced_covariance_matrix`, scaled by
-  the noise), widened as the headline figure was (``inflation``: the sandwich's ratio
-  to the marginal std, :mod:`.uncertainty`), plus the spread the estimated intrinsics'
-  headline adds (:func:`~.marginals.intrinsics_spread`); ``G`` the joint's response, each
-  joint re-triangulated from its own rays (the frame's system where one view is left).
-  With a subject height the change of the body's size is taken out of ``G``
-  (:func:`_without_scale`): the stature's rescale takes it back, and the metric scale's
-  own uncertainty is a part of its own. (Propagated with the bones held instead, a tilt
-  of the mirror that the data allow pulled the joints against their bones: 3 times
-  their true error on a wide scene);
-* **disagreement** (the single-mirror run): where the graph's joint and its own two
-  rays' triangulation lie farther apart than both covariances allow, ``d d^T``
+* ``H_xx^-1``: the joints' information from their views and the body priors, scaled by
+  the noise the data show (``s^2``); a joint's chain of frames with its smoothness is
+  inverted exactly by a two-sweep block recursion (:func:`chain_marginals`);
+* ``B``: the detector's bias, from the residuals' mean per joint and view
+  (:func:`_bias_weights`);
+* ``G C_z G^T``: the reduced globals' covariance ``C_z`` (planes, estimated poses and
+  intrinsics; :func:`~.optimizer.reduced_covariance_matrix`) taken through each joint's
+  response ``G`` (:func:`_without_scale` with a subject height);
+* ``d d^T``: where the graph's joint and its rays' triangulation disagree
   (:func:`with_disagreement`).
 
 This is the marginal of a Gaussian whose joints are independent given the globals
-(Bishop 2006, sec. 2.3.3), cheap: ``O(T J^3)``. The joints that the graph left out and
-a triangulation filled in (:mod:`mirrorgraph.completion`, the frames outside a long
-video's graph) have their two or more rays' covariance
-(:func:`~mirrorgraph.geometry.triangulation_covariance`) with the globals propagated
-the same way (:func:`triangulated_covariance`). The metric scale's relative std ``r``
-(the subject's height known to ``height_sigma`` and the stature's own spread, one factor
-on every length) adds ``r^2 X X^T`` (:func:`with_scale`).
+(Bishop 2006, sec. 2.3.3), ``O(T J^3)``. Joints filled in by triangulation get
+:func:`triangulated_covariance`; the metric scale's relative std ``r`` adds
+``r^2 X X^T`` (:func:`with_scale`).
 
-The figure a user reads, :func:`position_std`, is the RMS length of the joint's 3D
-error, ``sqrt(trace(Sigma))`` (metres with a subject height), as the live run's
-``joints_std`` (:mod:`mirrorgraph.live.calibrator`): ``|X - X_true| / std`` then has an
-RMS of 1 whatever the covariance's shape, a median of 0.89 for an isotropic one and 0.67
-for one long axis (the usual low-parallax depth), 99 % under 1.9-2.6. (The per-axis
-``sqrt(trace / 3)`` puts a Gaussian's median ratio at 1.54; the largest axis's std at
-0.67-1.54 by the shape.)
+:func:`position_std` is the figure a user reads: ``sqrt(trace(Sigma))``, the RMS length
+of the joint's 3D error (metres with a subject height). Calibration of the figure:
+``bench/RESULTS_joints_std.md``; the parts in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

@@ -1,57 +1,31 @@
 """Levenberg-Marquardt driven from Python over GTSAM's linear algebra.
 
-Why not :class:`gtsam.LevenbergMarquardtOptimizer`: inside GTSAM's C++
-optimisers every :class:`gtsam.CustomFactor` callback receives a *copy* of the
-whole :class:`gtsam.Values` (measured: 97 s per iteration on 12,000 points). With
-the values owned by Python the callbacks see them by reference, so the loop
-lives here. One iteration:
+GTSAM's C++ optimisers hand every :class:`gtsam.CustomFactor` callback a copy of the whole
+:class:`gtsam.Values` (measured: 97 s an iteration on 12,000 points, as ``docs/dependencies.md`` quotes); with the values owned by Python the callbacks see them by
+reference, so the loop lives here. One iteration:
 
-1. ``gfg = graph.linearize(values)`` (C++ factors, one Python callback per frame);
-2. eliminate every *local* variable (the 3D points) with GTSAM's sequential
-   Cholesky in a COLAMD ordering computed once, keeping the conditionals
-   ``p(points | globals)`` (a :class:`gtsam.GaussianBayesNet`) and the remaining
-   dense information ``(Lambda, eta)`` over the *global* variables (virtual
-   camera poses, bone lengths);
-3. solve for the globals in *reduced* coordinates ``z`` (:class:`GlobalReduction`):
-   ``delta_globals = T z``. For the mirror, ``z`` holds the plane and the bone
-   lengths and ``T`` maps a plane step to the virtual camera's step through the
-   linearised mirror link (:mod:`.reduction`), i.e. the link is an exact
-   constraint. A tight soft link factor instead would put ~1e12 next to ~1e4 in
-   one Cholesky factor and trip GTSAM's indeterminacy check;
-4. back-substitute the points (``GaussianBayesNet.optimize(given)``), retract,
-   and ``project`` the values back onto the constraint (virtual cameras = exact
-   reflections of the real camera across the new plane).
+1. ``gfg = graph.linearize(values)``;
+2. eliminate every local variable (the 3D points) with GTSAM's sequential Cholesky in a
+   COLAMD ordering computed once, keeping ``p(points | globals)`` (a
+   :class:`gtsam.GaussianBayesNet`) and the dense information ``(Lambda, eta)`` over the
+   globals;
+3. solve for the globals in reduced coordinates ``z``, ``delta_globals = T z``
+   (:class:`GlobalReduction`, :mod:`.reduction`): the mirror link is an exact constraint;
+4. back-substitute the points, retract, and project the values back onto the constraint.
 
-Damping (Levenberg-Marquardt with Marquardt's scaling): ``lambda diag(H_z)`` on
-the reduced coordinates, and ``lambda s I`` on the points through a cached graph
-of ``sqrt(lambda s) I`` Jacobian factors (``s``: a typical diagonal entry of a
-point's information, given by the caller), so that one relative ``lambda``
-means the same for both. ``lambda = 0`` (Gauss-Newton, no damping graph) is
-where the iterations start. A step is accepted when the nonlinear error does
-not increase; the gain ratio ``rho`` (actual over predicted decrease) then
-adapts ``lambda``: above 0.75 it shrinks by ``lambda_factor`` (to 0 below
-``lambda_start``), below 0.25 it grows by ``lambda_factor`` (from
-``lambda_start``); a rejected step grows it and is recomputed from the same
-linearisation. The loop stops when an accepted undamped step lowers the error
-by less than ``relative_tolerance`` of it, when the actual decrease matched the
-prediction that closely, when the mirror (and every estimated pose) moved by less
-than ``global_step_tolerance`` of its standard deviation at any damping (a damped
-step's length is scaled by ``1 + lambda`` to judge the undamped one), after
-``max_iterations`` solves, or above ``lambda_max``.
+Damping: Levenberg-Marquardt with Marquardt's scaling, ``lambda diag(H_z)`` on ``z`` and
+``lambda s I`` on the points (``s`` a typical point information); ``lambda`` adapts to
+the gain ratio. The stopping rules are those of :class:`LMParams`. An indeterminate point
+block (GTSAM's ``IndeterminantLinearSystemException``) is a failed try: more damping, the
+variable reported in :attr:`LMResult.indeterminate`. An optional ``guard`` keeps points
+in front of their cameras (:func:`mirrorgraph.graph.problem.cheirality_guard`).
 
-Never an exception from an ill-posed step: GTSAM raises
-``IndeterminantLinearSystemException`` (a :class:`RuntimeError` from Python) when
-a point's block is (nearly) singular: a point one view alone sees, the other
-downweighted by the robust kernel, or one whose two rays are nearly one line.
-As in GTSAM's own LM this is a failed try: more damping, which makes every point
-block definite; the variable is reported (:attr:`LMResult.indeterminate`) so that
-the caller can drop it. An optional ``guard`` keeps points in front of every camera
-that sees them (:func:`mirrorgraph.graph.problem.cheirality_guard`): behind a
-camera a projection factor's residual is constant with a zero Jacobian.
+The reduced information ``T^T Lambda T`` of the last undamped solve is the exact Schur
+complement of everything but ``z``: the marginal information of the plane and bone
+lengths (:func:`reduced_marginals`).
 
-The reduced information ``T^T Lambda T`` of the last undamped solve is kept: it
-is the exact Schur complement of everything but ``z``, hence the marginal
-information of the plane and bone lengths (:func:`reduced_marginals`).
+Reference: Nocedal and Wright, *Numerical Optimization* (2006), ch. 10; the loop in
+full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

@@ -1,54 +1,19 @@
 """Options of the factor-graph refinement (:func:`mirrorgraph.pipelines.solve.refine_mirror`).
 
-Every prior's weight is given as a standard deviation ``sigma`` (weight
-``1 / sigma^2`` in the whitened least-squares objective). Lengths are relative
-to the subject's height ``h`` in the graph's length unit: the given
-``subject_height`` (metres), or without it the height implied by the initial
-triangulation's median bone lengths and Winter's proportions (in units of the
-mirror distance). That keeps the defaults valid whatever the gauge.
+Every prior's weight is a standard deviation ``sigma`` (weight ``1 / sigma^2`` in the
+whitened least-squares objective). Lengths are relative to the subject's height ``h`` in
+the graph's length unit: the given ``subject_height`` (metres), or without it the height
+implied by the initial triangulation's median bone lengths and Winter's proportions (in
+units of the mirror distance), so the defaults hold whatever the gauge.
 
-How the defaults were chosen (synthetic scenes of
-:func:`mirrorgraph.synth.make_scene`, COCO-17, 1000 frames at 30 fps, 4 px noise,
-seeds 0-9, initial normal 1 deg off; paired comparisons: every setting on the same
-noise draws, plus Monte Carlo noise draws on fixed scenes; ``/bench/bench_graph.py``
-reproduces the protocol):
-
-* ``pixel_sigma`` is the noise the paper simulates; the Geman-McClure scale of
-  2.5 sigma and the 2x-scale rejection threshold keep every inlier (their 99.9th
-  percentile residual is ~13 px) and cut outliers displaced by 30-150 px.
-* Bones where their length is measured without bias (``bone_bias_limit``). A
-  bone's length measured from noisy joints is too long on average by up to
-  ``tr(Sigma_a + Sigma_b) / (2 L)`` (its curvature), centimetres where the two
-  rays of a joint meet at a small angle (the person near the line from the camera
-  to the mirror): the joint optimum of the mirror and the per-frame depths with
-  such bones is biased however many frames there are. Monte Carlo (6 scenes a
-  slice, 3 noise draws each, iid 4 px, 1000 frames; RMS error over the bound):
-  every bone in every frame 1.60 (gym 1.64, low parallax 2.10), the rule at
-  ``c = 0.3`` 1.01, at 1 1.08, at 3 1.22, no bone 0.93 (``bench/RESULTS_priors.md``).
-  Under iid noise the rule's bones cost the mirror ~8 % of a bound against no
-  bone; under a realistic detector (per-label bias, AR(1) noise, outliers along
-  epipolar lines) they help in some scenes and hurt in others (medians 8.9 vs 8.7
-  bounds). They stay in the calibration because they make the body metric (the
-  subject-height gauge is a sum of bone lengths) and its gross outliers visible
-  (``bone_outlier_k``); every bone holds the joints in the joints pass, where the
-  mirror is held.
-* The symmetry and anthropometry sigmas act on the bone lengths only; they are
-  loose bounds for real people (a detector's "joints" move within the body by a
-  few percent of a bone).
-* ``smoothness_sigma`` in the calibration graph (``use_smoothness``, off): a
-  loose acceleration prior (0.8 h per frame^2) does not move the mirror (Monte
-  Carlo as above: RMS error over the bound 1.27 with it, 1.24 without), a tight
-  one *biases* it on noisy data (16 draws on one scene: mean rotation error 0.31
-  deg at 0.003 h, 0.09 deg at 0.01 h), and it couples the frames, so the
-  elimination is banded instead of frame by frame: 2.2x the time of a linear
-  solve (140 vs 45 ms on 1000 frames). The 3D motion gets its smoothness in the
-  joints pass (``joints_smoothness_sigma``), with the mirror held.
-* ``hip_sigma`` (BODY-25 only): 0.1, the hips are colinear to a few degrees.
+The defaults' evidence: ``bench/RESULTS_priors.md`` (which bones enter,
+``bone_bias_limit``: RMS error over the bound per setting); the protocol and the
+reasoning behind every default: ``docs/internals.md``.
 
 The settings are grouped by concern, one class each (:class:`PriorOptions`,
 :class:`ScheduleOptions`, :class:`SolverOptions`, :class:`GaugeOptions`, each setting in
-exactly one of them); :class:`RefineOptions`, the one options object of the solve
-driver, is all of them together (as GTSAM's ``LevenbergMarquardtParams`` extends
+exactly one of them); :class:`RefineOptions`, the one options object of the solve driver,
+is all of them together (as GTSAM's ``LevenbergMarquardtParams`` extends
 ``NonlinearOptimizerParams``): ``RefineOptions(bone_sigma=0.02, max_iterations=10)``, or
 :meth:`RefineOptions.from_groups` from the groups, and back with
 :attr:`RefineOptions.priors` etc.

@@ -81,9 +81,9 @@ def gauge_weights(rows: np.ndarray, num_bones: int) -> np.ndarray:
     the body and the scene shrink. Without the anthropometric ratios, which tie every
     length to the others (:attr:`~.options.FocalOptions.anthropometry` leaves them out
     where a focal length is estimated), nothing else stops it: a hip width measured in
-    one frame of 960 was stretched to 12 times the shoulder width, the scene shrank 3.5
-    times, the stature measured on the distorted body put the mirror 30 % short
-    (issue #17). Weighted by its frames (the information of its mean length, as in
+    one frame of 960 can stretch to 12 times the shoulder width, the scene shrink 3.5
+    times and the stature measured on the distorted body put the mirror 30 % short.
+    Weighted by its frames (the information of its mean length, as in
     :func:`~.lengths.update_lengths`), a bone moves the gauge in proportion to what
     holds it: the shrink a stretch buys is the same per frame whichever bone it is.
     """

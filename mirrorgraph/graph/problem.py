@@ -1,45 +1,29 @@
 """The built factor graph of a rig (:class:`GraphProblem`): variables, factors, values read back.
 
-Variables (keys from :mod:`gtsam.symbol_shorthand`):
+Variables (keys from :mod:`gtsam.symbol_shorthand`; world = the first camera's frame):
 
-* ``X(t * J + j)``: :class:`gtsam.Point3`, joint ``j`` in frame row ``t`` (world
-  frame), only for the pairs marked used;
+* ``X(t * J + j)``: :class:`gtsam.Point3`, joint ``j`` in frame row ``t``;
 * ``P(m)``: :class:`gtsam.OrientedPlane3`, mirror ``m``;
-* ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of view ``v`` (mirror views);
-* ``C(c)``: :class:`gtsam.Pose3`, the pose (camera-to-world) of camera ``c`` where
-  it is estimated (:attr:`~.rig.Camera.estimate_pose`); a fixed camera has no variable,
-  unless its intrinsics are estimated: then ``C(c)`` is a *held* variable (the
-  factor that takes the calibration as a variable needs a pose key; the solver
-  never moves it, :mod:`.reduction`);
-* ``K(c)``, ``Q(c)``: :class:`gtsam.Cal3_S2`, the calibration ``K`` of camera ``c``
-  and the mirrored one ``K D = (-fx, fy, s, cx, cy)`` of its mirror views, where its
-  intrinsics are estimated (:attr:`~.rig.Camera.estimate_focal`): two variables, one
-  unknown ``f`` (and ``cx, cy``), kept equal by the solver (:mod:`.reduction`);
-* the bone lengths are not variables of the linear systems: the bone factors are
-  range factors holding them, set between linearisations (:mod:`.lengths`);
-  the length-only priors and the gauge act on the vector :data:`LENGTH_KEY` of
-  that small problem. Where a camera's intrinsics are estimated the lengths are
-  strongly coupled to its focal length (which only the bones' constancy
-  determines) and the vector ``L(0)`` is a variable of the graph instead
-  (:attr:`GraphProblem.length_key`): one factor per frame on its joints and ``L``
-  (:meth:`~mirrorgraph.factors.BoneLengthFactor.add_frames`), the length-only priors
-  and the gauge in the graph too.
+* ``V(v)``: :class:`gtsam.Pose3`, the virtual camera of mirror view ``v``;
+* ``C(c)``: :class:`gtsam.Pose3`, camera ``c``'s pose (camera-to-world) where it is
+  estimated, or held where only its intrinsics are;
+* ``K(c)``, ``Q(c)``: :class:`gtsam.Cal3_S2`, camera ``c``'s calibration and the mirrored
+  one ``(-fx, fy, s, cx, cy)``, where its intrinsics are estimated (kept equal,
+  :mod:`.reduction`);
+* the bone lengths: held by range factors and set between linearisations
+  (:mod:`.lengths`, the vector :data:`LENGTH_KEY`), or the variable ``L(0)`` where a
+  focal length is estimated (:attr:`GraphProblem.length_key`).
 
-Factors are kept in separate graphs so that the solver can use subsets:
-``reprojection`` (every view), ``links`` (one :class:`MirrorLinkFactor` per mirror
-view), ``priors`` (the per-frame body priors other than the bones: hip,
-smoothness), ``bones`` (one range factor per frame and bone, at the held
-lengths), ``length_priors`` (symmetry, anthropometry) and ``gauge`` (the
-bone-length sum) of the length problem; without bone lengths a distance prior on
-the plane, applied by :mod:`.reduction`. :meth:`GraphProblem.full` is the graph
-of the joints and globals. The solver (:mod:`.optimizer`) does not put the links
-in the least-squares system: it enforces them exactly (:mod:`.reduction`).
+Factors are kept in separate graphs so that the solver uses subsets: ``reprojection``,
+``links`` (one :class:`MirrorLinkFactor` per mirror view, enforced exactly by
+:mod:`.reduction`), ``priors`` (hip, smoothness), ``bones``, ``length_priors`` and
+``gauge``; :meth:`GraphProblem.full` is the graph of the joints and globals.
 
-Here too: the keys (:func:`point_keys`, :data:`LENGTH_KEY`), the values read back
-as arrays (:func:`extract_points`, :func:`extract_planes`,
-:func:`extract_camera_poses`, :func:`extract_intrinsics`), the virtual poses snapped
-onto their mirrors (:func:`snap_virtual_poses`) and the solver's cheirality guard
-(:func:`cheirality_guard`). The graph is built by :mod:`.builder`.
+Here too: the keys (:func:`point_keys`, :data:`LENGTH_KEY`), the values read back as
+arrays (:func:`extract_points`, :func:`extract_planes`, :func:`extract_camera_poses`,
+:func:`extract_intrinsics`), the virtual poses snapped onto their mirrors
+(:func:`snap_virtual_poses`) and the solver's cheirality guard (:func:`cheirality_guard`).
+The graph is built by :mod:`.builder`; the variables in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

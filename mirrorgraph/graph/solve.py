@@ -89,8 +89,8 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         data's but their lack of one (seen on scenes with little depth change: a
         "determined" 20 deg lens, 5x the true focal length, its std 16 %). The record
         says too whether the joints' two rays meet at a median angle under
-        :data:`FOCAL_MIN_PARALLAX_DEG` (``low_parallax``: a cause the warning names, no
-        longer a criterion by itself, issue #23: it threw good estimates away).
+        :data:`FOCAL_MIN_PARALLAX_DEG` (``low_parallax``: a cause the warning names, not
+        a criterion by itself: it would throw good estimates away).
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     lo, hi = opts.focal.search_fov_deg
@@ -141,7 +141,7 @@ def _median_parallax(state: SolveState, rig: Rig, camera: int, ang: np.ndarray |
 #: bias that its standard deviation does not contain. Measured on 40 scenes of the four
 #: slices (600 frames, no intrinsics): under 20 deg the estimate was 20-46 % off in 5 of
 #: 8 scenes with a reported std of 2-8 %; above it, within 4 % on every iid scene. The
-#: estimate is kept there too (the guess was worse: issue #23); this names the cause.
+#: estimate is kept there too (the guess is worse); this names the cause.
 FOCAL_MIN_PARALLAX_DEG = 20.0
 
 

@@ -7,58 +7,23 @@ the focal search, the joints pass) is the :class:`~.stage_config.SolveConfig`
 
 Stages (each recorded in :attr:`~.solve_state.SolveState.stages`):
 
-1. **Triangulation** of every joint seen in two views or more with the initial rig
-   (:func:`mirrorgraph.geometry.triangulate`, DLT then Gauss-Newton). An observation
-   behind its (real or virtual) camera, or a joint behind a mirror it is seen in, is
-   dropped (cheirality); a joint whose rays all meet at under
-   ``options.min_parallax_deg`` (the angle of the rays' *lines*: rays pointing opposite
-   ways, the usual mirror case, count too) is dropped; with
-   ``config.first_rejection``, observations whose residual exceeds the outlier
-   threshold and joints whose bones are all implausible are dropped too.
-2. **Warm start** (``config.warm_start``, rigs whose camera poses are all held):
-   Levenberg-Marquardt on the robust reprojection terms alone, on
-   ``options.warm_start_frames`` frames spread over the video, the first mirror's
-   distance held; then every joint is triangulated again with the warm rig and step
-   1 repeated. Its joints must meet at ``options.warm_start_min_parallax_deg`` at
-   least: without a body prior nothing else holds their depth.
-2b. **Focal search** (``config.focal_search``, one held camera whose focal length is
-   estimated, :attr:`~.rig.Camera.estimate_focal`): the focal length that makes the body
-   most rigid among log-spaced candidates, each with its normals from the epipoles
-   (:func:`~.focal_search.focal_search`); then every joint triangulated again with it.
-   The stages that follow estimate it with the rest (the bone lengths then a variable of the
-   linear system, :mod:`.builder`), the last one always runs (its bones chosen at the
-   estimated focal length), and an undamped step that overshoots is halved before the
-   damping grows (:attr:`~.optimizer.LMParams.backtrack`).
-3. **Gauge.** With a subject height everything is scaled so that the per-bone median
-   lengths sum to Winter's lengths for that height (the gauge's value).
-4. **Stages** of :attr:`~.stage_config.SolveConfig.stages`: the full graph (every
-   joint, every estimated pose and plane, the bone lengths, the body priors) with the stage's
-   robust kernel, then the observations beyond the stage's threshold (and behind
-   their camera) are dropped, with the joints left in fewer than two views and the
-   joints GTSAM found undetermined, before the next stage (built from this one's
-   solution). ``"auto"`` is least squares when the first rejection found under
-   ``options.auto_kernel_fraction`` outliers, else Geman-McClure. A bone enters a
-   frame's factor only where its length is measured without bias
-   (``options.bone_bias_limit``, :func:`~.bones.bone_curvature_bias`).
-5. **Joints pass** (``config.joints_pass``): the joints once more with every pose,
-   plane and bone length held, the smoothness of ``options.joints_smoothness_sigma``
-   and every bone in every frame; the bones the calibration left out entirely get
-   the length their triangulations give without the curvature bias
-   (:func:`~.bones.debiased_bone_lengths`).
-6. **Marginals and noise.** The reduced information of the last undamped solve is the
-   Schur complement of every joint on (poses, bone lengths, planes) that GTSAM's
-   elimination leaves; its inverse (:func:`~.optimizer.reduced_covariance`) gives each
-   estimated camera's ``6 x 6`` and each plane's ``3 x 3`` covariance
-   (:mod:`.marginals`), scaled by the noise the data show (:mod:`.noise`): every used joint
-   triangulated again from its kept views with the solved rig (the maximum-likelihood
-   point of the reprojection alone, free of the body priors that pull the graph's
-   joints off it), ``sigma^2 = RSS / (2 observations - 3 joints)`` (for one mirror
-   this is the pairs' Sampson distances to first order). An estimated camera's
-   intrinsics get their ``(d, d)`` covariance the same way (the bone lengths among the
-   eliminated globals), and a headline std that is the larger of it and the
-   time-robust figure (:func:`~.scores.frame_scores`,
-   :func:`~.uncertainty.robust_intrinsics_std`).
+1. **Triangulation** of every joint seen in two views or more
+   (:func:`mirrorgraph.geometry.triangulate`), dropping observations behind their camera,
+   joints behind a mirror and rays meeting under ``options.min_parallax_deg``;
+2. **Warm start** (``config.warm_start``): robust reprojection alone on
+   ``options.warm_start_frames`` frames, then triangulation again;
+2b. **Focal search** (``config.focal_search``): the focal length that makes the body most
+   rigid (:func:`~.focal_search.focal_search`);
+3. **Gauge**: with a subject height, bone lengths scaled to Winter's for that height;
+4. **Stages** of :attr:`~.stage_config.SolveConfig.stages`: the full graph with the
+   stage's robust kernel, then the observations beyond its threshold dropped;
+5. **Joints pass** (``config.joints_pass``): the joints with every global held, the
+   smoothness and every bone (:func:`~.bones.debiased_bone_lengths`);
+6. **Marginals and noise**: the reduced information's inverse
+   (:func:`~.optimizer.reduced_covariance`, :mod:`.marginals`) scaled by the noise the
+   data show (:mod:`.noise`).
 
+Each stage in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

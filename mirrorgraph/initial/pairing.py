@@ -1,56 +1,29 @@
 """Pairing of the person and their reflection, frame by frame.
 
-A detector gives, per frame, an unordered list of people: the person, their
-reflection, sometimes only one of them, sometimes bystanders. This module
-decides which two detections are the person and the reflection, which of the
-two is the reflection, and flips the reflection's anatomical labels
-(:attr:`~mirrorgraph.skeletons.Skeleton.flip`). It relies on one fact of
-mirror geometry, independent of the intrinsics: every joint, its reflection and
-the epipole ``e`` are collinear (:mod:`mirrorgraph.geometry`).
+A detector gives, per frame, an unordered list of people: the person, their reflection,
+sometimes one of them, sometimes bystanders. This module decides which two detections are
+the person and the reflection, which is the reflection, and flips the reflection's
+labels (:attr:`~mirrorgraph.skeletons.Skeleton.flip`). It relies on one fact of mirror
+geometry, independent of the intrinsics: every joint, its reflection and the epipole
+``e`` are collinear (:mod:`mirrorgraph.geometry`). Coordinates are image pixels.
 
-1. **Candidates.** Every unordered pair of detections in a frame (at most
-   ``max_people`` per frame, the most confident), with the reflection's labels
-   flipped. The line through a joint and its partner does not depend on which of
-   the two is the reflection, so the epipole can be found before that is known.
-2. **Epipole.** Reflective RANSAC (:func:`mirrorgraph.initial.estimators.estimate_epipole`)
-   over the lines of all candidates of a well-spread subset of frames; wrong
-   candidates and left/right confusions are outliers.
-3. **Choice per frame.** For each candidate, both labelings of the reflection
-   (flipped, and flipped again, i.e. the detector confused left and right) are
-   scored by the median epipolar distance; the best one under the threshold is
-   kept. A frame whose best candidate fails is left unpaired.
-4. **Which is the reflection.** The mirror image ``S(X)`` lies on the ray from
-   ``X`` along ``n``, whose image runs from ``u`` to the epipole; for a mirror
-   the camera faces (``n_z > 0``) the reflection lies *between* the joint and
-   the epipole. So the detection closer to the epipole is the reflection.
+1. **Candidates**: every unordered pair of a frame's detections (at most ``max_people``).
+2. **Epipole**: reflective RANSAC
+   (:func:`mirrorgraph.initial.estimators.estimate_epipole`) over the candidates' lines.
+3. **Choice per frame**: both labelings of each candidate's reflection scored by the
+   median epipolar distance; the best under the threshold kept.
+4. **Which is the reflection**: for a mirror the camera faces (``n_z > 0``) the
+   reflection lies between the joint and the epipole.
 
-:func:`pair_detections` (one mirror) and :func:`pair_reflections` (several) do
-all four steps, frame by frame. They are :func:`pair_candidates` (steps 1, 2,
-every candidate scored and its roles found against every mirror) followed by
-:func:`choose_pairs` (the choice). The split is for several people in front of
-the mirror, the common case in gyms and dance studios: each of them pairs with
-their own reflection, every such pair fits the epipole, and the frame's best
-pair may be any of them, changing identity from frame to frame. A caller that
-follows one person over time takes the candidates
-(:func:`paired_people`: the person of a valid pair, the reflection of none),
-decides who the person is per frame (tracks, other cameras:
-:mod:`mirrorgraph.rigs.observations`), and passes that to :func:`choose_pairs`.
-With several mirrors the epipoles are found one after the other and a few
-spare ones besides; the set that best explains the frames as people with a
-reflection in each mirror is kept (:func:`_consistent_mirrors`: two mirrors
-meeting at an edge offer a false epipole on the horizon).
+:func:`pair_detections` (one mirror) and :func:`pair_reflections` (several) do all four
+steps; they are :func:`pair_candidates` followed by :func:`choose_pairs`, split so that a
+caller that follows one person over time (:mod:`mirrorgraph.rigs.observations`) decides
+who the person is per frame (:func:`paired_people`). With several mirrors the set of
+epipoles that best explains the frames is kept (:func:`_consistent_mirrors`).
 
-:func:`~mirrorgraph.initial.pair_scores.frame_scores` scores every frame's best candidate
-against a mirror found, paired or not: how the frames that do not pair are spread tells
-a reflection from a second person standing where it should be
-(:func:`mirrorgraph.initial.reflection_check.check_reflection`).
-
-Modules: this one pairs (steps 2 and 3, the mirrors' epipoles and the choice per frame);
-:mod:`.pair_candidates` holds the candidates, their score and which of the two is the
-reflection (steps 1 and 4, and :class:`~.pair_candidates.PairingOptions`);
-:mod:`.left_right` the detector's left/right confusions
-(:func:`~.left_right.fix_left_right` for keypoints already paired); :mod:`.pair_scores`
-the frames' scores against a mirror found.
+Modules: :mod:`.pair_candidates` (steps 1 and 4, :class:`~.pair_candidates.PairingOptions`),
+:mod:`.left_right` (the detector's left/right confusions), :mod:`.pair_scores` (every
+frame's score against a mirror found). Details: ``docs/internals.md``.
 """
 
 from __future__ import annotations

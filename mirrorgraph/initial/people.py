@@ -1,51 +1,27 @@
 """Every person before one mirror paired with their own reflection, and followed over time.
 
 Where several people stand before a mirror (a gym, a dance studio) each of them pairs
-with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a frame.
-:func:`pair_people` keeps them all:
+with their own reflection; :func:`~.pairing.pair_detections` keeps one pair a frame,
+:func:`pair_people` keeps them all (image pixels throughout):
 
-1. **The mirror's epipole** from every candidate pair of detections
-   (:func:`~.pairing.pair_candidates`, the reflective RANSAC over their lines): with
-   ``P`` people and their reflections a frame offers ``P`` true pairs among
-   ``2P (2P - 1) / 2`` candidates, enough for a RANSAC of two lines. People standing
-   side by side offer a false epipole (the lines joining them meet near the horizon,
-   and more candidates may fit it than the mirror's): of a few RANSAC runs the epipole
-   that pairs the most detections in step 2 is kept (a false one pairs people with
-   each other, each detection at most once).
-2. **Each person with their own reflection, per frame.** Against the epipole a valid
-   candidate (median epipolar distance under the threshold) has a person (the detection
-   farther from the epipole) and a reflection (:func:`~.pair_candidates.b_is_reflection_of`);
-   a person's reflection is the detection whose joints lie on the epipolar lines through
-   theirs. Per frame the pairs are a bipartite assignment of persons to reflections
-   minimising the summed epipolar distances (:func:`scipy.optimize.linear_sum_assignment`;
-   invalid pairs cost more than any valid one and are dropped); a detection that comes
-   out as the person of one pair and the reflection of another keeps the better pair.
-   Where people stand in a row with the epipole at their height, every person's joints
-   lie near the epipolar lines of everyone's reflection in some frames: a candidate is
-   scored over time instead (``pair_over_time``): every detection is followed on its
-   own (:func:`track_detections`), and a candidate's score is the median over the frames
-   its two detections' tracks share (:func:`pair_track_scores`); its own frame's score
-   must stay under ``frame_limit`` thresholds. A pair whose two tracks each pair mostly
-   with another track is left out (:func:`partners_only`).
-3. **Tracks.** Pairs are linked frame to frame to the tracks last seen at most
-   ``max_gap`` frames before (frame numbers, not rows: frames far apart are never
-   assumed continuous) by a second assignment whose cost is the larger of the two views'
-   median joint displacement, relative to the track's size in the image (a person
-   crossing another in the direct view is still told apart in the reflection; a
-   left/right confusion of the detector's, which the epipole cannot always tell where it
-   lies level with the people, is no other person: the better way round counts); a pair
-   further than ``gate_frame`` a frame unseen (at most ``gate``) from every track
-   starts a new one.
-4. **Fragments.** A track whose first pair lies within ``merge_gate`` of another
-   track's last pair before it (at most ``merge_gap`` frames back, no frame in common)
-   continues it (:func:`merge_fragments`): a person hidden for a while, who moved
-   meanwhile, or two tracks taking one person's pair in turns. Tracks
-   of fewer than ``min_frames`` frames are left out (their pairs are counted).
+1. **The mirror's epipole** from every candidate pair (:func:`~.pairing.pair_candidates`);
+   of a few RANSAC runs the epipole that pairs the most detections is kept.
+2. **Each person with their own reflection, per frame**: a bipartite assignment of
+   persons to reflections minimising the summed epipolar distances
+   (:func:`scipy.optimize.linear_sum_assignment`), or scored over time
+   (``pair_over_time``: :func:`track_detections`, :func:`pair_track_scores`,
+   :func:`partners_only`).
+3. **Tracks**: pairs linked frame to frame to tracks last seen at most ``max_gap``
+   frames before, by an assignment on the joints' displacement relative to the
+   track's size.
+4. **Fragments**: a track that continues another is merged (:func:`merge_fragments`);
+   tracks of fewer than ``min_frames`` frames are left out.
 
 The people come out side by side in one :class:`~mirrorgraph.keypoints.PairedKeypoints`
 of the layout :func:`~mirrorgraph.skeletons.people_skeleton` (person ``p``'s joint ``j``
 is column ``p * J + j``), ordered by their first frame, so that the one graph holds each
 person's own joints and bone lengths (:func:`split_people` takes them apart again).
+Accuracy: ``bench/RESULTS_multiperson.md``; each step in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

@@ -114,36 +114,11 @@ def check_reflection(scores: np.ndarray, threshold_px: float,
     fewer than :data:`CHECK_MIN_FRAMES` frames. Both fractions are ratios, free of the
     detector's noise level as long as the noise stays under the threshold.
 
-    Measured with ``tests/initial/test_reflection_check.py`` (its benchmark builds the scenes):
-    ``make_scene``, seeds 0-39, mirror angle 10-60 deg, distance 2.5-4.5 m, field of
-    view 50-75 deg, 4 px noise, 5-10 % outliers, 5 % left/right swaps, 300 frames unless
-    said. False alarms on real reflections, warned / refused of 40 each:
-    **0 / 0** with 4 px noise, 2 px, 8 px, AR(1) 0.95 correlated noise, a 2 px
-    per-joint bias, BODY_25, 100 and 1000 frames, the mirror at 10 and at 60 deg, an
-    unmodelled lens distortion (k1 = -0.2), 20 % outliers a view, 20 % and 40 % of
-    the frames with a bystander (with 20 % missing the reflection or the person, 10 %
-    missing joints); 30 % outliers a view: 40 / 0 (warned: the pairing loses 36-48 %
-    of the frames, whose median joint is then an outlier).
-
-    Second persons where the reflection should be, at the reflection's place and image
-    height, caught (warned or refused) / refused of 40 each:
-
-    ==================================================  ================  ================
-    the "reflection" is                                 300 frames        100 frames
-    ==================================================  ================  ================
-    another person, moving                              40 / 16           34 / 14
-    another person, standing still                      39 / 11           34 / 11
-    the reflection's own detections 1-5 s late          32 / 9            16 / 4
-    a still snapshot of the reflection                  30 / 6            15 / 1
-    ==================================================  ================  ================
-
-    Of those missed at 300 frames, the initial mirror was off by more than 0.5 deg in 0,
-    1, 3 and 10 scenes.
-
-    Not caught: a second person whose pose and place match the reflection's in nearly
-    every frame (a snapshot of the reflection while the subject rests, somebody doing
-    the same exercise in step), which no epipolar test tells from a reflection; short
-    videos (3 s) hold too few frames where the poses differ.
+    Measured over 40 synthetic scenes a case (``tests/initial/test_reflection_check.py``
+    builds them; the tables in ``docs/internals.md``): no false alarm on real
+    reflections up to 20 % outliers a view, and 30-40 of 40 second persons caught at
+    300 frames. Not caught: a second person whose pose and place match the
+    reflection's in nearly every frame, which no epipolar test tells from a reflection.
 
     Args:
         scores: ``(T,)`` px; NaN for frames without a candidate pair, inf for pairs

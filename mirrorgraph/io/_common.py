@@ -43,7 +43,7 @@ from ..skeleton_guess import guess_skeleton
 from ..skeletons import Skeleton, known_counts, skeleton_by_name, skeletons_for_count
 
 #: Confidences up to this value are clipped to 1, above it refused, in formats whose
-#: scores are heat-map peaks (OpenPose itself writes up to ~1.41: openpose issue #615;
+#: scores are heat-map peaks (OpenPose itself writes up to ~1.41: github.com/CMU-Perceptual-Computing-Lab/openpose/issues/615;
 #: Mirrored-Human's annotations up to 1.057).
 MAX_CONFIDENCE = 1.5
 

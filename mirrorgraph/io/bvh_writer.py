@@ -1,50 +1,30 @@
 """3D motion out as BVH (Biovision hierarchy), for animation tools and game engines.
 
-:func:`write_bvh` turns 3D joints over time into a skeleton with one constant length
-per bone and one rotation per joint and frame.
+:func:`write_bvh` turns 3D joints over time into a skeleton with one constant length per
+bone and one rotation per joint and frame.
 
-Hierarchy (from the canonical joint names, any layout of :mod:`mirrorgraph.skeletons`)
---------------------------------------------------------------------------------------
+Hierarchy, from the canonical joint names of any layout of :mod:`mirrorgraph.skeletons`:
+the root is the mid-hip (``CHip`` / ``Hip`` as Pose2Sim names it, else ``Hips``, the
+midpoint of the hips); under it the legs and the spine to the neck, under the neck the
+arms, the nose and the head top. Joints carry Pose2Sim's marker names
+(:func:`mirrorgraph.io.motion.trc_marker_names`); a joint with several children has one
+zero-length joint per child, ``<joint>To<child>``; leaves end in an ``End Site``; a
+joint never estimated is left out with what hangs from it.
 
-The root is the mid-hip (``mid_hip`` where the layout has one, named as Pose2Sim names
-it, ``CHip`` or ``Hip``; else ``Hips``, the midpoint of the two hips). Under it the
-hips -> knees -> ankles -> heels and toes, and the spine to the neck (``neck``, or
-``Neck``, the midpoint of the shoulders, where the layout has none); under the neck
-the shoulders -> elbows -> wrists -> hand points, the nose (-> eyes, ears, mouth) and
-the head top. Joints are named with Pose2Sim's marker names
-(:func:`mirrorgraph.io.motion.trc_marker_names`). A joint with several children
-(root, neck, nose, ankles, wrists) has one zero-length joint per child, named
-``<joint>To<child>`` (as CMU's ``LHipJoint``): each bone then has a rotation of its
-own, so that every bone's direction is the joints' exactly. Leaves end in an
-``End Site`` of zero offset. A joint never estimated is left out with what hangs
-from it.
+Motion:
 
-Motion
-------
+* axes: the ``.trc``'s, Y up, ``(X, Y, Z) = (z, -y, x)`` of the real camera frame
+  (:data:`mirrorgraph.io.motion.TRC_FROM_CAMERA`); lengths in metres;
+* channels: root ``Xposition Yposition Zposition Zrotation Xrotation Yrotation``, other
+  joints ``Zrotation Xrotation Yrotation``, ``R = Rz Rx Ry`` in degrees;
+* rest pose: a T-pose facing -X, bone offsets the median lengths over the frames;
+* rotations: shortest arc for a joint with one child, Kabsch for several; joint
+  positions differ from the data by the bones' length changes only;
+* frames evenly spaced (:func:`mirrorgraph.io.motion.regular_frames`), gaps interpolated
+  linearly; ``Frame Time`` is ``step / fps``.
 
-* Axes: the ``.trc``'s, Y up: ``(X, Y, Z) = (z, -y, x)`` of the real camera frame
-  (:data:`mirrorgraph.io.motion.TRC_FROM_CAMERA`); lengths in **metres**.
-* Root: ``Xposition Yposition Zposition Zrotation Xrotation Yrotation``, the
-  position the root joint's; other joints ``Zrotation Xrotation Yrotation``:
-  ``R = Rz Rx Ry``, degrees (what :mod:`mirrorgraph.io.bvh` reads).
-* Rest pose (every rotation zero): a T-pose facing -X (towards the camera), the
-  subject's left along +Z, arms out; each bone's offset is its rest direction times
-  its length, the median over the frames where both of its joints were estimated.
-* Rotations: with ``G`` the world rotation of a joint's parent and ``u`` the unit
-  direction from the joint to its child in the data, a joint with one child turns
-  the child's rest direction ``r`` onto ``G^T u`` by the shortest arc (no twist about
-  the bone: positions do not tell it); a joint with several children (through
-  their zero-length joints) takes the rotation that best turns the children's rest
-  directions onto theirs (Kabsch), which gives the pelvis and chest an orientation.
-  Forward kinematics then puts the root at the data's root and every bone along
-  the data's bone; joint positions differ from the data by the bones' length
-  changes only.
-* Frames are evenly spaced (:func:`mirrorgraph.io.motion.regular_frames`): a frame
-  or joint not estimated is interpolated linearly in time between its neighbours
-  (held at the ends); ``Frame Time`` is ``step / fps``.
-
-Reference: the BVH format as Biovision defined it (Meredith and Maddock, "Motion
-capture file formats explained", 2001), the conventions of :mod:`mirrorgraph.io.bvh`.
+Reference: Meredith and Maddock, "Motion capture file formats explained" (2001); the
+conventions of :mod:`mirrorgraph.io.bvh`; in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

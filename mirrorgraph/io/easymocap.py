@@ -6,44 +6,27 @@ File ``{frame:06d}.json`` (``annots/<camera>/`` of an EasyMocap dataset)::
      "annots": [{"personID": 0,
                  "bbox": [x1, y1, x2, y2, c],          # 5 numbers, or 7 (Mirrored-Human)
                  "keypoints": [[x, y, c], ...],        # (J, 3) pixels
-                 "area": A,                            # optional
-                 "isKeyframe": false,
-                 "handl2d": [...], "handr2d": [...], "face2d": [...],   # optional
-                 "bbox_handl2d": [...], ...}],
+                 "isKeyframe": false, ...}],           # other keys ignored
      "isKeyframe": false}
 
-As the tools write it (read in EasyMocap's ``easymocap/annotator/file_utils.py``
-``annot2string`` / ``save_annot``, ``easymocap/mytools/file_utils.py`` ``read_annot``,
-``easymocap/estimator/openpose_wrapper.py`` ``load_openpose``,
-``easymocap/estimator/yolohrnet_wrapper.py``, ``doc/dataset.md``; and in the
-annotations of Mirrored-Human's ``data/sample-videos.zip``, zju3dv/Mirrored-Human):
+As EasyMocap's tools (``annot2string``, ``read_annot``, ``load_openpose``) and
+Mirrored-Human's ``data/sample-videos.zip`` write it:
 
-* the layout is BODY_25 (``doc/dataset.md``); COCO-17 and COCO-18 are accepted by
-  count;
-* a joint not detected is ``[0, 0, 0]`` (OpenPose's zeros, kept by
-  ``load_openpose``), or confidence 0 with leftover coordinates; a joint the
-  annotator left out is ``[0, 0, -1]`` (Mirrored-Human, e.g.
-  ``annots/backflip/000160.json``, also ``[0, -2.8e-14, -1]``; EasyMocap's own
-  annotator writes negative confidences as 0, ``annot2string``, and its reader
-  sets them to 0, ``read_annot``). Both are read as missing, whatever the
-  coordinates, and counted (:class:`~mirrorgraph.keypoints.ReadNotes`);
-* confidences are heat-map peaks (OpenPose, HRNet) and exceed 1 a little
-  (Mirrored-Human up to 1.057): up to 1.5 they are clipped to 1 and counted,
-  beyond that refused;
-* a person entry without ``keypoints`` holds only a ``bbox`` (the YOLO stage of
-  ``yolohrnet_wrapper.extract_bbox``; ``read_annot`` reads it as zeros): left out
-  and counted. ``keypoints2d`` is read where ``keypoints`` is absent (as
-  ``read_annot`` does); a person whose every joint is missing is left out;
-* ``bbox``, ``personID`` (Mirrored-Human: 0 the person, 1 the reflection;
-  mirrorgraph tells them apart itself), ``area``, ``isKeyframe``, hands, face and
-  any other key are ignored; an empty ``annots`` is a frame with nobody;
-* the tools write no NaN (``annot2string`` formats numbers with ``%7.2f``; none in
-  Mirrored-Human's files): any non-finite number is an error naming file, frame
-  and field.
+* the layout is BODY_25 (``doc/dataset.md``); COCO-17 and COCO-18 are accepted by count;
+* ``[0, 0, 0]``, confidence 0, or a negative confidence (Mirrored-Human's ``-1`` for a
+  joint the annotator left out) is missing, whatever the coordinates, and counted
+  (:class:`~mirrorgraph.keypoints.ReadNotes`);
+* confidences up to 1.5 are clipped to 1 and counted (heat-map peaks; Mirrored-Human up
+  to 1.057), beyond that refused;
+* a person entry without ``keypoints`` (nor ``keypoints2d``) holds only a ``bbox``: left
+  out and counted, as a person whose every joint is missing;
+* ``bbox``, ``personID`` (mirrorgraph tells the person from the reflection itself),
+  hands, face and other keys are ignored; an empty ``annots`` is a frame with nobody;
+* any non-finite number is an error naming file, frame and field.
 
-The frame id is the last number in the file name; ``width``/``height`` give the
-image size (optional, but they must agree between files). Files are read in frame
-order, one at a time.
+The frame id is the last number in the file name; ``width``/``height`` give the image
+size (optional, but equal across files). Files are read in frame order, one at a time.
+Sources in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

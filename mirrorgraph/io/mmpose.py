@@ -1,50 +1,35 @@
 """MMPose predictions: one JSON file for a whole video, or one per image.
 
-Layouts, as MMPose writes them (read in MMPose's
-``mmpose/apis/inferencers/base_mmpose_inferencer.py`` ``postprocess`` /
-``_finalize_video_processing``, ``mmpose/structures/utils.py`` ``split_instances``,
-``demo/topdown_demo_with_mmdet.py`` and ``demo/bottomup_demo.py``
+Layouts, as MMPose writes them (``mmpose/apis/inferencers/base_mmpose_inferencer.py``,
+``mmpose/structures/utils.py`` ``split_instances``, the demo scripts'
 ``--save-predictions``)::
 
     # MMPoseInferencer(..., pred_out_dir=...) on a video: one file, frame_id from 0
     [{"frame_id": t,
       "instances": [{"keypoints": [[x, y], ...],        # (J, 2) pixels
                      "keypoint_scores": [s, ...],        # (J,), optional
-                     "bbox": [[x1, y1, x2, y2]],         # ignored on reading
-                     "bbox_score": s}]},                 # ignored on reading
+                     "bbox": [[x1, y1, x2, y2]], "bbox_score": s}]},   # ignored
      ...]
-
     # the demo scripts on a video: the same list (frame_id from 1) under
-    {"meta_info": {...}, "instance_info": [...]}        # meta_info: the model's
-                                                        # dataset_meta
+    {"meta_info": {...}, "instance_info": [...]}
+    # on images: one file per image (000012.json) holding its list of instances
 
-    # the inferencer on images: one file per image, named after it (000012.json),
-    # holding that image's list of instances; the demo scripts on one image:
-    # {"meta_info": {...}, "instance_info": [instance, ...]}
+``mirrorgraph detect`` writes the demo layout with its own ``meta_info`` (:mod:`.meta`);
+the reader takes ``image_size`` and ``fps`` from any ``meta_info`` that holds them. A
+single file of instances is one frame (id 0); a folder of per-image files is read like
+an OpenPose folder (frame id = last number in the file name, one file at a time).
 
-``mirrorgraph detect`` writes the demo layout with its own ``meta_info``
-(:mod:`.meta`: the skeleton in ``dataset_meta``'s keys, plus ``image_size`` and
-``fps``); the reader takes ``image_size`` and ``fps`` from any ``meta_info`` that
-holds them and ignores its other keys.
+Scores (``mmpose/codecs/utils/post_processing.py``): heat-map peaks and RTMPose's SimCC
+logit maxima exceed 1, and a keypoint not found has a score ``<= 0``
+(https://github.com/open-mmlab/mmpose/issues/884, /2755, /3207). So a finite score above
+1 is clipped to 1 and a score ``<= 0`` is missing, whatever the coordinates; both are
+counted (:class:`~mirrorgraph.keypoints.ReadNotes`). Missing ``keypoint_scores`` mean
+confidence 1. A non-finite number is an error naming file, frame and field; other keys
+are ignored; an empty ``instances`` is a frame with nobody.
 
-A single file of instances is one frame (frame id 0); a folder of per-image files
-is read like an OpenPose folder (frame id = last number in the file name, one
-file at a time).
-
-Scores (read in ``mmpose/codecs/utils/post_processing.py`` ``get_heatmap_maximum``
-/ ``get_simcc_maximum``, mmpose issues #884, #2755, #3207): heat-map peaks
-(RSN / MSPN up to ~1.3) and RTMPose's SimCC logit maxima are no probabilities and
-exceed 1; a keypoint the decoder did not find has a score ``<= 0`` and a location
-of -1 mapped back into the image. So any finite score above 1 is clipped to 1 and
-a score ``<= 0`` is missing, whatever the coordinates; both are counted
-(:class:`~mirrorgraph.keypoints.ReadNotes`). Missing ``keypoint_scores`` mean
-confidence 1. MMPose writes no NaN: a non-finite number is an error naming file,
-frame and field. Keys other than ``keypoints`` and ``keypoint_scores`` are
-ignored; an empty ``instances`` is a frame with nobody.
-
-The keypoint layout is COCO-17 for the usual body models; it is taken from the
-keypoint count unless given. The writer writes missing joints as ``[0, 0]`` with
-score 0. Frames are sorted by ``frame_id``.
+The layout is COCO-17 for the usual body models, taken from the keypoint count unless
+given. The writer writes missing joints as ``[0, 0]`` with score 0. Frames are sorted by
+``frame_id``.
 """
 
 from __future__ import annotations

@@ -1,61 +1,30 @@
 """3D motion out: joints over time as ``.npz``, ``.csv``, OpenSim ``.trc``, C3D or BVH.
 
-:func:`write_joints3d` picks the format from the file suffix; every write is
-atomic.
+:func:`write_joints3d` picks the format from the file suffix; every write is atomic.
 
-=========== ================================================================
-format      content
-=========== ================================================================
-``.npz``    ``joints3d`` ``(T, J, 3)`` float (NaN where invalid), ``valid``
-            ``(T, J)`` bool, ``frame_ids`` ``(T,)`` int64, ``joint_names``
-            ``(J,)`` str, ``fps`` float (NaN if unknown), ``unit`` str,
-            ``frame`` str (the coordinate frame, in words); with each joint's
-            uncertainty ``joints_std`` ``(T, J)`` float, ``unit`` (NaN where
-            invalid or unknown). Real camera frame.
-``.csv``    header ``frame,time,<joint>_x,<joint>_y,<joint>_z,...`` (canonical
-            joint names), one row per frame; ``time = frame / fps`` (empty if
-            the frame rate is unknown); empty fields where a joint is invalid.
-            Real camera frame, the unit of the data.
-``.trc``    OpenSim marker file as Pose2Sim writes it (below). Metres, Y up.
-            The format has no field for a marker's uncertainty: none is written.
-``.c3d``    C3D with the ``.trc``'s markers, axes and Pose2Sim's units
-            (millimetres), :mod:`mirrorgraph.io.c3d_writer` (``c3d`` extra);
-            each joint's std as its point's residual (mm).
-``.bvh``    BVH: a hierarchy built from the skeleton, one length a bone,
-            joint rotations from the 3D positions, root translation in metres,
-            the ``.trc``'s axes (Y up), :mod:`mirrorgraph.io.bvh_writer`.
-=========== ================================================================
+* ``.npz``: ``joints3d`` ``(T, J, 3)`` float (NaN where invalid), ``valid`` ``(T, J)``
+  bool, ``frame_ids`` ``(T,)`` int64, ``joint_names`` ``(J,)`` str, ``fps`` float (NaN if
+  unknown), ``unit`` str, ``frame`` str; with uncertainty, ``joints_std`` ``(T, J)``.
+  Real camera frame.
+* ``.csv``: ``frame,time,<joint>_x,<joint>_y,<joint>_z,...``, one row a frame,
+  ``time = frame / fps``, empty fields where a joint is invalid. Real camera frame.
+* ``.trc``: OpenSim marker file as Pose2Sim's ``make_trc`` writes it, tab-separated,
+  metres, Y up; ``Frame#`` the input's frame number, ``Time = frame / fps``; a missing
+  marker has empty fields (OpenSim reads NaN). No field for a marker's uncertainty.
+* ``.c3d``: the ``.trc``'s markers and axes in millimetres, each joint's std as its
+  point's residual (:mod:`mirrorgraph.io.c3d_writer`, ``c3d`` extra).
+* ``.bvh``: a hierarchy with one length a bone and joint rotations
+  (:mod:`mirrorgraph.io.bvh_writer`).
 
-TRC layout (tab-separated; Pose2Sim's ``make_trc`` structure)::
+Marker names (:func:`trc_marker_names`): Pose2Sim's / OpenSim's, ``L``/``R`` prefix and
+CamelCase (``left_knee -> LKnee``, ``nose -> Nose``), the head top ``Head``, the mid-hip
+``CHip`` (BODY_25, COCO-18) or ``Hip`` (HALPE_26).
 
-    PathFileType  4  (X/Y/Z)  <file name>
-    DataRate  CameraRate  NumFrames  NumMarkers  Units  OrigDataRate  OrigDataStartFrame
-        OrigNumFrames                                       (one line)
-    <fps>  <fps>  <T>  <J>  m  <fps>  <first frame>  <T>
-    Frame#  Time  <marker 1>      <marker 2> ...
-                  X1  Y1  Z1  X2  Y2  Z2 ...
-    <frame>  <time>  <x>  <y>  <z> ...
-
-``Frame#`` is the input's frame number and ``Time = frame / fps`` (as Pose2Sim
-does). A marker that is missing in a frame has its three fields left empty,
-which OpenSim reads as a missing marker (NaN).
-
-Marker names: Pose2Sim's / OpenSim's names for the detector keypoints,
-``L``/``R`` prefix and CamelCase: ``left_knee -> LKnee``, ``right_hip -> RHip``,
-``left_big_toe -> LBigToe``, ``nose -> Nose``, ``neck -> Neck``; the head top
-(BODY_25B, HALPE_26) is ``Head``; the mid-hip is ``CHip`` in BODY_25 / COCO-18
-and ``Hip`` in HALPE_26, as in Pose2Sim's skeletons and OpenSim marker sets (the
-layouts with a head top are the ones that call it ``Hip``; pass ``marker_names``
-to override, :func:`trc_marker_names`). COCO-17 has neither neck nor mid-hip;
-Pose2Sim's COCO_17 model does not need them.
-
-Axes: OpenSim's ground frame has Y up (X forward, Z to the right); the real
-camera frame has y *down*. The ``.trc`` holds ``(X, Y, Z) = (z, -y, x)`` of the
-camera frame: X is the depth away from the camera, Y up, Z to the right of
-the image. It is a proper rotation (lengths and handedness kept) and exactly
-what Pose2Sim writes (after its Z-up to Y-up step) when it triangulates with the
-``world="z_up"`` export of :func:`mirrorgraph.export.export_calibration`. "Up"
-is the camera's up: a tilted camera gives a correspondingly tilted ground.
+Axes: the ``.trc`` holds ``(X, Y, Z) = (z, -y, x)`` of the real camera frame
+(:data:`TRC_FROM_CAMERA`): X the depth away from the camera, Y up (the camera's up),
+Z to the right; a proper rotation, what Pose2Sim writes with the ``world="z_up"`` export
+of :func:`mirrorgraph.export.export_calibration`. The TRC header line by line:
+``docs/internals.md``.
 """
 
 from __future__ import annotations

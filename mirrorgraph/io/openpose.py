@@ -1,5 +1,5 @@
-"""OpenPose ``--write_json`` output (and the tools writing its format): a folder of
-one JSON file per frame.
+"""OpenPose ``--write_json`` output (and the tools writing its format): a folder of one JSON
+file per frame.
 
 File ``{stem}_{frame:012d}_keypoints.json`` (OpenPose) or ``{stem}_{frame:06d}.json``
 (Pose2Sim)::
@@ -7,44 +7,30 @@ File ``{stem}_{frame:012d}_keypoints.json`` (OpenPose) or ``{stem}_{frame:06d}.j
     {"version": 1.3,
      "people": [{"person_id": [-1],
                  "pose_keypoints_2d": [x0, y0, c0, x1, y1, c1, ...],   # 3 J numbers
-                 "face_keypoints_2d": [], "hand_left_keypoints_2d": [],
-                 "hand_right_keypoints_2d": [], "pose_keypoints_3d": [], ...}],
-     "part_candidates": [{"0": [x, y, c, ...], ...}]}              # --part_candidates only
+                 "face_keypoints_2d": [], ...}],                      # other keys ignored
+     "part_candidates": [...]}                                        # --part_candidates
 
-As the tools write it (read in OpenPose's ``doc/02_output.md`` and
-``src/openpose/filestream/fileStream.cpp`` ``savePeopleJson`` /
-``addKeypointsToJson``, openpose issue #615; Pose2Sim's
-``Pose2Sim/poseEstimation.py`` ``save_to_openpose`` / ``process_video`` and
-``Pose2Sim/common.py`` ``sort_people_sports2d``; RTMLib's
-``rtmlib/tools/pose_estimation/post_processings.py`` ``get_simcc_maximum``):
+As the tools write it (OpenPose's ``doc/02_output.md`` and ``fileStream.cpp``;
+Pose2Sim's ``poseEstimation.py`` and ``common.py``; RTMLib's ``post_processings.py``):
 
-* the layout is BODY_25 or the experimental BODY_25B (J = 25), the older COCO-18
-  (J = 18) or, from Pose2Sim / RTMLib, COCO-17 or HALPE-26, told apart by the
-  count unless given; BODY_25 and BODY_25B from the detections
-  (:func:`mirrorgraph.skeleton_guess.guess_skeleton`);
-* coordinates are pixels (OpenPose's default ``--keypoint_scale 0``; other
-  scales are not detected);
-* OpenPose writes a joint not detected as ``0 0 0``: confidence 0 is missing,
-  whatever the coordinates;
-* OpenPose's confidences are heat-map peaks, up to ~1.41 (issue #615);
-  Pose2Sim writes RTMLib's SimCC scores, the mean of two logit maxima, which are
-  unbounded above and ``<= 0`` for keypoints not found (their coordinates are
-  then meaningless): any finite confidence above 1 is clipped to 1, a negative
-  one is missing; both are counted (:class:`~mirrorgraph.keypoints.ReadNotes`);
-* Pose2Sim writes ``NaN, NaN, NaN`` (JSON ``NaN``) for every joint of a person it
-  tracks but does not see in the frame: such joints are missing, a person with
-  nothing else is left out, both counted; any other non-finite number is an error
-  naming file, frame and field;
-* an empty ``pose_keypoints_2d`` (OpenPose with the body detector off) is a
-  person without body keypoints: left out and counted;
-* ``person_id``, ``version``, face, hands, 3D arrays, ``part_candidates`` and any
-  other key are ignored; an empty ``people`` is a frame with nobody.
+* the layout is BODY_25 or BODY_25B (J = 25, told apart by
+  :func:`mirrorgraph.skeleton_guess.guess_skeleton`), COCO-18, or from Pose2Sim / RTMLib
+  COCO-17 or HALPE-26, by the count unless given;
+* coordinates are pixels (OpenPose's default ``--keypoint_scale 0``);
+* confidence 0 (OpenPose's ``0 0 0``) or negative (RTMLib) is missing, whatever the
+  coordinates; a finite confidence above 1 (heat-map peaks up to ~1.41, OpenPose's
+  https://github.com/CMU-Perceptual-Computing-Lab/openpose/issues/615; SimCC scores) is
+  clipped to 1; both counted (:class:`~mirrorgraph.keypoints.ReadNotes`);
+* Pose2Sim's ``NaN`` joints (a tracked person not seen) are missing, a person with
+  nothing else is left out; any other non-finite number is an error naming file, frame
+  and field;
+* an empty ``pose_keypoints_2d`` is a person without body keypoints: left out, counted;
+* an empty ``people`` is a frame with nobody.
 
-The frame id is the last number in the file name; files are read in frame order,
-one at a time, so folders of any length stream. OpenPose files carry no image
-size and no frame rate; ``mirrorgraph detect --format openpose`` writes both into
-a sidecar in the folder, :data:`.meta.SIDECAR` (not a ``.json`` name, so that
-readers of every ``*.json`` pass it by), read back here where present.
+The frame id is the last number in the file name; files are read in frame order, one at
+a time. OpenPose files carry no image size and no frame rate; ``mirrorgraph detect
+--format openpose`` writes both into a sidecar, :data:`.meta.SIDECAR` (not a ``.json``
+name), read back here where present.
 """
 
 from __future__ import annotations

@@ -1,63 +1,32 @@
 """The same person in every camera: following one person over time, and matching
 detections across cameras by epipolar consistency.
 
-Neither a camera without mirrors nor one with mirrors can tell its subject from
-a bystander frame by frame: the most confident detection may be anyone, and in
-front of a mirror everyone pairs with their own reflection. So:
+Neither a camera without mirrors nor one with mirrors can tell its subject from a
+bystander frame by frame. So:
 
-* **Over time, in one camera** (the rig's first, the reference): the
-  candidates are linked into tracks frame to frame (Hungarian assignment on the
-  mean joint distance, :func:`~.tracking.track_people`) and the subject is the track seen
-  in the most frames (:func:`~.tracking.subject_track`; with mirrors the candidates are
-  the people that pair with a reflection, so the one that pairs longest), and
-  between tracks seen nearly as long the one that moves most (:func:`~.tracking.track_motion`).
+* **Over time, in the reference camera** (the rig's first): the candidates are linked
+  into tracks (:func:`~.tracking.track_people`) and the subject is the track seen in the
+  most frames (:func:`~.tracking.subject_track`), between tracks seen nearly as long the
+  one that moves most (:func:`~.tracking.track_motion`).
 * **Across cameras** (:func:`match_candidates`), for every other camera:
 
-  1. its candidates are linked into tracks (:func:`~.tracking.track_labelled`: a detector's
-     left/right swap of a turning person continues the track, and each detection's
-     labels are read against the track's);
-  2. each long enough track is tested against the reference camera's person, its
-     detections in the labels continuity gives them and with one answer per track
-     (and stretch of the reference person's track) for how those relate to the
-     reference person's (:func:`~.epipolar.labelled_geometry`):
-     an essential matrix by MAGSAC++, refined robustly
-     (:func:`mirrorgraph.initial.relative.refine_relative_pose`); the track whose
-     joints fit it best (largest fraction under :data:`~.epipolar.TRACK_INLIER_PX`, or 2 %
-     of the reference person's size where larger: :func:`~.epipolar.inlier_threshold_px`,
-     weighted by the square root of its size) gives the geometry. Pooling every
-     candidate pair instead fails: with two people half the pairs are wrong,
-     and the person's small extent in the image leaves the minimal samples'
-     essential matrices degrees off (bas-relief ambiguity), so the wrong pairs
-     win;
-  3. with that track's geometry every frame's candidates, as labelled, are scored
-     by their
-     median Sampson distance (Hartley and Zisserman, *Multiple View Geometry*,
-     2nd ed., sec. 11.4.3) to the reference person, and the best under
-     :data:`MATCH_THRESHOLD_PX` (scaled as the inlier threshold) is kept (track
-     switches are repaired here),
-     except on tracks that fit in too few of their frames
-     (:data:`MIN_TRACK_AGREEMENT`): those are other people, never kept, not even
-     where the subject is missing and they are a frame's only candidate.
+  1. its candidates are linked into tracks (:func:`~.tracking.track_labelled`, left/right
+     swaps read against the track's labels);
+  2. each long enough track is tested against the reference person
+     (:func:`~.epipolar.labelled_geometry`: an essential matrix by MAGSAC++, refined by
+     :func:`mirrorgraph.initial.relative.refine_relative_pose`); the track whose joints fit
+     it best (inliers under :func:`~.epipolar.inlier_threshold_px`) gives the geometry;
+     where no whole track fits with :data:`MIN_TRACK_INLIERS`, the tracks' pieces between
+     left/right swaps are tried (:func:`~.tracking.tracklets`);
+  3. every frame's candidates are scored by their median Sampson distance (Hartley and
+     Zisserman, *Multiple View Geometry*, 2nd ed., sec. 11.4.3) to the reference person;
+     the best under :data:`MATCH_THRESHOLD_PX` is kept, except on tracks that fit in too
+     few of their frames (:data:`MIN_TRACK_AGREEMENT`).
 
-  When no whole track fits with :data:`MIN_TRACK_INLIERS` inliers, step 2 is
-  repeated on the tracks' pieces between the left/right swaps the tracker read
-  (:func:`~.tracking.tracklets`): where the subject walks into another person, the detector
-  swaps and scatters their joints and the tracker links those frames into the
-  subject's track, which then fits no geometry as a whole; the piece before it does
-  (Pose2Sim's Demo_MultiPerson, cam03, every 3rd frame: 92 % against 45 % for the
-  whole track and 46 % for the person standing still). A piece is one track's
-  stretch, so still one person a frame; only the geometry comes from it, and step 3
-  follows as above.
-
-  When no track has :data:`MIN_CORRESPONDENCES` joints seen with the reference
-  person, or the best one (nor any piece) fits with fewer than :data:`MIN_TRACK_INLIERS`
-  inliers, a :class:`~mirrorgraph.errors.DegenerateGeometryError` says so.
-  That test is one-sided: the joints of two upright people of about the same
-  height lie on about the same (nearly horizontal) epipolar lines of level
-  cameras, and a wrong person's own best essential matrix can fit up to ~90 %
-  of the joints (the subject's ~95 %, synthetic rigs with 4 px noise). The
-  choice among the people a camera sees is reliable; a camera that does not
-  see the subject at all can pass.
+  Without :data:`MIN_CORRESPONDENCES` shared joints or :data:`MIN_TRACK_INLIERS`
+  inliers a :class:`~mirrorgraph.errors.DegenerateGeometryError` says so. The test is
+  one-sided: a camera that does not see the subject at all can pass
+  (``docs/internals.md``).
 
 Modules: :mod:`.tracking` (the tracks, their labels, the subject), :mod:`.epipolar` (a
 track's geometry with the reference person and how well candidates fit it), this one

@@ -1,52 +1,32 @@
 """Per-camera keypoints of a rig, sorted into the person and their reflections, on one clock.
 
-For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the
-keypoints (any format of :func:`mirrorgraph.io.read_keypoints`), read the
-intrinsics and undistort, then sort every frame into the person and, for each
-mirror the camera sees, their reflection (labels flipped to the real joints).
-Frames are put on the rig's clock with each camera's ``frame_offset``.
+For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the keypoints (any
+format of :func:`mirrorgraph.io.read_keypoints`), read the intrinsics and undistort, then
+sort every frame into the person and, for each mirror the camera sees, their reflection
+(labels flipped to the real joints). Frames are put on the rig's clock with each camera's
+``frame_offset``.
 
 Who the person is, camera by camera:
 
-* **Candidates.** In a camera with mirrors, every (person, reflection) pair of a
-  frame that fits a mirror's epipole is kept
-  (:func:`mirrorgraph.initial.pairing.pair_candidates`); the candidates for the person
-  are the detections that are the person of such a pair
-  (:func:`mirrorgraph.initial.pairing.paired_people`). In front of a mirror everyone
-  has a reflection: a bystander's pair fits the epipole as well as the
-  subject's, so one frame alone cannot tell them apart. In a camera without
-  mirrors every detection is a candidate.
-* **The first camera** (the reference), when some frame holds several
-  candidates, follows one person over time: its candidates are linked into
-  tracks (:func:`mirrorgraph.rigs.tracking.track_labelled`: a detector's left/right
-  swap of a turning person continues their track, as in the other cameras, and each
-  track moves in its own labelling) and the subject is
-  the track seen in the most frames, that is, with mirrors, the one that
-  pairs with a reflection in the most frames; between tracks seen in nearly as
-  many frames, the one that moves most (:func:`~mirrorgraph.rigs.tracking.subject_track`:
-  a person standing still gives little geometry); then the more confident. Per frame only the pairs holding that track's detection compete
-  (:func:`mirrorgraph.initial.pairing.choose_pairs`); frames without it have no
-  person. When another track is seen in more than
-  :data:`SECOND_PERSON_FRACTION` of the frames a warning says so (the subject
-  is then the person seen longest or moving most, which the user should know). With one
-  candidate per frame, the frame's best pair (or most confident detection) is
-  kept, as :func:`mirrorgraph.initial.pairing.pair_reflections` does.
-* **Every other camera**, with or without mirrors, keeps per frame the
-  candidate consistent with the first camera's person by epipolar geometry
-  (:func:`mirrorgraph.rigs.matching.match_candidates`); with mirrors the
-  reflections of the chosen person come along. Also with one candidate a
-  frame: the subject may leave a camera's view while someone else walks in,
-  and those frames are dropped. When no candidate track fits, a
-  :class:`~mirrorgraph.errors.DegenerateGeometryError` names the camera.
-* **Left/right labels.** A detector swaps a turning person's left and right in one
-  camera and not in another: the other cameras' tracks and their geometry read the
-  swaps (:func:`~mirrorgraph.rigs.matching.match_candidates`), and a frame whose
-  labels disagree with the first camera's person's is not kept (relabelling it put
-  the cameras further from Qualisys on Pose2Sim's demo).
+* **Candidates**: in a camera with mirrors, the person of every (person, reflection) pair
+  that fits a mirror's epipole (:func:`mirrorgraph.initial.pairing.pair_candidates`,
+  :func:`mirrorgraph.initial.pairing.paired_people`); without mirrors every detection.
+* **The first camera** (the reference) follows one person over time: tracks
+  (:func:`mirrorgraph.rigs.tracking.track_labelled`), the subject the one seen longest
+  or moving most (:func:`~mirrorgraph.rigs.tracking.subject_track`), and only the pairs
+  holding its detection compete (:func:`mirrorgraph.initial.pairing.choose_pairs`). A
+  warning names a second track seen in more than :data:`SECOND_PERSON_FRACTION` of the
+  frames.
+* **Every other camera** keeps per frame the candidate consistent with the first
+  camera's person by epipolar geometry
+  (:func:`mirrorgraph.rigs.matching.match_candidates`), with its reflections; when no
+  candidate track fits, a :class:`~mirrorgraph.errors.DegenerateGeometryError` names the
+  camera.
+* **Left/right labels**: a frame whose labels disagree with the first camera's person's
+  is not kept.
 
-Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T``
-frames, undistorted pixels; NaN coordinates and confidence 0 where a camera
-has no observation.
+Shapes: ``(T, J, 3)`` arrays (x px, y px, confidence) on the rig's ``T`` frames,
+undistorted pixels; NaN coordinates and confidence 0 where a camera has no observation.
 """
 
 from __future__ import annotations

@@ -18,8 +18,7 @@ with their own reflections) for ``mirrorgraph calibrate-rig``, and :func:`write_
 and ground truth (:mod:`.rig`).
 
 Geometries (:mod:`.geometry`): ``make_scene(geometry=...)`` chooses the ranges
-of the placement, ``"favourable"`` (the default: the generator as it always
-was), ``"gym"`` (a typical gym or studio: the person 0.8-2.5 m in front of a
+of the placement, ``"favourable"`` (the default), ``"gym"`` (a typical gym or studio: the person 0.8-2.5 m in front of a
 mirror 3.5-8 m away, the epipole near the person), ``"wide"`` and
 ``"low_parallax"``; :func:`scene_geometry_stats` measures a scene (distance of
 the person from the epipole, angle between a joint's two rays). Detector

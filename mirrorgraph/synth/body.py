@@ -1,46 +1,27 @@
 """A 3D body model for synthetic data: segment lengths and rigid joint offsets.
 
-The model is expressed in units of standing height ``H`` (multiply by the
-subject's height to get metres) in a *body frame*: ``x`` to the person's left,
-``y`` up, ``z`` forward (the way the person faces); right-handed.
+The model is in units of standing height ``H`` (multiply by the subject's height for
+metres) in a *body frame*: ``x`` to the person's left, ``y`` up, ``z`` forward (the way
+the person faces); right-handed.
 
 Limb and trunk lengths come from :data:`mirrorgraph.anthropometry.HEIGHT_FRACTION`
-(Winter 2009, Fig. 4.1): femur, tibia, humerus, ulna, shoulder width and hip
-width. The rest are my own round figures, chosen to agree with Winter's landmark
-heights (ankle 0.039 H, hip 0.530 H, shoulder 0.818 H, chin 0.870 H,
-eye 0.936 H, vertex 1.000 H, foot length 0.152 H, foot width 0.055 H):
+(Winter 2009, Fig. 4.1): femur, tibia, humerus, ulna, shoulder width and hip width. The
+rest (trunk parts, neck, head, face and foot points) are round figures that agree with
+Winter's landmark heights (ankle 0.039 H, hip 0.530 H, shoulder 0.818 H, chin 0.870 H,
+eye 0.936 H, vertex 1.000 H, foot length 0.152 H, foot width 0.055 H); their table:
+``docs/internals.md`` and the constants below.
 
-=========================  ==================================================
-segment                    fraction of H (left side; the right mirrors x)
-=========================  ==================================================
-ankle height above floor   0.039
-lumbar (mid-hip to L1)     0.100
-thoracic (L1 to T1)        0.100
-upper trunk (T1 to neck)   0.088   (neck = midpoint of the shoulders)
-neck to head pivot         0.072 up                  (pivot at 0.890 H)
-head pivot to vertex       0.110 up
-eye (from head pivot)      x 0.018, y 0.046, z 0.048  (pupils 0.036 H apart)
-ear                        x 0.040, y 0.036, z 0.000
-nose tip                   x 0,     y 0.026, z 0.062
-heel (from ankle)          x 0.004, y -0.032, z -0.028
-big toe                    x -0.010, y -0.033, z 0.118 (medial)
-small toe                  x 0.022, y -0.033, z 0.092 (lateral)
-=========================  ==================================================
+Individual variation: each segment kind (femur, tibia, humerus, ulna, shoulder width, hip
+width, each trunk part, neck, head size, foot size) is scaled by its own factor
+``1 + s * z``, ``z`` a standard normal clipped to +-2, ``s = 0.03`` by default, shared by
+the left and right segment (the body stays symmetric); then the whole body is scaled so
+that the standing height (floor to vertex, legs straight, trunk upright) is exactly ``H``.
 
-Individual variation: each segment kind (femur, tibia, humerus, ulna, shoulder
-width, hip width, each trunk part, neck, head size, foot size) is scaled by its
-own factor ``1 + s * z`` with ``z`` a standard normal clipped to +-2 and
-``s = 0.03`` by default. The factor is shared by the left and right segment, so
-the body stays exactly left/right symmetric. Afterwards the whole body is scaled
-so that the standing height (floor to vertex, legs straight, trunk upright) is
-exactly ``H``.
-
-The OpenPose ``neck`` is the midpoint of the shoulders and ``mid_hip`` the
-midpoint of the hips, so the scapular and pelvis bones of
-:mod:`mirrorgraph.skeletons` are exactly half the shoulder and hip widths.
-BODY_25B and HALPE_26 get the same ``neck`` and ``mid_hip`` (a simplification:
-their detectors place the neck somewhat higher), and their ``head_top``, not a
-column of the model, is the vertex of the rigid head (:func:`skeleton_points`).
+The OpenPose ``neck`` is the midpoint of the shoulders and ``mid_hip`` that of the hips,
+so the scapular and pelvis bones of :mod:`mirrorgraph.skeletons` are half the shoulder
+and hip widths. BODY_25B and HALPE_26 get the same ``neck`` and ``mid_hip`` (their
+detectors place the neck somewhat higher), and their ``head_top`` is the vertex of the
+rigid head (:func:`skeleton_points`).
 """
 
 from __future__ import annotations

@@ -1,62 +1,33 @@
 """Scene geometries of the synthetic generator, and how to measure a scene's geometry.
 
-Frames and units are those of :mod:`.scene`: the real camera at the origin
-(``x`` right, ``y`` down, ``z`` forward), metres; the mirror ``n . X = d`` with
-``n`` pointing away from the camera; a level camera's world frame has ``y`` up.
+Frames and units are those of :mod:`.scene`: the real camera at the origin (``x`` right,
+``y`` down, ``z`` forward), metres; the mirror ``n . X = d`` with ``n`` pointing away from
+the camera; a level camera's world frame has ``y`` up.
 
-Presets (:data:`PRESETS`, chosen with ``make_scene(geometry=...)``; every range
-is sampled uniformly, and redrawn with the rest of the placement when no
-position of the person fits, see :mod:`.scene`):
+Presets (:data:`PRESETS`, chosen with ``make_scene(geometry=...)``; every range is
+sampled uniformly and redrawn with the rest of the placement when no position fits):
 
-``"favourable"``
-    The generator as it was before presets existed, bit for bit for the same
-    seed (the default, :data:`DEFAULT_GEOMETRY`): mirror 2.5-4.5 m, normal
-    10-60 deg off the optical axis turned left or right with +-20 deg of
-    azimuth, 60 deg horizontal field of view (``f = 1663 px`` at 1920 px),
-    camera pitch ``N(0, 4)`` clipped at +-10 deg and roll ``N(0, 1.5)`` at
-    +-3 deg, the person anywhere that fits (preferring placements where person
-    and reflection lie apart in the image). The person stands ~2000 px from the
-    epipole (median over scenes; 10-90 %: 1100-3000 px) and a joint's two rays
-    meet at ~70 deg (50-85 deg).
-``"gym"``
-    A phone or camera on a tripod or a bench in a gym or studio, filming a
-    person who trains in front of a wall mirror: mirror 3.5-8 m, the person's
-    centre 0.8-2.5 m in front of it and in the middle 40 % of the horizontal
-    field of view, focal 800-1600 px (a phone's main or 0.6x lens at 1920 px),
-    normal 8-30 deg off the axis, camera 0.6-1.6 m high, pitch ``N(0, 5)``
-    clipped at +-12 deg, roll ``N(0, 1.5)`` at +-4 deg, the mirror vertical
-    within +-2 deg, the person facing the mirror 60 % of the time. The regime of
-    the independent fixtures: the person ~400 px from the epipole (140-820 px),
-    rays ~30 deg apart (11-54 deg).
-``"wide"``
-    Everything a user may film: mirror 2.5-10 m, person 0.5-3.5 m in front of
-    it, focal 700-2200 px, normal 5-70 deg off the axis, camera 0.3-2.5 m high,
-    pitch ``N(0, 8)`` clipped at +-20 deg, roll ``N(0, 2.5)`` at +-6 deg, the
-    mirror vertical within +-5 deg. The person ~1450 px from the epipole
-    (390-3100 px), rays ~64 deg apart (28-84 deg); about one scene in ten is in
-    the fixtures' regime (within 450 px of the epipole, rays under 35 deg).
-``"low_parallax"``
-    The ``"wide"`` ranges with the person near the line from the camera along
-    the mirror normal (normal 5-40 deg off the axis): the two rays of the
-    person's centre (from the real and from the virtual camera) meet at 2-12
-    deg, the epipole sits on or next to the person in the image (~190 px away,
-    rays ~12 deg apart, their 5th percentile ~4 deg).
+* ``"favourable"`` (the default, :data:`DEFAULT_GEOMETRY`): mirror 2.5-4.5 m, normal
+  10-60 deg off the optical axis, 60 deg field of view; person ~2000 px from the epipole,
+  rays meeting at ~70 deg;
+* ``"gym"``: a camera on a tripod before a wall mirror 3.5-8 m away, the person
+  0.8-2.5 m in front of it, focal 800-1600 px; the regime of the independent fixtures
+  (~400 px from the epipole, rays ~30 deg apart);
+* ``"wide"``: everything a user may film (mirror 2.5-10 m, focal 700-2200 px, normal
+  5-70 deg off the axis);
+* ``"low_parallax"``: the ``"wide"`` ranges with the person near the camera-mirror line
+  (rays 2-12 deg apart).
 
-The non-favourable presets place a *vertical* mirror (up to ``mirror_lean_deg``)
-in a world whose floor the tilted camera sees: the normal is solved so that it
-makes the drawn angle with the optical axis. They also require every joint of
-the person to lie between the camera and the mirror (``n . X >= 0``, on top of
-the 0.2 m gap to the mirror), a reflection at least ``min_reflection_px`` tall
-(a detector does not find smaller people), and use a 2 % image margin.
+The non-favourable presets place a vertical mirror (up to ``mirror_lean_deg``) in a world
+whose floor the tilted camera sees, keep every joint between the camera and the mirror,
+and require a reflection at least ``min_reflection_px`` tall. Every range in full:
+:data:`PRESETS` and ``docs/internals.md``.
 
-Geometry measurements (:func:`geometry_stats`): for pairs of a joint ``u`` and
-its reflection ``u'`` (pixels, undistorted), the epipole ``e ~ K n``, the
-distance ``|u - e|`` of the person's joint from it, and the angle between the
-joint's two viewing rays: the ray from the real camera, ``K^-1 u``, and the ray
-from the virtual camera ``C' = 2 d n``, ``H K^-1 u'`` (``H = I - 2 n n^T``; the
-ray that meets ``u'`` reflected in the mirror). The angle is that of the two
-*lines*, in ``[0, 90]`` deg: 0 when the joint lies on the camera-mirror line
-(no triangulation), 90 at best.
+Geometry measurements (:func:`geometry_stats`): for pairs of a joint ``u`` and its
+reflection ``u'`` (undistorted pixels), the epipole ``e ~ K n``, the distance ``|u - e|``
+and the angle between the joint's two viewing rays, ``K^-1 u`` from the real camera and
+``H K^-1 u'`` from the virtual one (``H = I - 2 n n^T``): the angle of the two lines in
+``[0, 90]`` deg, 0 on the camera-mirror line (no triangulation), 90 at best.
 """
 
 from __future__ import annotations

@@ -1,116 +1,32 @@
 """Synthetic rigs of several cameras and mirrors, with ground truth.
 
-The test and benchmark data of ``mirrorgraph calibrate-rig RIG.toml``: the
-person of :mod:`mirrorgraph.synth` (an individual body, :mod:`.body`, doing the
-procedural exercises of :mod:`.motion`: moving, stepping and turning up to
-+-70 deg) is filmed by one or more cameras, directly and in one or two planar
-mirrors. :func:`make_rig` builds the rig and simulates the pose detector of
-each camera; :func:`write_rig` writes what a user of ``calibrate-rig`` would
-have (keypoints, an intrinsics file, ``rig.toml``) next to the ground truth;
-:func:`read_rig_ground_truth` reads the ground truth back.
+The test and benchmark data of ``mirrorgraph calibrate-rig RIG.toml``: the person of
+:mod:`mirrorgraph.synth` (:mod:`.body`, doing the exercises of :mod:`.motion`) filmed by
+one or more cameras, directly and in one or two planar mirrors. :func:`make_rig` builds
+the rig and simulates each camera's pose detector; :func:`write_rig` writes what a user
+of ``calibrate-rig`` would have (keypoints, intrinsics, ``rig.toml``) next to the ground
+truth; :func:`read_rig_ground_truth` reads it back. Data classes live in :mod:`.rig_types`,
+files in :mod:`.rig_files`, placement in :mod:`.rig_placement`, bystanders in
+:mod:`.rig_bystanders`.
 
-One job per module: this one holds :func:`make_rig` (it builds the rig, checks
-its placement and runs the detector) and re-exports the data classes of
-:mod:`.rig_types` (:class:`SyntheticRig`, :class:`RigView`,
-:class:`RigBystander`, :func:`bystander_name`) and the files of
-:mod:`.rig_files` (:func:`write_rig`, :func:`read_rig_ground_truth`);
-:mod:`.rig_placement` places the cameras, mirrors and the person and decides
-what each camera sees; :mod:`.rig_bystanders` places the bystanders.
+Frames, units and conventions:
 
-Frames, units and conventions
------------------------------
-* World frame = camera 0's frame: ``x`` right, ``y`` down, ``z`` forward,
-  metres. Camera poses are camera-to-world ``(4, 4)`` matrices ``[[R, C], [0, 1]]``
-  (``R`` the camera's axes in world coordinates, ``C`` its centre): a world
-  point ``X`` is ``R^T (X - C)`` in the camera's frame. Camera 0's pose is the
-  identity.
-* A mirror is the plane ``n . X = d`` in the world frame, ``n`` a unit vector
-  pointing away from camera 0, so ``d > 0`` is camera 0's distance to it. Its
-  reflective side is ``n . X < d`` (the side of the room, where the cameras and
-  the person are). In the frame of another camera ``i`` the same plane is
-  ``n_i = R_i^T n``, ``d_i = d - n . C_i``; since every camera that sees the
-  mirror stands on its reflective side, ``d_i > 0`` there too
-  (:meth:`SyntheticRig.mirror_in_camera` gives the plane oriented away from any
-  camera, flipping the sign where a camera is on the far side). The reflection
-  is ``S(X) = X - 2 (n . X - d) n``.
-* Images: pinhole cameras without distortion, ``fx = fy = (w / 2) / tan(fov / 2)``
-  (``fov`` horizontal), principal point within +-4 px of the centre (drawn
-  per camera, as in :mod:`.scene`); pixel origin at the top-left corner.
-* Time: frames ``0 .. T-1`` at ``fps`` (30), every camera synchronised
-  (``frame_offset = 0``).
+* World frame = camera 0's frame (``x`` right, ``y`` down, ``z`` forward), metres.
+  Camera poses are camera-to-world ``(4, 4)`` matrices ``[[R, C], [0, 1]]``; a world
+  point ``X`` is ``R^T (X - C)`` in the camera's frame.
+* A mirror is ``n . X = d``, ``n`` unit and pointing away from camera 0; its reflective
+  side ``n . X < d``; in camera ``i``'s frame ``n_i = R_i^T n``, ``d_i = d - n . C_i``
+  (:meth:`SyntheticRig.mirror_in_camera`). The reflection is ``S(X) = X - 2 (n . X - d) n``.
+* Images: pinhole cameras without distortion, ``fx = fy = (w / 2) / tan(fov / 2)``,
+  principal point within +-4 px of the centre; pixel origin at the top-left corner.
+* Time: frames ``0 .. T-1`` at ``fps`` (30), every camera synchronised.
 
-The rigs (a *room frame* with ``Y`` up is used to build them; every number
-below is drawn uniformly from the range given, from the seed):
-
-``"4cams"``
-    No mirror. Four cameras around the person at azimuths ``a0 + 90 k + (+-10)``
-    deg (``a0`` any), 3-5 m from the centre of the person's motion, 1.0-1.6 m
-    high, looking at that centre (the middle of the motion's vertical extent)
-    with +-5 cm of aim jitter and +-2 deg of roll. The person faces any way.
-    Each camera is redrawn until it sees the whole person in at least 90 % of
-    the frames.
-``"2cams1mirror"``
-    A wall mirror (the whole wall, vertical) named ``"wall"``. The person
-    stands 1.3-2.2 m in front of it, facing it (60 %) or the cameras (40 %),
-    +-20 deg. Two cameras on the person's side, 3-5 m from the person, 1.0-1.6 m
-    high, at azimuths (around the person, from the mirror's normal) 40-90 deg
-    apart, each 15-60 deg off the normal (so the reflection is not hidden
-    behind the person), each aimed between the person and the reflection.
-``"1cam2mirrors"``
-    Two mirrors meeting at a vertical edge with an interior angle of
-    ``corner_angle_deg`` (default 90: the two walls of a room corner; 60-140),
-    named ``"mirror_left"`` and ``"mirror_right"`` as the camera sees them.
-    Each is a half-plane bounded by the edge (a point of one mirror is on the
-    reflective side of the other), floor to ceiling. The person stands 2.0-2.6
-    m from the edge, 5-12 deg off the bisector, facing the camera or the corner
-    (50 % each, +-25 deg); the camera stands 3.5-4.5 m further from the edge,
-    3-8 deg off the bisector on the other side (so that the double reflection,
-    the person turned about the edge, is not hidden behind the person),
-    1.0-1.6 m high, aimed at the middle of the person and both reflections.
-    With ``double_reflections=True`` the double reflections (the ray meets one
-    mirror, then the other) are detected too: at 90 deg both orders give the
-    same virtual person, one view named ``"mirror_left+mirror_right"``; at
-    other angles two views ``"mirror_left>mirror_right"`` (seen in
-    ``mirror_left``, which shows ``mirror_right``) and
-    ``"mirror_right>mirror_left"``. Above 90 deg they are rarely visible (as in
-    a real corner of two mirrors); below it, reflections of three and more
-    bounces exist physically but are not generated.
-
-In the mirror rigs the placement is redrawn until each camera sees the whole
-person in at least 90 % of the frames and the whole of each single reflection
-it sees in at least 75 %, the torsos (shoulders and hips) of the person and of
-each single reflection do not overlap horizontally in the image in at least
-90 % of the frames, and every joint stays 0.2 m in front of every mirror.
-(``double_reflections`` has no effect on the other kinds.)
-
-Visibility of a joint in a view (direct, or through a sequence of mirrors) is
-geometric (see :mod:`.rig_placement`). A view (the person, a reflection) is
-detected in a frame only with at least 5 visible joints; hidden joints are
-missing (NaN, confidence 0). Occlusion of one view by another is not modelled.
-
-Bystanders (``bystanders=N``, default none): other people near the subject,
-the common case of a gym or a dance studio, where everyone in front of the
-mirror has a reflection too. Each has their own body, motion and height and is
-in the room for part of the frames; :mod:`.rig_bystanders` draws them and
-places them near the subject, seen by the cameras and apart from the subject's
-views (a ``ValueError`` when none of its draws passes). They are detected
-by the same detector model, directly and through every mirror, wherever
-visible; their views are named ``"bystander1"``, ``"bystander1/wall"``, ...
-(:attr:`SyntheticRig.views`, :attr:`SyntheticRig.detection_views`), their truth
-is in :attr:`SyntheticRig.bystanders`. They draw from their own generator
-(``default_rng([seed, 1])``): with the same seed the rig, the subject and the
-subject's detections are those without bystanders.
-
-Detector model (that of :mod:`.scene`, per camera): Gaussian noise of
-``noise_std`` px per coordinate (zero mean), outliers, confidences, missing
-people and joints as in :func:`mirrorgraph.synth.make_scene`; coordinates
-clipped to the image. A single reflection is labelled the way the detector
-sees it: anatomically, so its left/right labels are swapped
-(:attr:`~mirrorgraph.skeletons.Skeleton.flip`: the detection's ``left_wrist``
-images the real right wrist), except in a fraction ``lr_swap_rate`` of the
-frames (per camera and mirror) where the detector keeps the real joints'
-labels. A double reflection is a proper (rotated) image: its labels are those
-of the real joints. People are listed per frame in random order.
+The rig kinds (``"4cams"``, the mirror rigs, the corner of two mirrors with
+``double_reflections``), their placement ranges and acceptance rules, the bystanders and
+the detector model (that of :mod:`.scene`; a single reflection labelled anatomically,
+swapped in a fraction ``lr_swap_rate`` of frames): ``docs/internals.md``. Bystanders draw
+from their own generator (``default_rng([seed, 1])``), so with the same seed the subject's
+detections are those without bystanders.
 """
 
 from __future__ import annotations

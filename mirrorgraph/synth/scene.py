@@ -1,79 +1,32 @@
 """Synthetic mirror scenes: placement, projection and a pose-detector noise model.
 
-Geometry (the conventions of the whole package): one pinhole camera at the
-origin of the real camera frame (``x`` right, ``y`` down, ``z`` forward,
-metres); the mirror plane is ``n . X = d`` with ``n`` a unit vector pointing
-away from the camera and ``d > 0``. A point ``X`` is imaged directly at
-``pi(K X)`` and in the mirror at ``pi(K S(X))``, ``S(X) = X - 2 (n . X - d) n``.
+Geometry (the conventions of the whole package): one pinhole camera at the origin of the
+real camera frame (``x`` right, ``y`` down, ``z`` forward, metres); the mirror plane is
+``n . X = d`` with ``n`` a unit vector pointing away from the camera and ``d > 0``. A
+point ``X`` is imaged directly at ``pi(K X)`` and in the mirror at ``pi(K S(X))``,
+``S(X) = X - 2 (n . X - d) n``.
 
-Camera matrix: ``fx = fy = (w / 2) / tan(fov / 2)`` (``fov`` horizontal),
-zero skew, principal point ``(w / 2 + dx, h / 2 + dy)`` with ``dx, dy`` drawn
-uniformly in +-4 px (a real camera's principal point is never exactly central).
+Camera matrix: ``fx = fy = (w / 2) / tan(fov / 2)`` (``fov`` horizontal), zero skew,
+principal point ``(w / 2 + dx, h / 2 + dy)``, ``dx, dy`` uniform in +-4 px.
 
-Geometry presets (``geometry=``, :mod:`.geometry`): the ranges below are those
-of ``"favourable"``, the generator's original scenes (the default,
-:data:`~.geometry.DEFAULT_GEOMETRY`); ``"gym"``, ``"wide"`` and ``"low_parallax"``
-widen them (mirror 2.5-10 m, the person 0.5-3.5 m in front of it, focal
-700-2200 px, mirror 5-70 deg off the axis, camera height and tilt varied, the
-person near the camera-mirror line) and place a vertical mirror in the world the
-tilted camera sees; the placement below is the same for all of them, with the
-preset's own candidate positions and constraints (:mod:`.geometry`).
+The scene: a slightly tilted camera looks at a person who exercises
+(:mod:`~mirrorgraph.synth.motion`) between the camera and the mirror, facing roughly the
+camera or the mirror, turning up to +-70 deg; the geometry's ranges are a preset of
+:mod:`.geometry` (``geometry=``). Placement (:mod:`.placement`) is exact: every
+requirement is a half-space constraint met by the convex hull of the motion. With
+``motion="take.bvh"`` a motion-capture take replaces the procedural motion
+(:mod:`~mirrorgraph.synth.mocap`).
 
-The scene: a camera with a small random tilt (pitch +-10 deg, roll +-3 deg
-around level) looks at a person who exercises (see
-:mod:`~mirrorgraph.synth.motion`) between the camera and the mirror, facing
-roughly the camera or roughly the mirror (50 % each, +-15 deg), turning up to
-+-70 deg. The mirror normal makes ``mirror_angle_deg`` with the optical axis and
-turns to the left or the right of it (a vertical mirror, as in gyms and
-studios), its azimuth around the axis within +-20 deg of horizontal.
-Placement (:mod:`.placement`) is exact and cheap: every requirement is a half-space
-constraint on the 3D point, met by every joint in every frame if and only if it is by
-the vertices of the convex hull of the motion.
-
-Real motion: with ``motion="take.bvh"`` a motion-capture take replaces the
-procedural motion (:mod:`~mirrorgraph.synth.mocap`: CMU skeleton mapped to the
-body model's joints, resampled to ``fps``, in the same body frame; the first
-``frames`` frames, played back and forth when the take is shorter). The
-subject's height is then the skeleton's own standing height, or
-``subject_height`` when given (the take is scaled to it); everything else
-(placement, detector model) is unchanged. A take that travels far (the CMU
-playground jumps cover 3.7 m) needs a long enough view: if no placement fits,
-use fewer frames, a wider field of view or a larger mirror distance.
-
-Detector model (MirrorCalib, Liao, Zheng and Mitchell): every observed
-coordinate gets Gaussian noise of mean ``noise_mean`` and standard deviation
-``noise_std`` pixels (added after lens distortion, i.e. in the image). Then:
-
-* outliers: each (frame, joint, view) observation with probability
-  ``outlier_rate`` is replaced by the true point displaced 30-150 px in a
-  uniformly random direction;
-* confidences: ``0.3 + 0.7 * Beta(4, 1.2)`` for inliers,
-  ``0.3 + 0.7 * Beta(2, 2)`` for outliers (lower on average, overlapping);
-* missing: each person (direct or reflection) is dropped from a frame with
-  probability ``missing_rate / 5``, and each remaining joint observation is
-  missing with the probability that makes the total missing fraction
-  ``missing_rate``; a person with no joint left is dropped;
-* single person: in a fraction ``single_person_rate`` of frames one of the two
-  (either, at random) is not detected;
-* left/right swaps: in a fraction ``lr_swap_rate`` of frames (where the
-  reflection is detected) the detector labels the reflection with the real
-  joints' labels instead of the flipped ones; with ``lr_swap_views="both"``
-  also, independently, the person's labels in a fraction ``lr_swap_rate`` of
-  frames are swapped;
-* outliers along the epipolar line: a fraction ``epipolar_outlier_rate`` of the
-  other observations is moved 15-100 px along the line through the epipole
-  (:func:`~.detector.displace_along_epipolar_lines`): no epipolar test sees
-  them, the depth triangulated from them is wrong;
-* a per-joint bias (``joint_bias_px``) per view, or with
-  ``joint_bias_shared=True`` per detector label in both views (mirrored
-  horizontally on the reflection), and AR(1) noise (``noise_correlation``);
-  :mod:`.detector` names a ``"realistic"`` detector built of these;
-* extra people: in a fraction ``extra_person_rate`` of frames a bystander is
-  added: a pose of the same motion at another time, another height
-  (1.50-1.95 m) and facing, imaged whole inside the image at 35-80 % of its
-  usable height, with its own noise and missing joints;
-* observed coordinates are clipped to the image; people are listed per frame in
-  random order.
+Detector model (after MirrorCalib, Liao, Zheng and Mitchell), in image pixels: Gaussian
+noise of mean ``noise_mean`` and std ``noise_std`` added after lens distortion; then
+outliers displaced 30-150 px (``outlier_rate``), confidences from Beta distributions,
+missing people and joints (``missing_rate``), one of the two undetected
+(``single_person_rate``), left/right swaps (``lr_swap_rate``, ``lr_swap_views``),
+outliers along the epipolar line (``epipolar_outlier_rate``), per-joint bias
+(``joint_bias_px``, ``joint_bias_shared``), AR(1) noise (``noise_correlation``) and
+bystanders (``extra_person_rate``); :mod:`.detector` names a ``"realistic"`` detector
+built of these. Coordinates are clipped to the image; people are listed per frame in
+random order. Each term in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations

@@ -2,14 +2,13 @@
 
 BlazePose's inputs are an image resampled twice: the whole frame (or a tile)
 shrunk into the detector's ``224 x 224`` letterbox, and a rotated square cut out
-around a person for the landmark model (``256 x 256``). Both were OpenCV calls
-(``cv2.resize(..., INTER_AREA)``, ``cv2.warpAffine(..., INTER_LINEAR)``) on
-``uint8`` images, whose results are OpenCV's implementation, not a specification:
-``warpAffine`` quantises source coordinates to 1/32 px and its weights to 15 bits,
-and OpenCV 5.1 reimplemented it, moving a few pixels of each crop by one grey level
-(measured on the Pose2Sim demo frames: 7-37 pixels of 196,608 a crop, ``|d| = 1``).
-The landmark network is not smooth in its input: those few grey levels moved one
-landmark of a hand by 112 px a few frames later, through the tracker's next crop.
+around a person for the landmark model (``256 x 256``). OpenCV's ``cv2.resize(...,
+INTER_AREA)`` and ``cv2.warpAffine(..., INTER_LINEAR)`` on ``uint8`` images give
+OpenCV's implementation, not a specification: ``warpAffine`` quantises source
+coordinates to 1/32 px and its weights to 15 bits, and OpenCV 5.1 differs from earlier
+versions by one grey level on 7-37 pixels of a 196,608-pixel crop (the Pose2Sim demo
+frames). The landmark network is not smooth in its input: such a grey level can move
+one landmark of a hand by 112 px a few frames later, through the tracker's next crop.
 
 Here each step is the textbook operation in floating point, with no rounding to
 ``uint8`` (the networks take ``float32``), so that the same frame gives the same

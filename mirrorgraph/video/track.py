@@ -4,49 +4,27 @@
 or anything with the same ``detect`` / ``landmarks`` methods) frame by frame, as
 MediaPipe's pose graph does for one person, extended to several:
 
-1. every track's crop comes from its landmarks of the frame before (the auxiliary
-   mid-hip and body-circle landmarks): a person once found is followed by the
-   landmark model alone, and a track ends where it no longer sees a person, or where
-   its body circle jumps (:attr:`TrackerOptions.max_jump`: the crop's landmarks went
-   over to someone else, a reflection's crop to the person in front of it; that pose
-   starts a new track);
-2. the person detector runs only to find people not yet tracked: on every frame
-   where a track was lost or nobody is tracked; every
-   :attr:`TrackerOptions.search_every` frames while a track lost in the last
-   :attr:`TrackerOptions.relink_frames` frames is still missing, or while the
-   tracker holds fewer people than it did in the last
-   :attr:`TrackerOptions.recall_frames` frames (searching); else on the whole
-   frame every :attr:`TrackerOptions.detect_every` frames and on the tiles every
-   :attr:`TrackerOptions.tiles_every` frames. It runs on the whole frame and on
-   overlapping square tiles (:func:`detection_views`), each view's intensities
-   stretched when dim: a reflection is a mirror image, often smaller and dimmer
-   than the person, which one pass over the whole frame misses (the tiles show it
-   at up to 2.7 times the scale). The views' boxes are merged by weighted NMS on
-   the boxes, then by their body circles (:func:`same_body`: one person seen whole
-   and in a tile gives two face boxes that need not overlap; one merged into a
-   detection of another size, :attr:`TrackerOptions.merged_ratio`, is kept aside in
-   :attr:`PoseTracker.merged` and looked at too: a reflection half hidden behind the
-   person, someone filmed from behind in front of the mirror, has its smaller body
-   circle on theirs);
-3. each tracked person claims the one detection whose body circle lies on theirs
-   nearest (:meth:`PoseTracker._claimed`), which is not looked at again; nor is one
-   lying on a new pose of this frame (or, for a few frames, where the landmark model
-   found nobody); a second detection on a tracked person is (the reflection behind);
-   the landmark model runs on each other one's crop (a dim crop's intensities
-   stretched; retried upright, then turned by 180 deg, where it finds nobody: the
-   detector's rotation of a reflection is often upside down); a pose whose
-   landmarks fill too little of their crop (:func:`extent`) is an object taken
-   for a person;
-4. one skeleton per person: the frame's poses, tracked ones first (the oldest
-   track first), then new ones in the detector's order, go through
-   :func:`~mirrorgraph.video.nms.pose_nms` (object keypoint similarity, left/right
-   swaps included, box overlap, and keypoints lying on a kept pose's body); a track
-   that duplicates an older one ends there, a new pose that duplicates a kept one
-   is dropped;
+1. every track's crop comes from its landmarks of the frame before; a track ends where
+   its crop no longer holds a person or its body circle jumps
+   (:attr:`TrackerOptions.max_jump`);
+2. the person detector runs only to find people not yet tracked (the cadence of
+   :attr:`TrackerOptions.search_every`, :attr:`TrackerOptions.detect_every`,
+   :attr:`TrackerOptions.tiles_every`), on the whole frame and on overlapping square
+   tiles (:func:`detection_views`), dim views stretched: a reflection is often smaller
+   and dimmer than the person. The views' boxes are merged by weighted NMS and by their
+   body circles (:func:`same_body`, :attr:`TrackerOptions.merged_ratio`,
+   :attr:`PoseTracker.merged`);
+3. each tracked person claims the detection whose body circle lies nearest on theirs
+   (:meth:`PoseTracker._claimed`); the landmark model runs on every other one's crop
+   (retried turned by 180 deg), and a pose filling too little of its crop
+   (:func:`extent`) is an object;
+4. one skeleton per person: :func:`~mirrorgraph.video.nms.pose_nms` over the frame's
+   poses, tracked ones first;
 5. a new pose takes the id of a track lost in the last
    :attr:`TrackerOptions.relink_frames` frames whose last box it overlaps, or a new id.
 
-All coordinates are image pixels (x right, y down).
+All coordinates are image pixels (x right, y down). Each step in full:
+``docs/internals.md``.
 """
 
 from __future__ import annotations

@@ -2,54 +2,30 @@
 
 ``mirrorgraph view CALIBRATION [--joints3d FILE] [--video FILE] [--save OUT.rrd]`` and
 ``--view`` on ``calibrate`` / ``calibrate-rig`` build a recording with the Rerun SDK
-(``rerun-sdk``, the ``view`` extra; imported only here, only when called) and open it
-in Rerun's viewer, or save it as an ``.rrd`` file that the viewer (``rerun OUT.rrd``,
-or its web viewer) opens later. Everything is offline.
+(``rerun-sdk``, the ``view`` extra; imported only here, only when called) and open it in
+Rerun's viewer, or save it as an ``.rrd`` file. Everything is offline.
 
-What the recording holds (entity paths; world frame: the real camera's, or the rig's
-first camera's: x right, y down, z forward, lengths in the calibration's unit)
-------------------------------------------------------------------------------------
+Entity paths (world frame: the real camera's, or the rig's first camera's: x right,
+y down, z forward, lengths in the calibration's unit):
 
-``world/cameras/<name>``
-    each real camera: its pose (``Transform3D``, camera to world) and, under
-    ``image``, its pinhole (``K``, image size): the frustum and image plane.
-``world/virtual_cameras/<name>``
-    each mirror's virtual camera (one per camera that sees the mirror): the camera
-    reflected across the mirror, drawn as the camera of the horizontally *flipped*
-    image (``u -> W - u``, the convention of :mod:`mirrorgraph.export`: a
-    reflected camera is left-handed, its flipped image is an ordinary one).
-``world/mirrors/<name>``
-    the mirror plane: ``surface`` (a translucent quad) and ``outline``. Its extent is
-    the part of the mirror the reflections were seen in (where the rays from the
-    camera to the reflected joints cross the plane, 10 % added on each side); a
-    2 x 2 length-unit square around the foot of the camera's perpendicular without
-    3D joints.
-``world/person/joints``, ``world/person/bones``
-    the 3D joints and bones over time (timeline ``frame``, the input's frame numbers;
-    ``time`` in seconds where the frame rate is known).
-``world/reflections/<mirror>/joints``, ``.../bones``
-    the same skeleton reflected across each mirror: where the virtual person stands.
-``world/person/uncertainty``
-    one-sigma ellipsoids of every joint (single mirror only): the covariance of
-    triangulating the joint from its two views with iid pixel noise of the
-    refinement's RMS residual in each view (``refinement.rms_direct_px``,
-    ``rms_mirror_px``), ``sigma^2 (J^T J)^-1`` with ``J`` the projections' Jacobians.
-    It leaves out the mirror's own uncertainty and correlated detector error, so it
-    is a lower bound: it shows which joints the geometry determines poorly (depth
-    along the rays), not a guarantee.
-``world/cameras/<real>/image`` (with ``--video``, single mirror)
-    the video frames (JPEG, at most ``max_video_frames`` of them, evenly spaced),
-    with ``keypoints`` (the person), ``reflection`` (its reflection),
-    ``epipolar_lines`` (each joint's: through the joint and the epipole, ``F u``; its
-    reflection lies on it up to the detector's error) and ``epipole``. The
-    keypoints are the undistorted ones the calibration used: on a lens with strong
-    distortion they sit off the raw frame near its corners.
-``summary``
-    the calibration's summary (a text document).
+* ``world/cameras/<name>``: each real camera's pose (camera to world) and pinhole;
+* ``world/virtual_cameras/<name>``: each mirror's virtual camera, drawn as the camera of
+  the horizontally flipped image (the convention of :mod:`mirrorgraph.export`);
+* ``world/mirrors/<name>``: the mirror plane's ``surface`` and ``outline``, over the part
+  the reflections were seen in;
+* ``world/person/joints``, ``world/person/bones``: the 3D motion (timeline ``frame``,
+  ``time`` in seconds where the frame rate is known);
+* ``world/reflections/<mirror>/...``: the skeleton reflected across each mirror;
+* ``world/person/uncertainty``: one-sigma ellipsoids of each joint's two-view
+  triangulation (single mirror; a lower bound without the mirror's own uncertainty);
+* ``world/cameras/<real>/image`` (with ``--video``): the frames, keypoints, reflection,
+  epipolar lines and epipole;
+* ``summary``: the calibration's summary.
 
 :func:`record` builds it from a :class:`~.scene.ViewScene`
 (:func:`~.scene.scene_from_calibration`, :func:`~.scene.scene_from_rig`) and opens it
-(:func:`open_viewer`); :func:`~.files.view_file` does what the command does.
+(:func:`open_viewer`); :func:`~.files.view_file` does what the command does. Each entity
+in full: ``docs/internals.md``.
 """
 
 from __future__ import annotations
