@@ -29,6 +29,8 @@ keypoint of BODY_25 or COCO spans.
 
 from __future__ import annotations
 
+import math
+
 from .skeletons import Skeleton, person_of
 
 #: Segment length / standing height, by segment kind (Winter 2009, Fig. 4.1).
@@ -109,6 +111,16 @@ def bone_kind(bone_name: str) -> str:
 def height_fractions(skeleton: Skeleton) -> dict[str, float]:
     """Expected length / height for each bone of ``skeleton`` (dimensionless)."""
     return {b: HEIGHT_FRACTION[bone_kind(b)] for b in skeleton.bones}
+
+
+def height_from_bone_lengths(lengths: dict[str, float], skeleton: Skeleton) -> float:
+    """The standing height the bones' lengths make, in their unit: their sum over the sum
+    of their Winter fractions (:func:`height_fractions`); NaN without a known bone."""
+    frac = height_fractions(skeleton)
+    known = [(float(v), frac[k]) for k, v in lengths.items() if k in frac and math.isfinite(v)]
+    if not known:
+        return float("nan")
+    return float(sum(v for v, _ in known) / sum(f for _, f in known))
 
 
 def femur_ratios(skeleton: Skeleton) -> dict[str, float]:

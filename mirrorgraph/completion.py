@@ -287,49 +287,96 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
         ``(T, J, 3)`` the points, smoothed where ``mask``, and ``(T, J, 3, 3)`` their
         covariance (NaN outside ``mask``).
     """
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
-
     from .factors.smoothness import SmoothnessFactor
-    from .graph.joints_uncertainty import chain_marginals
 
     points = np.array(points, dtype=float, copy=True)
     cov = np.full(points.shape + (3,), np.nan)
     fid = np.asarray(frame_ids, dtype=np.int64)
-    chains = [(j, np.flatnonzero(mask[:, j])) for j in np.flatnonzero(mask.any(0))]
-    if not chains:
+    jj, tt = np.nonzero(np.asarray(mask, bool).T)          # each joint's frames, in order
+    if not len(jj):
         return points, cov
-    B, N = len(chains), max(len(rows) for _, rows in chains)
+    joints, chain, size = np.unique(jj, return_inverse=True, return_counts=True)
+    B, N = len(joints), int(size.max())
+    pos = np.arange(len(jj)) - np.concatenate([[0], np.cumsum(size)[:-1]])[chain]
+    # the chains side by side, (B, N): padded past each chain's end with unit blocks and
+    # frame numbers no triple spans
+    inside = np.arange(N)[None, :] < size[:, None]
+    frames = np.zeros((B, N), dtype=np.int64)
     diag = np.broadcast_to(np.eye(3), (B, N, 3, 3)).copy()
-    off1, off2 = np.zeros((B, N, 3, 3)), np.zeros((B, N, 3, 3))
     rhs = np.zeros((B, N, 3))
-    smooth = SmoothnessFactor(sigma, max_gap)
-    w = 1.0 / float(sigma) ** 2
-    for b, (j, rows) in enumerate(chains):
-        L = np.nan_to_num(info[rows, j])
-        diag[b, :len(rows)] = L
-        rhs[b, :len(rows)] = np.einsum("nij,nj->ni", L, np.nan_to_num(points[rows, j]))
-        tri = smooth.triples(fid[rows])
-        if not len(tri):
-            continue
-        c = smooth.coefficients(fid[rows][tri]) * np.sqrt(w)                  # (M, 3)
-        i = tri[:, 0]
+    L = np.nan_to_num(info[tt, jj])
+    frames[chain, pos] = fid[tt]
+    diag[chain, pos] = L
+    rhs[chain, pos] = np.einsum("nij,nj->ni", L, np.nan_to_num(points[tt, jj]))
+    off1, off2 = np.zeros((B, N, 3, 3)), np.zeros((B, N, 3, 3))
+    if N >= 3:
+        step = np.diff(frames, axis=1)
+        ok = (inside[:, 2:] & (step[:, :-1] >= 1) & (step[:, :-1] <= max_gap)
+              & (step[:, 1:] >= 1) & (step[:, 1:] <= max_gap))
+        trip = np.stack([frames[:, :-2], frames[:, 1:-1], frames[:, 2:]], -1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = SmoothnessFactor.coefficients(trip) / float(sigma)       # (B, N-2, 3)
+        c = np.where(ok[..., None], c, 0.0)
         I3 = np.eye(3)
-        for a in range(3):
-            np.add.at(diag[b], i + a, (c[:, a] ** 2)[:, None, None] * I3)
-        np.add.at(off1[b], i, (c[:, 0] * c[:, 1])[:, None, None] * I3)
-        np.add.at(off1[b], i + 1, (c[:, 1] * c[:, 2])[:, None, None] * I3)
-        np.add.at(off2[b], i, (c[:, 0] * c[:, 2])[:, None, None] * I3)
-    # the chains' block band as one sparse matrix (each chain its own block)
-    base = (np.arange(B)[:, None] * N + np.arange(N)[None, :]) * 3             # (B, N)
+        for k in range(3):
+            diag[:, k:N - 2 + k] += (c[..., k] ** 2)[..., None, None] * I3
+        off1[:, :N - 2] += (c[..., 0] * c[..., 1])[..., None, None] * I3
+        off1[:, 1:N - 1] += (c[..., 1] * c[..., 2])[..., None, None] * I3
+        off2[:, :N - 2] += (c[..., 0] * c[..., 2])[..., None, None] * I3
+    if 3 * N <= DENSE_CHAIN:
+        x, marg = _dense_chain(diag, off1, off2, rhs)
+    else:
+        x, marg = _sparse_chain(diag, off1, off2, rhs)
+    points[tt, jj] = x[chain, pos]
+    cov[tt, jj] = marg[chain, pos]
+    return points, cov
+
+
+#: Chains of up to this many unknowns are solved and inverted dense (a live window),
+#: longer ones sparse with the block recursion's marginals (a whole video).
+DENSE_CHAIN = 240
+
+
+def _band(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray) -> np.ndarray:
+    """``(B, 3N, 3N)`` the dense symmetric matrices of block bands ``(B, N, 3, 3)``."""
+    B, N = diag.shape[:2]
+    H = np.zeros((B, N, 3, N, 3))
+    i = np.arange(N)
+    H[:, i, :, i, :] = np.moveaxis(diag, 1, 0)
+    H[:, i[:-1], :, i[:-1] + 1, :] = np.moveaxis(off1[:, :-1], 1, 0)
+    H[:, i[:-1] + 1, :, i[:-1], :] = np.moveaxis(np.swapaxes(off1[:, :-1], -1, -2), 1, 0)
+    if N > 2:
+        H[:, i[:-2], :, i[:-2] + 2, :] = np.moveaxis(off2[:, :-2], 1, 0)
+        H[:, i[:-2] + 2, :, i[:-2], :] = np.moveaxis(np.swapaxes(off2[:, :-2], -1, -2), 1, 0)
+    return H.reshape(B, 3 * N, 3 * N)
+
+
+def _dense_chain(diag, off1, off2, rhs) -> tuple[np.ndarray, np.ndarray]:
+    """Mean ``(B, N, 3)`` and diagonal blocks of the inverse ``(B, N, 3, 3)``, dense."""
+    B, N = diag.shape[:2]
+    Hinv = np.linalg.inv(_band(diag, off1, off2))
+    x = np.einsum("bij,bj->bi", Hinv, rhs.reshape(B, 3 * N)).reshape(B, N, 3)
+    blocks = Hinv.reshape(B, N, 3, N, 3)[:, np.arange(N), :, np.arange(N), :]
+    return x, np.moveaxis(blocks, 0, 1)
+
+
+def _sparse_chain(diag, off1, off2, rhs) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and diagonal blocks of the inverse, by a sparse solve and the block
+    recursion along each chain (:func:`~mirrorgraph.graph.joints_uncertainty.
+    chain_marginals`)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    from .graph.joints_uncertainty import chain_marginals
+
+    B, N = diag.shape[:2]
+    base = (np.arange(B)[:, None] * N + np.arange(N)[None, :]) * 3              # (B, N)
     r3, c3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
     rows_i, cols_i, vals = [], [], []
     for k, blk in ((0, diag), (1, off1), (2, off2)):
-        valid = np.arange(N) + k < N
-        rr = (base[:, valid][..., None, None] + r3)
-        cc = (base[:, np.roll(np.arange(N), -k)[valid]][..., None, None] + c3) if k else \
-            (base[..., None, None] + c3)
-        v = blk[:, valid] if k else blk
+        rr = base[:, :N - k][..., None, None] + r3
+        cc = base[:, k:][..., None, None] + c3
+        v = blk[:, :N - k]
         rows_i.append(rr.ravel())
         cols_i.append(cc.ravel())
         vals.append(v.ravel())
@@ -340,11 +387,7 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
     H = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
                       shape=(B * N * 3, B * N * 3))
     x = spsolve(H, rhs.ravel()).reshape(B, N, 3)
-    marg = chain_marginals(diag, off1, off2)
-    for b, (j, rows) in enumerate(chains):
-        points[rows, j] = x[b, :len(rows)]
-        cov[rows, j] = marg[b, :len(rows)]
-    return points, cov
+    return x, chain_marginals(diag, off1, off2)
 
 
 # --------------------------------------------------------------------------- rigs

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import copy
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -87,6 +87,12 @@ class LiveOptions:
         fps: frame rate for frame times where the caller gives none.
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
+        smooth_frames: each frame's joints are filtered with the last this many frames':
+            the maximum a posteriori points of their two-ray (or bone-refined)
+            measurements under the joints pass's acceleration prior
+            (``RefineOptions.joints_smoothness_sigma``; :func:`mirrorgraph.completion.
+            smooth_tracks`), the newest frame's given out: no frame of latency; ``0`` or
+            ``1``: each frame on its own.
         can_wait: the source can wait (a file replayed flat out). In the background
             mode the frame that starts the first solve then waits for its mirror, and a
             window due while the worker is busy waits for it instead of thinning the
@@ -103,6 +109,7 @@ class LiveOptions:
     background: bool = False
     fps: float = 30.0
     bone_prior: bool = True
+    smooth_frames: int = 10
     can_wait: bool = False
 
     @classmethod
@@ -342,6 +349,7 @@ class LiveCalibrator:
         self.fusion = MirrorFusion(height_sigma=self._copts.graph.height_sigma,
                                    metric=self._copts.subject_height is not None)
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
+        self._track: deque = deque(maxlen=max(int(opts.smooth_frames), 1))
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -529,7 +537,11 @@ class LiveCalibrator:
         if lengths is not None:                 # the body's bones: the per-frame prior
             X, cov = refine_with_bones(K, n, d, rays, u[ok], um[ok], idx, self._bones,
                                        lengths[0], self._sigma_px(), lengths[1])
-        var = self._variances(K, n, d, rays, u[ok], um[ok], cov)
+        if cov is None:
+            cov = self._ray_covariance(K, n, d, rays)
+        if self.options.smooth_frames > 1:
+            X, cov = self._filtered(fid, idx, X, cov)
+        var = self._variances(K, n, d, X, u[ok], um[ok], cov)
         self.last_variances = var
         out[idx] = X
         shape[idx] = np.sqrt(sum(v for k, v in var.items() if k != "scale"))
@@ -561,6 +573,43 @@ class LiveCalibrator:
             self._lengths_of = found
         return self._lengths
 
+    def _ray_covariance(self, K, n, d, X) -> np.ndarray:
+        """``(k, 3, 3)`` the joints ``X`` triangulated from their two rays: the rays'
+        covariance at the windows' reprojection noise."""
+        eye = np.eye(4)
+        views = [geo.camera_projection(K, eye), geo.mirror_projection(K, eye, n, d)]
+        ones = np.ones(len(X), bool)
+        return geo.triangulation_covariance(views, X, [ones, ones], self._sigma_px())
+
+    def _filtered(self, fid: int, idx: np.ndarray, X: np.ndarray, cov: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """The frame's joints ``X`` ``(k, 3)`` (skeleton indices ``idx``) and their
+        covariance filtered with the last :attr:`LiveOptions.smooth_frames` frames'
+        (:func:`mirrorgraph.completion.smooth_tracks`); as given before the first
+        window's bone lengths (the prior's sigma is a fraction of the body's height)."""
+        from ..anthropometry import height_from_bone_lengths
+        from ..completion import smooth_tracks
+
+        J = self.skeleton.num_joints
+        good = np.isfinite(cov).all((1, 2)) & np.isfinite(X).all(1)
+        pts, info = np.full((J, 3), np.nan), np.zeros((J, 3, 3))
+        pts[idx[good]] = X[good]
+        info[idx[good]] = np.linalg.inv(cov[good])
+        self._track.append((int(fid), pts, info))
+        h = height_from_bone_lengths(self.fusion.bone_lengths or {}, self.skeleton)
+        if len(self._track) < 2 or not np.isfinite(h):
+            return X, cov
+        frames = np.array([f for f, _, _ in self._track], dtype=np.int64)
+        P = np.stack([p for _, p, _ in self._track])
+        I = np.stack([i for _, _, i in self._track])
+        mask = np.isfinite(P).all(-1)
+        g = self._copts.graph
+        S, C = smooth_tracks(P, I, mask, frames, float(g.joints_smoothness_sigma * h),
+                             int(g.smoothness_max_gap))
+        X, cov = np.array(X, copy=True), np.array(cov, copy=True)
+        X[good], cov[good] = S[-1, idx[good]], C[-1, idx[good]]
+        return X, cov
+
     def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length
         unit squared) of the joints ``X`` triangulated from their rays ``u``, ``um``:
@@ -572,10 +621,7 @@ class LiveCalibrator:
         module docstring)."""
         fu = self.fusion
         if cov is None:
-            eye = np.eye(4)
-            views = [geo.camera_projection(K, eye), geo.mirror_projection(K, eye, n, d)]
-            ones = np.ones(len(X), bool)
-            cov = geo.triangulation_covariance(views, X, [ones, ones], self._sigma_px())
+            cov = self._ray_covariance(K, n, d, X)
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
         B, C = self._cached("normal_tangent", self._normal_tangent)
         metric = self._copts.subject_height is not None

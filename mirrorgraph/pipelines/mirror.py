@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..result.mirror import Calibration
-from ..anthropometry import height_fractions
+from ..anthropometry import height_from_bone_lengths
 from ..completion import complete_mirror_joints
 from ..errors import DegenerateGeometryError, InputError
 from ..initial.estimators import estimate_mirror
@@ -507,15 +507,14 @@ def refine_run(run: CalibrationRun, opts: CalibrateOptions,
 
 def _completion_smoothness(run: CalibrationRun, res, ropts) -> tuple[float, int] | None:
     """``(sigma, max_gap)`` of the completed joints' smoothing: the joints pass's
-    (``joints_smoothness_sigma`` of the body's height, measured on the bone lengths with
-    Winter's fractions, :func:`mirrorgraph.anthropometry.height_fractions`)."""
+    (``joints_smoothness_sigma`` of the body's height its bone lengths make,
+    :func:`mirrorgraph.anthropometry.height_from_bone_lengths`)."""
     if ropts.joints_smoothness_sigma is None:
         return None
-    fr = height_fractions(run.paired.skeleton)
-    est = [v / fr[k] for k, v in res.bone_lengths.items() if fr.get(k, 0) > 0]
-    if not est:
+    h = height_from_bone_lengths(res.bone_lengths, run.paired.skeleton)
+    if not np.isfinite(h):
         return None
-    return float(ropts.joints_smoothness_sigma * np.median(est)), int(ropts.smoothness_max_gap)
+    return float(ropts.joints_smoothness_sigma * h), int(ropts.smoothness_max_gap)
 
 
 def _with_own_rays(run: CalibrationRun, calib: Calibration, res, cov: np.ndarray,

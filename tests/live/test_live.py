@@ -378,3 +378,25 @@ def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker
     assert first == 60
     assert all(np.isfinite(f.joints3d).any() for f in frames[first:] if f.paired)
     assert sum(f.paired for f in frames[first:]) >= 0.9 * (400 - first)
+
+
+def test_the_frames_joints_filtered_with_the_ones_before_are_nearer_and_still_covered():
+    # the same stream with each frame's joints on their own and filtered with the last
+    # ten frames' (the joints pass's acceleration prior over their rays): nearer the
+    # truth, and their std (the filter's marginal) still covers the error
+    sc = make_wide_scene(0, noise="iid", frames=300)
+    errs, ratios = {}, {}
+    for w in (1, 10):
+        live = _live(sc, smooth_frames=w)
+        e, z = [], []
+        for f in _feed(live, sc.detections.people):
+            ok = np.isfinite(f.joints_std_shape)
+            d = np.linalg.norm(f.joints3d[ok] - sc.joints3d[f.index][ok], axis=1)
+            e.append(d)
+            z.append(d / f.joints_std_shape[ok])
+        errs[w], ratios[w] = np.concatenate(e), np.concatenate(z)
+    assert len(errs[10]) == len(errs[1]) > 1000
+    assert np.sqrt(np.mean(errs[10] ** 2)) < 0.9 * np.sqrt(np.mean(errs[1] ** 2))
+    rms = float(np.sqrt(np.mean(ratios[10] ** 2)))
+    assert 0.5 <= rms <= 2.0, rms
+    assert np.mean(ratios[10] > 3) < 0.02
