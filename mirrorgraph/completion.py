@@ -260,8 +260,8 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
 
 
 def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
-                  frame_ids: np.ndarray, sigma: float, max_gap: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  frame_ids: np.ndarray, sigma: float, max_gap: int, *,
+                  newest_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's track of measured points smoothed as the joints pass smooths the
     graph's joints.
 
@@ -282,6 +282,8 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
         frame_ids: ``(T,)`` increasing frame numbers.
         sigma: the acceleration's std, the points' unit per frame^2.
         max_gap: the longest frame step a triple spans.
+        newest_only: the covariance of each track's newest point alone (a filter's:
+            cheaper), NaN at the others.
 
     Returns:
         ``(T, J, 3)`` the points, smoothed where ``mask``, and ``(T, J, 3, 3)`` their
@@ -323,6 +325,12 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
         off1[:, :N - 2] += (c[..., 0] * c[..., 1])[..., None, None] * I3
         off1[:, 1:N - 1] += (c[..., 1] * c[..., 2])[..., None, None] * I3
         off2[:, :N - 2] += (c[..., 0] * c[..., 2])[..., None, None] * I3
+    if newest_only and 3 * N <= DENSE_CHAIN:
+        x, marg = _dense_newest(diag, off1, off2, rhs, size - 1)
+        last = pos == size[chain] - 1
+        points[tt, jj] = x[chain, pos]
+        cov[tt[last], jj[last]] = marg[chain[last]]
+        return points, cov
     if 3 * N <= DENSE_CHAIN:
         x, marg = _dense_chain(diag, off1, off2, rhs)
     else:
@@ -358,6 +366,18 @@ def _dense_chain(diag, off1, off2, rhs) -> tuple[np.ndarray, np.ndarray]:
     x = np.einsum("bij,bj->bi", Hinv, rhs.reshape(B, 3 * N)).reshape(B, N, 3)
     blocks = Hinv.reshape(B, N, 3, N, 3)[:, np.arange(N), :, np.arange(N), :]
     return x, np.moveaxis(blocks, 0, 1)
+
+
+def _dense_newest(diag, off1, off2, rhs, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean ``(B, N, 3)`` and the ``(B, 3, 3)`` block of the inverse at each chain's
+    position ``last``, by one dense solve with four right-hand sides."""
+    B, N = diag.shape[:2]
+    E = np.zeros((B, N, 3, 3))
+    E[np.arange(B), last] = np.eye(3)
+    R = np.concatenate([rhs.reshape(B, 3 * N, 1), E.reshape(B, 3 * N, 3)], axis=-1)
+    sol = np.linalg.solve(_band(diag, off1, off2), R)
+    cols = sol[..., 1:].reshape(B, N, 3, 3)
+    return sol[..., 0].reshape(B, N, 3), cols[np.arange(B), last]
 
 
 def _sparse_chain(diag, off1, off2, rhs) -> tuple[np.ndarray, np.ndarray]:

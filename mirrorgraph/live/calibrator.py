@@ -605,7 +605,7 @@ class LiveCalibrator:
         mask = np.isfinite(P).all(-1)
         g = self._copts.graph
         S, C = smooth_tracks(P, I, mask, frames, float(g.joints_smoothness_sigma * h),
-                             int(g.smoothness_max_gap))
+                             int(g.smoothness_max_gap), newest_only=True)
         X, cov = np.array(X, copy=True), np.array(cov, copy=True)
         X[good], cov[good] = S[-1, idx[good]], C[-1, idx[good]]
         return X, cov
