@@ -80,7 +80,8 @@ def _motion_scale(pts: np.ndarray, step: np.ndarray, floor: float) -> np.ndarray
     """``(P, 4)`` each keypoint's typical motion between consecutive frames (px): the
     median of its displacements over frames one apart, at least ``floor``."""
     d = np.linalg.norm(pts[1:] - pts[:-1], axis=-1)[step[1:] == 1]
-    with np.errstate(all="ignore"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)                 # all-NaN columns
         med = np.nanmedian(d, axis=0) if len(d) else np.full(pts.shape[1:3], np.nan)
     return np.where(np.isfinite(med), np.maximum(med, floor), floor)
 
@@ -168,8 +169,10 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     T, P = len(paired), len(left)
     if T == 0 or P == 0:
         return np.zeros((T, P), bool)
-    pts = _points(paired.real, paired.mirror, min_confidence, left, right)   # (T, P, 4, 2)
     frames = np.asarray(paired.frame_ids, dtype=np.int64)
+    if len(frames) != T:                 # frame numbers that are not the rows': no chain
+        return np.zeros((T, P), bool)
+    pts = _points(paired.real, paired.mirror, min_confidence, left, right)   # (T, P, 4, 2)
     step = np.diff(frames, prepend=frames[0] - 1)
     scale = _motion_scale(pts, step, opts.min_scale_px)             # (P, 4)
     seen = np.isfinite(pts).all(-1).any(-1)                         # (T, P)

@@ -33,17 +33,21 @@ def test_rig_file_image_size(tmp_path):
     from mirrorgraph.rigs.config import load_rig_config
     kp = tmp_path / "kp.json"
     kp.write_text("[]")
+    (tmp_path / "kp2.json").write_text("[]")
     (tmp_path / "cam.json").write_text(json.dumps({"K": [[1000, 0, 960], [0, 1000, 540],
                                                          [0, 0, 1]]}))
+    # a second camera: one camera and no mirror is no rig
+    other = '[[cameras]]\nname = "b"\nkeypoints = "kp2.json"\nintrinsics = "cam.json"\n'
     (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'image_size = [1920, 1080]\n')
+                                       'image_size = [1920, 1080]\n' + other)
     assert load_rig_config(tmp_path / "rig.toml").cameras[0].image_size == (1920, 1080)
     (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'image_size = [1920]\n')
+                                       'image_size = [1920]\n' + other)
     with pytest.raises(InputError, match="image_size"):
         load_rig_config(tmp_path / "rig.toml")
     (tmp_path / "rig.toml").write_text('[[cameras]]\nname = "a"\nkeypoints = "kp.json"\n'
-                                       'intrinsics = "cam.json"\nimage_size = [1920, 1080]\n')
+                                       'intrinsics = "cam.json"\nimage_size = [1920, 1080]\n'
+                                       + other)
     with pytest.raises(InputError, match="without intrinsics"):
         load_rig_config(tmp_path / "rig.toml")
 
