@@ -67,6 +67,8 @@ from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates
+from .epipolar import inlier_threshold_px
+from .failure import offset_hint
 from .tracking import subject_track, track_labelled, track_motion
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
@@ -361,9 +363,14 @@ def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_pers
     try:
         chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
     except DegenerateGeometryError as exc:
+        hint = offset_hint(ref_person, K_ref, sorting.people, K, skeleton.calibration_joints,
+                           inlier_threshold_px(ref_person, skeleton.calibration_joints,
+                                               PairingOptions().min_confidence),
+                           entry.frame_offset)
         raise DegenerateGeometryError(
             f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
-            f"the person of camera {ref_name}: {exc}") from None
+            f"the person of camera {ref_name}: {exc}"
+            + (f"; likeliest cause: {hint}" if hint else "")) from None
     conf = [np.nan_to_num(p[:, skeleton.calibration_joints, 2]).sum(1) for p in sorting.people]
     _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors)
 
