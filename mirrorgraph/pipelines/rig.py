@@ -32,7 +32,7 @@ from ..rigs.config import RigConfig, load_rig_config
 from ..initial.rig import initialise_rig
 from ..intrinsics import estimated_intrinsics
 from ..rigs.observations import load_observations
-from ..rigs.failure import (MIN_FIT_SHARE, failure_cause, fit_shares, most_confident,
+from ..rigs.failure import (MIN_FIT_SHARE, candidate_people, failure_cause, fit_shares,
                             scan_offsets)
 from ..errors import DegenerateGeometryError, FailedCameraError
 from ..initial.rig import observed
@@ -193,34 +193,44 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     return result
 
 
-def _direct_points(obs, direct: np.ndarray) -> list[np.ndarray]:
-    """Per camera ``(T, J, 2)`` its person's observed ``direct`` joints, NaN elsewhere (a
-    camera whose person was not found: its most confident detection per frame)."""
+def _direct_points(obs, direct: np.ndarray) -> list[list[np.ndarray]]:
+    """Per camera the ``(T, J, 2)`` sequences that may be its person (observed ``direct``
+    joints, NaN elsewhere): the person kept; where none was kept, its candidates
+    (:func:`~mirrorgraph.rigs.failure.candidate_people`)."""
     joints = np.zeros(obs.skeleton.num_joints, bool)
     joints[np.asarray(direct, int)] = True
-    points = []
+    out = []
     for cam in obs.cameras:
-        real = np.asarray(cam.real, float)
-        if not observed(real, joints).any() and cam.people is not None:
-            real = most_confident(cam.people, *real.shape[:2], np.asarray(direct, int))
-        p = real[..., :2].copy()
-        p[~observed(real, joints)] = np.nan
-        points.append(p)
-    return points
+        seqs = [np.asarray(cam.real, float)]
+        if not observed(seqs[0], joints).any() and cam.people is not None:
+            seqs = candidate_people(cam.people, *seqs[0].shape[:2], np.asarray(direct, int))
+        points = []
+        for real in seqs:
+            p = real[..., :2].copy()
+            p[~observed(real, joints)] = np.nan
+            points.append(p)
+        out.append(points)
+    return out
 
 
 def _offset_hints(cfg, obs, direct: np.ndarray, threshold_px: float, seed: int) -> list[str]:
     """``"camera <name>: a time offset ..."`` for every camera whose frames fit the others
     far better shifted (:func:`~mirrorgraph.rigs.failure.scan_offsets`)."""
-    points = _direct_points(obs, direct)
+    seqs = _direct_points(obs, direct)
+    points = [s[0] for s in seqs]
     Ks = [np.asarray(c.intrinsics.K, float) for c in obs.cameras]
     out = []
     for i, c in enumerate(obs.cameras):
         others = [j for j in range(len(points)) if j != i]
-        cause = failure_cause(scan_offsets(points, Ks, i, others, threshold_px, seed=seed),
-                              cfg.cameras[i].frame_offset)
-        if cause.startswith("a time offset"):
-            out.append(f"camera {c.name}: {cause}")
+        found = []
+        for mine in seqs[i]:
+            scan = scan_offsets(points[:i] + [mine] + points[i + 1:], Ks, i, others,
+                                threshold_px, seed=seed)
+            cause = failure_cause(scan, cfg.cameras[i].frame_offset)
+            if cause.startswith("a time offset"):
+                found.append((scan.at(scan.best), cause))
+        if found:
+            out.append(f"camera {c.name}: {max(found)[1]}")
     return out
 
 
@@ -238,7 +248,7 @@ def _judge_cameras(cfg, obs, cameras: list[RigCamera], sol, direct: np.ndarray,
     bad = [i for i, c in enumerate(cameras) if c.fit_share < MIN_FIT_SHARE]
     if not bad:
         return []
-    points = _direct_points(obs, direct)
+    points = [s[0] for s in _direct_points(obs, direct)]
     Ks = [np.asarray(c.intrinsics.K, float) for c in cameras]
     for i in bad:
         c = cameras[i]

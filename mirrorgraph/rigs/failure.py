@@ -28,10 +28,11 @@ import numpy as np
 
 from ..geometry import sampson_distances
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from .tracking import track_people
 
 __all__ = ["MIN_FIT_SHARE", "OFFSET_WINDOW", "OFFSET_GAIN", "MIN_SCAN_CORRESPONDENCES",
            "OffsetScan", "fit_shares", "scan_offsets", "failure_cause", "offset_hint",
-           "most_confident"]
+           "most_confident", "candidate_people"]
 
 #: A camera keeping fewer than this share of its offered keypoints fails.
 MIN_FIT_SHARE = 0.5
@@ -191,6 +192,30 @@ def most_confident(people: list[np.ndarray], T: int, J: int, joints: np.ndarray
     return out
 
 
+#: :func:`offset_hint` scans this many of a camera's longest tracks (and its most confident
+#: detection per frame).
+HINT_TRACKS = 3
+
+
+def candidate_people(people: list[np.ndarray], T: int, J: int, joints: np.ndarray,
+                     min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> list[np.ndarray]:
+    """``(T, J, 3)`` sequences that may be a camera's person: its most confident detection
+    per frame, and its :data:`HINT_TRACKS` longest tracks (:func:`~.tracking.track_people`),
+    NaN where absent."""
+    out = [most_confident(people, T, J, joints)]
+    ids = track_people(list(people[:T]), joints, min_confidence)
+    flat = np.concatenate([np.asarray(i, int).ravel() for i in ids]) if ids else np.zeros(0)
+    labels, counts = np.unique(flat[flat >= 0], return_counts=True)
+    for label in labels[np.argsort(-counts)][:HINT_TRACKS]:
+        seq = np.full((T, J, 3), np.nan)
+        for t, (p, i) in enumerate(zip(people[:T], ids)):
+            hit = np.flatnonzero(np.asarray(i) == label)
+            if hit.size:
+                seq[t] = np.asarray(p)[hit[0]]
+        out.append(seq)
+    return out
+
+
 def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarray],
                 K: np.ndarray, joints: np.ndarray, threshold_px: float, frame_offset: int = 0,
                 *, min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> str | None:
@@ -208,7 +233,6 @@ def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarr
     """
     joints = np.asarray(joints, int)
     T, J = ref_person.shape[:2]
-    mine = most_confident(people, T, J, joints)
 
     def pixels(a):
         out = np.full((T, J, 2), np.nan)
@@ -216,7 +240,11 @@ def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarr
         out[:, joints] = np.where(ok[..., None], a[:, joints, :2], np.nan)
         return out
 
-    scan = scan_offsets([pixels(mine), pixels(np.asarray(ref_person, float))], [K, K_ref],
-                        0, [1], threshold_px)
-    cause = failure_cause(scan, frame_offset)
-    return cause if cause.startswith("a time offset") else None
+    ref = pixels(np.asarray(ref_person, float))
+    found = []
+    for mine in candidate_people(people, T, J, joints, min_confidence):
+        scan = scan_offsets([pixels(mine), ref], [K, K_ref], 0, [1], threshold_px)
+        cause = failure_cause(scan, frame_offset)
+        if cause.startswith("a time offset"):
+            found.append((scan.at(scan.best), cause))
+    return max(found)[1] if found else None

@@ -21,10 +21,10 @@ from mirrorgraph.rigs.observations import load_observations
 from mirrorgraph.synth.rig import make_rig, write_rig
 
 
-def _shifted_rig(folder, shift: int, camera: int = 2, seed: int = 0):
-    """The 4-camera synthetic rig (30 fps) with camera ``camera``'s ``frame_offset`` set to
+def _shifted_rig(folder, shift: int, camera: int = 2, seed: int = 0, fps: float = 30.0):
+    """The 4-camera synthetic rig with camera ``camera``'s ``frame_offset`` set to
     ``shift`` in its rig file: its frames ``shift`` frames off the others'."""
-    rig = make_rig("4cams", frames=300, seed=seed, noise_std=4.0)
+    rig = make_rig("4cams", frames=300, seed=seed, noise_std=4.0, fps=fps)
     path = write_rig(rig, folder)
     parts = path.read_text().split("[[cameras]]")
     parts[camera + 1] = parts[camera + 1].replace("frame_offset = 0",
@@ -121,6 +121,17 @@ def test_keep_failed_writes_the_others_marks_it_and_exits_3(late_rig, tmp_path, 
             assert rotation_error_deg(R, np.asarray(rig.poses[i])[:3, :3]) < 0.5
 
 
+def test_a_camera_refused_by_the_matching_names_its_time_offset(tmp_path):
+    """At 15 fps a 10-frame shift leaves no track of cam03 consistent with cam01's person:
+    the refusal says which offset undoes it."""
+    _, path = _shifted_rig(tmp_path, 10, fps=15.0)
+    with pytest.raises(DegenerateGeometryError) as info:
+        calibrate_rig(path)
+    msg = str(info.value)
+    assert "camera cam03" in msg and "time offset" in msg and "shifted by -10" in msg, msg
+    assert "frame_offset = 0" in msg and "\n" not in msg
+
+
 def test_a_camera_seeing_another_person_is_never_written(tmp_path, capsys):
     """cam03's keypoints from another recording (another person, another motion): refused
     with one line naming it, nothing written."""
@@ -134,4 +145,4 @@ def test_a_camera_seeing_another_person_is_never_written(tmp_path, capsys):
     code = main(["calibrate-rig", str(tmp_path / "rig" / "mixed.toml"), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and not out.exists()
-    assert len(err) == 1 and "cam03" in err[0], err
+    assert len(err) == 1 and "cam03" in err[0] and "time offset" not in err[0], err
