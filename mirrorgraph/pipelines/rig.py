@@ -213,12 +213,19 @@ def _direct_points(obs, direct: np.ndarray) -> list[list[np.ndarray]]:
     return out
 
 
+def _frame_step(obs) -> int:
+    """The frames between two rows of the rig's clock (a video read every n-th frame)."""
+    ids = np.asarray(obs.frame_ids)
+    return max(int(np.median(np.diff(ids))), 1) if len(ids) > 1 else 1
+
+
 def _offset_hints(cfg, obs, direct: np.ndarray, threshold_px: float, seed: int) -> list[str]:
     """``"camera <name>: a time offset ..."`` for every camera whose frames fit the others
     far better shifted (:func:`~mirrorgraph.rigs.failure.scan_offsets`)."""
     seqs = _direct_points(obs, direct)
     points = [s[0] for s in seqs]
     Ks = [np.asarray(c.intrinsics.K, float) for c in obs.cameras]
+    step = _frame_step(obs)
     out = []
     for i, c in enumerate(obs.cameras):
         others = [j for j in range(len(points)) if j != i]
@@ -226,7 +233,7 @@ def _offset_hints(cfg, obs, direct: np.ndarray, threshold_px: float, seed: int) 
         for mine in seqs[i]:
             scan = scan_offsets(points[:i] + [mine] + points[i + 1:], Ks, i, others,
                                 threshold_px, seed=seed)
-            cause = failure_cause(scan, cfg.cameras[i].frame_offset)
+            cause = failure_cause(scan, cfg.cameras[i].frame_offset, step)
             if cause.startswith("a time offset"):
                 found.append((scan.at(scan.best), cause))
         if found:
@@ -258,7 +265,7 @@ def _judge_cameras(cfg, obs, cameras: list[RigCamera], sol, direct: np.ndarray,
             [j for j in range(len(cameras)) if j != i]
         scan = (scan_offsets(points, Ks, i, others, threshold_px, seed=seed) if others
                 else None)
-        cause = (failure_cause(scan, cfg.cameras[i].frame_offset) if others
+        cause = (failure_cause(scan, cfg.cameras[i].frame_offset, _frame_step(obs)) if others
                  else "no other camera to compare it with")
         kept, offered = shares[c.name]
         c.status = "failed"

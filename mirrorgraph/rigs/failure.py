@@ -161,20 +161,22 @@ def scan_offsets(points: list[np.ndarray], Ks: list[np.ndarray], camera: int,
     return OffsetScan(shifts=shifts, consistency=cons, cost=cost, correspondences=corr)
 
 
-def failure_cause(scan: OffsetScan | None, frame_offset: int = 0) -> str:
+def failure_cause(scan: OffsetScan | None, frame_offset: int = 0, frame_step: int = 1) -> str:
     """The likeliest cause of a failed camera, in words, from its :func:`scan_offsets`
-    (``frame_offset``: the camera's offset in the rig file, for the fix)."""
+    (``frame_offset``: the camera's offset in the rig file, for the fix; ``frame_step``:
+    the frames between two rows of the scanned arrays, a video read every n-th frame)."""
     if scan is None or scan.correspondences[scan.shifts == 0][0] < MIN_SCAN_CORRESPONDENCES:
         n = 0 if scan is None else int(scan.correspondences[scan.shifts == 0][0])
         return (f"too few keypoints ({n} joint observations shared with the sound cameras, "
                 f"{MIN_SCAN_CORRESPONDENCES} needed to judge)")
     best, here = scan.best, scan.at(0)
     top = scan.at(best)
+    frames = best * int(frame_step)
     if best != 0 and top >= MIN_FIT_SHARE and top >= OFFSET_GAIN * here:
         edge = " or more (the end of the scan)" if abs(best) == scan.shifts.max() else ""
-        return (f"a time offset: its frames fit the others best shifted by {best:+d}{edge} "
+        return (f"a time offset: its frames fit the others best shifted by {frames:+d}{edge} "
                 f"({100 * top:.0f} % of its joints consistent, {100 * here:.0f} % as given): "
-                f"set frame_offset = {frame_offset + best} for it in the rig file")
+                f"set frame_offset = {frame_offset + frames} for it in the rig file")
     return (f"its people do not match the others' ({100 * here:.0f} % of its joints "
             f"consistent with the other cameras, at best {100 * top:.0f} % over shifts of "
             f"-{len(scan.shifts) // 2}..{len(scan.shifts) // 2} frames)")
@@ -218,7 +220,7 @@ def candidate_people(people: list[np.ndarray], T: int, J: int, joints: np.ndarra
 
 def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarray],
                 K: np.ndarray, joints: np.ndarray, threshold_px: float, frame_offset: int = 0,
-                *, min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> str | None:
+                frame_step: int = 1, *, min_confidence: float = DEFAULT_MIN_CONFIDENCE) -> str | None:
     """A time offset where a camera none of whose people matches the reference camera's
     person fits it shifted (:func:`scan_offsets` of its most confident detection per
     frame against ``ref_person``), in words; ``None`` where no shift names one.
@@ -230,6 +232,7 @@ def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarr
         joints: the joints compared (indices).
         threshold_px: the inlier threshold, pixels.
         frame_offset: the camera's offset in the rig file, for the fix.
+        frame_step: the camera's frames between two rows (a video read every n-th frame).
     """
     joints = np.asarray(joints, int)
     T, J = ref_person.shape[:2]
@@ -244,7 +247,7 @@ def offset_hint(ref_person: np.ndarray, K_ref: np.ndarray, people: list[np.ndarr
     found = []
     for mine in candidate_people(people, T, J, joints, min_confidence):
         scan = scan_offsets([pixels(mine), ref], [K, K_ref], 0, [1], threshold_px)
-        cause = failure_cause(scan, frame_offset)
+        cause = failure_cause(scan, frame_offset, frame_step)
         if cause.startswith("a time offset"):
             found.append((scan.at(scan.best), cause))
     return max(found)[1] if found else None

@@ -353,7 +353,8 @@ def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
 
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
-                  K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str) -> None:
+                  K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str,
+                  frame_step: int = 1) -> None:
     """Another camera: keep per frame the candidate consistent with the first camera's
     person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
 
@@ -366,7 +367,7 @@ def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_pers
         hint = offset_hint(ref_person, K_ref, sorting.people, K, skeleton.calibration_joints,
                            inlier_threshold_px(ref_person, skeleton.calibration_joints,
                                                PairingOptions().min_confidence),
-                           entry.frame_offset)
+                           entry.frame_offset, frame_step)
         raise DegenerateGeometryError(
             f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
             f"the person of camera {ref_name}: {exc}"
@@ -533,10 +534,11 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
     ref_person = _place(ref.real, rows[0], T)
-    for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
+    for (entry, intr, f, sorting, source), r in zip(per_camera[1:], rows[1:]):
         if sorting.people is not None:      # one candidate a frame may still be another person
+            step = int(np.median(np.diff(f))) if len(f) > 1 else 1
             _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
-                          sk, source)
+                          sk, source, step)
 
     cameras = []
     for (entry, intr, _, sorting, source), r in zip(per_camera, rows):

@@ -68,6 +68,10 @@ def test_failure_cause_without_data_or_without_an_offset():
     shifts = np.arange(-2, 3)
     few = OffsetScan(shifts, np.full(5, 0.3), np.full(5, 0.8), np.full(5, 40))
     assert failure_cause(few).startswith("too few keypoints")
+    late = OffsetScan(shifts, np.array([.3, .9, .4, .3, .3]), np.array([.8, .1, .7, .8, .8]),
+                      np.full(5, 5000))
+    assert "shifted by -3 " in failure_cause(late, 0, frame_step=3)
+    assert "frame_offset = 2 " in failure_cause(late, 5, frame_step=3)
     flat = OffsetScan(shifts, np.array([.30, .31, .32, .31, .30]),
                       np.array([.80, .79, .78, .79, .80]), np.full(5, 5000))
     assert failure_cause(flat).startswith("its people do not match")
