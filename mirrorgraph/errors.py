@@ -87,6 +87,22 @@ class DegenerateGeometryError(MirrorgraphError):
     """The data cannot determine the mirror (too few pairs, parallel lines, ...)."""
 
 
+class FailedCameraError(DegenerateGeometryError):
+    """A rig camera fits under half of its keypoints: the rig is not written.
+
+    Attributes:
+        calibration: the :class:`~mirrorgraph.result.rig.RigCalibration` with every
+            failed camera marked (``status = "failed"``, ``reason``), for a caller that
+            keeps the others.
+        cameras: the failed cameras' names.
+    """
+
+    def __init__(self, message: str, *, calibration=None, cameras: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.calibration = calibration
+        self.cameras = tuple(cameras)
+
+
 class MissingExtraError(MirrorgraphError, ImportError):
     """An optional dependency (an extra of the package: ``plot``, ``view``, ``batch``,
     ``c3d``, ``video``, ...) is not installed; the message says how to install it.

@@ -244,8 +244,8 @@ def rig_cameras(rig: "RigCalibration", style: str = "pose2sim", *, world: str = 
                 with_virtual: bool = True, keys: tuple | None = None,
                 image_size: tuple[int, int] | None = None,
                 warnings: list[str] | None = None) -> list[TomlCamera]:
-    """The cameras of a camera file for any calibration seen as a rig: every real camera,
-    then (``with_virtual``) every camera's view through every mirror it sees as the camera
+    """The cameras of a camera file for any calibration seen as a rig: every real camera
+    (a failed one left out, :attr:`~mirrorgraph.result.rig.RigCamera.status`), then (``with_virtual``) every camera's view through every mirror it sees as the camera
     of the horizontally flipped image (:func:`flipped_mirror_camera`, extrinsics
     :func:`mirrorgraph.result.rig.virtual_extrinsics`). The one construction behind
     :func:`export_cameras` and :func:`mirrorgraph.export.write_rig_toml`.
@@ -268,9 +268,10 @@ def rig_cameras(rig: "RigCalibration", style: str = "pose2sim", *, world: str = 
 
     warnings = [] if warnings is None else warnings
     At = world_rotation(world).T                # world -> first camera: X_cam = A^T X_world
-    views = [(c, None) for c in rig.cameras]
+    views = [(c, None) for c in rig.cameras if c.status != "failed"]
     if with_virtual:
-        views += [(rig.camera(cname), m) for m in rig.mirrors for cname in m.seen_by]
+        views += [(rig.camera(cname), m) for m in rig.mirrors for cname in m.seen_by
+                  if rig.camera(cname).status != "failed"]
     out = []
     for i, (c, m) in enumerate(views):
         size = c.intrinsics.image_size if image_size is None else image_size
@@ -435,7 +436,8 @@ def write_rig_toml(calib: "RigCalibration", path: str | os.PathLike, *,
         InputError: a camera without an image size (Pose2Sim needs it).
     """
     cams = rig_cameras(calib, "pose2sim", with_virtual=with_virtual)
-    rms = [c.reprojection_rms_px for c in calib.cameras if np.isfinite(c.reprojection_rms_px)]
+    rms = [c.reprojection_rms_px for c in calib.cameras
+           if np.isfinite(c.reprojection_rms_px) and c.status != "failed"]
     unit = ("metres" if calib.scale == "subject_height"
             else "subject heights (no subject height given: NOT metres)")
     header = (f"Calibrated by mirrorgraph from the people in view ({calib.source}).\n"

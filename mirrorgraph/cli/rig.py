@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import FailedCameraError, InputError
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..progress import Progress, SolveProgress
 from ..report.backend import INSTALL_HINT
@@ -25,7 +25,10 @@ from .commands import HELP
 from .video import add_video_options, video_options
 from .view import add_view_option, check_view_option, view_after_run
 
-__all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig"]
+__all__ = ["add_parsers", "cmd_calibrate_rig", "cmd_synth_rig", "EXIT_FAILED_CAMERA"]
+
+#: Exit status of ``calibrate-rig --keep-failed`` when a camera failed (the others written).
+EXIT_FAILED_CAMERA = 3
 
 
 def add_parsers(sub) -> None:
@@ -67,6 +70,11 @@ def add_parsers(sub) -> None:
                         "std) instead of estimated from the people (as calibrate's --fov)")
     p.add_argument("--no-focal", action="store_true",
                    help=f"the same as --fov {DEFAULT_FOV_DEG:g} (kept for scripts that use it)")
+    p.add_argument("--keep-failed", action="store_true",
+                   help="a camera that fits under half of its keypoints fails the run (nothing "
+                        "written, exit 2); with this flag the other cameras are written, the "
+                        "failed one marked status \"failed\" in the JSON and left out of the "
+                        f"TOML, and the exit status is {EXIT_FAILED_CAMERA}")
     add_view_option(p)
     add_video_options(p)
     add_common(p)
@@ -158,8 +166,14 @@ def cmd_calibrate_rig(args) -> int:
                                 refine_options=RefineOptions(scale_from=args.scale_from),
                                 estimate_focal=not held,
                                 fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG)
-        calib = calibrate_rig(config, opts, progress=status_and_bars,
-                              iteration_progress=solve, frame_progress=frame_progress)
+        try:
+            calib = calibrate_rig(config, opts, progress=status_and_bars,
+                                  iteration_progress=solve, frame_progress=frame_progress,
+                                  keep_failed=args.keep_failed)
+        except FailedCameraError as exc:
+            raise FailedCameraError(f"{exc} (nothing written; --keep-failed writes the other "
+                                    "cameras)", calibration=exc.calibration,
+                                    cameras=exc.cameras) from None
         for b in bars.values():
             b.close()
         bar.close(solve.info or None)
@@ -185,7 +199,8 @@ def cmd_calibrate_rig(args) -> int:
                                        progress_bar=not args.quiet)
         if args.view:                            # a recording to a file: one more output
             view_line = view_after_run(args, scene)
-    print_result(args, calib.summary(), calib.warnings)
+    failed_lines = {f"camera {c.name} failed: {c.reason}" for c in calib.failed_cameras}
+    print_result(args, calib.summary(), [w for w in calib.warnings if w not in failed_lines])
     if view_line:
         say(view_line)
     if written is not None:
@@ -195,6 +210,11 @@ def cmd_calibrate_rig(args) -> int:
         view_line = view_after_run(args, scene)
         if view_line:
             say(view_line)
+    if calib.failed_cameras:                     # one line each, whatever --quiet says
+        for c in calib.failed_cameras:
+            print(f"error: camera {c.name} failed (marked in {json_path}, left out of {out}): "
+                  f"{c.reason}", file=sys.stderr)
+        return EXIT_FAILED_CAMERA
     return 0
 
 

@@ -184,7 +184,7 @@ def poorly_determined(what: str, rotation_std_deg: float, cause: str,
 
 
 def judge_rig(cameras, mirrors, robust_parts: Mapping[str, dict], view_names, view_counts,
-              view_observed, mirror_spread_deg: Mapping[str, float]) -> list[str]:
+              view_observed, mirror_spread_deg: Mapping[str, float], failed=()) -> list[str]:
     """The warnings about a solved rig.
 
     Args:
@@ -197,6 +197,7 @@ def judge_rig(cameras, mirrors, robust_parts: Mapping[str, dict], view_names, vi
             and those it was offered.
         mirror_spread_deg: mirror name -> the largest angle between two cameras' initial
             estimates of it, degrees.
+        failed: the cameras marked failed (their own line says why; not judged again).
 
     Returns:
         The warnings, in words.
@@ -205,12 +206,16 @@ def judge_rig(cameras, mirrors, robust_parts: Mapping[str, dict], view_names, vi
            "the same mirror in all of them?)"
            for m, spread in mirror_spread_deg.items() if spread > MIRROR_SPREAD_WARN_DEG]
     for name, kept, offered in zip(view_names, view_counts, view_observed):
+        if str(name).split("/")[0] in failed:
+            continue
         if offered and kept < MIN_KEPT_FRACTION * offered:
             out.append(f"view {name}: only {100 * kept / offered:.0f} % of its keypoints fit "
                        "the rig (is it the same person as in the other cameras? the right "
                        "intrinsics, frame offset, mirror?)")
     for what, items in (("camera", cameras[1:]), ("mirror", mirrors)):
         for item in items:
+            if getattr(item, "failed", False):
+                continue
             if item.rotation_std_deg > POORLY_DETERMINED_DEG:
                 share = (robust_parts.get(item.name) or {}).get("contributions") or {}
                 top = dominant_intrinsic(share)

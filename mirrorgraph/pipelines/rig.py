@@ -32,6 +32,10 @@ from ..rigs.config import RigConfig, load_rig_config
 from ..initial.rig import initialise_rig
 from ..intrinsics import estimated_intrinsics
 from ..rigs.observations import load_observations
+from ..rigs.failure import (MIN_FIT_SHARE, candidate_people, failure_cause, fit_shares,
+                            scan_offsets)
+from ..errors import DegenerateGeometryError, FailedCameraError
+from ..initial.rig import observed
 from ..result.rig import RigCalibration, RigCamera, RigMirror
 from .solve import build_rig, camera_std, plane_std, solve_rig
 
@@ -70,7 +74,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                   progress: Callable[[str], None] | None = None,
                   iteration_progress: Callable[[int, float], None] | None = None,
                   frame_progress: Callable[[str, int, int], None] | None = None,
-                  **legacy) -> RigCalibration:
+                  keep_failed: bool = False, **legacy) -> RigCalibration:
     """Calibrate every camera and mirror of a rig from the people in its videos.
 
     Args:
@@ -89,6 +93,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         iteration_progress: ``(iteration, error)`` of the graph solve, after every
             iteration (as :func:`mirrorgraph.calibrate`'s).
         frame_progress: ``(camera, done, total)`` per frame of a video being detected.
+        keep_failed: return a rig with a failed camera (one that fits under half of its
+            keypoints, :data:`~mirrorgraph.rigs.failure.MIN_FIT_SHARE`) marked
+            ``status = "failed"`` with its ``reason``, instead of raising.
         legacy (Any): the keywords of the old signature (``subject_height=``, ``seed=``, ...,
             ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
 
@@ -99,6 +106,10 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         InputError: a malformed rig file, input or option, naming the file and field.
         DegenerateGeometryError: a camera that cannot be placed, a mirror that
             cannot be found, too few joints.
+        FailedCameraError: (a :class:`DegenerateGeometryError`) without ``keep_failed``,
+            a camera that fits under half of its keypoints, with its likeliest cause
+            (:func:`mirrorgraph.rigs.failure.failure_cause`); its ``calibration`` holds
+            the rig with that camera marked.
     """
     cfg = config if isinstance(config, RigConfig) else load_rig_config(config)
     run = _legacy_options(options, legacy).checked(default_height=cfg.subject_height)
@@ -118,7 +129,17 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
     say("initialising: camera pairs, mirrors, spanning tree")               # initialisation
-    init = initialise_rig(obs, H, seed=seed, joints=used_joints, estimate_focal=estimate_focal)
+    try:
+        init = initialise_rig(obs, H, seed=seed, joints=used_joints,
+                              estimate_focal=estimate_focal)
+    except DegenerateGeometryError as exc:
+        if type(exc) is not DegenerateGeometryError or len(obs.cameras) < 2:
+            raise
+        say("a camera cannot be placed: looking for time offsets")
+        hints = _offset_hints(cfg, obs, used_joints[0], opts.outlier_threshold, seed)
+        if not hints:
+            raise
+        raise DegenerateGeometryError(f"{exc}; likeliest cause: " + "; ".join(hints)) from None
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")                             # solve
     sol = solve_rig(rig, opts, H, progress=iteration_progress)
@@ -129,8 +150,11 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         warnings.append(f"scale: {scale_source}")
 
     cameras, mirrors = _records(obs, init, sol, run, warnings, stature)     # result
+    failed = _judge_cameras(cfg, obs, cameras, sol, used_joints[0], opts.outlier_threshold,
+                            seed, say)
+    warnings += [f"camera {c.name} failed: {c.reason}" for c in cameras if c.failed]
     warnings += judge_rig(cameras, mirrors, sol.robust_parts, sol.view_names, sol.view_counts,
-                          sol.view_observed, init.mirror_spread_deg)
+                          sol.view_observed, init.mirror_spread_deg, failed=failed)
     initialisation = {
         "edges": [{"cameras": [a, b], "inliers": e.inliers, "correspondences": e.correspondences,
                    "median_sampson_px": e.residual_px} for (a, b), e in init.edges.items()],
@@ -155,13 +179,99 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
         cov[~np.asarray(sol.used, bool)] = np.nan
         joints_std = position_std(cov)
-    return RigCalibration(joints_std=joints_std,cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
+    result = RigCalibration(joints_std=joints_std,cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
                           scale_source=scale_source,
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
                           joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
                           initialisation=initialisation, refinement=refinement,
                           sensitivity=sol.sensitivity,
                           warnings=warnings, source=str(cfg.source))
+    if failed and not keep_failed:
+        raise FailedCameraError("; ".join(f"camera {c.name} failed: {c.reason}"
+                                          for c in result.failed_cameras),
+                                calibration=result, cameras=tuple(failed))
+    return result
+
+
+def _direct_points(obs, direct: np.ndarray) -> list[list[np.ndarray]]:
+    """Per camera the ``(T, J, 2)`` sequences that may be its person (observed ``direct``
+    joints, NaN elsewhere): the person kept; where none was kept, its candidates
+    (:func:`~mirrorgraph.rigs.failure.candidate_people`)."""
+    joints = np.zeros(obs.skeleton.num_joints, bool)
+    joints[np.asarray(direct, int)] = True
+    out = []
+    for cam in obs.cameras:
+        seqs = [np.asarray(cam.real, float)]
+        if not observed(seqs[0], joints).any() and cam.people is not None:
+            seqs = candidate_people(cam.people, *seqs[0].shape[:2], np.asarray(direct, int))
+        points = []
+        for real in seqs:
+            p = real[..., :2].copy()
+            p[~observed(real, joints)] = np.nan
+            points.append(p)
+        out.append(points)
+    return out
+
+
+def _frame_step(obs) -> int:
+    """The frames between two rows of the rig's clock (a video read every n-th frame)."""
+    ids = np.asarray(obs.frame_ids)
+    return max(int(np.median(np.diff(ids))), 1) if len(ids) > 1 else 1
+
+
+def _offset_hints(cfg, obs, direct: np.ndarray, threshold_px: float, seed: int) -> list[str]:
+    """``"camera <name>: a time offset ..."`` for every camera whose frames fit the others
+    far better shifted (:func:`~mirrorgraph.rigs.failure.scan_offsets`)."""
+    seqs = _direct_points(obs, direct)
+    points = [s[0] for s in seqs]
+    Ks = [np.asarray(c.intrinsics.K, float) for c in obs.cameras]
+    step = _frame_step(obs)
+    out = []
+    for i, c in enumerate(obs.cameras):
+        others = [j for j in range(len(points)) if j != i]
+        found = []
+        for mine in seqs[i]:
+            scan = scan_offsets(points[:i] + [mine] + points[i + 1:], Ks, i, others,
+                                threshold_px, seed=seed)
+            cause = failure_cause(scan, cfg.cameras[i].frame_offset, step)
+            if cause.startswith("a time offset"):
+                found.append((scan.at(scan.best), cause))
+        if found:
+            out.append(f"camera {c.name}: {max(found)[1]}")
+    return out
+
+
+def _judge_cameras(cfg, obs, cameras: list[RigCamera], sol, direct: np.ndarray,
+                   threshold_px: float, seed: int, say) -> list[str]:
+    """Every camera's share of its keypoints kept by the final solve (``fit_share``); a
+    camera under :data:`~mirrorgraph.rigs.failure.MIN_FIT_SHARE` marked failed with its
+    likeliest cause (a time offset, other people, too few keypoints,
+    :func:`~mirrorgraph.rigs.failure.failure_cause`). Returns the failed cameras' names."""
+    shares = fit_shares([c.name for c in cameras], sol.view_names, sol.view_counts,
+                        sol.view_observed)
+    for c in cameras:
+        kept, offered = shares[c.name]
+        c.fit_share = kept / offered if offered else float("nan")
+    bad = [i for i, c in enumerate(cameras) if c.fit_share < MIN_FIT_SHARE]
+    if not bad:
+        return []
+    points = [s[0] for s in _direct_points(obs, direct)]
+    Ks = [np.asarray(c.intrinsics.K, float) for c in cameras]
+    for i in bad:
+        c = cameras[i]
+        say(f"camera {c.name} fits {100 * c.fit_share:.0f} % of its keypoints: "
+            "looking for the cause (time shifts against the other cameras)")
+        others = [j for j in range(len(cameras)) if j not in bad] or \
+            [j for j in range(len(cameras)) if j != i]
+        scan = (scan_offsets(points, Ks, i, others, threshold_px, seed=seed) if others
+                else None)
+        cause = (failure_cause(scan, cfg.cameras[i].frame_offset, _frame_step(obs)) if others
+                 else "no other camera to compare it with")
+        kept, offered = shares[c.name]
+        c.status = "failed"
+        c.reason = (f"only {100 * c.fit_share:.0f} % of its keypoints fit the rig ({kept} of "
+                    f"{offered}, half needed); likeliest cause: {cause}")
+    return [cameras[i].name for i in bad]
 
 
 def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_stature=None

@@ -73,6 +73,11 @@ class RigCamera:
         lr_fixes: reflection frames whose labels were corrected.
         matched_frames: frames where another detection than the most confident one
             was taken as the person (cross-camera matching, several people in view).
+        fit_share: the share of the keypoints its views (direct and through mirrors)
+            offered the graph that the final solve kept within the outlier threshold.
+        status: ``"ok"``, or ``"failed"``: under half of its keypoints fit the rig
+            (:data:`mirrorgraph.rigs.failure.MIN_FIT_SHARE`), its pose is not to be used.
+        reason: why it failed, in words (the likeliest cause), else ``""``.
     """
 
     name: str
@@ -85,6 +90,14 @@ class RigCamera:
     lr_fixes: int = 0
     matched_frames: int = 0
     marginal_rotation_std_deg: float = float("nan")
+    fit_share: float = float("nan")
+    status: str = "ok"
+    reason: str = ""
+
+    @property
+    def failed(self) -> bool:
+        """Whether the camera failed (``status == "failed"``)."""
+        return self.status == "failed"
 
     @property
     def R(self) -> np.ndarray:
@@ -169,6 +182,11 @@ class RigCalibration:
     scale_source: str = ""
     sensitivity: dict[str, Any] = field(default_factory=dict)
     joints_std: np.ndarray | None = None
+
+    @property
+    def failed_cameras(self) -> list[RigCamera]:
+        """The cameras marked failed (:attr:`RigCamera.status`)."""
+        return [c for c in self.cameras if c.failed]
 
     def camera(self, name: str) -> RigCamera:
         """The camera called ``name``."""
@@ -315,6 +333,8 @@ class RigCalibration:
                 "reprojection_rms_px": c.reprojection_rms_px,
                 "observations": c.observations, "lr_fixes": c.lr_fixes,
                 "matched_frames": c.matched_frames,
+                "fit_share": c.fit_share, "status": c.status,
+                "reason": c.reason or None,
             } for c in self.cameras],
             "mirrors": [{
                 "name": m.name, "normal": np.asarray(m.normal).tolist(), "distance": m.distance,
@@ -341,6 +361,9 @@ class RigCalibration:
         lines = []
         for c in self.cameras:
             pos = c.pose[:3, 3]
+            if c.failed:
+                lines.append(f"camera {c.name:<10} FAILED: {c.reason}")
+                continue
             lines.append(f"camera {c.name:<10} centre [{pos[0]:+.3f}, {pos[1]:+.3f}, "
                          f"{pos[2]:+.3f}] {unit}  rot std {c.rotation_std_deg:.3f} deg  "
                          f"pos std {c.position_std:.4f} {unit}  rms {c.reprojection_rms_px:.2f} px")
@@ -419,7 +442,9 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
                                            f"{at}.uncertainty"),
             reprojection_rms_px=fnum(c.get("reprojection_rms_px"), f"{at}.reprojection_rms_px"),
             observations=int(c.get("observations") or 0), lr_fixes=int(c.get("lr_fixes") or 0),
-            matched_frames=int(c.get("matched_frames") or 0)))
+            matched_frames=int(c.get("matched_frames") or 0),
+            fit_share=fnum(c.get("fit_share"), f"{at}.fit_share"),
+            status=str(c.get("status") or "ok"), reason=str(c.get("reason") or "")))
     mirrors = []
     for i, m in enumerate(obj["mirrors"]):
         at = f"mirrors[{i}]"

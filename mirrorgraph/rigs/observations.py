@@ -47,6 +47,8 @@ from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates
+from .epipolar import inlier_threshold_px
+from .failure import offset_hint
 from .tracking import subject_track, track_labelled, track_motion
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
@@ -331,7 +333,8 @@ def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
 
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
-                  K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str) -> None:
+                  K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str,
+                  frame_step: int = 1) -> None:
     """Another camera: keep per frame the candidate consistent with the first camera's
     person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
 
@@ -341,9 +344,14 @@ def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_pers
     try:
         chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
     except DegenerateGeometryError as exc:
+        hint = offset_hint(ref_person, K_ref, sorting.people, K, skeleton.calibration_joints,
+                           inlier_threshold_px(ref_person, skeleton.calibration_joints,
+                                               PairingOptions().min_confidence),
+                           entry.frame_offset, frame_step)
         raise DegenerateGeometryError(
             f"camera {entry.name} ({source}): cannot tell which of the people it sees is "
-            f"the person of camera {ref_name}: {exc}") from None
+            f"the person of camera {ref_name}: {exc}"
+            + (f"; likeliest cause: {hint}" if hint else "")) from None
     conf = [np.nan_to_num(p[:, skeleton.calibration_joints, 2]).sum(1) for p in sorting.people]
     _keep_chosen(sorting, chosen, conf, skeleton, entry.mirrors)
 
@@ -506,10 +514,11 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
     ref_person = _place(ref.real, rows[0], T)
-    for (entry, intr, _, sorting, source), r in zip(per_camera[1:], rows[1:]):
+    for (entry, intr, f, sorting, source), r in zip(per_camera[1:], rows[1:]):
         if sorting.people is not None:      # one candidate a frame may still be another person
+            step = int(np.median(np.diff(f))) if len(f) > 1 else 1
             _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
-                          sk, source)
+                          sk, source, step)
 
     cameras = []
     for (entry, intr, _, sorting, source), r in zip(per_camera, rows):

@@ -49,6 +49,17 @@ def four_cams(tmp_path_factory):
     return rig, path, calibrate_rig(path)
 
 
+def test_a_healthy_rig_has_no_camera_marked(four_cams):
+    """Every camera of a sound rig keeps nearly all of its keypoints: none failed, the
+    JSON says so per camera."""
+    _, _, cal = four_cams
+    assert not cal.failed_cameras
+    doc = cal.to_dict()["cameras"]
+    assert all(c["status"] == "ok" and c["reason"] is None and c["fit_share"] > 0.95
+               for c in doc), [(c["name"], c["fit_share"]) for c in doc]
+    assert not any("failed" in w for w in cal.warnings)
+
+
 def test_four_camera_rig_meets_the_accuracy_target(four_cams):
     """The issue's target: 4 cameras, 4 px, 300 frames: every camera within 0.5 deg and 2 cm.
 
