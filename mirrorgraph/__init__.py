@@ -32,8 +32,8 @@ Modules, one concept each: :mod:`~mirrorgraph.geometry` (mirror math),
 
 from ._version import __version__
 
-from .errors import (DegenerateGeometryError, InputError, MirrorgraphError,  # noqa: E402
-                     MissingExtraError)
+from .errors import (DegenerateGeometryError, FailedCameraError, InputError,  # noqa: E402
+                     MirrorgraphError, MissingExtraError)
 
 #: Public name -> the module it lives in, imported on first use (``__getattr__``).
 _LAZY = {
@@ -61,8 +61,8 @@ _LAZY = {
     "write_rig_report": "mirrorgraph.report.rig",
 }
 
-__all__ = ["DegenerateGeometryError", "InputError", "MirrorgraphError", "MissingExtraError",
-           "__version__"] + list(_LAZY)
+__all__ = ["DegenerateGeometryError", "FailedCameraError", "InputError", "MirrorgraphError",
+           "MissingExtraError", "__version__"] + list(_LAZY)
 
 
 def __getattr__(name: str):
