@@ -310,8 +310,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
-        state.scale == "subject_height") else None) - triangulated_covariance(
-        views, None, X, u, m, 1.0)
+        state.scale == "subject_height") else None, rays=False)
     cov = np.full((T, J, 3, 3), np.nan)
     cov[t, j] = (float(state.variance_factor) * marg[t, j] + Hinv @ Hb @ Hinv
                  + np.nan_to_num(glob))
@@ -766,7 +765,7 @@ def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
 def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]],
                             Cz: np.ndarray | None, points: np.ndarray, pixels: list,
                             masks: list, pixel_sigma: float, step: float = 1e-6,
-                            frames: np.ndarray | None = None) -> np.ndarray:
+                            frames: np.ndarray | None = None, rays: bool = True) -> np.ndarray:
     """The covariance of points triangulated from two views or more, the globals' share
     included.
 
@@ -788,6 +787,8 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             taken out of the globals' response (a metric scale set by the subject's
             stature: :func:`graph_joints_covariance`); ``None``: kept (the distance the
             unit).
+        rays: with the rays' share; ``False``: the globals' share alone (``G C_z G^T``,
+            zero without ``Cz``).
 
     Returns:
         ``(N, 3, 3)``; NaN where fewer than two views see a point.
@@ -795,6 +796,8 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
     X = np.asarray(points, float).reshape(-1, 3)
     P0 = projections(np.zeros(0 if Cz is None else len(Cz)))
     cov = geo.triangulation_covariance(P0, X, masks, pixel_sigma)
+    if not rays:
+        cov = np.where(np.isfinite(cov), 0.0, np.nan)
     if Cz is None or not len(Cz) or not len(X):
         return cov
     if not np.all(np.isfinite(Cz)):
