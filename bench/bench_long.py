@@ -13,8 +13,13 @@ With ``--before DIR`` (a checkout of another commit, e.g. ``git archive HEAD~3 |
 alternating, and the table puts them side by side, with the rotation between the two
 calibrations' mirror normals.
 
+With ``--workers 1,2`` the scenes also run through the library as the command does
+(``mg.calibrate`` of the keypoints file, ``write_calibration``) in a fresh process with
+``RefineOptions(workers=N)``: the processes that solve the chunks of a long video at
+once (this one included); the command has no flag for it.
+
 Run:  python bench/bench_long.py [--frames 1000,4000,16000] [--before DIR] [--repeats 1]
-      [--seed 0] [--no-write]
+      [--workers 1,2] [--seed 0] [--no-write]
 """
 
 from __future__ import annotations
@@ -53,6 +58,32 @@ def run_cli(tree: Path, kp: Path, intr: Path, height: float, out: Path) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree))
     cmd = [sys.executable, "-m", "mirrorgraph", "calibrate", str(kp), "--intrinsics", str(intr),
            "--subject-height", f"{height:.4f}", "--out", str(out), "--quiet"]
+    return _measured(cmd, env, tree, out)
+
+
+_LIBRARY = """
+import sys
+import mirrorgraph as mg
+from mirrorgraph.graph import RefineOptions
+kp, intr, height, out, workers = sys.argv[1:]
+opts = mg.CalibrateOptions(subject_height=float(height),
+                           refine_options=RefineOptions(workers=int(workers)))
+run = mg.calibrate(kp, mg.load_intrinsics(intr), opts)
+mg.write_calibration(out, run.calibration)
+"""
+
+
+def run_library(tree: Path, kp: Path, intr: Path, height: float, out: Path, workers: int) -> dict:
+    """``mg.calibrate`` of the keypoints file with ``workers`` in a fresh process."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    cmd = [sys.executable, "-c", _LIBRARY, str(kp), str(intr), f"{height:.4f}", str(out),
+           str(workers)]
+    return _measured(cmd, env, tree, out)
+
+
+def _measured(cmd: list[str], env: dict, tree: Path, out: Path) -> dict:
+    """Run ``cmd``; its wall time, CPU time (with the processes it waited for), peak memory
+    of its largest process and the mirror normal it wrote to ``out``."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, env=env, cwd=str(tree), stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE)
@@ -62,7 +93,7 @@ def run_cli(tree: Path, kp: Path, intr: Path, height: float, out: Path) -> dict:
     proc.stderr.close()
     code = os.waitstatus_to_exitcode(status)
     if code != 0:
-        raise RuntimeError(f"calibrate exited {code} in {tree}:\n{err[-2000:]}")
+        raise RuntimeError(f"{cmd[:4]} exited {code} in {tree}:\n{err[-2000:]}")
     cal = json.loads(out.read_text())
     return dict(wall=wall, cpu=ru.ru_utime + ru.ru_stime, rss_mb=ru.ru_maxrss / 1024.0,
                 normal=np.asarray(cal["mirror"]["normal"] if "mirror" in cal else cal["normal"],
@@ -80,6 +111,8 @@ def main() -> None:
     ap.add_argument("--before", type=Path, default=None,
                     help="a checkout of the commit to compare with")
     ap.add_argument("--repeats", type=int, default=1, help="runs of each tree (the fastest kept)")
+    ap.add_argument("--workers", default="",
+                    help="also run the library with these RefineOptions.workers (e.g. 1,2)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
@@ -87,6 +120,7 @@ def main() -> None:
 
     started = now()
     trees = ([("before", args.before.resolve())] if args.before else []) + [("after", ROOT)]
+    workers = [int(w) for w in args.workers.split(",") if w.strip()]
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_long_") as tmp:
         for frames in [int(f) for f in args.frames.split(",")]:
@@ -101,8 +135,15 @@ def main() -> None:
                         best[name] = r
                     print(f"{frames:6d} {name:6s} wall {r['wall']:6.1f} s  CPU {r['cpu']:6.1f} s"
                           f"  peak {r['rss_mb']:6.0f} MB", flush=True)
+                for w in workers:
+                    r = run_library(ROOT, kp, intr, height, folder / f"w{w}.json", w)
+                    key = f"after, workers={w}"
+                    if key not in best or r["cpu"] < best[key]["cpu"]:
+                        best[key] = r
+                    print(f"{frames:6d} {key} wall {r['wall']:6.1f} s  CPU {r['cpu']:6.1f} s"
+                          f"  peak {r['rss_mb']:6.0f} MB", flush=True)
             rows.append((frames, best))
-    names = [n for n, _ in trees]
+    names = [n for n, _ in trees] + [f"after, workers={w}" for w in workers]
     head = "| frames | " + " | ".join(f"{n}: wall s | {n}: CPU s | {n}: peak MB" for n in names)
     head += " | mirror before-after, deg |" if args.before else " |"
     sep = "|---:" * (1 + 3 * len(names) + (1 if args.before else 0)) + "|"
@@ -123,7 +164,9 @@ def main() -> None:
            "* what: `make_wide_scene(%d, 'wide', 'iid', frames)` written as MMPose .json and "
            "intrinsics .json; `python -m mirrorgraph calibrate KEYPOINTS --intrinsics K.json "
            "--subject-height H --out OUT --quiet` in a fresh process; CPU is the process's and "
-           "its workers'; peak is the largest process's resident memory" % args.seed, "",
+           "its workers'; peak is the largest process's resident memory; `after, workers=N`: "
+           "`mg.calibrate` of the same files with `RefineOptions(workers=N)` in a fresh "
+           "process" % args.seed, "",
            text, ""]
     (ROOT / "bench" / "RESULTS_long.md").write_text("\n".join(doc))
     print(f"wrote {ROOT / 'bench' / 'RESULTS_long.md'}", file=sys.stderr)
