@@ -795,8 +795,10 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
     """
     X = np.asarray(points, float).reshape(-1, 3)
     P0 = projections(np.zeros(0 if Cz is None else len(Cz)))
-    cov = geo.triangulation_covariance(P0, X, masks, pixel_sigma)
-    if not rays:
+    alone = not rays and Cz is not None and len(Cz) and len(X) and np.all(np.isfinite(Cz))
+    # the globals' share alone: where the rays determine a point, from the loop's information
+    cov = None if alone else geo.triangulation_covariance(P0, X, masks, pixel_sigma)
+    if not rays and not alone:
         cov = np.where(np.isfinite(cov), 0.0, np.nan)
     if Cz is None or not len(Cz) or not len(X):
         return cov
@@ -821,6 +823,11 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             Jz[:, :, k] = (yp[:, :2] / yp[:, 2:3] - ym[:, :2] / ym[:, 2:3]) / (2 * step)
         info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
         rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
+    if cov is None:                      # as geo.triangulation_covariance decides it
+        seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
+        ok = seen & np.isfinite(info).all((1, 2))
+        ok[ok] = np.linalg.det(info[ok]) > 0
+        cov = np.where(ok[:, None, None], 0.0, np.nan) * np.ones((1, 3, 3))
     good = np.isfinite(cov).all((1, 2))
     G = np.zeros((len(X), 3, n))
     G[good] = -np.linalg.solve(info[good], rhs[good])
