@@ -122,8 +122,8 @@ class SmoothnessFactor:
             return
         c = self.coefficients(frames)                                         # (M, 3)
         a = np.einsum("mk,mki->mi", c, np.asarray(X, dtype=float))             # (M, 3)
-        eye, noise = np.eye(3), self._noise
+        blocks = c[:, :, None, None] * np.eye(3)                               # (M, 3, 3, 3)
+        noise = self._noise
         make, wrap = gtsam.JacobianFactor, gtsam.LinearContainerFactor
-        for (k0, k1, k2), (c0, c1, c2), ai in zip(keys.tolist(), c.tolist(), -a):
-            graph.push_back(wrap(make(k0, c0 * eye, k1, c1 * eye, k2, c2 * eye, ai, noise),
-                                 linearization_point))
+        for (k0, k1, k2), (b0, b1, b2), ai in zip(keys.tolist(), blocks, -a):
+            graph.push_back(wrap(make(k0, b0, k1, b1, k2, b2, ai, noise), linearization_point))

@@ -45,7 +45,7 @@ import multiprocessing
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
 
 import gtsam
@@ -205,7 +205,13 @@ def _joints_chunk(job: tuple) -> _ChunkResult:
 
 
 class _Runner:
-    """Runs chunk jobs in order, in this process or in a pool of processes.
+    """Runs chunk jobs in this process and in ``workers - 1`` more processes at once.
+
+    This process takes jobs from the end of the list while the others take them from
+    the front, so that it never idles waiting on them; the results are returned in
+    the jobs' order (the sums do not depend on the workers). The workers are started
+    when the runner is made, before the subset's solve, so that their start-up (an
+    interpreter, GTSAM's import: about a second each) overlaps it.
 
     The workers are spawned (a fresh interpreter: a forked one would inherit the
     locks of any thread the caller runs, JAX's or PyTorch's say, and may deadlock),
@@ -216,20 +222,41 @@ class _Runner:
 
     def __init__(self, workers: int) -> None:
         self.pool = None
+        self.size = max(int(workers) - 1, 0)
         # a daemonic process (a Dask or multiprocessing worker) may not have children
-        if workers > 1 and not multiprocessing.current_process().daemon:
-            self.pool = ProcessPoolExecutor(max_workers=workers,
+        if self.size and not multiprocessing.current_process().daemon:
+            self.pool = ProcessPoolExecutor(max_workers=self.size,
                                             mp_context=multiprocessing.get_context("spawn"))
-            with _main_hidden():
-                list(self.pool.map(_ready, range(workers)))     # start them all now
+            with _main_hidden():               # spawned now, their imports run meanwhile
+                for _ in range(self.size):
+                    self.pool.submit(_ready, 0)
 
     def map(self, fn, jobs: list, counter) -> list[_ChunkResult]:
-        results = self.pool.map(fn, jobs) if self.pool is not None else map(fn, jobs)
-        out = []
-        for r in results:                      # in order: sums do not depend on the workers
-            out.append(r)
-            if counter is not None:
-                counter(len(out), float(r.final_error))
+        out: list = [None] * len(jobs)
+        reported = 0
+
+        def report() -> None:                  # in order, as the first results complete
+            nonlocal reported
+            while reported < len(out) and out[reported] is not None:
+                reported += 1
+                if counter is not None:
+                    counter(reported, float(out[reported - 1].final_error))
+
+        pending = list(range(len(jobs)))
+        running: dict = {}
+        while pending or running:
+            while self.pool is not None and pending and len(running) < self.size:
+                i = pending.pop(0)
+                running[self.pool.submit(fn, jobs[i])] = i
+            if pending:                        # this process: the last job left
+                i = pending.pop() if self.pool is not None else pending.pop(0)
+                out[i] = fn(jobs[i])
+                finished = [f for f in running if f.done()]
+            else:
+                finished = list(wait(running, return_when=FIRST_COMPLETED).done)
+            for f in finished:
+                out[running.pop(f)] = f.result()
+            report()
         return out
 
     def close(self) -> None:
@@ -269,8 +296,21 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     """
     if height is not None:
         opts = replace(opts, subject_height=float(height))
-    T, J = rig.num_frames, rig.skeleton.num_joints
+    T = rig.num_frames
     rows = spread_blocks(T, opts.max_graph_frames, opts.chunk_block_frames)
+    ranges = chunk_ranges(T, opts.max_graph_frames)
+    runner = _Runner(worker_count(opts, len(ranges)))
+    try:
+        return _solve_chunked(rig, opts, config, height, counter, rows, ranges, runner)
+    finally:
+        runner.close()
+
+
+def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter,
+                   rows: np.ndarray, ranges: list[tuple[int, int]], runner: _Runner):
+    """:func:`solve_chunked` with the subset's ``rows``, the chunks' row ``ranges`` and the
+    ``runner`` of their jobs."""
+    T, J = rig.num_frames, rig.skeleton.num_joints
     # the subset's joints are not kept (every chunk is solved again): no joints pass there
     sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
     # the subset's estimated intrinsics are held in the chunks: what their uncertainty
@@ -292,60 +332,55 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
                    length_sum=sub.prior_info.get("length_sum_gauge", {}).get("sum"),
                    kernel=next((s.get("kernel") for s in reversed(sub.stages) if "kernel" in s),
                                None))
-    ranges = chunk_ranges(T, opts.max_graph_frames)
     chunks = [rig.subset(slice(a, b)) for a, b in ranges]
-    runner = _Runner(worker_count(opts, len(ranges)))
-    try:
-        starts: list = [None] * len(ranges)
-        for npass in range(1, opts.chunk_passes + 1):
-            t_pass = time.perf_counter()
-            done = runner.map(_calibrate_chunk, [(c, a, b, plane, s, ctx) for c, (a, b), s
-                                                 in zip(chunks, ranges, starts)], counter)
-            good = [r for r in done if r.information is not None]
-            if not good:
-                raise DegenerateGeometryError("no chunk of the video could be solved")
-            iterations += sum(r.iterations for r in done)
-            H, final_error, z_keys, zv, z, zlen = _global_step(good)
-            plane = plane_from_gtsam(zv.atOrientedPlane3(z_keys[0][0]))
-            seconds = time.perf_counter() - t_pass
-            timings["solve"] += seconds
-            stages.append({"name": "chunk pass %d (%d chunks)" % (npass, len(ranges)),
-                           "iterations": None, "initial_error": None, "final_error": final_error,
-                           "converged": None, "rejected": None, "global_step_sigma": zlen,
-                           "seconds": seconds})
-            starts = [None if r.points is None else (r.points, r.masks) for r in done]
-            if zlen <= opts.chunk_step_tolerance:
-                break
-        information = H
-        out_points = np.full((T, J, 3), np.nan)
-        out_used = np.zeros((T, J), dtype=bool)
-        out_masks = [np.zeros((T, J), bool) for _ in rig.views]
-        for r in good:
-            out_points[r.a:r.b], out_used[r.a:r.b] = r.points, r.used
-            for k, m in enumerate(r.masks):
-                out_masks[k][r.a:r.b] = m & r.used
-        rejected = int(sum(np.count_nonzero(np.asarray(v.mask, bool) & ~m)
-                           for v, m in zip(rig.views, out_masks)))
-        stages[-1]["rejected"] = rejected
-        n_repro = sum(r.reprojection_factors for r in good)
-        if opts.joints_smoothness_sigma is not None:
-            t = time.perf_counter()
-            jobs = [(chunks[i], r.a, r.b, plane, (r.points, r.masks), ctx)
-                    for i, r in enumerate(done) if r.points is not None]
-            solved = runner.map(_joints_chunk, jobs, None)
-            for r in solved:
-                if r.points is not None:
-                    out_points[r.a:r.b] = r.points
-            iterations += sum(r.iterations for r in solved)
-            seconds = time.perf_counter() - t
-            timings["solve"] += seconds
-            stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
-                           % (opts.joints_smoothness_sigma, len(jobs)),
-                           "iterations": sum(r.iterations for r in solved), "initial_error": None,
-                           "final_error": None, "converged": None, "rejected": 0,
-                           "seconds": seconds})
-    finally:
-        runner.close()
+    starts: list = [None] * len(ranges)
+    for npass in range(1, opts.chunk_passes + 1):
+        t_pass = time.perf_counter()
+        done = runner.map(_calibrate_chunk, [(c, a, b, plane, s, ctx) for c, (a, b), s
+                                             in zip(chunks, ranges, starts)], counter)
+        good = [r for r in done if r.information is not None]
+        if not good:
+            raise DegenerateGeometryError("no chunk of the video could be solved")
+        iterations += sum(r.iterations for r in done)
+        H, final_error, z_keys, zv, z, zlen = _global_step(good)
+        plane = plane_from_gtsam(zv.atOrientedPlane3(z_keys[0][0]))
+        seconds = time.perf_counter() - t_pass
+        timings["solve"] += seconds
+        stages.append({"name": "chunk pass %d (%d chunks)" % (npass, len(ranges)),
+                       "iterations": None, "initial_error": None, "final_error": final_error,
+                       "converged": None, "rejected": None, "global_step_sigma": zlen,
+                       "seconds": seconds})
+        starts = [None if r.points is None else (r.points, r.masks) for r in done]
+        if zlen <= opts.chunk_step_tolerance:
+            break
+    information = H
+    out_points = np.full((T, J, 3), np.nan)
+    out_used = np.zeros((T, J), dtype=bool)
+    out_masks = [np.zeros((T, J), bool) for _ in rig.views]
+    for r in good:
+        out_points[r.a:r.b], out_used[r.a:r.b] = r.points, r.used
+        for k, m in enumerate(r.masks):
+            out_masks[k][r.a:r.b] = m & r.used
+    rejected = int(sum(np.count_nonzero(np.asarray(v.mask, bool) & ~m)
+                       for v, m in zip(rig.views, out_masks)))
+    stages[-1]["rejected"] = rejected
+    n_repro = sum(r.reprojection_factors for r in good)
+    if opts.joints_smoothness_sigma is not None:
+        t = time.perf_counter()
+        jobs = [(chunks[i], r.a, r.b, plane, (r.points, r.masks), ctx)
+                for i, r in enumerate(done) if r.points is not None]
+        solved = runner.map(_joints_chunk, jobs, None)
+        for r in solved:
+            if r.points is not None:
+                out_points[r.a:r.b] = r.points
+        iterations += sum(r.iterations for r in solved)
+        seconds = time.perf_counter() - t
+        timings["solve"] += seconds
+        stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
+                       % (opts.joints_smoothness_sigma, len(jobs)),
+                       "iterations": sum(r.iterations for r in solved), "initial_error": None,
+                       "final_error": None, "converged": None, "rejected": 0,
+                       "seconds": seconds})
     t = time.perf_counter()
     scores = _joined_scores([r for r in good if r.scores is not None], T, z)
     noise_px = reprojection_noise_px(rig, out_masks, ctx.pose, [plane], 3)

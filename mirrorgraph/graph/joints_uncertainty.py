@@ -276,28 +276,18 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     if joints_pass and opts.joints_smoothness_sigma is not None:
         smooth = SmoothnessFactor(state.body_height * opts.joints_smoothness_sigma,
                                   opts.smoothness_max_gap)
-        problem = _FrameIds(rig.frame_ids)
-        rows = _smoothness_rows(problem, used_ok, smooth, 0)
-        if len(rows[0]):
-            marg = _with_smoothness(marg, used_ok, rows, J)
+        band = _smoothness_band(used_ok, rig.frame_ids, smooth)
+        if band is not None:
+            marg = _chain_solve(marg, used_ok, band)
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
-        state.scale == "subject_height") else None) - triangulated_covariance(
-        views, None, X, u, m, 1.0)
+        state.scale == "subject_height") else None, rays=False)
     cov = np.full((T, J, 3, 3), np.nan)
     cov[t, j] = (float(state.variance_factor) * marg[t, j] + Hinv @ Hb @ Hinv
                  + np.nan_to_num(glob))
     cov[~used_ok] = np.nan
     return cov
-
-
-class _FrameIds:
-    """What :func:`_smoothness_rows` reads of a problem: its rig's frame numbers."""
-
-    def __init__(self, frame_ids) -> None:
-        self.rig = self
-        self.frame_ids = np.asarray(frame_ids, dtype=np.int64)
 
 
 def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
@@ -594,9 +584,6 @@ def _with_smoothness(marg: np.ndarray, used: np.ndarray, rows: tuple, J: int) ->
     N = int(n.max()) if n.size else 0
     if N == 0:
         return marg
-    ok = np.isfinite(marg).all((-2, -1)) & used
-    info = np.zeros_like(marg)
-    info[ok] = np.linalg.inv(marg[ok])
     rs, idx, j, vs, axis = rows
     # a row spanning more than two chain steps (not the smoothness's consecutive triples)
     # or two joints is left out: dropping information keeps the covariance an upper bound
@@ -629,6 +616,42 @@ def _with_smoothness(marg: np.ndarray, used: np.ndarray, rows: tuple, J: int) ->
             ip, iq, dk = ip[s], iq[s], dk[s]
             at = np.ravel_multi_index((dk, j[ip], idx[ip], axis[ip], axis[iq]), band.shape)
             band += np.bincount(at, vs[ip] * vs[iq], minlength=size).reshape(band.shape)
+    return _chain_solve(marg, used, band)
+
+
+def _smoothness_band(used: np.ndarray, frame_ids, smooth: SmoothnessFactor
+                     ) -> np.ndarray | None:
+    """The information of ``smooth`` on every joint's track (its consecutive triples,
+    :meth:`~mirrorgraph.factors.SmoothnessFactor.triples`) as the block band of each
+    joint's chain, ``(3, J, N, 3, 3)``: ``H[i, i + k]`` for ``k = 0, 1, 2`` (``N`` the
+    longest chain): the band :func:`_with_smoothness` builds from the rows, built
+    directly (a factor's rows are its three coefficients times the identity); ``None``
+    without a triple."""
+    fid = np.asarray(frame_ids, dtype=np.int64)
+    n = used.sum(0)
+    N, J = (int(n.max()) if n.size else 0), used.shape[1]
+    w = np.zeros((3, J, N))                             # the band's scalar (x I3) entries
+    found = False
+    for j in np.flatnonzero(n):
+        t = np.flatnonzero(used[:, j])
+        tri = smooth.triples(fid[t])                                          # (M, 3)
+        if not len(tri):
+            continue
+        found = True
+        c = smooth.coefficients(fid[t[tri]]) / smooth.sigma                   # (M, 3)
+        i0 = tri[:, 0]                          # i0 distinct: no index twice in one sum
+        for a in range(3):
+            for b in range(a, 3):
+                w[b - a, j, i0 + a] += c[:, a] * c[:, b]
+    return w[..., None, None] * np.eye(3) if found else None
+
+
+def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """:func:`_with_smoothness` given the smoothness's block band ``(3, J, N, 3, 3)``."""
+    J, N = band.shape[1:3]
+    ok = np.isfinite(marg).all((-2, -1)) & used
+    info = np.zeros_like(marg)
+    info[ok] = np.linalg.inv(marg[ok])
     diag, off1, off2 = band
     # the per-frame information on the diagonal, identity on the padding
     t_of = np.full((J, N), -1)
@@ -714,7 +737,7 @@ def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
 def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]],
                             Cz: np.ndarray | None, points: np.ndarray, pixels: list,
                             masks: list, pixel_sigma: float, step: float = 1e-6,
-                            frames: np.ndarray | None = None) -> np.ndarray:
+                            frames: np.ndarray | None = None, rays: bool = True) -> np.ndarray:
     """The covariance of points triangulated from two views or more, the globals' share
     included.
 
@@ -736,13 +759,19 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             taken out of the globals' response (a metric scale set by the subject's
             stature: :func:`graph_joints_covariance`); ``None``: kept (the distance the
             unit).
+        rays: with the rays' share; ``False``: the globals' share alone (``G C_z G^T``,
+            zero without ``Cz``).
 
     Returns:
         ``(N, 3, 3)``; NaN where fewer than two views see a point.
     """
     X = np.asarray(points, float).reshape(-1, 3)
     P0 = projections(np.zeros(0 if Cz is None else len(Cz)))
-    cov = geo.triangulation_covariance(P0, X, masks, pixel_sigma)
+    alone = not rays and Cz is not None and len(Cz) and len(X) and np.all(np.isfinite(Cz))
+    # the globals' share alone: where the rays determine a point, from the loop's information
+    cov = None if alone else geo.triangulation_covariance(P0, X, masks, pixel_sigma)
+    if not rays and not alone:
+        cov = np.where(np.isfinite(cov), 0.0, np.nan)
     if Cz is None or not len(Cz) or not len(X):
         return cov
     if not np.all(np.isfinite(Cz)):
@@ -766,6 +795,11 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             Jz[:, :, k] = (yp[:, :2] / yp[:, 2:3] - ym[:, :2] / ym[:, 2:3]) / (2 * step)
         info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
         rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
+    if cov is None:                      # as geo.triangulation_covariance decides it
+        seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
+        ok = seen & np.isfinite(info).all((1, 2))
+        ok[ok] = np.linalg.det(info[ok]) > 0
+        cov = np.where(ok[:, None, None], 0.0, np.nan) * np.ones((1, 3, 3))
     good = np.isfinite(cov).all((1, 2))
     G = np.zeros((len(X), 3, n))
     G[good] = -np.linalg.solve(info[good], rhs[good])
