@@ -234,18 +234,18 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
 
         tk, jk = np.nonzero(keep)
         projections = mirror_plane_projections(K, n, float(distance))
-        pixels, masks = [paired.real[tk, jk, :2], paired.mirror[tk, jk, :2]], [np.ones(len(tk), bool)] * 2
+        pixels = [paired.real[tk, jk, :2], paired.mirror[tk, jk, :2]]
+        masks = [np.ones(len(tk), bool)] * 2
         rays = triangulated_covariance(projections, None, points[tk, jk], pixels, masks,
                                        float(pixel_sigma))
+        # the plane's share: common to a track's frames, the smoothing averages the rays'
+        # noise, not it
+        shared = (np.zeros_like(rays) if plane_cov is None else triangulated_covariance(
+            projections, np.asarray(plane_cov, float), points[tk, jk], pixels, masks,
+            float(pixel_sigma), frames=tk if body_gauge else None, rays=False))
         cov = np.full((T, J, 3, 3), np.nan)
-        cov[tk, jk] = triangulated_covariance(
-            projections, None if plane_cov is None else np.asarray(plane_cov, float),
-            points[tk, jk], pixels, masks, float(pixel_sigma),
-            frames=tk if body_gauge else None)
+        cov[tk, jk] = rays + shared
         if smoothness is not None and len(tk):
-            # the plane's share is common to a track's frames: the smoothing averages
-            # the rays' noise, not it
-            shared = cov[tk, jk] - rays
             good = np.isfinite(rays).all((1, 2))
             info = np.zeros((T, J, 3, 3))
             info[tk[good], jk[good]] = np.linalg.inv(rays[good])
