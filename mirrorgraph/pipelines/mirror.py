@@ -236,12 +236,35 @@ class Observations:
     body_lr_fixes: int = 0
 
 
-def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
+@dataclass
+class Prepared:
+    """A single camera's input before the pairing (:func:`prepare`).
+
+    Attributes:
+        keypoints: the input as read (raw pixels); data: the same, undistorted.
+        joints: ``(k,)`` the joints the run uses.
+        intrinsics: the camera's (given, or the field-of-view guess).
+        fps, fps_source: the frame rate of the 3D motion and where it came from.
+        pairing: the pairing's options (threshold, confidence, seed).
+        warnings: what reading them found worth saying.
+    """
+
+    keypoints: RawDetections | PairedKeypoints
+    data: RawDetections | PairedKeypoints
+    joints: np.ndarray
+    intrinsics: Intrinsics
+    fps: float
+    fps_source: str
+    pairing: PairingOptions
+    warnings: list[str]
+
+
+def prepare(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
             intrinsics: Intrinsics | None, opts: CalibrateOptions,
-            step: Callable[[str], None] = lambda _name: None) -> Observations:
-    """Read the keypoints, resolve the joints, frame rate and intrinsics, undistort, and
-    pair person and reflection (:mod:`mirrorgraph.initial.pairing`): the observations of
-    the rig of one camera and one mirror."""
+            step: Callable[[str], None] = lambda _name: None) -> Prepared:
+    """Read the keypoints, resolve the joints, frame rate and intrinsics, and undistort:
+    what the pairing of one person (:func:`observe`) and of every person
+    (:func:`mirrorgraph.pipelines.people.calibrate_people`) start from."""
     if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
         step("reading keypoints")
         keypoints = read_keypoints(keypoints, skeleton=opts.skeleton, video=opts.detection)
@@ -256,15 +279,26 @@ def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     data = undistort_keypoints(keypoints, intr)
     pair_opts = PairingOptions(min_confidence=opts.min_confidence,
                                threshold_px=opts.threshold_px, seed=opts.seed)
+    return Prepared(keypoints, data, joints, intr, fps, fps_source, pair_opts, warnings)
+
+
+def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
+            intrinsics: Intrinsics | None, opts: CalibrateOptions,
+            step: Callable[[str], None] = lambda _name: None) -> Observations:
+    """Read the keypoints, resolve the joints, frame rate and intrinsics, undistort
+    (:func:`prepare`), and pair person and reflection (:mod:`mirrorgraph.initial.pairing`):
+    the observations of the rig of one camera and one mirror."""
+    p = prepare(keypoints, intrinsics, opts, step)
     step("pairing person and reflection")
     clock = time.perf_counter()
-    if isinstance(data, PairedKeypoints):
-        paired = fix_left_right(data, joints, pair_opts)
+    if isinstance(p.data, PairedKeypoints):
+        paired = fix_left_right(p.data, p.joints, p.pairing)
     else:
-        paired = pair_detections(data, joints, pair_opts)
+        paired = pair_detections(p.data, p.joints, p.pairing)
     paired, body_swaps = undo_body_swaps(paired, opts.min_confidence)
-    return Observations(keypoints, data, paired, joints, intr, fps, fps_source, pair_opts,
-                        warnings, time.perf_counter() - clock, body_swaps)
+    return Observations(p.keypoints, p.data, paired, p.joints, p.intrinsics, p.fps,
+                        p.fps_source, p.pairing, p.warnings, time.perf_counter() - clock,
+                        body_swaps)
 
 
 @dataclass

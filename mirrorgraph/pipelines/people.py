@@ -33,17 +33,13 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..initial.pair_candidates import PairingOptions
 from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
 from ..intrinsics import Intrinsics
-from ..io import read_keypoints
-from ..joint_sets import mirror_joints
 from ..keypoints import PairedKeypoints, RawDetections
-from ..preprocess import check_image_size, resolve_fps, undistort_keypoints
 from ..stature import estimate_stature, with_height_sigma
 from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
-                     refine_run, resolve_intrinsics)
+                     prepare, refine_run)
 from .options import CalibrateOptions
 
 __all__ = ["PeopleRun", "calibrate_people"]
@@ -89,24 +85,14 @@ class PeopleRun:
 
 def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: PeopleOptions,
                     step) -> tuple[Observations, PeoplePairing]:
-    """Read, undistort, pair every person with their reflection and track them."""
-    if not isinstance(keypoints, (RawDetections, PairedKeypoints)):
-        step("reading keypoints")
-        keypoints = read_keypoints(keypoints, skeleton=opts.skeleton, video=opts.detection)
+    """Read, undistort (:func:`~.mirror.prepare`), pair every person with their reflection
+    and track them."""
+    prep = prepare(keypoints, intrinsics, opts, step)
+    keypoints, data, joints, intr = prep.keypoints, prep.data, prep.joints, prep.intrinsics
+    fps, fps_source, pair_opts, warnings = prep.fps, prep.fps_source, prep.pairing, prep.warnings
     if isinstance(keypoints, PairedKeypoints):
         raise InputError("every person's pairing needs the detections of every frame, not "
                          "keypoints already paired (one person)", source=keypoints.source)
-    warnings: list[str] = []
-    joints = mirror_joints(keypoints.skeleton, opts.joints, source=keypoints.source or None)
-    fps_warnings: list[str] = []
-    fps, fps_source = resolve_fps(keypoints, fps_warnings, fps=opts.fps, video=opts.video)
-    if opts.refine:
-        warnings.extend(fps_warnings)
-    intr = resolve_intrinsics(intrinsics, keypoints, opts, warnings)
-    check_image_size(keypoints, intr, warnings)
-    data = undistort_keypoints(keypoints, intr)
-    pair_opts = PairingOptions(min_confidence=opts.min_confidence,
-                               threshold_px=opts.threshold_px, seed=opts.seed)
     step("pairing every person with their reflection")
     clock = time.perf_counter()
     pairing = pair_people(data, joints, pair_opts, people)
