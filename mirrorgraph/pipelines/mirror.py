@@ -195,14 +195,21 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "
             "distance stays unknown")
-    calib = run.calibration                                                 # result
+    judge_run(run, obs, init, opts)                                         # result
+    return run
+
+
+def judge_run(run: CalibrationRun, obs: Observations, init: Initial,
+              opts: CalibrateOptions) -> None:
+    """Every warning about the run's calibration (:func:`.judge.judge_mirror`): its rays'
+    angle, the initialisation's residuals, the motion, the reflection check."""
+    calib = run.calibration
     rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
                                  calib.distance if calib.distance is not None else 1.0)
             if opts.refine else float("nan"))
     est = init.estimate
     judge_mirror(calib, est.residuals[est.inliers],
                  motion_px(obs.paired, obs.joints, opts.min_confidence), init.check, rays)
-    return run
 
 
 @dataclass

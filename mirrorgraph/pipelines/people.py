@@ -37,9 +37,8 @@ from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_pe
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
 from ..stature import estimate_stature, with_height_sigma
-from .judge import judge_mirror, median_ray_angle_deg, motion_px
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
-                     prepare, refine_run)
+                     judge_run, prepare, refine_run)
 from .options import CalibrateOptions
 
 __all__ = ["PeopleRun", "calibrate_people"]
@@ -226,11 +225,6 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
     elif height is not None:
         calib.warnings.append("subject_height needs the refinement (it scales the body); "
                               "without it the distance stays unknown")
-    rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
-                                 calib.distance if calib.distance is not None else 1.0)
-            if opts.refine else float("nan"))
-    est = init.estimate
-    judge_mirror(calib, est.residuals[est.inliers],
-                 motion_px(obs.paired, obs.joints, opts.min_confidence), init.check, rays)
+    judge_run(run, obs, init, opts)
     return PeopleRun(run=run, pairing=pairing, joints3d=joints3d, valid3d=valid3d,
                      statures=statures, height_person=person)
