@@ -41,8 +41,11 @@ fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mir
 from __future__ import annotations
 
 import copy
+import os
+import signal
 import time
 from collections import Counter, deque
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -292,6 +295,20 @@ def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
         if spread > 0:
             dX = dX - X[:, :, None] * (np.einsum("ni,nik->k", c, dX) / spread)[None, None]
     return dX
+
+
+@contextmanager
+def _sigint_ignored():
+    """SIGINT ignored for a moment (the main thread only; elsewhere nothing changes)."""
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:                    # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _warm_up() -> None:
@@ -684,12 +701,21 @@ class LiveCalibrator:
         return time.perf_counter() - clock
 
     def _executor(self):
+        """The background worker's pool; its process starts here, with SIGINT ignored.
+
+        A spawned process inherits an ignored SIGINT (and Python then installs no
+        KeyboardInterrupt handler in it), so Ctrl-C stops the main process alone: one
+        line, no worker traceback; the main process stops the worker (:meth:`close`).
+        """
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            pool = ProcessPoolExecutor(max_workers=1,
+                                       mp_context=multiprocessing.get_context("spawn"))
+            with _sigint_ignored():     # the pool starts its process in submit: no wait
+                pool.submit(os.getpid)
+            self._pool = pool
         return self._pool
 
     def _poll(self, wait: bool = False) -> float:

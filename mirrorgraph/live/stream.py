@@ -25,10 +25,8 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import sys
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -181,30 +179,6 @@ def _no_mirror(live: LiveCalibrator, people: dict[int, int]) -> str | None:
             f"{c['windows_rejected']} rejected, {c['buffered']} frames buffered)")
 
 
-@contextmanager
-def _sigint_ignored():
-    """SIGINT ignored for a moment (the main thread only; elsewhere nothing changes)."""
-    try:
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:                    # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, old)
-
-
-def _start_worker(live: LiveCalibrator) -> None:
-    """Start the background worker with SIGINT ignored: a process spawned so inherits
-    the disposition, and Ctrl-C stops the main process alone (one line, no worker
-    traceback); the main process stops the worker (:meth:`LiveCalibrator.close`)."""
-    if not live.options.background:
-        return
-    with _sigint_ignored():           # the pool starts its process in submit: no wait
-        live._executor().submit(os.getpid)
-
-
 def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.PathLike,
              *, view: str | None = None, on_frame=None) -> LiveSummary:
     """Run a source through :class:`LiveCalibrator`, a JSON line per frame.
@@ -246,7 +220,6 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
     clock = time.perf_counter()
     to_stdout = os.fspath(jsonl) == "-"
     try:
-        _start_worker(live)
         viewer = LiveView(source.skeleton, view or None) if view is not None else None
         fh = sys.stdout if to_stdout else open(Path(jsonl), "w", encoding="utf-8")
         try:
