@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..initial.body_left_right import undo_body_swaps
 from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
@@ -96,10 +97,13 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
     clock = time.perf_counter()
     pairing = pair_people(data, joints, pair_opts, people)
     warnings.extend(pairing.notes)
+    # each person's left/right pairs are pairs of the layout's flip: one chain each
+    paired, body_swaps = undo_body_swaps(pairing.paired, opts.min_confidence)
+    pairing = replace(pairing, paired=paired)
     P, J = pairing.num_people, keypoints.skeleton.num_joints
     all_joints = (np.asarray(joints, dtype=int)[None, :] + J * np.arange(P)[:, None]).ravel()
-    obs = Observations(keypoints, pairing.paired, pairing.paired, all_joints, intr, fps,
-                       fps_source, pair_opts, warnings, time.perf_counter() - clock)
+    obs = Observations(keypoints, paired, paired, all_joints, intr, fps, fps_source, pair_opts,
+                       warnings, time.perf_counter() - clock, body_lr_fixes=body_swaps)
     return obs, pairing
 
 

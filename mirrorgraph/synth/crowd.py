@@ -182,7 +182,7 @@ def make_crowd(*, people: int = 4, frames: int = 300, seed: int | None = 0,
                camera_height: float = 1.6, noise_std: float = 4.0, noise_mean: float = 0.0,
                outlier_rate: float = 0.0, missing_rate: float = 0.0, lr_swap_rate: float = 0.0,
                occluded_rate: float = 0.0, min_spacing: float = 0.9, fps: float = 30.0,
-               attempts: int = 400) -> SyntheticCrowd:
+               attempts: int = 400, lr_swap_views: str = "mirror") -> SyntheticCrowd:
     """A gym scene: ``people`` people before one mirror (the module docstring's model).
 
     Args:
@@ -202,6 +202,10 @@ def make_crowd(*, people: int = 4, frames: int = 300, seed: int | None = 0,
         min_spacing: nearest two people's floor points may be, m.
         fps: frame rate.
         attempts: draws of a person's position before the whole scene is drawn again.
+        lr_swap_views: ``"mirror"``: the swaps label the reflection unflipped (its labels
+            against the person's); ``"both"``: also the person's own left/right swapped in
+            both views in other frames (a detector mistaking which way a person faces), at
+            the same rate.
 
     Raises:
         ValueError: an option out of range, or no placement fits after 20 scenes.
@@ -213,6 +217,8 @@ def make_crowd(*, people: int = 4, frames: int = 300, seed: int | None = 0,
                     ("lr_swap_rate", lr_swap_rate), ("occluded_rate", occluded_rate)):
         if not 0.0 <= v <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {v}")
+    if lr_swap_views not in ("mirror", "both"):
+        raise ValueError(f"lr_swap_views must be 'mirror' or 'both', got {lr_swap_views!r}")
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
     check_skeleton(skel)
     size = (w, h)
@@ -247,7 +253,12 @@ def make_crowd(*, people: int = 4, frames: int = 300, seed: int | None = 0,
         detected &= ~occ[p]
         swap = (rng.random(T) < lr_swap_rate) & detected[1]
         mirror_labels = np.where(swap[:, None, None], obs[1], obs[1][:, flip])
-        dets.append((obs[0], mirror_labels))
+        real_labels = obs[0]
+        if lr_swap_views == "both":
+            both = (rng.random(T) < lr_swap_rate)[:, None, None]
+            real_labels = np.where(both, real_labels[:, flip], real_labels)
+            mirror_labels = np.where(both, mirror_labels[:, flip], mirror_labels)
+        dets.append((real_labels, mirror_labels))
         owner.append(detected)
     frame_people, frame_owner, frame_refl = [], [], []
     for t in range(T):
@@ -272,7 +283,7 @@ def make_crowd(*, people: int = 4, frames: int = 300, seed: int | None = 0,
                    camera_height=camera_height, noise_std=noise_std, noise_mean=noise_mean,
                    outlier_rate=outlier_rate, missing_rate=missing_rate,
                    lr_swap_rate=lr_swap_rate, occluded_rate=occluded_rate,
-                   min_spacing=min_spacing, fps=fps)
+                   min_spacing=min_spacing, fps=fps, lr_swap_views=lr_swap_views)
     return SyntheticCrowd(K=K, image_size=size, normal=n, distance=d, skeleton=skel,
                           fps=float(fps), frame_ids=frame_ids, joints3d=X, heights=heights,
                           person_to_mirror=to_m, detections=raw, truth_person=frame_owner,
