@@ -210,8 +210,12 @@ SKELETONS: dict[str, Skeleton] = {s.name: s for s in (COCO_17, BODY_25, COCO_18,
 def skeleton_by_name(name: str) -> Skeleton:
     """Look a layout up by name, case-insensitively, ``-`` for ``_`` (``"body_25b"``,
     ``"HALPE-26"``); :class:`~mirrorgraph.errors.InputError` (a ``ValueError``) if
-    unknown."""
+    unknown. ``"COCO_17@3"`` names the layout of three people side by side
+    (:func:`people_skeleton`)."""
     key = name.strip().upper().replace("-", "_")
+    base, tag, count = key.partition(PERSON_TAG)
+    if tag and base in SKELETONS and count.isdigit() and int(count) >= 2:
+        return people_skeleton(SKELETONS[base], int(count))
     if key not in SKELETONS:
         raise InputError(f"unknown skeleton {name!r}; known: {', '.join(SKELETONS)}")
     return SKELETONS[key]

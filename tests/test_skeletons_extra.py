@@ -264,3 +264,15 @@ def test_halpe_26_is_found_by_its_count(tmp_path):
     det = RawDetections(skeleton=HALPE_26, frame_ids=np.arange(3), people=people)
     write_keypoints(det, tmp_path / "pred.json", "mmpose")
     assert read_keypoints(tmp_path / "pred.json").skeleton is HALPE_26
+
+
+def test_the_layout_of_several_people_by_its_name():
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.skeletons import people_skeleton, skeleton_by_name
+
+    three = people_skeleton(skeleton_by_name("COCO_17"), 3)
+    again = skeleton_by_name(three.name.lower())
+    assert again.joints == three.joints and again.bones == three.bones
+    for bad in ("COCO_17@1", "COCO_17@x", "NOPE@3"):
+        with pytest.raises(InputError):
+            skeleton_by_name(bad)

@@ -150,10 +150,6 @@ def cmd_calibrate(args) -> int:
                    (args.report, "--report"), (args.render, "--render")],
                   inputs=[args.keypoints, args.intrinsics, args.video],
                   folders=("--report",))
-    if args.people == "all":
-        for flag, given in (("--report", args.report), ("--view", args.view is not None)):
-            if given:
-                raise InputError("draws one person: not with --people all", field=flag)
     if args.sensitivity and args.no_refine:
         raise InputError("needs the refinement: drop --no-refine", field="--sensitivity")
     if args.camera and not args.intrinsics:

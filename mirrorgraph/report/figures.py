@@ -191,16 +191,25 @@ def pick_frames(data, count: int) -> np.ndarray:
     return np.unique(good[np.linspace(0, len(good) - 1, min(count, len(good))).round().astype(int)])
 
 
-def mirror_gap(data) -> float | None:
-    """Median over frames of the person's distance in front of the mirror, ``d - n.X``
-    of the mean of each frame's 3D joints (the report's unit), or ``None``."""
+def mirror_gap(data) -> np.ndarray | None:
+    """``(P,)`` median over frames of each person's distance in front of the mirror,
+    ``d - n.X`` of the mean of each frame's 3D joints of that person (the report's unit;
+    one person per entry of :func:`~mirrorgraph.skeletons.people_skeleton`'s layout), or
+    ``None`` where no person has a 3D joint."""
+    from ..skeletons import person_of
+
     X = data.joints_after
-    ok = np.isfinite(X).all(-1)
-    rows = np.flatnonzero(ok.any(1))
-    if len(rows) == 0:
-        return None
-    means = np.array([X[t][ok[t]].mean(0) for t in rows])
-    return float(np.median(data.distance - means @ data.normal))
+    tags = [person_of(n) for n in data.skeleton.joints]
+    gaps = []
+    for tag in dict.fromkeys(tags):
+        cols = np.array([t == tag for t in tags])
+        ok = np.isfinite(X[:, cols]).all(-1)
+        rows = np.flatnonzero(ok.any(1))
+        if len(rows):
+            sums = np.where(ok[rows, :, None], X[rows][:, cols], 0.0).sum(1)
+            means = sums / ok[rows].sum(1, keepdims=True)
+            gaps.append(float(np.median(data.distance - means @ data.normal)))
+    return np.array(gaps) if gaps else None
 
 
 def _mirror_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -298,7 +307,8 @@ def scene3d(data, *, frames: int = 4):
         top.set_xlim(x0, x1)
         top.set_ylim(z0, z1)
     edge.axvline(d, color="#3182bd", lw=4, alpha=0.55, gid="mirror")
-    gap = mirror_gap(data)
+    gaps = mirror_gap(data)
+    gap = None if gaps is None else float(gaps.min())         # the nearest person's
     if gap is not None:
         # above the body's top, the label a few points higher still: off the skeleton
         # however small it is drawn (a far virtual camera widens the axes)
@@ -327,8 +337,11 @@ def scene3d(data, *, frames: int = 4):
     edge.legend(handles=handles, loc="upper left", fontsize=8, framealpha=0.9)
     if metric:
         where = f"unit: metres; the mirror is {d:.3f} m from the camera"
-        if gap is not None:
+        if gaps is not None and len(gaps) == 1:
             where += f", the person about {gap:.2f} m in front of it"
+        elif gaps is not None:
+            where += (f", {len(gaps)} people {gaps.min():.2f}-{gaps.max():.2f} m in front "
+                      "of it")
     else:
         where = ("unit: the camera-to-mirror distance (no metric scale: --subject-height "
                  "gives metres)")

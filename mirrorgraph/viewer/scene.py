@@ -109,9 +109,23 @@ def _virtual_camera(name: str, K: np.ndarray, size, pose: np.ndarray, normal: np
 
 
 def _bones(joint_names) -> np.ndarray:
-    """``(B, 2)`` joint indices of the layout's bones plus the face's and feet's links."""
+    """``(B, 2)`` joint indices of the layout's bones plus the face's and feet's links,
+    person by person in the layout of several people
+    (:func:`~mirrorgraph.skeletons.people_skeleton`: names tagged ``@p``)."""
+    from ..skeletons import person_of
+    names = [str(n) for n in joint_names]
+    tags = [person_of(n) for n in names]
+    out = []
+    for tag in dict.fromkeys(tags):
+        rows = np.array([i for i, t in enumerate(tags) if t == tag])
+        base = [names[i][:len(names[i]) - len(tag)] for i in rows]
+        out.append(rows[_body_bones(base)])
+    return np.concatenate(out).reshape(-1, 2) if out else np.zeros((0, 2), int)
+
+
+def _body_bones(names: list[str]) -> np.ndarray:
+    """``(B, 2)`` bones of one person's joint names (:func:`_bones`)."""
     from ..skeletons import skeletons_for_count
-    names = list(joint_names)
     idx = {n: i for i, n in enumerate(names)}
     pairs = []
     for sk in skeletons_for_count(len(names)):

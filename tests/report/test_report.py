@@ -344,7 +344,7 @@ def test_scene3d_is_readable(scene_run):
         assert ax.name == "rectilinear" and ax.get_aspect() == 1.0
     # seen along the mirror: the mirror a vertical line at d, the person in front of it
     # and the reflection as far behind it
-    gap = figures.mirror_gap(data)
+    (gap,) = figures.mirror_gap(data)
     assert 0 < gap < data.distance
     lines = {gid: [ln for ln in edge.get_lines() if ln.get_gid() == gid]
              for gid in ("mirror", "skeleton", "reflection")}
