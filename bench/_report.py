@@ -1,7 +1,8 @@
-"""The header every ``bench/RESULTS_*.md`` opens with: date, command, machine.
+"""The header every ``bench/RESULTS_*.md`` opens with: date, command, machine (and code).
 
     from _report import header
     lines = ["# Title (`bench/bench_x.py`)", "", *header(), "", table...]
+    lines = [..., *header(code=True), ...]      # a fourth line: the commit measured
 
 The machines are shared: the machine line carries the load average when the file is
 written, so that a contended run reads as one.
@@ -13,10 +14,13 @@ import datetime
 import os
 import platform
 import shlex
+import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["header", "command", "machine", "cpu_model", "now"]
+__all__ = ["header", "command", "machine", "cpu_model", "now", "code_state"]
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def now() -> str:
@@ -51,18 +55,45 @@ def machine() -> str:
             f"{load[1]:.2f} / {load[2]:.2f} (1/5/15 min)")
 
 
+def code_state(root: Path = ROOT) -> str:
+    """The commit of ``root`` and its uncommitted files under ``mirrorgraph/``.
+
+    Read-only git calls (``--no-optional-locks``: a bench running beside a commit does
+    not take the index lock); ``"unknown"`` outside a git checkout.
+    """
+    try:
+        rev = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+        st = subprocess.run(["git", "--no-optional-locks", "-C", str(root), "status",
+                             "--porcelain", "--", "mirrorgraph"],
+                            capture_output=True, text=True, check=True).stdout.splitlines()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    changed = [x[3:] for x in st if x.strip()]
+    return rev + (f" plus uncommitted changes to {', '.join(changed)}" if changed else "")
+
+
 def header(*, started: str | None = None, argv: list[str] | None = None,
            script: str | None = None, cmd: str | None = None, note: str = "",
-           bullet: str = "*") -> list[str]:
-    """The three lines ``date``, ``command``, ``machine`` of a results file.
+           bullet: str = "*", machine_line: str | None = None,
+           code: bool | str = False) -> list[str]:
+    """The lines ``date``, ``command``, ``machine`` (and ``code``) of a results file.
 
     Args:
         started: the date (default: now); argv, script: as :func:`command`; cmd: the
             command line itself, where the script builds its own.
         note: appended to the machine line (e.g. how many jobs ran at once).
         bullet: the list marker (``*`` or ``-``).
+        machine_line: the machine line as recorded with the figures (a report written
+            again from saved data); default :func:`machine` now.
+        code: ``True``: a fourth line, the commit measured (:func:`code_state`); a string:
+            that line's text as recorded.
     """
-    line = machine() + (f"; {note}" if note else "")
-    return [f"{bullet} date: {started or now()}",
-            f"{bullet} command: `{cmd or command(argv, script)}`",
-            f"{bullet} machine: {line}"]
+    line = (machine_line or machine()) + (f"; {note}" if note else "")
+    lines = [f"{bullet} date: {started or now()}",
+             f"{bullet} command: `{cmd or command(argv, script)}`",
+             f"{bullet} machine: {line}"]
+    if code:
+        state = code_state() if code is True else code
+        lines.append(f"{bullet} code: mirrorgraph at commit {state}")
+    return lines

@@ -112,7 +112,7 @@ from mirrorgraph.skeletons import BLAZEPOSE, BODY_25B  # noqa: E402
 from mirrorgraph.synth.mirror_clip import PlanarMirrorClip  # noqa: E402
 from mirrorgraph.video import VideoOptions, detect_video  # noqa: E402
 from mirrorgraph.video.track import TrackerOptions  # noqa: E402
-from results_blocks import machine  # noqa: E402
+from _report import header  # noqa: E402  (one header for every results file)
 
 OP_COMMIT = "a4d38da"
 OP_PATH = ("Pose2Sim/Demo/S00_Demo_Session/S00_P00_Participant/S00_P00_T01_BalancingTrial/"
@@ -706,13 +706,10 @@ def main(argv: list[str] | None = None) -> int:
 def report(rows, offsets, pooled, seconds, started, argv, args) -> None:
     cmd = "python bench/bench_agreement.py " + " ".join(argv if argv is not None
                                                           else sys.argv[1:])
-    rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                         capture_output=True, text=True).stdout.strip()
     L = ["# Annotations against video: one mirror clip, two calibrations (issue #24)", "",
-         f"- date: {started:%Y-%m-%d %H:%M} UTC; run time {seconds / 60:.1f} min "
-         "(detection included unless read from the cache)",
-         f"- machine: {machine()}",
-         f"- command: `{cmd.strip()}` (mirrorgraph at `{rev}`)",
+         *header(started=f"{started:%Y-%m-%d %H:%M} UTC; run time {seconds / 60:.1f} min "
+                 "(detection included unless read from the cache)", cmd=cmd.strip(),
+                 bullet="-", code=True),
          f"- clips: Demo_SinglePerson (pose2sim 0.10.49), {args.frames} frames each, composited "
          "as a planar mirror from two of its cameras (exact; the reflection half hidden "
          "behind the person) or from one camera with a flat cut-out reflection (see the "

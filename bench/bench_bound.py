@@ -54,10 +54,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import itertools  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -317,13 +314,7 @@ def table_corr(rho: dict) -> list[str]:
 
 
 # --------------------------------------------------------------------------- report
-def machine() -> tuple[str, str]:
-    from results_blocks import cpu_model
-    uname = subprocess.run(["uname", "-a"], capture_output=True, text=True).stdout.strip()
-    cpu = cpu_model()
-    load = os.getloadavg()
-    return uname, (f"{cpu}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
-                   f"load average at the end {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")
+from _report import header, now  # noqa: E402  (one header for every results file)
 
 
 def check_bounds(log) -> list[str]:
@@ -445,12 +436,9 @@ def main(argv: list[str] | None = None) -> int:
            "(median-form) frames." if best_apart is not None else "."),
     ]
 
-    uname, mach = machine()
     L = ["# The Cramer-Rao bound of the mirror across scenes, and the pipeline against it", "",
-         f"* date: {datetime.datetime.now().isoformat(timespec='seconds')}",
-         f"* machine: `{uname}`; {mach}",
-         f"* command: `{command.strip()}` ({elapsed / 60:.1f} min: bound sweep "
-         f"{t_sweep / 60:.1f} min, pipeline runs {(elapsed - t_sweep) / 60:.1f} min)",
+         *header(started=f"{now()} ({elapsed / 60:.1f} min: bound sweep {t_sweep / 60:.1f} "
+                 f"min, pipeline runs {(elapsed - t_sweep) / 60:.1f} min)", cmd=command.strip()),
          "* protocol: 1000 frames, COCO-17 (12 calibration joints), 1920x1080, Gaussian "
          "detector noise std 4 px (mean 0.076 px) per coordinate, nothing else; scenes from "
          "`bench/compare.py` `build_case` -> `make_scene` (every joint of the person and of "

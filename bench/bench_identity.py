@@ -10,7 +10,8 @@ field where it is.
     python bench/bench_identity.py --save /tmp/before.json       # on the old tree
     python bench/bench_identity.py --against /tmp/before.json    # on the new tree
 
-It writes no RESULTS file: its answer is the comparison, for the commit message.
+It writes no RESULTS file: its answer is the comparison (under the header of
+``bench/_report.py``: date, command, machine, commit), for the commit message.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import mirrorgraph as mg
+from _report import header
 
 
 def _digest(a: np.ndarray | None) -> str | None:
@@ -136,6 +138,7 @@ def main(argv=None) -> int:
         print(f"saved to {a.save}")
         return 0
     rows = compare(json.loads(a.against.read_text()), json.loads(json.dumps(res)))
+    print("\n".join(header(argv=argv, script="bench_identity.py", code=True)) + "\n")
     print("| case | against the saved numbers |\n|---|---|")
     for case, msg in rows:
         print(f"| {case} | {msg} |")

@@ -30,8 +30,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import platform
-import subprocess
 import sys
 import time
 import warnings
@@ -196,17 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     print("\n".join(lines))
     if args.no_write:
         return 0
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                                capture_output=True, text=True).stdout.strip()
-    except OSError:
-        commit = "?"
+    from _report import header
+
     text = ["# Each joint's std against its error (`calibrate`, `joints_std`)", "",
-            f"* date: {started:%Y-%m-%d %H:%M} UTC, {time.perf_counter() - clock:.0f} s; "
-            f"commit {commit}",
-            f"* machine: {platform.machine()}, {platform.processor() or '?'}, Python "
-            f"{platform.python_version()}, shared with other jobs (times are noisy)",
-            f"* command: `python bench/bench_joints_std.py {' '.join(argv or sys.argv[1:])}`",
+            *header(started=f"{started:%Y-%m-%d %H:%M} UTC, {time.perf_counter() - clock:.0f} s",
+                    argv=argv, script="bench_joints_std.py",
+                    note="shared with other jobs (times are noisy)", code=True),
             f"* scenes: `make_wide_scene(seed, 'wide', noise, {args.frames})`, seeds "
             f"0-{args.seeds - 1}, camera matrix and subject height given; the fixtures "
             "(`../shared/fixtures`, their `joints3d_truth.npz`)",

@@ -22,7 +22,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -32,7 +31,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_rig import code_state, machine  # noqa: E402
+from _report import header, now  # noqa: E402  (one header for every results file)
 
 from mirrorgraph.anthropometry import expected_bone_lengths  # noqa: E402
 from mirrorgraph.graph.options import RefineOptions  # noqa: E402
@@ -91,10 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     total = time.perf_counter() - t0
 
     lines = ["# Metric scale: measured stature vs limb proportions", "",
-             f"* date: {datetime.datetime.now().isoformat(timespec='seconds')} (total {total:.0f} s)",
-             *machine(), f"* code: mirrorgraph at commit {code_state()}",
-             "* command: `python bench/bench_stature.py" + (" " + " ".join(argv or sys.argv[1:])
-                                                           if (argv or sys.argv[1:]) else "") + "`",
+             *header(started=f"{now()} (total {total:.0f} s)", argv=argv, script="bench_stature.py",
+                     code=True),
              f"* scenes: `make_scene(frames={args.frames}, seed=s, skeleton=...)` for s = 0.."
              f"{args.seeds - 1} (single mirror, 1920x1080, noise mean 0.076 px std 4 px, an "
              "individual body: each segment kind scaled by 1 + 0.03 z), calibrated with the true "

@@ -86,7 +86,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -638,13 +637,13 @@ def table_compare(rows, old_rows) -> list[str]:
     return L
 
 
-from results_blocks import machine  # noqa: E402  (one machine line for every results file)
+from _report import header, machine, now  # noqa: E402  (one header for every results file)
 
 
 #: Where the solver lives: the files whose changes a stress run measures.
 SOLVER = ("mirrorgraph/graph/", "mirrorgraph/rigs/", "mirrorgraph/factors/",
-          "mirrorgraph/pipeline.py", "mirrorgraph/pairing.py", "mirrorgraph/estimators.py",
-          "mirrorgraph/ransac.py", "mirrorgraph/solvers/", "mirrorgraph/geometry.py")
+          "mirrorgraph/pipelines/", "mirrorgraph/initial/", "mirrorgraph/completion.py",
+          "mirrorgraph/geometry.py")
 
 
 def tree_state() -> str:
@@ -666,9 +665,8 @@ def tree_state() -> str:
 def report(data: dict, old: dict | None) -> str:
     meta, rows = data["meta"], data["rows"]
     L = ["# Stress benchmark (`bench/bench_stress.py`)", "",
-         f"* date: {meta['date']} ({meta['elapsed_min']:.1f} min)",
-         f"* machine: {meta['machine']}",
-         f"* command: `{meta['command']}`",
+         *header(started=f"{meta['date']} ({meta['elapsed_min']:.1f} min)", cmd=meta["command"],
+                 machine_line=meta["machine"]),
          f"* solver: {meta['tree']}",
          f"* scenes: {meta['per_slice']} per slice x {meta['frames']} frames (COCO-17, "
          "1920x1080), `make_wide_scene(seed, geometry, noise, frames)`, seeds 0.."
@@ -794,7 +792,7 @@ def main(argv: list[str] | None = None) -> int:
         log(f"note: {n}")
     t0 = time.perf_counter()
     rows = execute(cases, a.workers, a.timeout)
-    meta = dict(date=datetime.datetime.now().isoformat(timespec="seconds"),
+    meta = dict(date=now(),
                 elapsed_min=(time.perf_counter() - t0) / 60.0, machine=machine(),
                 command=command.strip(), tree=a.label or tree_state(), per_slice=per,
                 frames=frames,

@@ -77,7 +77,6 @@ import argparse  # noqa: E402
 import datetime  # noqa: E402
 import importlib.util  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -87,6 +86,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+
+from _report import header  # noqa: E402  (one header for every results file)
 
 #: clip -> (subjects, bystanders in view at most)
 DEMO_PEOPLE = {"cam01": 1, "cam02": 2, "cam03": 0, "cam04": 0}
@@ -658,13 +659,10 @@ def main(argv: list[str] | None = None) -> int:
             loads.append(os.getloadavg()[0])
     lines = [
         "# Video detection: people a frame, tracks, speed (before / after)", "",
-        f"- date: {started:%Y-%m-%d %H:%M} UTC",
-        f"- machine: {platform.machine()}, {_cpu()}, {os.cpu_count()} cores visible, "
-        f"Python {platform.python_version()}, {platform.system()} (shared with other jobs: "
-        "frames/s are of one run under that load, before and after side by side; load "
-        f"average {min(loads):.1f}-{max(loads):.1f} during the run)",
-        f"- command: `python bench/bench_video.py {' '.join(argv or sys.argv[1:])}`".replace(
-            "  ", " "),
+        *header(started=f"{started:%Y-%m-%d %H:%M} UTC", argv=argv, script="bench_video.py",
+                bullet="-", note="shared with other jobs: frames/s are of one run under that "
+                "load, before and after side by side; load average "
+                f"{min(loads):.1f}-{max(loads):.1f} during the run"),
         f"- before: `{before_rev}` ({args.before}); after: `{after_rev}`"
         + (" + uncommitted changes" if dirty else ""),
         f"- {args.frames} frames a clip, BlazePose with each version's default options "
@@ -793,16 +791,6 @@ def draw_frames(folder: Path, name: str, video: Path, res: dict, ref: dict, lo: 
                         cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2)))
         t += 1
     cap.release()
-
-
-def _cpu() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 if __name__ == "__main__":

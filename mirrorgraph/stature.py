@@ -289,20 +289,17 @@ def _segment_statures(P: np.ndarray, skeleton: Skeleton, trunk: np.ndarray, min_
 def _median_abs_quantile(n: int, alpha: float) -> float:
     """The ``1 - alpha`` point of ``median |z| / Phi^-1(0.75)`` over ``n`` independent
     standard normal ``z`` (``~1`` on average; the median the ``k = n // 2 + 1``-th smallest,
-    the upper of the two middle ones for even ``n``): at least ``k`` of the ``n`` below
-    ``x`` is a binomial tail in ``p = P(|z| <= x) = erf(x / sqrt(2))``, solved for ``x``
-    by bisection."""
+    the upper of the two middle ones for even ``n``).
+
+    ``|z| <= x`` with probability ``p = 2 Phi(x) - 1``; the ``k``-th smallest of ``n``
+    uniforms is ``Beta(k, n - k + 1)`` (David and Nagaraja, *Order Statistics*, 2003,
+    sec. 2.1), so the point is ``Phi^-1((1 + B^-1(1 - alpha)) / 2)`` with ``B^-1`` that
+    Beta's quantile (:func:`scipy.special.betaincinv`)."""
+    from scipy.special import betaincinv, ndtri     # at first use: not on every start-up
+
     k = n // 2 + 1
-
-    def below(x: float) -> float:
-        p = math.erf(x / math.sqrt(2.0))
-        return sum(math.comb(n, j) * p ** j * (1.0 - p) ** (n - j) for j in range(k, n + 1))
-
-    lo, hi = 0.0, 10.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if below(mid) >= 1.0 - alpha else (mid, hi)
-    return hi / _MAD_NORMAL
+    p = float(betaincinv(k, n - k + 1, 1.0 - alpha))
+    return float(ndtri(0.5 * (1.0 + p))) / _MAD_NORMAL
 
 
 def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) -> float:
@@ -348,11 +345,12 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
 
     if scale(0.0) <= _median_abs_quantile(len(kinds), alpha):
         return 0.0
-    lo, hi = 0.0, 10.0                                   # scale(extra) = 1, decreasing
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if scale(mid) > 1.0 else (lo, mid)
-    return float(hi)
+    # the root of scale(extra) = 1 in [0, 10] (scale decreases): its end where none is inside
+    if scale(0.0) <= 1.0 or scale(10.0) > 1.0:
+        return 0.0 if scale(0.0) <= 1.0 else 10.0
+    from scipy.optimize import brentq
+
+    return float(brentq(lambda e: scale(e) - 1.0, 0.0, 10.0, xtol=1e-14))
 
 
 def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:

@@ -69,9 +69,9 @@ class LMParams:
             times along its direction before the damping grows (0: no line search).
             Marquardt's damping ``lambda diag(H_z)`` shrinks a step most along the
             globals' weakest, most correlated directions: an estimated focal length
-            with the plane and the bone lengths, where a step 25 % of the focal
-            length long that overshot was cut to 0.1 % by ``lambda = 1e-3``, and the
-            iterations crawled.
+            with the plane and the bone lengths, where ``lambda = 1e-3`` cuts a step
+            25 % of the focal length long that overshoots to 0.1 %, and the
+            iterations crawl.
     """
 
     max_iterations: int = 20

@@ -101,8 +101,8 @@ class FocalOptions:
             change, a person who hardly moves, bones measured with a curvature bias.
         fallback_rel_std: above this fraction the data do not determine it at all: the
             guess is kept (the rig solved again with it held) and a warning says so.
-            Between the two the estimate stays: on a wide scene whose estimate had a
-            std of 6.5 % its error was 6.5 %, the guess's 30 %. Above it the estimate
+            Between the two the estimate stays (on a wide scene whose estimate has a
+            std of 6.5 % its error is 6.5 %, the guess's 30 %). Above it the estimate
             stays too (the posterior under the weak prior), with its large standard
             deviation in every figure and a warning.
         guess_rel_sigma: a field-of-view guess the user gives (``--fov DEG``) is the

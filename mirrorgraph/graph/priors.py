@@ -188,8 +188,8 @@ PRINCIPAL_POINT_PRIOR = 0.05
 #: takes the population's spread (:func:`intrinsics_prior_sigmas`,
 #: :func:`~.scores.intrinsics_prior_spread`: a "consider" parameter). The people
 #: pull it, but wrongly: on the independent generator's scenes estimating it from them
-#: turned the mirror by 6.8 and 1.2 deg (0.008 and 0.016 with the true intrinsics), on a
-#: 20 px offset the data moved it 42 px the other way (tests/graph/
+#: turns the mirror by 6.8 and 1.2 deg (0.008 and 0.016 with the true intrinsics), on a
+#: 20 px offset the data move it 42 px the other way (tests/graph/
 #: test_focal_principal_point.py).
 PRINCIPAL_POINT_HOLD = 1e-3
 

@@ -235,7 +235,7 @@ def frame_scores(problem: GraphProblem, values: gtsam.Values,
     of the sandwich apply (:func:`~.sandwich.two_way_meat`). The joint-pair clusters do not
     (:attr:`JointScores.joint_clusters` is ``False``): a frame's bones couple its
     joints, their shares are anti-correlated within the frame, and the clusters'
-    figure, which takes them as independent, was 9 times the marginal one on 1000 iid
+    figure, which takes them as independent, is 9 times the marginal one on 1000 iid
     frames (the time figure 1.25 times). The rows of the factors on the globals alone
     (length priors, a focal length's prior) are in
     :attr:`JointScores.prior_information`. A joint's information (``joint_info``, for

@@ -139,7 +139,7 @@ def _median_parallax(state: SolveState, rig: Rig, camera: int, ang: np.ndarray |
 #: Below this median angle between a joint's two rays the focal length is not taken as
 #: determined: there the bones' lengths, which alone determine it, carry a curvature
 #: bias that its standard deviation does not contain. Measured on 40 scenes of the four
-#: slices (600 frames, no intrinsics): under 20 deg the estimate was 20-46 % off in 5 of
+#: slices (600 frames, no intrinsics): under 20 deg the estimate is 20-46 % off in 5 of
 #: 8 scenes with a reported std of 2-8 %; above it, within 4 % on every iid scene. The
 #: estimate is kept there too (the guess is worse); this names the cause.
 FOCAL_MIN_PARALLAX_DEG = 20.0

@@ -485,7 +485,8 @@ def _marginals_and_noise(run: _Run, final_masks: list[np.ndarray], tri: np.ndarr
 #: triangulations give in every frame without the curvature bias
 #: (:func:`~.bones.debiased_bone_lengths`, whose own minimum this is): a length from
 #: one frame held in every frame puts its error in all of them (a hip width measured
-#: in one frame of 960 was 30 % long, issue #17).
+#: in one frame of 960 comes out 30 % long: ``tests/graph/test_focal.py``,
+#: ``test_a_bone_measured_in_one_frame_does_not_carry_the_gauge``).
 THIN_BONE_FRAMES = 10
 
 

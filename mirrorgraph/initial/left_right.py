@@ -28,9 +28,9 @@ SWAP_MARGIN = 0.5
 #: ... and only when the detector's labeling (flipped) fits badly: its median
 #: distance exceeds this fraction of the threshold. Where the flipped labeling
 #: fits within the noise (a person seen from the side: both labelings fit), the
-#: detector's labels stand. Measured on the paper's protocol (no confusions at
-#: all): without this floor 6 of 1000 frames of one scene were "fixed", and the
-#: refined mirror was 0.44 deg off instead of 0.26.
+#: detector's labels stand. On the paper's protocol (no confusions at all),
+#: without this floor 6 of 1000 frames of one scene are "corrected" wrongly and
+#: the refined mirror is 0.44 deg off instead of 0.26.
 SWAP_MIN_FRACTION = 0.6
 
 

@@ -25,7 +25,7 @@ DOUBT_PAIRED_FRACTION = 0.80
 #: ... or when more of them fall in the grey zone: fitting neither as a reflection nor
 #: as an unrelated pair. The grey zone is read on a lower quantile of each frame's
 #: epipolar distances, :data:`GREY_QUANTILE` (the median lets a detector's gross errors
-#: on a few joints in: real reflections with 20 % outliers a view were in it in 39 of
+#: on a few joints in: real reflections with 20 % outliers a view fall in it in 39 of
 #: 40 scenes with the median, 0 of 40 with the 0.3 quantile); its bounds are
 #: :data:`GREY_LOW` times that score's median over the frames that pair, and
 #: :data:`GREY_HIGH` times the threshold.

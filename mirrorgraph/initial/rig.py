@@ -273,7 +273,7 @@ def initial_focals(obs: RigObservations, height: float, *, seed: int = 0,
     _, mmask = joint_masks(sk, None if joints is None else tuple(
         np.flatnonzero(j) if np.asarray(j).dtype == bool else j for j in joints))
     # the limbs alone, whatever the graph uses: on synthetic four-camera rigs the face and
-    # feet (seen from behind, the face is guessed) took a resection from -3 % to +28 %
+    # feet (seen from behind, the face is guessed) take a resection from -3 % to +28 %
     dmask, _ = joint_masks(sk, None)
     cams = obs.cameras
     unknown = [i for i, c in enumerate(cams) if c.intrinsics.approximate]

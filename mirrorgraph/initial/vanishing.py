@@ -175,20 +175,9 @@ def _edges(seg: np.ndarray, v: np.ndarray, tol: float) -> np.ndarray:
     line = line / np.maximum(np.hypot(line[:, 0], line[:, 1]), 1e-300)[:, None]
     dist = np.abs(line @ mid.T)                             # (N, N) line i to midpoint j
     near = np.maximum(dist, dist.T) < tol
-    labels = -np.ones(n, dtype=int)
-    k = 0
-    for i in range(n):
-        if labels[i] >= 0:
-            continue
-        stack = [i]
-        labels[i] = k
-        while stack:
-            j = stack.pop()
-            for m in np.nonzero(near[j] & (labels < 0))[0]:
-                labels[m] = k
-                stack.append(m)
-        k += 1
-    return labels
+    from scipy.sparse.csgraph import connected_components   # at first use: start-up
+
+    return connected_components(near, directed=False)[1].astype(int)
 
 
 def detect_vanishing_points(seg: np.ndarray, threshold: float, *, max_vps: int = 8,

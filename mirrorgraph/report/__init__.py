@@ -345,7 +345,7 @@ def options_from_calibration(obj) -> CalibrateOptions:
         height = gauge.get("height_m") or (ref.get("stature") or {}).get("height")
     scale_from = info.get("scale_from")
     if scale_from is None:
-        # files that did not record it (before input.scale_from): what the scale says
+        # a file without input.scale_from: what its scale records
         said = ref.get("scale_source" if "schema_version" in obj else "scale_method", "")
         scale_from = "limbs" if str(said) == LIMB_CHOSEN else "stature"
     names = info.get("joints")
