@@ -65,6 +65,7 @@ Usage::
     python bench/bench_joints.py --full                # 62 scenes, ~35 min on 2 busy cores
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
+    python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
 
 Writes ``--out`` (default ``bench/RESULTS_joints.md``: machine, command, date, tables)
