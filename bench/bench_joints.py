@@ -161,14 +161,15 @@ def _synthetic(kind: str, seed: int, frames: int, body: str = "population") -> T
     from mirrorgraph.synth import make_scene, make_wide_scene
     from mirrorgraph.synth.mocap import cmu_example_path
 
-    variation = "population" if body == "population" else 0.03
+    # the generator's default bodies without the argument (a package before it runs too)
+    body_kw = dict(body_variation="population") if body == "population" else {}
     if kind in ("iid", "realistic"):
-        sc = make_wide_scene(seed, "wide", kind, frames, body_variation=variation)
+        sc = make_wide_scene(seed, "wide", kind, frames, **body_kw)
     elif kind == "cmu":       # the take's own body
         sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()))
     elif kind == "paper":
         sc = make_scene(frames=frames, seed=seed, noise_std=4.0, noise_mean=0.076,
-                        outlier_rate=0.03, body_variation=variation)
+                        outlier_rate=0.03, **body_kw)
     else:
         raise ValueError(kind)
     intr = sc.intrinsics
