@@ -51,12 +51,21 @@ Scenes (``--kinds``):
   the truth (each detection matched to the projection of the true joints, either
   labelling), an observation more than ``FIXTURE_OUTLIER_PX`` from it an outlier.
 
+The subject's height each run is given (``--height-given``) is by default the one a user
+reports (:data:`REPORTED_HEIGHT_BIAS_M`, :data:`REPORTED_HEIGHT_STD_M`: one draw a
+scene), so that the metric scale's share of every joint's std (``height_sigma``) meets
+an error of the kind users make; the synthetic bodies' proportions (``--body``) spread as
+adults' do. The metric scale's error is one draw a run: its error / std
+(``scale_rel_std``, the share of ``joints_std`` that ``joints_std_shape`` leaves out) is
+read over many scenes, the shape's over every joint.
+
 Usage::
 
     python bench/bench_joints.py                       # 14 scenes, ~7 min on 2 busy cores
     python bench/bench_joints.py --full                # 62 scenes, ~35 min on 2 busy cores
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
+    python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
 
 Writes ``--out`` (default ``bench/RESULTS_joints.md``: machine, command, date, tables)
@@ -76,6 +85,7 @@ import shlex
 import subprocess
 import sys
 import time
+import zlib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -97,6 +107,20 @@ MODE_PX = 10.0
 FIXTURE_OUTLIER_PX = 15.0
 MODES = ("depth", "off", "outlier", "one view", "swap")
 KINDS = ("iid", "realistic", "cmu", "paper", "fixtures")
+#: The height a user gives (``--height-given reported``): their own report, ``true + bias +
+#: std z`` (m), ``z`` standard normal, one draw a scene. Adults over-report their height by
+#: 1.0-1.6 cm on average (men 1.6, women 1.0: S. Scholes et al., Health Survey for England
+#: 2011-16, 38,942 adults, medRxiv 10.1101/2022.01.28.22270014) and 1.07 cm (the Danish
+#: Diet, Cancer and Health - Next Generations cohort, 39,514 adults, medRxiv
+#: 10.1101/2022.12.20.22283553), where the reported and measured heights correlate at r =
+#: 0.98: with an adult height std of ~9.5 cm (both sexes), the difference's std is
+#: ``9.5 sqrt(2 (1 - r)) = 1.9`` cm. ``exact``: the true height.
+REPORTED_HEIGHT_BIAS_M, REPORTED_HEIGHT_STD_M = 0.011, 0.019
+HEIGHT_GIVEN = ("reported", "exact")
+#: The synthetic bodies' proportions (``--body``): ``population``, each segment kind's
+#: spread among adults (:data:`mirrorgraph.synth.body.POPULATION_VARIATION`); ``model``,
+#: 3 % for every kind (the generator's default).
+BODIES = ("population", "model")
 METHODS = ("calibrate", "live")
 #: the default run: (kind, seeds); ``--full``: the wide run
 DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-1", "cmu": "0-1", "paper": "0-1"}
@@ -133,17 +157,19 @@ class Truth:
         self.__dict__.update(kw)
 
 
-def _synthetic(kind: str, seed: int, frames: int) -> Truth:
+def _synthetic(kind: str, seed: int, frames: int, body: str = "population") -> Truth:
     from mirrorgraph.synth import make_scene, make_wide_scene
     from mirrorgraph.synth.mocap import cmu_example_path
 
+    # the generator's default bodies without the argument (a package before it runs too)
+    body_kw = dict(body_variation="population") if body == "population" else {}
     if kind in ("iid", "realistic"):
-        sc = make_wide_scene(seed, "wide", kind, frames)
-    elif kind == "cmu":
+        sc = make_wide_scene(seed, "wide", kind, frames, **body_kw)
+    elif kind == "cmu":       # the take's own body
         sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()))
     elif kind == "paper":
         sc = make_scene(frames=frames, seed=seed, noise_std=4.0, noise_mean=0.076,
-                        outlier_rate=0.03)
+                        outlier_rate=0.03, **body_kw)
     else:
         raise ValueError(kind)
     intr = sc.intrinsics
@@ -239,10 +265,19 @@ def _fixture(path: Path) -> Truth:
                  real=real, mirror=mirror, out_real=out_r, out_mirror=out_m)
 
 
-def make_truth(kind: str, seed, frames: int, fixtures: Path) -> Truth:
-    if kind == "fixtures":
-        return _fixture(fixtures / str(seed))
-    return _synthetic(kind, int(seed), frames)
+def make_truth(kind: str, seed, frames: int, fixtures: Path, body: str = "population",
+               height_given: str = "reported") -> Truth:
+    """The scene and its truth, with ``height_given`` the height the run is given
+    (:data:`HEIGHT_GIVEN`: a user's report drawn from the scene's own generator, or the
+    true height)."""
+    tr = (_fixture(fixtures / str(seed)) if kind == "fixtures"
+          else _synthetic(kind, int(seed), frames, body))
+    tr.height_given = tr.height
+    if height_given == "reported":
+        key = zlib.crc32(f"{kind} {seed}".encode())
+        z = float(np.random.default_rng([key, 2718]).standard_normal())
+        tr.height_given = tr.height + REPORTED_HEIGHT_BIAS_M + REPORTED_HEIGHT_STD_M * z
+    return tr
 
 
 # =========================================================================== scoring
@@ -300,11 +335,13 @@ def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
 
 def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
           normal: np.ndarray, distance: np.ndarray, extra: dict,
-          std_shape: np.ndarray | None = None) -> dict:
+          std_shape: np.ndarray | None = None, scale_rel_std: float | None = None) -> dict:
     """The figures of one run's joints ``X`` ``(T, J, 3)`` (aligned with the truth).
 
     ``std``, ``std_shape``: ``(T, J)`` the joints' stds with and without the metric
-    scale's share (``None``: the run gives none).
+    scale's share (``None``: the run gives none); ``scale_rel_std``: that share, the
+    run's metric scale's relative std, against the scale's error (the run's joints over
+    the truth's: the one factor about the camera that fits them best, least squares).
     """
     from mirrorgraph.metrics import pa_mpjpe
 
@@ -318,18 +355,31 @@ def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
                gross=float((eg > GROSS_M).mean()) if eg.size else float("nan"),
                far=float((eg > FAR_M).mean()) if eg.size else float("nan"),
                worst_m=float(eg.max()) if eg.size else float("nan"))
-    for tag, sd in (("z", std), ("z_shape", std_shape)):
+    # the metric scale: one factor about the camera, truth ~ fit X (least squares); the
+    # shape's error is what is left of each joint's once the scale is taken out
+    fit = 1.0
+    if given.any():
+        Xg, Tg = X[given], truth[given]
+        fit = float((Xg * Tg).sum() / (Xg * Xg).sum())
+        out["scale_err"] = 1.0 / fit - 1.0
+        out["scale_rel_std"] = scale_rel_std
+        out["scale_z"] = (abs(out["scale_err"]) / scale_rel_std
+                          if scale_rel_std and scale_rel_std > 0 else None)
+    e_shape = np.linalg.norm(np.where(given[..., None], fit * X, 0.0) - truth, axis=-1)
+    es = e_shape[given]
+    out["gross_shape"] = float((es > GROSS_M).mean()) if es.size else float("nan")
+    for tag, sd, err in (("z", std, e), ("z_shape", std_shape, e_shape)):
         out[f"{tag}_median"] = out[f"{tag}_p99"] = None
         if sd is None:
             continue
         sd = np.asarray(sd, float)
         ok = given & np.isfinite(sd) & (sd > 0)
         if ok.any():
-            z = e[ok] / sd[ok]
+            z = err[ok] / sd[ok]
             out[f"{tag}_median"] = float(np.median(z))
             out[f"{tag}_p99"] = float(np.percentile(z, 99))
             out[f"{tag}_share"] = float(ok.sum() / max(given.sum(), 1))
-            g = e[ok] > GROSS_M
+            g = err[ok] > GROSS_M
             out[f"{tag}_gross_median"] = float(np.median(z[g])) if g.any() else None
     gross = given & (e > GROSS_M)
     out["gross_by_joint"] = {tr.names[j]: [int(gross[:, j].sum()), int(given[:, j].sum())]
@@ -390,7 +440,7 @@ def _rms_length(std: np.ndarray) -> np.ndarray:
 def run_calibrate(tr: Truth) -> dict:
     import mirrorgraph as mg
 
-    opts = mg.CalibrateOptions(subject_height=tr.height, fps=FPS)
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS)
     wall, cpu = time.perf_counter(), time.process_time()
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -422,7 +472,7 @@ def run_calibrate(tr: Truth) -> dict:
     dstd = (cal.uncertainty or {}).get("distance_std")
     out = score(tr, X, given, std, normal, dist,
                 dict(wall_s=wall, cpu_s=cpu, **_distance_figures(tr, cal.distance, dstd)),
-                std_shape)
+                std_shape, getattr(run, "scale_rel_std", None))
     e = np.linalg.norm(np.nan_to_num(X) - tr.joints3d, axis=-1)
     gross = given & (e > GROSS_M)
     out["gross_completed"] = int((gross & completed).sum())
@@ -434,7 +484,7 @@ def run_live(tr: Truth) -> dict:
     from mirrorgraph.live import LiveCalibrator, LiveOptions
 
     det = tr.detections
-    live = LiveCalibrator(det.skeleton, tr.intrinsics, LiveOptions.of(subject_height=tr.height))
+    live = LiveCalibrator(det.skeleton, tr.intrinsics, LiveOptions.of(subject_height=tr.height_given))
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
@@ -465,7 +515,8 @@ def run_live(tr: Truth) -> dict:
     given = np.isfinite(X).all(-1)
     return score(tr, X, given, std, normal, dist,
                  dict(wall_s=wall, cpu_s=cpu,
-                      **_distance_figures(tr, final.distance, final.distance_std)), std_shape)
+                      **_distance_figures(tr, final.distance, final.distance_std)), std_shape,
+                 getattr(final, "scale_rel_std", None))
 
 
 def run_scene(case: tuple) -> dict:
@@ -473,14 +524,15 @@ def run_scene(case: tuple) -> dict:
     warnings.filterwarnings("ignore")
     from mirrorgraph.metrics import pa_mpjpe
 
-    kind, seed, frames, methods, fixtures = case
+    kind, seed, frames, methods, fixtures, body, height_given = case
     clock = time.perf_counter()
-    tr = make_truth(kind, seed, frames, Path(fixtures))
+    tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given)
     orc = oracle(tr)
     Xo, oko = orc.pop("_X"), orc.pop("_ok")
     out = dict(kind=kind, seed=seed, name=tr.name, frames=int(len(tr.frame_ids)),
                joints=int(tr.joints3d.shape[1]), oracle=orc,
-               truth=dict(distance=tr.distance, height=tr.height))
+               truth=dict(distance=tr.distance, height=tr.height,
+                          height_given=tr.height_given))
     for m in methods:
         try:
             out[m] = (run_calibrate if m == "calibrate" else run_live)(tr)
@@ -506,13 +558,17 @@ FIGURES = (("mpjpe_mm", "MPJPE mm", max, ".1f"), ("pa_mpjpe_mm", "PA-MPJPE mm", 
            ("oracle_pa_mm", "oracle PA mm", max, ".1f"), ("oracle_ratio", "/ oracle", max, ".2f"),
            ("common_oracle_ratio", "/ oracle, same joints", max, ".2f"),
            ("vs_offline", "/ calibrate", max, ".2f"),
-           ("gross_pct", "> 0.3 m %", max, ".2f"), ("far_pct", "> 1 m %", max, ".2f"),
+           ("gross_pct", "> 0.3 m %", max, ".2f"),
+           ("gross_shape_pct", "> 0.3 m scaled %", max, ".2f"),
+           ("far_pct", "> 1 m %", max, ".2f"),
            ("worst_m", "worst m", max, ".2f"), ("given_pct", "given %", min, ".1f"),
            ("z_median", "err/std med", None, ".2f"), ("z_p99", "err/std p99", max, ".1f"),
            ("z_shape_median", "shape err/std med", None, ".2f"),
            ("z_shape_p99", "shape err/std p99", max, ".1f"),
            ("distance_err_pct", "distance err %", None, "+.1f"),
-           ("distance_z", "distance err/std", max, ".1f"), ("wall_s", "wall s", max, ".1f"),
+           ("distance_z", "distance err/std", max, ".1f"),
+           ("scale_err_pct", "scale err %", None, "+.1f"),
+           ("scale_z", "scale err/std", max, ".2f"), ("wall_s", "wall s", max, ".1f"),
            ("cpu_s", "CPU s", max, ".1f"))
 
 
@@ -528,10 +584,12 @@ def flat(scene: dict, method: str) -> dict | None:
     return dict(mpjpe_mm=r["mpjpe_mm"], pa_mpjpe_mm=r["pa_mpjpe_mm"],
                 oracle_pa_mm=scene["oracle"]["pa_mpjpe_mm"], oracle_ratio=r.get("oracle_ratio"),
                 common_oracle_ratio=r.get("common_oracle_ratio"), vs_offline=vs,
-                gross_pct=pct(r["gross"]), far_pct=pct(r["far"]), worst_m=r["worst_m"],
+                gross_pct=pct(r["gross"]), gross_shape_pct=pct(r.get("gross_shape")),
+                far_pct=pct(r["far"]), worst_m=r["worst_m"],
                 given_pct=pct(r["given"]), z_median=r.get("z_median"), z_p99=r.get("z_p99"),
                 z_shape_median=r.get("z_shape_median"), z_shape_p99=r.get("z_shape_p99"),
                 distance_err_pct=pct(r.get("distance_err")), distance_z=r.get("distance_z"),
+                scale_err_pct=pct(r.get("scale_err")), scale_z=r.get("scale_z"),
                 wall_s=r["wall_s"], cpu_s=r["cpu_s"])
 
 
@@ -555,7 +613,7 @@ def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
                 if not vals:
                     agg[key] = dict(median=None, worst=None)
                     continue
-                if key == "distance_err_pct":
+                if key in ("distance_err_pct", "scale_err_pct"):
                     w = max(vals, key=abs)
                 elif key in ("z_median", "z_shape_median"):
                     w = max(vals, key=lambda v: abs(np.log(max(v, 1e-9))))
@@ -702,13 +760,25 @@ def targets(scenes: list[dict], kinds: list[str]) -> list[tuple[str, dict]]:
          lambda x: x <= 0.5, "max", True, False),
         ("calibrate > 0.3 m, worst scene <= 2 %", "calibrate", "gross_pct",
          lambda x: x <= 2.0, "max", False, True),
+        ("calibrate > 0.3 m after the scale's fit, worst scene <= 0.5 %", "calibrate",
+         "gross_shape_pct", lambda x: x <= 0.5, "max", True, False),
+        ("calibrate > 0.3 m after the scale's fit, worst scene <= 2 %", "calibrate",
+         "gross_shape_pct", lambda x: x <= 2.0, "max", False, True),
         ("calibrate > 1 m, worst scene = 0 %", "calibrate", "far_pct",
          lambda x: x == 0, "max", True, False),
         ("calibrate err/std, median of the scenes' in [0.5, 1.5]", "calibrate", "z_median",
          lambda x: 0.5 <= x <= 1.5, "median", True, True),
         ("calibrate err/std 99th percentile, worst scene < 3", "calibrate", "z_p99",
          lambda x: x < 3, "max", True, True),
+        ("calibrate shape err/std, median of the scenes' in [0.5, 1.5]", "calibrate",
+         "z_shape_median", lambda x: 0.5 <= x <= 1.5, "median", True, True),
+        ("calibrate shape err/std 99th percentile, worst scene < 3", "calibrate",
+         "z_shape_p99", lambda x: x < 3, "max", True, True),
         ("calibrate distance err/std, worst scene < 3", "calibrate", "distance_z",
+         lambda x: x < 3, "max", True, True),
+        ("calibrate scale err/std, median of the scenes' in [0.5, 1.5]", "calibrate",
+         "scale_z", lambda x: 0.5 <= x <= 1.5, "median", True, True),
+        ("calibrate scale err/std, worst scene < 3", "calibrate", "scale_z",
          lambda x: x < 3, "max", True, True),
         ("live PA-MPJPE / calibrate's, median <= 1.1", "live", "vs_offline",
          lambda x: x <= 1.1, "median", True, True),
@@ -838,6 +908,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="seeds of every synthetic kind, e.g. 0-5 or 0,3,7 (default: "
                          + ", ".join(f"{k} {v}" for k, v in DEFAULT_SEEDS.items()) + ")")
     ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--height-given", choices=HEIGHT_GIVEN, default="reported",
+                    help="the subject height the runs are given: 'reported' (default), a "
+                         "user's own report (the true height + 1.1 cm + 1.9 cm x a normal "
+                         "draw of the scene), or 'exact'")
+    ap.add_argument("--body", choices=BODIES, default="population",
+                    help="the synthetic bodies' proportions: 'population' (default; each "
+                         "segment's spread among adults) or 'model' (3 %% each)")
     ap.add_argument("--full", action="store_true",
                     help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
     ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
@@ -872,10 +949,12 @@ def main(argv: list[str] | None = None) -> int:
             found = fixture_dirs(Path(args.fixtures))
             if not found:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
-            cases += [(k, p.name, args.frames, methods, str(args.fixtures)) for p in found]
+            cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
+                       args.height_given) for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
-            cases += [(k, s, args.frames, methods, str(args.fixtures)) for s in _seeds(seeds)]
+            cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
+                       args.height_given) for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
         return 2
@@ -899,6 +978,7 @@ def main(argv: list[str] | None = None) -> int:
                         f"{platform.python_version()}",
                 load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
+                height_given=args.height_given, body=args.body,
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -908,14 +988,24 @@ def main(argv: list[str] | None = None) -> int:
          "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
          "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "
          "noise, 3 % outliers; `fixtures`: the independent generator's scenes; "
-         f"{args.frames} frames, the camera matrix and the subject's height given",
+         f"{args.frames} frames, the camera matrix and the subject's height given"
+         + ({"reported": " as a user reports it (the true height + 1.1 cm + 1.9 cm x a "
+                         "normal draw of the scene: `REPORTED_HEIGHT_*`)",
+             "exact": " exactly"}[args.height_given])
+         + ({"population": "; the synthetic bodies' proportions drawn with each segment's "
+                           "spread among adults (`POPULATION_VARIATION`), CMU's the take's",
+             "model": "; the synthetic bodies' segments 3 % apart"}[args.body]),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "
          "joints given; `given`: share of the scene's joints; `err/std`: the error's length "
-         "over the joint's std (`n/a`: the run carries none), `shape`: over the std without the "
-         "metric scale's share (`joints_std_shape`); `distance`: the metric mirror "
-         "distance's error and error / std; time: wall and CPU s of the run in its process; "
+         "over the joint's std (`n/a`: the run carries none), `shape`: the error left once the "
+         "run's scale is fitted to the truth (one factor about the camera) over the std "
+         "without the metric scale's share (`joints_std_shape`); `> 0.3 m scaled`: the "
+         "share of joints that far off after that fit; `distance`: the metric mirror "
+         "distance's error and error / std; `scale`: the run's metric scale's error (its "
+         "joints over the truth's, least squares about the camera) and error over its "
+         "`scale_rel_std`; time: wall and CPU s of the run in its process; "
          "`/ oracle, same joints`: both PA-MPJPEs over the joints both give (the oracle's few "
          "joints of near-parallel rays, metres off, and the run's left-out ones out of the "
          "ratio); `/ calibrate`: live's PA-MPJPE over the offline run's",

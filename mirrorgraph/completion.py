@@ -42,6 +42,7 @@ final triangulation; the completed joints give the stature estimate its eyes
 
 from __future__ import annotations
 
+import math
 import warnings as _warnings
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -56,7 +57,7 @@ if TYPE_CHECKING:
     from .pipelines.solve import RigSolution
 
 __all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate",
-           "smooth_tracks", "BODY_GATE_MADS",
+           "smooth_tracks", "head_prior", "HEAD_LANDMARKS", "HEAD_PRIOR_SIGMA", "BODY_GATE_MADS",
            "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
 
 #: Body gate: robust z-score (in scaled MADs) beyond which a completed joint's
@@ -70,6 +71,106 @@ BODY_GATE_ANCHORS = 2
 #: Fewest frames a joint needs for its anchor distance's median to be trusted; with
 #: fewer, its completed points are kept on the reprojection gate alone.
 BODY_GATE_MIN_FRAMES = 10
+
+
+#: The face keypoints' landmark heights (:data:`~mirrorgraph.anthropometry.LANDMARK_HEIGHT`
+#: names) that place them on the trunk's axis for :func:`head_prior`: the eyes at the eyes,
+#: the ears (the tragion, level with them) too, the nose halfway between the eyes and the
+#: chin, the head top at the vertex. ``(landmark, weight)`` pairs averaged.
+HEAD_LANDMARKS: dict[str, tuple[tuple[str, float], ...]] = {
+    "nose": (("eye", 0.5), ("chin", 0.5)),
+    "left_eye": (("eye", 1.0),), "right_eye": (("eye", 1.0),),
+    "left_ear": (("eye", 1.0),), "right_ear": (("eye", 1.0),),
+    "head_top": (("vertex", 1.0),),
+}
+
+
+def _head_prior_sigma() -> float:
+    """The per-axis std of a face keypoint about its place on the trunk's axis, a fraction
+    of the height: the head turned on the neck (the cervical spine's flexion, extension
+    and lateral bending, about 45 deg each in adults: AAOS, *Joint Motion: Method of
+    Measuring and Recording*, 1965) at the lever from the shoulders to the eyes
+    (:data:`~mirrorgraph.anthropometry.LANDMARK_HEIGHT`, 0.118 H) moves it
+    ``0.118 sin 45 = 0.083 H``; the face keypoints lie up to about 0.065 H off the
+    neck's axis (half an adult's head length of ~0.11 H, the nose in front of it). The
+    two as one isotropic Gaussian of the same RMS length: ``sqrt(0.083^2 + 0.065^2) /
+    sqrt(3)`` per axis, 0.061 H (10.7 cm for a 1.75 m adult)."""
+    from .anthropometry import LANDMARK_HEIGHT
+
+    lever = LANDMARK_HEIGHT["eye"] - LANDMARK_HEIGHT["shoulder"]
+    turn = lever * math.sin(math.radians(45.0))
+    return math.hypot(turn, 0.065) / math.sqrt(3.0)
+
+
+#: :func:`_head_prior_sigma`: 0.061 (a fraction of the height, per axis).
+HEAD_PRIOR_SIGMA = _head_prior_sigma()
+
+
+def head_prior(points: np.ndarray, known: np.ndarray, names: list[str] | tuple[str, ...],
+               height: float, cov: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """A prior of each face keypoint from the trunk it sits on: where the body puts it.
+
+    The nose, eyes, ears and head top lie above the shoulders along the trunk's axis
+    ``u = (mid-shoulder - mid-hip) / |...|`` at their landmark's height over the
+    shoulders' (Winter's, :data:`HEAD_LANDMARKS`): ``mean = mid-shoulder + (h_k -
+    h_shoulder) H u``, with an isotropic spread of :data:`HEAD_PRIOR_SIGMA` ``H`` per axis
+    (the head turned on the neck, the face off its axis) plus the mid-shoulder's own
+    covariance (``cov``, the graph's joints, its two shoulders taken independent). Where
+    two rays meet at a small angle and the detector's bias differs between the views,
+    the face's triangulated depth can be tenths of a metre off; this prior holds it to
+    the body. Frames without both shoulders and both hips known give none.
+
+    Args:
+        points: ``(T, J, 3)`` joints (the graph's where ``known``).
+        known: ``(T, J)`` bool, the graph's joints.
+        names: ``(J,)`` joint names (a person's tag, ``"@1"``, kept with its own trunk).
+        height: the subject's height ``H`` in the unit of ``points``.
+        cov: ``(T, J, 3, 3)`` the graph's joints' covariances, or ``None``.
+
+    Returns:
+        ``(mean, info)``, ``(T, J, 3)`` and ``(T, J, 3, 3)``, NaN where no prior; ``None``
+        where the layout has no face keypoint, or no shoulders and hips.
+    """
+    from .anthropometry import LANDMARK_HEIGHT
+    from .skeletons import person_of
+
+    if not (math.isfinite(height) and height > 0):
+        return None
+    T, J = np.asarray(known).shape
+    index = {n: i for i, n in enumerate(names)}
+    mean = np.full((T, J, 3), np.nan)
+    info = np.full((T, J, 3, 3), np.nan)
+    found = False
+    for j, name in enumerate(names):
+        tag = person_of(name)
+        base = name[:len(name) - len(tag)]
+        if base not in HEAD_LANDMARKS:
+            continue
+        trunk = [index.get(f"{s}_{p}{tag}") for p in ("shoulder", "hip") for s in ("left", "right")]
+        if any(k is None for k in trunk):
+            continue
+        ls, rs, lh, rh = trunk
+        ok = np.asarray(known)[:, trunk].all(1)
+        if not ok.any():
+            continue
+        found = True
+        ms = 0.5 * (points[ok, ls] + points[ok, rs])
+        axis = ms - 0.5 * (points[ok, lh] + points[ok, rh])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            u = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        level = sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[base])
+        m = ms + (level - LANDMARK_HEIGHT["shoulder"]) * height * u
+        C = np.broadcast_to((HEAD_PRIOR_SIGMA * height) ** 2 * np.eye(3), (len(m), 3, 3)).copy()
+        if cov is not None:
+            Cs = 0.25 * (np.asarray(cov)[ok, ls] + np.asarray(cov)[ok, rs])
+            good = np.isfinite(Cs).all((-2, -1))
+            C[good] += Cs[good]
+        fine = np.isfinite(m).all(-1)
+        rows = np.flatnonzero(ok)[fine]
+        mean[rows, j] = m[fine]
+        info[rows, j] = np.linalg.inv(C[fine])
+    return (mean, info) if found else None
 
 
 @dataclass
@@ -172,7 +273,9 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
                            pixel_sigma: float | None = None,
                            plane_cov: np.ndarray | None = None,
                            body_gauge: bool = False,
-                           smoothness: tuple[float, int] | None = None) -> Completion:
+                           smoothness: tuple[float, int] | None = None,
+                           head: tuple[list[str], float, np.ndarray | None] | None = None
+                           ) -> Completion:
     """Triangulate, with the solved mirror, the keypoints outside the graph's joint set.
 
     Args:
@@ -200,6 +303,10 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
             (:func:`smooth_tracks`; ``sigma`` in the unit of ``joints3d`` per frame^2),
             as the joints pass smooths the graph's joints; ``None``: each frame its
             own triangulation.
+        head: ``(names, height, cov)``, with ``pixel_sigma``: the face keypoints held to
+            the trunk they sit on (:func:`head_prior`: the joint names, the subject's
+            height in the unit of ``joints3d``, the graph's joints' covariances or
+            ``None``), fused with their rays (and smoothed with ``smoothness``).
 
     Returns:
         :class:`Completion`.
@@ -245,18 +352,81 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
             float(pixel_sigma), frames=tk if body_gauge else None, rays=False))
         cov = np.full((T, J, 3, 3), np.nan)
         cov[tk, jk] = rays + shared
+        prior = None if head is None else head_prior(points, known, head[0], float(head[1]),
+                                                      head[2])
+        good = np.isfinite(rays).all((1, 2))
+        # the detector's bias, which the frames share (smoothing averages noise, not it):
+        # each joint's mean residual in each view across its frames
+        bias = _bias_covariance(rays, jk, good, K, n, float(distance), points[tk, jk],
+                                pixels, float(pixel_sigma))
         if smoothness is not None and len(tk):
-            good = np.isfinite(rays).all((1, 2))
             info = np.zeros((T, J, 3, 3))
             info[tk[good], jk[good]] = np.linalg.inv(rays[good])
             track = np.zeros((T, J), dtype=bool)
             track[tk[good], jk[good]] = True
             points, smoothed = smooth_tracks(points, info, track, paired.frame_ids,
                                              float(smoothness[0]), int(smoothness[1]))
-            cov[tk[good], jk[good]] = smoothed[tk[good], jk[good]] + shared[good]
-            out.joints3d = points
+            own = smoothed[tk, jk] + bias
+        else:
+            own = rays + bias
+        own[~good] = np.nan
+        if prior is not None:
+            own = _fuse_prior(points, own, tk, jk, good, prior)
+        cov[tk[good], jk[good]] = own[good] + shared[good]
+        out.joints3d = points
         out.cov = cov
     return out
+
+
+def _bias_covariance(rays: np.ndarray, jk: np.ndarray, good: np.ndarray, K: np.ndarray,
+                     normal: np.ndarray, distance: float, X: np.ndarray, pixels: list,
+                     pixel_sigma: float) -> np.ndarray:
+    """``(n, 3, 3)`` the detector's per-joint bias through each completed point's two rays.
+
+    A bias that the frames share shows in the mean of a joint's reprojection residuals
+    ``m_v`` in each view ``v`` across the epipolar line (the triangulation takes the rest
+    as depth); along it, it is invisible and taken as large as across, as for the graph's
+    joints (:func:`mirrorgraph.graph.joints_uncertainty.graph_joints_covariance`): a
+    per-coordinate variance ``b^2 = mean_v 2 |m_v|^2`` (px^2) through the rays' response,
+    ``(b / pixel_sigma)^2`` times their covariance ``rays``. Under iid noise ``|m_v|^2`` is
+    ``~2 sigma^2 / frames``.
+
+    Args:
+        rays: ``(n, 3, 3)`` the points' two-ray covariances at ``pixel_sigma``.
+        jk: ``(n,)`` each point's joint; good: ``(n,)`` bool, the points with a covariance.
+        K, normal, distance: the camera and the mirror; X: ``(n, 3)`` the points.
+        pixels: the ``(n, 2)`` observations in the real view and in the mirror.
+        pixel_sigma: the keypoints' noise, px.
+    """
+    S = geo.reflect_points(X, normal, distance)
+    res = [geo.project(K, X) - pixels[0], geo.project(K, S) - pixels[1]]
+    out = np.zeros_like(rays)
+    var = np.zeros(len(jk))
+    for j in np.unique(jk[good]):
+        sel = good & (jk == j)
+        b2 = np.mean([2.0 * np.sum(np.nanmean(r[sel], axis=0) ** 2) for r in res])
+        var[sel] = b2 if np.isfinite(b2) else 0.0
+    out[good] = (var[good] / float(pixel_sigma) ** 2)[:, None, None] * rays[good]
+    return out
+
+
+def _fuse_prior(points: np.ndarray, own: np.ndarray, tk: np.ndarray, jk: np.ndarray,
+                good: np.ndarray, prior: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Each completed point (``points[tk, jk]``, covariance ``own``) fused with its prior
+    ``(mean, info)`` (:func:`head_prior`) where it has one, in place: ``C = (own^-1 +
+    P)^-1``, ``x = C (own^-1 x + P m)``. Returns the covariances."""
+    m, P = prior[0][tk, jk], prior[1][tk, jk]
+    has = good & np.isfinite(m).all(-1) & np.isfinite(P).all((-2, -1))
+    if not has.any():
+        return own
+    L = np.linalg.inv(own[has])
+    post = np.linalg.inv(L + P[has])
+    x = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", L, points[tk[has], jk[has]])
+                  + np.einsum("nij,nj->ni", P[has], m[has]))
+    points[tk[has], jk[has]] = x
+    own = own.copy()
+    own[has] = post
+    return own
 
 
 def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,

@@ -218,3 +218,60 @@ def test_completed_face_joints_are_smoothed_where_their_rays_meet_at_a_small_ang
     assert (err[done] > 0.3).mean() < 0.01
     ratio = err[done] / run.joints_std[done]
     assert 0.4 < np.median(ratio) < 1.5
+
+
+def _face_completion(seed: int, head: bool):
+    """The face of a realistic-detector scene completed beside the true limbs and mirror:
+    its error, its std, and the layout."""
+    from mirrorgraph.synth import make_wide_scene
+
+    s = make_wide_scene(seed, "wide", "realistic", 300)
+    names = list(s.skeleton.joints)
+    face = [names.index(n) for n in ("nose", "left_eye", "right_eye", "left_ear", "right_ear")]
+    limbs = np.setdiff1d(np.arange(len(names)), face)
+    known = np.zeros(s.joints3d.shape[:2], bool)
+    known[:, limbs] = True
+    X = np.where(known[..., None], s.joints3d, np.nan)
+    done = complete_mirror_joints(
+        s.paired(), s.K, s.normal, s.distance, X, known, joints=limbs, min_confidence=0.3,
+        threshold_px=15.0, pixel_sigma=4.0, smoothness=(0.002 * s.subject_height, 4),
+        head=(names, s.subject_height, None) if head else None)
+    got = done.completed[:, face]
+    err = np.linalg.norm(done.joints3d - s.joints3d, axis=-1)[:, face][got]
+    std = np.sqrt(np.trace(done.cov, axis1=-2, axis2=-1))[:, face][got]
+    return s, err, std
+
+
+def test_the_head_prior_holds_a_low_parallax_face_to_the_trunk():
+    # rays meeting at 10 deg and a per-label detector bias that differs between the views:
+    # the face's triangulated depth runs tenths of a metre off; held to where the trunk
+    # puts a head (Winter's landmark heights, the neck's range of motion) it does not
+    s, free, _ = _face_completion(2, head=False)
+    assert s.placement["parallax_deg"] < 12
+    _, held, std = _face_completion(2, head=True)
+    assert (free > 0.3).mean() > 0.01 and (held > 0.3).mean() == 0
+    assert np.median(held) < 0.75 * np.median(free)
+    # the bias the frames share is in the std: the error over it as a Gaussian's
+    z = held / std
+    assert 0.5 < np.median(z) < 1.6 and np.quantile(z, 0.99) < 6
+
+
+def test_head_prior_places_the_face_above_the_shoulders():
+    from mirrorgraph.anthropometry import LANDMARK_HEIGHT
+    from mirrorgraph.completion import HEAD_PRIOR_SIGMA, head_prior
+
+    names = ["nose", "left_shoulder", "right_shoulder", "left_hip", "right_hip", "left_eye"]
+    P = np.zeros((2, 6, 3))
+    P[:, 1], P[:, 2] = [0.2, -1.4, 4.0], [-0.2, -1.4, 4.0]       # y down: shoulders above
+    P[:, 3], P[:, 4] = [0.1, -0.9, 4.0], [-0.1, -0.9, 4.0]       # the hips
+    known = np.zeros((2, 6), bool)
+    known[:, 1:5] = True
+    known[1, 3] = False                                          # no hips: no prior
+    mean, info = head_prior(P, known, names, 1.8)
+    rise = (LANDMARK_HEIGHT["eye"] - LANDMARK_HEIGHT["shoulder"]) * 1.8
+    assert np.allclose(mean[0, 5], [0.0, -1.4 - rise, 4.0])
+    assert mean[0, 0, 1] > mean[0, 5, 1]                         # the nose below the eyes
+    assert np.allclose(np.linalg.inv(info[0, 5]), (HEAD_PRIOR_SIGMA * 1.8) ** 2 * np.eye(3))
+    assert np.isnan(mean[1]).all() and np.isnan(mean[0, 1:5]).all()
+    assert 0.055 < HEAD_PRIOR_SIGMA < 0.07
+    assert head_prior(P, known, ["a", "b", "c", "d", "e", "f"], 1.8) is None

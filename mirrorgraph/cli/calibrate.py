@@ -210,7 +210,10 @@ def cmd_calibrate(args) -> int:
             else:
                 write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
                                run.paired.skeleton.joints, run.fps, unit=unit,
-                               joints_std=run.joints_std)
+                               joints_std=run.joints_std,
+                               joints_std_shape=(run.joints_std_shape if unit == "m"
+                                                 else None),
+                               scale_rel_std=run.scale_rel_std if unit == "m" else None)
         if args.report:
             from ..report import make_report
             written = make_report(run, stage.folder(args.report), video=args.video,

@@ -4,8 +4,10 @@
 
 * ``.npz``: ``joints3d`` ``(T, J, 3)`` float (NaN where invalid), ``valid`` ``(T, J)``
   bool, ``frame_ids`` ``(T,)`` int64, ``joint_names`` ``(J,)`` str, ``fps`` float (NaN if
-  unknown), ``unit`` str, ``frame`` str; with uncertainty, ``joints_std`` ``(T, J)``.
-  Real camera frame.
+  unknown), ``unit`` str, ``frame`` str; with uncertainty, ``joints_std`` ``(T, J)``, and
+  where the scale is the subject's, ``joints_std_shape`` ``(T, J)`` (the same without the
+  metric scale's share) and ``scale_rel_std`` float (that share: the scale's relative std,
+  one factor on every length). Real camera frame.
 * ``.csv``: ``frame,time,<joint>_x,<joint>_y,<joint>_z,...``, one row a frame,
   ``time = frame / fps``, empty fields where a joint is invalid. Real camera frame.
 * ``.trc``: OpenSim marker file as Pose2Sim's ``make_trc`` writes it, tab-separated,
@@ -76,7 +78,9 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
                    frame_ids: np.ndarray | None, joint_names: Sequence[str],
                    fps: float | None, unit: str = "m", *,
                    marker_names: Sequence[str] | None = None,
-                   joints_std: np.ndarray | None = None) -> None:
+                   joints_std: np.ndarray | None = None,
+                   joints_std_shape: np.ndarray | None = None,
+                   scale_rel_std: float | None = None) -> None:
     """Write 3D joints over time; the format follows the suffix of ``path``.
 
     Args:
@@ -97,6 +101,10 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
         joints_std: ``(T, J)`` each joint's std in ``unit``: ``.npz`` (``joints_std``)
             and ``.c3d`` (the points' residuals) only; the other formats have no place
             for it.
+        joints_std_shape, scale_rel_std: ``.npz`` only: ``joints_std`` without the
+            metric scale's share ``(T, J)``, and that share, the scale's relative std
+            (``joints_std^2 = joints_std_shape^2 + (scale_rel_std |X|)^2`` for a joint
+            ``X``, the camera the scale's fixed point).
 
     Raises:
         InputError: unknown suffix, ``.trc`` / ``.c3d`` / ``.bvh`` without a frame
@@ -107,7 +115,8 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
     suffix = Path(path).suffix.lower()
     if suffix == ".npz":
         write_joints3d_npz(path, joints3d, valid, frame_ids, joint_names, fps, unit,
-                           joints_std=joints_std)
+                           joints_std=joints_std, joints_std_shape=joints_std_shape,
+                           scale_rel_std=scale_rel_std)
     elif suffix == ".csv":
         write_joints3d_csv(path, joints3d, valid, frame_ids, joint_names, fps)
     elif suffix == ".trc":
@@ -128,16 +137,22 @@ def write_joints3d(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndar
 def write_joints3d_npz(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,
                        frame_ids: np.ndarray | None, joint_names: Sequence[str],
                        fps: float | None, unit: str = "m", *,
-                       joints_std: np.ndarray | None = None) -> None:
+                       joints_std: np.ndarray | None = None,
+                       joints_std_shape: np.ndarray | None = None,
+                       scale_rel_std: float | None = None) -> None:
     """``.npz`` with ``joints3d``, ``valid``, ``frame_ids``, ``joint_names``, ``fps``,
-    ``unit`` and ``frame``, and ``joints_std`` where given (see the module docstring)."""
+    ``unit`` and ``frame``, and ``joints_std``, ``joints_std_shape``, ``scale_rel_std``
+    where given (see the module docstring)."""
     X, ok, ids, names, fps = _check(joints3d, valid, frame_ids, joint_names, fps)
     extra = {}
-    if joints_std is not None:
-        std = np.asarray(joints_std, dtype=float)
-        if std.shape != ok.shape:
-            raise ValueError(f"joints_std has shape {std.shape}, the joints {ok.shape}")
-        extra["joints_std"] = np.where(ok, std, np.nan)
+    for key, value in (("joints_std", joints_std), ("joints_std_shape", joints_std_shape)):
+        if value is not None:
+            std = np.asarray(value, dtype=float)
+            if std.shape != ok.shape:
+                raise ValueError(f"{key} has shape {std.shape}, the joints {ok.shape}")
+            extra[key] = np.where(ok, std, np.nan)
+    if scale_rel_std is not None:
+        extra["scale_rel_std"] = np.float64(scale_rel_std)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, joints3d=X, valid=ok, frame_ids=ids,

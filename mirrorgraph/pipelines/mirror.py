@@ -96,6 +96,10 @@ class CalibrationRun:
         joints_std_shape: ``(T, J)`` :attr:`joints_std` without the metric scale's
             share (one factor on every length, ``relative std x |X|``): the body's shape
             and its place at the calibration's scale.
+        scale_rel_std: that share: the metric scale's relative std (the subject's height
+            as given, ``height_sigma``, and the stature's own spread), one draw for the
+            whole run: ``joints_std^2 = joints_std_shape^2 + (scale_rel_std |X|)^2``;
+            ``None`` with :attr:`joints_std` ``None``, 0 without a subject height.
     """
 
     calibration: Calibration
@@ -113,6 +117,7 @@ class CalibrationRun:
     joints_std: np.ndarray | None = None
     joints_cov: np.ndarray | None = None
     joints_std_shape: np.ndarray | None = None
+    scale_rel_std: float | None = None
 
     @property
     def joints_completed(self) -> int:
@@ -533,7 +538,11 @@ def refine_run(run: CalibrationRun, opts: CalibrateOptions,
                                       pixel_sigma=noise,
                                       plane_cov=res.plane_cov,
                                       body_gauge=res.scale == "subject_height",
-                                      smoothness=_completion_smoothness(run, res, ropts))
+                                      smoothness=_completion_smoothness(run, res, ropts),
+                                      head=(list(run.paired.skeleton.joints),
+                                            height_from_bone_lengths(res.bone_lengths,
+                                                                     run.paired.skeleton),
+                                            cov))
         run.joints3d, run.valid3d, run.completed = done.joints3d, done.valid, done.completed
         if cov is not None and done.cov is not None:
             cov = np.where(done.completed[..., None, None], done.cov, cov)
@@ -542,6 +551,7 @@ def refine_run(run: CalibrationRun, opts: CalibrateOptions,
     if cov is not None:
         cov = np.where(run.valid3d[..., None, None], cov, np.nan)
         run.joints_std_shape = position_std(cov)
+        run.scale_rel_std = float(res.scale_rel_std)
         cov = with_scale(cov, np.nan_to_num(run.joints3d), res.scale_rel_std)
         run.joints_cov, run.joints_std = cov, position_std(cov)
 

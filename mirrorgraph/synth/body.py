@@ -16,6 +16,8 @@ width, each trunk part, neck, head size, foot size) is scaled by its own factor
 ``1 + s * z``, ``z`` a standard normal clipped to +-2, ``s = 0.03`` by default, shared by
 the left and right segment (the body stays symmetric); then the whole body is scaled so
 that the standing height (floor to vertex, legs straight, trunk upright) is exactly ``H``.
+With ``variation="population"`` each kind's ``s`` is the adults' spread of its ratio to the
+stature where the literature gives one (:data:`POPULATION_VARIATION`).
 
 The OpenPose ``neck`` is the midpoint of the shoulders and ``mid_hip`` that of the hips,
 so the scapular and pelvis bones of :mod:`mirrorgraph.skeletons` are half the shoulder
@@ -30,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..anthropometry import HEIGHT_FRACTION, bone_kind
+from ..anthropometry import HEIGHT_FRACTION, HEIGHT_FRACTION_CV, bone_kind
 from ..skeletons import SKELETONS, Skeleton
 
 #: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25;
@@ -72,6 +74,18 @@ FOOT_OFFSETS: dict[str, tuple[float, float, float]] = {
 _VARIED = ("femur", "tibia", "humerus", "ulna", "shoulder_width", "hip_width",
            "lumbar", "thoracic", "upper_trunk", "neck", "head", "foot", "ankle_height")
 
+#: The relative std of each varied segment kind among adults (``make_body(variation=
+#: "population")``): the long bones' and the breadths' ratio to the stature from
+#: :data:`mirrorgraph.anthropometry.HEIGHT_FRACTION_CV` (Trotter and Gleser 1952; ANSUR II),
+#: the trunk's parts at its trunk figure; the neck, head, foot and ankle height, which no
+#: survey at hand gives as a ratio to the stature, at the default 3 %. Dimensionless.
+POPULATION_VARIATION: dict[str, float] = {
+    **{k: HEIGHT_FRACTION_CV[k] for k in ("femur", "tibia", "humerus", "ulna",
+                                            "shoulder_width", "hip_width")},
+    **{k: HEIGHT_FRACTION_CV["trunk"] for k in ("lumbar", "thoracic", "upper_trunk")},
+    **{k: 0.03 for k in ("neck", "head", "foot", "ankle_height")},
+}
+
 
 @dataclass(frozen=True)
 class BodyModel:
@@ -111,19 +125,28 @@ class BodyModel:
         return out
 
 
-def make_body(rng: np.random.Generator | None = None, variation: float = 0.03) -> BodyModel:
+def make_body(rng: np.random.Generator | None = None,
+              variation: float | str = 0.03) -> BodyModel:
     """An individual body in units of height.
 
     Args:
         rng: random generator for the individual variation; ``None`` gives the
             nominal (average) body.
-        variation: relative standard deviation of each segment kind (default 3 %).
+        variation: relative standard deviation of each segment kind (default 3 %), or
+            ``"population"``: each kind's own (:data:`POPULATION_VARIATION`). The same
+            draws from ``rng`` either way.
     """
+    if isinstance(variation, str):
+        if variation != "population":
+            raise ValueError(f"variation must be a number or 'population', got {variation!r}")
+        s = [POPULATION_VARIATION[k] for k in _VARIED]
+    else:
+        s = [float(variation)] * len(_VARIED)
     if rng is None:
         z = np.zeros(len(_VARIED))
     else:
         z = np.clip(rng.standard_normal(len(_VARIED)), -2.0, 2.0)
-    f = {k: float(1.0 + variation * zi) for k, zi in zip(_VARIED, z)}
+    f = {k: float(1.0 + sk * zi) for k, sk, zi in zip(_VARIED, s, z)}
     L = {
         "femur": HEIGHT_FRACTION["femur"] * f["femur"],
         "tibia": HEIGHT_FRACTION["tibia"] * f["tibia"],

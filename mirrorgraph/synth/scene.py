@@ -221,10 +221,11 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                noise_correlation: float = 0.0, joint_bias_px: float = 0.0,
                geometry: str | GeometryPreset | None = None, focal_px: float | None = None,
                lr_swap_views: str = "mirror", epipolar_outlier_rate: float = 0.0,
-               joint_bias_shared: bool = False) -> SyntheticScene:
+               joint_bias_shared: bool = False,
+               body_variation: float | str = 0.03) -> SyntheticScene:
     """Generate a synthetic mirror scene (see the module docstring for the model).
 
-    Long for its 25 documented options only: the body is the named steps below it.
+    Long for its 26 documented options only: the body is the named steps below it.
 
     Args:
         frames: number of frames ``T`` (>= 1).
@@ -275,6 +276,10 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
             (:func:`~mirrorgraph.synth.detector.displace_along_epipolar_lines`).
         joint_bias_shared: the per-joint bias follows the detector's label in
             both views (mirrored on the reflection) instead of one per view.
+        body_variation: the individual's proportions: the relative std of each
+            segment kind, or ``"population"``, each kind's spread among adults
+            (:func:`~mirrorgraph.synth.body.make_body`; the same draws either way, so
+            only the body changes). Not used with ``motion`` (the take's own body).
 
     Raises:
         ValueError: an option out of range, or no placement satisfies the
@@ -299,7 +304,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    noise_correlation=noise_correlation, joint_bias_px=joint_bias_px)
     _record_variant_options(options, gp, focal_px=focal_px, lr_swap_views=lr_swap_views,
                             epipolar_outlier_rate=epipolar_outlier_rate,
-                            joint_bias_shared=joint_bias_shared)
+                            joint_bias_shared=joint_bias_shared, body_variation=body_variation)
     T, w, h = check_camera_args(frames, image_size, 60.0 if fov_deg is None else fov_deg, fps,
                                 noise_std)
     _check_scene_args(options, epipolar_outlier_rate, focal_px, lr_swap_views)
@@ -312,7 +317,8 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
     K = random_camera_matrix(rng, size, 60.0 if fov_deg is None else fov_deg)
     if focal_px is not None:
         K[0, 0] = K[1, 1] = float(focal_px)
-    body, local, take_height, take_info = _person_motion(rng, motion, T, fps, skel)
+    body, local, take_height, take_info = _person_motion(rng, motion, T, fps, skel,
+                                                         body_variation)
     chosen, H_m, n, d, X, rc, mc, ri, mi = place(
         rng, gp, K, size, local, dist, subject_height=subject_height, take_height=take_height,
         mirror_angle_deg=mirror_angle_deg, mirror_distance=mirror_distance,
@@ -360,7 +366,7 @@ def _record_variant_options(options: dict, gp: GeometryPreset, **variants) -> No
     if gp.name != "favourable" or PRESETS.get(gp.name) is not gp:
         options["geometry"] = gp.name if PRESETS.get(gp.name) is gp else asdict(gp)
     defaults = dict(focal_px=None, lr_swap_views="mirror", epipolar_outlier_rate=0.0,
-                    joint_bias_shared=False)
+                    joint_bias_shared=False, body_variation=0.03)
     for key, default in defaults.items():
         if variants[key] != default:
             options[key] = variants[key]
@@ -405,13 +411,15 @@ def _distortion_coefficients(distortion: Any) -> np.ndarray | None:
     return dist
 
 
-def _person_motion(rng: np.random.Generator, motion, T: int, fps: float, skel: Skeleton):
+def _person_motion(rng: np.random.Generator, motion, T: int, fps: float, skel: Skeleton,
+                   variation: float | str = 0.03):
     """The person's motion in the body frame, units of height: ``(body, local, take_height,
     take_info)``, ``local`` ``(T, J, 3)`` the skeleton's joints; the procedural motion of a
-    drawn body, or a motion-capture take (``body`` ``None``, the take's height and record)."""
+    body drawn with ``variation`` (:func:`~.body.make_body`), or a motion-capture take
+    (``body`` ``None``, the take's height and record)."""
     take_info = None
     if motion is None:
-        body = make_body(rng)
+        body = make_body(rng, variation)
         full = generate_motion(body, T, fps, rng)        # (T, 25, 3), units of height
         take_height = None
     else:

@@ -184,3 +184,9 @@ def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
     assert std.shape == valid.shape and valid.any()
     assert np.isfinite(std[valid]).all() and np.isnan(std[~valid]).all()
     assert np.all(std[valid] > 0) and np.median(std[valid]) < 1.0      # metres, sane
+    # the metric scale's share apart: joints_std^2 = joints_std_shape^2 + (scale |X|)^2
+    shape, scale = z["joints_std_shape"], float(z["scale_rel_std"])
+    assert scale >= 0.02                                    # the height's 2 % at least
+    X = z["joints3d"]
+    back = np.hypot(shape[valid], scale * np.linalg.norm(X[valid], axis=-1))
+    assert np.allclose(back, std[valid], rtol=1e-6)

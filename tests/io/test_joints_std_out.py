@@ -30,6 +30,15 @@ def test_npz_holds_joints_std_where_valid(tmp_path):
     assert np.isnan(z["joints_std"][~valid]).all()
     write_joints3d(path, X, valid, None, names, 30.0, "m")
     assert "joints_std" not in np.load(path)            # none given: none written
+    assert "joints_std_shape" not in np.load(path) and "scale_rel_std" not in np.load(path)
+    # the scale's share apart: the shape's std per joint, the scale's relative std per run
+    shape = 0.5 * std
+    write_joints3d(path, X, valid, None, names, 30.0, "m", joints_std=std,
+                   joints_std_shape=shape, scale_rel_std=0.02)
+    z = np.load(path)
+    assert np.allclose(z["joints_std_shape"][valid], shape[valid], equal_nan=True)
+    assert np.isnan(z["joints_std_shape"][~valid]).all()
+    assert float(z["scale_rel_std"]) == 0.02
     with pytest.raises(ValueError, match="joints_std"):
         write_joints3d(path, X, valid, None, names, 30.0, "m", joints_std=std[:, :2])
 

@@ -324,3 +324,29 @@ def test_write_scene_without_distortion_omits_dist(tmp_path):
     assert set(paths) == {"npz", "camera", "ground_truth", "joints3d"}
     cam = json.loads(paths["camera"].read_text())
     assert "dist" not in cam and cam["image_size"] == [1920, 1080]
+
+
+def test_population_bodies_spread_each_segment_as_adults_do():
+    # the same draws, each kind scaled by its own spread among adults: the widths twice
+    # the femur's, and make_scene changes the body only (camera, mirror, noise the same)
+    from mirrorgraph.anthropometry import HEIGHT_FRACTION_CV
+    from mirrorgraph.synth.body import POPULATION_VARIATION
+
+    a = make_body(np.random.default_rng(5))
+    b = make_body(np.random.default_rng(5), variation="population")
+    for kind in ("femur", "hip_width", "shoulder_width"):
+        za = (a.factors[kind] - 1.0) / 0.03
+        assert (b.factors[kind] - 1.0) == pytest.approx(za * HEIGHT_FRACTION_CV[kind], abs=1e-12)
+    assert POPULATION_VARIATION["hip_width"] == HEIGHT_FRACTION_CV["hip_width"] == 0.06
+    assert b.stature == pytest.approx(1.0, abs=1e-12)
+    factors = np.array([[make_body(np.random.default_rng(k), variation="population").factors[w]
+                         for w in ("femur", "hip_width")] for k in range(400)])
+    spread = factors.std(0)
+    assert 0.02 < spread[0] < 0.03 and 0.045 < spread[1] < 0.06      # clipped at 2 std
+    s0 = make_scene(frames=20, seed=3)
+    s1 = make_scene(frames=20, seed=3, body_variation="population")
+    assert np.array_equal(s0.K, s1.K) and np.array_equal(s0.normal, s1.normal)
+    assert s1.options["body_variation"] == "population" and "body_variation" not in s0.options
+    assert not np.allclose(s0.joints3d, s1.joints3d)
+    with pytest.raises(ValueError, match="population"):
+        make_body(np.random.default_rng(0), variation="wide")
