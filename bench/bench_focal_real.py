@@ -397,13 +397,17 @@ def reading(data: dict, args) -> list[str]:
         det, tru = _signed(data, f"{d}/detected"), _signed(data, f"{d}/truth")
         if not det:
             continue
-        z = [_z(c["res"][f"{d}/detected"]) for c in data["clips"]
-             if "f" in c["res"].get(f"{d}/detected", {})]
+        runs = [c["res"][f"{d}/detected"] for c in data["clips"]
+                if "f" in c["res"].get(f"{d}/detected", {})]
+        z = [_z(r) for r in runs]
+        rz = [r["rot_err"] / r["rot_std"] for r in runs if r["rot_std"] > 0]
         out.append(
             f"* {d}: signed focal error median {100 * np.median(det):+.1f} % (range "
             f"{100 * min(det):+.0f} to {100 * max(det):+.0f} %), {sum(abs(x) <= 0.1 for x in det)}"
             f" of {len(det)} within 10 %, {sum(x <= 2 for x in z)} of {len(z)} within 2 "
-            "reported std; with the detector's error taken out (`truth`: the reprojection of "
+            f"reported std (|error| / std median {np.median(z):.2f}; the mirror's rotation "
+            f"error / std median {np.median(rz):.2f}, {sum(x <= 2 for x in rz)} of {len(rz)} "
+            "within 2); with the detector's error taken out (`truth`: the reprojection of "
             f"its own 4-camera joints) median {100 * np.median(np.abs(tru)):.1f} % |error| "
             f"(range {100 * min(tru):+.0f} to {100 * max(tru):+.0f} %)." if tru else "")
     return out
