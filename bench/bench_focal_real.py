@@ -1,8 +1,12 @@
 #!/usr/bin/env python
 """The focal length from real detectors: what biases it, measured on real keypoints with a known camera.
 
-    python bench/bench_focal_real.py                   # ~10 min on 2 shared cores
-    python bench/bench_focal_real.py --pairs cam01-cam04 --variants detected oracle --no-write
+    python bench/bench_focal_real.py                   # every clip and variant: ~35 min of runs
+    python bench/bench_focal_real.py --pairs cam01-cam04 cam02-cam03 --variants detected truth \
+        --no-write                                     # a look in ~3 min
+    python bench/bench_focal_real.py --detectors OpenPose --json a.json    # side by side,
+    python bench/bench_focal_real.py --detectors BlazePose --json b.json   # then:
+    python bench/bench_focal_real.py --merge a.json b.json
 
 **Data.** The Pose2Sim demo trial ``Demo_SinglePerson`` (the ``pose2sim`` 0.10.49 wheel: four
 cameras, 100 frames, 1080 x 1920, Qualisys calibration, f ~ 1681 px) and two detectors on
@@ -43,6 +47,10 @@ only; subject height 1.60 m), once per **variant** of the keypoints or the optio
   and a detector's joint centres (the shoulder and hip widths, BODY_25B's neck to
   shoulder: ``anthropometry.HEIGHT_FRACTION``) set to the detector's own, its 4-camera
   median over the 1.60 m stature (the definitions swapped; uses the truth);
+* ``pp_off``: every keypoint moved by one std of the principal point's prior in each
+  coordinate (1 % of the larger side, 12.8 px): the same clip seen by a camera whose
+  principal point lies that far off the centre the estimate assumes (a pinhole image
+  moves rigidly with it);
 * ``known_K``: the clip's true camera matrix given (the mirror's reference).
 
 Reported per detector and variant: the focal length's error, its reported std, |error| /
@@ -86,7 +94,7 @@ from _report import header, now  # noqa: E402
 
 HEIGHT = ba.HEIGHT
 VARIANTS = ("detected", "oracle", "truth", "no_symmetry", "no_neck", "no_hips", "widths",
-            "known_K")
+            "pp_off", "known_K")
 DETECTORS = {"OpenPose": BODY_25B, "BlazePose": BLAZEPOSE}
 CAMS = ("cam01", "cam02", "cam03", "cam04")
 #: The clips: the ordered pairs of cameras whose person stands over 0.3 m before the
@@ -232,6 +240,23 @@ def composite(clip, subjA: dict, subjB: dict, skeleton, hide: bool = False) -> R
                          image_size=clip.size, fps=ba.FPS)
 
 
+#: ``pp_off``'s shift of every keypoint, each coordinate, fraction of the larger side:
+#: one std of the principal point's prior (``FocalOptions.principal_point_rel_sigma``).
+PP_SHIFT = 0.01
+
+
+def shifted_principal_point(det: RawDetections, px: float) -> RawDetections:
+    """``det`` with every shown keypoint moved by ``(px, px)``."""
+    people = []
+    for p in det.people:
+        q = np.array(p, float, copy=True)
+        shown = q[..., 2] > 0
+        q[..., 0][shown] += px
+        q[..., 1][shown] += px
+        people.append(q)
+    return replace(det, people=people)
+
+
 def joints_without(skeleton, names: tuple[str, ...]) -> list[str] | None:
     """The mirror joints of ``skeleton`` without ``names`` (``None``: nothing to leave out)."""
     from mirrorgraph.joint_sets import mirror_joints
@@ -348,6 +373,8 @@ def main(argv: list[str] | None = None) -> int:
             for variant in args.variants:
                 src = kp[name][variant if variant in ("oracle", "truth") else "detected"]
                 det = composite(clip, src[A], src[B], sk, args.hide)
+                if variant == "pp_off":
+                    det = shifted_principal_point(det, PP_SHIFT * max(clip.size))
                 r = calibrate(det, clip, variant, data["bones"][name])
                 row["res"][f"{name}/{variant}"] = r
                 print(f"{clip.name} {name} {variant}: "
