@@ -1108,6 +1108,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--shard", default="0/1", metavar="I/N",
                     help="run the scenes i, i + N, ... of issue 23's section (the fixtures "
                          "with shard 0), for processes side by side")
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "RESULTS_focal.md",
+                    help="the results file (and its .json beside it)")
     args = ap.parse_args(argv)
     if args.report_only:
         parts = [json.loads(Path(f).read_text()) for f in args.report_only]
@@ -1123,8 +1125,8 @@ def main(argv: list[str] | None = None) -> int:
         md = report_honest(data, args, float(data.get("seconds", 0.0)))
         print(md)
         if not args.no_write:
-            (ROOT / "bench" / "RESULTS_focal.md").write_text(md)
-            (ROOT / "bench" / "RESULTS_focal.json").write_text(json.dumps(data, indent=1,
+            args.out.write_text(md)
+            args.out.with_suffix(".json").write_text(json.dumps(data, indent=1,
                                                                           default=_jsonable))
         return 0
     if args.quick:
@@ -1168,8 +1170,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             Path(args.json).write_text(json.dumps(data, indent=1, default=_jsonable))
         if not args.no_write:
-            (ROOT / "bench" / "RESULTS_focal.md").write_text(md)
-            (ROOT / "bench" / "RESULTS_focal.json").write_text(json.dumps(data, indent=1,
+            args.out.write_text(md)
+            args.out.with_suffix(".json").write_text(json.dumps(data, indent=1,
                                                                           default=_jsonable))
         return 0
 
@@ -1288,8 +1290,8 @@ def main(argv: list[str] | None = None) -> int:
     md = report(data, args, seconds) + "\n" + "\n".join(honest_report(data) + honest_targets(data))
     print(md)
     if not args.no_write:
-        (ROOT / "bench" / "RESULTS_focal.md").write_text(md)
-        (ROOT / "bench" / "RESULTS_focal.json").write_text(json.dumps(data, indent=1, default=_jsonable))
+        args.out.write_text(md)
+        args.out.with_suffix(".json").write_text(json.dumps(data, indent=1, default=_jsonable))
     return 0
 
 

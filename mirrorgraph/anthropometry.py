@@ -21,6 +21,15 @@ hip_width           hip width                               0.191
 pelvis              half the hip width (mid-hip to side)    0.0955
 ==================  =====================================  ==========
 
+Winter's widths are the body's breadths (biacromial, hip); a keypoint detector gives joint
+centres, inside them: on the Pose2Sim demo's subject (1.60 m, four Qualisys cameras,
+``bench/RESULTS_focal_real.md``) the hip width is 0.133 H with OpenPose BODY_25B and
+0.118 H with BlazePose against 0.191 H, the shoulder width 0.21-0.22 H against 0.259 H,
+and BODY_25B's neck (the *upper* neck) lies 0.113 H from each shoulder against the half
+shoulder width of 0.1295 H. An estimated focal length uses none of these fractions (the
+graph leaves the anthropometric ratios out there, ``FocalOptions.anthropometry``;
+swapping them for the detector's own moved it within its noise on that bench).
+
 The same figure gives the heights of landmarks above the floor, standing upright
 (:data:`LANDMARK_HEIGHT`): the stature estimate of :mod:`mirrorgraph.stature`
 uses the parts of the body below the ankle and above the eyes, which no

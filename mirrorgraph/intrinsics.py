@@ -459,6 +459,10 @@ def estimated_intrinsics(guess: Intrinsics, K: np.ndarray, focal: dict, fov_deg:
         if und.get("at_range_end"):
             why.append(f"a {und.get('fov_deg', fov):.0f} deg field of view, at the end of the "
                        "cameras searched")
+        if und.get("data_open") is False and und.get("search_px"):
+            why.append(f"the bones hold it to {100 * und.get('data_rel_std', 0.0):.0f}%, but the "
+                       f"initial search over every bone puts it at {und['search_px']:.0f} px: "
+                       "that disagreement is its std")
         if und.get("low_parallax"):
             why.append(f"a joint's two rays meet at a median {und.get('parallax_deg', float('nan')):.0f} "
                        "deg, where the bones that determine it are measured with a bias")

@@ -192,3 +192,25 @@ def test_undistort_identity_without_distortion():
     assert Intrinsics(K=K).undistort_points(np.empty((0, 2))).shape == (0, 2)
     with pytest.raises(ValueError):
         Intrinsics(K=K, dist=DIST).undistort_points(np.zeros((4, 3)))
+
+
+def test_an_undetermined_focal_length_names_its_cause():
+    """Where the bones hold the focal length and only the initial search disagrees, the
+    warning says so and gives both figures; where the data leave it open, it does not."""
+    from mirrorgraph.intrinsics import estimated_intrinsics, intrinsics_from_fov
+
+    guess = intrinsics_from_fov((1920, 1080), 60.0)
+    K = np.array([[1136.2, 0, 960.0], [0, 1136.2, 540.0], [0, 0, 1]])
+    base = {"estimated": True, "determined": False, "focal_px": 1136.2, "std_px": 290.3}
+    held = dict(base, undetermined={"data_open": False, "search_px": 1428.2,
+                                    "data_rel_std": 0.0117, "fov_deg": 80.4})
+    warnings = []
+    out = estimated_intrinsics(guess, K, held, 60.0, warnings)
+    assert out.approximate and len(warnings) == 1
+    assert "1136 +- 290 px (26%)" in warnings[0]
+    assert "the bones hold it to 1%" in warnings[0] and "1428 px" in warnings[0]
+    open_ = dict(base, undetermined={"data_open": True, "search_px": 1428.2,
+                                     "data_rel_std": 0.4, "fov_deg": 80.4})
+    warnings = []
+    estimated_intrinsics(guess, K, open_, 60.0, warnings)
+    assert "not determined by the data" in warnings[0] and "1428 px" not in warnings[0]

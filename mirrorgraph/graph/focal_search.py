@@ -139,7 +139,7 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
               "failed_steps": 0, "guarded": 0, "undetermined": 0,
               "candidates_px": [float(x) for x in fs],
               "errors": [float(x) for x in errors], "kept": [int(k) for k in kept],
-              "focal_px": f,
+              "focal_px": f, "frames": int(np.count_nonzero(rows)),
               "initial_focal_px": float(K0[0, 0])}
     return with_intrinsics(rig, [K]), new_planes, record
 

@@ -59,16 +59,22 @@ def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | 
     return cams, planes, basis, zv, intr
 
 
-def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None:
+def floor_focal(state: SolveState, undetermined: set[int] = frozenset(), *,
+                disagreement: bool = True) -> None:
     """Variance floors of the estimated focal lengths, in every robust figure.
 
     Two estimates of one focal length from the same data, the initial search's (every
-    bone in every frame) and the graph's (the bones whose curvature bias is small),
-    differ by what the bones' choice does to it; where that exceeds the graph's std the
-    std is no measure of the error (rays meeting at 16 deg: the search 2699 px, the
-    graph 1365 px at a std of 4 %, the truth 2186 px), and the difference squared is
-    the floor of its variance. A camera in ``undetermined`` gets its prior's variance, and
-    so does a principal point held at the centre
+    bone in every frame of its ``T_s`` frames) and the graph's (the bones whose curvature
+    bias is small), differ by what the bones' choice does to it; where that exceeds the
+    graph's std the std is no measure of the error (rays meeting at 16 deg: the search
+    2699 px, the graph 1365 px at a std of 4 %, the truth 2186 px), and the difference
+    squared is the floor of its variance (``disagreement``; off: the data's own
+    figures). The search's sampling noise (its fewer frames) is part of that
+    difference, but taking it out (``sigma^2 (T / T_s - 1)``, nested estimates without
+    bias) thinned the tail where the graph is the biased one: on 40 scenes of 500 frames
+    the focal error / std median went 0.42 -> 0.50 and the scenes beyond 4 std 1 -> 3
+    (``bench/RESULTS_focal.md``), so it stays in. A camera in ``undetermined`` gets its
+    prior's variance, and so does a principal point held at the centre
     (:data:`~.priors.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
     Sets the scores' :attr:`~.scores.JointScores.prior_floor` and recomputes the
     cameras' robust intrinsics stds with it.
@@ -76,7 +82,9 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
     sc, problem = state.scores, state.problem
     if sc is None or problem is None or sc.prior_spread is None:
         return
-    search = [s.get("focal_px") for s in state.stages if s.get("focal_px") is not None]
+    search = [s for s in state.stages if s.get("focal_px") is not None] if disagreement else []
+    if not state.intrinsics_data_std:             # the data's own, before any floor
+        state.intrinsics_data_std = [np.asarray(x, float).copy() for x in state.intrinsics_std]
     floor = (np.zeros(sc.scores.shape[1]) if sc.prior_floor is None
              else np.asarray(sc.prior_floor, float).copy())
     cap = np.zeros(sc.scores.shape[1])
@@ -97,7 +105,7 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset()) -> None
             if c in undetermined:
                 floor[off] = np.inf                        # the prior's (capped there)
             elif search and len(problem.calibration_keys) == 1:
-                floor[off] = max(floor[off], (float(search[-1]) - f) ** 2)
+                floor[off] = max(floor[off], (float(search[-1]["focal_px"]) - f) ** 2)
         off += dim
     sc.prior_floor = floor
     sc.prior_cap = cap

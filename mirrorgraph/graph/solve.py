@@ -21,7 +21,9 @@ held exact. A camera whose focal length the data do not determine (its standard
 deviation above ``options.focal.fallback_rel_std`` of it, or an estimate at an end of
 the lenses searched) is named in :attr:`~.solve_state.SolveState.focal_undetermined` with
 the figures found (and the rays' median angle), for the warnings, and carries its
-prior's variance (:func:`~.marginals.floor_focal`).
+prior's variance (:func:`~.marginals.floor_focal`) where the data's own std is that
+large; where only the initial search and the graph disagree that much, their
+disagreement.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from .solve_state import SolveState
 from .stage_config import SolveConfig
 from .stages import Counter, solve_rows
 
-__all__ = ["solve", "undetermined_focal"]
+__all__ = ["solve", "judge_focal", "undetermined_focal"]
 
 
 def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
@@ -62,13 +64,25 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
     """
     counter = counter or Counter(progress)
     state = _solve(rig, opts, config, height, counter)
+    judge_focal(state, rig, opts)
+    return state
+
+
+def judge_focal(state: SolveState, rig: Rig, opts: RefineOptions) -> None:
+    """The estimated focal lengths' headline stds and verdicts, in place: the floor of the
+    initial search's disagreement (:func:`~.marginals.floor_focal`), the cameras the data
+    do not determine (:func:`undetermined_focal`, in ``state.focal_undetermined``), the
+    prior's variance for those whose data's own std is that large (a focal length the
+    data hold, on which only the search and the graph disagree, keeps their
+    disagreement as its std), and what the headline adds to every camera and plane
+    (:func:`~.marginals.intrinsics_spread`)."""
     floor_focal(state)
     undetermined = undetermined_focal(state, rig, opts)
     state.focal_undetermined = {rig.cameras[i].name: v for i, v in undetermined.items()}
-    if undetermined:
-        floor_focal(state, set(undetermined))
+    open_ = {i for i, v in undetermined.items() if v["data_open"]}
+    if open_:
+        floor_focal(state, open_)
     state.camera_spread, state.plane_spread = intrinsics_spread(state)
-    return state
 
 
 def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
@@ -90,7 +104,13 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         "determined" 20 deg lens, 5x the true focal length, its std 16 %). The record
         says too whether the joints' two rays meet at a median angle under
         :data:`FOCAL_MIN_PARALLAX_DEG` (``low_parallax``: a cause the warning names, not
-        a criterion by itself: it would throw good estimates away).
+        a criterion by itself: it would throw good estimates away), the data's own
+        relative std (``data_rel_std``: without the floor of two estimates' disagreement,
+        :func:`~.marginals.floor_focal`), the initial search's estimate (``search_px``)
+        and whether the data leave the focal length open (``data_open``: their own std
+        beyond ``limit``, or the estimate at an end of the range), where the solve gives
+        it its prior's variance; else only the two estimates disagree beyond ``limit``,
+        and their disagreement is its std.
     """
     limit = opts.focal.fallback_rel_std if limit is None else float(limit)
     lo, hi = opts.focal.search_fov_deg
@@ -105,6 +125,11 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         if state.intrinsics_std and i < len(state.intrinsics_std):
             std = max(std, float(state.intrinsics_std[i][0]))
         rel = std / f if f > 0 else float("inf")
+        own = float(np.sqrt(max(state.intrinsics_cov[i][0, 0], 0.0)))
+        data_std = getattr(state, "intrinsics_data_std", None) or state.intrinsics_std
+        if data_std and i < len(data_std) and len(data_std[i]):
+            own = max(own, float(data_std[i][0]))
+        own_rel = own / f if f > 0 else float("inf")
         fov = float(np.degrees(2.0 * np.arctan(float(K[0, 2]) / f))) if f > 0 else float("nan")
         edge = not (lo * (1.0 + FOV_EDGE) < fov < hi / (1.0 + FOV_EDGE))
         if angles is None and state.points is not None and len(state.view_masks):
@@ -114,9 +139,13 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
         # the rays' angle names a cause; the bones' bias it brings is in the std
         # (uncertainty.frame_scores: the curvature bias's score)
         if not np.isfinite(rel) or rel > limit or edge:
+            search = [st["focal_px"] for st in getattr(state, "stages", ())
+                      if st.get("focal_px") is not None]
             out[i] = {"focal_px": f, "std_px": std, "rel_std": rel, "fov_deg": fov,
                       "at_range_end": bool(edge), "parallax_deg": rays,
-                      "low_parallax": narrow}
+                      "low_parallax": narrow, "data_rel_std": own_rel,
+                      "search_px": float(search[-1]) if search else None,
+                      "data_open": bool(not np.isfinite(own_rel) or own_rel > limit or edge)}
     return out
 
 

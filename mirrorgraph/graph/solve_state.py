@@ -56,6 +56,8 @@ class SolveState:
         intrinsics_std: per camera the ``(d,)`` standard deviations of its estimated
             intrinsics, px: the larger of the marginal and the cluster-robust figures
             (:func:`~.uncertainty.robust_intrinsics_std`; empty without ``scores``).
+        intrinsics_data_std: the same before :func:`~.marginals.floor_focal` puts the
+            disagreement of two estimates under them: what the data's own figures say.
         camera_spread, plane_spread: per camera ``(6, 6)`` and per plane ``(3, 3)`` the
             covariance the intrinsics' headline variance adds beyond the marginals
             (:func:`~.marginals.intrinsics_spread`; empty where nothing is estimated):
@@ -94,6 +96,7 @@ class SolveState:
     intrinsics: list[np.ndarray] = field(default_factory=list)
     intrinsics_cov: list[np.ndarray] = field(default_factory=list)
     intrinsics_std: list[np.ndarray] = field(default_factory=list)
+    intrinsics_data_std: list[np.ndarray] = field(default_factory=list)
     camera_spread: list[np.ndarray] = field(default_factory=list)
     plane_spread: list[np.ndarray] = field(default_factory=list)
     focal_undetermined: dict[str, dict] = field(default_factory=dict)
