@@ -275,8 +275,7 @@ class LevenbergMarquardt:
                  sensitivity_keys: list[int] | None = None) -> None:
         self.hold_globals = hold_globals
         self.sensitivity_keys = sensitivity_keys
-        # the last step's conditionals, basis, graph globals and locals (sensitivity)
-        self._linear: tuple | None = None
+        self._sensitivity: np.ndarray | None = None     # of the last step solved
         self.guard = guard
         self.refresh = refresh
         self.graph = graph
@@ -370,9 +369,10 @@ class LevenbergMarquardt:
         ng = sum(d for _, d in red.graph_keys)
         _split(dg[:ng], red.graph_keys, given)
         delta = bayes_net.optimize(given)
-        if self.sensitivity_keys is not None:
-            self._linear = (bayes_net, T, dg[:ng],
-                            np.asarray(delta.vector(self.sensitivity_keys), dtype=float))
+        if self.sensitivity_keys is not None:      # while the step's conditionals exist
+            self._sensitivity = self.local_sensitivity(
+                bayes_net, T, dg[:ng], np.asarray(delta.vector(self.sensitivity_keys), float),
+                self.sensitivity_keys)
         for k, _ in red.graph_keys:
             if not delta.exists(int(k)):
                 delta.insert(int(k), given.at(int(k)))
@@ -522,7 +522,7 @@ class LevenbergMarquardt:
                     break
                 continue
             result.guarded += guarded
-            accepted = self._linear
+            accepted = self._sensitivity
             last = it == p.max_iterations
             # the last solve allowed: nothing is decided by the model's prediction any more
             predicted = None if last else self.predicted_decrease(gfg, delta, values)
@@ -556,8 +556,8 @@ class LevenbergMarquardt:
                 gfg = self.graph.linearize(values)
         result.values, result.final_error = values, error
         if self.sensitivity_keys is not None and result.history:
-            result.sensitivity = self.local_sensitivity(*accepted, self.sensitivity_keys)
-        self._linear = None
+            result.sensitivity = accepted
+        self._sensitivity = None
         return result
 
 
