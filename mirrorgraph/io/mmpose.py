@@ -43,9 +43,9 @@ import numpy as np
 from ..errors import InputError
 from ..keypoints import RawDetections
 from ..skeletons import COCO_17, Skeleton
-from ._common import (JointCount, ProgressCallback, ScorePolicy, Tally, _holds_bool, bbox_of,
+from ._common import (JointCount, ProgressCallback, ScorePolicy, Tally, bbox_of,
                       check_frame_ids, clean_keypoints, drop_empty_people, dump_json,
-                      frame_files, json_type, load_json, numeric_array,
+                      frame_files, holds_bool, json_type, load_json, numeric_array,
                       require, to_skeleton, zero_missing)
 from .atomic import atomic_write_text
 from .meta import meta_info, read_meta_info
@@ -153,7 +153,7 @@ def _read_at_once(frames: list, skeleton: Skeleton | str | None, source: str
         return None
     if (xy.dtype.kind not in "iuf" or sc.dtype.kind not in "iuf" or xy.ndim != 3
             or xy.shape[2] != 2 or sc.shape != xy.shape[:2]
-            or _holds_bool(xy_lists, xy.shape) or _holds_bool(score_lists, sc.shape)):
+            or holds_bool(xy_lists, xy.shape) or holds_bool(score_lists, sc.shape)):
         return None
     counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
     tally = Tally()
