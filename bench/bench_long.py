@@ -225,7 +225,8 @@ def main() -> None:
                    note=f"{args.repeats} run(s) of each tree, the least CPU kept"),
            "* what: `make_wide_scene(%d, 'wide', 'iid', frames)` written as MMPose .json and "
            "intrinsics .json; `python -m mirrorgraph calibrate KEYPOINTS --intrinsics K.json "
-           "--subject-height H --out OUT --quiet` in a fresh process; CPU is the process's and "
+           "--subject-height H --out OUT --joints3d OUT.npz --quiet` in a fresh process; CPU is "
+           "the process's and "
            "its workers'; peak is the largest process's resident memory; `after, workers=N`: "
            "`mg.calibrate` of the same files with `RefineOptions(workers=N)` in a fresh "
            "process" % args.seed, "",
