@@ -389,7 +389,6 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
                        % (opts.joints_smoothness_sigma, len(solved)),
                        "iterations": joints_iterations, "initial_error": None,
                        "final_error": None, "converged": None, "rejected": 0,
-                       "global_step_applied": True,
                        "seconds": sum(r.joints_seconds for r in solved)})
     t = time.perf_counter()
     scores = _joined_scores([r for r in good if r.scores is not None], T, z)
