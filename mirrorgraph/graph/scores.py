@@ -480,8 +480,8 @@ def _dims(keys: np.ndarray) -> np.ndarray:
 
 
 def _summed(index: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
-    """``(n, ...)`` the ``rows`` ``(m, ...)`` summed by ``index`` ``(m,)`` (``np.add.at``,
-    through ``np.bincount`` per entry: many times faster)."""
+    """``(n, ...)`` the ``rows`` ``(m, ...)`` summed by ``index`` ``(m,)``: ``np.add.at``
+    through ``np.bincount``, one entry of the rows at a time."""
     rows = np.asarray(rows, dtype=float)
     flat = rows.reshape(len(rows), -1)
     out = np.empty((n, flat.shape[1]))
