@@ -11,7 +11,11 @@ is the figure of a shared machine: wall time there also counts the other jobs.
 With ``--before DIR`` (a checkout of another commit, e.g. ``git archive HEAD~3 | tar -x
 -C DIR``) every scene also runs with DIR's package first on the path, the two trees
 alternating, and the table puts them side by side, with the rotation between the two
-calibrations' mirror normals.
+calibrations' mirror normals. Every run writes the 3D joints too (``--joints3d``), and
+a second table scores each tree against the scene's truth: the mirror's rotation and
+distance errors beside their stds, the joints' mean and median error, the share more
+than 0.3 m off, the worst, the median error/std, and how far the joints of the two
+trees lie apart.
 
 With ``--workers 1,2`` the scenes also run through the library as the command does
 (``mg.calibrate`` of the keypoints file, ``write_calibration``) in a fresh process with
@@ -40,8 +44,9 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 
-def write_scene(seed: int, frames: int, folder: Path) -> tuple[Path, Path, float]:
-    """The scene's keypoints and intrinsics files, and the subject's height (metres)."""
+def write_scene(seed: int, frames: int, folder: Path) -> tuple[Path, Path, float, dict]:
+    """The scene's keypoints and intrinsics files, the subject's height (metres) and its
+    truth (``normal``, ``distance`` m, ``joints3d`` ``(T, J, 3)`` m)."""
     from mirrorgraph.io import write_keypoints
     from mirrorgraph.synth import make_wide_scene
 
@@ -50,14 +55,18 @@ def write_scene(seed: int, frames: int, folder: Path) -> tuple[Path, Path, float
     write_keypoints(sc.detections, kp, "mmpose", meta=True)
     intr.write_text(json.dumps({"K": np.asarray(sc.K).tolist(),
                                 "image_size": list(sc.image_size)}))
-    return kp, intr, float(sc.subject_height)
+    truth = {"normal": np.asarray(sc.normal, float), "distance": float(sc.distance),
+             "joints3d": np.asarray(sc.joints3d, float)}
+    return kp, intr, float(sc.subject_height), truth
 
 
 def run_cli(tree: Path, kp: Path, intr: Path, height: float, out: Path) -> dict:
-    """One ``calibrate`` in a fresh process with ``tree`` first on the path."""
+    """One ``calibrate`` (the 3D joints written too) in a fresh process with ``tree``
+    first on the path."""
     env = dict(os.environ, PYTHONPATH=str(tree))
     cmd = [sys.executable, "-m", "mirrorgraph", "calibrate", str(kp), "--intrinsics", str(intr),
-           "--subject-height", f"{height:.4f}", "--out", str(out), "--quiet"]
+           "--subject-height", f"{height:.4f}", "--out", str(out),
+           "--joints3d", str(out.with_suffix(".npz")), "--quiet"]
     return _measured(cmd, env, tree, out)
 
 
@@ -95,9 +104,41 @@ def _measured(cmd: list[str], env: dict, tree: Path, out: Path) -> dict:
     if code != 0:
         raise RuntimeError(f"{cmd[:4]} exited {code} in {tree}:\n{err[-2000:]}")
     cal = json.loads(out.read_text())
-    return dict(wall=wall, cpu=ru.ru_utime + ru.ru_stime, rss_mb=ru.ru_maxrss / 1024.0,
-                normal=np.asarray(cal["mirror"]["normal"] if "mirror" in cal else cal["normal"],
-                                  float))
+    res = dict(wall=wall, cpu=ru.ru_utime + ru.ru_stime, rss_mb=ru.ru_maxrss / 1024.0,
+               normal=np.asarray(cal["mirror"]["normal"], float),
+               distance=float(cal["mirror"]["distance"]),
+               rotation_std_deg=float(cal["uncertainty"]["rotation_std_deg"]),
+               distance_std=float(cal["uncertainty"]["distance_std"]))
+    npz = out.with_suffix(".npz")
+    if npz.exists():
+        with np.load(npz) as z:
+            res.update(joints3d=np.asarray(z["joints3d"], float),
+                       valid=np.asarray(z["valid"], bool),
+                       joints_std=np.asarray(z["joints_std"], float))
+    return res
+
+
+def accuracy(r: dict, truth: dict) -> dict:
+    """The mirror's and the joints' errors of one run against the scene's truth."""
+    out = dict(rot_err=_angle_deg(r["normal"], truth["normal"]),
+               dist_err_mm=1e3 * abs(r["distance"] - truth["distance"]),
+               rot_std=r["rotation_std_deg"], dist_std_mm=1e3 * r["distance_std"])
+    if "joints3d" in r:
+        ok = r["valid"]
+        err = np.linalg.norm(r["joints3d"] - truth["joints3d"], axis=-1)[ok]
+        ratio = err / r["joints_std"][ok]
+        out.update(mpjpe_mm=1e3 * float(np.mean(err)), median_mm=1e3 * float(np.median(err)),
+                   gross_pct=100.0 * float(np.mean(err > 0.3)), worst_m=float(np.max(err)),
+                   err_std=float(np.median(ratio)), joints=int(np.count_nonzero(ok)))
+    return out
+
+
+def _joints_moved(folder: Path) -> float:
+    """Median distance, mm, between the two trees' joints where both give one."""
+    with np.load(folder / "before.npz") as b, np.load(folder / "after.npz") as a:
+        ok = b["valid"] & a["valid"]
+        return 1e3 * float(np.median(np.linalg.norm(a["joints3d"][ok] - b["joints3d"][ok],
+                                                    axis=-1)))
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -126,7 +167,7 @@ def main() -> None:
         for frames in [int(f) for f in args.frames.split(",")]:
             folder = Path(tmp) / str(frames)
             folder.mkdir()
-            kp, intr, height = write_scene(args.seed, frames, folder)
+            kp, intr, height, truth = write_scene(args.seed, frames, folder)
             best: dict[str, dict] = {}
             for _ in range(args.repeats):
                 for name, tree in trees:
@@ -142,6 +183,13 @@ def main() -> None:
                         best[key] = r
                     print(f"{frames:6d} {key} wall {r['wall']:6.1f} s  CPU {r['cpu']:6.1f} s"
                           f"  peak {r['rss_mb']:6.0f} MB", flush=True)
+            for r in best.values():
+                r["acc"] = accuracy(r, truth)
+                r.pop("joints3d", None), r.pop("valid", None), r.pop("joints_std", None)
+            both = ("before" in best and "after" in best
+                    and "mpjpe_mm" in best["before"]["acc"] and "mpjpe_mm" in best["after"]["acc"])
+            if both:
+                best["after"]["acc"]["moved_mm"] = _joints_moved(folder)
             rows.append((frames, best))
     names = [n for n, _ in trees] + [f"after, workers={w}" for w in workers]
     head = "| frames | " + " | ".join(f"{n}: wall s | {n}: CPU s | {n}: peak MB" for n in names)
@@ -154,7 +202,21 @@ def main() -> None:
         diff = (f" | {_angle_deg(best['before']['normal'], best['after']['normal']):.4f}"
                 if args.before else "")
         lines.append(f"| {frames} | " + " | ".join(cells) + diff + " |")
-    text = "\n".join(lines)
+    acc = ["| frames | tree | mirror rotation error, deg | its std, deg | distance error, mm "
+           "| its std, mm | joints: mean error, mm | median, mm | > 0.3 m, % | worst, m "
+           "| median error/std | joints | joints moved before-after, median mm |",
+           "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for frames, best in rows:
+        for n in names:
+            a = best[n]["acc"]
+            j = (f"{a['mpjpe_mm']:.1f} | {a['median_mm']:.1f} | {a['gross_pct']:.2f} | "
+                 f"{a['worst_m']:.2f} | {a['err_std']:.2f} | {a['joints']}"
+                 if "mpjpe_mm" in a else " | ".join(["-"] * 6))
+            moved = f"{a['moved_mm']:.3f}" if "moved_mm" in a else "-"
+            acc.append(f"| {frames} | {n} | {a['rot_err']:.4f} | {a['rot_std']:.4f} | "
+                       f"{a['dist_err_mm']:.1f} | {a['dist_std_mm']:.1f} | {j} | {moved} |")
+    text = "\n".join(lines) + "\n\nAccuracy against the scene's truth (the same runs):\n\n" \
+        + "\n".join(acc)
     print(text)
     if args.no_write:
         return
@@ -163,7 +225,8 @@ def main() -> None:
                    note=f"{args.repeats} run(s) of each tree, the least CPU kept"),
            "* what: `make_wide_scene(%d, 'wide', 'iid', frames)` written as MMPose .json and "
            "intrinsics .json; `python -m mirrorgraph calibrate KEYPOINTS --intrinsics K.json "
-           "--subject-height H --out OUT --quiet` in a fresh process; CPU is the process's and "
+           "--subject-height H --out OUT --joints3d OUT.npz --quiet` in a fresh process; CPU is "
+           "the process's and "
            "its workers'; peak is the largest process's resident memory; `after, workers=N`: "
            "`mg.calibrate` of the same files with `RefineOptions(workers=N)` in a fresh "
            "process" % args.seed, "",

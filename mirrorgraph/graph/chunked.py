@@ -23,9 +23,15 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
    default (``options.chunk_passes``): on 10,000 frames three passes moved the
    mirror by 0.0001 deg more (0.005 of its standard deviation). The covariance of
    the mirror comes from the summed information, so it reflects every frame.
-4. **Joints pass.** Chunk by chunk, the 3D joints are solved again with the final
-   mirror and bone lengths held, the tighter smoothness of
-   ``joints_smoothness_sigma`` and every bone (:func:`~.stages.joints_pass`).
+4. **Joints pass.** In the same job, on the chunk's calibration graph (the graph is
+   built once), the 3D joints are solved again with the mirror and bone lengths
+   held, the tighter smoothness of ``joints_smoothness_sigma`` and every bone
+   (:func:`~.stages.joints_pass`), with their sensitivity to the mirror: that pass's
+   step back-substituted per unit of the plane's reduced coordinates. The shared
+   step ``z`` then moves each chunk's joints by ``sensitivity @ z``: to first order
+   in ``z`` the joints pass at the final mirror (the joints pass itself is one
+   Gauss-Newton step; on 16,000 frames the joints lie 0.003 mm, median, from the pass
+   solved again at the final mirror: ``bench/RESULTS_long.md``).
 
 An estimated focal length (:attr:`~.rig.Camera.estimate_focal`) is the subset's: the
 chunks hold it, and its standard deviation is the subset's (``max_graph_frames``
@@ -136,10 +142,16 @@ class _ChunkResult:
     final_error: float = 0.0
     reprojection_factors: int = 0
     iterations: int = 0
+    joints: np.ndarray | None = None          # (T_c, J, 3) the joints pass's
+    sensitivity: np.ndarray | None = None     # (T_c, J, 3, nz) its joints per unit z
+    joints_iterations: int = 0
+    joints_seconds: float = 0.0
 
 
 def _calibrate_chunk(job: tuple) -> _ChunkResult:
-    """Solve one chunk's joints with the globals held; return its reduced system."""
+    """Solve one chunk's joints with the globals held; return its reduced system, and
+    with ``joints_smoothness_sigma`` the joints pass on the same graph with its
+    sensitivity to the plane (:func:`_joints_pass`)."""
     crig, a, b, plane, start, ctx = job
     opts, config = ctx.opts, ctx.config
     out = _ChunkResult(a, b)
@@ -181,27 +193,27 @@ def _calibrate_chunk(job: tuple) -> _ChunkResult:
     out.distance_gauge = problem.distance_gauge
     if opts.marginals:
         out.scores = joint_scores(problem, values, keep_rows=True)
+    _joints_pass(out, problem, values, ctx)
     return out
 
 
-def _joints_chunk(job: tuple) -> _ChunkResult:
-    """The joints pass of one chunk with the final mirror held."""
-    crig, a, b, plane, (cpoints, cmasks), ctx = job
-    out = _ChunkResult(a, b)
-    keep = seen_twice(cmasks) & np.isfinite(cpoints).all(-1)
-    if np.count_nonzero(keep) == 0:
-        return out
-    opts = ctx.opts
-    base = build_problem(with_views(crig, cmasks), cpoints, keep, [plane],
-                         replace(opts, use_bone_length=False, subject_height=None),
-                         body_height=ctx.body_height, final_kernel=ctx.kernel)
-    snap_virtual_poses(base, base.values)
-    jp = joints_pass(base, base.values, ctx.lengths, opts)
+def _joints_pass(out: _ChunkResult, problem, values: gtsam.Values, ctx: _Context) -> None:
+    """The joints pass of a chunk on its calibration graph ``problem`` at its solution
+    ``values`` (the mirror it was given held), into ``out``: the joints and their
+    ``(T_c, J, 3, nz)`` change per unit of the plane's reduced coordinates (zero where
+    a joint is not estimated); nothing without ``joints_smoothness_sigma``."""
+    t = time.perf_counter()
+    jp = joints_pass(problem, values, ctx.lengths, ctx.opts, sensitivity=True)
     if jp is None:
-        return out
-    problem, res = jp
-    out.points, out.iterations = extract_points(problem, res.values), res.iterations
-    return out
+        return
+    jproblem, res = jp
+    T, J = jproblem.used.shape
+    out.joints, out.joints_iterations = extract_points(jproblem, res.values), res.iterations
+    if res.sensitivity is not None:
+        sens = np.zeros((T * J, 3, res.sensitivity.shape[-1]))
+        sens[jproblem.flat_index] = res.sensitivity
+        out.sensitivity = sens.reshape(T, J, 3, -1)
+    out.joints_seconds = time.perf_counter() - t
 
 
 class _Runner:
@@ -365,22 +377,20 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
                        for v, m in zip(rig.views, out_masks)))
     stages[-1]["rejected"] = rejected
     n_repro = sum(r.reprojection_factors for r in good)
-    if opts.joints_smoothness_sigma is not None:
-        t = time.perf_counter()
-        jobs = [(chunks[i], r.a, r.b, plane, (r.points, r.masks), ctx)
-                for i, r in enumerate(done) if r.points is not None]
-        solved = runner.map(_joints_chunk, jobs, None)
+    solved = [r for r in good if r.joints is not None]
+    if opts.joints_smoothness_sigma is not None and solved:
+        # each chunk's joints pass at the mirror of the last pass, moved by its step
         for r in solved:
-            if r.points is not None:
-                out_points[r.a:r.b] = r.points
-        iterations += sum(r.iterations for r in solved)
-        seconds = time.perf_counter() - t
-        timings["solve"] += seconds
+            out_points[r.a:r.b] = r.joints
+            if r.sensitivity is not None:
+                out_points[r.a:r.b] += np.einsum("tjkn,n->tjk", r.sensitivity, z)
+        joints_iterations = sum(r.joints_iterations for r in solved)
+        iterations += joints_iterations
         stages.append({"name": "joints pass (mirror held, smoothness %g h), %d chunks"
-                       % (opts.joints_smoothness_sigma, len(jobs)),
-                       "iterations": sum(r.iterations for r in solved), "initial_error": None,
+                       % (opts.joints_smoothness_sigma, len(solved)),
+                       "iterations": joints_iterations, "initial_error": None,
                        "final_error": None, "converged": None, "rejected": 0,
-                       "seconds": seconds})
+                       "seconds": sum(r.joints_seconds for r in solved)})
     t = time.perf_counter()
     scores = _joined_scores([r for r in good if r.scores is not None], T, z)
     noise_px = reprojection_noise_px(rig, out_masks, ctx.pose, [plane], 3)

@@ -781,20 +781,26 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
     Xs = np.nan_to_num(X)
     info = np.zeros((len(X), 3, 3))
     rhs = np.zeros((len(X), 3, n))
+    moved = []                                  # per k: every view's matrix at +-step
+    for k in range(n):
+        e = np.zeros(n)
+        e[k] = step
+        moved.append((projections(e), projections(-e)))
     for vi, (P, m) in enumerate(zip(P0, masks)):
         m = np.asarray(m, bool).reshape(-1)
         y = Xs @ P[:, :3].T + P[:, 3]
         Jx = (P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3]) \
             / y[:, 2, None, None]
+        info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
         Jz = np.zeros((len(X), 2, n))
         for k in range(n):
-            e = np.zeros(n)
-            e[k] = step
-            Pp, Pm = projections(e)[vi], projections(-e)[vi]
+            Pp, Pm = moved[k][0][vi], moved[k][1][vi]
+            if np.array_equal(Pp, Pm):          # a view the globals do not move (the camera)
+                continue
             yp, ym = Xs @ Pp[:, :3].T + Pp[:, 3], Xs @ Pm[:, :3].T + Pm[:, 3]
             Jz[:, :, k] = (yp[:, :2] / yp[:, 2:3] - ym[:, :2] / ym[:, 2:3]) / (2 * step)
-        info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
-        rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
+        if np.any(Jz):
+            rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
     if cov is None:                      # as geo.triangulation_covariance decides it
         seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
         ok = seen & np.isfinite(info).all((1, 2))

@@ -220,6 +220,12 @@ class LMResult:
             drops them and their observations.
         guarded: local variables held at their value by the guard (e.g. a point
             that a step would have taken behind a camera).
+        sensitivity: ``(n_local, nz)`` the change of the last accepted step of the
+            local variables of :attr:`LevenbergMarquardt.sensitivity_keys` (their
+            tangent coordinates stacked in that order) per unit of the reduced globals
+            ``z``: ``-H_xx^-1 H_xz T`` of that step's (damped) linearisation, so that
+            with the globals held the solution at globals moved by ``z`` is, to first
+            order, the solution plus ``sensitivity @ z``; ``None`` unless asked.
     """
 
     values: gtsam.Values
@@ -233,6 +239,7 @@ class LMResult:
     rejected_steps: int = 0
     indeterminate: set[int] = field(default_factory=set)
     guarded: int = 0
+    sensitivity: np.ndarray | None = None
 
 
 class LevenbergMarquardt:
@@ -256,15 +263,19 @@ class LevenbergMarquardt:
             continue with, given the new values (e.g. with quantities the graph holds
             set to their optimum given ``values``, as the bone lengths are): its
             error at ``values`` must not exceed the old graph's.
+        sensitivity_keys: local variables whose :attr:`LMResult.sensitivity` to the
+            reduced globals is returned (``None``: not computed).
     """
 
     def __init__(self, graph: gtsam.NonlinearFactorGraph, reduction: GlobalReduction,
                  params: LMParams | None = None, ordering: gtsam.Ordering | None = None,
                  hold_globals: bool = False,
                  guard: Callable[[gtsam.Values, gtsam.Values], int] | None = None,
-                 refresh: Callable[[gtsam.Values], gtsam.NonlinearFactorGraph] | None = None
-                 ) -> None:
+                 refresh: Callable[[gtsam.Values], gtsam.NonlinearFactorGraph] | None = None,
+                 sensitivity_keys: list[int] | None = None) -> None:
         self.hold_globals = hold_globals
+        self.sensitivity_keys = sensitivity_keys
+        self._sensitivity: np.ndarray | None = None     # of the last step solved
         self.guard = guard
         self.refresh = refresh
         self.graph = graph
@@ -358,12 +369,32 @@ class LevenbergMarquardt:
         ng = sum(d for _, d in red.graph_keys)
         _split(dg[:ng], red.graph_keys, given)
         delta = bayes_net.optimize(given)
+        if self.sensitivity_keys is not None:      # while the step's conditionals exist
+            self._sensitivity = self.local_sensitivity(
+                bayes_net, T, dg[:ng], np.asarray(delta.vector(self.sensitivity_keys), float),
+                self.sensitivity_keys)
         for k, _ in red.graph_keys:
             if not delta.exists(int(k)):
                 delta.insert(int(k), given.at(int(k)))
         if red.extra_keys:
             _split(dg[ng:], red.extra_keys, delta)
         return delta, Hz, gz, float(np.sqrt(max(z @ Hz @ z, 0.0)))
+
+    def local_sensitivity(self, bayes_net: gtsam.GaussianBayesNet, T: np.ndarray,
+                          given: np.ndarray, base: np.ndarray, keys: list[int]) -> np.ndarray:
+        """``(n_local, nz)`` the change of the back-substituted local variables ``keys``
+        per unit of ``z`` (:attr:`LMResult.sensitivity`): the conditionals
+        ``p(locals | globals)`` of a step solved with the graph's globals at
+        ``given + T e_i``, less ``base`` (the step's own, at ``given``): the
+        back-substitution is affine in them."""
+        red = self.reduction
+        ng = len(given)
+        out = np.zeros((len(base), T.shape[1]))
+        for i in range(T.shape[1]):
+            moved = gtsam.VectorValues()
+            _split(given + T[:ng, i], red.graph_keys, moved)
+            out[:, i] = np.asarray(bayes_net.optimize(moved).vector(keys), dtype=float) - base
+        return out
 
     def reduced_system(self, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
         """The reduced information ``T^T Lambda T`` and gradient at ``values``.
@@ -491,6 +522,7 @@ class LevenbergMarquardt:
                     break
                 continue
             result.guarded += guarded
+            accepted = self._sensitivity
             last = it == p.max_iterations
             # the last solve allowed: nothing is decided by the model's prediction any more
             predicted = None if last else self.predicted_decrease(gfg, delta, values)
@@ -523,6 +555,9 @@ class LevenbergMarquardt:
             if not last:
                 gfg = self.graph.linearize(values)
         result.values, result.final_error = values, error
+        if self.sensitivity_keys is not None and result.history:
+            result.sensitivity = accepted
+        self._sensitivity = None
         return result
 
 

@@ -138,17 +138,16 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values,
         return frame_scores(problem, values, bias_pixel_sigma)
     red = mirror_reduction(problem, distance_gauge=None)
     T, J = problem.used.shape
-    nz = sum(d for _, d in red.z_keys)
     gfg = problem.reprojection.linearize(values)
     trip = np.asarray(gfg.sparseJacobian_(), dtype=float)                     # (3, nnz)
     rows, cols, vals = trip[0].astype(np.int64) - 1, trip[1].astype(np.int64) - 1, trip[2]
-    keys = sorted(int(k) for k in gfg.keyVector())
-    dims = [_dim(k) for k in keys]
-    offsets = np.cumsum([0] + dims)
+    keys = np.sort(np.asarray(gfg.keyVector(), dtype=np.uint64))
+    dims = _dims(keys)
+    offsets = np.concatenate([[0], np.cumsum(dims)])
     b_col = offsets[-1]
     key_of_col = np.repeat(np.arange(len(keys)), dims)
     local_of_col = np.arange(b_col) - np.repeat(offsets[:-1], dims)
-    is_point = np.array([gtsam.Symbol(k).chr() == ord("x") for k in keys])
+    is_point = _chars(keys) == ord("x")
     # the basis: graph globals (virtual poses, cameras in the graph) -> z
     Tb = red.basis(values)
     row_of_key, off = {}, 0
@@ -170,38 +169,33 @@ def joint_scores(problem: GraphProblem, values: gtsam.Values,
     pt = is_point[kc]
     A[fr[pt], rr[pt], lc[pt]] = vr[pt]
     point_of_factor[fr[pt]] = kc[pt]
-    glob_row = np.array([row_of_key.get(keys[i], -1) for i in range(len(keys))])
+    glob_row = np.full(len(keys), -1, dtype=np.int64)
+    for k, off in row_of_key.items():
+        glob_row[np.searchsorted(keys, np.uint64(k))] = off
     gr = glob_row[kc[~pt]]
     ok = gr >= 0
     Bg[fr[~pt][ok], rr[~pt][ok], gr[ok] + lc[~pt][ok]] = vr[~pt][ok]
     B = Bg @ Tb                                                                  # (nf, 2, nz)
     # per joint: normal equations of its rows, then its Schur complement and score
     point_index = np.full(len(keys), -1, dtype=np.int64)
-    pk = [i for i in range(len(keys)) if is_point[i]]
+    pk = np.flatnonzero(is_point)
     point_index[pk] = np.arange(len(pk))
     p = point_index[point_of_factor]
     n_pts = len(pk)
-    Hxx = np.zeros((n_pts, 3, 3))
-    Hxz = np.zeros((n_pts, 3, nz))
-    Hzz = np.zeros((n_pts, nz, nz))
-    gx = np.zeros((n_pts, 3))
-    gz = np.zeros((n_pts, nz))
-    np.add.at(Hxx, p, np.einsum("fri,frj->fij", A, A))
-    np.add.at(Hxz, p, np.einsum("fri,frj->fij", A, B))
-    np.add.at(Hzz, p, np.einsum("fri,frj->fij", B, B))
-    np.add.at(gx, p, np.einsum("fri,fr->fi", A, b))
-    np.add.at(gz, p, np.einsum("fri,fr->fi", B, b))
+    Hxx = _summed(p, np.einsum("fri,frj->fij", A, A), n_pts)
+    Hxz = _summed(p, np.einsum("fri,frj->fij", A, B), n_pts)
+    Hzz = _summed(p, np.einsum("fri,frj->fij", B, B), n_pts)
+    gx = _summed(p, np.einsum("fri,fr->fi", A, b), n_pts)
+    gz = _summed(p, np.einsum("fri,fr->fi", B, b), n_pts)
     Hxx += 1e-12 * np.eye(3)
     solve_xz = np.linalg.solve(Hxx, Hxz)                                         # (N, 3, nz)
     solve_x = np.linalg.solve(Hxx, gx[..., None])[..., 0]
     S = Hzz - np.einsum("nia,nib->nab", Hxz, solve_xz)
     s = gz - np.einsum("nia,ni->na", Hxz, solve_x)
-    flat = np.array([keys[i] for i in pk], dtype=np.uint64) - np.uint64(point_keys([0])[0])
+    flat = keys[pk] - np.uint64(point_keys([0])[0])
     frames, joints = (flat // J).astype(np.int64), (flat % J).astype(np.int64)
-    frame_info = np.zeros((T, nz, nz))
-    joint_info = np.zeros((J, nz, nz))
-    np.add.at(frame_info, frames, S)
-    np.add.at(joint_info, joints, S)
+    frame_info = _summed(frames, S, T)
+    joint_info = _summed(joints, S, J)
     flip = np.asarray(problem.rig.skeleton.flip, dtype=np.int64)
     clusters = np.minimum(joints, flip[joints])
     spread = intrinsics_prior_spread(problem, list(red.z_keys))
@@ -472,6 +466,28 @@ def scale_direction(problem: GraphProblem, values: gtsam.Values, z_keys: list) -
             R, t = np.asarray(pose.rotation().matrix()), np.asarray(pose.translation())
             out.append(np.concatenate([np.zeros(3), R.T @ t]))
     return np.concatenate([np.asarray(o, dtype=float) for o in out]) if out else np.zeros(0)
+
+
+def _chars(keys: np.ndarray) -> np.ndarray:
+    """``(n,)`` the :class:`gtsam.Symbol` character of every key of ``(n,)`` uint64."""
+    return (np.asarray(keys, dtype=np.uint64) >> np.uint64(56)).astype(np.int64)
+
+
+def _dims(keys: np.ndarray) -> np.ndarray:
+    """:func:`_dim` of every key of ``(n,)`` uint64, vectorised."""
+    c = _chars(keys)
+    return np.where(c == ord("x"), 3, np.where(np.isin(c, (ord("k"), ord("q"))), 5, 6))
+
+
+def _summed(index: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """``(n, ...)`` the ``rows`` ``(m, ...)`` summed by ``index`` ``(m,)``: ``np.add.at``
+    through ``np.bincount``, one entry of the rows at a time."""
+    rows = np.asarray(rows, dtype=float)
+    flat = rows.reshape(len(rows), -1)
+    out = np.empty((n, flat.shape[1]))
+    for i in range(flat.shape[1]):
+        out[:, i] = np.bincount(index, flat[:, i], minlength=n)
+    return out.reshape((n,) + rows.shape[1:])
 
 
 def _dim(key: int) -> int:

@@ -50,12 +50,16 @@ def lm_params(opts: RefineOptions, problem: GraphProblem,
 def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: RefineOptions,
              *, distance_gauge: float | None, max_iterations=None,
              hold_globals: bool = False, progress: Progress | None = None,
-             values: gtsam.Values | None = None) -> tuple[LMResult, list[tuple[int, int]]]:
+             values: gtsam.Values | None = None, sensitivity: bool = False
+             ) -> tuple[LMResult, list[tuple[int, int]]]:
     """Levenberg-Marquardt on ``graph`` from ``values`` (default: the problem's initial
     values) with the links exact, the cheirality guard on. Where the problem has bone
     factors and the globals move, the bone lengths are set to their optimum after
     every accepted step (:func:`~.lengths.update_lengths`; ``problem`` holds the last
-    ones, and ``graph`` must be its :meth:`~.problem.GraphProblem.full` graph)."""
+    ones, and ``graph`` must be its :meth:`~.problem.GraphProblem.full` graph). With
+    ``sensitivity`` the result holds the points' change per unit of the reduced globals
+    (:attr:`~.optimizer.LMResult.sensitivity`, reshaped ``(N, 3, nz)`` in
+    ``problem.flat_index`` order)."""
     red = mirror_reduction(problem, distance_gauge=distance_gauge)
     refresh = None
     if problem.lengths is not None and not hold_globals and problem.length_key is None:
@@ -71,8 +75,12 @@ def optimize(problem: GraphProblem, graph: gtsam.NonlinearFactorGraph, opts: Ref
             return current[0]
     lm = LevenbergMarquardt(graph, red, lm_params(opts, problem, max_iterations),
                             ordering=problem.point_ordering(), hold_globals=hold_globals,
-                            guard=cheirality_guard(problem), refresh=refresh)
+                            guard=cheirality_guard(problem), refresh=refresh,
+                            sensitivity_keys=point_keys(problem.flat_index) if sensitivity
+                            else None)
     res = lm.optimize(problem.values if values is None else values, progress)
+    if res.sensitivity is not None:
+        res.sensitivity = res.sensitivity.reshape(len(problem.flat_index), 3, -1)
     if problem.length_key is not None:       # the lengths are a variable: read them back
         problem.lengths = np.asarray(res.values.atVector(problem.length_key), dtype=float)
     return res, red.z_keys

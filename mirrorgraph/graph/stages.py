@@ -498,7 +498,8 @@ JOINTS_PASS_ITERATIONS = 1
 
 
 def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
-                opts: RefineOptions) -> tuple[GraphProblem, LMResult] | None:
+                opts: RefineOptions, sensitivity: bool = False
+                ) -> tuple[GraphProblem, LMResult] | None:
     """The 3D joints solved again with every global held, from the calibration's solution.
 
     The calibration's variables and reprojection factors with other body priors
@@ -512,6 +513,10 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     Args:
         problem, values: the calibration's graph and its solution.
         lengths: bone name -> length (graph units), held.
+        sensitivity: also return the joints' change per unit of the held mirror's
+            reduced coordinates (:attr:`~.optimizer.LMResult.sensitivity`, ``(N, 3, nz)``
+            in ``problem.flat_index`` order): the joints of the pass at a mirror moved
+            by ``z`` are, to first order, the result plus ``sensitivity @ z``.
 
     Returns:
         The joints' graph and its solve; ``None`` without ``joints_smoothness_sigma``.
@@ -523,7 +528,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     jp = with_motion_priors(problem, values, lengths, jopts)
     res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
                       max_iterations=JOINTS_PASS_ITERATIONS,
-                      hold_globals=True)
+                      hold_globals=True, sensitivity=sensitivity)
     return jp, res
 
 

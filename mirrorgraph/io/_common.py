@@ -132,7 +132,7 @@ def numeric_array(value: Any, ndim: int | None, *, source: Any, frame: int | Non
     if a.dtype.kind not in "iuf":
         raise InputError(f"expected numbers, got {_describe(a)}", source=source,
                          frame=frame, field=field)
-    if _holds_bool(value, a.shape):  # NumPy turns [true, 2.5] into [1.0, 2.5]
+    if holds_bool(value, a.shape):  # NumPy turns [true, 2.5] into [1.0, 2.5]
         raise InputError("expected numbers, got true/false entries", source=source,
                          frame=frame, field=field)
     if ndim is not None and a.ndim != ndim:
@@ -141,7 +141,7 @@ def numeric_array(value: Any, ndim: int | None, *, source: Any, frame: int | Non
     return a.astype(float)
 
 
-def _holds_bool(value: Any, shape: tuple[int, ...] | None = None) -> bool:
+def holds_bool(value: Any, shape: tuple[int, ...] | None = None) -> bool:
     """Whether nested lists hold a ``bool`` anywhere (iteratively: no recursion limit).
 
     ``shape``: the rectangular shape NumPy read ``value`` as; then the leaves are taken

@@ -45,7 +45,7 @@ from ..keypoints import RawDetections
 from ..skeletons import COCO_17, Skeleton
 from ._common import (JointCount, ProgressCallback, ScorePolicy, Tally, bbox_of,
                       check_frame_ids, clean_keypoints, drop_empty_people, dump_json,
-                      frame_files, json_type, load_json, numeric_array,
+                      frame_files, holds_bool, json_type, load_json, numeric_array,
                       require, to_skeleton, zero_missing)
 from .atomic import atomic_write_text
 from .meta import meta_info, read_meta_info
@@ -86,10 +86,20 @@ def detections_from_mmpose(obj: Any, *, source: str,
         size, fps = read_meta_info(obj["meta_info"], source=source)
     if not isinstance(frames, list):
         raise InputError(f"expected a list of frames, got {json_type(obj)}", source=source)
-    counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
-    tally = Tally()
     if frames and is_instance_list(frames):          # one image
         frames = [{"frame_id": 0, "instances": frames}]
+    out = _read_at_once(frames, skeleton, source)
+    if out is None:                                  # something to name: frame by frame
+        out = _read_frames(frames, skeleton, source)
+    out.image_size, out.fps = size, fps
+    return out
+
+
+def _read_frames(frames: list, skeleton: Skeleton | str | None, source: str) -> RawDetections:
+    """:func:`detections_from_mmpose`'s frames read one at a time, every entry checked (the
+    error names the first wrong one: frame, person, field)."""
+    counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
+    tally = Tally()
     ids: list[int] = []
     people: list[np.ndarray | None] = []
     for i, frame in enumerate(frames):
@@ -101,9 +111,68 @@ def detections_from_mmpose(obj: Any, *, source: str,
         ids.append(t)
         people.append(_frame(instances, counter, tally, source=source, frame=t))
     frame_ids, order = check_frame_ids(ids, source=source)
-    out = _detections(people, order, frame_ids, counter, tally, source)
-    out.image_size, out.fps = size, fps
-    return out
+    return _detections(people, order, frame_ids, counter, tally, source)
+
+
+def _read_at_once(frames: list, skeleton: Skeleton | str | None, source: str
+                  ) -> RawDetections | None:
+    """:func:`_read_frames` vectorised over every instance of the file, where every frame
+    entry and instance is well formed (the usual file: ~10x faster on 16,000 frames);
+    ``None`` where anything is not (the frame-by-frame reading then names it).
+
+    Every instance's keypoints and scores are converted as one array and cleaned at once
+    (:func:`~._common.clean_keypoints`: the same elementwise rules and counts), the
+    people without a joint seen dropped, and the rows split back into frames.
+    """
+    ids: list[int] = []
+    counts: list[int] = []
+    xy_lists: list = []
+    score_lists: list = []
+    for frame in frames:
+        if type(frame) is not dict:
+            return None
+        t, instances = frame.get("frame_id"), frame.get("instances")
+        if type(t) is not int or type(instances) is not list:
+            return None
+        ids.append(t)
+        counts.append(len(instances))
+        for inst in instances:
+            if type(inst) is not dict:
+                return None
+            xy = inst.get("keypoints")
+            sc = inst["keypoint_scores"] if "keypoint_scores" in inst else [1.0] * len(xy or ())
+            if type(xy) is not list or type(sc) is not list:
+                return None
+            xy_lists.append(xy)
+            score_lists.append(sc)
+    if not xy_lists:
+        return None
+    try:
+        xy, sc = np.asarray(xy_lists), np.asarray(score_lists)
+    except (ValueError, TypeError):
+        return None
+    if (xy.dtype.kind not in "iuf" or sc.dtype.kind not in "iuf" or xy.ndim != 3
+            or xy.shape[2] != 2 or sc.shape != xy.shape[:2]
+            or holds_bool(xy_lists, xy.shape) or holds_bool(score_lists, sc.shape)):
+        return None
+    counter = JointCount(to_skeleton(skeleton, source=source), default=COCO_17)
+    tally = Tally()
+    try:
+        frame_ids, order = check_frame_ids(ids, source=source)
+        counter.check(xy.shape[1], source=source, frame=None, field="instances")
+        kp = clean_keypoints(np.concatenate([xy, sc[..., None]], axis=-1).astype(float),
+                             source=source, frame=None, field="instances", policy=SCORES,
+                             tally=tally)
+    except InputError:
+        return None
+    seen = (kp[..., 2] > 0).any(-1)
+    tally.no_joints += int(np.count_nonzero(~seen))
+    frame_of = np.repeat(np.arange(len(counts)), counts)
+    kept, rows = np.bincount(frame_of[seen], minlength=len(counts)), kp[seen]
+    edges = np.concatenate([[0], np.cumsum(kept)]).tolist()
+    people: list[np.ndarray | None] = [rows[a:b] if b > a else None
+                                       for a, b in zip(edges[:-1], edges[1:])]
+    return _detections(people, order, frame_ids, counter, tally, source)
 
 
 def read_mmpose_folder(folder: str | os.PathLike, *, skeleton: Skeleton | str | None = None,

@@ -610,3 +610,35 @@ def test_mmpose_demo_meta_info_without_size_reads(tmp_path):
     back = read_keypoints(tmp_path / "demo.json")
     assert back.image_size is None and back.fps is None
     assert_same_detections(det, back)
+
+
+def test_mmpose_read_at_once_is_the_frame_by_frame_reading():
+    """A well-formed file is read in one pass over every instance; what it gives (people,
+    missing and clipped scores, people without joints, empty frames, their counts) is
+    what reading it frame by frame gives, and a wrong entry is still named."""
+    from mirrorgraph.io import mmpose
+
+    rng = np.random.default_rng(5)
+    frames = []
+    for t in [7, 2, 9, 4, 11]:                                 # unsorted ids
+        inst = []
+        for _ in range(int(rng.integers(0, 3))):
+            xy = rng.uniform(0, 1900, (17, 2)).round(2)
+            sc = rng.uniform(-0.2, 1.4, 17)                    # <= 0: missing; > 1: clipped
+            if rng.random() < 0.3:
+                sc[:] = 0.0                                    # nobody seen
+            inst.append({"keypoints": xy.tolist(), "keypoint_scores": sc.tolist()})
+        if t == 4:
+            inst.append({"keypoints": [[1, 2]] * 17})           # integers, no scores
+        frames.append({"frame_id": t, "instances": inst})
+    fast = mmpose._read_at_once(frames, None, "x")
+    assert fast is not None
+    slow = mmpose._read_frames(frames, None, "x")
+    assert_same_detections(fast, slow)
+    assert fast.read_notes.as_dict() == slow.read_notes.as_dict()
+    assert fast.read_notes.scores_clipped_above_1 > 0
+    # not well formed: the frame-by-frame reading names it
+    frames[2]["instances"].append({"keypoints": [[1, 2]] * 16, "keypoint_scores": [1] * 16})
+    assert mmpose._read_at_once(frames, None, "x") is None
+    with pytest.raises(InputError, match="16 keypoints"):
+        mmpose.detections_from_mmpose(frames, source="x")
