@@ -66,6 +66,11 @@ ASSOCIATION_OF_SIZE = 0.025
 #: frame in more than this share of the frames both are in (and in more than one frame).
 CONFLICT_SHARE = 0.05
 
+#: A detection's labels are swapped against its cluster's where the swapped labels' cost
+#: is under this share of the labels' own with most of the cluster (a person seen from the
+#: side fits nearly as well either way: noise alone must not drop them).
+SWAP_MARGIN = 0.5
+
 #: Joints two detections must share for their cost.
 MIN_SHARED_JOINTS = 4
 
@@ -393,8 +398,8 @@ def _cluster(N: int, cam_of: np.ndarray, frame_of: np.ndarray, ia: np.ndarray,
 
 def _drop_swapped(clusters: list[list[int]], ia: np.ndarray, ib: np.ndarray,
                   ratio: np.ndarray, flipped: np.ndarray) -> int:
-    """Leave out, in place, each cluster's detection whose labels fit the others better
-    swapped (most of its pairs); a cluster of two that fits better swapped is emptied.
+    """Leave out, in place, each cluster's detection whose labels fit the others clearly
+    better swapped (:data:`SWAP_MARGIN`, most of its pairs); a cluster of two that fits better swapped is emptied.
     Returns the detections left out."""
     pair = {}
     for a, b, r, f in zip(ia, ib, ratio, flipped):
@@ -407,7 +412,7 @@ def _drop_swapped(clusters: list[list[int]], ia: np.ndarray, ib: np.ndarray,
         for m in members:
             rs = [pair.get((m, o)) for o in members if o != m]
             rs = [x for x in rs if x is not None and np.isfinite(x[0])]
-            if rs and sum(f < r for r, f in rs) > len(rs) / 2:
+            if rs and sum(f < SWAP_MARGIN * r for r, f in rs) > len(rs) / 2:
                 worse.append(m)
         if not worse:
             continue

@@ -18,8 +18,9 @@ probability ``occlusion_rate`` a person is hidden from a camera during one inter
 order; :attr:`SyntheticRigPeople.owner` keeps whose each is.
 
 With ``snapshots`` every frame is a snapshot :data:`SNAPSHOT_GAP` frames after the last:
-the people stand elsewhere, turned another way, each in a frame of their motion drawn
-at random (nothing continues from one frame to the next).
+each person stands within :data:`SNAPSHOT_MOVE` of their own place (staff at their posts),
+turned any way, in a frame of their motion drawn at random: nothing continues from one
+frame to the next but where people tend to stand.
 
 World frame = camera 0's (``x`` right, ``y`` down, ``z`` forward), metres; poses
 camera-to-world; pinhole cameras without distortion.
@@ -57,6 +58,8 @@ DRIFT_M = 0.6
 MIN_SPACING = 0.9
 #: Frames between two snapshots.
 SNAPSHOT_GAP = 2250
+#: m: how far (each horizontal axis) a person stands from their own place in a snapshot.
+SNAPSHOT_MOVE = 0.4
 _CAMERA_DISTANCE = (4.5, 7.0)
 _CAMERA_HEIGHT = (1.2, 2.5)
 _OCCLUSION_FRAMES = (5, 20)
@@ -101,6 +104,19 @@ class SyntheticRigPeople:
         return int(self.joints3d.shape[0])
 
 
+def _spaced(rng, P: int, home: np.ndarray | None = None) -> np.ndarray:
+    """``(P, 2)`` centres within :data:`AREA_RADIUS` (or within :data:`SNAPSHOT_MOVE` of
+    ``home``), :data:`MIN_SPACING` apart."""
+    for _ in range(_ATTEMPTS):
+        c = (rng.uniform(-1, 1, (P, 2)) * AREA_RADIUS if home is None
+             else home + rng.uniform(-1, 1, (P, 2)) * SNAPSHOT_MOVE)
+        d = np.linalg.norm(c[:, None] - c[None], axis=-1) + np.eye(P) * 1e9
+        if d.min() >= MIN_SPACING and (np.linalg.norm(c, axis=1) <= AREA_RADIUS).all():
+            return c
+    raise ValueError(f"cannot place {P} people {MIN_SPACING} m apart within "
+                     f"{AREA_RADIUS} m of the centre")
+
+
 def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool):
     """Room-frame joints ``(P, T, J, 3)`` and heights ``(P,)`` (module docstring)."""
     motions, heights = [], []
@@ -110,7 +126,8 @@ def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool):
         heights.append(float(rng.uniform(1.55, 1.95)))
     for _ in range(_ATTEMPTS):
         if snapshots:      # per frame: a place, a turn, a frame of the motion
-            centres = rng.uniform(-1, 1, (T, P, 2)) * AREA_RADIUS
+            home = _spaced(rng, P)
+            centres = np.stack([_spaced(rng, P, home) for _ in range(T)])
             yaws = rng.uniform(-np.pi, np.pi, (T, P))
             pick = rng.integers(0, T, (T, P))
         else:
