@@ -9,8 +9,9 @@ once for 5-20 frames with probability 0.3, 2 % left/right swaps; one scene of sn
 * **all**: ``calibrate_rig(people="all")``, every person associated and in the one graph;
 * **ids**: the identity-knowing bundle adjustment, the best the 2D data allow: the same
   run as ``all`` (the same graph, driver and start) with the association replaced by the
-  true one (:func:`mirrorgraph.rigs.people.associate_people` patched to return the
-  synthetic truth, for this bench only).
+  true one, the detections the detector labelled left/right swapped left out
+  (:func:`mirrorgraph.rigs.people.associate_people` patched to return the synthetic
+  truth, for this bench only).
 
 Figures: rotation error per camera (deg, median and max over the cameras but the first),
 position error (mm) after one least-squares scale for the rig, the wall time, and for
@@ -79,8 +80,10 @@ def true_association(rig, obs) -> PeopleAssociation:
     for c, cam in enumerate(obs.cameras):
         own = rig.owner[rig.camera_names[c]]
         ix = np.full((T, P), -1)
+        swapped = rig.swapped[rig.camera_names[c]]
         for t, who in enumerate(own):
-            ix[t, who] = np.arange(len(who))
+            keep = ~swapped[who, t]        # the detector's left/right swaps are known too
+            ix[t, who[keep]] = np.arange(len(who))[keep]
         sub = candidate_index(cam)
         for t in np.flatnonzero(sub >= 0):
             votes[own[t][sub[t]]] += 1

@@ -150,7 +150,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         raise DegenerateGeometryError(f"{exc}; likeliest cause: " + "; ".join(hints)) from None
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")                             # solve
-    every = (run.people or DEFAULT_PEOPLE) == "all"
+    # every person: where some camera sees several (one person alone is the one-person run)
+    every = (run.people or DEFAULT_PEOPLE) == "all" and any(
+        c.people is not None and any(len(p) > 1 for p in c.people) for c in obs.cameras)
     # every person's graph gives the uncertainties: the first solve needs none
     sol = solve_rig(rig, replace(opts, marginals=False) if every else opts, H,
                     progress=iteration_progress)
@@ -214,7 +216,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         joints_std = None if people[2] is None else people[2][0]
         bones = {b[:-2]: v for b, v in sol.bone_lengths.items() if b.endswith("@0")}
     else:
-        refinement["people"] = {"mode": "one", "count": 1}
+        refinement["people"] = {"mode": run.people or DEFAULT_PEOPLE, "count": 1}
     result = RigCalibration(joints_std=joints_std,cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
                           scale_source=scale_source,
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),

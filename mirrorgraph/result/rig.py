@@ -384,7 +384,7 @@ class RigCalibration:
             lines.append(f"mirror {m.name:<10} normal [{n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}] "
                          f"d {m.distance:.4f} {unit}  rot std {m.rotation_std_deg:.3f} deg")
         people = (self.refinement or {}).get("people") or {}
-        if people.get("mode") == "all":
+        if people.get("mode") == "all" and "found" in people:
             lines.append(f"people: {people.get('count')} in the one graph (every person in "
                          f"view; {people.get('found')} associated across the cameras)")
         lines.append("scale: " + (f"subject height {self.subject_height:g} m"

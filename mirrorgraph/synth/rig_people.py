@@ -81,6 +81,7 @@ class SyntheticRigPeople:
         detections: camera name -> :class:`~mirrorgraph.keypoints.RawDetections`.
         owner: camera name -> ``T`` int arrays ``(P_t,)``: whose each detection is.
         occluded: camera name -> ``(P, T)`` bool, the scripted occlusions.
+        swapped: camera name -> ``(P, T)`` bool, detections with swapped left/right labels.
         options: the arguments.
     """
 
@@ -97,6 +98,7 @@ class SyntheticRigPeople:
     owner: dict[str, list[np.ndarray]]
     occluded: dict[str, np.ndarray]
     options: dict
+    swapped: dict[str, np.ndarray] | None = None
 
     @property
     def num_people(self) -> int:
@@ -242,7 +244,7 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
     poses[0] = np.eye(4)
     names = [f"cam{i + 1:02d}" for i in range(cameras)]
     frame_ids = np.arange(T, dtype=np.int64) * (SNAPSHOT_GAP if snapshots else 1)
-    detections, owner, occluded = {}, {}, {}
+    detections, owner, occluded, swapped = {}, {}, {}, {}
     J = skel.num_joints
     flip = np.asarray(skel.flip)
     for name, cam, K in zip(names, cams, Ks):
@@ -273,10 +275,12 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
                                          format="synthetic", image_size=size, fps=float(fps))
         owner[name] = own
         occluded[name] = hidden
+        swapped[name] = swap
     return SyntheticRigPeople(camera_names=names, K=Ks, image_size=size, poses=poses,
                               skeleton=skel, fps=float(fps), frame_ids=frame_ids,
                               joints3d=joints3d, heights=H, detections=detections,
-                              owner=owner, occluded=occluded, options=options)
+                              owner=owner, occluded=occluded, options=options,
+                              swapped=swapped)
 
 
 def write_rig_people(rig: SyntheticRigPeople, out_dir: str | os.PathLike, *,
