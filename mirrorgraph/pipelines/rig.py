@@ -151,7 +151,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")                             # solve
     # every person: where some camera sees several (one person alone is the one-person run)
-    every = (run.people or DEFAULT_PEOPLE) == "all" and any(
+    every = (run.people or DEFAULT_PEOPLE) == "all" and len(obs.cameras) > 1 and any(
         c.people is not None and any(len(p) > 1 for p in c.people) for c in obs.cameras)
     # every person's graph gives the uncertainties: the first solve needs none
     sol = solve_rig(rig, replace(opts, marginals=False) if every else opts, H,
@@ -162,8 +162,11 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         everyone = solve_everyone(obs, init, sol, used_joints, opts, H,
                                   estimate_focal=estimate_focal, progress=say,
                                   iteration_progress=iteration_progress)
-        solved, sol = everyone.observations, everyone.solution
-        warnings = [w for w in warnings if SUBJECT_NOTE not in w]
+        if everyone is None:                        # no one seen twice: the subject alone
+            sol = solve_rig(rig, opts, H, progress=iteration_progress)
+        else:
+            solved, sol = everyone.observations, everyone.solution
+            warnings = [w for w in warnings if SUBJECT_NOTE not in w]
     sol = complete_rig_joints(solved, sol, opts.outlier_threshold)         # completion
     if everyone is not None:                                                 # scale
         from .rig_people import scale_everyone

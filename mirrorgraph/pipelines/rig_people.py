@@ -77,7 +77,7 @@ def solve_everyone(obs: RigObservations, init, sol: RigSolution,
                    height: float, *, estimate_focal: bool = True,
                    association: PeopleAssociation | None = None,
                    progress: Callable[[str], None] | None = None,
-                   iteration_progress=None) -> EveryoneRun:
+                   iteration_progress=None) -> EveryoneRun | None:
     """Solve the rig from every person (the module docstring).
 
     Args:
@@ -94,7 +94,7 @@ def solve_everyone(obs: RigObservations, init, sol: RigSolution,
         iteration_progress: ``(iteration, error)`` of each solve.
 
     Returns:
-        :class:`EveryoneRun`.
+        :class:`EveryoneRun`; ``None`` where no person is seen by two cameras at once.
     """
     say = progress or (lambda s: None)
     J = obs.skeleton.num_joints
@@ -106,6 +106,8 @@ def solve_everyone(obs: RigObservations, init, sol: RigSolution,
         else:
             Ks = current.intrinsics or [c.intrinsics.K for c in obs.cameras]
             assoc = associate_people(obs, Ks, current.poses)
+        if not assoc.people_found:
+            break                                   # no one seen by two cameras
         changed = assoc.changed(prev)
         if run is not None and changed <= STABLE_SHARE:
             rounds.append(dict(people=assoc.count, changed=changed,

@@ -121,8 +121,9 @@ class PeopleAssociation:
     def observations(self, obs: RigObservations) -> RigObservations:
         """``obs`` in the layout of several people (:func:`~mirrorgraph.skeletons.people_skeleton`):
         each camera's ``real`` ``(T, P J, 3)`` with slot ``p``'s detection in joints
-        ``p J .. p J + J - 1``; the reflections the subject's (slot 0), the other slots'
-        NaN (the others' reflections are not associated)."""
+        ``p J .. p J + J - 1``; the reflections the subject's, in slot 0 on the frames
+        where slot 0 holds the subject's detection, the rest NaN (the others'
+        reflections are not associated)."""
         sk = obs.skeleton
         J, P = sk.num_joints, self.count
         cams = []
@@ -134,10 +135,13 @@ class PeopleAssociation:
             if len(t):
                 real[t, p] = np.stack([cam.people[a][b] for a, b in zip(t, ix[t, p])])
             refl = {}
+            # the subject's reflections where slot 0 holds the subject's detection
+            mine = (np.ones(T, bool) if cam.people is None
+                    else (candidate_index(cam) == ix[:, 0]) & (ix[:, 0] >= 0))
             for m, r in cam.reflections.items():
                 full = np.full((T, P, J, 3), np.nan)
                 full[..., 2] = 0.0
-                full[:, 0] = r
+                full[mine, 0] = r[mine]
                 refl[m] = full.reshape(T, P * J, 3)
             cams.append(replace(cam, real=real.reshape(T, P * J, 3), reflections=refl))
         return replace(obs, skeleton=people_skeleton(sk, P), cameras=cams,
