@@ -44,8 +44,8 @@ from .body import make_body, skeleton_points
 from .camera import check_camera_args, random_camera_matrix
 from .detector import observe_keypoints
 from .motion import generate_motion
-from .rig_placement import (_Camera, _look_at, _project_visible, full_fraction, motion_centre,
-                            place_person)
+from .camera import project, rot_z
+from .rig_placement import full_fraction, motion_centre, place_person
 
 __all__ = ["SyntheticRigPeople", "make_rig_people", "write_rig_people", "AREA_RADIUS",
            "DRIFT_M", "MIN_SPACING", "SNAPSHOT_GAP"]
@@ -104,6 +104,30 @@ class SyntheticRigPeople:
     def num_people(self) -> int:
         """``P``."""
         return int(self.joints3d.shape[0])
+
+
+@dataclass
+class _Cam:
+    C: np.ndarray                      # centre, room frame
+    R: np.ndarray                      # camera-to-room rotation (x right, y down, z forward)
+
+
+def _aimed(C: np.ndarray, target: np.ndarray, roll: float) -> _Cam:
+    """A camera at ``C`` looking at ``target`` (room ``Y`` up), rolled by ``roll`` rad."""
+    z = (target - C) / np.linalg.norm(target - C)
+    x = np.cross(z, [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    return _Cam(C, np.column_stack([x, np.cross(z, x), z]) @ rot_z(roll))
+
+
+def _seen(cam: _Cam, K: np.ndarray, size, X: np.ndarray):
+    """``(uv (..., 2), visible (...))``: in front (0.5 m or more) and inside the image."""
+    Xc = (X - cam.C) @ cam.R
+    front = Xc[..., 2] >= 0.5
+    uv = project(K, np.where(front[..., None], Xc, 1.0))
+    w, h = size
+    return uv, front & (uv[..., 0] >= 0) & (uv[..., 0] <= w - 1) & (uv[..., 1] >= 0) \
+        & (uv[..., 1] <= h - 1)
 
 
 def _spaced(rng, P: int, home: np.ndarray | None = None) -> np.ndarray:
@@ -167,7 +191,7 @@ def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool):
     return X, np.array(heights)
 
 
-def _cameras(rng, C: int, Ks: list, size, X: np.ndarray) -> list[_Camera]:
+def _cameras(rng, C: int, Ks: list, size, X: np.ndarray) -> list[_Cam]:
     """Cameras on a ring about the centre, each seeing every person whole in 90 % of the
     frames (drawn again until they do)."""
     a0 = rng.uniform(-np.pi, np.pi)
@@ -179,9 +203,8 @@ def _cameras(rng, C: int, Ks: list, size, X: np.ndarray) -> list[_Camera]:
             dist = rng.uniform(*_CAMERA_DISTANCE)
             Cc = np.array([dist * np.sin(az), rng.uniform(*_CAMERA_HEIGHT), dist * np.cos(az)])
             roll = float(np.radians(np.clip(rng.normal(0.0, 1.0), -2.0, 2.0)))
-            cam = _Camera(C=Cc, R=_look_at(Cc, centre + rng.uniform(-0.1, 0.1, 3), roll),
-                          sees=[])
-            if all(full_fraction(_project_visible(cam, Ks[k], size, Xp)[1]) >= 0.9
+            cam = _aimed(Cc, centre + rng.uniform(-0.1, 0.1, 3), roll)
+            if all(full_fraction(_seen(cam, Ks[k], size, Xp)[1]) >= 0.9
                    for Xp in X):
                 break
         else:
@@ -248,7 +271,7 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
     J = skel.num_joints
     flip = np.asarray(skel.flip)
     for name, cam, K in zip(names, cams, Ks):
-        uv, vis = zip(*[_project_visible(cam, K, size, Xp) for Xp in X_r])
+        uv, vis = zip(*[_seen(cam, K, size, Xp) for Xp in X_r])
         uv, vis = np.stack(uv), np.stack(vis)                       # (P, T, J, 2), (P, T, J)
         hidden = np.zeros((people, T), bool)
         for p in range(people):

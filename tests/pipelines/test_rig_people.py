@@ -16,7 +16,7 @@ from mirrorgraph.synth.rig_people import make_rig_people, write_rig_people
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """A 3-camera rig of 3 people (occlusions, 2 % outliers): both runs."""
-    rig = make_rig_people(3, 3, frames=40, seed=21, outlier_rate=0.02, occlusion_rate=0.5)
+    rig = make_rig_people(3, 3, frames=60, seed=21, outlier_rate=0.02, occlusion_rate=0.5)
     path = write_rig_people(rig, tmp_path_factory.mktemp("rp"))
     return rig, {m: calibrate_rig(path, CalibrateOptions(people=m)) for m in ("one", "all")}
 
