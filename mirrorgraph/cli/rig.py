@@ -57,10 +57,10 @@ def add_parsers(sub) -> None:
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
                         "or comma-separated names; overrides the rig file's joints")
     p.add_argument("--people", choices=("one", "all"), default=None,
-                   help="all (default): every person in view, associated across the cameras "
-                        "with the rig found from the clearest one, each with their own joints "
-                        "and bones in the one graph (--joints3d: .npz with a person axis, "
-                        "else one file a person); one: the person seen longest only")
+                   help="one (default): the person seen longest; all: every person in view, "
+                        "associated across the cameras with the rig found from that one, each "
+                        "with their own joints and bones in the one graph (--joints3d: .npz "
+                        "with a person axis, else one file a person)")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the 3D joints (world frame): .npz, .csv, or in metres (needs a "
                         "subject height) .trc, .c3d or .bvh")

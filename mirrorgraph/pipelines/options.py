@@ -58,7 +58,7 @@ class CalibrateOptions:
             person, :mod:`mirrorgraph.pipelines.rig_people`; one mirror: ``calibrate
             --people all`` runs :func:`mirrorgraph.pipelines.people.calibrate_people`);
             ``"one"``: the person seen longest only. ``None``: the run's default
-            (a rig: ``"all"``; one mirror: ``"one"``).
+            (``"one"``: :data:`mirrorgraph.pipelines.rig.DEFAULT_PEOPLE`).
 
     **Initialisation**
 
