@@ -9,7 +9,9 @@ joints the graph did not use triangulated with its rig (completion,
 bones at Winter's fractions of the subject's height, then the whole rig is rescaled so
 that the stature measured on the solved joints equals that height,
 :func:`mirrorgraph.stature.stature_rescale`), and the result with its uncertainties
-(:mod:`mirrorgraph.result.rig`) judged by :func:`.judge.judge_rig`.
+(:mod:`mirrorgraph.result.rig`) judged by :func:`.judge.judge_rig`. With every person
+(``people="all"``) the solve is followed by :func:`.rig_people.solve_everyone`: every
+person associated with the solved rig, all of them in the one graph, solved again.
 """
 
 from __future__ import annotations
@@ -98,7 +100,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
             ``estimate_focal`` and ``fov_deg`` (every camera listed without intrinsics:
             its focal length estimated from an initial one, :func:`mirrorgraph.initial.rig.initial_focals`,
             in the one graph; or with ``estimate_focal=False`` held near ``fov_deg``, its
-            spread in every std) and ``refine_options``.
+            spread in every std), ``refine_options`` and ``people`` (``"all"``: every
+            person in view associated across the cameras and solved in the one graph,
+            :mod:`.rig_people`; default :data:`DEFAULT_PEOPLE`).
         progress: called with a short description of each step (as
             :func:`mirrorgraph.calibrate`'s ``progress``).
         iteration_progress: ``(iteration, error)`` of the graph solve, after every
@@ -111,7 +115,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
             ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
 
     Returns:
-        :class:`~.result.RigCalibration` (world frame = the first camera).
+        :class:`~.result.RigCalibration` (world frame = the first camera); with every
+        person, ``people_joints3d`` holds each one's joints and ``joints3d`` person 0's
+        (the person seen longest, whose stature gives the scale).
 
     Raises:
         InputError: a malformed rig file, input or option, naming the file and field.
