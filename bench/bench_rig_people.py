@@ -193,6 +193,16 @@ def pose2sim_trial(cache: Path | None) -> dict:
     return out
 
 
+#: What the runs and columns are, in every results file.
+LEGEND = ["`one`: `calibrate_rig(people=\"one\")`; `all`: `people=\"all\"`; `ids`: the same "
+          "graph fed the true association (the detector's left/right swaps left out). "
+          "Rotation: every camera but the first against the truth; position: after one "
+          "least-squares scale for the rig; `vs ids`: the run's median rotation error over "
+          "`ids`'; `wrong / held`: detections put with another person than their "
+          "slot-frame's majority, of those held; switches: a slot's person changing between "
+          "consecutive frames (not on snapshots)."]
+
+
 def _f(v, fmt="{:.3f}"):
     return "-" if v is None else fmt.format(v)
 
@@ -293,7 +303,7 @@ def main() -> None:
     p2s = {} if args.quick or args.no_pose2sim else pose2sim_trial(args.cache)
     lines = ["# Rigs from every person in view (`bench/bench_rig_people.py`)", "",
              *header(started=started), "", "Synthetic rigs (detector: "
-             + ", ".join(f"{k} {v}" for k, v in DETECTOR.items()) + "):", "",
+             + ", ".join(f"{k} {v}" for k, v in DETECTOR.items()) + "):", "", *LEGEND, "",
              *table(rows), "", "Targets:", "", *targets(rows), *p2s_lines(p2s)]
     text = "\n".join(lines) + "\n"
     print(text)
