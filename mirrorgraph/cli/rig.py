@@ -56,6 +56,11 @@ def add_parsers(sub) -> None:
                    help="joints to calibrate from: auto (default: every keypoint in direct "
                         "views, limbs through mirrors), limbs (no face, hands or feet), all, "
                         "or comma-separated names; overrides the rig file's joints")
+    p.add_argument("--people", choices=("one", "all"), default=None,
+                   help="one (default): the person seen longest; all: every person in view, "
+                        "associated across the cameras with the rig found from that one, each "
+                        "with their own joints and bones in the one graph (--joints3d: .npz "
+                        "with a person axis, else one file a person)")
     p.add_argument("--joints3d", metavar="FILE",
                    help="write the 3D joints (world frame): .npz, .csv, or in metres (needs a "
                         "subject height) .trc, .c3d or .bvh")
@@ -164,7 +169,7 @@ def cmd_calibrate_rig(args) -> int:
         opts = CalibrateOptions(subject_height=args.subject_height, skeleton=args.skeleton,
                                 joints=args.joints, seed=args.seed, detection=vopts,
                                 refine_options=RefineOptions(scale_from=args.scale_from),
-                                estimate_focal=not held,
+                                estimate_focal=not held, people=args.people,
                                 fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG)
         try:
             calib = calibrate_rig(config, opts, progress=status_and_bars,
@@ -189,10 +194,15 @@ def cmd_calibrate_rig(args) -> int:
         write_rig_json(calib, json_path)
         if args.joints3d:
             from ..skeletons import skeleton_by_name
-            write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
-                           skeleton_by_name(calib.skeleton).joints, args.fps or 30.0,
-                           unit="m" if calib.scale == "subject_height" else "subject height",
-                           joints_std=calib.joints_std)
+            unit = "m" if calib.scale == "subject_height" else "subject height"
+            names = skeleton_by_name(calib.skeleton).joints
+            if calib.people_joints3d is not None:       # every person: a person axis
+                from ..io.people_motion import write_people_joints3d
+                write_people_joints3d(args.joints3d, calib.people_joints3d, calib.people_valid,
+                                      calib.frame_ids, names, args.fps or 30.0, unit=unit)
+            else:
+                write_joints3d(args.joints3d, calib.joints3d, calib.valid, calib.frame_ids,
+                               names, args.fps or 30.0, unit=unit, joints_std=calib.joints_std)
         if args.report:
             from ..report.rig import write_rig_report
             written = write_rig_report(calib, stage.folder(args.report),

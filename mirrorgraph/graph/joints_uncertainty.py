@@ -44,6 +44,7 @@ from .problem import X_BASE, GraphProblem, snap_virtual_poses
 from .reduction import mirror_reduction
 from .rig import Rig, spread_rows
 from .solve_state import SolveState
+from ..skeletons import person_of
 
 __all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covariance",
            "mirror_plane_projections", "view_projections", "with_scale", "position_std",
@@ -364,14 +365,30 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
     Jc = len(jsel)
     compact = np.full(J, -1)
     compact[jsel] = np.arange(Jc)
-    colx = compact[flat_of_key[key_of_col[cp]] % J] * 3 + local_col[cp]
+    # several people side by side (skeletons.people_skeleton): no row holds two people's
+    # joints, so a frame's block is one block per person, each built and inverted alone
+    # (the same numbers; the work grows with the people, not with their square or cube)
+    tags = [person_of(problem.rig.skeleton.joints[j]) for j in jsel]
+    group_of = np.unique(np.array(tags), return_inverse=True)[1].ravel().astype(np.int64)
+    group_of = group_of if len(group_of) else np.zeros(0, np.int64)
+    n_groups = int(group_of.max()) + 1 if len(group_of) else 1
+    local_of = np.zeros(Jc, np.int64)
+    for g in range(n_groups):
+        local_of[group_of == g] = np.arange(np.count_nonzero(group_of == g))
+    groups = [np.ravel(3 * np.flatnonzero(group_of == g)[:, None] + np.arange(3))
+              for g in range(n_groups)]
+    Jg = max((len(c) // 3 for c in groups), default=Jc)
+    joint_c = compact[flat_of_key[key_of_col[cp]] % J]
+    colx = local_of[joint_c] * 3 + local_col[cp]
     sg = sel & ~pt & (glob_row[kc] >= 0)
     rg, vg = r[sg], v[sg]
     colg = glob_row[kc[sg]] + local_col[c[sg]]
     pos = np.full(n_rows, -1, dtype=np.int64)
     pos[lr_idx] = np.arange(len(lr_idx))
-    A = np.zeros((len(lr_idx), 3 * Jc))
+    A = np.zeros((len(lr_idx), 3 * Jg))       # each row's person's columns
     A[pos[rp], colx] = vp
+    row_group = np.zeros(len(lr_idx), np.int64)
+    row_group[pos[rp]] = group_of[joint_c]
     Bg = np.zeros((len(lr_idx), Tb.shape[0]))
     Bg[pos[rg], colg] = vg                          # one entry per row and column
     B = Bg @ Tb
@@ -418,13 +435,22 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         b = min(a + FRAME_BATCH, Tg)
         rr = order[start[a]:start[b]]
         f = fr_sorted[start[a]:start[b]] - a
-        slot = np.arange(len(rr)) - (start[f + a] - start[a])
-        width = int(slot.max()) + 1 if len(rr) else 1
-        Ap = np.zeros((b - a, width, 3 * Jc))
-        Bp = np.zeros((b - a, width, nz))
-        Ap[f, slot], Bp[f, slot] = A[rr], B[rr]
-        At = Ap.transpose(0, 2, 1)
-        Hxx, Hxz = At @ Ap, At @ Bp
+        Hxx = np.zeros((b - a, 3 * Jc, 3 * Jc))
+        Hxz = np.zeros((b - a, 3 * Jc, nz))
+        for g, cols in enumerate(groups):
+            mine = row_group[rr] == g
+            rg_, fg = rr[mine], f[mine]
+            slot = np.arange(len(rg_)) - np.searchsorted(fg, fg, side="left")
+            width = int(slot.max()) + 1 if len(rg_) else 1
+            Ap = np.zeros((b - a, width, len(cols)))
+            Bp = np.zeros((b - a, width, nz))
+            Ap[fg, slot], Bp[fg, slot] = A[rg_, :len(cols)], B[rg_]
+            At = Ap.transpose(0, 2, 1)
+            if n_groups == 1:
+                Hxx, Hxz = At @ Ap, At @ Bp
+            else:
+                Hxx[:, cols[:, None], cols[None, :]] = At @ Ap
+                Hxz[:, cols] = At @ Bp
         absent = ~np.repeat(usedc[a:b], 3, axis=1)
         ti, ji = np.nonzero(absent | (np.einsum("tii->ti", Hxx) <= 0.0))
         Hxx[ti, ji, :] = 0.0
@@ -435,7 +461,13 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         # (one view, no bone) keeps a finite, very large covariance in its frame
         ridge = RIDGE * np.max(np.einsum("tii->ti", Hxx), axis=1)
         Hxx += ridge[:, None, None] * np.eye(3 * Jc)
-        P = _inverse(Hxx)                                                  # (n, 3Jc, 3Jc)
+        if n_groups == 1:
+            P = _inverse(Hxx)                                              # (n, 3Jc, 3Jc)
+        else:
+            P = np.zeros_like(Hxx)
+            for cols in groups:
+                P[:, cols[:, None], cols[None, :]] = _inverse(
+                    Hxx[:, cols[:, None], cols[None, :]])
         blocks = P.reshape(b - a, Jc, 3, Jc, 3)[:, np.arange(Jc), :, np.arange(Jc), :]
         marg[a:b, jsel] = blocks.transpose(1, 0, 2, 3)
         if nz:

@@ -21,7 +21,10 @@ from ..graph.options import RefineOptions, one_subject_height
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 
-__all__ = ["CalibrateOptions"]
+__all__ = ["CalibrateOptions", "PEOPLE"]
+
+#: The values of :attr:`CalibrateOptions.people` (``None``: the run's default).
+PEOPLE = ("one", "all", None)
 
 
 @dataclass
@@ -50,6 +53,12 @@ class CalibrateOptions:
             (:func:`~mirrorgraph.preprocess.fps_from_video`; one mirror) and, where the
             focal length is estimated, for the scene's straight lines
             (``FocalOptions.lines``).
+        people: ``"all"``: every person in view calibrates and gets their own 3D joints
+            (a rig: associated across the cameras after a first solve from the clearest
+            person, :mod:`mirrorgraph.pipelines.rig_people`; one mirror: ``calibrate
+            --people all`` runs :func:`mirrorgraph.pipelines.people.calibrate_people`);
+            ``"one"``: the person seen longest only. ``None``: the run's default
+            (``"one"``: :data:`mirrorgraph.pipelines.rig.DEFAULT_PEOPLE`).
 
     **Initialisation**
 
@@ -110,6 +119,7 @@ class CalibrateOptions:
     detection: object | None = None
     fps: float | None = None
     video: str | os.PathLike | None = None
+    people: str | None = None
     # initialisation
     estimator: str = "reflective"
     threshold_px: float = DEFAULT_THRESHOLD_PX
@@ -149,6 +159,9 @@ class CalibrateOptions:
         """
         from dataclasses import replace
 
+        if self.people not in PEOPLE:
+            raise InputError(f"must be 'one' or 'all', got {self.people!r}",
+                             field="people")
         if self.estimator not in ESTIMATORS:
             raise InputError(f"unknown estimator {self.estimator!r}; choose one of "
                              f"{', '.join(ESTIMATORS)}", field="estimator")

@@ -9,7 +9,9 @@ joints the graph did not use triangulated with its rig (completion,
 bones at Winter's fractions of the subject's height, then the whole rig is rescaled so
 that the stature measured on the solved joints equals that height,
 :func:`mirrorgraph.stature.stature_rescale`), and the result with its uncertainties
-(:mod:`mirrorgraph.result.rig`) judged by :func:`.judge.judge_rig`.
+(:mod:`mirrorgraph.result.rig`) judged by :func:`.judge.judge_rig`. With every person
+(``people="all"``) the solve is followed by :func:`.rig_people.solve_everyone`: every
+person associated with the solved rig, all of them in the one graph, solved again.
 """
 
 from __future__ import annotations
@@ -39,7 +41,18 @@ from ..initial.rig import observed
 from ..result.rig import RigCalibration, RigCamera, RigMirror
 from .solve import build_rig, camera_std, plane_std, solve_rig
 
-__all__ = ["calibrate_rig"]
+__all__ = ["calibrate_rig", "DEFAULT_PEOPLE"]
+
+#: Who a rig calibrates from where :attr:`CalibrateOptions.people` is ``None``: the person
+#: seen longest. Every person is 5-14x closer on synthetic rigs of 2-5 people, within
+#: 1.08x of a bundle adjustment that knows the identities, but on Pose2Sim's
+#: Demo_MultiPerson (BlazePose) two of three cameras land further from Qualisys
+#: (``bench/RESULTS_rig_people.md``): not as good everywhere, so not the default.
+DEFAULT_PEOPLE = "one"
+
+#: A phrase of the observations' warning that a camera sees several people (the one-person
+#: path's), left out where every person is used.
+SUBJECT_NOTE = "; calibrating from the one seen longest"
 
 #: The keywords :func:`calibrate_rig` took before it took :class:`CalibrateOptions`, and the
 #: fields they became (``options`` held a :class:`RefineOptions`: ``refine_options``).
@@ -87,7 +100,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
             ``estimate_focal`` and ``fov_deg`` (every camera listed without intrinsics:
             its focal length estimated from an initial one, :func:`mirrorgraph.initial.rig.initial_focals`,
             in the one graph; or with ``estimate_focal=False`` held near ``fov_deg``, its
-            spread in every std) and ``refine_options``.
+            spread in every std), ``refine_options`` and ``people`` (``"all"``: every
+            person in view associated across the cameras and solved in the one graph,
+            :mod:`.rig_people`; default :data:`DEFAULT_PEOPLE`).
         progress: called with a short description of each step (as
             :func:`mirrorgraph.calibrate`'s ``progress``).
         iteration_progress: ``(iteration, error)`` of the graph solve, after every
@@ -100,7 +115,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
             ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
 
     Returns:
-        :class:`~.result.RigCalibration` (world frame = the first camera).
+        :class:`~.result.RigCalibration` (world frame = the first camera); with every
+        person, ``people_joints3d`` holds each one's joints and ``joints3d`` person 0's
+        (the person seen longest, whose stature gives the scale).
 
     Raises:
         InputError: a malformed rig file, input or option, naming the file and field.
@@ -142,14 +159,35 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         raise DegenerateGeometryError(f"{exc}; likeliest cause: " + "; ".join(hints)) from None
     rig = build_rig(obs, init, used_joints, estimate_focal=estimate_focal, focal=opts.focal)
     say("refining the rig in one factor graph")                             # solve
-    sol = solve_rig(rig, opts, H, progress=iteration_progress)
-    sol = complete_rig_joints(obs, sol, opts.outlier_threshold)            # completion
-    sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,  # scale
-                                                      opts.scale_from)
+    # every person: where some camera sees several (one person alone is the one-person run)
+    every = (run.people or DEFAULT_PEOPLE) == "all" and len(obs.cameras) > 1 and any(
+        c.people is not None and any(len(p) > 1 for p in c.people) for c in obs.cameras)
+    # every person's graph gives the uncertainties: the first solve needs none
+    sol = solve_rig(rig, replace(opts, marginals=False) if every else opts, H,
+                    progress=iteration_progress)
+    everyone, solved = None, obs
+    if every:                                       # every person, in the one graph
+        from .rig_people import solve_everyone
+        everyone = solve_everyone(obs, init, sol, used_joints, opts, H,
+                                  estimate_focal=estimate_focal, progress=say,
+                                  iteration_progress=iteration_progress)
+        if everyone is None:                        # no one seen twice: the subject alone
+            sol = solve_rig(rig, opts, H, progress=iteration_progress)
+        else:
+            solved, sol = everyone.observations, everyone.solution
+            warnings = [w for w in warnings if SUBJECT_NOTE not in w]
+    sol = complete_rig_joints(solved, sol, opts.outlier_threshold)         # completion
+    if everyone is not None:                                                 # scale
+        from .rig_people import scale_everyone
+        sol, scale_source, stature = scale_everyone(sol, obs.skeleton, everyone.count, H,
+                                                    opts.scale_from)
+    else:
+        sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,
+                                                          opts.scale_from)
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
-    cameras, mirrors = _records(obs, init, sol, run, warnings, stature)     # result
+    cameras, mirrors = _records(solved, init, sol, run, warnings, stature)  # result
     failed = _judge_cameras(cfg, obs, cameras, sol, used_joints[0], opts.outlier_threshold,
                             seed, say)
     warnings += [f"camera {c.name} failed: {c.reason}" for c in cameras if c.failed]
@@ -179,10 +217,25 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
         cov[~np.asarray(sol.used, bool)] = np.nan
         joints_std = position_std(cov)
+    joints3d, valid, bones, people = sol.points, sol.used, sol.bone_lengths, None
+    if everyone is not None:                    # the subject (slot 0) as the one person
+        from .rig_people import people_record, split_solution
+        refinement["people"] = people_record(everyone)
+        people = (split_solution(sol.points, everyone.count),
+                  split_solution(sol.used, everyone.count),
+                  split_solution(joints_std, everyone.count))
+        joints3d, valid = people[0][0], people[1][0]
+        joints_std = None if people[2] is None else people[2][0]
+        bones = {b[:-2]: v for b, v in sol.bone_lengths.items() if b.endswith("@0")}
+    else:
+        refinement["people"] = {"mode": run.people or DEFAULT_PEOPLE, "count": 1}
     result = RigCalibration(joints_std=joints_std,cameras=cameras, mirrors=mirrors, scale=scale, subject_height=height,
                           scale_source=scale_source,
                           skeleton=obs.skeleton.name, frame_ids=np.asarray(obs.frame_ids),
-                          joints3d=sol.points, valid=sol.used, bone_lengths=sol.bone_lengths,
+                          joints3d=joints3d, valid=valid, bone_lengths=bones,
+                          people_joints3d=None if people is None else people[0],
+                          people_valid=None if people is None else people[1],
+                          people_std=None if people is None else people[2],
                           initialisation=initialisation, refinement=refinement,
                           sensitivity=sol.sensitivity,
                           warnings=warnings, source=str(cfg.source))

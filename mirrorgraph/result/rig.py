@@ -156,6 +156,10 @@ class RigCalibration:
             error (the length unit; :mod:`mirrorgraph.graph.joints_uncertainty`, the
             metric scale's share included), NaN where unknown; ``None``: not computed
             (not kept in the JSON).
+        people_joints3d: ``(P, T, J, 3)`` every person's joints (``--people all``; person 0
+            is the one of ``joints3d``), NaN where unknown; ``None``: one person (not kept
+            in the JSON; ``refinement["people"]`` says how many were used).
+        people_valid: ``(P, T, J)`` bool; people_std: ``(P, T, J)`` as ``joints_std``.
         bone_lengths: bone -> length.
         initialisation: the pairwise edges, spanning tree and mirror sightings.
         refinement: iterations, rejected observations, priors, timings.
@@ -182,6 +186,14 @@ class RigCalibration:
     scale_source: str = ""
     sensitivity: dict[str, Any] = field(default_factory=dict)
     joints_std: np.ndarray | None = None
+    people_joints3d: np.ndarray | None = None
+    people_valid: np.ndarray | None = None
+    people_std: np.ndarray | None = None
+
+    @property
+    def num_people(self) -> int:
+        """People in the graph (1 without ``people_joints3d``)."""
+        return 1 if self.people_joints3d is None else int(self.people_joints3d.shape[0])
 
     @property
     def failed_cameras(self) -> list[RigCamera]:
@@ -371,6 +383,10 @@ class RigCalibration:
             n = m.normal
             lines.append(f"mirror {m.name:<10} normal [{n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}] "
                          f"d {m.distance:.4f} {unit}  rot std {m.rotation_std_deg:.3f} deg")
+        people = (self.refinement or {}).get("people") or {}
+        if people.get("mode") == "all" and "found" in people:
+            lines.append(f"people: {people.get('count')} in the one graph (every person in "
+                         f"view; {people.get('found')} associated across the cameras)")
         lines.append("scale: " + (f"subject height {self.subject_height:g} m"
                                   + (f" ({self.scale_source})" if self.scale_source else "")
                                   if self.scale == "subject_height"

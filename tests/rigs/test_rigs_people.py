@@ -17,6 +17,7 @@ from mirrorgraph.cli import main
 from mirrorgraph.errors import DegenerateGeometryError, InputError
 from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
 from mirrorgraph.initial.pairing import pair_candidates, pair_reflections, paired_people
+from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.pipelines.rig import calibrate_rig
 from mirrorgraph.rigs.config import load_rig_config
 from mirrorgraph.rigs.observations import load_observations
@@ -180,8 +181,10 @@ def test_calibration_with_a_bystander_as_accurate_as_without(tmp_path, kind):
     kw = dict(frames=FRAMES, seed=SEEDS[kind], noise_std=4.0)
     busy = make_rig(kind, bystanders=1, **kw)
     alone = make_rig(kind, **kw)
-    cal = calibrate_rig(write_rig(busy, tmp_path / "busy"))
-    ref = calibrate_rig(write_rig(alone, tmp_path / "alone"))
+    # the one-person path (the subject followed; --people all adds the bystander)
+    one = CalibrateOptions(people="one")
+    cal = calibrate_rig(write_rig(busy, tmp_path / "busy"), one)
+    ref = calibrate_rig(write_rig(alone, tmp_path / "alone"), one)
     rot, pos, normals = _errors(cal, busy)
     rot0, _, normals0 = _errors(ref, alone)
     assert sorted(normals) == sorted(busy.mirror_names)
