@@ -23,15 +23,12 @@ One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
    default (``options.chunk_passes``): on 10,000 frames three passes moved the
    mirror by 0.0001 deg more (0.005 of its standard deviation). The covariance of
    the mirror comes from the summed information, so it reflects every frame.
-4. **Joints pass.** In the same job, on the chunk's calibration graph (the graph is
-   built once), the 3D joints are solved again with the mirror and bone lengths
-   held, the tighter smoothness of ``joints_smoothness_sigma`` and every bone
-   (:func:`~.stages.joints_pass`), with their sensitivity to the mirror: that pass's
-   step back-substituted per unit of the plane's reduced coordinates. The shared
-   step ``z`` then moves each chunk's joints by ``sensitivity @ z``: to first order
-   in ``z`` the joints pass at the final mirror (the joints pass itself is one
-   Gauss-Newton step; on 16,000 frames the joints lie 0.003 mm, median, from the pass
-   solved again at the final mirror: ``bench/RESULTS_long.md``).
+4. **Joints pass.** In the same job, on the chunk's calibration graph (built once),
+   the joints are solved again with the globals held, the tighter smoothness of
+   ``joints_smoothness_sigma`` and every bone (:func:`~.stages.joints_pass`), with
+   their sensitivity to the plane's reduced coordinates; the shared step ``z`` moves
+   them by ``sensitivity @ z``, the joints pass at the final mirror to first order
+   (``bench/RESULTS_long.md``).
 
 An estimated focal length (:attr:`~.rig.Camera.estimate_focal`) is the subset's: the
 chunks hold it, and its standard deviation is the subset's (``max_graph_frames``
