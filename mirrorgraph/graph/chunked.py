@@ -1,7 +1,7 @@
 """Videos too long for one graph: a spread subset first, then every frame in chunks.
 
-One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination, so
-54,000 frames would need ~5 GB. Above ``options.max_graph_frames`` frames:
+One graph of 1000 frames x 12 joints peaks at ~100 MB during elimination (54,000
+frames: ~5 GB). Above ``options.max_graph_frames`` frames:
 
 1. **Subset.** The driver's stages (:func:`~.stages.solve_rows`) on contiguous blocks
    of ``options.chunk_block_frames`` frames spread evenly over the video,
