@@ -19,10 +19,9 @@ frames: ~5 GB). Above ``options.max_graph_frames`` frames:
    gradient: the information its frames carry about the mirror with its joints
    eliminated. Only one chunk a worker is in memory at a time.
 3. **Shared step.** The sum of the chunks' reduced systems gives the Gauss-Newton
-   step of the plane over the whole video from the subset's. One pass is the
-   default (``options.chunk_passes``): on 10,000 frames three passes moved the
-   mirror by 0.0001 deg more (0.005 of its standard deviation). The covariance of
-   the mirror comes from the summed information, so it reflects every frame.
+   step of the plane over the whole video from the subset's; one pass by default
+   (``options.chunk_passes``; more move the mirror by a fraction of its std). The
+   mirror's covariance comes from the summed information of every frame.
 4. **Joints pass.** In the same job, on the chunk's calibration graph (built once),
    the joints are solved again with the globals held, the tighter smoothness of
    ``joints_smoothness_sigma`` and every bone (:func:`~.stages.joints_pass`), with
@@ -37,8 +36,8 @@ determine it at all).
 
 The chunks of a pass are independent: they are solved in ``options.workers``
 processes (GTSAM holds the interpreter lock, so threads would not help) and
-summed in order, so the result does not depend on the number of workers. Time is
-linear in the number of frames; memory is bounded by a chunk per worker.
+summed in order (the result does not depend on the number of workers); time is
+linear in the frames, memory bounded by a chunk per worker.
 """
 
 from __future__ import annotations
