@@ -58,6 +58,7 @@ Usage::
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
+    python bench/bench_joints.py --methods live --offline-from bench/RESULTS_joints.json
 
 Writes ``--out`` (default ``bench/RESULTS_joints.md``: machine, command, date, tables)
 and ``--json`` (every number) unless ``--no-write``. ``--compare A.json B.json`` prints
@@ -443,22 +444,33 @@ def run_live(tr: Truth) -> dict:
     dist = np.ones(T)
     where = {int(f): i for i, f in enumerate(tr.frame_ids)}
     wall, cpu = time.perf_counter(), time.process_time()
+    lagged = getattr(live.options, "lag_frames", 0) > 0
+
+    def take(f) -> None:
+        t = where.get(int(f.frame_id))
+        if t is None:
+            return
+        X[t] = f.joints3d
+        if f.joints_std is not None:
+            std[t] = f.joints_std
+        if getattr(f, "joints_std_shape", None) is not None:
+            std_shape[t] = f.joints_std_shape
+        if f.mirror.normal is not None:
+            normal[t] = f.mirror.normal
+            dist[t] = f.mirror.distance if f.mirror.distance is not None else 1.0
+
     try:
         for k, people in enumerate(det.people):
             f = live.update(people, frame_id=int(det.frame_ids[k]),
                             time_s=float(det.frame_ids[k]) / FPS)
-            t = where.get(int(det.frame_ids[k]))
-            if t is None:
-                continue
-            X[t] = f.joints3d
-            if f.joints_std is not None:
-                std[t] = f.joints_std
-            if getattr(f, "joints_std_shape", None) is not None:
-                std_shape[t] = f.joints_std_shape
-            if f.mirror.normal is not None:
-                normal[t] = f.mirror.normal
-                dist[t] = f.mirror.distance if f.mirror.distance is not None else 1.0
+            # what the JSON lines carry: with a lag, each frame as it is given again
+            if not lagged:
+                take(f)
+            elif f.settled is not None:
+                take(f.settled)
         final = live.finish()
+        for f in (live.flush() if lagged else []):
+            take(f)
     finally:
         live.close()
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -850,6 +862,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", metavar="OUT", default=None, help="every number, as JSON")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_joints.md"))
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--offline-from", metavar="JSON", default=None,
+                    help="with --methods live: the calibrate figures of the same scenes taken "
+                         "from this earlier --json (its code named in the header), for the "
+                         "live / calibrate ratios")
     ap.add_argument("--compare", nargs=2, metavar=("A.json", "B.json"),
                     help="print A and B side by side (ratios B / A) and exit")
     args = ap.parse_args(argv)
@@ -891,6 +907,17 @@ def main(argv: list[str] | None = None) -> int:
                 if "error" not in s[m] else f"{m} failed" for m in methods)
             print(f"{s['name']}: oracle PA {s['oracle']['pa_mpjpe_mm']:.1f} mm; {brief} "
                   f"({s['seconds']:.0f} s)", file=sys.stderr, flush=True)
+    offline_note = []
+    if args.offline_from and "calibrate" not in methods:
+        earlier = json.loads(Path(args.offline_from).read_text())
+        by_name = {sc["name"]: sc.get("calibrate") for sc in earlier["scenes"]}
+        for sc in scenes:
+            if by_name.get(sc["name"]):
+                sc["calibrate"] = by_name[sc["name"]]
+        methods = ["calibrate"] + methods
+        offline_note = [f"- calibrate: figures of `{args.offline_from}` (code "
+                        f"`{earlier['meta'].get('code')}`, {earlier['meta'].get('date')}), "
+                        "not rerun"]
     agg = aggregate(scenes, kinds, methods)
     code = code_version()
     meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=code,
@@ -904,7 +931,7 @@ def main(argv: list[str] | None = None) -> int:
          f"- date: {meta['date']}; code `{meta['code']}`",
          f"- machine: {meta['machine']}; load average {meta['load']:.1f} at the end; "
          f"{meta['minutes']:.1f} min with {args.workers} workers",
-         f"- command: `{meta['command'].rstrip()}`",
+         f"- command: `{meta['command'].rstrip()}`", *offline_note,
          "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
          "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "
          "noise, 3 % outliers; `fixtures`: the independent generator's scenes; "

@@ -11,7 +11,11 @@ done, so another program can follow it): :meth:`mirrorgraph.live.LiveFrame.to_di
                 "windows_failed": ..., "resets": ..., "scale": "subject_height"},
      "joints3d": [[x, y, z] | null, ...], "joints_std": [s | null, ...],
      "joints_std_metric": [s | null, ...],
-     "paired": true, "skipped": null}
+     "paired": true, "skipped": null, "lag_frames": 5}
+
+With a lag (``LiveOptions.lag_frames``, ``--lag``) each line is written that many frames
+after its frame came, its joints smoothed with the frames after it
+(:attr:`~mirrorgraph.live.LiveFrame.settled`); ``lag_frames`` says how late.
 
 A joint not estimated, and any figure not known yet, is JSON ``null`` (JSON has no
 NaN; Python's ``json`` reads ``null`` as ``None``). Lengths are metres with a subject
@@ -249,32 +253,43 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
         _start_worker(live)
         viewer = LiveView(source.skeleton, view or None) if view is not None else None
         fh = sys.stdout if to_stdout else open(Path(jsonl), "w", encoding="utf-8")
+        def emit(out: LiveFrame) -> None:
+            nonlocal lines
+            fh.write(json.dumps(out.to_dict(), allow_nan=False) + "\n")
+            fh.flush()
+            lines += 1
+            if viewer is not None:
+                viewer.log(out)
+
+        lagged = options.lag_frames > 0
         try:
-            for sf in source.frames:
-                frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
-                try:
-                    n = min(len(sf.people), 2)
-                except TypeError:
-                    n = 0
-                people[n] = people.get(n, 0) + 1
-                fh.write(json.dumps(frame.to_dict(), allow_nan=False) + "\n")
-                fh.flush()
-                lines += 1
-                latencies.append(frame.latency_s)
-                if len(latencies) > 2 * LATENCY_KEEP:
-                    del latencies[:LATENCY_KEEP]
-                if first[0] is None and frame.status == "calibrated":
-                    first = (frame.frame_id, frame.time)
-                if viewer is not None:
-                    viewer.log(frame)
-                if on_frame is not None:
-                    on_frame(frame)
-        except KeyboardInterrupt:
-            interrupted = True
+            try:
+                for sf in source.frames:
+                    frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
+                    try:
+                        n = min(len(sf.people), 2)
+                    except TypeError:
+                        n = 0
+                    people[n] = people.get(n, 0) + 1
+                    if not lagged:
+                        emit(frame)
+                    elif frame.settled is not None:
+                        emit(frame.settled)
+                    latencies.append(frame.latency_s)
+                    if len(latencies) > 2 * LATENCY_KEEP:
+                        del latencies[:LATENCY_KEEP]
+                    if first[0] is None and frame.status == "calibrated":
+                        first = (frame.frame_id, frame.time)
+                    if on_frame is not None:
+                        on_frame(frame)
+            except KeyboardInterrupt:
+                interrupted = True
+            mirror = live.mirror if interrupted else live.finish()
+            for out in live.flush():                 # the frames still held for their lag
+                emit(out)
         finally:
             if not to_stdout:
                 fh.close()
-        mirror = live.mirror if interrupted else live.finish()
     finally:
         live.close()
         if viewer is not None:
