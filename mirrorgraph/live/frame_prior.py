@@ -32,8 +32,7 @@ HUBER_K = 1.345
 
 def _huber_weight(r: np.ndarray) -> np.ndarray:
     """IRLS weights of Huber's loss for normalised residual norms ``r``."""
-    a = np.abs(r)
-    return np.where(a <= HUBER_K, 1.0, HUBER_K / np.maximum(a, 1e-12))
+    return np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-12))
 
 
 def _projection(K: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,8 +65,9 @@ def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: 
     n = np.asarray(normal, float)
     Kinv = np.linalg.inv(K)
     H = np.eye(3) - 2.0 * np.outer(n, n)
-    r1 = np.c_[u, np.ones(len(u))] @ Kinv.T                                # (k, 3)
-    r2 = np.c_[um, np.ones(len(um))] @ (H @ Kinv).T
+    r1 = u @ Kinv[:, :2].T + Kinv[:, 2]                                   # (k, 3)
+    HK = H @ Kinv
+    r2 = um @ HK[:, :2].T + HK[:, 2]
     c2 = 2.0 * float(distance) * n
     a, b, c = (r1 * r1).sum(1), (r1 * r2).sum(1), (r2 * r2).sum(1)
     e, f = r1 @ c2, r2 @ c2
@@ -135,6 +135,9 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     bidx, bsign = _bone_index(k, a, b)
+    bidx = bidx.ravel()
+    ga = (3 * a[:, None] + np.arange(3)).ravel()          # the gradient's entries of each
+    gb = (3 * b[:, None] + np.arange(3)).ravel()          # bone's two ends
     ar = np.arange(k)
     diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
         + 3 * ar[:, None, None] + np.arange(3)[None, None, :]                 # (k, 3, 3)
@@ -147,8 +150,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         p2, J2 = _projection(K, X @ H.T + 2.0 * distance * n)
         J2 = J2 @ H
         r1, r2 = (p1 - u) / sigma_px, (p2 - um) / sigma_px
-        w1 = _huber_weight(np.linalg.norm(r1, axis=1)) * keep[:, 0]
-        w2 = _huber_weight(np.linalg.norm(r2, axis=1)) * keep[:, 1]
+        w1 = _huber_weight(np.sqrt((r1 * r1).sum(1))) * keep[:, 0]
+        w2 = _huber_weight(np.sqrt((r2 * r2).sum(1))) * keep[:, 1]
         J1, J2 = J1 / sigma_px, J2 / sigma_px
         M[:] = 0.0
         M[diag] = (w1[:, None, None] * np.einsum("kri,krj->kij", J1, J1)
@@ -157,20 +160,19 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
              + w2[:, None] * np.einsum("kri,kr->ki", J2, r2))
         if len(L):
             diff = X[a] - X[b]
-            length = np.linalg.norm(diff, axis=1)
+            length = np.sqrt((diff * diff).sum(1))
             e = diff / np.maximum(length, 1e-12)[:, None] / sigma_len    # d r / d X_a
             rb = (length - L) / sigma_len
             outer = e[:, :, None] * e[:, None, :]
-            M += np.bincount(bidx.ravel(), (bsign * outer[None]).ravel(), minlength=M.size)
-            g += (np.bincount(np.repeat(a, 3) * 3 + np.tile(np.arange(3), len(a)),
-                              (e * rb[:, None]).ravel(), minlength=3 * k)
-                  - np.bincount(np.repeat(b, 3) * 3 + np.tile(np.arange(3), len(b)),
-                                (e * rb[:, None]).ravel(), minlength=3 * k)).reshape(k, 3)
+            M += np.bincount(bidx, (bsign * outer[None]).ravel(), minlength=M.size)
+            er = (e * rb[:, None]).ravel()
+            g += (np.bincount(ga, er, minlength=3 * k)
+                  - np.bincount(gb, er, minlength=3 * k)).reshape(k, 3)
         A = M.reshape(3 * k, 3 * k)
         if done >= steps:
             if gate_px is None or not held.any():
                 break
-            px = np.c_[np.linalg.norm(p1 - u, axis=1), np.linalg.norm(p2 - um, axis=1)]
+            px = sigma_px * np.stack([np.sqrt((r1 * r1).sum(1)), np.sqrt((r2 * r2).sum(1))], 1)
             drop = keep & (px > gate_px) & held[:, None]
             drop[drop.all(1)] = False            # a joint keeps one view at least
             if not drop.any():
