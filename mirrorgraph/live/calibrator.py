@@ -11,15 +11,19 @@
 skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
 right swapped back where the frames so far say the detector confused them in both views
-(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), triangulated with the
-mirror (:func:`mirrorgraph.geometry.triangulate_mirror`), kept where they reproject within
-the threshold in both views and lie in front of the camera and the mirror, and refined
-with the latest window's bone lengths (:mod:`.frame_prior`). Each joint's std (metres with
-a subject height; ``sqrt`` of its covariance's trace) holds the two rays' share at the
-window's a-posteriori pixel noise and the fused normal's share through
-:func:`joints_normal_jacobian`; with a subject height the body's size is held (the
-scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric scale's
-own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
+(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
+each joint's two rays and refined together with the latest window's bone lengths, a view
+off by more than the threshold once the bones hold the joint left out
+(:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
+the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
+under the joints pass's acceleration prior, measurements beyond its gate taken as
+outliers). Each frame is given again :attr:`LiveOptions.lag_frames` frames later
+(:attr:`LiveFrame.settled`), smoothed with the frames after it. Each joint's std (metres
+with a subject height; ``sqrt`` of its covariance's trace) holds the filter's (or
+smoother's) covariance at the window's a-posteriori pixel noise and the fused normal's
+share through :func:`joints_normal_jacobian`; with a subject height the body's size is
+held (the scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric
+scale's own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
 :attr:`LiveFrame.joints_std_shape` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and

@@ -116,58 +116,57 @@ class JointFilter:
             taken (``False``: rejected as an outlier, the prediction given).
         """
         idx = np.asarray(idx, dtype=np.int64)
-        z, R = np.asarray(z, float), np.asarray(R, float)
-        g = 1 if self.frame is None else int(frame_id) - self.frame
+        z, R = np.asarray(z, float).reshape(-1, 3), np.asarray(R, float).reshape(-1, 3, 3)
+        J = self.J
+        g = 1 if self.frame is None else max(int(frame_id) - self.frame, 1)
         self.frame = int(frame_id)
+        # the measurements over every joint (NaN where none)
+        zJ = np.full((J, 3), np.nan)
+        RJ = np.broadcast_to(np.eye(3), (J, 3, 3)).copy()
+        ok = np.isfinite(z).all(1) & np.isfinite(R).all((1, 2))
+        zJ[idx[ok]], RJ[idx[ok]] = z[ok], R[ok]
+        meas = np.zeros(J, bool)
+        meas[idx[ok]] = True
         # predict: every track still within its gap
         alive = np.isfinite(self.x[:, 0]) & (frame_id - self.seen <= self.max_gap)
-        F = _transition(np.array([max(g, 1)]))[0]
-        xp = np.full((self.J, 6), np.nan)
-        Pp = np.full((self.J, 6, 6), np.nan)
-        if alive.any():
-            xp[alive] = self.x[alive] @ F.T
-            Pp[alive] = F @ self.P[alive] @ F.T + _noise(np.array([max(g, 1)]), self.sigma)[0]
+        F = _transition(np.array([g]))[0]
+        xp = np.where(alive[:, None], self.x @ F.T, np.nan)
+        Pp = np.where(alive[:, None, None],
+                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T
+                      + _noise(np.array([g]), self.sigma)[0], np.nan)
         chained = alive.copy()
-        xf, Pf = xp.copy(), Pp.copy()
-        ok = np.isfinite(z).all(1) & np.isfinite(R).all((1, 2))
-        taken = ok.copy()
-        fresh = ok & ~alive[idx]
-        upd = ok & alive[idx]
-        if upd.any():
-            j = idx[upd]
-            S = Pp[j, :3, :3] + R[upd]
-            y = z[upd] - xp[j, :3]
-            Sinv = _inverse(S)
-            m = np.einsum("ni,nij,nj->n", y, Sinv, y)
-            out = m > self.gate_chi2
-            gate = out & (self.rejected[j] + 1 < self.restart_after)
-            Kg = Pp[j][:, :, :3] @ Sinv                                        # (n, 6, 3)
-            xs = xp[j] + np.einsum("nij,nj->ni", Kg, y)
-            Ps = Pp[j] - Kg @ Pp[j][:, :3, :]
-            Ps = 0.5 * (Ps + Ps.transpose(0, 2, 1))
-            xs[gate], Ps[gate] = xp[j][gate], Pp[j][gate]          # an outlier: predicted
-            xf[j], Pf[j] = xs, Ps
-            self.rejected[j] = np.where(gate, self.rejected[j] + 1, 0)
-            taken[np.flatnonzero(upd)[gate]] = False
-            fresh[np.flatnonzero(upd)[out & ~gate]] = True         # rejected too long
-        if fresh.any():                                  # a new track from the measurement
-            j = idx[fresh]
-            xf[j, :3], xf[j, 3:] = z[fresh], 0.0
-            Pf[j] = 0.0
-            Pf[j, :3, :3] = R[fresh]
-            Pf[j, 3:, 3:] = self.velocity_var * np.eye(3)
-            self.rejected[j] = 0
-            chained[j] = False
+        upd = meas & alive
+        S = np.where(upd[:, None, None], Pp[:, :3, :3] + RJ, np.eye(3))
+        Sinv = _inverse(S)
+        y = np.where(upd[:, None], zJ - xp[:, :3], 0.0)
+        m = np.einsum("ni,nij,nj->n", y, Sinv, y)
+        out = upd & (m > self.gate_chi2)
+        gate = out & (self.rejected + 1 < self.restart_after)
+        take = upd & ~gate
+        Pz = np.where(take[:, None, None], Pp, 0.0)
+        Kg = Pz[:, :, :3] @ Sinv                                               # (J, 6, 3)
+        xf = np.where(take[:, None], xp + np.einsum("nij,nj->ni", Kg, y), xp)
+        Pf = np.where(take[:, None, None], Pp - Kg @ Pz[:, :3, :], Pp)
+        Pf = 0.5 * (Pf + Pf.transpose(0, 2, 1))
+        self.rejected = np.where(gate, self.rejected + 1, np.where(upd, 0, self.rejected))
+        fresh = (meas & ~alive) | (out & ~gate)          # a new track from the measurement
+        if fresh.any():
+            xf[fresh, :3], xf[fresh, 3:] = zJ[fresh], 0.0
+            Pf[fresh] = 0.0
+            Pf[fresh, :3, :3] = RJ[fresh]
+            Pf[fresh, 3:, 3:] = self.velocity_var * np.eye(3)
+            self.rejected[fresh] = 0
+            chained[fresh] = False
+        taken = ok & ~gate[idx]
         self.x, self.P = xf, Pf
-        self.seen[idx[ok]] = int(frame_id)
+        self.seen[meas] = int(frame_id)
         if self.lag:
             if self.history:
                 # the previous frame's smoother gain G = P_f F^T P_p^-1 (RTS)
                 prev = self.history[-1]
                 c = chained & np.isfinite(prev[1][:, 0])
-                G = np.full((self.J, 6, 6), np.nan)
-                if c.any():
-                    G[c] = prev[2][c] @ F.T @ _inverse(Pp[c])
+                G = (np.where(c[:, None, None], prev[2], 0.0) @ F.T
+                     @ _inverse(np.where(c[:, None, None], Pp, np.eye(6))))
                 self.history[-1] = prev[:3] + (G, c, F)
             self.history.append((int(frame_id), xf, Pf, None, None, None))
             del self.history[:-(self.lag + 1)]
