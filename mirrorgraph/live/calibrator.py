@@ -17,14 +17,12 @@ off by more than the threshold once the bones hold the joint left out
 (:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
 the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
 under the joints pass's acceleration prior, measurements beyond its gate taken as
-outliers). Each frame is given again :attr:`LiveOptions.lag_frames` frames later
-(:attr:`LiveFrame.settled`), smoothed with the frames after it. Each joint's std (metres
-with a subject height; ``sqrt`` of its covariance's trace) holds the filter's (or
-smoother's) covariance at the window's a-posteriori pixel noise and the fused normal's
-share through :func:`joints_normal_jacobian`; with a subject height the body's size is
-held (the scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric
-scale's own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
-:attr:`LiveFrame.joints_std_shape` leaves it out.
+outliers), and given again :attr:`LiveOptions.lag_frames` frames later smoothed with the
+frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
+covariance's trace) holds the filter's (or smoother's) covariance and the fused normal's
+share (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
+distance is held); :attr:`LiveFrame.joints_std` adds the metric scale's
+(:attr:`LiveMirror.scale_rel_std`), :attr:`LiveFrame.joints_std_shape` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
@@ -511,7 +509,7 @@ class LiveCalibrator:
             self.unpaired += 1
         if np.isfinite(joints3d).any():
             self.with_joints += 1
-        frame = LiveFrame(index, fid, t, self.mirror, joints3d, total, shape, paired=paired)
+        frame = LiveFrame(index, fid, t, None, joints3d, total, shape, paired=paired)
         frame.settled = self._settle(frame)
         frame.latency_s, frame.cpu_s = time.perf_counter() - clock, time.thread_time() - cpu
         frame.solve_s = solve_s + self._schedule()
@@ -623,7 +621,8 @@ class LiveCalibrator:
         windows' bone lengths make); as given before the first window's bone lengths."""
         from ..anthropometry import height_from_bone_lengths
 
-        h = height_from_bone_lengths(self.fusion.bone_lengths or {}, self.skeleton)
+        h = self._cached("height", lambda: height_from_bone_lengths(
+            self.fusion.bone_lengths or {}, self.skeleton))
         if not np.isfinite(h):
             return X, cov
         g = self._copts.graph
