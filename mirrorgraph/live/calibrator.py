@@ -337,10 +337,12 @@ class LiveCalibrator:
 
         self.options = opts = options or LiveOptions()
         copts = (opts.calibrate or CalibrateOptions()).checked()
-        # windows are solved without completion (the frames' joints are triangulated
-        # here) and keypoints are undistorted once, here
+        # windows are solved without completion and without their joints' covariance
+        # (the frames' joints are triangulated here) and keypoints are undistorted once,
+        # here
         self._copts = replace(copts, complete_joints=False, sensitivity_priors=False,
-                              fps=copts.fps or opts.fps)
+                              fps=copts.fps or opts.fps,
+                              refine_options=replace(copts.graph, joints_uncertainty=False))
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
         self._bone_names = list(self.skeleton.bones)
