@@ -19,7 +19,8 @@ innovation's covariance beyond :data:`GATE_CHI2` (3 degrees of freedom) marks it
 outlier (a keypoint displaced along its epipolar line, a left/right label the detector
 swapped in both views): the joint keeps its prediction for that frame, and after
 ``restart_after`` such frames in a row its track restarts from the measurements (the
-person moved unlike the prior).
+person moved unlike the prior). A track is gated from its ``restart_after``-th
+measurement on: before, its velocity is that of its first few measurements.
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ class JointFilter:
         self.P = np.full((J, 6, 6), np.nan)
         self.seen = np.full(J, -(1 << 62), dtype=np.int64)
         self.rejected = np.zeros(J, dtype=np.int64)
+        self.age = np.zeros(J, dtype=np.int64)          # measurements a track has taken
         self.frame: int | None = None
         self.history = []
 
@@ -141,7 +143,10 @@ class JointFilter:
         y = np.where(upd[:, None], zJ - xp[:, :3], 0.0)
         m = np.einsum("ni,nij,nj->n", y, Sinv, y)
         out = upd & (m > self.gate_chi2)
-        gate = out & (self.rejected + 1 < self.restart_after)
+        # a track younger than restart_after updates is not gated yet: its velocity is
+        # still that of its first measurements (a restart on outliers would lock out
+        # the right ones that follow)
+        gate = out & (self.rejected + 1 < self.restart_after) & (self.age >= self.restart_after)
         take = upd & ~gate
         Pz = np.where(take[:, None, None], Pp, 0.0)
         Kg = Pz[:, :, :3] @ Sinv                                               # (J, 6, 3)
@@ -149,6 +154,7 @@ class JointFilter:
         Pf = np.where(take[:, None, None], Pp - Kg @ Pz[:, :3, :], Pp)
         Pf = 0.5 * (Pf + Pf.transpose(0, 2, 1))
         self.rejected = np.where(gate, self.rejected + 1, np.where(upd, 0, self.rejected))
+        self.age = np.where(take, self.age + 1, self.age)
         fresh = (meas & ~alive) | (out & ~gate)          # a new track from the measurement
         if fresh.any():
             xf[fresh, :3], xf[fresh, 3:] = zJ[fresh], 0.0
@@ -156,6 +162,7 @@ class JointFilter:
             Pf[fresh, :3, :3] = RJ[fresh]
             Pf[fresh, 3:, 3:] = self.velocity_var * np.eye(3)
             self.rejected[fresh] = 0
+            self.age[fresh] = 1
             chained[fresh] = False
         taken = ok & ~gate[idx]
         self.x, self.P = xf, Pf
