@@ -366,6 +366,7 @@ class LiveCalibrator:
         self._filter: JointFilter | None = None
         self._held: deque = deque()             # frames awaiting their lag (LiveFrame)
         self._filter_distance: float | None = None
+        self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -485,6 +486,7 @@ class LiveCalibrator:
         J = self.skeleton.num_joints
         nan = np.full((J, 3), np.nan)
         solve_s = self._poll()
+        self._frame_normal = np.full(J, np.nan)
         p, reason = self._checked(people)
         if reason is None and self._last_id is not None and fid <= self._last_id:
             reason = ("frame number not increasing",
@@ -573,6 +575,8 @@ class LiveCalibrator:
             return out, total, shape, True
         out[idx] = X
         shape[idx], total[idx] = self._stds(K, n, d, X, cov)
+        if "normal" in self.last_variances:
+            self._frame_normal[idx] = self.last_variances["normal"]
         return out, total, shape, True
 
     def _stds(self, K, n, d, X, cov) -> tuple[np.ndarray, np.ndarray]:
@@ -646,13 +650,15 @@ class LiveCalibrator:
         lag = int(self.options.lag_frames)
         if lag <= 0:
             return None
-        self._held.append(frame)
+        self._held.append((frame, self._frame_normal.copy()))
         if len(self._held) <= lag:
             return None
-        return self._smoothed_frame(self._held.popleft(), lag)
+        return self._smoothed_frame(*self._held.popleft(), lag)
 
-    def _smoothed_frame(self, old: LiveFrame, lag: int) -> LiveFrame:
-        """``old`` with the smoother's joints where it gave joints of its own."""
+    def _smoothed_frame(self, old: LiveFrame, normal: np.ndarray, lag: int) -> LiveFrame:
+        """``old`` with the smoother's joints where it gave joints of its own; ``normal``
+        ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
+        point (first order: the smoothed point is millimetres away), NaN where none."""
         out = replace(old, settled=None, lag_frames=lag)
         sm = (self._filter.smoothed(old.frame_id)
               if self._filter is not None and old.skipped is None else None)
@@ -663,8 +669,14 @@ class LiveCalibrator:
         if not have.any():
             return out
         X, cov = sm[0][have], sm[1][have]
-        shape, total = self._stds(self.K, self.fusion.normal, float(self.fusion.distance),
-                                  X, cov)
+        if np.isfinite(normal[have]).all():
+            var = np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
+            scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2
+                     if self._copts.subject_height is not None else 0.0)
+            shape, total = np.sqrt(var), np.sqrt(var + scale)
+        else:
+            shape, total = self._stds(self.K, self.fusion.normal,
+                                      float(self.fusion.distance), X, cov)
         out.joints3d, out.joints_std, out.joints_std_shape = (
             old.joints3d.copy(), old.joints_std.copy(), old.joints_std_shape.copy())
         out.joints3d[have], out.joints_std[have], out.joints_std_shape[have] = X, total, shape
@@ -676,7 +688,7 @@ class LiveCalibrator:
         lag = int(self.options.lag_frames)
         held = list(self._held)
         self._held.clear()
-        return [self._smoothed_frame(fr, lag) for fr in held]
+        return [self._smoothed_frame(fr, normal, lag) for fr, normal in held]
 
     def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length
