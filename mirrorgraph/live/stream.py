@@ -10,7 +10,7 @@ done, so another program can follow it): :meth:`mirrorgraph.live.LiveFrame.to_di
                 "focal_std_px": ..., "windows": ..., "windows_rejected": ...,
                 "windows_failed": ..., "resets": ..., "scale": "subject_height"},
      "joints3d": [[x, y, z] | null, ...], "joints_std": [s | null, ...],
-     "joints_std_metric": [s | null, ...],
+     "joints_std_shape": [s | null, ...],
      "paired": true, "skipped": null, "lag_frames": 5}
 
 With a lag (``LiveOptions.lag_frames``, ``--lag``) each line is written that many frames
