@@ -114,7 +114,8 @@ class LiveSummary:
 
     ``lines``: the JSON lines written, one a frame, each complete; ``interrupted``: the run
     stopped on Ctrl-C (``KeyboardInterrupt``) after those; ``no_mirror``: why no mirror
-    was found (``None`` where one was), in words.
+    was found (``None`` where one was), in words; ``lag_frames``: how many frames after its
+    frame each line was written (``fps``: the stream's rate, for that in seconds).
     """
 
     mirror: LiveMirror
@@ -128,6 +129,8 @@ class LiveSummary:
     lines: int = 0
     interrupted: bool = False
     no_mirror: str | None = None
+    lag_frames: int = 0
+    fps: float | None = None
 
     def describe(self) -> str:
         m = self.mirror
@@ -148,6 +151,10 @@ class LiveSummary:
         lines.append(f"windows: {c['windows']} fused, {c['windows_rejected']} rejected, "
                      f"{c['windows_failed']} failed, {c['resets']} restarts; frames skipped "
                      f"(bad input) {c['skipped']}, without a pair {c['unpaired']}")
+        if self.lag_frames:
+            late = f" ({self.lag_frames / self.fps:.2f} s)" if self.fps else ""
+            lines.append(f"each line written {self.lag_frames} frames{late} after its frame, "
+                         "its joints smoothed with them (--lag)")
         if self.latency_ms:
             lat = self.latency_ms
             lines.append(f"per-frame latency median {lat['median']:.2f} ms, p95 "
@@ -301,4 +308,5 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
                        seconds=time.perf_counter() - clock, first_calibrated_frame=first[0],
                        first_calibrated_time=first[1], latency_ms=q,
                        source_stats=dict(source.stats), lines=lines, interrupted=interrupted,
-                       no_mirror=None if interrupted else _no_mirror(live, people))
+                       no_mirror=None if interrupted else _no_mirror(live, people),
+                       lag_frames=int(options.lag_frames), fps=options.fps)
