@@ -364,7 +364,7 @@ class LiveCalibrator:
                                    metric=self._copts.subject_height is not None)
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
         self._filter: JointFilter | None = None
-        self._held: deque = deque()             # frames awaiting their lag (LiveFrame)
+        self._held: deque = deque()   # (LiveFrame, its normal share) awaiting their lag
         self._filter_distance: float | None = None
         self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
         self._buffer_ids: list[int] = []
