@@ -22,6 +22,18 @@ from .commands import HELP
 __all__ = ["add_parsers", "cmd_live"]
 
 
+def _lag(text: str) -> int:
+    """A lag in frames: a whole number, 0 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number of frames, got {text!r}") \
+            from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more frames, got {value}")
+    return value
+
+
 def add_parsers(sub) -> None:
     """Add ``live`` to the CLI's subparsers."""
     p = sub.add_parser(
@@ -52,6 +64,10 @@ def add_parsers(sub) -> None:
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--window", type=lambda t: int(positive(t)), default=900, metavar="N",
                    help="most frames in a window of the mirror's solve (default 900)")
+    p.add_argument("--lag", type=_lag, default=5, metavar="FRAMES",
+                   help="write each frame's line this many frames after it came, its joints "
+                        "smoothed with the frames after it (default 5: 0.17 s at 30 fps); "
+                        "0: each line as its frame comes, filtered with the frames before")
     p.add_argument("--calibrated-std", type=positive, default=2.0, metavar="DEG",
                    help="rotation std at which the status becomes 'calibrated' (default 2)")
     solve = p.add_mutually_exclusive_group()
@@ -113,7 +129,7 @@ def cmd_live(args) -> int:
                          "--as-fast-as-possible with a file", field="--inline")
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
                        calibrated_std_deg=args.calibrated_std, background=not args.inline,
-                       can_wait=not realtime)
+                       can_wait=not realtime, lag_frames=args.lag)
     with Progress(f"live from {source.name}", total=source.total,
                   enabled=not args.quiet) as bar:
         def on_frame(frame) -> None:

@@ -320,6 +320,9 @@ class SolverOptions:
             threads would not help); ``None``: the machine's cores, at most 4. Each
             holds one chunk's graph (~150-250 MB). The result does not depend on it.
         marginals: compute the plane's covariance.
+        joints_uncertainty: with ``marginals``, each output joint's covariance too
+            (:mod:`.joints_uncertainty`); ``False`` where no one reads it (the live
+            run's windows).
     """
 
     max_iterations: int = 20
@@ -331,6 +334,7 @@ class SolverOptions:
     chunk_step_tolerance: float = 1.0
     workers: int | None = None
     marginals: bool = True
+    joints_uncertainty: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,16 +11,18 @@
 skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
 right swapped back where the frames so far say the detector confused them in both views
-(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), triangulated with the
-mirror (:func:`mirrorgraph.geometry.triangulate_mirror`), kept where they reproject within
-the threshold in both views and lie in front of the camera and the mirror, and refined
-with the latest window's bone lengths (:mod:`.frame_prior`). Each joint's std (metres with
-a subject height; ``sqrt`` of its covariance's trace) holds the two rays' share at the
-window's a-posteriori pixel noise and the fused normal's share through
-:func:`joints_normal_jacobian`; with a subject height the body's size is held (the
-scale's gauge), else the distance. :attr:`LiveFrame.joints_std` adds the metric scale's
-own std (:attr:`LiveMirror.scale_rel_std`, one factor on every length);
-:attr:`LiveFrame.joints_std_shape` leaves it out.
+(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
+each joint's two rays and refined together with the latest window's bone lengths, a view
+off by more than the threshold once the bones hold the joint left out
+(:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
+the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
+under the joints pass's acceleration prior, measurements beyond its gate taken as
+outliers), and given again :attr:`LiveOptions.lag_frames` frames later smoothed with the
+frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
+covariance's trace) holds the filter's (or smoother's) covariance and the fused normal's
+share (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
+distance is held); :attr:`LiveFrame.joints_std` adds the metric scale's
+(:attr:`LiveMirror.scale_rel_std`), :attr:`LiveFrame.joints_std_shape` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
@@ -56,7 +58,8 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import refine_with_bones
+from .frame_prior import refine_with_bones, triangulate_two_rays
+from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
@@ -90,12 +93,13 @@ class LiveOptions:
         fps: frame rate for frame times where the caller gives none.
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
-        smooth_frames: each frame's joints are filtered with the last this many frames':
-            the maximum a posteriori points of their two-ray (or bone-refined)
-            measurements under the joints pass's acceleration prior
-            (``RefineOptions.joints_smoothness_sigma``; :func:`mirrorgraph.completion.
-            smooth_tracks`), the newest frame's given out: no frame of latency; ``0`` or
-            ``1``: each frame on its own.
+        smooth: each joint's track filtered over time (:class:`.joint_filter.JointFilter`:
+            the joints pass's acceleration prior ``RefineOptions.joints_smoothness_sigma``,
+            a Kalman filter over every frame so far, measurements beyond its gate taken
+            as outliers); ``False``: each frame on its own.
+        lag_frames: each frame is given again, final, this many frames later
+            (:attr:`LiveFrame.settled`: its joints smoothed with the frames after it,
+            the fixed-lag smoother's; what ``mirrorgraph live`` writes); ``0``: none.
         can_wait: the source can wait (a file replayed flat out). In the background
             mode the frame that starts the first solve then waits for its mirror, and a
             window due while the worker is busy waits for it instead of thinning the
@@ -112,7 +116,8 @@ class LiveOptions:
     background: bool = False
     fps: float = 30.0
     bone_prior: bool = True
-    smooth_frames: int = 10
+    smooth: bool = True
+    lag_frames: int = 5
     can_wait: bool = False
 
     @classmethod
@@ -207,6 +212,11 @@ class LiveFrame:
             processes on the machine took from it).
         solve_s: wall seconds spent in a window's solve during this call (in the
             background mode only the waits of a source that can wait, ``can_wait``).
+        settled: the frame :attr:`LiveOptions.lag_frames` back, given again with its
+            joints and stds smoothed with the frames after it (``None`` while fewer
+            frames came, or without a lag); its ``lag_frames`` says how late it is.
+        lag_frames: frames between this frame and the frame whose update gave it out
+            (0: the frame's own update).
     """
 
     index: int
@@ -221,6 +231,8 @@ class LiveFrame:
     latency_s: float = 0.0
     solve_s: float = 0.0
     cpu_s: float = 0.0
+    settled: "LiveFrame | None" = None
+    lag_frames: int = 0
 
     @property
     def status(self) -> str:
@@ -238,7 +250,7 @@ class LiveFrame:
                                for s, k in zip(self.joints_std, ok)],
                 "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
                                      for s, k in zip(shape, ok)],
-                "paired": self.paired, "skipped": self.skipped}
+                "paired": self.paired, "skipped": self.skipped, "lag_frames": self.lag_frames}
 
 
 def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
@@ -342,10 +354,12 @@ class LiveCalibrator:
 
         self.options = opts = options or LiveOptions()
         copts = (opts.calibrate or CalibrateOptions()).checked()
-        # windows are solved without completion (the frames' joints are triangulated
-        # here) and keypoints are undistorted once, here
+        # windows are solved without completion and without their joints' covariance
+        # (the frames' joints are triangulated here) and keypoints are undistorted once,
+        # here
         self._copts = replace(copts, complete_joints=False, sensitivity_priors=False,
-                              fps=copts.fps or opts.fps)
+                              fps=copts.fps or opts.fps,
+                              refine_options=replace(copts.graph, joints_uncertainty=False))
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
         self._bone_names = list(self.skeleton.bones)
@@ -366,7 +380,10 @@ class LiveCalibrator:
         self.fusion = MirrorFusion(height_sigma=self._copts.graph.height_sigma,
                                    metric=self._copts.subject_height is not None)
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
-        self._track: deque = deque(maxlen=max(int(opts.smooth_frames), 1))
+        self._filter: JointFilter | None = None
+        self._held: deque = deque()   # (LiveFrame, its normal share) awaiting their lag
+        self._filter_distance: float | None = None
+        self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -486,16 +503,20 @@ class LiveCalibrator:
         J = self.skeleton.num_joints
         nan = np.full((J, 3), np.nan)
         solve_s = self._poll()
+        self._frame_normal = np.full(J, np.nan)
         p, reason = self._checked(people)
         if reason is None and self._last_id is not None and fid <= self._last_id:
             reason = ("frame number not increasing",
                       f"frame number {fid} not after {self._last_id}")
         if reason is not None:
             self.skipped[reason[0]] += 1
-            return LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
-                             np.full(J, np.nan), skipped=f"frame {fid}: {reason[1]}",
-                             latency_s=time.perf_counter() - clock, solve_s=solve_s,
-                             cpu_s=time.thread_time() - cpu)
+            frame = LiveFrame(index, fid, t, self.mirror, nan, np.full(J, np.nan),
+                              np.full(J, np.nan), skipped=f"frame {fid}: {reason[1]}",
+                              solve_s=solve_s)
+            frame.settled = self._settle(frame)
+            frame.latency_s, frame.cpu_s = (time.perf_counter() - clock,
+                                            time.thread_time() - cpu)
+            return frame
         self._last_id = fid
         if self.intrinsics is not None and self.intrinsics.dist is not None and len(p):
             p[..., :2] = self.intrinsics.undistort_points(p[..., :2])
@@ -509,10 +530,12 @@ class LiveCalibrator:
             self.unpaired += 1
         if np.isfinite(joints3d).any():
             self.with_joints += 1
-        latency, cpu = time.perf_counter() - clock, time.thread_time() - cpu
-        solve_s += self._schedule()
-        return LiveFrame(index, fid, t, self.mirror, joints3d, total, shape, paired=paired,
-                         latency_s=latency, solve_s=solve_s, cpu_s=cpu)
+        frame = LiveFrame(index, fid, t, None, joints3d, total, shape, paired=paired)
+        frame.settled = self._settle(frame)
+        frame.latency_s, frame.cpu_s = time.perf_counter() - clock, time.thread_time() - cpu
+        frame.solve_s = solve_s + self._schedule()
+        frame.mirror = self.mirror                  # a window this frame completed counts
+        return frame
 
     # ------------------------------------------------------------------ per frame
     def _joints(self, fid: int, p: np.ndarray
@@ -536,34 +559,49 @@ class LiveCalibrator:
         real, mirror = self._swaps.update(real, mirror, fid)
         seen = ((real[:, 2] >= co.min_confidence) & (mirror[:, 2] >= co.min_confidence)
                 & np.isfinite(real[:, :2]).all(1) & np.isfinite(mirror[:, :2]).all(1))
-        if not seen.any():
-            return out, total, shape, False
-        u, um = real[seen, :2], mirror[seen, :2]
-        X = geo.triangulate_mirror(K, n, d, u, um, iterations=1)
+        idx = np.flatnonzero(seen)
+        X = triangulate_two_rays(K, n, d, real[idx, :2], mirror[idx, :2])
+        good = np.isfinite(X).all(1)
+        idx, X = idx[good], X[good]
+        if idx.size == 0:
+            if self.options.smooth:
+                self._filtered(fid, idx, X, np.zeros((0, 3, 3)))
+            return out, total, shape, bool(seen.any())
+        u, um = real[idx, :2], mirror[idx, :2]
+        lengths = self._bone_lengths() if self.options.bone_prior else None
+        L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
+                                                            1.0)
+        # the frame's joints together: both views' reprojection (Huber), the bones'
+        # lengths; a view off by more than the threshold once the bones hold the joint
+        # (a keypoint displaced along its epipolar line) is left out
+        X, cov, _, keep = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
+                                            self._sigma_px(), sigma_len,
+                                            iterations=2, gate_px=co.threshold_px, full=True)
         S = geo.reflect_points(X, n, d)
         with np.errstate(invalid="ignore", divide="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
-            ok &= np.linalg.norm(geo.project(K, X) - u, axis=1) <= co.threshold_px
-            ok &= np.linalg.norm(geo.project(K, S) - um, axis=1) <= co.threshold_px
-        idx = np.flatnonzero(seen)[ok]
+            ok &= ~keep[:, 0] | (np.linalg.norm(geo.project(K, X) - u, axis=1)
+                                 <= co.threshold_px)
+            ok &= ~keep[:, 1] | (np.linalg.norm(geo.project(K, S) - um, axis=1)
+                                 <= co.threshold_px)
+            ok &= np.isfinite(cov).all((1, 2))
+        idx, X, cov = idx[ok], X[ok], cov[ok]
+        if self.options.smooth:
+            X, cov = self._filtered(fid, idx, X, cov)
         if idx.size == 0:
             return out, total, shape, True
-        X = rays = X[ok]
-        cov = None
-        lengths = self._bone_lengths() if self.options.bone_prior else None
-        if lengths is not None:                 # the body's bones: the per-frame prior
-            X, cov = refine_with_bones(K, n, d, rays, u[ok], um[ok], idx, self._bones,
-                                       lengths[0], self._sigma_px(), lengths[1])
-        if cov is None:
-            cov = self._ray_covariance(K, n, d, rays)
-        if self.options.smooth_frames > 1:
-            X, cov = self._filtered(fid, idx, X, cov)
-        var = self._variances(K, n, d, X, u[ok], um[ok], cov)
-        self.last_variances = var
         out[idx] = X
-        shape[idx] = np.sqrt(sum(v for k, v in var.items() if k != "scale"))
-        total[idx] = np.sqrt(sum(var.values()))
+        shape[idx], total[idx] = self._stds(K, n, d, X, cov)
+        if "normal" in self.last_variances:
+            self._frame_normal[idx] = self.last_variances["normal"]
         return out, total, shape, True
+
+    def _stds(self, K, n, d, X, cov) -> tuple[np.ndarray, np.ndarray]:
+        """``(k,)`` each joint's std without and with the metric scale's share."""
+        var = self._variances(K, n, d, X, None, None, cov)
+        self.last_variances = var
+        return (np.sqrt(sum(v for k, v in var.items() if k != "scale")),
+                np.sqrt(sum(var.values())))
 
     def _sigma_px(self) -> float:
         fu = self.fusion
@@ -601,31 +639,73 @@ class LiveCalibrator:
     def _filtered(self, fid: int, idx: np.ndarray, X: np.ndarray, cov: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
         """The frame's joints ``X`` ``(k, 3)`` (skeleton indices ``idx``) and their
-        covariance filtered with the last :attr:`LiveOptions.smooth_frames` frames'
-        (:func:`mirrorgraph.completion.smooth_tracks`); as given before the first
-        window's bone lengths (the prior's sigma is a fraction of the body's height)."""
+        covariance filtered with the frames before (:class:`.joint_filter.JointFilter`
+        at the joints pass's acceleration prior, a fraction of the body's height the
+        windows' bone lengths make); as given before the first window's bone lengths."""
         from ..anthropometry import height_from_bone_lengths
-        from ..completion import smooth_tracks
 
-        J = self.skeleton.num_joints
-        good = np.isfinite(cov).all((1, 2)) & np.isfinite(X).all(1)
-        pts, info = np.full((J, 3), np.nan), np.zeros((J, 3, 3))
-        pts[idx[good]] = X[good]
-        info[idx[good]] = np.linalg.inv(cov[good])
-        self._track.append((int(fid), pts, info))
-        h = height_from_bone_lengths(self.fusion.bone_lengths or {}, self.skeleton)
-        if len(self._track) < 2 or not np.isfinite(h):
+        h = self._cached("height", lambda: height_from_bone_lengths(
+            self.fusion.bone_lengths or {}, self.skeleton))
+        if not np.isfinite(h):
             return X, cov
-        frames = np.array([f for f, _, _ in self._track], dtype=np.int64)
-        P = np.stack([p for _, p, _ in self._track])
-        I = np.stack([i for _, _, i in self._track])
-        mask = np.isfinite(P).all(-1)
         g = self._copts.graph
-        S, C = smooth_tracks(P, I, mask, frames, float(g.joints_smoothness_sigma * h),
-                             int(g.smoothness_max_gap), newest_only=True)
-        X, cov = np.array(X, copy=True), np.array(cov, copy=True)
-        X[good], cov[good] = S[-1, idx[good]], C[-1, idx[good]]
-        return X, cov
+        sigma = float(g.joints_smoothness_sigma * h)
+        d = float(self.fusion.distance)
+        if self._filter is None:
+            self._filter = JointFilter(self.skeleton.num_joints, sigma,
+                                       int(g.smoothness_max_gap),
+                                       lag=max(int(self.options.lag_frames), 0))
+        elif self._filter_distance is not None and d != self._filter_distance:
+            self._filter.scale(d / self._filter_distance)       # a new window's unit
+        self._filter.sigma, self._filter_distance = sigma, d
+        Xf, C, _ = self._filter.step(fid, idx, X, cov)
+        return Xf, C
+
+    def _settle(self, frame: LiveFrame) -> LiveFrame | None:
+        """Hold ``frame``; give back the one :attr:`LiveOptions.lag_frames` back with its
+        joints smoothed by the frames after it (``None`` while fewer are held)."""
+        lag = int(self.options.lag_frames)
+        if lag <= 0:
+            return None
+        self._held.append((frame, self._frame_normal.copy()))
+        if len(self._held) <= lag:
+            return None
+        return self._smoothed_frame(*self._held.popleft(), lag)
+
+    def _smoothed_frame(self, old: LiveFrame, normal: np.ndarray, lag: int) -> LiveFrame:
+        """``old`` with the smoother's joints where it gave joints of its own; ``normal``
+        ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
+        point (first order: the smoothed point is millimetres away), NaN where none."""
+        out = replace(old, settled=None, lag_frames=lag)
+        sm = (self._filter.smoothed(old.frame_id)
+              if self._filter is not None and old.skipped is None else None)
+        if sm is None or self.fusion.normal is None:
+            return out
+        have = np.isfinite(old.joints3d).all(1) & np.isfinite(sm[0]).all(1) \
+            & np.isfinite(sm[1]).all((1, 2))
+        if not have.any():
+            return out
+        X, cov = sm[0][have], sm[1][have]
+        if np.isfinite(normal[have]).all():
+            var = np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
+            scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2
+                     if self._copts.subject_height is not None else 0.0)
+            shape, total = np.sqrt(var), np.sqrt(var + scale)
+        else:
+            shape, total = self._stds(self.K, self.fusion.normal,
+                                      float(self.fusion.distance), X, cov)
+        out.joints3d, out.joints_std, out.joints_std_shape = (
+            old.joints3d.copy(), old.joints_std.copy(), old.joints_std_shape.copy())
+        out.joints3d[have], out.joints_std[have], out.joints_std_shape[have] = X, total, shape
+        return out
+
+    def flush(self) -> list[LiveFrame]:
+        """The frames still held for their lag at the end of a stream, each smoothed
+        with the frames after it (after :meth:`finish`)."""
+        lag = int(self.options.lag_frames)
+        held = list(self._held)
+        self._held.clear()
+        return [self._smoothed_frame(fr, normal, lag) for fr, normal in held]
 
     def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length

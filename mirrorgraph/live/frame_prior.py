@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["refine_with_bones", "HUBER_K"]
+__all__ = ["refine_with_bones", "triangulate_two_rays", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -32,8 +32,7 @@ HUBER_K = 1.345
 
 def _huber_weight(r: np.ndarray) -> np.ndarray:
     """IRLS weights of Huber's loss for normalised residual norms ``r``."""
-    a = np.abs(r)
-    return np.where(a <= HUBER_K, 1.0, HUBER_K / np.maximum(a, 1e-12))
+    return np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-12))
 
 
 def _projection(K: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -44,10 +43,60 @@ def _projection(K: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return p, J
 
 
+def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: np.ndarray,
+                         um: np.ndarray) -> np.ndarray:
+    """Joints from their direct and mirrored pixels: the midpoint of the two rays.
+
+    The direct ray leaves the camera centre along ``K^-1 [u, 1]``, the mirrored one the
+    virtual camera's centre ``2 d n`` along ``H K^-1 [u', 1]`` (``H = I - 2 n n^T``);
+    the point is the midpoint of their common perpendicular (Hartley and Zisserman,
+    *Multiple View Geometry*, 2nd ed., sec. 12.1), closed form, vectorised. It is the
+    starting point of :func:`refine_with_bones`, whose Gauss-Newton steps take it to the
+    reprojection optimum.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        u, um: ``(k, 2)`` undistorted pixels in the camera and in the mirror.
+
+    Returns:
+        ``(k, 3)`` points, camera frame, the unit of ``d``; NaN where the rays are
+        parallel.
+    """
+    n = np.asarray(normal, float)
+    Kinv = np.linalg.inv(K)
+    H = np.eye(3) - 2.0 * np.outer(n, n)
+    r1 = u @ Kinv[:, :2].T + Kinv[:, 2]                                   # (k, 3)
+    HK = H @ Kinv
+    r2 = um @ HK[:, :2].T + HK[:, 2]
+    c2 = 2.0 * float(distance) * n
+    a, b, c = (r1 * r1).sum(1), (r1 * r2).sum(1), (r2 * r2).sum(1)
+    e, f = r1 @ c2, r2 @ c2
+    den = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (e * c - b * f) / den                   # along the direct ray
+        t = (b * e - a * f) / den                   # along the mirrored one
+        X = 0.5 * (s[:, None] * r1 + c2 + t[:, None] * r2)
+    X[~(np.abs(den) > 1e-12 * a * c)] = np.nan
+    return X
+
+
+def _bone_index(k: int, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices into a ``(3k, 3k)`` matrix of the four ``3 x 3`` blocks ``(a, a)``,
+    ``(b, b)``, ``(a, b)``, ``(b, a)`` of every bone, and their signs."""
+    i3 = np.arange(3)
+    rows = lambda p: 3 * p[:, None, None] + i3[None, :, None]      # noqa: E731
+    cols = lambda q: 3 * q[:, None, None] + i3[None, None, :]      # noqa: E731
+    idx = np.stack([rows(a) * 3 * k + cols(a), rows(b) * 3 * k + cols(b),
+                    rows(a) * 3 * k + cols(b), rows(b) * 3 * k + cols(a)])   # (4, B, 3, 3)
+    sign = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None, None]
+    return idx, sign
+
+
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                       u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
                       lengths: np.ndarray, sigma_px: float, sigma_len: float,
-                      iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+                      iterations: int = 3, *, gate_px: float | None = None,
+                      full: bool = False):
     """Refine one frame's triangulated joints with the bones' lengths.
 
     Args:
@@ -62,10 +111,17 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         sigma_px: the reprojection noise, px.
         sigma_len: the bones' spread about their lengths (the unit of ``X``).
         iterations: Gauss-Newton steps.
+        gate_px: after the steps, a view whose residual exceeds this (px) is left out
+            of a joint held by bones (a keypoint displaced along its epipolar line,
+            which the two rays follow in depth and the bones do not) and one more step
+            is taken; ``None``: every view kept.
+        full: also return the information matrix and the views kept.
 
     Returns:
         ``(X, cov)``: the refined ``(k, 3)`` joints and each one's ``(k, 3, 3)``
-        covariance (a bone's two ends are correlated; the blocks are the marginals).
+        covariance (a bone's two ends are correlated; the blocks are the marginals);
+        with ``full`` also ``(3k, 3k)`` the information matrix and ``(k, 2)`` bool the
+        views kept.
     """
     X = np.array(X, dtype=float)
     k = len(X)
@@ -76,38 +132,64 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b = local[bones[:, 0]], local[bones[:, 1]]
     use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    held = np.zeros(k, bool)
+    held[a] = held[b] = True
+    bidx, bsign = _bone_index(k, a, b)
+    bidx = bidx.ravel()
+    ga = (3 * a[:, None] + np.arange(3)).ravel()          # the gradient's entries of each
+    gb = (3 * b[:, None] + np.arange(3)).ravel()          # bone's two ends
     ar = np.arange(k)
-    A = np.zeros((k, 3, k, 3))
-    for _ in range(max(int(iterations), 1)):
+    diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
+        + 3 * ar[:, None, None] + np.arange(3)[None, None, :]                 # (k, 3, 3)
+    keep = np.ones((k, 2), bool)
+    steps = max(int(iterations), 1)
+    M = np.zeros(9 * k * k)
+    done = 0
+    while True:
         p1, J1 = _projection(K, X)
         p2, J2 = _projection(K, X @ H.T + 2.0 * distance * n)
         J2 = J2 @ H
         r1, r2 = (p1 - u) / sigma_px, (p2 - um) / sigma_px
-        w1 = _huber_weight(np.linalg.norm(r1, axis=1))[:, None, None]
-        w2 = _huber_weight(np.linalg.norm(r2, axis=1))[:, None, None]
+        w1 = _huber_weight(np.sqrt((r1 * r1).sum(1))) * keep[:, 0]
+        w2 = _huber_weight(np.sqrt((r2 * r2).sum(1))) * keep[:, 1]
         J1, J2 = J1 / sigma_px, J2 / sigma_px
-        A[:] = 0.0
-        A[ar, :, ar, :] = (w1 * np.einsum("kri,krj->kij", J1, J1)
-                           + w2 * np.einsum("kri,krj->kij", J2, J2))
-        g = (w1[:, :, 0] * np.einsum("kri,kr->ki", J1, r1)
-             + w2[:, :, 0] * np.einsum("kri,kr->ki", J2, r2))
+        M[:] = 0.0
+        M[diag] = (w1[:, None, None] * np.einsum("kri,krj->kij", J1, J1)
+                   + w2[:, None, None] * np.einsum("kri,krj->kij", J2, J2))
+        g = (w1[:, None] * np.einsum("kri,kr->ki", J1, r1)
+             + w2[:, None] * np.einsum("kri,kr->ki", J2, r2))
         if len(L):
             diff = X[a] - X[b]
-            length = np.linalg.norm(diff, axis=1)
+            length = np.sqrt((diff * diff).sum(1))
             e = diff / np.maximum(length, 1e-12)[:, None] / sigma_len    # d r / d X_a
             rb = (length - L) / sigma_len
             outer = e[:, :, None] * e[:, None, :]
-            np.add.at(A, (a, slice(None), a, slice(None)), outer)
-            np.add.at(A, (b, slice(None), b, slice(None)), outer)
-            np.add.at(A, (a, slice(None), b, slice(None)), -outer)
-            np.add.at(A, (b, slice(None), a, slice(None)), -outer)
-            np.add.at(g, a, e * rb[:, None])
-            np.add.at(g, b, -e * rb[:, None])
-        M = A.reshape(3 * k, 3 * k)
+            M += np.bincount(bidx, (bsign * outer[None]).ravel(), minlength=M.size)
+            er = (e * rb[:, None]).ravel()
+            g += (np.bincount(ga, er, minlength=3 * k)
+                  - np.bincount(gb, er, minlength=3 * k)).reshape(k, 3)
+        A = M.reshape(3 * k, 3 * k)
+        if done >= steps:
+            if gate_px is None or not held.any():
+                break
+            px = sigma_px * np.stack([np.sqrt((r1 * r1).sum(1)), np.sqrt((r2 * r2).sum(1))], 1)
+            drop = keep & (px > gate_px) & held[:, None]
+            drop[drop.all(1)] = False            # a joint keeps one view at least
+            if not drop.any():
+                break
+            keep &= ~drop
+            gate_px, steps = None, steps + 1     # one more step without them, then stop
         try:
-            step = np.linalg.solve(M, -g.reshape(-1))
+            step = np.linalg.solve(A, -g.reshape(-1))
         except np.linalg.LinAlgError:
             break
         X = X + step.reshape(k, 3)
-    cov = np.linalg.inv(A.reshape(3 * k, 3 * k)).reshape(k, 3, k, 3)[ar, :, ar, :]
+        done += 1
+    try:
+        inv = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        inv = np.full_like(A, np.nan)
+    cov = inv.reshape(k, 3, k, 3)[ar, :, ar, :]
+    if full:
+        return X, cov, A.copy(), keep
     return X, cov

@@ -10,8 +10,12 @@ done, so another program can follow it): :meth:`mirrorgraph.live.LiveFrame.to_di
                 "focal_std_px": ..., "windows": ..., "windows_rejected": ...,
                 "windows_failed": ..., "resets": ..., "scale": "subject_height"},
      "joints3d": [[x, y, z] | null, ...], "joints_std": [s | null, ...],
-     "joints_std_metric": [s | null, ...],
-     "paired": true, "skipped": null}
+     "joints_std_shape": [s | null, ...],
+     "paired": true, "skipped": null, "lag_frames": 5}
+
+With a lag (``LiveOptions.lag_frames``, ``--lag``) each line is written that many frames
+after its frame came, its joints smoothed with the frames after it
+(:attr:`~mirrorgraph.live.LiveFrame.settled`); ``lag_frames`` says how late.
 
 A joint not estimated, and any figure not known yet, is JSON ``null`` (JSON has no
 NaN; Python's ``json`` reads ``null`` as ``None``). Lengths are metres with a subject
@@ -108,7 +112,8 @@ class LiveSummary:
 
     ``lines``: the JSON lines written, one a frame, each complete; ``interrupted``: the run
     stopped on Ctrl-C (``KeyboardInterrupt``) after those; ``no_mirror``: why no mirror
-    was found (``None`` where one was), in words.
+    was found (``None`` where one was), in words; ``lag_frames``: how many frames after its
+    frame each line was written (``fps``: the stream's rate, for that in seconds).
     """
 
     mirror: LiveMirror
@@ -122,6 +127,8 @@ class LiveSummary:
     lines: int = 0
     interrupted: bool = False
     no_mirror: str | None = None
+    lag_frames: int = 0
+    fps: float | None = None
 
     def describe(self) -> str:
         m = self.mirror
@@ -142,6 +149,10 @@ class LiveSummary:
         lines.append(f"windows: {c['windows']} fused, {c['windows_rejected']} rejected, "
                      f"{c['windows_failed']} failed, {c['resets']} restarts; frames skipped "
                      f"(bad input) {c['skipped']}, without a pair {c['unpaired']}")
+        if self.lag_frames:
+            late = f" ({self.lag_frames / self.fps:.2f} s)" if self.fps else ""
+            lines.append(f"each line written {self.lag_frames} frames{late} after its frame, "
+                         "its joints smoothed with them (--lag)")
         if self.latency_ms:
             lat = self.latency_ms
             lines.append(f"per-frame latency median {lat['median']:.2f} ms, p95 "
@@ -222,32 +233,43 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
     try:
         viewer = LiveView(source.skeleton, view or None) if view is not None else None
         fh = sys.stdout if to_stdout else open(Path(jsonl), "w", encoding="utf-8")
+        def emit(out: LiveFrame) -> None:
+            nonlocal lines
+            fh.write(json.dumps(out.to_dict(), allow_nan=False) + "\n")
+            fh.flush()
+            lines += 1
+            if viewer is not None:
+                viewer.log(out)
+
+        lagged = options.lag_frames > 0
         try:
-            for sf in source.frames:
-                frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
-                try:
-                    n = min(len(sf.people), 2)
-                except TypeError:
-                    n = 0
-                people[n] = people.get(n, 0) + 1
-                fh.write(json.dumps(frame.to_dict(), allow_nan=False) + "\n")
-                fh.flush()
-                lines += 1
-                latencies.append(frame.latency_s)
-                if len(latencies) > 2 * LATENCY_KEEP:
-                    del latencies[:LATENCY_KEEP]
-                if first[0] is None and frame.status == "calibrated":
-                    first = (frame.frame_id, frame.time)
-                if viewer is not None:
-                    viewer.log(frame)
-                if on_frame is not None:
-                    on_frame(frame)
-        except KeyboardInterrupt:
-            interrupted = True
+            try:
+                for sf in source.frames:
+                    frame = live.update(sf.people, frame_id=sf.frame_id, time_s=sf.time)
+                    try:
+                        n = min(len(sf.people), 2)
+                    except TypeError:
+                        n = 0
+                    people[n] = people.get(n, 0) + 1
+                    if not lagged:
+                        emit(frame)
+                    elif frame.settled is not None:
+                        emit(frame.settled)
+                    latencies.append(frame.latency_s)
+                    if len(latencies) > 2 * LATENCY_KEEP:
+                        del latencies[:LATENCY_KEEP]
+                    if first[0] is None and frame.status == "calibrated":
+                        first = (frame.frame_id, frame.time)
+                    if on_frame is not None:
+                        on_frame(frame)
+            except KeyboardInterrupt:
+                interrupted = True
+            mirror = live.mirror if interrupted else live.finish()
+            for out in live.flush():                 # the frames still held for their lag
+                emit(out)
         finally:
             if not to_stdout:
                 fh.close()
-        mirror = live.mirror if interrupted else live.finish()
     finally:
         live.close()
         if viewer is not None:
@@ -259,4 +281,5 @@ def run_live(source: Source, intrinsics, options: LiveOptions, jsonl: str | os.P
                        seconds=time.perf_counter() - clock, first_calibrated_frame=first[0],
                        first_calibrated_time=first[1], latency_ms=q,
                        source_stats=dict(source.stats), lines=lines, interrupted=interrupted,
-                       no_mirror=None if interrupted else _no_mirror(live, people))
+                       no_mirror=None if interrupted else _no_mirror(live, people),
+                       lag_frames=int(options.lag_frames), fps=options.fps)

@@ -146,7 +146,7 @@ def with_joints_cov(res: RefinementResult, state: SolveState, opts: RefineOption
     """``res`` with each joint's covariance (:func:`~mirrorgraph.graph.joints_uncertainty.
     graph_joints_covariance`, the globals at the headline's ratio to their marginal std)
     and the plane's tangent covariance, in ``res``'s unit; unchanged without marginals."""
-    if not opts.marginals:
+    if not (opts.marginals and opts.joints_uncertainty):
         return res
     t = time.perf_counter()
     inflation = float(res.uncertainty_parts.get("ratio_to_marginal", 1.0))

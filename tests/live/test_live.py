@@ -13,7 +13,7 @@ import mirrorgraph as mg
 from mirrorgraph.keypoints import RawDetections
 from mirrorgraph.live import LiveCalibrator, LiveOptions
 from mirrorgraph.live.estimator import MirrorFusion, WindowEstimate
-from mirrorgraph.metrics import mirror_rotation_error_deg
+from mirrorgraph.metrics import mirror_rotation_error_deg, pa_mpjpe
 from mirrorgraph.synth import make_wide_scene
 
 
@@ -380,23 +380,68 @@ def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker
     assert sum(f.paired for f in frames[first:]) >= 0.9 * (400 - first)
 
 
-def test_the_frames_joints_filtered_with_the_ones_before_are_nearer_and_still_covered():
-    # the same stream with each frame's joints on their own and filtered with the last
-    # ten frames' (the joints pass's acceleration prior over their rays): nearer the
-    # truth, and their std (the filter's marginal) still covers the error
+def _joints_of(live, people):
+    """Every frame's joints and stds as the JSON lines carry them (with a lag: each frame
+    as it is given again, smoothed)."""
+    lag = live.options.lag_frames
+    out = []
+    for t, p in enumerate(people):
+        f = live.update(p, frame_id=t)
+        if not lag:
+            out.append(f)
+        elif f.settled is not None:
+            out.append(f.settled)
+    live.finish()
+    return out + live.flush()
+
+
+def _scored(sc, frames):
+    """PA-MPJPE (m), the share of joints > 0.3 m off, the errors over their shape stds
+    (``joints_std_shape``) once each frame's common scale error is taken out (the
+    least-squares factor on its joints: the metric scale's error is ``scale_rel_std``'s
+    to cover), and where joints were given."""
+    X = np.full(sc.joints3d.shape, np.nan)
+    S = np.full(X.shape[:2], np.nan)
+    for f in frames:
+        X[f.frame_id], S[f.frame_id] = f.joints3d, f.joints_std_shape
+    ok = np.isfinite(X).all(-1)
+    Xz = np.where(ok[..., None], X, 0.0)
+    scale = (Xz * sc.joints3d).sum((1, 2)) / np.maximum((Xz * Xz).sum((1, 2)), 1e-12)
+    e = np.linalg.norm(Xz - sc.joints3d, axis=-1)
+    e_shape = np.linalg.norm(scale[:, None, None] * Xz - sc.joints3d, axis=-1)
+    return (pa_mpjpe(X, sc.joints3d, ok), float((e[ok] > 0.3).mean()), e_shape[ok] / S[ok],
+            ok)
+
+
+def test_the_joints_filtered_then_smoothed_are_nearer_the_truth_and_still_covered():
+    # the same stream with each frame's joints on their own, filtered with the frames
+    # before (no lag) and smoothed with the five after (the lines of `mirrorgraph live`):
+    # each nearer the truth than the one before, every frame given, the std covering
     sc = make_wide_scene(0, noise="iid", frames=300)
-    errs, ratios = {}, {}
-    for w in (1, 10):
-        live = _live(sc, smooth_frames=w)
-        e, z = [], []
-        for f in _feed(live, sc.detections.people):
-            ok = np.isfinite(f.joints_std_shape)
-            d = np.linalg.norm(f.joints3d[ok] - sc.joints3d[f.index][ok], axis=1)
-            e.append(d)
-            z.append(d / f.joints_std_shape[ok])
-        errs[w], ratios[w] = np.concatenate(e), np.concatenate(z)
-    assert len(errs[10]) == len(errs[1]) > 1000
-    assert np.sqrt(np.mean(errs[10] ** 2)) < 0.9 * np.sqrt(np.mean(errs[1] ** 2))
-    rms = float(np.sqrt(np.mean(ratios[10] ** 2)))
-    assert 0.5 <= rms <= 2.0, rms
-    assert np.mean(ratios[10] > 3) < 0.02
+    figures = {}
+    for name, kw in (("alone", dict(smooth=False, lag_frames=0)),
+                     ("filtered", dict(lag_frames=0)), ("smoothed", dict(lag_frames=5))):
+        frames = _joints_of(_live(sc, **kw), sc.detections.people)
+        assert [f.frame_id for f in frames] == list(range(300))
+        assert all(f.lag_frames == kw["lag_frames"] for f in frames)
+        figures[name] = _scored(sc, frames)
+    pa = {k: v[0] for k, v in figures.items()}
+    assert pa["filtered"] < 0.9 * pa["alone"] and pa["smoothed"] < 0.8 * pa["filtered"], pa
+    assert pa["smoothed"] < 0.030, pa                   # each frame on its own: 0.039 m
+    assert figures["smoothed"][3].sum() >= figures["alone"][3].sum()
+    z = figures["smoothed"][2]
+    assert 0.5 <= float(np.sqrt(np.mean(z ** 2))) <= 2.0
+    assert np.mean(z > 3) < 0.02
+
+
+def test_the_live_joints_under_a_realistic_detector_against_the_truth():
+    # a detector with correlated noise, per-joint bias, keypoints displaced along their
+    # epipolar lines and left/right swaps: PA-MPJPE and the share of joints > 0.3 m off
+    # (measured: 41 mm, 4.6 %; each frame's two rays and bones filtered over the last ten
+    # frames without an outlier gate: 64 mm, 8.0 %)
+    sc = make_wide_scene(3, "wide", "realistic", 300)
+    pa, gross, z, ok = _scored(sc, _joints_of(_live(sc), sc.detections.people))
+    assert pa < 0.050, pa
+    assert gross < 0.06, gross
+    assert ok.mean() > 0.7
+

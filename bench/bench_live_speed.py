@@ -1,0 +1,132 @@
+"""``mirrorgraph live --as-fast-as-possible`` on a keypoint file, whole process: frames/s.
+
+A synthetic scene (``mirrorgraph synth --frames N``, MMPose keypoints, its camera and the
+subject's height) is replayed flat out by ``mirrorgraph live`` in a fresh process, with
+the windows solved in the worker process (the default) and inline (``--inline``), each
+``--repeats`` times; for each run:
+
+* **wall s** and **frames/s**: the whole process, start-up and the last window included
+  (as ``time`` measures it), and **CPU s**: user + system of the process and its worker
+  (``resource.getrusage(RUSAGE_CHILDREN)``);
+* **without joints**: the JSON lines after the first one that carries a mirror with no 3D
+  joint (the target: none), and the lines written;
+* ``--before PATH``: the same runs with the package of another tree (its
+  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side.
+
+Usage::
+
+    python bench/bench_live_speed.py                       # 1000 frames, 3 repeats
+    python bench/bench_live_speed.py --before ../main --repeats 5
+
+Writes ``--out`` (default ``bench/RESULTS_live_speed.md``) unless ``--no-write``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import header  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_FPS = 200.0
+
+
+def _env(tree: Path) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
+               OPENBLAS_NUM_THREADS="1")
+    return env
+
+
+def make_scene(folder: Path, frames: int, seed: int) -> Path:
+    subprocess.run([sys.executable, "-m", "mirrorgraph", "synth", "--out", str(folder),
+                    "--frames", str(frames), "--seed", str(seed), "--formats", "mmpose",
+                    "--subject-height", "1.75", "--quiet"], check=True, env=_env(ROOT))
+    return folder
+
+
+def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
+    """One fresh ``mirrorgraph live`` process: wall, CPU, and its lines' joints."""
+    cmd = [sys.executable, "-m", "mirrorgraph", "live", str(scene / "keypoints_mmpose.json"),
+           "--intrinsics", str(scene / "camera.json"), "--subject-height", "1.75",
+           "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet"] + ["--inline"] * inline
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    clock = time.perf_counter()
+    subprocess.run(cmd, check=True, env=_env(tree), stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - clock
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    lines = [json.loads(x) for x in jsonl.read_text().splitlines()]
+    first = next((i for i, ln in enumerate(lines) if ln["mirror"]["normal"] is not None), None)
+    missing = (sum(1 for ln in lines[first + 1:]
+                   if not any(p is not None for p in ln["joints3d"]))
+               if first is not None else len(lines))
+    return dict(wall=wall, cpu=cpu, lines=len(lines), missing=missing,
+                first_mirror=None if first is None else lines[first]["frame"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--before", type=Path, default=None,
+                    help="another tree whose package is measured beside this one")
+    ap.add_argument("--nice", type=int, default=10)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_speed.md"))
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args(argv)
+    if args.nice:
+        os.nice(args.nice)
+    trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
+        for r in range(args.repeats):              # interleaved: the load hits both alike
+            for name, tree in trees:
+                for inline in (False, True):
+                    out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl")
+                    out.update(code=name, mode="inline" if inline else "background", rep=r)
+                    rows.append(out)
+                    print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
+                          f"({args.frames / out['wall']:.0f} frames/s), {out['cpu']:.2f} s CPU, "
+                          f"{out['missing']} lines without joints after the first mirror",
+                          file=sys.stderr, flush=True)
+    L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
+         "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
+         f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
+         f"each run a fresh process; medians of {args.repeats} runs (min, max)", "",
+         "| code | mode | wall s | frames/s | CPU s | lines | lines without joints after the "
+         "first mirror | first mirror at frame |", "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for name, _ in trees:
+        for mode in ("background", "inline"):
+            sel = [r for r in rows if r["code"] == name and r["mode"] == mode]
+            w = np.array([r["wall"] for r in sel])
+            c = np.array([r["cpu"] for r in sel])
+            fps = args.frames / w
+            L.append(f"| {name} | {mode} | {np.median(w):.2f} ({w.min():.2f}, {w.max():.2f}) | "
+                     f"{np.median(fps):.0f} ({fps.min():.0f}, {fps.max():.0f}) | "
+                     f"{np.median(c):.2f} | {sel[0]['lines']} | "
+                     f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
+    L += ["", f"Target: >= {TARGET_FPS:.0f} frames/s whole process in both modes, no line "
+          "without joints after the first mirror."]
+    text = "\n".join(L) + "\n"
+    print(text)
+    if not args.no_write:
+        Path(args.out).write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
