@@ -61,9 +61,6 @@ ALLOWED = {
 PENDING = {
     ("mirrorgraph/pipelines/rig.py", "the old signature"),
     ("mirrorgraph/pipelines/rig.py", "now"),
-    ("mirrorgraph/pipelines/solve.py", "was 0"),
-    ("mirrorgraph/synth/rig.py", "as before"),
-    ("mirrorgraph/synth/rig_types.py", "as before"),
 }
 
 

@@ -322,7 +322,7 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     # the subset's joints are not kept (every chunk is solved again): no joints pass there
     sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
     # the subset's estimated intrinsics are held in the chunks: what their uncertainty
-    # brings to the plane is added to every figure of the whole video's (issue #23)
+    # brings to the plane is added to every figure of the whole video's
     held_cov = None
     if sub.scores is not None and any(c.intrinsics_dim for c in rig.cameras):
         floor_focal(sub)

@@ -502,10 +502,10 @@ def solve_config(rig: Rig, options: RefineOptions):
     rejection at once, a warm start, the joints pass). With several cameras the poses
     come from chained pairwise estimates that can be degrees off:
     :func:`~mirrorgraph.graph.stage_config.rig_config` (a kernel five times wider first,
-    the rejection per observation). On 30 wide scenes a one-camera, one-mirror rig
-    solved with the rig's configuration was 0.140 deg off the truth (median) where the
-    single mirror's gave 0.104 deg, the figure of :func:`refine_mirror`; on eight
-    one-camera, two-mirror rigs the two configurations agree to noise.
+    the rejection per observation). A one-camera rig takes the single mirror's (on wide
+    one-camera, one-mirror scenes the rig's is the less accurate; with the single
+    mirror's, ``calibrate_rig`` matches ``calibrate``: ``bench/RESULTS_one_camera_rig.md``;
+    on one-camera, two-mirror rigs the two agree to noise).
     """
     one_camera = len(rig.cameras) == 1
     return single_mirror_config(options) if one_camera else rig_config(options)

@@ -25,9 +25,9 @@ __all__ = ["NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
 TRACK_GATE_PX = 150.0
 
 #: Tracks: each frame a track has gone unseen adds this many px to a detection's
-#: distance from it (a person seen in the last frame is preferred to a track that
-#: went missing: on Pose2Sim's Demo_MultiPerson, brief false detections left tracks
-#: that took over the moving person's identity).
+#: distance from it: a person seen in the last frame is preferred to a track that
+#: went missing (brief false detections otherwise leave tracks that can take over a
+#: moving person's identity, as on Pose2Sim's Demo_MultiPerson).
 TRACK_AGE_PX = 20.0
 
 #: Tracks unseen for more frames than this end.

@@ -58,8 +58,8 @@ KINDS = ("1cam2mirrors", "2cams1mirror", "4cams")
 
 _MIN_JOINTS = 5         # visible joints for a view to be detected in a frame
 
-# Importable from here as before the split, though not in __all__: the names of
-# the files write_rig writes, and placement helpers tests/synth/test_synth_rig.py uses.
+# Importable from here, though not in __all__: the names of the files write_rig
+# writes, and placement helpers tests/synth/test_synth_rig.py uses.
 CALIB_NAME, GROUND_TRUTH_NAME, JOINTS3D_NAME, RIG_NAME = (
     _files.CALIB_NAME, _files.GROUND_TRUTH_NAME, _files.JOINTS3D_NAME, _files.RIG_NAME)
 _Mirror, _path_visible = _placement._Mirror, _placement._path_visible
@@ -147,7 +147,8 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
         joint_bias_px: standard deviation (px) of a constant offset per camera view
             and joint, the same in every frame: a detector's systematic error,
             which more frames do not average out. Drawn with the Gaussian noise
-            from ``default_rng([seed, 2])``; 0 (default) keeps every output as before.
+            from ``default_rng([seed, 2])``; 0 (default) draws nothing more: the scene
+            is the one of the same seed without it.
         geometry: the placement's ranges: a name of
             :data:`~mirrorgraph.synth.rig_placement.RIG_PRESETS` (``"favourable"``,
             the default and the ranges above; ``"gym"``; ``"wide"``) or a
@@ -166,7 +167,7 @@ def make_rig(kind: str, *, frames: int = 300, seed: int | None = 0,
                    image_size=list(image_size), fov_deg=fov_deg, fps=fps,
                    corner_angle_deg=corner_angle_deg)
     if bystanders:
-        options["bystanders"] = int(bystanders)       # absent by default: files as before
+        options["bystanders"] = int(bystanders)       # absent by default: files without the key
     if joint_bias_px:
         options["joint_bias_px"] = float(joint_bias_px)
     g = resolve_rig_ranges(geometry)

@@ -105,7 +105,7 @@ def write_rig(rig: SyntheticRig, out_dir: str | os.PathLike, fmt: str = "openpos
                "rotation and translation are placeholders (zero): the extrinsics are unknown.")
 
     extra = {}
-    if rig.bystanders:                              # only then: rigs without them as before
+    if rig.bystanders:                              # only then: rigs without them write no key
         extra["bystanders_joints3d"] = np.stack([b.joints3d for b in rig.bystanders])
     with atomic_path(out / JOINTS3D_NAME) as tmp:
         with open(tmp, "wb") as f:

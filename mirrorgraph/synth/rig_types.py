@@ -115,7 +115,7 @@ class SyntheticRig:
             (``image_size`` and ``fps`` set): every view the camera detected,
             in random order per frame (see :mod:`.rig` for labels).
         options: every argument given to :func:`make_rig` (``bystanders`` only
-            when there are some: rigs without them are written as before).
+            when there are some: rigs without them write no such key).
         fps: frame rate.
         seed: the seed.
         mirror_limits: mirror name -> list of ``(a (3,), b)``: the mirror's
