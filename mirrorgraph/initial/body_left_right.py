@@ -1,4 +1,4 @@
-"""The detector's left/right confusions of the person, in both views at once, undone by the
+"""The detector's left/right confusions of the person, in either view or both, undone by the
 motion's continuity.
 
 A detector that mistakes which way a person faces labels their left limbs "right" in that
@@ -6,17 +6,23 @@ frame, in the direct view and, as it sees the reflection the same way, in the mi
 Such a pair is epipolar-consistent (both views image the same physical joint), so neither
 the pairing (:mod:`.left_right` fixes the reflection *against* the person) nor the robust
 kernels can see it: it triangulates the person's right wrist where the left one should be,
-and a smoothness prior then drags the neighbouring frames towards it.
+and a smoothness prior then drags the neighbouring frames towards it. A confusion in one
+view alone is the pairing's to undo, by the epipole, but where the person's left/right
+pairs lie along the epipolar lines (a person seen from the side of the mirror) both
+labellings fit it alike and the pairing keeps the detector's: a pair of the two different
+joints that still reprojects within the noise, its depth off.
 
 :func:`undo_body_swaps` decides, for each left/right pair of joints (shoulders, wrists,
-knees, eyes, ...) on its own, which frames the detector swapped, with a two-state hidden
-Markov chain over time decoded by the Viterbi algorithm (Rabiner 1989, sec. III-B): the
-state is "labels as given" or "labels swapped", the emission of a transition between
-two consecutive frames is the motion of the labelled keypoints in both views under the
-state pair, a robust (truncated) squared distance in units of that joint's typical
-frame-to-frame motion, and a swap event and a swapped frame each cost a constant, so that
-the labels as given are the default and a swap needs evidence. Frames further apart than
-``max_gap`` are unrelated (snapshots, cuts): the chain restarts there.
+knees, eyes, ...) on its own, which frames the detector swapped in which view, with a
+four-state hidden Markov chain over time decoded by the Viterbi algorithm (Rabiner 1989,
+sec. III-B): the state is whether the direct view's labels are swapped and whether the
+reflection's are, the emission of a transition between two consecutive frames is the
+motion of the labelled keypoints in each view under that view's state pair, a robust
+(truncated) squared distance in units of that keypoint's typical frame-to-frame motion,
+and a swap event (a change of state, one view's or both's) and each swapped view of a frame
+cost a constant, so that the labels as given are the default and a swap needs evidence.
+Frames further apart than ``max_gap`` are unrelated (snapshots, cuts): the chain restarts
+there.
 
 Frames: ``paired.real`` and ``paired.mirror`` in pixels, the reflection's labels already in
 the person's (:class:`~mirrorgraph.keypoints.PairedKeypoints`).
@@ -240,7 +246,8 @@ class BodySwapFilter:
     def update(self, real: np.ndarray, mirror: np.ndarray, frame_id: int
                ) -> tuple[np.ndarray, np.ndarray]:
         """One frame's paired ``(J, 3)`` keypoints (the reflection's labels in the
-        person's) with the pairs the chain finds swapped exchanged in both views."""
+        person's) with the pairs the chain finds swapped exchanged in the views they are
+        swapped in."""
         pts = _points(np.asarray(real), np.asarray(mirror), self.min_confidence, self.left,
                       self.right)                                                # (P, 4, 2)
         if self._prev is not None and frame_id - self._prev[0] == 1:
@@ -270,7 +277,7 @@ class BodySwapFilter:
 
 def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,
                     options: BodySwapOptions | None = None) -> tuple[PairedKeypoints, int]:
-    """Swap back the left/right labels the detector confused in both views.
+    """Swap back the left/right labels the detector confused, in either view or both.
 
     Args:
         paired: person and reflection, paired (the reflection's labels in the person's).
@@ -278,8 +285,8 @@ def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,
         options: :class:`BodySwapOptions`.
 
     Returns:
-        The keypoints with the swapped pairs' labels exchanged in both views, and how
-        many (frame, pair) entries were swapped back.
+        The keypoints with the swapped pairs' labels exchanged in the views they are
+        swapped in, and how many (frame, pair, view) entries were swapped back.
     """
     swapped = swap_states(paired, min_confidence, options)
     n = int(np.count_nonzero(swapped))
