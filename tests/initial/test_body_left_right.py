@@ -34,8 +34,7 @@ def test_swaps_in_both_views_are_found_and_undone():
     assert n > 0
     after = _swapped_frames(fixed, scene)
     assert after.sum() <= 0.1 * truth.sum()
-    # elsewhere little changes: a pair whose one view alone is swapped (inconsistent
-    # either way, the graph's outlier gate has it) may be, in under 1 % of the frames
+    # elsewhere the direct view's labels stay, but for under 1 % of the frames
     swapped_by_detector = scene.lr_swapped_real[np.searchsorted(scene.frame_ids,
                                                                 paired.frame_ids)]
     changed = (np.nan_to_num(fixed.real) != np.nan_to_num(paired.real)).any((1, 2))
@@ -93,7 +92,7 @@ def test_the_stream_filter_undoes_swaps_from_the_frames_so_far():
     after = _swapped_frames(fixed, scene)
     assert after.sum() <= 0.2 * truth.sum()
     # without the later frames' say an outlier makes a swap look likelier now and then
-    # (17 of 600 frames here), where the whole chain (swap_states) is wrong in under 1 %
+    # (5 of 600 frames here), where the whole chain (swap_states) is wrong in under 1 %
     changed = (np.nan_to_num(real) != np.nan_to_num(paired.real)).any((1, 2))
     assert (changed & ~truth).sum() <= 0.04 * len(paired)
 
