@@ -1,4 +1,4 @@
-"""The detector's left/right confusions of the person, in both views at once, undone by the
+"""The detector's left/right confusions of the person, in either view or both, undone by the
 motion's continuity.
 
 A detector that mistakes which way a person faces labels their left limbs "right" in that
@@ -6,17 +6,23 @@ frame, in the direct view and, as it sees the reflection the same way, in the mi
 Such a pair is epipolar-consistent (both views image the same physical joint), so neither
 the pairing (:mod:`.left_right` fixes the reflection *against* the person) nor the robust
 kernels can see it: it triangulates the person's right wrist where the left one should be,
-and a smoothness prior then drags the neighbouring frames towards it.
+and a smoothness prior then drags the neighbouring frames towards it. A confusion in one
+view alone is the pairing's to undo, by the epipole, but where the person's left/right
+pairs lie along the epipolar lines (a person seen from the side of the mirror) both
+labellings fit it alike and the pairing keeps the detector's: a pair of the two different
+joints that still reprojects within the noise, its depth off.
 
 :func:`undo_body_swaps` decides, for each left/right pair of joints (shoulders, wrists,
-knees, eyes, ...) on its own, which frames the detector swapped, with a two-state hidden
-Markov chain over time decoded by the Viterbi algorithm (Rabiner 1989, sec. III-B): the
-state is "labels as given" or "labels swapped", the emission of a transition between
-two consecutive frames is the motion of the labelled keypoints in both views under the
-state pair, a robust (truncated) squared distance in units of that joint's typical
-frame-to-frame motion, and a swap event and a swapped frame each cost a constant, so that
-the labels as given are the default and a swap needs evidence. Frames further apart than
-``max_gap`` are unrelated (snapshots, cuts): the chain restarts there.
+knees, eyes, ...) on its own, which frames the detector swapped in which view, with a
+four-state hidden Markov chain over time decoded by the Viterbi algorithm (Rabiner 1989,
+sec. III-B): the state is whether the direct view's labels are swapped and whether the
+reflection's are, the emission of a transition between two consecutive frames is the
+motion of the labelled keypoints in each view under that view's state pair, a robust
+(truncated) squared distance in units of that keypoint's typical frame-to-frame motion,
+and a swap event (a change of state, one view's or both's) and each swapped view of a frame
+cost a constant, so that the labels as given are the default and a swap needs evidence.
+Frames further apart than ``max_gap`` are unrelated (snapshots, cuts): the chain restarts
+there.
 
 Frames: ``paired.real`` and ``paired.mirror`` in pixels, the reflection's labels already in
 the person's (:class:`~mirrorgraph.keypoints.PairedKeypoints`).
@@ -86,11 +92,20 @@ def _motion_scale(pts: np.ndarray, step: np.ndarray, floor: float) -> np.ndarray
     return np.where(np.isfinite(med), np.maximum(med, floor), floor)
 
 
+#: The chain's states: whether the direct view's (bit 0) and the reflection's (bit 1)
+#: labels of a pair are swapped.
+_REAL_SWAPPED = np.array([0, 1, 0, 1])
+_MIRROR_SWAPPED = np.array([0, 0, 1, 1])
+_STATES = len(_REAL_SWAPPED)
+
+
 def _transitions(pts: np.ndarray, last: np.ndarray, gap: np.ndarray, fresh: np.ndarray,
                  scale: np.ndarray, opts: BodySwapOptions) -> np.ndarray:
-    """``(..., P, 2, 2)`` the chain's min-plus transition matrices ``M[prev, cur]``: the
-    keypoints' motion from ``last`` to ``pts`` (both ``(..., P, 4, 2)``, NaN unseen) under
-    the two labellings, over ``gap`` frames, plus a switch's cost and the swapped state's;
+    """``(..., P, 4, 4)`` the chain's min-plus transition matrices ``M[prev, cur]`` over
+    the states of :data:`_REAL_SWAPPED`, :data:`_MIRROR_SWAPPED`: the keypoints' motion
+    from ``last`` to ``pts`` (both ``(..., P, 4, 2)``, NaN unseen) in each view under the
+    labelling the two states give it relative to each other, over ``gap`` frames, plus a
+    switch's cost (one detector event, whatever views it changes) and each swapped view's;
     where ``fresh`` (a chain's start) any state follows any; where a pair is unseen the
     state carries on (``0`` on the diagonal, ``inf`` off it)."""
     s = (scale * np.maximum(gap, 1)[..., None])[..., None]
@@ -98,17 +113,25 @@ def _transitions(pts: np.ndarray, last: np.ndarray, gap: np.ndarray, fresh: np.n
     with np.errstate(invalid="ignore"):
         same = np.minimum(np.sum(((pts - last) / s) ** 2, axis=-1), cap)
         cross = np.minimum(np.sum(((pts[..., [1, 0, 3, 2], :] - last) / s) ** 2, axis=-1), cap)
-    same, cross = np.nansum(same, axis=-1), np.nansum(cross, axis=-1)
-    M = np.stack([np.stack([same, cross + opts.switch_cost], -1),
-                  np.stack([cross + opts.switch_cost, same], -1)], -2)
-    M = np.where(fresh[..., None, None], 0.0, M) + np.array([0.0, opts.swapped_cost])
+    views = []
+    for k, bits in ((slice(0, 2), _REAL_SWAPPED), (slice(2, 4), _MIRROR_SWAPPED)):
+        kept = (bits[:, None] == bits[None, :])                      # (prev, cur)
+        a, b = np.nansum(same[..., k], axis=-1), np.nansum(cross[..., k], axis=-1)
+        views.append(np.where(kept, a[..., None, None], b[..., None, None]))
+    M = views[0] + views[1] + opts.switch_cost * (1.0 - np.eye(_STATES))
+    M = (np.where(fresh[..., None, None], 0.0, M)
+         + opts.swapped_cost * (_REAL_SWAPPED + _MIRROR_SWAPPED))
     seen = np.isfinite(pts).all(-1).any(-1)
-    return np.where(seen[..., None, None], M, np.array([[0.0, np.inf], [np.inf, 0.0]]))
+    hold = np.where(np.eye(_STATES, dtype=bool), 0.0, np.inf)
+    return np.where(seen[..., None, None], M, hold)
 
 
 def _minplus(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """The min-plus product of stacks of ``2 x 2`` matrices (``A`` may have one row)."""
-    return np.minimum(A[..., :, 0:1] + B[..., 0:1, :], A[..., :, 1:2] + B[..., 1:2, :])
+    """The min-plus product of stacks of square matrices (``A`` may have one row)."""
+    out = A[..., :, 0:1] + B[..., 0:1, :]
+    for k in range(1, B.shape[-2]):
+        np.minimum(out, A[..., :, k:k + 1] + B[..., k:k + 1, :], out=out)
+    return out
 
 
 def _scan(M: np.ndarray) -> np.ndarray:
@@ -128,14 +151,15 @@ class _Chain:
 
     def __init__(self, P: int, opts: BodySwapOptions) -> None:
         self.opts = opts
-        self.cost = np.zeros((P, 2))
+        self.cost = np.zeros((P, _STATES))
         self.last = np.full((P, 4, 2), np.nan)
         self.last_frame = np.full(P, -(10 ** 12), dtype=np.int64)
         self.started = np.zeros(P, bool)
 
     def step(self, pts: np.ndarray, frame: int, scale: np.ndarray) -> np.ndarray:
         """Take one frame's ``(P, 4, 2)`` keypoints (NaN unseen) at ``frame`` with the
-        keypoints' typical motions ``(P, 4)``. Returns ``(P,)`` whether the pair was seen."""
+        keypoints' typical motions ``(P, 4)``. Returns ``(P, 2)`` whether the pair is
+        seen in the direct view and in the reflection."""
         obs = np.isfinite(pts).all(-1).any(-1)
         gap = frame - self.last_frame
         fresh = obs & (~self.started | (gap > self.opts.max_gap))
@@ -144,7 +168,7 @@ class _Chain:
         self.last = np.where(np.isfinite(pts), pts, self.last)
         self.last_frame = np.where(obs, frame, self.last_frame)
         self.started |= obs
-        return obs
+        return np.isfinite(pts).all(-1).reshape(len(pts), 2, 2).any(-1)
 
 
 def _carried(pts: np.ndarray) -> np.ndarray:
@@ -160,18 +184,19 @@ def _carried(pts: np.ndarray) -> np.ndarray:
 
 def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
                 options: BodySwapOptions | None = None) -> np.ndarray:
-    """``(T, P)`` bool: the frames where the detector swapped pair ``p``'s labels in both
-    views (the most likely path of the module docstring's chain: each frame's state the
-    smaller of the forward and backward min-plus messages' sums, by associative scans);
-    pairs in the order of ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
+    """``(T, P, 2)`` bool: the frames where the detector swapped pair ``p``'s labels in
+    the direct view (``[..., 0]``) and in the reflection (``[..., 1]``) (the most likely
+    path of the module docstring's chain: each frame's state the smaller of the forward
+    and backward min-plus messages' sums, by associative scans); pairs in the order of
+    ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
     opts = options or BodySwapOptions()
     left, right = _pairs(np.asarray(paired.skeleton.flip))
     T, P = len(paired), len(left)
     if T == 0 or P == 0:
-        return np.zeros((T, P), bool)
+        return np.zeros((T, P, 2), bool)
     frames = np.asarray(paired.frame_ids, dtype=np.int64)
     if len(frames) != T:                 # frame numbers that are not the rows': no chain
-        return np.zeros((T, P), bool)
+        return np.zeros((T, P, 2), bool)
     pts = _points(paired.real, paired.mirror, min_confidence, left, right)   # (T, P, 4, 2)
     step = np.diff(frames, prepend=frames[0] - 1)
     scale = _motion_scale(pts, step, opts.min_scale_px)             # (P, 4)
@@ -180,13 +205,15 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     before = np.concatenate([np.full((1, P), -1), last_obs[:-1]])   # last seen before t
     gap = np.where(before >= 0, frames[:, None] - frames[np.maximum(before, 0)], 10 ** 12)
     fresh = seen & ((before < 0) | (gap > opts.max_gap))
-    M = _transitions(pts, _carried(pts), gap, fresh, scale, opts)   # (T, P, 2, 2)
+    M = _transitions(pts, _carried(pts), gap, fresh, scale, opts)   # (T, P, 4, 4)
     forward = _scan(M).min(axis=-2)                                 # (T, P, cur)
-    backward = np.zeros((T, P, 2))
+    backward = np.zeros((T, P, _STATES))
     if T > 1:
         rest = _scan(np.swapaxes(M[1:][::-1], -1, -2))[::-1]        # M[t+1] ... M[T-1], transposed
         backward[:-1] = rest.min(axis=-2)
-    return (np.argmin(forward + backward, axis=-1) == 1) & seen
+    state = np.argmin(forward + backward, axis=-1)
+    in_view = np.isfinite(pts).all(-1).reshape(T, P, 2, 2).any(-1)  # (T, P, view)
+    return np.stack([_REAL_SWAPPED[state], _MIRROR_SWAPPED[state]], -1).astype(bool) & in_view
 
 
 #: The stream's typical motions are taken anew every this many frames.
@@ -219,7 +246,8 @@ class BodySwapFilter:
     def update(self, real: np.ndarray, mirror: np.ndarray, frame_id: int
                ) -> tuple[np.ndarray, np.ndarray]:
         """One frame's paired ``(J, 3)`` keypoints (the reflection's labels in the
-        person's) with the pairs the chain finds swapped exchanged in both views."""
+        person's) with the pairs the chain finds swapped exchanged in the views they are
+        swapped in."""
         pts = _points(np.asarray(real), np.asarray(mirror), self.min_confidence, self.left,
                       self.right)                                                # (P, 4, 2)
         if self._prev is not None and frame_id - self._prev[0] == 1:
@@ -234,13 +262,14 @@ class BodySwapFilter:
             self._scale = np.where(np.isfinite(med), np.maximum(med, self.opts.min_scale_px),
                                    self.opts.min_scale_px)
         seen = self._chain.step(pts, int(frame_id), self._scale)
-        swapped = seen & (np.argmin(self._chain.cost, axis=1) == 1)
+        state = np.argmin(self._chain.cost, axis=1)
+        swapped = seen & np.stack([_REAL_SWAPPED[state], _MIRROR_SWAPPED[state]], -1).astype(bool)
         if not swapped.any():
             return real, mirror
         out = []
-        for view in (real, mirror):
+        for i, view in enumerate((real, mirror)):
             v = np.array(view, copy=True)
-            p = np.flatnonzero(swapped)
+            p = np.flatnonzero(swapped[:, i])
             v[self.left[p]], v[self.right[p]] = view[self.right[p]], view[self.left[p]]
             out.append(v)
         return out[0], out[1]
@@ -248,7 +277,7 @@ class BodySwapFilter:
 
 def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,
                     options: BodySwapOptions | None = None) -> tuple[PairedKeypoints, int]:
-    """Swap back the left/right labels the detector confused in both views.
+    """Swap back the left/right labels the detector confused, in either view or both.
 
     Args:
         paired: person and reflection, paired (the reflection's labels in the person's).
@@ -256,8 +285,8 @@ def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,
         options: :class:`BodySwapOptions`.
 
     Returns:
-        The keypoints with the swapped pairs' labels exchanged in both views, and how
-        many (frame, pair) entries were swapped back.
+        The keypoints with the swapped pairs' labels exchanged in the views they are
+        swapped in, and how many (frame, pair, view) entries were swapped back.
     """
     swapped = swap_states(paired, min_confidence, options)
     n = int(np.count_nonzero(swapped))
@@ -265,9 +294,9 @@ def undo_body_swaps(paired: PairedKeypoints, min_confidence: float = 0.0,
         return paired, 0
     left, right = _pairs(np.asarray(paired.skeleton.flip))
     views = []
-    for view in (paired.real, paired.mirror):
+    for i, view in enumerate((paired.real, paired.mirror)):
         v = np.array(view, copy=True)
-        t, p = np.nonzero(swapped)
+        t, p = np.nonzero(swapped[..., i])
         v[t, left[p]], v[t, right[p]] = view[t, right[p]], view[t, left[p]]
         views.append(v)
     return replace(paired, real=views[0], mirror=views[1]), n

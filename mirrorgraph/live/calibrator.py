@@ -10,7 +10,8 @@
 **Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
 skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
-right swapped back where the frames so far say the detector confused them in both views
+right swapped back where the frames so far say the detector confused them (in either
+view or both)
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
 each joint's two rays and refined together with the latest window's bone lengths, a view
 off by more than the threshold once the bones hold the joint left out
@@ -555,7 +556,7 @@ class LiveCalibrator:
                                                     threshold_px=co.threshold_px))
         real, mirror = pairing.real[0], pairing.reflections[0][0]
         # the person's left and right as the frames so far say (the detector's
-        # confusions in both views, :mod:`mirrorgraph.initial.body_left_right`)
+        # confusions in either view, :mod:`mirrorgraph.initial.body_left_right`)
         real, mirror = self._swaps.update(real, mirror, fid)
         seen = ((real[:, 2] >= co.min_confidence) & (mirror[:, 2] >= co.min_confidence)
                 & np.isfinite(real[:, :2]).all(1) & np.isfinite(mirror[:, :2]).all(1))

@@ -231,8 +231,8 @@ class Observations:
         pairing: the pairing's options (threshold, confidence, seed).
         warnings: what reading them found worth saying.
         seconds: the pairing's wall time.
-        body_lr_fixes: (frame, left/right pair) entries whose labels the detector swapped
-            in both views, swapped back (:mod:`mirrorgraph.initial.body_left_right`).
+        body_lr_fixes: (frame, left/right pair, view) entries whose labels the detector
+            swapped, swapped back (:mod:`mirrorgraph.initial.body_left_right`).
     """
 
     keypoints: RawDetections | PairedKeypoints
