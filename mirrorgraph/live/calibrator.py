@@ -10,8 +10,7 @@
 **Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
 skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
-right swapped back where the frames so far say the detector confused them (in either
-view or both)
+right swapped back where the frames so far say the detector confused them in either view
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
 each joint's two rays and refined together with the latest window's bone lengths, a view
 off by more than the threshold once the bones hold the joint left out
