@@ -21,11 +21,17 @@ not counted on snapshots).
 
 The Pose2Sim demo's ``Demo_MultiPerson`` trial (``--pose2sim``, on by default; BlazePose
 on the four videos, read from ``--cache`` or detected in this run): every camera against
-the Qualisys calibration for ``one`` and ``all`` (the helpers of ``bench_real.py``).
+the Qualisys calibration for ``one`` and ``all`` (the helpers of ``bench_real.py``), then
+diagnoses of why ``all`` is worse there (:data:`P2S_RUNS`; they read the data, they are
+not methods): the nearly still second person added to the one-person run's subject with
+all of their frames, on keyframes or on one frame; ``all`` without that person; every
+person on keyframes; and each person's per-joint offset against the Qualisys rig
+(:func:`joint_bias`).
 
 Usage::
 
-    python bench/bench_rig_people.py              # ~10 min on 2 shared cores
+    python bench/bench_rig_people.py              # ~15 min on 2 shared cores
+    python bench/bench_rig_people.py --pose2sim-only --cache DIR   # ~6 min
     python bench/bench_rig_people.py --quick      # three small scenes, no Pose2Sim
     python bench/bench_rig_people.py --frames 300 # longer scenes
 """
@@ -54,9 +60,76 @@ from mirrorgraph.synth.rig_people import make_rig_people, write_rig_people  # no
 SCENES = [(3, 2, 150, 11, False), (3, 3, 150, 12, False), (4, 3, 150, 13, False),
           (4, 5, 150, 14, False), (5, 4, 300, 15, False), (5, 2, 150, 16, False),
           (4, 3, 60, 17, True)]
-#: The Pose2Sim runs: one, all, all after one solve, and a diagnosis (not a method): all with
-#: the association made under the Qualisys rig instead of the current one.
-P2S_RUNS = ("one", "all", "all, 1 round", "all, Qualisys association")
+#: The Pose2Sim runs: one, all, all after one solve, and diagnoses (not methods): all with
+#: the association made under the Qualisys rig instead of the current one; the one-person
+#: run's subject in every frame it holds plus the person seen in most frames but the
+#: subject's slot (the nearly still one); all without that person; all with every
+#: person's joints thinned to keyframes (:func:`keyframes`, 30 px).
+P2S_RUNS = ("one", "all", "all, 1 round", "all, Qualisys association",
+            "subject + still person", "subject + still person on keyframes 30 px",
+            "subject + still person on one frame", "all, still person left out",
+            "all, keyframes 30 px")
+
+#: The keyframes' least image motion (px) of the diagnosis ``all, keyframes 30 px``.
+KEYFRAME_PX = 30.0
+
+
+def keyframes(real: np.ndarray, tau: float, min_confidence: float = 0.3) -> np.ndarray:
+    """``(T, J)`` bool: the keyframes of one person's joints seen in ``real`` ``(C, T, J, 3)``
+    (px, confidence): a joint is kept in a frame where, in some camera, it lies ``tau`` px
+    or more from where it was in its last kept frame (its first sight in a camera kept).
+    A diagnosis of repeated evidence: a person standing still keeps a few frames."""
+    C, T, J, _ = real.shape
+    ok = real[..., 2] >= min_confidence
+    keep = np.zeros((T, J), bool)
+    last = np.full((C, J, 2), np.nan)
+    for t in range(T):
+        d = np.linalg.norm(real[:, t, :, :2] - last, axis=-1)            # (C, J)
+        moved = ok[:, t] & (np.nan_to_num(d, nan=-1.0) >= tau)
+        first = ok[:, t] & np.isnan(last[..., 0])
+        keep[t] = (moved | first).any(0)
+        upd = keep[t][None] & ok[:, t]
+        last[upd] = real[:, t, :, :2][upd]
+    return keep
+
+
+def joint_bias(real: np.ndarray, Ks: list[np.ndarray], poses: list[np.ndarray],
+               joints: np.ndarray, min_confidence: float = 0.3) -> list[tuple[float, float]]:
+    """Per camera ``(bias, scatter)`` px of one person ``real`` ``(C, T, J, 3)`` under a
+    rig (``Ks``, camera-to-world ``poses``): each joint of each frame seen by three cameras
+    or more triangulated (DLT), its reprojection residual per camera; ``bias`` the median
+    over joints of the norm of the joint's mean residual over frames, ``scatter`` the
+    median over joints of the mean distance of its residuals from that mean (joints seen
+    in more than 5 frames; NaN where none)."""
+    Ps = [np.asarray(K) @ np.linalg.inv(T)[:3] for K, T in zip(Ks, poses)]
+    C, T = real.shape[:2]
+    res: list[dict[int, list[np.ndarray]]] = [{} for _ in range(C)]
+    for t in range(T):
+        for j in joints:
+            x = real[:, t, j]
+            ok = np.flatnonzero(x[:, 2] >= min_confidence)
+            if len(ok) < 3:
+                continue
+            A = np.concatenate([[x[c, 0] * Ps[c][2] - Ps[c][0], x[c, 1] * Ps[c][2] - Ps[c][1]]
+                                for c in ok])
+            X = np.linalg.svd(A)[2][-1]
+            for c in ok:
+                u = Ps[c] @ X
+                res[c].setdefault(int(j), []).append(x[c, :2] - u[:2] / u[2])
+    out = []
+    for per in res:
+        r = [np.array(v) for v in per.values() if len(v) > 5]
+        if not r:
+            out.append((float("nan"), float("nan")))
+            continue
+        out.append((float(np.median([np.linalg.norm(v.mean(0)) for v in r])),
+                    float(np.median([np.linalg.norm(v - v.mean(0), axis=1).mean() for v in r]))))
+    return out
+
+
+def still_slot(a: PeopleAssociation) -> int | None:
+    """The slot seen by two cameras in most frames but slot 0 (``None`` with one slot)."""
+    return int(np.argmax(a.frames()[1:])) + 1 if a.count > 1 else None
 QUICK = [(3, 2, 80, 11, False), (4, 3, 80, 13, False), (4, 3, 40, 17, True)]
 DETECTOR = dict(noise_std=4.0, outlier_rate=0.02, lr_swap_rate=0.02, occlusion_rate=0.3)
 
@@ -168,29 +241,83 @@ def pose2sim_trial(cache: Path | None) -> dict:
             sizes[n] = (det.info.width, det.info.height)
         rig = br.write_rig(Path(tmp), root, trial, cams, sizes, None)
         original, rounds = rp.associate_people, rp.MAX_ROUNDS
+        layout = PeopleAssociation.observations
+
+        def spying(obs, Ks, poses, **kw):
+            a = original(obs, Ks, poses, **kw)
+            out["bias"] = _slot_bias(obs, a, true)
+            return a
 
         def qualisys(obs, Ks, poses, **kw):      # a diagnosis: the truth's rig associates
             return original(obs, [c.intrinsics.K for c in obs.cameras], true, **kw)
+
+        def subject_still(obs, Ks, poses, **kw):  # the subject's frames + the still person
+            a = original(obs, Ks, poses, **kw)
+            s = still_slot(a)
+            sub = [candidate_index(c) for c in obs.cameras]
+            if s is None:
+                return PeopleAssociation(1, [x[:, None] for x in sub], people_found=1)
+            return PeopleAssociation(2, [np.stack([x, ix[:, s]], 1)
+                                         for x, ix in zip(sub, a.index)], people_found=2)
+
+        def no_still(obs, Ks, poses, **kw):
+            a = original(obs, Ks, poses, **kw)
+            s = still_slot(a)
+            if s is not None:
+                for ix in a.index:
+                    ix[:, s] = -1
+            return a
+
+        def thinning(tau: float, first: int):
+            def thinned(self, obs):               # slots >= first on keyframes
+                got = layout(self, obs)
+                J, P = obs.skeleton.num_joints, self.count
+                real = np.stack([c.real.reshape(len(c.real), P, J, 3) for c in got.cameras])
+                for p in range(first, P):
+                    drop = ~keyframes(real[:, :, p], tau)
+                    for c in got.cameras:
+                        c.real.reshape(len(c.real), P, J, 3)[:, p][drop] = (np.nan, np.nan, 0)
+                return got
+            return thinned
+
+        layouts = {"all, keyframes 30 px": thinning(KEYFRAME_PX, 0),
+                   "subject + still person on keyframes 30 px": thinning(KEYFRAME_PX, 1),
+                   "subject + still person on one frame": thinning(np.inf, 1)}
+
+        patches = {"all": spying, "all, Qualisys association": qualisys,
+                   "all, still person left out": no_still}
+        patches.update({k: subject_still for k in P2S_RUNS if k.startswith("subject")})
 
         for name in P2S_RUNS:
             t0 = time.perf_counter()
             if name == "all, 1 round":
                 rp.MAX_ROUNDS = 1
-            if name == "all, Qualisys association":
-                rp.associate_people = qualisys
+            rp.associate_people = patches.get(name, original)
+            PeopleAssociation.observations = layouts.get(name, layout)
             try:
-                cal = calibrate_rig(rig, CalibrateOptions(people=name[:3].strip(","),
-                                                          detection=vopts))
+                cal = calibrate_rig(rig, CalibrateOptions(
+                    people="one" if name == "one" else "all", detection=vopts))
             except Exception as exc:  # noqa: BLE001
                 out[name] = {"failed": f"{type(exc).__name__}: {exc}"}
                 continue
             finally:
                 rp.associate_people, rp.MAX_ROUNDS = original, rounds
+                PeopleAssociation.observations = layout
             out[name] = errors([np.asarray(c.pose) for c in cal.cameras], true)
             out[name]["s"] = time.perf_counter() - t0
             out[name]["people"] = cal.num_people
             out[name]["record"] = cal.refinement.get("people")
     return out
+
+
+def _slot_bias(obs, a: PeopleAssociation, true: list[np.ndarray]) -> list[list]:
+    """Per slot of ``a``, :func:`joint_bias` per camera under the Qualisys rig."""
+    J, P = obs.skeleton.num_joints, a.count
+    layout = a.observations(obs)
+    real = np.stack([c.real.reshape(len(c.real), P, J, 3) for c in layout.cameras])
+    Ks = [c.intrinsics.K for c in obs.cameras]
+    joints = np.asarray(obs.skeleton.calibration_joints, int)
+    return [joint_bias(real[:, :, p], Ks, true, joints) for p in range(P)]
 
 
 #: What the runs and columns are, in every results file.
@@ -263,6 +390,15 @@ def p2s_lines(p2s: dict) -> list[str]:
         lines.append(f"| {name} | {e['people']} | "
                      + " | ".join(f"{x:.2f}" for x in e["rot"]) + " | "
                      + " | ".join(f"{x:.0f}" for x in e["pos"]) + f" | {e['s']:.1f} |")
+    if p2s.get("bias"):
+        lines += ["", "Each slot of `all`'s last association against the Qualisys rig "
+                  "(`joint_bias`: per camera, the median over joints of the norm of a joint's "
+                  "mean reprojection residual over the frames, and the median scatter about "
+                  "that mean, px):", "",
+                  "| slot | " + " | ".join(f"cam0{i} bias / scatter (px)" for i in (1, 2, 3, 4))
+                  + " |", "|---|---|---|---|---|"]
+        for p, row in enumerate(p2s["bias"]):
+            lines.append(f"| {p} | " + " | ".join(f"{b:.1f} / {s:.1f}" for b, s in row) + " |")
     for name in P2S_RUNS[1:]:
         if "record" in p2s.get(name, {}):
             rec = p2s[name]["record"] or {}
