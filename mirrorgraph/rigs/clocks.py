@@ -7,21 +7,24 @@ camera (the first) on the person both see, in two steps:
 
 1. **Whole frames** (:func:`scan_shifts`): for every shift ``s`` of a window about the
    given offset, the camera's joints at its frame ``t + s`` are matched with the
-   reference's at ``t`` and one essential matrix is fitted to them (OpenCV's five-point
-   solver in MAGSAC++, the cameras' intrinsics); the shift's cost is the truncated
-   quadratic Sampson cost of all correspondences under it (MSAC's: Torr and Zisserman,
-   CVIU 2000), which is lowest where the two views see one instant. A moving person
-   makes the true shift's cost stand out; a still one gives a flat curve
-   (:attr:`ClockEstimate.contrast` says how far it stands out).
-2. **A fraction of a frame** (:func:`subframe_offset`): about the best shift the camera's
-   joints are interpolated in time (its sample at ``t + s + dt``: the quadratic through
-   its samples ``t + s - 1``, ``t + s``, ``t + s + 1``) and the
-   relative pose (five parameters of the essential matrix) and ``dt`` are fitted together
-   by robust least squares (Huber loss on the Sampson distance, pixels); ``dt``'s std is
-   the spread of that fit over a block bootstrap of the reference's frames (blocks of
-   :data:`BOOTSTRAP_BLOCK` frames: the detector's error and the person's motion are
-   correlated over neighbouring frames, which a curvature std would ignore). The offset is
-   observable only where the joints move across the epipolar lines: the std says how well.
+   reference's at ``t`` and the essential matrix of least median Sampson distance is
+   fitted to them (OpenCV's five-point solver in LMedS, the cameras' intrinsics); that
+   median (pixels) is the shift's cost, lowest where the two views see one instant. It
+   needs no threshold, hence no guess of the detector's noise. A moving person makes the
+   true shift stand out; a still one gives a flat curve (:attr:`ShiftScan.contrast`
+   below :data:`MIN_CONTRAST`: the offset is kept as given, with a warning).
+2. **A fraction of a frame** (:func:`subframe_offset`): about the best shift each joint's
+   trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1`` samples
+   (a Savitzky-Golay filter evaluated between samples; the reference's the same filter
+   at its sample), the camera's evaluated at ``t + s + dt``; the relative pose (five
+   parameters) and ``dt`` are fitted together by robust least squares (Huber loss on the
+   Sampson distance, its scale the whole shift's median), each residual scaled by the
+   filter's noise at ``dt`` so that no ``dt`` is favoured for averaging the noise more.
+   ``dt``'s std is the spread of that fit over a block bootstrap of the reference's
+   frames (blocks of :data:`BOOTSTRAP_BLOCK` samples: the detector's error and the
+   person's motion are correlated over neighbouring frames, which a curvature std
+   would ignore). The offset is observable only where the joints move across the
+   epipolar lines: the std says how well.
 
 Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
 Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
@@ -46,10 +49,10 @@ from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
 
-__all__ = ["ClockEstimate", "ShiftScan", "OFFSET_WINDOW", "MIN_CORRESPONDENCES",
+__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES",
            "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS", "scan_shifts", "subframe_offset",
            "estimate_offset", "resample", "dense_samples", "find_clocks", "on_rig_clock",
-           "frame_step", "person_size_px"]
+           "frame_step", "INLIER_SCALES", "MIN_CONTRAST"]
 
 #: Fewer correspondences (joint pairs seen at one instant) than this at a shift: the
 #: shift is not judged.
@@ -60,14 +63,9 @@ MAX_CORRESPONDENCES = 3000
 BOOTSTRAP_BLOCK = 10
 #: Bootstrap resamples of the sub-frame offset's std.
 BOOTSTRAP_RUNS = 30
-#: The scan's inlier threshold: this share of the reference person's size (the median
-#: over frames of the larger side of the box of their joints), at least
-#: :data:`MIN_THRESHOLD_PX`. Wide enough to hold a detector's error on most joints (a
-#: real detector's reach 1-2 % of the size), so that the cost grows with the motion
-#: between the frames compared rather than saturating.
-THRESHOLD_OF_SIZE = 0.04
-#: The scan's inlier threshold at least, pixels.
-MIN_THRESHOLD_PX = 8.0
+#: The sub-frame fit keeps the correspondences within this many robust stds of the
+#: whole shift's essential matrix.
+INLIER_SCALES = 3.0
 #: A scan whose best shift does not stand out by this factor
 #: (:attr:`ShiftScan.contrast`) judges nothing.
 MIN_CONTRAST = 1.25
@@ -79,8 +77,9 @@ class ShiftScan:
 
     Attributes:
         shifts: ``(S,)`` samples: the camera's sample ``t + s`` against the reference's ``t``.
-        cost: ``(S,)`` truncated quadratic Sampson cost (0-1, lower fits better; NaN where
-            fewer than :data:`MIN_CORRESPONDENCES`).
+        cost: ``(S,)`` the median Sampson distance (pixels) under the essential matrix of
+            least median (lower fits better; NaN where fewer than
+            :data:`MIN_CORRESPONDENCES`).
         correspondences: ``(S,)`` correspondences per shift.
     """
 
@@ -167,19 +166,21 @@ def _pairs(a: np.ndarray, b: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray
     return A[ok], B[ok], rows[ok]
 
 
-def _essential(xa: np.ndarray, xb: np.ndarray, thr: float, seed: int
+def _essential(xa: np.ndarray, xb: np.ndarray, seed: int
                ) -> tuple[np.ndarray | None, float]:
-    """The best essential matrix of normalised correspondences (``xb^T E xa = 0``) and its
-    truncated quadratic cost (``thr`` normalised)."""
+    """The essential matrix of normalised correspondences (``xb^T E xa = 0``) of least
+    median Sampson distance (OpenCV's five-point solver in LMedS: no threshold, so the
+    cost does not depend on a guess of the detector's noise) and that median
+    (normalised)."""
     cv2.setRNGSeed(int(seed))
-    E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.USAC_MAGSAC, prob=0.999,
-                                threshold=thr, maxIters=1000)
+    E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.LMEDS, prob=0.999,
+                                maxIters=1000)
     if E is None or E.shape[1:] != (3,) or E.shape[0] < 3:
-        return None, 1.0
-    best, cost = None, 1.0
+        return None, float("inf")
+    best, cost = None, float("inf")
     for k in range(E.shape[0] // 3):
         d = np.abs(sampson_distances(E[3 * k:3 * k + 3], xa, xb))
-        c = float(np.mean(np.minimum(np.nan_to_num(d, nan=thr, posinf=thr), thr) ** 2)) / thr ** 2
+        c = float(np.median(np.nan_to_num(d, nan=np.inf)))
         if c < cost:
             best, cost = E[3 * k:3 * k + 3], c
     return best, cost
@@ -189,14 +190,14 @@ def _evenly(n: int, most: int) -> np.ndarray:
     return np.arange(n) if n <= most else np.linspace(0, n - 1, most).round().astype(int)
 
 
-def scan_shifts(camera: np.ndarray, reference: np.ndarray, threshold: float, shifts,
+def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
                 *, seed: int = 0) -> ShiftScan:
     """The epipolar cost of ``camera`` against ``reference`` per whole shift.
 
     Args:
         camera, reference: ``(N, J, 2)`` normalised coordinates (``K^-1`` applied) on one
             grid of samples, NaN where unseen.
-        threshold: the inlier threshold, normalised (pixels over the focal length).
+        f: a focal length, pixels (the cost's scale).
         shifts: the shifts tried, samples (the camera's ``t + s`` against ``t``).
         seed: OpenCV's RANSAC seed.
     """
@@ -209,33 +210,53 @@ def scan_shifts(camera: np.ndarray, reference: np.ndarray, threshold: float, shi
         if len(xa) < MIN_CORRESPONDENCES:
             continue
         keep = _evenly(len(xa), MAX_CORRESPONDENCES)
-        cost[i] = _essential(xa[keep], xb[keep], threshold, seed)[1]
+        cost[i] = _essential(xa[keep], xb[keep], seed)[1] * f
     return ShiftScan(shifts=shifts, cost=cost, correspondences=corr)
 
 
-def _interpolated(a: np.ndarray, b: np.ndarray, s: int
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The correspondences about shift ``s`` whose camera sample is seen at ``t + s - 1``,
-    ``t + s`` and ``t + s + 1``: ``(3, N, 2)`` those three camera points, ``(N, 2)`` the
-    reference's and ``(N,)`` the reference's samples ``t``."""
+#: Samples either side of the one a joint's trajectory is evaluated about (the local
+#: quadratic's window is twice this plus one).
+HALF_WINDOW = 3
+
+
+def _local_quadratic(u: float) -> np.ndarray:
+    """``(2 HALF_WINDOW + 1,)`` weights of the samples ``-HALF_WINDOW..HALF_WINDOW`` giving
+    the least-squares quadratic through them at ``u`` (a Savitzky-Golay filter at any
+    point): smooth in ``u``, and with nearly the same noise for every ``u`` in [-1, 1]."""
+    x = np.arange(-HALF_WINDOW, HALF_WINDOW + 1, dtype=float)
+    X = np.vander(x, 3, increasing=True)
+    return np.array([1.0, u, u * u]) @ np.linalg.solve(X.T @ X, X.T)
+
+
+def _noise_factor(u: float) -> float:
+    """The variance of the local quadratic at ``u`` over one sample's (``w . w``)."""
+    w = _local_quadratic(u)
+    return float(w @ w)
+
+
+def _windows(a: np.ndarray, b: np.ndarray, s: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The correspondences about shift ``s`` whose camera is seen at every sample of
+    ``t + s - HALF_WINDOW .. t + s + HALF_WINDOW`` and the reference at every one of
+    ``t - HALF_WINDOW .. t + HALF_WINDOW``: ``(W, N, 2)`` the camera's, ``(W, N, 2)`` the
+    reference's, ``(N,)`` the reference's samples ``t``."""
+    h = HALF_WINDOW
     T = len(b)
-    t = np.arange(max(0, 1 - s), min(T, len(a) - s - 1))
+    t = np.arange(max(h, h - s), min(T - h, len(a) - s - h))
     if not t.size:
-        return np.zeros((3, 0, 2)), np.zeros((0, 2)), np.zeros(0, int)
-    A = np.stack([a[t + s - 1], a[t + s], a[t + s + 1]])          # (3, n, J, 2)
-    B = b[t]
-    ok = np.isfinite(A).all((0, -1)) & np.isfinite(B).all(-1)
+        return np.zeros((2 * h + 1, 0, 2)), np.zeros((2 * h + 1, 0, 2)), np.zeros(0, int)
+    offs = np.arange(-h, h + 1)
+    A = np.stack([a[t + s + o] for o in offs])                  # (W, n, J, 2)
+    B = np.stack([b[t + o] for o in offs])
+    ok = np.isfinite(A).all((0, -1)) & np.isfinite(B).all((0, -1))
     rows = np.broadcast_to(t[:, None], ok.shape)
-    return A[:, ok], B[ok], rows[ok]
+    return A[:, ok], B[:, ok], rows[ok]
 
 
-def _at(A3: np.ndarray, dt: float) -> np.ndarray:
-    """The camera's points at ``t + s + dt`` (``dt`` in [-1, 1]) from its samples
-    ``t + s - 1, t + s, t + s + 1`` (``(3, N, 2)``): the quadratic through the three
-    (smooth in ``dt``, so that least squares can move ``dt`` across a sample)."""
-    half_diff = 0.5 * (A3[2] - A3[0])
-    half_curve = 0.5 * (A3[2] - 2.0 * A3[1] + A3[0])
-    return A3[1] + dt * half_diff + dt * dt * half_curve
+def _at(W: np.ndarray, u: float) -> np.ndarray:
+    """``(N, 2)``: the local quadratic of the samples ``W`` (``(2 HALF_WINDOW + 1, N, 2)``)
+    at ``u`` samples from their centre."""
+    return np.tensordot(_local_quadratic(u), W, axes=1)
 
 
 def _rotation(r: np.ndarray) -> np.ndarray:
@@ -261,9 +282,13 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px):
         t = t0 + p[3] * u + p[4] * v
         return R, t / np.linalg.norm(t)
 
+    v0 = _noise_factor(0.0)
+
     def residuals(p):
         R, t = parts(p)
         d = sampson_distances(_skew(t) @ R, _at(A3, p[5]), xb) * f
+        # the same noise for every dt: the local quadratic's varies a little with it
+        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(p[5])))
         return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
     x0 = np.array([0, 0, 0, 0, 0, float(np.clip(dt0, -0.99, 0.99))])
@@ -276,40 +301,41 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px):
 
 
 def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
-                    threshold_px: float, *, seed: int = 0,
-                    runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
+                    *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
     """The fraction of a sample ``dt`` (in [-1, 1]) by which ``camera``'s sample ``t + shift
     + dt`` matches ``reference``'s ``t`` best, and its std (see the module docstring).
+
+    The residuals' scale is read from the data: ``s`` = 1.4826 times the median Sampson
+    distance under the shift's essential matrix (the normal's MAD); correspondences
+    farther than :data:`INLIER_SCALES` ``s`` are left out and the Huber loss turns linear
+    at ``s``.
 
     Args:
         camera, reference: ``(N, J, 2)`` normalised coordinates on one grid, NaN unseen.
         shift: the whole shift found (:func:`scan_shifts`).
         f: a focal length, pixels (the Sampson distance's scale).
-        threshold_px: the inlier threshold, pixels: correspondences farther from the
-            shift's essential matrix are left out, and the Huber loss turns linear at half
-            of it.
         seed: seed of the RANSAC and of the bootstrap.
         runs: bootstrap resamples (0: no std, NaN).
 
     Returns:
         ``(dt, std)`` samples; ``(0, NaN)`` where too few correspondences.
     """
-    A3, xb, rows = _interpolated(camera, reference, int(shift))
-    if len(xb) < MIN_CORRESPONDENCES:
+    A3, B3, rows = _windows(camera, reference, int(shift))
+    if len(rows) < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
-    keep = _evenly(len(xb), MAX_CORRESPONDENCES)
-    A3, xb, rows = A3[:, keep], xb[keep], rows[keep]
-    thr = threshold_px / f
-    E, _ = _essential(A3[1], xb, thr, seed)
-    if E is None:
+    keep = _evenly(len(rows), MAX_CORRESPONDENCES)
+    A3, xb, rows = A3[:, keep], _at(B3[:, keep], 0.0), rows[keep]
+    E, median = _essential(_at(A3, 0.0), xb, seed)
+    if E is None or not median > 0:
         return 0.0, float("nan")
-    inl = np.abs(sampson_distances(E, A3[1], xb)) < thr
+    scale = 1.4826 * median
+    inl = np.abs(sampson_distances(E, _at(A3, 0.0), xb)) < INLIER_SCALES * scale
     if inl.sum() < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
     A3, xb, rows = A3[:, inl], xb[inl], rows[inl]
-    _, R0, t0, _ = cv2.recoverPose(E, A3[1], xb, np.eye(3))
+    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, 0.0), xb, np.eye(3))
     t0 = t0.ravel()
-    huber = 0.5 * threshold_px
+    huber = scale * f
     # the start: the best of a coarse grid of dt under the shift's pose
     Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
     grid = np.linspace(-1.0, 1.0, 9)
@@ -352,7 +378,7 @@ def _huber(r: np.ndarray, k: float) -> np.ndarray:
 
 
 def estimate_offset(candidates: list[np.ndarray], reference: np.ndarray, f: float,
-                    threshold_px: float, *, given: int = 0, step: int = 1,
+                    *, given: int = 0, step: int = 1,
                     window: int = OFFSET_WINDOW, seed: int = 0,
                     runs: int = BOOTSTRAP_RUNS) -> ClockEstimate:
     """A camera's offset against the reference camera (whole frames, then a fraction).
@@ -364,7 +390,6 @@ def estimate_offset(candidates: list[np.ndarray], reference: np.ndarray, f: floa
             own numbering), NaN where unseen; the one whose best shift fits best is taken.
         reference: ``(N, J, 2)`` the reference camera's person on that grid.
         f: a focal length, pixels (the Sampson distance's scale).
-        threshold_px: the inlier threshold, pixels.
         given: the offset the rig file gives (relative to the reference's), frames: the
             centre of the window.
         step: frames between two samples.
@@ -379,7 +404,7 @@ def estimate_offset(candidates: list[np.ndarray], reference: np.ndarray, f: floa
     step = max(int(step), 1)
     centre = int(np.round(given / step))
     reach = max(int(np.ceil(window / step)), 1)
-    scans = [scan_shifts(c, reference, threshold_px / f,
+    scans = [scan_shifts(c, reference, f,
                          range(centre - reach, centre + reach + 1), seed=seed)
              for c in candidates]
     lowest = [np.nanmin(s.cost) if np.isfinite(s.cost).any() else np.inf for s in scans]
@@ -398,7 +423,7 @@ def estimate_offset(candidates: list[np.ndarray], reference: np.ndarray, f: floa
                              scan=scan, note="no shift fits clearly better than the others "
                                              "(does the person move?): kept as given "
                                              f"({given})")
-    dt, std = subframe_offset(camera, reference, best, f, threshold_px, seed=seed, runs=runs)
+    dt, std = subframe_offset(camera, reference, best, f, seed=seed, runs=runs)
     offset = (best + dt) * step
     note = ""
     if int(np.round(offset)) != given and (not np.isfinite(std) or
@@ -438,17 +463,6 @@ def resample(a: np.ndarray, dt: float) -> np.ndarray:
     out[rows, ..., :-1] = np.where(seen[..., None], xy, np.nan)
     out[rows, ..., -1] = np.where(seen, conf, 0.0)
     return out
-
-
-def person_size_px(points: np.ndarray) -> float:
-    """The median over frames of the larger side of the box of a person's ``(T, J, 2)``
-    joints, pixels (NaN where no frame shows two joints)."""
-    ok = np.count_nonzero(np.isfinite(points).all(-1), axis=1) >= 2
-    if not ok.any():
-        return float("nan")
-    p = points[ok]
-    side = np.nanmax(np.nanmax(p, axis=1) - np.nanmin(p, axis=1), axis=1)
-    return float(np.median(side))
 
 
 def _pixels(seq: np.ndarray, joints: np.ndarray, min_confidence: float) -> np.ndarray:
@@ -510,9 +524,6 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     base = int(min(np.min(f) for f in frame_ids if len(f)))
     length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
     ref_px = _pixels(people[0][0], joints, min_confidence)
-    size = person_size_px(ref_px)
-    threshold = max(MIN_THRESHOLD_PX, THRESHOLD_OF_SIZE * size) if np.isfinite(size) \
-        else MIN_THRESHOLD_PX
     ref = dense_samples(_normalised(ref_px, Ks[0]), frame_ids[0], base, step, length)
     for c in range(1, len(people)):
         rel = int(given[c]) - int(given[0])
@@ -529,7 +540,7 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
                                frame_ids[c], base, step, length) for s in seqs]
         f = 0.25 * (Ks[0][0, 0] + Ks[0][1, 1] + Ks[c][0, 0] + Ks[c][1, 1])
-        est = estimate_offset(dense, ref, f, threshold, given=rel, step=step, window=window,
+        est = estimate_offset(dense, ref, f, given=rel, step=step, window=window,
                               seed=seed, runs=runs)
         est.offset += given[0]
         est.given = int(given[c])
