@@ -2,29 +2,39 @@
 
 A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
 frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. Every camera is compared with the reference
-camera (the first) on the person both see, in two steps:
+``o`` puts its frames between the rig's. The offsets are found in three steps:
 
-1. **Whole frames** (:func:`scan_shifts`): for every shift ``s`` of a window about the
-   given offset, the camera's joints at its frame ``t + s`` are matched with the
-   reference's at ``t`` and the essential matrix of least median Sampson distance is
-   fitted to them (OpenCV's five-point solver in LMedS, the cameras' intrinsics); that
-   median (pixels) is the shift's cost, lowest where the two views see one instant. It
-   needs no threshold, hence no guess of the detector's noise. A moving person makes the
-   true shift stand out; a still one gives a flat curve (:attr:`ShiftScan.contrast`
-   below :data:`MIN_CONTRAST`: the offset is kept as given, with a warning).
-2. **A fraction of a frame** (:func:`subframe_offset`): about the best shift each joint's
-   trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1`` samples
-   (a Savitzky-Golay filter evaluated between samples; the reference's the same filter
-   at its sample), the camera's evaluated at ``t + s + dt``; the relative pose (five
-   parameters) and ``dt`` are fitted together by robust least squares (Huber loss on the
-   Sampson distance, its scale the whole shift's median), each residual scaled by the
-   filter's noise at ``dt`` so that no ``dt`` is favoured for averaging the noise more.
-   ``dt``'s std is the spread of that fit over a block bootstrap of the reference's
-   frames (blocks of :data:`BOOTSTRAP_BLOCK` samples: the detector's error and the
-   person's motion are correlated over neighbouring frames, which a curvature std
-   would ignore). The offset is observable only where the joints move across the
-   epipolar lines: the std says how well.
+1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): for every shift ``s``
+   of a window, camera ``b``'s joints at its sample ``t + s`` are matched with camera
+   ``a``'s at ``t``; the shift's cost is the median Sampson distance (pixels) under the
+   pair's essential matrix. The cameras do not move, so one relative pose serves every
+   shift: it is fitted (OpenCV's five-point solver in LMedS: no threshold, hence no
+   guess of the detector's noise) about the best of a coarse scan (every
+   :data:`COARSE_STRIDE`-th shift, its own matrix each), twice, once on the even and
+   once on the odd blocks of :data:`BOOTSTRAP_BLOCK` samples, and each correspondence is
+   judged by the matrix fitted to the other half (cross-fitting: no shift is favoured for
+   having been fitted to).
+2. **One consistent set of whole offsets** (:func:`joint_offsets`): the offsets
+   minimise the sum over the pairs of each pair's cost relative to its lowest (a pair
+   that cannot tell adds a flat curve; one whose window misses the pair's offset adds
+   its largest cost), by coordinate descent. A camera is moved from the rig file's
+   offset only where that is **significantly** better: a block bootstrap of the
+   samples (shared by every pair, the matrices held) recomputes the medians, and the
+   camera's summed cost must be lower at the found offset than at the given one in at
+   least :data:`ACCEPT_LEVEL` of the draws; else it keeps the given offset. The spread
+   of the draws' best offset is the whole offset's std: large where the people hardly
+   fix the camera's time.
+3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera):
+   about the whole offset each joint's trajectory is the least-squares quadratic through
+   ``2 HALF_WINDOW + 1`` samples (a Savitzky-Golay filter evaluated between samples; the
+   reference's the same filter at its sample), the camera's evaluated at ``t + s + dt``;
+   the relative pose (five parameters) and ``dt`` are fitted together by robust least
+   squares (Huber loss on the Sampson distance, its scale the whole shift's median),
+   each residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured
+   for averaging the noise more. ``dt``'s std is the spread of that fit over a block
+   bootstrap of the reference's frames; ``dt`` is applied where it differs from 0 by
+   more than :data:`FRACTION_Z` stds (the same level as the whole offsets'), else the
+   whole offset stands.
 
 Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
 Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
@@ -49,43 +59,57 @@ from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
 
-__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES",
-           "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS", "scan_shifts", "subframe_offset",
-           "estimate_offset", "resample", "dense_samples", "find_clocks", "on_rig_clock",
-           "frame_step", "INLIER_SCALES", "MIN_CONTRAST"]
+__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE",
+           "ACCEPT_LEVEL", "FRACTION_Z", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
+           "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
+           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "INLIER_SCALES"]
 
 #: Fewer correspondences (joint pairs seen at one instant) than this at a shift: the
 #: shift is not judged.
 MIN_CORRESPONDENCES = 60
-#: Correspondences per shift at most (taken evenly): the scan's cost.
-MAX_CORRESPONDENCES = 3000
-#: Frames of one block of the block bootstrap of the sub-frame offset's std.
+#: Correspondences per shift judged at most (taken evenly): the scan's cost.
+MAX_CORRESPONDENCES = 1500
+#: Correspondences of one shift of the coarse scan at most.
+COARSE_CORRESPONDENCES = 600
+#: The coarse scan fits an essential matrix at every this many shifts.
+COARSE_STRIDE = 3
+#: Samples of one block of the block bootstraps.
 BOOTSTRAP_BLOCK = 10
-#: Bootstrap resamples of the sub-frame offset's std.
-BOOTSTRAP_RUNS = 30
+#: Bootstrap resamples of the sub-frame offset's std (each a robust fit).
+BOOTSTRAP_RUNS = 20
+#: Bootstrap draws of the whole offsets' test and std (each a weighted median).
+BOOTSTRAP_DRAWS = 200
+#: A camera leaves its given whole offset where the found one fits better in this share
+#: of the bootstrap draws (a one-sided test at 1 %).
+ACCEPT_LEVEL = 0.99
+#: A fraction of a frame is applied where it exceeds this many of its stds (the
+#: two-sided normal test at 1 %).
+FRACTION_Z = 2.576
 #: The sub-frame fit keeps the correspondences within this many robust stds of the
 #: whole shift's essential matrix.
 INLIER_SCALES = 3.0
-#: A scan whose best shift does not stand out by this factor
-#: (:attr:`ShiftScan.contrast`) judges nothing.
-MIN_CONTRAST = 1.25
 
 
 @dataclass
 class ShiftScan:
-    """The epipolar cost of a camera against the reference per whole shift.
+    """The epipolar cost of camera ``b`` against camera ``a`` per whole shift.
 
     Attributes:
-        shifts: ``(S,)`` samples: the camera's sample ``t + s`` against the reference's ``t``.
-        cost: ``(S,)`` the median Sampson distance (pixels) under the essential matrix of
-            least median (lower fits better; NaN where fewer than
+        shifts: ``(S,)`` samples: ``b``'s sample ``t + s`` against ``a``'s ``t`` (``s`` is
+            ``o_b - o_a`` where it fits).
+        cost: ``(S,)`` the median Sampson distance (pixels) under the pair's cross-fitted
+            essential matrices (lower fits better; NaN where fewer than
             :data:`MIN_CORRESPONDENCES`).
         correspondences: ``(S,)`` correspondences per shift.
+        distances: per shift the ``(n,)`` Sampson distances judged (pixels), or ``None``.
+        rows: per shift the ``(n,)`` samples ``t`` of ``a`` of those, or ``None``.
     """
 
     shifts: np.ndarray
     cost: np.ndarray
     correspondences: np.ndarray
+    distances: list = field(default_factory=list, repr=False)
+    rows: list = field(default_factory=list, repr=False)
 
     @property
     def best(self) -> int | None:
@@ -100,18 +124,6 @@ class ShiftScan:
         hit = np.flatnonzero(self.shifts == shift)
         return float(self.cost[hit[0]]) if hit.size else float("nan")
 
-    @property
-    def contrast(self) -> float:
-        """How far the best shift stands out: the median cost of the shifts more than one
-        sample away from it over its own cost (1: a flat curve; NaN: nothing judged)."""
-        b = self.best
-        if b is None:
-            return float("nan")
-        far = np.isfinite(self.cost) & (np.abs(self.shifts - b) > 1)
-        if not far.any():
-            return float("nan")
-        return float(np.median(self.cost[far]) / max(self.cost_at(b), 1e-12))
-
 
 @dataclass
 class ClockEstimate:
@@ -120,13 +132,17 @@ class ClockEstimate:
     Attributes:
         offset: frames of the rig's clock: the camera's frame ``f`` is the rig's frame
             ``f - offset`` (the rig file's ``frame_offset``, fractional).
-        std: its std, frames (0 for the reference, NaN where not estimated).
-        source: ``"reference"``, ``"given"`` (the rig file's, not searched, or the data
-            could not judge it), or ``"search"``.
+        std: its std, frames (0 for the reference, NaN where not searched): the whole
+            offset's bootstrap spread and the fraction's together.
+        source: ``"reference"``, ``"given"`` (the rig file's, not searched), or
+            ``"search"`` (the search's: the given offset where the data do not
+            significantly prefer another).
         given: the rig file's ``frame_offset``.
-        scan: the whole-frame scan (``None`` where not searched); its shifts in samples.
+        scan: the whole-frame scan against the reference (``None`` where not
+            searched); its shifts in samples.
         note: why the offset is what it is where that needs saying (the data disagree
-            with the given offset, too few correspondences, a flat scan), else ``""``.
+            with the given offset, too few correspondences, a time the people hardly
+            fix), else ``""``.
     """
 
     offset: float
@@ -192,7 +208,8 @@ def _evenly(n: int, most: int) -> np.ndarray:
 
 def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
                 *, seed: int = 0) -> ShiftScan:
-    """The epipolar cost of ``camera`` against ``reference`` per whole shift.
+    """The epipolar cost of ``camera`` against ``reference`` per whole shift (see the
+    module docstring, step 1).
 
     Args:
         camera, reference: ``(N, J, 2)`` normalised coordinates (``K^-1`` applied) on one
@@ -202,16 +219,127 @@ def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
         seed: OpenCV's RANSAC seed.
     """
     shifts = np.asarray(list(shifts), int)
-    cost = np.full(len(shifts), np.nan)
-    corr = np.zeros(len(shifts), int)
-    for i, s in enumerate(shifts):
-        xa, xb, _ = _pairs(camera, reference, int(s))
-        corr[i] = len(xa)
-        if len(xa) < MIN_CORRESPONDENCES:
-            continue
+    S = len(shifts)
+    cost = np.full(S, np.nan)
+    found = [_pairs(camera, reference, int(s)) for s in shifts]
+    corr = np.array([len(p[0]) for p in found], int)
+    judged = np.flatnonzero(corr >= MIN_CORRESPONDENCES)
+    scan = ShiftScan(shifts=shifts, cost=cost, correspondences=corr,
+                     distances=[None] * S, rows=[None] * S)
+    if not judged.size:
+        return scan
+    coarse = np.full(S, np.inf)
+    for i in judged[::COARSE_STRIDE]:
+        xa, xb, _ = found[i]
+        keep = _evenly(len(xa), COARSE_CORRESPONDENCES)
+        coarse[i] = _essential(xa[keep], xb[keep], seed)[1]
+    i0 = int(np.argmin(coarse))
+    pool = [i for i in (i0 - 1, i0, i0 + 1) if 0 <= i < S and corr[i] >= MIN_CORRESPONDENCES]
+    xa = np.concatenate([found[i][0] for i in pool])
+    xb = np.concatenate([found[i][1] for i in pool])
+    half = (np.concatenate([found[i][2] for i in pool]) // BOOTSTRAP_BLOCK) % 2
+    Es = []
+    for h in (0, 1):
+        sel = np.flatnonzero(half == h)
+        sel = sel[_evenly(len(sel), MAX_CORRESPONDENCES)]
+        Es.append(_essential(xa[sel], xb[sel], seed)[0] if len(sel) >= MIN_CORRESPONDENCES
+                  else None)
+    if Es[0] is None or Es[1] is None:           # one half too thin: the whole pool
         keep = _evenly(len(xa), MAX_CORRESPONDENCES)
-        cost[i] = _essential(xa[keep], xb[keep], seed)[1] * f
-    return ShiftScan(shifts=shifts, cost=cost, correspondences=corr)
+        E = _essential(xa[keep], xb[keep], seed)[0]
+        if E is None:
+            return scan
+        Es = [E, E]
+    for i in judged:
+        xa, xb, rows = found[i]
+        keep = _evenly(len(xa), MAX_CORRESPONDENCES)
+        xa, xb, rows = xa[keep], xb[keep], rows[keep]
+        odd = (rows // BOOTSTRAP_BLOCK) % 2 == 1
+        # each block judged by the matrix fitted to the other parity's blocks
+        d = np.where(odd, sampson_distances(Es[0], xa, xb), sampson_distances(Es[1], xa, xb))
+        d = np.nan_to_num(np.abs(d), nan=np.inf) * f
+        cost[i] = float(np.median(d))
+        scan.distances[i], scan.rows[i] = d, rows
+    return scan
+
+
+def _weighted_medians(d: np.ndarray, blocks: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``(R,)`` medians of ``d`` (``(n,)``) with each value weighted by its block's weight
+    in each row of ``weights`` (``(R, B)``; the bootstrap's draw counts)."""
+    order = np.argsort(d)
+    w = weights[:, blocks[order]]
+    cs = np.cumsum(w, axis=1)
+    total = cs[:, -1]
+    idx = np.minimum((cs < 0.5 * total[:, None]).sum(1), len(d) - 1)
+    out = d[order][idx]
+    return np.where(total > 0, out, np.nan)
+
+
+def _bootstrap_costs(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
+    """``(R, S)``: the scan's costs under each draw of block weights (``(R, B)``)."""
+    out = np.full((len(weights), len(scan.shifts)), np.nan)
+    for i, (d, rows) in enumerate(zip(scan.distances, scan.rows)):
+        if d is not None:
+            out[:, i] = _weighted_medians(d, rows // BOOTSTRAP_BLOCK, weights)
+    return out
+
+
+class _PairCurves:
+    """Every pair's cost relative to its lowest as a function of the pair's offset,
+    for the full data (row 0) and the bootstrap draws (rows 1..R)."""
+
+    def __init__(self, scans: dict, weights: np.ndarray):
+        self.terms = {}
+        for (a, b), scan in scans.items():
+            lo = np.nanmin(scan.cost)
+            curves = np.vstack([scan.cost[None], _bootstrap_costs(scan, weights)]) / lo
+            top = np.nanmax(curves[0])
+            curves = np.where(np.isfinite(curves), curves, top)
+            self.terms[(a, b)] = (scan.shifts, curves, top)
+
+    def value(self, a: int, b: int, rel: np.ndarray) -> np.ndarray:
+        """``(R + 1, len(rel))``: pair ``(a, b)``'s relative cost at ``o_b - o_a = rel``
+        (its largest outside its window)."""
+        shifts, curves, top = self.terms[(a, b)]
+        rel = np.asarray(rel, int)
+        i = np.clip(rel - shifts[0], 0, len(shifts) - 1)
+        inside = (rel >= shifts[0]) & (rel <= shifts[-1])
+        return np.where(inside[None], curves[:, i], top)
+
+    def camera(self, c: int, offsets: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+        """``(R + 1, K)``: the summed relative cost of camera ``c`` at each candidate
+        offset, the others at ``offsets``."""
+        total = 0.0
+        for (a, b) in self.terms:
+            if a == c:
+                total = total + self.value(a, b, offsets[b] - candidates)
+            elif b == c:
+                total = total + self.value(a, b, candidates - offsets[a])
+        return np.broadcast_to(total, (self._rows(), len(candidates))) if np.isscalar(total) \
+            else total
+
+    def _rows(self) -> int:
+        return next(iter(self.terms.values()))[1].shape[0] if self.terms else 1
+
+
+def joint_offsets(curves: _PairCurves, start: np.ndarray, windows: list[np.ndarray],
+                  fixed: set[int]) -> np.ndarray:
+    """Whole offsets (samples) minimising the sum of the pairs' relative costs by
+    coordinate descent from ``start``; the cameras in ``fixed`` stay at ``start``, the
+    others move within their ``windows``."""
+    o = np.asarray(start, int).copy()
+    for _ in range(10):
+        moved = False
+        for c in range(len(o)):
+            if c in fixed:
+                continue
+            cost = curves.camera(c, o, windows[c])[0]
+            best = int(windows[c][int(np.argmin(cost))])
+            if best != o[c] and cost.min() < curves.camera(c, o, np.array([o[c]]))[0, 0]:
+                o[c], moved = best, True
+        if not moved:
+            break
+    return o
 
 
 #: Samples either side of the one a joint's trajectory is evaluated about (the local
@@ -377,64 +505,6 @@ def _huber(r: np.ndarray, k: float) -> np.ndarray:
     return np.where(a <= k, 0.5 * a ** 2, k * (a - 0.5 * k))
 
 
-def estimate_offset(candidates: list[np.ndarray], reference: np.ndarray, f: float,
-                    *, given: int = 0, step: int = 1,
-                    window: int = OFFSET_WINDOW, seed: int = 0,
-                    runs: int = BOOTSTRAP_RUNS) -> ClockEstimate:
-    """A camera's offset against the reference camera (whole frames, then a fraction).
-
-    Args:
-        candidates: the sequences that may be the camera's person, each ``(N, J, 2)``
-            normalised coordinates on one grid of samples with the reference
-            (:func:`dense_samples`: row ``r`` is frame ``base + r * step`` of each camera's
-            own numbering), NaN where unseen; the one whose best shift fits best is taken.
-        reference: ``(N, J, 2)`` the reference camera's person on that grid.
-        f: a focal length, pixels (the Sampson distance's scale).
-        given: the offset the rig file gives (relative to the reference's), frames: the
-            centre of the window.
-        step: frames between two samples.
-        window: frames either way of ``given``.
-        seed: seed of every random choice.
-        runs: bootstrap resamples of the std.
-
-    Returns:
-        :class:`ClockEstimate` relative to the reference (``offset`` frames: the camera's
-        frame ``f`` is the reference's ``f - offset``).
-    """
-    step = max(int(step), 1)
-    centre = int(np.round(given / step))
-    reach = max(int(np.ceil(window / step)), 1)
-    scans = [scan_shifts(c, reference, f,
-                         range(centre - reach, centre + reach + 1), seed=seed)
-             for c in candidates]
-    lowest = [np.nanmin(s.cost) if np.isfinite(s.cost).any() else np.inf for s in scans]
-    pick = int(np.argmin(lowest))
-    scan, camera = scans[pick], candidates[pick]
-    best = scan.best
-    if best is None:
-        n = int(max(s.correspondences.max() for s in scans))
-        return ClockEstimate(offset=float(given), std=float("nan"), source="given", given=given,
-                             scan=scan, note=f"too few joints seen with the reference camera "
-                                             f"at any shift ({n} at most, "
-                                             f"{MIN_CORRESPONDENCES} needed): kept as given "
-                                             f"({given})")
-    if not scan.contrast > MIN_CONTRAST:
-        return ClockEstimate(offset=float(given), std=float("nan"), source="given", given=given,
-                             scan=scan, note="no shift fits clearly better than the others "
-                                             "(does the person move?): kept as given "
-                                             f"({given})")
-    dt, std = subframe_offset(camera, reference, best, f, seed=seed, runs=runs)
-    offset = (best + dt) * step
-    note = ""
-    if int(np.round(offset)) != given and (not np.isfinite(std) or
-                                           abs(offset - given) > 3 * std * step):
-        edge = " (the edge of the search window)" if abs(best - centre) == reach else ""
-        note = (f"the people put it at {offset:+.2f} frames{edge} against the rig file's "
-                f"frame_offset = {given}")
-    return ClockEstimate(offset=float(offset), std=float(std * step), source="search",
-                         given=given, scan=scan, note=note)
-
-
 def resample(a: np.ndarray, dt: float) -> np.ndarray:
     """``(T, J, C)`` keypoints at rows ``t + dt`` instead of ``t`` (``dt`` in samples, any
     sign): each coordinate interpolated linearly between the two rows around, the
@@ -498,7 +568,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             camera alone sees it (undistorted pixels; the reference camera's: its
             subject) and ``T_c`` arrays ``(P_t, J, 3)`` of candidates for the person per
             frame, or ``None``; where a frame holds several, the camera's longest tracks
-            compete too (:func:`~mirrorgraph.rigs.failure.candidate_people`).
+            compete too (:func:`~mirrorgraph.rigs.failure.candidate_people`: the one that
+            fits the reference best is taken).
         frame_ids: per camera ``(T_c,)`` its own frame numbers.
         Ks: per camera ``(3, 3)`` intrinsics (of the undistorted pixels).
         given: per camera the rig file's ``frame_offset``.
@@ -508,46 +579,167 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             reference's).
         seed: seed of every random choice.
         min_confidence: joints below this confidence are left out.
-        runs: bootstrap resamples of the stds.
+        runs: bootstrap resamples of the fractions' stds.
 
     Returns:
         per camera a :class:`ClockEstimate` on the rig's clock (``offset``: the camera's
         frame ``f`` is the rig's frame ``f - offset``).
     """
     joints = np.asarray(joints, int)
-    out = [ClockEstimate(offset=float(given[0]), std=0.0, source="reference", given=given[0])]
-    if not search or len(people) < 2:
+    N = len(people)
+    out: list[ClockEstimate | None] = [
+        ClockEstimate(offset=float(given[0]), std=0.0, source="reference", given=given[0])]
+    if not search or N < 2:
         return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g)
                       for g in given[1:]]
     steps = [frame_step(f) for f in frame_ids]
     step = steps[0]
     base = int(min(np.min(f) for f in frame_ids if len(f)))
     length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
-    ref_px = _pixels(people[0][0], joints, min_confidence)
-    ref = dense_samples(_normalised(ref_px, Ks[0]), frame_ids[0], base, step, length)
-    for c in range(1, len(people)):
-        rel = int(given[c]) - int(given[0])
+    reach = max(int(np.ceil(window / step)), 1)
+    rel = np.array([int(np.round((int(g) - int(given[0])) / step)) for g in given])
+    focal = [0.5 * (K[0, 0] + K[1, 1]) for K in Ks]
+    seqs: list[np.ndarray | None] = [None] * N
+    seqs[0] = dense_samples(_normalised(_pixels(people[0][0], joints, min_confidence), Ks[0]),
+                            frame_ids[0], base, step, length)
+    out += [None] * (N - 1)
+    scans: dict[tuple[int, int], ShiftScan] = {}
+    for c in range(1, N):
         if steps[c] != step:
-            out.append(ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                     given=given[c],
-                                     note=f"its frames are {steps[c]} apart, the reference's "
-                                          f"{step}: not searched, kept as given ({given[c]})"))
+            out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
+                                   given=given[c],
+                                   note=f"its frames are {steps[c]} apart, the reference's "
+                                        f"{step}: not searched, kept as given ({given[c]})")
             continue
         person, cands = people[c]
-        seqs = [np.asarray(person, float)]
+        options = [np.asarray(person, float)]
         if cands is not None and any(len(p) > 1 for p in cands):
-            seqs += candidate_people(cands, *seqs[0].shape[:2], joints, min_confidence)
+            options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
-                               frame_ids[c], base, step, length) for s in seqs]
-        f = 0.25 * (Ks[0][0, 0] + Ks[0][1, 1] + Ks[c][0, 0] + Ks[c][1, 1])
-        est = estimate_offset(dense, ref, f, given=rel, step=step, window=window,
-                              seed=seed, runs=runs)
-        est.offset += given[0]
-        est.given = int(given[c])
-        if est.source == "given":
-            est.offset = float(given[c])
-        out.append(est)
+                               frame_ids[c], base, step, length) for s in options]
+        f = 0.5 * (focal[0] + focal[c])
+        tried = [scan_shifts(d, seqs[0], f, range(rel[c] - reach, rel[c] + reach + 1),
+                             seed=seed) for d in dense]
+        lowest = [np.nanmin(s.cost) if np.isfinite(s.cost).any() else np.inf for s in tried]
+        pick = int(np.argmin(lowest))
+        seqs[c] = dense[pick]
+        if np.isfinite(lowest[pick]):
+            scans[(0, c)] = tried[pick]
+        else:
+            n = int(max(s.correspondences.max() for s in tried))
+            out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
+                                   given=given[c], scan=tried[pick],
+                                   note=f"too few joints seen with the reference camera at "
+                                        f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
+                                        f"needed): kept as given ({given[c]})")
+    live = [c for c in range(1, N) if out[c] is None]
+    start = rel.copy()
+    for c in live:
+        start[c] = scans[(0, c)].best
+    for i, a in enumerate(live):                 # the pairs without the reference
+        for b in live[i + 1:]:
+            centre = int(start[b] - start[a])
+            f = 0.5 * (focal[a] + focal[b])
+            scan = scan_shifts(seqs[b], seqs[a], f, range(centre - reach, centre + reach + 1),
+                               seed=seed)
+            if np.isfinite(scan.cost).any():
+                scans[(a, b)] = scan
+    if not live:
+        return out
+    rng = np.random.default_rng(seed)
+    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
+    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
+                              size=BOOTSTRAP_DRAWS).astype(float)
+    curves = _PairCurves(scans, weights)
+    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
+    fixed = {0} | {c for c in range(1, N) if out[c] is not None}
+    kept: set[int] = set()
+    while True:
+        o = joint_offsets(curves, np.where([c in fixed | kept for c in range(N)], rel, start),
+                          windows, fixed | kept)
+        alt = joint_offsets(curves, rel, windows, fixed | kept)
+        if _total(curves, alt) < _total(curves, o):
+            o = alt
+        fails = set()
+        for c in live:
+            if c in kept or o[c] == rel[c]:
+                continue
+            others = [0] + [k for k in live if k != c]
+            if _preferred(c, o, rel[c], others, seqs, focal, weights, seed) < ACCEPT_LEVEL:
+                fails.add(c)
+        if not fails:
+            break
+        kept |= fails
+    for c in live:
+        draws = curves.camera(c, o, windows[c])[1:]
+        whole_std = float(np.std(windows[c][np.argmin(draws, axis=1)])) * step
+        f = 0.5 * (focal[0] + focal[c])
+        dt, dt_std = subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
+        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
+        offset = (o[c] + frac) * step + given[0]
+        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
+        note = ""
+        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
+            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
+            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
+                    f"the rig file's frame_offset = {given[c]}")
+        elif whole_std >= 0.5 * step:
+            note = (f"the people hardly fix its time (whole offsets spread by {whole_std:.1f} "
+                    f"frames): kept as given ({given[c]})")
+        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
+                               given=int(given[c]), scan=scans[(0, c)], note=note)
     return out
+
+
+def _refit_distances(camera: np.ndarray, reference: np.ndarray, s: int, f: float, seed: int
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``camera``'s sample ``t + s`` against ``reference``'s ``t`` judged by essential
+    matrices fitted at that shift itself, cross-fitted (each parity of blocks by the
+    other's): ``(n,)`` Sampson distances (pixels) and their samples ``t``."""
+    xa, xb, rows = _pairs(camera, reference, int(s))
+    keep = _evenly(len(xa), MAX_CORRESPONDENCES)
+    xa, xb, rows = xa[keep], xb[keep], rows[keep]
+    odd = (rows // BOOTSTRAP_BLOCK) % 2 == 1
+    Es = []
+    for h in (False, True):
+        sel = np.flatnonzero(odd == h)
+        if len(sel) < MIN_CORRESPONDENCES:
+            return None
+        Es.append(_essential(xa[sel], xb[sel], seed)[0])
+    if Es[0] is None or Es[1] is None:
+        return None
+    d = np.where(odd, sampson_distances(Es[0], xa, xb), sampson_distances(Es[1], xa, xb))
+    return np.nan_to_num(np.abs(d), nan=np.inf) * f, rows
+
+
+def _preferred(c: int, o: np.ndarray, given: int, others: list[int], seqs, focal,
+               weights: np.ndarray, seed: int) -> float:
+    """The share of the bootstrap draws (``weights``, ``(R, B)``) in which camera ``c``
+    at ``o[c]`` fits the cameras ``others`` (at ``o``) better than at ``given``: the
+    medians of every pair, each relative to its value at ``o[c]`` on the full data,
+    summed; every shift judged by essential matrices fitted at it (cross-fitted), so
+    neither is favoured for the matrix."""
+    totals = np.zeros((2, len(weights)))
+    for k in others:
+        a, b = (k, c) if k < c else (c, k)
+        sign = 1 if b == c else -1
+        f = 0.5 * (focal[a] + focal[b])
+        found = []
+        for oc in (o[c], given):
+            rel = sign * (oc - o[k])
+            found.append(_refit_distances(seqs[b], seqs[a], rel, f, seed))
+        if found[0] is None or found[1] is None:
+            continue
+        scale = float(np.median(found[0][0]))
+        for i, (d, rows) in enumerate(found):
+            totals[i] += _weighted_medians(d, rows // BOOTSTRAP_BLOCK, weights) / scale
+    return float(np.mean(totals[0] < totals[1]))
+
+
+def _total(curves: _PairCurves, o: np.ndarray) -> float:
+    """The summed relative cost of every pair at offsets ``o`` (full data)."""
+    return float(sum(curves.value(a, b, np.array([o[b] - o[a]]))[0, 0]
+                     for (a, b) in curves.terms))
 
 
 def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:
