@@ -70,13 +70,15 @@ MIN_CORRESPONDENCES = 60
 #: Correspondences per shift judged at most (taken evenly): the scan's cost.
 MAX_CORRESPONDENCES = 1500
 #: Correspondences of one shift of the coarse scan at most.
-COARSE_CORRESPONDENCES = 600
+COARSE_CORRESPONDENCES = 300
+#: Correspondences of the sub-frame fit at most.
+SUBFRAME_CORRESPONDENCES = 1000
 #: The coarse scan fits an essential matrix at every this many shifts.
 COARSE_STRIDE = 3
 #: Samples of one block of the block bootstraps.
 BOOTSTRAP_BLOCK = 10
 #: Bootstrap resamples of the sub-frame offset's std (each a robust fit).
-BOOTSTRAP_RUNS = 20
+BOOTSTRAP_RUNS = 12
 #: Bootstrap draws of the whole offsets' test and std (each a weighted median).
 BOOTSTRAP_DRAWS = 200
 #: A camera leaves its given whole offset where the found one fits better in this share
@@ -189,7 +191,7 @@ def _essential(xa: np.ndarray, xb: np.ndarray, seed: int
     cost does not depend on a guess of the detector's noise) and that median
     (normalised)."""
     cv2.setRNGSeed(int(seed))
-    E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.LMEDS, prob=0.999,
+    E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.LMEDS, prob=0.99,
                                 maxIters=1000)
     if E is None or E.shape[1:] != (3,) or E.shape[0] < 3:
         return None, float("inf")
@@ -451,7 +453,7 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     A3, B3, rows = _windows(camera, reference, int(shift))
     if len(rows) < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
-    keep = _evenly(len(rows), MAX_CORRESPONDENCES)
+    keep = _evenly(len(rows), SUBFRAME_CORRESPONDENCES)
     A3, xb, rows = A3[:, keep], _at(B3[:, keep], 0.0), rows[keep]
     E, median = _essential(_at(A3, 0.0), xb, seed)
     if E is None or not median > 0:
@@ -671,10 +673,15 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             break
         kept |= fails
     for c in live:
-        draws = curves.camera(c, o, windows[c])[1:]
-        whole_std = float(np.std(windows[c][np.argmin(draws, axis=1)])) * step
+        draws = windows[c][np.argmin(curves.camera(c, o, windows[c])[1:], axis=1)]
+        # the fraction covers a sample either way: the whole offset's spread counts
+        # only where the draws put it farther
+        near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
+        whole_std = 0.0 if near else float(np.std(draws)) * step
         f = 0.5 * (focal[0] + focal[c])
-        dt, dt_std = subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
+        # a fraction means something only about a whole offset the people fix
+        dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
+                      if near else (0.0, float("nan")))
         frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
         offset = (o[c] + frac) * step + given[0]
         std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
@@ -683,7 +690,7 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
             note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
                     f"the rig file's frame_offset = {given[c]}")
-        elif whole_std >= 0.5 * step:
+        elif not near:
             note = (f"the people hardly fix its time (whole offsets spread by {whole_std:.1f} "
                     f"frames): kept as given ({given[c]})")
         out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
