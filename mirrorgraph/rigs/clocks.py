@@ -62,7 +62,8 @@ from .failure import candidate_people
 __all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE",
            "ACCEPT_LEVEL", "FRACTION_Z", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
            "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
-           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "INLIER_SCALES"]
+           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_frames",
+           "INLIER_SCALES"]
 
 #: Fewer correspondences (joint pairs seen at one instant) than this at a shift: the
 #: shift is not judged.
@@ -308,11 +309,14 @@ class _PairCurves:
         inside = (rel >= shifts[0]) & (rel <= shifts[-1])
         return np.where(inside[None], curves[:, i], top)
 
-    def camera(self, c: int, offsets: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    def camera(self, c: int, offsets: np.ndarray, candidates: np.ndarray,
+               skip: set[int] = frozenset()) -> np.ndarray:
         """``(R + 1, K)``: the summed relative cost of camera ``c`` at each candidate
-        offset, the others at ``offsets``."""
+        offset, the others at ``offsets`` (the pairs with a camera of ``skip`` left out)."""
         total = 0.0
         for (a, b) in self.terms:
+            if a in skip or b in skip:
+                continue
             if a == c:
                 total = total + self.value(a, b, offsets[b] - candidates)
             elif b == c:
@@ -325,19 +329,20 @@ class _PairCurves:
 
 
 def joint_offsets(curves: _PairCurves, start: np.ndarray, windows: list[np.ndarray],
-                  fixed: set[int]) -> np.ndarray:
+                  fixed: set[int], skip: set[int] = frozenset()) -> np.ndarray:
     """Whole offsets (samples) minimising the sum of the pairs' relative costs by
     coordinate descent from ``start``; the cameras in ``fixed`` stay at ``start``, the
-    others move within their ``windows``."""
+    others move within their ``windows``; the pairs with a camera of ``skip`` (one whose
+    time the people do not fix) are left out."""
     o = np.asarray(start, int).copy()
     for _ in range(10):
         moved = False
         for c in range(len(o)):
             if c in fixed:
                 continue
-            cost = curves.camera(c, o, windows[c])[0]
+            cost = curves.camera(c, o, windows[c], skip)[0]
             best = int(windows[c][int(np.argmin(cost))])
-            if best != o[c] and cost.min() < curves.camera(c, o, np.array([o[c]]))[0, 0]:
+            if best != o[c] and cost.min() < curves.camera(c, o, np.array([o[c]]), skip)[0, 0]:
                 o[c], moved = best, True
         if not moved:
             break
@@ -551,6 +556,19 @@ def _normalised(xy: np.ndarray, K: np.ndarray) -> np.ndarray:
     return (xy - K[:2, 2]) @ np.linalg.inv(K[:2, :2]).T
 
 
+def rig_frames(frame_ids: np.ndarray, fps: float | None, rig_fps: float | None
+               ) -> np.ndarray:
+    """``(T_c,)`` a camera's frame numbers at the rig's frame rate (the first camera's):
+    its frame ``g`` is at ``g / fps`` seconds, the rig's frame ``round(g rig_fps / fps)``
+    (a 30 fps camera's frames on every other frame of a 60 fps rig; to the nearest rig
+    frame where the rates are not multiples). Unchanged where either rate is unknown or
+    the two agree to 0.1 %."""
+    ids = np.asarray(frame_ids, np.int64)
+    if not fps or not rig_fps or abs(float(fps) / float(rig_fps) - 1) < 1e-3:
+        return ids
+    return np.round(ids * (float(rig_fps) / float(fps))).astype(np.int64)
+
+
 def frame_step(frame_ids: np.ndarray) -> int:
     """The frames between two samples of a camera (a video read every n-th frame): the
     median difference of its frame numbers, at least 1."""
@@ -595,7 +613,7 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g)
                       for g in given[1:]]
     steps = [frame_step(f) for f in frame_ids]
-    step = steps[0]
+    step = int(np.gcd.reduce(steps))            # a slower camera sees every n-th sample
     base = int(min(np.min(f) for f in frame_ids if len(f)))
     length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
     reach = max(int(np.ceil(window / step)), 1)
@@ -607,12 +625,6 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     out += [None] * (N - 1)
     scans: dict[tuple[int, int], ShiftScan] = {}
     for c in range(1, N):
-        if steps[c] != step:
-            out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                   given=given[c],
-                                   note=f"its frames are {steps[c]} apart, the reference's "
-                                        f"{step}: not searched, kept as given ({given[c]})")
-            continue
         person, cands = people[c]
         options = [np.asarray(person, float)]
         if cands is not None and any(len(p) > 1 for p in cands):
@@ -657,23 +669,24 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     fixed = {0} | {c for c in range(1, N) if out[c] is not None}
     kept: set[int] = set()
     while True:
+        # a camera kept for want of evidence says nothing of the others' offsets
         o = joint_offsets(curves, np.where([c in fixed | kept for c in range(N)], rel, start),
-                          windows, fixed | kept)
-        alt = joint_offsets(curves, rel, windows, fixed | kept)
-        if _total(curves, alt) < _total(curves, o):
+                          windows, fixed | kept, kept)
+        alt = joint_offsets(curves, rel, windows, fixed | kept, kept)
+        if _total(curves, alt, kept) < _total(curves, o, kept):
             o = alt
         fails = set()
         for c in live:
             if c in kept or o[c] == rel[c]:
                 continue
-            others = [0] + [k for k in live if k != c]
+            others = [0] + [k for k in live if k != c and k not in kept]
             if _preferred(c, o, rel[c], others, seqs, focal, weights, seed) < ACCEPT_LEVEL:
                 fails.add(c)
         if not fails:
             break
         kept |= fails
     for c in live:
-        draws = windows[c][np.argmin(curves.camera(c, o, windows[c])[1:], axis=1)]
+        draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
         # the fraction covers a sample either way: the whole offset's spread counts
         # only where the draws put it farther
         near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
@@ -743,10 +756,11 @@ def _preferred(c: int, o: np.ndarray, given: int, others: list[int], seqs, focal
     return float(np.mean(totals[0] < totals[1]))
 
 
-def _total(curves: _PairCurves, o: np.ndarray) -> float:
-    """The summed relative cost of every pair at offsets ``o`` (full data)."""
+def _total(curves: _PairCurves, o: np.ndarray, skip: set[int]) -> float:
+    """The summed relative cost of every pair at offsets ``o`` (full data; the pairs
+    with a camera of ``skip`` left out)."""
     return float(sum(curves.value(a, b, np.array([o[b] - o[a]]))[0, 0]
-                     for (a, b) in curves.terms))
+                     for (a, b) in curves.terms if a not in skip and b not in skip))
 
 
 def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:

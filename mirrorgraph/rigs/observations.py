@@ -47,7 +47,8 @@ from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, pai
 from ..preprocess import check_image_size, fraction_outside, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
-from .clocks import OFFSET_WINDOW, ClockEstimate, find_clocks, frame_step as _step, on_rig_clock
+from .clocks import (OFFSET_WINDOW, ClockEstimate, find_clocks, frame_step as _step,
+                     on_rig_clock, rig_frames)
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates
 from .epipolar import inlier_threshold_px
@@ -515,8 +516,12 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         intr = _intrinsics(entry, data, warnings, estimate_focal, fov_deg)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)
-        per_camera.append((entry, intr, np.asarray(data.frame_ids, dtype=np.int64), sorting,
-                           data.source))
+        ids = rig_frames(data.frame_ids, data.fps, read[0].fps)   # the first camera's rate
+        if len(ids) > 1 and ids[-1] - ids[0] != data.frame_ids[-1] - data.frame_ids[0]:
+            warnings.append(f"camera {entry.name}: {data.fps:g} fps, camera "
+                            f"{config.cameras[0].name} {read[0].fps:g} fps: its frames put on "
+                            "the first camera's clock (frame_offset in its frames)")
+        per_camera.append((entry, intr, ids, sorting, data.source))
         fps = fps or data.fps
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mirrorgraph.io import write_keypoints
 from mirrorgraph.metrics import rotation_error_deg
 from mirrorgraph.pipelines.rig import calibrate_rig
 from mirrorgraph.rigs.clocks import resample
@@ -110,3 +111,25 @@ def test_resample_moves_a_trajectory_by_a_fraction():
     assert np.isnan(b[-1, 0, 0]) and b[-1, 0, 2] == 0
     c = resample(a, -1.5)
     assert np.allclose(c[2:, 0, 0], t[2:] - 1.5) and np.isnan(c[:2, 0, 0]).all()
+
+
+def test_a_camera_at_half_the_frame_rate_is_put_on_the_rig_clock(tmp_path):
+    """cam03 films at 30 fps beside 60 fps cameras, 3 frames (of 60 fps) early; cam02 is 5
+    late: cam03's offset found from each input's own frame rate, its frames on every other
+    frame of the rig's clock; cam02's within a frame, its std covering the error."""
+    offsets = (0.0, 5.0, -3.0, 0.0)
+    rig = unsynchronised_rig("4cams", offsets, frames=2 * FRAMES, upsample=2, fps=60.0,
+                             rates=(1, 1, 2, 1), seed=0, noise_std=4.0)
+    path = write_rig(rig, tmp_path)
+    for name, det in rig.detections.items():      # the files say each camera's frame rate
+        write_keypoints(det, tmp_path / "pose" / f"{name}_json", "openpose", meta=True)
+    obs = load_observations(load_rig_config(path))
+    clocks = [c.clock for c in obs.cameras]
+    assert clocks[2].whole == -3 and clocks[3].whole == 0, clocks
+    # at 60 fps this motion fixes cam02's whole offset to about a frame: its std says so
+    err = abs(clocks[1].offset - 5.0)
+    assert err <= 1.0 and err <= 2 * clocks[1].std, clocks
+    assert any("cam03" in w and "30 fps" in w for w in obs.warnings), obs.warnings
+    seen = np.isfinite(obs.cameras[2].real[..., 0]).any(-1)
+    frames = obs.frame_ids[seen]
+    assert len(frames) > 0.4 * FRAMES and np.all((frames - 3) % 2 == 0), frames[:10]
