@@ -61,8 +61,8 @@ class CalibrateOptions:
         time_offsets: ``"search"`` (default): every camera's time offset against the
             first camera found from the people, whole frames then a fraction
             (:mod:`mirrorgraph.rigs.clocks`), the rig file's ``frame_offset`` the centre of
-            the search (a warning where the people put a camera elsewhere), and applied to
-            its keypoints; ``"fixed"``: the rig file's ``frame_offset`` as given, no search.
+            the search and kept unless the people fit another offset significantly better
+            (a warning where they put a camera elsewhere), and applied to its keypoints; ``"fixed"``: the rig file's ``frame_offset`` as given, no search.
         offset_window: frames searched either way of a camera's given offset.
 
     **Initialisation**

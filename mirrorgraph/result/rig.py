@@ -84,7 +84,9 @@ class RigCamera:
             the people, :mod:`mirrorgraph.rigs.clocks`).
         time_offset_std: its std, frames (0 for the first camera; NaN where taken as
             given).
-        time_offset_source: ``"reference"``, ``"search"`` or ``"given"``.
+        time_offset_source: ``"reference"``, ``"search"`` (the search's: the rig file's
+            offset where the people do not significantly prefer another) or ``"given"``
+            (not searched).
     """
 
     name: str

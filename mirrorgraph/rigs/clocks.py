@@ -24,8 +24,10 @@ frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fract
    least :data:`ACCEPT_LEVEL` of the draws; else it keeps the given offset. The spread
    of the draws' best offset is the whole offset's std: large where the people hardly
    fix the camera's time.
-3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera):
-   about the whole offset each joint's trajectory is the least-squares quadratic through
+3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera),
+   about a whole offset the people fix or moved the camera to (``dt`` within
+   :data:`FRACTION_REACH` samples, so that it also settles a whole offset the scan leaves
+   a sample either way): each joint's trajectory is the least-squares quadratic through
    ``2 HALF_WINDOW + 1`` samples (a Savitzky-Golay filter evaluated between samples; the
    reference's the same filter at its sample), the camera's evaluated at ``t + s + dt``;
    the relative pose (five parameters) and ``dt`` are fitted together by robust least
@@ -41,6 +43,10 @@ Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises
 frames from the keypoints' speeds instead. :func:`resample` puts a camera's keypoints on
 the rig's frames for a fractional offset (linear interpolation of each joint between the
 two frames around it).
+
+Cameras at different frame rates are first put on the reference's clock
+(:func:`rig_frames`, from each input's own rate); the scans then run on the finest grid
+of samples, a slower camera seen on every n-th.
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
@@ -59,7 +65,7 @@ from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
 
-__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE",
+__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
            "ACCEPT_LEVEL", "FRACTION_Z", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
            "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
            "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_frames",
@@ -88,6 +94,9 @@ ACCEPT_LEVEL = 0.99
 #: A fraction of a frame is applied where it exceeds this many of its stds (the
 #: two-sided normal test at 1 %).
 FRACTION_Z = 2.576
+#: Samples either way of the whole offset the sub-frame fit may move it (beyond one:
+#: it also settles a whole offset the scan leaves a sample either way).
+FRACTION_REACH = 2.0
 #: The sub-frame fit keeps the correspondences within this many robust stds of the
 #: whole shift's essential matrix.
 INLIER_SCALES = 3.0
@@ -209,8 +218,24 @@ def _evenly(n: int, most: int) -> np.ndarray:
     return np.arange(n) if n <= most else np.linspace(0, n - 1, most).round().astype(int)
 
 
+def coarse_cost(camera: np.ndarray, reference: np.ndarray, shifts, *, seed: int = 0
+                ) -> np.ndarray:
+    """``(S,)`` the coarse scan (normalised units): at every :data:`COARSE_STRIDE`-th
+    shift with enough correspondences, the least median Sampson distance of an essential
+    matrix fitted at that shift alone (``inf`` elsewhere)."""
+    shifts = np.asarray(list(shifts), int)
+    out = np.full(len(shifts), np.inf)
+    judged = [i for i, s in enumerate(shifts)
+              if len(_pairs(camera, reference, int(s))[0]) >= MIN_CORRESPONDENCES]
+    for i in judged[::COARSE_STRIDE]:
+        xa, xb, _ = _pairs(camera, reference, int(shifts[i]))
+        keep = _evenly(len(xa), COARSE_CORRESPONDENCES)
+        out[i] = _essential(xa[keep], xb[keep], seed)[1]
+    return out
+
+
 def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
-                *, seed: int = 0) -> ShiftScan:
+                *, seed: int = 0, coarse: np.ndarray | None = None) -> ShiftScan:
     """The epipolar cost of ``camera`` against ``reference`` per whole shift (see the
     module docstring, step 1).
 
@@ -220,6 +245,7 @@ def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
         f: a focal length, pixels (the cost's scale).
         shifts: the shifts tried, samples (the camera's ``t + s`` against ``t``).
         seed: OpenCV's RANSAC seed.
+        coarse: the coarse scan (:func:`coarse_cost`) where already made.
     """
     shifts = np.asarray(list(shifts), int)
     S = len(shifts)
@@ -231,11 +257,10 @@ def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
                      distances=[None] * S, rows=[None] * S)
     if not judged.size:
         return scan
-    coarse = np.full(S, np.inf)
-    for i in judged[::COARSE_STRIDE]:
-        xa, xb, _ = found[i]
-        keep = _evenly(len(xa), COARSE_CORRESPONDENCES)
-        coarse[i] = _essential(xa[keep], xb[keep], seed)[1]
+    if coarse is None:
+        coarse = coarse_cost(camera, reference, shifts, seed=seed)
+    if not np.isfinite(coarse).any():
+        return scan
     i0 = int(np.argmin(coarse))
     pool = [i for i in (i0 - 1, i0, i0 + 1) if 0 <= i < S and corr[i] >= MIN_CORRESPONDENCES]
     xa = np.concatenate([found[i][0] for i in pool])
@@ -357,7 +382,7 @@ HALF_WINDOW = 3
 def _local_quadratic(u: float) -> np.ndarray:
     """``(2 HALF_WINDOW + 1,)`` weights of the samples ``-HALF_WINDOW..HALF_WINDOW`` giving
     the least-squares quadratic through them at ``u`` (a Savitzky-Golay filter at any
-    point): smooth in ``u``, and with nearly the same noise for every ``u`` in [-1, 1]."""
+    point): smooth in ``u``, its noise varying a little with ``u`` (:func:`_noise_factor`)."""
     x = np.arange(-HALF_WINDOW, HALF_WINDOW + 1, dtype=float)
     X = np.vander(x, 3, increasing=True)
     return np.array([1.0, u, u * u]) @ np.linalg.solve(X.T @ X, X.T)
@@ -426,9 +451,10 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px):
         d *= np.sqrt(2 * v0 / (v0 + _noise_factor(p[5])))
         return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
-    x0 = np.array([0, 0, 0, 0, 0, float(np.clip(dt0, -0.99, 0.99))])
-    lo = np.array([-np.inf] * 5 + [-1.0])
-    hi = np.array([np.inf] * 5 + [1.0])
+    r = FRACTION_REACH
+    x0 = np.array([0, 0, 0, 0, 0, float(np.clip(dt0, -0.99 * r, 0.99 * r))])
+    lo = np.array([-np.inf] * 5 + [-r])
+    hi = np.array([np.inf] * 5 + [r])
     res = least_squares(residuals, x0, bounds=(lo, hi), loss="huber", f_scale=huber_px,
                         x_scale="jac", diff_step=1e-4, max_nfev=200)
     R, t = parts(res.x)
@@ -437,7 +463,7 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px):
 
 def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
                     *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
-    """The fraction of a sample ``dt`` (in [-1, 1]) by which ``camera``'s sample ``t + shift
+    """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which ``camera``'s sample ``t + shift
     + dt`` matches ``reference``'s ``t`` best, and its std (see the module docstring).
 
     The residuals' scale is read from the data: ``s`` = 1.4826 times the median Sampson
@@ -473,7 +499,7 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     huber = scale * f
     # the start: the best of a coarse grid of dt under the shift's pose
     Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
-    grid = np.linspace(-1.0, 1.0, 9)
+    grid = np.linspace(-FRACTION_REACH, FRACTION_REACH, int(8 * FRACTION_REACH) + 1)
     costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, g), xb) * f, huber))
                       for g in grid])
     dt, R, t = _fit_subframe(A3, xb, R0, t0, _parabola_min(grid, costs), f, huber)
@@ -632,17 +658,19 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
                                frame_ids[c], base, step, length) for s in options]
         f = 0.5 * (focal[0] + focal[c])
-        tried = [scan_shifts(d, seqs[0], f, range(rel[c] - reach, rel[c] + reach + 1),
-                             seed=seed) for d in dense]
-        lowest = [np.nanmin(s.cost) if np.isfinite(s.cost).any() else np.inf for s in tried]
-        pick = int(np.argmin(lowest))
+        window = range(rel[c] - reach, rel[c] + reach + 1)
+        # the candidates ranked by the coarse scan; the one that fits best scanned in full
+        coarse = [coarse_cost(d, seqs[0], window, seed=seed) for d in dense]
+        pick = int(np.argmin([c_.min() for c_ in coarse]))
         seqs[c] = dense[pick]
-        if np.isfinite(lowest[pick]):
-            scans[(0, c)] = tried[pick]
+        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed, coarse=coarse[pick])
+        if np.isfinite(scan.cost).any():
+            scans[(0, c)] = scan
         else:
-            n = int(max(s.correspondences.max() for s in tried))
+            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in window), default=0)
+                        for d in dense))
             out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                   given=given[c], scan=tried[pick],
+                                   given=given[c], scan=scan,
                                    note=f"too few joints seen with the reference camera at "
                                         f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
                                         f"needed): kept as given ({given[c]})")
@@ -692,9 +720,10 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
         whole_std = 0.0 if near else float(np.std(draws)) * step
         f = 0.5 * (focal[0] + focal[c])
-        # a fraction means something only about a whole offset the people fix
+        # a fraction means something only about a whole offset the people fix, or one
+        # they moved the camera to (where it may also settle the whole offset)
         dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
-                      if near else (0.0, float("nan")))
+                      if near or o[c] != rel[c] else (0.0, float("nan")))
         frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
         offset = (o[c] + frac) * step + given[0]
         std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))

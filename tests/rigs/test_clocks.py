@@ -10,7 +10,7 @@ import pytest
 from mirrorgraph.io import write_keypoints
 from mirrorgraph.metrics import rotation_error_deg
 from mirrorgraph.pipelines.rig import calibrate_rig
-from mirrorgraph.rigs.clocks import resample
+from mirrorgraph.rigs.clocks import FRACTION_REACH, resample
 from mirrorgraph.rigs.config import load_rig_config
 from mirrorgraph.rigs.observations import load_observations
 from mirrorgraph.synth.rig import write_rig
@@ -99,7 +99,7 @@ def test_given_offsets_centre_the_search(offset_rig):
     assert any("cam02" in w and "frame_offset = 10" in w for w in obs.warnings), obs.warnings
     far = _with_offsets(path, "far.toml", {}, keep=("cam01", "cam02"))
     obs = load_observations(load_rig_config(far), offset_window=4)
-    assert obs.cameras[1].clock.offset <= 5.0
+    assert obs.cameras[1].clock.offset <= 4 + FRACTION_REACH
     assert any("cam02" in w and "edge of the search window" in w for w in obs.warnings)
 
 
@@ -115,8 +115,8 @@ def test_resample_moves_a_trajectory_by_a_fraction():
 
 def test_a_camera_at_half_the_frame_rate_is_put_on_the_rig_clock(tmp_path):
     """cam03 films at 30 fps beside 60 fps cameras, 3 frames (of 60 fps) early; cam02 is 5
-    late: cam03's offset found from each input's own frame rate, its frames on every other
-    frame of the rig's clock; cam02's within a frame, its std covering the error."""
+    late: both found from each input's own frame rate, cam03's frames on every other frame
+    of the rig's clock."""
     offsets = (0.0, 5.0, -3.0, 0.0)
     rig = unsynchronised_rig("4cams", offsets, frames=2 * FRAMES, upsample=2, fps=60.0,
                              rates=(1, 1, 2, 1), seed=0, noise_std=4.0)
@@ -125,10 +125,8 @@ def test_a_camera_at_half_the_frame_rate_is_put_on_the_rig_clock(tmp_path):
         write_keypoints(det, tmp_path / "pose" / f"{name}_json", "openpose", meta=True)
     obs = load_observations(load_rig_config(path))
     clocks = [c.clock for c in obs.cameras]
-    assert clocks[2].whole == -3 and clocks[3].whole == 0, clocks
-    # at 60 fps this motion fixes cam02's whole offset to about a frame: its std says so
-    err = abs(clocks[1].offset - 5.0)
-    assert err <= 1.0 and err <= 2 * clocks[1].std, clocks
+    assert [c.whole for c in clocks] == [0, 5, -3, 0], clocks
+    assert abs(clocks[1].offset - 5.0) < 0.15, clocks
     assert any("cam03" in w and "30 fps" in w for w in obs.warnings), obs.warnings
     seen = np.isfinite(obs.cameras[2].real[..., 0]).any(-1)
     frames = obs.frame_ids[seen]
