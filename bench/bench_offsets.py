@@ -129,7 +129,7 @@ def demo(out: Path, cache: Path) -> tuple[list[str], dict]:
     q_base = _qualisys_errors(base, truth)
     print(f"synchronised, offsets given: {t_fixed:.1f} s, vs Qualisys "
           f"{', '.join(f'{r:.2f}' for r in q_base)} deg", flush=True)
-    # cam02 put 1 and 2 frames early with the offsets given (its frames renumbered late):
+    # cam02 at offsets -1 and -2 (its frames renumbered 1 and 2 later, the offsets given):
     # how far that moves it from the Qualisys calibration
     early = []
     for k in (1, 2):
@@ -170,9 +170,8 @@ def demo(out: Path, cache: Path) -> tuple[list[str], dict]:
     table = [f"Synchronised run with the offsets given (`time_offsets=\"fixed\"`): {t_fixed:.1f} s "
              f"before the runs below, {t_again:.1f} s after (the ratios use the first); "
              f"its rotations against the Qualisys calibration "
-             f"{', '.join(f'{r:.2f}' for r in q_base)} deg (cam02-04); with cam02 taken as "
-             f"1 or 2 frames early instead (offsets given): cam02 {early[0]:.2f} or "
-             f"{early[1]:.2f} deg off Qualisys.",
+             f"{', '.join(f'{r:.2f}' for r in q_base)} deg (cam02-04); with cam02 at offset -1 "
+             f"or -2 instead (given): cam02 {early[0]:.2f} or {early[1]:.2f} deg off Qualisys.",
              "", "| shifts applied (cam02-04, frames; the truth) | offsets found ± std (frames) | "
              "every whole offset = the truth | rotation vs synchronised run (deg) | "
              "rotation vs Qualisys (deg) | time (s, vs offsets given) |",
