@@ -663,11 +663,12 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                                frame_ids[c], base, step, length) for s in options]
         f = 0.5 * (focal[0] + focal[c])
         window = range(rel[c] - reach, rel[c] + reach + 1)
-        # the candidates ranked by the coarse scan; the one that fits best scanned in full
-        coarse = [coarse_cost(d, seqs[0], window, seed=seed) for d in dense]
-        pick = int(np.argmin([c_.min() for c_ in coarse]))
+        # several candidates: ranked by a coarser scan (every other shift of the coarse
+        # one); the one that fits best scanned in full
+        pick = 0 if len(dense) == 1 else int(np.argmin(
+            [coarse_cost(d, seqs[0], window[::2], seed=seed).min() for d in dense]))
         seqs[c] = dense[pick]
-        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed, coarse=coarse[pick])
+        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed)
         if np.isfinite(scan.cost).any():
             scans[(0, c)] = scan
         else:
