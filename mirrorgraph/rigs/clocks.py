@@ -2,51 +2,30 @@
 
 A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
 frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. The offsets are found in three steps:
+``o`` puts its frames between the rig's. Three steps:
 
-1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): for every shift ``s``
-   of a window, camera ``b``'s joints at its sample ``t + s`` are matched with camera
-   ``a``'s at ``t``; the shift's cost is the median Sampson distance (pixels) under the
-   pair's essential matrix. The cameras do not move, so one relative pose serves every
-   shift: it is fitted (OpenCV's five-point solver in LMedS: no threshold, hence no
-   guess of the detector's noise) about the best of a coarse scan (every
-   :data:`COARSE_STRIDE`-th shift, its own matrix each), twice, once on the even and
-   once on the odd blocks of :data:`BOOTSTRAP_BLOCK` samples, and each correspondence is
-   judged by the matrix fitted to the other half (cross-fitting: no shift is favoured for
-   having been fitted to).
+1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): per shift, the median
+   Sampson distance (pixels) of the two cameras' joints under the pair's essential
+   matrix, one for every shift (the cameras do not move), fitted without a threshold
+   (LMedS) about the best of a coarse scan and cross-fitted over two halves of the
+   frames.
 2. **One consistent set of whole offsets** (:func:`joint_offsets`): the offsets
-   minimise the sum over the pairs of each pair's cost relative to its lowest (a pair
-   that cannot tell adds a flat curve; one whose window misses the pair's offset adds
-   its largest cost), by coordinate descent. A camera is moved from the rig file's
-   offset only where that is **significantly** better: a block bootstrap of the
-   samples (shared by every pair, the matrices held) recomputes the medians, and the
-   camera's summed cost must be lower at the found offset than at the given one in at
-   least :data:`ACCEPT_LEVEL` of the draws; else it keeps the given offset. The spread
-   of the draws' best offset is the whole offset's std: large where the people hardly
-   fix the camera's time.
+   minimising the pairs' summed costs, each relative to its lowest. A camera leaves the
+   rig file's offset only where a block bootstrap of the samples prefers the move in at
+   least :data:`ACCEPT_LEVEL` of its draws, both shifts judged by matrices fitted at
+   them; the spread of the draws' best offsets is the whole offset's std.
 3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera),
-   about a whole offset the people fix or moved the camera to (``dt`` within
-   :data:`FRACTION_REACH` samples, so that it also settles a whole offset the scan leaves
-   a sample either way): each joint's trajectory is the least-squares quadratic through
-   ``2 HALF_WINDOW + 1`` samples (a Savitzky-Golay filter evaluated between samples; the
-   reference's the same filter at its sample), the camera's evaluated at ``t + s + dt``;
-   the relative pose (five parameters) and ``dt`` are fitted together by robust least
-   squares (Huber loss on the Sampson distance, its scale the whole shift's median),
-   each residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured
-   for averaging the noise more. ``dt``'s std is the spread of that fit over a block
-   bootstrap of the reference's frames; ``dt`` is applied where it differs from 0 by
-   more than :data:`FRACTION_Z` stds (the same level as the whole offsets'), else the
-   whole offset stands.
+   about a whole offset the people fix or moved the camera to: each joint's trajectory
+   as a local quadratic, the camera's evaluated at ``t + dt``, ``dt`` and the relative
+   pose fitted by robust least squares, its std from a block bootstrap; applied where it
+   exceeds :data:`FRACTION_Z` stds.
 
 Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
 Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
 frames from the keypoints' speeds instead. :func:`resample` puts a camera's keypoints on
-the rig's frames for a fractional offset (linear interpolation of each joint between the
-two frames around it).
-
-Cameras at different frame rates are first put on the reference's clock
-(:func:`rig_frames`, from each input's own rate); the scans then run on the finest grid
-of samples, a slower camera seen on every n-th.
+the rig's frames for a fractional offset (linear interpolation). Cameras at different
+frame rates are first put on the reference's clock (:func:`rig_frames`, from each input's
+own rate); the scans run on the finest grid of samples, a slower camera on every n-th.
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
@@ -66,7 +45,7 @@ from .config import OFFSET_WINDOW
 from .failure import candidate_people
 
 __all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
-           "ACCEPT_LEVEL", "FRACTION_Z", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
+           "ACCEPT_LEVEL", "FRACTION_Z", "FRACTION_REACH", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
            "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
            "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_frames",
            "INLIER_SCALES"]
@@ -465,8 +444,17 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
 
 def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
                     *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
-    """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which ``camera``'s sample ``t + shift
-    + dt`` matches ``reference``'s ``t`` best, and its std (see the module docstring).
+    """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which
+    ``camera``'s sample ``t + shift + dt`` matches ``reference``'s ``t`` best, and its std.
+
+    Each joint's trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1``
+    samples (a Savitzky-Golay filter evaluated between samples; the reference's the same
+    filter at its sample), the camera's evaluated at ``t + shift + dt``; the relative
+    pose (five parameters) and ``dt`` are fitted together by robust least squares, each
+    residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured for
+    averaging the noise more. The std is the spread of that fit over a bootstrap of
+    blocks of :data:`BOOTSTRAP_BLOCK` of the reference's samples (the detector's error
+    and the motion are correlated over neighbouring frames).
 
     The residuals' scale is read from the data: ``s`` = 1.4826 times the median Sampson
     distance under the shift's essential matrix (the normal's MAD); correspondences
