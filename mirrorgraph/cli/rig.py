@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..errors import FailedCameraError, InputError
 from ..intrinsics import DEFAULT_FOV_DEG
+from ..rigs.config import OFFSET_WINDOW
 from ..progress import Progress, SolveProgress
 from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
@@ -75,6 +76,14 @@ def add_parsers(sub) -> None:
                         "std) instead of estimated from the people (as calibrate's --fov)")
     p.add_argument("--no-focal", action="store_true",
                    help=f"the same as --fov {DEFAULT_FOV_DEG:g} (kept for scripts that use it)")
+    p.add_argument("--fixed-offsets", action="store_true",
+                   help="take every camera's frame_offset in the rig file as given (default: "
+                        "each camera's time offset is found from the people, to a fraction of "
+                        "a frame, about the rig file's frame_offset)")
+    p.add_argument("--offset-window", type=lambda t: int(positive(t)), default=OFFSET_WINDOW,
+                   metavar="FRAMES",
+                   help=f"frames searched either way of a camera's frame_offset (default "
+                        f"{OFFSET_WINDOW})")
     p.add_argument("--keep-failed", action="store_true",
                    help="a camera that fits under half of its keypoints fails the run (nothing "
                         "written, exit 2); with this flag the other cameras are written, the "
@@ -170,7 +179,9 @@ def cmd_calibrate_rig(args) -> int:
                                 joints=args.joints, seed=args.seed, detection=vopts,
                                 refine_options=RefineOptions(scale_from=args.scale_from),
                                 estimate_focal=not held, people=args.people,
-                                fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG)
+                                fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG,
+                                time_offsets="fixed" if args.fixed_offsets else "search",
+                                offset_window=args.offset_window)
         try:
             calib = calibrate_rig(config, opts, progress=status_and_bars,
                                   iteration_progress=solve, frame_progress=frame_progress,

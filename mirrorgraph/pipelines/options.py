@@ -20,6 +20,10 @@ from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..graph.options import RefineOptions, one_subject_height
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from ..rigs.config import OFFSET_WINDOW
+
+#: The values of :attr:`CalibrateOptions.time_offsets`.
+TIME_OFFSETS = ("search", "fixed")
 
 __all__ = ["CalibrateOptions", "PEOPLE"]
 
@@ -59,6 +63,17 @@ class CalibrateOptions:
             --people all`` runs :func:`mirrorgraph.pipelines.people.calibrate_people`);
             ``"one"``: the person seen longest only. ``None``: the run's default
             (``"one"``: :data:`mirrorgraph.pipelines.rig.DEFAULT_PEOPLE`).
+
+    **Time** (a rig's cameras)
+
+    Attributes:
+        time_offsets: ``"search"`` (default): every camera's time offset against the
+            first camera found from the people, whole frames then a fraction
+            (:mod:`mirrorgraph.rigs.clocks`), the rig file's ``frame_offset`` the centre of
+            the search and kept unless the people fit another offset significantly better
+            (a warning where they put a camera elsewhere), and applied to its keypoints;
+            ``"fixed"``: the rig file's ``frame_offset`` as given, no search.
+        offset_window: frames searched either way of a camera's given offset.
 
     **Initialisation**
 
@@ -120,6 +135,9 @@ class CalibrateOptions:
     fps: float | None = None
     video: str | os.PathLike | None = None
     people: str | None = None
+    # time (a rig's cameras)
+    time_offsets: str = "search"
+    offset_window: int = OFFSET_WINDOW
     # initialisation
     estimator: str = "reflective"
     threshold_px: float = DEFAULT_THRESHOLD_PX
@@ -168,6 +186,14 @@ class CalibrateOptions:
         if (isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer))
                 or self.seed < 0):
             raise InputError(f"must be a non-negative integer, got {self.seed!r}", field="seed")
+        if self.time_offsets not in TIME_OFFSETS:
+            raise InputError(f"unknown time_offsets {self.time_offsets!r}; choose one of "
+                             f"{', '.join(TIME_OFFSETS)}", field="time_offsets")
+        if (isinstance(self.offset_window, bool) or not isinstance(self.offset_window,
+                                                                    (int, np.integer))
+                or self.offset_window < 1):
+            raise InputError(f"must be a positive number of frames, got {self.offset_window!r}",
+                             field="offset_window")
         if not 0 < float(self.fov_deg) < 180:
             raise InputError(f"a field of view must lie between 0 and 180 deg, not "
                              f"{self.fov_deg}", field="fov_deg")

@@ -141,7 +141,9 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     obs = load_observations(cfg, skeleton=run.skeleton,                   # observations
                             progress=lambda name: say(f"reading camera {name}"),
                             video=run.detection, frame_progress=frame_progress,
-                            estimate_focal=estimate_focal, fov_deg=run.fov_deg)
+                            estimate_focal=estimate_focal, fov_deg=run.fov_deg,
+                            time_offsets=run.time_offsets, offset_window=run.offset_window,
+                            seed=seed)
     warnings = list(obs.warnings)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
@@ -327,6 +329,14 @@ def _judge_cameras(cfg, obs, cameras: list[RigCamera], sol, direct: np.ndarray,
     return [cameras[i].name for i in bad]
 
 
+def _clock(clock) -> dict:
+    """A camera's time offset as :class:`RigCamera` fields."""
+    if clock is None:
+        return {}
+    return dict(time_offset_frames=float(clock.offset), time_offset_std=float(clock.std),
+                time_offset_source=clock.source)
+
+
 def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_stature=None
              ) -> tuple[list[RigCamera], list[RigMirror]]:
     """The result's cameras and mirrors from the solution: poses, intrinsics (an estimated
@@ -359,7 +369,7 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_sta
                                  marginal_rotation_std_deg=camera_std(mcov, pose)[0],
                                  reprojection_rms_px=rms.get(c.name, float("nan")),
                                  observations=counts.get(c.name, 0), lr_fixes=c.lr_fixes,
-                                 matched_frames=c.matched))
+                                 matched_frames=c.matched, **_clock(c.clock)))
     mirrors = []
     for i, name in enumerate(sol.mirror_names):
         n, d = sol.planes[i]

@@ -78,6 +78,15 @@ class RigCamera:
         status: ``"ok"``, or ``"failed"``: under half of its keypoints fit the rig
             (:data:`mirrorgraph.rigs.failure.MIN_FIT_SHARE`), its pose is not to be used.
         reason: why it failed, in words (the likeliest cause), else ``""``.
+        time_offset_frames: its time offset, frames of the rig's clock (the first
+            camera's): its frame ``f`` is the rig's frame ``f - time_offset_frames``
+            (the rig file's ``frame_offset`` convention; fractional where found from
+            the people, :mod:`mirrorgraph.rigs.clocks`).
+        time_offset_std: its std, frames (0 for the first camera; NaN where taken as
+            given).
+        time_offset_source: ``"reference"``, ``"search"`` (the search's: the rig file's
+            offset where the people do not significantly prefer another) or ``"given"``
+            (not searched).
     """
 
     name: str
@@ -93,6 +102,9 @@ class RigCamera:
     fit_share: float = float("nan")
     status: str = "ok"
     reason: str = ""
+    time_offset_frames: float = 0.0
+    time_offset_std: float = float("nan")
+    time_offset_source: str = "given"
 
     @property
     def failed(self) -> bool:
@@ -347,6 +359,9 @@ class RigCalibration:
                 "matched_frames": c.matched_frames,
                 "fit_share": c.fit_share, "status": c.status,
                 "reason": c.reason or None,
+                "time_offset_frames": c.time_offset_frames,
+                "time_offset_std": c.time_offset_std,
+                "time_offset_source": c.time_offset_source,
             } for c in self.cameras],
             "mirrors": [{
                 "name": m.name, "normal": np.asarray(m.normal).tolist(), "distance": m.distance,
@@ -378,7 +393,8 @@ class RigCalibration:
                 continue
             lines.append(f"camera {c.name:<10} centre [{pos[0]:+.3f}, {pos[1]:+.3f}, "
                          f"{pos[2]:+.3f}] {unit}  rot std {c.rotation_std_deg:.3f} deg  "
-                         f"pos std {c.position_std:.4f} {unit}  rms {c.reprojection_rms_px:.2f} px")
+                         f"pos std {c.position_std:.4f} {unit}  rms {c.reprojection_rms_px:.2f} px"
+                         + _time_offset(c))
         for m in self.mirrors:
             n = m.normal
             lines.append(f"mirror {m.name:<10} normal [{n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}] "
@@ -394,6 +410,15 @@ class RigCalibration:
                                        "subject_height or --subject-height for metres)"))
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _time_offset(c: RigCamera) -> str:
+    """The summary's words on a camera's time offset: ``""`` for the reference."""
+    if c.time_offset_source == "reference":
+        return ""
+    if c.time_offset_source == "search":
+        return f"  time offset {c.time_offset_frames:+.2f} +- {c.time_offset_std:.2f} frames"
+    return f"  time offset {c.time_offset_frames:+g} frames (given)"
 
 
 def is_rig_document(obj: Any) -> bool:
@@ -460,7 +485,10 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
             observations=int(c.get("observations") or 0), lr_fixes=int(c.get("lr_fixes") or 0),
             matched_frames=int(c.get("matched_frames") or 0),
             fit_share=fnum(c.get("fit_share"), f"{at}.fit_share"),
-            status=str(c.get("status") or "ok"), reason=str(c.get("reason") or "")))
+            status=str(c.get("status") or "ok"), reason=str(c.get("reason") or ""),
+            time_offset_frames=fnum(c.get("time_offset_frames", 0.0), f"{at}.time_offset_frames"),
+            time_offset_std=fnum(c.get("time_offset_std"), f"{at}.time_offset_std"),
+            time_offset_source=str(c.get("time_offset_source") or "given")))
     mirrors = []
     for i, m in enumerate(obj["mirrors"]):
         at = f"mirrors[{i}]"

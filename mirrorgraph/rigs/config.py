@@ -45,6 +45,10 @@ __all__ = ["CameraEntry", "RigConfig", "load_rig_config"]
 #: ``mirrorgraph batch`` looks for in a recording's folder).
 RIG_FILE = "rig.toml"
 
+#: Frames searched either way of a camera's ``frame_offset`` when its time offset is found
+#: from the people (:mod:`mirrorgraph.rigs.clocks`).
+OFFSET_WINDOW = 15
+
 @dataclass(frozen=True)
 class CameraEntry:
     """One ``[[cameras]]`` table, paths resolved.

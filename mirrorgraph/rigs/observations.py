@@ -4,7 +4,8 @@ For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the keypo
 format of :func:`mirrorgraph.io.read_keypoints`), read the intrinsics and undistort, then
 sort every frame into the person and, for each mirror the camera sees, their reflection
 (labels flipped to the real joints). Frames are put on the rig's clock with each camera's
-``frame_offset``.
+time offset: found from the person to a fraction of a frame (:mod:`.clocks`, the rig
+file's ``frame_offset`` the search's centre) or the rig file's as given.
 
 Who the person is, camera by camera:
 
@@ -32,6 +33,7 @@ undistorted pixels; NaN coordinates and confidence 0 where a camera has no obser
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -45,6 +47,8 @@ from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, pai
 from ..preprocess import check_image_size, fraction_outside, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
+from .clocks import (OFFSET_WINDOW, ClockEstimate, find_clocks, frame_step as _step,
+                     on_rig_clock, rig_frames)
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates
 from .epipolar import inlier_threshold_px
@@ -87,6 +91,8 @@ class CameraObservations:
             would take frame by frame (the most confident candidate; with mirrors
             the person of the frame's best pair): chosen by the cross-camera match
             or, in the first camera, by following the subject's track.
+        clock: its time offset (:class:`~mirrorgraph.rigs.clocks.ClockEstimate`): the
+            arrays above are on the rig's clock with it applied.
     """
 
     name: str
@@ -97,6 +103,7 @@ class CameraObservations:
     lr_fixes: int = 0
     people: list[np.ndarray] | None = None
     matched: int = 0
+    clock: ClockEstimate | None = None
 
 
 @dataclass
@@ -447,24 +454,25 @@ def _refuse_duplicates(config: RigConfig, read: list) -> None:
         seen[key] = entry.name
 
 
-def _refuse_disjoint(per_camera: list, config: RigConfig) -> None:
-    """Refuse a camera whose frames (after its ``frame_offset``) share none with the first
-    camera's: nothing is seen at once, whatever the people."""
+def _refuse_disjoint(per_camera: list, config: RigConfig, offsets: list[int]) -> None:
+    """Refuse a camera whose frames (after its time offset, ``offsets``) share none with
+    the first camera's: nothing is seen at once, whatever the people."""
     ref_entry, _, ref_frames, *_ = per_camera[0]
-    for entry, _, frames, *_ in per_camera[1:]:
+    for (entry, _, frames, *_), offset in zip(per_camera[1:], offsets[1:]):
         if len(frames) and len(ref_frames) and not np.intersect1d(frames, ref_frames).size:
             raise InputError(f"camera {entry.name}'s frames {int(frames.min())}.."
-                             f"{int(frames.max())} (after its frame_offset "
-                             f"{entry.frame_offset}) share none with camera {ref_entry.name}'s "
-                             f"{int(ref_frames.min())}..{int(ref_frames.max())}: check "
-                             "frame_offset", source=config.source, field="frame_offset")
+                             f"{int(frames.max())} (after its time offset {offset}) share "
+                             f"none with camera {ref_entry.name}'s {int(ref_frames.min())}.."
+                             f"{int(ref_frames.max())}: check frame_offset",
+                             source=config.source, field="frame_offset")
 
 
 def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = None,
                       progress: Callable[[str], None] | None = None, video=None,
                       frame_progress: Callable[[str, int, int], None] | None = None,
                       estimate_focal: bool = True,
-                      fov_deg: float | None = None) -> RigObservations:
+                      fov_deg: float | None = None, time_offsets: str = "search",
+                      offset_window: int = OFFSET_WINDOW, seed: int = 0) -> RigObservations:
     """Read, undistort and sort every camera's keypoints (see the module docstring).
 
     Args:
@@ -479,6 +487,12 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             a warning says so.
         fov_deg: the field of view of that guess (default
             :data:`~mirrorgraph.intrinsics.DEFAULT_FOV_DEG`).
+        time_offsets: ``"search"``: every camera's time offset found from the person
+            (:func:`~mirrorgraph.rigs.clocks.find_clocks`, the rig file's
+            ``frame_offset`` the centre of the search) and applied, to a fraction of a
+            frame; ``"fixed"``: the rig file's ``frame_offset`` as given.
+        offset_window: frames searched either way of a camera's given offset.
+        seed: seed of the search's random choices.
 
     Raises:
         InputError: unreadable input (naming the file), cameras with different
@@ -502,17 +516,29 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         intr = _intrinsics(entry, data, warnings, estimate_focal, fov_deg)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)
-        frames = np.asarray(data.frame_ids, dtype=np.int64) - entry.frame_offset
-        per_camera.append((entry, intr, frames, sorting, data.source))
+        ids = rig_frames(data.frame_ids, data.fps, read[0].fps)   # the first camera's rate
+        if len(ids) > 1 and ids[-1] - ids[0] != data.frame_ids[-1] - data.frame_ids[0]:
+            warnings.append(f"camera {entry.name}: {data.fps:g} fps, camera "
+                            f"{config.cameras[0].name} {read[0].fps:g} fps: its frames put on "
+                            "the first camera's clock (frame_offset in its frames)")
+        per_camera.append((entry, intr, ids, sorting, data.source))
         fps = fps or data.fps
-    _refuse_disjoint(per_camera, config)
-    frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
-    T, J = len(frame_ids), sk.num_joints
-    rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]
-
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
+    clocks = find_clocks([(s.real, s.people) for _, _, _, s, _ in per_camera],
+                         [f for _, _, f, *_ in per_camera],
+                         [i.K for _, i, *_ in per_camera], [e.frame_offset for e in config.cameras],
+                         sk.calibration_joints, search=time_offsets == "search",
+                         window=offset_window, seed=seed)
+    warnings += [f"camera {e.name}: time offset {c.note}" for e, c in
+                 zip(config.cameras, clocks) if c.note]
+    per_camera = [(e, i, f - c.whole, *rest)
+                  for (e, i, f, *rest), c in zip(per_camera, clocks)]
+    _refuse_disjoint(per_camera, config, [c.whole for c in clocks])
+    frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
+    T, J = len(frame_ids), sk.num_joints
+    rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]
     ref_person = _place(ref.real, rows[0], T)
     for (entry, intr, f, sorting, source), r in zip(per_camera[1:], rows[1:]):
         if sorting.people is not None:      # one candidate a frame may still be another person
@@ -521,15 +547,17 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
                           sk, source, step)
 
     cameras = []
-    for (entry, intr, _, sorting, source), r in zip(per_camera, rows):
+    for (entry, intr, _, sorting, source), r, clock in zip(per_camera, rows, clocks):
         people = None
         if sorting.people is not None:
             people = [np.zeros((0, J, 3))] * T
             for row, p in zip(r, sorting.people):
                 people[row] = p
+        on_clock = partial(on_rig_clock, clock=clock, step=_step(frame_ids))
         cameras.append(CameraObservations(
-            name=entry.name, intrinsics=intr, real=_place(sorting.real, r, T),
-            reflections={m: _place(a, r, T) for m, a in sorting.reflections.items()},
-            source=source, lr_fixes=sorting.lr_fixes, people=people, matched=sorting.matched))
+            name=entry.name, intrinsics=intr, real=on_clock(_place(sorting.real, r, T)),
+            reflections={m: on_clock(_place(a, r, T)) for m, a in sorting.reflections.items()},
+            source=source, lr_fixes=sorting.lr_fixes, people=people, matched=sorting.matched,
+            clock=clock))
     return RigObservations(skeleton=sk, frame_ids=frame_ids, cameras=cameras,
                            mirrors=config.mirrors, fps=fps, warnings=warnings)

@@ -121,8 +121,9 @@ def test_calibrate_rig_on_real_videos_agrees_with_qualisys(trial, tmp_path, monk
 
 def test_a_camera_renumbered_late_is_never_written(tmp_path, monkeypatch):
     """Demo_SinglePerson with cam03's frames renumbered 9 frames late (``frame_offset =
-    -9``; the slice's every 3rd frame): the rig kept 1 % of cam03's keypoints, put it 29 deg
-    off and returned it with a warning; now it is refused, naming the shift that undoes it."""
+    -9``; the slice's every 3rd frame) and the offsets taken as given: the rig kept 1 % of
+    cam03's keypoints, put it 29 deg off and returned it with a warning; now it is refused,
+    naming the shift that undoes it."""
     from mirrorgraph.errors import DegenerateGeometryError
     from mirrorgraph.video import VideoOptions
     root = _demo_root()
@@ -133,6 +134,6 @@ def test_a_camera_renumbered_late_is_never_written(tmp_path, monkeypatch):
     path.write_text("[[cameras]]".join(parts))
     video = VideoOptions(start=START, end=END, every=EVERY, cache_dir=tmp_path / "cache")
     with pytest.raises(DegenerateGeometryError) as info:
-        calibrate_rig(path, CalibrateOptions(detection=video))
+        calibrate_rig(path, CalibrateOptions(detection=video, time_offsets="fixed"))
     msg = str(info.value)
     assert "cam03" in msg and "shifted by +9" in msg and "frame_offset = 0" in msg, msg

@@ -1,5 +1,9 @@
 """A rig camera that fits under half of its keypoints: marked failed with its likeliest
-cause, never written with exit 0 (synthetic rigs with a known cause)."""
+cause, never written with exit 0 (synthetic rigs with a known cause).
+
+A camera's wrong ``frame_offset`` is the cause tested here: with the offsets taken as given
+(``time_offsets="fixed"``, ``--fixed-offsets``); the default search undoes it
+(tests/rigs/test_clocks.py)."""
 
 from __future__ import annotations
 
@@ -14,11 +18,16 @@ from mirrorgraph.cli.rig import EXIT_FAILED_CAMERA
 from mirrorgraph.errors import DegenerateGeometryError, FailedCameraError
 from mirrorgraph.initial.rig import observed
 from mirrorgraph.metrics import rotation_error_deg
+from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.pipelines.rig import calibrate_rig
 from mirrorgraph.rigs.config import load_rig_config
 from mirrorgraph.rigs.failure import failure_cause, fit_shares, scan_offsets
 from mirrorgraph.rigs.observations import load_observations
 from mirrorgraph.synth.rig import make_rig, write_rig
+
+
+#: The rig files' frame offsets as given (no search).
+FIXED = CalibrateOptions(time_offsets="fixed")
 
 
 def _shifted_rig(folder, shift: int, camera: int = 2, seed: int = 0, fps: float = 30.0):
@@ -53,7 +62,7 @@ def test_scan_finds_a_ten_frame_shift_and_nothing_in_a_synchronised_camera(tmp_p
     is the frame offset that undoes it; a synchronised camera's best shift is 0."""
     _, path = _shifted_rig(tmp_path, 10)
     cfg = load_rig_config(path)
-    obs = load_observations(cfg)
+    obs = load_observations(cfg, time_offsets="fixed")
     pts, Ks = _points(obs), [c.intrinsics.K for c in obs.cameras]
     scan = scan_offsets(pts, Ks, 2, [0, 1, 3], 8.0)
     assert scan.best == -10
@@ -86,7 +95,7 @@ def late_rig(tmp_path_factory):
 def test_a_camera_under_half_is_refused_with_its_cause(late_rig):
     _, path = late_rig
     with pytest.raises(FailedCameraError) as info:
-        calibrate_rig(path)
+        calibrate_rig(path, FIXED)
     assert isinstance(info.value, DegenerateGeometryError)
     assert info.value.cameras == ("cam03",)
     msg = str(info.value)
@@ -99,13 +108,13 @@ def test_a_camera_under_half_is_refused_with_its_cause(late_rig):
 def test_keep_failed_writes_the_others_marks_it_and_exits_3(late_rig, tmp_path, capsys):
     rig, path = late_rig
     out = tmp_path / "calibration.toml"
-    assert main(["calibrate-rig", str(path), "--out", str(out)]) == 2
+    assert main(["calibrate-rig", str(path), "--out", str(out), "--fixed-offsets"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cam03" in err[0] and "--keep-failed" in err[0], err
     assert not out.exists() and not out.with_suffix(".json").exists()
 
     code = main(["calibrate-rig", str(path), "--out", str(out), "--keep-failed",
-                 "--with-virtual"])
+                 "--with-virtual", "--fixed-offsets"])
     assert code == EXIT_FAILED_CAMERA == 3
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("error:")]
     assert len(err) == 1 and "camera cam03 failed" in err[0] and "time offset" in err[0]
@@ -130,7 +139,7 @@ def test_a_camera_refused_by_the_matching_names_its_time_offset(tmp_path):
     the refusal says which offset undoes it."""
     _, path = _shifted_rig(tmp_path, 10, fps=15.0)
     with pytest.raises(DegenerateGeometryError) as info:
-        calibrate_rig(path)
+        calibrate_rig(path, FIXED)
     msg = str(info.value)
     assert "camera cam03" in msg and "time offset" in msg and "shifted by -10" in msg, msg
     assert "frame_offset = 0" in msg and "\n" not in msg

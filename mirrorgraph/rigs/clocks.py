@@ -1,0 +1,794 @@
+"""Cameras on different clocks: each camera's time offset found from the people it sees.
+
+A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
+frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
+``o`` puts its frames between the rig's. Three steps:
+
+1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): per shift, the median
+   Sampson distance (pixels) of the two cameras' joints under the pair's essential
+   matrix, one for every shift (the cameras do not move), fitted without a threshold
+   (LMedS) about the best of a coarse scan and cross-fitted over two halves of the
+   frames.
+2. **One consistent set of whole offsets** (:func:`joint_offsets`): the offsets
+   minimising the pairs' summed costs, each relative to its lowest. A camera leaves the
+   rig file's offset only where a block bootstrap of the samples prefers the move in at
+   least :data:`ACCEPT_LEVEL` of its draws, both shifts judged by matrices fitted at
+   them; the spread of the draws' best offsets is the whole offset's std.
+3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera),
+   about a whole offset the people fix or moved the camera to: each joint's trajectory
+   as a local quadratic, the camera's evaluated at ``t + dt``, ``dt`` and the relative
+   pose fitted by robust least squares, its std from a block bootstrap; applied where it
+   exceeds :data:`FRACTION_Z` stds.
+
+Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
+Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
+frames from the keypoints' speeds instead. :func:`resample` puts a camera's keypoints on
+the rig's frames for a fractional offset (linear interpolation). Cameras at different
+frame rates are first put on the reference's clock (:func:`rig_frames`, from each input's
+own rate); the scans run on the finest grid of samples, a slower camera on every n-th.
+
+Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
+samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
+apart for a video read every n-th frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..geometry import sampson_distances
+from ..keypoints import DEFAULT_MIN_CONFIDENCE
+from .config import OFFSET_WINDOW
+from .failure import candidate_people
+
+__all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
+           "ACCEPT_LEVEL", "FRACTION_Z", "FRACTION_REACH", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
+           "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
+           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_frames",
+           "INLIER_SCALES"]
+
+#: Fewer correspondences (joint pairs seen at one instant) than this at a shift: the
+#: shift is not judged.
+MIN_CORRESPONDENCES = 60
+#: Correspondences per shift judged at most (taken evenly): the scan's cost.
+MAX_CORRESPONDENCES = 1500
+#: Correspondences of one shift of the coarse scan at most.
+COARSE_CORRESPONDENCES = 300
+#: Correspondences of the sub-frame fit at most.
+SUBFRAME_CORRESPONDENCES = 1000
+#: The coarse scan fits an essential matrix at every this many shifts.
+COARSE_STRIDE = 3
+#: Samples of one block of the block bootstraps.
+BOOTSTRAP_BLOCK = 10
+#: Bootstrap resamples of the sub-frame offset's std (each a robust fit).
+BOOTSTRAP_RUNS = 12
+#: Bootstrap draws of the whole offsets' test and std (each a weighted median).
+BOOTSTRAP_DRAWS = 200
+#: A camera leaves its given whole offset where the found one fits better in this share
+#: of the bootstrap draws (a one-sided test at 1 %).
+ACCEPT_LEVEL = 0.99
+#: A fraction of a frame is applied where it exceeds this many of its stds (the
+#: two-sided normal test at 1 %).
+FRACTION_Z = 2.576
+#: Samples either way of the whole offset the sub-frame fit may move it (beyond one:
+#: it also settles a whole offset the scan leaves a sample either way).
+FRACTION_REACH = 2.0
+#: The sub-frame fit keeps the correspondences within this many robust stds of the
+#: whole shift's essential matrix.
+INLIER_SCALES = 3.0
+
+
+@dataclass
+class ShiftScan:
+    """The epipolar cost of camera ``b`` against camera ``a`` per whole shift.
+
+    Attributes:
+        shifts: ``(S,)`` samples: ``b``'s sample ``t + s`` against ``a``'s ``t`` (``s`` is
+            ``o_b - o_a`` where it fits).
+        cost: ``(S,)`` the median Sampson distance (pixels) under the pair's cross-fitted
+            essential matrices (lower fits better; NaN where fewer than
+            :data:`MIN_CORRESPONDENCES`).
+        correspondences: ``(S,)`` correspondences per shift.
+        distances: per shift the ``(n,)`` Sampson distances judged (pixels), or ``None``.
+        rows: per shift the ``(n,)`` samples ``t`` of ``a`` of those, or ``None``.
+    """
+
+    shifts: np.ndarray
+    cost: np.ndarray
+    correspondences: np.ndarray
+    distances: list = field(default_factory=list, repr=False)
+    rows: list = field(default_factory=list, repr=False)
+
+    @property
+    def best(self) -> int | None:
+        """The shift of lowest cost (``None`` where no shift was judged)."""
+        ok = np.isfinite(self.cost)
+        if not ok.any():
+            return None
+        return int(self.shifts[ok][int(np.argmin(self.cost[ok]))])
+
+    def cost_at(self, shift: int) -> float:
+        """The cost at ``shift`` (NaN outside the scan)."""
+        hit = np.flatnonzero(self.shifts == shift)
+        return float(self.cost[hit[0]]) if hit.size else float("nan")
+
+
+@dataclass
+class ClockEstimate:
+    """One camera's time offset against the reference camera.
+
+    Attributes:
+        offset: frames of the rig's clock: the camera's frame ``f`` is the rig's frame
+            ``f - offset`` (the rig file's ``frame_offset``, fractional).
+        std: its std, frames (0 for the reference, NaN where not searched): the whole
+            offset's bootstrap spread and the fraction's together.
+        source: ``"reference"``, ``"given"`` (the rig file's, not searched), or
+            ``"search"`` (the search's: the given offset where the data do not
+            significantly prefer another).
+        given: the rig file's ``frame_offset``.
+        scan: the whole-frame scan against the reference (``None`` where not
+            searched); its shifts in samples.
+        note: why the offset is what it is where that needs saying (the data disagree
+            with the given offset, too few correspondences, a time the people hardly
+            fix), else ``""``.
+    """
+
+    offset: float
+    std: float
+    source: str
+    given: int = 0
+    scan: ShiftScan | None = field(default=None, repr=False)
+    note: str = ""
+
+    @property
+    def whole(self) -> int:
+        """The offset rounded to whole frames."""
+        return int(np.round(self.offset))
+
+
+def dense_samples(points: np.ndarray, frame_ids: np.ndarray, base: int, step: int,
+                  length: int) -> np.ndarray:
+    """``(length, J, 2)``: a camera's ``(T_c, J, 2)`` points at rows ``(frame - base) /
+    step`` of a grid of samples (NaN elsewhere; frames off the grid dropped)."""
+    out = np.full((length,) + points.shape[1:], np.nan)
+    rel = np.asarray(frame_ids, np.int64) - int(base)
+    on = (rel % step == 0) & (rel >= 0) & (rel // step < length)
+    out[rel[on] // step] = points[on]
+    return out
+
+
+def _pairs(a: np.ndarray, b: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``a`` at samples ``t + s`` and ``b`` at ``t`` where both see a joint: ``(N, 2)``,
+    ``(N, 2)`` and the ``(N,)`` samples ``t`` of ``b``."""
+    T = min(len(a), len(b))
+    t = np.arange(max(0, -s), min(T, len(a) - s))
+    if not t.size:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, int)
+    A, B = a[t + s], b[t]
+    ok = np.isfinite(A).all(-1) & np.isfinite(B).all(-1)
+    rows = np.broadcast_to(t[:, None], ok.shape)
+    return A[ok], B[ok], rows[ok]
+
+
+def _essential(xa: np.ndarray, xb: np.ndarray, seed: int
+               ) -> tuple[np.ndarray | None, float]:
+    """The essential matrix of normalised correspondences (``xb^T E xa = 0``) of least
+    median Sampson distance (OpenCV's five-point solver in LMedS: no threshold, so the
+    cost does not depend on a guess of the detector's noise) and that median
+    (normalised)."""
+    cv2.setRNGSeed(int(seed))
+    E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), method=cv2.LMEDS, prob=0.99,
+                                maxIters=1000)
+    if E is None or E.shape[1:] != (3,) or E.shape[0] < 3:
+        return None, float("inf")
+    best, cost = None, float("inf")
+    for k in range(E.shape[0] // 3):
+        d = np.abs(sampson_distances(E[3 * k:3 * k + 3], xa, xb))
+        c = float(np.median(np.nan_to_num(d, nan=np.inf)))
+        if c < cost:
+            best, cost = E[3 * k:3 * k + 3], c
+    return best, cost
+
+
+def _evenly(n: int, most: int) -> np.ndarray:
+    return np.arange(n) if n <= most else np.linspace(0, n - 1, most).round().astype(int)
+
+
+def coarse_cost(camera: np.ndarray, reference: np.ndarray, shifts, *, seed: int = 0
+                ) -> np.ndarray:
+    """``(S,)`` the coarse scan (normalised units): at every :data:`COARSE_STRIDE`-th
+    shift with enough correspondences, the least median Sampson distance of an essential
+    matrix fitted at that shift alone (``inf`` elsewhere)."""
+    shifts = np.asarray(list(shifts), int)
+    out = np.full(len(shifts), np.inf)
+    judged = [i for i, s in enumerate(shifts)
+              if len(_pairs(camera, reference, int(s))[0]) >= MIN_CORRESPONDENCES]
+    for i in judged[::COARSE_STRIDE]:
+        xa, xb, _ = _pairs(camera, reference, int(shifts[i]))
+        keep = _evenly(len(xa), COARSE_CORRESPONDENCES)
+        out[i] = _essential(xa[keep], xb[keep], seed)[1]
+    return out
+
+
+def scan_shifts(camera: np.ndarray, reference: np.ndarray, f: float, shifts,
+                *, seed: int = 0, coarse: np.ndarray | None = None) -> ShiftScan:
+    """The epipolar cost of ``camera`` against ``reference`` per whole shift (see the
+    module docstring, step 1).
+
+    Args:
+        camera, reference: ``(N, J, 2)`` normalised coordinates (``K^-1`` applied) on one
+            grid of samples, NaN where unseen.
+        f: a focal length, pixels (the cost's scale).
+        shifts: the shifts tried, samples (the camera's ``t + s`` against ``t``).
+        seed: OpenCV's RANSAC seed.
+        coarse: the coarse scan (:func:`coarse_cost`) where already made.
+    """
+    shifts = np.asarray(list(shifts), int)
+    S = len(shifts)
+    cost = np.full(S, np.nan)
+    found = [_pairs(camera, reference, int(s)) for s in shifts]
+    corr = np.array([len(p[0]) for p in found], int)
+    judged = np.flatnonzero(corr >= MIN_CORRESPONDENCES)
+    scan = ShiftScan(shifts=shifts, cost=cost, correspondences=corr,
+                     distances=[None] * S, rows=[None] * S)
+    if not judged.size:
+        return scan
+    if coarse is None:
+        coarse = coarse_cost(camera, reference, shifts, seed=seed)
+    if not np.isfinite(coarse).any():
+        return scan
+    i0 = int(np.argmin(coarse))
+    pool = [i for i in (i0 - 1, i0, i0 + 1) if 0 <= i < S and corr[i] >= MIN_CORRESPONDENCES]
+    xa = np.concatenate([found[i][0] for i in pool])
+    xb = np.concatenate([found[i][1] for i in pool])
+    half = (np.concatenate([found[i][2] for i in pool]) // BOOTSTRAP_BLOCK) % 2
+    Es = []
+    for h in (0, 1):
+        sel = np.flatnonzero(half == h)
+        sel = sel[_evenly(len(sel), MAX_CORRESPONDENCES)]
+        Es.append(_essential(xa[sel], xb[sel], seed)[0] if len(sel) >= MIN_CORRESPONDENCES
+                  else None)
+    if Es[0] is None or Es[1] is None:           # one half too thin: the whole pool
+        keep = _evenly(len(xa), MAX_CORRESPONDENCES)
+        E = _essential(xa[keep], xb[keep], seed)[0]
+        if E is None:
+            return scan
+        Es = [E, E]
+    for i in judged:
+        xa, xb, rows = found[i]
+        keep = _evenly(len(xa), MAX_CORRESPONDENCES)
+        xa, xb, rows = xa[keep], xb[keep], rows[keep]
+        odd = (rows // BOOTSTRAP_BLOCK) % 2 == 1
+        # each block judged by the matrix fitted to the other parity's blocks
+        d = np.where(odd, sampson_distances(Es[0], xa, xb), sampson_distances(Es[1], xa, xb))
+        d = np.nan_to_num(np.abs(d), nan=np.inf) * f
+        cost[i] = float(np.median(d))
+        scan.distances[i], scan.rows[i] = d, rows
+    return scan
+
+
+def _weighted_medians(d: np.ndarray, blocks: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``(R,)`` medians of ``d`` (``(n,)``) with each value weighted by its block's weight
+    in each row of ``weights`` (``(R, B)``; the bootstrap's draw counts)."""
+    order = np.argsort(d)
+    w = weights[:, blocks[order]]
+    cs = np.cumsum(w, axis=1)
+    total = cs[:, -1]
+    idx = np.minimum((cs < 0.5 * total[:, None]).sum(1), len(d) - 1)
+    out = d[order][idx]
+    return np.where(total > 0, out, np.nan)
+
+
+def _bootstrap_costs(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
+    """``(R, S)``: the scan's costs under each draw of block weights (``(R, B)``)."""
+    out = np.full((len(weights), len(scan.shifts)), np.nan)
+    for i, (d, rows) in enumerate(zip(scan.distances, scan.rows)):
+        if d is not None:
+            out[:, i] = _weighted_medians(d, rows // BOOTSTRAP_BLOCK, weights)
+    return out
+
+
+class _PairCurves:
+    """Every pair's cost relative to its lowest as a function of the pair's offset,
+    for the full data (row 0) and the bootstrap draws (rows 1..R)."""
+
+    def __init__(self, scans: dict, weights: np.ndarray):
+        self.terms = {}
+        for (a, b), scan in scans.items():
+            lo = np.nanmin(scan.cost)
+            curves = np.vstack([scan.cost[None], _bootstrap_costs(scan, weights)]) / lo
+            top = np.nanmax(curves[0])
+            curves = np.where(np.isfinite(curves), curves, top)
+            self.terms[(a, b)] = (scan.shifts, curves, top)
+
+    def value(self, a: int, b: int, rel: np.ndarray) -> np.ndarray:
+        """``(R + 1, len(rel))``: pair ``(a, b)``'s relative cost at ``o_b - o_a = rel``
+        (its largest outside its window)."""
+        shifts, curves, top = self.terms[(a, b)]
+        rel = np.asarray(rel, int)
+        i = np.clip(rel - shifts[0], 0, len(shifts) - 1)
+        inside = (rel >= shifts[0]) & (rel <= shifts[-1])
+        return np.where(inside[None], curves[:, i], top)
+
+    def camera(self, c: int, offsets: np.ndarray, candidates: np.ndarray,
+               skip: set[int] = frozenset()) -> np.ndarray:
+        """``(R + 1, K)``: the summed relative cost of camera ``c`` at each candidate
+        offset, the others at ``offsets`` (the pairs with a camera of ``skip`` left out)."""
+        total = 0.0
+        for (a, b) in self.terms:
+            if a in skip or b in skip:
+                continue
+            if a == c:
+                total = total + self.value(a, b, offsets[b] - candidates)
+            elif b == c:
+                total = total + self.value(a, b, candidates - offsets[a])
+        return np.broadcast_to(total, (self._rows(), len(candidates))) if np.isscalar(total) \
+            else total
+
+    def _rows(self) -> int:
+        return next(iter(self.terms.values()))[1].shape[0] if self.terms else 1
+
+
+def joint_offsets(curves: _PairCurves, start: np.ndarray, windows: list[np.ndarray],
+                  fixed: set[int], skip: set[int] = frozenset()) -> np.ndarray:
+    """Whole offsets (samples) minimising the sum of the pairs' relative costs by
+    coordinate descent from ``start``; the cameras in ``fixed`` stay at ``start``, the
+    others move within their ``windows``; the pairs with a camera of ``skip`` (one whose
+    time the people do not fix) are left out."""
+    o = np.asarray(start, int).copy()
+    for _ in range(10):
+        moved = False
+        for c in range(len(o)):
+            if c in fixed:
+                continue
+            cost = curves.camera(c, o, windows[c], skip)[0]
+            best = int(windows[c][int(np.argmin(cost))])
+            if best != o[c] and cost.min() < curves.camera(c, o, np.array([o[c]]), skip)[0, 0]:
+                o[c], moved = best, True
+        if not moved:
+            break
+    return o
+
+
+#: Samples either side of the one a joint's trajectory is evaluated about (the local
+#: quadratic's window is twice this plus one).
+HALF_WINDOW = 3
+
+
+def _local_quadratic(u: float) -> np.ndarray:
+    """``(2 HALF_WINDOW + 1,)`` weights of the samples ``-HALF_WINDOW..HALF_WINDOW`` giving
+    the least-squares quadratic through them at ``u`` (a Savitzky-Golay filter at any
+    point): smooth in ``u``, its noise varying a little with ``u`` (:func:`_noise_factor`)."""
+    x = np.arange(-HALF_WINDOW, HALF_WINDOW + 1, dtype=float)
+    X = np.vander(x, 3, increasing=True)
+    return np.array([1.0, u, u * u]) @ np.linalg.solve(X.T @ X, X.T)
+
+
+def _noise_factor(u: float) -> float:
+    """The variance of the local quadratic at ``u`` over one sample's (``w . w``)."""
+    w = _local_quadratic(u)
+    return float(w @ w)
+
+
+def _windows(a: np.ndarray, b: np.ndarray, s: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The correspondences about shift ``s`` whose camera is seen at every sample of
+    ``t + s - HALF_WINDOW .. t + s + HALF_WINDOW`` and the reference at every one of
+    ``t - HALF_WINDOW .. t + HALF_WINDOW``: ``(W, N, 2)`` the camera's, ``(W, N, 2)`` the
+    reference's, ``(N,)`` the reference's samples ``t``."""
+    h = HALF_WINDOW
+    T = len(b)
+    t = np.arange(max(h, h - s), min(T - h, len(a) - s - h))
+    if not t.size:
+        return np.zeros((2 * h + 1, 0, 2)), np.zeros((2 * h + 1, 0, 2)), np.zeros(0, int)
+    offs = np.arange(-h, h + 1)
+    A = np.stack([a[t + s + o] for o in offs])                  # (W, n, J, 2)
+    B = np.stack([b[t + o] for o in offs])
+    ok = np.isfinite(A).all((0, -1)) & np.isfinite(B).all((0, -1))
+    rows = np.broadcast_to(t[:, None], ok.shape)
+    return A[:, ok], B[:, ok], rows[ok]
+
+
+def _at(W: np.ndarray, u: float) -> np.ndarray:
+    """``(N, 2)``: the local quadratic of the samples ``W`` (``(2 HALF_WINDOW + 1, N, 2)``)
+    at ``u`` samples from their centre."""
+    return np.tensordot(_local_quadratic(u), W, axes=1)
+
+
+def _rotation(r: np.ndarray) -> np.ndarray:
+    return cv2.Rodrigues(np.asarray(r, float).reshape(3, 1))[0]
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], float)
+
+
+def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
+                  tol: float = 1e-8):
+    """Least squares of ``(rotation, translation direction, dt)`` from a start; returns
+    ``(dt, R, t)``."""
+    from scipy.optimize import least_squares
+
+    t0 = E0_t / np.linalg.norm(E0_t)
+    u = np.cross(t0, [1.0, 0, 0] if abs(t0[0]) < 0.9 else [0, 1.0, 0])
+    u /= np.linalg.norm(u)
+    v = np.cross(t0, u)
+
+    def parts(p):
+        R = _rotation(p[:3]) @ E0_R
+        t = t0 + p[3] * u + p[4] * v
+        return R, t / np.linalg.norm(t)
+
+    v0 = _noise_factor(0.0)
+
+    def residuals(p):
+        R, t = parts(p)
+        d = sampson_distances(_skew(t) @ R, _at(A3, p[5]), xb) * f
+        # the same noise for every dt: the local quadratic's varies a little with it
+        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(p[5])))
+        return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
+
+    r = FRACTION_REACH
+    x0 = np.array([0, 0, 0, 0, 0, float(np.clip(dt0, -0.99 * r, 0.99 * r))])
+    lo = np.array([-np.inf] * 5 + [-r])
+    hi = np.array([np.inf] * 5 + [r])
+    res = least_squares(residuals, x0, bounds=(lo, hi), loss="huber", f_scale=huber_px,
+                        x_scale="jac", diff_step=1e-4, max_nfev=max_nfev, ftol=tol,
+                        xtol=tol)
+    R, t = parts(res.x)
+    return float(res.x[5]), R, t
+
+
+def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
+                    *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
+    """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which
+    ``camera``'s sample ``t + shift + dt`` matches ``reference``'s ``t`` best, and its std.
+
+    Each joint's trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1``
+    samples (a Savitzky-Golay filter evaluated between samples; the reference's the same
+    filter at its sample), the camera's evaluated at ``t + shift + dt``; the relative
+    pose (five parameters) and ``dt`` are fitted together by robust least squares, each
+    residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured for
+    averaging the noise more. The std is the spread of that fit over a bootstrap of
+    blocks of :data:`BOOTSTRAP_BLOCK` of the reference's samples (the detector's error
+    and the motion are correlated over neighbouring frames).
+
+    The residuals' scale is read from the data: ``s`` = 1.4826 times the median Sampson
+    distance under the shift's essential matrix (the normal's MAD); correspondences
+    farther than :data:`INLIER_SCALES` ``s`` are left out and the Huber loss turns linear
+    at ``s``.
+
+    Args:
+        camera, reference: ``(N, J, 2)`` normalised coordinates on one grid, NaN unseen.
+        shift: the whole shift found (:func:`scan_shifts`).
+        f: a focal length, pixels (the Sampson distance's scale).
+        seed: seed of the RANSAC and of the bootstrap.
+        runs: bootstrap resamples (0: no std, NaN).
+
+    Returns:
+        ``(dt, std)`` samples; ``(0, NaN)`` where too few correspondences.
+    """
+    A3, B3, rows = _windows(camera, reference, int(shift))
+    if len(rows) < MIN_CORRESPONDENCES:
+        return 0.0, float("nan")
+    keep = _evenly(len(rows), SUBFRAME_CORRESPONDENCES)
+    A3, xb, rows = A3[:, keep], _at(B3[:, keep], 0.0), rows[keep]
+    E, median = _essential(_at(A3, 0.0), xb, seed)
+    if E is None or not median > 0:
+        return 0.0, float("nan")
+    scale = 1.4826 * median
+    inl = np.abs(sampson_distances(E, _at(A3, 0.0), xb)) < INLIER_SCALES * scale
+    if inl.sum() < MIN_CORRESPONDENCES:
+        return 0.0, float("nan")
+    A3, xb, rows = A3[:, inl], xb[inl], rows[inl]
+    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, 0.0), xb, np.eye(3))
+    t0 = t0.ravel()
+    huber = scale * f
+    # the start: the best of a coarse grid of dt under the shift's pose
+    Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
+    grid = np.linspace(-FRACTION_REACH, FRACTION_REACH, int(8 * FRACTION_REACH) + 1)
+    costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, g), xb) * f, huber))
+                      for g in grid])
+    dt, R, t = _fit_subframe(A3, xb, R0, t0, _parabola_min(grid, costs), f, huber)
+    if runs <= 0:
+        return dt, float("nan")
+    rng = np.random.default_rng(seed)
+    frames = np.unique(rows)
+    blocks = [frames[i:i + BOOTSTRAP_BLOCK] for i in range(0, len(frames), BOOTSTRAP_BLOCK)]
+    by_row = {r: np.flatnonzero(rows == r) for r in frames}
+    draws = []
+    for _ in range(int(runs)):
+        pick = rng.integers(0, len(blocks), len(blocks))
+        idx = np.concatenate([by_row[r] for k in pick for r in blocks[k]])
+        if len(idx) < MIN_CORRESPONDENCES:
+            continue
+        # from the full fit: a resample moves it little (looser tolerances suffice)
+        draws.append(_fit_subframe(A3[:, idx], xb[idx], R, t, dt, f, huber, max_nfev=60,
+                                   tol=1e-6)[0])
+    std = float(np.std(draws, ddof=1)) if len(draws) > 1 else float("nan")
+    return dt, std
+
+
+def _parabola_min(x: np.ndarray, y: np.ndarray) -> float:
+    """The minimum of the parabola through the lowest of ``y`` on the grid ``x`` and its
+    two neighbours (the grid point itself at an end or where the three do not curve up)."""
+    i = int(np.argmin(y))
+    if i == 0 or i == len(x) - 1:
+        return float(x[i])
+    a = 0.5 * (y[i + 1] - 2 * y[i] + y[i - 1])
+    if a <= 0:
+        return float(x[i])
+    h = x[1] - x[0]
+    return float(x[i] - h * 0.25 * (y[i + 1] - y[i - 1]) / a)
+
+
+def _huber(r: np.ndarray, k: float) -> np.ndarray:
+    a = np.abs(np.nan_to_num(r, nan=k, posinf=k, neginf=k))
+    return np.where(a <= k, 0.5 * a ** 2, k * (a - 0.5 * k))
+
+
+def resample(a: np.ndarray, dt: float) -> np.ndarray:
+    """``(T, J, C)`` keypoints at rows ``t + dt`` instead of ``t`` (``dt`` in samples, any
+    sign): each coordinate interpolated linearly between the two rows around, the
+    confidence (last channel) the smaller of theirs; NaN coordinates and confidence 0
+    where either row lacks the joint or falls outside."""
+    a = np.asarray(a, float)
+    if dt == 0:
+        return a.copy()
+    k = int(np.floor(dt))
+    w = float(dt - k)
+    T = len(a)
+    idx = np.arange(T) + k
+    out = np.full_like(a, np.nan)
+    out[..., -1] = 0.0
+    lo_ok = (idx >= 0) & (idx < T)
+    hi_ok = (idx + 1 >= 0) & (idx + 1 < T)
+    if w == 0:
+        rows = np.flatnonzero(lo_ok)
+        out[rows] = a[idx[rows]]
+        return out
+    rows = np.flatnonzero(lo_ok & hi_ok)
+    lo, hi = a[idx[rows]], a[idx[rows] + 1]
+    xy = (1 - w) * lo[..., :-1] + w * hi[..., :-1]
+    conf = np.minimum(np.nan_to_num(lo[..., -1]), np.nan_to_num(hi[..., -1]))
+    seen = np.isfinite(xy).all(-1) & (conf > 0)
+    out[rows, ..., :-1] = np.where(seen[..., None], xy, np.nan)
+    out[rows, ..., -1] = np.where(seen, conf, 0.0)
+    return out
+
+
+def _pixels(seq: np.ndarray, joints: np.ndarray, min_confidence: float) -> np.ndarray:
+    """``(T, J, 2)`` a ``(T, J, 3)`` sequence's ``joints`` seen with ``min_confidence``."""
+    seq = np.asarray(seq, float)
+    out = np.full(seq.shape[:2] + (2,), np.nan)
+    ok = np.nan_to_num(seq[:, joints, 2]) >= min_confidence
+    out[:, joints] = np.where(ok[..., None], seq[:, joints, :2], np.nan)
+    return out
+
+
+def _normalised(xy: np.ndarray, K: np.ndarray) -> np.ndarray:
+    K = np.asarray(K, float)
+    return (xy - K[:2, 2]) @ np.linalg.inv(K[:2, :2]).T
+
+
+def rig_frames(frame_ids: np.ndarray, fps: float | None, rig_fps: float | None
+               ) -> np.ndarray:
+    """``(T_c,)`` a camera's frame numbers at the rig's frame rate (the first camera's):
+    its frame ``g`` is at ``g / fps`` seconds, the rig's frame ``round(g rig_fps / fps)``
+    (a 30 fps camera's frames on every other frame of a 60 fps rig; to the nearest rig
+    frame where the rates are not multiples). Unchanged where either rate is unknown or
+    the two agree to 0.1 %."""
+    ids = np.asarray(frame_ids, np.int64)
+    if not fps or not rig_fps or abs(float(fps) / float(rig_fps) - 1) < 1e-3:
+        return ids
+    return np.round(ids * (float(rig_fps) / float(fps))).astype(np.int64)
+
+
+def frame_step(frame_ids: np.ndarray) -> int:
+    """The frames between two samples of a camera (a video read every n-th frame): the
+    median difference of its frame numbers, at least 1."""
+    ids = np.asarray(frame_ids)
+    return max(int(np.median(np.diff(ids))), 1) if len(ids) > 1 else 1
+
+
+def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
+                frame_ids: list[np.ndarray], Ks: list[np.ndarray], given: list[int],
+                joints, *, search: bool = True, window: int = OFFSET_WINDOW, seed: int = 0,
+                min_confidence: float = DEFAULT_MIN_CONFIDENCE,
+                runs: int = BOOTSTRAP_RUNS) -> list[ClockEstimate]:
+    """Every camera's time offset (see the module docstring); the first is the reference.
+
+    Args:
+        people: per camera ``(person, candidates)``: the ``(T_c, J, 3)`` person as the
+            camera alone sees it (undistorted pixels; the reference camera's: its
+            subject) and ``T_c`` arrays ``(P_t, J, 3)`` of candidates for the person per
+            frame, or ``None``; where a frame holds several, the camera's longest tracks
+            compete too (:func:`~mirrorgraph.rigs.failure.candidate_people`: the one that
+            fits the reference best is taken).
+        frame_ids: per camera ``(T_c,)`` its own frame numbers.
+        Ks: per camera ``(3, 3)`` intrinsics (of the undistorted pixels).
+        given: per camera the rig file's ``frame_offset``.
+        joints: the joints compared (indices).
+        search: search the offsets (else every camera keeps its given one).
+        window: frames searched either way of a camera's given offset (relative to the
+            reference's).
+        seed: seed of every random choice.
+        min_confidence: joints below this confidence are left out.
+        runs: bootstrap resamples of the fractions' stds.
+
+    Returns:
+        per camera a :class:`ClockEstimate` on the rig's clock (``offset``: the camera's
+        frame ``f`` is the rig's frame ``f - offset``).
+    """
+    joints = np.asarray(joints, int)
+    N = len(people)
+    out: list[ClockEstimate | None] = [
+        ClockEstimate(offset=float(given[0]), std=0.0, source="reference", given=given[0])]
+    if not search or N < 2:
+        return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g)
+                      for g in given[1:]]
+    steps = [frame_step(f) for f in frame_ids]
+    step = int(np.gcd.reduce(steps))            # a slower camera sees every n-th sample
+    base = int(min(np.min(f) for f in frame_ids if len(f)))
+    length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
+    reach = max(int(np.ceil(window / step)), 1)
+    rel = np.array([int(np.round((int(g) - int(given[0])) / step)) for g in given])
+    focal = [0.5 * (K[0, 0] + K[1, 1]) for K in Ks]
+    seqs: list[np.ndarray | None] = [None] * N
+    seqs[0] = dense_samples(_normalised(_pixels(people[0][0], joints, min_confidence), Ks[0]),
+                            frame_ids[0], base, step, length)
+    out += [None] * (N - 1)
+    scans: dict[tuple[int, int], ShiftScan] = {}
+    for c in range(1, N):
+        person, cands = people[c]
+        options = [np.asarray(person, float)]
+        if cands is not None and any(len(p) > 1 for p in cands):
+            options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
+        dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
+                               frame_ids[c], base, step, length) for s in options]
+        f = 0.5 * (focal[0] + focal[c])
+        window = range(rel[c] - reach, rel[c] + reach + 1)
+        # several candidates: ranked by a coarser scan (every other shift of the coarse
+        # one); the one that fits best scanned in full
+        pick = 0 if len(dense) == 1 else int(np.argmin(
+            [coarse_cost(d, seqs[0], window[::2], seed=seed).min() for d in dense]))
+        seqs[c] = dense[pick]
+        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed)
+        if np.isfinite(scan.cost).any():
+            scans[(0, c)] = scan
+        else:
+            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in window), default=0)
+                        for d in dense))
+            out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
+                                   given=given[c], scan=scan,
+                                   note=f"too few joints seen with the reference camera at "
+                                        f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
+                                        f"needed): kept as given ({given[c]})")
+    live = [c for c in range(1, N) if out[c] is None]
+    start = rel.copy()
+    for c in live:
+        start[c] = scans[(0, c)].best
+    for i, a in enumerate(live):                 # the pairs without the reference
+        for b in live[i + 1:]:
+            centre = int(start[b] - start[a])
+            f = 0.5 * (focal[a] + focal[b])
+            scan = scan_shifts(seqs[b], seqs[a], f, range(centre - reach, centre + reach + 1),
+                               seed=seed)
+            if np.isfinite(scan.cost).any():
+                scans[(a, b)] = scan
+    if not live:
+        return out
+    rng = np.random.default_rng(seed)
+    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
+    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
+                              size=BOOTSTRAP_DRAWS).astype(float)
+    curves = _PairCurves(scans, weights)
+    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
+    fixed = {0} | {c for c in range(1, N) if out[c] is not None}
+    kept: set[int] = set()
+    while True:
+        # a camera kept for want of evidence says nothing of the others' offsets
+        o = joint_offsets(curves, np.where([c in fixed | kept for c in range(N)], rel, start),
+                          windows, fixed | kept, kept)
+        alt = joint_offsets(curves, rel, windows, fixed | kept, kept)
+        if _total(curves, alt, kept) < _total(curves, o, kept):
+            o = alt
+        fails = set()
+        for c in live:
+            if c in kept or o[c] == rel[c]:
+                continue
+            others = [0] + [k for k in live if k != c and k not in kept]
+            if _preferred(c, o, rel[c], others, seqs, focal, weights, seed) < ACCEPT_LEVEL:
+                fails.add(c)
+        if not fails:
+            break
+        kept |= fails
+    for c in live:
+        draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
+        # the fraction covers a sample either way: the whole offset's spread counts
+        # only where the draws put it farther
+        near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
+        whole_std = 0.0 if near else float(np.std(draws)) * step
+        f = 0.5 * (focal[0] + focal[c])
+        # a fraction means something only about a whole offset the people fix, or one
+        # they moved the camera to (where it may also settle the whole offset)
+        dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
+                      if near or o[c] != rel[c] else (0.0, float("nan")))
+        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
+        offset = (o[c] + frac) * step + given[0]
+        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
+        note = ""
+        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
+            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
+            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
+                    f"the rig file's frame_offset = {given[c]}")
+        elif not near:
+            note = (f"the people hardly fix its time (whole offsets spread by {whole_std:.1f} "
+                    f"frames): kept as given ({given[c]})")
+        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
+                               given=int(given[c]), scan=scans[(0, c)], note=note)
+    return out
+
+
+def _refit_distances(camera: np.ndarray, reference: np.ndarray, s: int, f: float, seed: int
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``camera``'s sample ``t + s`` against ``reference``'s ``t`` judged by essential
+    matrices fitted at that shift itself, cross-fitted (each parity of blocks by the
+    other's): ``(n,)`` Sampson distances (pixels) and their samples ``t``."""
+    xa, xb, rows = _pairs(camera, reference, int(s))
+    keep = _evenly(len(xa), MAX_CORRESPONDENCES)
+    xa, xb, rows = xa[keep], xb[keep], rows[keep]
+    odd = (rows // BOOTSTRAP_BLOCK) % 2 == 1
+    Es = []
+    for h in (False, True):
+        sel = np.flatnonzero(odd == h)
+        if len(sel) < MIN_CORRESPONDENCES:
+            return None
+        Es.append(_essential(xa[sel], xb[sel], seed)[0])
+    if Es[0] is None or Es[1] is None:
+        return None
+    d = np.where(odd, sampson_distances(Es[0], xa, xb), sampson_distances(Es[1], xa, xb))
+    return np.nan_to_num(np.abs(d), nan=np.inf) * f, rows
+
+
+def _preferred(c: int, o: np.ndarray, given: int, others: list[int], seqs, focal,
+               weights: np.ndarray, seed: int) -> float:
+    """The share of the bootstrap draws (``weights``, ``(R, B)``) in which camera ``c``
+    at ``o[c]`` fits the cameras ``others`` (at ``o``) better than at ``given``: the
+    medians of every pair, each relative to its value at ``o[c]`` on the full data,
+    summed; every shift judged by essential matrices fitted at it (cross-fitted), so
+    neither is favoured for the matrix."""
+    totals = np.zeros((2, len(weights)))
+    for k in others:
+        a, b = (k, c) if k < c else (c, k)
+        sign = 1 if b == c else -1
+        f = 0.5 * (focal[a] + focal[b])
+        found = []
+        for oc in (o[c], given):
+            rel = sign * (oc - o[k])
+            found.append(_refit_distances(seqs[b], seqs[a], rel, f, seed))
+        if found[0] is None or found[1] is None:
+            continue
+        scale = float(np.median(found[0][0]))
+        for i, (d, rows) in enumerate(found):
+            totals[i] += _weighted_medians(d, rows // BOOTSTRAP_BLOCK, weights) / scale
+    return float(np.mean(totals[0] < totals[1]))
+
+
+def _total(curves: _PairCurves, o: np.ndarray, skip: set[int]) -> float:
+    """The summed relative cost of every pair at offsets ``o`` (full data; the pairs
+    with a camera of ``skip`` left out)."""
+    return float(sum(curves.value(a, b, np.array([o[b] - o[a]]))[0, 0]
+                     for (a, b) in curves.terms if a not in skip and b not in skip))
+
+
+def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:
+    """A camera's ``(T, J, 3)`` keypoints placed on the rig's rows by its whole offset,
+    moved by the offset's fraction (:func:`resample`; ``step``: frames between two rows)."""
+    frac = clock.offset - clock.whole
+    if clock.source != "search" or frac == 0:
+        return a
+    return resample(a, frac / max(int(step), 1))
