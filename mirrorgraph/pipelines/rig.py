@@ -54,24 +54,24 @@ DEFAULT_PEOPLE = "one"
 #: path's), left out where every person is used.
 SUBJECT_NOTE = "; calibrating from the one seen longest"
 
-#: The keywords :func:`calibrate_rig` took before it took :class:`CalibrateOptions`, and the
-#: fields they became (``options`` held a :class:`RefineOptions`: ``refine_options``).
+#: The deprecated keywords :func:`calibrate_rig` accepts beside :class:`CalibrateOptions`,
+#: and the fields they set (a :class:`RefineOptions` as ``options``: ``refine_options``).
 LEGACY_KEYWORDS = {"subject_height": "subject_height", "skeleton": "skeleton", "joints": "joints",
                    "seed": "seed", "video": "detection", "estimate_focal": "estimate_focal",
                    "fov_deg": "fov_deg"}
 
 
 def _legacy_options(options, legacy: dict) -> CalibrateOptions:
-    """:class:`CalibrateOptions` from the keywords of the old signature, with a
+    """:class:`CalibrateOptions` from the deprecated keywords, with a
     :class:`DeprecationWarning` (a :class:`RefineOptions` as ``options``, ``subject_height``,
     ``skeleton``, ``joints``, ``seed``, ``video``, ``estimate_focal``, ``fov_deg``: a
-    ``fov_deg`` held the focal length near it, as ``estimate_focal=False`` does now)."""
+    ``fov_deg`` holds the focal length near it, as ``estimate_focal=False`` does)."""
     unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
     if unknown:
         raise TypeError(f"calibrate_rig() got unexpected keyword argument(s) {', '.join(unknown)}")
     import warnings as _w
     if legacy or isinstance(options, RefineOptions):
-        _w.warn("calibrate_rig's keywords are CalibrateOptions fields now: pass "
+        _w.warn("calibrate_rig's keywords are CalibrateOptions fields: pass "
                 "options=CalibrateOptions(...) (a RefineOptions goes in its refine_options)",
                 DeprecationWarning, stacklevel=3)
     opts = CalibrateOptions(refine_options=options) if isinstance(options, RefineOptions) \
@@ -111,7 +111,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         keep_failed: return a rig with a failed camera (one that fits under half of its
             keypoints, :data:`~mirrorgraph.rigs.failure.MIN_FIT_SHARE`) marked
             ``status = "failed"`` with its ``reason``, instead of raising.
-        legacy (Any): the keywords of the old signature (``subject_height=``, ``seed=``, ...,
+        legacy (Any): the deprecated keywords (``subject_height=``, ``seed=``, ...,
             ``options=RefineOptions(...)``): accepted with a :class:`DeprecationWarning`.
 
     Returns:
