@@ -83,7 +83,6 @@ import argparse
 import datetime as _dt
 import json
 import os
-import platform
 import shlex
 import subprocess
 import sys
@@ -97,6 +96,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _report  # noqa: E402  (the machine line every results file shares)
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 30.0
@@ -1013,16 +1015,14 @@ def main(argv: list[str] | None = None) -> int:
     code = code_version()
     meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=code,
                 command="python bench/bench_joints.py " + shlex.join(argv),
-                machine=f"{platform.machine()}, {os.cpu_count()} cores, Python "
-                        f"{platform.python_version()}",
-                load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
+                machine=_report.machine(), load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
-         f"- machine: {meta['machine']}; load average {meta['load']:.1f} at the end; "
-         f"{meta['minutes']:.1f} min with {args.workers} workers",
+         f"- machine: {meta['machine']}; {meta['minutes']:.1f} min with {args.workers} "
+         "workers",
          f"- command: `{meta['command'].rstrip()}`", *offline_note,
          "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
          "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "

@@ -53,7 +53,6 @@ import argparse
 import datetime
 import json
 import os
-import platform
 import re
 import resource
 import subprocess
@@ -67,8 +66,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
+import _report  # noqa: E402  (the machine line every results file shares)
 
-from bench_video import _cpu, _demo_root, _git, _read, _write_clip  # noqa: E402
+from bench_video import _demo_root, _git, _read, _write_clip  # noqa: E402
 
 #: clip -> (trial, camera, mirror angle deg, distance m, cut-out depth m) for the planar ones
 PLANAR = {"planar70": ("Demo_SinglePerson", "cam01", 70.0, 1.6, 2.9),
@@ -232,9 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     lines = [
         "# The live video path end to end (`bench/bench_live_video.py`)", "",
         f"- date: {started:%Y-%m-%d %H:%M} UTC",
-        f"- machine: {platform.machine()}, {_cpu()}, {os.cpu_count()} cores visible, Python "
-        f"{platform.python_version()}; load average {min(loads):.1f}-{max(loads):.1f} during "
-        "the run (the machine is shared: frames/s are of this run under that load)",
+        f"- machine: {_report.machine()}; load average {min(loads):.1f}-{max(loads):.1f} "
+        "during the run (the machine is shared: frames/s are of this run under that load)",
         f"- command: `python bench/bench_live_video.py {' '.join(argv or sys.argv[1:])}`"
         .rstrip(" `") + "`",
         f"- code: `{head}`" + (" + uncommitted changes" if dirty else ""),

@@ -20,10 +20,7 @@ graph from the true pairs (identities known: the best the pairing can give it).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import shlex
 import sys
 import time
@@ -31,6 +28,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _report  # noqa: E402  (the header every results file shares)
 
 from mirrorgraph.intrinsics import Intrinsics
 from mirrorgraph.keypoints import PairedKeypoints
@@ -145,12 +145,12 @@ def run_scene(people: int, seed: int, frames: int, known: bool, oracle: bool = F
     return row
 
 
-def render(rows: list[dict], command: str, load: float) -> str:
+def render(rows: list[dict], command: str, meta: dict) -> str:
     lines = ["# Every person before one mirror (bench_multiperson)", "",
-             f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
-             f"{platform.python_version()}; date {datetime.date.today()}; command "
-             f"`{command}`; load average at the end {load:.1f} (the machine shared: the "
-             "times are wall seconds under that load, compare them within a row).", "",
+             *_report.header(cmd=command, started=meta.get("date"),
+                             machine_line=meta.get("machine"),
+                             note="the machine shared: the times are wall seconds under that "
+                                  "load, compare them within a row"), "",
              "Scenes: `mirrorgraph.synth.crowd.make_crowd` (COCO-17, 1920x1080, 70 deg, 4 px "
              "noise, half of the people occluded in one view or both for 5-40 frames, one "
              "to three times). *one*: `calibrate` (one pair a frame); *all*: "
@@ -224,7 +224,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.report_only:
         data = json.loads(Path(args.out).with_suffix(".json").read_text())
-        Path(args.out).write_text(render(data["rows"], data["command"], data["load"]))
+        Path(args.out).write_text(render(data["rows"], data["command"], data))
         print(Path(args.out).read_text())
         return 0
     modes = {"both": (True, False), "known": (True,), "unknown": (False,)}[args.camera]
@@ -241,10 +241,10 @@ def main(argv=None) -> int:
                       f"switches {row['all']['switches']}", flush=True)
     command = "python bench/bench_multiperson.py " + shlex.join(sys.argv[1:] if argv is None
                                                                else argv)
-    load = os.getloadavg()[0]
+    meta = {"date": _report.now(), "machine": _report.machine()}
     Path(args.out).with_suffix(".json").write_text(
-        json.dumps({"rows": rows, "command": command, "load": load}, indent=1))
-    text = render(rows, command, load)
+        json.dumps({"rows": rows, "command": command, **meta}, indent=1))
+    text = render(rows, command, meta)
     Path(args.out).write_text(text)
     print(text)
     return 0

@@ -55,8 +55,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import datetime  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -69,6 +67,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+import _report  # noqa: E402  (the header every results file shares)
 from results_blocks import replace_block  # noqa: E402
 
 from mirrorgraph.anthropometry import expected_bone_lengths  # noqa: E402
@@ -587,46 +586,19 @@ def anipose_section(rows: list[dict], warm: dict) -> list[str]:
 
 
 # --------------------------------------------------------------------------- machine
-def code_state() -> str:
-    """Commit and the uncommitted files under mirrorgraph/ (read-only git calls)."""
-    try:
-        rev = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                             capture_output=True, text=True, check=True).stdout.strip()
-        st = subprocess.run(["git", "--no-optional-locks", "-C", str(ROOT), "status",
-                             "--porcelain", "--", "mirrorgraph"],
-                            capture_output=True, text=True, check=True).stdout.split("\n")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    changed = [x[3:] for x in st if x.strip()]
-    return rev + (f" plus uncommitted changes to {', '.join(changed)}" if changed else "")
+code_state = _report.code_state
 
 
 def machine() -> list[str]:
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    uname = " ".join(platform.uname())
-    try:
-        uname = subprocess.run(["uname", "-a"], capture_output=True, text=True,
-                               check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    """The shared machine line (:func:`_report.machine`) and the libraries compared."""
     try:
         import aniposelib
         ap_version = getattr(aniposelib, "__version__", "?")
     except ImportError:
         ap_version = "not installed"
-    return [f"* machine: `{uname}`",
-            f"* CPU: {cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, "
-            f"numpy {np.__version__}, aniposelib {ap_version}; load average at the end "
-            f"{load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f} (1/5/15 min; other jobs share "
-            "the machine, so wall times are indicative)"]
+    return [f"* machine: {_report.machine()} (other jobs share the machine, so wall times "
+            "are indicative)",
+            f"* libraries: numpy {np.__version__}, aniposelib {ap_version}"]
 
 
 # --------------------------------------------------------------------------- side checks
