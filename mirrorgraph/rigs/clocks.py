@@ -703,6 +703,13 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             others = [0] + [k for k in live if k != c and k not in kept]
             if _preferred(c, o, rel[c], others, seqs, focal, weights, seed) < ACCEPT_LEVEL:
                 fails.add(c)
+                continue
+            # a move the draws do not agree on (their best shifts' RMS deviation from it
+            # over a frame) is no offset the people fix: the given one stays
+            draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:],
+                                         axis=1)]
+            if np.sqrt(np.mean((draws - o[c]) ** 2.0)) > 1.0:
+                fails.add(c)
         if not fails:
             break
         kept |= fails
@@ -726,8 +733,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
                     f"the rig file's frame_offset = {given[c]}")
         elif not near:
-            note = (f"the people hardly fix its time (whole offsets spread by {whole_std:.1f} "
-                    f"frames): kept as given ({given[c]})")
+            note = (f"poorly fixed by the people (their best whole offsets spread by "
+                    f"{whole_std:.1f} frames): kept as given ({given[c]})")
         out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
                                given=int(given[c]), scan=scans[(0, c)], note=note)
     return out

@@ -531,7 +531,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
                          [i.K for _, i, *_ in per_camera], [e.frame_offset for e in config.cameras],
                          sk.calibration_joints, search=time_offsets == "search",
                          window=offset_window, seed=seed)
-    warnings += [f"camera {e.name}: time offset {c.note}" for e, c in
+    warnings += [f"camera {e.name}: time offset: {c.note}" for e, c in
                  zip(config.cameras, clocks) if c.note]
     per_camera = [(e, i, f - c.whole, *rest)
                   for (e, i, f, *rest), c in zip(per_camera, clocks)]
