@@ -39,10 +39,10 @@ from ..keypoints import PairedKeypoints, RawDetections
 from .estimators import estimate_epipole
 from .left_right import is_swap
 from .pair_candidates import (Candidates, PairingOptions, b_is_reflection_of, candidates,
-                              median_distance, spread_subset)
+                              masked, median_distance, spread_subset)
 
 __all__ = ["MirrorPairing", "PairCandidates", "choose_pairs", "pair_candidates",
-           "pair_detections", "pair_reflections", "paired_people"]
+           "pair_detections", "pair_frame_with_epipole", "pair_reflections", "paired_people"]
 
 @dataclass
 class MirrorPairing:
@@ -291,6 +291,47 @@ def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
     found = [_score_epipole(np.asarray(e, float).reshape(3), cand, joints, sk.flip, opts)
              for e in epipoles]
     return choose_pairs(_scored_candidates(cand, found, T), sk.flip)
+
+
+def pair_frame_with_epipole(people: np.ndarray, epipole: np.ndarray, skeleton,
+                            joints: np.ndarray | None = None,
+                            options: PairingOptions | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """One frame paired against one known epipole: :func:`pair_with_epipoles` for a
+    single frame and mirror, the same result, without the batch's bookkeeping where the
+    frame holds two detections (its one candidate scored and chosen directly).
+
+    Args:
+        people: ``(P, J, 3)`` the frame's detections (undistorted pixels, confidence).
+        epipole: ``(3,)`` homogeneous epipole, pixels.
+        skeleton: the detections' :class:`~mirrorgraph.skeletons.Skeleton`.
+        joints: joints judging the pair (default: the calibration joints).
+        options: :class:`PairingOptions`.
+
+    Returns:
+        ``(real, mirror)``: ``(J, 3)`` the person and the reflection (its labels those of
+        the real joints it images); NaN / 0 where no pair under the threshold.
+    """
+    opts = options or PairingOptions()
+    people = np.asarray(people, dtype=float)
+    if len(people) != 2:
+        raw = RawDetections(skeleton, np.array([0]), [people])
+        pairing = pair_with_epipoles(raw, [epipole], joints, opts)
+        return pairing.real[0], pairing.reflections[0][0]
+    flip = skeleton.flip
+    joints = skeleton.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    both = masked(people, opts.min_confidence)
+    cand = Candidates(np.zeros(1, int), both[:1], both[1:][:, flip], np.zeros(1, int),
+                      np.ones(1, int))
+    ep = _score_epipole(np.asarray(epipole, float).reshape(3), cand, joints, flip, opts)
+    real = np.full((len(flip), 3), np.nan)
+    real[:, 2] = 0.0
+    if not ep.valid[0]:
+        return real, real.copy()
+    # one candidate: no detection is shared by two chosen pairs, the vote decides
+    a, b_own = cand.a[0], cand.b[0][flip]
+    mirror_own, person = (b_own, a) if ep.b_refl[0] else (a, b_own)
+    return person.copy(), (mirror_own if ep.swapped[0] else mirror_own[flip]).copy()
 
 
 def paired_people(cands: PairCandidates) -> list[np.ndarray]:
