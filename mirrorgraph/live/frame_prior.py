@@ -92,6 +92,28 @@ def _bone_index(k: int, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.nd
     return idx, sign
 
 
+_INDICES: dict = {}
+
+
+def _indices(k: int, a: np.ndarray, b: np.ndarray) -> tuple:
+    """The flat indices of one frame's normal equations: the bones' blocks and signs
+    (:func:`_bone_index`), the gradient's entries of each bone's two ends and the
+    ``(k, 3, 3)`` diagonal blocks; kept per joint and bone layout (a stream repeats a
+    few)."""
+    key = (k, a.tobytes(), b.tobytes())
+    if key not in _INDICES:
+        if len(_INDICES) > 256:
+            _INDICES.clear()
+        bidx, bsign = _bone_index(k, a, b)
+        ga = (3 * a[:, None] + np.arange(3)).ravel()
+        gb = (3 * b[:, None] + np.arange(3)).ravel()
+        ar = np.arange(k)
+        diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
+            + 3 * ar[:, None, None] + np.arange(3)[None, None, :]               # (k, 3, 3)
+        _INDICES[key] = (bidx.ravel(), bsign, ga, gb, diag)
+    return _INDICES[key]
+
+
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                       u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
                       lengths: np.ndarray, sigma_px: float, sigma_len: float,
@@ -134,13 +156,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
     held = np.zeros(k, bool)
     held[a] = held[b] = True
-    bidx, bsign = _bone_index(k, a, b)
-    bidx = bidx.ravel()
-    ga = (3 * a[:, None] + np.arange(3)).ravel()          # the gradient's entries of each
-    gb = (3 * b[:, None] + np.arange(3)).ravel()          # bone's two ends
+    bidx, bsign, ga, gb, diag = _indices(k, a, b)
     ar = np.arange(k)
-    diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
-        + 3 * ar[:, None, None] + np.arange(3)[None, None, :]                 # (k, 3, 3)
     keep = np.ones((k, 2), bool)
     steps = max(int(iterations), 1)
     M = np.zeros(9 * k * k)

@@ -82,6 +82,7 @@ class JointFilter:
         self.velocity_var = float(velocity_std) ** 2
         self.lag = max(int(lag), 0)
         self.history: list[tuple] = []        # (frame, x_f, P_f, gain, chained, F) to the next
+        self._models: dict = {}
         self.reset()
 
     def reset(self) -> None:
@@ -131,11 +132,10 @@ class JointFilter:
         meas[idx[ok]] = True
         # predict: every track still within its gap
         alive = np.isfinite(self.x[:, 0]) & (frame_id - self.seen <= self.max_gap)
-        F = _transition(np.array([g]))[0]
+        F, Q = self._model(g)
         xp = np.where(alive[:, None], self.x @ F.T, np.nan)
         Pp = np.where(alive[:, None, None],
-                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T
-                      + _noise(np.array([g]), self.sigma)[0], np.nan)
+                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T + Q, np.nan)
         chained = alive.copy()
         upd = meas & alive
         S = np.where(upd[:, None, None], Pp[:, :3, :3] + RJ, np.eye(3))
@@ -178,6 +178,17 @@ class JointFilter:
             self.history.append((int(frame_id), xf, Pf, None, None, None))
             del self.history[:-(self.lag + 1)]
         return xf[idx, :3], Pf[idx, :3, :3], taken
+
+    def _model(self, g: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(6, 6)`` the transition and the process noise of ``g`` steps (kept per gap
+        and ``sigma``: most frames step by one)."""
+        key = (g, self.sigma)
+        if key not in self._models:
+            if len(self._models) > 64:
+                self._models.clear()
+            self._models[key] = (_transition(np.array([g]))[0],
+                                 _noise(np.array([g]), self.sigma)[0])
+        return self._models[key]
 
     def smoothed(self, frame_id: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Frame ``frame_id`` (one of the last ``lag + 1`` stepped) smoothed with the
