@@ -206,6 +206,11 @@ class JointFilter:
         for i in range(len(self.history) - 2, k - 1, -1):
             _, xf, Pf, G, c, F = self.history[i]
             c = c & np.isfinite(xs[:, 0])
+            if c.all():                    # every track chained: no rows to pick
+                dx = xs - xf @ F.T
+                xs = xf + np.einsum("nij,nj->ni", G, dx)
+                Ps = Pf - G @ F @ Pf + G @ Ps @ G.transpose(0, 2, 1)
+                continue
             x_new, P_new = xf.copy(), Pf.copy()
             if c.any():
                 # x_s = x_f + G (x_s' - x_p'), P_s = P_f + G (P_s' - P_p') G^T, with
