@@ -162,19 +162,20 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     steps = max(int(iterations), 1)
     M = np.zeros(9 * k * k)
     done = 0
+    uu = np.concatenate([u, um])                  # both views' pixels, stacked: (2k, 2)
+    c2 = 2.0 * distance * n
     while True:
-        p1, J1 = _projection(K, X)
-        p2, J2 = _projection(K, X @ H.T + 2.0 * distance * n)
-        J2 = J2 @ H
-        r1, r2 = (p1 - u) / sigma_px, (p2 - um) / sigma_px
-        w1 = _huber_weight(np.sqrt((r1 * r1).sum(1))) * keep[:, 0]
-        w2 = _huber_weight(np.sqrt((r2 * r2).sum(1))) * keep[:, 1]
-        J1, J2 = J1 / sigma_px, J2 / sigma_px
+        p, Jv = _projection(K, np.concatenate([X, X @ H.T + c2]))           # (2k, ...)
+        Jv[k:] = Jv[k:] @ H
+        r = (p - uu) / sigma_px
+        rn = np.sqrt((r * r).sum(1))
+        w = _huber_weight(rn) * keep.T.ravel()
+        Jv = Jv / sigma_px
+        JJ = w[:, None, None] * np.einsum("kri,krj->kij", Jv, Jv)
+        Jr = w[:, None] * np.einsum("kri,kr->ki", Jv, r)
         M[:] = 0.0
-        M[diag] = (w1[:, None, None] * np.einsum("kri,krj->kij", J1, J1)
-                   + w2[:, None, None] * np.einsum("kri,krj->kij", J2, J2))
-        g = (w1[:, None] * np.einsum("kri,kr->ki", J1, r1)
-             + w2[:, None] * np.einsum("kri,kr->ki", J2, r2))
+        M[diag] = JJ[:k] + JJ[k:]
+        g = Jr[:k] + Jr[k:]
         if len(L):
             diff = X[a] - X[b]
             length = np.sqrt((diff * diff).sum(1))
@@ -189,7 +190,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         if done >= steps:
             if gate_px is None or not held.any():
                 break
-            px = sigma_px * np.stack([np.sqrt((r1 * r1).sum(1)), np.sqrt((r2 * r2).sum(1))], 1)
+            px = sigma_px * rn.reshape(2, k).T
             drop = keep & (px > gate_px) & held[:, None]
             drop[drop.all(1)] = False            # a joint keeps one view at least
             if not drop.any():
