@@ -320,18 +320,24 @@ def pair_frame_with_epipole(people: np.ndarray, epipole: np.ndarray, skeleton,
         return pairing.real[0], pairing.reflections[0][0]
     flip = skeleton.flip
     joints = skeleton.calibration_joints if joints is None else np.asarray(joints, dtype=int)
-    both = masked(people, opts.min_confidence)
-    cand = Candidates(np.zeros(1, int), both[:1], both[1:][:, flip], np.zeros(1, int),
-                      np.ones(1, int))
-    ep = _score_epipole(np.asarray(epipole, float).reshape(3), cand, joints, flip, opts)
+    e = np.asarray(epipole, float).reshape(3)
+    a, b_own = masked(people, opts.min_confidence)
+    b = b_own[flip]
+    # the one candidate's two labellings scored together (:func:`_score_epipole`)
+    flipped, swapped_score = median_distance(e, np.stack([a, a]), np.stack([b, b[flip]]),
+                                             joints, opts.min_joints)
+    swapped = bool(is_swap(flipped, swapped_score, opts.threshold_px))
+    score = swapped_score if swapped else flipped
     real = np.full((len(flip), 3), np.nan)
     real[:, 2] = 0.0
-    if not ep.valid[0]:
+    if not score < opts.threshold_px:
         return real, real.copy()
+    b_label = b[flip] if swapped else b
+    b_refl = bool(b_is_reflection_of(e, a[None, joints], b_label[None, joints])[0])
     # one candidate: no detection is shared by two chosen pairs, the vote decides
-    a, b_own = cand.a[0], cand.b[0][flip]
-    mirror_own, person = (b_own, a) if ep.b_refl[0] else (a, b_own)
-    return person.copy(), (mirror_own if ep.swapped[0] else mirror_own[flip]).copy()
+    b_own = b[flip]
+    mirror_own, person = (b_own, a) if b_refl else (a, b_own)
+    return person.copy(), (mirror_own if swapped else mirror_own[flip]).copy()
 
 
 def paired_people(cands: PairCandidates) -> list[np.ndarray]:
