@@ -62,7 +62,8 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
            "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet"] + ["--inline"] * inline
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     clock = time.perf_counter()
-    subprocess.run(cmd, check=True, env=_env(tree), stdout=subprocess.DEVNULL)
+    # run from the tree: ``python -m`` puts the working directory first on the path
+    subprocess.run(cmd, check=True, env=_env(tree), stdout=subprocess.DEVNULL, cwd=tree)
     wall = time.perf_counter() - clock
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -73,6 +74,32 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
                if first is not None else len(lines))
     return dict(wall=wall, cpu=cpu, lines=len(lines), missing=missing,
                 first_mirror=None if first is None else lines[first]["frame"])
+
+
+#: One in-process live run (windows inline) giving each frame's own CPU time
+#: (:attr:`mirrorgraph.live.LiveFrame.cpu_s`: the thread's CPU of the per-frame path,
+#: the windows' solves left out): the part of the whole process the per-frame path is.
+PER_FRAME = """
+import sys, numpy as np
+from mirrorgraph.intrinsics import load_intrinsics
+from mirrorgraph.live import LiveCalibrator, LiveOptions
+from mirrorgraph.live.sources import open_source
+scene = sys.argv[1]
+src = open_source(scene + "/keypoints_mmpose.json", skeleton=None, fps=None)
+live = LiveCalibrator(src.skeleton, load_intrinsics(scene + "/camera.json"),
+                      LiveOptions.of(subject_height=1.75, can_wait=True))
+out = [live.update(f.people, frame_id=f.frame_id, time_s=f.time) for f in src.frames]
+cpu = np.array([f.cpu_s for f in out if f.paired])
+print(1e3 * np.median(cpu), np.sum([f.cpu_s for f in out]))
+"""
+
+
+def per_frame_cpu(tree: Path, scene: Path) -> tuple[float, float]:
+    """``(median ms, total s)``: the per-frame path's CPU over the frames paired."""
+    res = subprocess.run([sys.executable, "-c", PER_FRAME, str(scene)], check=True,
+                         env=_env(tree), capture_output=True, text=True, cwd=tree)
+    med, total = res.stdout.split()
+    return float(med), float(total)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -91,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         os.nice(args.nice)
     trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
     rows = []
+    per_frame: dict[str, list] = {}
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
         for r in range(args.repeats):              # interleaved: the load hits both alike
@@ -103,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
                           f"({args.frames / out['wall']:.0f} frames/s), {out['cpu']:.2f} s CPU, "
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
+            for name, tree in trees:
+                per_frame.setdefault(name, []).append(per_frame_cpu(tree, scene))
     L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
          "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
          f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
@@ -119,6 +149,16 @@ def main(argv: list[str] | None = None) -> int:
                      f"{np.median(fps):.0f} ({fps.min():.0f}, {fps.max():.0f}) | "
                      f"{np.median(c):.2f} | {sel[0]['lines']} | "
                      f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
+    L += ["", "CPU-time frames/s (frames / CPU s of the process and its worker, the measure "
+          "the machine's load disturbs least): " + "; ".join(
+              f"{r['code']} {r['mode']} {args.frames / np.median([x['cpu'] for x in rows if x['code'] == r['code'] and x['mode'] == r['mode']]):.0f}"
+              for r in rows[:2 * len(trees)]) + ".",
+          "", "The per-frame path alone (in process, windows inline; `LiveFrame.cpu_s`, the "
+          "thread's CPU of each frame's own work), medians over the runs:", "",
+          "| code | CPU ms a paired frame (median) | CPU s, every frame |", "|---|---:|---:|"]
+    for name, _ in trees:
+        pf = np.array(per_frame[name])
+        L.append(f"| {name} | {np.median(pf[:, 0]):.2f} | {np.median(pf[:, 1]):.2f} |")
     L += ["", f"Target: >= {TARGET_FPS:.0f} frames/s whole process in both modes, no line "
           "without joints after the first mirror."]
     text = "\n".join(L) + "\n"

@@ -39,10 +39,10 @@ from ..keypoints import PairedKeypoints, RawDetections
 from .estimators import estimate_epipole
 from .left_right import is_swap
 from .pair_candidates import (Candidates, PairingOptions, b_is_reflection_of, candidates,
-                              median_distance, spread_subset)
+                              masked, median_distance, spread_subset)
 
 __all__ = ["MirrorPairing", "PairCandidates", "choose_pairs", "pair_candidates",
-           "pair_detections", "pair_reflections", "paired_people"]
+           "pair_detections", "pair_frame_with_epipole", "pair_reflections", "paired_people"]
 
 @dataclass
 class MirrorPairing:
@@ -291,6 +291,53 @@ def pair_with_epipoles(raw: RawDetections, epipoles: Sequence[np.ndarray],
     found = [_score_epipole(np.asarray(e, float).reshape(3), cand, joints, sk.flip, opts)
              for e in epipoles]
     return choose_pairs(_scored_candidates(cand, found, T), sk.flip)
+
+
+def pair_frame_with_epipole(people: np.ndarray, epipole: np.ndarray, skeleton,
+                            joints: np.ndarray | None = None,
+                            options: PairingOptions | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """One frame paired against one known epipole: :func:`pair_with_epipoles` for a
+    single frame and mirror, the same result, without the batch's bookkeeping where the
+    frame holds two detections (its one candidate scored and chosen directly).
+
+    Args:
+        people: ``(P, J, 3)`` the frame's detections (undistorted pixels, confidence).
+        epipole: ``(3,)`` homogeneous epipole, pixels.
+        skeleton: the detections' :class:`~mirrorgraph.skeletons.Skeleton`.
+        joints: joints judging the pair (default: the calibration joints).
+        options: :class:`PairingOptions`.
+
+    Returns:
+        ``(real, mirror)``: ``(J, 3)`` the person and the reflection (its labels those of
+        the real joints it images); NaN / 0 where no pair under the threshold.
+    """
+    opts = options or PairingOptions()
+    people = np.asarray(people, dtype=float)
+    if len(people) != 2:
+        raw = RawDetections(skeleton, np.array([0]), [people])
+        pairing = pair_with_epipoles(raw, [epipole], joints, opts)
+        return pairing.real[0], pairing.reflections[0][0]
+    flip = skeleton.flip
+    joints = skeleton.calibration_joints if joints is None else np.asarray(joints, dtype=int)
+    e = np.asarray(epipole, float).reshape(3)
+    a, b_own = masked(people, opts.min_confidence)
+    b = b_own[flip]
+    # the one candidate's two labellings scored together (:func:`_score_epipole`)
+    flipped, swapped_score = median_distance(e, np.stack([a, a]), np.stack([b, b[flip]]),
+                                             joints, opts.min_joints)
+    swapped = bool(is_swap(flipped, swapped_score, opts.threshold_px))
+    score = swapped_score if swapped else flipped
+    real = np.full((len(flip), 3), np.nan)
+    real[:, 2] = 0.0
+    if not score < opts.threshold_px:
+        return real, real.copy()
+    b_label = b[flip] if swapped else b
+    b_refl = bool(b_is_reflection_of(e, a[None, joints], b_label[None, joints])[0])
+    # one candidate: no detection is shared by two chosen pairs, the vote decides
+    b_own = b[flip]
+    mirror_own, person = (b_own, a) if b_refl else (a, b_own)
+    return person.copy(), (mirror_own if swapped else mirror_own[flip]).copy()
 
 
 def paired_people(cands: PairCandidates) -> list[np.ndarray]:

@@ -542,18 +542,16 @@ class LiveCalibrator:
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """The frame's ``(J, 3)`` joints, their stds with and without the metric scale's
         share (``joints_std``, ``joints_std_shape``) and whether a pair was found."""
-        from ..initial.pairing import PairingOptions, pair_with_epipoles
+        from ..initial.pairing import PairingOptions, pair_frame_with_epipole
 
         J = self.skeleton.num_joints
         out, total, shape = np.full((J, 3), np.nan), np.full(J, np.nan), np.full(J, np.nan)
         K = self.K
         n, d = self.fusion.normal, float(self.fusion.distance)
         co = self._copts
-        raw = RawDetections(self.skeleton, np.array([fid]), [p])
-        pairing = pair_with_epipoles(raw, [K @ n], self.joints,
-                                     PairingOptions(min_confidence=co.min_confidence,
-                                                    threshold_px=co.threshold_px))
-        real, mirror = pairing.real[0], pairing.reflections[0][0]
+        real, mirror = pair_frame_with_epipole(
+            p, K @ n, self.skeleton, self.joints,
+            PairingOptions(min_confidence=co.min_confidence, threshold_px=co.threshold_px))
         # the person's left and right as the frames so far say (the detector's
         # confusions in either view, :mod:`mirrorgraph.initial.body_left_right`)
         real, mirror = self._swaps.update(real, mirror, fid)

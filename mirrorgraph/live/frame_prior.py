@@ -92,6 +92,28 @@ def _bone_index(k: int, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.nd
     return idx, sign
 
 
+_INDICES: dict = {}
+
+
+def _indices(k: int, a: np.ndarray, b: np.ndarray) -> tuple:
+    """The flat indices of one frame's normal equations: the bones' blocks and signs
+    (:func:`_bone_index`), the gradient's entries of each bone's two ends and the
+    ``(k, 3, 3)`` diagonal blocks; kept per joint and bone layout (a stream repeats a
+    few)."""
+    key = (k, a.tobytes(), b.tobytes())
+    if key not in _INDICES:
+        if len(_INDICES) > 256:
+            _INDICES.clear()
+        bidx, bsign = _bone_index(k, a, b)
+        ga = (3 * a[:, None] + np.arange(3)).ravel()
+        gb = (3 * b[:, None] + np.arange(3)).ravel()
+        ar = np.arange(k)
+        diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
+            + 3 * ar[:, None, None] + np.arange(3)[None, None, :]               # (k, 3, 3)
+        _INDICES[key] = (bidx.ravel(), bsign, ga, gb, diag)
+    return _INDICES[key]
+
+
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                       u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
                       lengths: np.ndarray, sigma_px: float, sigma_len: float,
@@ -134,30 +156,26 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
     held = np.zeros(k, bool)
     held[a] = held[b] = True
-    bidx, bsign = _bone_index(k, a, b)
-    bidx = bidx.ravel()
-    ga = (3 * a[:, None] + np.arange(3)).ravel()          # the gradient's entries of each
-    gb = (3 * b[:, None] + np.arange(3)).ravel()          # bone's two ends
+    bidx, bsign, ga, gb, diag = _indices(k, a, b)
     ar = np.arange(k)
-    diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
-        + 3 * ar[:, None, None] + np.arange(3)[None, None, :]                 # (k, 3, 3)
     keep = np.ones((k, 2), bool)
     steps = max(int(iterations), 1)
     M = np.zeros(9 * k * k)
     done = 0
+    uu = np.concatenate([u, um])                  # both views' pixels, stacked: (2k, 2)
+    c2 = 2.0 * distance * n
     while True:
-        p1, J1 = _projection(K, X)
-        p2, J2 = _projection(K, X @ H.T + 2.0 * distance * n)
-        J2 = J2 @ H
-        r1, r2 = (p1 - u) / sigma_px, (p2 - um) / sigma_px
-        w1 = _huber_weight(np.sqrt((r1 * r1).sum(1))) * keep[:, 0]
-        w2 = _huber_weight(np.sqrt((r2 * r2).sum(1))) * keep[:, 1]
-        J1, J2 = J1 / sigma_px, J2 / sigma_px
+        p, Jv = _projection(K, np.concatenate([X, X @ H.T + c2]))           # (2k, ...)
+        Jv[k:] = Jv[k:] @ H
+        r = (p - uu) / sigma_px
+        rn = np.sqrt((r * r).sum(1))
+        w = _huber_weight(rn) * keep.T.ravel()
+        Jv = Jv / sigma_px
+        JJ = w[:, None, None] * np.einsum("kri,krj->kij", Jv, Jv)
+        Jr = w[:, None] * np.einsum("kri,kr->ki", Jv, r)
         M[:] = 0.0
-        M[diag] = (w1[:, None, None] * np.einsum("kri,krj->kij", J1, J1)
-                   + w2[:, None, None] * np.einsum("kri,krj->kij", J2, J2))
-        g = (w1[:, None] * np.einsum("kri,kr->ki", J1, r1)
-             + w2[:, None] * np.einsum("kri,kr->ki", J2, r2))
+        M[diag] = JJ[:k] + JJ[k:]
+        g = Jr[:k] + Jr[k:]
         if len(L):
             diff = X[a] - X[b]
             length = np.sqrt((diff * diff).sum(1))
@@ -172,7 +190,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         if done >= steps:
             if gate_px is None or not held.any():
                 break
-            px = sigma_px * np.stack([np.sqrt((r1 * r1).sum(1)), np.sqrt((r2 * r2).sum(1))], 1)
+            px = sigma_px * rn.reshape(2, k).T
             drop = keep & (px > gate_px) & held[:, None]
             drop[drop.all(1)] = False            # a joint keeps one view at least
             if not drop.any():

@@ -82,6 +82,7 @@ class JointFilter:
         self.velocity_var = float(velocity_std) ** 2
         self.lag = max(int(lag), 0)
         self.history: list[tuple] = []        # (frame, x_f, P_f, gain, chained, F) to the next
+        self._models: dict = {}
         self.reset()
 
     def reset(self) -> None:
@@ -131,11 +132,10 @@ class JointFilter:
         meas[idx[ok]] = True
         # predict: every track still within its gap
         alive = np.isfinite(self.x[:, 0]) & (frame_id - self.seen <= self.max_gap)
-        F = _transition(np.array([g]))[0]
+        F, Q = self._model(g)
         xp = np.where(alive[:, None], self.x @ F.T, np.nan)
         Pp = np.where(alive[:, None, None],
-                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T
-                      + _noise(np.array([g]), self.sigma)[0], np.nan)
+                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T + Q, np.nan)
         chained = alive.copy()
         upd = meas & alive
         S = np.where(upd[:, None, None], Pp[:, :3, :3] + RJ, np.eye(3))
@@ -179,6 +179,17 @@ class JointFilter:
             del self.history[:-(self.lag + 1)]
         return xf[idx, :3], Pf[idx, :3, :3], taken
 
+    def _model(self, g: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(6, 6)`` the transition and the process noise of ``g`` steps (kept per gap
+        and ``sigma``: most frames step by one)."""
+        key = (g, self.sigma)
+        if key not in self._models:
+            if len(self._models) > 64:
+                self._models.clear()
+            self._models[key] = (_transition(np.array([g]))[0],
+                                 _noise(np.array([g]), self.sigma)[0])
+        return self._models[key]
+
     def smoothed(self, frame_id: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Frame ``frame_id`` (one of the last ``lag + 1`` stepped) smoothed with the
         frames stepped after it: ``(J, 3)`` points and ``(J, 3, 3)`` covariances (NaN
@@ -195,6 +206,11 @@ class JointFilter:
         for i in range(len(self.history) - 2, k - 1, -1):
             _, xf, Pf, G, c, F = self.history[i]
             c = c & np.isfinite(xs[:, 0])
+            if c.all():                    # every track chained: no rows to pick
+                dx = xs - xf @ F.T
+                xs = xf + np.einsum("nij,nj->ni", G, dx)
+                Ps = Pf - G @ F @ Pf + G @ Ps @ G.transpose(0, 2, 1)
+                continue
             x_new, P_new = xf.copy(), Pf.copy()
             if c.any():
                 # x_s = x_f + G (x_s' - x_p'), P_s = P_f + G (P_s' - P_p') G^T, with

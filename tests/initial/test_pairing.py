@@ -134,3 +134,32 @@ def test_nanmedian_rows_is_numpys_nanmedian():
             expected = np.nanmedian(x, axis=1)
         np.testing.assert_array_equal(nanmedian_rows(x), expected)
     assert nanmedian_rows(np.zeros((3, 0))).shape == (3,)
+
+
+def test_one_frame_pairing_is_the_batch_pairing():
+    """pair_frame_with_epipole gives every frame what pair_with_epipoles gives it, with
+    left/right swaps, single people and bystanders among the frames, and recovers the
+    true person and reflection."""
+    from mirrorgraph.initial.pairing import (pair_frame_with_epipole, pair_reflections,
+                                             pair_with_epipoles)
+
+    scene = make_scene(frames=200, seed=14, lr_swap_rate=0.2, single_person_rate=0.1,
+                       extra_person_rate=0.15)
+    raw = scene.detections
+    e = pair_reflections(raw, 1).epipoles[0]
+    sk = raw.skeleton
+    right = 0
+    counts = set()
+    for t, people in enumerate(raw.people):
+        one = RawDetections(sk, np.array([t]), [people])
+        batch = pair_with_epipoles(one, [e])
+        real, mirror = pair_frame_with_epipole(people, e, sk)
+        np.testing.assert_array_equal(real, batch.real[0])
+        np.testing.assert_array_equal(mirror, batch.reflections[0][0])
+        counts.add(min(len(people), 3))
+        if np.isfinite(real[:, 0]).any():
+            d = np.nanmedian(np.linalg.norm(real[:, :2] - scene.real_clean[t], axis=-1))
+            dm = np.nanmedian(np.linalg.norm(mirror[:, :2] - scene.mirror_clean[t], axis=-1))
+            right += bool(d < 20 and dm < 20)
+    assert counts == {1, 2, 3}
+    assert right > 0.8 * len(raw.people)
