@@ -70,6 +70,12 @@ BOOTSTRAP_DRAWS = 200
 #: A camera leaves its given whole offset where the found one fits better in this share
 #: of the bootstrap draws (a one-sided test at 1 %).
 ACCEPT_LEVEL = 0.99
+
+#: A camera moves from its given offset only where the bootstrap draws' best whole
+#: shifts lie within this many frames (RMS) of the move: a shift the people fix to a
+#: frame or two, not one a draw may put anywhere in the window (a camera seeing another
+#: person part of the time).
+MOVE_SPREAD = 2.0
 #: A fraction of a frame is applied where it exceeds this many of its stds (the
 #: two-sided normal test at 1 %).
 FRACTION_Z = 2.576
@@ -705,10 +711,10 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                 fails.add(c)
                 continue
             # a move the draws do not agree on (their best shifts' RMS deviation from it
-            # over a frame) is no offset the people fix: the given one stays
+            # over MOVE_SPREAD frames) is no offset the people fix: the given one stays
             draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:],
                                          axis=1)]
-            if np.sqrt(np.mean((draws - o[c]) ** 2.0)) > 1.0:
+            if np.sqrt(np.mean((draws - o[c]) ** 2.0)) > MOVE_SPREAD:
                 fails.add(c)
         if not fails:
             break
