@@ -242,7 +242,7 @@ def scene_from_rig(rig, *, joints3d=None, valid=None, frame_ids=None, joint_name
 
     The world frame is the first camera's; every camera that sees a mirror gets its
     virtual camera. Without ``joints3d`` a :class:`RigCalibration`'s own joints are
-    drawn.
+    drawn, every person's where it holds several (``people_joints3d``).
     """
     from ..skeletons import skeleton_by_name
 
@@ -269,7 +269,15 @@ def scene_from_rig(rig, *, joints3d=None, valid=None, frame_ids=None, joint_name
         unit = "m" if rig.scale == "subject_height" else "subject height"
         summary = rig.summary()
         skeleton = rig.skeleton
-        if joints3d is None:
+        if joints3d is None and getattr(rig, "people_joints3d", None) is not None:
+            # every person (``--people all``) side by side: the layout of people_skeleton
+            from ..skeletons import people_skeleton
+            P, T, J = rig.people_valid.shape
+            joints3d = np.moveaxis(rig.people_joints3d, 0, 1).reshape(T, P * J, 3)
+            valid = np.moveaxis(rig.people_valid, 0, 1).reshape(T, P * J)
+            frame_ids = rig.frame_ids
+            joint_names = people_skeleton(skeleton_by_name(rig.skeleton), P).joints
+        elif joints3d is None:
             joints3d, valid, frame_ids = rig.joints3d, rig.valid, rig.frame_ids
             joint_names = skeleton_by_name(rig.skeleton).joints
     cameras = [ViewCamera(name, K, None if size is None else tuple(size), pose)
