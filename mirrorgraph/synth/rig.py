@@ -293,14 +293,7 @@ def _in_camera0_frame(names: list[str], cams: list, X_r: np.ndarray, mirrors_r: 
     room_to_world = np.eye(4)
     room_to_world[:3, :3] = R0.T
     room_to_world[:3, 3] = -R0.T @ C0
-    joints3d = (X_r - C0) @ R0
-    poses = []
-    for c in cams:
-        P = np.eye(4)
-        P[:3, :3] = R0.T @ c.R
-        P[:3, 3] = R0.T @ (c.C - C0)
-        poses.append(P)
-    poses[0] = np.eye(4)
+    joints3d, poses = _placement.first_camera_frame(cams, X_r)
     mirror_names = list(mirrors_r)
     mirrors, limits = [], {}
     for name in mirror_names:

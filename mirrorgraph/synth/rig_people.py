@@ -45,7 +45,7 @@ from .camera import check_camera_args, random_camera_matrix
 from .detector import observe_keypoints
 from .motion import generate_motion
 from .camera import project, rot_z
-from .rig_placement import full_fraction, motion_centre, place_person
+from .rig_placement import first_camera_frame, full_fraction, motion_centre, place_person
 
 __all__ = ["SyntheticRigPeople", "make_rig_people", "write_rig_people", "AREA_RADIUS",
            "DRIFT_M", "MIN_SPACING", "SNAPSHOT_GAP"]
@@ -256,15 +256,7 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
     Ks = [random_camera_matrix(rng, size, fov_deg) for _ in range(cameras)]
     X_r, H = _people(rng, int(people), T, fps, skel, snapshots)
     cams = _cameras(rng, int(cameras), Ks, size, X_r)
-    R0, C0 = cams[0].R, cams[0].C
-    joints3d = (X_r - C0) @ R0
-    poses = []
-    for c in cams:
-        P = np.eye(4)
-        P[:3, :3] = R0.T @ c.R
-        P[:3, 3] = R0.T @ (c.C - C0)
-        poses.append(P)
-    poses[0] = np.eye(4)
+    joints3d, poses = first_camera_frame(cams, X_r)
     names = [f"cam{i + 1:02d}" for i in range(cameras)]
     frame_ids = np.arange(T, dtype=np.int64) * (SNAPSHOT_GAP if snapshots else 1)
     detections, owner, occluded, swapped = {}, {}, {}, {}

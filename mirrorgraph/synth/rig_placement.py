@@ -219,6 +219,28 @@ def camera_views(cam: _Camera, K: np.ndarray, size: tuple[int, int], X: np.ndarr
     return out
 
 
+def first_camera_frame(cams: list, X_r: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Room-frame points and cameras in the first camera's frame (the rig's world).
+
+    Args:
+        cams: placed cameras (``R`` world-to-camera rotation, ``C`` centre, room frame).
+        X_r: ``(..., 3)`` points in the room frame.
+
+    Returns:
+        ``X_r`` in the first camera's frame, and every camera's ``(4, 4)``
+        camera-to-world pose in it (the first: the identity).
+    """
+    R0, C0 = cams[0].R, cams[0].C
+    poses = []
+    for c in cams:
+        P = np.eye(4)
+        P[:3, :3] = R0.T @ c.R
+        P[:3, 3] = R0.T @ (c.C - C0)
+        poses.append(P)
+    poses[0] = np.eye(4)
+    return (X_r - C0) @ R0, poses
+
+
 def motion_centre(X: np.ndarray) -> np.ndarray:
     """Horizontal mean and the middle of the vertical extent of a motion ``(T, J, 3)``."""
     flat = X.reshape(-1, 3)
