@@ -67,7 +67,8 @@ def add_parsers(sub) -> None:
                         "subject height) .trc, .c3d or .bvh")
     p.add_argument("--fps", type=positive, default=None, help="frame rate for --joints3d")
     p.add_argument("--report", metavar="DIR",
-                   help="write figures (top view of the rig, residuals per view) into DIR "
+                   help="write figures (top view of the rig and every person, residuals "
+                        "per view and keypoints kept per camera, per person) into DIR "
                         f"(needs matplotlib: {INSTALL_HINT})")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSACs (default 0)")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",

@@ -28,8 +28,8 @@ from ..rigs.observations import RigObservations
 from ..rigs.people import PeopleAssociation, associate_people
 from .solve import RigSolution, build_rig, solve_rig
 
-__all__ = ["MAX_ROUNDS", "STABLE_SHARE", "EveryoneRun", "people_joints", "solve_everyone",
-           "split_solution"]
+__all__ = ["MAX_ROUNDS", "STABLE_SHARE", "EveryoneRun", "people_joints", "people_views",
+           "solve_everyone", "split_solution"]
 
 #: Solves of the graph of every person, at most.
 MAX_ROUNDS = 2
@@ -160,11 +160,33 @@ def people_record(run: EveryoneRun) -> dict:
     """The ``refinement["people"]`` record of the result: ``mode`` ``"all"``, ``count``
     (slots of the graph), ``found`` (people associated before their packing into
     slots), ``frames`` (per slot, frames seen by two cameras or more), ``observations``
-    (per slot, the joints the graph used), ``rounds`` (:attr:`EveryoneRun.rounds`),
-    ``lr_dropped`` and ``switched`` (:class:`~mirrorgraph.rigs.people.PeopleAssociation`)."""
+    (per slot, the joints the graph used), ``views`` (:func:`people_views`), ``rounds``
+    (:attr:`EveryoneRun.rounds`), ``lr_dropped`` and ``switched``
+    (:class:`~mirrorgraph.rigs.people.PeopleAssociation`)."""
     a = run.association
     used = split_solution(run.solution.used, a.count)
     return {"mode": "all", "count": a.count, "found": a.people_found,
             "frames": a.frames().tolist(),
             "observations": [int(np.count_nonzero(u)) for u in used],
+            "views": people_views(run.solution, a.count),
             "rounds": run.rounds, "lr_dropped": a.lr_dropped, "switched": a.switched}
+
+
+def people_views(sol: RigSolution, P: int) -> list[dict]:
+    """Per slot, the views it offered keypoints to: view name -> ``{"rms_px",
+    "observations", "offered"}`` as the rig's ``refinement["views"]``, of that person's
+    joints alone (:attr:`.solve.RigSolution.view_joint_tally`); every table empty where
+    the tally is missing."""
+    if sol.view_joint_tally is None:
+        return [{} for _ in range(P)]
+    V, PJ = sol.view_joint_tally.shape[:2]
+    per = sol.view_joint_tally.reshape(V, P, PJ // P, 3).sum(2)          # (V, P, 3)
+    out = []
+    for p in range(P):
+        views = {}
+        for name, (sq, kept, offered) in zip(sol.view_names, per[:, p]):
+            if offered > 0:
+                views[name] = {"rms_px": float(np.sqrt(sq / kept)) if kept else float("nan"),
+                               "observations": int(kept), "offered": int(offered)}
+        out.append(views)
+    return out

@@ -369,6 +369,10 @@ class RigSolution:
         view_counts: observations used per view.
         view_observed: observations each view offered the graph (seen, on the graph's
             frames), before any rejection.
+        view_joint_tally: ``(V, J, 3)`` the same per view and joint: the sum of the squared
+            residuals (px^2), the observations used, those offered (the figures of one
+            person of several side by side: their joints' columns summed); ``None``: not
+            computed.
         bone_lengths: bone -> length.
         rejected: observations dropped as outliers, all views.
         iterations: Levenberg-Marquardt solves.
@@ -411,6 +415,7 @@ class RigSolution:
     sensitivity: dict = field(default_factory=dict)
     joints_cov: np.ndarray | None = None
     noise_px: float = float("nan")
+    view_joint_tally: np.ndarray | None = None
 
     def scaled(self, factor: float) -> "RigSolution":
         """The same solution with every length multiplied by ``factor`` (> 0).
@@ -540,6 +545,9 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
            else float("nan") for r in res_views]
     counts = [int(np.count_nonzero(np.isfinite(r))) for r in res_views]
     offered = [int(np.count_nonzero(np.asarray(v.mask, bool)[rows])) for v in rig.views]
+    tally = np.stack([np.stack([np.nansum(r ** 2, axis=0), np.isfinite(r).sum(0),
+                                np.asarray(v.mask, bool)[rows].sum(0)], axis=-1)
+                      for r, v in zip(res_views, rig.views)]) if rig.views else None
     priors = reprojection_record(state, options, kernel=" then ".join(
         str(s.get("kernel")) for s in state.stages if "kernel" in s))
     camera_cov, plane_cov = list(state.camera_cov), list(state.plane_cov)
@@ -600,7 +608,7 @@ def solve_rig(rig: Rig, options: RefineOptions, height: float,
                        sensitivity=sensitivity,
                        plane_basis=state.plane_basis, points=state.points, used=state.used,
                        view_names=[v.name for v in rig.views], view_rms_px=rms,
-                       view_counts=counts, view_observed=offered,
+                       view_counts=counts, view_observed=offered, view_joint_tally=tally,
                        bone_lengths=state.bone_lengths, rejected=state.rejected,
                        iterations=state.iterations, priors=priors, timings=state.timings)
 

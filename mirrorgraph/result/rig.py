@@ -326,15 +326,15 @@ class RigCalibration:
         the estimated joints of at most ``max_points`` frames spread over the video,
         ``{"frames": [...], "xyz": [[x, y, z], ...]}`` (world frame, length unit; frames
         without a joint left out)."""
-        J = np.asarray(self.joints3d, float)
-        if J.ndim != 3 or not J.size:
-            return {"frames": [], "xyz": []}
-        rows = np.unique(np.linspace(0, len(J) - 1, min(max_points, len(J))).round().astype(int))
-        X = np.where(np.asarray(self.valid, bool)[rows, :, None], J[rows], np.nan)
-        seen = np.isfinite(X).all(-1).any(1)
-        mean = np.nansum(np.nan_to_num(X[seen]), axis=1) / np.isfinite(X[seen]).all(-1).sum(1)[:, None]
-        frames = np.asarray(self.frame_ids)[rows[seen]]
-        return {"frames": [int(f) for f in frames], "xyz": mean.round(5).tolist()}
+        return _mean_path(self.joints3d, self.valid, self.frame_ids, max_points)
+
+    def people_paths(self, max_points: int = SUBJECT_PATH_POINTS) -> list[dict[str, list]]:
+        """Every person's path as :meth:`subject_path` (person 0's is the subject's); an
+        empty list for one person (no ``people_joints3d``)."""
+        if self.people_joints3d is None:
+            return []
+        return [_mean_path(X, ok, self.frame_ids, max_points)
+                for X, ok in zip(self.people_joints3d, self.people_valid)]
 
     def to_dict(self) -> dict[str, Any]:
         """The rig JSON schema (plain Python types)."""
@@ -375,6 +375,8 @@ class RigCalibration:
             "bone_lengths": dict(self.bone_lengths),
             "frames": int(len(self.frame_ids)),
             "subject_path": self.subject_path(),
+            **({"people_paths": self.people_paths()} if self.people_joints3d is not None
+               else {}),
             "initialisation": self.initialisation,
             "refinement": self.refinement,
             "sensitivity": self.sensitivity,
@@ -412,6 +414,20 @@ class RigCalibration:
         return "\n".join(lines)
 
 
+def _mean_path(joints3d, valid, frame_ids, max_points: int) -> dict[str, list]:
+    """``{"frames", "xyz"}``: the mean of the valid joints ``(T, J, 3)`` of at most
+    ``max_points`` frames spread over ``T``, frames without a joint left out."""
+    J = np.asarray(joints3d, float)
+    if J.ndim != 3 or not J.size:
+        return {"frames": [], "xyz": []}
+    rows = np.unique(np.linspace(0, len(J) - 1, min(max_points, len(J))).round().astype(int))
+    X = np.where(np.asarray(valid, bool)[rows, :, None], J[rows], np.nan)
+    seen = np.isfinite(X).all(-1).any(1)
+    mean = np.nansum(np.nan_to_num(X[seen]), axis=1) / np.isfinite(X[seen]).all(-1).sum(1)[:, None]
+    frames = np.asarray(frame_ids)[rows[seen]]
+    return {"frames": [int(f) for f in frames], "xyz": mean.round(5).tolist()}
+
+
 def _time_offset(c: RigCamera) -> str:
     """The summary's words on a camera's time offset: ``""`` for the reference."""
     if c.time_offset_source == "reference":
@@ -436,7 +452,8 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
     (``initialisation``, ``refinement``, ``sensitivity``, ``warnings``) are taken as
     written. The JSON holds no 3D joints: ``joints3d`` comes back ``(k, 1, 3)``, the
     subject's path (:meth:`RigCalibration.subject_path`) on its ``k`` frames
-    (``frame_ids``).
+    (``frame_ids``), and ``people_joints3d`` ``(P, k, 1, 3)`` every person's where the
+    JSON has them (:meth:`RigCalibration.people_paths`), NaN on frames a path leaves out.
 
     Raises:
         InputError: unreadable file or a missing / malformed field, naming both.
@@ -511,19 +528,35 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
     if not cameras:
         raise InputError("no cameras", source=src, field="cameras")
     height = obj.get("subject_height")
-    # the 3D joints are not in the JSON: the subject's path stands for them (one "joint")
-    sp = obj.get("subject_path") or {}
-    path = numeric_array(sp.get("xyz") or np.zeros((0, 3)).tolist(), 2, source=src, frame=None,
-                         field="subject_path.xyz").reshape(-1, 3)
-    frame_ids = np.asarray(sp.get("frames") or [], dtype=np.int64)
-    if len(frame_ids) != len(path):
-        raise InputError(f"{len(frame_ids)} frames for {len(path)} points", source=src,
-                         field="subject_path")
+    # the 3D joints are not in the JSON: the paths stand for them (one "joint" a person)
+    def read_path(sp, where):
+        if not isinstance(sp, Mapping):
+            raise InputError("expected an object with frames and xyz", source=src, field=where)
+        xyz = numeric_array(sp.get("xyz") or np.zeros((0, 3)).tolist(), 2, source=src,
+                            frame=None, field=f"{where}.xyz").reshape(-1, 3)
+        frames = np.asarray(sp.get("frames") or [], dtype=np.int64)
+        if len(frames) != len(xyz):
+            raise InputError(f"{len(frames)} frames for {len(xyz)} points", source=src,
+                             field=where)
+        return frames, xyz
+
+    paths = [read_path(obj.get("subject_path") or {}, "subject_path")]
+    people = obj.get("people_paths")
+    if people is not None and not isinstance(people, list):
+        raise InputError("expected a list of paths", source=src, field="people_paths")
+    paths += [read_path(sp, f"people_paths[{k}]") for k, sp in enumerate(people or [])]
+    frame_ids = np.unique(np.concatenate([f for f, _ in paths]))
+    on_frames = np.full((len(paths), len(frame_ids), 1, 3), np.nan)
+    for k, (frames, xyz) in enumerate(paths):
+        on_frames[k, np.searchsorted(frame_ids, frames), 0] = xyz
+    path_valid = np.isfinite(on_frames).all(-1)
     return RigCalibration(
         cameras=cameras, mirrors=mirrors, scale=str(obj.get("scale", "unit_height")),
         subject_height=None if height is None else fnum(height, "subject_height"),
         skeleton=str(obj.get("skeleton", "")), frame_ids=frame_ids,
-        joints3d=path[:, None, :], valid=np.isfinite(path).all(1)[:, None],
+        joints3d=on_frames[0], valid=path_valid[0],
+        people_joints3d=on_frames[1:] if people else None,
+        people_valid=path_valid[1:] if people else None,
         bone_lengths={str(k): float(v) for k, v in (obj.get("bone_lengths") or {}).items()},
         initialisation=dict(obj.get("initialisation") or {}),
         refinement=dict(obj.get("refinement") or {}),
