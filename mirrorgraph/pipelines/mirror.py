@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -218,37 +218,6 @@ def judge_run(run: CalibrationRun, obs: Observations, init: Initial,
 
 
 @dataclass
-class Observations:
-    """A single mirror's observations, ready for the initialisation (:func:`observe`).
-
-    Attributes:
-        keypoints: the input as read (raw pixels).
-        data: the same, undistorted with ``intrinsics``.
-        paired: person and reflection paired, the reflection's labels in the person's.
-        joints: ``(k,)`` the joints the run uses.
-        intrinsics: the camera's (given, or the field-of-view guess).
-        fps, fps_source: the frame rate of the 3D motion and where it came from.
-        pairing: the pairing's options (threshold, confidence, seed).
-        warnings: what reading them found worth saying.
-        seconds: the pairing's wall time.
-        body_lr_fixes: (frame, left/right pair, view) entries whose labels the detector
-            swapped, swapped back (:mod:`mirrorgraph.initial.body_left_right`).
-    """
-
-    keypoints: RawDetections | PairedKeypoints
-    data: RawDetections | PairedKeypoints
-    paired: PairedKeypoints
-    joints: np.ndarray
-    intrinsics: Intrinsics
-    fps: float
-    fps_source: str
-    pairing: PairingOptions
-    warnings: list[str]
-    seconds: float
-    body_lr_fixes: int = 0
-
-
-@dataclass
 class Prepared:
     """A single camera's input before the pairing (:func:`prepare`).
 
@@ -269,6 +238,31 @@ class Prepared:
     fps_source: str
     pairing: PairingOptions
     warnings: list[str]
+
+
+@dataclass
+class Observations(Prepared):
+    """A single mirror's observations, ready for the initialisation (:func:`observe`): the
+    :class:`Prepared` input, paired.
+
+    Attributes (besides :class:`Prepared`'s):
+        paired: person and reflection paired, the reflection's labels in the person's.
+        seconds: the pairing's wall time.
+        body_lr_fixes: (frame, left/right pair, view) entries whose labels the detector
+            swapped, swapped back (:mod:`mirrorgraph.initial.body_left_right`).
+    """
+
+    paired: PairedKeypoints
+    seconds: float
+    body_lr_fixes: int = 0
+
+    @classmethod
+    def of(cls, prepared: Prepared, paired: PairedKeypoints, seconds: float,
+           body_lr_fixes: int = 0, **changes) -> "Observations":
+        """``prepared`` once paired; ``changes``: fields of ``prepared`` replaced."""
+        base = {f.name: getattr(prepared, f.name) for f in fields(Prepared)}
+        return cls(**{**base, **changes}, paired=paired, seconds=seconds,
+                   body_lr_fixes=body_lr_fixes)
 
 
 def prepare(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
@@ -308,9 +302,7 @@ def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
     else:
         paired = pair_detections(p.data, p.joints, p.pairing)
     paired, body_swaps = undo_body_swaps(paired, opts.min_confidence)
-    return Observations(p.keypoints, p.data, paired, p.joints, p.intrinsics, p.fps,
-                        p.fps_source, p.pairing, p.warnings, time.perf_counter() - clock,
-                        body_swaps)
+    return Observations.of(p, paired, time.perf_counter() - clock, body_swaps)
 
 
 @dataclass

@@ -88,22 +88,21 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
     """Read, undistort (:func:`~.mirror.prepare`), pair every person with their reflection
     and track them."""
     prep = prepare(keypoints, intrinsics, opts, step)
-    keypoints, data, joints, intr = prep.keypoints, prep.data, prep.joints, prep.intrinsics
-    fps, fps_source, pair_opts, warnings = prep.fps, prep.fps_source, prep.pairing, prep.warnings
-    if isinstance(keypoints, PairedKeypoints):
+    if isinstance(prep.keypoints, PairedKeypoints):
         raise InputError("every person's pairing needs the detections of every frame, not "
-                         "keypoints already paired (one person)", source=keypoints.source)
+                         "keypoints already paired (one person)", source=prep.keypoints.source)
     step("pairing every person with their reflection")
     clock = time.perf_counter()
-    pairing = pair_people(data, joints, pair_opts, people)
-    warnings.extend(pairing.notes)
+    pairing = pair_people(prep.data, prep.joints, prep.pairing, people)
+    prep.warnings.extend(pairing.notes)
     # each person's left/right pairs are pairs of the layout's flip: one chain each
     paired, body_swaps = undo_body_swaps(pairing.paired, opts.min_confidence)
     pairing = replace(pairing, paired=paired)
-    P, J = pairing.num_people, keypoints.skeleton.num_joints
-    all_joints = (np.asarray(joints, dtype=int)[None, :] + J * np.arange(P)[:, None]).ravel()
-    obs = Observations(keypoints, paired, paired, all_joints, intr, fps, fps_source, pair_opts,
-                       warnings, time.perf_counter() - clock, body_lr_fixes=body_swaps)
+    P, J = pairing.num_people, prep.keypoints.skeleton.num_joints
+    all_joints = (np.asarray(prep.joints, dtype=int)[None, :] + J * np.arange(P)[:, None]).ravel()
+    # the data of every person: the layout of several people side by side, as paired
+    obs = Observations.of(prep, paired, time.perf_counter() - clock, body_swaps, data=paired,
+                          joints=all_joints)
     return obs, pairing
 
 
