@@ -153,6 +153,25 @@ def openpose_folders(args, cams: list[str], work: Path) -> Path:
     return out
 
 
+def demo_subjects(args, cams: list[str]) -> tuple[Path, dict, dict[str, dict]]:
+    """What every clip of the demo trial is built from: the trial's folder, its Qualisys
+    cameras (name -> camera) and per camera of ``cams`` its OpenPose subject on the first
+    ``args.frames`` frames (frame -> ``(25, 3)`` source px; ``args``: ``frames``, ``work``
+    and :func:`openpose_folders`' ``openpose``, ``pose2sim_git``)."""
+    trial = demo_trial()
+    quals = read_qca(trial / "calibration" / "Calib.qca.txt")
+    root = openpose_folders(args, list(cams), args.work)
+    subjects = {cam: {t: s for t, s in openpose_subject(root / cam).items() if t < args.frames}
+                for cam in cams}
+    return trial, quals, subjects
+
+
+def pair_clip(pair: str, quals: dict, subjects: dict[str, dict]) -> "PairClip":
+    """The two-camera clip ``"A-B"`` (B as A's mirror) of :func:`demo_subjects`' output."""
+    A, B = pair.split("-")
+    return PairClip(A, B, quals[A], quals[B], subjects[A], subjects[B])
+
+
 def subject(people: np.ndarray) -> np.ndarray | None:
     """The tallest person (confidence > 0.3), unseen joints NaN."""
     if len(people) == 0:
@@ -618,18 +637,10 @@ def main(argv: list[str] | None = None) -> int:
     started = datetime.datetime.now(datetime.timezone.utc)
     t_all = time.perf_counter()
     args.work.mkdir(parents=True, exist_ok=True)
-    trial = demo_trial()
-    quals = read_qca(trial / "calibration" / "Calib.qca.txt")
     cams = sorted({c for p in args.pairs for c in p.split("-")}
                   | {c.split("@")[0] for c in args.cutouts})
-    op_root = openpose_folders(args, cams, args.work)
-    subjects = {cam: {t: s for t, s in openpose_subject(op_root / cam).items()
-                      if t < args.frames} for cam in cams}
-    clips = []
-    for p in args.pairs:
-        A, B = p.split("-")
-        clips.append((f"pair_{A}_{B}", PairClip(A, B, quals[A], quals[B], subjects[A],
-                                                 subjects[B])))
+    trial, quals, subjects = demo_subjects(args, cams)
+    clips = [(f"pair_{p.replace('-', '_')}", pair_clip(p, quals, subjects)) for p in args.pairs]
     for c in args.cutouts:
         cam, angle = c.split("@")
         off = angle.endswith("off")

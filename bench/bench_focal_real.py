@@ -83,7 +83,6 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 import mirrorgraph as mg  # noqa: E402
 from mirrorgraph.geometry import triangulate  # noqa: E402
-from mirrorgraph.io.qualisys import read_qca  # noqa: E402
 from mirrorgraph.keypoints import RawDetections  # noqa: E402
 from mirrorgraph.metrics import mirror_rotation_error_deg  # noqa: E402
 from mirrorgraph.anthropometry import bone_kind  # noqa: E402
@@ -350,11 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         seconds = sum(d.get("seconds", 0.0) for d in parts)
         return _write(report(data, args, started, seconds, argv), data, args)
     args.work.mkdir(parents=True, exist_ok=True)
-    trial = ba.demo_trial()
-    quals = read_qca(trial / "calibration" / "Calib.qca.txt")
-    op_root = ba.openpose_folders(args, list(CAMS), args.work)
-    op = {cam: {t: s for t, s in ba.openpose_subject(op_root / cam).items() if t < args.frames}
-          for cam in CAMS}
+    trial, quals, op = ba.demo_subjects(args, list(CAMS))
     subjects = {"OpenPose": op}
     if "BlazePose" in args.detectors:
         subjects["BlazePose"] = blaze_subjects(trial, op, args.frames)
@@ -366,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
         data["bones"][name] = bone_table(X, sk)
     for pair in args.pairs:
         A, B = pair.split("-")
-        clip = ba.PairClip(A, B, quals[A], quals[B], op[A], op[B])
+        clip = ba.pair_clip(pair, quals, op)
         row = {"clip": clip.name, "truth": clip.truth, "res": {}}
         for name in args.detectors:
             sk = DETECTORS[name]
