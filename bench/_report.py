@@ -4,6 +4,10 @@
     lines = ["# Title (`bench/bench_x.py`)", "", *header(), "", table...]
     lines = [..., *header(code=True), ...]      # a fourth line: the commit measured
 
+A script that saves its figures (JSON) and can write the report again from them saves
+:func:`record` beside the figures and heads the report with :func:`recorded_header`: the
+report written again carries the run's date, command and machine, not today's.
+
 The machines are shared: the machine line carries the load average when the file is
 written, so that a contended run reads as one.
 """
@@ -18,7 +22,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["header", "command", "machine", "cpu_model", "now", "code_state"]
+__all__ = ["header", "command", "machine", "cpu_model", "now", "code_state", "record",
+           "recorded_header", "NOT_RECORDED"]
+
+#: What :func:`recorded_header` says of a line the saved data lack.
+NOT_RECORDED = "not recorded with the figures"
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -97,3 +105,23 @@ def header(*, started: str | None = None, argv: list[str] | None = None,
         state = code_state() if code is True else code
         lines.append(f"{bullet} code: mirrorgraph at commit {state}")
     return lines
+
+
+def record(*, argv: list[str] | None = None, script: str | None = None, cmd: str | None = None,
+           code: bool = False) -> dict[str, str]:
+    """``{"date", "command", "machine"}`` (and ``"code"``) of this run, as :func:`header`
+    writes them: to save with the figures (arguments as :func:`header`'s)."""
+    out = {"date": now(), "command": cmd or command(argv, script), "machine": machine()}
+    if code:
+        out["code"] = code_state()
+    return out
+
+
+def recorded_header(meta: dict, *, note: str = "", bullet: str = "*") -> list[str]:
+    """:func:`header`'s lines from a run's saved :func:`record` (``meta``): its date,
+    command, machine and code; :data:`NOT_RECORDED` for those ``meta`` lacks (never the
+    date or machine of the day the report is written again)."""
+    return header(started=meta.get("date") or NOT_RECORDED,
+                  cmd=meta.get("command") or NOT_RECORDED,
+                  machine_line=meta.get("machine") or NOT_RECORDED, note=note, bullet=bullet,
+                  code=meta.get("code") or False)

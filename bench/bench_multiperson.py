@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 import time
 from dataclasses import replace
@@ -145,12 +144,12 @@ def run_scene(people: int, seed: int, frames: int, known: bool, oracle: bool = F
     return row
 
 
-def render(rows: list[dict], command: str, meta: dict) -> str:
+def render(rows: list[dict], meta: dict) -> str:
+    """The report of ``rows``; its header the run's own (``meta``: :func:`_report.record`)."""
     lines = ["# Every person before one mirror (bench_multiperson)", "",
-             *_report.header(cmd=command, started=meta.get("date"),
-                             machine_line=meta.get("machine"),
-                             note="the machine shared: the times are wall seconds under that "
-                                  "load, compare them within a row"), "",
+             *_report.recorded_header(meta, note="the machine shared: the times are wall "
+                                                 "seconds under that load, compare them "
+                                                 "within a row"), "",
              "Scenes: `mirrorgraph.synth.crowd.make_crowd` (COCO-17, 1920x1080, 70 deg, 4 px "
              "noise, half of the people occluded in one view or both for 5-40 frames, one "
              "to three times). *one*: `calibrate` (one pair a frame); *all*: "
@@ -224,7 +223,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.report_only:
         data = json.loads(Path(args.out).with_suffix(".json").read_text())
-        Path(args.out).write_text(render(data["rows"], data["command"], data))
+        Path(args.out).write_text(render(data["rows"], data))
         print(Path(args.out).read_text())
         return 0
     modes = {"both": (True, False), "known": (True,), "unknown": (False,)}[args.camera]
@@ -239,12 +238,9 @@ def main(argv=None) -> int:
                       f"focal one {row['one']['focal_pct']:+.2f} all "
                       f"{row['all']['focal_pct']:+.2f}",
                       f"switches {row['all']['switches']}", flush=True)
-    command = "python bench/bench_multiperson.py " + shlex.join(sys.argv[1:] if argv is None
-                                                               else argv)
-    meta = {"date": _report.now(), "machine": _report.machine()}
-    Path(args.out).with_suffix(".json").write_text(
-        json.dumps({"rows": rows, "command": command, **meta}, indent=1))
-    text = render(rows, command, meta)
+    meta = _report.record(argv=argv, script="bench_multiperson.py")
+    Path(args.out).with_suffix(".json").write_text(json.dumps({"rows": rows, **meta}, indent=1))
+    text = render(rows, meta)
     Path(args.out).write_text(text)
     print(text)
     return 0
