@@ -89,16 +89,6 @@ def rig_top_view(calib):
     span = float(np.ptp(Pts[:, [0, 2]], axis=0).max()) or 1.0
     names = [f"P{p}" for p in range(P)]
     one = P == 1
-    for p, (path, ok) in enumerate(zip(paths, oks)):
-        if ok.any():
-            ax.plot(path[ok, 0], path[ok, 2], "-", color=person_colour(p), lw=1, alpha=0.8,
-                    gid=f"path {names[p]}")
-            if not one:                       # the name at the path's end
-                end = path[ok][-1]
-                ax.plot([end[0]], [end[2]], "o", color=person_colour(p), ms=3)
-                ax.annotate(names[p], (end[0], end[2]), textcoords="offset points",
-                            xytext=(4, 4), fontsize=8, color=person_colour(p),
-                            fontweight="bold")
     frame = None
     bones = np.zeros((0, 2), int)
     if calib.skeleton and X.shape[2] > 1:     # the joints at hand: skeletons at one frame
@@ -111,12 +101,22 @@ def rig_top_view(calib):
         if sk is not None and sk.num_joints == X.shape[2]:
             frame = _skeleton_frame(X, okj)
             bones = sk.bone_index
+    for p, (path, ok) in enumerate(zip(paths, oks)):
+        if ok.any():
+            ax.plot(path[ok, 0], path[ok, 2], "-", color=person_colour(p), lw=1,
+                    alpha=0.8 if frame is None else 0.45, gid=f"path {names[p]}")
+            if not one:                       # the name at the path's end
+                end = path[ok][-1]
+                ax.plot([end[0]], [end[2]], "o", color=person_colour(p), ms=3)
+                ax.annotate(names[p], (end[0], end[2]), textcoords="offset points",
+                            xytext=(4, 4), fontsize=8, color=person_colour(p),
+                            fontweight="bold")
     if frame is not None:
         for p in range(P):
             S = np.where(okj[p, frame, :, None], X[p, frame], np.nan)
             for a, b in bones:
                 if np.isfinite(S[[a, b]]).all():
-                    ax.plot(S[[a, b], 0], S[[a, b], 2], "-", color=person_colour(p), lw=1.6,
+                    ax.plot(S[[a, b], 0], S[[a, b], 2], "-", color=person_colour(p), lw=2.2,
                             solid_capstyle="round", gid=f"skeleton {names[p]}")
     for k, c in enumerate(calib.cameras):
         x, _, z = c.pose[:3, 3]
@@ -179,6 +179,9 @@ def rig_top_view(calib):
             label = ("subject (mean of the joints)" if one else
                      f"{names[p]}" + (" (the subject)" if p == 0 else ""))
             handles.append(Line2D([], [], color=person_colour(p), lw=1, label=label))
+    if frame is not None:
+        at = f"{'skeleton' if one else 'skeletons'} at frame {int(calib.frame_ids[frame])}"
+        handles.append(Line2D([], [], color="0.25", lw=2.2, label=at))
     unit = "m" if calib.scale == "subject_height" else "subject heights"
     ax.set_xlabel(f"x ({unit}, world = camera {calib.cameras[0].name})")
     ax.set_ylabel(f"z ({unit})")
@@ -190,8 +193,7 @@ def rig_top_view(calib):
     who = "subject" if one else f"{P} people (paths: mean of the joints)"
     parts += f", mirrors, {who}" if calib.mirrors else f", {who}"
     if frame is not None:
-        parts += (f";\n{'skeleton' if one else 'skeletons'} at frame "
-                  f"{int(np.asarray(calib.frame_ids)[frame])}")
+        parts += f";\n{at}"
     ax.set_title(f"Rig from above: {parts};\n{scale}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(handles=handles, loc="best", fontsize=8)
