@@ -17,11 +17,18 @@ average out, so the normal's covariance has two parts:
   part; it does not shrink), ``headline_w`` the window's robust figure
   (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`).
 
-The focal length, where estimated, is fused by its windows' information. The **distance**
-is the frame-weighted median of the windows' distances (with a subject height each is the
-one at which the stature measured on the window's joints is the height); its data std is
-the larger of the windows' own, combined, and their spread (from the median absolute
-deviation, from three windows on); the subject's height is a shared relative part.
+The focal length, where estimated, is fused by its windows' information. The **metric
+scale**: with a subject height each window's distance is the one at which the stature
+measured on the window's joints is the height; the fused distance is the windows' median
+weighted by the inverse variance of their statures' sampling
+(:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`, which shrinks with a
+window's frames), and the bones' lengths the per-frame prior holds are the windows' (at
+unit distance, weighted alike) at the fused distance, so that every frame's joints lie at
+the one fused scale. The distance's data std is the larger of the windows' own, combined,
+and their spread (from the median absolute deviation, from three windows on); the scale's
+relative std (:attr:`MirrorFusion.scale_rel_std`) holds the height's prior, the statures'
+measured spread (a detector's distortion: shared, it does not average out) and their
+fused sampling std (it shrinks with the frames).
 
 While the first block grows each solve replaces the fused mirror
 (:meth:`MirrorFusion.restart`); later blocks are fused (:meth:`MirrorFusion.add`). A window
@@ -78,6 +85,9 @@ class WindowEstimate:
         scale_side: the stature measurement's spread in the window's calibration
             (:func:`mirrorgraph.stature.measurement_rel_std`: the legs apart and the
             segments' disagreement about the height).
+        scale_sampling: the window's stature's relative std from its frames
+            (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`; NaN where not
+            measured).
         bone_lengths: bone name -> length the window's graph held (the unit of
             ``distance``), for the per-frame prior (:mod:`.frame_prior`).
     """
@@ -102,6 +112,7 @@ class WindowEstimate:
     check: str = ""
     check_text: str = ""
     scale_side: float = 0.0
+    scale_sampling: float = float("nan")
     bone_lengths: dict = field(default_factory=dict)
 
 
@@ -162,7 +173,9 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     d_std = unc.get("distance_std")
     # the scale's shared part out of the window's own: the height's prior and the
     # stature's measured spread, one factor on every window alike
-    side = measurement_rel_std((cal.refinement or {}).get("stature"))
+    stature = (cal.refinement or {}).get("stature")
+    side = measurement_rel_std(stature)
+    sampling = (stature or {}).get("sampling_rel_std")
     hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
@@ -180,6 +193,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
         seconds=time.perf_counter() - clock,
         check=check.verdict if check is not None else "", scale_side=side,
+        scale_sampling=float(sampling) if sampling is not None else float("nan"),
         bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
@@ -211,9 +225,14 @@ class MirrorFusion:
         doubt: the reflection check's line of the latest window fused (or started
             from) where it doubted that the "reflection" is one (a second person
             paired as the reflection), ``""`` where it did not.
-        scale_side: the latest fused window's stature measurement spread
-            (:attr:`WindowEstimate.scale_side`).
-        bone_lengths: the latest fused window's bone lengths (the per-frame prior).
+        scale_side: the windows' stature measurement spread
+            (:attr:`WindowEstimate.scale_side`), their mean by the scale's weights.
+        scale_sampling: the fused stature's sampling std (relative): ``1 / sqrt(sum_w
+            1 / s_w^2)`` over the windows' :attr:`WindowEstimate.scale_sampling`; NaN
+            where none was measured.
+        bone_lengths: bone name -> length at the fused distance: the windows' lengths
+            over their distances, averaged by the scale's weights (the per-frame prior);
+            a new dict after each window.
     """
 
     height_sigma: float = 0.02
@@ -224,7 +243,7 @@ class MirrorFusion:
     shared_sum: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     distance: float = 1.0
     distance_info: float = 0.0
-    distances: list = field(default_factory=list)   # (distance, frames) of the windows
+    distances: list = field(default_factory=list)   # (distance, weight) of the windows
     focal_px: float | None = None
     focal_info: float = 0.0
     noise_px: float = float("nan")
@@ -235,8 +254,10 @@ class MirrorFusion:
     last_reason: str = ""
     doubt: str = ""
     scale_side: float = 0.0
+    scale_sampling: float = float("nan")
     bone_lengths: dict = field(default_factory=dict)
     _pending: list = field(default_factory=list)
+    _scale_sums: dict = field(default_factory=dict)  # running sums of the scale's weights
 
     @property
     def basis(self) -> np.ndarray:
@@ -286,13 +307,55 @@ class MirrorFusion:
 
     @property
     def scale_rel_std(self) -> float:
-        """The metric scale's relative std: the height's prior and the latest fused
-        window's measured stature spread (:attr:`WindowEstimate.scale_side`)."""
-        return float(np.hypot(self.height_sigma, self.scale_side))
+        """The metric scale's relative std: the height's prior, the windows' measured
+        stature spread (:attr:`scale_side`) and their fused sampling std
+        (:attr:`scale_sampling`, ``0`` where none was measured)."""
+        sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
+        return float(np.sqrt(self.height_sigma ** 2 + self.scale_side ** 2 + sampling ** 2))
+
+    #: A window's stature sampling std is taken as at least this (relative): a weight's
+    #: ceiling, so that no window's scale outweighs the others without bound.
+    MIN_SAMPLING = 1e-3
+
+    def _scale_weight(self, w: WindowEstimate) -> float:
+        """The window's weight in the fused scale: ``1 / s^2``, ``s`` its stature's
+        sampling std (at least :data:`MIN_SAMPLING`); a window without one weighs as the
+        least certain one fused so far (or ``1`` alone)."""
+        s = w.scale_sampling
+        if np.isfinite(s):
+            return 1.0 / max(float(s), self.MIN_SAMPLING) ** 2
+        known = [k for _, k in self.distances if k > 0]
+        return float(min(known)) if known else 1.0
+
+    def _fuse_scale(self, w: WindowEstimate) -> None:
+        """The window's distance, stature spread, sampling std and bone lengths (at unit
+        distance) into the fused scale; the bone lengths again at the fused distance."""
+        k = self._scale_weight(w)
+        self.distances.append((float(w.distance), k))
+        del self.distances[:-self.MAX_DISTANCES]
+        self.distance = self._median_distance()
+        sums = self._scale_sums
+        sums["weight"] = sums.get("weight", 0.0) + k
+        sums["side"] = sums.get("side", 0.0) + k * float(w.scale_side)
+        self.scale_side = sums["side"] / sums["weight"]
+        if np.isfinite(w.scale_sampling):
+            sums["info"] = sums.get("info", 0.0) + 1.0 / max(w.scale_sampling,
+                                                             self.MIN_SAMPLING) ** 2
+            self.scale_sampling = float(1.0 / np.sqrt(sums["info"]))
+        bones = sums.setdefault("bones", {})
+        if w.bone_lengths and w.distance > 0:
+            for name, length in w.bone_lengths.items():
+                if np.isfinite(length):
+                    acc = bones.setdefault(name, [0.0, 0.0])
+                    acc[0] += k * float(length) / float(w.distance)
+                    acc[1] += k
+        if bones:
+            self.bone_lengths = {name: acc[0] / acc[1] * self.distance
+                                 for name, acc in bones.items()}
 
     def _median_distance(self) -> float:
         d = np.array([x for x, _ in self.distances])
-        w = np.array([max(k, 1) for _, k in self.distances], float)
+        w = np.array([k for _, k in self.distances], float)
         order = np.argsort(d)
         c = np.cumsum(w[order])
         i = int(np.searchsorted(c, 0.5 * c[-1]))
@@ -312,6 +375,8 @@ class MirrorFusion:
         self.windows = 0
         self.distance_info, self.focal_px, self.focal_info = 0.0, None, 0.0
         self.distances = []
+        self._scale_sums = {}
+        self.scale_side, self.scale_sampling = 0.0, float("nan")
         self._fuse(w)
 
     def restart(self, w: WindowEstimate) -> str:
@@ -395,9 +460,7 @@ class MirrorFusion:
         self.shared_sum = self.shared_sum + w.cov_shared
         self.windows += 1
         self.distance_info += 1.0 / w.distance_std ** 2
-        self.distances.append((float(w.distance), int(w.frames)))
-        del self.distances[:-self.MAX_DISTANCES]
-        self.distance = self._median_distance()
+        self._fuse_scale(w)
         if w.focal_px is not None and np.isfinite(w.focal_std_px or np.nan):
             fw = 1.0 / w.focal_std_px ** 2
             f0 = self.focal_px if self.focal_px is not None else 0.0
@@ -406,6 +469,3 @@ class MirrorFusion:
         if np.isfinite(w.noise_px):
             self.noise_px = w.noise_px
         self.doubt = w.check_text
-        self.scale_side = w.scale_side
-        if w.bone_lengths:
-            self.bone_lengths = w.bone_lengths

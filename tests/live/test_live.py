@@ -85,12 +85,14 @@ def test_the_joints_std_is_honest_against_the_true_joints():
     assert np.mean(z > 3) < 0.02
     assert np.sqrt(np.mean(zm ** 2)) < rms                  # the scale's prior widens it
     m = live.mirror
-    # the height's 2 % and the stature's measured spread (the legs apart: small under iid)
-    side = live.fusion.scale_side
-    assert 0.0 <= side < 0.01
-    assert m.scale_rel_std == pytest.approx(np.hypot(0.02, side))
+    # the height's 2 %, the stature's measured spread (the legs apart: small under iid)
+    # and its sampling std over the frames (small on 300 frames)
+    side, sampling = live.fusion.scale_side, live.fusion.scale_sampling
+    assert 0.0 <= side < 0.01 and 0.0 < sampling < 0.01
+    rel = np.sqrt(0.02 ** 2 + side ** 2 + sampling ** 2)
+    assert m.scale_rel_std == pytest.approx(rel)
     line = json.loads(json.dumps(f.to_dict(), allow_nan=False))
-    assert line["mirror"]["scale_rel_std"] == pytest.approx(np.hypot(0.02, side))
+    assert line["mirror"]["scale_rel_std"] == pytest.approx(rel)
     assert [s is None for s in line["joints_std"]] == [s is None for s in line["joints_std_shape"]]
 
 
