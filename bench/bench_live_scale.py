@@ -25,6 +25,7 @@ Writes ``--out`` (default ``bench/RESULTS_live_scale.md``) unless ``--no-write``
 
 Run:  python bench/bench_live_scale.py                     # realistic 0-1, iid 0, ~2 min
       python bench/bench_live_scale.py --scenes realistic:0-3,iid:0-3 --offline
+      python bench/bench_live_scale.py --window-frames 150   # several fused windows
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ def run_scene(case: tuple) -> dict:
     from mirrorgraph.live.frame_prior import triangulate_two_rays
     from mirrorgraph.stature import estimate_stature
 
-    kind, seed, frames, offline = case
+    kind, seed, frames, offline, window = case
     tr = bj.make_truth(kind, seed, frames, bj.default_fixtures(), "population", "reported")
     T, J = tr.joints3d.shape[:2]
     out = dict(name=tr.name, distance=tr.distance, height=tr.height,
@@ -86,8 +87,9 @@ def run_scene(case: tuple) -> dict:
         return est
 
     lc.solve_window = recorded
+    extra = {} if window is None else dict(window_frames=window)
     live = LiveCalibrator(tr.detections.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given))
+                          LiveOptions.of(subject_height=tr.height_given, **extra))
     X = np.full((T, J, 3), np.nan)
     served = np.full(T, -1)
     fused = {}
@@ -196,11 +198,11 @@ def tables(scenes: list[dict]) -> list[str]:
     return lines
 
 
-def _cases(text: str, frames: int, offline: bool) -> list[tuple]:
+def _cases(text: str, frames: int, offline: bool, window: int | None) -> list[tuple]:
     cases = []
     for part in text.split(","):
         kind, seeds = part.split(":")
-        cases += [(kind, s, frames, offline) for s in bj._seeds(seeds)]
+        cases += [(kind, s, frames, offline, window) for s in bj._seeds(seeds)]
     return cases
 
 
@@ -209,13 +211,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", default="realistic:0-1,iid:0",
                     help="kind:seeds, comma-separated (kinds iid, realistic)")
     ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--window-frames", type=int, default=None,
+                    help="the live windows' size (LiveOptions.window_frames; default the "
+                         "live run's): smaller windows fuse more of them")
     ap.add_argument("--offline", action="store_true",
                     help="also mirrorgraph.calibrate on every frame of each scene")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_scale.md"))
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
-    cases = _cases(args.scenes, args.frames, args.offline)
+    cases = _cases(args.scenes, args.frames, args.offline, args.window_frames)
     clock = time.perf_counter()
     with ProcessPoolExecutor(max(1, args.workers)) as pool:
         scenes = list(pool.map(run_scene, cases))
