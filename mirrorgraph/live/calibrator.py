@@ -12,7 +12,7 @@ skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
 right swapped back where the frames so far say the detector confused them in either view
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined together with the windows' fused bone lengths, a view
+each joint's two rays and refined together with the latest window's bone lengths, a view
 off by more than the threshold once the bones hold the joint left out
 (:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
 the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
@@ -91,7 +91,7 @@ class LiveOptions:
         max_buffer_frames: most frames buffered while the worker is busy (thinned evenly
             beyond; at least ``window_frames``).
         fps: frame rate for frame times where the caller gives none.
-        bone_prior: refine each frame's joints with the windows' fused bone lengths
+        bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
         smooth: each joint's track filtered over time (:class:`.joint_filter.JointFilter`:
             the joints pass's acceleration prior ``RefineOptions.joints_smoothness_sigma``,
@@ -143,9 +143,9 @@ class LiveMirror:
             without a subject height (the distance is the unit).
         scale_rel_std: the metric scale's relative std
             (:attr:`~.estimator.MirrorFusion.scale_rel_std`): ``height_sigma`` (the
-            subject's height and proportions), the windows' stature measurement spread
-            (:func:`mirrorgraph.stature.measurement_rel_std`) and their statures' fused
-            sampling std; shared by every length of every frame and not in
+            subject's height and proportions), the latest window's stature measurement
+            spread (:func:`mirrorgraph.stature.measurement_rel_std`) and the windows'
+            statures' fused sampling std; shared by every length of every frame and not in
             :attr:`LiveFrame.joints_std_shape`; ``None`` without a subject height.
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
@@ -607,7 +607,7 @@ class LiveCalibrator:
         return fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
 
     def _bone_lengths(self) -> tuple[np.ndarray, float] | None:
-        """``(lengths, sigma)``: the windows' fused length of each bone of
+        """``(lengths, sigma)``: the latest window's length of each bone of
         ``self._bones`` (NaN where it has none) and the bones' spread, the graph's
         ``bone_sigma`` of the height they make (Winter's fractions); ``None`` without a
         window's lengths."""

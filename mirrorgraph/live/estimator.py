@@ -17,18 +17,20 @@ average out, so the normal's covariance has two parts:
   part; it does not shrink), ``headline_w`` the window's robust figure
   (:func:`mirrorgraph.graph.uncertainty.robust_normal_cov`).
 
-The focal length, where estimated, is fused by its windows' information. The **metric
-scale**: with a subject height each window's distance is the one at which the stature
-measured on the window's joints is the height; the fused distance is the windows' median
-weighted by the inverse variance of their statures' sampling
-(:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`, which shrinks with a
-window's frames), and the bones' lengths the per-frame prior holds (which set each frame's
-body size, hence its place along the camera's rays) are the windows' lengths, every one at
-the subject's height, weighted alike: one body for every frame, not the latest window's. The distance's data std is the larger of the windows' own, combined,
-and their spread (from the median absolute deviation, from three windows on); the scale's
-relative std (:attr:`MirrorFusion.scale_rel_std`) holds the height's prior, the statures'
-measured spread (a detector's distortion: shared, it does not average out) and their
-fused sampling std (it shrinks with the frames).
+The focal length, where estimated, is fused by its windows' information. The **distance**
+is the frame-weighted median of the windows' distances (with a subject height each is the
+one at which the stature measured on the window's joints is the height); its data std is
+the larger of the windows' own, combined, and their spread (from the median absolute
+deviation, from three windows on); the subject's height is a shared relative part. The
+metric scale's relative std (:attr:`MirrorFusion.scale_rel_std`) holds the height's prior,
+the latest window's measured stature spread (a detector's distortion: more frames do not
+average it out) and the windows' statures' sampling std fused by its information
+(:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
+frames). The per-frame bone prior holds the latest window's bone lengths. Fusing the scale
+otherwise (each window's distance moved to the fused normal so that its body keeps its
+size, the bones averaged over the windows, the median weighted by the sampling's
+information) measured no better on realistic streams of 150-frame windows
+(``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
 (:meth:`MirrorFusion.restart`); later blocks are fused (:meth:`MirrorFusion.add`). A window
@@ -88,11 +90,6 @@ class WindowEstimate:
         scale_sampling: the window's stature's relative std from its frames
             (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`; NaN where not
             measured).
-        body_rays: ``(F, J, 4)`` the window's body as its two views see it: up to
-            :data:`BODY_FRAMES` frames' joints projected in the camera and the mirror, in
-            normalised image coordinates (``K^-1``: direct x, y, mirrored x, y; NaN where
-            none), from which the distance that holds the window's body size at another
-            normal is found (:func:`body_spread`); ``None`` where not measured.
         bone_lengths: bone name -> length the window's graph held (the unit of
             ``distance``), for the per-frame prior (:mod:`.frame_prior`).
     """
@@ -118,49 +115,12 @@ class WindowEstimate:
     check_text: str = ""
     scale_side: float = 0.0
     scale_sampling: float = float("nan")
-    body_rays: np.ndarray | None = None
     bone_lengths: dict = field(default_factory=dict)
 
 
 def _psd(C: np.ndarray) -> np.ndarray:
     w, V = np.linalg.eigh(0.5 * (C + C.T))
     return (V * np.maximum(w, 0.0)) @ V.T
-
-
-#: Frames of a window whose body is kept to move its distance to another normal.
-BODY_FRAMES = 10
-
-
-def body_rays(K: np.ndarray, normal: np.ndarray, distance: float, joints: np.ndarray,
-              valid: np.ndarray) -> np.ndarray | None:
-    """``(F, J, 4)`` a window's body as its two views see it (see
-    :attr:`WindowEstimate.body_rays`): up to :data:`BODY_FRAMES` frames (evenly spread,
-    each with three joints or more) of ``joints`` ``(T, J, 3)`` (camera frame, the unit of
-    ``distance``; ``valid`` ``(T, J)``) projected in the camera and reflected in the plane
-    ``n . X = distance``, through ``K^-1``; ``None`` where no frame has three joints."""
-    valid = np.asarray(valid, bool)
-    rows = np.flatnonzero(valid.sum(1) >= 3)
-    if rows.size == 0:
-        return None
-    rows = rows[np.linspace(0, rows.size - 1, min(BODY_FRAMES, rows.size)).astype(int)]
-    X = np.where(valid[rows][..., None], np.asarray(joints, float)[rows], np.nan)
-    S = geo.reflect_points(X.reshape(-1, 3), normal, distance).reshape(X.shape)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.concatenate([X[..., :2] / X[..., 2:], S[..., :2] / S[..., 2:]], axis=-1)
-
-
-def body_spread(rays: np.ndarray, normal: np.ndarray) -> float:
-    """The RMS size of a body seen along ``rays`` (:func:`body_rays`) triangulated with the
-    mirror of unit normal ``normal`` at unit distance: ``sqrt`` of the frames' summed
-    squared distances of their joints from their mean (the unit of the distance; joints
-    triangulated with the distance ``d`` are ``d`` times these)."""
-    flat = rays.reshape(-1, 4)
-    ok = np.isfinite(flat).all(1)
-    X = np.full((len(flat), 3), np.nan)
-    X[ok] = geo.triangulate_mirror(np.eye(3), normal, 1.0, flat[ok, :2], flat[ok, 2:])
-    X = X.reshape(rays.shape[:-1] + (3,))
-    c = X - np.nanmean(X, axis=1, keepdims=True)
-    return float(np.sqrt(np.nansum(c * c)))
 
 
 def solve_window(raw, intrinsics, options) -> WindowEstimate:
@@ -220,9 +180,6 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     sampling = (stature or {}).get("sampling_rel_std")
     hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
-    body = None
-    if cal.distance is not None and run.joints3d is not None and run.valid3d is not None:
-        body = body_rays(cal.intrinsics.K, cal.normal, d, run.joints3d, run.valid3d)
     focal = cal.intrinsics.estimated or None
     priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})
     record = cal.input.get("reflection_check")
@@ -239,7 +196,6 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         seconds=time.perf_counter() - clock,
         check=check.verdict if check is not None else "", scale_side=side,
         scale_sampling=float(sampling) if sampling is not None else float("nan"),
-        body_rays=body,
         bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
@@ -271,14 +227,12 @@ class MirrorFusion:
         doubt: the reflection check's line of the latest window fused (or started
             from) where it doubted that the "reflection" is one (a second person
             paired as the reflection), ``""`` where it did not.
-        scale_side: the windows' stature measurement spread
-            (:attr:`WindowEstimate.scale_side`), their mean by the scale's weights.
-        scale_sampling: the fused stature's sampling std (relative): ``1 / sqrt(sum_w
-            1 / s_w^2)`` over the windows' :attr:`WindowEstimate.scale_sampling`; NaN
+        scale_side: the latest fused window's stature measurement spread
+            (:attr:`WindowEstimate.scale_side`).
+        scale_sampling: the fused windows' statures' sampling std (relative), ``1 /
+            sqrt(sum_w 1 / s_w^2)`` over their :attr:`WindowEstimate.scale_sampling`; NaN
             where none was measured.
-        bone_lengths: bone name -> length: the windows' lengths (each window's at the
-            subject's height) averaged by the scale's weights (the per-frame prior); a
-            new dict after each window.
+        bone_lengths: the latest fused window's bone lengths (the per-frame prior).
     """
 
     height_sigma: float = 0.02
@@ -289,7 +243,7 @@ class MirrorFusion:
     shared_sum: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     distance: float = 1.0
     distance_info: float = 0.0
-    distances: list = field(default_factory=list)   # (distance, weight, normal, body)
+    distances: list = field(default_factory=list)   # (distance, frames) of the windows
     focal_px: float | None = None
     focal_info: float = 0.0
     noise_px: float = float("nan")
@@ -301,9 +255,9 @@ class MirrorFusion:
     doubt: str = ""
     scale_side: float = 0.0
     scale_sampling: float = float("nan")
+    sampling_info: float = 0.0
     bone_lengths: dict = field(default_factory=dict)
     _pending: list = field(default_factory=list)
-    _scale_sums: dict = field(default_factory=dict)  # running sums of the scale's weights
 
     @property
     def basis(self) -> np.ndarray:
@@ -339,7 +293,7 @@ class MirrorFusion:
             return float("nan")
         var = 1.0 / self.distance_info
         if len(self.distances) >= 3:
-            d = self._distances_here()
+            d = np.array([x for x, _ in self.distances])
             mad = 1.4826 * np.median(np.abs(d - np.median(d)))
             var = max(var, (1.2533 * mad) ** 2 / len(d))
         return float(np.sqrt(var))
@@ -353,73 +307,15 @@ class MirrorFusion:
 
     @property
     def scale_rel_std(self) -> float:
-        """The metric scale's relative std: the height's prior, the windows' measured
-        stature spread (:attr:`scale_side`) and their fused sampling std
-        (:attr:`scale_sampling`, ``0`` where none was measured)."""
+        """The metric scale's relative std: the height's prior, the latest fused window's
+        measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows' fused
+        sampling std (:attr:`scale_sampling`; ``0`` where none was measured)."""
         sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
         return float(np.sqrt(self.height_sigma ** 2 + self.scale_side ** 2 + sampling ** 2))
 
-    #: A window's stature sampling std is taken as at least this (relative): a weight's
-    #: ceiling, so that no window's scale outweighs the others without bound.
-    MIN_SAMPLING = 1e-3
-
-    def _scale_weight(self, w: WindowEstimate) -> float:
-        """The window's weight in the fused scale: ``1 / s^2``, ``s`` its stature's
-        sampling std (at least :data:`MIN_SAMPLING`); a window without one weighs as the
-        least certain one fused so far (or ``1`` alone)."""
-        s = w.scale_sampling
-        if np.isfinite(s):
-            return 1.0 / max(float(s), self.MIN_SAMPLING) ** 2
-        known = [k for _, k, _, _ in self.distances if k > 0]
-        return float(min(known)) if known else 1.0
-
-    def _fuse_scale(self, w: WindowEstimate) -> None:
-        """The window's distance, stature spread, sampling std and bone lengths into the
-        fused scale."""
-        k = self._scale_weight(w)
-        n_w = np.asarray(w.normal, float) / np.linalg.norm(w.normal)
-        body = None
-        if w.body_rays is not None:
-            size = body_spread(w.body_rays, n_w)
-            body = (w.body_rays, size) if np.isfinite(size) and size > 0 else None
-        self.distances.append((float(w.distance), k, n_w, body))
-        del self.distances[:-self.MAX_DISTANCES]
-        self.distance = self._median_distance()
-        sums = self._scale_sums
-        sums["weight"] = sums.get("weight", 0.0) + k
-        sums["side"] = sums.get("side", 0.0) + k * float(w.scale_side)
-        self.scale_side = sums["side"] / sums["weight"]
-        if np.isfinite(w.scale_sampling):
-            sums["info"] = sums.get("info", 0.0) + 1.0 / max(w.scale_sampling,
-                                                             self.MIN_SAMPLING) ** 2
-            self.scale_sampling = float(1.0 / np.sqrt(sums["info"]))
-        bones = sums.setdefault("bones", {})
-        for name, length in (w.bone_lengths or {}).items():
-            if np.isfinite(length):
-                acc = bones.setdefault(name, [0.0, 0.0])
-                acc[0] += k * float(length)
-                acc[1] += k
-        if bones:
-            self.bone_lengths = {name: acc[0] / acc[1] for name, acc in bones.items()}
-
-    def _distances_here(self) -> np.ndarray:
-        """``(W,)`` the windows' distances at the fused normal: each window's body
-        (:attr:`WindowEstimate.body_rays`) triangulated with the fused normal, the distance
-        that gives it the size it has at the window's own normal and distance (its
-        stature the subject's height): ``d_w s_w(n_w) / s_w(n)`` (:func:`body_spread`);
-        the window's own distance where it kept no body or the normal is the window's."""
-        out = []
-        for d, _, n_w, body in self.distances:
-            here = float("nan")
-            if body is not None and abs(abs(n_w @ self.normal) - 1.0) > 1e-15:
-                here = body_spread(body[0], self.normal if n_w @ self.normal >= 0
-                                   else -self.normal)
-            out.append(d * body[1] / here if np.isfinite(here) and here > 0 else d)
-        return np.array(out)
-
     def _median_distance(self) -> float:
-        d = self._distances_here()
-        w = np.array([k for _, k, _, _ in self.distances], float)
+        d = np.array([x for x, _ in self.distances])
+        w = np.array([max(k, 1) for _, k in self.distances], float)
         order = np.argsort(d)
         c = np.cumsum(w[order])
         i = int(np.searchsorted(c, 0.5 * c[-1]))
@@ -439,8 +335,7 @@ class MirrorFusion:
         self.windows = 0
         self.distance_info, self.focal_px, self.focal_info = 0.0, None, 0.0
         self.distances = []
-        self._scale_sums = {}
-        self.scale_side, self.scale_sampling = 0.0, float("nan")
+        self.scale_sampling, self.sampling_info = float("nan"), 0.0
         self._fuse(w)
 
     def restart(self, w: WindowEstimate) -> str:
@@ -524,7 +419,9 @@ class MirrorFusion:
         self.shared_sum = self.shared_sum + w.cov_shared
         self.windows += 1
         self.distance_info += 1.0 / w.distance_std ** 2
-        self._fuse_scale(w)
+        self.distances.append((float(w.distance), int(w.frames)))
+        del self.distances[:-self.MAX_DISTANCES]
+        self.distance = self._median_distance()
         if w.focal_px is not None and np.isfinite(w.focal_std_px or np.nan):
             fw = 1.0 / w.focal_std_px ** 2
             f0 = self.focal_px if self.focal_px is not None else 0.0
@@ -533,3 +430,9 @@ class MirrorFusion:
         if np.isfinite(w.noise_px):
             self.noise_px = w.noise_px
         self.doubt = w.check_text
+        self.scale_side = w.scale_side
+        if np.isfinite(w.scale_sampling) and w.scale_sampling > 0:
+            self.sampling_info += 1.0 / w.scale_sampling ** 2
+            self.scale_sampling = float(1.0 / np.sqrt(self.sampling_info))
+        if w.bone_lengths:
+            self.bone_lengths = w.bone_lengths
