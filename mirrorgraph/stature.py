@@ -44,10 +44,15 @@ from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
            "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "MIN_FRAMES",
-           "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
+           "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
+           "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
+
+#: Most blocks of consecutive frames the stature's sampling std is measured over (batch
+#: means: each block's own stature, their spread; :attr:`StatureEstimate.sampling_rel_std`).
+SAMPLING_BLOCKS = 8
 
 #: The segments' disagreement about the height is the measurement's own where it exceeds
 #: what adults and keypoints give with this probability (one-sided: a body measured right
@@ -126,6 +131,12 @@ class StatureEstimate:
         bones_rel_spread: the segments' disagreement about the height beyond the spread
             of adults and keypoints (:func:`bones_rel_spread` of :attr:`bone_ratios`),
             relative; ``0`` where it is within it.
+        sampling_rel_std: the height's relative std from the frames measured (batch
+            means: the frames cut into up to :data:`SAMPLING_BLOCKS` blocks of consecutive
+            frames, each block's stature from its own medians, their standard error; the
+            frames' correlation in time stays inside the blocks); it shrinks with the
+            frames, unlike :func:`measurement_rel_std`'s spreads, which a longer video
+            does not average out; NaN with fewer than three blocks of ``min_frames``.
     """
 
     height: float
@@ -136,6 +147,7 @@ class StatureEstimate:
     side_rel_diff: float = 0.0
     bone_ratios: dict[str, float] = field(default_factory=dict)
     bones_rel_spread: float = 0.0
+    sampling_rel_std: float = float("nan")
 
     def describe(self) -> str:
         """One line for reports: what was measured and what was assumed."""
@@ -151,7 +163,8 @@ class StatureEstimate:
                                top=self.top, unmeasured_fraction=self.unmeasured_fraction,
                                frames=self.frames, side_rel_diff=self.side_rel_diff,
                                bone_ratios=dict(self.bone_ratios),
-                               bones_rel_spread=self.bones_rel_spread)
+                               bones_rel_spread=self.bones_rel_spread,
+                               sampling_rel_std=self.sampling_rel_std)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
@@ -160,6 +173,8 @@ class StatureEstimate:
                 "frames": int(self.frames), "side_rel_diff": float(self.side_rel_diff),
                 "bone_ratios": {k: float(v) for k, v in self.bone_ratios.items()},
                 "bones_rel_spread": float(self.bones_rel_spread),
+                "sampling_rel_std": (float(self.sampling_rel_std)
+                                     if math.isfinite(self.sampling_rel_std) else None),
                 "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
@@ -248,10 +263,42 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     side = abs(legs[0] - legs[1]) / (legs[0] + legs[1])
     height = sum(segments.values()) / (1.0 - unmeasured)
     ratios = {k: v / height for k, v in _segment_statures(P, skeleton, trunk, min_frames).items()}
+    per_frame = {"shank": np.stack([bone[(s, "knee", "ankle")] for s in sides], 1),
+                 "thigh": np.stack([bone[(s, "hip", "knee")] for s in sides], 1),
+                 "trunk": trunk[:, None], "head": head[:, None]}
+    sampling = _sampling_rel_std(per_frame, height, 1.0 - unmeasured, min_frames)
     return StatureEstimate(height=height, segments=segments, top=top_name,
                            unmeasured_fraction=unmeasured, frames=frames,
                            side_rel_diff=float(side) if np.isfinite(side) else 0.0,
-                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios))
+                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios),
+                           sampling_rel_std=sampling)
+
+
+def _sampling_rel_std(per_frame: dict[str, np.ndarray], height: float, measured: float,
+                      min_frames: int) -> float:
+    """The stature's relative standard error from its frames, by batch means.
+
+    ``per_frame``: segment -> ``(T, k)`` its lengths a frame (both sides for the legs; NaN
+    where not measured); ``height`` the stature of every frame, ``measured`` the part of
+    it the segments make (``1 -`` the unmeasured fraction). The ``T`` frames are cut into
+    ``B`` blocks of consecutive frames (at most :data:`SAMPLING_BLOCKS`, each of at least
+    ``min_frames``); each block's stature is its segments' medians summed over
+    ``measured``, and the standard error of the whole is their standard deviation over
+    ``sqrt(B)`` (the batch-means estimator of a correlated series' mean: G. S. Fishman,
+    *Monte Carlo*, Springer 1996, sec. 6.6). Returns NaN with fewer than three blocks."""
+    T = len(next(iter(per_frame.values())))
+    blocks = min(SAMPLING_BLOCKS, T // max(min_frames, 1))
+    if blocks < 3:
+        return float("nan")
+    edges = np.linspace(0, T, blocks + 1).astype(int)
+    heights = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        parts = [_median(v[a:b].ravel()) for v in per_frame.values()]
+        if min(n for _, n in parts) >= 3:
+            heights.append(sum(m for m, _ in parts) / measured)
+    if len(heights) < 3:
+        return float("nan")
+    return float(np.std(heights, ddof=1) / np.sqrt(len(heights)) / height)
 
 
 def _segment_statures(P: np.ndarray, skeleton: Skeleton, trunk: np.ndarray, min_frames: int

@@ -266,3 +266,27 @@ def test_the_distance_std_holds_legs_lengthened_alike():
     assert abs(err) < 2 * std
     assert stature["rel_std"] > 0.1 and out[1.0][2]["bones_rel_spread"] == 0.0
     assert abs(out[1.0][0]) < 2 * out[1.0][1] and out[1.0][1] < 0.025
+
+
+def test_the_sampling_std_covers_the_error_and_shrinks_with_the_frames():
+    """Joints with 3 cm iid noise: the stature's sampling std is the spread of the height
+    measured on independent stretches of frames (its error over it about 1, over 40
+    draws), and four times the frames halve it."""
+    sk, pts, valid, _ = _subject(None, frames=800)
+    rng = np.random.default_rng(7)
+    ref = estimate_stature(pts, valid, sk).height
+    z, short, long = [], [], []
+    for k in range(40):
+        noisy = pts + rng.normal(0.0, 0.03, pts.shape)
+        few = estimate_stature(noisy[:200], valid[:200], sk)
+        many = estimate_stature(noisy, valid, sk)
+        z.append((few.height - ref) / (few.sampling_rel_std * few.height))
+        short.append(few.sampling_rel_std)
+        long.append(many.sampling_rel_std)
+    # the noise inflates every segment alike (a bias the sampling std does not hold): the
+    # spread about the draws' own mean
+    z = np.asarray(z) - np.mean(z)
+    assert 0.5 < float(np.sqrt(np.mean(z ** 2))) < 2.0
+    assert np.median(short) / np.median(long) == pytest.approx(2.0, rel=0.35)
+    # too few frames for three blocks: not measured
+    assert np.isnan(estimate_stature(pts[:25], valid[:25], sk).sampling_rel_std)

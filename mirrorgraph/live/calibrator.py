@@ -141,11 +141,12 @@ class LiveMirror:
         rotation_std_deg: the virtual camera's rotation std, deg.
         distance_std: the distance's std (the height's share included); ``None``
             without a subject height (the distance is the unit).
-        scale_rel_std: the metric scale's relative std: ``height_sigma`` (the subject's
-            height and proportions) with the stature measurement's spread the latest
-            window found (:func:`mirrorgraph.stature.measurement_rel_std`); shared by
-            every length of every frame and not in :attr:`LiveFrame.joints_std_shape`;
-            ``None`` without a subject height.
+        scale_rel_std: the metric scale's relative std
+            (:attr:`~.estimator.MirrorFusion.scale_rel_std`): ``height_sigma`` (the
+            subject's height and proportions), the latest window's stature measurement
+            spread (:func:`mirrorgraph.stature.measurement_rel_std`) and the windows'
+            statures' fused sampling std; shared by every length of every frame and not in
+            :attr:`LiveFrame.joints_std_shape`; ``None`` without a subject height.
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
