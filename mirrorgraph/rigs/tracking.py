@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 __all__ = ["NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
-           "continuity_labels", "subject_track", "track_labelled", "track_motion",
+           "continuity_labels", "segments", "subject_track", "track_labelled", "track_motion",
            "track_people", "tracklets"]
 
 #: Tracks: a detection farther than this (mean joint distance, px) from every
@@ -30,18 +30,34 @@ TRACK_GATE_PX = 150.0
 #: moving person's identity, as on Pose2Sim's Demo_MultiPerson).
 TRACK_AGE_PX = 20.0
 
-#: Tracks unseen for more frames than this end.
+#: Tracks unseen for more frames than this end; where two consecutive frames of a
+#: recording are farther apart than this, nothing continues from one to the other
+#: (:func:`segments`: snapshots).
 TRACK_MAX_GAP = 30
 
 
+def segments(frame_ids: np.ndarray | None, T: int | None = None) -> np.ndarray:
+    """``(T,)`` int: the continuous stretch of each frame, ``0 ..``, a new one wherever the
+    frame numbers ``frame_ids`` ``(T,)`` jump by more than :data:`TRACK_MAX_GAP` (snapshots
+    far apart in time: one stretch a frame). ``None``: one stretch of ``T`` frames."""
+    if frame_ids is None:
+        return np.zeros(int(T or 0), dtype=int)
+    ids = np.asarray(frame_ids, dtype=np.int64).ravel()
+    out = np.zeros(len(ids), dtype=int)
+    out[1:] = np.cumsum(np.diff(ids) > TRACK_MAX_GAP)
+    return out
+
+
 def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
-                 flip: np.ndarray | None = None) -> list[np.ndarray]:
+                 flip: np.ndarray | None = None, frame_ids: np.ndarray | None = None
+                 ) -> list[np.ndarray]:
     """Link detections into tracks frame to frame: :func:`track_labelled`'s track ids."""
-    return track_labelled(candidates, joints, min_confidence, flip)[0]
+    return track_labelled(candidates, joints, min_confidence, flip, frame_ids)[0]
 
 
 def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
-                   flip: np.ndarray | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+                   flip: np.ndarray | None = None, frame_ids: np.ndarray | None = None
+                   ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Link detections into tracks frame to frame, each detection's left/right labels
     read against its track's.
 
@@ -59,6 +75,9 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
         min_confidence: joints below it are not compared.
         flip: ``(J,)`` left/right permutation of the labels
             (:attr:`mirrorgraph.skeletons.Skeleton.flip`); ``None``: labels as given.
+        frame_ids: ``(T,)`` the candidates' frame numbers: every track ends where they
+            jump by more than :data:`TRACK_MAX_GAP` (:func:`segments`; snapshots share
+            no track). ``None``: consecutive frames.
 
     Returns:
         ``T`` int arrays ``(P_t,)``: the track id of each detection, and ``T`` bool
@@ -69,10 +88,15 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     last: dict[int, np.ndarray] = {}
     seen_at: dict[int, int] = {}
     ids, swaps, next_id = [], [], 0
+    stretch = segments(None if frame_ids is None else np.asarray(frame_ids)[:len(candidates)],
+                       len(candidates))
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float)
         lab = np.full(len(p), -1)
         swapped = np.zeros(len(p), dtype=int)
+        if t and stretch[t] != stretch[t - 1]:
+            last.clear()                                # the frames jump: every track ends
+            seen_at.clear()
         for k in [k for k, s in seen_at.items() if t - s > TRACK_MAX_GAP]:
             del last[k], seen_at[k]                     # a track unseen for long has ended
         if len(p):
@@ -123,7 +147,7 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
 
 
 def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: float,
-                      flip: np.ndarray) -> np.ndarray:
+                      flip: np.ndarray, frame_ids: np.ndarray | None = None) -> np.ndarray:
     """Where one person's left/right labels are swapped, read by continuity.
 
     The person's detections (one a frame) are tracked with :func:`track_labelled`;
@@ -136,6 +160,8 @@ def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: fl
             confidence 0).
         joints: joints compared; min_confidence: joints below it are not compared.
         flip: ``(J,)`` left/right permutation of the labels.
+        frame_ids: ``(T,)`` frame numbers: no stretch crosses a jump of more than
+            :data:`TRACK_MAX_GAP` (:func:`track_labelled`); ``None``: consecutive.
 
     Returns:
         ``(T,)`` bool: swap the frame's labels (``person[t, flip]``) to follow the
@@ -144,7 +170,7 @@ def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: fl
     T, J = person.shape[:2]
     present = (np.asarray(person[..., 2]) >= min_confidence).any(axis=1)
     people = [person[t][None] if present[t] else np.zeros((0, J, 3)) for t in range(T)]
-    ids, swaps = track_labelled(people, joints, min_confidence, flip)
+    ids, swaps = track_labelled(people, joints, min_confidence, flip, frame_ids)
     track = np.array([i[0] if len(i) else -1 for i in ids])
     swap = np.array([bool(s[0]) if len(s) else False for s in swaps])
     out = np.zeros(T, dtype=bool)
