@@ -29,8 +29,10 @@ every other person can be associated (:func:`associate_people`):
 5. **Slots**: the people are packed into the fewest slots of the layout of several people
    (:func:`mirrorgraph.skeletons.people_skeleton`): the person holding most of the
    one-person path's subject first (slot 0), then the others longest first, each in the
-   first slot free on all of its frames (on snapshots, people of different snapshots
-   share a slot).
+   first slot free on all of its frames; where the frames jump (snapshots), no track
+   follows a person from one stretch of frames to the next, and the people are put in
+   slots by their bone lengths (:func:`~.identities.people_by_body`), the slot holding
+   most detections first.
 
 :class:`PeopleAssociation` holds the result and builds the observations of the one graph
 (:meth:`PeopleAssociation.observations`); :meth:`PeopleAssociation.changed` compares two
@@ -47,7 +49,8 @@ import numpy as np
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton, people_skeleton
 from .observations import CameraObservations, RigObservations
-from .tracking import TRACK_MAX_GAP, track_labelled
+from .identities import people_by_body
+from .tracking import TRACK_MAX_GAP, segments, track_labelled
 
 __all__ = ["ASSOCIATION_OF_SIZE", "ASSOCIATION_PX", "CONFLICT_SHARE", "PeopleAssociation",
            "associate_people", "candidate_index", "pair_costs"]
@@ -351,6 +354,9 @@ def associate_people(obs: RigObservations, Ks: list[np.ndarray], poses: list[np.
         if held is None or len(members) > len(held):
             person_frames[g][f] = list(members)
     slots = _slots(person_frames, cam_of, frame_of, row_of, obs)
+    stretch = segments(frame_ids)
+    if len(slots) > 1 and len(stretch) and stretch[-1] > 0:    # frames far apart: by body
+        slots = people_by_body(person_frames, X, cam_of, stretch, Ks, poses, sk, min_confidence)
     P = max(len(slots), 1)
     index = [np.full((T, P), -1) for _ in range(C)]
     for p, people in enumerate(slots):
