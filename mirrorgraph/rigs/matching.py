@@ -118,9 +118,10 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
         min_confidence: joints below it are ignored.
         seed: OpenCV's RANSAC seed.
         frame_ids: ``(T,)`` the frames' numbers: no track crosses a jump of more than
-            :data:`~.tracking.TRACK_MAX_GAP` (snapshots), and where there are jumps the
+            :data:`~.tracking.TRACK_MAX_GAP` frames nor a frame where the people jump
+            (:func:`~.tracking.segments`: snapshots), and where there are jumps the
             geometry may come from one candidate a frame (:func:`consensus_geometry`).
-            ``None``: consecutive frames.
+            ``None``: consecutive frames, continuity assumed.
 
     Returns:
         ``(T,)`` int: the index of the chosen candidate per frame (-1: none; where
@@ -159,7 +160,11 @@ def match_candidates(ref_person: np.ndarray, K_ref: np.ndarray, candidates: list
     inlier_px = inlier_threshold_px(ref_person, joints, min_confidence)
     match_px = MATCH_THRESHOLD_PX * inlier_px / TRACK_INLIER_PX
     fits = _Fits(xa_all, xb_all, seen, rel, ref_stretch, f, seed, inlier_px)
-    jumps = int(segments(frame_ids)[-1]) if frame_ids is not None and len(frame_ids) else 0
+    T, J = ref_person.shape[:2]
+    ref_rows = [ref_person[t][None] if (ref_person[t, :, 2] >= min_confidence).any()
+                else np.zeros((0, J, 3)) for t in range(T)]
+    jumps = frame_ids is not None and T > 1 and any(
+        segments(frame_ids, T, c, joints, min_confidence)[-1] > 0 for c in (candidates, ref_rows))
     best_E, group = _person_geometry(fits, track, own, rows[:, 0],
                                      match_px if jumps else None)
     # frame by frame as labelled, and a detection whose labels disagree with the

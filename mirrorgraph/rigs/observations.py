@@ -293,9 +293,9 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     """The first camera: keep the person whose track is seen (with mirrors: pairs with a
     reflection) in the most frames, between nearly equal ones the one that moves most,
     ties broken by confidence (see the module docstring), in place. Where the frames
-    ``frame_ids`` jump (:func:`~mirrorgraph.rigs.tracking.segments`: snapshots), no track
-    crosses a jump and each stretch of frames keeps its own person (one frame alone: its
-    most confident candidate)."""
+    ``frame_ids`` or the people jump (:func:`~mirrorgraph.rigs.tracking.segments`:
+    snapshots), no track crosses a jump and each stretch of frames keeps its own person
+    (one frame alone: its most confident candidate)."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
     # tracks read a detector's left/right swaps (those the assignment as labelled leaves
@@ -313,7 +313,8 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     own = [np.where(s[:, None, None], p[:, skeleton.flip], p)
            for p, s in zip(sorting.people, swapped)]
     motion = track_motion(tracks, own, joints, min_conf)
-    stretch = segments(frame_ids, len(tracks))
+    stretch = (segments(frame_ids, len(tracks), sorting.people, joints, min_conf)
+               if frame_ids is not None else segments(None, len(tracks)))
     chosen = np.full(len(tracks), -1, dtype=int)
     for s in np.unique(stretch):
         rows = np.flatnonzero(stretch == s)

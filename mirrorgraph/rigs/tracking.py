@@ -16,8 +16,8 @@ import warnings
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
-           "continuity_labels", "segments", "subject_track", "track_labelled", "track_motion",
+__all__ = ["JUMP_OF_SIZE", "NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
+           "continuity_labels", "jumping", "rig_segments", "segments", "subject_track", "track_labelled", "track_motion",
            "track_people", "tracklets"]
 
 #: Tracks: a detection farther than this (mean joint distance, px) from every
@@ -36,15 +36,85 @@ TRACK_AGE_PX = 20.0
 TRACK_MAX_GAP = 30
 
 
-def segments(frame_ids: np.ndarray | None, T: int | None = None) -> np.ndarray:
+#: People who move more than this share of their size a frame (to the nearest detection of
+#: the frame before, the median over a frame's detections), in most frames, are not
+#: filmed but snapshots numbered frame after frame (:func:`jumping`): a person walking
+#: at 30 frames/s moves ~0.02 of their size a frame on synthetic rigs, people placed and
+#: turned anew ~0.23, and 0.1 a frame is three body sizes a second.
+JUMP_OF_SIZE = 0.1
+
+
+def jumping(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
+            frame_ids: np.ndarray | None = None) -> bool:
+    """Whether the people jump from frame to frame (snapshots, whatever their numbers): in
+    more than half of the pairs of consecutive frames that both hold someone, the median
+    over the later frame's detections of their distance (median over the ``joints`` seen in
+    both, px) to the nearest detection of the earlier frame, over their size (the larger
+    side of the box of their confident joints) and the frames between the two
+    (``frame_ids``; default 1), exceeds :data:`JUMP_OF_SIZE`.
+
+    Args:
+        candidates: ``T`` arrays ``(P_t, J, 3)`` (x px, y px, confidence).
+        joints: the joints compared; min_confidence: joints below it are not.
+        frame_ids: ``(T,)`` the frames' numbers.
+    """
+    T = len(candidates)
+    if T < 2:
+        return False
+    joints = np.asarray(joints, int)
+    P = max((len(p) for p in candidates), default=0)
+    if P == 0:
+        return False
+    xy = np.full((T, P, len(joints), 2), np.nan)
+    for t, p in enumerate(candidates):
+        if len(p):
+            q = np.asarray(p, float).reshape(len(p), -1, 3)[:, joints]
+            xy[t, :len(q)] = np.where(q[..., 2:3] >= min_confidence, q[..., :2], np.nan)
+    with warnings.catch_warnings():                   # empty rows: nobody there
+        warnings.simplefilter("ignore", RuntimeWarning)
+        size = np.nanmax(np.nanmax(xy, 2) - np.nanmin(xy, 2), -1)                # (T, P)
+        d = np.nanmedian(np.linalg.norm(xy[1:, :, None] - xy[:-1, None], axis=-1),
+                         axis=-1)                                                 # (T-1, P, P)
+        nearest = np.nanmin(d, axis=2) / np.where(size[1:] > 0, size[1:], np.nan)
+        step = (np.diff(np.asarray(frame_ids, float)[:T]) if frame_ids is not None
+                else np.ones(T - 1))
+        rate = np.nanmedian(nearest, axis=1) / np.maximum(step, 1.0)              # (T-1,)
+    judged = np.isfinite(rate)
+    return bool(judged.any() and np.count_nonzero(rate[judged] > JUMP_OF_SIZE)
+                > 0.5 * np.count_nonzero(judged))
+
+
+def segments(frame_ids: np.ndarray | None, T: int | None = None,
+             candidates: list[np.ndarray] | None = None, joints: np.ndarray | None = None,
+             min_confidence: float = 0.3) -> np.ndarray:
     """``(T,)`` int: the continuous stretch of each frame, ``0 ..``, a new one wherever the
-    frame numbers ``frame_ids`` ``(T,)`` jump by more than :data:`TRACK_MAX_GAP` (snapshots
-    far apart in time: one stretch a frame). ``None``: one stretch of ``T`` frames."""
+    frame numbers ``frame_ids`` ``(T,)`` jump by more than :data:`TRACK_MAX_GAP`
+    (snapshots far apart in time), and one a frame where the people of ``candidates``
+    (``T`` arrays ``(P_t, J, 3)``, their ``joints``) jump from frame to frame
+    (:func:`jumping`: snapshots numbered frame after frame). ``None``: one stretch of
+    ``T`` frames."""
     if frame_ids is None:
-        return np.zeros(int(T or 0), dtype=int)
-    ids = np.asarray(frame_ids, dtype=np.int64).ravel()
-    out = np.zeros(len(ids), dtype=int)
-    out[1:] = np.cumsum(np.diff(ids) > TRACK_MAX_GAP)
+        out = np.zeros(int(T if T is not None else len(candidates or [])), dtype=int)
+    else:
+        ids = np.asarray(frame_ids, dtype=np.int64).ravel()
+        out = np.zeros(len(ids), dtype=int)
+        out[1:] = np.cumsum(np.diff(ids) > TRACK_MAX_GAP)
+    if (candidates is not None and joints is not None and len(out) > 1 and out[-1] < len(out) - 1
+            and jumping(candidates, joints, min_confidence, frame_ids)):
+        out = np.arange(len(out))
+    return out
+
+
+def rig_segments(frame_ids: np.ndarray, cameras: list[list[np.ndarray]], joints: np.ndarray,
+                 min_confidence: float = 0.3) -> np.ndarray:
+    """``(T,)`` :func:`segments` of a rig's frames: cut where ``frame_ids`` jump, one a
+    frame where the people jump in most of the ``cameras`` (each ``T`` arrays
+    ``(P_t, J, 3)``) that see anyone."""
+    out = segments(frame_ids)
+    seen = [c for c in cameras if any(len(p) for p in c)]
+    if len(out) > 1 and out[-1] < len(out) - 1 and seen and sum(
+            jumping(c, joints, min_confidence, frame_ids) for c in seen) > 0.5 * len(seen):
+        out = np.arange(len(out))
     return out
 
 
@@ -76,8 +146,9 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
         flip: ``(J,)`` left/right permutation of the labels
             (:attr:`mirrorgraph.skeletons.Skeleton.flip`); ``None``: labels as given.
         frame_ids: ``(T,)`` the candidates' frame numbers: every track ends where they
-            jump by more than :data:`TRACK_MAX_GAP` (:func:`segments`; snapshots share
-            no track). ``None``: consecutive frames.
+            jump by more than :data:`TRACK_MAX_GAP`, and at every frame where the people
+            jump from frame to frame (:func:`segments`; snapshots share no track).
+            ``None``: consecutive frames, continuity assumed.
 
     Returns:
         ``T`` int arrays ``(P_t,)``: the track id of each detection, and ``T`` bool
@@ -88,8 +159,9 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     last: dict[int, np.ndarray] = {}
     seen_at: dict[int, int] = {}
     ids, swaps, next_id = [], [], 0
-    stretch = segments(None if frame_ids is None else np.asarray(frame_ids)[:len(candidates)],
-                       len(candidates))
+    stretch = (segments(np.asarray(frame_ids)[:len(candidates)], len(candidates), candidates,
+                        joints, min_confidence) if frame_ids is not None
+               else segments(None, len(candidates)))
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float)
         lab = np.full(len(p), -1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mirrorgraph.rigs.tracking import TRACK_MAX_GAP, segments, track_labelled
+from mirrorgraph.rigs.tracking import TRACK_MAX_GAP, jumping, segments, track_labelled
 
 
 def test_segments_cut_where_the_frames_jump():
@@ -28,3 +28,18 @@ def test_no_track_crosses_a_jump_of_the_frames():
     assert len(set(np.concatenate(ids).tolist())) == 2
     ids, _ = track_labelled(frames, joints, 0.3, frame_ids=np.arange(4) * 2250)
     assert len(set(np.concatenate(ids).tolist())) == 8
+
+
+def test_people_placed_anew_every_frame_jump_and_a_video_does_not():
+    """Snapshots numbered frame after frame are told from a video by the people's moves."""
+    from mirrorgraph.synth.rig_people import make_rig_people
+
+    for snapshots in (True, False):
+        rig = make_rig_people(3, 3, frames=30, seed=3, snapshots=snapshots, noise_std=4.0,
+                              outlier_rate=0.02)
+        joints = rig.skeleton.calibration_joints
+        for name in rig.camera_names:
+            people = rig.detections[name].people
+            assert jumping(people, joints, 0.3) == snapshots
+            cut = segments(np.arange(30), 30, people, joints)
+            assert cut.tolist() == (list(range(30)) if snapshots else [0] * 30)
