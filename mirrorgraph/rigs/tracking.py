@@ -43,14 +43,18 @@ TRACK_MAX_GAP = 30
 #: turned anew ~0.23, and 0.1 a frame is three body sizes a second.
 JUMP_OF_SIZE = 0.1
 
+#: Pairs of consecutive frames :func:`jumping` compares at most (evenly spread).
+JUMP_PAIRS = 400
+
 
 def jumping(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
             frame_ids: np.ndarray | None = None) -> bool:
     """Whether the people jump from frame to frame (snapshots, whatever their numbers): in
-    more than half of the pairs of consecutive frames that both hold someone, the median
-    over the later frame's detections of their distance (median over the ``joints`` seen in
-    both, px) to the nearest detection of the earlier frame, over their size (the larger
-    side of the box of their confident joints) and the frames between the two
+    more than half of the pairs of consecutive frames that both hold someone (at most
+    :data:`JUMP_PAIRS` of them, evenly spread), the median over the later frame's
+    detections of their distance (mean over the ``joints`` seen in both, px, as the
+    tracks measure it) to the nearest detection of the earlier frame, over their size (the
+    larger side of the box of their confident joints) and the frames between the two
     (``frame_ids``; default 1), exceeds :data:`JUMP_OF_SIZE`.
 
     Args:
@@ -62,23 +66,27 @@ def jumping(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: fl
     if T < 2:
         return False
     joints = np.asarray(joints, int)
-    P = max((len(p) for p in candidates), default=0)
+    pairs = np.unique(np.linspace(0, T - 2, min(T - 1, JUMP_PAIRS)).round().astype(int))
+    rows = np.unique(np.concatenate([pairs, pairs + 1]))
+    P = max((len(candidates[t]) for t in rows), default=0)
     if P == 0:
         return False
-    xy = np.full((T, P, len(joints), 2), np.nan)
-    for t, p in enumerate(candidates):
+    xy = np.full((len(rows), P, len(joints), 2), np.nan)
+    for i, t in enumerate(rows):
+        p = candidates[t]
         if len(p):
             q = np.asarray(p, float).reshape(len(p), -1, 3)[:, joints]
-            xy[t, :len(q)] = np.where(q[..., 2:3] >= min_confidence, q[..., :2], np.nan)
+            xy[i, :len(q)] = np.where(q[..., 2:3] >= min_confidence, q[..., :2], np.nan)
+    step = (np.diff(np.asarray(frame_ids, float)[:T]) if frame_ids is not None
+            else np.ones(T - 1))
+    later, earlier = xy[np.searchsorted(rows, pairs + 1)], xy[np.searchsorted(rows, pairs)]
     with warnings.catch_warnings():                   # empty rows: nobody there
         warnings.simplefilter("ignore", RuntimeWarning)
-        size = np.nanmax(np.nanmax(xy, 2) - np.nanmin(xy, 2), -1)                # (T, P)
-        d = np.nanmedian(np.linalg.norm(xy[1:, :, None] - xy[:-1, None], axis=-1),
-                         axis=-1)                                                 # (T-1, P, P)
-        nearest = np.nanmin(d, axis=2) / np.where(size[1:] > 0, size[1:], np.nan)
-        step = (np.diff(np.asarray(frame_ids, float)[:T]) if frame_ids is not None
-                else np.ones(T - 1))
-        rate = np.nanmedian(nearest, axis=1) / np.maximum(step, 1.0)              # (T-1,)
+        size = np.nanmax(np.nanmax(later, 2) - np.nanmin(later, 2), -1)          # (n, P)
+        d = np.nanmean(np.linalg.norm(later[:, :, None] - earlier[:, None], axis=-1),
+                       axis=-1)                                                   # (n, P, P)
+        nearest = np.nanmin(d, axis=2) / np.where(size > 0, size, np.nan)
+        rate = np.nanmedian(nearest, axis=1) / np.maximum(step[pairs], 1.0)       # (n,)
     judged = np.isfinite(rate)
     return bool(judged.any() and np.count_nonzero(rate[judged] > JUMP_OF_SIZE)
                 > 0.5 * np.count_nonzero(judged))
