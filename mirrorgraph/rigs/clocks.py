@@ -43,6 +43,7 @@ from ..geometry import sampson_distances
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
+from .tracking import TRACK_MAX_GAP, jumping
 
 __all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
            "ACCEPT_LEVEL", "FRACTION_Z", "FRACTION_REACH", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
@@ -618,7 +619,11 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         Ks: per camera ``(3, 3)`` intrinsics (of the undistorted pixels).
         given: per camera the rig file's ``frame_offset``.
         joints: the joints compared (indices).
-        search: search the offsets (else every camera keeps its given one).
+        search: search the offsets (else every camera keeps its given one). Frames more
+            than :data:`~.tracking.TRACK_MAX_GAP` apart, or whose people jump from frame
+            to frame in the reference camera (:func:`~.tracking.jumping`; snapshots: no
+            motion continues from one to the next), are not searched either: every
+            camera keeps its given offset, with a note.
         window: frames searched either way of a camera's given offset (relative to the
             reference's).
         seed: seed of every random choice.
@@ -638,6 +643,14 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                       for g in given[1:]]
     steps = [frame_step(f) for f in frame_ids]
     step = int(np.gcd.reduce(steps))            # a slower camera sees every n-th sample
+    ref_people = people[0][1] if people[0][1] is not None else [
+        p[None] for p in np.asarray(people[0][0], float)]
+    if step > TRACK_MAX_GAP or jumping(ref_people, joints, min_confidence, frame_ids[0]):
+        why = (f"frames {step} apart" if step > TRACK_MAX_GAP else
+               "the people jump from frame to frame")   # snapshots: shifts mean nothing
+        return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g,
+                                    note=f"{why} (snapshots): not searched, kept as given "
+                                         f"({g})") for g in given[1:]]
     base = int(min(np.min(f) for f in frame_ids if len(f)))
     length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
     reach = max(int(np.ceil(window / step)), 1)
