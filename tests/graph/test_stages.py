@@ -66,3 +66,50 @@ def test_the_joints_pass_leaves_out_keypoints_displaced_along_their_epipolar_lin
     assert np.median(err[0]) < 0.8 * np.median(err[1]), [np.median(e) for e in err]
     both = gated.valid & kept.valid
     assert pa_mpjpe(gated.joints3d, truth, both) < pa_mpjpe(kept.joints3d, truth, both)
+
+
+def test_without_observations_drops_exactly_their_factors():
+    """The reprojection factors left are those of the observations kept: the graph's error
+    at a point moved off one observation loses exactly that observation's term."""
+    import gtsam
+
+    from mirrorgraph.graph.builder import build_problem
+    from mirrorgraph.graph.problem import X_BASE, without_observations
+    from mirrorgraph.graph.rig import single_mirror_rig
+
+    sc = make_scene(frames=12, seed=3, noise_std=0.0)
+    p = sc.paired()
+    sk = p.skeleton
+    used = p.valid()
+    rig = single_mirror_rig(sk, p.frame_ids, sc.K, p.real[..., :2], p.mirror[..., :2], used,
+                            sc.normal, sc.distance, sk.calibration_joints)
+    jm = np.zeros(sk.num_joints, bool)
+    jm[sk.calibration_joints] = True
+    rows = np.searchsorted(sc.frame_ids, p.frame_ids)
+    problem = build_problem(rig, sc.joints3d[rows], used & jm, [(sc.normal, sc.distance)],
+                            RefineOptions(), priors=False)
+    T, J = problem.used.shape
+    t, j = 5, int(sk.calibration_joints[3])
+    drop = [np.zeros((T, J), bool), np.zeros((T, J), bool)]
+    drop[1][t, j] = True                                   # the reflection's observation
+    out = without_observations(problem, drop)
+    assert out.reprojection.size() == problem.reprojection.size() - 1
+    assert not out.rig.views[1].mask[t, j] and out.rig.views[0].mask[t, j]
+    assert problem.rig.views[1].mask[t, j]                 # the problem itself unchanged
+    # the joint moved: both views' terms grow in the full graph, only the direct one here
+    values = gtsam.Values(problem.values)
+    key = int(X_BASE) + t * J + j
+    moved = values.atPoint3(key) + np.array([0.05, 0.0, 0.0])
+    values.erase(key)
+    values.insertPoint3(key, moved)
+    grown = float(problem.reprojection.error(values)) - float(
+        problem.reprojection.error(problem.values))
+    kept = float(out.reprojection.error(values)) - float(out.reprojection.error(problem.values))
+    assert 0.0 < kept < grown
+    # the one factor left on that joint is the direct view's (the point's key alone; a
+    # reflection's factor also holds the virtual camera's pose)
+    on = [out.reprojection.at(i).keys() for i in range(out.reprojection.size())
+          if key in out.reprojection.at(i).keys()]
+    assert len(on) == 1 and list(on[0]) == [key]
+    with pytest.raises(ValueError):
+        without_observations(problem, [np.zeros((T, J), bool)])
