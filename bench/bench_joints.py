@@ -1024,6 +1024,9 @@ def main(argv: list[str] | None = None) -> int:
          f"- machine: {meta['machine']}; {meta['minutes']:.1f} min with {args.workers} "
          "workers",
          f"- command: `{meta['command'].rstrip()}`", *offline_note,
+         *([] if "live" in methods else
+           ["- live: not run here; its figures are `bench/RESULTS_joints_live.md`'s "
+            "(`--methods live --offline-from` this file's JSON)"]),
          "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
          "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "
          "noise, 3 % outliers; `fixtures`: the independent generator's scenes; "
