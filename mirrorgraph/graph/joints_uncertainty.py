@@ -730,7 +730,7 @@ def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray) -> np.nda
 
 
 def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
-                    group: int = CHAIN_GROUP) -> np.ndarray:
+                    group: int = CHAIN_GROUP, rhs: np.ndarray | None = None):
     """The diagonal ``3 x 3`` blocks of the inverse of block-banded information matrices.
 
     Each of ``B`` chains of ``N`` blocks has ``H[i, i] = diag[i]``, ``H[i, i + 1] =
@@ -744,16 +744,22 @@ def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
         diag, off1, off2: ``(B, N, 3, 3)``; the entries past a chain's end are ignored
             (``off1[N-1]``, ``off2[N-2:]``).
         group: ``g``, blocks per group.
+        rhs: ``(B, N, 3)``: also solve ``H x = rhs``.
 
     Returns:
-        ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``.
+        ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``; with ``rhs`` ``x`` ``(B, N, 3)``
+        and them.
     """
     g = max(int(group), 2)
     Bn, N = diag.shape[:2]
     if Bn > CHAIN_BATCH:
-        return np.concatenate([chain_marginals(diag[b:b + CHAIN_BATCH], off1[b:b + CHAIN_BATCH],
-                                               off2[b:b + CHAIN_BATCH], g)
-                               for b in range(0, Bn, CHAIN_BATCH)])
+        parts = [chain_marginals(diag[b:b + CHAIN_BATCH], off1[b:b + CHAIN_BATCH],
+                                 off2[b:b + CHAIN_BATCH], g,
+                                 None if rhs is None else rhs[b:b + CHAIN_BATCH])
+                 for b in range(0, Bn, CHAIN_BATCH)]
+        if rhs is None:
+            return np.concatenate(parts)
+        return tuple(np.concatenate(p) for p in zip(*parts))
     M = -(-N // g)
     pad = M * g - N
 
@@ -777,13 +783,23 @@ def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
                 D[:, :, i + k, :, i, :] = np.swapaxes(o[:, :, i], -1, -2)
             else:
                 U[:, :, i, :, i + k - g, :] = o[:, :, i]
-    C = _tridiagonal_marginals(D.reshape(M, Bn, 3 * g, 3 * g), U.reshape(M, Bn, 3 * g, 3 * g))
+    b = None
+    if rhs is not None:
+        b = np.concatenate([rhs, np.zeros((Bn, pad, 3))], axis=1).reshape(Bn, M, 3 * g)
+        b = np.moveaxis(b, 0, 1)[..., None]                                  # (M, B, 3g, 1)
+    C = _tridiagonal_marginals(D.reshape(M, Bn, 3 * g, 3 * g), U.reshape(M, Bn, 3 * g, 3 * g),
+                               b=b)
+    C, x = C if rhs is not None else (C, None)
     C = C.reshape(M, Bn, g, 3, g, 3)
     out = np.stack([C[:, :, i, :, i, :] for i in range(g)], axis=2)        # (M, B, g, 3, 3)
-    return np.moveaxis(out, 1, 0).reshape(Bn, M * g, 3, 3)[:, :N]
+    marg = np.moveaxis(out, 1, 0).reshape(Bn, M * g, 3, 3)[:, :N]
+    if rhs is None:
+        return marg
+    return np.moveaxis(x[..., 0], 1, 0).reshape(Bn, M * g, 3)[:, :N], marg
 
 
-def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False):
+def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False,
+                           b: np.ndarray | None = None):
     """The diagonal blocks of the inverse of symmetric positive definite block-tridiagonal
     matrices, by cyclic reduction (Golub and Van Loan, *Matrix Computations*, 4th ed.,
     sec. 4.5.4) run backwards for the covariance.
@@ -793,20 +809,25 @@ def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False):
     even one by ``-U_e D_{e+1}^-1 U_{e+1}``, a system half the size, solved the same way.
     Given the covariance of an odd block's two neighbours ``l, r`` (their blocks and
     ``Sigma_lr``), its own is ``D_i^-1 + A Sigma_nb A^T`` and its cross-covariances
-    ``-A Sigma_nb``, ``A = D_i^-1 [H_il, H_ir]``.
+    ``-A Sigma_nb``, ``A = D_i^-1 [H_il, H_ir]``; with a right-hand side ``b`` the
+    reduction carries it along and its solution is ``x_i = D_i^-1 b_i - A x_nb``.
 
     Args:
         D: ``(m, B, s, s)`` the diagonal blocks of ``B`` matrices; U: ``(m, B, s, s)``
             ``H[k, k + 1]`` (``U[m - 1]`` zero).
         off: also return ``Sigma[k, k + 1]`` ``(m - 1, B, s, s)``.
+        b: ``(m, B, s, 1)``: also solve ``H x = b``.
 
     Returns:
-        ``(m, B, s, s)`` the inverse's diagonal blocks (and with ``off`` the next ones).
+        ``(m, B, s, s)`` the inverse's diagonal blocks, with ``off`` the next ones, with
+        ``b`` the solution ``(m, B, s, 1)`` (in that order).
     """
     m = len(D)
     if m == 1:
         S = np.linalg.inv(D)
-        return (S, np.zeros((0,) + D.shape[1:])) if off else S
+        out = (S,) + ((np.zeros((0,) + D.shape[1:]),) if off else ()) + (
+            (S @ b,) if b is not None else ())
+        return out if len(out) > 1 else S
     tr = lambda x: np.swapaxes(x, -1, -2)                                # noqa: E731
     mo, me = m // 2, m - m // 2
     nr = me - 1                                       # odd blocks with a right neighbour
@@ -819,7 +840,13 @@ def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False):
     Dc[1:] -= tr(R) @ Ar
     Uc = np.zeros_like(Dc)
     Uc[:nr] = -(Ul[:nr] @ Ar)
-    Sc, Oc = _tridiagonal_marginals(Dc, Uc, off=True)
+    bc = None
+    if b is not None:
+        Db = Di @ b[1::2]                                 # D_i^-1 b_i, odd i
+        bc = b[0::2].copy()
+        bc[:mo] -= Ul @ Db
+        bc[1:] -= tr(R) @ Db[:nr]
+    Sc, Oc, *xc = _tridiagonal_marginals(Dc, Uc, off=True, b=bc)
     Sil = -(Al @ Sc[:mo])                             # Sigma[i, i - 1]
     Sil[:nr] -= Ar @ tr(Oc)
     Sir = -(Al[:nr] @ Oc + Ar @ Sc[1:])               # Sigma[i, i + 1]
@@ -827,11 +854,19 @@ def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False):
     Si[:nr] -= Sir @ tr(Ar)
     S = np.empty_like(D)
     S[0::2], S[1::2] = Sc, Si
-    if not off:
-        return S
-    O = np.empty((m - 1,) + D.shape[1:])
-    O[0::2], O[1::2] = tr(Sil), Sir
-    return S, O
+    out = (S,)
+    if off:
+        O = np.empty((m - 1,) + D.shape[1:])
+        O[0::2], O[1::2] = tr(Sil), Sir
+        out += (O,)
+    if b is not None:
+        x = np.empty_like(b)
+        x[0::2] = xc[0]
+        xi = Db - Al @ xc[0][:mo]
+        xi[:nr] -= Ar @ xc[0][1:]
+        x[1::2] = xi
+        out += (x,)
+    return out if len(out) > 1 else S
 
 
 # --------------------------------------------------------------------------- triangulated

@@ -48,6 +48,11 @@ def test_chain_marginals_are_the_inverse_blocks(N, group, B):
     want = np.array([[inv[b, 3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(N)]
                      for b in range(B)])
     assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+    rhs = np.random.default_rng(N + 1).normal(size=(B, N, 3))
+    x, again = chain_marginals(diag, off1, off2, group, rhs=rhs)
+    solved = np.linalg.solve(H, rhs.reshape(B, 3 * N, 1)).reshape(B, N, 3)
+    assert np.abs(x - solved).max() < 1e-12 * np.abs(solved).max()
+    assert np.array_equal(again, got)
 
 
 def test_rays_alone_and_a_depth_nothing_fixes():
