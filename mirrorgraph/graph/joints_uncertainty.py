@@ -275,25 +275,31 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     u = [px[t, j] for px in pixels]
     sigma = float(opts.pixel_sigma)               # whitened as the graph's rows, scaled below
     P0 = views(np.zeros(0))
-    Jv, r = [], []
-    for P, uv in zip(P0, u):
-        y = X @ P[:, :3].T + P[:, 3]
-        Jv.append((P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3])
-                  / y[:, 2, None, None] / sigma)
-        r.append((y[:, :2] / y[:, 2:3] - uv) / sigma)
-    Hv = [np.where(mk[:, None, None], np.einsum("nri,nrj->nij", Jx, Jx), 0.0)
-          for mk, Jx in zip(m, Jv)]
-    H = Hv[0] + Hv[1]
-    ok = np.linalg.det(H) > 0
-    Hinv = np.zeros_like(H)
-    Hinv[ok] = np.linalg.inv(H[ok])
-    # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
     T, J = used.shape
-    Hb = np.zeros_like(H)
+    # each view's information on the point (six entries xx, yy, zz, xy, xz, yz, whitened
+    # as the graph's rows) and its whitened residuals, (n,) columns
+    Hv, r = [], []
+    Xt = X.T
+    for P, uv, mk in zip(P0, u, m):
+        y = P[:, :3] @ Xt + P[:, 3:4]
+        inv = 1.0 / y[2]
+        px, py = y[0] * inv, y[1] * inv
+        jx = (P[0, :3, None] - P[2, :3, None] * px) * (inv / sigma)
+        jy = (P[1, :3, None] - P[2, :3, None] * py) * (inv / sigma)
+        Hv.append(np.where(mk, np.stack([jx[a] * jx[b] + jy[a] * jy[b]
+                                         for a, b in geo._SYM3]), 0.0))
+        r.append(np.stack([px - uv[:, 0], py - uv[:, 1]], 1) / sigma)
+    adj, det = geo._sym3_adjugate(Hv[0] + Hv[1])
+    ok = det > 0
+    Hinv = np.zeros((len(t), 3, 3))
+    Hinv[ok] = _full3(adj[:, ok] / det[ok])
+    # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
+    Hb6 = np.zeros_like(Hv[0])
     for mk, rv, Hk in zip(m, r, Hv):
         cnt = np.maximum(np.bincount(j[mk], minlength=J), 1)
         mean = np.stack([np.bincount(j[mk], rv[mk, i], minlength=J) for i in range(2)], 1)
-        Hb += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j][:, None, None] * Hk
+        Hb6 += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j] * Hk
+    Hb = _full3(Hb6)
     marg = np.full((T, J, 3, 3), np.nan)
     marg[t[ok], j[ok]] = Hinv[ok]
     used_ok = np.zeros((T, J), bool)
@@ -303,7 +309,9 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
                                   opts.smoothness_max_gap)
         band = _smoothness_band(used_ok, rig.frame_ids, smooth)
         if band is not None:
-            marg = _chain_solve(marg, used_ok, band)
+            info = np.zeros((T, J, 3, 3))
+            info[t[ok], j[ok]] = _full3((Hv[0] + Hv[1])[:, ok])
+            marg = _chain_solve(marg, used_ok, band, info)
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
@@ -313,6 +321,12 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
                  + np.nan_to_num(glob))
     cov[~used_ok] = np.nan
     return cov
+
+
+def _full3(S: np.ndarray) -> np.ndarray:
+    """``(n, 3, 3)`` symmetric matrices from their six entries ``(6, n)`` (xx, yy, zz, xy,
+    xz, yz)."""
+    return S[[0, 3, 4, 3, 1, 5, 4, 5, 2]].T.reshape(-1, 3, 3)
 
 
 def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
@@ -702,12 +716,15 @@ def _smoothness_band(used: np.ndarray, frame_ids, smooth: SmoothnessFactor
     return w[..., None, None] * np.eye(3) if found else None
 
 
-def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray) -> np.ndarray:
-    """:func:`_with_smoothness` given the smoothness's block band ``(3, J, N, 3, 3)``."""
+def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray,
+                 info: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_with_smoothness` given the smoothness's block band ``(3, J, N, 3, 3)``
+    (``info``: ``marg``'s inverse where known, else inverted here)."""
     J, N = band.shape[1:3]
     ok = np.isfinite(marg).all((-2, -1)) & used
-    info = np.zeros_like(marg)
-    info[ok] = np.linalg.inv(marg[ok])
+    if info is None:
+        info = np.zeros_like(marg)
+        info[ok] = np.linalg.inv(marg[ok])
     diag, off1, off2 = band
     # the per-frame information on the diagonal, identity on the padding
     t_of = np.full((J, N), -1)
