@@ -354,12 +354,12 @@ def triangulate(projections: np.ndarray | list[np.ndarray], pixels: np.ndarray |
         # the rows' least squares with X_h = (X, 1): the normal equations of the
         # inhomogeneous system (a finite point is the case here; six times faster than
         # the homogeneous SVD, and the Gauss-Newton steps below refine it anyway)
-        M = np.stack([np.einsum("rm,rm->m", A[:, a], A[:, b]) for a, b in _SYM3])   # (6, M)
+        M = np.stack([np.einsum("rm,rm->m", A[:, a], A[:, b]) for a, b in SYM3])   # (6, M)
         b = -np.einsum("rim,rm->im", A[:, :3], A[:, 3])                               # (3, M)
-        adj, det = _sym3_adjugate(M)
+        adj, det = sym3_adjugate(M)
         solvable = np.abs(det) > 1e-12 * (M[0] + M[1] + M[2]) ** 3
         with np.errstate(divide="ignore", invalid="ignore"):
-            X = np.where(solvable, _sym3_product(adj, b) / det, np.nan).T
+            X = np.where(solvable, sym3_product(adj, b) / det, np.nan).T
         for _ in range(iterations):
             X = _gauss_newton_views(P, u, w, X)
         good = np.isfinite(X).all(1) & solvable
@@ -391,7 +391,7 @@ def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarr
             jx = (Pv[0, :3, None] - Pv[2, :3, None] * px) * inv                 # (3, M)
             jy = (Pv[1, :3, None] - Pv[2, :3, None] * py) * inv
             rx, ry = px - uv[:, 0], py - uv[:, 1]
-            for k, (a, b) in enumerate(_SYM3):
+            for k, (a, b) in enumerate(SYM3):
                 H[k] += jx[a] * jx[b] + jy[a] * jy[b]
             g += jx * rx + jy * ry
         H[:3] += 1e-9
@@ -402,7 +402,7 @@ def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarr
 
 #: The six distinct entries of a symmetric ``3 x 3`` matrix, in the order of
 #: :func:`solve_sym3`'s rows: xx, yy, zz, xy, xz, yz.
-_SYM3 = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+SYM3 = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
 def solve_sym3(H: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -415,12 +415,12 @@ def solve_sym3(H: np.ndarray, b: np.ndarray) -> np.ndarray:
     Returns:
         ``(3, ...)`` the solutions (inf or NaN where a matrix is singular).
     """
-    adj, det = _sym3_adjugate(H)
+    adj, det = sym3_adjugate(H)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return _sym3_product(adj, b) / det
+        return sym3_product(adj, b) / det
 
 
-def _sym3_adjugate(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sym3_adjugate(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The adjugates ``(6, ...)`` (the same order) and determinants ``(...)`` of symmetric
     ``3 x 3`` matrices given as their six distinct entries ``(6, ...)``."""
     a, d, f, b, c, e = H
@@ -429,7 +429,7 @@ def _sym3_adjugate(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return adj, a * adj[0] + b * adj[3] + c * adj[4]
 
 
-def _sym3_product(S: np.ndarray, v: np.ndarray) -> np.ndarray:
+def sym3_product(S: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``(3, ...)`` symmetric matrices ``S`` ``(6, ...)`` times vectors ``v`` ``(3, ...)``."""
     return np.stack([S[0] * v[0] + S[3] * v[1] + S[4] * v[2],
                      S[3] * v[0] + S[1] * v[1] + S[5] * v[2],
@@ -469,9 +469,9 @@ def triangulation_covariance(projections: np.ndarray | list[np.ndarray], points:
             inv = np.where(m, 1.0 / y[2], 0.0)
             jx = (P_v[0, :3, None] - P_v[2, :3, None] * (y[0] * inv)) * inv        # (3, N)
             jy = (P_v[1, :3, None] - P_v[2, :3, None] * (y[1] * inv)) * inv
-            for k, (a, b) in enumerate(_SYM3):
+            for k, (a, b) in enumerate(SYM3):
                 info[k] += jx[a] * jx[b] + jy[a] * jy[b]
-    adj, det = _sym3_adjugate(info)
+    adj, det = sym3_adjugate(info)
     ok = (w.sum(0) >= 2) & np.isfinite(info).all(0)
     ok[ok] = det[ok] > 0
     cov = np.full((Xt.shape[1], 3, 3), np.nan)

@@ -130,14 +130,14 @@ def _mahalanobis2(C: np.ndarray, d: np.ndarray) -> np.ndarray:
     ``(n, 3)`` ``d``: the adjugate over the determinant where ``C`` is well conditioned,
     the pseudo-inverse (its lower triangle, as :func:`numpy.linalg.pinv` reads it) where
     not."""
-    H = np.stack([C[:, a, b] if a == b else C[:, b, a] for a, b in geo._SYM3])   # lower
-    adj, det = geo._sym3_adjugate(H)
+    H = np.stack([C[:, a, b] if a == b else C[:, b, a] for a, b in geo.SYM3])   # lower
+    adj, det = geo.sym3_adjugate(H)
     scale = (H[0] + H[1] + H[2]) / 3.0
     fine = det > 1e-6 * np.abs(scale) ** 3
     dt = d.T
     out = np.empty(len(d))
     with np.errstate(divide="ignore", invalid="ignore"):
-        out[fine] = (np.einsum("in,in->n", dt[:, fine], geo._sym3_product(adj[:, fine],
+        out[fine] = (np.einsum("in,in->n", dt[:, fine], geo.sym3_product(adj[:, fine],
                                                                           dt[:, fine]))
                      / det[fine])
     if not fine.all():
@@ -287,9 +287,9 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
         jx = (P[0, :3, None] - P[2, :3, None] * px) * (inv / sigma)
         jy = (P[1, :3, None] - P[2, :3, None] * py) * (inv / sigma)
         Hv.append(np.where(mk, np.stack([jx[a] * jx[b] + jy[a] * jy[b]
-                                         for a, b in geo._SYM3]), 0.0))
+                                         for a, b in geo.SYM3]), 0.0))
         r.append(np.stack([px - uv[:, 0], py - uv[:, 1]], 1) / sigma)
-    adj, det = geo._sym3_adjugate(Hv[0] + Hv[1])
+    adj, det = geo.sym3_adjugate(Hv[0] + Hv[1])
     ok = det > 0
     Hinv = np.zeros((len(t), 3, 3))
     Hinv[ok] = _full3(adj[:, ok] / det[ok])
@@ -948,7 +948,7 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             inv = np.where(m, 1.0 / y[2], 0.0)
             jx = (P[0, :3, None] - P[2, :3, None] * (y[0] * inv)) * inv       # (3, N)
             jy = (P[1, :3, None] - P[2, :3, None] * (y[1] * inv)) * inv
-            for c, (a, b) in enumerate(geo._SYM3):
+            for c, (a, b) in enumerate(geo.SYM3):
                 info[c] += jx[a] * jx[b] + jy[a] * jy[b]
             for k in range(n):
                 Pp, Pm = moved[k][0][vi], moved[k][1][vi]
@@ -958,7 +958,7 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
                 dx = np.where(m, (yp[0] / yp[2] - ym[0] / ym[2]) / (2 * step), 0.0)
                 dy = np.where(m, (yp[1] / yp[2] - ym[1] / ym[2]) / (2 * step), 0.0)
                 rhs[:, k] += jx * dx + jy * dy
-    adj, det = geo._sym3_adjugate(info)
+    adj, det = geo.sym3_adjugate(info)
     if cov is None:                      # as geo.triangulation_covariance decides it
         seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
         ok = seen & np.isfinite(info).all(0)
@@ -967,7 +967,7 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
     good = np.isfinite(cov).all((1, 2))
     G = np.zeros((3, n, N))
     with np.errstate(divide="ignore", invalid="ignore"):
-        G[:, :, good] = -np.stack([geo._sym3_product(adj[:, good], rhs[:, k, good])
+        G[:, :, good] = -np.stack([geo.sym3_product(adj[:, good], rhs[:, k, good])
                                    for k in range(n)], axis=1) / det[good]
     if frames is not None and good.any():
         Gn = G.transpose(2, 0, 1)[good]                          # (M, 3, n)
