@@ -572,7 +572,7 @@ class LiveCalibrator:
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; a view off by more than the threshold once the bones hold the joint
         # (a keypoint displaced along its epipolar line) is left out
-        X, cov, _, keep = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
+        X, cov, keep = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
                                             self._sigma_px(), sigma_len,
                                             iterations=2, gate_px=co.threshold_px, full=True)
         S = geo.reflect_points(X, n, d)
