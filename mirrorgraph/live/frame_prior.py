@@ -32,19 +32,6 @@ __all__ = ["refine_with_bones", "triangulate_two_rays", "HUBER_K"]
 HUBER_K = 1.345
 
 
-def _huber_weight(r: np.ndarray) -> np.ndarray:
-    """IRLS weights of Huber's loss for normalised residual norms ``r``."""
-    return np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-12))
-
-
-def _projection(K: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels ``(k, 2)`` of points ``Y`` ``(k, 3)`` and their Jacobians ``(k, 2, 3)``."""
-    q = Y @ K.T
-    p = q[:, :2] / q[:, 2:3]
-    J = (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
-    return p, J
-
-
 def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: np.ndarray,
                          um: np.ndarray) -> np.ndarray:
     """Joints from their direct and mirrored pixels: the midpoint of the two rays.
