@@ -43,6 +43,7 @@ fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mir
 from __future__ import annotations
 
 import copy
+import math
 import os
 import signal
 import time
@@ -185,6 +186,12 @@ def _num(v) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
 
 
+def _rounded(values: np.ndarray, ok: list) -> list:
+    """``values`` to 6 decimals, ``None`` where not finite or not ``ok``."""
+    return [round(v, 6) if k and math.isfinite(v) else None
+            for v, k in zip(values.tolist(), ok)]
+
+
 @dataclass
 class LiveFrame:
     """What :meth:`LiveCalibrator.update` returns for one frame.
@@ -240,16 +247,14 @@ class LiveFrame:
 
     def to_dict(self) -> dict:
         """The frame's JSON line: NaN written as ``null`` (JSON has no NaN)."""
-        ok = np.isfinite(self.joints3d).all(1)
+        ok = np.isfinite(self.joints3d).all(1).tolist()
         shape = self.joints_std if self.joints_std_shape is None else self.joints_std_shape
         return {"frame": self.index, "frame_id": self.frame_id, "time": round(self.time, 6),
                 "status": self.mirror.status, "mirror": self.mirror.to_dict(),
-                "joints3d": [[round(float(c), 6) for c in p] if k else None
-                             for p, k in zip(self.joints3d, ok)],
-                "joints_std": [round(float(s), 6) if k and np.isfinite(s) else None
-                               for s, k in zip(self.joints_std, ok)],
-                "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
-                                     for s, k in zip(shape, ok)],
+                "joints3d": [[round(c, 6) for c in p] if k else None
+                             for p, k in zip(self.joints3d.tolist(), ok)],
+                "joints_std": _rounded(self.joints_std, ok),
+                "joints_std_shape": _rounded(shape, ok),
                 "paired": self.paired, "skipped": self.skipped, "lag_frames": self.lag_frames}
 
 
