@@ -547,16 +547,15 @@ class LiveCalibrator:
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """The frame's ``(J, 3)`` joints, their stds with and without the metric scale's
         share (``joints_std``, ``joints_std_shape``) and whether a pair was found."""
-        from ..initial.pairing import PairingOptions, pair_frame_with_epipole
+        from ..initial.pairing import pair_frame_with_epipole
 
         J = self.skeleton.num_joints
         out, total, shape = np.full((J, 3), np.nan), np.full(J, np.nan), np.full(J, np.nan)
         K = self.K
         n, d = self.fusion.normal, float(self.fusion.distance)
         co = self._copts
-        real, mirror = pair_frame_with_epipole(
-            p, K @ n, self.skeleton, self.joints,
-            PairingOptions(min_confidence=co.min_confidence, threshold_px=co.threshold_px))
+        epipole, pairing = self._cached("pairing", self._pairing)
+        real, mirror = pair_frame_with_epipole(p, epipole, self.skeleton, self.joints, pairing)
         # the person's left and right as the frames so far say (the detector's
         # confusions in either view, :mod:`mirrorgraph.initial.body_left_right`)
         real, mirror = self._swaps.update(real, mirror, fid)
@@ -577,16 +576,13 @@ class LiveCalibrator:
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; a view off by more than the threshold once the bones hold the joint
         # (a keypoint displaced along its epipolar line) is left out
-        X, cov, keep = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
-                                            self._sigma_px(), sigma_len,
-                                            iterations=2, gate_px=co.threshold_px, full=True)
+        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
+                                             self._sigma_px(), sigma_len, iterations=2,
+                                             gate_px=co.threshold_px, full=True)
         S = geo.reflect_points(X, n, d)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
-            ok &= ~keep[:, 0] | (np.linalg.norm(geo.project(K, X) - u, axis=1)
-                                 <= co.threshold_px)
-            ok &= ~keep[:, 1] | (np.linalg.norm(geo.project(K, S) - um, axis=1)
-                                 <= co.threshold_px)
+            ok &= (~keep | (px <= co.threshold_px)).all(1)
             ok &= np.isfinite(cov).all((1, 2))
         idx, X, cov = idx[ok], X[ok], cov[ok]
         if self.options.smooth:
@@ -605,6 +601,14 @@ class LiveCalibrator:
         self.last_variances = var
         return (np.sqrt(sum(v for k, v in var.items() if k != "scale")),
                 np.sqrt(sum(var.values())))
+
+    def _pairing(self) -> tuple:
+        """The fused mirror's epipole ``K n`` and the pairing's options."""
+        from ..initial.pairing import PairingOptions
+
+        co = self._copts
+        return self.K @ self.fusion.normal, PairingOptions(min_confidence=co.min_confidence,
+                                                           threshold_px=co.threshold_px)
 
     def _sigma_px(self) -> float:
         fu = self.fusion

@@ -106,13 +106,13 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             of a joint held by bones (a keypoint displaced along its epipolar line,
             which the two rays follow in depth and the bones do not) and one more step
             is taken; ``None``: every view kept.
-        full: also return the views kept.
+        full: also return the views kept and the residuals at the joints returned.
 
     Returns:
         ``(X, cov)``: the refined ``(k, 3)`` joints and each one's ``(k, 3, 3)``
         covariance (a bone's two ends are correlated; the blocks are the marginals);
-        with ``full`` also ``(k, 2)`` bool the
-        views kept.
+        with ``full`` also ``(k, 2)`` bool the views kept and ``(k, 2)`` each view's
+        reprojection residual at the returned joints, px (direct, mirror).
     """
     X = np.array(X, dtype=float)
     k = len(X)
@@ -180,7 +180,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     except np.linalg.LinAlgError:
         cov = np.full((k, 3, 3), np.nan)
     if full:
-        return X, cov, keep
+        return X, cov, keep, sigma_px * rn.reshape(2, k).T
     return X, cov
 
 
