@@ -360,11 +360,13 @@ class LiveCalibrator:
         self.options = opts = options or LiveOptions()
         copts = (opts.calibrate or CalibrateOptions()).checked()
         # windows are solved without completion and without their joints' covariance
-        # (the frames' joints are triangulated here) and keypoints are undistorted once,
-        # here
+        # (the frames' joints are triangulated here), their first full solve final (the
+        # next window follows it: ``resolve_after_rejection``), and keypoints are
+        # undistorted once, here
         self._copts = replace(copts, complete_joints=False, sensitivity_priors=False,
                               fps=copts.fps or opts.fps,
-                              refine_options=replace(copts.graph, joints_uncertainty=False))
+                              refine_options=replace(copts.graph, joints_uncertainty=False,
+                                                     resolve_after_rejection=False))
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
         self._bone_names = list(self.skeleton.bones)

@@ -250,3 +250,21 @@ def test_a_subject_height_gives_metres_when_no_bone_is_in_the_calibration():
     assert "bone_length" not in res.priors
     assert res.scale == "subject_height"
     assert res.distance == pytest.approx(scene.distance, rel=0.03)
+
+
+def test_without_the_solve_after_rejection_the_first_full_solve_is_final():
+    # outliers along the epipolar line: the first full solve's rejection drops some, the
+    # default solves again without them; resolve_after_rejection=False keeps the first
+    # solve's mirror, which lies within its std of both the truth and the second solve's
+    paired, K, n, _ = low_parallax_scene(0)
+    n0 = tilted_normal(n, 0.5, np.random.default_rng(0))
+    again = refine_mirror(paired, K, n0, paired.valid(), options=RefineOptions())
+    once = refine_mirror(paired, K, n0, paired.valid(),
+                         options=RefineOptions(resolve_after_rejection=False))
+    full = [s for s in again.stages if "kernel" in s]
+    assert len(full) == 2 and full[0]["rejected"] > 0          # the default solved again
+    full = [s for s in once.stages if "kernel" in s]
+    assert len(full) == 1 and full[0]["rejected"] > 0          # the first solve is final
+    assert rotation_error_deg(once.normal, n) < 4.0 * once.rotation_std_deg
+    assert rotation_error_deg(once.normal, again.normal) < once.rotation_std_deg
+    assert once.iterations < again.iterations
