@@ -292,18 +292,16 @@ def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
     H = np.eye(3) - 2.0 * np.outer(n, n)
     off = distance - X @ n                                              # (N,)
     Y = X + 2.0 * off[:, None] * n
-
-    def jac(P: np.ndarray) -> np.ndarray:                               # (N, 2, 3)
-        q = P @ K.T
-        p = q[:, :2] / q[:, 2:3]
-        return (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
-
-    J1, Q = jac(X), jac(Y)
+    N = len(X)
+    q = np.concatenate([X, Y]) @ K.T                                    # both views
+    p = q[:, :2] / q[:, 2:3]
+    Jv = (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
+    J1, Q = Jv[:N], Jv[N:]                                              # (N, 2, 3)
     J2 = Q @ H
-    A = np.einsum("nri,nrj->nij", J1, J1) + np.einsum("nri,nrj->nij", J2, J2)
+    A = J1.transpose(0, 2, 1) @ J1 + J2.transpose(0, 2, 1) @ J2
     dY = (2.0 * off[:, None, None] * basis[None]
           - 2.0 * n[None, :, None] * (X @ basis)[:, None, :])          # (N, 3, 2)
-    rhs = np.einsum("nri,nrs,nsk->nik", J2, Q, dY)                      # (N, 3, 2)
+    rhs = J2.transpose(0, 2, 1) @ (Q @ dY)                              # (N, 3, 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         dX = -np.linalg.solve(A, rhs)
     if keep_spread and len(X) >= 2:
@@ -685,7 +683,8 @@ class LiveCalibrator:
         """``old`` with the smoother's joints where it gave joints of its own; ``normal``
         ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
         point (first order: the smoothed point is millimetres away), NaN where none."""
-        out = replace(old, settled=None, lag_frames=lag)
+        out = copy.copy(old)
+        out.settled, out.lag_frames = None, lag
         sm = (self._filter.smoothed(old.frame_id)
               if self._filter is not None and old.skipped is None else None)
         if sm is None or self.fusion.normal is None:
@@ -738,7 +737,7 @@ class LiveCalibrator:
             # that same error seen through the body: not added again); without one the
             # distance is the unit and is held
             J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
-            var["normal"] = np.maximum(np.einsum("nik,kl,nil->n", J, C, J), 0.0)
+            var["normal"] = np.maximum(((J @ C) * J).sum((1, 2)), 0.0)
         if metric:
             var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
         return var
