@@ -249,10 +249,11 @@ class ScheduleOptions:
         outlier_pass_iterations: cap of the first full solve when outliers were
             found before it (it only has to expose the rest for the second rejection).
         resolve_after_rejection: solve the full graph again without what the first
-            full solve's rejection dropped (where it dropped anything); ``False``: the
-            first full solve is final, what it dropped is left out of the noise, the
-            retriangulation and the lengths only (the live run's windows, each followed
-            by the next). Where a focal length is estimated the graph is always solved
+            full solve's rejection dropped (where it dropped anything); ``False``: a
+            first full solve that converged is final, what it dropped is left out of the
+            noise, the retriangulation and the lengths only (the live run's windows,
+            each followed by the next). A first solve stopped by
+            ``outlier_pass_iterations``, or a focal length estimated, always solves
             again.
     """
 
