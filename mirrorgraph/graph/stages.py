@@ -286,13 +286,16 @@ def _start_on_gauge(run: _Run) -> None:
 def _full_graph_stages(run: _Run) -> None:
     """Stage 4: :attr:`~.stage_config.SolveConfig.stages` in order, each built from the
     previous one's solution; a stage ``only_if_rejected`` runs when the previous one
-    dropped something, or where a focal length is estimated."""
+    dropped something (and ``options.resolve_after_rejection`` or the previous one
+    stopped before converging), or where a focal length is estimated."""
     run.body_height = None if run.height is None else float(run.height)
     run.iterations = sum(s["iterations"] for s in run.stages)
     dropped_last = True
     focal = any(c.intrinsics_dim for c in run.rig.cameras)
     for stage in run.config.stages:
-        if stage.only_if_rejected and not dropped_last and not focal:
+        again = run.opts.resolve_after_rejection or (run.res is not None
+                                                     and not run.res.converged)
+        if stage.only_if_rejected and not (dropped_last and again) and not focal:
             continue
         dropped_last = _full_graph_stage(run, stage) > 0
 
