@@ -26,7 +26,8 @@ trial and on the project's synthetic scenes, with the geometry known in both:
 
 Per case: the stature's error against the height, the std the scale is given
 (``height_sigma`` 2 % and :func:`mirrorgraph.stature.measurement_rel_std` in
-quadrature), their ratio, and per segment its median length over Winter's fraction of
+quadrature), with and without its end keypoints' term
+(:func:`mirrorgraph.stature.keypoint_rel_std`), their ratio, and per segment its median length over Winter's fraction of
 the height (``shank`` knee-ankle 0.246, ``thigh`` hip-knee 0.245, ``trunk`` mid-hip to
 mid-shoulder 0.288, ``head`` mid-shoulder to the eyes 0.118 or the head top 0.182, along
 the trunk).
@@ -179,9 +180,10 @@ def measure(name: str, X: np.ndarray, skel, height: float | None) -> dict | None
     if st is None:
         return None
     rel_std = float(np.hypot(HEIGHT_SIGMA, measurement_rel_std(st)))
+    data_std = float(np.sqrt(HEIGHT_SIGMA ** 2 + st.side_rel_diff ** 2 + st.bones_rel_spread ** 2))
     row = dict(name=name, height=height, stature=st.height, top=st.top, frames=st.frames,
                side=st.side_rel_diff, bones=st.bones_rel_spread, rel_std=rel_std,
-               bone_ratios=dict(st.bone_ratios))
+               data_std=data_std, bone_ratios=dict(st.bone_ratios))
     ref = height if height is not None else st.height
     row["ratio"] = {k: st.segments[k] / (winter_fraction(k, st.top) * ref) for k in SEGMENTS}
     row["err"] = None if height is None else st.height / height - 1.0
@@ -193,16 +195,53 @@ def _pct(v, fmt="{:+.1f}"):
 
 
 def table(rows: list[dict]) -> list[str]:
-    out = ["| case | height m | stature m | err % | std % | err/std | side % | bones % "
-           "| shank | thigh | trunk | head | top |",
+    out = ["| case | height m | stature m | err % | std % without / with keypoints "
+           "| err/std without / with | side % | bones % | shank | thigh | trunk | head | top |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        es = "-" if r["err"] is None else f"{abs(r['err']) / r['rel_std']:.2f}"
+        es = ("-" if r["err"] is None else f"{abs(r['err']) / r['data_std']:.2f} / "
+              f"{abs(r['err']) / r['rel_std']:.2f}")
         h = "-" if r["height"] is None else f"{r['height']:.3f}"
         out.append(f"| {r['name']} | {h} | {r['stature']:.3f} | {_pct(r['err'])} "
-                   f"| {100 * r['rel_std']:.1f} | {es} | {100 * r['side']:.1f} "
+                   f"| {100 * r['data_std']:.1f} / {100 * r['rel_std']:.1f} | {es} "
+                   f"| {100 * r['side']:.1f} "
                    f"| {100 * r['bones']:.1f} | "
                    + " | ".join(f"{r['ratio'][k]:.3f}" for k in SEGMENTS) + f" | {r['top']} |")
+    return out
+
+
+def summary(real: list[dict], synth: list[dict]) -> list[str]:
+    """Largest |err| and err/std (without / with the keypoints' term) per group."""
+    groups = {"real (both heights)": real,
+              **{f"{k}, {w}": [r for r in synth if r["name"].startswith(k) and w in r["name"]]
+                 for k in ("realistic", "iid") for w in ("true mirror", "generator's")}}
+    out = ["| group | n | RMS err % | largest abs err % | largest err/std without / with |",
+           "|---|---|---|---|---|"]
+    for name, rows in groups.items():
+        rows = [r for r in rows if r["err"] is not None]
+        if not rows:
+            continue
+        e = np.array([r["err"] for r in rows])
+        out.append(f"| {name} | {len(rows)} | {100 * np.sqrt(np.mean(e ** 2)):.1f} "
+                   f"| {100 * np.max(np.abs(e)):.1f} "
+                   f"| {max(abs(r['err']) / r['data_std'] for r in rows):.2f} / "
+                   f"{max(abs(r['err']) / r['rel_std'] for r in rows):.2f} |")
+    out += ["", "Segments over Winter's fraction of the height, median (min - max) of the group:",
+            "", "| group | " + " | ".join(SEGMENTS) + " |", "|---|" + "---|" * len(SEGMENTS)]
+    for name, rows in groups.items():
+        if rows:
+            cells = []
+            for k in SEGMENTS:
+                v = np.array([r["ratio"][k] for r in rows])
+                cells.append(f"{np.median(v):.3f} ({v.min():.3f} - {v.max():.3f})")
+            out.append(f"| {name} | " + " | ".join(cells) + " |")
+    by_det = {}
+    for r in real:
+        by_det.setdefault(r["name"].split(", ")[1], r["stature"])
+    if len(by_det) == 2:
+        (a, ha), (b, hb) = by_det.items()
+        out += ["", f"The two detectors' statures on the same cameras: {a} {ha:.3f} m, "
+                f"{b} {hb:.3f} m, {100 * (ha / hb - 1):+.1f} % apart (no height needed)."]
     return out
 
 
@@ -241,10 +280,12 @@ def main() -> None:
     lines = ["# The stature on real and synthetic detections, segment by segment "
              "(`bench/bench_stature_real.py`)", "", *_report.header(code=True), "",
              "`err`: the stature over the height, `std`: the scale's relative std "
-             "(`height_sigma` 2 % and `measurement_rel_std`: `side`, the legs apart, and "
-             "`bones`, the segments' disagreement, in quadrature); `shank`..`head`: the "
-             "segment's median length over Winter's fraction of the height "
-             "(1 = Winter's proportion).", "",
+             "(`height_sigma` 2 % and `measurement_rel_std`: `side`, the legs apart, "
+             "`bones`, the segments' disagreement, and, `with keypoints`, the chain's end "
+             "keypoints' placement `keypoint_rel_std`, 2.7 % with the eyes as top, 2.5 % "
+             "with the head top, in quadrature); `shank`..`head`: the segment's median "
+             "length over Winter's fraction of the height (1 = Winter's proportion).", "",
+             *summary(real, synth), "",
              "## Real: Pose2Sim Demo_SinglePerson, 4 Qualisys cameras", "", *table(real), "",
              f"## Synthetic: wide scenes {args.scenes}, {args.frames} frames, population bodies",
              "", *table(synth)]

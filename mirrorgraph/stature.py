@@ -415,8 +415,8 @@ def keypoint_rel_std(top: str = "eyes") -> float:
     height (``u`` the unmeasured fraction): ``sqrt(2) o / (1 - u)``, 2.7 % with the eyes
     as top, 2.5 % with the head top. A detector's bias, so a longer video does not average
     it out. On the Pose2Sim demo trial (4 Qualisys cameras) OpenPose's and BlazePose's
-    keypoints give statures 4.4 % apart, 3.1 % each about their mean
-    (``bench/RESULTS_stature_real.md``).
+    keypoints give statures 4.5 % apart, a detector's std of 3.2 % from that one pair
+    (``|a - b| / sqrt(2)``; ``bench/RESULTS_stature_real.md``).
 
     Args:
         top: ``"eyes"`` or ``"head_top"`` (:attr:`StatureEstimate.top`).
