@@ -43,7 +43,8 @@ from .anthropometry import (HEIGHT_FRACTION, HEIGHT_FRACTION_CV, KEYPOINT_OFFSET
 from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
-           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "MIN_FRAMES",
+           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "keypoint_rel_std",
+           "MIN_FRAMES",
            "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
            "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
@@ -400,12 +401,42 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
     return float(brentq(lambda e: scale(e) - 1.0, 0.0, 10.0, xtol=1e-14))
 
 
-def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
-    """The stature measurement's own relative std, as far as the data show it: the metric
-    scale's share beyond the height's prior (``RefineOptions.height_sigma``), for a single
-    mirror, a rig and the live scale alike.
+def keypoint_rel_std(top: str = "eyes") -> float:
+    """The stature's relative std from where a detector places the chain's two end
+    keypoints against Winter's landmarks.
 
-    Two views of a distorted reconstruction, added in quadrature:
+    The chain's segments are stacked (shank, thigh, trunk, head along the trunk), so a
+    keypoint inside it (knee, hip, shoulder) moved along the body lengthens one segment by
+    what it shortens the next: to first order only the ankle and the top (eyes or head top)
+    move the sum. Each lies :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` ``o`` (a
+    fraction of the height) off its landmark, independently (L. Needham et al., *Sci.
+    Rep.* 11, 20673, 2021: video-based joint centres a few centimetres off the
+    marker-based ones, systematically, per detector), and the sum is ``1 - u`` of the
+    height (``u`` the unmeasured fraction): ``sqrt(2) o / (1 - u)``, 2.7 % with the eyes
+    as top, 2.5 % with the head top. A detector's bias, so a longer video does not average
+    it out. On the Pose2Sim demo trial (4 Qualisys cameras) OpenPose's and BlazePose's
+    keypoints give statures 4.5 % apart, a detector's std of 3.2 % from that one pair
+    (``|a - b| / sqrt(2)``; ``bench/RESULTS_stature_real.md``).
+
+    Args:
+        top: ``"eyes"`` or ``"head_top"`` (:attr:`StatureEstimate.top`).
+
+    Returns:
+        The relative std (dimensionless).
+    """
+    above = (1.0 - LANDMARK_HEIGHT["vertex"] if top == "head_top"
+             else LANDMARK_HEIGHT["vertex"] - LANDMARK_HEIGHT["eye"])
+    return math.sqrt(2.0) * KEYPOINT_OFFSET / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
+
+
+def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
+    """The stature measurement's own relative std: the metric scale's share beyond the
+    height's prior (``RefineOptions.height_sigma``), for a single mirror, a rig and the
+    live scale alike.
+
+    The detector's placement of the chain's end keypoints (:func:`keypoint_rel_std`, a
+    prior: no video shows it) and two views of a distorted reconstruction, added in
+    quadrature:
 
     - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
       a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
@@ -421,9 +452,11 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
     trunk 20 % short, the distance 23.5 % off: the height's 2 % and the legs' 1.7 % apart
     give 2.6 %, the segments' term 21.1 % (``bench/RESULTS_scale_spread.md``: largest
     error/std over 12 such scenes 9.0 -> 2.4, over 12 of 3600 frames 3.0, 12 iid scenes
-    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %). A
-    distortion within the spread of adults and keypoints (up to ~10 % of the stature) is
-    not seen: a 3600-frame scene's distance is 6.1 % off at 2.0 %.
+    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %, all
+    without the end keypoints' term). A distortion within the spread of adults and
+    keypoints (up to ~10 % of the stature) is not seen by the last two: a 3600-frame
+    scene's distance is 6.1 % off, at 2.0 % without the end keypoints' term and 3.4 %
+    with it.
 
     Args:
         stature: the estimate, or its :meth:`StatureEstimate.to_dict` record (as a
@@ -437,9 +470,10 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
     if isinstance(stature, dict):
         side = stature.get("side_rel_diff") or 0.0
         bones = stature.get("bones_rel_spread") or 0.0
+        top = stature.get("top") or "eyes"
     else:
-        side, bones = stature.side_rel_diff, stature.bones_rel_spread
-    return float(np.hypot(float(side), float(bones)))
+        side, bones, top = stature.side_rel_diff, stature.bones_rel_spread, stature.top
+    return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + keypoint_rel_std(top) ** 2))
 
 
 _LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"
