@@ -647,7 +647,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     seqs[0] = dense_samples(_normalised(_pixels(people[0][0], joints, min_confidence), Ks[0]),
                             frame_ids[0], base, step, length)
     out += [None] * (N - 1)
-    scans: dict[tuple[int, int], ShiftScan] = {}
+    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
+    coarse: dict[int, np.ndarray] = {}
     for c in range(1, N):
         person, cands = people[c]
         options = [np.asarray(person, float)]
@@ -655,27 +656,153 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
                                frame_ids[c], base, step, length) for s in options]
-        f = 0.5 * (focal[0] + focal[c])
-        window = range(rel[c] - reach, rel[c] + reach + 1)
         # several candidates: ranked by a coarser scan (every other shift of the coarse
         # one); the one that fits best scanned in full
         pick = 0 if len(dense) == 1 else int(np.argmin(
-            [coarse_cost(d, seqs[0], window[::2], seed=seed).min() for d in dense]))
+            [coarse_cost(d, seqs[0], windows[c][::2], seed=seed).min() for d in dense]))
         seqs[c] = dense[pick]
-        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed)
-        if np.isfinite(scan.cost).any():
-            scans[(0, c)] = scan
-        else:
-            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in window), default=0)
+        coarse[c] = coarse_cost(seqs[c], seqs[0], windows[c], seed=seed)
+        if not np.isfinite(coarse[c]).any():
+            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in windows[c]), default=0)
                         for d in dense))
             out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                   given=given[c], scan=scan,
+                                   given=given[c],
                                    note=f"too few joints seen with the reference camera at "
                                         f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
                                         f"needed): kept as given ({given[c]})")
     live = [c for c in range(1, N) if out[c] is None]
+    if not live:
+        return out
+    rng = np.random.default_rng(seed)
+    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
+    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
+                              size=BOOTSTRAP_DRAWS).astype(float)
     start = rel.copy()
     for c in live:
+        start[c] = windows[c][int(np.argmin(coarse[c]))]
+    found = _rig_offsets(seqs, live, rel, start, windows, focal, weights, seed) \
+        if len(live) >= 2 else None
+    if found is None:
+        found = _pair_offsets(seqs, live, rel, windows, coarse, focal, weights, seed, reach)
+    o, draws, scans, fractions = found
+    for c in live:
+        f = 0.5 * (focal[0] + focal[c])
+        if fractions is not None and c in fractions:
+            # the rig's fractional offset: its draws' spread covers the whole offset too
+            u, us = fractions[c]
+            near = np.mean(np.abs(us - u) <= 1) >= ACCEPT_LEVEL
+            dt, dt_std, whole_std = u - o[c], float(np.std(us, ddof=1)), 0.0
+        elif fractions is not None:           # kept as given: the whole scan's draws
+            near = np.mean(np.abs(draws[c] - o[c]) <= 1) >= ACCEPT_LEVEL
+            dt, dt_std, whole_std = 0.0, float("nan"), float(np.std(draws[c])) * step
+        else:
+            # the fraction covers a sample either way: the whole offset's spread counts
+            # only where the draws put it farther
+            near = np.mean(np.abs(draws[c] - o[c]) <= 1) >= ACCEPT_LEVEL
+            whole_std = 0.0 if near else float(np.std(draws[c])) * step
+            # a fraction means something only about a whole offset the people fix, or
+            # one they moved the camera to (where it may also settle the whole offset)
+            dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed,
+                                          runs=runs)
+                          if near or o[c] != rel[c] else (0.0, float("nan")))
+        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
+        offset = (o[c] + frac) * step + given[0]
+        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
+        note = ""
+        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
+            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
+            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
+                    f"the rig file's frame_offset = {given[c]}")
+        elif not near:
+            note = (f"poorly fixed by the people (their best offsets spread by "
+                    f"{std:.1f} frames): kept as given ({given[c]})")
+        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
+                               given=int(given[c]), scan=scans.get(c), note=note)
+    return out
+
+
+def _draws(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
+    """``(R,)`` the best shift of each bootstrap draw of a scan (``weights``: ``(R, B)``
+    block weights)."""
+    boot = _bootstrap_costs(scan, weights)
+    boot = np.where(np.isfinite(boot), boot, np.inf)
+    return scan.shifts[np.argmin(boot, axis=1)]
+
+
+def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray,
+                 windows: list, focal: list, weights: np.ndarray, seed: int):
+    """The offsets (samples) of the cameras ``live`` against the rig (see the module
+    docstring, step 2): the whole ones searched (:func:`_rig_search`), then every
+    camera's fraction against the others at theirs, in turn, :data:`FRACTION_ROUNDS`
+    times (:func:`_rig_fraction`); a camera leaves the rig file's ``rel`` only where the
+    rounded offset fits better in :data:`ACCEPT_LEVEL` of the bootstrap draws of its scan
+    against the rig and the draws agree on it (:data:`MOVE_SPREAD`). Returns
+    ``(offsets, draws, scans, fractions)``: the whole offsets, the draws' best whole
+    offsets and the scans per camera, and per camera ``(offset, draws)``, its fractional
+    offset and the bootstrap draws' (absent for a camera kept as given); ``None`` where
+    the rig's poses cannot be found."""
+    o = np.where(np.isin(np.arange(len(rel)), live), start, rel)
+    kept: set[int] = set()
+    last: dict[int, ShiftScan] = {}
+    while True:
+        moving = [c for c in live if c not in kept]
+        # a camera kept for want of evidence says nothing of the others' offsets, where
+        # two others remain to triangulate from
+        members = [0] + (moving if len(moving) >= 2 else list(live))
+        found = _rig_search(seqs, members, moving, o, windows, focal, seed)
+        if found is None:
+            return None
+        o, P = found
+        at = {k: float(o[k]) for k in P}
+        fractions = {}
+        for _ in range(FRACTION_ROUNDS):
+            for c in moving:
+                u, us = _rig_fraction(seqs, P, at, c, focal[c], weights)
+                if np.isfinite(u) and abs(u - o[c]) <= FRACTION_REACH:
+                    at[c], fractions[c] = u, us
+        for c in fractions:
+            o[c] = int(np.clip(np.round(at[c]), windows[c][0], windows[c][-1]))
+        fails = set()
+        for c in moving:
+            scan = _rig_scan(seqs, P, o, c, windows[c], focal[c])[0]
+            last[c] = scan
+            if o[c] == rel[c]:
+                continue
+            boot = _bootstrap_costs(scan, weights)
+            boot = np.where(np.isfinite(boot), boot, np.inf)
+            here = boot[:, int(np.flatnonzero(scan.shifts == o[c])[0])]
+            was = boot[:, int(np.flatnonzero(scan.shifts == rel[c])[0])]
+            draws = scan.shifts[np.argmin(boot, axis=1)]
+            # significantly better than the given offset, and an offset the draws agree
+            # on (their best shifts' RMS deviation within MOVE_SPREAD), not one a draw
+            # may put anywhere in the window
+            if np.mean(here < was) < ACCEPT_LEVEL or \
+                    np.sqrt(np.mean((draws - o[c]) ** 2.0)) > MOVE_SPREAD:
+                fails.add(c)
+        if not fails:
+            break
+        kept |= fails
+        o[list(fails)] = rel[list(fails)]
+        if kept >= set(live):
+            fractions = {}
+            break
+    fractions = {c: (at[c], fractions[c]) for c in fractions if c not in kept}
+    return o, {c: _draws(last[c], weights) for c in live}, last, fractions
+
+
+def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
+                  coarse: dict, focal: list, weights: np.ndarray, seed: int, reach: int):
+    """The whole offsets (samples) of the cameras ``live`` from the pairs' epipolar
+    costs (:func:`scan_shifts`, :func:`joint_offsets`; a rig of two cameras, or one
+    whose poses the rig's search cannot find), each move from the rig file's ``rel``
+    tested: ``(offsets, draws, scans)`` as :func:`_rig_offsets`."""
+    N = len(rel)
+    scans: dict[tuple[int, int], ShiftScan] = {}
+    start = rel.copy()
+    for c in live:
+        f = 0.5 * (focal[0] + focal[c])
+        scans[(0, c)] = scan_shifts(seqs[c], seqs[0], f, windows[c], seed=seed,
+                                    coarse=coarse[c])
         start[c] = scans[(0, c)].best
     for i, a in enumerate(live):                 # the pairs without the reference
         for b in live[i + 1:]:
@@ -685,15 +812,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                                seed=seed)
             if np.isfinite(scan.cost).any():
                 scans[(a, b)] = scan
-    if not live:
-        return out
-    rng = np.random.default_rng(seed)
-    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
-    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
-                              size=BOOTSTRAP_DRAWS).astype(float)
     curves = _PairCurves(scans, weights)
-    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
-    fixed = {0} | {c for c in range(1, N) if out[c] is not None}
+    fixed = {0} | {c for c in range(1, N) if c not in live}
     kept: set[int] = set()
     while True:
         # a camera kept for want of evidence says nothing of the others' offsets
@@ -719,31 +839,9 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         if not fails:
             break
         kept |= fails
-    for c in live:
-        draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
-        # the fraction covers a sample either way: the whole offset's spread counts
-        # only where the draws put it farther
-        near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
-        whole_std = 0.0 if near else float(np.std(draws)) * step
-        f = 0.5 * (focal[0] + focal[c])
-        # a fraction means something only about a whole offset the people fix, or one
-        # they moved the camera to (where it may also settle the whole offset)
-        dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
-                      if near or o[c] != rel[c] else (0.0, float("nan")))
-        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
-        offset = (o[c] + frac) * step + given[0]
-        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
-        note = ""
-        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
-            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
-            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
-                    f"the rig file's frame_offset = {given[c]}")
-        elif not near:
-            note = (f"poorly fixed by the people (their best whole offsets spread by "
-                    f"{whole_std:.1f} frames): kept as given ({given[c]})")
-        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
-                               given=int(given[c]), scan=scans[(0, c)], note=note)
-    return out
+    draws = {c: windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
+             for c in live}
+    return o, draws, {c: scans[(0, c)] for c in live}, None
 
 
 def _refit_distances(camera: np.ndarray, reference: np.ndarray, s: int, f: float, seed: int
@@ -796,6 +894,262 @@ def _total(curves: _PairCurves, o: np.ndarray, skip: set[int]) -> float:
     with a camera of ``skip`` left out)."""
     return float(sum(curves.value(a, b, np.array([o[b] - o[a]]))[0, 0]
                      for (a, b) in curves.terms if a not in skip and b not in skip))
+
+
+# --- the rig's witness: each camera against the triangulation of all the others -------
+
+#: Rounds of the joint search over the cameras (each camera scanned against the others at
+#: their current offsets; it stops earlier where no camera moves).
+RIG_ROUNDS = 4
+#: Shifts either way of a camera's current offset scanned after the first round.
+RIG_REACH = 2
+#: Least-squares rounds of a camera's pose against the others' points (each refits on the
+#: correspondences within :data:`INLIER_SCALES` robust stds of the last).
+RESECT_ROUNDS = 3
+
+
+def _shifted(a: np.ndarray, s: int) -> np.ndarray:
+    """``a`` (``(T, ...)``) with its row ``t + s`` at row ``t`` (NaN outside)."""
+    out = np.full_like(a, np.nan)
+    T = len(a)
+    if abs(s) >= T:
+        return out
+    if s >= 0:
+        out[:T - s] = a[s:]
+    else:
+        out[-s:] = a[:T + s]
+    return out
+
+
+def _errors(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
+    """``(n,)`` reprojection errors (normalised) of points ``X`` (``(n, 3)``) seen at
+    ``x`` (``(n, 2)``, normalised) by the pose ``(rvec, tvec)`` (world to camera)."""
+    Xc = X @ _rotation(rvec).T + np.ravel(tvec)
+    z = Xc[:, 2:]
+    e = np.linalg.norm(Xc[:, :2] / np.where(z > 0, z, np.nan) - x, axis=1)
+    return np.nan_to_num(e, nan=np.inf)
+
+
+def _resect(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A camera's pose from points ``X`` (``(n, 3)``) it sees at ``x`` (``(n, 2)``,
+    normalised), from a start: Levenberg-Marquardt (OpenCV's) on the correspondences
+    within :data:`INLIER_SCALES` robust stds (1.4826 times the median error) of the last
+    pose, :data:`RESECT_ROUNDS` times. ``(rvec, tvec, errors)``, the ``(n,)`` errors
+    normalised; ``None`` where fewer than :data:`MIN_CORRESPONDENCES`."""
+    if len(X) < MIN_CORRESPONDENCES:
+        return None
+    rvec, tvec = np.asarray(rvec, float).reshape(3, 1), np.asarray(tvec, float).reshape(3, 1)
+    for _ in range(RESECT_ROUNDS):
+        e = _errors(X, x, rvec, tvec)
+        keep = e < INLIER_SCALES * 1.4826 * np.median(e)
+        if keep.sum() < MIN_CORRESPONDENCES:
+            break
+        rvec, tvec = cv2.solvePnPRefineLM(X[keep], x[keep], np.eye(3), None, rvec.copy(),
+                                          tvec.copy())
+    return rvec, tvec, _errors(X, x, rvec, tvec)
+
+
+def _seen(X: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The joints both triangulated (``X``, ``(T, J, 3)``) and seen (``x``, ``(T, J,
+    2)``): ``(n, 3)``, ``(n, 2)`` and their ``(n,)`` rows."""
+    ok = np.isfinite(X).all(-1) & np.isfinite(x).all(-1)
+    rows = np.nonzero(ok)[0]
+    return X[ok], x[ok], rows
+
+
+def _triangulated(P: dict, seqs: dict, min_views: int = 2) -> np.ndarray:
+    """``(T, J, 3)`` the joints triangulated from the cameras ``P`` (``(3, 4)`` world to
+    normalised camera) seeing them at ``seqs`` (``(T, J, 2)``), NaN where fewer than two
+    see one."""
+    from ..geometry import triangulate
+
+    keys = list(P)
+    return triangulate([P[k] for k in keys], [seqs[k] for k in keys],
+                       min_views=min_views)[0]
+
+
+def _pose(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
+    return np.hstack([_rotation(rvec), np.reshape(tvec, (3, 1))])
+
+
+def _rig_poses(aligned: dict, seed: int) -> dict | None:
+    """Every camera's ``(3, 4)`` pose (world to normalised camera; the first key's the
+    identity) from its joints on the rig's clock (``aligned``: camera to ``(T, J, 2)``):
+    the essential matrix of the first camera and one other, its points triangulated, the
+    others resected against them (EPnP in RANSAC, then :func:`_resect`); of every choice
+    of that other camera the one whose cameras reproject best; then twice the points
+    triangulated from every camera and each camera resected against them."""
+    keys = list(aligned)
+    ref = keys[0]
+    best, best_score = None, np.inf
+    for k in keys[1:]:
+        xk, x0, _ = _pairs(aligned[k], aligned[ref], 0)
+        if len(x0) < MIN_CORRESPONDENCES:
+            continue
+        keep = _evenly(len(x0), MAX_CORRESPONDENCES)
+        E, med = _essential(x0[keep], xk[keep], seed)
+        if E is None:
+            continue
+        _, R, t, _ = cv2.recoverPose(E, x0[keep], xk[keep], np.eye(3))
+        P = {ref: np.hstack([np.eye(3), np.zeros((3, 1))]), k: np.hstack([R, t])}
+        X = _triangulated(P, {ref: aligned[ref], k: aligned[k]})
+        errs = []
+        for c in keys[1:]:
+            if c == k:
+                continue
+            Xs, xs, _ = _seen(X, aligned[c])
+            if len(Xs) < MIN_CORRESPONDENCES:
+                break
+            cv2.setRNGSeed(int(seed))
+            ok, rvec, tvec, _ = cv2.solvePnPRansac(
+                Xs, xs, np.eye(3), None, reprojectionError=max(8.0 * med, 1e-4),
+                iterationsCount=200, flags=cv2.SOLVEPNP_EPNP)
+            fit = _resect(Xs, xs, rvec, tvec) if ok else None
+            if fit is None:
+                break
+            P[c] = _pose(fit[0], fit[1])
+            errs.append(float(np.median(fit[2])))
+        if len(P) < len(keys):
+            continue
+        score = float(np.mean(errs)) if errs else float(med)
+        if score < best_score:
+            best, best_score = P, score
+    if best is None:
+        return None
+    for _ in range(2):
+        X = _triangulated(best, aligned)
+        for c in keys[1:]:
+            Xs, xs, _ = _seen(X, aligned[c])
+            fit = _resect(Xs, xs, cv2.Rodrigues(best[c][:, :3])[0], best[c][:, 3])
+            if fit is not None:
+                best[c] = _pose(fit[0], fit[1])
+    return best
+
+
+def _rig_scan(seqs: list, P: dict, o: np.ndarray, c: int, shifts, f: float
+              ) -> tuple[ShiftScan, dict]:
+    """Camera ``c``'s reprojection error per whole shift against the joints triangulated
+    from the other cameras of ``P`` at their offsets ``o`` (samples): at each shift its
+    pose resected anew from its current one (:func:`_resect`), so that no shift is
+    favoured for the pose. Returns the scan (costs: median errors, pixels at focal
+    length ``f``) and its poses per shift."""
+    others = {k: P[k] for k in P if k != c}
+    X = _triangulated(others, {k: _shifted(seqs[k], int(o[k])) for k in others})
+    shifts = np.asarray(list(shifts), int)
+    S = len(shifts)
+    scan = ShiftScan(shifts=shifts, cost=np.full(S, np.nan), correspondences=np.zeros(S, int),
+                     distances=[None] * S, rows=[None] * S)
+    poses = {}
+    r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
+    for i, s in enumerate(shifts):
+        Xs, xs, rows = _seen(X, _shifted(seqs[c], int(s)))
+        scan.correspondences[i] = len(rows)
+        fit = _resect(Xs, xs, r0, t0)
+        if fit is None:
+            continue
+        d = fit[2] * f
+        scan.cost[i] = float(np.median(d))
+        scan.distances[i], scan.rows[i] = d, rows
+        poses[int(s)] = _pose(fit[0], fit[1])
+    return scan, poses
+
+
+def _rig_search(seqs: list, members: list[int], searched: list[int], start: np.ndarray,
+                windows: list, focal: list, seed: int) -> tuple[np.ndarray, dict] | None:
+    """Whole offsets (samples) of the cameras ``searched`` against the rig of the cameras
+    ``members`` (the first the reference; the others not searched stay at ``start``):
+    from ``start``, every searched camera's
+    reprojection error scanned against the others' triangulation at their current
+    offsets (:func:`_rig_scan`), its whole window first, then :data:`RIG_REACH` either
+    way, for :data:`RIG_ROUNDS` rounds or until none moves. Returns the offsets and the
+    cameras' poses at them; ``None`` where the rig's poses cannot be found."""
+    o = np.asarray(start, int).copy()
+    P = _rig_poses({k: _shifted(seqs[k], int(o[k])) for k in members}, seed)
+    if P is None:
+        return None
+    live = [c for c in members[1:] if c in searched]
+    for r in range(RIG_ROUNDS):
+        moved = False
+        for c in live:
+            w = windows[c]
+            shifts = w if r == 0 else w[np.abs(w - o[c]) <= RIG_REACH]
+            scan, poses = _rig_scan(seqs, P, o, c, shifts, focal[c])
+            best = scan.best
+            if best is None:
+                continue
+            moved |= best != o[c]
+            o[c], P[c] = best, poses[best]
+        if not moved:
+            break
+    return o, P
+
+
+#: The rig's fractions are scanned on this grid of samples about the whole offset.
+FRACTION_GRID = np.linspace(-1.5, 1.5, 13)
+#: Rounds of the rig's fractions over the cameras.
+FRACTION_ROUNDS = 2
+
+
+def _smoothed(a: np.ndarray, s: int, u: float) -> np.ndarray:
+    """``(T, J, 2)``: ``a``'s trajectories at samples ``t + s + u``, each the local
+    quadratic (:func:`_local_quadratic`) of the samples ``t + s - HALF_WINDOW .. t + s +
+    HALF_WINDOW`` (NaN where one of them is missing)."""
+    w = _local_quadratic(float(u))
+    return sum(wk * _shifted(a, int(s) + k) for k, wk in
+               zip(range(-HALF_WINDOW, HALF_WINDOW + 1), w))
+
+
+def _rig_fraction(seqs: list, P: dict, at: dict, c: int, f: float, weights: np.ndarray
+                  ) -> tuple[float, np.ndarray]:
+    """Camera ``c``'s fraction of a sample against the joints triangulated from the other
+    cameras of ``P`` at their offsets ``at`` (samples, fractional): at each point ``u``
+    of :data:`FRACTION_GRID` its trajectories evaluated at ``t + at[c] + u``
+    (:func:`_smoothed`, its residuals scaled to one noise at every ``u``), its pose
+    resected (:func:`_resect`), the summed Huber cost of its reprojection errors (turning
+    linear at the robust std at ``u = 0``, the correspondences farther than
+    :data:`INLIER_SCALES` of it there left out); the minimum of the parabola through the
+    lowest three. Returns that ``u`` and the ``(R,)`` ones of the bootstrap draws of
+    blocks of samples (``weights``, ``(R, B)``)."""
+    others = {k: P[k] for k in P if k != c}
+    whole = {k: int(np.floor(at[k])) for k in at}
+    X = _triangulated(others, {k: _smoothed(seqs[k], whole[k], at[k] - whole[k])
+                               for k in others}, min_views=len(others))
+    base = int(np.round(at[c]))
+    r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
+    v0 = _noise_factor(0.0)
+    errors, rows = [], None
+    for u in FRACTION_GRID:
+        Xs, xs, r = _seen(X, _smoothed(seqs[c], base, u))
+        if rows is None:
+            rows = r
+        elif len(r) != len(rows):
+            # the window's samples are the same at every u: only a point behind a
+            # camera differs; the grid point is not judged
+            errors.append(None)
+            continue
+        fit = _resect(Xs, xs, r0, t0)
+        if fit is None:
+            return float("nan"), np.full(len(weights), np.nan)
+        errors.append(fit[2] * f * np.sqrt(2 * v0 / (v0 + _noise_factor(u))))
+    ok = np.array([e is not None for e in errors])
+    if ok.sum() < 3:
+        return float("nan"), np.full(len(weights), np.nan)
+    grid = FRACTION_GRID[ok]
+    E = np.stack([e for e in errors if e is not None])                       # (G, n)
+    # the scale and the inliers from every grid point alike: none favoured
+    k_px = 1.4826 * float(np.min(np.median(E, axis=1)))
+    keep = E.min(0) < INLIER_SCALES * k_px
+    costs = [_huber(e, k_px) * keep for e in E]
+    blocks = rows // BOOTSTRAP_BLOCK
+    nb = weights.shape[1]
+    per_block = np.stack([np.bincount(blocks, weights=c_, minlength=nb)[:nb]
+                          for c_ in costs], axis=1)                         # (B, G)
+    full = per_block.sum(0)
+    draws = weights @ per_block                                              # (R, G)
+    u = base + _parabola_min(grid, full)
+    us = base + np.array([_parabola_min(grid, d) for d in draws])
+    return float(u), us
 
 
 def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:
