@@ -689,9 +689,10 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         f = 0.5 * (focal[0] + focal[c])
         if fractions is not None and c in fractions:
             # the rig's fractional offset: its draws' spread covers the whole offset too
-            u, us = fractions[c]
-            near = np.mean(np.abs(us - u) <= 1) >= ACCEPT_LEVEL
-            dt, dt_std, whole_std = u - o[c], float(np.std(us, ddof=1)), 0.0
+            u, dt_std = fractions[c]
+            # within a frame at the two-sided 1 % level
+            near = np.isfinite(dt_std) and FRACTION_Z * dt_std <= 1
+            dt, whole_std = u - o[c], 0.0
         elif fractions is not None:           # kept as given: the whole scan's draws
             near = np.mean(np.abs(draws[c] - o[c]) <= 1) >= ACCEPT_LEVEL
             dt, dt_std, whole_std = 0.0, float("nan"), float(np.std(draws[c])) * step
@@ -729,6 +730,49 @@ def _draws(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
     return scan.shifts[np.argmin(boot, axis=1)]
 
 
+def _rig_total(seqs: list, P: dict, o: np.ndarray, focal: list) -> float:
+    """The summed median reprojection error (pixels) of every camera of ``P`` at its
+    offset ``o`` against the others' triangulation (:func:`_rig_scan`)."""
+    total = 0.0
+    for c in P:
+        cost = _rig_scan(seqs, P, o, c, [int(o[c])], focal[c])[0].cost[0]
+        total += float(cost) if np.isfinite(cost) else np.inf
+    return total
+
+
+def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], focal: list
+                   ) -> dict[int, tuple[float, float]]:
+    """The fractional offsets (samples) of the cameras ``measured`` and their stds, on the
+    reference camera's clock: every measured camera's fraction against the others at
+    theirs (:func:`_rig_fraction`; the reference at its whole offset), in turn, for
+    :data:`FRACTION_ROUNDS` rounds or until none moves :data:`FRACTION_TOL`; the stds
+    propagated through that coupling (below)."""
+    at = {k: float(o[k]) for k in P}
+    stds: dict[int, float] = {}
+    for _ in range(FRACTION_ROUNDS):
+        change = 0.0
+        for c in measured:
+            u, std = _rig_fraction(seqs, P, at, o, c, focal[c])
+            if np.isfinite(u) and abs(u - o[c]) <= FRACTION_REACH:
+                change = max(change, abs(u - at[c]))
+                at[c], stds[c] = u, std
+        if change < FRACTION_TOL:
+            break
+    got = [c for c in measured if c in stds]
+    if not got:
+        return {}
+    # each camera's std is conditional on the others' offsets; each offset follows the
+    # mean of the others' (the triangulation's time, weighted alike over the rig's other
+    # cameras, the reference fixed): u = (I - A)^-1 (own errors), whose covariance
+    # propagates the conditional stds (their common part the reference alone fixes)
+    m = len(P)
+    A = np.full((len(got), len(got)), 1.0 / (m - 1))
+    np.fill_diagonal(A, 0.0)
+    G = np.linalg.inv(np.eye(len(got)) - A)
+    std = np.sqrt((G ** 2) @ np.array([stds[c] for c in got]) ** 2)
+    return {c: (at[c], float(s)) for c, s in zip(got, std)}
+
+
 def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray,
                  windows: list, focal: list, weights: np.ndarray, seed: int):
     """The offsets (samples) of the cameras ``live`` against the rig (see the module
@@ -749,22 +793,28 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
         # a camera kept for want of evidence says nothing of the others' offsets, where
         # two others remain to triangulate from
         members = [0] + (moving if len(moving) >= 2 else list(live))
-        found = _rig_search(seqs, members, moving, o, windows, focal, seed)
+        # from the pairs' coarse offsets and from the rig file's: a coordinate search may
+        # settle where two groups of cameras agree among themselves (a periodic motion's
+        # other minimum); the one the rig fits better
+        found = None
+        for begin in ([o, rel] if not kept and np.any(o != rel) else [o]):
+            trial = _rig_search(seqs, members, moving, begin, windows, focal, seed)
+            if trial is not None:
+                total = _rig_total(seqs, trial[1], trial[0], focal)
+                if found is None or total < found[0]:
+                    found = (total,) + trial
         if found is None:
             return None
-        o, P = found
+        _, o, P = found
+        fractions = _rig_fractions(seqs, P, o, moving, focal)
         at = {k: float(o[k]) for k in P}
-        fractions = {}
-        for _ in range(FRACTION_ROUNDS):
-            for c in moving:
-                u, us = _rig_fraction(seqs, P, at, c, focal[c], weights)
-                if np.isfinite(u) and abs(u - o[c]) <= FRACTION_REACH:
-                    at[c], fractions[c] = u, us
-        for c in fractions:
-            o[c] = int(np.clip(np.round(at[c]), windows[c][0], windows[c][-1]))
+        for c, (u, _) in fractions.items():
+            at[c] = u
+            o[c] = int(np.clip(np.round(u), windows[c][0], windows[c][-1]))
         fails = set()
         for c in moving:
-            scan = _rig_scan(seqs, P, o, c, windows[c], focal[c])[0]
+            # the others at their fractional offsets, the camera at whole ones
+            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, windows[c], focal[c])[0]
             last[c] = scan
             if o[c] == rel[c]:
                 continue
@@ -773,11 +823,14 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
             here = boot[:, int(np.flatnonzero(scan.shifts == o[c])[0])]
             was = boot[:, int(np.flatnonzero(scan.shifts == rel[c])[0])]
             draws = scan.shifts[np.argmin(boot, axis=1)]
-            # significantly better than the given offset, and an offset the draws agree
-            # on (their best shifts' RMS deviation within MOVE_SPREAD), not one a draw
-            # may put anywhere in the window
-            if np.mean(here < was) < ACCEPT_LEVEL or \
-                    np.sqrt(np.mean((draws - o[c]) ** 2.0)) > MOVE_SPREAD:
+            # significantly better than the given offset (the whole shifts' draws, or
+            # the fraction's offset beyond FRACTION_Z of its stds from it), and an
+            # offset the draws agree on (their best shifts' RMS deviation within
+            # MOVE_SPREAD), not one a draw may put anywhere in the window
+            u, std = fractions.get(c, (np.nan, np.nan))
+            better = np.mean(here < was) >= ACCEPT_LEVEL or \
+                abs(u - rel[c]) > FRACTION_Z * std
+            if not better or np.sqrt(np.mean((draws - o[c]) ** 2.0)) > MOVE_SPREAD:
                 fails.add(c)
         if not fails:
             break
@@ -786,7 +839,7 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
         if kept >= set(live):
             fractions = {}
             break
-    fractions = {c: (at[c], fractions[c]) for c in fractions if c not in kept}
+    fractions = {c: fractions[c] for c in fractions if c not in kept}
     return o, {c: _draws(last[c], weights) for c in live}, last, fractions
 
 
@@ -930,23 +983,36 @@ def _errors(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray) ->
     return np.nan_to_num(e, nan=np.inf)
 
 
-def _resect(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray
+#: OpenCV's Levenberg-Marquardt of a pose from a near start: ten iterations at most.
+_LM_STOP = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 10, 1e-10)
+#: ... and to convergence, where the cost must be smooth in the observations.
+_LM_CONVERGE = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-14)
+
+
+def _resect(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+            inliers: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """A camera's pose from points ``X`` (``(n, 3)``) it sees at ``x`` (``(n, 2)``,
     normalised), from a start: Levenberg-Marquardt (OpenCV's) on the correspondences
     within :data:`INLIER_SCALES` robust stds (1.4826 times the median error) of the last
-    pose, :data:`RESECT_ROUNDS` times. ``(rvec, tvec, errors)``, the ``(n,)`` errors
-    normalised; ``None`` where fewer than :data:`MIN_CORRESPONDENCES`."""
+    pose, :data:`RESECT_ROUNDS` times; on the ``(n,)`` ``inliers`` alone, once, where
+    given (the pose then a smooth function of the observations). ``(rvec, tvec,
+    errors)``, the ``(n,)`` errors normalised; ``None`` where fewer than
+    :data:`MIN_CORRESPONDENCES`."""
     if len(X) < MIN_CORRESPONDENCES:
         return None
     rvec, tvec = np.asarray(rvec, float).reshape(3, 1), np.asarray(tvec, float).reshape(3, 1)
+    if inliers is not None:
+        rvec, tvec = cv2.solvePnPRefineLM(X[inliers], x[inliers], np.eye(3), None,
+                                          rvec.copy(), tvec.copy(), _LM_CONVERGE)
+        return rvec, tvec, _errors(X, x, rvec, tvec)
     for _ in range(RESECT_ROUNDS):
         e = _errors(X, x, rvec, tvec)
         keep = e < INLIER_SCALES * 1.4826 * np.median(e)
         if keep.sum() < MIN_CORRESPONDENCES:
             break
         rvec, tvec = cv2.solvePnPRefineLM(X[keep], x[keep], np.eye(3), None, rvec.copy(),
-                                          tvec.copy())
+                                          tvec.copy(), _LM_STOP)
     return rvec, tvec, _errors(X, x, rvec, tvec)
 
 
@@ -1027,15 +1093,24 @@ def _rig_poses(aligned: dict, seed: int) -> dict | None:
     return best
 
 
-def _rig_scan(seqs: list, P: dict, o: np.ndarray, c: int, shifts, f: float
+def _placed(a: np.ndarray, offset: float) -> np.ndarray:
+    """``(T, J, 2)``: a camera's samples on the rig's rows at its ``offset`` (samples):
+    shifted (:func:`_shifted`) where whole, its local quadratics there (:func:`_smoothed`)
+    where fractional."""
+    whole = int(np.round(offset))
+    return _shifted(a, whole) if offset == whole else _smoothed(a, whole, offset - whole)
+
+
+def _rig_scan(seqs: list, P: dict, o, c: int, shifts, f: float
               ) -> tuple[ShiftScan, dict]:
     """Camera ``c``'s reprojection error per whole shift against the joints triangulated
-    from the other cameras of ``P`` at their offsets ``o`` (samples): at each shift its
-    pose resected anew from its current one (:func:`_resect`), so that no shift is
-    favoured for the pose. Returns the scan (costs: median errors, pixels at focal
+    from the other cameras of ``P`` at their offsets ``o`` (samples, whole or fractional:
+    :func:`_placed`): at each shift its
+    pose resected anew from its current one (:func:`_resect`; at most
+    :data:`MAX_CORRESPONDENCES` taken evenly), so that no shift is favoured for the pose. Returns the scan (costs: median errors, pixels at focal
     length ``f``) and its poses per shift."""
     others = {k: P[k] for k in P if k != c}
-    X = _triangulated(others, {k: _shifted(seqs[k], int(o[k])) for k in others})
+    X = _triangulated(others, {k: _placed(seqs[k], o[k]) for k in others})
     shifts = np.asarray(list(shifts), int)
     S = len(shifts)
     scan = ShiftScan(shifts=shifts, cost=np.full(S, np.nan), correspondences=np.zeros(S, int),
@@ -1045,6 +1120,8 @@ def _rig_scan(seqs: list, P: dict, o: np.ndarray, c: int, shifts, f: float
     for i, s in enumerate(shifts):
         Xs, xs, rows = _seen(X, _shifted(seqs[c], int(s)))
         scan.correspondences[i] = len(rows)
+        take = _evenly(len(rows), MAX_CORRESPONDENCES)
+        Xs, xs, rows = Xs[take], xs[take], rows[take]
         fit = _resect(Xs, xs, r0, t0)
         if fit is None:
             continue
@@ -1087,8 +1164,16 @@ def _rig_search(seqs: list, members: list[int], searched: list[int], start: np.n
 
 #: The rig's fractions are scanned on this grid of samples about the whole offset.
 FRACTION_GRID = np.linspace(-1.5, 1.5, 13)
-#: Rounds of the rig's fractions over the cameras.
-FRACTION_ROUNDS = 2
+#: The finer grid of the rig's fractions: seven points this far apart (samples) about the
+#: coarse grid's minimum.
+FRACTION_FINE = 1.0 / 16
+#: Correspondences of a camera's fraction on the rig at most (taken evenly).
+FRACTION_CORRESPONDENCES = 2000
+#: Rounds of the rig's fractions over the cameras at most (each camera against the others
+#: at their latest fractions).
+FRACTION_ROUNDS = 6
+#: The rounds stop where no camera's fraction moved more than this (samples).
+FRACTION_TOL = 0.02
 
 
 def _smoothed(a: np.ndarray, s: int, u: float) -> np.ndarray:
@@ -1100,56 +1185,119 @@ def _smoothed(a: np.ndarray, s: int, u: float) -> np.ndarray:
                zip(range(-HALF_WINDOW, HALF_WINDOW + 1), w))
 
 
-def _rig_fraction(seqs: list, P: dict, at: dict, c: int, f: float, weights: np.ndarray
-                  ) -> tuple[float, np.ndarray]:
-    """Camera ``c``'s fraction of a sample against the joints triangulated from the other
-    cameras of ``P`` at their offsets ``at`` (samples, fractional): at each point ``u``
-    of :data:`FRACTION_GRID` its trajectories evaluated at ``t + at[c] + u``
-    (:func:`_smoothed`, its residuals scaled to one noise at every ``u``), its pose
-    resected (:func:`_resect`), the summed Huber cost of its reprojection errors (turning
-    linear at the robust std at ``u = 0``, the correspondences farther than
-    :data:`INLIER_SCALES` of it there left out); the minimum of the parabola through the
-    lowest three. Returns that ``u`` and the ``(R,)`` ones of the bootstrap draws of
-    blocks of samples (``weights``, ``(R, B)``)."""
+def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: float
+                  ) -> tuple[float, float]:
+    """Camera ``c``'s fractional offset against the joints triangulated from the other
+    cameras of ``P`` at their offsets ``at`` (samples, fractional), and its std. Every
+    camera's trajectories are the local quadratics about its whole offset ``centre``
+    (:func:`_smoothed`; one window for every fraction, so that the cost is continuous in
+    the fractions).
+
+    At each point ``u`` of :data:`FRACTION_GRID` about its whole offset, its
+    trajectories are evaluated at ``t + u`` (its residuals scaled to one noise at every
+    ``u``) and its pose resected on one set of inliers (:func:`_resect`); the cost
+    ``C(u)`` is the summed Huber loss of its reprojection errors, turning linear at the
+    robust std of the best grid point, the correspondences farther than
+    :data:`INLIER_SCALES` of it at every point left out. On a finer grid
+    (:data:`FRACTION_FINE` apart) about the coarse minimum, ``C`` is fitted by a
+    quadratic: its minimum is the offset, and its std the M-estimator's sandwich, the
+    root of the summed squares of the gradients of blocks of :data:`BOOTSTRAP_BLOCK`
+    samples at the minimum over the curvature (the cost profiled over the pose; the
+    detector's errors and the motion are correlated over neighbouring frames): a flat
+    cost gives a large std.
+
+    Returns:
+        the offset and its std (samples); NaN where too few correspondences.
+    """
     others = {k: P[k] for k in P if k != c}
-    whole = {k: int(np.floor(at[k])) for k in at}
-    X = _triangulated(others, {k: _smoothed(seqs[k], whole[k], at[k] - whole[k])
+    X = _triangulated(others, {k: _smoothed(seqs[k], int(centre[k]), at[k] - centre[k])
                                for k in others}, min_views=len(others))
-    base = int(np.round(at[c]))
+    base = int(centre[c])
     r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
     v0 = _noise_factor(0.0)
-    errors, rows = [], None
-    for u in FRACTION_GRID:
-        Xs, xs, r = _seen(X, _smoothed(seqs[c], base, u))
-        if rows is None:
-            rows = r
-        elif len(r) != len(rows):
-            # the window's samples are the same at every u: only a point behind a
-            # camera differs; the grid point is not judged
-            errors.append(None)
-            continue
-        fit = _resect(Xs, xs, r0, t0)
-        if fit is None:
-            return float("nan"), np.full(len(weights), np.nan)
-        errors.append(fit[2] * f * np.sqrt(2 * v0 / (v0 + _noise_factor(u))))
-    ok = np.array([e is not None for e in errors])
-    if ok.sum() < 3:
-        return float("nan"), np.full(len(weights), np.nan)
-    grid = FRACTION_GRID[ok]
-    E = np.stack([e for e in errors if e is not None])                       # (G, n)
+    nan = (float("nan"), float("nan"))
+    # the camera's samples about t + base that every u weighs (the local quadratic's)
+    window = np.stack([_shifted(seqs[c], base + k) for k in range(-HALF_WINDOW,
+                                                                  HALF_WINDOW + 1)])
+    seen = np.isfinite(X).all(-1) & np.isfinite(window).all((0, -1))
+    Xs, W, rows = X[seen], window[:, seen], np.nonzero(seen)[0]
+    if len(rows) < MIN_CORRESPONDENCES:
+        return nan
+    if len(rows) > FRACTION_CORRESPONDENCES:
+        take = _evenly(len(rows), FRACTION_CORRESPONDENCES)
+        Xs, W, rows = Xs[take], W[:, take], rows[take]
+
+    def scale(u):
+        return f * np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
+
+    # one set of inliers (of the pose at the offset rounded) for every u: the cost a
+    # smooth function of u
+    first = _resect(Xs, _at(W, 0.0), r0, t0)
+    if first is None:
+        return nan
+    r0, t0, e0 = first
+    inliers = e0 < INLIER_SCALES * 1.4826 * np.median(e0)
+    if inliers.sum() < MIN_CORRESPONDENCES:
+        return nan
+
+    def errors(grid):
+        out = []
+        for u in grid:
+            fit = _resect(Xs, _at(W, u), r0, t0, inliers)
+            out.append(None if fit is None else fit[2] * scale(u))
+        ok = np.array([e is not None for e in out], bool)
+        return np.asarray(grid)[ok], [e for e in out if e is not None]
+
+    def fine(u0):
+        g, Ef = errors([u for u in u0 + FRACTION_FINE * np.arange(-3, 4)
+                        if abs(u) <= FRACTION_GRID[-1]])
+        return g, (np.stack(Ef) if len(g) >= 3 else None)
+
+    blocks = rows // BOOTSTRAP_BLOCK
+
+    def per_block(E, k_px, keep):
+        nb = int(blocks.max()) + 1
+        return np.stack([np.bincount(blocks, weights=_huber(e, k_px) * keep, minlength=nb)
+                         for e in E], axis=1)                                  # (B, G)
+
+    grid, E = errors(FRACTION_GRID)
+    if len(grid) < 3:
+        return nan
+    E = np.stack(E)                                                           # (G, n)
     # the scale and the inliers from every grid point alike: none favoured
     k_px = 1.4826 * float(np.min(np.median(E, axis=1)))
     keep = E.min(0) < INLIER_SCALES * k_px
-    costs = [_huber(e, k_px) * keep for e in E]
-    blocks = rows // BOOTSTRAP_BLOCK
-    nb = weights.shape[1]
-    per_block = np.stack([np.bincount(blocks, weights=c_, minlength=nb)[:nb]
-                          for c_ in costs], axis=1)                         # (B, G)
-    full = per_block.sum(0)
-    draws = weights @ per_block                                              # (R, G)
-    u = base + _parabola_min(grid, full)
-    us = base + np.array([_parabola_min(grid, d) for d in draws])
-    return float(u), us
+    fine_grid, Ef = fine(_parabola_min(grid, np.sum(_huber(E, k_px) * keep, axis=1)))
+    if Ef is None:
+        return nan
+    # the cost C(u) a quadratic over the fine grid: its minimum; the M-estimator's
+    # (sandwich) std, the blocks' gradients at the minimum over the curvature, of that
+    # quadratic and of one over the whole coarse grid (a cost flat or with another
+    # minimum within it is no offset fixed to the fine grid's precision), the larger
+    x0 = fine_grid.mean()
+    u, std = _sandwich(fine_grid - x0, per_block(Ef, k_px, keep))
+    if not np.isfinite(u):
+        return float(base + _parabola_min(fine_grid, np.sum(_huber(Ef, k_px) * keep, axis=1))), \
+            float("inf")
+    u = float(np.clip(u, fine_grid[0] - x0 - FRACTION_FINE, fine_grid[-1] - x0 + FRACTION_FINE))
+    wide = _sandwich(grid, per_block(E, k_px, keep), at=u + x0)[1]
+    return float(base + x0 + u), float(max(std, wide))
+
+
+def _sandwich(x: np.ndarray, Cb: np.ndarray, at: float | None = None) -> tuple[float, float]:
+    """A cost's minimum and its M-estimator std from its blocks' values ``Cb`` (``(B,
+    G)``) on the grid ``x`` (``(G,)``): each block's cost a least-squares quadratic, the
+    minimum of their sum, and the root of the blocks' summed squared gradients there
+    over the sum's curvature (at ``at`` instead of the minimum, where given). ``(NaN,
+    inf)`` where the sum does not curve up."""
+    coef = np.linalg.lstsq(np.vander(x, 3), Cb.T, rcond=None)[0]              # (3, B)
+    a, b = coef[0].sum(), coef[1].sum()
+    if not a > 0:
+        return float("nan"), float("inf")
+    xm = -b / (2 * a) if at is None else float(at)
+    g = 2 * coef[0] * xm + coef[1]                                           # (B,)
+    return float(xm), float(np.sqrt(np.sum(g ** 2)) / (2 * a))
+
 
 
 def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:
