@@ -8,7 +8,8 @@ Two parts, side by side in one run:
    (|error| <= 2 std, <= 3 std).
 2. **Pose2Sim's Demo_SinglePerson** (4 real cameras, 100 frames at 60 fps, BlazePose run
    once into a detection cache): the cameras' keypoints renumbered as if started late or
-   early by whole frames (up to 15 either way), calibrated with the offsets searched.
+   early by whole frames (up to 15 either way: four fixed scenarios and ``--random``
+   more), calibrated with the offsets searched.
    Per scenario (the synchronised demo first, whose truth is 0): every whole offset
    found against the shift applied (the truth), each camera's rotation against the
    synchronised run's with the offsets given (``time_offsets="fixed"``) and against the
@@ -111,7 +112,13 @@ def _qualisys_errors(cal, truth) -> list[float]:
             for c, T in zip(cal.cameras[1:], truth[1:])]
 
 
-def demo(out: Path, cache: Path) -> tuple[list[str], dict]:
+def _random_scenarios(n: int) -> tuple[tuple[int, ...], ...]:
+    """``n`` more shifts of cam02-04, each uniform in -15..15 (seeded)."""
+    rng = np.random.default_rng(1)
+    return tuple((0, *map(int, rng.integers(-15, 16, 3))) for _ in range(n))
+
+
+def demo(out: Path, cache: Path, extra: int = 0) -> tuple[list[str], dict]:
     from mirrorgraph.video import VideoOptions
     root = _demo_root()
     cams = read_qca(root / "calibration" / "Calib.qca.txt")
@@ -137,7 +144,8 @@ def demo(out: Path, cache: Path) -> tuple[list[str], dict]:
                             CalibrateOptions(time_offsets="fixed"))
         early.append(_qualisys_errors(cal, truth)[0])
     rows, exact, worst, ratios, moved = [], 0, 0.0, [], 0
-    for shifts in ((0, 0, 0, 0),) + SCENARIOS:
+    scenarios = SCENARIOS + _random_scenarios(extra)
+    for shifts in ((0, 0, 0, 0),) + scenarios:
         path = sync if not any(shifts) else \
             _demo_rig(out / ("shift" + "_".join(map(str, shifts))), det, shifts)
         t = time.perf_counter()
@@ -176,7 +184,7 @@ def demo(out: Path, cache: Path) -> tuple[list[str], dict]:
              "every whole offset = the truth | rotation vs synchronised run (deg) | "
              "rotation vs Qualisys (deg) | time (s, vs offsets given) |",
              "|---|---|---|---|---|---|", *rows]
-    return table, dict(exact=exact, scenarios=len(SCENARIOS) + 1, worst_deg=worst,
+    return table, dict(exact=exact, scenarios=len(scenarios) + 1, worst_deg=worst,
                        worst_ratio=max(ratios) if ratios else float("nan"), moved=moved)
 
 
@@ -185,6 +193,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=4, help="synthetic rigs (default 4)")
     ap.add_argument("--cache", type=Path, default=None,
                     help="detection cache folder to reuse (default: a fresh one)")
+    ap.add_argument("--random", type=int, default=3,
+                    help="random demo shifts within +-15 frames beside the four fixed "
+                         "(default 3)")
     ap.add_argument("--no-demo", action="store_true")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
@@ -192,7 +203,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         syn_table, syn = synthetic(args.seeds, out)
-        demo_table, dem = ([], None) if args.no_demo else demo(out, args.cache or out / "cache")
+        demo_table, dem = ([], None) if args.no_demo else demo(out, args.cache or out / "cache", args.random)
     lines = ["# Time offsets from the people (`bench/bench_offsets.py`)", "",
              *header(started=started), "",
              "## Synthetic 4-camera rigs, known offsets (300 frames, 30 fps, 4 px noise)", "",

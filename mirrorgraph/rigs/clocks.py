@@ -2,30 +2,35 @@
 
 A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
 frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. Three steps:
+``o`` puts its frames between the rig's. Three steps (rigs of three cameras or more):
 
-1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): per shift, the median
-   Sampson distance (pixels) of the two cameras' joints under the pair's essential
-   matrix, one for every shift (the cameras do not move), fitted without a threshold
-   (LMedS) about the best of a coarse scan and cross-fitted over two halves of the
-   frames.
-2. **One consistent set of whole offsets** (:func:`joint_offsets`): the offsets
-   minimising the pairs' summed costs, each relative to its lowest. A camera leaves the
-   rig file's offset only where a block bootstrap of the samples prefers the move in at
-   least :data:`ACCEPT_LEVEL` of its draws, both shifts judged by matrices fitted at
-   them; the spread of the draws' best offsets is the whole offset's std.
-3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera),
-   about a whole offset the people fix or moved the camera to: each joint's trajectory
-   as a local quadratic, the camera's evaluated at ``t + dt``, ``dt`` and the relative
-   pose fitted by robust least squares, its std from a block bootstrap; applied where it
-   exceeds :data:`FRACTION_Z` stds.
+1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift
+   against the reference camera by the least median Sampson distance of an essential
+   matrix fitted at that shift (LMedS, no threshold).
+2. **Whole offsets against the rig** (:func:`_rig_search`): the rig's poses from the
+   essential matrix of the reference and its best partner, the others resected; then in
+   rounds every camera's median reprojection error per whole shift against the joints
+   triangulated from all the others at their offsets, its pose resected anew at every
+   shift (so no shift is favoured), the best taken; from the start and from the rig
+   file's offsets, the configuration the rig fits better kept.
+3. **Fractions against the rig** (:func:`_rig_fraction`): every camera's joints as
+   local quadratics, evaluated at ``t + u`` on a grid of ``u``, the others at their
+   latest fractions, the cost (Huber) fitted by a quadratic; in rounds until they settle.
+   The std is the M-estimator's sandwich over blocks of samples, propagated through the
+   cameras' coupling. A camera leaves the rig file's whole offset only where the move is
+   significant (the block bootstrap of its whole-shift scan prefers it in
+   :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond :data:`FRACTION_Z`
+   stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction is applied beyond
+   :data:`FRACTION_Z` stds.
 
-Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
-Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
-frames from the keypoints' speeds instead. :func:`resample` puts a camera's keypoints on
-the rig's frames for a fractional offset (linear interpolation). Cameras at different
-frame rates are first put on the reference's clock (:func:`rig_frames`, from each input's
-own rate); the scans run on the finest grid of samples, a slower camera on every n-th.
+A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
+whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
+reference (:func:`subframe_offset`) instead. Continuous-time calibration treats a
+camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal calibration, Furgale
+et al., IROS 2013); Pose2Sim synchronises whole frames from the keypoints' speeds.
+:func:`resample` puts a camera's keypoints on the rig's frames for a fractional offset.
+Cameras at different frame rates are first put on the reference's clock
+(:func:`rig_frames`); the scans run on the finest grid of samples.
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
@@ -135,8 +140,8 @@ class ClockEstimate:
             ``"search"`` (the search's: the given offset where the data do not
             significantly prefer another).
         given: the rig file's ``frame_offset``.
-        scan: the whole-frame scan against the reference (``None`` where not
-            searched); its shifts in samples.
+        scan: the whole-frame scan against the rig (against the reference in a rig
+            of two cameras; ``None`` where not searched); its shifts in samples.
         note: why the offset is what it is where that needs saying (the data disagree
             with the given offset, too few correspondences, a time the people hardly
             fix), else ``""``.
@@ -656,12 +661,16 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
                                frame_ids[c], base, step, length) for s in options]
-        # several candidates: ranked by a coarser scan (every other shift of the coarse
-        # one); the one that fits best scanned in full
-        pick = 0 if len(dense) == 1 else int(np.argmin(
-            [coarse_cost(d, seqs[0], windows[c][::2], seed=seed).min() for d in dense]))
+        # a coarser scan (every other shift of the coarse one): the candidate that fits
+        # best where several, and the rig's start (its first round scans every shift);
+        # a rig of two cameras scans it in full
+        rough = [coarse_cost(d, seqs[0], windows[c][::2], seed=seed) for d in dense]
+        pick = int(np.argmin([r.min() for r in rough]))
         seqs[c] = dense[pick]
-        coarse[c] = coarse_cost(seqs[c], seqs[0], windows[c], seed=seed)
+        coarse[c] = np.full(len(windows[c]), np.inf)
+        coarse[c][::2] = rough[pick]
+        if N == 2 or not np.isfinite(coarse[c]).any():
+            coarse[c] = coarse_cost(seqs[c], seqs[0], windows[c], seed=seed)
         if not np.isfinite(coarse[c]).any():
             n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in windows[c]), default=0)
                         for d in dense))
@@ -776,15 +785,13 @@ def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], foca
 def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray,
                  windows: list, focal: list, weights: np.ndarray, seed: int):
     """The offsets (samples) of the cameras ``live`` against the rig (see the module
-    docstring, step 2): the whole ones searched (:func:`_rig_search`), then every
-    camera's fraction against the others at theirs, in turn, :data:`FRACTION_ROUNDS`
-    times (:func:`_rig_fraction`); a camera leaves the rig file's ``rel`` only where the
-    rounded offset fits better in :data:`ACCEPT_LEVEL` of the bootstrap draws of its scan
-    against the rig and the draws agree on it (:data:`MOVE_SPREAD`). Returns
-    ``(offsets, draws, scans, fractions)``: the whole offsets, the draws' best whole
-    offsets and the scans per camera, and per camera ``(offset, draws)``, its fractional
-    offset and the bootstrap draws' (absent for a camera kept as given); ``None`` where
-    the rig's poses cannot be found."""
+    docstring, steps 2 and 3): the whole ones searched (:func:`_rig_search`), then the
+    fractions (:func:`_rig_fractions`), each move from the rig file's ``rel`` tested on
+    the camera's whole-shift scan with the others at their fractions. Returns
+    ``(offsets, draws, scans, fractions)``: the whole offsets, the bootstrap draws' best
+    whole offsets and the scans per camera, and per camera ``(offset, std)``, its
+    fractional offset (absent for a camera kept as given); ``None`` where the rig's
+    poses cannot be found."""
     o = np.where(np.isin(np.arange(len(rel)), live), start, rel)
     kept: set[int] = set()
     last: dict[int, ShiftScan] = {}
@@ -813,8 +820,13 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
             o[c] = int(np.clip(np.round(u), windows[c][0], windows[c][-1]))
         fails = set()
         for c in moving:
-            # the others at their fractional offsets, the camera at whole ones
-            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, windows[c], focal[c])[0]
+            if o[c] == rel[c] and c in fractions:
+                continue                  # nothing to test; the fraction's std is its own
+            # the others at their fractional offsets, the camera at whole shifts: those
+            # about the offset and the given one, every third farther (the draws' spread)
+            w = windows[c]
+            shifts = w[(np.abs(w - o[c]) <= 3) | (w == rel[c]) | ((w - w[0]) % 3 == 0)]
+            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, shifts, focal[c])[0]
             last[c] = scan
             if o[c] == rel[c]:
                 continue
@@ -840,7 +852,7 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
             fractions = {}
             break
     fractions = {c: fractions[c] for c in fractions if c not in kept}
-    return o, {c: _draws(last[c], weights) for c in live}, last, fractions
+    return o, {c: _draws(last[c], weights) for c in last}, last, fractions
 
 
 def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
