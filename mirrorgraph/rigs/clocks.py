@@ -1222,8 +1222,12 @@ def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: 
         the offset and its std (samples); NaN where too few correspondences.
     """
     others = {k: P[k] for k in P if k != c}
-    X = _triangulated(others, {k: _smoothed(seqs[k], int(centre[k]), at[k] - centre[k])
-                               for k in others}, min_views=len(others))
+    placed = {}
+    for k in others:
+        sm = _smoothed(seqs[k], int(centre[k]), at[k] - centre[k])
+        # a slower camera (every n-th sample) fills no local quadratic: its own samples
+        placed[k] = sm if np.isfinite(sm).any() else _shifted(seqs[k], int(centre[k]))
+    X = _triangulated(others, placed, min_views=len(others))
     base = int(centre[c])
     r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
     v0 = _noise_factor(0.0)
