@@ -1043,8 +1043,11 @@ def _triangulated(P: dict, seqs: dict, min_views: int = 2) -> np.ndarray:
     from ..geometry import triangulate
 
     keys = list(P)
-    return triangulate([P[k] for k in keys], [seqs[k] for k in keys],
-                       min_views=min_views)[0]
+    try:
+        return triangulate([P[k] for k in keys], [seqs[k] for k in keys],
+                           min_views=min_views)[0]
+    except np.linalg.LinAlgError:       # degenerate poses (a camera seeing someone else)
+        return np.full(seqs[keys[0]].shape[:-1] + (3,), np.nan)
 
 
 def _pose(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
