@@ -62,3 +62,24 @@ def test_every_persons_joints(runs):
 def test_people_option_checked():
     with pytest.raises(InputError, match="people"):
         CalibrateOptions(people="everyone").checked()
+
+
+def test_track_weights_count_independent_frames():
+    """A joint standing still for 100 frames weighs about one frame's worth (plus the
+    scatter's share), a joint that moves farther than the constant error every frame
+    weighs 1, a column never seen 1."""
+    from mirrorgraph.pipelines.rig_people import DETECTOR_BIAS_PX, track_weights
+
+    rng = np.random.default_rng(0)
+    T = 100
+    real = np.zeros((2, T, 3, 3))
+    real[..., 2] = 1.0
+    real[:, :, 0, :2] = 500.0 + 3.0 + rng.uniform(0, 2, (2, T, 2))      # still, one cell
+    real[:, :, 1, 0] = 100.0 + 3 * DETECTOR_BIAS_PX * np.arange(T)        # walks
+    real[:, :, 1, 1] = 300.0
+    real[:, :, 2] = (np.nan, np.nan, 0.0)                                 # never seen
+    w = track_weights(real, pixel_sigma=4.0)
+    rho = (DETECTOR_BIAS_PX / 4.0) ** 2
+    np.testing.assert_allclose(w[:, 0], (1 + rho) / (1 + rho * T))        # one cluster
+    assert (w[:, 0] * T < 2.0).all()
+    np.testing.assert_allclose(w[:, 1:], 1.0)
