@@ -18,10 +18,10 @@ probability ``occlusion_rate`` a person is hidden from a camera during one inter
 order; :attr:`SyntheticRigPeople.owner` keeps whose each is.
 
 With ``still`` the last ``still`` people stand still: one frame of their motion held,
-no drift (the detector's noise alone moves their keypoints). With ``bias_px`` each
-person's keypoints carry a constant error per camera and joint (each coordinate drawn
-once from a normal of std ``bias_px``): a real detector's error on a person who keeps
-their place and pose.
+no drift (the detector's noise alone moves their keypoints), and with ``bias_px`` their
+keypoints carry a constant error per camera and joint (each coordinate drawn once from a
+normal of std ``bias_px``): a real detector's error on a person who keeps their place
+and pose, repeated in every frame.
 
 With ``snapshots`` every frame is a snapshot :data:`SNAPSHOT_GAP` frames after the last:
 each person stands within :data:`SNAPSHOT_MOVE` of their own place (staff at their posts),
@@ -244,7 +244,7 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
         occlusion_rate: probability that a person is hidden from a camera once.
         snapshots: frames :data:`SNAPSHOT_GAP` apart, nothing continuing between them.
         still: the last ``still`` people stand still (not with ``snapshots``).
-        bias_px: std of each person's constant keypoint error per camera and joint, px.
+        bias_px: std of a still person's constant keypoint error per camera and joint, px.
         image_size, fov_deg, fps: the cameras'.
 
     Raises:
@@ -290,8 +290,9 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
                 n = int(rng.integers(_OCCLUSION_FRAMES[0], _OCCLUSION_FRAMES[1] + 1))
                 s = int(rng.integers(0, max(T - n, 1)))
                 hidden[p, s:s + n] = True
-        if bias_px > 0:        # each person's constant error per joint in this camera
-            uv = uv + rng.normal(0.0, bias_px, (people, 1, J, 2))
+        if bias_px > 0 and still:   # a still person's constant error per joint, this camera
+            uv = uv.copy()
+            uv[people - still:] += rng.normal(0.0, bias_px, (still, 1, J, 2))
         filled = np.where(vis[..., None], uv, 0.0)
         obs, miss, _, detected = observe_keypoints(rng, filled, size, 0.0, noise_std,
                                                    outlier_rate, missing_rate, 0.0, 0.0)
