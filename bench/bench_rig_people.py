@@ -34,6 +34,7 @@ Usage::
     python bench/bench_rig_people.py --pose2sim-only --cache DIR   # ~6 min
     python bench/bench_rig_people.py --quick      # three small scenes, no Pose2Sim
     python bench/bench_rig_people.py --frames 300 # longer scenes
+    python bench/bench_rig_people.py --scene 7    # the still person's scene alone, printed
 """
 
 from __future__ import annotations
@@ -475,6 +476,8 @@ def main() -> None:
     ap.add_argument("--no-pose2sim", action="store_true", help="skip Demo_MultiPerson")
     ap.add_argument("--cache", type=Path, default=None, help="detection cache folder")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--scene", type=int, action="append", default=None,
+                    help="only this scene of SCENES (0-based; repeatable), printed, not written")
     ap.add_argument("--pose2sim-only", action="store_true",
                     help="only Demo_MultiPerson, written to RESULTS_rig_people_pose2sim.md")
     args = ap.parse_args()
@@ -488,6 +491,9 @@ def main() -> None:
             (Path(__file__).parent / "RESULTS_rig_people_pose2sim.md").write_text(text + "\n")
         return
     scenes = QUICK if args.quick else SCENES
+    if args.scene:
+        scenes = [SCENES[i] for i in args.scene]
+        args.no_write = args.no_pose2sim = True
     if args.frames:
         scenes = [(C, P, args.frames, s, snap) for C, P, _, s, snap in scenes]
     rows = []
