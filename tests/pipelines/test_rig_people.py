@@ -125,17 +125,20 @@ def test_bias_ratio_measures_a_repeated_error():
 
 def test_a_still_person_with_a_repeated_error_pulls_less(tmp_path, monkeypatch):
     """A rig of three people, one standing still with a constant 8 px error per camera and
-    joint: the track weights keep every camera nearer the truth than the same graph
-    weighing every frame alike, and they are measured (``rho`` of the second round)."""
+    joint: with the track weights every camera is no worse than from one person and
+    nearer the truth than the same graph weighing every frame alike (which is worse than
+    one person), and the constant error is measured (``rho`` of the second round)."""
     import mirrorgraph.pipelines.rig_people as rp
 
     rig = make_rig_people(3, 3, frames=100, seed=22, still=1, bias_px=8.0,
                           outlier_rate=0.02, lr_swap_rate=0.02)
     path = write_rig_people(rig, tmp_path)
     cal = calibrate_rig(path, CalibrateOptions(people="all"))
+    one = _rotations(rig, calibrate_rig(path, CalibrateOptions(people="one")))
     monkeypatch.setattr(rp, "TRACK_WEIGHTS", False)
     plain = calibrate_rig(path, CalibrateOptions(people="all"))
     weighted, flat = _rotations(rig, cal), _rotations(rig, plain)
     assert (weighted < flat).all(), (weighted, flat)
+    assert (weighted <= one).all() and np.median(flat) > np.median(one), (weighted, one, flat)
     rounds = cal.refinement["people"]["rounds"]
     assert rounds[1]["solved"] and np.max(rounds[1]["rho"]) > 1.0
