@@ -31,7 +31,7 @@ size of a mean under correlated errors): frames where the joint stands in one
 :data:`DETECTOR_BIAS_PX` cell of the image share one constant error, whose size against
 the scatter is measured per person and camera from the residuals' correlation in
 consecutive frames (:func:`bias_ratio`; about 0 for independent errors, where every
-frame weighs 1 as before).
+frame weighs 1).
 """
 
 from __future__ import annotations
