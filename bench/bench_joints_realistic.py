@@ -58,6 +58,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _report  # noqa: E402
 import bench_joints as bj  # noqa: E402
+from mirrorgraph.metrics import pa_joint_errors  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: a kind switched off without touching the detector's other draws: a correlation and a
@@ -81,28 +82,6 @@ GROUPS = {"face": ("nose", "eye", "ear"), "arms": ("shoulder", "elbow", "wrist")
           "legs": ("hip", "knee", "ankle")}
 #: iterations of the joints pass under a hook (to convergence from a moved start)
 HOOK_ITERATIONS = 10
-
-
-def aligned_errors(X: np.ndarray, truth: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """``(T, J)`` each joint's error after its frame's similarity alignment on ``ok``
-    (Umeyama; NaN off ``ok`` and in frames of under 3 joints)."""
-    err = np.full(ok.shape, np.nan)
-    frames = ok.sum(1) >= 3
-    w = ok[frames].astype(float)[..., None]
-    P = np.where(w > 0, X[frames], 0.0)
-    Q = np.where(w > 0, truth[frames], 0.0)
-    cnt = w.sum(1, keepdims=True)
-    P0 = (P - (w * P).sum(1, keepdims=True) / cnt) * w
-    Q0 = (Q - (w * Q).sum(1, keepdims=True) / cnt) * w
-    U, S, Vt = np.linalg.svd(np.einsum("fji,fjk->fik", P0, Q0))
-    sign = np.sign(np.linalg.det(U @ Vt))
-    sign[sign == 0] = 1.0
-    diag = np.stack([np.ones_like(sign), np.ones_like(sign), sign], 1)
-    R = U @ (diag[:, :, None] * Vt)
-    scale = (S * diag).sum(1) / (P0 ** 2).sum((1, 2))
-    e = np.linalg.norm(scale[:, None, None] * P0 @ R - Q0, axis=-1)
-    err[frames] = np.where(w[..., 0] > 0, e, np.nan)
-    return err
 
 
 def _install_hook(mode: str | None, tr):
@@ -190,21 +169,15 @@ def run_case(case: tuple) -> dict:
                            mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS))
     finally:
         undo()
-    T, J = tr.joints3d.shape[:2]
-    X = np.full((T, J, 3), np.nan)
-    given = np.zeros((T, J), bool)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-    rows = np.array([where.get(int(f), -1) for f in run.paired.frame_ids])
-    keep = rows >= 0
-    X[rows[keep]] = run.joints3d[keep]
-    given[rows[keep]] = run.valid3d[keep]
+    T = tr.joints3d.shape[0]
+    X, given, _, _ = bj.on_truth_frames(run, tr)
     given &= np.isfinite(X).all(-1)
     both = given & oko
-    e_run = aligned_errors(X, tr.joints3d, both)
-    e_orc = aligned_errors(Xo, tr.joints3d, both)
+    e_run = pa_joint_errors(X, tr.joints3d, both)
+    e_orc = pa_joint_errors(Xo, tr.joints3d, both)
     body = np.array([not any(k in n for k in GROUPS["face"]) for n in tr.names])
-    e_run_b = aligned_errors(X, tr.joints3d, both & body)
-    e_orc_b = aligned_errors(Xo, tr.joints3d, both & body)
+    e_run_b = pa_joint_errors(X, tr.joints3d, both & body)
+    e_orc_b = pa_joint_errors(Xo, tr.joints3d, both & body)
     out = dict(seed=seed, variant=variant,
                normal_err_deg=float(normal_angle_deg(np.asarray(run.calibration.normal),
                                                      tr.normal)),
@@ -230,7 +203,7 @@ def run_case(case: tuple) -> dict:
                | np.asarray(sc.epipolar_outlier_mask_mirror, bool))
         # the oracle leaves the displaced observations out: the run's own error on
         # them (aligned on every joint it gives) against its error on the others
-        e_all = aligned_errors(X, tr.joints3d, given)
+        e_all = pa_joint_errors(X, tr.joints3d, given)
         out["by_epipolar"] = {k: [int((given & m).sum()), 1e3 * float(np.nanmean(e_all[m]))]
                               for k, m in (("displaced", epi), ("clean", ~epi))}
     return out
