@@ -214,7 +214,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     joints_std = None
     if sol.joints_cov is not None:
         # the metric scale's share: the height's prior and the legs' disagreement
-        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature)))
+        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature, opts.scale_from)))
                if height is not None else 0.0)
         cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
         cov[~np.asarray(sol.used, bool)] = np.nan
@@ -348,8 +348,8 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_sta
     # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
     # as the single-mirror refinement does; without one the unit is the height itself
     rel = opts.height_sigma if height is not None else 0.0
-    if height is not None and sol_stature is not None:  # the measurement's own spread
-        rel = float(np.hypot(rel, measurement_rel_std(sol_stature)))
+    if height is not None:                  # the measurement's own: the stature's or the limbs'
+        rel = float(np.hypot(rel, measurement_rel_std(sol_stature, opts.scale_from)))
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []

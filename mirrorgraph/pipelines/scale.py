@@ -25,11 +25,21 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
-from ..stature import (LIMB_CHOSEN, measurement_rel_std, stature_joints, stature_rescale,
-                       with_height_sigma)
+from ..stature import (LIMB_CHOSEN, StatureEstimate, estimate_stature, measurement_rel_std,
+                       stature_joints, stature_rescale, with_height_sigma)
 from ..graph.result import RefinementResult
 
-__all__ = ["scale_by_stature", "scale_rig_by_stature"]
+__all__ = ["scale_by_stature", "scale_rig_by_stature", "limbs_stature"]
+
+
+def limbs_stature(points: np.ndarray, valid: np.ndarray, skeleton) -> StatureEstimate | None:
+    """The stature measured on a result whose scale the limbs made (``scale_from =
+    "limbs"``), left at that scale: the measurement's spreads (the legs apart, the
+    segments' disagreement) for the scale's std (:func:`mirrorgraph.stature.
+    measurement_rel_std`, which the estimate's ``scale_from = "limbs"`` points at the
+    limbs' own prior); ``None`` where the joints do not span ankle to eyes."""
+    est = estimate_stature(points, valid, skeleton)
+    return None if est is None else replace(est, scale_from="limbs")
 
 def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -57,7 +67,7 @@ def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
 
 
 def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
-                     height: float) -> RefinementResult:
+                     height: float, scale_from: str = "stature") -> RefinementResult:
     """Rescale a metric refinement so that the subject's measured stature is ``height``.
 
     Args:
@@ -65,6 +75,10 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         paired: its person and reflection keypoints (undistorted pixels).
         K: ``(3, 3)`` intrinsics.
         height: the subject's standing height, metres.
+        scale_from: ``"stature"``, or ``"limbs"``: the gauge's scale kept, as asked
+            (``RefineOptions.scale_from``), the stature measured on it
+            (:func:`limbs_stature`) and ``distance_std`` widened by the limbs' rule of
+            :func:`mirrorgraph.stature.measurement_rel_std`.
 
     Returns:
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
@@ -83,6 +97,12 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         raise InputError(f"must be a positive number of metres, got {height!r}",
                          field="subject_height")
     points, valid = _with_head(res, paired, K)
+    if scale_from != "stature":
+        stature = limbs_stature(points, valid, paired.skeleton)
+        dstd = with_height_sigma(res.distance_std, res.distance,
+                                 measurement_rel_std(stature, "limbs"))
+        return replace(res, distance_std=dstd, scale_source=LIMB_CHOSEN,
+                       stature=None if stature is None else stature.to_dict())
     f, source, stature = stature_rescale(points, valid, paired.skeleton, height)
     if f is None:
         return replace(res, scale_source=source)
@@ -116,11 +136,12 @@ def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "statur
     Returns:
         ``(solution, source, stature)``: the (rescaled) solution, the scale's source in
         words (:data:`mirrorgraph.stature.LIMB_PROPORTIONS` where the joints do not span
-        ankle to eyes) and the stature estimate after scaling (``None`` where the limbs
-        stay).
+        ankle to eyes) and the stature estimate after scaling (with the limbs as asked the
+        stature measured on the solution, :func:`limbs_stature`; ``None`` where the joints
+        do not span ankle to eyes).
     """
     if scale_from != "stature":
-        return sol, LIMB_CHOSEN, None
+        return sol, LIMB_CHOSEN, limbs_stature(sol.points, sol.used, skeleton)
     factor, source, stature = stature_rescale(sol.points, sol.used, skeleton, height)
     return (sol if factor is None else sol.scaled(factor)), source, stature
 
