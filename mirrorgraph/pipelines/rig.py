@@ -34,6 +34,7 @@ from ..rigs.config import RigConfig, load_rig_config
 from ..initial.rig import initialise_rig
 from ..intrinsics import estimated_intrinsics
 from ..rigs.observations import load_observations
+from ..rigs.tracking import rig_segments
 from ..rigs.failure import (MIN_FIT_SHARE, candidate_people, failure_cause, fit_shares,
                             scan_offsets)
 from ..errors import DegenerateGeometryError, FailedCameraError
@@ -183,9 +184,12 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         from .rig_people import scale_everyone
         sol, scale_source, stature = scale_everyone(sol, obs.skeleton, everyone.count, H,
                                                     opts.scale_from)
-    else:
+    else:                   # snapshots: each stretch its own subject, one body's stature
+        stretch = rig_segments(solved.frame_ids, [c.people or [] for c in solved.cameras],
+                               obs.skeleton.calibration_joints)
+        count = max((len(p) for c in solved.cameras for p in (c.people or [])), default=1)
         sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,
-                                                          opts.scale_from)
+                                                          opts.scale_from, stretch, count)
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
