@@ -27,7 +27,10 @@ and, with the eyes as top, the vertex above the eyes (0.064 H):
 On synthetic subjects with 3 % individual variation per segment this gives ~0.2 % RMS
 scale error against ~1.1 % from limb proportions (``bench/RESULTS_rig.md``). The medians
 assume the subject is upright for most frames; a video spent sitting or bent over
-shortens the estimate. The measurement's own spread: :func:`measurement_rel_std`,
+shortens the estimate. A real skeleton's posture moves it too: the CMU take 01_01's true
+joints measure 0.9 % short at the skeleton's own rest pose (its trunk axis leans 11 deg
+back from its head) and 1.4 % over the take (jumps, never upright;
+``bench/RESULTS_scale_cmu.md``). The measurement's own spread: :func:`measurement_rel_std`,
 :func:`bones_rel_spread`.
 """
 
