@@ -27,7 +27,10 @@ and, with the eyes as top, the vertex above the eyes (0.064 H):
 On synthetic subjects with 3 % individual variation per segment this gives ~0.2 % RMS
 scale error against ~1.1 % from limb proportions (``bench/RESULTS_rig.md``). The medians
 assume the subject is upright for most frames; a video spent sitting or bent over
-shortens the estimate. The measurement's own spread: :func:`measurement_rel_std`,
+shortens the estimate. A real skeleton's posture moves it too: the CMU take 01_01's true
+joints measure 0.9 % short at the skeleton's own rest pose (its trunk axis leans 11 deg
+back from its head) and 1.4 % over the take (jumps, never upright;
+``bench/RESULTS_scale_cmu.md``). The measurement's own spread: :func:`measurement_rel_std`,
 :func:`bones_rel_spread`.
 """
 
@@ -44,7 +47,7 @@ from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
            "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "keypoint_rel_std",
-           "MIN_FRAMES",
+           "limbs_rel_std", "MIN_FRAMES",
            "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
            "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
@@ -138,6 +141,9 @@ class StatureEstimate:
             frames' correlation in time stays inside the blocks); it shrinks with the
             frames, unlike :func:`measurement_rel_std`'s spreads, which a longer video
             does not average out; NaN with fewer than three blocks of ``min_frames``.
+        scale_from: what made the run's metric scale: ``"stature"`` (this chain, set to
+            the given height) or ``"limbs"`` (the gauge's limb proportions, this estimate
+            measured on the result only); :func:`measurement_rel_std` follows it.
     """
 
     height: float
@@ -149,6 +155,7 @@ class StatureEstimate:
     bone_ratios: dict[str, float] = field(default_factory=dict)
     bones_rel_spread: float = 0.0
     sampling_rel_std: float = float("nan")
+    scale_from: str = "stature"
 
     def describe(self) -> str:
         """One line for reports: what was measured and what was assumed."""
@@ -165,7 +172,8 @@ class StatureEstimate:
                                frames=self.frames, side_rel_diff=self.side_rel_diff,
                                bone_ratios=dict(self.bone_ratios),
                                bones_rel_spread=self.bones_rel_spread,
-                               sampling_rel_std=self.sampling_rel_std)
+                               sampling_rel_std=self.sampling_rel_std,
+                               scale_from=self.scale_from)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
@@ -176,6 +184,7 @@ class StatureEstimate:
                 "bones_rel_spread": float(self.bones_rel_spread),
                 "sampling_rel_std": (float(self.sampling_rel_std)
                                      if math.isfinite(self.sampling_rel_std) else None),
+                "scale_from": self.scale_from,
                 "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
@@ -429,14 +438,59 @@ def keypoint_rel_std(top: str = "eyes") -> float:
     return math.sqrt(2.0) * KEYPOINT_OFFSET / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
 
 
-def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
-    """The stature measurement's own relative std: the metric scale's share beyond the
-    height's prior (``RefineOptions.height_sigma``), for a single mirror, a rig and the
-    live scale alike.
+def _limbs_parts() -> tuple[float, float]:
+    """``(proportions, keypoints)``: the relative stds of the limb-proportion scale
+    (:func:`limbs_rel_std`)."""
+    groups = {}                                            # kind -> (fraction, anatomical cv)
+    for kind, parts in _WHOLE_LIMBS.items():               # both sides: twice the limb
+        f = sum(HEIGHT_FRACTION[b] for b, _, _ in parts)
+        cv = sum(HEIGHT_FRACTION[b] * HEIGHT_FRACTION_CV[b] for b, _, _ in parts) / f
+        groups[kind] = (2.0 * f, cv)
+    for kind in ("shoulder_width", "hip_width"):
+        groups[kind] = (HEIGHT_FRACTION[kind], HEIGHT_FRACTION_CV[kind])
+    total = sum(f for f, _ in groups.values())
+    proportions = math.sqrt(sum((f * cv) ** 2 for f, cv in groups.values())) / total
+    # each limb's two ends, both sides moved alike (2 o each); each width's two sides (2 o)
+    ends = 2 * len(_WHOLE_LIMBS) + 2
+    keypoints = 2.0 * KEYPOINT_OFFSET * math.sqrt(ends) / total
+    return proportions, keypoints
 
-    The detector's placement of the chain's end keypoints (:func:`keypoint_rel_std`, a
-    prior: no video shows it) and two views of a distorted reconstruction, added in
-    quadrature:
+
+def limbs_rel_std() -> float:
+    """The relative std of the limb-proportion scale (``RefineOptions.scale_from =
+    "limbs"``: the gauge's limb bones and widths at Winter's fractions of the height)
+    beyond the height's prior: the subject's proportions and the detector's keypoints,
+    in quadrature, the terms :func:`keypoint_rel_std` and :data:`SEGMENT_REL_STD` take
+    for the stature's chain and its segments.
+
+    - Proportions: the legs, arms, shoulder width and hip width, each at its fraction of
+      the height (both sides: twice a limb's) with its anatomical spread among adults
+      (:data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`, a limb's the
+      length-weighted mean of its bones', as in :data:`SEGMENT_REL_STD`), the four
+      independent: 1.9 %.
+    - Keypoints: every limb end (hips, ankles, shoulders, wrists) and every width's side
+      placed :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` ``o`` off its landmark,
+      the left and right ends moved alike (a detector's convention is symmetric) so that
+      each moves the sum by ``2 o``, the knees and elbows inside a limb cancelling: six
+      independent offsets, ``2 sqrt(6) o`` over the fractions' sum (2.10), 4.0 %.
+
+    Together 4.4 % (dimensionless), against the chain's 2.7 % (:func:`keypoint_rel_std`,
+    the proportions of the 10 % of the height outside it under the height's prior): the
+    limbs are the scale for a subject who is not upright, not the more precise one.
+    """
+    return math.hypot(*_limbs_parts())
+
+
+def measurement_rel_std(stature: StatureEstimate | dict | None,
+                        scale_from: str | None = None) -> float:
+    """The metric scale's measured relative std: its share beyond the height's prior
+    (``RefineOptions.height_sigma``), for a single mirror, a rig and the live scale alike,
+    whichever made the scale (``scale_from``: the stature's chain, or the limbs).
+
+    The detector's placement of the scale's keypoints and the proportions they stand for
+    (a prior: no video shows them; the chain's end keypoints, :func:`keypoint_rel_std`,
+    or the limbs', :func:`limbs_rel_std`) and two views of a distorted reconstruction,
+    measured on the result's stature, added in quadrature:
 
     - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
       a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
@@ -460,20 +514,33 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
 
     Args:
         stature: the estimate, or its :meth:`StatureEstimate.to_dict` record (as a
-            calibration's ``refinement["stature"]`` holds it), or ``None``.
+            calibration's ``refinement["stature"]`` holds it), or ``None`` (not measured).
+        scale_from: ``"stature"`` or ``"limbs"`` (``RefineOptions.scale_from``); ``None``:
+            the estimate's own (:attr:`StatureEstimate.scale_from`), else ``"stature"``.
 
     Returns:
-        The relative std (dimensionless); ``0`` for ``None``.
+        The relative std (dimensionless); for ``None`` ``0`` with the stature (no scale
+        measured), :func:`limbs_rel_std` with the limbs.
     """
-    if stature is None:
-        return 0.0
     if isinstance(stature, dict):
         side = stature.get("side_rel_diff") or 0.0
         bones = stature.get("bones_rel_spread") or 0.0
         top = stature.get("top") or "eyes"
-    else:
+        own = stature.get("scale_from")
+    elif stature is not None:
         side, bones, top = stature.side_rel_diff, stature.bones_rel_spread, stature.top
-    return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + keypoint_rel_std(top) ** 2))
+        own = stature.scale_from
+    else:
+        side = bones = 0.0
+        top, own = "eyes", None
+    scale_from = scale_from or own or "stature"
+    if scale_from == "limbs":
+        prior = limbs_rel_std()
+    elif stature is None:
+        return 0.0
+    else:
+        prior = keypoint_rel_std(top)
+    return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + prior ** 2))
 
 
 _LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"

@@ -97,7 +97,10 @@ def test_single_mirror_distance_in_metres_from_the_stature():
     limbs = _calibrate(scene, "limbs")
     assert stat.refinement["scale_source"].startswith("stature measured from ankle to eyes")
     assert stat.refinement["stature"]["height"] == pytest.approx(scene.subject_height)
-    assert "as asked" in limbs.refinement["scale_source"] and limbs.refinement["stature"] is None
+    assert "as asked" in limbs.refinement["scale_source"]
+    # the limbs' scale kept: the stature measured on it, not set to the height
+    assert limbs.refinement["stature"]["scale_from"] == "limbs"
+    assert limbs.refinement["stature"]["height"] != pytest.approx(scene.subject_height)
     err_stature = abs(stat.distance / scene.distance - 1)
     err_limbs = abs(limbs.distance / scene.distance - 1)
     assert err_stature < 0.01
@@ -336,3 +339,55 @@ def test_only_the_chains_end_keypoints_move_the_stature_and_its_std_covers_them(
     assert abs(err) < 1.5 * std and abs(err) > 1.5 * 0.02
     assert keypoint_rel_std("eyes") == pytest.approx(np.sqrt(2) * 0.017 / 0.897, rel=1e-3)
     assert keypoint_rel_std("head_top") == pytest.approx(np.sqrt(2) * 0.017 / 0.961, rel=1e-3)
+
+
+def test_the_limbs_scale_std_holds_the_measurement_and_the_limbs_prior():
+    """``scale_from = "limbs"``: the scale's std is the height's prior with the limbs' own
+    rule (the subject's limb proportions and the limb ends' keypoints, the legs apart and
+    the segments' disagreement measured on the result: one home,
+    :func:`measurement_rel_std`), in the distance's std and the joints' scale share alike,
+    not the height's prior alone; it covers the limbs' error (2.6 % on seed 0)."""
+    from mirrorgraph.graph.options import RefineOptions
+    from mirrorgraph.intrinsics import Intrinsics
+    from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate
+    from mirrorgraph.stature import keypoint_rel_std, limbs_rel_std, measurement_rel_std
+    from mirrorgraph.synth.scene import make_scene
+
+    scene = make_scene(frames=600, seed=0, skeleton="COCO_17")
+    run = calibrate(scene.detections, Intrinsics(K=scene.K, image_size=scene.image_size),
+                    CalibrateOptions(subject_height=scene.subject_height,
+                                     refine_options=RefineOptions(scale_from="limbs")))
+    c = run.calibration
+    record = c.refinement["stature"]
+    m = measurement_rel_std(record)
+    assert m == measurement_rel_std(record, "limbs")         # the record says which rule
+    assert m >= limbs_rel_std() > keypoint_rel_std("eyes")
+    want = np.hypot(RefineOptions().height_sigma, m)
+    assert run.scale_rel_std == pytest.approx(want, rel=1e-9)
+    rel = c.uncertainty["distance_std"] / c.distance
+    assert want - 1e-9 <= rel < want + 0.005
+    err = abs(c.distance / scene.distance - 1)
+    assert 0.01 < err < 2 * rel
+    # not measured (no eyes): the limbs' prior alone; the stature's own path: nothing
+    assert measurement_rel_std(None, "limbs") == pytest.approx(limbs_rel_std())
+    assert measurement_rel_std(None) == 0.0
+
+
+def test_a_rigs_limbs_scale_keeps_the_solution_and_measures_its_stature():
+    """A rig's ``scale_from = "limbs"``: the solution as the gauge left it, the stature
+    measured on it for the scale's std (the limbs' rule), as one mirror's."""
+    from types import SimpleNamespace
+
+    from mirrorgraph.pipelines.scale import scale_rig_by_stature
+    from mirrorgraph.stature import LIMB_CHOSEN, limbs_rel_std, measurement_rel_std
+    from mirrorgraph.synth.scene import make_scene
+
+    scene = make_scene(frames=200, seed=1, skeleton="COCO_17")
+    X = scene.joints3d * 1.04                                 # the limbs' scale: 4 % long
+    sol = SimpleNamespace(points=X, used=np.isfinite(X).all(-1))
+    out, source, stature = scale_rig_by_stature(sol, scene.skeleton, scene.subject_height,
+                                                "limbs")
+    assert out is sol and source == LIMB_CHOSEN
+    assert stature.scale_from == "limbs"
+    assert stature.height / scene.subject_height == pytest.approx(1.04, abs=0.01)
+    assert measurement_rel_std(stature) >= limbs_rel_std()

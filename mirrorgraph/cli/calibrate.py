@@ -206,7 +206,11 @@ def cmd_calibrate(args) -> int:
                 from ..io.people_motion import write_people_joints3d
                 write_people_joints3d(args.joints3d, people.joints3d, people.valid3d,
                                       run.paired.frame_ids, people.pairing.base.joints,
-                                      run.fps, unit=unit)
+                                      run.fps, unit=unit, joints_std=people.joints_std,
+                                      joints_std_shape=(people.joints_std_shape
+                                                        if unit == "m" else None),
+                                      scale_rel_std=(people.scale_rel_std
+                                                     if unit == "m" else None))
             else:
                 write_joints3d(args.joints3d, run.joints3d, run.valid3d, run.paired.frame_ids,
                                run.paired.skeleton.joints, run.fps, unit=unit,

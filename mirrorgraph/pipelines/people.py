@@ -37,6 +37,7 @@ from ..initial.body_left_right import undo_body_swaps
 from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
+from ..graph.joints_uncertainty import position_std, with_scale
 from ..stature import estimate_stature, measurement_rel_std, with_height_sigma
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
                      judge_run, prepare, refine_run)
@@ -63,6 +64,10 @@ class PeopleRun:
             unit; NaN where the joints do not span ankle to eyes).
         height_person: the person the subject height applies to (``None``: no height, or
             a list of heights).
+        joints_std: ``(P, T, J)`` each person's joints' std in the unit of
+            :attr:`joints3d` (:attr:`~.mirror.CalibrationRun.joints_std`: with the metric
+            scale's share, :attr:`scale_rel_std`); ``None`` without marginals.
+        joints_std_shape: ``(P, T, J)`` the same without the metric scale's share.
     """
 
     run: CalibrationRun
@@ -71,6 +76,14 @@ class PeopleRun:
     valid3d: np.ndarray | None
     statures: np.ndarray
     height_person: int | None = None
+    joints_std: np.ndarray | None = None
+    joints_std_shape: np.ndarray | None = None
+
+    @property
+    def scale_rel_std(self) -> float | None:
+        """The metric scale's relative std, shared by every person (one draw for the
+        whole run: :attr:`~.mirror.CalibrationRun.scale_rel_std`); 0 without a height."""
+        return self.run.scale_rel_std
 
     @property
     def num_people(self) -> int:
@@ -219,16 +232,16 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
         statures = measured
         if (height is not None or heights is not None) and factor is not None:
             joints3d = joints3d * factor
-            run.joints3d = run.joints3d * factor
             statures = measured * factor
             calib.distance, calib.scale = float(factor), "subject_height"
             calib.refinement["bone_lengths"] = {
                 b: v * factor for b, v in calib.refinement["bone_lengths"].items()}
             # the height's prior and the stature measurement's own spread, as one
             # person's scale (mirrorgraph.pipelines.scale.scale_by_stature) holds them
-            calib.uncertainty["distance_std"] = with_height_sigma(
-                0.0, float(factor), float(np.hypot(opts.graph.height_sigma, rel)))
+            scale_rel = float(np.hypot(opts.graph.height_sigma, rel))
+            calib.uncertainty["distance_std"] = with_height_sigma(0.0, float(factor), scale_rel)
             calib.refinement["scale_source"] = source
+            _scale_joints(run, float(factor), scale_rel)
         elif height is not None or heights is not None:
             calib.warnings.append(f"scale: {source}; the distance stays unknown")
         calib.input["people"]["statures"] = [None if not np.isfinite(s) else float(s)
@@ -238,5 +251,28 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
         calib.warnings.append("subject_height needs the refinement (it scales the body); "
                               "without it the distance stays unknown")
     judge_run(run, obs, init, opts)
+    stds = [None if v is None else split_people(v, P)
+            for v in (run.joints_std, run.joints_std_shape)]
     return PeopleRun(run=run, pairing=pairing, joints3d=joints3d, valid3d=valid3d,
-                     statures=statures, height_person=person)
+                     statures=statures, height_person=person, joints_std=stds[0],
+                     joints_std_shape=stds[1])
+
+
+def _scale_joints(run: CalibrationRun, factor: float, scale_rel_std: float) -> None:
+    """The run's joints and their uncertainty ``factor`` times larger, the metric scale's
+    share (relative std ``scale_rel_std``, one draw for every person) added to each joint's
+    covariance as one person's run adds it (:func:`~mirrorgraph.graph.joints_uncertainty.
+    with_scale`, ``joints_std^2 = joints_std_shape^2 + (scale_rel_std |X|)^2``), in place."""
+    before = np.nan_to_num(run.joints3d)
+    run.joints3d = run.joints3d * factor
+    if run.joints_cov is None:
+        return
+    # the shape's covariance: the graph's, without a scale share it may hold already
+    shape = np.asarray(run.joints_cov, float)
+    if run.scale_rel_std:
+        shape = shape - run.scale_rel_std ** 2 * before[..., :, None] * before[..., None, :]
+    shape = shape * factor ** 2
+    run.joints_std_shape = position_std(shape)
+    run.scale_rel_std = float(scale_rel_std)
+    run.joints_cov = with_scale(shape, np.nan_to_num(run.joints3d), scale_rel_std)
+    run.joints_std = position_std(run.joints_cov)

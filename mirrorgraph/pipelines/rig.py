@@ -34,6 +34,7 @@ from ..rigs.config import RigConfig, load_rig_config
 from ..initial.rig import initialise_rig
 from ..intrinsics import estimated_intrinsics
 from ..rigs.observations import load_observations
+from ..rigs.tracking import rig_segments
 from ..rigs.failure import (MIN_FIT_SHARE, candidate_people, failure_cause, fit_shares,
                             scan_offsets)
 from ..errors import DegenerateGeometryError, FailedCameraError
@@ -183,9 +184,12 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
         from .rig_people import scale_everyone
         sol, scale_source, stature = scale_everyone(sol, obs.skeleton, everyone.count, H,
                                                     opts.scale_from)
-    else:
+    else:                   # snapshots: each stretch its own subject, one body's stature
+        stretch = rig_segments(solved.frame_ids, [c.people or [] for c in solved.cameras],
+                               obs.skeleton.calibration_joints)
+        count = max((len(p) for c in solved.cameras for p in (c.people or [])), default=1)
         sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,
-                                                          opts.scale_from)
+                                                          opts.scale_from, stretch, count)
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
@@ -214,7 +218,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     joints_std = None
     if sol.joints_cov is not None:
         # the metric scale's share: the height's prior and the legs' disagreement
-        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature)))
+        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature, opts.scale_from)))
                if height is not None else 0.0)
         cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
         cov[~np.asarray(sol.used, bool)] = np.nan
@@ -348,8 +352,8 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_sta
     # pure scale uncertainty of ``height_sigma`` (relative) added to every length's std,
     # as the single-mirror refinement does; without one the unit is the height itself
     rel = opts.height_sigma if height is not None else 0.0
-    if height is not None and sol_stature is not None:  # the measurement's own spread
-        rel = float(np.hypot(rel, measurement_rel_std(sol_stature)))
+    if height is not None:                  # the measurement's own: the stature's or the limbs'
+        rel = float(np.hypot(rel, measurement_rel_std(sol_stature, opts.scale_from)))
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []

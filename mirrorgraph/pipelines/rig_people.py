@@ -349,10 +349,11 @@ def scale_everyone(sol: RigSolution, skeleton, P: int, height: float,
     person, every length of the rig and of every person scaled alike. Returns
     ``(solution, source, stature)`` as it does."""
     from ..stature import LIMB_CHOSEN, stature_rescale
+    from .scale import limbs_stature
 
-    if scale_from != "stature":
-        return sol, LIMB_CHOSEN, None
     points, used = split_solution(sol.points, P), split_solution(sol.used, P)
+    if scale_from != "stature":
+        return sol, LIMB_CHOSEN, limbs_stature(points[0], used[0], skeleton)
     factor, source, stature = stature_rescale(points[0], used[0], skeleton, height)
     return (sol if factor is None else sol.scaled(factor)), source, stature
 

@@ -25,11 +25,22 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
-from ..stature import (LIMB_CHOSEN, measurement_rel_std, stature_joints, stature_rescale,
-                       with_height_sigma)
+from ..stature import (LIMB_CHOSEN, StatureEstimate, estimate_stature, measurement_rel_std,
+                       stature_joints, stature_rescale, with_height_sigma)
 from ..graph.result import RefinementResult
+from ..rigs.identities import groups_by_size
 
-__all__ = ["scale_by_stature", "scale_rig_by_stature"]
+__all__ = ["scale_by_stature", "scale_rig_by_stature", "limbs_stature", "subject_frames"]
+
+
+def limbs_stature(points: np.ndarray, valid: np.ndarray, skeleton) -> StatureEstimate | None:
+    """The stature measured on a result whose scale the limbs made (``scale_from =
+    "limbs"``), left at that scale: the measurement's spreads (the legs apart, the
+    segments' disagreement) for the scale's std (:func:`mirrorgraph.stature.
+    measurement_rel_std`, which the estimate's ``scale_from = "limbs"`` points at the
+    limbs' own prior); ``None`` where the joints do not span ankle to eyes."""
+    est = estimate_stature(points, valid, skeleton)
+    return None if est is None else replace(est, scale_from="limbs")
 
 def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -57,7 +68,7 @@ def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
 
 
 def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
-                     height: float) -> RefinementResult:
+                     height: float, scale_from: str = "stature") -> RefinementResult:
     """Rescale a metric refinement so that the subject's measured stature is ``height``.
 
     Args:
@@ -65,6 +76,10 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         paired: its person and reflection keypoints (undistorted pixels).
         K: ``(3, 3)`` intrinsics.
         height: the subject's standing height, metres.
+        scale_from: ``"stature"``, or ``"limbs"``: the gauge's scale kept, as asked
+            (``RefineOptions.scale_from``), the stature measured on it
+            (:func:`limbs_stature`) and ``distance_std`` widened by the limbs' rule of
+            :func:`mirrorgraph.stature.measurement_rel_std`.
 
     Returns:
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
@@ -83,6 +98,12 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         raise InputError(f"must be a positive number of metres, got {height!r}",
                          field="subject_height")
     points, valid = _with_head(res, paired, K)
+    if scale_from != "stature":
+        stature = limbs_stature(points, valid, paired.skeleton)
+        dstd = with_height_sigma(res.distance_std, res.distance,
+                                 measurement_rel_std(stature, "limbs"))
+        return replace(res, distance_std=dstd, scale_source=LIMB_CHOSEN,
+                       stature=None if stature is None else stature.to_dict())
     f, source, stature = stature_rescale(points, valid, paired.skeleton, height)
     if f is None:
         return replace(res, scale_source=source)
@@ -102,7 +123,51 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
                    distance_std=dstd, scale_source=source, stature=record)
 
 
-def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "stature"):
+def subject_frames(points: np.ndarray, used: np.ndarray, skeleton, stretch: np.ndarray,
+                   count: int) -> tuple[np.ndarray, int, int]:
+    """The frames of the body seen longest where each stretch of frames keeps its own
+    subject (snapshots far apart in time: no track crosses them, and a rig's one-person
+    run takes each stretch's own, :mod:`mirrorgraph.rigs.observations`), so that one
+    person's stature gives the scale, not a mix of people's.
+
+    Each stretch's subject is measured alone (:func:`mirrorgraph.stature.
+    estimate_stature` over its frames, one frame enough) and the stretches grouped by that
+    stature (:func:`mirrorgraph.rigs.identities.groups_by_size`, at most ``count``
+    people); the group holding the most frames is kept.
+
+    Args:
+        points: ``(T, J, 3)`` the subject's joints; used: ``(T, J)`` bool.
+        skeleton: their layout.
+        stretch: ``(T,)`` each frame's stretch (:func:`mirrorgraph.rigs.tracking.
+            rig_segments`).
+        count: the most people seen at once (the groups' most).
+
+    Returns:
+        ``(frames (T,) bool, bodies, stretches)``: the frames kept (every frame with one
+        stretch, one group or no stature a stretch), the groups found and the stretches
+        measured.
+    """
+    stretch = np.asarray(stretch)
+    keep = np.ones(len(stretch), bool)
+    ids = np.unique(stretch)
+    if len(ids) < 2 or count < 2:
+        return keep, 1, len(ids)
+    sizes = np.full(len(ids), np.nan)
+    for i, s in enumerate(ids):
+        rows = stretch == s
+        est = estimate_stature(points[rows], used[rows], skeleton, min_frames=1)
+        if est is not None:
+            sizes[i] = est.height
+    group = groups_by_size(sizes, count)
+    bodies = int(group.max()) + 1
+    if bodies < 2:
+        return keep, max(bodies, 1), int(np.isfinite(sizes).sum())
+    frames = np.array([np.isin(stretch, ids[group == g]).sum() for g in range(bodies)])
+    return np.isin(stretch, ids[group == int(frames.argmax())]), bodies, int(np.isfinite(sizes).sum())
+
+
+def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "stature",
+                         stretch: np.ndarray | None = None, count: int = 1):
     """A rig's solution rescaled so that the stature measured on its joints is ``height``.
 
     Args:
@@ -112,15 +177,27 @@ def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "statur
         height: the subject's height in the output unit.
         scale_from: ``"stature"``, or ``"limbs"`` (the gauge's limb proportions kept, as
             asked: ``RefineOptions.scale_from``).
+        stretch: ``(T,)`` each frame's stretch of frames where each keeps its own subject
+            (snapshots), with ``count`` the most people seen at once: the stature is then
+            the body's seen in the most frames (:func:`subject_frames`; ``height`` is
+            theirs), not a mix of the subjects'.
 
     Returns:
         ``(solution, source, stature)``: the (rescaled) solution, the scale's source in
         words (:data:`mirrorgraph.stature.LIMB_PROPORTIONS` where the joints do not span
-        ankle to eyes) and the stature estimate after scaling (``None`` where the limbs
-        stay).
+        ankle to eyes) and the stature estimate after scaling (with the limbs as asked the
+        stature measured on the solution, :func:`limbs_stature`; ``None`` where the joints
+        do not span ankle to eyes).
     """
+    keep, bodies, measured = (subject_frames(sol.points, sol.used, skeleton, stretch, count)
+                              if stretch is not None else (None, 1, 0))
+    points, used = ((sol.points, sol.used) if bodies < 2
+                    else (sol.points[keep], sol.used[keep]))
     if scale_from != "stature":
-        return sol, LIMB_CHOSEN, None
-    factor, source, stature = stature_rescale(sol.points, sol.used, skeleton, height)
+        return sol, LIMB_CHOSEN, limbs_stature(points, used, skeleton)
+    factor, source, stature = stature_rescale(points, used, skeleton, height)
+    if factor is not None and bodies > 1:
+        source += (f"; the subject's {measured} stretches of frames show {bodies} bodies: "
+                   f"the one of the most frames ({int(keep.sum())} of {len(keep)})")
     return (sol if factor is None else sol.scaled(factor)), source, stature
 

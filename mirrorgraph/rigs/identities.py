@@ -22,6 +22,10 @@ place and motion cannot (staff of an operating room, ~75 s between snapshots):
 
 Lengths in the rig's unit; ``(B,)`` arrays over the skeleton's calibration bones, NaN
 where not measured.
+
+With one person a stretch (a rig's one-person run: each snapshot keeps its own subject)
+:func:`groups_by_size` tells the subjects apart by one size each (their stature), the
+number of people unknown: what the metric scale needs, one body's stature, not a mix.
 """
 
 from __future__ import annotations
@@ -34,14 +38,17 @@ from scipy.optimize import linear_sum_assignment
 from ..geometry import camera_projection, triangulate
 from ..skeletons import Skeleton
 
-__all__ = ["MAX_ITERATIONS", "MIN_BONES", "body_lengths", "calibration_bones", "people_by_body",
-           "slots_by_body"]
+__all__ = ["EM_ITERATIONS", "MAX_ITERATIONS", "MIN_BONES", "body_lengths", "calibration_bones",
+           "groups_by_size", "people_by_body", "slots_by_body"]
 
 #: Rounds of :func:`slots_by_body` at most.
 MAX_ITERATIONS = 30
 
 #: Bones two people must both have measured for their distance; fewer: any slot fits.
 MIN_BONES = 3
+
+#: Most EM iterations of :func:`groups_by_size`'s mixtures.
+EM_ITERATIONS = 500
 
 
 def calibration_bones(skeleton: Skeleton) -> np.ndarray:
@@ -169,3 +176,70 @@ def people_by_body(person_frames: dict[int, dict[int, list[int]]], X: np.ndarray
                 for m in person_frames[g].values()) for k in range(int(counts.max()))]
     order = sorted(range(len(held)), key=lambda k: (-held[k], k))
     return [[g for g, s in zip(people, slot) if s == k] for k in order if held[k]]
+
+
+
+def _mixture(x: np.ndarray, k: int) -> tuple[float, np.ndarray]:
+    """A ``k``-component 1-D Gaussian mixture of one shared variance fitted to ``x`` by EM
+    (Dempster, Laird and Rubin, *J. R. Stat. Soc. B* 39, 1977), started at ``k`` quantiles:
+    ``(log likelihood, (n, k) membership probabilities)``."""
+    n = len(x)
+    mu = np.quantile(x, (np.arange(k) + 0.5) / k)
+    floor = (1e-6 * max(float(np.ptp(x)), float(np.abs(x).max()), 1e-12)) ** 2
+    var = max(float(np.var(x)), floor)
+    w = np.full(k, 1.0 / k)
+    ll = -np.inf
+    for _ in range(EM_ITERATIONS):
+        log_p = (np.log(w) - 0.5 * np.log(2 * np.pi * var)
+                 - 0.5 * (x[:, None] - mu[None]) ** 2 / var)              # (n, k)
+        top = log_p.max(1, keepdims=True)
+        norm = top[:, 0] + np.log(np.exp(log_p - top).sum(1))
+        r = np.exp(log_p - norm[:, None])
+        new = float(norm.sum())
+        nk = r.sum(0) + 1e-12
+        w, mu = nk / n, (r * x[:, None]).sum(0) / nk
+        var = max(float((r * (x[:, None] - mu[None]) ** 2).sum() / n), floor)
+        if new - ll < 1e-10 * max(abs(new), 1.0):
+            break
+        ll = new
+    return new, r
+
+
+def groups_by_size(sizes: np.ndarray, count: int) -> np.ndarray:
+    """``(G,)`` the group (``0 ..``, the most members first, then the earliest; ``-1``: no
+    size) of ``G``
+    people each measured once, by their size alone, at most ``count`` groups.
+
+    The sizes as a mixture of ``k`` Gaussians of one shared spread (the measurement's,
+    alike for everyone), ``k = 1 .. count``, each fitted by EM (:func:`_mixture`); the
+    ``k`` of the least Bayesian information criterion ``-2 log L + p ln G``, ``p = 2 k``
+    (means, spread, weights; G. Schwarz, *Ann. Stat.* 6, 1978; model-based clustering:
+    C. Fraley and A. E. Raftery, *JASA* 97, 2002), each person in their likeliest
+    component. People of like size stay together: their sizes cannot tell them apart, and
+    a measure of that size does not need to.
+
+    Args:
+        sizes: ``(G,)`` each person's size (any unit, e.g. their stature; NaN: unknown).
+        count: the most groups (the most people seen at once: a lower bound on the
+            people there are).
+    """
+    v = np.asarray(sizes, float)
+    out = np.full(len(v), -1)
+    known = np.flatnonzero(np.isfinite(v))
+    if not len(known):
+        return out
+    x = v[known]
+    best = (np.inf, np.zeros(len(x), int))
+    for k in range(1, max(int(count), 1) + 1):
+        if len(x) < 3 * k:                                  # three people a group at least
+            break
+        ll, r = _mixture(x, k)
+        bic = -2.0 * ll + 2 * k * np.log(len(x))
+        if bic < best[0]:
+            best = (bic, r.argmax(1))
+    label = best[1]
+    order = sorted(np.unique(label), key=lambda g: (-int((label == g).sum()),
+                                                    int(np.flatnonzero(label == g)[0])))
+    for i, g in enumerate(order):
+        out[known[label == g]] = i
+    return out

@@ -31,6 +31,15 @@ def test_calibrate_every_person(tmp_path, capsys):
     with np.load(tmp_path / "people.npz") as f:
         assert f["joints3d"].shape == (3, 150, 17, 3)
         assert str(f["unit"]) == "m"
+        # each person's std with the metric scale's share, as one person's npz holds it
+        rel = cal["uncertainty"]["distance_std"] / cal["mirror"]["distance"]
+        assert float(f["scale_rel_std"]) == pytest.approx(rel, rel=1e-9)
+        ok = f["valid"]
+        assert f["joints_std"].shape == f["joints_std_shape"].shape == ok.shape
+        want = np.hypot(f["joints_std_shape"][ok],
+                        rel * np.linalg.norm(f["joints3d"][ok], axis=-1))
+        assert np.allclose(f["joints_std"][ok], want, rtol=1e-6)
+        assert np.isnan(f["joints_std"][~ok]).all()
     code = main(["calibrate", str(tmp_path / "k.json"), "--out", str(tmp_path / "d.json"),
                  "--intrinsics", str(tmp_path / "camera.json"), "--people", "all",
                  "--height-of", "oldest"])

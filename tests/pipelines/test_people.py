@@ -124,3 +124,27 @@ def test_the_distance_std_holds_the_stature_measurement_as_one_persons_does(crow
     assert rel >= keypoint_rel_std(est.top)                  # the end keypoints' share in it
     want = np.hypot(CalibrateOptions().graph.height_sigma, rel)
     assert cal.uncertainty["distance_std"] / cal.distance == pytest.approx(want, rel=1e-6)
+
+
+def test_each_persons_joints_std_holds_the_metric_scales_share(crowd, runs):
+    """Each person's joints' std in metres with the metric scale's share, as one person's
+    run holds it: ``joints_std^2 = joints_std_shape^2 + (scale_rel_std |X|)^2`` with
+    ``scale_rel_std`` the distance's relative std; the scale fitted out, the shape's std
+    covers each person's error against the truth."""
+    _, run = runs
+    cal, r = run.calibration, run.run
+    rel = cal.uncertainty["distance_std"] / cal.distance
+    assert r.scale_rel_std == pytest.approx(rel, rel=1e-9)
+    assert run.joints_std.shape == run.joints_std_shape.shape == run.valid3d.shape
+    owners = _owners(crowd, run)
+    for k, p in enumerate(owners):
+        ok = run.valid3d[k]
+        X = run.joints3d[k][ok]
+        want = np.hypot(run.joints_std_shape[k][ok], rel * np.linalg.norm(X, axis=-1))
+        assert np.allclose(run.joints_std[k][ok], want, rtol=1e-6, atol=1e-12)
+        truth = crowd.joints3d[p][ok]
+        fit = float((X * truth).sum() / (X * X).sum())          # the scale about the camera
+        z_shape = np.linalg.norm(fit * X - truth, axis=-1) / run.joints_std_shape[k][ok]
+        assert 0.3 < np.median(z_shape) < 2.0, (k, np.median(z_shape))
+        z = np.linalg.norm(X - truth, axis=-1) / run.joints_std[k][ok]
+        assert np.percentile(z, 99) < 3.0, (k, np.percentile(z, 99))
