@@ -220,7 +220,7 @@ def cmd_calibrate(args) -> int:
                                   render=stage.file(args.render) if args.render else None,
                                   progress=lambda s: step(args, s),
                                   progress_bar=not args.quiet,
-                                  warn=lambda line: warn(args, [line]))
+                                  warn=lambda line: warn(args, [stage.as_targets(line)]))
             report_line = report_written(staged_names(written, args.report, args.render),
                                          args.report)
         if args.view:                            # a recording to a file: one more output
