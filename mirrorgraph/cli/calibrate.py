@@ -233,7 +233,8 @@ def cmd_calibrate(args) -> int:
         say(report_line)
     if view_line:
         say(view_line)
-    say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
+    files = " and ".join(str(f) for f in (args.out, args.joints3d) if f)
+    say(f"wrote {files} in {time.perf_counter() - t0:.2f} s")
     if args.view == "":                          # the viewer, once the files are in place
         view_line = view_after_run(args, scene, video=args.video)
         if view_line:

@@ -374,3 +374,16 @@ def test_the_render_warning_names_the_file_written(tmp_path):
     assert len(warned) == 1, proc.stderr
     assert warned[0].startswith("warning: over.mp4: ") and ".tmp" not in warned[0], warned[0]
     assert "over.mp4" in proc.stdout and ".tmp" not in proc.stdout
+
+
+def test_calibrate_names_every_file_it_wrote(scene_dir, tmp_path):
+    """The last line names the calibration and the 3D motion (a fresh process)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-m", "mirrorgraph", "calibrate",
+                           scene_dir / "keypoints_mmpose.json", "--intrinsics",
+                           scene_dir / "camera.json", "--out", "c.json", "--joints3d", "j.npz"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert re.search(r"^wrote c\.json and j\.npz in [\d.]+ s$", proc.stdout, re.M), proc.stdout
+    assert (tmp_path / "c.json").is_file() and (tmp_path / "j.npz").is_file()
