@@ -24,9 +24,13 @@ from .geometry import householder, tangent_basis, virtual_camera_from_mirror
 
 
 def rotation_error_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
-    """Angle of ``R_est^T R_true`` in degrees (both ``(3, 3)`` rotations)."""
-    c = (np.trace(np.asarray(R_est).T @ np.asarray(R_true)) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    """Angle of ``R_est^T R_true`` in degrees (both ``(3, 3)`` rotations), SciPy's
+    :meth:`~scipy.spatial.transform.Rotation.magnitude`: exact to the last digits at any
+    angle, where ``arccos((trace - 1) / 2)`` reads 0 below ~1e-6 deg."""
+    from scipy.spatial.transform import Rotation    # at first use: not on every start-up
+
+    R = np.asarray(R_est, dtype=float).T @ np.asarray(R_true, dtype=float)
+    return float(np.degrees(Rotation.from_matrix(R).magnitude()))
 
 
 def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
@@ -40,9 +44,10 @@ def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
 
 
 def normal_angle_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
-    """Angle between two unit normals, degrees."""
-    c = float(np.dot(n_est, n_true) / (np.linalg.norm(n_est) * np.linalg.norm(n_true)))
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    """Angle between two normals (any length), degrees: ``atan2(|a x b|, a . b)``,
+    exact at small angles, where the ``arccos`` of the cosine reads 0 below ~1e-6 deg."""
+    a, b = np.asarray(n_est, dtype=float), np.asarray(n_true, dtype=float)
+    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), np.dot(a, b))))
 
 
 def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> float:
