@@ -58,7 +58,7 @@ def test_a_documented_command_parses(page, argv):
 def test_the_readmes_commands_run(tmp_path, monkeypatch):
     """The README's commands, in order, in an empty folder: each exits 0 and writes what
     the next one reads; ``calibrate scene/clip.mp4`` where BlazePose's runtime (LiteRT,
-    the video extra) is installed."""
+    the video extra) is installed; then the README's Python on the same files."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MIRRORGRAPH_CACHE", str(tmp_path / "cache"))
     commands = documented_commands(ROOT / "README.md")
@@ -75,3 +75,12 @@ def test_the_readmes_commands_run(tmp_path, monkeypatch):
     assert (tmp_path / "calibration.json").is_file() and (tmp_path / "joints3d.npz").is_file()
     if video:
         assert (tmp_path / "clip_calibration.json").is_file()
+    (tmp_path / "calibration.json").unlink()
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert blocks, "the README shows the pipeline from Python"
+    for code in blocks:                      # the Python of the README, on the same files
+        namespace: dict = {}
+        with contextlib.redirect_stdout(io.StringIO()):
+            exec(compile(code, "README.md", "exec"), namespace)
+    assert (tmp_path / "calibration.json").is_file()
+    assert namespace["joints3d"].shape[:2] == namespace["joints_std"].shape
