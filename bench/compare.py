@@ -113,7 +113,9 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))      # bench/: _report
 
+import _report  # noqa: E402
 import mirrorgraph as mg  # noqa: E402
 from mirrorgraph import geometry as geo  # noqa: E402
 from mirrorgraph import metrics  # noqa: E402
@@ -888,6 +890,7 @@ def main(argv=None) -> int:
         data = dict(meta=dict(methods=methods, headline_extra=headline_extra, seeds=seeds,
                               sweep_frames=sweep_frames, quick=a.quick, jobs=a.jobs,
                               notes=notes, date=time.strftime("%Y-%m-%d %H:%M"),
+                              machine=_report.machine(),
                               elapsed_min=(time.perf_counter() - t0) / 60.0,
                               argv=" ".join(sys.argv[1:] if argv is None else argv),
                               versions=_versions()),
@@ -906,18 +909,20 @@ def main(argv=None) -> int:
 
 
 def _preface(data: dict) -> str:
-    """The head of bench/RESULTS.md: the machine, and the other benchmarks' files."""
-    import os
-    import platform
+    """The head of bench/RESULTS.md: the run's date, command and machine
+    (:func:`_report.header`, as recorded with the figures), and the other benchmarks'
+    files."""
     meta = data["meta"]
     return "\n".join([
         "# Benchmark results",
         "",
-        f"Machine: {platform.platform()}, {os.cpu_count()} CPUs, Python "
-        f"{platform.python_version()} (shared and noisy: compare within one run). "
-        f"This file is written by `python bench/compare.py {meta.get('argv', '')}`"
-        " (rerun it, or `--replot` from `compare_results.json`). The other benchmarks write "
-        "their own files, each with its date, command and machine:",
+        *_report.header(started=meta.get("date") or _report.NOT_RECORDED,
+                        cmd=f"python bench/compare.py {meta.get('argv', '')}".rstrip(),
+                        machine_line=meta.get("machine") or _report.NOT_RECORDED),
+        "",
+        "The machine is shared and noisy: compare within one run. Rerun the command, or "
+        "`--replot` from `compare_results.json`. The other benchmarks write their own "
+        "files, each with its date, command and machine:",
         "",
         "* [RESULTS_ablation.md](RESULTS_ablation.md): `python bench/bench_ablation.py` — "
         "end-to-end time split on 1000 frames, and the graph with each prior switched off "

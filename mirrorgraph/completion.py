@@ -28,8 +28,8 @@ Measured (BODY_25, 300 frames, 4 px noise, 7 % outliers a view, 5 % left/right
 swaps, seeds 0-3, subject height given): about 2,800 face and feet points completed
 per scene (86 % of those seen in both views), median error 1.5-2.9 cm against the
 truth (the graph's own joints: 1.0-2.6 cm), 0.4-1.7 % of them over 10 cm, most of
-those detector outliers that moved along the epipolar line. The joints NaN in
-``--joints3d`` fell from 49 % to 14 % (the limbs' outliers the graph rejected).
+those detector outliers that moved along the epipolar line; 14 % of the joints in
+``--joints3d`` stay NaN (the limbs' outliers the graph rejected; 49 % without it).
 
 :func:`complete_mirror_joints` is written for one mirror. A rig
 (:func:`complete_rig_joints`, any number of views, real or through a mirror) completes

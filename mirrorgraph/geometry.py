@@ -400,6 +400,49 @@ def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarr
     return X - step
 
 
+def similarity_align(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The similarity ``dst ~ s R src + t`` of least weighted squares, batched
+    (Umeyama, "Least-squares estimation of transformation parameters between two point
+    patterns", PAMI 1991; SciPy's :meth:`~scipy.spatial.transform.Rotation.align_vectors`
+    does one set at a time and no scale).
+
+    Args:
+        src, dst: ``(..., N, 3)`` corresponding points (broadcast against each other).
+        weights: ``(..., N)`` non-negative weights (default 1); a point of weight 0 takes
+            no part (its coordinates may be NaN).
+
+    Returns:
+        ``R`` ``(..., 3, 3)`` a proper rotation, ``s`` ``(...)`` the scale, ``t``
+        ``(..., 3)``; NaN where a weighted point is not finite, fewer than 3 points
+        carry weight or ``src`` does not spread.
+    """
+    src, dst = np.broadcast_arrays(np.asarray(src, float), np.asarray(dst, float))
+    w = np.ones(src.shape[:-1]) if weights is None else np.broadcast_to(
+        np.asarray(weights, float), src.shape[:-1])
+    broken = ((w > 0) & ~(np.isfinite(src).all(-1) & np.isfinite(dst).all(-1))).any(-1)
+    w = np.where(np.isfinite(src).all(-1) & np.isfinite(dst).all(-1), w, 0.0)
+    wk = w[..., None]
+    total = wk.sum(-2)                                                   # (..., 1)
+    src, dst = np.where(wk > 0, src, 0.0), np.where(wk > 0, dst, 0.0)   # weight 0: left out
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ms, md = (wk * src).sum(-2) / total, (wk * dst).sum(-2) / total
+    sc = np.where(wk > 0, src - ms[..., None, :], 0.0)
+    dc = np.where(wk > 0, dst - md[..., None, :], 0.0)
+    cov = np.einsum("...n,...ni,...nj->...ij", w, dc, sc)              # sum w d s^T
+    U, S, Vt = np.linalg.svd(cov)
+    sign = np.sign(np.linalg.det(U @ Vt))
+    sign = np.where(sign == 0, 1.0, sign)
+    diag = np.stack([np.ones_like(sign), np.ones_like(sign), sign], axis=-1)
+    R = U @ (diag[..., :, None] * Vt)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = (S * diag).sum(-1) / np.einsum("...n,...ni,...ni->...", w, sc, sc)
+    t = md - s[..., None] * np.einsum("...ij,...j->...i", R, ms)
+    few = broken | (np.count_nonzero(w > 0, axis=-1) < 3) | ~np.isfinite(s) | (s <= 0)
+    R = np.where(few[..., None, None], np.nan, R)
+    return R, np.where(few, np.nan, s), np.where(few[..., None], np.nan, t)
+
+
 #: The six distinct entries of a symmetric ``3 x 3`` matrix, in the order of
 #: :func:`solve_sym3`'s rows: xx, yy, zz, xy, xz, yz.
 SYM3 = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))

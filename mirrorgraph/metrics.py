@@ -20,13 +20,17 @@ import math
 
 import numpy as np
 
-from .geometry import householder, tangent_basis, virtual_camera_from_mirror
+from .geometry import householder, similarity_align, tangent_basis, virtual_camera_from_mirror
 
 
 def rotation_error_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
-    """Angle of ``R_est^T R_true`` in degrees (both ``(3, 3)`` rotations)."""
-    c = (np.trace(np.asarray(R_est).T @ np.asarray(R_true)) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    """Angle of ``R_est^T R_true`` in degrees (both ``(3, 3)`` rotations), SciPy's
+    :meth:`~scipy.spatial.transform.Rotation.magnitude`: exact to the last digits at any
+    angle, where ``arccos((trace - 1) / 2)`` reads 0 below ~1e-6 deg."""
+    from scipy.spatial.transform import Rotation    # at first use: not on every start-up
+
+    R = np.asarray(R_est, dtype=float).T @ np.asarray(R_true, dtype=float)
+    return float(np.degrees(Rotation.from_matrix(R).magnitude()))
 
 
 def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
@@ -40,9 +44,10 @@ def mirror_rotation_error_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
 
 
 def normal_angle_deg(n_est: np.ndarray, n_true: np.ndarray) -> float:
-    """Angle between two unit normals, degrees."""
-    c = float(np.dot(n_est, n_true) / (np.linalg.norm(n_est) * np.linalg.norm(n_true)))
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    """Angle between two normals (any length), degrees: ``atan2(|a x b|, a . b)``,
+    exact at small angles, where the ``arccos`` of the cosine reads 0 below ~1e-6 deg."""
+    a, b = np.asarray(n_est, dtype=float), np.asarray(n_true, dtype=float)
+    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), np.dot(a, b))))
 
 
 def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> float:
@@ -53,7 +58,8 @@ def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> float:
 
 def pa_joint_errors(pred: np.ndarray, truth: np.ndarray,
                     valid: np.ndarray | None = None) -> np.ndarray:
-    """Each joint's error after its frame's similarity alignment (Umeyama 1991).
+    """Each joint's error after its frame's similarity alignment
+    (:func:`~mirrorgraph.geometry.similarity_align`, Umeyama 1991).
 
     Args:
         pred, truth: ``(T, J, 3)`` joints.
@@ -71,20 +77,10 @@ def pa_joint_errors(pred: np.ndarray, truth: np.ndarray,
     frames = ok.sum(1) >= 3
     if not frames.any():
         return out
-    w = ok[frames].astype(float)[..., None]                    # (F, J, 1)
-    P = np.where(w > 0, pred[frames], 0.0)
-    Q = np.where(w > 0, truth[frames], 0.0)
-    count = w.sum(1, keepdims=True)
-    P0 = (P - (w * P).sum(1, keepdims=True) / count) * w
-    Q0 = (Q - (w * Q).sum(1, keepdims=True) / count) * w
-    U, S, Vt = np.linalg.svd(np.einsum("fji,fjk->fik", P0, Q0))
-    sign = np.sign(np.linalg.det(U @ Vt))
-    sign[sign == 0] = 1.0
-    diag = np.stack([np.ones_like(sign), np.ones_like(sign), sign], axis=1)   # (F, 3)
-    R = U @ (diag[:, :, None] * Vt)
-    scale = (S * diag).sum(1) / (P0 ** 2).sum((1, 2))
-    aligned = scale[:, None, None] * P0 @ R
-    out[frames] = np.where(w[..., 0] > 0, np.linalg.norm(aligned - Q0, axis=-1), np.nan)
+    w = ok[frames].astype(float)
+    R, s, t = similarity_align(pred[frames], truth[frames], w)
+    aligned = s[:, None, None] * np.einsum("fij,fnj->fni", R, pred[frames]) + t[:, None, :]
+    out[frames] = np.where(w > 0, np.linalg.norm(aligned - truth[frames], axis=-1), np.nan)
     return out
 
 

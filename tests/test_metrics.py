@@ -39,3 +39,19 @@ def test_cramer_rao_bound_matches_monte_carlo(K):
     # the bound scales with the noise
     assert np.isclose(cramer_rao_mirror(K, n, d, X, 2 * sigma)["rot_rms_deg"],
                       2 * bound["rot_rms_deg"])
+
+
+def test_rotation_error_is_exact_for_small_and_half_turn_angles():
+    """``rotation_error_deg`` against rotations of known angle, from 1e-7 deg (where the
+    ``arccos`` of the trace loses every digit) to 179.9999 deg."""
+    from scipy.spatial.transform import Rotation
+
+    from mirrorgraph.metrics import rotation_error_deg
+
+    rng = np.random.default_rng(3)
+    for angle in (0.0, 1e-7, 1e-4, 0.01, 1.0, 90.0, 179.9999):
+        R0 = Rotation.random(random_state=rng).as_matrix()
+        axis = rng.normal(size=3)
+        dR = Rotation.from_rotvec(np.radians(angle) * axis / np.linalg.norm(axis)).as_matrix()
+        got = rotation_error_deg(R0, R0 @ dR)
+        assert abs(got - angle) <= 1e-9 + 1e-9 * angle, (angle, got)

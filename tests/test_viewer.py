@@ -280,3 +280,25 @@ def test_c3d_and_bvh_from_calibrate(single, tmp_path):
         assert main(base + ["--out", str(tmp_path / "d.json"), "--joints3d",
                             str(tmp_path / f"n{suffix}")]) == 2
     assert not (tmp_path / "d.json").exists()
+
+
+def test_view_takes_the_joints_calibrate_wrote_where_frames_lack_a_pair(tmp_path):
+    """``calibrate --joints3d j.npz`` on keypoints where some frames hold one person, then
+    ``view c.json --joints3d j.npz``: the joints file has a row for every frame read and
+    is this calibration's (a fresh process each, as a user runs them)."""
+    import subprocess
+    import sys
+
+    run = [sys.executable, "-m", "mirrorgraph"]
+    subprocess.run([*run, "synth", "--out", "scene", "--frames", "60", "--seed", "4",
+                    "--single", "0.2", "--formats", "mmpose", "--video-frames", "0",
+                    "--quiet"], check=True, cwd=tmp_path)
+    subprocess.run([*run, "calibrate", "scene/keypoints_mmpose.json", "--intrinsics",
+                    "scene/camera.json", "--out", "c.json", "--joints3d", "j.npz", "--quiet"],
+                   check=True, cwd=tmp_path)
+    doc = json.loads((tmp_path / "c.json").read_text())
+    assert doc["frames_paired"] < doc["frames_read"] == 60
+    proc = subprocess.run([*run, "view", "c.json", "--joints3d", "j.npz", "--save", "v.rrd"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "v.rrd").is_file()

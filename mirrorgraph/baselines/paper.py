@@ -41,6 +41,7 @@ import numpy as np
 from .. import geometry as geo
 from ..anthropometry import femur_ratios
 from ..errors import DegenerateGeometryError
+from ..metrics import rotation_error_deg
 from ..skeletons import Skeleton
 from ..initial.solvers.eightpoint import fundamental_reflective_eight_point
 from . import require, triangulate_virtual
@@ -143,11 +144,6 @@ def pose_from_fundamental(F: np.ndarray, K: np.ndarray, u: np.ndarray, um: np.nd
     R, _t, n = geo.decompose_reflective_essential(E)
     n = geo.orient_normal(K, n, u, um)
     return R, geo.D_FLIP @ n, n
-
-
-def _rotation_angle_deg(A: np.ndarray, B: np.ndarray) -> float:
-    c = (np.trace(A.T @ B) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
 
 
 def summed_epipolar_distance(F: np.ndarray, u: np.ndarray, um: np.ndarray) -> np.ndarray:
@@ -510,7 +506,7 @@ def _refine(K, r_obs, m_obs, ok, R, tr, skeleton, joints, frame_ids, opts: Paper
         except (DegenerateGeometryError, np.linalg.LinAlgError):
             history.append(dict(step=steps, degenerate=True))
             break
-        change = _rotation_angle_deg(R_prev, R_new)
+        change = rotation_error_deg(R_prev, R_new)
         history.append(dict(step=steps, total=float(loss),
                             **{k: float(v) for k, v in L.items()},
                             rotation_change_deg=change))

@@ -224,7 +224,7 @@ def cmd_calibrate(args) -> int:
                                   render=stage.file(args.render) if args.render else None,
                                   progress=lambda s: step(args, s),
                                   progress_bar=not args.quiet,
-                                  warn=lambda line: warn(args, [line]))
+                                  warn=lambda line: warn(args, [stage.as_targets(line)]))
             report_line = report_written(staged_names(written, args.report, args.render),
                                          args.report)
         if args.view:                            # a recording to a file: one more output
@@ -237,7 +237,8 @@ def cmd_calibrate(args) -> int:
         say(report_line)
     if view_line:
         say(view_line)
-    say(f"wrote {args.out} in {time.perf_counter() - t0:.2f} s")
+    files = " and ".join(str(f) for f in (args.out, args.joints3d) if f)
+    say(f"wrote {files} in {time.perf_counter() - t0:.2f} s")
     if args.view == "":                          # the viewer, once the files are in place
         view_line = view_after_run(args, scene, video=args.video)
         if view_line:

@@ -16,7 +16,8 @@ from ..errors import InputError
 from ..initial.estimators import DEFAULT_THRESHOLD_PX
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
-from .args import add_common, add_joints, height, image_size, positive, printer, rate, seed
+from .args import (add_common, add_joints, height, image_size, positive, printer, rate,
+                   seed, warn)
 from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_live"]
@@ -145,6 +146,12 @@ def cmd_live(args) -> int:
               f"{summary.lines} lines, each complete", file=sys.stderr)
         return 130
     say(f"wrote {summary.lines} lines to {where}")
+    if summary.no_mirror is None and summary.mirror.normal is not None and summary.lines \
+            and summary.counts["unpaired"] + summary.counts["skipped"] >= summary.lines:
+        late = ("; replay the file with --as-fast-as-possible: every frame after the first "
+                "window then has its joints") if not camera else ""
+        warn(args, [f"the mirror came after the last frame (the first window's solve "
+                    f"outlasted the stream): no line of {where} holds 3D joints{late}"])
     if summary.no_mirror is not None:
         raise InputError(f"no mirror found: {summary.no_mirror}",
                          source=None if camera else args.source)

@@ -112,7 +112,8 @@ def cmd_report(args) -> int:
         out = make_report(loaded.run, stage.folder(args.out), video=args.video,
                           render=stage.file(args.render) if args.render else None,
                           max_frames=args.frames, progress=lambda s: step(args, s),
-                          progress_bar=not args.quiet, warn=lambda line: warn(args, [line]))
+                          progress_bar=not args.quiet,
+                          warn=lambda line: warn(args, [stage.as_targets(line)]))
     say(report_written(staged_names(out, args.out, args.render), args.out))
     return 0
 

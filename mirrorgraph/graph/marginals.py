@@ -70,10 +70,10 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset(), *,
     2699 px, the graph 1365 px at a std of 4 %, the truth 2186 px), and the difference
     squared is the floor of its variance (``disagreement``; off: the data's own
     figures). The search's sampling noise (its fewer frames) is part of that
-    difference, but taking it out (``sigma^2 (T / T_s - 1)``, nested estimates without
-    bias) thinned the tail where the graph is the biased one: on 40 scenes of 500 frames
-    the focal error / std median went 0.42 -> 0.50 and the scenes beyond 4 std 1 -> 3
-    (``bench/RESULTS_focal.md``), so it stays in. A camera in ``undetermined`` gets its
+    difference, and it stays in: taking it out (``sigma^2 (T / T_s - 1)``, nested
+    estimates without bias) thins the tail where the graph is the biased one (on 40
+    scenes of 500 frames the focal error / std median 0.50 against 0.42, the scenes
+    beyond 4 std 3 against 1: ``bench/RESULTS_focal.md``). A camera in ``undetermined`` gets its
     prior's variance, and so does a principal point held at the centre
     (:data:`~.priors.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
     Sets the scores' :attr:`~.scores.JointScores.prior_floor` and recomputes the

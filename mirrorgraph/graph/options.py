@@ -306,10 +306,10 @@ class SolverOptions:
         global_step_tolerance: or when it moved the mirror (and bone lengths, and a
             rig's poses) by less than this many standard deviations (Mahalanobis
             length), at any damping. 0.2 leaves at most ~0.2 sigma of the mirror
-            unconverged (2 % in quadrature with its own sigma): measured on 7 scenes
-            (4 synthetic, 3 low-parallax, 600 frames) against 0.05, rotation errors
-            changed by at most 0.1 sigma (0.004 deg) and the linear solves fell
-            from 12-14 to 7-9 (synthetic) and 11-12 (low parallax), together with
+            unconverged (2 % in quadrature with its own sigma): on 7 scenes (4
+            synthetic, 3 low-parallax, 600 frames), against 0.05, the rotation errors
+            differ by at most 0.1 sigma (0.004 deg) and the linear solves are 7-9
+            (synthetic) and 11-12 (low parallax) instead of 12-14, together with
             ``outlier_pass_iterations`` 3 instead of 5.
         max_graph_frames: longest video solved as one graph; longer ones are
             solved on a spread subset of this many frames, then in chunks of at

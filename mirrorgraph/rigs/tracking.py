@@ -142,7 +142,7 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     A detector may swap a person's left and right labels from one frame to the next
     (BlazePose on a subject turning on the spot: on Pose2Sim's Demo_SinglePerson the
     mean joint distance between consecutive frames jumps from ~7 px to ~230 px where
-    it does, and was read as a new person). With ``flip`` the detections are assigned
+    it does, which a tracker reading the labels as given takes for a new person). With ``flip`` the detections are assigned
     to tracks as labelled, each taking the labelling closer to its track, and those
     that assignment leaves without a track are assigned again, with their labels
     swapped, among the tracks left; a track carries on in its own labelling.

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..anthropometry import HEIGHT_FRACTION, HEIGHT_FRACTION_CV, bone_kind
+from ..geometry import similarity_align
 from ..skeletons import SKELETONS, Skeleton
 
 #: Every joint the model produces (a superset of COCO_17, COCO_18 and BODY_25;
@@ -215,23 +216,14 @@ def head_top(full: np.ndarray) -> np.ndarray:
     the same in :mod:`~mirrorgraph.synth.motion` and :mod:`~mirrorgraph.synth.mocap`,
     scaled by the individual's head size), and the vertex lies ``head_top`` (0.110 H
     nominal, same scale) above the pivot along the head's up axis. A least-squares
-    similarity transform (Umeyama: rotation, scale, translation) from the nominal
+    similarity transform (:func:`~mirrorgraph.geometry.similarity_align`) from the nominal
     head points to the five given ones carries the nominal vertex to the answer:
     exact for the model's rigid heads, in the units and frame of ``full``.
     """
     P = np.asarray(full, dtype=float)[..., [FULL_INDEX[n] for n in _HEAD_POINTS], :]
-    Q = _head_model()                                        # (5, 3)
-    mp, mq = P.mean(-2, keepdims=True), Q.mean(0)
-    Pc, Qc = P - mp, Q - mq
-    C = np.einsum("...ki,kj->...ij", Pc, Qc)                 # (..., 3, 3) sum p q^T
-    U, S, Vt = np.linalg.svd(C)
-    d = np.sign(np.linalg.det(U @ Vt))                       # no reflection
-    D = np.ones(S.shape)
-    D[..., 2] = d
-    R = (U * D[..., None, :]) @ Vt
-    k = (S * D).sum(-1) / (Qc ** 2).sum()                    # (...,) scale
-    top = np.array([0.0, EXTRA_FRACTION["head_top"], 0.0]) - mq
-    return mp[..., 0, :] + k[..., None] * (R @ top)
+    R, k, t = similarity_align(_head_model(), P)             # nominal -> given
+    top = np.array([0.0, EXTRA_FRACTION["head_top"], 0.0])
+    return k[..., None] * (R @ top) + t
 
 
 def check_skeleton(skeleton: Skeleton) -> None:

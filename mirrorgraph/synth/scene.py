@@ -362,7 +362,7 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
 # ------------------------------------------------------------------ make_scene's steps
 def _record_variant_options(options: dict, gp: GeometryPreset, **variants) -> None:
     """Add to ``options`` the options of the presets and detector models where they are not
-    the default (the files of a ``"favourable"`` scene stay as they were)."""
+    the default (a ``"favourable"`` scene's options name no geometry)."""
     if gp.name != "favourable" or PRESETS.get(gp.name) is not gp:
         options["geometry"] = gp.name if PRESETS.get(gp.name) is gp else asdict(gp)
     defaults = dict(focal_px=None, lr_swap_views="mirror", epipolar_outlier_rate=0.0,

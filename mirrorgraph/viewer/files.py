@@ -85,7 +85,8 @@ def view_file(calibration: str | os.PathLike, *, joints3d: str | os.PathLike | N
     keypoints = None
     if motion is not None:
         _check_belongs(motion, joints3d, path, skeleton=calib.input.get("skeleton"),
-                       frames=calib.frames_paired, metric=calib.distance is not None,
+                       frames=calib.frames_read,            # a row for every frame read
+                       metric=calib.distance is not None,
                        what="single mirror", in_front=True)
     run = _read_kept_run(path, calib, needed=motion is None)
     if motion is not None and run is not None \

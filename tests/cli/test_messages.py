@@ -343,3 +343,47 @@ def test_the_summary_and_help_name_the_flag_and_the_page(scene_dir, tmp_path, ca
     assert main(["export", "--help"]) == 0
     assert "docs/guide/exports.md" in capsys.readouterr().out.replace("\n", " ").replace(
         "  ", " ")
+
+
+def test_the_render_warning_names_the_file_written(tmp_path):
+    """``report --render over.mp4`` on an OpenCV build without H.264 warns about
+    ``over.mp4``, the file the user asked for, not the temporary it is staged in (a fresh
+    process, as a user runs it)."""
+    import subprocess
+
+    from mirrorgraph.io.video_out import open_video_writer
+
+    writer, fourcc, _ = open_video_writer(tmp_path / "probe.mp4", 30.0, (64, 48))
+    writer.release()
+    if fourcc != "mp4v":
+        pytest.skip(f"this OpenCV build writes {fourcc}: no warning to name")
+    scene = tmp_path / "scene"
+    run = [sys.executable, "-m", "mirrorgraph"]
+    subprocess.run([*run, "synth", "--out", scene, "--frames", "60", "--seed", "1",
+                    "--geometry", "favourable", "--formats", "mmpose", "--video-frames",
+                    "12", "--quiet"], check=True, cwd=tmp_path)
+    subprocess.run([*run, "calibrate", scene / "keypoints_mmpose.json", "--intrinsics",
+                    scene / "camera.json", "--out", "c.json", "--quiet"], check=True,
+                   cwd=tmp_path)
+    proc = subprocess.run([*run, "report", "c.json", "--out", "rep", "--video",
+                           scene / "clip.mp4", "--render", "over.mp4", "--frames", "2"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "over.mp4").is_file()
+    warned = [ln for ln in proc.stderr.splitlines() if "mp4v" in ln]
+    assert len(warned) == 1, proc.stderr
+    assert warned[0].startswith("warning: over.mp4: ") and ".tmp" not in warned[0], warned[0]
+    assert "over.mp4" in proc.stdout and ".tmp" not in proc.stdout
+
+
+def test_calibrate_names_every_file_it_wrote(scene_dir, tmp_path):
+    """The last line names the calibration and the 3D motion (a fresh process)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-m", "mirrorgraph", "calibrate",
+                           scene_dir / "keypoints_mmpose.json", "--intrinsics",
+                           scene_dir / "camera.json", "--out", "c.json", "--joints3d", "j.npz"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert re.search(r"^wrote c\.json and j\.npz in [\d.]+ s$", proc.stdout, re.M), proc.stdout
+    assert (tmp_path / "c.json").is_file() and (tmp_path / "j.npz").is_file()
