@@ -504,10 +504,9 @@ def measurement_rel_std(stature: StatureEstimate | dict | None,
     measured on them wrong: on the realistic synthetic detector (per-label bias 2-4 px,
     epipolar outliers) one 1800-frame scene's legs come out 18 % long, its arms 14 % and
     trunk 20 % short, the distance 23.5 % off: the height's 2 % and the legs' 1.7 % apart
-    give 2.6 %, the segments' term 21.1 % (``bench/RESULTS_scale_spread.md``: largest
-    error/std over 12 such scenes 9.0 -> 2.4, over 12 of 3600 frames 3.0, 12 iid scenes
-    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %, all
-    without the end keypoints' term). A distortion within the spread of adults and
+    give 2.6 %, the segments' term 21.1 % (``bench/RESULTS_scale_spread.md`` measures the
+    distance's error/std with and without this term over realistic, iid and Pose2Sim
+    scenes). A distortion within the spread of adults and
     keypoints (up to ~10 % of the stature) is not seen by the last two: a 3600-frame
     scene's distance is 6.1 % off, at 2.0 % without the end keypoints' term and 3.4 %
     with it.
