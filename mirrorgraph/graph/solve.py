@@ -136,16 +136,15 @@ def undetermined_focal(state: SolveState, rig: Rig, opts: RefineOptions,
             angles = parallax_deg(rig, state.points, state.view_masks, state.poses, state.planes)
         rays = _median_parallax(state, rig, i, angles)
         narrow = bool(rays < FOCAL_MIN_PARALLAX_DEG)
-        # the rays' angle names a cause; the bones' bias it brings is in the std
-        # (uncertainty.frame_scores: the curvature bias's score)
-        if not np.isfinite(rel) or rel > limit or edge:
+        if not np.isfinite(rel) or rel > limit or edge or narrow:
             search = [st["focal_px"] for st in getattr(state, "stages", ())
                       if st.get("focal_px") is not None]
             out[i] = {"focal_px": f, "std_px": std, "rel_std": rel, "fov_deg": fov,
                       "at_range_end": bool(edge), "parallax_deg": rays,
                       "low_parallax": narrow, "data_rel_std": own_rel,
                       "search_px": float(search[-1]) if search else None,
-                      "data_open": bool(not np.isfinite(own_rel) or own_rel > limit or edge)}
+                      "data_open": bool(not np.isfinite(own_rel) or own_rel > limit or edge
+                                        or narrow)}
     return out
 
 
