@@ -178,7 +178,8 @@ def focal_search(rig: Rig, masks: list[np.ndarray], poses: list[np.ndarray],
               "refined_px": [float(x) for x in near],
               "refined_errors": [float(x) for x in near_errors],
               "compared_observations": (None if common is None
-                                        else int(sum(np.count_nonzero(m) for m in common))),
+                                        else int(sum(np.count_nonzero(m & seen_twice(common))
+                                                      for m in common))),
               "focal_px": f, "frames": int(np.count_nonzero(rows)),
               "initial_focal_px": float(K0[0, 0])}
     return with_intrinsics(rig, [K]), new_planes, record
