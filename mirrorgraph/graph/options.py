@@ -74,8 +74,9 @@ class FocalOptions:
         search_fov_deg: the focal length's initial search (one camera and its mirrors,
             :func:`~mirrorgraph.graph.stages.focal_search`) spans these horizontal
             fields of view, degrees.
-        search_steps: candidate focal lengths of that search (log-spaced; the best is
-            refined by a parabola through its neighbours).
+        search_steps: candidate focal lengths of that search (log-spaced; the
+            geometric midpoints beside the best are solved too, and a parabola through
+            the best of these and its neighbours refines it).
         search_frames: frames (spread over the video) of each candidate's solve.
         bone_bias_limit: the calibration graph's bone rule (``RefineOptions.
             bone_bias_limit``) where a focal length is estimated: 1 (a bone's bias under
