@@ -450,14 +450,10 @@ def _rms_length(std: np.ndarray) -> np.ndarray:
     return std
 
 
-def run_calibrate(tr: Truth) -> dict:
-    import mirrorgraph as mg
-
-    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS)
-    wall, cpu = time.perf_counter(), time.process_time()
-    run = mg.calibrate(tr.detections, tr.intrinsics, opts)
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    cal = run.calibration
+def on_truth_frames(run, tr: Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A calibration run's joints on the truth's frames: ``(X (T, J, 3), given (T, J),
+    rows, keep)``, ``rows`` each of the run's frames' row of the truth (``-1``: none),
+    ``keep`` ``rows >= 0``; NaN / ``False`` where the run gives no joint."""
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     given = np.zeros((T, J), bool)
@@ -468,6 +464,19 @@ def run_calibrate(tr: Truth) -> dict:
         X[rows[keep]] = run.joints3d[keep]
         valid = run.valid3d if run.valid3d is not None else np.isfinite(run.joints3d).all(-1)
         given[rows[keep]] = valid[keep]
+    return X, given, rows, keep
+
+
+def run_calibrate(tr: Truth) -> dict:
+    import mirrorgraph as mg
+
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS)
+    wall, cpu = time.perf_counter(), time.process_time()
+    run = mg.calibrate(tr.detections, tr.intrinsics, opts)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    cal = run.calibration
+    T, J = tr.joints3d.shape[:2]
+    X, given, rows, keep = on_truth_frames(run, tr)
     stds = []
     for name in ("joints_std", "joints_std_shape"):
         js = getattr(run, name, None)
@@ -1024,6 +1033,9 @@ def main(argv: list[str] | None = None) -> int:
          f"- machine: {meta['machine']}; {meta['minutes']:.1f} min with {args.workers} "
          "workers",
          f"- command: `{meta['command'].rstrip()}`", *offline_note,
+         *([] if "live" in methods else
+           ["- live: not run here; its figures are `bench/RESULTS_joints_live.md`'s "
+            "(`--methods live --offline-from` this file's JSON)"]),
          "- scenes: `iid`, `realistic`: `make_wide_scene(seed, 'wide', noise, frames)`; `cmu`: "
          "the same (iid) moved by the CMU take 01_01; `paper`: `make_scene` with 4 px iid "
          "noise, 3 % outliers; `fixtures`: the independent generator's scenes; "

@@ -34,12 +34,14 @@ Usage::
     python bench/bench_rig_people.py --pose2sim-only --cache DIR   # ~6 min
     python bench/bench_rig_people.py --quick      # three small scenes, no Pose2Sim
     python bench/bench_rig_people.py --frames 300 # longer scenes
+    python bench/bench_rig_people.py --scene 7    # the still person's scene alone, ~3 min
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 import tempfile
 import time
 from pathlib import Path
@@ -55,20 +57,29 @@ from mirrorgraph.pipelines.rig import calibrate_rig  # noqa: E402
 from mirrorgraph.rigs.people import PeopleAssociation, candidate_index  # noqa: E402
 from mirrorgraph.synth.rig_people import make_rig_people, write_rig_people  # noqa: E402
 
-#: (cameras, people, frames, seed, snapshots); the 5-camera 4-person 300-frame scene is
-#: the time target's.
+#: (cameras, people, frames, seed, snapshots[, still people, their constant error px]);
+#: the 5-camera 4-person 300-frame scene is the time target's; the last one holds a
+#: person standing still with a constant detector error (8 px per camera and joint).
 SCENES = [(3, 2, 150, 11, False), (3, 3, 150, 12, False), (4, 3, 150, 13, False),
           (4, 5, 150, 14, False), (5, 4, 300, 15, False), (5, 2, 150, 16, False),
-          (4, 3, 60, 17, True)]
-#: The Pose2Sim runs: one, all, all after one solve, and diagnoses (not methods): all with
+          (4, 3, 60, 17, True), (3, 3, 100, 22, False, 1, 8.0)]
+#: The Pose2Sim runs: one, all, all with every observation weighing 1 (no track weights,
+#: :data:`mirrorgraph.pipelines.rig_people.TRACK_WEIGHTS`), all after one solve, and
+#: diagnoses (not methods): all with
 #: the association made under the Qualisys rig instead of the current one; the one-person
 #: run's subject in every frame it holds plus the person seen in most frames but the
-#: subject's slot (the nearly still one); all without that person; all with every
+#: subject's slot (the nearly still one), also with their observations at a fixed weight
+#: each (every frame alike otherwise); all without that person; all with every
 #: person's joints thinned to keyframes (:func:`keyframes`, 30 px).
-P2S_RUNS = ("one", "all", "all, 1 round", "all, Qualisys association",
+P2S_RUNS = ("one", "all", "all, every frame alike", "all, 1 round", "all, Qualisys association",
             "subject + still person", "subject + still person on keyframes 30 px",
-            "subject + still person on one frame", "all, still person left out",
+            "subject + still person on one frame", "subject + still person at 0.01 a frame",
+            "subject + still person at 1e-4 a frame", "all, still person left out",
             "all, keyframes 30 px")
+
+#: Draws of the one-person run's subject with a tenth of the frames left out (the spread
+#: of the one-person result itself).
+SUBSAMPLE_DRAWS = 8
 
 #: The keyframes' least image motion (px) of the diagnosis ``all, keyframes 30 px``.
 KEYFRAME_PX = 30.0
@@ -189,10 +200,13 @@ def association_quality(rig, a: PeopleAssociation, snapshots: bool) -> dict:
     return {"wrong": wrong, "held": held, "switches": None if snapshots else switches}
 
 
-def run_scene(C: int, P: int, T: int, seed: int, snapshots: bool) -> dict:
-    rig = make_rig_people(C, P, frames=T, seed=seed, snapshots=snapshots, **DETECTOR)
-    row = {"scene": f"{C} cams, {P} people, {T} {'snapshots' if snapshots else 'frames'}",
-           "C": C, "P": P, "T": T, "snapshots": snapshots}
+def run_scene(C: int, P: int, T: int, seed: int, snapshots: bool, still: int = 0,
+              bias_px: float = 0.0) -> dict:
+    rig = make_rig_people(C, P, frames=T, seed=seed, snapshots=snapshots, still=still,
+                          bias_px=bias_px, **DETECTOR)
+    row = {"scene": f"{C} cams, {P} people, {T} {'snapshots' if snapshots else 'frames'}"
+           + (f", {still} still ({bias_px:g} px constant error)" if still else ""),
+           "C": C, "P": P, "T": T, "snapshots": snapshots, "still": still}
     with tempfile.TemporaryDirectory(prefix="bench_rig_people_") as tmp:
         path = write_rig_people(rig, tmp)
         spy: dict = {}
@@ -205,19 +219,26 @@ def run_scene(C: int, P: int, T: int, seed: int, snapshots: bool) -> dict:
         def truth(obs, Ks, poses, **kw):
             return true_association(rig, obs)
 
-        for name, assoc in (("one", None), ("all", spying), ("ids", truth)):
+        runs = [("one", None), ("all", spying), ("ids", truth)]
+        if still:
+            runs.append(("flat", None))
+        for name, assoc in runs:
             rp.associate_people = assoc or original
+            rp.TRACK_WEIGHTS = name != "flat"
             try:
                 t0 = time.perf_counter()
                 cal = calibrate_rig(path, CalibrateOptions(people="one" if name == "one"
                                                            else "all"))
+                row.setdefault("rho", {})[name] = [r.get("rho") for r in
+                                                   (cal.refinement.get("people") or {})
+                                                   .get("rounds", [])]
                 row[name] = errors([np.asarray(c.pose) for c in cal.cameras], rig.poses)
                 row[name]["s"] = time.perf_counter() - t0
                 row[name]["people"] = cal.num_people
             except Exception as exc:  # noqa: BLE001 - a refused rig is a result
                 row[name] = {"failed": f"{type(exc).__name__}: {exc}"}
             finally:
-                rp.associate_people = original
+                rp.associate_people, rp.TRACK_WEIGHTS = original, True
         if "a" in spy:
             row["assoc"] = association_quality(rig, spy["a"], snapshots)
     return row
@@ -240,6 +261,16 @@ def pose2sim_trial(cache: Path | None) -> dict:
             det = detect_video(root / trial / "videos" / f"{n}.mp4", vopts)
             sizes[n] = (det.info.width, det.info.height)
         rig = br.write_rig(Path(tmp), root, trial, cams, sizes, None)
+        # a second witness: the SinglePerson trial (the same cameras, the same Qualisys
+        # file) calibrated from its one subject
+        single = "Demo_SinglePerson"
+        for n in br.CAMERAS:
+            detect_video(root / single / "videos" / f"{n}.mp4", vopts)
+        (Path(tmp) / "single").mkdir()
+        witness_rig = br.write_rig(Path(tmp) / "single", root, single, cams, sizes, None)
+        witness = [np.asarray(c.pose) for c in calibrate_rig(
+            witness_rig, CalibrateOptions(people="one", detection=vopts)).cameras]
+        out["witness"] = errors(witness, true)["rot"]
         original, rounds = rp.associate_people, rp.MAX_ROUNDS
         layout = PeopleAssociation.observations
 
@@ -287,11 +318,26 @@ def pose2sim_trial(cache: Path | None) -> dict:
         patches = {"all": spying, "all, Qualisys association": qualisys,
                    "all, still person left out": no_still}
         patches.update({k: subject_still for k in P2S_RUNS if k.startswith("subject")})
+        build = rp.build_rig
+
+        def fixed(w: float):
+            def built(people_obs, start, joints, **kw):   # slots >= 1 at weight w
+                got = build(people_obs, start, joints, **kw)
+                J = people_obs.skeleton.num_joints // 2      # subject_still: two slots
+                weight = np.ones(people_obs.skeleton.num_joints)
+                weight[J:] = w
+                return replace(got, views=tuple(replace(v, weight=weight) if v.mirror is None
+                                                else v for v in got.views))
+            return built
+        builders = {"subject + still person at 0.01 a frame": fixed(0.01),
+                    "subject + still person at 1e-4 a frame": fixed(1e-4)}
 
         for name in P2S_RUNS:
             t0 = time.perf_counter()
             if name == "all, 1 round":
                 rp.MAX_ROUNDS = 1
+            rp.TRACK_WEIGHTS = name != "all, every frame alike" and name not in builders
+            rp.build_rig = builders.get(name, build)
             rp.associate_people = patches.get(name, original)
             PeopleAssociation.observations = layouts.get(name, layout)
             try:
@@ -302,11 +348,31 @@ def pose2sim_trial(cache: Path | None) -> dict:
                 continue
             finally:
                 rp.associate_people, rp.MAX_ROUNDS = original, rounds
+                rp.TRACK_WEIGHTS, rp.build_rig = True, build
                 PeopleAssociation.observations = layout
             out[name] = errors([np.asarray(c.pose) for c in cal.cameras], true)
+            out[name]["witness"] = errors([np.asarray(c.pose) for c in cal.cameras],
+                                          witness)["rot"]
             out[name]["s"] = time.perf_counter() - t0
             out[name]["people"] = cal.num_people
             out[name]["record"] = cal.refinement.get("people")
+        # the one-person run's own spread: its subject alone, a tenth of the frames left out
+        draws = []
+        for d in range(SUBSAMPLE_DRAWS):
+            def subject_only(obs, Ks, poses, d=d, **kw):
+                sub = [candidate_index(c) for c in obs.cameras]
+                keep = np.random.default_rng(d).random(len(sub[0])) >= 0.1
+                return PeopleAssociation(1, [np.where(keep, x, -1)[:, None] for x in sub],
+                                         people_found=1)
+            rp.associate_people, rp.TRACK_WEIGHTS = subject_only, False   # as `one` weighs
+            try:
+                cal = calibrate_rig(rig, CalibrateOptions(people="all", detection=vopts))
+                draws.append(errors([np.asarray(c.pose) for c in cal.cameras], true)["rot"])
+            except Exception:  # noqa: BLE001 - a refused draw is left out
+                pass
+            finally:
+                rp.associate_people, rp.TRACK_WEIGHTS = original, True
+        out["subsample"] = np.array(draws)
     return out
 
 
@@ -327,7 +393,9 @@ LEGEND = ["`one`: `calibrate_rig(people=\"one\")`; `all`: `people=\"all\"`; `ids
           "least-squares scale for the rig; `vs ids`: the run's median rotation error over "
           "`ids`'; `wrong / held`: detections put with another person than their "
           "slot-frame's majority, of those held; switches: a slot's person changing between "
-          "consecutive frames (not on snapshots)."]
+          "consecutive frames (not on snapshots); `flat`: `all` with every observation "
+          "weighing 1 (no track weights), on the scene with a still person. The scene with a "
+          "still person is left out of the targets' ratios."]
 
 
 def _f(v, fmt="{:.3f}"):
@@ -340,7 +408,9 @@ def table(rows: list[dict]) -> list[str]:
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         ids = r.get("ids", {})
-        for name in ("one", "all", "ids"):
+        for name in ("one", "all", "ids", "flat"):
+            if name not in r:
+                continue
             e = r.get(name, {})
             if "failed" in e:
                 lines.append(f"| {r['scene']} | {name} | - | failed: {e['failed'][:80]} |"
@@ -358,7 +428,10 @@ def table(rows: list[dict]) -> list[str]:
 
 
 def targets(rows: list[dict]) -> list[str]:
-    ok = [r for r in rows if all("rot" in r.get(k, {}) for k in ("one", "all", "ids"))]
+    ok = [r for r in rows if all("rot" in r.get(k, {}) for k in ("one", "all", "ids"))
+          and not r.get("still")]
+    still = [r for r in rows if r.get("still") and all("rot" in r.get(k, {})
+                                                       for k in ("one", "all", "flat"))]
     ratios = [np.median(r["all"]["rot"]) / np.median(r["ids"]["rot"]) for r in ok]
     pos_ratios = [np.median(r["all"]["pos"]) / np.median(r["ids"]["pos"]) for r in ok]
     better = [np.median(r["all"]["rot"]) < np.median(r["one"]["rot"]) for r in ok if r["P"] >= 3]
@@ -372,6 +445,14 @@ def targets(rows: list[dict]) -> list[str]:
              f"{sum(better)} of {len(better)}",
              f"* 5 cameras, 4 people, 300 frames: every person {timing[0]:.2f}x the one-person "
              "run's time (target 3x)" if timing else "* (the 300-frame scene did not run)"]
+    for r in still:
+        one, every, flat = (np.array(r[k]["rot"]) for k in ("one", "all", "flat"))
+        lines.append(f"* {r['scene']}: every camera no worse than one person: "
+                     f"{'yes' if (every <= one).all() else 'no'} (all {every.round(3).tolist()}, "
+                     f"one {one.round(3).tolist()}); every camera better than every frame "
+                     f"alike (`flat`, {flat.round(3).tolist()}): "
+                     f"{'yes' if (every < flat).all() else 'no'}; largest rho per round "
+                     f"{[None if x is None else round(float(np.max(x)), 2) for x in r['rho']['all']]}")
     return [x for x in lines if x]
 
 
@@ -380,16 +461,30 @@ def p2s_lines(p2s: dict) -> list[str]:
         return []
     lines = ["", "## Pose2Sim Demo_MultiPerson (two people, BlazePose) against Qualisys", "",
              "| run | people | " + " | ".join(f"cam0{i} rot (deg)" for i in (2, 3, 4))
-             + " | " + " | ".join(f"cam0{i} pos (mm)" for i in (2, 3, 4)) + " | time (s) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             + " | " + " | ".join(f"cam0{i} pos (mm)" for i in (2, 3, 4))
+             + " | rot vs SinglePerson `one`, cam02 / 03 / 04 (deg) | time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for name in P2S_RUNS:
         e = p2s.get(name, {})
         if "failed" in e:
-            lines.append(f"| {name} | failed: {e['failed'][:100]} | | | | | | | |")
+            lines.append(f"| {name} | failed: {e['failed'][:100]} | | | | | | | | |")
             continue
         lines.append(f"| {name} | {e['people']} | "
                      + " | ".join(f"{x:.2f}" for x in e["rot"]) + " | "
-                     + " | ".join(f"{x:.0f}" for x in e["pos"]) + f" | {e['s']:.1f} |")
+                     + " | ".join(f"{x:.0f}" for x in e["pos"]) + " | "
+                     + " / ".join(f"{x:.2f}" for x in e.get("witness", [])) + f" | {e['s']:.1f} |")
+    if p2s.get("witness"):
+        lines += ["", "The second witness, Demo_SinglePerson calibrated from its one subject "
+                  "(`one`; the same cameras and Qualisys file), against Qualisys: "
+                  + " / ".join(f"{x:.2f}" for x in p2s["witness"]) + " deg (cam02 / 03 / 04)."]
+    sub = p2s.get("subsample")
+    if sub is not None and len(sub):
+        lines += ["", f"The one-person run's own spread: its subject alone (`people=\"all\"` "
+                  f"with the association replaced by the subject's detections), a random tenth "
+                  f"of the frames left out, {len(sub)} draws (rotation, deg):", "",
+                  "| | cam02 | cam03 | cam04 |", "|---|---|---|---|"]
+        for label, f in (("min", np.min), ("median", np.median), ("max", np.max)):
+            lines.append(f"| {label} | " + " | ".join(f"{x:.2f}" for x in f(sub, 0)) + " |")
     if p2s.get("bias"):
         lines += ["", "Each slot of `all`'s last association against the Qualisys rig "
                   "(`joint_bias`: per camera, the median over joints of the norm of a joint's "
@@ -416,6 +511,9 @@ def main() -> None:
     ap.add_argument("--no-pose2sim", action="store_true", help="skip Demo_MultiPerson")
     ap.add_argument("--cache", type=Path, default=None, help="detection cache folder")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--scene", type=int, action="append", default=None,
+                    help="only this scene of SCENES (0-based; repeatable), written to "
+                         "RESULTS_rig_people_scenes.md")
     ap.add_argument("--pose2sim-only", action="store_true",
                     help="only Demo_MultiPerson, written to RESULTS_rig_people_pose2sim.md")
     args = ap.parse_args()
@@ -429,6 +527,9 @@ def main() -> None:
             (Path(__file__).parent / "RESULTS_rig_people_pose2sim.md").write_text(text + "\n")
         return
     scenes = QUICK if args.quick else SCENES
+    if args.scene:
+        scenes = [SCENES[i] for i in args.scene]
+        args.no_pose2sim = True
     if args.frames:
         scenes = [(C, P, args.frames, s, snap) for C, P, _, s, snap in scenes]
     rows = []
@@ -444,7 +545,8 @@ def main() -> None:
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.no_write and not args.quick:
-        (Path(__file__).parent / "RESULTS_rig_people.md").write_text(text)
+        name = "RESULTS_rig_people_scenes.md" if args.scene else "RESULTS_rig_people.md"
+        (Path(__file__).parent / name).write_text(text)
 
 
 if __name__ == "__main__":

@@ -438,9 +438,9 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
     The maximum a posteriori points of the measurements ``x_t ~ N(X_t, info_t^-1)``
     under the second-difference prior of
     :class:`~mirrorgraph.factors.smoothness.SmoothnessFactor` (``sigma`` per frame^2, no
-    triple across a step over ``max_gap``): linear, one sparse symmetric solve over every
+    triple across a step over ``max_gap``): linear, one block-banded solve over every
     joint at once (a Rauch-Tung-Striebel smoother's answer; Sarkka, *Bayesian Filtering
-    and Smoothing*, 2013, ch. 8), and the exact marginal covariance of each point
+    and Smoothing*, 2013, ch. 8), with the exact marginal covariance of each point
     (:func:`~mirrorgraph.graph.joints_uncertainty.chain_marginals`). Where two rays meet
     at a small angle the measurement is weak along them, and the neighbouring frames
     decide the depth.
@@ -511,7 +511,7 @@ def smooth_tracks(points: np.ndarray, info: np.ndarray, mask: np.ndarray,
 
 
 #: Chains of up to this many unknowns are solved and inverted dense (a live window),
-#: longer ones sparse with the block recursion's marginals (a whole video).
+#: longer ones by cyclic reduction (a whole video).
 DENSE_CHAIN = 240
 
 
@@ -551,33 +551,11 @@ def _dense_newest(diag, off1, off2, rhs, last: np.ndarray) -> tuple[np.ndarray, 
 
 
 def _sparse_chain(diag, off1, off2, rhs) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and diagonal blocks of the inverse, by a sparse solve and the block
-    recursion along each chain (:func:`~mirrorgraph.graph.joints_uncertainty.
-    chain_marginals`)."""
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
-
+    """Mean and diagonal blocks of the inverse, by cyclic reduction along every chain at
+    once (:func:`~mirrorgraph.graph.joints_uncertainty.chain_marginals`)."""
     from .graph.joints_uncertainty import chain_marginals
 
-    B, N = diag.shape[:2]
-    base = (np.arange(B)[:, None] * N + np.arange(N)[None, :]) * 3              # (B, N)
-    r3, c3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-    rows_i, cols_i, vals = [], [], []
-    for k, blk in ((0, diag), (1, off1), (2, off2)):
-        rr = base[:, :N - k][..., None, None] + r3
-        cc = base[:, k:][..., None, None] + c3
-        v = blk[:, :N - k]
-        rows_i.append(rr.ravel())
-        cols_i.append(cc.ravel())
-        vals.append(v.ravel())
-        if k:
-            rows_i.append(cc.ravel())
-            cols_i.append(rr.ravel())
-            vals.append(np.swapaxes(v, -1, -2).ravel())
-    H = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
-                      shape=(B * N * 3, B * N * 3))
-    x = spsolve(H, rhs.ravel()).reshape(B, N, 3)
-    return x, chain_marginals(diag, off1, off2)
+    return chain_marginals(diag, off1, off2, rhs=rhs)
 
 
 # --------------------------------------------------------------------------- rigs

@@ -346,20 +346,20 @@ def triangulate(projections: np.ndarray | list[np.ndarray], pixels: np.ndarray |
     if ok.any():
         u = np.nan_to_num(uv[:, ok])                                                  # (V, M, 2)
         w = m[:, ok]
-        rows_x = u[..., 0:1] * P[:, None, 2] - P[:, None, 0]                          # (V, M, 4)
-        rows_y = u[..., 1:2] * P[:, None, 2] - P[:, None, 1]
-        A = np.concatenate([rows_x, rows_y], axis=0)                                  # (2V, M, 4)
-        A = A / np.maximum(np.linalg.norm(A, axis=-1, keepdims=True), 1e-300)
-        A = np.where(np.concatenate([w, w], axis=0)[..., None], A, 0.0).transpose(1, 0, 2)
+        # two rows a view, (2V, 4, M), each scaled to unit norm, zero where not seen
+        A = np.concatenate([u[..., 0][:, None, :] * P[:, 2, :, None] - P[:, 0, :, None],
+                            u[..., 1][:, None, :] * P[:, 2, :, None] - P[:, 1, :, None]])
+        A *= np.concatenate([w, w])[:, None, :] / np.maximum(np.sqrt(np.einsum(
+            "rim,rim->rm", A, A)), 1e-300)[:, None, :]
         # the rows' least squares with X_h = (X, 1): the normal equations of the
         # inhomogeneous system (a finite point is the case here; six times faster than
         # the homogeneous SVD, and the Gauss-Newton steps below refine it anyway)
-        M = np.einsum("mki,mkj->mij", A[..., :3], A[..., :3])
-        b = -np.einsum("mki,mk->mi", A[..., :3], A[..., 3])
-        det = np.linalg.det(M)
-        solvable = np.abs(det) > 1e-12 * np.einsum("mii->m", M) ** 3
-        X = np.full((len(M), 3), np.nan)
-        X[solvable] = np.linalg.solve(M[solvable], b[solvable][..., None])[..., 0]
+        M = np.stack([np.einsum("rm,rm->m", A[:, a], A[:, b]) for a, b in SYM3])   # (6, M)
+        b = -np.einsum("rim,rm->im", A[:, :3], A[:, 3])                               # (3, M)
+        adj, det = sym3_adjugate(M)
+        solvable = np.abs(det) > 1e-12 * (M[0] + M[1] + M[2]) ** 3
+        with np.errstate(divide="ignore", invalid="ignore"):
+            X = np.where(solvable, sym3_product(adj, b) / det, np.nan).T
         for _ in range(iterations):
             X = _gauss_newton_views(P, u, w, X)
         good = np.isfinite(X).all(1) & solvable
@@ -373,26 +373,67 @@ def _gauss_newton_views(P: np.ndarray, u: np.ndarray, w: np.ndarray, X: np.ndarr
                         ) -> np.ndarray:
     """One batched Gauss-Newton step of the reprojection error over the views ``w``.
 
+    The normal equations' six distinct entries and the gradient are summed as ``(M,)``
+    columns and solved in closed form (:func:`solve_sym3`): no ``(M, 3, 3)`` temporaries.
+
     Args:
         P: ``(V, 3, 4)``; u: ``(V, M, 2)`` pixels; w: ``(V, M)`` bool; X: ``(M, 3)``.
     """
-    JtJ = np.zeros((len(X), 3, 3))
-    Jtr = np.zeros((len(X), 3))
+    H = np.zeros((6, len(X)))                   # xx, yy, zz, xy, xz, yz
+    g = np.zeros((3, len(X)))
+    Xt = X.T
     with np.errstate(divide="ignore", invalid="ignore"):
         for Pv, uv, wv in zip(P, u, w):
-            y = X @ Pv[:, :3].T + Pv[:, 3]                                      # (M, 3)
-            inv = np.where(wv, 1.0 / y[:, 2], 0.0)[:, None]
-            px, py = y[:, 0:1] * inv, y[:, 1:2] * inv
+            y = Pv[:, :3] @ Xt + Pv[:, 3:4]                                     # (3, M)
+            inv = np.where(wv, 1.0 / y[2], 0.0)
+            px, py = y[0] * inv, y[1] * inv
             # d pi / dX = (1 / z) [P_1 - u P_3 ; P_2 - v P_3] (first three columns)
-            jx = (Pv[0, :3] - px * Pv[2, :3]) * inv                             # (M, 3)
-            jy = (Pv[1, :3] - py * Pv[2, :3]) * inv
-            rx, ry = px[:, 0] - uv[:, 0], py[:, 0] - uv[:, 1]
-            JtJ += jx[:, :, None] * jx[:, None, :] + jy[:, :, None] * jy[:, None, :]
-            Jtr += jx * rx[:, None] + jy * ry[:, None]
-        JtJ += 1e-9 * np.eye(3)
-        step = np.linalg.solve(JtJ, Jtr[..., None])[..., 0]
+            jx = (Pv[0, :3, None] - Pv[2, :3, None] * px) * inv                 # (3, M)
+            jy = (Pv[1, :3, None] - Pv[2, :3, None] * py) * inv
+            rx, ry = px - uv[:, 0], py - uv[:, 1]
+            for k, (a, b) in enumerate(SYM3):
+                H[k] += jx[a] * jx[b] + jy[a] * jy[b]
+            g += jx * rx + jy * ry
+        H[:3] += 1e-9
+        step = solve_sym3(H, g).T
     step[~np.isfinite(step).all(1)] = 0.0
     return X - step
+
+
+#: The six distinct entries of a symmetric ``3 x 3`` matrix, in the order of
+#: :func:`solve_sym3`'s rows: xx, yy, zz, xy, xz, yz.
+SYM3 = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+def solve_sym3(H: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve symmetric ``3 x 3`` systems in closed form (the adjugate over the determinant).
+
+    Args:
+        H: ``(6, ...)`` each matrix's entries xx, yy, zz, xy, xz, yz.
+        b: ``(3, ...)`` the right-hand sides.
+
+    Returns:
+        ``(3, ...)`` the solutions (inf or NaN where a matrix is singular).
+    """
+    adj, det = sym3_adjugate(H)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return sym3_product(adj, b) / det
+
+
+def sym3_adjugate(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The adjugates ``(6, ...)`` (the same order) and determinants ``(...)`` of symmetric
+    ``3 x 3`` matrices given as their six distinct entries ``(6, ...)``."""
+    a, d, f, b, c, e = H
+    adj = np.stack([d * f - e * e, a * f - c * c, a * d - b * b,
+                    c * e - b * f, b * e - c * d, b * c - a * e])
+    return adj, a * adj[0] + b * adj[3] + c * adj[4]
+
+
+def sym3_product(S: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(3, ...)`` symmetric matrices ``S`` ``(6, ...)`` times vectors ``v`` ``(3, ...)``."""
+    return np.stack([S[0] * v[0] + S[3] * v[1] + S[4] * v[2],
+                     S[3] * v[0] + S[1] * v[1] + S[5] * v[2],
+                     S[4] * v[0] + S[5] * v[1] + S[2] * v[2]])
 
 
 def triangulation_covariance(projections: np.ndarray | list[np.ndarray], points: np.ndarray,
@@ -419,19 +460,23 @@ def triangulation_covariance(projections: np.ndarray | list[np.ndarray], points:
     P = np.stack([np.asarray(p, dtype=float) for p in projections])                 # (V, 3, 4)
     X = np.asarray(points, dtype=float)
     shape = X.shape[:-1]
-    X = np.nan_to_num(X.reshape(-1, 3))
+    Xt = np.nan_to_num(X.reshape(-1, 3)).T
     w = np.stack([np.asarray(k, dtype=bool).reshape(-1) for k in masks])             # (V, N)
-    info = np.zeros((len(X), 3, 3))
+    info = np.zeros((6, Xt.shape[1]))                        # xx, yy, zz, xy, xz, yz
     with np.errstate(divide="ignore", invalid="ignore"):
         for P_v, m in zip(P, w):
-            y = X[m] @ P_v[:, :3].T + P_v[:, 3]
-            z = y[:, 2:3]
-            J = (P_v[None, :2, :3] - (y[:, :2] / z)[:, :, None] * P_v[None, 2:3, :3]) / z[:, :, None]
-            info[m] += np.einsum("nki,nkj->nij", J, J)
-    cov = np.full((len(X), 3, 3), np.nan)
-    ok = (w.sum(0) >= 2) & np.isfinite(info).all((1, 2))
-    ok[ok] = np.linalg.det(info[ok]) > 0
-    cov[ok] = float(pixel_sigma) ** 2 * np.linalg.inv(info[ok])
+            y = P_v[:, :3] @ Xt + P_v[:, 3:4]                                      # (3, N)
+            inv = np.where(m, 1.0 / y[2], 0.0)
+            jx = (P_v[0, :3, None] - P_v[2, :3, None] * (y[0] * inv)) * inv        # (3, N)
+            jy = (P_v[1, :3, None] - P_v[2, :3, None] * (y[1] * inv)) * inv
+            for k, (a, b) in enumerate(SYM3):
+                info[k] += jx[a] * jx[b] + jy[a] * jy[b]
+    adj, det = sym3_adjugate(info)
+    ok = (w.sum(0) >= 2) & np.isfinite(info).all(0)
+    ok[ok] = det[ok] > 0
+    cov = np.full((Xt.shape[1], 3, 3), np.nan)
+    c = float(pixel_sigma) ** 2 * adj[:, ok] / det[ok]
+    cov[ok] = c[[0, 3, 4, 3, 1, 5, 4, 5, 2]].T.reshape(-1, 3, 3)
     return cov.reshape(shape + (3, 3))
 
 

@@ -51,24 +51,26 @@ def translation_error(t_est: np.ndarray, t_true: np.ndarray) -> float:
     return float(np.linalg.norm(t_est * (np.linalg.norm(t_true) / np.linalg.norm(t_est)) - t_true))
 
 
-def pa_mpjpe(pred: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> float:
-    """Procrustes-aligned mean per-joint position error.
+def pa_joint_errors(pred: np.ndarray, truth: np.ndarray,
+                    valid: np.ndarray | None = None) -> np.ndarray:
+    """Each joint's error after its frame's similarity alignment (Umeyama 1991).
 
     Args:
         pred, truth: ``(T, J, 3)`` joints.
-        valid: ``(T, J)`` bool; frames with fewer than 3 valid joints are skipped.
+        valid: ``(T, J)`` bool; the alignment of a frame uses its valid finite joints.
 
     Returns:
-        Mean error over valid joints after a per-frame similarity alignment
-        (Umeyama 1991), in the unit of ``truth``.
+        ``(T, J)`` errors in the unit of ``truth``; NaN off the valid finite joints and in
+        frames of fewer than 3 of them.
     """
     pred, truth = np.asarray(pred, float), np.asarray(truth, float)
     ok = np.isfinite(pred).all(-1) & np.isfinite(truth).all(-1)
     if valid is not None:
         ok &= valid
+    out = np.full(ok.shape, np.nan)
     frames = ok.sum(1) >= 3
     if not frames.any():
-        return float("nan")
+        return out
     w = ok[frames].astype(float)[..., None]                    # (F, J, 1)
     P = np.where(w > 0, pred[frames], 0.0)
     Q = np.where(w > 0, truth[frames], 0.0)
@@ -82,8 +84,24 @@ def pa_mpjpe(pred: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = Non
     R = U @ (diag[:, :, None] * Vt)
     scale = (S * diag).sum(1) / (P0 ** 2).sum((1, 2))
     aligned = scale[:, None, None] * P0 @ R
-    err = np.linalg.norm(aligned - Q0, axis=-1)
-    return float(err[w[..., 0] > 0].mean())
+    out[frames] = np.where(w[..., 0] > 0, np.linalg.norm(aligned - Q0, axis=-1), np.nan)
+    return out
+
+
+def pa_mpjpe(pred: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> float:
+    """Procrustes-aligned mean per-joint position error.
+
+    Args:
+        pred, truth: ``(T, J, 3)`` joints.
+        valid: ``(T, J)`` bool; frames with fewer than 3 valid joints are skipped.
+
+    Returns:
+        Mean error over valid joints after a per-frame similarity alignment
+        (Umeyama 1991; :func:`pa_joint_errors`), in the unit of ``truth``.
+    """
+    err = pa_joint_errors(pred, truth, valid)
+    ok = np.isfinite(err)
+    return float(err[ok].mean()) if ok.any() else float("nan")
 
 
 def _projection_jacobian(K: np.ndarray, Y: np.ndarray) -> np.ndarray:

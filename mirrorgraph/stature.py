@@ -43,11 +43,17 @@ from .anthropometry import (HEIGHT_FRACTION, HEIGHT_FRACTION_CV, KEYPOINT_OFFSET
 from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
-           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "MIN_FRAMES",
-           "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD", "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
+           "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "keypoint_rel_std",
+           "MIN_FRAMES",
+           "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
+           "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
 #: A segment needs at least this many frames with both its end points.
 MIN_FRAMES = 10
+
+#: Most blocks of consecutive frames the stature's sampling std is measured over (batch
+#: means: each block's own stature, their spread; :attr:`StatureEstimate.sampling_rel_std`).
+SAMPLING_BLOCKS = 8
 
 #: The segments' disagreement about the height is the measurement's own where it exceeds
 #: what adults and keypoints give with this probability (one-sided: a body measured right
@@ -126,6 +132,12 @@ class StatureEstimate:
         bones_rel_spread: the segments' disagreement about the height beyond the spread
             of adults and keypoints (:func:`bones_rel_spread` of :attr:`bone_ratios`),
             relative; ``0`` where it is within it.
+        sampling_rel_std: the height's relative std from the frames measured (batch
+            means: the frames cut into up to :data:`SAMPLING_BLOCKS` blocks of consecutive
+            frames, each block's stature from its own medians, their standard error; the
+            frames' correlation in time stays inside the blocks); it shrinks with the
+            frames, unlike :func:`measurement_rel_std`'s spreads, which a longer video
+            does not average out; NaN with fewer than three blocks of ``min_frames``.
     """
 
     height: float
@@ -136,6 +148,7 @@ class StatureEstimate:
     side_rel_diff: float = 0.0
     bone_ratios: dict[str, float] = field(default_factory=dict)
     bones_rel_spread: float = 0.0
+    sampling_rel_std: float = float("nan")
 
     def describe(self) -> str:
         """One line for reports: what was measured and what was assumed."""
@@ -151,7 +164,8 @@ class StatureEstimate:
                                top=self.top, unmeasured_fraction=self.unmeasured_fraction,
                                frames=self.frames, side_rel_diff=self.side_rel_diff,
                                bone_ratios=dict(self.bone_ratios),
-                               bones_rel_spread=self.bones_rel_spread)
+                               bones_rel_spread=self.bones_rel_spread,
+                               sampling_rel_std=self.sampling_rel_std)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
@@ -160,6 +174,8 @@ class StatureEstimate:
                 "frames": int(self.frames), "side_rel_diff": float(self.side_rel_diff),
                 "bone_ratios": {k: float(v) for k, v in self.bone_ratios.items()},
                 "bones_rel_spread": float(self.bones_rel_spread),
+                "sampling_rel_std": (float(self.sampling_rel_std)
+                                     if math.isfinite(self.sampling_rel_std) else None),
                 "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
@@ -248,10 +264,42 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     side = abs(legs[0] - legs[1]) / (legs[0] + legs[1])
     height = sum(segments.values()) / (1.0 - unmeasured)
     ratios = {k: v / height for k, v in _segment_statures(P, skeleton, trunk, min_frames).items()}
+    per_frame = {"shank": np.stack([bone[(s, "knee", "ankle")] for s in sides], 1),
+                 "thigh": np.stack([bone[(s, "hip", "knee")] for s in sides], 1),
+                 "trunk": trunk[:, None], "head": head[:, None]}
+    sampling = _sampling_rel_std(per_frame, height, 1.0 - unmeasured, min_frames)
     return StatureEstimate(height=height, segments=segments, top=top_name,
                            unmeasured_fraction=unmeasured, frames=frames,
                            side_rel_diff=float(side) if np.isfinite(side) else 0.0,
-                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios))
+                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios),
+                           sampling_rel_std=sampling)
+
+
+def _sampling_rel_std(per_frame: dict[str, np.ndarray], height: float, measured: float,
+                      min_frames: int) -> float:
+    """The stature's relative standard error from its frames, by batch means.
+
+    ``per_frame``: segment -> ``(T, k)`` its lengths a frame (both sides for the legs; NaN
+    where not measured); ``height`` the stature of every frame, ``measured`` the part of
+    it the segments make (``1 -`` the unmeasured fraction). The ``T`` frames are cut into
+    ``B`` blocks of consecutive frames (at most :data:`SAMPLING_BLOCKS`, each of at least
+    ``min_frames``); each block's stature is its segments' medians summed over
+    ``measured``, and the standard error of the whole is their standard deviation over
+    ``sqrt(B)`` (the batch-means estimator of a correlated series' mean: G. S. Fishman,
+    *Monte Carlo*, Springer 1996, sec. 6.6). Returns NaN with fewer than three blocks."""
+    T = len(next(iter(per_frame.values())))
+    blocks = min(SAMPLING_BLOCKS, T // max(min_frames, 1))
+    if blocks < 3:
+        return float("nan")
+    edges = np.linspace(0, T, blocks + 1).astype(int)
+    heights = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        parts = [_median(v[a:b].ravel()) for v in per_frame.values()]
+        if min(n for _, n in parts) >= 3:
+            heights.append(sum(m for m, _ in parts) / measured)
+    if len(heights) < 3:
+        return float("nan")
+    return float(np.std(heights, ddof=1) / np.sqrt(len(heights)) / height)
 
 
 def _segment_statures(P: np.ndarray, skeleton: Skeleton, trunk: np.ndarray, min_frames: int
@@ -353,12 +401,42 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
     return float(brentq(lambda e: scale(e) - 1.0, 0.0, 10.0, xtol=1e-14))
 
 
-def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
-    """The stature measurement's own relative std, as far as the data show it: the metric
-    scale's share beyond the height's prior (``RefineOptions.height_sigma``), for a single
-    mirror, a rig and the live scale alike.
+def keypoint_rel_std(top: str = "eyes") -> float:
+    """The stature's relative std from where a detector places the chain's two end
+    keypoints against Winter's landmarks.
 
-    Two views of a distorted reconstruction, added in quadrature:
+    The chain's segments are stacked (shank, thigh, trunk, head along the trunk), so a
+    keypoint inside it (knee, hip, shoulder) moved along the body lengthens one segment by
+    what it shortens the next: to first order only the ankle and the top (eyes or head top)
+    move the sum. Each lies :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` ``o`` (a
+    fraction of the height) off its landmark, independently (L. Needham et al., *Sci.
+    Rep.* 11, 20673, 2021: video-based joint centres a few centimetres off the
+    marker-based ones, systematically, per detector), and the sum is ``1 - u`` of the
+    height (``u`` the unmeasured fraction): ``sqrt(2) o / (1 - u)``, 2.7 % with the eyes
+    as top, 2.5 % with the head top. A detector's bias, so a longer video does not average
+    it out. On the Pose2Sim demo trial (4 Qualisys cameras) OpenPose's and BlazePose's
+    keypoints give statures 4.5 % apart, a detector's std of 3.2 % from that one pair
+    (``|a - b| / sqrt(2)``; ``bench/RESULTS_stature_real.md``).
+
+    Args:
+        top: ``"eyes"`` or ``"head_top"`` (:attr:`StatureEstimate.top`).
+
+    Returns:
+        The relative std (dimensionless).
+    """
+    above = (1.0 - LANDMARK_HEIGHT["vertex"] if top == "head_top"
+             else LANDMARK_HEIGHT["vertex"] - LANDMARK_HEIGHT["eye"])
+    return math.sqrt(2.0) * KEYPOINT_OFFSET / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
+
+
+def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
+    """The stature measurement's own relative std: the metric scale's share beyond the
+    height's prior (``RefineOptions.height_sigma``), for a single mirror, a rig and the
+    live scale alike.
+
+    The detector's placement of the chain's end keypoints (:func:`keypoint_rel_std`, a
+    prior: no video shows it) and two views of a distorted reconstruction, added in
+    quadrature:
 
     - the two legs apart (:attr:`StatureEstimate.side_rel_diff`): each leg measured with
       a relative error of std ``s``, ``(L - R) / (L + R)`` has std ``s / sqrt(2)``, as has
@@ -374,9 +452,11 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
     trunk 20 % short, the distance 23.5 % off: the height's 2 % and the legs' 1.7 % apart
     give 2.6 %, the segments' term 21.1 % (``bench/RESULTS_scale_spread.md``: largest
     error/std over 12 such scenes 9.0 -> 2.4, over 12 of 3600 frames 3.0, 12 iid scenes
-    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %). A
-    distortion within the spread of adults and keypoints (up to ~10 % of the stature) is
-    not seen: a 3600-frame scene's distance is 6.1 % off at 2.0 %.
+    unchanged at 0.4 with std 2.0 %, the Pose2Sim trials within 0.9 % at 2.6-3.1 %, all
+    without the end keypoints' term). A distortion within the spread of adults and
+    keypoints (up to ~10 % of the stature) is not seen by the last two: a 3600-frame
+    scene's distance is 6.1 % off, at 2.0 % without the end keypoints' term and 3.4 %
+    with it.
 
     Args:
         stature: the estimate, or its :meth:`StatureEstimate.to_dict` record (as a
@@ -390,9 +470,10 @@ def measurement_rel_std(stature: StatureEstimate | dict | None) -> float:
     if isinstance(stature, dict):
         side = stature.get("side_rel_diff") or 0.0
         bones = stature.get("bones_rel_spread") or 0.0
+        top = stature.get("top") or "eyes"
     else:
-        side, bones = stature.side_rel_diff, stature.bones_rel_spread
-    return float(np.hypot(float(side), float(bones)))
+        side, bones, top = stature.side_rel_diff, stature.bones_rel_spread, stature.top
+    return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + keypoint_rel_std(top) ** 2))
 
 
 _LIMBS = "limb proportions (sum of the limb bones at Winter's fractions of the height)"

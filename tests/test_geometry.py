@@ -116,3 +116,22 @@ def test_points_helper_in_front():
     n, d = random_mirror(rng)
     X = points_in_front(rng, n, d, 50)
     assert np.all(X @ n < d) and np.all(X[:, 2] > 0)
+
+
+def test_symmetric_3x3_in_closed_form():
+    """solve_sym3 / sym3_adjugate (the triangulations' normal equations) against LAPACK,
+    on matrices conditioned up to 1e6 (two rays meeting at a small angle)."""
+    rng = np.random.default_rng(3)
+    Q = np.linalg.qr(rng.normal(size=(500, 3, 3)))[0]
+    lam = np.stack([np.ones(500), rng.uniform(1e-3, 1, 500), 10.0 ** rng.uniform(-6, 0, 500)], 1)
+    H = (Q * lam[:, None, :]) @ Q.transpose(0, 2, 1) * rng.uniform(1e-4, 1e4, (500, 1, 1))
+    b = rng.normal(size=(500, 3))
+    six = np.stack([H[:, a, c] for a, c in geo.SYM3])
+    want = np.linalg.solve(H, b[..., None])[..., 0]
+    scale = np.linalg.norm(want, axis=1)
+    got = geo.solve_sym3(six, b.T).T
+    assert np.all(np.linalg.norm(got - want, axis=1) <= 1e-8 * scale)
+    adj, det = geo.sym3_adjugate(six)
+    assert np.allclose(det, np.linalg.det(H), rtol=1e-8)
+    again = geo.sym3_product(adj, b.T).T / det[:, None]
+    assert np.all(np.linalg.norm(again - want, axis=1) <= 1e-8 * scale)

@@ -122,8 +122,16 @@ class SmoothnessFactor:
             return
         c = self.coefficients(frames)                                         # (M, 3)
         a = np.einsum("mk,mki->mi", c, np.asarray(X, dtype=float))             # (M, 3)
-        blocks = c[:, :, None, None] * np.eye(3)                               # (M, 3, 3, 3)
-        noise = self._noise
-        make, wrap = gtsam.JacobianFactor, gtsam.LinearContainerFactor
-        for (k0, k1, k2), (b0, b1, b2), ai in zip(keys.tolist(), blocks, -a):
-            graph.push_back(wrap(make(k0, b0, k1, b1, k2, b2, ai, noise), linearization_point))
+        # the blocks of each distinct coefficient triple made once (most triples have
+        # unit steps: one triple), the factors collected in a linear graph and wrapped
+        # by GTSAM at once (LinearContainerFactor.ConvertLinearGraph: the same factors)
+        uniq, which = np.unique(c, axis=0, return_inverse=True)
+        blocks = [[ck * np.eye(3) for ck in row] for row in uniq]
+        noise, make = self._noise, gtsam.JacobianFactor
+        linear = gtsam.GaussianFactorGraph()
+        rhs = -a
+        for i, ((k0, k1, k2), u) in enumerate(zip(keys.tolist(), which.ravel().tolist())):
+            b0, b1, b2 = blocks[u]
+            linear.push_back(make(k0, b0, k1, b1, k2, b2, rhs[i], noise))
+        graph.push_back(gtsam.LinearContainerFactor.ConvertLinearGraph(linear,
+                                                                       linearization_point))

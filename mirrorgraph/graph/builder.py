@@ -182,30 +182,35 @@ def _reprojection_factors(rig: Rig, used: np.ndarray, planes: list[tuple[np.ndar
     repro = gtsam.NonlinearFactorGraph()
     links = gtsam.NonlinearFactorGraph()
     virtual_keys: dict[int, int] = {}
-    if priors:
-        noise = robust_pixel_noise(options.pixel_sigma, final_kernel,
-                                   options.final_kernel_scale_px)
-    else:
-        noise = robust_pixel_noise(options.pixel_sigma, options.robust_kernel,
-                                   options.kernel_scale_px)
+    kernel, scale = ((final_kernel, options.final_kernel_scale_px) if priors
+                     else (options.robust_kernel, options.kernel_scale_px))
+    noise = robust_pixel_noise(options.pixel_sigma, kernel, scale)
+    J = used.shape[1]
     for vi, view in enumerate(rig.views):
         ci = rig.camera_index(view.camera)
         cam = rig.cameras[ci]
         ck = var.camera_keys.get(ci)
-        fac = ReprojectionFactors(cam.K, noise, cam.gtsam_pose)
         mask = used & np.asarray(view.mask, dtype=bool)
-        idx = np.flatnonzero(mask.ravel())
-        uv = np.asarray(view.pixels, dtype=float).reshape(-1, 2)[idx]
         calib = var.calibration_keys.get(ci)
         if view.mirror is None:
-            if calib is not None:
-                pose_key = ck if ck is not None else var.held_pose_keys[ci]
-                fac.add_calibrated(repro, uv, pose_key, calib[0], keys.ravel()[idx])
-            elif ck is None:
-                fac.add_direct(repro, uv, keys.ravel()[idx])
-            else:
-                fac.add_posed(repro, uv, ck, keys.ravel()[idx])
+            # one factory per weight of the view's joint columns (View.weight)
+            w = np.ones(J) if view.weight is None else np.asarray(view.weight, float)
+            for wv in np.unique(w):
+                fac = ReprojectionFactors(cam.K, noise if wv == 1.0 else robust_pixel_noise(
+                    options.pixel_sigma / np.sqrt(wv), kernel, scale), cam.gtsam_pose)
+                idx = np.flatnonzero((mask & (w == wv)[None, :]).ravel())
+                uv = np.asarray(view.pixels, dtype=float).reshape(-1, 2)[idx]
+                if calib is not None:
+                    pose_key = ck if ck is not None else var.held_pose_keys[ci]
+                    fac.add_calibrated(repro, uv, pose_key, calib[0], keys.ravel()[idx])
+                elif ck is None:
+                    fac.add_direct(repro, uv, keys.ravel()[idx])
+                else:
+                    fac.add_posed(repro, uv, ck, keys.ravel()[idx])
             continue
+        fac = ReprojectionFactors(cam.K, noise, cam.gtsam_pose)
+        idx = np.flatnonzero(mask.ravel())
+        uv = np.asarray(view.pixels, dtype=float).reshape(-1, 2)[idx]
         m = rig.mirror_index(view.mirror)
         vk = V_(vi)
         virtual_keys[vi] = vk

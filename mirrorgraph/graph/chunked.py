@@ -42,10 +42,12 @@ linear in the frames, memory bounded by a chunk per worker.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import multiprocessing
 import os
 import sys
+import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
@@ -216,10 +218,12 @@ class _Runner:
     """Runs chunk jobs in this process and in ``workers - 1`` more processes at once.
 
     This process takes jobs from the end of the list while the others take them from
-    the front, so that it never idles waiting on them; the results are returned in
-    the jobs' order (the sums do not depend on the workers). The workers are started
-    when the runner is made, before the subset's solve, so that their start-up (an
-    interpreter, GTSAM's import: about a second each) overlaps it.
+    the front, so that it never idles waiting on them; a thread of this process hands
+    the next job to a worker as soon as it is free (a worker does not wait for this
+    process's job to end). The results are returned in the jobs' order (the sums do not
+    depend on the workers). The workers are started when the runner is made, before the
+    subset's solve, so that their start-up (an interpreter, GTSAM's import: about a
+    second each) overlaps it.
 
     The workers are spawned (a fresh interpreter: a forked one would inherit the
     locks of any thread the caller runs, JAX's or PyTorch's say, and may deadlock),
@@ -241,6 +245,35 @@ class _Runner:
 
     def map(self, fn, jobs: list, counter) -> list[_ChunkResult]:
         out: list = [None] * len(jobs)
+        pending = collections.deque(range(len(jobs)))
+        lock = threading.Lock()
+        failed: list[BaseException] = []
+
+        def take(front: bool) -> int | None:
+            with lock:
+                if not pending:
+                    return None
+                return pending.popleft() if front else pending.pop()
+
+        def feed() -> None:                    # the workers' jobs, from the front
+            running: dict = {}
+            try:
+                while True:
+                    while len(running) < self.size:
+                        i = take(front=True)
+                        if i is None:
+                            break
+                        running[self.pool.submit(fn, jobs[i])] = i
+                    if not running:
+                        return
+                    for f in wait(running, return_when=FIRST_COMPLETED).done:
+                        out[running.pop(f)] = f.result()
+            except BaseException as exc:      # raised in the caller's thread
+                failed.append(exc)
+                with lock:
+                    pending.clear()
+                wait(running)
+
         reported = 0
 
         def report() -> None:                  # in order, as the first results complete
@@ -250,21 +283,24 @@ class _Runner:
                 if counter is not None:
                     counter(reported, float(out[reported - 1].final_error))
 
-        pending = list(range(len(jobs)))
-        running: dict = {}
-        while pending or running:
-            while self.pool is not None and pending and len(running) < self.size:
-                i = pending.pop(0)
-                running[self.pool.submit(fn, jobs[i])] = i
-            if pending:                        # this process: the last job left
-                i = pending.pop() if self.pool is not None else pending.pop(0)
+        feeder = None
+        if self.pool is not None:
+            feeder = threading.Thread(target=feed, name="mirrorgraph-chunks", daemon=True)
+            feeder.start()
+        try:
+            while (i := take(front=self.pool is None)) is not None:   # this process's jobs
                 out[i] = fn(jobs[i])
-                finished = [f for f in running if f.done()]
-            else:
-                finished = list(wait(running, return_when=FIRST_COMPLETED).done)
-            for f in finished:
-                out[running.pop(f)] = f.result()
-            report()
+                report()
+        except BaseException:
+            with lock:
+                pending.clear()
+            raise
+        finally:
+            if feeder is not None:
+                feeder.join()
+        if failed:
+            raise failed[0]
+        report()
         return out
 
     def close(self) -> None:

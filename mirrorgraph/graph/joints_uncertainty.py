@@ -8,7 +8,7 @@ in four parts:
 
 * ``H_xx^-1``: the joints' information from their views and the body priors, scaled by
   the noise the data show (``s^2``); a joint's chain of frames with its smoothness is
-  inverted exactly by a two-sweep block recursion (:func:`chain_marginals`);
+  inverted exactly by cyclic reduction (:func:`chain_marginals`);
 * ``B``: the detector's bias, from the residuals' mean per joint and view
   (:func:`_bias_weights`);
 * ``G C_z G^T``: the reduced globals' covariance ``C_z`` (planes, estimated poses and
@@ -54,9 +54,13 @@ __all__ = ["graph_joints_covariance", "chain_marginals", "triangulated_covarianc
 #: entry on its diagonal (a relative std of ~3e4 where nothing in the frame fixes it).
 RIDGE = 1e-9
 
-#: Frames per group of :func:`chain_marginals` (its loop runs ``2 N / g`` times, each a
-#: batch of ``3 g x 3 g`` solves: 2 is the fastest, measured against 3-8).
+#: Frames per group of :func:`chain_marginals` (``3 g x 3 g`` blocks, ``log2(N / g)``
+#: levels of cyclic reduction: 2, the smallest, is the fastest).
 CHAIN_GROUP = 2
+
+#: Chains :func:`chain_marginals` reduces at once (memory: ``~50 x chains x frames x g``
+#: 8-byte numbers; a few chains at a time stay in the caches better than many).
+CHAIN_BATCH = 4
 
 #: Frames whose per-frame blocks are formed at once (memory: ``frames x (3 J)^2``).
 FRAME_BATCH = 2048
@@ -115,11 +119,31 @@ def with_disagreement(cov: np.ndarray, points: np.ndarray, rays: np.ndarray,
     ok = np.isfinite(d).all(-1) & np.isfinite(C).all((-2, -1))
     m2 = np.zeros(ok.shape)
     if ok.any():
-        Ci = np.linalg.pinv(C[ok], hermitian=True)
-        m2[ok] = np.einsum("ni,nij,nj->n", d[ok], Ci, d[ok])
+        m2[ok] = _mahalanobis2(C[ok], d[ok])
     wide = ok & (m2 > float(threshold))
     cov[wide] += d[wide][:, :, None] * d[wide][:, None, :]
     return cov, wide
+
+
+def _mahalanobis2(C: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``(n,)`` ``d^T C^+ d`` of symmetric positive semi-definite ``(n, 3, 3)`` ``C`` and
+    ``(n, 3)`` ``d``: the adjugate over the determinant where ``C`` is well conditioned,
+    the pseudo-inverse (its lower triangle, as :func:`numpy.linalg.pinv` reads it) where
+    not."""
+    H = np.stack([C[:, a, b] if a == b else C[:, b, a] for a, b in geo.SYM3])   # lower
+    adj, det = geo.sym3_adjugate(H)
+    scale = (H[0] + H[1] + H[2]) / 3.0
+    fine = det > 1e-6 * np.abs(scale) ** 3
+    dt = d.T
+    out = np.empty(len(d))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[fine] = (np.einsum("in,in->n", dt[:, fine], geo.sym3_product(adj[:, fine],
+                                                                          dt[:, fine]))
+                     / det[fine])
+    if not fine.all():
+        Ci = np.linalg.pinv(C[~fine], hermitian=True)
+        out[~fine] = np.einsum("ni,nij,nj->n", d[~fine], Ci, d[~fine])
+    return out
 
 
 # --------------------------------------------------------------------------- globals
@@ -251,25 +275,31 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     u = [px[t, j] for px in pixels]
     sigma = float(opts.pixel_sigma)               # whitened as the graph's rows, scaled below
     P0 = views(np.zeros(0))
-    Jv, r = [], []
-    for P, uv in zip(P0, u):
-        y = X @ P[:, :3].T + P[:, 3]
-        Jv.append((P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3])
-                  / y[:, 2, None, None] / sigma)
-        r.append((y[:, :2] / y[:, 2:3] - uv) / sigma)
-    Hv = [np.where(mk[:, None, None], np.einsum("nri,nrj->nij", Jx, Jx), 0.0)
-          for mk, Jx in zip(m, Jv)]
-    H = Hv[0] + Hv[1]
-    ok = np.linalg.det(H) > 0
-    Hinv = np.zeros_like(H)
-    Hinv[ok] = np.linalg.inv(H[ok])
-    # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
     T, J = used.shape
-    Hb = np.zeros_like(H)
+    # each view's information on the point (six entries xx, yy, zz, xy, xz, yz, whitened
+    # as the graph's rows) and its whitened residuals, (n,) columns
+    Hv, r = [], []
+    Xt = X.T
+    for P, uv, mk in zip(P0, u, m):
+        y = P[:, :3] @ Xt + P[:, 3:4]
+        inv = 1.0 / y[2]
+        px, py = y[0] * inv, y[1] * inv
+        jx = (P[0, :3, None] - P[2, :3, None] * px) * (inv / sigma)
+        jy = (P[1, :3, None] - P[2, :3, None] * py) * (inv / sigma)
+        Hv.append(np.where(mk, np.stack([jx[a] * jx[b] + jy[a] * jy[b]
+                                         for a, b in geo.SYM3]), 0.0))
+        r.append(np.stack([px - uv[:, 0], py - uv[:, 1]], 1) / sigma)
+    adj, det = geo.sym3_adjugate(Hv[0] + Hv[1])
+    ok = det > 0
+    Hinv = np.zeros((len(t), 3, 3))
+    Hinv[ok] = _full3(adj[:, ok] / det[ok])
+    # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
+    Hb6 = np.zeros_like(Hv[0])
     for mk, rv, Hk in zip(m, r, Hv):
         cnt = np.maximum(np.bincount(j[mk], minlength=J), 1)
         mean = np.stack([np.bincount(j[mk], rv[mk, i], minlength=J) for i in range(2)], 1)
-        Hb += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j][:, None, None] * Hk
+        Hb6 += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j] * Hk
+    Hb = _full3(Hb6)
     marg = np.full((T, J, 3, 3), np.nan)
     marg[t[ok], j[ok]] = Hinv[ok]
     used_ok = np.zeros((T, J), bool)
@@ -279,7 +309,9 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
                                   opts.smoothness_max_gap)
         band = _smoothness_band(used_ok, rig.frame_ids, smooth)
         if band is not None:
-            marg = _chain_solve(marg, used_ok, band)
+            info = np.zeros((T, J, 3, 3))
+            info[t[ok], j[ok]] = _full3((Hv[0] + Hv[1])[:, ok])
+            marg = _chain_solve(marg, used_ok, band, info)
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
@@ -289,6 +321,12 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
                  + np.nan_to_num(glob))
     cov[~used_ok] = np.nan
     return cov
+
+
+def _full3(S: np.ndarray) -> np.ndarray:
+    """``(n, 3, 3)`` symmetric matrices from their six entries ``(6, n)`` (xx, yy, zz, xy,
+    xz, yz)."""
+    return S[[0, 3, 4, 3, 1, 5, 4, 5, 2]].T.reshape(-1, 3, 3)
 
 
 def view_projections(rig: Rig, poses: list[np.ndarray], planes: list[tuple[np.ndarray, float]]
@@ -678,12 +716,15 @@ def _smoothness_band(used: np.ndarray, frame_ids, smooth: SmoothnessFactor
     return w[..., None, None] * np.eye(3) if found else None
 
 
-def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray) -> np.ndarray:
-    """:func:`_with_smoothness` given the smoothness's block band ``(3, J, N, 3, 3)``."""
+def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray,
+                 info: np.ndarray | None = None) -> np.ndarray:
+    """:func:`_with_smoothness` given the smoothness's block band ``(3, J, N, 3, 3)``
+    (``info``: ``marg``'s inverse where known, else inverted here)."""
     J, N = band.shape[1:3]
     ok = np.isfinite(marg).all((-2, -1)) & used
-    info = np.zeros_like(marg)
-    info[ok] = np.linalg.inv(marg[ok])
+    if info is None:
+        info = np.zeros_like(marg)
+        info[ok] = np.linalg.inv(marg[ok])
     diag, off1, off2 = band
     # the per-frame information on the diagonal, identity on the padding
     t_of = np.full((J, N), -1)
@@ -706,63 +747,143 @@ def _chain_solve(marg: np.ndarray, used: np.ndarray, band: np.ndarray) -> np.nda
 
 
 def chain_marginals(diag: np.ndarray, off1: np.ndarray, off2: np.ndarray,
-                    group: int = CHAIN_GROUP) -> np.ndarray:
+                    group: int = CHAIN_GROUP, rhs: np.ndarray | None = None):
     """The diagonal ``3 x 3`` blocks of the inverse of block-banded information matrices.
 
     Each of ``B`` chains of ``N`` blocks has ``H[i, i] = diag[i]``, ``H[i, i + 1] =
     off1[i]``, ``H[i, i + 2] = off2[i]`` (and their transposes): the smoothness over a
     joint's consecutive estimates. Groups of ``g`` blocks (``g >= 2``) make it
-    block-tridiagonal with ``3 g x 3 g`` blocks ``D_k``, ``U_k = H[k, k + 1]``; the
-    information the chain above block ``k`` leaves on it, ``F_k = D_k - U_{k-1}^T
-    F_{k-1}^-1 U_{k-1}``, and the chain below, ``E_k = D_k - U_k E_{k+1}^-1 U_k^T``, give
-    its marginal covariance ``(F_k + E_k - D_k)^-1`` (the two sides are independent
-    given block ``k``). ``2 N / g`` batched solves.
+    block-tridiagonal with ``3 g x 3 g`` blocks, whose inverse's diagonal blocks
+    :func:`_tridiagonal_marginals` gives by cyclic reduction: every chain and every
+    block of a level at once, ``log2(N / g)`` levels.
 
     Args:
         diag, off1, off2: ``(B, N, 3, 3)``; the entries past a chain's end are ignored
             (``off1[N-1]``, ``off2[N-2:]``).
         group: ``g``, blocks per group.
+        rhs: ``(B, N, 3)``: also solve ``H x = rhs``.
 
     Returns:
-        ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``.
+        ``(B, N, 3, 3)`` the diagonal blocks of ``H^-1``; with ``rhs`` ``x`` ``(B, N, 3)``
+        and them.
     """
     g = max(int(group), 2)
     Bn, N = diag.shape[:2]
+    if Bn > CHAIN_BATCH:
+        parts = [chain_marginals(diag[b:b + CHAIN_BATCH], off1[b:b + CHAIN_BATCH],
+                                 off2[b:b + CHAIN_BATCH], g,
+                                 None if rhs is None else rhs[b:b + CHAIN_BATCH])
+                 for b in range(0, Bn, CHAIN_BATCH)]
+        if rhs is None:
+            return np.concatenate(parts)
+        return tuple(np.concatenate(p) for p in zip(*parts))
     M = -(-N // g)
     pad = M * g - N
-    eye = np.broadcast_to(np.eye(3), (Bn, pad, 3, 3))
-    zero = np.zeros((Bn, pad, 3, 3))
-    diag = np.concatenate([diag, eye], axis=1)
-    off1 = np.concatenate([off1, zero], axis=1)
-    off2 = np.concatenate([off2, zero], axis=1)
-    off1[:, N - 1:] = 0.0
-    off2[:, max(N - 2, 0):] = 0.0
-    # H as (B, M, g, 3, 3) blocks within a group (D) and to the next group (U)
-    D = np.zeros((Bn, M, g, g, 3, 3))
-    U = np.zeros((Bn, M, g, g, 3, 3))
-    d, o1, o2 = (x.reshape(Bn, M, g, 3, 3) for x in (diag, off1, off2))
+
+    def grouped(x: np.ndarray, fill: np.ndarray, valid: int) -> np.ndarray:
+        """``(M, B, g, 3, 3)``: the chain's blocks by group, zero past ``valid``."""
+        x = np.concatenate([x, np.broadcast_to(fill, (Bn, pad, 3, 3))], axis=1)
+        x = np.moveaxis(x.reshape(Bn, M, g, 3, 3), 0, 1)
+        keep = (np.arange(M * g) < valid).reshape(M, 1, g, 1, 1)
+        return x * keep
+
+    d = grouped(diag, np.eye(3), M * g)
+    o1, o2 = grouped(off1, np.zeros((3, 3)), N - 1), grouped(off2, np.zeros((3, 3)), N - 2)
+    # H as (M, B) blocks within a group (D) and to the next group (U)
+    D = np.zeros((M, Bn, g, 3, g, 3))
+    U = np.zeros((M, Bn, g, 3, g, 3))
     for i in range(g):
-        D[:, :, i, i] = d[:, :, i]
+        D[:, :, i, :, i, :] = d[:, :, i]
         for k, o in ((1, o1), (2, o2)):
             if i + k < g:
-                D[:, :, i, i + k] = o[:, :, i]
-                D[:, :, i + k, i] = np.swapaxes(o[:, :, i], -1, -2)
+                D[:, :, i, :, i + k, :] = o[:, :, i]
+                D[:, :, i + k, :, i, :] = np.swapaxes(o[:, :, i], -1, -2)
             else:
-                U[:, :, i, i + k - g] = o[:, :, i]
-    D = D.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
-    U = U.transpose(0, 1, 2, 4, 3, 5).reshape(Bn, M, 3 * g, 3 * g)
-    Ut = np.swapaxes(U, -1, -2)
-    F = np.empty_like(D)
-    E = np.empty_like(D)
-    F[:, 0] = D[:, 0]
-    for k in range(1, M):
-        F[:, k] = D[:, k] - Ut[:, k - 1] @ np.linalg.solve(F[:, k - 1], U[:, k - 1])
-    E[:, M - 1] = D[:, M - 1]
-    for k in range(M - 2, -1, -1):
-        E[:, k] = D[:, k] - U[:, k] @ np.linalg.solve(E[:, k + 1], Ut[:, k])
-    C = np.linalg.inv(F + E - D).reshape(Bn, M, g, 3, g, 3)
-    out = C[:, :, np.arange(g), :, np.arange(g), :]                    # (g, B, M, 3, 3)
-    return out.transpose(1, 2, 0, 3, 4).reshape(Bn, M * g, 3, 3)[:, :N]
+                U[:, :, i, :, i + k - g, :] = o[:, :, i]
+    b = None
+    if rhs is not None:
+        b = np.concatenate([rhs, np.zeros((Bn, pad, 3))], axis=1).reshape(Bn, M, 3 * g)
+        b = np.moveaxis(b, 0, 1)[..., None]                                  # (M, B, 3g, 1)
+    C = _tridiagonal_marginals(D.reshape(M, Bn, 3 * g, 3 * g), U.reshape(M, Bn, 3 * g, 3 * g),
+                               b=b)
+    C, x = C if rhs is not None else (C, None)
+    C = C.reshape(M, Bn, g, 3, g, 3)
+    out = np.stack([C[:, :, i, :, i, :] for i in range(g)], axis=2)        # (M, B, g, 3, 3)
+    marg = np.moveaxis(out, 1, 0).reshape(Bn, M * g, 3, 3)[:, :N]
+    if rhs is None:
+        return marg
+    return np.moveaxis(x[..., 0], 1, 0).reshape(Bn, M * g, 3)[:, :N], marg
+
+
+def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False,
+                           b: np.ndarray | None = None):
+    """The diagonal blocks of the inverse of symmetric positive definite block-tridiagonal
+    matrices, by cyclic reduction (Golub and Van Loan, *Matrix Computations*, 4th ed.,
+    sec. 4.5.4) run backwards for the covariance.
+
+    The odd blocks ``i`` are eliminated, every one at once: the even ones keep
+    ``D_e - U_{e-1}^T D_{e-1}^-1 U_{e-1} - U_e D_{e+1}^-1 U_e^T`` and couple to the next
+    even one by ``-U_e D_{e+1}^-1 U_{e+1}``, a system half the size, solved the same way.
+    Given the covariance of an odd block's two neighbours ``l, r`` (their blocks and
+    ``Sigma_lr``), its own is ``D_i^-1 + A Sigma_nb A^T`` and its cross-covariances
+    ``-A Sigma_nb``, ``A = D_i^-1 [H_il, H_ir]``; with a right-hand side ``b`` the
+    reduction carries it along and its solution is ``x_i = D_i^-1 b_i - A x_nb``.
+
+    Args:
+        D: ``(m, B, s, s)`` the diagonal blocks of ``B`` matrices; U: ``(m, B, s, s)``
+            ``H[k, k + 1]`` (``U[m - 1]`` zero).
+        off: also return ``Sigma[k, k + 1]`` ``(m - 1, B, s, s)``.
+        b: ``(m, B, s, 1)``: also solve ``H x = b``.
+
+    Returns:
+        ``(m, B, s, s)`` the inverse's diagonal blocks, with ``off`` the next ones, with
+        ``b`` the solution ``(m, B, s, 1)`` (in that order).
+    """
+    m = len(D)
+    if m == 1:
+        S = np.linalg.inv(D)
+        out = (S,) + ((np.zeros((0,) + D.shape[1:]),) if off else ()) + (
+            (S @ b,) if b is not None else ())
+        return out if len(out) > 1 else S
+    tr = lambda x: np.swapaxes(x, -1, -2)                                # noqa: E731
+    mo, me = m // 2, m - m // 2
+    nr = me - 1                                       # odd blocks with a right neighbour
+    Di = np.linalg.inv(D[1::2])
+    Ul = U[0:2 * mo:2]                                # H[i - 1, i], odd i
+    R = U[1::2][:nr]                                  # H[i, i + 1]
+    Al, Ar = Di @ tr(Ul), Di[:nr] @ R
+    Dc = D[0::2].copy()
+    Dc[:mo] -= Ul @ Al
+    Dc[1:] -= tr(R) @ Ar
+    Uc = np.zeros_like(Dc)
+    Uc[:nr] = -(Ul[:nr] @ Ar)
+    bc = None
+    if b is not None:
+        Db = Di @ b[1::2]                                 # D_i^-1 b_i, odd i
+        bc = b[0::2].copy()
+        bc[:mo] -= Ul @ Db
+        bc[1:] -= tr(R) @ Db[:nr]
+    Sc, Oc, *xc = _tridiagonal_marginals(Dc, Uc, off=True, b=bc)
+    Sil = -(Al @ Sc[:mo])                             # Sigma[i, i - 1]
+    Sil[:nr] -= Ar @ tr(Oc)
+    Sir = -(Al[:nr] @ Oc + Ar @ Sc[1:])               # Sigma[i, i + 1]
+    Si = Di - Sil @ tr(Al)
+    Si[:nr] -= Sir @ tr(Ar)
+    S = np.empty_like(D)
+    S[0::2], S[1::2] = Sc, Si
+    out = (S,)
+    if off:
+        O = np.empty((m - 1,) + D.shape[1:])
+        O[0::2], O[1::2] = tr(Sil), Sir
+        out += (O,)
+    if b is not None:
+        x = np.empty_like(b)
+        x[0::2] = xc[0]
+        xi = Db - Al @ xc[0][:mo]
+        xi[:nr] -= Ar @ xc[0][1:]
+        x[1::2] = xi
+        out += (x,)
+    return out if len(out) > 1 else S
 
 
 # --------------------------------------------------------------------------- triangulated
@@ -811,37 +932,45 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
         return cov
     n = len(Cz)
     Xs = np.nan_to_num(X)
-    info = np.zeros((len(X), 3, 3))
-    rhs = np.zeros((len(X), 3, n))
+    Xt = Xs.T                                                    # (3, N)
+    N = len(X)
+    info = np.zeros((6, N))                                      # xx, yy, zz, xy, xz, yz
+    rhs = np.zeros((3, n, N))
     moved = []                                  # per k: every view's matrix at +-step
     for k in range(n):
         e = np.zeros(n)
         e[k] = step
         moved.append((projections(e), projections(-e)))
-    for vi, (P, m) in enumerate(zip(P0, masks)):
-        m = np.asarray(m, bool).reshape(-1)
-        y = Xs @ P[:, :3].T + P[:, 3]
-        Jx = (P[None, :2, :3] - (y[:, :2] / y[:, 2:3])[:, :, None] * P[None, 2:3, :3]) \
-            / y[:, 2, None, None]
-        info[m] += np.einsum("nri,nrj->nij", Jx[m], Jx[m])
-        Jz = np.zeros((len(X), 2, n))
-        for k in range(n):
-            Pp, Pm = moved[k][0][vi], moved[k][1][vi]
-            if np.array_equal(Pp, Pm):          # a view the globals do not move (the camera)
-                continue
-            yp, ym = Xs @ Pp[:, :3].T + Pp[:, 3], Xs @ Pm[:, :3].T + Pm[:, 3]
-            Jz[:, :, k] = (yp[:, :2] / yp[:, 2:3] - ym[:, :2] / ym[:, 2:3]) / (2 * step)
-        if np.any(Jz):
-            rhs[m] += np.einsum("nri,nrk->nik", Jx[m], Jz[m])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for vi, (P, m) in enumerate(zip(P0, masks)):
+            m = np.asarray(m, bool).reshape(-1)
+            y = P[:, :3] @ Xt + P[:, 3:4]
+            inv = np.where(m, 1.0 / y[2], 0.0)
+            jx = (P[0, :3, None] - P[2, :3, None] * (y[0] * inv)) * inv       # (3, N)
+            jy = (P[1, :3, None] - P[2, :3, None] * (y[1] * inv)) * inv
+            for c, (a, b) in enumerate(geo.SYM3):
+                info[c] += jx[a] * jx[b] + jy[a] * jy[b]
+            for k in range(n):
+                Pp, Pm = moved[k][0][vi], moved[k][1][vi]
+                if np.array_equal(Pp, Pm):      # a view the globals do not move (the camera)
+                    continue
+                yp, ym = Pp[:, :3] @ Xt + Pp[:, 3:4], Pm[:, :3] @ Xt + Pm[:, 3:4]
+                dx = np.where(m, (yp[0] / yp[2] - ym[0] / ym[2]) / (2 * step), 0.0)
+                dy = np.where(m, (yp[1] / yp[2] - ym[1] / ym[2]) / (2 * step), 0.0)
+                rhs[:, k] += jx * dx + jy * dy
+    adj, det = geo.sym3_adjugate(info)
     if cov is None:                      # as geo.triangulation_covariance decides it
         seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
-        ok = seen & np.isfinite(info).all((1, 2))
-        ok[ok] = np.linalg.det(info[ok]) > 0
+        ok = seen & np.isfinite(info).all(0)
+        ok[ok] = det[ok] > 0
         cov = np.where(ok[:, None, None], 0.0, np.nan) * np.ones((1, 3, 3))
     good = np.isfinite(cov).all((1, 2))
-    G = np.zeros((len(X), 3, n))
-    G[good] = -np.linalg.solve(info[good], rhs[good])
+    G = np.zeros((3, n, N))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        G[:, :, good] = -np.stack([geo.sym3_product(adj[:, good], rhs[:, k, good])
+                                   for k in range(n)], axis=1) / det[good]
     if frames is not None and good.any():
+        Gn = G.transpose(2, 0, 1)[good]                          # (M, 3, n)
         rows, inv = np.unique(np.asarray(frames)[good], return_inverse=True)
         cols = np.zeros(int(good.sum()), dtype=np.int64)
         order = np.argsort(inv, kind="stable")
@@ -851,9 +980,11 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
         Gp = np.zeros((len(rows), width, 3, n))
         Xp = np.zeros((len(rows), width, 3))
         up = np.zeros((len(rows), width), bool)
-        Gp[inv, cols], Xp[inv, cols], up[inv, cols] = G[good], Xs[good], True
-        G[good] = _without_scale(Gp, Xp, up)[inv, cols]
-    return cov + np.einsum("nik,kl,njl->nij", G, Cz, G)
+        Gp[inv, cols], Xp[inv, cols], up[inv, cols] = Gn, Xs[good], True
+        G[:, :, good] = _without_scale(Gp, Xp, up)[inv, cols].transpose(1, 2, 0)
+    GC = np.einsum("ikN,kl->ilN", G, np.asarray(Cz, float))
+    share = np.einsum("ikN,jkN->Nij", GC, G)
+    return cov + share
 
 
 def mirror_plane_projections(K: np.ndarray, normal: np.ndarray, distance: float

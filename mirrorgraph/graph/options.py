@@ -249,6 +249,13 @@ class ScheduleOptions:
             pair is then triangulated with its mirror for the first rejection.
         outlier_pass_iterations: cap of the first full solve when outliers were
             found before it (it only has to expose the rest for the second rejection).
+        resolve_after_rejection: solve the full graph again without what the first
+            full solve's rejection dropped (where it dropped anything); ``False``: a
+            first full solve that converged is final, what it dropped is left out of the
+            noise, the retriangulation and the lengths only (the live run's windows,
+            each followed by the next). A first solve stopped by
+            ``outlier_pass_iterations``, or a focal length estimated, always solves
+            again.
     """
 
     pixel_sigma: float = 4.0
@@ -264,6 +271,7 @@ class ScheduleOptions:
     warm_start_iterations: int = 4
     warm_start_frames: int = 300
     outlier_pass_iterations: int = 3
+    resolve_after_rejection: bool = True
 
     def __post_init__(self) -> None:
         for name in ("robust_kernel", "final_kernel"):

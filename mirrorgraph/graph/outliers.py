@@ -31,8 +31,8 @@ from .options import RefineOptions
 from .rig import Rig, parallax_deg, seen_twice, triangulate_rig, view_projections, view_residuals
 from .stage_config import SolveConfig
 
-__all__ = ["feasible", "observation_outliers", "bone_outliers", "clean_views", "check_held",
-           "MIN_HELD_OBSERVATIONS"]
+__all__ = ["feasible", "observation_outliers", "one_view_outliers", "bone_outliers",
+           "clean_views", "check_held", "MIN_HELD_OBSERVATIONS"]
 
 
 def feasible(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, planes
@@ -77,6 +77,22 @@ def observation_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
         dropped += int(np.count_nonzero(bad))
         out.append(np.asarray(m, bool) & ~bad)
     return out, dropped
+
+
+def one_view_outliers(residuals: list[np.ndarray], threshold: float) -> list[np.ndarray]:
+    """Per view ``(T, J)`` bool: observations whose reprojection residual exceeds
+    ``threshold`` px, at most one view of each joint (the worst), so that every joint
+    keeps an observation.
+
+    Args:
+        residuals: per view ``(T, J)`` residual norms, px, NaN where the view does not
+            observe the joint (:func:`~.rig.view_residuals`).
+        threshold: px.
+    """
+    r = np.stack([np.nan_to_num(np.asarray(v, float), nan=-np.inf) for v in residuals])
+    worst = np.argmax(r, axis=0)                                  # (T, J)
+    over = r.max(0) > threshold
+    return [over & (worst == i) for i in range(len(residuals))]
 
 
 def bone_outliers(points: np.ndarray, used: np.ndarray, bones: np.ndarray, *, k: float = 5.0,

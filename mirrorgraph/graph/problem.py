@@ -28,7 +28,7 @@ The graph is built by :mod:`.builder`; the variables in full: ``docs/internals.m
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import gtsam
 import numpy as np
@@ -41,7 +41,7 @@ from .rig import Rig
 
 __all__ = ["GraphProblem", "LENGTH_KEY", "X_BASE", "point_keys", "bone_graph", "camera_matrix",
            "extract_points", "points_array", "extract_camera_poses", "extract_intrinsics",
-           "extract_planes", "snap_virtual_poses", "cheirality_guard"]
+           "extract_planes", "snap_virtual_poses", "cheirality_guard", "without_observations"]
 
 #: Key ``X(0)``: joint ``j`` of frame row ``t`` is ``X(t * J + j)``.
 X_BASE = X_(0)
@@ -247,6 +247,28 @@ def extract_intrinsics(problem: GraphProblem, values: gtsam.Values) -> list[np.n
 def extract_planes(problem: GraphProblem, values: gtsam.Values) -> list[tuple[np.ndarray, float]]:
     """``(n, d)`` of every mirror from ``values``."""
     return [plane_from_gtsam(values.atOrientedPlane3(k)) for k in problem.plane_keys]
+
+
+def without_observations(problem: GraphProblem, drop: list[np.ndarray]) -> GraphProblem:
+    """``problem`` without the reprojection factors of the observations ``drop`` (per
+    view ``(T, J)`` bool), its views' masks without them; the factors kept are shared.
+
+    The reprojection graph holds one factor per observation, view by view, each view's
+    in the row-major order of ``used & view.mask`` (:mod:`.builder`)."""
+    keep = []
+    for view, d in zip(problem.rig.views, drop):
+        mask = problem.used & np.asarray(view.mask, dtype=bool)
+        keep.append(~np.asarray(d, dtype=bool)[mask])
+    keep = np.concatenate(keep) if keep else np.zeros(0, dtype=bool)
+    if keep.size != problem.reprojection.size():
+        raise ValueError(f"{problem.reprojection.size()} reprojection factors for "
+                         f"{keep.size} observations")
+    graph = gtsam.NonlinearFactorGraph()
+    for i in np.flatnonzero(keep).tolist():
+        graph.push_back(problem.reprojection.at(i))
+    views = tuple(replace(v, mask=np.asarray(v.mask, dtype=bool) & ~np.asarray(d, dtype=bool))
+                  for v, d in zip(problem.rig.views, drop))
+    return replace(problem, reprojection=graph, rig=replace(problem.rig, views=views))
 
 
 def snap_virtual_poses(problem: GraphProblem, values: gtsam.Values) -> None:

@@ -108,6 +108,9 @@ class View:
         pixels: ``(T, J, 2)`` observed keypoints (undistorted pixels), indexed by
             the real joint they image (the reflection's labels already flipped).
         mask: ``(T, J)`` bool, observations to use (seen and an inlier).
+        weight: ``(J,)`` each joint column's weight in ``(0, 1]``, a factor of the
+            reprojection terms' information (pixel sigma ``pixel_sigma / sqrt(weight)``,
+            the robust kernel's scale unchanged in pixels); ``None``: 1 throughout.
     """
 
     name: str
@@ -115,6 +118,7 @@ class View:
     mirror: str | None
     pixels: np.ndarray
     mask: np.ndarray
+    weight: np.ndarray | None = None
 
 
 @dataclass

@@ -43,11 +43,12 @@ from .marginals import covariances
 from .noise import residual_noise
 from .optimizer import LMResult
 from .options import RefineOptions
-from .outliers import bone_outliers, check_held, clean_views, observation_outliers
+from .outliers import (bone_outliers, check_held, clean_views, observation_outliers,
+                       one_view_outliers)
 from .problem import (GraphProblem, extract_camera_poses, extract_intrinsics, extract_planes,
-                      extract_points, snap_virtual_poses)
-from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, with_intrinsics,
-                  with_views)
+                      extract_points, snap_virtual_poses, without_observations)
+from .rig import (Rig, parallax_deg, seen_twice, spread_rows, triangulate_rig, view_residuals,
+                  with_intrinsics, with_views)
 from .scores import joint_scores
 from .solve_graph import Progress, information_at, optimize, undetermined
 from .solve_state import SolveState
@@ -184,10 +185,14 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     final_error, final_used, state_points, intrinsics = _solution(run)
     final_masks, tri, tri_ok = _retriangulate(run, final_used)
     lengths = _joints_pass_lengths(run, tri, tri_ok)
-    state_points, joints_priors = _joints_pass_stage(run, lengths, state_points)   # 5.
+    state_points, joints_priors, observed = _joints_pass_stage(run, lengths, state_points)  # 5.
     unc = _marginals_and_noise(run, final_masks, tri, tri_ok)                        # 6.
     timings["total"] = time.perf_counter() - t_start
     problem, factor = run.problem, unc["factor"]
+    if observed is not None:
+        # the output joints' graph: the calibration's with the observations the joints
+        # pass kept (their covariance, the residuals reported)
+        problem = replace(problem, reprojection=observed.reprojection, rig=observed.rig)
     info = dict(problem.prior_info)
     if joints_priors is not None:
         info["joints_pass"] = joints_priors
@@ -281,13 +286,16 @@ def _start_on_gauge(run: _Run) -> None:
 def _full_graph_stages(run: _Run) -> None:
     """Stage 4: :attr:`~.stage_config.SolveConfig.stages` in order, each built from the
     previous one's solution; a stage ``only_if_rejected`` runs when the previous one
-    dropped something, or where a focal length is estimated."""
+    dropped something (and ``options.resolve_after_rejection`` or the previous one
+    stopped before converging), or where a focal length is estimated."""
     run.body_height = None if run.height is None else float(run.height)
     run.iterations = sum(s["iterations"] for s in run.stages)
     dropped_last = True
     focal = any(c.intrinsics_dim for c in run.rig.cameras)
     for stage in run.config.stages:
-        if stage.only_if_rejected and not dropped_last and not focal:
+        again = run.opts.resolve_after_rejection or (run.res is not None
+                                                     and not run.res.converged)
+        if stage.only_if_rejected and not (dropped_last and again) and not focal:
             continue
         dropped_last = _full_graph_stage(run, stage) > 0
 
@@ -424,23 +432,27 @@ def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict
 
 
 def _joints_pass_stage(run: _Run, lengths: dict[str, float], points: np.ndarray
-                       ) -> tuple[np.ndarray, dict | None]:
+                       ) -> tuple[np.ndarray, dict | None, GraphProblem | None]:
     """Stage 5 (``config.joints_pass``): the joints with everything else held
-    (:func:`joints_pass`). Returns the joints (``points`` without a pass) and the
-    pass's body priors for the record (``None`` without one)."""
-    joints_priors = None
+    (:func:`joints_pass`). Returns the joints (``points`` without a pass), the
+    pass's body priors for the record and its graph (``None`` without one)."""
+    joints_priors, observed = None, None
     if run.config.joints_pass:
         t = time.perf_counter()
         jp = joints_pass(run.problem, run.values, lengths, run.opts)
         if jp is not None:
             points = extract_points(jp[0], jp[1].values)
+            observed = jp[0]
             joints_priors = {k: v for k, v in jp[0].prior_info.items()
                              if k in ("bone_length", "hip", "smoothness")}
+            joints_priors["observations_left_out"] = int(
+                sum(np.count_nonzero(np.asarray(a.mask, bool) & ~np.asarray(b.mask, bool))
+                    for a, b in zip(run.problem.rig.views, jp[0].rig.views)))
             run.stages.append(stage_record("joints pass (globals held, smoothness %g h)"
                                            % run.opts.joints_smoothness_sigma, jp[1], 0))
             run.iterations += jp[1].iterations
         run.timings["solve"] += time.perf_counter() - t
-    return points, joints_priors
+    return points, joints_priors, observed
 
 
 def _marginals_and_noise(run: _Run, final_masks: list[np.ndarray], tri: np.ndarray,
@@ -510,6 +522,14 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     calibration included (the mirror held, a bone's known length is what fixes the
     depth of joints whose rays meet at a small angle).
 
+    Then the observations whose residual exceeds ``opts.outlier_threshold`` (the
+    calibration's own rule) at that solution are left out, at most one view of a
+    joint (:func:`~.outliers.one_view_outliers`), and the pass is solved again from it
+    without them. A keypoint displaced along its epipolar line (a knee detected up or
+    down the leg that points at the epipole) fits both views in the calibration's
+    graph, its joint slid in depth; held by every bone and the smoothness, the joint
+    leaves that ray and the residual shows it.
+
     Args:
         problem, values: the calibration's graph and its solution.
         lengths: bone name -> length (graph units), held.
@@ -519,7 +539,8 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
             by ``z`` are, to first order, the result plus ``sensitivity @ z``.
 
     Returns:
-        The joints' graph and its solve; ``None`` without ``joints_smoothness_sigma``.
+        The joints' graph (without the observations left out: its views' masks and its
+        reprojection factors) and its solve; ``None`` without ``joints_smoothness_sigma``.
     """
     sigma = opts.joints_smoothness_sigma
     if sigma is None:
@@ -529,6 +550,19 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
                       max_iterations=JOINTS_PASS_ITERATIONS,
                       hold_globals=True, sensitivity=sensitivity)
+    if opts.outlier_threshold > 0:
+        # what the body now exposes: a keypoint displaced along its epipolar line fits
+        # both views in the calibration's graph (the joint slides in depth), and
+        # leaves its ray once every bone and the smoothness hold the joint
+        residuals = view_residuals(jp.rig, extract_points(jp, res.values), jp.used,
+                                   extract_planes(jp, res.values),
+                                   extract_camera_poses(jp, res.values))
+        drop = one_view_outliers(residuals, opts.outlier_threshold)
+        if any(d.any() for d in drop):
+            jp = without_observations(jp, drop)
+            res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                              max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                              values=res.values, sensitivity=sensitivity)
     return jp, res
 
 

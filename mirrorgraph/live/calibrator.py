@@ -43,6 +43,7 @@ fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mir
 from __future__ import annotations
 
 import copy
+import math
 import os
 import signal
 import time
@@ -141,11 +142,12 @@ class LiveMirror:
         rotation_std_deg: the virtual camera's rotation std, deg.
         distance_std: the distance's std (the height's share included); ``None``
             without a subject height (the distance is the unit).
-        scale_rel_std: the metric scale's relative std: ``height_sigma`` (the subject's
-            height and proportions) with the stature measurement's spread the latest
-            window found (:func:`mirrorgraph.stature.measurement_rel_std`); shared by
-            every length of every frame and not in :attr:`LiveFrame.joints_std_shape`;
-            ``None`` without a subject height.
+        scale_rel_std: the metric scale's relative std
+            (:attr:`~.estimator.MirrorFusion.scale_rel_std`): ``height_sigma`` (the
+            subject's height and proportions), the latest window's stature measurement
+            spread (:func:`mirrorgraph.stature.measurement_rel_std`) and the windows'
+            statures' fused sampling std; shared by every length of every frame and not in
+            :attr:`LiveFrame.joints_std_shape`; ``None`` without a subject height.
         focal_px, focal_std_px: the estimated focal length (``None``: given).
         windows, rejected, failed, resets: windows fused, rejected, that failed, restarts.
         scale: ``"subject_height"`` (metres) or ``"unit_distance"``.
@@ -183,6 +185,12 @@ class LiveMirror:
 
 def _num(v) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
+
+
+def _rounded(values: np.ndarray, ok: list) -> list:
+    """``values`` to 6 decimals, ``None`` where not finite or not ``ok``."""
+    return [round(v, 6) if k and math.isfinite(v) else None
+            for v, k in zip(values.tolist(), ok)]
 
 
 @dataclass
@@ -240,16 +248,14 @@ class LiveFrame:
 
     def to_dict(self) -> dict:
         """The frame's JSON line: NaN written as ``null`` (JSON has no NaN)."""
-        ok = np.isfinite(self.joints3d).all(1)
+        ok = np.isfinite(self.joints3d).all(1).tolist()
         shape = self.joints_std if self.joints_std_shape is None else self.joints_std_shape
         return {"frame": self.index, "frame_id": self.frame_id, "time": round(self.time, 6),
                 "status": self.mirror.status, "mirror": self.mirror.to_dict(),
-                "joints3d": [[round(float(c), 6) for c in p] if k else None
-                             for p, k in zip(self.joints3d, ok)],
-                "joints_std": [round(float(s), 6) if k and np.isfinite(s) else None
-                               for s, k in zip(self.joints_std, ok)],
-                "joints_std_shape": [round(float(s), 6) if k and np.isfinite(s) else None
-                                     for s, k in zip(shape, ok)],
+                "joints3d": [[round(c, 6) for c in p] if k else None
+                             for p, k in zip(self.joints3d.tolist(), ok)],
+                "joints_std": _rounded(self.joints_std, ok),
+                "joints_std_shape": _rounded(shape, ok),
                 "paired": self.paired, "skipped": self.skipped, "lag_frames": self.lag_frames}
 
 
@@ -287,18 +293,16 @@ def joints_normal_jacobian(K: np.ndarray, normal: np.ndarray, distance: float,
     H = np.eye(3) - 2.0 * np.outer(n, n)
     off = distance - X @ n                                              # (N,)
     Y = X + 2.0 * off[:, None] * n
-
-    def jac(P: np.ndarray) -> np.ndarray:                               # (N, 2, 3)
-        q = P @ K.T
-        p = q[:, :2] / q[:, 2:3]
-        return (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
-
-    J1, Q = jac(X), jac(Y)
+    N = len(X)
+    q = np.concatenate([X, Y]) @ K.T                                    # both views
+    p = q[:, :2] / q[:, 2:3]
+    Jv = (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
+    J1, Q = Jv[:N], Jv[N:]                                              # (N, 2, 3)
     J2 = Q @ H
-    A = np.einsum("nri,nrj->nij", J1, J1) + np.einsum("nri,nrj->nij", J2, J2)
+    A = J1.transpose(0, 2, 1) @ J1 + J2.transpose(0, 2, 1) @ J2
     dY = (2.0 * off[:, None, None] * basis[None]
           - 2.0 * n[None, :, None] * (X @ basis)[:, None, :])          # (N, 3, 2)
-    rhs = np.einsum("nri,nrs,nsk->nik", J2, Q, dY)                      # (N, 3, 2)
+    rhs = J2.transpose(0, 2, 1) @ (Q @ dY)                              # (N, 3, 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         dX = -np.linalg.solve(A, rhs)
     if keep_spread and len(X) >= 2:
@@ -355,11 +359,13 @@ class LiveCalibrator:
         self.options = opts = options or LiveOptions()
         copts = (opts.calibrate or CalibrateOptions()).checked()
         # windows are solved without completion and without their joints' covariance
-        # (the frames' joints are triangulated here) and keypoints are undistorted once,
-        # here
+        # (the frames' joints are triangulated here), their first full solve final (the
+        # next window follows it: ``resolve_after_rejection``), and keypoints are
+        # undistorted once, here
         self._copts = replace(copts, complete_joints=False, sensitivity_priors=False,
                               fps=copts.fps or opts.fps,
-                              refine_options=replace(copts.graph, joints_uncertainty=False))
+                              refine_options=replace(copts.graph, joints_uncertainty=False,
+                                                     resolve_after_rejection=False))
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
         self._bone_names = list(self.skeleton.bones)
@@ -542,16 +548,15 @@ class LiveCalibrator:
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
         """The frame's ``(J, 3)`` joints, their stds with and without the metric scale's
         share (``joints_std``, ``joints_std_shape``) and whether a pair was found."""
-        from ..initial.pairing import PairingOptions, pair_frame_with_epipole
+        from ..initial.pairing import pair_frame_with_epipole
 
         J = self.skeleton.num_joints
         out, total, shape = np.full((J, 3), np.nan), np.full(J, np.nan), np.full(J, np.nan)
         K = self.K
         n, d = self.fusion.normal, float(self.fusion.distance)
         co = self._copts
-        real, mirror = pair_frame_with_epipole(
-            p, K @ n, self.skeleton, self.joints,
-            PairingOptions(min_confidence=co.min_confidence, threshold_px=co.threshold_px))
+        epipole, pairing = self._cached("pairing", self._pairing)
+        real, mirror = pair_frame_with_epipole(p, epipole, self.skeleton, self.joints, pairing)
         # the person's left and right as the frames so far say (the detector's
         # confusions in either view, :mod:`mirrorgraph.initial.body_left_right`)
         real, mirror = self._swaps.update(real, mirror, fid)
@@ -572,16 +577,13 @@ class LiveCalibrator:
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; a view off by more than the threshold once the bones hold the joint
         # (a keypoint displaced along its epipolar line) is left out
-        X, cov, _, keep = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
-                                            self._sigma_px(), sigma_len,
-                                            iterations=2, gate_px=co.threshold_px, full=True)
+        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
+                                             self._sigma_px(), sigma_len, iterations=2,
+                                             gate_px=co.threshold_px, full=True)
         S = geo.reflect_points(X, n, d)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
-            ok &= ~keep[:, 0] | (np.linalg.norm(geo.project(K, X) - u, axis=1)
-                                 <= co.threshold_px)
-            ok &= ~keep[:, 1] | (np.linalg.norm(geo.project(K, S) - um, axis=1)
-                                 <= co.threshold_px)
+            ok &= (~keep | (px <= co.threshold_px)).all(1)
             ok &= np.isfinite(cov).all((1, 2))
         idx, X, cov = idx[ok], X[ok], cov[ok]
         if self.options.smooth:
@@ -600,6 +602,14 @@ class LiveCalibrator:
         self.last_variances = var
         return (np.sqrt(sum(v for k, v in var.items() if k != "scale")),
                 np.sqrt(sum(var.values())))
+
+    def _pairing(self) -> tuple:
+        """The fused mirror's epipole ``K n`` and the pairing's options."""
+        from ..initial.pairing import PairingOptions
+
+        co = self._copts
+        return self.K @ self.fusion.normal, PairingOptions(min_confidence=co.min_confidence,
+                                                           threshold_px=co.threshold_px)
 
     def _sigma_px(self) -> float:
         fu = self.fusion
@@ -674,7 +684,8 @@ class LiveCalibrator:
         """``old`` with the smoother's joints where it gave joints of its own; ``normal``
         ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
         point (first order: the smoothed point is millimetres away), NaN where none."""
-        out = replace(old, settled=None, lag_frames=lag)
+        out = copy.copy(old)
+        out.settled, out.lag_frames = None, lag
         sm = (self._filter.smoothed(old.frame_id)
               if self._filter is not None and old.skipped is None else None)
         if sm is None or self.fusion.normal is None:
@@ -727,7 +738,7 @@ class LiveCalibrator:
             # that same error seen through the body: not added again); without one the
             # distance is the unit and is held
             J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
-            var["normal"] = np.maximum(np.einsum("nik,kl,nil->n", J, C, J), 0.0)
+            var["normal"] = np.maximum(((J @ C) * J).sum((1, 2)), 0.0)
         if metric:
             var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
         return var

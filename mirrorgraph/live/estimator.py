@@ -21,7 +21,16 @@ The focal length, where estimated, is fused by its windows' information. The **d
 is the frame-weighted median of the windows' distances (with a subject height each is the
 one at which the stature measured on the window's joints is the height); its data std is
 the larger of the windows' own, combined, and their spread (from the median absolute
-deviation, from three windows on); the subject's height is a shared relative part.
+deviation, from three windows on); the subject's height is a shared relative part. The
+metric scale's relative std (:attr:`MirrorFusion.scale_rel_std`) holds the height's prior,
+the latest window's measured stature spread (a detector's distortion: more frames do not
+average it out) and the windows' statures' sampling std fused by its information
+(:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
+frames). The per-frame bone prior holds the latest window's bone lengths. Fusing the scale
+otherwise (each window's distance moved to the fused normal so that its body keeps its
+size, the bones averaged over the windows, the median weighted by the sampling's
+information) measured no better on realistic streams of 150-frame windows
+(``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
 (:meth:`MirrorFusion.restart`); later blocks are fused (:meth:`MirrorFusion.add`). A window
@@ -78,6 +87,9 @@ class WindowEstimate:
         scale_side: the stature measurement's spread in the window's calibration
             (:func:`mirrorgraph.stature.measurement_rel_std`: the legs apart and the
             segments' disagreement about the height).
+        scale_sampling: the window's stature's relative std from its frames
+            (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`; NaN where not
+            measured).
         bone_lengths: bone name -> length the window's graph held (the unit of
             ``distance``), for the per-frame prior (:mod:`.frame_prior`).
     """
@@ -102,6 +114,7 @@ class WindowEstimate:
     check: str = ""
     check_text: str = ""
     scale_side: float = 0.0
+    scale_sampling: float = float("nan")
     bone_lengths: dict = field(default_factory=dict)
 
 
@@ -162,7 +175,9 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     d_std = unc.get("distance_std")
     # the scale's shared part out of the window's own: the height's prior and the
     # stature's measured spread, one factor on every window alike
-    side = measurement_rel_std((cal.refinement or {}).get("stature"))
+    stature = (cal.refinement or {}).get("stature")
+    side = measurement_rel_std(stature)
+    sampling = (stature or {}).get("sampling_rel_std")
     hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
@@ -180,6 +195,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         frames=int(cal.frames_used), pairs=int(cal.pairs_used), **span,
         seconds=time.perf_counter() - clock,
         check=check.verdict if check is not None else "", scale_side=side,
+        scale_sampling=float(sampling) if sampling is not None else float("nan"),
         bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
@@ -213,6 +229,9 @@ class MirrorFusion:
             paired as the reflection), ``""`` where it did not.
         scale_side: the latest fused window's stature measurement spread
             (:attr:`WindowEstimate.scale_side`).
+        scale_sampling: the fused windows' statures' sampling std (relative), ``1 /
+            sqrt(sum_w 1 / s_w^2)`` over their :attr:`WindowEstimate.scale_sampling`; NaN
+            where none was measured.
         bone_lengths: the latest fused window's bone lengths (the per-frame prior).
     """
 
@@ -235,6 +254,8 @@ class MirrorFusion:
     last_reason: str = ""
     doubt: str = ""
     scale_side: float = 0.0
+    scale_sampling: float = float("nan")
+    sampling_info: float = 0.0
     bone_lengths: dict = field(default_factory=dict)
     _pending: list = field(default_factory=list)
 
@@ -286,9 +307,11 @@ class MirrorFusion:
 
     @property
     def scale_rel_std(self) -> float:
-        """The metric scale's relative std: the height's prior and the latest fused
-        window's measured stature spread (:attr:`WindowEstimate.scale_side`)."""
-        return float(np.hypot(self.height_sigma, self.scale_side))
+        """The metric scale's relative std: the height's prior, the latest fused window's
+        measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows' fused
+        sampling std (:attr:`scale_sampling`; ``0`` where none was measured)."""
+        sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
+        return float(np.sqrt(self.height_sigma ** 2 + self.scale_side ** 2 + sampling ** 2))
 
     def _median_distance(self) -> float:
         d = np.array([x for x, _ in self.distances])
@@ -312,6 +335,7 @@ class MirrorFusion:
         self.windows = 0
         self.distance_info, self.focal_px, self.focal_info = 0.0, None, 0.0
         self.distances = []
+        self.scale_sampling, self.sampling_info = float("nan"), 0.0
         self._fuse(w)
 
     def restart(self, w: WindowEstimate) -> str:
@@ -407,5 +431,8 @@ class MirrorFusion:
             self.noise_px = w.noise_px
         self.doubt = w.check_text
         self.scale_side = w.scale_side
+        if np.isfinite(w.scale_sampling) and w.scale_sampling > 0:
+            self.sampling_info += 1.0 / w.scale_sampling ** 2
+            self.scale_sampling = float(1.0 / np.sqrt(self.sampling_info))
         if w.bone_lengths:
             self.bone_lengths = w.bone_lengths

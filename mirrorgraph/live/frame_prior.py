@@ -14,10 +14,12 @@ reprojection noise, ``s_L`` the bones' spread, ``rho`` Huber's loss at 1.345 sta
 deviations on the pixels: Huber, *Robust Statistics*, 1981; Hartley and Zisserman,
 *Multiple View Geometry*, 2nd ed., sec. A6.8). The bones are Gaussian, as the offline
 graph's factor: a joint the detector misplaced along its epipolar line (which the
-reprojection threshold cannot see) is held by its bones. The normal equations are one dense ``3k x 3k`` system
-(``k`` <= 33 joints), built from per-joint ``2 x 3`` projection Jacobians and per-bone
-``1 x 3`` length Jacobians, vectorised; the joints' covariance is its inverse (the
-Laplace approximation, at the final weights).
+reprojection threshold cannot see) is held by its bones. The normal equations
+(``3k x 3k``, ``k`` <= 33 joints) are the per-joint ``3 x 3`` blocks of the two views'
+``2 x 3`` projection Jacobians plus the bones' ``1 x 3`` length Jacobians, ``B`` rows
+in all; they are solved through the ``B x B`` system of the Woodbury identity where every
+joint keeps both views (densely otherwise), vectorised; the joints' covariance is the
+diagonal blocks of their inverse (the Laplace approximation, at the final weights).
 """
 
 from __future__ import annotations
@@ -28,19 +30,6 @@ __all__ = ["refine_with_bones", "triangulate_two_rays", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
-
-
-def _huber_weight(r: np.ndarray) -> np.ndarray:
-    """IRLS weights of Huber's loss for normalised residual norms ``r``."""
-    return np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-12))
-
-
-def _projection(K: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels ``(k, 2)`` of points ``Y`` ``(k, 3)`` and their Jacobians ``(k, 2, 3)``."""
-    q = Y @ K.T
-    p = q[:, :2] / q[:, 2:3]
-    J = (K[None, :2, :] - p[:, :, None] * K[None, 2:3, :]) / q[:, 2, None, None]
-    return p, J
 
 
 def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: np.ndarray,
@@ -80,38 +69,18 @@ def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: 
     return X
 
 
-def _bone_index(k: int, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices into a ``(3k, 3k)`` matrix of the four ``3 x 3`` blocks ``(a, a)``,
-    ``(b, b)``, ``(a, b)``, ``(b, a)`` of every bone, and their signs."""
-    i3 = np.arange(3)
-    rows = lambda p: 3 * p[:, None, None] + i3[None, :, None]      # noqa: E731
-    cols = lambda q: 3 * q[:, None, None] + i3[None, None, :]      # noqa: E731
-    idx = np.stack([rows(a) * 3 * k + cols(a), rows(b) * 3 * k + cols(b),
-                    rows(a) * 3 * k + cols(b), rows(b) * 3 * k + cols(a)])   # (4, B, 3, 3)
-    sign = np.array([1.0, 1.0, -1.0, -1.0])[:, None, None, None]
-    return idx, sign
+_DIAGONALS: dict = {}
 
 
-_INDICES: dict = {}
-
-
-def _indices(k: int, a: np.ndarray, b: np.ndarray) -> tuple:
-    """The flat indices of one frame's normal equations: the bones' blocks and signs
-    (:func:`_bone_index`), the gradient's entries of each bone's two ends and the
-    ``(k, 3, 3)`` diagonal blocks; kept per joint and bone layout (a stream repeats a
-    few)."""
-    key = (k, a.tobytes(), b.tobytes())
-    if key not in _INDICES:
-        if len(_INDICES) > 256:
-            _INDICES.clear()
-        bidx, bsign = _bone_index(k, a, b)
-        ga = (3 * a[:, None] + np.arange(3)).ravel()
-        gb = (3 * b[:, None] + np.arange(3)).ravel()
+def _diagonal(k: int) -> np.ndarray:
+    """``(k, 3, 3)`` flat indices into a ``(3k, 3k)`` matrix of its ``3 x 3`` diagonal
+    blocks (kept per joint count: a stream repeats a few)."""
+    if k not in _DIAGONALS:
+        i3 = np.arange(3)
         ar = np.arange(k)
-        diag = (3 * ar[:, None, None] + np.arange(3)[None, :, None]) * 3 * k \
-            + 3 * ar[:, None, None] + np.arange(3)[None, None, :]               # (k, 3, 3)
-        _INDICES[key] = (bidx.ravel(), bsign, ga, gb, diag)
-    return _INDICES[key]
+        _DIAGONALS[k] = ((3 * ar[:, None, None] + i3[None, :, None]) * 3 * k
+                         + 3 * ar[:, None, None] + i3[None, None, :])
+    return _DIAGONALS[k]
 
 
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
@@ -137,13 +106,13 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             of a joint held by bones (a keypoint displaced along its epipolar line,
             which the two rays follow in depth and the bones do not) and one more step
             is taken; ``None``: every view kept.
-        full: also return the information matrix and the views kept.
+        full: also return the views kept and the residuals at the joints returned.
 
     Returns:
         ``(X, cov)``: the refined ``(k, 3)`` joints and each one's ``(k, 3, 3)``
         covariance (a bone's two ends are correlated; the blocks are the marginals);
-        with ``full`` also ``(3k, 3k)`` the information matrix and ``(k, 2)`` bool the
-        views kept.
+        with ``full`` also ``(k, 2)`` bool the views kept and ``(k, 2)`` each view's
+        reprojection residual at the returned joints, px (direct, mirror).
     """
     X = np.array(X, dtype=float)
     k = len(X)
@@ -156,37 +125,40 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
     held = np.zeros(k, bool)
     held[a] = held[b] = True
-    bidx, bsign, ga, gb, diag = _indices(k, a, b)
-    ar = np.arange(k)
     keep = np.ones((k, 2), bool)
     steps = max(int(iterations), 1)
-    M = np.zeros(9 * k * k)
     done = 0
     uu = np.concatenate([u, um])                  # both views' pixels, stacked: (2k, 2)
-    c2 = 2.0 * distance * n
+    # both views' projections, stacked: the camera's K, the mirror's K H (offset K c)
+    KH = K @ H
+    Kc = K @ (2.0 * distance * n)
+    P = np.empty((2 * k, 3, 3))
+    P[:k], P[k:] = K, KH
+    rows = np.arange(len(L))
+    Jb = np.zeros((len(L), k, 3))                 # the bones' rows of the Jacobian
+    inv_var = 1.0 / (sigma_px * sigma_px)
     while True:
-        p, Jv = _projection(K, np.concatenate([X, X @ H.T + c2]))           # (2k, ...)
-        Jv[k:] = Jv[k:] @ H
-        r = (p - uu) / sigma_px
-        rn = np.sqrt((r * r).sum(1))
-        w = _huber_weight(rn) * keep.T.ravel()
-        Jv = Jv / sigma_px
-        JJ = w[:, None, None] * np.einsum("kri,krj->kij", Jv, Jv)
-        Jr = w[:, None] * np.einsum("kri,kr->ki", Jv, r)
-        M[:] = 0.0
-        M[diag] = JJ[:k] + JJ[k:]
-        g = Jr[:k] + Jr[k:]
+        q = np.concatenate([X @ K.T, X @ KH.T + Kc])                       # (2k, 3)
+        z = q[:, 2:3]
+        p = q[:, :2] / z
+        Jv = (P[:, :2, :] - p[:, :, None] * P[:, 2:3, :]) / z[:, :, None]   # (2k, 2, 3)
+        d = p - uu
+        rn = np.sqrt(np.einsum("ij,ij->i", d, d)) / sigma_px
+        w = np.minimum(1.0, HUBER_K / np.maximum(rn, 1e-12))
+        w *= keep.T.ravel()
+        w *= inv_var
+        Jt = Jv.transpose(0, 2, 1)
+        JJ = (Jt @ Jv) * w[:, None, None]
+        Jr = np.einsum("nri,nr->ni", Jv, d) * w[:, None]
+        D = JJ[:k] + JJ[k:]                       # the reprojection's diagonal blocks
+        both = bool(keep.all())                   # every block of two views: invertible
+        g = (Jr[:k] + Jr[k:]).ravel()
         if len(L):
             diff = X[a] - X[b]
-            length = np.sqrt((diff * diff).sum(1))
-            e = diff / np.maximum(length, 1e-12)[:, None] / sigma_len    # d r / d X_a
-            rb = (length - L) / sigma_len
-            outer = e[:, :, None] * e[:, None, :]
-            M += np.bincount(bidx, (bsign * outer[None]).ravel(), minlength=M.size)
-            er = (e * rb[:, None]).ravel()
-            g += (np.bincount(ga, er, minlength=3 * k)
-                  - np.bincount(gb, er, minlength=3 * k)).reshape(k, 3)
-        A = M.reshape(3 * k, 3 * k)
+            length = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            e = diff / (np.maximum(length, 1e-12) * sigma_len)[:, None]  # d r / d X_a
+            Jb[rows, a], Jb[rows, b] = e, -e
+            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sigma_len)
         if done >= steps:
             if gate_px is None or not held.any():
                 break
@@ -198,16 +170,70 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             keep &= ~drop
             gate_px, steps = None, steps + 1     # one more step without them, then stop
         try:
-            step = np.linalg.solve(A, -g.reshape(-1))
+            step = _Normal(D, Jb, both).solve(g)
         except np.linalg.LinAlgError:
             break
-        X = X + step.reshape(k, 3)
+        X = X - step.reshape(k, 3)
         done += 1
     try:
-        inv = np.linalg.inv(A)
+        cov = _Normal(D, Jb, both).covariance()
     except np.linalg.LinAlgError:
-        inv = np.full_like(A, np.nan)
-    cov = inv.reshape(k, 3, k, 3)[ar, :, ar, :]
+        cov = np.full((k, 3, 3), np.nan)
     if full:
-        return X, cov, A.copy(), keep
+        return X, cov, keep, sigma_px * rn.reshape(2, k).T
     return X, cov
+
+
+class _Normal:
+    """The normal equations ``A = blockdiag(D) + J_b^T J_b`` of one frame: ``D`` ``(k, 3,
+    3)`` the reprojection's blocks, ``J_b`` ``(B, k, 3)`` the bones' rows (``B`` small).
+
+    With every block invertible (both views of every joint kept) by the Woodbury
+    identity, ``A^-1 = D^-1 - D^-1 J_b^T S^-1 J_b D^-1`` with ``S = I + J_b D^-1 J_b^T``
+    (``B x B``; Golub and Van Loan, *Matrix Computations*, 4th ed., sec. 2.1.4), else
+    densely.
+    """
+
+    def __init__(self, D: np.ndarray, Jb: np.ndarray, blocks_invertible: bool):
+        self.D, self.Jb = D, Jb
+        self.k, self.B = len(D), len(Jb)
+        self.woodbury = bool(blocks_invertible)
+
+    def dense(self) -> np.ndarray:
+        """``(3k, 3k)`` the matrix."""
+        k = self.k
+        Jf = self.Jb.reshape(self.B, 3 * k)
+        A = Jf.T @ Jf
+        A.reshape(-1)[_diagonal(k)] += self.D
+        return A
+
+    def _parts(self):
+        Dinv = np.linalg.inv(self.D)                                          # (k, 3, 3)
+        U = np.matmul(self.Jb.transpose(1, 0, 2), Dinv).transpose(1, 0, 2)    # J_b D^-1
+        Uf = U.reshape(self.B, 3 * self.k)
+        S = Uf @ self.Jb.reshape(self.B, 3 * self.k).T
+        S[np.diag_indices(self.B)] += 1.0
+        return Dinv, Uf, S
+
+    def solve(self, g: np.ndarray) -> np.ndarray:
+        """``(3k,)`` ``A^-1 g``."""
+        if not self.woodbury:
+            return np.linalg.solve(self.dense(), g)
+        Dinv, Uf, S = self._parts()
+        Dg = np.matmul(Dinv, g.reshape(self.k, 3, 1)).reshape(-1)
+        if self.B == 0:
+            return Dg
+        return Dg - Uf.T @ np.linalg.solve(S, Uf @ g)
+
+    def covariance(self) -> np.ndarray:
+        """``(k, 3, 3)`` the diagonal blocks of ``A^-1``."""
+        k = self.k
+        if not self.woodbury:
+            inv = np.linalg.inv(self.dense())
+            return inv.reshape(k, 3, k, 3)[np.arange(k), :, np.arange(k), :]
+        Dinv, Uf, S = self._parts()
+        if self.B == 0:
+            return Dinv
+        V = np.linalg.solve(S, Uf).reshape(self.B, k, 3)
+        U = Uf.reshape(self.B, k, 3)
+        return Dinv - np.einsum("bki,bkj->kij", U, V)

@@ -81,7 +81,8 @@ class JointFilter:
         self.restart_after = int(restart_after)
         self.velocity_var = float(velocity_std) ** 2
         self.lag = max(int(lag), 0)
-        self.history: list[tuple] = []        # (frame, x_f, P_f, gain, chained, F) to the next
+        # (frame, x_f, P_f, gain G, chained, F, x_p and G F P_f of the next frame)
+        self.history: list[tuple] = []
         self._models: dict = {}
         self.reset()
 
@@ -98,10 +99,12 @@ class JointFilter:
 
     def scale(self, factor: float) -> None:
         """Every state's lengths times ``factor`` (a new mirror's distance)."""
-        self.x *= factor
-        self.P *= factor * factor
-        self.history = [(h[0], h[1] * factor, h[2] * factor * factor) + h[3:]
-                        for h in self.history]
+        # new arrays: the newest history entry holds the current state itself
+        self.x = self.x * factor
+        self.P = self.P * (factor * factor)
+        self.history = [(h[0], h[1] * factor, h[2] * factor * factor) + h[3:6]
+                        + ((h[6] * factor, h[7] * factor * factor) if h[3] is not None
+                           else h[6:]) for h in self.history]
 
     def step(self, frame_id: int, idx: np.ndarray, z: np.ndarray, R: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -174,8 +177,8 @@ class JointFilter:
                 c = chained & np.isfinite(prev[1][:, 0])
                 G = (np.where(c[:, None, None], prev[2], 0.0) @ F.T
                      @ _inverse(np.where(c[:, None, None], Pp, np.eye(6))))
-                self.history[-1] = prev[:3] + (G, c, F)
-            self.history.append((int(frame_id), xf, Pf, None, None, None))
+                self.history[-1] = prev[:3] + (G, c, F, xp, G @ F @ prev[2])
+            self.history.append((int(frame_id), xf, Pf, None, None, None, None, None))
             del self.history[:-(self.lag + 1)]
         return xf[idx, :3], Pf[idx, :3, :3], taken
 
@@ -204,21 +207,19 @@ class JointFilter:
         kept with each frame)."""
         xs, Ps = self.history[-1][1], self.history[-1][2]
         for i in range(len(self.history) - 2, k - 1, -1):
-            _, xf, Pf, G, c, F = self.history[i]
+            _, xf, Pf, G, c, F, xp, GFP = self.history[i]
             c = c & np.isfinite(xs[:, 0])
+            # x_s = x_f + G (x_s' - x_p'), P_s = P_f + G (P_s' - P_p') G^T, with
+            # x_p' = F x_f and P_f - G P_p' G^T = P_f - G F P_f
             if c.all():                    # every track chained: no rows to pick
-                dx = xs - xf @ F.T
-                xs = xf + np.einsum("nij,nj->ni", G, dx)
-                Ps = Pf - G @ F @ Pf + G @ Ps @ G.transpose(0, 2, 1)
+                xs = xf + (G @ (xs - xp)[:, :, None])[:, :, 0]
+                Ps = Pf - GFP + G @ Ps @ G.transpose(0, 2, 1)
                 continue
             x_new, P_new = xf.copy(), Pf.copy()
             if c.any():
-                # x_s = x_f + G (x_s' - x_p'), P_s = P_f + G (P_s' - P_p') G^T, with
-                # x_p' = F x_f and P_f - G P_p' G^T = P_f - G F P_f
                 Gc = G[c]
-                dx = xs[c] - xf[c] @ F.T
-                x_new[c] = xf[c] + np.einsum("nij,nj->ni", Gc, dx)
-                P_new[c] = Pf[c] - Gc @ F @ Pf[c] + Gc @ Ps[c] @ Gc.transpose(0, 2, 1)
+                x_new[c] = xf[c] + (Gc @ (xs[c] - xp[c])[:, :, None])[:, :, 0]
+                P_new[c] = Pf[c] - GFP[c] + Gc @ Ps[c] @ Gc.transpose(0, 2, 1)
             xs, Ps = x_new, P_new
         return xs[:, :3], Ps[:, :3, :3]
 

@@ -37,7 +37,7 @@ from ..initial.body_left_right import undo_body_swaps
 from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
-from ..stature import estimate_stature, with_height_sigma
+from ..stature import estimate_stature, measurement_rel_std, with_height_sigma
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
                      judge_run, prepare, refine_run)
 from .options import CalibrateOptions
@@ -107,10 +107,14 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
 
 
 def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
-                  height_of) -> tuple[float | None, np.ndarray, int | None, str]:
+                  height_of) -> tuple[float | None, np.ndarray, int | None, str, float]:
     """The factor that makes the chosen person's stature (or the list's) the given one:
-    ``(factor, statures before scaling, person, source)``; ``factor`` ``None`` where no
-    stature can be measured."""
+    ``(factor, statures before scaling, person, source, rel_std)``; ``factor`` ``None``
+    where no stature can be measured; ``rel_std`` the stature measurement's own relative
+    std (:func:`mirrorgraph.stature.measurement_rel_std`) of the chosen person, or with a
+    list of heights the median of the measured people's (the detector's keypoint offsets
+    are shared by the people, so their number does not shrink it); ``0`` without a
+    factor."""
     P = points.shape[0]
     est = [estimate_stature(points[p], valid[p], base) for p in range(P)]
     measured = np.array([np.nan if e is None else e.height for e in est])
@@ -118,11 +122,13 @@ def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
         ratios = [float(h) / measured[p] for p, h in enumerate(heights)
                   if h is not None and p < P and np.isfinite(measured[p])]
         if not ratios:
-            return None, measured, None, "no person of the given heights has a stature"
+            return None, measured, None, "no person of the given heights has a stature", 0.0
+        rel = float(np.median([measurement_rel_std(est[p]) for p, h in enumerate(heights)
+                               if h is not None and p < P and np.isfinite(measured[p])]))
         return (float(np.median(ratios)), measured, None,
-                f"the median of {len(ratios)} people's given heights over their statures")
+                f"the median of {len(ratios)} people's given heights over their statures", rel)
     if not np.isfinite(measured).any():
-        return None, measured, None, "no person's joints span ankle to eyes"
+        return None, measured, None, "no person's joints span ankle to eyes", 0.0
     if height_of == "tallest":
         person = int(np.nanargmax(measured))
     elif height_of == "first":
@@ -130,11 +136,12 @@ def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
     else:
         person = int(height_of)
     if height is None:
-        return None, measured, None, "no height given"
+        return None, measured, None, "no height given", 0.0
     if not np.isfinite(measured[person]):
-        return None, measured, person, f"person {person}'s joints do not span ankle to eyes"
+        return (None, measured, person,
+                f"person {person}'s joints do not span ankle to eyes", 0.0)
     return (float(height) / measured[person], measured, person,
-            f"person {person}'s stature ({height_of})")
+            f"person {person}'s stature ({height_of})", measurement_rel_std(est[person]))
 
 
 def _check_height_of(height_of, heights) -> None:
@@ -207,8 +214,8 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
                 run_opts.graph.focal.guess_rel_sigma)
         joints3d = split_people(run.joints3d, P)
         valid3d = split_people(run.valid3d, P)
-        factor, measured, person, source = _scale_people(joints3d, valid3d, pairing.base,
-                                                         height, heights, height_of)
+        factor, measured, person, source, rel = _scale_people(
+            joints3d, valid3d, pairing.base, height, heights, height_of)
         statures = measured
         if (height is not None or heights is not None) and factor is not None:
             joints3d = joints3d * factor
@@ -217,8 +224,10 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
             calib.distance, calib.scale = float(factor), "subject_height"
             calib.refinement["bone_lengths"] = {
                 b: v * factor for b, v in calib.refinement["bone_lengths"].items()}
+            # the height's prior and the stature measurement's own spread, as one
+            # person's scale (mirrorgraph.pipelines.scale.scale_by_stature) holds them
             calib.uncertainty["distance_std"] = with_height_sigma(
-                0.0, float(factor), opts.graph.height_sigma)
+                0.0, float(factor), float(np.hypot(opts.graph.height_sigma, rel)))
             calib.refinement["scale_source"] = source
         elif height is not None or heights is not None:
             calib.warnings.append(f"scale: {source}; the distance stays unknown")

@@ -57,7 +57,7 @@ from .. import geometry as geo
 from ..graph.joints_uncertainty import graph_joints_covariance, view_projections
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
 from ..keypoints import MIN_PAIRS, PairedKeypoints
-from ..stature import LIMB_CHOSEN, with_height_sigma
+from ..stature import LIMB_CHOSEN, measurement_rel_std, with_height_sigma
 from .scale import scale_by_stature
 
 if TYPE_CHECKING:         # a single mirror's run needs neither (they import SciPy and OpenCV)
@@ -134,10 +134,10 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     if res.scale == "subject_height":
         res = (scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height))
                if opts.scale_from == "stature" else replace(res, scale_source=LIMB_CHOSEN))
-        # the scale's relative std: the height's prior and the legs' disagreement
+        # the scale's relative std: the height's prior and the stature measurement's own
         # (mirrorgraph.stature.measurement_rel_std), as the distance's std holds it
-        side = float((res.stature or {}).get("side_rel_diff", 0.0))
-        res = replace(res, scale_rel_std=float(np.hypot(opts.height_sigma, side)))
+        res = replace(res, scale_rel_std=float(np.hypot(opts.height_sigma,
+                                                        measurement_rel_std(res.stature))))
     return res
 
 

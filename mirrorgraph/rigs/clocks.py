@@ -2,30 +2,35 @@
 
 A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
 frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. Three steps:
+``o`` puts its frames between the rig's. Three steps (rigs of three cameras or more):
 
-1. **Every pair of cameras, whole shifts** (:func:`scan_shifts`): per shift, the median
-   Sampson distance (pixels) of the two cameras' joints under the pair's essential
-   matrix, one for every shift (the cameras do not move), fitted without a threshold
-   (LMedS) about the best of a coarse scan and cross-fitted over two halves of the
-   frames.
-2. **One consistent set of whole offsets** (:func:`joint_offsets`): the offsets
-   minimising the pairs' summed costs, each relative to its lowest. A camera leaves the
-   rig file's offset only where a block bootstrap of the samples prefers the move in at
-   least :data:`ACCEPT_LEVEL` of its draws, both shifts judged by matrices fitted at
-   them; the spread of the draws' best offsets is the whole offset's std.
-3. **A fraction of a frame** (:func:`subframe_offset`, against the reference camera),
-   about a whole offset the people fix or moved the camera to: each joint's trajectory
-   as a local quadratic, the camera's evaluated at ``t + dt``, ``dt`` and the relative
-   pose fitted by robust least squares, its std from a block bootstrap; applied where it
-   exceeds :data:`FRACTION_Z` stds.
+1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift
+   against the reference camera by the least median Sampson distance of an essential
+   matrix fitted at that shift (LMedS, no threshold).
+2. **Whole offsets against the rig** (:func:`_rig_search`): the rig's poses from the
+   essential matrix of the reference and its best partner, the others resected; then in
+   rounds every camera's median reprojection error per whole shift against the joints
+   triangulated from all the others at their offsets, its pose resected anew at every
+   shift (so no shift is favoured), the best taken; from the start and from the rig
+   file's offsets, the configuration the rig fits better kept.
+3. **Fractions against the rig** (:func:`_rig_fraction`): every camera's joints as
+   local quadratics, evaluated at ``t + u`` on a grid of ``u``, the others at their
+   latest fractions, the cost (Huber) fitted by a quadratic; in rounds until they settle.
+   The std is the M-estimator's sandwich over blocks of samples, propagated through the
+   cameras' coupling. A camera leaves the rig file's whole offset only where the move is
+   significant (the block bootstrap of its whole-shift scan prefers it in
+   :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond :data:`FRACTION_Z`
+   stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction is applied beyond
+   :data:`FRACTION_Z` stds.
 
-Continuous-time calibration treats a camera's time as ``t + dt`` in the same way (e.g.
-Kalibr's temporal calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole
-frames from the keypoints' speeds instead. :func:`resample` puts a camera's keypoints on
-the rig's frames for a fractional offset (linear interpolation). Cameras at different
-frame rates are first put on the reference's clock (:func:`rig_frames`, from each input's
-own rate); the scans run on the finest grid of samples, a slower camera on every n-th.
+A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
+whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
+reference (:func:`subframe_offset`) instead. Continuous-time calibration treats a
+camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal calibration, Furgale
+et al., IROS 2013); Pose2Sim synchronises whole frames from the keypoints' speeds.
+:func:`resample` puts a camera's keypoints on the rig's frames for a fractional offset.
+Cameras at different frame rates are first put on the reference's clock
+(:func:`rig_frames`); the scans run on the finest grid of samples.
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
@@ -43,6 +48,7 @@ from ..geometry import sampson_distances
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
+from .tracking import TRACK_MAX_GAP, jumping
 
 __all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
            "ACCEPT_LEVEL", "FRACTION_Z", "FRACTION_REACH", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
@@ -135,8 +141,8 @@ class ClockEstimate:
             ``"search"`` (the search's: the given offset where the data do not
             significantly prefer another).
         given: the rig file's ``frame_offset``.
-        scan: the whole-frame scan against the reference (``None`` where not
-            searched); its shifts in samples.
+        scan: the whole-frame scan against the rig (against the reference in a rig
+            of two cameras; ``None`` where not searched); its shifts in samples.
         note: why the offset is what it is where that needs saying (the data disagree
             with the given offset, too few correspondences, a time the people hardly
             fix), else ``""``.
@@ -618,7 +624,11 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         Ks: per camera ``(3, 3)`` intrinsics (of the undistorted pixels).
         given: per camera the rig file's ``frame_offset``.
         joints: the joints compared (indices).
-        search: search the offsets (else every camera keeps its given one).
+        search: search the offsets (else every camera keeps its given one). Frames more
+            than :data:`~.tracking.TRACK_MAX_GAP` apart, or whose people jump from frame
+            to frame in the reference camera (:func:`~.tracking.jumping`; snapshots: no
+            motion continues from one to the next), are not searched either: every
+            camera keeps its given offset, with a note.
         window: frames searched either way of a camera's given offset (relative to the
             reference's).
         seed: seed of every random choice.
@@ -638,6 +648,14 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                       for g in given[1:]]
     steps = [frame_step(f) for f in frame_ids]
     step = int(np.gcd.reduce(steps))            # a slower camera sees every n-th sample
+    ref_people = people[0][1] if people[0][1] is not None else [
+        p[None] for p in np.asarray(people[0][0], float)]
+    if step > TRACK_MAX_GAP or jumping(ref_people, joints, min_confidence, frame_ids[0]):
+        why = (f"frames {step} apart" if step > TRACK_MAX_GAP else
+               "the people jump from frame to frame")   # snapshots: shifts mean nothing
+        return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g,
+                                    note=f"{why} (snapshots): not searched, kept as given "
+                                         f"({g})") for g in given[1:]]
     base = int(min(np.min(f) for f in frame_ids if len(f)))
     length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
     reach = max(int(np.ceil(window / step)), 1)
@@ -647,7 +665,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     seqs[0] = dense_samples(_normalised(_pixels(people[0][0], joints, min_confidence), Ks[0]),
                             frame_ids[0], base, step, length)
     out += [None] * (N - 1)
-    scans: dict[tuple[int, int], ShiftScan] = {}
+    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
+    coarse: dict[int, np.ndarray] = {}
     for c in range(1, N):
         person, cands = people[c]
         options = [np.asarray(person, float)]
@@ -655,27 +674,213 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
         dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
                                frame_ids[c], base, step, length) for s in options]
-        f = 0.5 * (focal[0] + focal[c])
-        window = range(rel[c] - reach, rel[c] + reach + 1)
-        # several candidates: ranked by a coarser scan (every other shift of the coarse
-        # one); the one that fits best scanned in full
-        pick = 0 if len(dense) == 1 else int(np.argmin(
-            [coarse_cost(d, seqs[0], window[::2], seed=seed).min() for d in dense]))
+        # a coarser scan (every other shift of the coarse one): the candidate that fits
+        # best where several, and the rig's start (its first round scans every shift);
+        # a rig of two cameras scans it in full
+        rough = [coarse_cost(d, seqs[0], windows[c][::2], seed=seed) for d in dense]
+        pick = int(np.argmin([r.min() for r in rough]))
         seqs[c] = dense[pick]
-        scan = scan_shifts(dense[pick], seqs[0], f, window, seed=seed)
-        if np.isfinite(scan.cost).any():
-            scans[(0, c)] = scan
-        else:
-            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in window), default=0)
+        coarse[c] = np.full(len(windows[c]), np.inf)
+        coarse[c][::2] = rough[pick]
+        if N == 2 or not np.isfinite(coarse[c]).any():
+            coarse[c] = coarse_cost(seqs[c], seqs[0], windows[c], seed=seed)
+        if not np.isfinite(coarse[c]).any():
+            n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in windows[c]), default=0)
                         for d in dense))
             out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                   given=given[c], scan=scan,
+                                   given=given[c],
                                    note=f"too few joints seen with the reference camera at "
                                         f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
                                         f"needed): kept as given ({given[c]})")
     live = [c for c in range(1, N) if out[c] is None]
+    if not live:
+        return out
+    rng = np.random.default_rng(seed)
+    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
+    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
+                              size=BOOTSTRAP_DRAWS).astype(float)
     start = rel.copy()
     for c in live:
+        start[c] = windows[c][int(np.argmin(coarse[c]))]
+    found = _rig_offsets(seqs, live, rel, start, windows, focal, weights, seed) \
+        if len(live) >= 2 else None
+    if found is None:
+        found = _pair_offsets(seqs, live, rel, windows, coarse, focal, weights, seed, reach)
+    o, draws, scans, fractions = found
+    for c in live:
+        f = 0.5 * (focal[0] + focal[c])
+        if fractions is not None and c in fractions:
+            # the rig's fractional offset: its draws' spread covers the whole offset too
+            u, dt_std = fractions[c]
+            # within a frame at the two-sided 1 % level
+            near = np.isfinite(dt_std) and FRACTION_Z * dt_std <= 1
+            dt, whole_std = u - o[c], 0.0
+        elif fractions is not None:           # kept as given: the whole scan's draws
+            near = np.mean(np.abs(draws[c] - o[c]) <= 1) >= ACCEPT_LEVEL
+            dt, dt_std, whole_std = 0.0, float("nan"), float(np.std(draws[c])) * step
+        else:
+            # the fraction covers a sample either way: the whole offset's spread counts
+            # only where the draws put it farther
+            near = np.mean(np.abs(draws[c] - o[c]) <= 1) >= ACCEPT_LEVEL
+            whole_std = 0.0 if near else float(np.std(draws[c])) * step
+            # a fraction means something only about a whole offset the people fix, or
+            # one they moved the camera to (where it may also settle the whole offset)
+            dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed,
+                                          runs=runs)
+                          if near or o[c] != rel[c] else (0.0, float("nan")))
+        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
+        offset = (o[c] + frac) * step + given[0]
+        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
+        note = ""
+        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
+            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
+            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
+                    f"the rig file's frame_offset = {given[c]}")
+        elif not near:
+            note = (f"poorly fixed by the people (their best offsets spread by "
+                    f"{std:.1f} frames): kept as given ({given[c]})")
+        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
+                               given=int(given[c]), scan=scans.get(c), note=note)
+    return out
+
+
+def _draws(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
+    """``(R,)`` the best shift of each bootstrap draw of a scan (``weights``: ``(R, B)``
+    block weights)."""
+    boot = _bootstrap_costs(scan, weights)
+    boot = np.where(np.isfinite(boot), boot, np.inf)
+    return scan.shifts[np.argmin(boot, axis=1)]
+
+
+def _rig_total(seqs: list, P: dict, o: np.ndarray, focal: list) -> float:
+    """The summed median reprojection error (pixels) of every camera of ``P`` at its
+    offset ``o`` against the others' triangulation (:func:`_rig_scan`)."""
+    total = 0.0
+    for c in P:
+        cost = _rig_scan(seqs, P, o, c, [int(o[c])], focal[c])[0].cost[0]
+        total += float(cost) if np.isfinite(cost) else np.inf
+    return total
+
+
+def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], focal: list
+                   ) -> dict[int, tuple[float, float]]:
+    """The fractional offsets (samples) of the cameras ``measured`` and their stds, on the
+    reference camera's clock: every measured camera's fraction against the others at
+    theirs (:func:`_rig_fraction`; the reference at its whole offset), in turn, for
+    :data:`FRACTION_ROUNDS` rounds or until none moves :data:`FRACTION_TOL`; the stds
+    propagated through that coupling (below)."""
+    at = {k: float(o[k]) for k in P}
+    stds: dict[int, float] = {}
+    for _ in range(FRACTION_ROUNDS):
+        change = 0.0
+        for c in measured:
+            u, std = _rig_fraction(seqs, P, at, o, c, focal[c])
+            if np.isfinite(u) and abs(u - o[c]) <= FRACTION_REACH:
+                change = max(change, abs(u - at[c]))
+                at[c], stds[c] = u, std
+        if change < FRACTION_TOL:
+            break
+    got = [c for c in measured if c in stds]
+    if not got:
+        return {}
+    # each camera's std is conditional on the others' offsets; each offset follows the
+    # mean of the others' (the triangulation's time, weighted alike over the rig's other
+    # cameras, the reference fixed): u = (I - A)^-1 (own errors), whose covariance
+    # propagates the conditional stds (their common part the reference alone fixes)
+    m = len(P)
+    A = np.full((len(got), len(got)), 1.0 / (m - 1))
+    np.fill_diagonal(A, 0.0)
+    G = np.linalg.inv(np.eye(len(got)) - A)
+    std = np.sqrt((G ** 2) @ np.array([stds[c] for c in got]) ** 2)
+    return {c: (at[c], float(s)) for c, s in zip(got, std)}
+
+
+def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray,
+                 windows: list, focal: list, weights: np.ndarray, seed: int):
+    """The offsets (samples) of the cameras ``live`` against the rig (see the module
+    docstring, steps 2 and 3): the whole ones searched (:func:`_rig_search`), then the
+    fractions (:func:`_rig_fractions`), each move from the rig file's ``rel`` tested on
+    the camera's whole-shift scan with the others at their fractions. Returns
+    ``(offsets, draws, scans, fractions)``: the whole offsets, the bootstrap draws' best
+    whole offsets and the scans per camera, and per camera ``(offset, std)``, its
+    fractional offset (absent for a camera kept as given); ``None`` where the rig's
+    poses cannot be found."""
+    o = np.where(np.isin(np.arange(len(rel)), live), start, rel)
+    kept: set[int] = set()
+    last: dict[int, ShiftScan] = {}
+    while True:
+        moving = [c for c in live if c not in kept]
+        # a camera kept for want of evidence says nothing of the others' offsets, where
+        # two others remain to triangulate from
+        members = [0] + (moving if len(moving) >= 2 else list(live))
+        # from the pairs' coarse offsets and from the rig file's: a coordinate search may
+        # settle where two groups of cameras agree among themselves (a periodic motion's
+        # other minimum); the one the rig fits better
+        found = None
+        for begin in ([o, rel] if not kept and np.any(o != rel) else [o]):
+            trial = _rig_search(seqs, members, moving, begin, windows, focal, seed)
+            if trial is not None:
+                total = _rig_total(seqs, trial[1], trial[0], focal)
+                if found is None or total < found[0]:
+                    found = (total,) + trial
+        if found is None:
+            return None
+        _, o, P = found
+        fractions = _rig_fractions(seqs, P, o, moving, focal)
+        at = {k: float(o[k]) for k in P}
+        for c, (u, _) in fractions.items():
+            at[c] = u
+            o[c] = int(np.clip(np.round(u), windows[c][0], windows[c][-1]))
+        fails = set()
+        for c in moving:
+            if o[c] == rel[c] and c in fractions:
+                continue                  # nothing to test; the fraction's std is its own
+            # the others at their fractional offsets, the camera at whole shifts: those
+            # about the offset and the given one, every third farther (the draws' spread)
+            w = windows[c]
+            shifts = w[(np.abs(w - o[c]) <= 3) | (w == rel[c]) | ((w - w[0]) % 3 == 0)]
+            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, shifts, focal[c])[0]
+            last[c] = scan
+            if o[c] == rel[c]:
+                continue
+            boot = _bootstrap_costs(scan, weights)
+            boot = np.where(np.isfinite(boot), boot, np.inf)
+            here = boot[:, int(np.flatnonzero(scan.shifts == o[c])[0])]
+            was = boot[:, int(np.flatnonzero(scan.shifts == rel[c])[0])]
+            draws = scan.shifts[np.argmin(boot, axis=1)]
+            # significantly better than the given offset (the whole shifts' draws, or
+            # the fraction's offset beyond FRACTION_Z of its stds from it), and an
+            # offset the draws agree on (their best shifts' RMS deviation within
+            # MOVE_SPREAD), not one a draw may put anywhere in the window
+            u, std = fractions.get(c, (np.nan, np.nan))
+            better = np.mean(here < was) >= ACCEPT_LEVEL or \
+                abs(u - rel[c]) > FRACTION_Z * std
+            if not better or np.sqrt(np.mean((draws - o[c]) ** 2.0)) > MOVE_SPREAD:
+                fails.add(c)
+        if not fails:
+            break
+        kept |= fails
+        o[list(fails)] = rel[list(fails)]
+        if kept >= set(live):
+            fractions = {}
+            break
+    fractions = {c: fractions[c] for c in fractions if c not in kept}
+    return o, {c: _draws(last[c], weights) for c in last}, last, fractions
+
+
+def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
+                  coarse: dict, focal: list, weights: np.ndarray, seed: int, reach: int):
+    """The whole offsets (samples) of the cameras ``live`` from the pairs' epipolar
+    costs (:func:`scan_shifts`, :func:`joint_offsets`; a rig of two cameras, or one
+    whose poses the rig's search cannot find), each move from the rig file's ``rel``
+    tested: ``(offsets, draws, scans)`` as :func:`_rig_offsets`."""
+    N = len(rel)
+    scans: dict[tuple[int, int], ShiftScan] = {}
+    start = rel.copy()
+    for c in live:
+        f = 0.5 * (focal[0] + focal[c])
+        scans[(0, c)] = scan_shifts(seqs[c], seqs[0], f, windows[c], seed=seed,
+                                    coarse=coarse[c])
         start[c] = scans[(0, c)].best
     for i, a in enumerate(live):                 # the pairs without the reference
         for b in live[i + 1:]:
@@ -685,15 +890,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                                seed=seed)
             if np.isfinite(scan.cost).any():
                 scans[(a, b)] = scan
-    if not live:
-        return out
-    rng = np.random.default_rng(seed)
-    blocks = int(np.ceil(length / BOOTSTRAP_BLOCK))
-    weights = rng.multinomial(blocks, np.full(blocks, 1.0 / blocks),
-                              size=BOOTSTRAP_DRAWS).astype(float)
     curves = _PairCurves(scans, weights)
-    windows = [np.arange(r - reach, r + reach + 1) for r in rel]
-    fixed = {0} | {c for c in range(1, N) if out[c] is not None}
+    fixed = {0} | {c for c in range(1, N) if c not in live}
     kept: set[int] = set()
     while True:
         # a camera kept for want of evidence says nothing of the others' offsets
@@ -719,31 +917,9 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         if not fails:
             break
         kept |= fails
-    for c in live:
-        draws = windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
-        # the fraction covers a sample either way: the whole offset's spread counts
-        # only where the draws put it farther
-        near = np.mean(np.abs(draws - o[c]) <= 1) >= ACCEPT_LEVEL
-        whole_std = 0.0 if near else float(np.std(draws)) * step
-        f = 0.5 * (focal[0] + focal[c])
-        # a fraction means something only about a whole offset the people fix, or one
-        # they moved the camera to (where it may also settle the whole offset)
-        dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed, runs=runs)
-                      if near or o[c] != rel[c] else (0.0, float("nan")))
-        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
-        offset = (o[c] + frac) * step + given[0]
-        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
-        note = ""
-        if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
-            edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
-            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
-                    f"the rig file's frame_offset = {given[c]}")
-        elif not near:
-            note = (f"poorly fixed by the people (their best whole offsets spread by "
-                    f"{whole_std:.1f} frames): kept as given ({given[c]})")
-        out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
-                               given=int(given[c]), scan=scans[(0, c)], note=note)
-    return out
+    draws = {c: windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
+             for c in live}
+    return o, draws, {c: scans[(0, c)] for c in live}, None
 
 
 def _refit_distances(camera: np.ndarray, reference: np.ndarray, s: int, f: float, seed: int
@@ -796,6 +972,364 @@ def _total(curves: _PairCurves, o: np.ndarray, skip: set[int]) -> float:
     with a camera of ``skip`` left out)."""
     return float(sum(curves.value(a, b, np.array([o[b] - o[a]]))[0, 0]
                      for (a, b) in curves.terms if a not in skip and b not in skip))
+
+
+# --- the rig's witness: each camera against the triangulation of all the others -------
+
+#: Rounds of the joint search over the cameras (each camera scanned against the others at
+#: their current offsets; it stops earlier where no camera moves).
+RIG_ROUNDS = 4
+#: Shifts either way of a camera's current offset scanned after the first round.
+RIG_REACH = 2
+#: Least-squares rounds of a camera's pose against the others' points (each refits on the
+#: correspondences within :data:`INLIER_SCALES` robust stds of the last).
+RESECT_ROUNDS = 3
+
+
+def _shifted(a: np.ndarray, s: int) -> np.ndarray:
+    """``a`` (``(T, ...)``) with its row ``t + s`` at row ``t`` (NaN outside)."""
+    out = np.full_like(a, np.nan)
+    T = len(a)
+    if abs(s) >= T:
+        return out
+    if s >= 0:
+        out[:T - s] = a[s:]
+    else:
+        out[-s:] = a[:T + s]
+    return out
+
+
+def _errors(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
+    """``(n,)`` reprojection errors (normalised) of points ``X`` (``(n, 3)``) seen at
+    ``x`` (``(n, 2)``, normalised) by the pose ``(rvec, tvec)`` (world to camera)."""
+    Xc = X @ _rotation(rvec).T + np.ravel(tvec)
+    z = Xc[:, 2:]
+    e = np.linalg.norm(Xc[:, :2] / np.where(z > 0, z, np.nan) - x, axis=1)
+    return np.nan_to_num(e, nan=np.inf)
+
+
+#: OpenCV's Levenberg-Marquardt of a pose from a near start: ten iterations at most.
+_LM_STOP = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 10, 1e-10)
+#: ... and to convergence, where the cost must be smooth in the observations.
+_LM_CONVERGE = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-14)
+
+
+def _resect(X: np.ndarray, x: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+            inliers: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A camera's pose from points ``X`` (``(n, 3)``) it sees at ``x`` (``(n, 2)``,
+    normalised), from a start: Levenberg-Marquardt (OpenCV's) on the correspondences
+    within :data:`INLIER_SCALES` robust stds (1.4826 times the median error) of the last
+    pose, :data:`RESECT_ROUNDS` times; on the ``(n,)`` ``inliers`` alone, once, where
+    given (the pose then a smooth function of the observations). ``(rvec, tvec,
+    errors)``, the ``(n,)`` errors normalised; ``None`` where fewer than
+    :data:`MIN_CORRESPONDENCES`."""
+    if len(X) < MIN_CORRESPONDENCES:
+        return None
+    rvec, tvec = np.asarray(rvec, float).reshape(3, 1), np.asarray(tvec, float).reshape(3, 1)
+    if inliers is not None:
+        rvec, tvec = cv2.solvePnPRefineLM(X[inliers], x[inliers], np.eye(3), None,
+                                          rvec.copy(), tvec.copy(), _LM_CONVERGE)
+        return rvec, tvec, _errors(X, x, rvec, tvec)
+    for _ in range(RESECT_ROUNDS):
+        e = _errors(X, x, rvec, tvec)
+        keep = e < INLIER_SCALES * 1.4826 * np.median(e)
+        if keep.sum() < MIN_CORRESPONDENCES:
+            break
+        rvec, tvec = cv2.solvePnPRefineLM(X[keep], x[keep], np.eye(3), None, rvec.copy(),
+                                          tvec.copy(), _LM_STOP)
+    return rvec, tvec, _errors(X, x, rvec, tvec)
+
+
+def _seen(X: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The joints both triangulated (``X``, ``(T, J, 3)``) and seen (``x``, ``(T, J,
+    2)``): ``(n, 3)``, ``(n, 2)`` and their ``(n,)`` rows."""
+    ok = np.isfinite(X).all(-1) & np.isfinite(x).all(-1)
+    rows = np.nonzero(ok)[0]
+    return X[ok], x[ok], rows
+
+
+def _triangulated(P: dict, seqs: dict, min_views: int = 2) -> np.ndarray:
+    """``(T, J, 3)`` the joints triangulated from the cameras ``P`` (``(3, 4)`` world to
+    normalised camera) seeing them at ``seqs`` (``(T, J, 2)``), NaN where fewer than two
+    see one."""
+    from ..geometry import triangulate
+
+    keys = list(P)
+    try:
+        return triangulate([P[k] for k in keys], [seqs[k] for k in keys],
+                           min_views=min_views)[0]
+    except np.linalg.LinAlgError:       # degenerate poses (a camera seeing someone else)
+        return np.full(seqs[keys[0]].shape[:-1] + (3,), np.nan)
+
+
+def _pose(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
+    return np.hstack([_rotation(rvec), np.reshape(tvec, (3, 1))])
+
+
+def _rig_poses(aligned: dict, seed: int) -> dict | None:
+    """Every camera's ``(3, 4)`` pose (world to normalised camera; the first key's the
+    identity) from its joints on the rig's clock (``aligned``: camera to ``(T, J, 2)``):
+    the essential matrix of the first camera and one other, its points triangulated, the
+    others resected against them (EPnP in RANSAC, then :func:`_resect`); of every choice
+    of that other camera the one whose cameras reproject best; then twice the points
+    triangulated from every camera and each camera resected against them."""
+    keys = list(aligned)
+    ref = keys[0]
+    best, best_score = None, np.inf
+    for k in keys[1:]:
+        xk, x0, _ = _pairs(aligned[k], aligned[ref], 0)
+        if len(x0) < MIN_CORRESPONDENCES:
+            continue
+        keep = _evenly(len(x0), MAX_CORRESPONDENCES)
+        E, med = _essential(x0[keep], xk[keep], seed)
+        if E is None:
+            continue
+        _, R, t, _ = cv2.recoverPose(E, x0[keep], xk[keep], np.eye(3))
+        P = {ref: np.hstack([np.eye(3), np.zeros((3, 1))]), k: np.hstack([R, t])}
+        X = _triangulated(P, {ref: aligned[ref], k: aligned[k]})
+        errs = []
+        for c in keys[1:]:
+            if c == k:
+                continue
+            Xs, xs, _ = _seen(X, aligned[c])
+            if len(Xs) < MIN_CORRESPONDENCES:
+                break
+            cv2.setRNGSeed(int(seed))
+            ok, rvec, tvec, _ = cv2.solvePnPRansac(
+                Xs, xs, np.eye(3), None, reprojectionError=max(8.0 * med, 1e-4),
+                iterationsCount=200, flags=cv2.SOLVEPNP_EPNP)
+            fit = _resect(Xs, xs, rvec, tvec) if ok else None
+            if fit is None:
+                break
+            P[c] = _pose(fit[0], fit[1])
+            errs.append(float(np.median(fit[2])))
+        if len(P) < len(keys):
+            continue
+        score = float(np.mean(errs)) if errs else float(med)
+        if score < best_score:
+            best, best_score = P, score
+    if best is None:
+        return None
+    for _ in range(2):
+        X = _triangulated(best, aligned)
+        for c in keys[1:]:
+            Xs, xs, _ = _seen(X, aligned[c])
+            fit = _resect(Xs, xs, cv2.Rodrigues(best[c][:, :3])[0], best[c][:, 3])
+            if fit is not None:
+                best[c] = _pose(fit[0], fit[1])
+    return best
+
+
+def _placed(a: np.ndarray, offset: float) -> np.ndarray:
+    """``(T, J, 2)``: a camera's samples on the rig's rows at its ``offset`` (samples):
+    shifted (:func:`_shifted`) where whole, its local quadratics there (:func:`_smoothed`)
+    where fractional."""
+    whole = int(np.round(offset))
+    return _shifted(a, whole) if offset == whole else _smoothed(a, whole, offset - whole)
+
+
+def _rig_scan(seqs: list, P: dict, o, c: int, shifts, f: float
+              ) -> tuple[ShiftScan, dict]:
+    """Camera ``c``'s reprojection error per whole shift against the joints triangulated
+    from the other cameras of ``P`` at their offsets ``o`` (samples, whole or fractional:
+    :func:`_placed`): at each shift its
+    pose resected anew from its current one (:func:`_resect`; at most
+    :data:`MAX_CORRESPONDENCES` taken evenly), so that no shift is favoured for the pose. Returns the scan (costs: median errors, pixels at focal
+    length ``f``) and its poses per shift."""
+    others = {k: P[k] for k in P if k != c}
+    X = _triangulated(others, {k: _placed(seqs[k], o[k]) for k in others})
+    shifts = np.asarray(list(shifts), int)
+    S = len(shifts)
+    scan = ShiftScan(shifts=shifts, cost=np.full(S, np.nan), correspondences=np.zeros(S, int),
+                     distances=[None] * S, rows=[None] * S)
+    poses = {}
+    r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
+    for i, s in enumerate(shifts):
+        Xs, xs, rows = _seen(X, _shifted(seqs[c], int(s)))
+        scan.correspondences[i] = len(rows)
+        take = _evenly(len(rows), MAX_CORRESPONDENCES)
+        Xs, xs, rows = Xs[take], xs[take], rows[take]
+        fit = _resect(Xs, xs, r0, t0)
+        if fit is None:
+            continue
+        d = fit[2] * f
+        scan.cost[i] = float(np.median(d))
+        scan.distances[i], scan.rows[i] = d, rows
+        poses[int(s)] = _pose(fit[0], fit[1])
+    return scan, poses
+
+
+def _rig_search(seqs: list, members: list[int], searched: list[int], start: np.ndarray,
+                windows: list, focal: list, seed: int) -> tuple[np.ndarray, dict] | None:
+    """Whole offsets (samples) of the cameras ``searched`` against the rig of the cameras
+    ``members`` (the first the reference; the others not searched stay at ``start``):
+    from ``start``, every searched camera's
+    reprojection error scanned against the others' triangulation at their current
+    offsets (:func:`_rig_scan`), its whole window first, then :data:`RIG_REACH` either
+    way, for :data:`RIG_ROUNDS` rounds or until none moves. Returns the offsets and the
+    cameras' poses at them; ``None`` where the rig's poses cannot be found."""
+    o = np.asarray(start, int).copy()
+    P = _rig_poses({k: _shifted(seqs[k], int(o[k])) for k in members}, seed)
+    if P is None:
+        return None
+    live = [c for c in members[1:] if c in searched]
+    for r in range(RIG_ROUNDS):
+        moved = False
+        for c in live:
+            w = windows[c]
+            shifts = w if r == 0 else w[np.abs(w - o[c]) <= RIG_REACH]
+            scan, poses = _rig_scan(seqs, P, o, c, shifts, focal[c])
+            best = scan.best
+            if best is None:
+                continue
+            moved |= best != o[c]
+            o[c], P[c] = best, poses[best]
+        if not moved:
+            break
+    return o, P
+
+
+#: The rig's fractions are scanned on this grid of samples about the whole offset.
+FRACTION_GRID = np.linspace(-1.5, 1.5, 13)
+#: The finer grid of the rig's fractions: seven points this far apart (samples) about the
+#: coarse grid's minimum.
+FRACTION_FINE = 1.0 / 16
+#: Correspondences of a camera's fraction on the rig at most (taken evenly).
+FRACTION_CORRESPONDENCES = 2000
+#: Rounds of the rig's fractions over the cameras at most (each camera against the others
+#: at their latest fractions).
+FRACTION_ROUNDS = 6
+#: The rounds stop where no camera's fraction moved more than this (samples).
+FRACTION_TOL = 0.02
+
+
+def _smoothed(a: np.ndarray, s: int, u: float) -> np.ndarray:
+    """``(T, J, 2)``: ``a``'s trajectories at samples ``t + s + u``, each the local
+    quadratic (:func:`_local_quadratic`) of the samples ``t + s - HALF_WINDOW .. t + s +
+    HALF_WINDOW`` (NaN where one of them is missing)."""
+    w = _local_quadratic(float(u))
+    return sum(wk * _shifted(a, int(s) + k) for k, wk in
+               zip(range(-HALF_WINDOW, HALF_WINDOW + 1), w))
+
+
+def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: float
+                  ) -> tuple[float, float]:
+    """Camera ``c``'s fractional offset against the joints triangulated from the other
+    cameras of ``P`` at their offsets ``at`` (samples, fractional), and its std. Every
+    camera's trajectories are the local quadratics about its whole offset ``centre``
+    (:func:`_smoothed`; one window for every fraction, so that the cost is continuous in
+    the fractions).
+
+    At each point ``u`` of :data:`FRACTION_GRID` about its whole offset, its
+    trajectories are evaluated at ``t + u`` (its residuals scaled to one noise at every
+    ``u``) and its pose resected on one set of inliers (:func:`_resect`); the cost
+    ``C(u)`` is the summed Huber loss of its reprojection errors, turning linear at the
+    robust std of the best grid point, the correspondences farther than
+    :data:`INLIER_SCALES` of it at every point left out. On a finer grid
+    (:data:`FRACTION_FINE` apart) about the coarse minimum, ``C`` is fitted by a
+    quadratic: its minimum is the offset, and its std the M-estimator's sandwich, the
+    root of the summed squares of the gradients of blocks of :data:`BOOTSTRAP_BLOCK`
+    samples at the minimum over the curvature (the cost profiled over the pose; the
+    detector's errors and the motion are correlated over neighbouring frames): a flat
+    cost gives a large std.
+
+    Returns:
+        the offset and its std (samples); NaN where too few correspondences.
+    """
+    others = {k: P[k] for k in P if k != c}
+    placed = {}
+    for k in others:
+        sm = _smoothed(seqs[k], int(centre[k]), at[k] - centre[k])
+        # a slower camera (every n-th sample) fills no local quadratic: its own samples
+        placed[k] = sm if np.isfinite(sm).any() else _shifted(seqs[k], int(centre[k]))
+    X = _triangulated(others, placed, min_views=len(others))
+    base = int(centre[c])
+    r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
+    v0 = _noise_factor(0.0)
+    nan = (float("nan"), float("nan"))
+    # the camera's samples about t + base that every u weighs (the local quadratic's)
+    window = np.stack([_shifted(seqs[c], base + k) for k in range(-HALF_WINDOW,
+                                                                  HALF_WINDOW + 1)])
+    seen = np.isfinite(X).all(-1) & np.isfinite(window).all((0, -1))
+    Xs, W, rows = X[seen], window[:, seen], np.nonzero(seen)[0]
+    if len(rows) < MIN_CORRESPONDENCES:
+        return nan
+    if len(rows) > FRACTION_CORRESPONDENCES:
+        take = _evenly(len(rows), FRACTION_CORRESPONDENCES)
+        Xs, W, rows = Xs[take], W[:, take], rows[take]
+
+    def scale(u):
+        return f * np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
+
+    # one set of inliers (of the pose at the offset rounded) for every u: the cost a
+    # smooth function of u
+    first = _resect(Xs, _at(W, 0.0), r0, t0)
+    if first is None:
+        return nan
+    r0, t0, e0 = first
+    inliers = e0 < INLIER_SCALES * 1.4826 * np.median(e0)
+    if inliers.sum() < MIN_CORRESPONDENCES:
+        return nan
+
+    def errors(grid):
+        out = []
+        for u in grid:
+            fit = _resect(Xs, _at(W, u), r0, t0, inliers)
+            out.append(None if fit is None else fit[2] * scale(u))
+        ok = np.array([e is not None for e in out], bool)
+        return np.asarray(grid)[ok], [e for e in out if e is not None]
+
+    def fine(u0):
+        g, Ef = errors([u for u in u0 + FRACTION_FINE * np.arange(-3, 4)
+                        if abs(u) <= FRACTION_GRID[-1]])
+        return g, (np.stack(Ef) if len(g) >= 3 else None)
+
+    blocks = rows // BOOTSTRAP_BLOCK
+
+    def per_block(E, k_px, keep):
+        nb = int(blocks.max()) + 1
+        return np.stack([np.bincount(blocks, weights=_huber(e, k_px) * keep, minlength=nb)
+                         for e in E], axis=1)                                  # (B, G)
+
+    grid, E = errors(FRACTION_GRID)
+    if len(grid) < 3:
+        return nan
+    E = np.stack(E)                                                           # (G, n)
+    # the scale and the inliers from every grid point alike: none favoured
+    k_px = 1.4826 * float(np.min(np.median(E, axis=1)))
+    keep = E.min(0) < INLIER_SCALES * k_px
+    fine_grid, Ef = fine(_parabola_min(grid, np.sum(_huber(E, k_px) * keep, axis=1)))
+    if Ef is None:
+        return nan
+    # the cost C(u) a quadratic over the fine grid: its minimum; the M-estimator's
+    # (sandwich) std, the blocks' gradients at the minimum over the curvature, of that
+    # quadratic and of one over the whole coarse grid (a cost flat or with another
+    # minimum within it is no offset fixed to the fine grid's precision), the larger
+    x0 = fine_grid.mean()
+    u, std = _sandwich(fine_grid - x0, per_block(Ef, k_px, keep))
+    if not np.isfinite(u):
+        return float(base + _parabola_min(fine_grid, np.sum(_huber(Ef, k_px) * keep, axis=1))), \
+            float("inf")
+    u = float(np.clip(u, fine_grid[0] - x0 - FRACTION_FINE, fine_grid[-1] - x0 + FRACTION_FINE))
+    wide = _sandwich(grid, per_block(E, k_px, keep), at=u + x0)[1]
+    return float(base + x0 + u), float(max(std, wide))
+
+
+def _sandwich(x: np.ndarray, Cb: np.ndarray, at: float | None = None) -> tuple[float, float]:
+    """A cost's minimum and its M-estimator std from its blocks' values ``Cb`` (``(B,
+    G)``) on the grid ``x`` (``(G,)``): each block's cost a least-squares quadratic, the
+    minimum of their sum, and the root of the blocks' summed squared gradients there
+    over the sum's curvature (at ``at`` instead of the minimum, where given). ``(NaN,
+    inf)`` where the sum does not curve up."""
+    coef = np.linalg.lstsq(np.vander(x, 3), Cb.T, rcond=None)[0]              # (3, B)
+    a, b = coef[0].sum(), coef[1].sum()
+    if not a > 0:
+        return float("nan"), float("inf")
+    xm = -b / (2 * a) if at is None else float(at)
+    g = 2 * coef[0] * xm + coef[1]                                           # (B,)
+    return float(xm), float(np.sqrt(np.sum(g ** 2)) / (2 * a))
+
 
 
 def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:

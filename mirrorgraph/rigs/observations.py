@@ -53,7 +53,7 @@ from .config import CameraEntry, RigConfig
 from .matching import match_candidates
 from .epipolar import inlier_threshold_px
 from .failure import offset_hint
-from .tracking import subject_track, track_labelled, track_motion
+from .tracking import segments, subject_track, track_labelled, track_motion
 
 __all__ = ["CameraObservations", "RigObservations", "load_observations", "DEFAULT_FOV_DEG"]
 
@@ -289,10 +289,13 @@ def _keep_person(sorting: _Sorting, person: np.ndarray, flip: np.ndarray,
 
 
 def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: list[str],
-                    warnings: list[str]) -> None:
+                    warnings: list[str], frame_ids: np.ndarray | None = None) -> None:
     """The first camera: keep the person whose track is seen (with mirrors: pairs with a
     reflection) in the most frames, between nearly equal ones the one that moves most,
-    ties broken by confidence (see the module docstring), in place."""
+    ties broken by confidence (see the module docstring), in place. Where the frames
+    ``frame_ids`` or the people jump (:func:`~mirrorgraph.rigs.tracking.segments`:
+    snapshots), no track crosses a jump and each stretch of frames keeps its own person
+    (one frame alone: its most confident candidate)."""
     joints = skeleton.calibration_joints
     min_conf = PairingOptions().min_confidence
     # tracks read a detector's left/right swaps (those the assignment as labelled leaves
@@ -302,21 +305,36 @@ def _follow_subject(name: str, sorting: _Sorting, skeleton: Skeleton, mirrors: l
     # labelled, 23 px swapped, at cam01's frame 56; 56 + 44 frames against 100). Reading
     # swaps here was given up when the detector left duplicates of the subject, which the
     # swapped pass linked into the subject's track (mirrorgraph.video.nms removes them).
-    tracks, swapped = track_labelled(sorting.people, joints, min_conf, skeleton.flip)
+    tracks, swapped = track_labelled(sorting.people, joints, min_conf, skeleton.flip,
+                                     frame_ids)
     conf = [np.nan_to_num(p[:, joints, 2]).sum(1) for p in sorting.people]
     # motion in each track's own labelling: a swapping person standing still would
     # otherwise move by the distance between their two sides
     own = [np.where(s[:, None, None], p[:, skeleton.flip], p)
            for p, s in zip(sorting.people, swapped)]
-    subject, frames = subject_track(tracks, track_motion(tracks, own, joints, min_conf), conf)
-    chosen = np.array([(np.flatnonzero(ids == subject).tolist() or [-1])[0] for ids in tracks],
-                      dtype=int)                                # a handful per frame
-    often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
-    if often > 1:
-        what = "have reflections" if mirrors else "are in view"
-        warnings.append(f"camera {name}: {often} people {what}; calibrating from the one "
-                        f"seen longest and moving most ({frames[subject]} of {len(tracks)} "
-                        "frames)")
+    motion = track_motion(tracks, own, joints, min_conf)
+    stretch = (segments(frame_ids, len(tracks), sorting.people, joints, min_conf)
+               if frame_ids is not None else segments(None, len(tracks)))
+    chosen = np.full(len(tracks), -1, dtype=int)
+    for s in np.unique(stretch):
+        rows = np.flatnonzero(stretch == s)
+        subject, frames = subject_track([tracks[t] for t in rows], motion,
+                                        [conf[t] for t in rows])
+        chosen[rows] = [(np.flatnonzero(tracks[t] == subject).tolist() or [-1])[0]
+                        for t in rows]                          # a handful per frame
+    what = "have reflections" if mirrors else "are in view"
+    if not len(stretch) or stretch[-1] == 0:                  # one continuous stretch
+        often = sum(n > SECOND_PERSON_FRACTION * len(tracks) for n in frames.values())
+        if often > 1:
+            warnings.append(f"camera {name}: {often} people {what}; calibrating from the one "
+                            f"seen longest and moving most ({frames[subject]} of "
+                            f"{len(tracks)} frames)")
+    else:
+        often = int(np.median([len(t) for t in tracks]))
+        if often > 1:
+            warnings.append(f"camera {name}: {often} people {what} in a frame (median); "
+                            "calibrating from the one seen longest in each of its "
+                            f"{stretch[-1] + 1} stretches of frames far apart in time")
     _keep_chosen(sorting, chosen, conf, skeleton, mirrors)
 
 
@@ -341,15 +359,16 @@ def _keep_chosen(sorting: _Sorting, chosen: np.ndarray, conf: list[np.ndarray],
 
 def _match_camera(entry: CameraEntry, sorting: _Sorting, ref_name: str, ref_person: np.ndarray,
                   K_ref: np.ndarray, K: np.ndarray, skeleton: Skeleton, source: str,
-                  frame_step: int = 1) -> None:
+                  frame_step: int = 1, frame_ids: np.ndarray | None = None) -> None:
     """Another camera: keep per frame the candidate consistent with the first camera's
-    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames), in place.
+    person (``ref_person`` ``(T_c, J, 3)`` on this camera's frames ``frame_ids``), in place.
 
     Raises:
         DegenerateGeometryError: no candidate track fits, naming the camera.
     """
     try:
-        chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton)
+        chosen, _ = match_candidates(ref_person, K_ref, sorting.people, K, skeleton,
+                                     frame_ids=frame_ids)
     except DegenerateGeometryError as exc:
         hint = offset_hint(ref_person, K_ref, sorting.people, K, skeleton.calibration_joints,
                            inlier_threshold_px(ref_person, skeleton.calibration_joints,
@@ -525,7 +544,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         fps = fps or data.fps
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():
-        _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings)
+        _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings,
+                        per_camera[0][2])
     clocks = find_clocks([(s.real, s.people) for _, _, _, s, _ in per_camera],
                          [f for _, _, f, *_ in per_camera],
                          [i.K for _, i, *_ in per_camera], [e.frame_offset for e in config.cameras],
@@ -544,7 +564,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
         if sorting.people is not None:      # one candidate a frame may still be another person
             step = int(np.median(np.diff(f))) if len(f) > 1 else 1
             _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
-                          sk, source, step)
+                          sk, source, step, f)
 
     cameras = []
     for (entry, intr, _, sorting, source), r, clock in zip(per_camera, rows, clocks):

@@ -7,8 +7,9 @@ every other person can be associated (:func:`associate_people`):
 
 1. **Tracks per camera**: each camera's candidates are linked over time
    (:func:`~.tracking.track_labelled`), the tracks cut wherever the rig's frames jump by
-   more than :data:`~.tracking.TRACK_MAX_GAP` frames (snapshots far apart in time share
-   no track: no continuity is assumed where the frame numbers say otherwise).
+   more than :data:`~.tracking.TRACK_MAX_GAP` frames or the people jump from frame to
+   frame (:func:`~.tracking.segments`: snapshots share no track, no continuity is
+   assumed where the frame numbers or the people say otherwise).
 2. **Clusters per frame**: every pair of detections of one frame in two cameras is scored
    by the median Sampson distance (px) of their joints under the current rig (Hartley and
    Zisserman, *Multiple View Geometry*, 2nd ed., sec. 11.4.3), relative to a threshold
@@ -29,8 +30,10 @@ every other person can be associated (:func:`associate_people`):
 5. **Slots**: the people are packed into the fewest slots of the layout of several people
    (:func:`mirrorgraph.skeletons.people_skeleton`): the person holding most of the
    one-person path's subject first (slot 0), then the others longest first, each in the
-   first slot free on all of its frames (on snapshots, people of different snapshots
-   share a slot).
+   first slot free on all of its frames; where the frames jump (snapshots), no track
+   follows a person from one stretch of frames to the next, and the people are put in
+   slots by their bone lengths (:func:`~.identities.people_by_body`), the slot holding
+   most detections first.
 
 :class:`PeopleAssociation` holds the result and builds the observations of the one graph
 (:meth:`PeopleAssociation.observations`); :meth:`PeopleAssociation.changed` compares two
@@ -47,7 +50,8 @@ import numpy as np
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..skeletons import Skeleton, people_skeleton
 from .observations import CameraObservations, RigObservations
-from .tracking import TRACK_MAX_GAP, track_labelled
+from .identities import people_by_body
+from .tracking import rig_segments, track_labelled
 
 __all__ = ["ASSOCIATION_OF_SIZE", "ASSOCIATION_PX", "CONFLICT_SHARE", "PeopleAssociation",
            "associate_people", "candidate_index", "pair_costs"]
@@ -203,18 +207,11 @@ def _sizes(X: np.ndarray, joints: np.ndarray, min_confidence: float) -> np.ndarr
 def _tracks(people: list[np.ndarray], frame_ids: np.ndarray, joints: np.ndarray,
             min_confidence: float, flip: np.ndarray, first_id: int) -> np.ndarray:
     """``(N,)`` global track ids of a camera's detections (in frame order), the tracks cut
-    where the frames jump by more than :data:`~.tracking.TRACK_MAX_GAP`."""
-    cuts = np.flatnonzero(np.diff(frame_ids) > TRACK_MAX_GAP) + 1
-    out, next_id = [], first_id
-    for seg in np.split(np.arange(len(people)), cuts):
-        if not len(seg):
-            continue
-        ids, _ = track_labelled([people[t] for t in seg], joints, min_confidence, flip)
-        flat = np.concatenate(ids + [np.zeros(0, int)]).astype(int)
-        if len(flat):
-            out.append(flat + next_id)
-            next_id += int(flat.max()) + 1
-    return np.concatenate(out + [np.zeros(0, int)])
+    where the frames jump by more than :data:`~.tracking.TRACK_MAX_GAP` or the people
+    jump from frame to frame (:func:`~.tracking.segments`)."""
+    ids, _ = track_labelled(people, joints, min_confidence, flip, frame_ids)
+    flat = np.concatenate(ids + [np.zeros(0, int)]).astype(int)
+    return flat + first_id
 
 
 class _Groups:
@@ -351,6 +348,10 @@ def associate_people(obs: RigObservations, Ks: list[np.ndarray], poses: list[np.
         if held is None or len(members) > len(held):
             person_frames[g][f] = list(members)
     slots = _slots(person_frames, cam_of, frame_of, row_of, obs)
+    stretch = rig_segments(frame_ids, [c.people if c.people is not None else [] for c in
+                                        obs.cameras], joints, min_confidence)
+    if len(slots) > 1 and len(stretch) and stretch[-1] > 0:    # frames far apart: by body
+        slots = people_by_body(person_frames, X, cam_of, stretch, Ks, poses, sk, min_confidence)
     P = max(len(slots), 1)
     index = [np.full((T, P), -1) for _ in range(C)]
     for p, people in enumerate(slots):

@@ -16,8 +16,8 @@ import warnings
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
-           "continuity_labels", "subject_track", "track_labelled", "track_motion",
+__all__ = ["JUMP_OF_SIZE", "NEAR_LONGEST", "TRACK_AGE_PX", "TRACK_GATE_PX", "TRACK_MAX_GAP",
+           "continuity_labels", "jumping", "rig_segments", "segments", "subject_track", "track_labelled", "track_motion",
            "track_people", "tracklets"]
 
 #: Tracks: a detection farther than this (mean joint distance, px) from every
@@ -30,18 +30,112 @@ TRACK_GATE_PX = 150.0
 #: moving person's identity, as on Pose2Sim's Demo_MultiPerson).
 TRACK_AGE_PX = 20.0
 
-#: Tracks unseen for more frames than this end.
+#: Tracks unseen for more frames than this end; where two consecutive frames of a
+#: recording are farther apart than this, nothing continues from one to the other
+#: (:func:`segments`: snapshots).
 TRACK_MAX_GAP = 30
 
 
+#: People who move more than this share of their size a frame (to the nearest detection of
+#: the frame before, the median over a frame's detections), in most frames, are not
+#: filmed but snapshots numbered frame after frame (:func:`jumping`): a person walking
+#: at 30 frames/s moves ~0.02 of their size a frame on synthetic rigs, people placed and
+#: turned anew ~0.23, and 0.1 a frame is three body sizes a second.
+JUMP_OF_SIZE = 0.1
+
+#: Pairs of consecutive frames :func:`jumping` compares at most (evenly spread).
+JUMP_PAIRS = 400
+
+
+def jumping(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
+            frame_ids: np.ndarray | None = None) -> bool:
+    """Whether the people jump from frame to frame (snapshots, whatever their numbers): in
+    more than half of the pairs of consecutive frames that both hold someone (at most
+    :data:`JUMP_PAIRS` of them, evenly spread), the median over the later frame's
+    detections of their distance (mean over the ``joints`` seen in both, px, as the
+    tracks measure it) to the nearest detection of the earlier frame, over their size (the
+    larger side of the box of their confident joints) and the frames between the two
+    (``frame_ids``; default 1), exceeds :data:`JUMP_OF_SIZE`.
+
+    Args:
+        candidates: ``T`` arrays ``(P_t, J, 3)`` (x px, y px, confidence).
+        joints: the joints compared; min_confidence: joints below it are not.
+        frame_ids: ``(T,)`` the frames' numbers.
+    """
+    T = len(candidates)
+    if T < 2:
+        return False
+    joints = np.asarray(joints, int)
+    pairs = np.unique(np.linspace(0, T - 2, min(T - 1, JUMP_PAIRS)).round().astype(int))
+    rows = np.unique(np.concatenate([pairs, pairs + 1]))
+    P = max((len(candidates[t]) for t in rows), default=0)
+    if P == 0:
+        return False
+    xy = np.full((len(rows), P, len(joints), 2), np.nan)
+    for i, t in enumerate(rows):
+        p = candidates[t]
+        if len(p):
+            q = np.asarray(p, float).reshape(len(p), -1, 3)[:, joints]
+            xy[i, :len(q)] = np.where(q[..., 2:3] >= min_confidence, q[..., :2], np.nan)
+    step = (np.diff(np.asarray(frame_ids, float)[:T]) if frame_ids is not None
+            else np.ones(T - 1))
+    later, earlier = xy[np.searchsorted(rows, pairs + 1)], xy[np.searchsorted(rows, pairs)]
+    with warnings.catch_warnings():                   # empty rows: nobody there
+        warnings.simplefilter("ignore", RuntimeWarning)
+        size = np.nanmax(np.nanmax(later, 2) - np.nanmin(later, 2), -1)          # (n, P)
+        d = np.nanmean(np.linalg.norm(later[:, :, None] - earlier[:, None], axis=-1),
+                       axis=-1)                                                   # (n, P, P)
+        nearest = np.nanmin(d, axis=2) / np.where(size > 0, size, np.nan)
+        rate = np.nanmedian(nearest, axis=1) / np.maximum(step[pairs], 1.0)       # (n,)
+    judged = np.isfinite(rate)
+    return bool(judged.any() and np.count_nonzero(rate[judged] > JUMP_OF_SIZE)
+                > 0.5 * np.count_nonzero(judged))
+
+
+def segments(frame_ids: np.ndarray | None, T: int | None = None,
+             candidates: list[np.ndarray] | None = None, joints: np.ndarray | None = None,
+             min_confidence: float = 0.3) -> np.ndarray:
+    """``(T,)`` int: the continuous stretch of each frame, ``0 ..``, a new one wherever the
+    frame numbers ``frame_ids`` ``(T,)`` jump by more than :data:`TRACK_MAX_GAP`
+    (snapshots far apart in time), and one a frame where the people of ``candidates``
+    (``T`` arrays ``(P_t, J, 3)``, their ``joints``) jump from frame to frame
+    (:func:`jumping`: snapshots numbered frame after frame). ``None``: one stretch of
+    ``T`` frames."""
+    if frame_ids is None:
+        out = np.zeros(int(T if T is not None else len(candidates or [])), dtype=int)
+    else:
+        ids = np.asarray(frame_ids, dtype=np.int64).ravel()
+        out = np.zeros(len(ids), dtype=int)
+        out[1:] = np.cumsum(np.diff(ids) > TRACK_MAX_GAP)
+    if (candidates is not None and joints is not None and len(out) > 1 and out[-1] < len(out) - 1
+            and jumping(candidates, joints, min_confidence, frame_ids)):
+        out = np.arange(len(out))
+    return out
+
+
+def rig_segments(frame_ids: np.ndarray, cameras: list[list[np.ndarray]], joints: np.ndarray,
+                 min_confidence: float = 0.3) -> np.ndarray:
+    """``(T,)`` :func:`segments` of a rig's frames: cut where ``frame_ids`` jump, one a
+    frame where the people jump in most of the ``cameras`` (each ``T`` arrays
+    ``(P_t, J, 3)``) that see anyone."""
+    out = segments(frame_ids)
+    seen = [c for c in cameras if any(len(p) for p in c)]
+    if len(out) > 1 and out[-1] < len(out) - 1 and seen and sum(
+            jumping(c, joints, min_confidence, frame_ids) for c in seen) > 0.5 * len(seen):
+        out = np.arange(len(out))
+    return out
+
+
 def track_people(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
-                 flip: np.ndarray | None = None) -> list[np.ndarray]:
+                 flip: np.ndarray | None = None, frame_ids: np.ndarray | None = None
+                 ) -> list[np.ndarray]:
     """Link detections into tracks frame to frame: :func:`track_labelled`'s track ids."""
-    return track_labelled(candidates, joints, min_confidence, flip)[0]
+    return track_labelled(candidates, joints, min_confidence, flip, frame_ids)[0]
 
 
 def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confidence: float,
-                   flip: np.ndarray | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+                   flip: np.ndarray | None = None, frame_ids: np.ndarray | None = None
+                   ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Link detections into tracks frame to frame, each detection's left/right labels
     read against its track's.
 
@@ -59,6 +153,10 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
         min_confidence: joints below it are not compared.
         flip: ``(J,)`` left/right permutation of the labels
             (:attr:`mirrorgraph.skeletons.Skeleton.flip`); ``None``: labels as given.
+        frame_ids: ``(T,)`` the candidates' frame numbers: every track ends where they
+            jump by more than :data:`TRACK_MAX_GAP`, and at every frame where the people
+            jump from frame to frame (:func:`segments`; snapshots share no track).
+            ``None``: consecutive frames, continuity assumed.
 
     Returns:
         ``T`` int arrays ``(P_t,)``: the track id of each detection, and ``T`` bool
@@ -69,10 +167,16 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
     last: dict[int, np.ndarray] = {}
     seen_at: dict[int, int] = {}
     ids, swaps, next_id = [], [], 0
+    stretch = (segments(np.asarray(frame_ids)[:len(candidates)], len(candidates), candidates,
+                        joints, min_confidence) if frame_ids is not None
+               else segments(None, len(candidates)))
     for t, people in enumerate(candidates):
         p = np.asarray(people, dtype=float)
         lab = np.full(len(p), -1)
         swapped = np.zeros(len(p), dtype=int)
+        if t and stretch[t] != stretch[t - 1]:
+            last.clear()                                # the frames jump: every track ends
+            seen_at.clear()
         for k in [k for k, s in seen_at.items() if t - s > TRACK_MAX_GAP]:
             del last[k], seen_at[k]                     # a track unseen for long has ended
         if len(p):
@@ -123,7 +227,7 @@ def track_labelled(candidates: list[np.ndarray], joints: np.ndarray, min_confide
 
 
 def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: float,
-                      flip: np.ndarray) -> np.ndarray:
+                      flip: np.ndarray, frame_ids: np.ndarray | None = None) -> np.ndarray:
     """Where one person's left/right labels are swapped, read by continuity.
 
     The person's detections (one a frame) are tracked with :func:`track_labelled`;
@@ -136,6 +240,8 @@ def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: fl
             confidence 0).
         joints: joints compared; min_confidence: joints below it are not compared.
         flip: ``(J,)`` left/right permutation of the labels.
+        frame_ids: ``(T,)`` frame numbers: no stretch crosses a jump of more than
+            :data:`TRACK_MAX_GAP` (:func:`track_labelled`); ``None``: consecutive.
 
     Returns:
         ``(T,)`` bool: swap the frame's labels (``person[t, flip]``) to follow the
@@ -144,7 +250,7 @@ def continuity_labels(person: np.ndarray, joints: np.ndarray, min_confidence: fl
     T, J = person.shape[:2]
     present = (np.asarray(person[..., 2]) >= min_confidence).any(axis=1)
     people = [person[t][None] if present[t] else np.zeros((0, J, 3)) for t in range(T)]
-    ids, swaps = track_labelled(people, joints, min_confidence, flip)
+    ids, swaps = track_labelled(people, joints, min_confidence, flip, frame_ids)
     track = np.array([i[0] if len(i) else -1 for i in ids])
     swap = np.array([bool(s[0]) if len(s) else False for s in swaps])
     out = np.zeros(T, dtype=bool)

@@ -17,6 +17,12 @@ probability ``occlusion_rate`` a person is hidden from a camera during one inter
 5-20 frames (someone passes in front). The detections of a frame are listed in random
 order; :attr:`SyntheticRigPeople.owner` keeps whose each is.
 
+With ``still`` the last ``still`` people stand still: one frame of their motion held,
+no drift (the detector's noise alone moves their keypoints), and with ``bias_px`` their
+keypoints carry a constant error per camera and joint (each coordinate drawn once from a
+normal of std ``bias_px``): a real detector's error on a person who keeps their place
+and pose, repeated in every frame.
+
 With ``snapshots`` every frame is a snapshot :data:`SNAPSHOT_GAP` frames after the last:
 each person stands within :data:`SNAPSHOT_MOVE` of their own place (staff at their posts),
 turned any way, in a frame of their motion drawn at random: nothing continues from one
@@ -143,8 +149,10 @@ def _spaced(rng, P: int, home: np.ndarray | None = None) -> np.ndarray:
                      f"{AREA_RADIUS} m of the centre")
 
 
-def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool):
-    """Room-frame joints ``(P, T, J, 3)`` and heights ``(P,)`` (module docstring)."""
+def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool,
+            still: int = 0):
+    """Room-frame joints ``(P, T, J, 3)`` and heights ``(P,)`` (module docstring); the last
+    ``still`` people hold their first frame, without drift."""
     motions, heights = [], []
     for _ in range(P):
         body = make_body(rng)
@@ -159,10 +167,12 @@ def _people(rng, P: int, T: int, fps: float, skel: Skeleton, snapshots: bool):
         else:
             start = rng.uniform(-1, 1, (P, 2)) * AREA_RADIUS
             drift = rng.uniform(-1, 1, (P, 2)) * DRIFT_M / np.sqrt(2)
+            drift[P - still:] = 0.0
             s = np.linspace(0.0, 1.0, T)[:, None, None]
             centres = start[None] + s * drift[None]
             yaws = np.repeat(rng.uniform(-np.pi, np.pi, P)[None], T, 0)
             pick = np.repeat(np.arange(T)[:, None], P, 1)
+            pick[:, P - still:] = 0
         inside = np.linalg.norm(centres, axis=-1) <= AREA_RADIUS + DRIFT_M
         d = np.linalg.norm(centres[:, :, None] - centres[:, None], axis=-1)
         d[:, np.arange(P), np.arange(P)] = np.inf
@@ -219,6 +229,7 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
                     noise_std: float = 4.0, outlier_rate: float = 0.0,
                     missing_rate: float = 0.0, lr_swap_rate: float = 0.0,
                     occlusion_rate: float = 0.3, snapshots: bool = False,
+                    still: int = 0, bias_px: float = 0.0,
                     image_size: tuple[int, int] = (1920, 1080), fov_deg: float = 60.0,
                     fps: float = 30.0) -> SyntheticRigPeople:
     """Generate a rig of ``cameras`` cameras watching ``people`` people (module docstring).
@@ -232,6 +243,8 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
             swapped left/right labels.
         occlusion_rate: probability that a person is hidden from a camera once.
         snapshots: frames :data:`SNAPSHOT_GAP` apart, nothing continuing between them.
+        still: the last ``still`` people stand still (not with ``snapshots``).
+        bias_px: std of a still person's constant keypoint error per camera and joint, px.
         image_size, fov_deg, fps: the cameras'.
 
     Raises:
@@ -245,16 +258,22 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
                     ("lr_swap_rate", lr_swap_rate), ("occlusion_rate", occlusion_rate)):
         if not 0.0 <= v <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {v}")
+    if int(still) != still or not 0 <= still <= people or (still and snapshots):
+        raise ValueError(f"still must be an integer in [0, people] without snapshots, "
+                         f"got {still}")
+    if not (bias_px >= 0 and np.isfinite(bias_px)):
+        raise ValueError(f"bias_px must be >= 0, got {bias_px}")
     T, w, h = check_camera_args(frames, image_size, fov_deg, fps, noise_std)
     options = dict(cameras=int(cameras), people=int(people), frames=T, seed=seed,
                    noise_std=noise_std, outlier_rate=outlier_rate, missing_rate=missing_rate,
                    lr_swap_rate=lr_swap_rate, occlusion_rate=occlusion_rate,
-                   snapshots=bool(snapshots), image_size=[w, h], fov_deg=fov_deg, fps=fps)
+                   snapshots=bool(snapshots), still=int(still), bias_px=float(bias_px),
+                   image_size=[w, h], fov_deg=fov_deg, fps=fps)
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
     size = (w, h)
     rng = np.random.default_rng(seed)
     Ks = [random_camera_matrix(rng, size, fov_deg) for _ in range(cameras)]
-    X_r, H = _people(rng, int(people), T, fps, skel, snapshots)
+    X_r, H = _people(rng, int(people), T, fps, skel, snapshots, int(still))
     cams = _cameras(rng, int(cameras), Ks, size, X_r)
     joints3d, poses = first_camera_frame(cams, X_r)
     names = [f"cam{i + 1:02d}" for i in range(cameras)]
@@ -271,6 +290,9 @@ def make_rig_people(cameras: int = 4, people: int = 3, *, frames: int = 300,
                 n = int(rng.integers(_OCCLUSION_FRAMES[0], _OCCLUSION_FRAMES[1] + 1))
                 s = int(rng.integers(0, max(T - n, 1)))
                 hidden[p, s:s + n] = True
+        if bias_px > 0 and still:   # a still person's constant error per joint, this camera
+            uv = uv.copy()
+            uv[people - still:] += rng.normal(0.0, bias_px, (still, 1, J, 2))
         filled = np.where(vis[..., None], uv, 0.0)
         obs, miss, _, detected = observe_keypoints(rng, filled, size, 0.0, noise_std,
                                                    outlier_rate, missing_rate, 0.0, 0.0)

@@ -250,3 +250,33 @@ def test_a_subject_height_gives_metres_when_no_bone_is_in_the_calibration():
     assert "bone_length" not in res.priors
     assert res.scale == "subject_height"
     assert res.distance == pytest.approx(scene.distance, rel=0.03)
+
+
+def test_without_the_solve_after_rejection_a_converged_first_solve_is_final():
+    # a few outliers along the epipolar line: the first full solve converges and its
+    # rejection drops some; the default solves again without them,
+    # resolve_after_rejection=False keeps the first solve's mirror, which lies within its
+    # std of both the truth and the second solve's
+    paired, K, n, _ = low_parallax_scene(1, outliers=0.01)
+    n0 = tilted_normal(n, 0.5, np.random.default_rng(1))
+    again = refine_mirror(paired, K, n0, paired.valid(), options=RefineOptions())
+    once = refine_mirror(paired, K, n0, paired.valid(),
+                         options=RefineOptions(resolve_after_rejection=False))
+    full = [s for s in again.stages if "kernel" in s]
+    assert len(full) == 2 and full[0]["rejected"] > 0 and full[0]["converged"]
+    full = [s for s in once.stages if "kernel" in s]
+    assert len(full) == 1 and full[0]["rejected"] > 0          # the first solve is final
+    assert rotation_error_deg(once.normal, n) < 4.0 * once.rotation_std_deg
+    assert rotation_error_deg(once.normal, again.normal) < once.rotation_std_deg
+    assert once.iterations < again.iterations
+
+
+def test_a_first_solve_stopped_by_its_cap_is_solved_again_all_the_same():
+    # 5 % outliers: the first full solve stops at outlier_pass_iterations, unconverged;
+    # the second solve runs without resolve_after_rejection too
+    paired, K, n, _ = low_parallax_scene(0)
+    n0 = tilted_normal(n, 0.5, np.random.default_rng(0))
+    res = refine_mirror(paired, K, n0, paired.valid(),
+                        options=RefineOptions(resolve_after_rejection=False))
+    full = [s for s in res.stages if "kernel" in s]
+    assert len(full) == 2 and not full[0]["converged"]

@@ -38,15 +38,21 @@ def pixels(P: np.ndarray, X: np.ndarray) -> np.ndarray:
     return y[:, :2] / y[:, 2:]
 
 
-@pytest.mark.parametrize("N", [1, 2, 5, 16])
+@pytest.mark.parametrize("N", [1, 2, 5, 16, 33])
+@pytest.mark.parametrize("B", [3, 6])
 @pytest.mark.parametrize("group", [2, 3, 8])
-def test_chain_marginals_are_the_inverse_blocks(N, group):
-    H, diag, off1, off2 = banded(np.random.default_rng(N), 3, N)
+def test_chain_marginals_are_the_inverse_blocks(N, group, B):
+    H, diag, off1, off2 = banded(np.random.default_rng(N), B, N)
     got = chain_marginals(diag, off1, off2, group)
     inv = np.linalg.inv(H)
     want = np.array([[inv[b, 3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(N)]
-                     for b in range(3)])
+                     for b in range(B)])
     assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+    rhs = np.random.default_rng(N + 1).normal(size=(B, N, 3))
+    x, again = chain_marginals(diag, off1, off2, group, rhs=rhs)
+    solved = np.linalg.solve(H, rhs.reshape(B, 3 * N, 1)).reshape(B, N, 3)
+    assert np.abs(x - solved).max() < 1e-12 * np.abs(solved).max()
+    assert np.array_equal(again, got)
 
 
 def test_rays_alone_and_a_depth_nothing_fixes():

@@ -78,3 +78,28 @@ def test_a_joint_unseen_longer_than_the_gap_starts_a_new_track():
     np.testing.assert_allclose(Xs[0], at9)
     Xs, Cs = f.smoothed(20)
     assert np.linalg.norm(Xs[0] - truth[20, 0] - 2.0) < 0.1 and np.isfinite(Cs).all()
+
+
+def test_a_new_unit_mid_track_scales_every_state_once():
+    # the same stream in two units: a filter switched from the first to the second
+    # (scale(), then the measurements and the prior in the new unit) smooths every frame
+    # after the switch exactly as the filter that ran in the second unit throughout,
+    # the frames whose lag spans the switch included
+    truth, z, cov = _tracks(T=30)
+    T, J = z.shape[:2]
+    sigma, lag, f, switch = 0.01, 4, 1.7, 15
+    a = JointFilter(J, sigma * f, max_gap=4, gate_chi2=np.inf, velocity_std=100.0 * f,
+                    lag=lag)
+    b = JointFilter(J, sigma, max_gap=4, gate_chi2=np.inf, velocity_std=100.0, lag=lag)
+    for t in range(T):
+        if t == switch:
+            b.scale(f)
+            b.sigma = sigma * f
+        unit = f if t >= switch else 1.0
+        a.step(t, np.arange(J), f * z[t], f * f * cov[t])
+        b.step(t, np.arange(J), unit * z[t], unit * unit * cov[t])
+        if t >= switch:
+            (xa, Pa), (xb, Pb) = a.smoothed(t - lag), b.smoothed(t - lag)
+            np.testing.assert_allclose(xb, xa, rtol=1e-9)
+            np.testing.assert_allclose(Pb, Pa, rtol=1e-6, atol=1e-15)
+            np.testing.assert_allclose(b.x, a.x, rtol=1e-9)

@@ -12,6 +12,7 @@ from mirrorgraph.metrics import mirror_rotation_error_deg, pa_mpjpe
 from mirrorgraph.pipelines.mirror import calibrate
 from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.pipelines.people import calibrate_people
+from mirrorgraph.stature import estimate_stature, keypoint_rel_std, measurement_rel_std
 from mirrorgraph.synth.crowd import make_crowd
 
 
@@ -109,3 +110,17 @@ def test_each_persons_left_right_swaps_undone():
         assert (err > 0.3).mean() < 0.005, (k, (err > 0.3).mean())
         assert err.max() < 1.0, (k, err.max())
         assert pa_mpjpe(run.joints3d[k], crowd.joints3d[p], run.valid3d[k]) < 0.03
+
+
+def test_the_distance_std_holds_the_stature_measurement_as_one_persons_does(crowd, runs):
+    """The people's scale std is one person's rule: the height's prior and the chosen
+    person's stature measurement (its detector keypoint term included), not the prior
+    alone."""
+    _, run = runs
+    cal = run.calibration
+    k = run.height_person
+    est = estimate_stature(run.joints3d[k], run.valid3d[k], crowd.skeleton)
+    rel = measurement_rel_std(est)
+    assert rel >= keypoint_rel_std(est.top)                  # the end keypoints' share in it
+    want = np.hypot(CalibrateOptions().graph.height_sigma, rel)
+    assert cal.uncertainty["distance_std"] / cal.distance == pytest.approx(want, rel=1e-6)

@@ -71,3 +71,31 @@ def test_the_subject_matched_in_pieces_and_never_the_bystander(crossing):
     assert not np.any(chosen == 0)                      # the bystander never
     # of the scattered frames only a few fit by chance
     assert np.count_nonzero(chosen[CLEAN:] == 1) <= 0.2 * (FRAMES - CLEAN)
+
+
+def test_snapshots_matched_one_candidate_a_frame():
+    """Snapshots far apart, the reference camera's person a different one of four people
+    in every frame (no track links them): the geometry comes from one candidate a frame
+    (:func:`~mirrorgraph.rigs.matching.consensus_geometry`), and each frame's choice is
+    the reference's person."""
+    from mirrorgraph.synth.rig_people import make_rig_people
+
+    rig = make_rig_people(3, 4, frames=40, seed=5, snapshots=True, noise_std=4.0,
+                          outlier_rate=0.02)
+    J = rig.skeleton.num_joints
+    rng = np.random.default_rng(1)
+    ref_own, cam_own = rig.owner["cam01"], rig.owner["cam02"]
+    ref = np.full((40, J, 3), np.nan)
+    ref[..., 2] = 0.0
+    want = np.full(40, -1)
+    for t in range(40):
+        i = int(rng.integers(len(ref_own[t])))
+        ref[t] = rig.detections["cam01"].people[t][i]
+        want[t] = ref_own[t][i]
+    cands = [np.asarray(p, float).reshape(-1, J, 3) for p in rig.detections["cam02"].people]
+    chosen, _ = match_candidates(ref, rig.K[0], cands, rig.K[1], rig.skeleton,
+                                 frame_ids=rig.frame_ids)
+    got = np.array([cam_own[t][c] if c >= 0 else -1 for t, c in enumerate(chosen)])
+    visible = np.array([want[t] in cam_own[t] for t in range(40)])
+    assert np.count_nonzero(got == want) >= 0.9 * np.count_nonzero(visible)
+    assert np.count_nonzero((got >= 0) & (got != want)) <= 1

@@ -1,0 +1,237 @@
+"""The live run's metric scale window by window, against the truth (``bench/bench_joints.py``'s scenes).
+
+Each scene (``make_wide_scene(seed, 'wide', noise, frames)``, the camera matrix and the
+subject's height as a user reports it: :func:`bench_joints.make_truth`) is replayed
+through :class:`mirrorgraph.live.LiveCalibrator` (windows solved in the calling thread)
+and, for every window the live run solved:
+
+* the window: its frames, its size, what the fusion did with it, its distance's error
+  against the true distance, its stature's sampling std and measured spread
+  (``scale_sampling``, ``scale_side``: :class:`mirrorgraph.live.estimator.WindowEstimate`);
+* the fused distance's error after it, and the live metric scale's relative std
+  (:attr:`mirrorgraph.live.LiveMirror.scale_rel_std`);
+* the output joints of the frames it served (the frames until the next window): their
+  scale's error (each frame's least-squares factor about the camera, truth ~ f X: the
+  median over the frames of ``1 / f - 1``, and its 10th and 90th percentiles), the share
+  of joints more than 0.3 m off, and the same with each frame's scale taken out.
+
+Per scene: the stature measured on the detector's keypoints triangulated with the TRUE
+mirror (two rays a joint, :func:`mirrorgraph.live.frame_prior.triangulate_two_rays`,
+outliers kept): what the observations themselves say about the height, without any
+calibration's error; and, with ``--offline``, ``mirrorgraph.calibrate`` on every frame
+(its joints' scale error, its distance's error).
+
+Writes ``--out`` (default ``bench/RESULTS_live_scale.md``) unless ``--no-write``.
+
+Run:  python bench/bench_live_scale.py                     # realistic 0-1, iid 0, ~2 min
+      python bench/bench_live_scale.py --scenes realistic:0-3,iid:0-3 --offline
+      python bench/bench_live_scale.py --window-frames 150   # several fused windows
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _report  # noqa: E402
+import bench_joints as bj  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 30.0
+
+
+def _frame_scale(X: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """``(T,)`` each frame's scale error ``1 / f - 1``, ``f`` its least-squares factor
+    about the camera (truth ~ f X); NaN without joints."""
+    given = np.isfinite(X).all(-1)
+    Xz = np.where(given[..., None], X, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (Xz * truth).sum((1, 2)) / (Xz * Xz).sum((1, 2))
+        return 1.0 / f - 1.0
+
+
+def run_scene(case: tuple) -> dict:
+    import warnings
+    warnings.filterwarnings("ignore")
+    import mirrorgraph.live.calibrator as lc
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.live.frame_prior import triangulate_two_rays
+    from mirrorgraph.stature import estimate_stature
+
+    kind, seed, frames, offline, window = case
+    tr = bj.make_truth(kind, seed, frames, bj.default_fixtures(), "population", "reported")
+    T, J = tr.joints3d.shape[:2]
+    out = dict(name=tr.name, distance=tr.distance, height=tr.height,
+               height_err=tr.height_given / tr.height - 1.0)
+    # what the keypoints say about the height: triangulated with the true mirror
+    u, um = tr.real.reshape(-1, 2), tr.mirror.reshape(-1, 2)
+    Xo = triangulate_two_rays(tr.intrinsics.K, tr.normal, tr.distance, u, um).reshape(T, J, 3)
+    st = estimate_stature(Xo, np.isfinite(Xo).all(-1), tr.detections.skeleton)
+    out["true_mirror_stature_err"] = None if st is None else st.height / tr.height - 1.0
+    windows = []
+    solve = lc.solve_window
+
+    def recorded(raw, intr, opts):
+        est = solve(raw, intr, opts)
+        windows.append(est)
+        return est
+
+    lc.solve_window = recorded
+    extra = {} if window is None else dict(window_frames=window)
+    live = LiveCalibrator(tr.detections.skeleton, tr.intrinsics,
+                          LiveOptions.of(subject_height=tr.height_given, **extra))
+    X = np.full((T, J, 3), np.nan)
+    served = np.full(T, -1)
+    fused = {}
+    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
+    det = tr.detections
+    clock = time.perf_counter()
+    try:
+        for k, people in enumerate(det.people):
+            fid = int(det.frame_ids[k])
+            f = live.update(people, frame_id=fid, time_s=fid / FPS)
+            served[where[fid]] = len(windows) - 1
+            if windows and len(windows) - 1 not in fused:
+                m = live.mirror
+                fused[len(windows) - 1] = (m.distance, m.scale_rel_std)
+            if f.settled is not None:
+                X[where[int(f.settled.frame_id)]] = f.settled.joints3d
+        live.finish()
+        for f in live.flush():
+            X[where[int(f.frame_id)]] = f.joints3d
+    finally:
+        live.close()
+        lc.solve_window = solve
+    out["seconds"] = time.perf_counter() - clock
+    truth = tr.joints3d
+    s_err = _frame_scale(X, truth)
+    e = np.linalg.norm(np.where(np.isfinite(X), X, 0.0) - truth, axis=-1)
+    given = np.isfinite(X).all(-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fit = 1.0 / (1.0 + s_err)
+    es = np.linalg.norm(np.where(np.isfinite(X), X, 0.0) * np.nan_to_num(fit)[:, None, None]
+                        - truth, axis=-1)
+    rows = []
+    log = live.window_log
+    for i, w in enumerate(windows):
+        sel = (served == i) & np.isfinite(s_err)
+        g = given & sel[:, None]
+        d_f, s_f = fused.get(i, (None, None))
+        rows.append(dict(
+            frames=f"{w.first_frame}-{w.last_frame}", size=int(log[i]["size"]) if i < len(log)
+            else w.frames, result=log[i]["result"] if i < len(log) else "?",
+            distance_err=(w.distance / tr.distance - 1.0) if w.ok else None,
+            sampling=getattr(w, "scale_sampling", None), side=w.scale_side,
+            fused_err=None if d_f is None else d_f / tr.distance - 1.0, fused_std=s_f,
+            served=int(sel.sum()),
+            scale_med=float(np.median(s_err[sel])) if sel.any() else None,
+            scale_p10=float(np.percentile(s_err[sel], 10)) if sel.any() else None,
+            scale_p90=float(np.percentile(s_err[sel], 90)) if sel.any() else None,
+            gross=float((e[g] > bj.GROSS_M).mean()) if g.any() else None,
+            gross_scaled=float((es[g] > bj.GROSS_M).mean()) if g.any() else None))
+    out["windows"] = rows
+    ok = np.isfinite(s_err)
+    out["scale_err"] = float(np.median(s_err[ok])) if ok.any() else None
+    out["gross"] = float((e[given] > bj.GROSS_M).mean()) if given.any() else None
+    out["gross_scaled"] = float((es[given] > bj.GROSS_M).mean()) if given.any() else None
+    if offline:
+        import mirrorgraph as mg
+
+        run = mg.calibrate(tr.detections, tr.intrinsics,
+                           mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS))
+        rows_of = np.array([where[int(f)] for f in run.paired.frame_ids])
+        Xc = np.where(run.valid3d[..., None], run.joints3d, np.nan)
+        sc = _frame_scale(Xc, truth[rows_of])
+        out["offline_scale_err"] = float(np.nanmedian(sc))
+        out["offline_distance_err"] = float(run.calibration.distance / tr.distance - 1.0)
+    return out
+
+
+def _pct(v, spec="+.2f") -> str:
+    return "-" if v is None else format(100.0 * v, spec)
+
+
+def tables(scenes: list[dict]) -> list[str]:
+    lines = ["## Per window", "",
+             "`served`: the frames whose joints the window's mirror gave (until the next "
+             "window); `output scale err`: the median over them of each frame's joints' "
+             "scale error (p10 / p90); `> 0.3 m, frame's scale out`: after each frame's "
+             "least-squares scale about the camera.", "",
+             "| scene | window frames | size | result | window distance err % | sampling std % "
+             "| spread % | fused distance err % | scale std % | served | output scale err % "
+             "| p10 / p90 % | > 0.3 m % | > 0.3 m, frame's scale out % |",
+             "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|"]
+    for s in scenes:
+        for w in s["windows"]:
+            lines.append(
+                f"| {s['name']} | {w['frames']} | {w['size']} | {w['result']} "
+                f"| {_pct(w['distance_err'])} | {_pct(w['sampling'], '.2f')} "
+                f"| {_pct(w['side'], '.2f')} | {_pct(w['fused_err'])} "
+                f"| {_pct(w['fused_std'], '.2f')} | {w['served']} | {_pct(w['scale_med'])} "
+                f"| {_pct(w['scale_p10'], '+.1f')} / {_pct(w['scale_p90'], '+.1f')} "
+                f"| {_pct(w['gross'], '.1f')} | {_pct(w['gross_scaled'], '.2f')} |")
+    lines += ["", "## Per scene", "",
+              "`true-mirror stature err`: the stature measured on the keypoints triangulated "
+              "with the TRUE mirror (two rays a joint, outliers kept) against the true height; "
+              "`height given err`: the reported height's.", "",
+              "| scene | true distance m | height given err % | true-mirror stature err % "
+              "| live output scale err % | live > 0.3 m % | live > 0.3 m, frame's scale out % "
+              "| offline scale err % | offline distance err % | live s |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for s in scenes:
+        lines.append(
+            f"| {s['name']} | {s['distance']:.2f} | {_pct(s['height_err'])} "
+            f"| {_pct(s['true_mirror_stature_err'])} | {_pct(s['scale_err'])} "
+            f"| {_pct(s['gross'], '.2f')} | {_pct(s['gross_scaled'], '.2f')} "
+            f"| {_pct(s.get('offline_scale_err'))} | {_pct(s.get('offline_distance_err'))} "
+            f"| {s['seconds']:.0f} |")
+    return lines
+
+
+def _cases(text: str, frames: int, offline: bool, window: int | None) -> list[tuple]:
+    cases = []
+    for part in text.split(","):
+        kind, seeds = part.split(":")
+        cases += [(kind, s, frames, offline, window) for s in bj._seeds(seeds)]
+    return cases
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default="realistic:0-1,iid:0",
+                    help="kind:seeds, comma-separated (kinds iid, realistic)")
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--window-frames", type=int, default=None,
+                    help="the live windows' size (LiveOptions.window_frames; default the "
+                         "live run's): smaller windows fuse more of them")
+    ap.add_argument("--offline", action="store_true",
+                    help="also mirrorgraph.calibrate on every frame of each scene")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_scale.md"))
+    ap.add_argument("--no-write", action="store_true")
+    args = ap.parse_args(argv)
+    cases = _cases(args.scenes, args.frames, args.offline, args.window_frames)
+    clock = time.perf_counter()
+    with ProcessPoolExecutor(max(1, args.workers)) as pool:
+        scenes = list(pool.map(run_scene, cases))
+    lines = ["# The live run's metric scale window by window (`bench/bench_live_scale.py`)", "",
+             *_report.header(code=True), f"- wall: {time.perf_counter() - clock:.0f} s", "",
+             *tables(scenes)]
+    print("\n".join(lines))
+    if not args.no_write:
+        Path(args.out).write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
