@@ -122,6 +122,14 @@ class FocalOptions:
             On the Pose2Sim demo's 8 camera clips (a lab) within 2.3 % of Qualisys
             (``bench/RESULTS_lines.md``). ``False`` (``--no-lines``): the person alone.
         lines_frames: frames sampled over the video for the lines' median background.
+        bias_replicates: noisy replicates of the focal length's bias
+            (:func:`~mirrorgraph.graph.solve.focal_bias`: the solved joints re-imaged and
+            solved again, once without noise and this many times with the data's pixel
+            noise; its square is added to the std of a determined focal length). Each is
+            one solve of up to :data:`~mirrorgraph.graph.solve.FOCAL_BIAS_FRAMES` frames
+            (5-15 s a calibration of 500-1000 frames for one); 0: no bias term (the
+            data's std alone, which on 40 scenes left 3 of 31 focal lengths beyond 4 std,
+            ``bench/RESULTS_focal_std.md``).
     """
 
     principal_point: bool = False
@@ -137,8 +145,13 @@ class FocalOptions:
     guess_rel_sigma: float = 0.1
     lines: bool = True
     lines_frames: int = 31
+    bias_replicates: int = 1
 
     def __post_init__(self) -> None:
+        if isinstance(self.bias_replicates, bool) or not isinstance(self.bias_replicates, int) \
+                or self.bias_replicates < 0:
+            raise InputError(f"must be a number of replicates >= 0, got {self.bias_replicates!r}",
+                             field="bias_replicates")
         if isinstance(self.lines_frames, bool) or not isinstance(self.lines_frames, int) \
                 or self.lines_frames < 1:
             raise InputError(f"must be a positive number of frames, got {self.lines_frames!r}",

@@ -44,8 +44,7 @@ from .solve_state import SolveState
 from .stage_config import SolveConfig
 from .stages import Counter, solve_rows
 
-__all__ = ["solve", "judge_focal", "undetermined_focal", "focal_bias", "FOCAL_BIAS_REPLICATES",
-           "FOCAL_BIAS_FRAMES"]
+__all__ = ["solve", "judge_focal", "undetermined_focal", "focal_bias", "FOCAL_BIAS_FRAMES"]
 
 
 def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
@@ -134,7 +133,7 @@ def focal_bias(state: SolveState, rig: Rig, opts: RefineOptions, config: SolveCo
     mirrors wherever the data held an observation, solved again by the graph from the
     solution (the last stage's kernel, nothing rejected), once without noise (the
     reference: the solved joints' bones are not exactly rigid, and the noiseless solve
-    moves by that alone, +4.7 % on the scene above) and :data:`FOCAL_BIAS_REPLICATES`
+    moves by that alone, +4.7 % on the scene above) and ``opts.focal.bias_replicates``
     times with each coordinate drawn with the a posteriori pixel sigma
     (``state.noise_px``, over the square root of a column's weight). With ``b`` the noisy
     replicates' mean focal length minus the reference's and ``s^2`` the variance of that
@@ -149,7 +148,7 @@ def focal_bias(state: SolveState, rig: Rig, opts: RefineOptions, config: SolveCo
         rig: the rig it solved (views, masks, cameras).
         opts, config, height: the solve's options, configuration and gauge.
         skip: camera indices not to measure (their focal length left open).
-        replicates: replicates (default :data:`FOCAL_BIAS_REPLICATES`).
+        replicates: noisy replicates (default ``opts.focal.bias_replicates``; 0: none).
         seed: the noise's seed (the figure is reproducible).
 
     Returns:
@@ -163,7 +162,9 @@ def focal_bias(state: SolveState, rig: Rig, opts: RefineOptions, config: SolveCo
     noise = float(state.noise_px)
     if not cams or not np.isfinite(noise) or noise <= 0 or state.points is None:
         return {}
-    R = FOCAL_BIAS_REPLICATES if replicates is None else int(replicates)
+    R = opts.focal.bias_replicates if replicates is None else int(replicates)
+    if R < 1:
+        return {}
     rows = spread_rows(rig.num_frames, min(opts.max_graph_frames, FOCAL_BIAS_FRAMES))
     points = np.asarray(state.points, float)[rows]
     used = np.asarray(state.used, bool)[rows] & np.isfinite(points).all(-1)
@@ -215,11 +216,6 @@ def focal_bias(state: SolveState, rig: Rig, opts: RefineOptions, config: SolveCo
                   "replicate_std_px": float(np.sqrt(var.mean())), "focal_px": f,
                   "noiseless_px": float(ref), "replicates": [float(x) for x in fr]}
     return out
-
-
-#: Noisy replicates of :func:`focal_bias` (beside the noiseless one): each is one solve
-#: of the graph on at most :data:`FOCAL_BIAS_FRAMES` frames.
-FOCAL_BIAS_REPLICATES = 1
 
 
 #: The most frames (spread over the video) of each replicate of :func:`focal_bias`: the

@@ -494,3 +494,21 @@ def test_the_bootstrap_adds_nothing_where_the_noise_does_not_bias(scene, run):
     assert abs(bias["bias_px"]) < 3.0 * bias["replicate_std_px"]
     assert est["std_px"] <= np.hypot(est["data_std_px"], 3.0 * bias["replicate_std_px"]) + 1e-9
     assert abs(run.calibration.intrinsics.K[0, 0] - scene.K[0, 0]) <= 3.0 * est["std_px"]
+
+
+def test_without_replicates_the_std_is_the_data_own(scene, run):
+    """``FocalOptions.bias_replicates = 0``: no bias measured, the focal length's std the
+    data's own figure (the search within 20 %); a negative count is refused by name."""
+    from mirrorgraph.errors import InputError
+    from mirrorgraph.graph.options import FocalOptions
+
+    opts = RefineOptions(subject_height=scene.subject_height)
+    opts = dataclasses.replace(opts, focal=dataclasses.replace(opts.focal, bias_replicates=0))
+    rig = prepare(run.paired, run.calibration.intrinsics.K, run.calibration.normal,
+                  run.inliers, None, opts, estimate_focal=True)
+    state = solve(rig, opts, single_mirror_config(opts), height=scene.subject_height)
+    assert state.focal_bias == {} and not state.focal_undetermined
+    assert state.intrinsics_std[0][0] == pytest.approx(state.intrinsics_data_std[0][0])
+    assert abs(state.intrinsics[0][0, 0] - scene.K[0, 0]) <= 3.0 * state.intrinsics_std[0][0]
+    with pytest.raises(InputError, match="bias_replicates"):
+        FocalOptions(bias_replicates=-1)
