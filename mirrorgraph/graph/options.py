@@ -127,9 +127,9 @@ class FocalOptions:
             solved again, once without noise and this many times with the data's pixel
             noise; its square is added to the std of a determined focal length). Each is
             one solve of up to :data:`~mirrorgraph.graph.solve.FOCAL_BIAS_FRAMES` frames
-            (5-15 s a calibration of 500-1000 frames for one); 0: no bias term (the
-            data's std alone, which on 40 scenes left 3 of 31 focal lengths beyond 4 std,
-            ``bench/RESULTS_focal_std.md``).
+            (the fixture scene_901, 1000 frames: 4.1-4.7 s of CPU without, 6.3-6.7 s with
+            one); 0: no bias term (the data's std alone, which on 40 scenes left 3 of 31
+            focal lengths beyond 4 std, ``bench/RESULTS_focal_std.md``).
     """
 
     principal_point: bool = False
