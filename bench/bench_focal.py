@@ -583,7 +583,9 @@ def honest_case(sc: dict) -> dict:
                        determined=bool(est.get("determined", est.get("estimated"))),
                        pp_err_px=[float(cal.intrinsics.K[0, 2] - sc["K"][0, 2]),
                                   float(cal.intrinsics.K[1, 2] - sc["K"][1, 2])],
-                       contributions=dict(u.get("contributions") or {}))
+                       contributions=dict(u.get("contributions") or {}),
+                       search_px=est.get("search_px"), data_std_px=est.get("data_std_px"),
+                       bias=est.get("bias"))
         out[name] = rec
     return out
 

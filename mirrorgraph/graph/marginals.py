@@ -60,7 +60,7 @@ def covariances(problem: GraphProblem, values: gtsam.Values, info: np.ndarray | 
 
 
 def floor_focal(state: SolveState, undetermined: set[int] = frozenset(), *,
-                disagreement: bool = True) -> None:
+                disagreement: bool = True, model_var: dict[int, float] | None = None) -> None:
     """Variance floors of the estimated focal lengths, in every robust figure.
 
     Two estimates of one focal length from the same data, the initial search's (every
@@ -69,14 +69,15 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset(), *,
     graph's std the std is no measure of the error (rays meeting at 16 deg: the search
     2699 px, the graph 1365 px at a std of 4 %, the truth 2186 px), and the difference
     squared is the floor of its variance (``disagreement``; off: the data's own
-    figures). The search's sampling noise (its fewer frames) is part of that
-    difference, and it stays in: taking it out (``sigma^2 (T / T_s - 1)``, nested
-    estimates without bias) thins the tail where the graph is the biased one (on 40
-    scenes of 500 frames the focal error / std median 0.50 against 0.42, the scenes
-    beyond 4 std 3 against 1: ``bench/RESULTS_focal.md``). A camera in ``undetermined`` gets its
+    figures). The driver takes that floor only where the two are further apart than
+    ``FocalOptions.fallback_rel_std`` (:func:`~.solve.judge_focal`): a smaller
+    difference is mostly the search's sampling noise (its fewer frames), and a bias
+    both share is in neither (:func:`~.solve.focal_bias` measures it). A camera in ``undetermined`` gets its
     prior's variance, and so does a principal point held at the centre
     (:data:`~.priors.PRINCIPAL_POINT_HOLD`: its uncertainty is the population's).
-    Sets the scores' :attr:`~.scores.JointScores.prior_floor` and recomputes the
+    ``model_var`` (camera index -> px^2) is a variance the data's own figures do not hold
+    (the estimator's bias, :func:`~.solve.focal_bias`): the floor is at least the data's
+    variance plus it. Sets the scores' :attr:`~.scores.JointScores.prior_floor` and recomputes the
     cameras' robust intrinsics stds with it.
     """
     sc, problem = state.scores, state.problem
@@ -104,8 +105,13 @@ def floor_focal(state: SolveState, undetermined: set[int] = frozenset(), *,
             f = float(np.asarray(state.intrinsics[c])[0, 0])
             if c in undetermined:
                 floor[off] = np.inf                        # the prior's (capped there)
-            elif search and len(problem.calibration_keys) == 1:
-                floor[off] = max(floor[off], (float(search[-1]["focal_px"]) - f) ** 2)
+            else:
+                if search and len(problem.calibration_keys) == 1:
+                    floor[off] = max(floor[off], (float(search[-1]["focal_px"]) - f) ** 2)
+                if model_var and model_var.get(c, 0.0) > 0 and c < len(state.intrinsics_data_std):
+                    own = np.asarray(state.intrinsics_data_std[c], float)
+                    data_var = float(own[0]) ** 2 if own.size else 0.0
+                    floor[off] = max(floor[off], data_var + float(model_var[c]))
         off += dim
     sc.prior_floor = floor
     sc.prior_cap = cap

@@ -74,8 +74,9 @@ class FocalOptions:
         search_fov_deg: the focal length's initial search (one camera and its mirrors,
             :func:`~mirrorgraph.graph.stages.focal_search`) spans these horizontal
             fields of view, degrees.
-        search_steps: candidate focal lengths of that search (log-spaced; the best is
-            refined by a parabola through its neighbours).
+        search_steps: candidate focal lengths of that search (log-spaced; the
+            geometric midpoints beside the best are solved too, and a parabola through
+            the best of these and its neighbours refines it).
         search_frames: frames (spread over the video) of each candidate's solve.
         bone_bias_limit: the calibration graph's bone rule (``RefineOptions.
             bone_bias_limit``) where a focal length is estimated: 1 (a bone's bias under
@@ -121,6 +122,14 @@ class FocalOptions:
             On the Pose2Sim demo's 8 camera clips (a lab) within 2.3 % of Qualisys
             (``bench/RESULTS_lines.md``). ``False`` (``--no-lines``): the person alone.
         lines_frames: frames sampled over the video for the lines' median background.
+        bias_replicates: noisy replicates of the focal length's bias
+            (:func:`~mirrorgraph.graph.solve.focal_bias`: the solved joints re-imaged and
+            solved again, once without noise and this many times with the data's pixel
+            noise; its square is added to the std of a determined focal length). Each is
+            one solve of up to :data:`~mirrorgraph.graph.solve.FOCAL_BIAS_FRAMES` frames
+            (the fixture scene_901, 1000 frames: 4.1-4.7 s of CPU without, 6.3-6.7 s with
+            one); 0: no bias term (the data's std alone, which on 40 scenes left 3 of 31
+            focal lengths beyond 4 std, ``bench/RESULTS_focal_std.md``).
     """
 
     principal_point: bool = False
@@ -136,8 +145,13 @@ class FocalOptions:
     guess_rel_sigma: float = 0.1
     lines: bool = True
     lines_frames: int = 31
+    bias_replicates: int = 1
 
     def __post_init__(self) -> None:
+        if isinstance(self.bias_replicates, bool) or not isinstance(self.bias_replicates, int) \
+                or self.bias_replicates < 0:
+            raise InputError(f"must be a number of replicates >= 0, got {self.bias_replicates!r}",
+                             field="bias_replicates")
         if isinstance(self.lines_frames, bool) or not isinstance(self.lines_frames, int) \
                 or self.lines_frames < 1:
             raise InputError(f"must be a positive number of frames, got {self.lines_frames!r}",

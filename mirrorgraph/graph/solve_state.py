@@ -65,6 +65,10 @@ class SolveState:
         focal_undetermined: camera name -> ``{"focal_px", "std_px", "rel_std"}`` for the
             cameras whose focal length the data did not determine; the solution holds
             them at their guess (:func:`mirrorgraph.graph.solve.solve`).
+        focal_bias: camera name -> the estimator's bias on its focal length
+            (:func:`mirrorgraph.graph.solve.focal_bias`: ``bias_px``, ``bias_var_px2``
+            the variance it adds to the data's, ``replicate_std_px``); empty where not
+            measured.
     """
 
     poses: list[np.ndarray]
@@ -100,3 +104,4 @@ class SolveState:
     camera_spread: list[np.ndarray] = field(default_factory=list)
     plane_spread: list[np.ndarray] = field(default_factory=list)
     focal_undetermined: dict[str, dict] = field(default_factory=dict)
+    focal_bias: dict[str, dict] = field(default_factory=dict)

@@ -198,6 +198,10 @@ def focal_record(state: SolveState, guess: Camera, index: int = 0,
             rec["principal_point_prior_px"] = [float(v) for v in guess.principal_point_prior]
     if guess.focal_prior is not None:
         rec["focal_prior_std_px"] = float(guess.focal_prior[1])
+    if index < len(state.intrinsics_data_std) and len(state.intrinsics_data_std[index]):
+        rec["data_std_px"] = float(np.asarray(state.intrinsics_data_std[index], float)[0])
+    if guess.name in state.focal_bias:
+        rec["bias"] = dict(state.focal_bias[guess.name])
     return rec
 
 
