@@ -900,8 +900,10 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                                           runs=runs)
                           if near or o[c] != rel[c] else (0.0, float("nan")))
         # a fraction moves a camera from its given offset where significant; one the rig's
-        # search moved elsewhere sits at its estimate (its whole offset that rounded)
-        moved = fractions is not None and c in fractions and o[c] != rel[c]
+        # search moved elsewhere sits at its estimate where the people fix it within half a
+        # frame either way (at the two-sided 1 % level), else at the whole offset
+        moved = fractions is not None and c in fractions and o[c] != rel[c] and \
+            FRACTION_Z * dt_std <= 0.5
         frac = dt if np.isfinite(dt_std) and (moved or abs(dt) > FRACTION_Z * dt_std) else 0.0
         offset = (o[c] + frac) * step + given[0]
         # a fraction not applied: its distance from the whole offset counts into the std
@@ -1047,16 +1049,22 @@ def _rig_offsets(seqs: list, tracks: list, live: list[int], rel: np.ndarray,
         # a camera kept for want of evidence says nothing of the others' offsets, where
         # two others remain to triangulate from
         members = [0] + (moving if len(moving) >= 2 else list(live))
-        # from the pairs' coarse offsets and from the rig file's: a coordinate search may
+        # from the pairs' coarse offsets, and from the rig file's where they fit the rig
+        # better as they stand than the first search's result: a coordinate search may
         # settle where two groups of cameras agree among themselves (a periodic motion's
         # other minimum); the one the rig fits better
         found = None
-        for begin in ([o, rel] if not kept and np.any(o != rel) else [o]):
-            trial = _rig_search(seqs, members, moving, begin, windows, focal, seed)
-            if trial is not None:
-                total = _rig_total(seqs, trial[1], trial[0], focal)
-                if found is None or total < found[0]:
-                    found = (total,) + trial
+        trial = _rig_search(seqs, members, moving, o, windows, focal, seed)
+        if trial is not None:
+            found = (_rig_total(seqs, trial[1], trial[0], focal),) + trial
+        if not kept and (found is None or np.any(found[1] != rel)):
+            P = _rig_poses({k: _shifted(seqs[k], int(rel[k])) for k in members}, seed)
+            if P is not None and (found is None or _rig_total(seqs, P, rel, focal) < found[0]):
+                trial = _rig_search(seqs, members, moving, rel, windows, focal, seed)
+                if trial is not None:
+                    total = _rig_total(seqs, trial[1], trial[0], focal)
+                    if found is None or total < found[0]:
+                        found = (total,) + trial
         if found is None:
             return None
         _, o, P = found
