@@ -1,8 +1,11 @@
-"""Cameras on different clocks: each camera's time offset found from the people it sees.
+"""Cameras on different clocks: each camera's time offset (and clock rate) found from the people.
 
-A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
-frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. Three steps (rigs of three cameras or more):
+The rig's clock runs at the first camera's frame rate times a whole number (the finest
+the cameras need: :func:`rig_rates`). A camera at ``rate`` rig frames per own frame (2 for
+30 fps on a 60 fps clock), offset ``o`` (rig frames) and clock rate ``r`` (1 unless its
+drift is measured) shows at its frame ``g`` the rig's frame ``(rate g - o) / r``: at one
+frame rate, frame ``f`` shows rig frame ``f - o`` (the rig file's ``frame_offset``); a
+fractional ``o`` puts its frames between the rig's. Three steps (three cameras or more):
 
 1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift
    against the reference camera by the least median Sampson distance of an essential
@@ -11,30 +14,37 @@ frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fract
    essential matrix of the reference and its best partner, the others resected; then in
    rounds every camera's median reprojection error per whole shift against the joints
    triangulated from all the others at their offsets, its pose resected anew at every
-   shift (so no shift is favoured), the best taken; from the start and from the rig
-   file's offsets, the configuration the rig fits better kept.
+   shift (so no shift is favoured), the best taken; from the start, and from the rig
+   file's offsets where they fit the rig better than that result, the configuration the
+   rig fits better kept.
 3. **Fractions against the rig** (:func:`_rig_fraction`): every camera's joints as
-   local quadratics, evaluated at ``t + u`` on a grid of ``u``, the others at their
-   latest fractions, the cost (Huber) fitted by a quadratic; in rounds until they settle.
-   The std is the M-estimator's sandwich over blocks of samples, propagated through the
-   cameras' coupling. A camera leaves the rig file's whole offset only where the move is
-   significant (the block bootstrap of its whole-shift scan prefers it in
-   :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond :data:`FRACTION_Z`
-   stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction is applied beyond
-   :data:`FRACTION_Z` stds.
+   local quadratics of its own samples, evaluated at its own instants ``t + u`` on a grid
+   of ``u`` (a 30 fps camera's seven samples span twelve frames of a 60 fps clock), the
+   others at their latest fractions, the cost (Huber) fitted by a quadratic; in rounds
+   until they settle. The std is the M-estimator's sandwich over blocks of samples,
+   propagated through the cameras' coupling. A camera leaves the rig file's whole offset
+   only where the move is significant (the block bootstrap of its whole-shift scan
+   prefers it in :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond
+   :data:`FRACTION_Z` stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction
+   is applied beyond :data:`FRACTION_Z` stds, or where the camera moved and the people
+   fix it within half a frame.
+
+With ``drift`` (the rig file's ``clock_drift``), every camera's fraction is measured again
+in :data:`DRIFT_STRETCHES` stretches of its frames and a line through them gives its clock
+rate and its offset at the rig's frame 0 (:func:`_drift`).
 
 A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
 whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
-reference (:func:`subframe_offset`) instead. Continuous-time calibration treats a
-camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal calibration, Furgale
-et al., IROS 2013); Pose2Sim synchronises whole frames from the keypoints' speeds.
-:func:`resample` puts a camera's keypoints on the rig's frames for a fractional offset.
-Cameras at different frame rates are first put on the reference's clock
-(:func:`rig_frames`); the scans run on the finest grid of samples.
+reference (:func:`subframe_offset`; at one frame rate) instead. Continuous-time
+calibration treats a camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal
+calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole frames from the
+keypoints' speeds. :func:`on_rig_clock` puts a camera's keypoints on the rig's frames at
+their instants (linear interpolation between its own frames).
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
-apart for a video read every n-th frame).
+apart for a video read every n-th frame). The scans run on a grid of rig frames
+(:class:`_Track`: every camera's own samples at their places on it).
 """
 
 from __future__ import annotations

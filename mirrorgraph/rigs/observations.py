@@ -4,8 +4,11 @@ For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the keypo
 format of :func:`mirrorgraph.io.read_keypoints`), read the intrinsics and undistort, then
 sort every frame into the person and, for each mirror the camera sees, their reflection
 (labels flipped to the real joints). Frames are put on the rig's clock with each camera's
-time offset: found from the person to a fraction of a frame (:mod:`.clocks`, the rig
-file's ``frame_offset`` the search's centre) or the rig file's as given.
+frame rate (its input's, or the rig file's ``fps``) and time offset: found from the person
+to a fraction of a frame (:mod:`.clocks`, the rig file's ``frame_offset`` the search's
+centre; with ``clock_drift``, its clock rate too) or the rig file's as given. Each frame
+lands on the rig frame nearest its instant, its keypoints interpolated to that instant
+(:func:`~mirrorgraph.rigs.clocks.on_rig_clock`).
 
 Who the person is, camera by camera:
 
@@ -111,10 +114,12 @@ class RigObservations:
 
     Attributes:
         skeleton: the keypoint layout (the same for every camera).
-        frame_ids: ``(T,)`` rig frame numbers (camera frame minus its offset).
+        frame_ids: ``(T,)`` rig frame numbers (at one frame rate: camera frame minus its
+            offset; see :func:`~mirrorgraph.rigs.clocks.rig_rates` for several).
         cameras: per camera, in the rig file's order.
         mirrors: mirror names.
-        fps: frame rate if an input carries it.
+        fps: the rig clock's frame rate (the first camera's, or a whole multiple where a
+            camera films faster), ``None`` where unknown.
         warnings: what the user should know (assumed intrinsics, several people
             with reflections in the first camera, ...).
     """
@@ -525,7 +530,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             (:func:`~mirrorgraph.rigs.clocks.find_clocks`, the rig file's
             ``frame_offset`` the centre of the search) and applied, to a fraction of a
             frame; ``"fixed"``: the rig file's ``frame_offset`` as given.
-        offset_window: frames searched either way of a camera's given offset.
+        offset_window: frames (the first camera's) searched either way of a camera's
+            given offset.
         seed: seed of the search's random choices.
 
     Raises:
