@@ -1060,7 +1060,7 @@ def _rig_offsets(seqs: list, tracks: list, live: list[int], rel: np.ndarray,
         # two others remain to triangulate from
         members = [0] + (moving if len(moving) >= 2 else list(live))
         # from the pairs' coarse offsets, and from the rig file's where they fit the rig
-        # better as they stand than the first search's result: a coordinate search may
+        # better as they stand than the first search's result does: a coordinate search may
         # settle where two groups of cameras agree among themselves (a periodic motion's
         # other minimum); the one the rig fits better
         found = None
@@ -1068,8 +1068,8 @@ def _rig_offsets(seqs: list, tracks: list, live: list[int], rel: np.ndarray,
         if trial is not None:
             found = (_rig_total(seqs, trial[1], trial[0], focal),) + trial
         if not kept and (found is None or np.any(found[1] != rel)):
-            P = _rig_poses({k: _shifted(seqs[k], int(rel[k])) for k in members}, seed)
-            if P is not None and (found is None or _rig_total(seqs, P, rel, focal) < found[0]):
+            # the rig file's offsets judged with the result's poses (each camera's refitted)
+            if found is None or _rig_total(seqs, found[2], rel, focal) < found[0]:
                 trial = _rig_search(seqs, members, moving, rel, windows, focal, seed)
                 if trial is not None:
                     total = _rig_total(seqs, trial[1], trial[0], focal)

@@ -71,8 +71,8 @@ class CameraEntry:
         mirrors: names of the mirrors the camera sees.
         frame_offset: the camera's frame ``f`` is rig frame ``f - frame_offset`` (the
             first camera's frames).
-        fps: its frame rate, or ``None`` (its input's; a rate the input carries too must
-            agree with it to 0.1 %).
+        fps: its frame rate, or ``None`` (its input's); where the input carries another
+            (by more than 0.1 %), this one is used, with a warning.
     """
 
     name: str
