@@ -35,7 +35,7 @@ rate and its offset at the rig's frame 0 (:func:`_drift`).
 
 A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
 whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
-reference (:func:`subframe_offset`; at one frame rate) instead. Continuous-time
+reference (:func:`subframe_offset`) instead. Continuous-time
 calibration treats a camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal
 calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole frames from the
 keypoints' speeds. :func:`on_rig_clock` puts a camera's keypoints on the rig's frames at
@@ -519,23 +519,18 @@ def _noise_factor(u):
     return float(out) if np.ndim(out) == 0 else out
 
 
-def _windows(a: np.ndarray, b: np.ndarray, s: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The correspondences about shift ``s`` whose camera is seen at every sample of
-    ``t + s - HALF_WINDOW .. t + s + HALF_WINDOW`` and the reference at every one of
-    ``t - HALF_WINDOW .. t + HALF_WINDOW``: ``(W, N, 2)`` the camera's, ``(W, N, 2)`` the
-    reference's, ``(N,)`` the reference's samples ``t``."""
-    h = HALF_WINDOW
-    T = len(b)
-    t = np.arange(max(h, h - s), min(T - h, len(a) - s - h))
-    if not t.size:
-        return np.zeros((2 * h + 1, 0, 2)), np.zeros((2 * h + 1, 0, 2)), np.zeros(0, int)
-    offs = np.arange(-h, h + 1)
-    A = np.stack([a[t + s + o] for o in offs])                  # (W, n, J, 2)
-    B = np.stack([b[t + o] for o in offs])
-    ok = np.isfinite(A).all((0, -1)) & np.isfinite(B).all((0, -1))
-    rows = np.broadcast_to(t[:, None], ok.shape)
-    return A[:, ok], B[:, ok], rows[ok]
+def _windows(a: "_Track", b: "_Track", s: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The correspondences of camera ``a`` at whole shift ``s`` (samples) against the
+    reference ``b`` at the rows both fall on, each seen at every sample of its local
+    quadratic's window (:meth:`_Track.window`): ``(W, N, 2)`` the camera's, ``(W, N, 2)``
+    the reference's, ``(N,)`` the rows, and ``(N,)`` the camera's and ``(N,)`` the
+    reference's instants there less their windows' centres (own samples)."""
+    Wa, pa = a.window(int(s))
+    Wb, pb = b.window(0)
+    ok = np.isfinite(Wa).all((0, -1)) & np.isfinite(Wb).all((0, -1))          # (L, J)
+    rows = np.nonzero(ok)[0]
+    return Wa[:, ok], Wb[:, ok], rows, pa[rows], pb[rows]
 
 
 def _at(W: np.ndarray, u) -> np.ndarray:
@@ -555,10 +550,10 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], float)
 
 
-def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
+def _fit_subframe(A3, pa, per, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
                   tol: float = 1e-8):
-    """Least squares of ``(rotation, translation direction, dt)`` from a start; returns
-    ``(dt, R, t)``."""
+    """Least squares of ``(rotation, translation direction, dt)`` from a start (the
+    camera's windows ``A3`` at their instants ``pa + dt / per``); returns ``(dt, R, t)``."""
     from scipy.optimize import least_squares
 
     t0 = E0_t / np.linalg.norm(E0_t)
@@ -575,9 +570,10 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
 
     def residuals(p):
         R, t = parts(p)
-        d = sampson_distances(_skew(t) @ R, _at(A3, p[5]), xb) * f
+        u = pa + p[5] / per
+        d = sampson_distances(_skew(t) @ R, _at(A3, u), xb) * f
         # the same noise for every dt: the local quadratic's varies a little with it
-        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(p[5])))
+        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
         return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
     r = FRACTION_REACH
@@ -591,14 +587,15 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
     return float(res.x[5]), R, t
 
 
-def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
+def subframe_offset(camera: "_Track", reference: "_Track", shift: int, f: float,
                     *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
     """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which
     ``camera``'s sample ``t + shift + dt`` matches ``reference``'s ``t`` best, and its std.
 
     Each joint's trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1``
-    samples (a Savitzky-Golay filter evaluated between samples; the reference's the same
-    filter at its sample), the camera's evaluated at ``t + shift + dt``; the relative
+    of its own samples (a Savitzky-Golay filter evaluated between samples; the
+    reference's the same filter at its sample; a camera at another frame rate on its own
+    samples at its own instants), the camera's evaluated at ``t + shift + dt``; the relative
     pose (five parameters) and ``dt`` are fitted together by robust least squares, each
     residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured for
     averaging the noise more. The std is the spread of that fit over a bootstrap of
@@ -611,7 +608,8 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     at ``s``.
 
     Args:
-        camera, reference: ``(N, J, 2)`` normalised coordinates on one grid, NaN unseen.
+        camera, reference: their normalised coordinates on their own samples, placed on
+            one grid (:class:`_Track`).
         shift: the whole shift found (:func:`scan_shifts`).
         f: a focal length, pixels (the Sampson distance's scale).
         seed: seed of the RANSAC and of the bootstrap.
@@ -620,28 +618,30 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     Returns:
         ``(dt, std)`` samples; ``(0, NaN)`` where too few correspondences.
     """
-    A3, B3, rows = _windows(camera, reference, int(shift))
+    A3, B3, rows, pa, pb = _windows(camera, reference, int(shift))
     if len(rows) < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
     keep = _evenly(len(rows), SUBFRAME_CORRESPONDENCES)
-    A3, xb, rows = A3[:, keep], _at(B3[:, keep], 0.0), rows[keep]
-    E, median = _essential(_at(A3, 0.0), xb, seed)
+    A3, xb, rows, pa = A3[:, keep], _at(B3[:, keep], pb[keep]), rows[keep], pa[keep]
+    per = camera.per
+    xa = _at(A3, pa)
+    E, median = _essential(xa, xb, seed)
     if E is None or not median > 0:
         return 0.0, float("nan")
     scale = 1.4826 * median
-    inl = np.abs(sampson_distances(E, _at(A3, 0.0), xb)) < INLIER_SCALES * scale
+    inl = np.abs(sampson_distances(E, xa, xb)) < INLIER_SCALES * scale
     if inl.sum() < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
-    A3, xb, rows = A3[:, inl], xb[inl], rows[inl]
-    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, 0.0), xb, np.eye(3))
+    A3, xb, rows, pa = A3[:, inl], xb[inl], rows[inl], pa[inl]
+    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, pa), xb, np.eye(3))
     t0 = t0.ravel()
     huber = scale * f
     # the start: the best of a coarse grid of dt under the shift's pose
     Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
     grid = np.linspace(-FRACTION_REACH, FRACTION_REACH, int(8 * FRACTION_REACH) + 1)
-    costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, g), xb) * f, huber))
-                      for g in grid])
-    dt, R, t = _fit_subframe(A3, xb, R0, t0, _parabola_min(grid, costs), f, huber)
+    costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, pa + g / per), xb) * f,
+                                    huber)) for g in grid])
+    dt, R, t = _fit_subframe(A3, pa, per, xb, R0, t0, _parabola_min(grid, costs), f, huber)
     if runs <= 0:
         return dt, float("nan")
     rng = np.random.default_rng(seed)
@@ -655,8 +655,8 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
         if len(idx) < MIN_CORRESPONDENCES:
             continue
         # from the full fit: a resample moves it little (looser tolerances suffice)
-        draws.append(_fit_subframe(A3[:, idx], xb[idx], R, t, dt, f, huber, max_nfev=60,
-                                   tol=1e-6)[0])
+        draws.append(_fit_subframe(A3[:, idx], pa[idx], per, xb[idx], R, t, dt, f, huber,
+                                   max_nfev=60, tol=1e-6)[0])
     std = float(np.std(draws, ddof=1)) if len(draws) > 1 else float("nan")
     return dt, std
 
@@ -906,7 +906,7 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             whole_std = 0.0 if near else float(np.std(draws[c])) * step
             # a fraction means something only about a whole offset the people fix, or
             # one they moved the camera to (where it may also settle the whole offset)
-            dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed,
+            dt, dt_std = (subframe_offset(tracks[c], tracks[0], int(o[c]), f, seed=seed,
                                           runs=runs)
                           if near or o[c] != rel[c] else (0.0, float("nan")))
         # a fraction moves a camera from its given offset where significant; one the rig's

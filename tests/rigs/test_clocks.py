@@ -313,3 +313,14 @@ def test_a_drifting_clock_is_measured_where_the_rig_file_asks(tmp_path):
     assert [c.clock.rate for c in plain.cameras] == [1.0] * 4
     middle = offsets[1] + (drifts[1] - 1) * 0.5 * 3 * FRAMES     # the clip's mean offset
     assert abs(plain.cameras[1].clock.offset - middle) < 0.2, plain.cameras[1].clock
+
+
+def test_a_rig_of_two_cameras_at_60_and_30_fps_finds_the_fraction(tmp_path):
+    """Two cameras (no third to triangulate from), the second at 30 fps 2.6 frames (of 60
+    fps) early: the pair's fraction on the slower camera's own samples."""
+    rig = unsynchronised_rig("4cams", (0, -2.6, 0, 0), frames=2 * FRAMES, fps=60.0,
+                             rates=(1, 2, 1, 1), seed=0, noise_std=4.0)
+    path = _with_rates(write_rig(rig, tmp_path), {"cam01": 60, "cam02": 30})
+    two = _with_offsets(path, "two.toml", {}, keep=("cam01", "cam02"))
+    clock = load_observations(load_rig_config(two)).cameras[1].clock
+    assert abs(clock.offset + 2.6) < 0.15 and abs(clock.offset + 2.6) < 3 * clock.std, clock
