@@ -277,11 +277,12 @@ class _Track:
         pos[r] = d
         return W, pos
 
-    def smoothed(self, centre: int, offset: float) -> np.ndarray:
+    def smoothed(self, centre: int, offset) -> np.ndarray:
         """``(length, J, 2)``: the local quadratics about the rows of the whole offset
-        ``centre`` (:meth:`window`) evaluated at ``offset`` (samples)."""
+        ``centre`` (:meth:`window`) evaluated at ``offset`` (samples; or ``(length,)``, one
+        a row: a drifting clock)."""
         W, pos = self.window(int(centre))
-        u = np.nan_to_num(pos) + (float(offset) - int(centre)) / self.per
+        u = np.nan_to_num(pos) + (np.asarray(offset, float) - int(centre)) / self.per
         return _at(W, u)
 
 
@@ -888,6 +889,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     if found is None:
         found = _pair_offsets(seqs, live, rel, windows, coarse, focal, weights, seed, reach)
     o, draws, scans, fractions, P = found
+    drifts = _rig_drifts(tracks, P, o, fractions, focal, -base / step) \
+        if drift and fractions else {}
     for c in live:
         f = 0.5 * (focal[0] + focal[c])
         if fractions is not None and c in fractions:
@@ -921,10 +924,8 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         std = float(np.hypot(whole_std, dt_err))
         rate, rate_std, drift_note = 1.0, float("nan"), ""
         if drift:
-            if fractions is not None and c in fractions:
-                at = {k: float(o[k]) for k in P}
-                at.update({k: v[0] for k, v in fractions.items()})
-                b, b_std, u0, u0_std = _drift(tracks, P, at, o, c, focal[c], base, step)
+            if c in drifts:
+                b, b_std, u0, u0_std = drifts[c]
                 rate_std = b_std
                 if np.isfinite(b_std) and abs(b) > FRACTION_Z * b_std:
                     rate = 1.0 + b
@@ -957,14 +958,19 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
 DRIFT_STRETCHES = 4
 
 
-def _drift(tracks: list, P: dict, at: dict, o: np.ndarray, c: int, f: float, base: int,
-           step: int) -> tuple[float, float, float, float]:
+#: Rounds of the clock rates over the cameras (each camera's against the others' lines).
+DRIFT_ROUNDS = 3
+
+
+def _drift(tracks: list, P: dict, at: dict, o: np.ndarray, c: int, f: float, r0: float
+           ) -> tuple[float, float, float, float]:
     """Camera ``c``'s clock drift: its fractional offset (:func:`_rig_fraction`, the others
-    at ``at``) in each of :data:`DRIFT_STRETCHES` stretches of its rows (equal counts),
-    a line through them weighted by their stds. Returns ``(b, b_std, u0, u0_std)``: the
-    slope (the rate less 1: samples of offset per sample of time) and the offset at the
-    rig's frame 0 (samples; its std the line's at that frame); NaN where fewer than three
-    stretches are measured."""
+    at ``at``: per camera an offset or ``(length,)`` one a row) in each of
+    :data:`DRIFT_STRETCHES` stretches of its rows (equal counts), a line through them
+    weighted by their stds. Returns ``(b, b_std, u0, u0_std)``: the slope (the rate less
+    1: samples of offset per sample of time) and the offset at grid row ``r0`` (the rig's
+    frame 0; its std the line's there), the stds conditional on the others; NaN where
+    fewer than three stretches are measured."""
     rows = np.sort(tracks[c].rows(o[c])[0])
     nan = (float("nan"),) * 4
     if len(rows) < DRIFT_STRETCHES * MIN_CORRESPONDENCES // 10:
@@ -984,10 +990,41 @@ def _drift(tracks: list, P: dict, at: dict, o: np.ndarray, c: int, f: float, bas
     sxx = np.sum(w * (r - rm) ** 2)
     b = float(np.sum(w * (r - rm) * (u - np.sum(w * u) / np.sum(w))) / sxx)
     a = float(np.sum(w * u) / np.sum(w))
-    r0 = -base / step                       # the rig's frame 0 on the grid
     u0 = a + b * (r0 - rm)
     return b, float(1 / np.sqrt(sxx)), float(u0), float(np.sqrt(1 / np.sum(w) +
                                                                   (r0 - rm) ** 2 / sxx))
+
+
+def _rig_drifts(tracks: list, P: dict, o: np.ndarray, fractions: dict, focal: list,
+                r0: float) -> dict[int, tuple[float, float, float, float]]:
+    """Every measured camera's clock drift (:func:`_drift`) against the others placed on
+    their latest lines (offset at grid row ``r0``, the rig's frame 0, and slope; the
+    others' drifts otherwise pass into each camera's through the triangulation), for
+    :data:`DRIFT_ROUNDS` rounds; the stds propagated through the cameras' coupling as the
+    fractions' (:func:`_rig_fractions`). Returns per camera ``(b, b_std, u0, u0_std)``
+    (samples)."""
+    grid = np.arange(tracks[0].length, dtype=float)
+    lines = {k: (float(o[k]), 0.0) for k in P}
+    lines.update({k: (float(v[0]), 0.0) for k, v in fractions.items()})
+    out: dict[int, tuple[float, float, float, float]] = {}
+    for _ in range(DRIFT_ROUNDS):
+        for c in fractions:
+            at = {k: u + b * (grid - r0) for k, (u, b) in lines.items()}
+            got = _drift(tracks, P, at, o, c, focal[c], r0)
+            if np.isfinite(got[1]):
+                out[c] = got
+                lines[c] = (got[2], got[0])
+    if not out:
+        return {}
+    keys = list(out)
+    m = len(P)
+    A = np.full((len(keys), len(keys)), 1.0 / (m - 1))
+    np.fill_diagonal(A, 0.0)
+    G2 = np.linalg.inv(np.eye(len(keys)) - A) ** 2
+    b_std = np.sqrt(G2 @ np.array([out[c][1] for c in keys]) ** 2)
+    u_std = np.sqrt(G2 @ np.array([out[c][3] for c in keys]) ** 2)
+    return {c: (out[c][0], float(bs), out[c][2], float(us))
+            for c, bs, us in zip(keys, b_std, u_std)}
 
 
 def _draws(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:

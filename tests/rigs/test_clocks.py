@@ -296,8 +296,8 @@ def test_a_mixed_rig_is_calibrated_as_well_as_the_same_rig_at_one_rate(mixed_rig
 def test_a_drifting_clock_is_measured_where_the_rig_file_asks(tmp_path):
     """cam02's clock runs 0.3 % fast, cam03's 0.2 % slow (0.9 and 0.6 frames over the
     clip): with ``clock_drift = true`` each rate is found within 3 stds (its std under
-    5e-4), the offsets at the rig's frame 0 within 3 stds; cam04's steady clock stays at
-    1. Without it the rates are 1 and cam02's offset is the clip's mean."""
+    1e-3) and applied, the offsets at the rig's frame 0 within 3 stds; cam04's steady
+    clock stays at 1. Without it the rates are 1 and cam02's offset is the clip's mean."""
     offsets, drifts = (0, 3.3, -2.6, 1.4), (1, 1.003, 0.998, 1.0)
     rig = unsynchronised_rig("4cams", offsets, frames=3 * FRAMES, drifts=drifts, seed=0,
                              noise_std=4.0)
@@ -305,7 +305,7 @@ def test_a_drifting_clock_is_measured_where_the_rig_file_asks(tmp_path):
     obs = load_observations(load_rig_config(_with_rates(path, {}, head="clock_drift = true\n")))
     clocks = [c.clock for c in obs.cameras]
     for c, o, d in zip(clocks[1:3], offsets[1:3], drifts[1:3]):
-        assert c.rate_std < 5e-4 and abs(c.rate - d) < 3 * c.rate_std, c
+        assert c.rate_std < 1e-3 and abs(c.rate - d) < 3 * c.rate_std and c.rate != 1, c
         assert abs(c.offset - o) < 3 * c.std + 0.05, c
     assert clocks[3].rate == 1.0 and np.isfinite(clocks[3].rate_std), clocks[3]
     assert "not significant" in clocks[3].note
