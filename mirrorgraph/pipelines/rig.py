@@ -337,8 +337,13 @@ def _clock(clock) -> dict:
     """A camera's time offset as :class:`RigCamera` fields."""
     if clock is None:
         return {}
-    return dict(time_offset_frames=float(clock.offset), time_offset_std=float(clock.std),
-                time_offset_source=clock.source)
+    frames, std = clock.reference_frames
+    secs, secs_std = clock.seconds
+    return dict(time_offset_frames=float(frames), time_offset_std=float(std),
+                time_offset_source=clock.source, time_offset_s=float(secs),
+                time_offset_s_std=float(secs_std),
+                fps=float(clock.fps) if clock.fps else float("nan"),
+                clock_rate=float(clock.rate), clock_rate_std=float(clock.rate_std))
 
 
 def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_stature=None

@@ -78,15 +78,23 @@ class RigCamera:
         status: ``"ok"``, or ``"failed"``: under half of its keypoints fit the rig
             (:data:`mirrorgraph.rigs.failure.MIN_FIT_SHARE`), its pose is not to be used.
         reason: why it failed, in words (the likeliest cause), else ``""``.
-        time_offset_frames: its time offset, frames of the rig's clock (the first
-            camera's): its frame ``f`` is the rig's frame ``f - time_offset_frames``
+        time_offset_frames: its time offset, the first camera's frames: at one frame
+            rate its frame ``f`` is the first camera's frame ``f - time_offset_frames``
             (the rig file's ``frame_offset`` convention; fractional where found from
-            the people, :mod:`mirrorgraph.rigs.clocks`).
+            the people, :mod:`mirrorgraph.rigs.clocks`); at another, its frame ``g`` is
+            at ``g / fps - time_offset_s`` seconds of the first camera's clock.
         time_offset_std: its std, frames (0 for the first camera; NaN where taken as
             given).
         time_offset_source: ``"reference"``, ``"search"`` (the search's: the rig file's
             offset where the people do not significantly prefer another) or ``"given"``
             (not searched).
+        time_offset_s, time_offset_s_std: the offset and its std in seconds (NaN where
+            the frame rate is unknown).
+        fps: its frame rate (its input's or the rig file's), NaN where unknown.
+        clock_rate: its clock's rate against the first camera's (1 + drift; 1 where not
+            estimated: the rig file's ``clock_drift``); its frame ``g`` at ``g /
+            (fps clock_rate) - time_offset_s`` seconds.
+        clock_rate_std: its std (NaN where not estimated).
     """
 
     name: str
@@ -105,6 +113,11 @@ class RigCamera:
     time_offset_frames: float = 0.0
     time_offset_std: float = float("nan")
     time_offset_source: str = "given"
+    time_offset_s: float = float("nan")
+    time_offset_s_std: float = float("nan")
+    fps: float = float("nan")
+    clock_rate: float = 1.0
+    clock_rate_std: float = float("nan")
 
     @property
     def failed(self) -> bool:
@@ -362,6 +375,11 @@ class RigCalibration:
                 "time_offset_frames": c.time_offset_frames,
                 "time_offset_std": c.time_offset_std,
                 "time_offset_source": c.time_offset_source,
+                "time_offset_s": c.time_offset_s,
+                "time_offset_s_std": c.time_offset_s_std,
+                "fps": c.fps,
+                "clock_rate": c.clock_rate,
+                "clock_rate_std": c.clock_rate_std,
             } for c in self.cameras],
             "mirrors": [{
                 "name": m.name, "normal": np.asarray(m.normal).tolist(), "distance": m.distance,
@@ -432,9 +450,13 @@ def _time_offset(c: RigCamera) -> str:
     """The summary's words on a camera's time offset: ``""`` for the reference."""
     if c.time_offset_source == "reference":
         return ""
+    secs = f" ({1000 * c.time_offset_s:+.1f} ms)" if np.isfinite(c.time_offset_s) else ""
+    rate = (f", clock rate 1 {c.clock_rate - 1:+.1e} +- {c.clock_rate_std:.1e}"
+            if np.isfinite(c.clock_rate_std) else "")
     if c.time_offset_source == "search":
-        return f"  time offset {c.time_offset_frames:+.2f} +- {c.time_offset_std:.2f} frames"
-    return f"  time offset {c.time_offset_frames:+g} frames (given)"
+        return (f"  time offset {c.time_offset_frames:+.2f} +- {c.time_offset_std:.2f} "
+                f"frames{secs}{rate}")
+    return f"  time offset {c.time_offset_frames:+g} frames{secs} (given)"
 
 
 def is_rig_document(obj: Any) -> bool:
@@ -505,7 +527,12 @@ def read_rig_calibration(calibration: "RigCalibration | Mapping | str | os.PathL
             status=str(c.get("status") or "ok"), reason=str(c.get("reason") or ""),
             time_offset_frames=fnum(c.get("time_offset_frames", 0.0), f"{at}.time_offset_frames"),
             time_offset_std=fnum(c.get("time_offset_std"), f"{at}.time_offset_std"),
-            time_offset_source=str(c.get("time_offset_source") or "given")))
+            time_offset_source=str(c.get("time_offset_source") or "given"),
+            time_offset_s=fnum(c.get("time_offset_s"), f"{at}.time_offset_s"),
+            time_offset_s_std=fnum(c.get("time_offset_s_std"), f"{at}.time_offset_s_std"),
+            fps=fnum(c.get("fps"), f"{at}.fps"),
+            clock_rate=fnum(c.get("clock_rate", 1.0), f"{at}.clock_rate"),
+            clock_rate_std=fnum(c.get("clock_rate_std"), f"{at}.clock_rate_std")))
     mirrors = []
     for i, m in enumerate(obj["mirrors"]):
         at = f"mirrors[{i}]"

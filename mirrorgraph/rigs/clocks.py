@@ -1,8 +1,11 @@
-"""Cameras on different clocks: each camera's time offset found from the people it sees.
+"""Cameras on different clocks: each camera's time offset (and clock rate) found from the people.
 
-A camera with offset ``o`` (frames of the rig's clock, the first camera's) shows at its
-frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fractional
-``o`` puts its frames between the rig's. Three steps (rigs of three cameras or more):
+The rig's clock runs at the first camera's frame rate times a whole number (the finest
+the cameras need: :func:`rig_rates`). A camera at ``rate`` rig frames per own frame (2 for
+30 fps on a 60 fps clock), offset ``o`` (rig frames) and clock rate ``r`` (1 unless its
+drift is measured) shows at its frame ``g`` the rig's frame ``(rate g - o) / r``: at one
+frame rate, frame ``f`` shows rig frame ``f - o`` (the rig file's ``frame_offset``); a
+fractional ``o`` puts its frames between the rig's. Three steps (three cameras or more):
 
 1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift
    against the reference camera by the least median Sampson distance of an essential
@@ -11,30 +14,37 @@ frame ``f`` the rig's frame ``f - o`` (the rig file's ``frame_offset``); a fract
    essential matrix of the reference and its best partner, the others resected; then in
    rounds every camera's median reprojection error per whole shift against the joints
    triangulated from all the others at their offsets, its pose resected anew at every
-   shift (so no shift is favoured), the best taken; from the start and from the rig
-   file's offsets, the configuration the rig fits better kept.
+   shift (so no shift is favoured), the best taken; from the start, and from the rig
+   file's offsets where they fit the rig better than that result, the configuration the
+   rig fits better kept.
 3. **Fractions against the rig** (:func:`_rig_fraction`): every camera's joints as
-   local quadratics, evaluated at ``t + u`` on a grid of ``u``, the others at their
-   latest fractions, the cost (Huber) fitted by a quadratic; in rounds until they settle.
-   The std is the M-estimator's sandwich over blocks of samples, propagated through the
-   cameras' coupling. A camera leaves the rig file's whole offset only where the move is
-   significant (the block bootstrap of its whole-shift scan prefers it in
-   :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond :data:`FRACTION_Z`
-   stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction is applied beyond
-   :data:`FRACTION_Z` stds.
+   local quadratics of its own samples, evaluated at its own instants ``t + u`` on a grid
+   of ``u`` (a 30 fps camera's seven samples span twelve frames of a 60 fps clock), the
+   others at their latest fractions, the cost (Huber) fitted by a quadratic; in rounds
+   until they settle. The std is the M-estimator's sandwich over blocks of samples,
+   propagated through the cameras' coupling. A camera leaves the rig file's whole offset
+   only where the move is significant (the block bootstrap of its whole-shift scan
+   prefers it in :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond
+   :data:`FRACTION_Z` stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction
+   is applied beyond :data:`FRACTION_Z` stds, or where the camera moved and the people
+   fix it within half a frame.
+
+With ``drift`` (the rig file's ``clock_drift``), every camera's fraction is measured again
+in :data:`DRIFT_STRETCHES` stretches of its frames and a line through them gives its clock
+rate and its offset at the rig's frame 0 (:func:`_drift`).
 
 A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
 whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
-reference (:func:`subframe_offset`) instead. Continuous-time calibration treats a
-camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal calibration, Furgale
-et al., IROS 2013); Pose2Sim synchronises whole frames from the keypoints' speeds.
-:func:`resample` puts a camera's keypoints on the rig's frames for a fractional offset.
-Cameras at different frame rates are first put on the reference's clock
-(:func:`rig_frames`); the scans run on the finest grid of samples.
+reference (:func:`subframe_offset`) instead. Continuous-time
+calibration treats a camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal
+calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole frames from the
+keypoints' speeds. :func:`on_rig_clock` puts a camera's keypoints on the rig's frames at
+their instants (linear interpolation between its own frames).
 
 Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
 samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
-apart for a video read every n-th frame).
+apart for a video read every n-th frame). The scans run on a grid of rig frames
+(:class:`_Track`: every camera's own samples at their places on it).
 """
 
 from __future__ import annotations
@@ -53,7 +63,8 @@ from .tracking import TRACK_MAX_GAP, jumping
 __all__ = ["ClockEstimate", "ShiftScan", "MIN_CORRESPONDENCES", "COARSE_STRIDE", "coarse_cost",
            "ACCEPT_LEVEL", "FRACTION_Z", "FRACTION_REACH", "BOOTSTRAP_BLOCK", "BOOTSTRAP_RUNS",
            "BOOTSTRAP_DRAWS", "scan_shifts", "joint_offsets", "subframe_offset", "resample",
-           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_frames",
+           "dense_samples", "find_clocks", "on_rig_clock", "frame_step", "rig_instants",
+           "rig_rates",
            "INLIER_SCALES"]
 
 #: Fewer correspondences (joint pairs seen at one instant) than this at a shift: the
@@ -130,22 +141,32 @@ class ShiftScan:
 
 @dataclass
 class ClockEstimate:
-    """One camera's time offset against the reference camera.
+    """One camera's time offset (and clock rate) against the reference camera.
 
     Attributes:
-        offset: frames of the rig's clock: the camera's frame ``f`` is the rig's frame
-            ``f - offset`` (the rig file's ``frame_offset``, fractional).
-        std: its std, frames (0 for the reference, NaN where not searched): the whole
+        offset: frames of the rig's clock (``unit`` to a reference camera's frame): the
+            camera's frame ``g`` shows the rig's frame ``(rate_nominal g - offset) / rate``
+            (the rig file's ``frame_offset`` times ``unit``, fractional), where
+            ``rate_nominal`` is the rig's frames per camera frame its frame rate gives.
+        std: its std, rig frames (0 for the reference, NaN where not searched): the whole
             offset's bootstrap spread and the fraction's together.
         source: ``"reference"``, ``"given"`` (the rig file's, not searched), or
             ``"search"`` (the search's: the given offset where the data do not
             significantly prefer another).
-        given: the rig file's ``frame_offset``.
+        given: the rig file's ``frame_offset``, rig frames.
         scan: the whole-frame scan against the rig (against the reference in a rig
             of two cameras; ``None`` where not searched); its shifts in samples.
         note: why the offset is what it is where that needs saying (the data disagree
             with the given offset, too few correspondences, a time the people hardly
-            fix), else ``""``.
+            fix, a clock rate not determined), else ``""``.
+        unit: the rig's frames per reference camera frame (2 for a 30 fps reference
+            beside 60 fps cameras; else 1).
+        rate: the camera's clock rate against the reference's (its frames per the
+            reference's, over the ratio of their nominal frame rates): ``1 + drift``, 1
+            where not estimated or not significant.
+        rate_std: its std (NaN where not estimated).
+        fps: the camera's nominal frame rate, or ``None`` where unknown.
+        rig_fps: the rig clock's frame rate, or ``None`` where unknown.
     """
 
     offset: float
@@ -154,11 +175,28 @@ class ClockEstimate:
     given: int = 0
     scan: ShiftScan | None = field(default=None, repr=False)
     note: str = ""
+    unit: int = 1
+    rate: float = 1.0
+    rate_std: float = float("nan")
+    fps: float | None = None
+    rig_fps: float | None = None
 
     @property
     def whole(self) -> int:
-        """The offset rounded to whole frames."""
+        """The offset rounded to whole rig frames."""
         return int(np.round(self.offset))
+
+    @property
+    def reference_frames(self) -> tuple[float, float]:
+        """The offset and its std in the reference camera's frames."""
+        return self.offset / self.unit, self.std / self.unit
+
+    @property
+    def seconds(self) -> tuple[float, float]:
+        """The offset and its std in seconds (NaN where the rig's frame rate is unknown)."""
+        if not self.rig_fps:
+            return float("nan"), float("nan")
+        return self.offset / self.rig_fps, self.std / self.rig_fps
 
 
 def dense_samples(points: np.ndarray, frame_ids: np.ndarray, base: int, step: int,
@@ -170,6 +208,99 @@ def dense_samples(points: np.ndarray, frame_ids: np.ndarray, base: int, step: in
     on = (rel % step == 0) & (rel >= 0) & (rel // step < length)
     out[rel[on] // step] = points[on]
     return out
+
+
+@dataclass
+class _Track:
+    """One camera's joints on its own samples and their place on the search's grid of
+    samples (``step`` rig frames apart): its own sample ``k`` lies at grid position
+    ``first + per k - o`` for an offset ``o`` (samples). A camera at the grid's rate has
+    ``per = 1``; a 30 fps camera on a 60 fps grid ``per = 2``; a 25 fps one on a 30 fps
+    grid ``per = 1.2`` (its samples between the grid's rows, placed at the nearest).
+
+    Attributes:
+        own: ``(n, J, 2)`` on its own consecutive samples, NaN unseen.
+        first: grid position of its sample 0 at offset 0 (samples, fractional).
+        per: grid samples per own sample (> 0).
+        length: rows of the grid.
+    """
+
+    own: np.ndarray
+    first: float
+    per: float
+    length: int
+
+    def rows(self, offset: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The grid rows the camera's samples fall nearest at ``offset`` (samples): ``(m,)``
+        rows, ``(m,)`` own samples ``k``, and ``(m,)`` the row's instant on the camera's
+        own samples less ``k`` (its fraction of a sample, within half a row). One sample a
+        row (of several, the nearest)."""
+        k = np.arange(len(self.own))
+        x = self.first + self.per * k - float(offset)
+        r = np.round(x).astype(np.int64)
+        ok = (r >= 0) & (r < self.length)
+        k, x, r = k[ok], x[ok], r[ok]
+        if self.per < 1 - 1e-9 and len(r):               # faster than the grid: the nearest
+            order = np.lexsort((np.abs(x - r), r))
+            first = np.r_[True, np.diff(r[order]) != 0]
+            k, x, r = k[order][first], x[order][first], r[order][first]
+        return r, k, (r - x) / self.per
+
+    def samples(self, offset: float = 0.0) -> np.ndarray:
+        """``(length, J, 2)``: the camera's joints at the rows its samples fall nearest at
+        ``offset``, at those rows' instants: its own samples where they fall on a row, else
+        interpolated linearly between the two around (NaN where either is unseen)."""
+        out = np.full((self.length,) + self.own.shape[1:], np.nan)
+        r, k, d = self.rows(offset)
+        exact = np.abs(d) < 1e-9
+        out[r[exact]] = self.own[k[exact]]
+        r, k, d = r[~exact], k[~exact], d[~exact]
+        lo = k + np.floor(d).astype(np.int64)
+        w = (d - np.floor(d))[:, None, None]
+        ok = (lo >= 0) & (lo + 1 < len(self.own))
+        out[r[ok]] = (1 - w[ok]) * self.own[lo[ok]] + w[ok] * self.own[lo[ok] + 1]
+        return out
+
+    def window(self, centre: int) -> tuple[np.ndarray, np.ndarray]:
+        """The local quadratics' samples about the rows the camera's samples fall nearest at
+        the whole offset ``centre``: ``(2 HALF_WINDOW + 1, length, J, 2)`` its own samples
+        ``k - HALF_WINDOW .. k + HALF_WINDOW`` at each such row (NaN elsewhere) and ``(length,)``
+        the row's instant less ``k`` (own samples; NaN elsewhere). The camera at offset
+        ``centre + u`` is ``_at(W, pos + u / per)``."""
+        h = HALF_WINDOW
+        W = np.full((2 * h + 1, self.length) + self.own.shape[1:], np.nan)
+        pos = np.full(self.length, np.nan)
+        r, k, d = self.rows(centre)
+        for i, j in enumerate(range(-h, h + 1)):
+            ok = (k + j >= 0) & (k + j < len(self.own))
+            W[i, r[ok]] = self.own[k[ok] + j]
+        pos[r] = d
+        return W, pos
+
+    def smoothed(self, centre: int, offset) -> np.ndarray:
+        """``(length, J, 2)``: the local quadratics about the rows of the whole offset
+        ``centre`` (:meth:`window`) evaluated at ``offset`` (samples; or ``(length,)``, one
+        a row: a drifting clock)."""
+        W, pos = self.window(int(centre))
+        u = np.nan_to_num(pos) + (np.asarray(offset, float) - int(centre)) / self.per
+        return _at(W, u)
+
+
+def _track(points: np.ndarray, frame_ids: np.ndarray, rate: float, base: int, step: int,
+           length: int) -> _Track:
+    """A camera's ``(T_c, J, 2)`` points on its own frames ``frame_ids`` as a
+    :class:`_Track` on the grid of samples ``(frame - base) / step`` of the rig's frames,
+    its frame ``g`` at the rig's frame ``rate g`` (``rate``: the rig's frames per own
+    frame)."""
+    ids = np.asarray(frame_ids, np.int64)
+    own_step = frame_step(ids)
+    g0 = int(ids.min())
+    n = int((ids.max() - g0) // own_step) + 1
+    own = np.full((n,) + points.shape[1:], np.nan)
+    on = (ids - g0) % own_step == 0
+    own[(ids[on] - g0) // own_step] = points[on]
+    return _Track(own=own, first=(rate * g0 - base) / step, per=rate * own_step / step,
+                  length=int(length))
 
 
 def _pairs(a: np.ndarray, b: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -370,44 +501,46 @@ def joint_offsets(curves: _PairCurves, start: np.ndarray, windows: list[np.ndarr
 HALF_WINDOW = 3
 
 
-def _local_quadratic(u: float) -> np.ndarray:
-    """``(2 HALF_WINDOW + 1,)`` weights of the samples ``-HALF_WINDOW..HALF_WINDOW`` giving
-    the least-squares quadratic through them at ``u`` (a Savitzky-Golay filter at any
-    point): smooth in ``u``, its noise varying a little with ``u`` (:func:`_noise_factor`)."""
+def _local_quadratic(u) -> np.ndarray:
+    """``(..., 2 HALF_WINDOW + 1)`` weights of the samples ``-HALF_WINDOW..HALF_WINDOW``
+    giving the least-squares quadratic through them at ``u`` (a scalar or an array; a
+    Savitzky-Golay filter at any point): smooth in ``u``, its noise varying a little with
+    ``u`` (:func:`_noise_factor`)."""
     x = np.arange(-HALF_WINDOW, HALF_WINDOW + 1, dtype=float)
     X = np.vander(x, 3, increasing=True)
-    return np.array([1.0, u, u * u]) @ np.linalg.solve(X.T @ X, X.T)
+    u = np.asarray(u, float)
+    return np.stack([np.ones_like(u), u, u * u], -1) @ np.linalg.solve(X.T @ X, X.T)
 
 
-def _noise_factor(u: float) -> float:
-    """The variance of the local quadratic at ``u`` over one sample's (``w . w``)."""
+def _noise_factor(u):
+    """The variance of the local quadratic at ``u`` over one sample's (``w . w``; the
+    shape of ``u``)."""
     w = _local_quadratic(u)
-    return float(w @ w)
+    out = np.sum(w * w, -1)
+    return float(out) if np.ndim(out) == 0 else out
 
 
-def _windows(a: np.ndarray, b: np.ndarray, s: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The correspondences about shift ``s`` whose camera is seen at every sample of
-    ``t + s - HALF_WINDOW .. t + s + HALF_WINDOW`` and the reference at every one of
-    ``t - HALF_WINDOW .. t + HALF_WINDOW``: ``(W, N, 2)`` the camera's, ``(W, N, 2)`` the
-    reference's, ``(N,)`` the reference's samples ``t``."""
-    h = HALF_WINDOW
-    T = len(b)
-    t = np.arange(max(h, h - s), min(T - h, len(a) - s - h))
-    if not t.size:
-        return np.zeros((2 * h + 1, 0, 2)), np.zeros((2 * h + 1, 0, 2)), np.zeros(0, int)
-    offs = np.arange(-h, h + 1)
-    A = np.stack([a[t + s + o] for o in offs])                  # (W, n, J, 2)
-    B = np.stack([b[t + o] for o in offs])
-    ok = np.isfinite(A).all((0, -1)) & np.isfinite(B).all((0, -1))
-    rows = np.broadcast_to(t[:, None], ok.shape)
-    return A[:, ok], B[:, ok], rows[ok]
+def _windows(a: "_Track", b: "_Track", s: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The correspondences of camera ``a`` at whole shift ``s`` (samples) against the
+    reference ``b`` at the rows both fall on, each seen at every sample of its local
+    quadratic's window (:meth:`_Track.window`): ``(W, N, 2)`` the camera's, ``(W, N, 2)``
+    the reference's, ``(N,)`` the rows, and ``(N,)`` the camera's and ``(N,)`` the
+    reference's instants there less their windows' centres (own samples)."""
+    Wa, pa = a.window(int(s))
+    Wb, pb = b.window(0)
+    ok = np.isfinite(Wa).all((0, -1)) & np.isfinite(Wb).all((0, -1))          # (L, J)
+    rows = np.nonzero(ok)[0]
+    return Wa[:, ok], Wb[:, ok], rows, pa[rows], pb[rows]
 
 
-def _at(W: np.ndarray, u: float) -> np.ndarray:
-    """``(N, 2)``: the local quadratic of the samples ``W`` (``(2 HALF_WINDOW + 1, N, 2)``)
-    at ``u`` samples from their centre."""
-    return np.tensordot(_local_quadratic(u), W, axes=1)
+def _at(W: np.ndarray, u) -> np.ndarray:
+    """``(N, ...)``: the local quadratic of the samples ``W`` (``(2 HALF_WINDOW + 1, N,
+    ...)``) at ``u`` samples from their centre (a scalar, or ``(N,)``: one per column)."""
+    w = _local_quadratic(u)
+    if w.ndim == 1:
+        return np.tensordot(w, W, axes=1)
+    return np.einsum("nw,wn...->n...", w, W)
 
 
 def _rotation(r: np.ndarray) -> np.ndarray:
@@ -418,10 +551,10 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], float)
 
 
-def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
+def _fit_subframe(A3, pa, per, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
                   tol: float = 1e-8):
-    """Least squares of ``(rotation, translation direction, dt)`` from a start; returns
-    ``(dt, R, t)``."""
+    """Least squares of ``(rotation, translation direction, dt)`` from a start (the
+    camera's windows ``A3`` at their instants ``pa + dt / per``); returns ``(dt, R, t)``."""
     from scipy.optimize import least_squares
 
     t0 = E0_t / np.linalg.norm(E0_t)
@@ -438,9 +571,10 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
 
     def residuals(p):
         R, t = parts(p)
-        d = sampson_distances(_skew(t) @ R, _at(A3, p[5]), xb) * f
+        u = pa + p[5] / per
+        d = sampson_distances(_skew(t) @ R, _at(A3, u), xb) * f
         # the same noise for every dt: the local quadratic's varies a little with it
-        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(p[5])))
+        d *= np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
         return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
 
     r = FRACTION_REACH
@@ -454,14 +588,15 @@ def _fit_subframe(A3, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
     return float(res.x[5]), R, t
 
 
-def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: float,
+def subframe_offset(camera: "_Track", reference: "_Track", shift: int, f: float,
                     *, seed: int = 0, runs: int = BOOTSTRAP_RUNS) -> tuple[float, float]:
     """The fraction of a sample ``dt`` (within :data:`FRACTION_REACH`) by which
     ``camera``'s sample ``t + shift + dt`` matches ``reference``'s ``t`` best, and its std.
 
     Each joint's trajectory is the least-squares quadratic through ``2 HALF_WINDOW + 1``
-    samples (a Savitzky-Golay filter evaluated between samples; the reference's the same
-    filter at its sample), the camera's evaluated at ``t + shift + dt``; the relative
+    of its own samples (a Savitzky-Golay filter evaluated between samples; the
+    reference's the same filter at its sample; a camera at another frame rate on its own
+    samples at its own instants), the camera's evaluated at ``t + shift + dt``; the relative
     pose (five parameters) and ``dt`` are fitted together by robust least squares, each
     residual scaled by the filter's noise at ``dt`` so that no ``dt`` is favoured for
     averaging the noise more. The std is the spread of that fit over a bootstrap of
@@ -474,7 +609,8 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     at ``s``.
 
     Args:
-        camera, reference: ``(N, J, 2)`` normalised coordinates on one grid, NaN unseen.
+        camera, reference: their normalised coordinates on their own samples, placed on
+            one grid (:class:`_Track`).
         shift: the whole shift found (:func:`scan_shifts`).
         f: a focal length, pixels (the Sampson distance's scale).
         seed: seed of the RANSAC and of the bootstrap.
@@ -483,28 +619,30 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
     Returns:
         ``(dt, std)`` samples; ``(0, NaN)`` where too few correspondences.
     """
-    A3, B3, rows = _windows(camera, reference, int(shift))
+    A3, B3, rows, pa, pb = _windows(camera, reference, int(shift))
     if len(rows) < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
     keep = _evenly(len(rows), SUBFRAME_CORRESPONDENCES)
-    A3, xb, rows = A3[:, keep], _at(B3[:, keep], 0.0), rows[keep]
-    E, median = _essential(_at(A3, 0.0), xb, seed)
+    A3, xb, rows, pa = A3[:, keep], _at(B3[:, keep], pb[keep]), rows[keep], pa[keep]
+    per = camera.per
+    xa = _at(A3, pa)
+    E, median = _essential(xa, xb, seed)
     if E is None or not median > 0:
         return 0.0, float("nan")
     scale = 1.4826 * median
-    inl = np.abs(sampson_distances(E, _at(A3, 0.0), xb)) < INLIER_SCALES * scale
+    inl = np.abs(sampson_distances(E, xa, xb)) < INLIER_SCALES * scale
     if inl.sum() < MIN_CORRESPONDENCES:
         return 0.0, float("nan")
-    A3, xb, rows = A3[:, inl], xb[inl], rows[inl]
-    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, 0.0), xb, np.eye(3))
+    A3, xb, rows, pa = A3[:, inl], xb[inl], rows[inl], pa[inl]
+    _, R0, t0, _ = cv2.recoverPose(E, _at(A3, pa), xb, np.eye(3))
     t0 = t0.ravel()
     huber = scale * f
     # the start: the best of a coarse grid of dt under the shift's pose
     Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
     grid = np.linspace(-FRACTION_REACH, FRACTION_REACH, int(8 * FRACTION_REACH) + 1)
-    costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, g), xb) * f, huber))
-                      for g in grid])
-    dt, R, t = _fit_subframe(A3, xb, R0, t0, _parabola_min(grid, costs), f, huber)
+    costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, pa + g / per), xb) * f,
+                                    huber)) for g in grid])
+    dt, R, t = _fit_subframe(A3, pa, per, xb, R0, t0, _parabola_min(grid, costs), f, huber)
     if runs <= 0:
         return dt, float("nan")
     rng = np.random.default_rng(seed)
@@ -518,8 +656,8 @@ def subframe_offset(camera: np.ndarray, reference: np.ndarray, shift: int, f: fl
         if len(idx) < MIN_CORRESPONDENCES:
             continue
         # from the full fit: a resample moves it little (looser tolerances suffice)
-        draws.append(_fit_subframe(A3[:, idx], xb[idx], R, t, dt, f, huber, max_nfev=60,
-                                   tol=1e-6)[0])
+        draws.append(_fit_subframe(A3[:, idx], pa[idx], per, xb[idx], R, t, dt, f, huber,
+                                   max_nfev=60, tol=1e-6)[0])
     std = float(np.std(draws, ddof=1)) if len(draws) > 1 else float("nan")
     return dt, std
 
@@ -586,17 +724,29 @@ def _normalised(xy: np.ndarray, K: np.ndarray) -> np.ndarray:
     return (xy - K[:2, 2]) @ np.linalg.inv(K[:2, :2]).T
 
 
-def rig_frames(frame_ids: np.ndarray, fps: float | None, rig_fps: float | None
-               ) -> np.ndarray:
-    """``(T_c,)`` a camera's frame numbers at the rig's frame rate (the first camera's):
-    its frame ``g`` is at ``g / fps`` seconds, the rig's frame ``round(g rig_fps / fps)``
-    (a 30 fps camera's frames on every other frame of a 60 fps rig; to the nearest rig
-    frame where the rates are not multiples). Unchanged where either rate is unknown or
-    the two agree to 0.1 %."""
-    ids = np.asarray(frame_ids, np.int64)
-    if not fps or not rig_fps or abs(float(fps) / float(rig_fps) - 1) < 1e-3:
-        return ids
-    return np.round(ids * (float(rig_fps) / float(fps))).astype(np.int64)
+def rig_rates(fps: list[float | None]) -> tuple[list[float], int, float | None]:
+    """The rig's clock from the cameras' frame rates (the first camera's the reference's):
+    the reference's rate times the whole number ``unit`` nearest the fastest camera's
+    over it (a 30 fps reference beside 60 fps cameras: a 60 fps clock, ``unit = 2``), and
+    per camera the rig's frames per own frame (2 for a 30 fps camera on a 60 fps clock;
+    1.2 for 25 fps on 30; 1.001 for 29.97 fps on 30). A ratio within 0.01 % of a whole
+    number is that number (a rate written to fewer digits); a camera whose rate is unknown is taken at the reference's, and every camera
+    at one rate where the reference's is unknown. Returns ``(rates, unit, rig_fps)``
+    (``rig_fps`` ``None`` where unknown)."""
+    ref = fps[0]
+    if not ref or not np.isfinite(ref) or ref <= 0:
+        return [1.0] * len(fps), 1, None
+    known = [float(f) for f in fps if f and np.isfinite(f) and f > 0]
+    unit = max(int(round(max(known) / float(ref))), 1)
+    rig_fps = float(ref) * unit
+    rates = []
+    for f in fps:
+        if not f or not np.isfinite(f) or f <= 0:
+            rates.append(float(unit))
+            continue
+        q = rig_fps / float(f)
+        rates.append(float(round(q)) if round(q) >= 1 and abs(q / round(q) - 1) < 1e-4 else q)
+    return rates, unit, rig_fps
 
 
 def frame_step(frame_ids: np.ndarray) -> int:
@@ -608,7 +758,8 @@ def frame_step(frame_ids: np.ndarray) -> int:
 
 def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
                 frame_ids: list[np.ndarray], Ks: list[np.ndarray], given: list[int],
-                joints, *, search: bool = True, window: int = OFFSET_WINDOW, seed: int = 0,
+                joints, *, rates=None, unit: int = 1, drift: bool = False,
+                search: bool = True, window: int = OFFSET_WINDOW, seed: int = 0,
                 min_confidence: float = DEFAULT_MIN_CONFIDENCE,
                 runs: int = BOOTSTRAP_RUNS) -> list[ClockEstimate]:
     """Every camera's time offset (see the module docstring); the first is the reference.
@@ -622,48 +773,79 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             fits the reference best is taken).
         frame_ids: per camera ``(T_c,)`` its own frame numbers.
         Ks: per camera ``(3, 3)`` intrinsics (of the undistorted pixels).
-        given: per camera the rig file's ``frame_offset``.
+        given: per camera the rig file's ``frame_offset`` in rig frames.
         joints: the joints compared (indices).
+        rates: per camera the rig's frames per own frame (its nominal rate: the rig's
+            frame rate over its own; default 1 for every camera). The scans run on the
+            grid of rig frames every camera's whole samples fall on; a camera whose own
+            frames fall between the grid's rows is placed at its instants
+            (:class:`_Track`).
+        unit: the rig's frames per reference camera frame (the notes' frames are the
+            reference's).
+        drift: estimate every camera's clock rate on the rig (:func:`_drift`): its
+            fractions in stretches of its frames, a line through them; applied where
+            it differs from 1 by more than :data:`FRACTION_Z` stds.
         search: search the offsets (else every camera keeps its given one). Frames more
             than :data:`~.tracking.TRACK_MAX_GAP` apart, or whose people jump from frame
             to frame in the reference camera (:func:`~.tracking.jumping`; snapshots: no
             motion continues from one to the next), are not searched either: every
             camera keeps its given offset, with a note.
-        window: frames searched either way of a camera's given offset (relative to the
-            reference's).
+        window: reference camera frames searched either way of a camera's given offset
+            (relative to the reference's).
         seed: seed of every random choice.
         min_confidence: joints below this confidence are left out.
         runs: bootstrap resamples of the fractions' stds.
 
     Returns:
         per camera a :class:`ClockEstimate` on the rig's clock (``offset``: the camera's
-        frame ``f`` is the rig's frame ``f - offset``).
+        frame ``g`` is the rig's frame ``(rates[c] g - offset) / rate``).
     """
     joints = np.asarray(joints, int)
     N = len(people)
+    rates = [1.0] * N if rates is None else [float(r) for r in rates]
+    unit = int(unit)
+
+    def said(frames: float) -> str:            # rig frames in the reference's, for notes
+        return f"{frames / unit:g}"
+
     out: list[ClockEstimate | None] = [
-        ClockEstimate(offset=float(given[0]), std=0.0, source="reference", given=given[0])]
+        ClockEstimate(offset=float(given[0]), std=0.0, source="reference", given=given[0],
+                      unit=unit)]
     if not search or N < 2:
-        return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g)
-                      for g in given[1:]]
-    steps = [frame_step(f) for f in frame_ids]
-    step = int(np.gcd.reduce(steps))            # a slower camera sees every n-th sample
+        return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g,
+                                    unit=unit) for g in given[1:]]
+    # the grid: every step-th rig frame, step the largest that every camera's samples
+    # whose rig frames are whole fall on (a slower camera sees every n-th sample)
+    whole = []
+    for f, r in zip(frame_ids, rates):
+        q = r * frame_step(f)
+        if abs(q - round(q)) < 1e-6:
+            whole.append(max(int(round(q)), 1))
+    step = int(np.gcd.reduce(whole)) if whole else 1
     ref_people = people[0][1] if people[0][1] is not None else [
         p[None] for p in np.asarray(people[0][0], float)]
-    if step > TRACK_MAX_GAP or jumping(ref_people, joints, min_confidence, frame_ids[0]):
-        why = (f"frames {step} apart" if step > TRACK_MAX_GAP else
+    if frame_step(frame_ids[0]) * rates[0] > TRACK_MAX_GAP * unit or \
+            jumping(ref_people, joints, min_confidence, frame_ids[0]):
+        why = (f"frames {frame_step(frame_ids[0])} apart"
+               if frame_step(frame_ids[0]) * rates[0] > TRACK_MAX_GAP * unit else
                "the people jump from frame to frame")   # snapshots: shifts mean nothing
         return out + [ClockEstimate(offset=float(g), std=float("nan"), source="given", given=g,
+                                    unit=unit,
                                     note=f"{why} (snapshots): not searched, kept as given "
-                                         f"({g})") for g in given[1:]]
-    base = int(min(np.min(f) for f in frame_ids if len(f)))
-    length = int((max(np.max(f) for f in frame_ids if len(f)) - base) // step + 1)
-    reach = max(int(np.ceil(window / step)), 1)
+                                         f"({said(g)})") for g in given[1:]]
+    spans = [(r * np.min(f), r * np.max(f)) for f, r in zip(frame_ids, rates) if len(f)]
+    base = int(np.floor(min(a for a, _ in spans)))
+    length = int((max(b for _, b in spans) - base) // step + 1)
+    reach = max(int(np.ceil(window * unit / step)), 1)
     rel = np.array([int(np.round((int(g) - int(given[0])) / step)) for g in given])
     focal = [0.5 * (K[0, 0] + K[1, 1]) for K in Ks]
-    seqs: list[np.ndarray | None] = [None] * N
-    seqs[0] = dense_samples(_normalised(_pixels(people[0][0], joints, min_confidence), Ks[0]),
-                            frame_ids[0], base, step, length)
+
+    def track(points: np.ndarray, c: int) -> _Track:
+        return _track(_normalised(_pixels(points, joints, min_confidence), Ks[c]),
+                      frame_ids[c], rates[c], base, step, length)
+
+    tracks: list[_Track | None] = [track(people[0][0], 0)] + [None] * (N - 1)
+    seqs: list[np.ndarray | None] = [tracks[0].samples()] + [None] * (N - 1)
     out += [None] * (N - 1)
     windows = [np.arange(r - reach, r + reach + 1) for r in rel]
     coarse: dict[int, np.ndarray] = {}
@@ -672,14 +854,14 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
         options = [np.asarray(person, float)]
         if cands is not None and any(len(p) > 1 for p in cands):
             options += candidate_people(cands, *options[0].shape[:2], joints, min_confidence)
-        dense = [dense_samples(_normalised(_pixels(s, joints, min_confidence), Ks[c]),
-                               frame_ids[c], base, step, length) for s in options]
+        found = [track(s, c) for s in options]
+        dense = [t.samples() for t in found]
         # a coarser scan (every other shift of the coarse one): the candidate that fits
         # best where several, and the rig's start (its first round scans every shift);
         # a rig of two cameras scans it in full
         rough = [coarse_cost(d, seqs[0], windows[c][::2], seed=seed) for d in dense]
         pick = int(np.argmin([r.min() for r in rough]))
-        seqs[c] = dense[pick]
+        seqs[c], tracks[c] = dense[pick], found[pick]
         coarse[c] = np.full(len(windows[c]), np.inf)
         coarse[c][::2] = rough[pick]
         if N == 2 or not np.isfinite(coarse[c]).any():
@@ -688,10 +870,10 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             n = int(max(max((len(_pairs(d, seqs[0], int(s))[0]) for s in windows[c]), default=0)
                         for d in dense))
             out[c] = ClockEstimate(offset=float(given[c]), std=float("nan"), source="given",
-                                   given=given[c],
+                                   given=given[c], unit=unit,
                                    note=f"too few joints seen with the reference camera at "
                                         f"any shift ({n} at most, {MIN_CORRESPONDENCES} "
-                                        f"needed): kept as given ({given[c]})")
+                                        f"needed): kept as given ({said(given[c])})")
     live = [c for c in range(1, N) if out[c] is None]
     if not live:
         return out
@@ -702,11 +884,13 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
     start = rel.copy()
     for c in live:
         start[c] = windows[c][int(np.argmin(coarse[c]))]
-    found = _rig_offsets(seqs, live, rel, start, windows, focal, weights, seed) \
+    found = _rig_offsets(seqs, tracks, live, rel, start, windows, focal, weights, seed) \
         if len(live) >= 2 else None
     if found is None:
         found = _pair_offsets(seqs, live, rel, windows, coarse, focal, weights, seed, reach)
-    o, draws, scans, fractions = found
+    o, draws, scans, fractions, P = found
+    drifts = _rig_drifts(tracks, P, o, fractions, focal, -base / step) \
+        if drift and fractions else {}
     for c in live:
         f = 0.5 * (focal[0] + focal[c])
         if fractions is not None and c in fractions:
@@ -725,23 +909,122 @@ def find_clocks(people: list[tuple[np.ndarray, list[np.ndarray] | None]],
             whole_std = 0.0 if near else float(np.std(draws[c])) * step
             # a fraction means something only about a whole offset the people fix, or
             # one they moved the camera to (where it may also settle the whole offset)
-            dt, dt_std = (subframe_offset(seqs[c], seqs[0], int(o[c]), f, seed=seed,
+            dt, dt_std = (subframe_offset(tracks[c], tracks[0], int(o[c]), f, seed=seed,
                                           runs=runs)
                           if near or o[c] != rel[c] else (0.0, float("nan")))
-        frac = dt if np.isfinite(dt_std) and abs(dt) > FRACTION_Z * dt_std else 0.0
+        # a fraction moves a camera from its given offset where significant; one the rig's
+        # search moved elsewhere sits at its estimate where the people fix it within half a
+        # frame either way (at the two-sided 1 % level), else at the whole offset
+        moved = fractions is not None and c in fractions and o[c] != rel[c] and \
+            FRACTION_Z * dt_std <= 0.5
+        frac = dt if np.isfinite(dt_std) and (moved or abs(dt) > FRACTION_Z * dt_std) else 0.0
         offset = (o[c] + frac) * step + given[0]
-        std = float(np.hypot(whole_std, dt_std * step if np.isfinite(dt_std) else 0.0))
+        # a fraction not applied: its distance from the whole offset counts into the std
+        dt_err = np.hypot(dt_std, dt - frac) * step if np.isfinite(dt_std) else 0.0
+        std = float(np.hypot(whole_std, dt_err))
+        rate, rate_std, drift_note = 1.0, float("nan"), ""
+        if drift:
+            if c in drifts:
+                b, b_std, u0, u0_std = drifts[c]
+                rate_std = b_std
+                if np.isfinite(b_std) and abs(b) > FRACTION_Z * b_std:
+                    rate = 1.0 + b
+                    offset, std = u0 * step + given[0], u0_std * step
+                elif np.isfinite(b_std):
+                    drift_note = (f"clock rate 1 {b:+.1e} +- {b_std:.1e}: not significant, "
+                                  "kept at 1")
+                else:
+                    drift_note = "clock rate not determined by the people: kept at 1"
+            else:
+                drift_note = "clock rate not searched (no fraction on the rig): kept at 1"
         note = ""
         if o[c] != rel[c] or frac != 0 and round(offset) != given[c]:
             edge = " (the edge of the search window)" if abs(o[c] - rel[c]) == reach else ""
-            note = (f"the people put it at {offset:+.2f} +- {std:.2f} frames{edge} against "
-                    f"the rig file's frame_offset = {given[c]}")
+            note = (f"the people put it at {offset / unit:+.2f} +- {std / unit:.2f} frames{edge} "
+                    f"against the rig file's frame_offset = {said(given[c])}")
         elif not near:
             note = (f"poorly fixed by the people (their best offsets spread by "
-                    f"{std:.1f} frames): kept as given ({given[c]})")
+                    f"{std / unit:.1f} frames): kept as given ({said(given[c])})")
+        if drift_note:
+            note = f"{note}; {drift_note}" if note else drift_note
         out[c] = ClockEstimate(offset=float(offset), std=std, source="search",
-                               given=int(given[c]), scan=scans.get(c), note=note)
+                               given=int(given[c]), scan=scans.get(c), note=note, unit=unit,
+                               rate=float(rate), rate_std=float(rate_std))
     return out
+
+
+#: Stretches of a camera's frames whose fractions give its clock rate (a line through
+#: their offsets against time).
+DRIFT_STRETCHES = 4
+
+
+#: Rounds of the clock rates over the cameras (each camera's against the others' lines).
+DRIFT_ROUNDS = 3
+
+
+def _drift(tracks: list, P: dict, at: dict, o: np.ndarray, c: int, f: float, r0: float
+           ) -> tuple[float, float, float, float]:
+    """Camera ``c``'s clock drift: its fractional offset (:func:`_rig_fraction`, the others
+    at ``at``: per camera an offset or ``(length,)`` one a row) in each of
+    :data:`DRIFT_STRETCHES` stretches of its rows (equal counts), a line through them
+    weighted by their stds. Returns ``(b, b_std, u0, u0_std)``: the slope (the rate less
+    1: samples of offset per sample of time) and the offset at grid row ``r0`` (the rig's
+    frame 0; its std the line's there), the stds conditional on the others; NaN where
+    fewer than three stretches are measured."""
+    rows = np.sort(tracks[c].rows(o[c])[0])
+    nan = (float("nan"),) * 4
+    if len(rows) < DRIFT_STRETCHES * MIN_CORRESPONDENCES // 10:
+        return nan
+    cuts = np.quantile(rows, np.linspace(0, 1, DRIFT_STRETCHES + 1)).round().astype(int)
+    cuts[-1] = tracks[c].length
+    got = []
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        u, sd, r = _rig_fraction(tracks, P, at, o, c, f, stretch=(int(lo), int(hi)))
+        if np.isfinite(u) and np.isfinite(sd) and sd > 0:
+            got.append((r, u, sd))
+    if len(got) < 3:
+        return nan
+    r, u, sd = map(np.array, zip(*got))
+    w = 1 / sd ** 2
+    rm = np.sum(w * r) / np.sum(w)
+    sxx = np.sum(w * (r - rm) ** 2)
+    b = float(np.sum(w * (r - rm) * (u - np.sum(w * u) / np.sum(w))) / sxx)
+    a = float(np.sum(w * u) / np.sum(w))
+    u0 = a + b * (r0 - rm)
+    return b, float(1 / np.sqrt(sxx)), float(u0), float(np.sqrt(1 / np.sum(w) +
+                                                                  (r0 - rm) ** 2 / sxx))
+
+
+def _rig_drifts(tracks: list, P: dict, o: np.ndarray, fractions: dict, focal: list,
+                r0: float) -> dict[int, tuple[float, float, float, float]]:
+    """Every measured camera's clock drift (:func:`_drift`) against the others placed on
+    their latest lines (offset at grid row ``r0``, the rig's frame 0, and slope; the
+    others' drifts otherwise pass into each camera's through the triangulation), for
+    :data:`DRIFT_ROUNDS` rounds; the stds propagated through the cameras' coupling as the
+    fractions' (:func:`_rig_fractions`). Returns per camera ``(b, b_std, u0, u0_std)``
+    (samples)."""
+    grid = np.arange(tracks[0].length, dtype=float)
+    lines = {k: (float(o[k]), 0.0) for k in P}
+    lines.update({k: (float(v[0]), 0.0) for k, v in fractions.items()})
+    out: dict[int, tuple[float, float, float, float]] = {}
+    for _ in range(DRIFT_ROUNDS):
+        for c in fractions:
+            at = {k: u + b * (grid - r0) for k, (u, b) in lines.items()}
+            got = _drift(tracks, P, at, o, c, focal[c], r0)
+            if np.isfinite(got[1]):
+                out[c] = got
+                lines[c] = (got[2], got[0])
+    if not out:
+        return {}
+    keys = list(out)
+    m = len(P)
+    A = np.full((len(keys), len(keys)), 1.0 / (m - 1))
+    np.fill_diagonal(A, 0.0)
+    G2 = np.linalg.inv(np.eye(len(keys)) - A) ** 2
+    b_std = np.sqrt(G2 @ np.array([out[c][1] for c in keys]) ** 2)
+    u_std = np.sqrt(G2 @ np.array([out[c][3] for c in keys]) ** 2)
+    return {c: (out[c][0], float(bs), out[c][2], float(us))
+            for c, bs, us in zip(keys, b_std, u_std)}
 
 
 def _draws(scan: ShiftScan, weights: np.ndarray) -> np.ndarray:
@@ -762,7 +1045,7 @@ def _rig_total(seqs: list, P: dict, o: np.ndarray, focal: list) -> float:
     return total
 
 
-def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], focal: list
+def _rig_fractions(tracks: list, P: dict, o: np.ndarray, measured: list[int], focal: list
                    ) -> dict[int, tuple[float, float]]:
     """The fractional offsets (samples) of the cameras ``measured`` and their stds, on the
     reference camera's clock: every measured camera's fraction against the others at
@@ -774,7 +1057,7 @@ def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], foca
     for _ in range(FRACTION_ROUNDS):
         change = 0.0
         for c in measured:
-            u, std = _rig_fraction(seqs, P, at, o, c, focal[c])
+            u, std, _ = _rig_fraction(tracks, P, at, o, c, focal[c])
             if np.isfinite(u) and abs(u - o[c]) <= FRACTION_REACH:
                 change = max(change, abs(u - at[c]))
                 at[c], stds[c] = u, std
@@ -795,16 +1078,16 @@ def _rig_fractions(seqs: list, P: dict, o: np.ndarray, measured: list[int], foca
     return {c: (at[c], float(s)) for c, s in zip(got, std)}
 
 
-def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray,
-                 windows: list, focal: list, weights: np.ndarray, seed: int):
+def _rig_offsets(seqs: list, tracks: list, live: list[int], rel: np.ndarray,
+                 start: np.ndarray, windows: list, focal: list, weights: np.ndarray, seed: int):
     """The offsets (samples) of the cameras ``live`` against the rig (see the module
     docstring, steps 2 and 3): the whole ones searched (:func:`_rig_search`), then the
     fractions (:func:`_rig_fractions`), each move from the rig file's ``rel`` tested on
     the camera's whole-shift scan with the others at their fractions. Returns
-    ``(offsets, draws, scans, fractions)``: the whole offsets, the bootstrap draws' best
+    ``(offsets, draws, scans, fractions, poses)``: the whole offsets, the bootstrap draws' best
     whole offsets and the scans per camera, and per camera ``(offset, std)``, its
-    fractional offset (absent for a camera kept as given); ``None`` where the rig's
-    poses cannot be found."""
+    fractional offset (absent for a camera kept as given), and the cameras' poses;
+    ``None`` where the rig's poses cannot be found."""
     o = np.where(np.isin(np.arange(len(rel)), live), start, rel)
     kept: set[int] = set()
     last: dict[int, ShiftScan] = {}
@@ -813,20 +1096,26 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
         # a camera kept for want of evidence says nothing of the others' offsets, where
         # two others remain to triangulate from
         members = [0] + (moving if len(moving) >= 2 else list(live))
-        # from the pairs' coarse offsets and from the rig file's: a coordinate search may
+        # from the pairs' coarse offsets, and from the rig file's where they fit the rig
+        # better as they stand than the first search's result does: a coordinate search may
         # settle where two groups of cameras agree among themselves (a periodic motion's
         # other minimum); the one the rig fits better
         found = None
-        for begin in ([o, rel] if not kept and np.any(o != rel) else [o]):
-            trial = _rig_search(seqs, members, moving, begin, windows, focal, seed)
-            if trial is not None:
-                total = _rig_total(seqs, trial[1], trial[0], focal)
-                if found is None or total < found[0]:
-                    found = (total,) + trial
+        trial = _rig_search(seqs, members, moving, o, windows, focal, seed)
+        if trial is not None:
+            found = (_rig_total(seqs, trial[1], trial[0], focal),) + trial
+        if not kept and (found is None or np.any(found[1] != rel)):
+            # the rig file's offsets judged with the result's poses (each camera's refitted)
+            if found is None or _rig_total(seqs, found[2], rel, focal) < found[0]:
+                trial = _rig_search(seqs, members, moving, rel, windows, focal, seed)
+                if trial is not None:
+                    total = _rig_total(seqs, trial[1], trial[0], focal)
+                    if found is None or total < found[0]:
+                        found = (total,) + trial
         if found is None:
             return None
         _, o, P = found
-        fractions = _rig_fractions(seqs, P, o, moving, focal)
+        fractions = _rig_fractions(tracks, P, o, moving, focal)
         at = {k: float(o[k]) for k in P}
         for c, (u, _) in fractions.items():
             at[c] = u
@@ -839,7 +1128,7 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
             # about the offset and the given one, every third farther (the draws' spread)
             w = windows[c]
             shifts = w[(np.abs(w - o[c]) <= 3) | (w == rel[c]) | ((w - w[0]) % 3 == 0)]
-            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, shifts, focal[c])[0]
+            scan = _rig_scan(seqs, P, {**at, c: 0.0}, c, shifts, focal[c], tracks)[0]
             last[c] = scan
             if o[c] == rel[c]:
                 continue
@@ -865,7 +1154,7 @@ def _rig_offsets(seqs: list, live: list[int], rel: np.ndarray, start: np.ndarray
             fractions = {}
             break
     fractions = {c: fractions[c] for c in fractions if c not in kept}
-    return o, {c: _draws(last[c], weights) for c in last}, last, fractions
+    return o, {c: _draws(last[c], weights) for c in last}, last, fractions, P
 
 
 def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
@@ -873,7 +1162,7 @@ def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
     """The whole offsets (samples) of the cameras ``live`` from the pairs' epipolar
     costs (:func:`scan_shifts`, :func:`joint_offsets`; a rig of two cameras, or one
     whose poses the rig's search cannot find), each move from the rig file's ``rel``
-    tested: ``(offsets, draws, scans)`` as :func:`_rig_offsets`."""
+    tested: ``(offsets, draws, scans, None, None)`` as :func:`_rig_offsets`."""
     N = len(rel)
     scans: dict[tuple[int, int], ShiftScan] = {}
     start = rel.copy()
@@ -919,7 +1208,7 @@ def _pair_offsets(seqs: list, live: list[int], rel: np.ndarray, windows: list,
         kept |= fails
     draws = {c: windows[c][np.argmin(curves.camera(c, o, windows[c], kept - {c})[1:], axis=1)]
              for c in live}
-    return o, draws, {c: scans[(0, c)] for c in live}, None
+    return o, draws, {c: scans[(0, c)] for c in live}, None, None
 
 
 def _refit_distances(camera: np.ndarray, reference: np.ndarray, s: int, f: float, seed: int
@@ -1121,24 +1410,26 @@ def _rig_poses(aligned: dict, seed: int) -> dict | None:
     return best
 
 
-def _placed(a: np.ndarray, offset: float) -> np.ndarray:
-    """``(T, J, 2)``: a camera's samples on the rig's rows at its ``offset`` (samples):
-    shifted (:func:`_shifted`) where whole, its local quadratics there (:func:`_smoothed`)
-    where fractional."""
+def _placed(seqs: list, tracks: list | None, k: int, offset: float) -> np.ndarray:
+    """``(T, J, 2)``: camera ``k``'s samples on the rig's rows at its ``offset`` (samples):
+    shifted (:func:`_shifted`) where whole, its local quadratics there
+    (:meth:`_Track.smoothed`) where fractional."""
     whole = int(np.round(offset))
-    return _shifted(a, whole) if offset == whole else _smoothed(a, whole, offset - whole)
+    if offset == whole or tracks is None:
+        return _shifted(seqs[k], whole)
+    return tracks[k].smoothed(whole, offset)
 
 
-def _rig_scan(seqs: list, P: dict, o, c: int, shifts, f: float
+def _rig_scan(seqs: list, P: dict, o, c: int, shifts, f: float, tracks: list | None = None
               ) -> tuple[ShiftScan, dict]:
     """Camera ``c``'s reprojection error per whole shift against the joints triangulated
     from the other cameras of ``P`` at their offsets ``o`` (samples, whole or fractional:
-    :func:`_placed`): at each shift its
+    :func:`_placed`, from ``tracks``): at each shift its
     pose resected anew from its current one (:func:`_resect`; at most
     :data:`MAX_CORRESPONDENCES` taken evenly), so that no shift is favoured for the pose. Returns the scan (costs: median errors, pixels at focal
     length ``f``) and its poses per shift."""
     others = {k: P[k] for k in P if k != c}
-    X = _triangulated(others, {k: _placed(seqs[k], o[k]) for k in others})
+    X = _triangulated(others, {k: _placed(seqs, tracks, k, o[k]) for k in others})
     shifts = np.asarray(list(shifts), int)
     S = len(shifts)
     scan = ShiftScan(shifts=shifts, cost=np.full(S, np.nan), correspondences=np.zeros(S, int),
@@ -1204,22 +1495,14 @@ FRACTION_ROUNDS = 6
 FRACTION_TOL = 0.02
 
 
-def _smoothed(a: np.ndarray, s: int, u: float) -> np.ndarray:
-    """``(T, J, 2)``: ``a``'s trajectories at samples ``t + s + u``, each the local
-    quadratic (:func:`_local_quadratic`) of the samples ``t + s - HALF_WINDOW .. t + s +
-    HALF_WINDOW`` (NaN where one of them is missing)."""
-    w = _local_quadratic(float(u))
-    return sum(wk * _shifted(a, int(s) + k) for k, wk in
-               zip(range(-HALF_WINDOW, HALF_WINDOW + 1), w))
-
-
-def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: float
-                  ) -> tuple[float, float]:
+def _rig_fraction(tracks: list, P: dict, at: dict, centre: np.ndarray, c: int, f: float,
+                  stretch: tuple[int, int] | None = None) -> tuple[float, float, float]:
     """Camera ``c``'s fractional offset against the joints triangulated from the other
     cameras of ``P`` at their offsets ``at`` (samples, fractional), and its std. Every
-    camera's trajectories are the local quadratics about its whole offset ``centre``
-    (:func:`_smoothed`; one window for every fraction, so that the cost is continuous in
-    the fractions).
+    camera's trajectories are the local quadratics of its own samples about its whole
+    offset ``centre`` (:meth:`_Track.smoothed`; one window for every fraction, so that
+    the cost is continuous in the fractions; a camera at another frame rate than the
+    grid's on its own samples, at its own instants).
 
     At each point ``u`` of :data:`FRACTION_GRID` about its whole offset, its
     trajectories are evaluated at ``t + u`` (its residuals scaled to one noise at every
@@ -1234,37 +1517,44 @@ def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: 
     detector's errors and the motion are correlated over neighbouring frames): a flat
     cost gives a large std.
 
+    Args:
+        stretch: the grid's rows ``[start, stop)`` measured (default all).
+
     Returns:
-        the offset and its std (samples); NaN where too few correspondences.
+        the offset and its std (samples), and the mean row measured; NaN where too few
+        correspondences.
     """
     others = {k: P[k] for k in P if k != c}
-    placed = {}
-    for k in others:
-        sm = _smoothed(seqs[k], int(centre[k]), at[k] - centre[k])
-        # a slower camera (every n-th sample) fills no local quadratic: its own samples
-        placed[k] = sm if np.isfinite(sm).any() else _shifted(seqs[k], int(centre[k]))
+    placed = {k: tracks[k].smoothed(int(centre[k]), at[k]) for k in others}
     X = _triangulated(others, placed, min_views=len(others))
     base = int(centre[c])
     r0, t0 = cv2.Rodrigues(P[c][:, :3])[0], P[c][:, 3]
     v0 = _noise_factor(0.0)
-    nan = (float("nan"), float("nan"))
-    # the camera's samples about t + base that every u weighs (the local quadratic's)
-    window = np.stack([_shifted(seqs[c], base + k) for k in range(-HALF_WINDOW,
-                                                                  HALF_WINDOW + 1)])
+    nan = (float("nan"), float("nan"), float("nan"))
+    # the camera's own samples about each row that every u weighs (the local quadratic's)
+    window, pos = tracks[c].window(base)
+    per = tracks[c].per
     seen = np.isfinite(X).all(-1) & np.isfinite(window).all((0, -1))
+    if stretch is not None:
+        seen[:stretch[0]] = False
+        seen[stretch[1]:] = False
     Xs, W, rows = X[seen], window[:, seen], np.nonzero(seen)[0]
     if len(rows) < MIN_CORRESPONDENCES:
         return nan
     if len(rows) > FRACTION_CORRESPONDENCES:
         take = _evenly(len(rows), FRACTION_CORRESPONDENCES)
         Xs, W, rows = Xs[take], W[:, take], rows[take]
+    p0 = pos[rows]                       # each row's instant on the camera's own samples
 
     def scale(u):
-        return f * np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
+        return f * np.sqrt(2 * v0 / (v0 + _noise_factor(p0 + u / per)))
+
+    def moved(u):                        # the camera at offset base + u (samples)
+        return _at(W, p0 + u / per)
 
     # one set of inliers (of the pose at the offset rounded) for every u: the cost a
     # smooth function of u
-    first = _resect(Xs, _at(W, 0.0), r0, t0)
+    first = _resect(Xs, moved(0.0), r0, t0)
     if first is None:
         return nan
     r0, t0, e0 = first
@@ -1275,7 +1565,7 @@ def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: 
     def errors(grid):
         out = []
         for u in grid:
-            fit = _resect(Xs, _at(W, u), r0, t0, inliers)
+            fit = _resect(Xs, moved(u), r0, t0, inliers)
             out.append(None if fit is None else fit[2] * scale(u))
         ok = np.array([e is not None for e in out], bool)
         return np.asarray(grid)[ok], [e for e in out if e is not None]
@@ -1310,10 +1600,10 @@ def _rig_fraction(seqs: list, P: dict, at: dict, centre: np.ndarray, c: int, f: 
     u, std = _sandwich(fine_grid - x0, per_block(Ef, k_px, keep))
     if not np.isfinite(u):
         return float(base + _parabola_min(fine_grid, np.sum(_huber(Ef, k_px) * keep, axis=1))), \
-            float("inf")
+            float("inf"), float(np.mean(rows))
     u = float(np.clip(u, fine_grid[0] - x0 - FRACTION_FINE, fine_grid[-1] - x0 + FRACTION_FINE))
     wide = _sandwich(grid, per_block(E, k_px, keep), at=u + x0)[1]
-    return float(base + x0 + u), float(max(std, wide))
+    return float(base + x0 + u), float(max(std, wide)), float(np.mean(rows))
 
 
 def _sandwich(x: np.ndarray, Cb: np.ndarray, at: float | None = None) -> tuple[float, float]:
@@ -1332,10 +1622,53 @@ def _sandwich(x: np.ndarray, Cb: np.ndarray, at: float | None = None) -> tuple[f
 
 
 
-def on_rig_clock(a: np.ndarray, clock: ClockEstimate, step: int = 1) -> np.ndarray:
-    """A camera's ``(T, J, 3)`` keypoints placed on the rig's rows by its whole offset,
-    moved by the offset's fraction (:func:`resample`; ``step``: frames between two rows)."""
-    frac = clock.offset - clock.whole
-    if clock.source != "search" or frac == 0:
-        return a
-    return resample(a, frac / max(int(step), 1))
+def rig_instants(frame_ids: np.ndarray, rate: float, clock: ClockEstimate) -> np.ndarray:
+    """``(T_c,)`` the rig frames (fractional) a camera's own frames ``frame_ids`` show:
+    ``(rate g - offset) / clock_rate`` (``rate``: the rig's frames per own frame)."""
+    return (float(rate) * np.asarray(frame_ids, float) - clock.offset) / clock.rate
+
+
+def on_rig_clock(a: np.ndarray, frame_ids: np.ndarray, rate: float, clock: ClockEstimate
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """A camera's ``(T_c, J, C)`` keypoints on its own frames ``frame_ids`` placed on the
+    rig's clock (``rate``: the rig's frames per own frame; ``clock``: its offset and
+    clock rate): each own frame at the rig frame nearest the instant it shows
+    (:func:`rig_instants`; of several on one rig frame, the nearest), the keypoints at
+    that rig frame's instant interpolated linearly between the camera's two frames
+    around it (the confidence, last channel, the smaller of theirs; NaN coordinates and
+    confidence 0 where either lacks the joint; its own frame where the instant falls on
+    it). Returns ``(m,)`` rig frames (increasing) and ``(m, J, C)`` keypoints."""
+    a = np.asarray(a, float)
+    ids = np.asarray(frame_ids, np.int64)
+    if not len(ids):
+        return ids, a
+    x = rig_instants(ids, rate, clock)
+    r = np.round(x).astype(np.int64)
+    order = np.lexsort((np.abs(x - r), r))
+    keep = order[np.r_[True, np.diff(r[order]) != 0]]
+    r = r[keep]
+    # the rig frame's instant on the camera's own frames
+    kappa = (r * clock.rate + clock.offset) / float(rate)
+    step = frame_step(ids)
+    g0 = int(ids.min())
+    n = int((ids.max() - g0) // step) + 1
+    own = np.full((n,) + a.shape[1:], np.nan)
+    own[..., -1] = 0.0
+    on = (ids - g0) % step == 0
+    own[(ids[on] - g0) // step] = a[on]
+    pos = (kappa - g0) / step
+    k = np.round(pos).astype(np.int64)
+    exact = np.abs(pos - k) < 1e-9
+    out = np.full((len(r),) + a.shape[1:], np.nan)
+    out[..., -1] = 0.0
+    out[exact] = own[np.clip(k[exact], 0, n - 1)]
+    lo = np.floor(pos).astype(np.int64)
+    between = ~exact & (lo >= 0) & (lo + 1 < n)
+    w = (pos - lo)[between][:, None, None]
+    p, q = own[lo[between]], own[lo[between] + 1]
+    xy = (1 - w) * p[..., :-1] + w * q[..., :-1]
+    conf = np.minimum(np.nan_to_num(p[..., -1]), np.nan_to_num(q[..., -1]))
+    seen = np.isfinite(xy).all(-1) & (conf > 0)
+    out[between, ..., :-1] = np.where(seen[..., None], xy, np.nan)
+    out[between, ..., -1] = np.where(seen, conf, 0.0)
+    return r, out

@@ -4,6 +4,7 @@ Form (paths are relative to the rig file)::
 
     subject_height = 1.72          # optional, metres; gives the scale
     joints = "auto"                # optional: "auto" (default), "limbs", "all", or names
+    clock_drift = false            # optional: estimate each camera's clock rate too
     [[cameras]]
     name = "cam01"
     keypoints = "pose/cam01_json"  # any input mirrorgraph.io.read_keypoints takes (a video too)
@@ -14,11 +15,15 @@ Form (paths are relative to the rig file)::
     skeleton = "BODY_25B"          # optional where the keypoint count is ambiguous
     mirrors = ["wall"]             # optional: mirrors this camera sees
     frame_offset = 0               # optional: this camera's frame f shows rig frame f - offset
+    fps = 30.0                     # optional: its frame rate, where the keypoints carry none
     [[mirrors]]
     name = "wall"
 
-The first camera defines the world frame. Cameras are synchronised frame by
-frame: frame ``f`` of a camera with ``frame_offset = o`` is rig frame ``f - o``.
+The first camera defines the world frame and the clock. Cameras at one frame rate
+are synchronised frame by frame: frame ``f`` of a camera with ``frame_offset = o`` is
+rig frame ``f - o``; ``frame_offset`` counts the first camera's frames, and a camera at
+another frame rate (its input's, or ``fps``) is put on the rig's clock by its rate
+(:mod:`mirrorgraph.rigs.clocks`).
 A camera that sees several mirrors lists them in the order of their normals'
 ``x`` component in that camera (the mirror on the camera's left first: the
 images cannot tell two mirrors apart otherwise); a mirror seen by several
@@ -64,7 +69,10 @@ class CameraEntry:
         intrinsics_section: the camera's section in a TOML file holding several.
         skeleton: keypoint layout name, or ``None`` (from the keypoint count).
         mirrors: names of the mirrors the camera sees.
-        frame_offset: the camera's frame ``f`` is rig frame ``f - frame_offset``.
+        frame_offset: the camera's frame ``f`` is rig frame ``f - frame_offset`` (the
+            first camera's frames).
+        fps: its frame rate, or ``None`` (its input's); where the input carries another
+            (by more than 0.1 %), this one is used, with a warning.
     """
 
     name: str
@@ -75,6 +83,7 @@ class CameraEntry:
     mirrors: tuple[str, ...] = ()
     frame_offset: int = 0
     image_size: tuple[int, int] | None = None
+    fps: float | None = None
 
 
 @dataclass(frozen=True)
@@ -88,6 +97,8 @@ class RigConfig:
         subject_height: metres, or ``None`` (the scale is then the subject's height = 1).
         joints: ``"auto"``, ``"limbs"``, ``"all"`` or joint names (see
             :func:`mirrorgraph.joint_sets.resolve_joints`), or ``None`` (``"auto"``).
+        clock_drift: estimate every camera's clock rate against the first camera's
+            besides its time offset (long clips; :mod:`mirrorgraph.rigs.clocks`).
     """
 
     source: Path
@@ -95,10 +106,11 @@ class RigConfig:
     mirrors: tuple[str, ...] = ()
     subject_height: float | None = None
     joints: str | tuple[str, ...] | None = None
+    clock_drift: bool = False
 
 
 _CAMERA_KEYS = {"name", "keypoints", "intrinsics", "intrinsics_section", "skeleton", "mirrors",
-                "frame_offset", "image_size"}
+                "frame_offset", "image_size", "fps"}
 
 
 def _string(value, source, field_name) -> str:
@@ -114,7 +126,8 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
         InputError: naming the file and the field: missing file, malformed TOML,
             no cameras, duplicate names, unknown keys, a mirror not declared, a
             skeleton name not known, a missing keypoint or intrinsics path, a
-            non-positive height, a non-integer offset.
+            non-positive height, a non-integer offset, a non-positive frame rate, a
+            clock_drift other than true or false.
     """
     path = Path(path)
     if not path.is_file():
@@ -158,16 +171,20 @@ def load_rig_config(path: str | os.PathLike) -> RigConfig:
     if len(skeletons) > 1:
         raise InputError(f"cameras use different skeletons ({', '.join(sorted(skeletons))}); "
                          "one layout per rig", source=path, field="cameras")
+    drift = doc.get("clock_drift", False)
+    if not isinstance(drift, bool):
+        raise InputError("must be true or false", source=path, field="clock_drift")
     return RigConfig(source=path, cameras=tuple(cameras), mirrors=tuple(mirror_names),
-                     subject_height=height, joints=joints)
+                     subject_height=height, joints=joints, clock_drift=drift)
 
 
 def _rig_settings(doc: dict, path: Path) -> tuple[str | tuple[str, ...] | None, float | None]:
     """The rig file's top-level keys checked: ``(joints, subject_height)``."""
-    unknown = set(doc) - {"subject_height", "joints", "cameras", "mirrors"}
+    unknown = set(doc) - {"subject_height", "joints", "clock_drift", "cameras", "mirrors"}
     if unknown:
         raise InputError(f"unknown key(s) {', '.join(sorted(unknown))}; expected "
-                         "subject_height, joints, [[cameras]], [[mirrors]]", source=path)
+                         "subject_height, joints, clock_drift, [[cameras]], [[mirrors]]",
+                         source=path)
     joints = doc.get("joints")
     if joints is not None:
         ok = (isinstance(joints, str) and joints in JOINT_SETS) or (
@@ -253,6 +270,13 @@ def _camera_entry(c: dict, where: str, path: Path, mirror_names: list[str],
     if isinstance(offset, bool) or not isinstance(offset, int):
         raise InputError("must be an integer number of frames", source=path,
                          field=f"{where}.frame_offset")
+    fps = c.get("fps")
+    if fps is not None:
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not fps > 0 \
+                or fps == float("inf"):
+            raise InputError(f"must be a frame rate in frames per second (> 0), got {fps!r}",
+                             source=path, field=f"{where}.fps")
+        fps = float(fps)
     size = c.get("image_size")
     if size is not None:
         if not (isinstance(size, list) and len(size) == 2):
@@ -264,4 +288,4 @@ def _camera_entry(c: dict, where: str, path: Path, mirror_names: list[str],
                              "holds its size)", source=path, field=f"{where}.image_size")
     return CameraEntry(name=name, keypoints=kp, intrinsics=intr, intrinsics_section=section,
                        skeleton=skeleton, mirrors=tuple(mirrors), frame_offset=int(offset),
-                       image_size=size)
+                       image_size=size, fps=fps)

@@ -4,8 +4,11 @@ For each camera of a :class:`~mirrorgraph.rigs.config.RigConfig`: read the keypo
 format of :func:`mirrorgraph.io.read_keypoints`), read the intrinsics and undistort, then
 sort every frame into the person and, for each mirror the camera sees, their reflection
 (labels flipped to the real joints). Frames are put on the rig's clock with each camera's
-time offset: found from the person to a fraction of a frame (:mod:`.clocks`, the rig
-file's ``frame_offset`` the search's centre) or the rig file's as given.
+frame rate (its input's, or the rig file's ``fps``) and time offset: found from the person
+to a fraction of a frame (:mod:`.clocks`, the rig file's ``frame_offset`` the search's
+centre; with ``clock_drift``, its clock rate too) or the rig file's as given. Each frame
+lands on the rig frame nearest its instant, its keypoints interpolated to that instant
+(:func:`~mirrorgraph.rigs.clocks.on_rig_clock`).
 
 Who the person is, camera by camera:
 
@@ -32,8 +35,7 @@ undistorted pixels; NaN coordinates and confidence 0 where a camera has no obser
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import partial
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -47,8 +49,8 @@ from ..initial.pairing import PairCandidates, choose_pairs, pair_candidates, pai
 from ..preprocess import check_image_size, fraction_outside, undistort_keypoints
 from ..skeleton_guess import AmbiguousSkeletonError, decide_body25
 from ..skeletons import Skeleton, skeleton_by_name
-from .clocks import (OFFSET_WINDOW, ClockEstimate, find_clocks, frame_step as _step,
-                     on_rig_clock, rig_frames)
+from .clocks import (OFFSET_WINDOW, ClockEstimate, find_clocks, on_rig_clock, rig_instants,
+                     rig_rates)
 from .config import CameraEntry, RigConfig
 from .matching import match_candidates
 from .epipolar import inlier_threshold_px
@@ -112,10 +114,12 @@ class RigObservations:
 
     Attributes:
         skeleton: the keypoint layout (the same for every camera).
-        frame_ids: ``(T,)`` rig frame numbers (camera frame minus its offset).
+        frame_ids: ``(T,)`` rig frame numbers (at one frame rate: camera frame minus its
+            offset; see :func:`~mirrorgraph.rigs.clocks.rig_rates` for several).
         cameras: per camera, in the rig file's order.
         mirrors: mirror names.
-        fps: frame rate if an input carries it.
+        fps: the rig clock's frame rate (the first camera's, or a whole multiple where a
+            camera films faster), ``None`` where unknown.
         warnings: what the user should know (assumed intrinsics, several people
             with reflections in the first camera, ...).
     """
@@ -473,14 +477,30 @@ def _refuse_duplicates(config: RigConfig, read: list) -> None:
         seen[key] = entry.name
 
 
-def _refuse_disjoint(per_camera: list, config: RigConfig, offsets: list[int]) -> None:
-    """Refuse a camera whose frames (after its time offset, ``offsets``) share none with
-    the first camera's: nothing is seen at once, whatever the people."""
+def _frame_rates(config: RigConfig, read: list, warnings: list[str]) -> list[float | None]:
+    """Every camera's frame rate: its rig-file ``fps``, else its input's (``None`` where
+    neither says); a warning where both say and differ by more than 0.1 %."""
+    out = []
+    for entry, data in zip(config.cameras, read):
+        own = data.fps if data.fps and np.isfinite(data.fps) and data.fps > 0 else None
+        if entry.fps is not None and own is not None and abs(own / entry.fps - 1) > 1e-3:
+            warnings.append(f"camera {entry.name}: its keypoints ({data.source}) say "
+                            f"{own:g} fps, the rig file's fps {entry.fps:g}: the rig file's "
+                            "is used")
+        out.append(entry.fps if entry.fps is not None else own)
+    return out
+
+
+def _refuse_disjoint(per_camera: list, config: RigConfig, offsets: list[float]) -> None:
+    """Refuse a camera whose rig frames (after its time offset, ``offsets``: the first
+    camera's frames) span none of the first camera's: nothing is seen at once, whatever
+    the people."""
     ref_entry, _, ref_frames, *_ = per_camera[0]
     for (entry, _, frames, *_), offset in zip(per_camera[1:], offsets[1:]):
-        if len(frames) and len(ref_frames) and not np.intersect1d(frames, ref_frames).size:
+        if len(frames) and len(ref_frames) and (frames.max() < ref_frames.min()
+                                                or frames.min() > ref_frames.max()):
             raise InputError(f"camera {entry.name}'s frames {int(frames.min())}.."
-                             f"{int(frames.max())} (after its time offset {offset}) share "
+                             f"{int(frames.max())} (after its time offset {offset:g}) share "
                              f"none with camera {ref_entry.name}'s {int(ref_frames.min())}.."
                              f"{int(ref_frames.max())}: check frame_offset",
                              source=config.source, field="frame_offset")
@@ -510,7 +530,8 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             (:func:`~mirrorgraph.rigs.clocks.find_clocks`, the rig file's
             ``frame_offset`` the centre of the search) and applied, to a fraction of a
             frame; ``"fixed"``: the rig file's ``frame_offset`` as given.
-        offset_window: frames searched either way of a camera's given offset.
+        offset_window: frames (the first camera's) searched either way of a camera's
+            given offset.
         seed: seed of the search's random choices.
 
     Raises:
@@ -521,7 +542,7 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             the camera).
     """
     warnings: list[str] = []
-    per_camera, fps = [], None
+    per_camera = []
     read = _read_cameras(config, skeleton, progress, video, frame_progress)
     _refuse_duplicates(config, read)
     layouts = [data.skeleton for data in read]
@@ -531,31 +552,37 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
                          " name one with skeleton = ... in each [[cameras]] table",
                          source=config.source, field="cameras")
     sk = layouts[0]
-    for entry, data in zip(config.cameras, read):
+    rates, unit, rig_fps = rig_rates(_frame_rates(config, read, warnings))
+    for entry, data, rate in zip(config.cameras, read, rates):
         intr = _intrinsics(entry, data, warnings, estimate_focal, fov_deg)
         data = undistort_keypoints(data, intr)
         sorting = _sort_camera(entry, data, intr)
-        ids = rig_frames(data.frame_ids, data.fps, read[0].fps)   # the first camera's rate
-        if len(ids) > 1 and ids[-1] - ids[0] != data.frame_ids[-1] - data.frame_ids[0]:
-            warnings.append(f"camera {entry.name}: {data.fps:g} fps, camera "
-                            f"{config.cameras[0].name} {read[0].fps:g} fps: its frames put on "
-                            "the first camera's clock (frame_offset in its frames)")
-        per_camera.append((entry, intr, ids, sorting, data.source))
-        fps = fps or data.fps
+        per_camera.append((entry, intr, np.asarray(data.frame_ids, np.int64), sorting,
+                           data.source))
     ref_entry, ref_intr, _, ref, _ = per_camera[0]
     if ref.several():
         _follow_subject(ref_entry.name, ref, sk, ref_entry.mirrors, warnings,
                         per_camera[0][2])
+    if rig_fps is not None and any(r != unit for r in rates):
+        warnings.append("frame rates " + ", ".join(
+            f"{e.name} {rig_fps / r:.4g}" for e, r in zip(config.cameras, rates))
+            + f" fps: every camera on one {rig_fps:.4g} fps clock by its rate "
+            f"(frame_offset in {ref_entry.name}'s frames)")
     clocks = find_clocks([(s.real, s.people) for _, _, _, s, _ in per_camera],
                          [f for _, _, f, *_ in per_camera],
-                         [i.K for _, i, *_ in per_camera], [e.frame_offset for e in config.cameras],
-                         sk.calibration_joints, search=time_offsets == "search",
+                         [i.K for _, i, *_ in per_camera],
+                         [e.frame_offset * unit for e in config.cameras],
+                         sk.calibration_joints, rates=rates, unit=unit,
+                         drift=config.clock_drift, search=time_offsets == "search",
                          window=offset_window, seed=seed)
+    clocks = [replace(c, fps=rig_fps / r if rig_fps else None, rig_fps=rig_fps)
+              for c, r in zip(clocks, rates)]
     warnings += [f"camera {e.name}: time offset: {c.note}" for e, c in
                  zip(config.cameras, clocks) if c.note]
-    per_camera = [(e, i, f - c.whole, *rest)
-                  for (e, i, f, *rest), c in zip(per_camera, clocks)]
-    _refuse_disjoint(per_camera, config, [c.whole for c in clocks])
+    # every own frame at the rig frame nearest the instant it shows
+    per_camera = [(e, i, np.round(rig_instants(f, r, c)).astype(np.int64), *rest)
+                  for (e, i, f, *rest), c, r in zip(per_camera, clocks, rates)]
+    _refuse_disjoint(per_camera, config, [c.reference_frames[0] for c in clocks])
     frame_ids = np.unique(np.concatenate([f for _, _, f, *_ in per_camera]))
     T, J = len(frame_ids), sk.num_joints
     rows = [np.searchsorted(frame_ids, f) for _, _, f, *_ in per_camera]
@@ -565,19 +592,25 @@ def load_observations(config: RigConfig, *, skeleton: Skeleton | str | None = No
             step = int(np.median(np.diff(f))) if len(f) > 1 else 1
             _match_camera(entry, sorting, ref_entry.name, ref_person[r], ref_intr.K, intr.K,
                           sk, source, step, f)
+    # the person each camera kept, placed at the instants of the rig's frames
+    placed = [[on_rig_clock(a, f, r, c) for a in (s.real, *s.reflections.values())]
+              for (_, _, _, s, _), f, r, c in
+              zip(per_camera, [d.frame_ids for d in read], rates, clocks)]
 
     cameras = []
-    for (entry, intr, _, sorting, source), r, clock in zip(per_camera, rows, clocks):
+    for (entry, intr, _, sorting, source), r, clock, arrays in zip(per_camera, rows, clocks,
+                                                                   placed):
         people = None
         if sorting.people is not None:
             people = [np.zeros((0, J, 3))] * T
             for row, p in zip(r, sorting.people):
                 people[row] = p
-        on_clock = partial(on_rig_clock, clock=clock, step=_step(frame_ids))
+        on_rows = [_place(a, np.searchsorted(frame_ids, ids), T) for ids, a in arrays]
         cameras.append(CameraObservations(
-            name=entry.name, intrinsics=intr, real=on_clock(_place(sorting.real, r, T)),
-            reflections={m: on_clock(_place(a, r, T)) for m, a in sorting.reflections.items()},
+            name=entry.name, intrinsics=intr, real=on_rows[0],
+            reflections=dict(zip(sorting.reflections, on_rows[1:])),
             source=source, lr_fixes=sorting.lr_fixes, people=people, matched=sorting.matched,
             clock=clock))
     return RigObservations(skeleton=sk, frame_ids=frame_ids, cameras=cameras,
-                           mirrors=config.mirrors, fps=fps, warnings=warnings)
+                           mirrors=config.mirrors, fps=rig_fps or read[0].fps,
+                           warnings=warnings)

@@ -8,8 +8,9 @@ starting where its offset puts it: camera ``c``'s frame ``f`` shows the rig's (c
 seconds (:func:`mirrorgraph.synth.motion.generate_motion`), so the upsampled rig is the
 same kind of scene; the detector's noise is drawn per upsampled frame, independent
 between the frames kept. The ground truth (``joints3d``, ``frame_ids``) is on the rig's
-clock; :attr:`SyntheticRig.placement` holds ``time_offsets``. A camera may film at a
-whole fraction of the rig's rate (``rates``: a 30 fps camera beside 60 fps ones).
+clock; :attr:`SyntheticRig.placement` holds ``time_offsets``. A camera may film at
+another rate (``rates``: a 30 fps camera beside 60 fps ones, 25 fps beside 30) and its
+clock run at another rate (``drifts``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ __all__ = ["unsynchronised_rig"]
 
 
 def unsynchronised_rig(kind: str, offsets, *, frames: int = 150, upsample: int = 10,
-                       fps: float = 30.0, rates=None, **options) -> SyntheticRig:
+                       fps: float = 30.0, rates=None, drifts=None, **options) -> SyntheticRig:
     """A rig whose cameras have the given time offsets (see the module docstring).
 
     Args:
@@ -37,9 +38,14 @@ def unsynchronised_rig(kind: str, offsets, *, frames: int = 150, upsample: int =
             that fall within them).
         upsample: the factor of the rig made underneath.
         fps: the rig's frame rate (the first camera's).
-        rates: per camera a whole divisor of ``fps`` (default all 1): a camera with
-            divisor ``d`` films at ``fps / d``, its own frame ``g`` the rig's frame
-            ``d g - offset`` (its files number its own frames, and say its rate).
+        rates: per camera the rig's frames per own frame (default all 1): a camera with
+            ``d`` films at ``fps / d``, its own frame ``g`` the rig's frame ``d g -
+            offset`` (its files number its own frames, and say its rate); a ``d`` that
+            is no whole number puts some frames between the upsampled rig's, at the
+            nearest (within ``1 / (2 upsample)`` frame).
+        drifts: per camera its clock's rate against the rig's (default all 1): its own
+            frame ``g`` the rig's frame ``(d g - offset) / drift``, to the nearest
+            ``1 / upsample`` frame.
         options: the other keywords of :func:`~mirrorgraph.synth.rig.make_rig`.
 
     Raises:
@@ -51,9 +57,12 @@ def unsynchronised_rig(kind: str, offsets, *, frames: int = 150, upsample: int =
     offsets = [float(o) for o in offsets]
     if len(offsets) != len(hi.camera_names):
         raise ValueError(f"{len(offsets)} offsets for {len(hi.camera_names)} cameras")
-    rates = [1] * len(offsets) if rates is None else [int(r) for r in rates]
-    if len(rates) != len(offsets) or min(rates) < 1:
-        raise ValueError(f"rates must be one whole divisor >= 1 per camera, got {rates}")
+    rates = [1.0] * len(offsets) if rates is None else [float(r) for r in rates]
+    if len(rates) != len(offsets) or min(rates) <= 0:
+        raise ValueError(f"rates must be one positive number per camera, got {rates}")
+    drifts = [1.0] * len(offsets) if drifts is None else [float(r) for r in drifts]
+    if len(drifts) != len(offsets) or min(drifts) <= 0:
+        raise ValueError(f"drifts must be one positive number per camera, got {drifts}")
     if offsets[0] != 0:
         raise ValueError("the first camera defines the rig's clock: its offset must be 0")
     steps = [o * k for o in offsets]
@@ -61,15 +70,15 @@ def unsynchronised_rig(kind: str, offsets, *, frames: int = 150, upsample: int =
         raise ValueError(f"offsets must be multiples of 1/{k} frame, got {offsets}")
     T_hi = len(hi)
     detections, views, det_views = {}, {}, {}
-    for name, s, rate in zip(hi.camera_names, steps, rates):
-        s = int(round(s))
-        # camera frame f shows rig frame f - o: upsampled index k f - s
+    for name, o, rate, drift in zip(hi.camera_names, offsets, rates, drifts):
+        # own frame g shows rig frame (rate g - o) / drift: upsampled index k times that
         # (its frames numbered from 0, as a camera's files are: frames before the rig's
         # first are not made, so a camera ahead of the rig starts at its offset)
-        f = np.arange(max(int(np.ceil(s / k)), 0), int((T_hi - 1 + s) // k) + 1)
-        idx = k * f - s
-        keep = (idx >= 0) & (idx < T_hi) & (f % rate == 0)
-        f, idx = f[keep] // rate, idx[keep]
+        f = np.arange(max(int(np.ceil(o / rate)), 0),
+                      int(np.floor(((T_hi - 1) / k * drift + o) / rate)) + 1)
+        idx = np.round(k * (rate * f - o) / drift).astype(np.int64)
+        keep = (idx >= 0) & (idx < T_hi)
+        f, idx = f[keep], idx[keep]
         d = hi.detections[name]
         detections[name] = RawDetections(skeleton=d.skeleton, frame_ids=f.astype(np.int64),
                                          people=[d.people[i] for i in idx], source=d.source,
@@ -82,7 +91,7 @@ def unsynchronised_rig(kind: str, offsets, *, frames: int = 150, upsample: int =
         det_views[name] = [hi.detection_views[name][i] for i in idx]
     rows = np.arange(0, T_hi, k)
     options = dict(hi.options, frames=int(frames), fps=float(fps), upsample=k,
-                   time_offsets=offsets, rates=rates)
+                   time_offsets=offsets, rates=rates, drifts=drifts)
     return replace(hi, frame_ids=np.arange(len(rows), dtype=np.int64),
                    joints3d=hi.joints3d[rows], detections=detections, views=views,
                    detection_views=det_views, fps=float(fps), options=options,
