@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..geometry import sampson_distances
+from ..geometry import sampson_distances, skew
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from .config import OFFSET_WINDOW
 from .failure import candidate_people
@@ -547,10 +547,6 @@ def _rotation(r: np.ndarray) -> np.ndarray:
     return cv2.Rodrigues(np.asarray(r, float).reshape(3, 1))[0]
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], float)
-
-
 def _fit_subframe(A3, pa, per, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int = 200,
                   tol: float = 1e-8):
     """Least squares of ``(rotation, translation direction, dt)`` from a start (the
@@ -572,7 +568,7 @@ def _fit_subframe(A3, pa, per, xb, E0_R, E0_t, dt0, f, huber_px, max_nfev: int =
     def residuals(p):
         R, t = parts(p)
         u = pa + p[5] / per
-        d = sampson_distances(_skew(t) @ R, _at(A3, u), xb) * f
+        d = sampson_distances(skew(t) @ R, _at(A3, u), xb) * f
         # the same noise for every dt: the local quadratic's varies a little with it
         d *= np.sqrt(2 * v0 / (v0 + _noise_factor(u)))
         return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0)
@@ -638,7 +634,7 @@ def subframe_offset(camera: "_Track", reference: "_Track", shift: int, f: float,
     t0 = t0.ravel()
     huber = scale * f
     # the start: the best of a coarse grid of dt under the shift's pose
-    Ee = _skew(t0 / np.linalg.norm(t0)) @ R0
+    Ee = skew(t0 / np.linalg.norm(t0)) @ R0
     grid = np.linspace(-FRACTION_REACH, FRACTION_REACH, int(8 * FRACTION_REACH) + 1)
     costs = np.array([np.sum(_huber(sampson_distances(Ee, _at(A3, pa + g / per), xb) * f,
                                     huber)) for g in grid])
@@ -676,8 +672,11 @@ def _parabola_min(x: np.ndarray, y: np.ndarray) -> float:
 
 
 def _huber(r: np.ndarray, k: float) -> np.ndarray:
-    a = np.abs(np.nan_to_num(r, nan=k, posinf=k, neginf=k))
-    return np.where(a <= k, 0.5 * a ** 2, k * (a - 0.5 * k))
+    """Huber's loss of residuals ``r`` at ``k`` (``scipy.special.huber``); a missing
+    residual (NaN, inf) costs what one at ``k`` does."""
+    from scipy.special import huber
+
+    return huber(k, np.nan_to_num(r, nan=k, posinf=k, neginf=k))
 
 
 def resample(a: np.ndarray, dt: float) -> np.ndarray:
