@@ -759,7 +759,7 @@ class LiveCalibrator:
         n = len(self._buffer_ids)
         busy = self._future is not None
         if busy:
-            due = n >= (self._next if self._provisional else self.options.window_frames)
+            due = n >= self._next_after_job()
             if self.options.can_wait and due:      # a file: wait, never thin
                 waited = self._poll(wait=True)
                 return waited + self._schedule()
@@ -788,6 +788,16 @@ class LiveCalibrator:
         est = solve_window(job[0], self._window_intr, self._copts)
         self._absorb(est, *job[1:], len(job[0].people))
         return time.perf_counter() - clock
+
+    def _next_after_job(self) -> int:
+        """The buffered frames at which the window after the one in flight is due: the
+        threshold the window in flight sets once absorbed (:meth:`_absorb`), its solve
+        taken to succeed."""
+        provisional, block, size = self._job
+        if provisional and not block:
+            return min(max(self.options.first_window_frames, 2 * size),
+                       self.options.window_frames)
+        return self.options.window_frames
 
     def _executor(self):
         """The background worker's pool; its process starts here, with SIGINT ignored.
