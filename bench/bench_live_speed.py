@@ -11,7 +11,11 @@ the windows solved in the worker process (the default) and inline (``--inline``)
 * **without joints**: the JSON lines after the first one that carries a mirror with no 3D
   joint (the target: none), and the lines written;
 * ``--before PATH``: the same runs with the package of another tree (its
-  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side.
+  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side, interleaved run by run.
+
+Each tree's modules are byte-compiled first (one untimed run writes their
+``__pycache__``, as installing a package does; ``PYTHONDONTWRITEBYTECODE`` is not passed
+on), so that start-up is an installed package's, not the compiler's.
 
 Usage::
 
@@ -45,6 +49,7 @@ TARGET_FPS = 200.0
 def _env(tree: Path) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)     # start-up as an installed package's
     return env
 
 
@@ -121,11 +126,15 @@ def main(argv: list[str] | None = None) -> int:
     trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
     rows = []
     per_frame: dict[str, list] = {}
+    loads = []
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
+        for _, tree in trees:                      # untimed: each tree's bytecode written
+            run_once(tree, scene, True, Path(tmp) / "out.jsonl")
         for r in range(args.repeats):              # interleaved: the load hits both alike
             for name, tree in trees:
                 for inline in (False, True):
+                    loads.append(os.getloadavg()[0])
                     out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl")
                     out.update(code=name, mode="inline" if inline else "background", rep=r)
                     rows.append(out)
@@ -138,7 +147,9 @@ def main(argv: list[str] | None = None) -> int:
     L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
          "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
          f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
-         f"each run a fresh process; medians of {args.repeats} runs (min, max)", "",
+         f"each run a fresh process, its modules byte-compiled beforehand (an untimed run "
+         f"per tree); medians of {args.repeats} runs (min, max), the trees interleaved; "
+         f"1-min load average at the runs' starts {min(loads):.1f} to {max(loads):.1f}", "",
          "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | lines | lines without "
          "joints after the first mirror | first mirror at frame |",
          "|---|---|---:|---:|---:|---:|---:|---:|---:|"]

@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import signal
 import time
 from collections import Counter, deque
@@ -335,6 +334,40 @@ def _warm_up() -> None:
     from ..pipelines import mirror  # noqa: F401
 
 
+def _new_worker():
+    """One worker process's pool (spawned, SIGINT ignored), its imports under way.
+
+    A spawned process inherits an ignored SIGINT (and Python then installs no
+    KeyboardInterrupt handler in it), so Ctrl-C stops the main process alone: one line,
+    no worker traceback; the main process stops the worker (:meth:`LiveCalibrator.close`).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+    with _sigint_ignored():             # the pool starts its process in submit: no wait
+        pool.submit(_warm_up)
+    return pool
+
+
+#: Worker pools started ahead of their calibrator (:func:`start_worker`).
+_STARTED: list = []
+
+
+def start_worker() -> None:
+    """Start the background worker (its process and imports: about a second of CPU) now,
+    for the next :class:`LiveCalibrator` with ``background=True`` to take: a caller that
+    reads its input before it can make the calibrator overlaps the two.
+    :func:`stop_started_workers` ends any left untaken."""
+    _STARTED.append(_new_worker())
+
+
+def stop_started_workers() -> None:
+    """Stop the workers :func:`start_worker` started that no calibrator took."""
+    while _STARTED:
+        _STARTED.pop().shutdown(wait=True, cancel_futures=True)
+
+
 class LiveCalibrator:
     """A mirror calibrated while the frames arrive, and each frame's 3D joints.
 
@@ -407,7 +440,7 @@ class LiveCalibrator:
         self.last_variances: dict = {}
         self._cache: dict = {}                  # what the fused mirror gives every frame
         if opts.background:                     # the worker's start off the first window
-            self._executor().submit(_warm_up)
+            self._executor()
 
     # ------------------------------------------------------------------ state
     def _cached(self, name: str, make):
@@ -800,21 +833,10 @@ class LiveCalibrator:
         return self.options.window_frames
 
     def _executor(self):
-        """The background worker's pool; its process starts here, with SIGINT ignored.
-
-        A spawned process inherits an ignored SIGINT (and Python then installs no
-        KeyboardInterrupt handler in it), so Ctrl-C stops the main process alone: one
-        line, no worker traceback; the main process stops the worker (:meth:`close`).
-        """
+        """The background worker's pool: one :func:`start_worker` started, else a new one
+        (its process starts here)."""
         if self._pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            pool = ProcessPoolExecutor(max_workers=1,
-                                       mp_context=multiprocessing.get_context("spawn"))
-            with _sigint_ignored():     # the pool starts its process in submit: no wait
-                pool.submit(os.getpid)
-            self._pool = pool
+            self._pool = _STARTED.pop() if _STARTED else _new_worker()
         return self._pool
 
     def _poll(self, wait: bool = False) -> float:

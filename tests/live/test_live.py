@@ -364,6 +364,30 @@ def test_the_worker_starts_with_the_calibrator_not_at_the_first_window(scene):
         live.close()
 
 
+def test_a_worker_started_ahead_is_the_one_the_calibrator_takes(scene):
+    """``start_worker`` (``mirrorgraph live`` calls it before reading its input) starts the
+    pool the next background calibrator takes and solves its windows in; one no
+    calibrator took is stopped by ``stop_started_workers``."""
+    from mirrorgraph.live import calibrator
+
+    calibrator.start_worker()
+    pool = calibrator._STARTED[-1]
+    live = _live(scene, background=True, can_wait=True)
+    try:
+        assert live._pool is pool and not calibrator._STARTED
+        frames = _feed(live, scene.detections.people[:80])
+    finally:
+        live.close()
+    assert live.window_log[0]["result"] == "started"
+    assert all(np.isfinite(f.joints3d).any() for f in frames[60:] if f.paired)
+    calibrator.start_worker()
+    untaken = calibrator._STARTED[-1]
+    calibrator.stop_started_workers()
+    assert not calibrator._STARTED
+    with pytest.raises(RuntimeError):                       # shut down
+        untaken.submit(int)
+
+
 def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker(scene):
     """A file replayed flat out with the worker (``can_wait``): the first mirror is waited
     for and no frame is thinned, so the windows are the inline run's, window for window,
