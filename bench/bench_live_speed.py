@@ -8,6 +8,10 @@ the windows solved in the worker process (the default) and inline (``--inline``)
 * **wall s** and **frames/s**: the whole process, start-up and the last window included
   (as ``time`` measures it), and **CPU s**: user + system of the process and its worker
   (``resource.getrusage(RUSAGE_CHILDREN)``);
+* **main thread CPU s** and **asleep s**: the ``live`` process's main thread's time on a
+  CPU and its time asleep (the wall less that and its time runnable but waiting for a
+  CPU, ``/proc/PID/schedstat``, read once the process has exited): asleep is the waits
+  for the worker's windows (with the worker's own waits for a CPU on a loaded machine);
 * **without joints**: the JSON lines after the first one that carries a mirror with no 3D
   joint (the target: none), and the lines written;
 * ``--before PATH``: the same runs with the package of another tree (its
@@ -60,6 +64,16 @@ def make_scene(folder: Path, frames: int, seed: int) -> Path:
     return folder
 
 
+def _main_thread(pid: int) -> tuple[float, float]:
+    """``(on a CPU, runnable and waiting for one)`` seconds of process ``pid``'s main
+    thread (``/proc/PID/schedstat``; an exited process's until it is reaped)."""
+    try:
+        on, queued = Path(f"/proc/{pid}/schedstat").read_text().split()[:2]
+    except (OSError, ValueError):
+        return float("nan"), float("nan")
+    return int(on) * 1e-9, int(queued) * 1e-9
+
+
 def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     """One fresh ``mirrorgraph live`` process: wall, CPU, and its lines' joints."""
     cmd = [sys.executable, "-m", "mirrorgraph", "live", str(scene / "keypoints_mmpose.json"),
@@ -68,8 +82,12 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     clock = time.perf_counter()
     # run from the tree: ``python -m`` puts the working directory first on the path
-    subprocess.run(cmd, check=True, env=_env(tree), stdout=subprocess.DEVNULL, cwd=tree)
+    proc = subprocess.Popen(cmd, env=_env(tree), stdout=subprocess.DEVNULL, cwd=tree)
+    os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)     # exited, not reaped yet
     wall = time.perf_counter() - clock
+    main_cpu, main_queued = _main_thread(proc.pid)
+    if proc.wait() != 0:
+        raise subprocess.CalledProcessError(proc.returncode, cmd)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     lines = [json.loads(x) for x in jsonl.read_text().splitlines()]
@@ -77,7 +95,9 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     missing = (sum(1 for ln in lines[first + 1:]
                    if not any(p is not None for p in ln["joints3d"]))
                if first is not None else len(lines))
-    return dict(wall=wall, cpu=cpu, lines=len(lines), missing=missing,
+    return dict(wall=wall, cpu=cpu, main_cpu=main_cpu,
+                main_asleep=max(wall - main_cpu - main_queued, 0.0), lines=len(lines),
+                missing=missing,
                 first_mirror=None if first is None else lines[first]["frame"])
 
 
@@ -140,6 +160,8 @@ def main(argv: list[str] | None = None) -> int:
                     rows.append(out)
                     print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
                           f"({args.frames / out['wall']:.0f} frames/s), {out['cpu']:.2f} s CPU, "
+                          f"main thread {out['main_cpu']:.2f} s CPU {out['main_asleep']:.2f} s "
+                          f"asleep, "
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
             for name, tree in trees:
@@ -150,9 +172,10 @@ def main(argv: list[str] | None = None) -> int:
          f"each run a fresh process, its modules byte-compiled beforehand (an untimed run "
          f"per tree); medians of {args.repeats} runs (min, max), the trees interleaved; "
          f"1-min load average at the runs' starts {min(loads):.1f} to {max(loads):.1f}", "",
-         "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | lines | lines without "
-         "joints after the first mirror | first mirror at frame |",
-         "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+         "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | main thread CPU s | "
+         "main thread asleep s | lines | lines without joints after the first mirror | "
+         "first mirror at frame |",
+         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, _ in trees:
         for mode in ("background", "inline"):
             sel = [r for r in rows if r["code"] == name and r["mode"] == mode]
@@ -161,7 +184,9 @@ def main(argv: list[str] | None = None) -> int:
             fps = args.frames / w
             L.append(f"| {name} | {mode} | {np.median(w):.2f} ({w.min():.2f}, {w.max():.2f}) | "
                      f"{np.median(fps):.0f} ({fps.min():.0f}, {fps.max():.0f}) | "
-                     f"{np.median(c):.2f} | {args.frames / np.median(c):.0f} | {sel[0]['lines']} | "
+                     f"{np.median(c):.2f} | {args.frames / np.median(c):.0f} | "
+                     f"{np.median([r['main_cpu'] for r in sel]):.2f} | "
+                     f"{np.median([r['main_asleep'] for r in sel]):.2f} | {sel[0]['lines']} | "
                      f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
     L += ["", "CPU-time frames/s: frames / CPU s of the process and its worker (user + "
           "system), the measure the machine's load disturbs least.",
