@@ -30,8 +30,8 @@ calibrated by the offline run: every frame so far each time their number doubles
 ``window_frames`` fused into the mirror carried from the older ones
 (:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
 (``background=False``: deterministic) or in one worker process started with the
-calibrator (``background=True``: the frames keep flowing; a buffer beyond
-``max_buffer_frames`` while the worker is busy is thinned evenly).
+calibrator or before it (:func:`start_worker`) (``background=True``: the frames keep
+flowing; a buffer beyond ``max_buffer_frames`` while the worker is busy is thinned evenly).
 
 **Status**: ``initialising`` until the fused rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
@@ -66,7 +66,7 @@ if TYPE_CHECKING:
     from ..skeletons import Skeleton
 
 __all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES",
-           "joints_normal_jacobian"]
+           "joints_normal_jacobian", "start_worker", "stop_started_workers"]
 
 #: The statuses of a live mirror.
 STATUSES = ("initialising", "calibrated")
