@@ -12,6 +12,9 @@ the windows solved in the worker process (the default) and inline (``--inline``)
   CPU and its time asleep (the wall less that and its time runnable but waiting for a
   CPU, ``/proc/PID/schedstat``, read once the process has exited): asleep is the waits
   for the worker's windows (with the worker's own waits for a CPU on a loaded machine);
+* **PA-MPJPE mm**: the lines' joints against the scene's true joints
+  (:func:`mirrorgraph.metrics.pa_mpjpe`, each frame aligned by Procrustes): the worker's
+  lines differ from the inline run's (a frame gets the mirror solved by then);
 * **without joints**: the JSON lines after the first one that carries a mirror with no 3D
   joint (the target: none), and the lines written;
 * ``--before PATH``: the same runs with the package of another tree (its
@@ -45,6 +48,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import header  # noqa: E402
+
+from mirrorgraph.metrics import pa_mpjpe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_FPS = 200.0
@@ -95,7 +100,14 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     missing = (sum(1 for ln in lines[first + 1:]
                    if not any(p is not None for p in ln["joints3d"]))
                if first is not None else len(lines))
+    truth = np.load(scene / "ground_truth_joints3d.npz")["joints3d"]
+    X = np.full(truth.shape, np.nan)
+    for ln in lines:
+        for j, p in enumerate(ln["joints3d"]):
+            if p is not None:
+                X[ln["frame"], j] = p
     return dict(wall=wall, cpu=cpu, main_cpu=main_cpu,
+                pa_mm=1e3 * pa_mpjpe(X, truth, np.isfinite(X).all(-1)),
                 main_asleep=max(wall - main_cpu - main_queued, 0.0), lines=len(lines),
                 missing=missing,
                 first_mirror=None if first is None else lines[first]["frame"])
@@ -161,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
                           f"({args.frames / out['wall']:.0f} frames/s), {out['cpu']:.2f} s CPU, "
                           f"main thread {out['main_cpu']:.2f} s CPU {out['main_asleep']:.2f} s "
-                          f"asleep, "
+                          f"asleep, PA-MPJPE {out['pa_mm']:.1f} mm, "
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
             for name, tree in trees:
@@ -173,9 +185,9 @@ def main(argv: list[str] | None = None) -> int:
          f"per tree); medians of {args.repeats} runs (min, max), the trees interleaved; "
          f"1-min load average at the runs' starts {min(loads):.1f} to {max(loads):.1f}", "",
          "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | main thread CPU s | "
-         "main thread asleep s | lines | lines without joints after the first mirror | "
-         "first mirror at frame |",
-         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+         "main thread asleep s | PA-MPJPE mm | lines | lines without joints after the first "
+         "mirror | first mirror at frame |",
+         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, _ in trees:
         for mode in ("background", "inline"):
             sel = [r for r in rows if r["code"] == name and r["mode"] == mode]
@@ -186,7 +198,8 @@ def main(argv: list[str] | None = None) -> int:
                      f"{np.median(fps):.0f} ({fps.min():.0f}, {fps.max():.0f}) | "
                      f"{np.median(c):.2f} | {args.frames / np.median(c):.0f} | "
                      f"{np.median([r['main_cpu'] for r in sel]):.2f} | "
-                     f"{np.median([r['main_asleep'] for r in sel]):.2f} | {sel[0]['lines']} | "
+                     f"{np.median([r['main_asleep'] for r in sel]):.2f} | "
+                     f"{np.median([r['pa_mm'] for r in sel]):.1f} | {sel[0]['lines']} | "
                      f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
     L += ["", "CPU-time frames/s: frames / CPU s of the process and its worker (user + "
           "system), the measure the machine's load disturbs least.",
