@@ -363,9 +363,11 @@ def start_worker() -> None:
 
 
 def stop_started_workers() -> None:
-    """Stop the workers :func:`start_worker` started that no calibrator took."""
+    """Stop the workers :func:`start_worker` started that no calibrator took, without
+    waiting for their imports to end (the interpreter's exit joins them): an error that
+    ends the run before its calibrator is made is said at once."""
     while _STARTED:
-        _STARTED.pop().shutdown(wait=True, cancel_futures=True)
+        _STARTED.pop().shutdown(wait=False, cancel_futures=True)
 
 
 class LiveCalibrator:
