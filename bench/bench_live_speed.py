@@ -17,6 +17,9 @@ the windows solved in the worker process (the default) and inline (``--inline``)
   lines differ from the inline run's (a frame gets the mirror solved by then);
 * **without joints**: the JSON lines after the first one that carries a mirror with no 3D
   joint (the target: none), and the lines written;
+* **where an inline run's CPU goes**, in process: the start-up's imports, the windows'
+  imports (GTSAM, SciPy, the offline run), the reading, the per-frame path, the windows'
+  solves and the JSON lines;
 * ``--before PATH``: the same runs with the package of another tree (its
   ``mirrorgraph/`` first on ``PYTHONPATH``), side by side, interleaved run by run.
 
@@ -113,30 +116,59 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
                 first_mirror=None if first is None else lines[first]["frame"])
 
 
-#: One in-process live run (windows inline) giving each frame's own CPU time
-#: (:attr:`mirrorgraph.live.LiveFrame.cpu_s`: the thread's CPU of the per-frame path,
-#: the windows' solves left out): the part of the whole process the per-frame path is.
-PER_FRAME = """
-import sys, numpy as np
+#: One in-process live run (windows inline) and where its CPU goes: the start-up's
+#: imports (the interpreter, NumPy, OpenCV, the live modules), the windows' imports (GTSAM,
+#: SciPy, the offline run), the input's reading, each frame's own path
+#: (:attr:`mirrorgraph.live.LiveFrame.cpu_s`), the windows' solves (the rest of each
+#: update's thread CPU) and the JSON lines (``mirrorgraph live``'s encoding).
+BREAKDOWN = """
+import time
+import json, sys
+import numpy as np
+from mirrorgraph.cli import main
 from mirrorgraph.intrinsics import load_intrinsics
 from mirrorgraph.live import LiveCalibrator, LiveOptions
 from mirrorgraph.live.sources import open_source
+from mirrorgraph.live.stream import run_live
+t = {"start": time.process_time()}
+c = time.process_time()
+import scipy.optimize
+import mirrorgraph.pipelines.mirror
+t["solve_imports"] = time.process_time() - c
 scene = sys.argv[1]
+c = time.process_time()
 src = open_source(scene + "/keypoints_mmpose.json", skeleton=None, fps=None)
-live = LiveCalibrator(src.skeleton, load_intrinsics(scene + "/camera.json"),
-                      LiveOptions.of(subject_height=1.75, can_wait=True))
-out = [live.update(f.people, frame_id=f.frame_id, time_s=f.time) for f in src.frames]
-cpu = np.array([f.cpu_s for f in out if f.paired])
-print(1e3 * np.median(cpu), np.sum([f.cpu_s for f in out]))
+intr = load_intrinsics(scene + "/camera.json")
+t["read"] = time.process_time() - c
+live = LiveCalibrator(src.skeleton, intr, LiveOptions.of(subject_height=1.75, can_wait=True))
+out, total = [], 0.0
+for f in src.frames:
+    c = time.thread_time()
+    out.append(live.update(f.people, frame_id=f.frame_id, time_s=f.time))
+    total += time.thread_time() - c
+t["per_frame"] = float(sum(f.cpu_s for f in out))
+t["windows"] = total - t["per_frame"]
+t["paired_ms"] = 1e3 * float(np.median([f.cpu_s for f in out if f.paired]))
+c = time.process_time()
+for f in out:
+    if f.settled is not None:
+        json.dumps(f.settled.to_dict(), allow_nan=False)
+t["json"] = time.process_time() - c
+print(json.dumps(t))
 """
 
+#: The breakdown's columns: key, heading.
+PARTS = [("paired_ms", "per-frame path, ms a paired frame"), ("per_frame", "per-frame path s"),
+         ("windows", "windows' solves s"), ("start", "start-up s"),
+         ("solve_imports", "the windows' imports s"), ("read", "reading s"),
+         ("json", "JSON lines s")]
 
-def per_frame_cpu(tree: Path, scene: Path) -> tuple[float, float]:
-    """``(median ms, total s)``: the per-frame path's CPU over the frames paired."""
-    res = subprocess.run([sys.executable, "-c", PER_FRAME, str(scene)], check=True,
+
+def breakdown(tree: Path, scene: Path) -> dict:
+    """Where an inline run's CPU goes (:data:`BREAKDOWN`), seconds (the frame's ms)."""
+    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene)], check=True,
                          env=_env(tree), capture_output=True, text=True, cwd=tree)
-    med, total = res.stdout.split()
-    return float(med), float(total)
+    return json.loads(res.stdout.strip().splitlines()[-1])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -157,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         os.nice(args.nice)
     trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
     rows = []
-    per_frame: dict[str, list] = {}
+    parts: dict[str, list] = {}
     loads = []
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
@@ -177,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
             for name, tree in trees:
-                per_frame.setdefault(name, []).append(per_frame_cpu(tree, scene))
+                parts.setdefault(name, []).append(breakdown(tree, scene))
     L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
          "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
          f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
@@ -203,12 +235,16 @@ def main(argv: list[str] | None = None) -> int:
                      f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
     L += ["", "CPU-time frames/s: frames / CPU s of the process and its worker (user + "
           "system), the measure the machine's load disturbs least.",
-          "", "The per-frame path alone (in process, windows inline; `LiveFrame.cpu_s`, the "
-          "thread's CPU of each frame's own work), medians over the runs:", "",
-          "| code | CPU ms a paired frame (median) | CPU s, every frame |", "|---|---:|---:|"]
+          "", "Where an inline run's CPU goes (in process, a fresh one each repeat; the "
+          "per-frame path `LiveFrame.cpu_s`, each frame's own work; the windows' solves the "
+          "rest of each update's thread CPU; start-up: the interpreter and the imports of "
+          "NumPy, OpenCV and the live modules; the windows' imports: GTSAM, SciPy, the "
+          "offline run), medians over the repeats:", "",
+          "| code | " + " | ".join(h for _, h in PARTS) + " |",
+          "|---|" + "---:|" * len(PARTS)]
     for name, _ in trees:
-        pf = np.array(per_frame[name])
-        L.append(f"| {name} | {np.median(pf[:, 0]):.2f} | {np.median(pf[:, 1]):.2f} |")
+        med = [np.median([p[k] for p in parts[name]]) for k, _ in PARTS]
+        L.append(f"| {name} | " + " | ".join(f"{v:.2f}" for v in med) + " |")
     L += ["", f"Target: >= {TARGET_FPS:.0f} frames/s whole process in both modes, no line "
           "without joints after the first mirror."]
     text = "\n".join(L) + "\n"
