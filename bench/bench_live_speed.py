@@ -8,10 +8,24 @@ the windows solved in the worker process (the default) and inline (``--inline``)
 * **wall s** and **frames/s**: the whole process, start-up and the last window included
   (as ``time`` measures it), and **CPU s**: user + system of the process and its worker
   (``resource.getrusage(RUSAGE_CHILDREN)``);
+* **main thread CPU s** and **asleep s**: the ``live`` process's main thread's time on a
+  CPU and its time asleep (the wall less that and its time runnable but waiting for a
+  CPU, ``/proc/PID/schedstat``, read once the process has exited): asleep is the waits
+  for the worker's windows (with the worker's own waits for a CPU on a loaded machine);
+* **PA-MPJPE mm**: the lines' joints against the scene's true joints
+  (:func:`mirrorgraph.metrics.pa_mpjpe`, each frame aligned by Procrustes): the worker's
+  lines differ from the inline run's (a frame gets the mirror solved by then);
 * **without joints**: the JSON lines after the first one that carries a mirror with no 3D
   joint (the target: none), and the lines written;
+* **where an inline run's CPU goes**, in process: the start-up's imports, the windows'
+  imports (GTSAM, SciPy, the offline run), the reading, the per-frame path, the windows'
+  solves and the JSON lines;
 * ``--before PATH``: the same runs with the package of another tree (its
-  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side.
+  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side, interleaved run by run.
+
+Each tree's modules are byte-compiled first (one untimed run writes their
+``__pycache__``, as installing a package does; ``PYTHONDONTWRITEBYTECODE`` is not passed
+on), so that start-up is an installed package's, not the compiler's.
 
 Usage::
 
@@ -38,6 +52,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import header  # noqa: E402
 
+from mirrorgraph.metrics import pa_mpjpe  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_FPS = 200.0
 
@@ -45,6 +61,7 @@ TARGET_FPS = 200.0
 def _env(tree: Path) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)     # start-up as an installed package's
     return env
 
 
@@ -55,6 +72,16 @@ def make_scene(folder: Path, frames: int, seed: int) -> Path:
     return folder
 
 
+def _main_thread(pid: int) -> tuple[float, float]:
+    """``(on a CPU, runnable and waiting for one)`` seconds of process ``pid``'s main
+    thread (``/proc/PID/schedstat``; an exited process's until it is reaped)."""
+    try:
+        on, queued = Path(f"/proc/{pid}/schedstat").read_text().split()[:2]
+    except (OSError, ValueError):
+        return float("nan"), float("nan")
+    return int(on) * 1e-9, int(queued) * 1e-9
+
+
 def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     """One fresh ``mirrorgraph live`` process: wall, CPU, and its lines' joints."""
     cmd = [sys.executable, "-m", "mirrorgraph", "live", str(scene / "keypoints_mmpose.json"),
@@ -63,8 +90,12 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     clock = time.perf_counter()
     # run from the tree: ``python -m`` puts the working directory first on the path
-    subprocess.run(cmd, check=True, env=_env(tree), stdout=subprocess.DEVNULL, cwd=tree)
+    proc = subprocess.Popen(cmd, env=_env(tree), stdout=subprocess.DEVNULL, cwd=tree)
+    os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)     # exited, not reaped yet
     wall = time.perf_counter() - clock
+    main_cpu, main_queued = _main_thread(proc.pid)
+    if proc.wait() != 0:
+        raise subprocess.CalledProcessError(proc.returncode, cmd)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     lines = [json.loads(x) for x in jsonl.read_text().splitlines()]
@@ -72,34 +103,72 @@ def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
     missing = (sum(1 for ln in lines[first + 1:]
                    if not any(p is not None for p in ln["joints3d"]))
                if first is not None else len(lines))
-    return dict(wall=wall, cpu=cpu, lines=len(lines), missing=missing,
+    truth = np.load(scene / "ground_truth_joints3d.npz")["joints3d"]
+    X = np.full(truth.shape, np.nan)
+    for ln in lines:
+        for j, p in enumerate(ln["joints3d"]):
+            if p is not None:
+                X[ln["frame"], j] = p
+    return dict(wall=wall, cpu=cpu, main_cpu=main_cpu,
+                pa_mm=1e3 * pa_mpjpe(X, truth, np.isfinite(X).all(-1)),
+                main_asleep=max(wall - main_cpu - main_queued, 0.0), lines=len(lines),
+                missing=missing,
                 first_mirror=None if first is None else lines[first]["frame"])
 
 
-#: One in-process live run (windows inline) giving each frame's own CPU time
-#: (:attr:`mirrorgraph.live.LiveFrame.cpu_s`: the thread's CPU of the per-frame path,
-#: the windows' solves left out): the part of the whole process the per-frame path is.
-PER_FRAME = """
-import sys, numpy as np
+#: One in-process live run (windows inline) and where its CPU goes: the start-up's
+#: imports (the interpreter, NumPy, OpenCV, the live modules), the windows' imports (GTSAM,
+#: SciPy, the offline run), the input's reading, each frame's own path
+#: (:attr:`mirrorgraph.live.LiveFrame.cpu_s`), the windows' solves (the rest of each
+#: update's thread CPU) and the JSON lines (``mirrorgraph live``'s encoding).
+BREAKDOWN = """
+import time
+import json, sys
+import numpy as np
+from mirrorgraph.cli import main
 from mirrorgraph.intrinsics import load_intrinsics
 from mirrorgraph.live import LiveCalibrator, LiveOptions
 from mirrorgraph.live.sources import open_source
+from mirrorgraph.live.stream import run_live
+t = {"start": time.process_time()}
+c = time.process_time()
+import scipy.optimize
+import mirrorgraph.pipelines.mirror
+t["solve_imports"] = time.process_time() - c
 scene = sys.argv[1]
+c = time.process_time()
 src = open_source(scene + "/keypoints_mmpose.json", skeleton=None, fps=None)
-live = LiveCalibrator(src.skeleton, load_intrinsics(scene + "/camera.json"),
-                      LiveOptions.of(subject_height=1.75, can_wait=True))
-out = [live.update(f.people, frame_id=f.frame_id, time_s=f.time) for f in src.frames]
-cpu = np.array([f.cpu_s for f in out if f.paired])
-print(1e3 * np.median(cpu), np.sum([f.cpu_s for f in out]))
+intr = load_intrinsics(scene + "/camera.json")
+t["read"] = time.process_time() - c
+live = LiveCalibrator(src.skeleton, intr, LiveOptions.of(subject_height=1.75, can_wait=True))
+out, total = [], 0.0
+for f in src.frames:
+    c = time.thread_time()
+    out.append(live.update(f.people, frame_id=f.frame_id, time_s=f.time))
+    total += time.thread_time() - c
+t["per_frame"] = float(sum(f.cpu_s for f in out))
+t["windows"] = total - t["per_frame"]
+t["paired_ms"] = 1e3 * float(np.median([f.cpu_s for f in out if f.paired]))
+c = time.process_time()
+for f in out:
+    if f.settled is not None:
+        json.dumps(f.settled.to_dict(), allow_nan=False)
+t["json"] = time.process_time() - c
+print(json.dumps(t))
 """
 
+#: The breakdown's columns: key, heading.
+PARTS = [("paired_ms", "per-frame path, ms a paired frame"), ("per_frame", "per-frame path s"),
+         ("windows", "windows' solves s"), ("start", "start-up s"),
+         ("solve_imports", "the windows' imports s"), ("read", "reading s"),
+         ("json", "JSON lines s")]
 
-def per_frame_cpu(tree: Path, scene: Path) -> tuple[float, float]:
-    """``(median ms, total s)``: the per-frame path's CPU over the frames paired."""
-    res = subprocess.run([sys.executable, "-c", PER_FRAME, str(scene)], check=True,
+
+def breakdown(tree: Path, scene: Path) -> dict:
+    """Where an inline run's CPU goes (:data:`BREAKDOWN`), seconds (the frame's ms)."""
+    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene)], check=True,
                          env=_env(tree), capture_output=True, text=True, cwd=tree)
-    med, total = res.stdout.split()
-    return float(med), float(total)
+    return json.loads(res.stdout.strip().splitlines()[-1])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,28 +189,37 @@ def main(argv: list[str] | None = None) -> int:
         os.nice(args.nice)
     trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
     rows = []
-    per_frame: dict[str, list] = {}
+    parts: dict[str, list] = {}
+    loads = []
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
+        for _, tree in trees:                      # untimed: each tree's bytecode written
+            run_once(tree, scene, True, Path(tmp) / "out.jsonl")
         for r in range(args.repeats):              # interleaved: the load hits both alike
             for name, tree in trees:
                 for inline in (False, True):
+                    loads.append(os.getloadavg()[0])
                     out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl")
                     out.update(code=name, mode="inline" if inline else "background", rep=r)
                     rows.append(out)
                     print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
                           f"({args.frames / out['wall']:.0f} frames/s), {out['cpu']:.2f} s CPU, "
+                          f"main thread {out['main_cpu']:.2f} s CPU {out['main_asleep']:.2f} s "
+                          f"asleep, PA-MPJPE {out['pa_mm']:.1f} mm, "
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
             for name, tree in trees:
-                per_frame.setdefault(name, []).append(per_frame_cpu(tree, scene))
+                parts.setdefault(name, []).append(breakdown(tree, scene))
     L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
          "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
          f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
-         f"each run a fresh process; medians of {args.repeats} runs (min, max)", "",
-         "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | lines | lines without "
-         "joints after the first mirror | first mirror at frame |",
-         "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+         f"each run a fresh process, its modules byte-compiled beforehand (an untimed run "
+         f"per tree); medians of {args.repeats} runs (min, max), the trees interleaved; "
+         f"1-min load average at the runs' starts {min(loads):.1f} to {max(loads):.1f}", "",
+         "| code | mode | wall s | frames/s | CPU s | CPU-time frames/s | main thread CPU s | "
+         "main thread asleep s | PA-MPJPE mm | lines | lines without joints after the first "
+         "mirror | first mirror at frame |",
+         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, _ in trees:
         for mode in ("background", "inline"):
             sel = [r for r in rows if r["code"] == name and r["mode"] == mode]
@@ -150,16 +228,23 @@ def main(argv: list[str] | None = None) -> int:
             fps = args.frames / w
             L.append(f"| {name} | {mode} | {np.median(w):.2f} ({w.min():.2f}, {w.max():.2f}) | "
                      f"{np.median(fps):.0f} ({fps.min():.0f}, {fps.max():.0f}) | "
-                     f"{np.median(c):.2f} | {args.frames / np.median(c):.0f} | {sel[0]['lines']} | "
+                     f"{np.median(c):.2f} | {args.frames / np.median(c):.0f} | "
+                     f"{np.median([r['main_cpu'] for r in sel]):.2f} | "
+                     f"{np.median([r['main_asleep'] for r in sel]):.2f} | "
+                     f"{np.median([r['pa_mm'] for r in sel]):.1f} | {sel[0]['lines']} | "
                      f"{max(r['missing'] for r in sel)} | {sel[0]['first_mirror']} |")
     L += ["", "CPU-time frames/s: frames / CPU s of the process and its worker (user + "
           "system), the measure the machine's load disturbs least.",
-          "", "The per-frame path alone (in process, windows inline; `LiveFrame.cpu_s`, the "
-          "thread's CPU of each frame's own work), medians over the runs:", "",
-          "| code | CPU ms a paired frame (median) | CPU s, every frame |", "|---|---:|---:|"]
+          "", "Where an inline run's CPU goes (in process, a fresh one each repeat; the "
+          "per-frame path `LiveFrame.cpu_s`, each frame's own work; the windows' solves the "
+          "rest of each update's thread CPU; start-up: the interpreter and the imports of "
+          "NumPy, OpenCV and the live modules; the windows' imports: GTSAM, SciPy, the "
+          "offline run), medians over the repeats:", "",
+          "| code | " + " | ".join(h for _, h in PARTS) + " |",
+          "|---|" + "---:|" * len(PARTS)]
     for name, _ in trees:
-        pf = np.array(per_frame[name])
-        L.append(f"| {name} | {np.median(pf[:, 0]):.2f} | {np.median(pf[:, 1]):.2f} |")
+        med = [np.median([p[k] for p in parts[name]]) for k, _ in PARTS]
+        L.append(f"| {name} | " + " | ".join(f"{v:.2f}" for v in med) + " |")
     L += ["", f"Target: >= {TARGET_FPS:.0f} frames/s whole process in both modes, no line "
           "without joints after the first mirror."]
     text = "\n".join(L) + "\n"

@@ -93,12 +93,10 @@ def add_parsers(sub) -> None:
 def cmd_live(args) -> int:
     import sys
 
-    from ..intrinsics import load_intrinsics
     from ..io.atomic import check_outputs
-    from ..live import LiveOptions
-    from ..live.sources import is_camera, open_source
-    from ..live.stream import check_view, run_live
-    from ..pipelines.options import CalibrateOptions
+    from ..live.calibrator import start_worker, stop_started_workers
+    from ..live.sources import is_camera
+    from ..live.stream import check_view
 
     to_stdout = args.jsonl == "-"
     # the summary goes where the JSON lines do not
@@ -113,6 +111,24 @@ def cmd_live(args) -> int:
     check_outputs([(args.jsonl, "--jsonl"), (args.view or None, "--view")],
                   inputs=[None if camera else args.source, args.intrinsics],
                   stdout_ok=("--jsonl",))
+    if not args.inline:
+        start_worker()              # the worker's start overlaps the input's reading
+    try:
+        return _run(args, say, camera, to_stdout)
+    finally:
+        stop_started_workers()      # one the run did not take (it stopped before)
+
+
+def _run(args, say, camera: bool, to_stdout: bool) -> int:
+    """``cmd_live`` once its arguments and outputs are checked."""
+    import sys
+
+    from ..intrinsics import load_intrinsics
+    from ..live import LiveOptions
+    from ..live.sources import open_source
+    from ..live.stream import run_live
+    from ..pipelines.options import CalibrateOptions
+
     intr = load_intrinsics(args.intrinsics, camera=args.camera) if args.intrinsics else None
     source = open_source(args.source, skeleton=args.skeleton, fps=args.fps,
                          realtime=not args.as_fast_as_possible)

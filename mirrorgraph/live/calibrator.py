@@ -30,8 +30,8 @@ calibrated by the offline run: every frame so far each time their number doubles
 ``window_frames`` fused into the mirror carried from the older ones
 (:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
 (``background=False``: deterministic) or in one worker process started with the
-calibrator (``background=True``: the frames keep flowing; a buffer beyond
-``max_buffer_frames`` while the worker is busy is thinned evenly).
+calibrator or before it (:func:`start_worker`) (``background=True``: the frames keep
+flowing; a buffer beyond ``max_buffer_frames`` while the worker is busy is thinned evenly).
 
 **Status**: ``initialising`` until the fused rotation std is at most
 ``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import signal
 import time
 from collections import Counter, deque
@@ -67,7 +66,7 @@ if TYPE_CHECKING:
     from ..skeletons import Skeleton
 
 __all__ = ["LiveOptions", "LiveMirror", "LiveFrame", "LiveCalibrator", "STATUSES",
-           "joints_normal_jacobian"]
+           "joints_normal_jacobian", "start_worker", "stop_started_workers"]
 
 #: The statuses of a live mirror.
 STATUSES = ("initialising", "calibrated")
@@ -335,6 +334,42 @@ def _warm_up() -> None:
     from ..pipelines import mirror  # noqa: F401
 
 
+def _new_worker():
+    """One worker process's pool (spawned, SIGINT ignored), its imports under way.
+
+    A spawned process inherits an ignored SIGINT (and Python then installs no
+    KeyboardInterrupt handler in it), so Ctrl-C stops the main process alone: one line,
+    no worker traceback; the main process stops the worker (:meth:`LiveCalibrator.close`).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+    with _sigint_ignored():             # the pool starts its process in submit: no wait
+        pool.submit(_warm_up)
+    return pool
+
+
+#: Worker pools started ahead of their calibrator (:func:`start_worker`).
+_STARTED: list = []
+
+
+def start_worker() -> None:
+    """Start the background worker (its process and imports: about a second of CPU) now,
+    for the next :class:`LiveCalibrator` with ``background=True`` to take: a caller that
+    reads its input before it can make the calibrator overlaps the two.
+    :func:`stop_started_workers` ends any left untaken."""
+    _STARTED.append(_new_worker())
+
+
+def stop_started_workers() -> None:
+    """Stop the workers :func:`start_worker` started that no calibrator took, without
+    waiting for their imports to end (the interpreter's exit joins them): an error that
+    ends the run before its calibrator is made is said at once."""
+    while _STARTED:
+        _STARTED.pop().shutdown(wait=False, cancel_futures=True)
+
+
 class LiveCalibrator:
     """A mirror calibrated while the frames arrive, and each frame's 3D joints.
 
@@ -407,7 +442,7 @@ class LiveCalibrator:
         self.last_variances: dict = {}
         self._cache: dict = {}                  # what the fused mirror gives every frame
         if opts.background:                     # the worker's start off the first window
-            self._executor().submit(_warm_up)
+            self._executor()
 
     # ------------------------------------------------------------------ state
     def _cached(self, name: str, make):
@@ -759,7 +794,7 @@ class LiveCalibrator:
         n = len(self._buffer_ids)
         busy = self._future is not None
         if busy:
-            due = n >= (self._next if self._provisional else self.options.window_frames)
+            due = n >= self._next_after_job()
             if self.options.can_wait and due:      # a file: wait, never thin
                 waited = self._poll(wait=True)
                 return waited + self._schedule()
@@ -789,22 +824,21 @@ class LiveCalibrator:
         self._absorb(est, *job[1:], len(job[0].people))
         return time.perf_counter() - clock
 
+    def _next_after_job(self) -> int:
+        """The buffered frames at which the window after the one in flight is due: the
+        threshold the window in flight sets once absorbed (:meth:`_absorb`), its solve
+        taken to succeed."""
+        provisional, block, size = self._job
+        if provisional and not block:
+            return min(max(self.options.first_window_frames, 2 * size),
+                       self.options.window_frames)
+        return self.options.window_frames
+
     def _executor(self):
-        """The background worker's pool; its process starts here, with SIGINT ignored.
-
-        A spawned process inherits an ignored SIGINT (and Python then installs no
-        KeyboardInterrupt handler in it), so Ctrl-C stops the main process alone: one
-        line, no worker traceback; the main process stops the worker (:meth:`close`).
-        """
+        """The background worker's pool: one :func:`start_worker` started, else a new one
+        (its process starts here)."""
         if self._pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            pool = ProcessPoolExecutor(max_workers=1,
-                                       mp_context=multiprocessing.get_context("spawn"))
-            with _sigint_ignored():     # the pool starts its process in submit: no wait
-                pool.submit(os.getpid)
-            self._pool = pool
+            self._pool = _STARTED.pop() if _STARTED else _new_worker()
         return self._pool
 
     def _poll(self, wait: bool = False) -> float:

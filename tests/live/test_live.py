@@ -364,10 +364,36 @@ def test_the_worker_starts_with_the_calibrator_not_at_the_first_window(scene):
         live.close()
 
 
+def test_a_worker_started_ahead_is_the_one_the_calibrator_takes(scene):
+    """``start_worker`` (``mirrorgraph live`` calls it before reading its input) starts the
+    pool the next background calibrator takes and solves its windows in; one no
+    calibrator took is stopped by ``stop_started_workers``."""
+    from mirrorgraph.live import calibrator
+
+    calibrator.start_worker()
+    pool = calibrator._STARTED[-1]
+    live = _live(scene, background=True, can_wait=True)
+    try:
+        assert live._pool is pool and not calibrator._STARTED
+        frames = _feed(live, scene.detections.people[:80])
+    finally:
+        live.close()
+    assert live.window_log[0]["result"] == "started"
+    assert all(np.isfinite(f.joints3d).any() for f in frames[60:] if f.paired)
+    calibrator.start_worker()
+    untaken = calibrator._STARTED[-1]
+    calibrator.stop_started_workers()
+    assert not calibrator._STARTED
+    with pytest.raises(RuntimeError):                       # shut down
+        untaken.submit(int)
+
+
 def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker(scene):
     """A file replayed flat out with the worker (``can_wait``): the first mirror is waited
     for and no frame is thinned, so the windows are the inline run's, window for window,
-    the final mirror the same, and every frame after the first window has joints."""
+    the final mirror the same, and every frame after the first window has joints; the
+    frames flow while a window is solved, a frame waiting only where the inline run
+    solves one (the first window, or the next one due while the worker is busy)."""
     worker = _live(scene, background=True, can_wait=True, max_buffer_frames=100,
                    window_frames=300)
     inline = _live(scene, window_frames=300)
@@ -379,6 +405,9 @@ def test_a_source_that_can_wait_solves_the_calling_threads_windows_in_the_worker
     frames_inline = _feed(inline, scene.detections.people[:400])
     final_inline = inline.finish()
     assert [w["size"] for w in worker.window_log] == [w["size"] for w in inline.window_log]
+    waited = {i for i, f in enumerate(frames) if f.solve_s > 0}
+    solved = {i for i, f in enumerate(frames_inline) if f.solve_s > 0}
+    assert 59 in waited and waited <= solved
     np.testing.assert_allclose(final.normal, final_inline.normal, rtol=0, atol=1e-12)
     first = next(i for i, f in enumerate(frames_inline) if np.isfinite(f.joints3d).any())
     assert first == 60
