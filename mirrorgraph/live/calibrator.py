@@ -59,7 +59,7 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import refine_with_bones, triangulate_two_rays
+from .frame_prior import refine_with_bones, triangulate_two_rays, with_head_prior
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -575,21 +575,24 @@ class LiveCalibrator:
         L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
                                                             1.0)
         # the frame's joints together: both views' reprojection (Huber), the bones'
-        # lengths; a view off by more than the threshold once the bones hold the joint
-        # (a keypoint displaced along its epipolar line) is left out
+        # lengths; the worst view off by more than the calibration's outlier threshold
+        # once the bones hold the joint (a keypoint displaced along its epipolar line)
+        # is left out, the joints pass's rule
+        gate = co.graph.outlier_threshold
         X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
                                              self._sigma_px(), sigma_len, iterations=2,
-                                             gate_px=co.threshold_px, full=True)
+                                             gate_px=gate, full=True)
         S = geo.reflect_points(X, n, d)
         with np.errstate(invalid="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
-            ok &= (~keep | (px <= co.threshold_px)).all(1)
+            ok &= (~keep | (px <= gate)).all(1)
             ok &= np.isfinite(cov).all((1, 2))
         idx, X, cov = idx[ok], X[ok], cov[ok]
         if self.options.smooth:
             X, cov = self._filtered(fid, idx, X, cov)
         if idx.size == 0:
             return out, total, shape, True
+        X, cov = self._head(idx, X, cov)
         out[idx] = X
         shape[idx], total[idx] = self._stds(K, n, d, X, cov)
         if "normal" in self.last_variances:
@@ -669,6 +672,23 @@ class LiveCalibrator:
         Xf, C, _ = self._filter.step(fid, idx, X, cov)
         return Xf, C
 
+    def _head(self, idx: np.ndarray, X: np.ndarray, cov: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """The face keypoints among the joints ``X`` ``(k, 3)`` (skeleton indices ``idx``)
+        fused with where the trunk puts them (:func:`.frame_prior.with_head_prior`, at the
+        height the windows' bone lengths make)."""
+        from ..anthropometry import height_from_bone_lengths
+
+        h = self._cached("height", lambda: height_from_bone_lengths(
+            self.fusion.bone_lengths or {}, self.skeleton))
+        if not np.isfinite(h) or idx.size == 0:
+            return X, cov
+        J = self.skeleton.num_joints
+        XJ, CJ, have = np.full((J, 3), np.nan), np.full((J, 3, 3), np.nan), np.zeros(J, bool)
+        XJ[idx], CJ[idx], have[idx] = X, cov, True
+        XJ, CJ = with_head_prior(XJ, CJ, have, self.skeleton.joints, h)
+        return XJ[idx], CJ[idx]
+
     def _settle(self, frame: LiveFrame) -> LiveFrame | None:
         """Hold ``frame``; give back the one :attr:`LiveOptions.lag_frames` back with its
         joints smoothed by the frames after it (``None`` while fewer are held)."""
@@ -694,7 +714,7 @@ class LiveCalibrator:
             & np.isfinite(sm[1]).all((1, 2))
         if not have.any():
             return out
-        X, cov = sm[0][have], sm[1][have]
+        X, cov = self._head(np.flatnonzero(have), sm[0][have], sm[1][have])
         if np.isfinite(normal[have]).all():
             var = np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
             scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2

@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["refine_with_bones", "triangulate_two_rays", "HUBER_K"]
+from ..graph.outliers import one_view_outliers
+
+__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -102,10 +104,12 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         sigma_px: the reprojection noise, px.
         sigma_len: the bones' spread about their lengths (the unit of ``X``).
         iterations: Gauss-Newton steps.
-        gate_px: after the steps, a view whose residual exceeds this (px) is left out
-            of a joint held by bones (a keypoint displaced along its epipolar line,
-            which the two rays follow in depth and the bones do not) and one more step
-            is taken; ``None``: every view kept.
+        gate_px: after the steps, of each joint held by bones the view whose residual
+            is the larger and exceeds this (px) is left out (a keypoint displaced along
+            its epipolar line, which the two rays follow in depth and the bones do not;
+            the offline joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`,
+            at most one view a joint) and one more step is taken; ``None``: every view
+            kept.
         full: also return the views kept and the residuals at the joints returned.
 
     Returns:
@@ -163,8 +167,10 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             if gate_px is None or not held.any():
                 break
             px = sigma_px * rn.reshape(2, k).T
-            drop = keep & (px > gate_px) & held[:, None]
-            drop[drop.all(1)] = False            # a joint keeps one view at least
+            # the joints pass's rule (one home): the worst view over the threshold, at
+            # most one a joint, here of the joints the bones hold
+            drop = np.stack(one_view_outliers([px[:, 0], px[:, 1]], gate_px), 1)
+            drop &= keep & held[:, None]
             if not drop.any():
                 break
             keep &= ~drop
@@ -237,3 +243,49 @@ class _Normal:
         V = np.linalg.solve(S, Uf).reshape(self.B, k, 3)
         U = Uf.reshape(self.B, k, 3)
         return Dinv - np.einsum("bki,bkj->kij", U, V)
+
+
+def with_head_prior(X: np.ndarray, cov: np.ndarray, have: np.ndarray, names, height: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's face keypoints fused with where its trunk puts them.
+
+    The offline run's prior of the face (:func:`mirrorgraph.completion.head_prior`: the
+    nose, eyes, ears and head top on the trunk's axis at their landmark heights, an
+    isotropic spread of :data:`~mirrorgraph.completion.HEAD_PRIOR_SIGMA` of the height
+    per axis, the mid-shoulder's covariance added) fused with each face keypoint's own
+    estimate, ``C = (cov^-1 + P)^-1``, ``x = C (cov^-1 x + P m)``: the face has no bone,
+    and where its two rays meet at a small angle its depth is the prior's. Applied to a
+    frame's output after the joints' filter (its track keeps its own measurements), as
+    the offline run fuses it after the smoothing.
+
+    Args:
+        X: ``(J, 3)`` the frame's joints, the skeleton's order (camera frame).
+        cov: ``(J, 3, 3)`` their covariances.
+        have: ``(J,)`` bool, the joints given.
+        names: ``(J,)`` the joint names.
+        height: the subject's height, the unit of ``X``.
+
+    Returns:
+        ``(X, cov)`` copies, the face keypoints with a prior fused (the others as given).
+    """
+    from ..completion import head_prior
+
+    X, cov = np.array(X, dtype=float), np.array(cov, dtype=float)
+    have = np.asarray(have, bool)
+    prior = head_prior(X[None], have[None], names, float(height), cov[None])
+    if prior is None:
+        return X, cov
+    m, P = prior[0][0], prior[1][0]
+    f = have & np.isfinite(m).all(-1) & np.isfinite(P).all((-2, -1)) \
+        & np.isfinite(cov).all((-2, -1))
+    if not f.any():
+        return X, cov
+    try:
+        L = np.linalg.inv(cov[f])
+        post = np.linalg.inv(L + P[f])
+    except np.linalg.LinAlgError:
+        return X, cov
+    X[f] = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", L, X[f])
+                     + np.einsum("nij,nj->ni", P[f], m[f]))
+    cov[f] = 0.5 * (post + post.transpose(0, 2, 1))
+    return X, cov
