@@ -388,7 +388,7 @@ class LiveCalibrator:
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
         self._filter: JointFilter | None = None
         self._held: deque = deque()   # (LiveFrame, its normal share) awaiting their lag
-        self._filter_distance: float | None = None
+        self._filter_height: float | None = None   # the body's size the tracks are in
         self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
@@ -661,14 +661,16 @@ class LiveCalibrator:
             return X, cov
         g = self._copts.graph
         sigma = float(g.joints_smoothness_sigma * h)
-        d = float(self.fusion.distance)
         if self._filter is None:
             self._filter = JointFilter(self.skeleton.num_joints, sigma,
                                        int(g.smoothness_max_gap),
                                        lag=max(int(self.options.lag_frames), 0))
-        elif self._filter_distance is not None and d != self._filter_distance:
-            self._filter.scale(d / self._filter_distance)       # a new window's unit
-        self._filter.sigma, self._filter_distance = sigma, d
+        elif self._filter_height is not None and h != self._filter_height:
+            # a new window's unit: the body's size its bones make over the old one's
+            # (with a subject height both are the subject's: the tracks stay in metres
+            # whatever the new distance; without one, the body in mirror distances)
+            self._filter.scale(h / self._filter_height)
+        self._filter.sigma, self._filter_height = sigma, h
         Xf, C, _ = self._filter.step(fid, idx, X, cov)
         return Xf, C
 

@@ -507,3 +507,25 @@ def test_the_live_scale_over_fused_windows_under_a_realistic_detector():
     assert np.mean(e > 0.3) < 0.15
     es = np.linalg.norm(Xz * np.nan_to_num(fit)[:, None, None] - T, axis=-1)[given]
     assert np.mean(es > 0.3) < 0.01
+
+
+def test_a_new_windows_distance_rescales_the_tracks_only_as_the_body_size_changes(scene):
+    """With a subject height every window's joints are in metres: a new window's other
+    distance leaves the tracks (and the frames awaiting their lag) as they are; a body
+    whose bones come out 5 % longer (a new unit) scales them by 1.05."""
+    live = _live(scene)
+    people = scene.detections.people
+    _feed(live, people[:150])
+    last = live._filter.history[-1][1].copy()
+    live.fusion.distance *= 1.05                  # the same bones: the same metres
+    live._cache.clear()
+    live.update(people[150], frame_id=150)
+    kept = live._filter.history[-2][1]
+    ok = np.isfinite(last).all(1)
+    assert ok.sum() > 5
+    assert np.allclose(kept[ok], last[ok])
+    last = live._filter.history[-1][1].copy()
+    live.fusion.bone_lengths = {k: 1.05 * v for k, v in live.fusion.bone_lengths.items()}
+    live._cache.clear()
+    live.update(people[151], frame_id=151)
+    assert np.allclose(live._filter.history[-2][1][ok], 1.05 * last[ok])
