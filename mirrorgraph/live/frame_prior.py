@@ -245,47 +245,88 @@ class _Normal:
         return Dinv - np.einsum("bki,bkj->kij", U, V)
 
 
+_HEADS: dict = {}
+
+
+def _head_layout(names) -> tuple | None:
+    """``(face, trunk, level)``: the face keypoints' indices ``(f,)``, the trunk's
+    ``(4,)`` (left and right shoulder, left and right hip) and each face keypoint's
+    height over the shoulders, a fraction of the height ``(f,)``
+    (:data:`mirrorgraph.completion.HEAD_LANDMARKS`); ``None`` without a face or a trunk.
+    Kept per layout."""
+    key = tuple(names)
+    if key not in _HEADS:
+        from ..anthropometry import LANDMARK_HEIGHT
+        from ..completion import HEAD_LANDMARKS
+
+        index = {n: i for i, n in enumerate(key)}
+        trunk = [index.get(f"{side}_{part}") for part in ("shoulder", "hip")
+                 for side in ("left", "right")]
+        face = [i for i, n in enumerate(key) if n in HEAD_LANDMARKS]
+        level = [sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[key[i]])
+                 - LANDMARK_HEIGHT["shoulder"] for i in face]
+        _HEADS[key] = (None if not face or any(t is None for t in trunk) else
+                       (np.array(face), np.array(trunk), np.array(level, float)))
+    return _HEADS[key]
+
+
 def with_head_prior(X: np.ndarray, cov: np.ndarray, have: np.ndarray, names, height: float
                     ) -> tuple[np.ndarray, np.ndarray]:
     """One frame's face keypoints fused with where its trunk puts them.
 
-    The offline run's prior of the face (:func:`mirrorgraph.completion.head_prior`: the
-    nose, eyes, ears and head top on the trunk's axis at their landmark heights, an
-    isotropic spread of :data:`~mirrorgraph.completion.HEAD_PRIOR_SIGMA` of the height
-    per axis, the mid-shoulder's covariance added) fused with each face keypoint's own
-    estimate, ``C = (cov^-1 + P)^-1``, ``x = C (cov^-1 x + P m)``: the face has no bone,
-    and where its two rays meet at a small angle its depth is the prior's. Applied to a
-    frame's output after the joints' filter (its track keeps its own measurements), as
-    the offline run fuses it after the smoothing.
+    The offline run's prior of the face (:func:`mirrorgraph.completion.head_prior`, here
+    for one frame and one person, vectorised: the nose, eyes, ears and head top on the
+    trunk's axis ``u`` (mid-hip to mid-shoulder) at their landmark heights over the
+    shoulders, ``m = mid-shoulder + (h_k - h_shoulder) H u``, an isotropic spread of
+    :data:`~mirrorgraph.completion.HEAD_PRIOR_SIGMA` ``H`` per axis plus the
+    mid-shoulder's covariance) fused with each face keypoint's own estimate,
+    ``C = (cov^-1 + P)^-1``, ``x = C (cov^-1 x + P m)``: the face has no bone, and where
+    its two rays meet at a small angle its depth is the prior's. Applied to a frame's
+    output after the joints' filter (its track keeps its own measurements), as the
+    offline run fuses it after the smoothing.
 
     Args:
         X: ``(J, 3)`` the frame's joints, the skeleton's order (camera frame).
         cov: ``(J, 3, 3)`` their covariances.
         have: ``(J,)`` bool, the joints given.
         names: ``(J,)`` the joint names.
-        height: the subject's height, the unit of ``X``.
+        height: the subject's height ``H``, the unit of ``X``.
 
     Returns:
-        ``(X, cov)`` copies, the face keypoints with a prior fused (the others as given).
+        ``(X, cov)`` copies, the face keypoints with a prior fused (the others as given;
+        all as given without both shoulders and both hips).
     """
-    from ..completion import head_prior
+    from ..completion import HEAD_PRIOR_SIGMA
 
     X, cov = np.array(X, dtype=float), np.array(cov, dtype=float)
+    layout = _head_layout(names)
     have = np.asarray(have, bool)
-    prior = head_prior(X[None], have[None], names, float(height), cov[None])
-    if prior is None:
+    if layout is None or not np.isfinite(height) or height <= 0:
         return X, cov
-    m, P = prior[0][0], prior[1][0]
-    f = have & np.isfinite(m).all(-1) & np.isfinite(P).all((-2, -1)) \
-        & np.isfinite(cov).all((-2, -1))
+    face, trunk, level = layout
+    if not have[trunk].all():
+        return X, cov
+    f = have[face] & np.isfinite(cov[face]).all((-2, -1))
     if not f.any():
         return X, cov
+    face, level = face[f], level[f]
+    ls, rs, lh, rh = trunk
+    ms = 0.5 * (X[ls] + X[rs])
+    axis = ms - 0.5 * (X[lh] + X[rh])
+    norm = float(np.linalg.norm(axis))
+    if not norm > 0:
+        return X, cov
+    m = ms + (level * height)[:, None] * (axis / norm)
+    C = (HEAD_PRIOR_SIGMA * height) ** 2 * np.eye(3)
+    Cs = 0.25 * (cov[ls] + cov[rs])
+    if np.isfinite(Cs).all():
+        C = C + Cs
     try:
-        L = np.linalg.inv(cov[f])
-        post = np.linalg.inv(L + P[f])
+        P = np.linalg.inv(C)
+        L = np.linalg.inv(cov[face])
+        post = np.linalg.inv(L + P)
     except np.linalg.LinAlgError:
         return X, cov
-    X[f] = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", L, X[f])
-                     + np.einsum("nij,nj->ni", P[f], m[f]))
-    cov[f] = 0.5 * (post + post.transpose(0, 2, 1))
+    X[face] = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", L, X[face]) + m @ P.T)
+    cov[face] = 0.5 * (post + post.transpose(0, 2, 1))
     return X, cov

@@ -133,3 +133,26 @@ def test_the_head_prior_holds_a_face_keypoint_slid_in_depth_and_its_std_covers_i
     assert err < 3 * std
     body = [names.index(n) for n in ("left_shoulder", "right_hip", "left_knee")]
     assert np.allclose(Xo[body], Xin[body]) and np.allclose(Co[body], cov[body])
+
+
+def test_the_frames_head_prior_is_the_offline_runs():
+    """One frame's face fused with :func:`mirrorgraph.completion.head_prior`'s mean and
+    information gives what the live path's vectorised prior gives."""
+    from mirrorgraph.completion import head_prior
+    from mirrorgraph.live.frame_prior import with_head_prior
+
+    sc = make_wide_scene(3, "wide", "iid", 20)
+    X, names = sc.joints3d[5], sc.skeleton.joints
+    J = len(X)
+    A = np.random.default_rng(0).normal(size=(J, 3, 3))
+    C = 1e-3 * (A @ A.transpose(0, 2, 1) + np.eye(3))
+    have = np.ones(J, bool)
+    Xo, Co = with_head_prior(X, C, have, names, 1.7)
+    m, P = head_prior(X[None], have[None], names, 1.7, C[None])
+    f = np.isfinite(m[0]).all(1)
+    assert f.sum() == 5
+    post = np.linalg.inv(np.linalg.inv(C[f]) + P[0][f])
+    x = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", np.linalg.inv(C[f]), X[f])
+                  + np.einsum("nij,nj->ni", P[0][f], m[0][f]))
+    assert np.allclose(Xo[f], x, atol=1e-12) and np.allclose(Co[f], post, atol=1e-15)
+    assert np.array_equal(Xo[~f], X[~f])
