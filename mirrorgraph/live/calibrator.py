@@ -683,13 +683,7 @@ class LiveCalibrator:
 
         h = self._cached("height", lambda: height_from_bone_lengths(
             self.fusion.bone_lengths or {}, self.skeleton))
-        if not np.isfinite(h) or idx.size == 0:
-            return X, cov
-        J = self.skeleton.num_joints
-        XJ, CJ, have = np.full((J, 3), np.nan), np.full((J, 3, 3), np.nan), np.zeros(J, bool)
-        XJ[idx], CJ[idx], have[idx] = X, cov, True
-        XJ, CJ = with_head_prior(XJ, CJ, have, self.skeleton.joints, h)
-        return XJ[idx], CJ[idx]
+        return with_head_prior(X, cov, idx, self.skeleton.joints, h)
 
     def _settle(self, frame: LiveFrame) -> LiveFrame | None:
         """Hold ``frame``; give back the one :attr:`LiveOptions.lag_frames` back with its

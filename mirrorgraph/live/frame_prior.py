@@ -270,8 +270,8 @@ def _head_layout(names) -> tuple | None:
     return _HEADS[key]
 
 
-def with_head_prior(X: np.ndarray, cov: np.ndarray, have: np.ndarray, names, height: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def with_head_prior(X: np.ndarray, cov: np.ndarray, joints: np.ndarray, names,
+                    height: float) -> tuple[np.ndarray, np.ndarray]:
     """One frame's face keypoints fused with where its trunk puts them.
 
     The offline run's prior of the face (:func:`mirrorgraph.completion.head_prior`, here
@@ -279,42 +279,47 @@ def with_head_prior(X: np.ndarray, cov: np.ndarray, have: np.ndarray, names, hei
     trunk's axis ``u`` (mid-hip to mid-shoulder) at their landmark heights over the
     shoulders, ``m = mid-shoulder + (h_k - h_shoulder) H u``, an isotropic spread of
     :data:`~mirrorgraph.completion.HEAD_PRIOR_SIGMA` ``H`` per axis plus the
-    mid-shoulder's covariance) fused with each face keypoint's own estimate,
-    ``C = (cov^-1 + P)^-1``, ``x = C (cov^-1 x + P m)``: the face has no bone, and where
-    its two rays meet at a small angle its depth is the prior's. Applied to a frame's
-    output after the joints' filter (its track keeps its own measurements), as the
-    offline run fuses it after the smoothing.
+    mid-shoulder's covariance: ``C``) fused with each face keypoint's own estimate
+    ``(x, cov)``: ``(cov^-1 + C^-1)^-1 (cov^-1 x + C^-1 m)``, in its gain form ``x + G (m
+    - x)``, ``G = cov (cov + C)^-1``, covariance ``cov - G cov``. The face has no bone,
+    and where its two rays meet at a small angle its depth is the prior's. Applied to a
+    frame's output after the joints' filter (its track keeps its own measurements), as
+    the offline run fuses it after the smoothing.
 
     Args:
-        X: ``(J, 3)`` the frame's joints, the skeleton's order (camera frame).
-        cov: ``(J, 3, 3)`` their covariances.
-        have: ``(J,)`` bool, the joints given.
-        names: ``(J,)`` the joint names.
+        X: ``(k, 3)`` the frame's joints (camera frame); cov: ``(k, 3, 3)`` their
+            covariances.
+        joints: ``(k,)`` their indices in the skeleton.
+        names: ``(J,)`` the skeleton's joint names.
         height: the subject's height ``H``, the unit of ``X``.
 
     Returns:
-        ``(X, cov)`` copies, the face keypoints with a prior fused (the others as given;
-        all as given without both shoulders and both hips).
+        ``(X, cov)``, the face keypoints with the prior fused (copies), the others as
+        given; as given without both shoulders and both hips.
     """
     from ..completion import HEAD_PRIOR_SIGMA
 
-    X, cov = np.array(X, dtype=float), np.array(cov, dtype=float)
     layout = _head_layout(names)
-    have = np.asarray(have, bool)
     if layout is None or not np.isfinite(height) or height <= 0:
         return X, cov
     face, trunk, level = layout
-    if not have[trunk].all():
+    local = np.full(len(names), -1)
+    local[np.asarray(joints)] = np.arange(len(joints))
+    t = local[trunk]
+    rows = local[face]
+    f = rows >= 0
+    if (t < 0).any() or not f.any():
         return X, cov
-    f = have[face] & np.isfinite(cov[face]).all((-2, -1))
-    if not f.any():
-        return X, cov
-    face, level = face[f], level[f]
-    ls, rs, lh, rh = trunk
+    rows, level = rows[f], level[f]
+    own = cov[rows]
+    good = np.isfinite(own).all((-2, -1))
+    if not good.all():
+        rows, level, own = rows[good], level[good], own[good]
+    ls, rs, lh, rh = t
     ms = 0.5 * (X[ls] + X[rs])
     axis = ms - 0.5 * (X[lh] + X[rh])
     norm = float(np.linalg.norm(axis))
-    if not norm > 0:
+    if not norm > 0 or not len(rows):
         return X, cov
     m = ms + (level * height)[:, None] * (axis / norm)
     C = (HEAD_PRIOR_SIGMA * height) ** 2 * np.eye(3)
@@ -322,11 +327,11 @@ def with_head_prior(X: np.ndarray, cov: np.ndarray, have: np.ndarray, names, hei
     if np.isfinite(Cs).all():
         C = C + Cs
     try:
-        P = np.linalg.inv(C)
-        L = np.linalg.inv(cov[face])
-        post = np.linalg.inv(L + P)
+        G = own @ np.linalg.inv(own + C)
     except np.linalg.LinAlgError:
         return X, cov
-    X[face] = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", L, X[face]) + m @ P.T)
-    cov[face] = 0.5 * (post + post.transpose(0, 2, 1))
+    X, cov = X.copy(), cov.copy()
+    X[rows] += np.einsum("nij,nj->ni", G, m - X[rows])
+    post = own - G @ own
+    cov[rows] = 0.5 * (post + post.transpose(0, 2, 1))
     return X, cov

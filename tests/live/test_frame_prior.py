@@ -125,7 +125,7 @@ def test_the_head_prior_holds_a_face_keypoint_slid_in_depth_and_its_std_covers_i
     Xin = X.copy()
     Xin[0] += 0.6 * ray
     have = np.ones(J, bool)
-    Xo, Co = with_head_prior(Xin, cov, have, names, sc.subject_height)
+    Xo, Co = with_head_prior(Xin, cov, np.flatnonzero(have), names, sc.subject_height)
     err = np.linalg.norm(Xo[0] - X[0])
     std = np.sqrt(np.trace(Co[0]))
     assert err < 0.2, err
@@ -147,7 +147,7 @@ def test_the_frames_head_prior_is_the_offline_runs():
     A = np.random.default_rng(0).normal(size=(J, 3, 3))
     C = 1e-3 * (A @ A.transpose(0, 2, 1) + np.eye(3))
     have = np.ones(J, bool)
-    Xo, Co = with_head_prior(X, C, have, names, 1.7)
+    Xo, Co = with_head_prior(X, C, np.arange(J), names, 1.7)
     m, P = head_prior(X[None], have[None], names, 1.7, C[None])
     f = np.isfinite(m[0]).all(1)
     assert f.sum() == 5
