@@ -12,13 +12,16 @@ skipped and counted), undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
 right swapped back where the frames so far say the detector confused them in either view
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined together with the latest window's bone lengths, a view
-off by more than the threshold once the bones hold the joint left out
-(:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
+each joint's two rays and refined together with the latest window's bone lengths, the
+worse view off by more than the threshold once the bones hold the joint left out (the
+joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`;
+:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
 the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
 under the joints pass's acceleration prior, measurements beyond its gate taken as
-outliers), and given again :attr:`LiveOptions.lag_frames` frames later smoothed with the
-frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
+outliers; a new window's tracks rescaled by its body's size over the old one's), the face
+keypoints fused with where the trunk puts them (:func:`.frame_prior.with_head_prior`, the
+offline run's head prior), and given again :attr:`LiveOptions.lag_frames` frames later
+smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
 covariance's trace) holds the filter's (or smoother's) covariance and the fused normal's
 share (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
 distance is held); :attr:`LiveFrame.joints_std` adds the metric scale's
