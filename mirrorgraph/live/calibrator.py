@@ -62,7 +62,7 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import refine_with_bones, triangulate_two_rays, with_head_prior
+from .frame_prior import head_layout, refine_with_bones, triangulate_two_rays, with_head_prior
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -598,7 +598,9 @@ class LiveCalibrator:
             X, cov = self._filtered(fid, idx, X, cov)
         if idx.size == 0:
             return out, total, shape, True
-        X, cov = self._head(idx, X, cov)
+        track = (None if self._filter is None or not self.options.smooth
+                 else (self._filter.x[:, :3], self._filter.P[:, :3, :3]))
+        X, cov = self._head(idx, X, cov, track)
         out[idx] = X
         shape[idx], total[idx] = self._stds(K, n, d, X, cov)
         if "normal" in self.last_variances:
@@ -680,16 +682,31 @@ class LiveCalibrator:
         Xf, C, _ = self._filter.step(fid, idx, X, cov)
         return Xf, C
 
-    def _head(self, idx: np.ndarray, X: np.ndarray, cov: np.ndarray
+    def _head(self, idx: np.ndarray, X: np.ndarray, cov: np.ndarray, track=None
               ) -> tuple[np.ndarray, np.ndarray]:
         """The face keypoints among the joints ``X`` ``(k, 3)`` (skeleton indices ``idx``)
         fused with where the trunk puts them (:func:`.frame_prior.with_head_prior`, at the
-        height the windows' bone lengths make)."""
+        height the windows' bone lengths make). ``track``: ``((J, 3), (J, 3, 3))`` every
+        joint's filtered (or smoothed) point and covariance at the frame, whose trunk
+        joints stand in for those the frame does not give (a hip the detector missed
+        leaves the face its prior)."""
         from ..anthropometry import height_from_bone_lengths
 
         h = self._cached("height", lambda: height_from_bone_lengths(
             self.fusion.bone_lengths or {}, self.skeleton))
-        return with_head_prior(X, cov, idx, self.skeleton.joints, h)
+        names = self.skeleton.joints
+        layout = head_layout(names)
+        if track is not None and layout is not None:
+            trunk = layout[1]
+            miss = trunk[~np.isin(trunk, idx)]
+            if miss.size and idx.size:
+                xs, Ps = track[0][miss], track[1][miss]
+                if np.isfinite(xs).all() and np.isfinite(Ps).all():
+                    k = len(idx)
+                    Xa, Ca = with_head_prior(np.concatenate([X, xs]), np.concatenate([cov, Ps]),
+                                             np.concatenate([idx, miss]), names, h)
+                    return Xa[:k], Ca[:k]
+        return with_head_prior(X, cov, idx, names, h)
 
     def _settle(self, frame: LiveFrame) -> LiveFrame | None:
         """Hold ``frame``; give back the one :attr:`LiveOptions.lag_frames` back with its
@@ -716,7 +733,7 @@ class LiveCalibrator:
             & np.isfinite(sm[1]).all((1, 2))
         if not have.any():
             return out
-        X, cov = self._head(np.flatnonzero(have), sm[0][have], sm[1][have])
+        X, cov = self._head(np.flatnonzero(have), sm[0][have], sm[1][have], sm)
         if np.isfinite(normal[have]).all():
             var = np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
             scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..graph.outliers import one_view_outliers
 
-__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "HUBER_K"]
+__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -248,7 +248,7 @@ class _Normal:
 _HEADS: dict = {}
 
 
-def _head_layout(names) -> tuple | None:
+def head_layout(names) -> tuple | None:
     """``(face, trunk, level)``: the face keypoints' indices ``(f,)``, the trunk's
     ``(4,)`` (left and right shoulder, left and right hip) and each face keypoint's
     height over the shoulders, a fraction of the height ``(f,)``
@@ -299,7 +299,7 @@ def with_head_prior(X: np.ndarray, cov: np.ndarray, joints: np.ndarray, names,
     """
     from ..completion import HEAD_PRIOR_SIGMA
 
-    layout = _head_layout(names)
+    layout = head_layout(names)
     if layout is None or not np.isfinite(height) or height <= 0:
         return X, cov
     face, trunk, level = layout
