@@ -698,7 +698,9 @@ class LiveCalibrator:
         layout = head_layout(names)
         if track is not None and layout is not None:
             trunk = layout[1]
-            miss = trunk[~np.isin(trunk, idx)]
+            given = np.zeros(len(names), bool)
+            given[idx] = True
+            miss = trunk[~given[trunk]]
             if miss.size and idx.size:
                 xs, Ps = track[0][miss], track[1][miss]
                 if np.isfinite(xs).all() and np.isfinite(Ps).all():
