@@ -246,6 +246,7 @@ class _Normal:
 
 
 _HEADS: dict = {}
+_EYE3 = np.diag_indices(3)
 
 
 def head_layout(names) -> tuple | None:
@@ -300,38 +301,38 @@ def with_head_prior(X: np.ndarray, cov: np.ndarray, joints: np.ndarray, names,
     from ..completion import HEAD_PRIOR_SIGMA
 
     layout = head_layout(names)
-    if layout is None or not np.isfinite(height) or height <= 0:
+    if layout is None or not height > 0:
         return X, cov
     face, trunk, level = layout
     local = np.full(len(names), -1)
-    local[np.asarray(joints)] = np.arange(len(joints))
+    local[joints] = np.arange(len(joints))
     t = local[trunk]
     rows = local[face]
     f = rows >= 0
-    if (t < 0).any() or not f.any():
+    if t.min() < 0 or not f.any():
         return X, cov
     rows, level = rows[f], level[f]
     own = cov[rows]
-    good = np.isfinite(own).all((-2, -1))
-    if not good.all():
+    if not np.isfinite(own).all():
+        good = np.isfinite(own).all((-2, -1))
         rows, level, own = rows[good], level[good], own[good]
-    ls, rs, lh, rh = t
-    ms = 0.5 * (X[ls] + X[rs])
-    axis = ms - 0.5 * (X[lh] + X[rh])
-    norm = float(np.linalg.norm(axis))
+    Xt = X[t]                                  # left, right shoulder; left, right hip
+    ms = 0.5 * (Xt[0] + Xt[1])
+    axis = ms - 0.5 * (Xt[2] + Xt[3])
+    norm = float(np.sqrt(axis @ axis))
     if not norm > 0 or not len(rows):
         return X, cov
-    m = ms + (level * height)[:, None] * (axis / norm)
-    C = (HEAD_PRIOR_SIGMA * height) ** 2 * np.eye(3)
-    Cs = 0.25 * (cov[ls] + cov[rs])
-    if np.isfinite(Cs).all():
-        C = C + Cs
+    m = ms + np.outer(level * (height / norm), axis)
+    C = 0.25 * (cov[t[0]] + cov[t[1]])
+    if not np.isfinite(C).all():
+        C = np.zeros((3, 3))
+    C[_EYE3] += (HEAD_PRIOR_SIGMA * height) ** 2
     try:
         G = own @ np.linalg.inv(own + C)
     except np.linalg.LinAlgError:
         return X, cov
     X, cov = X.copy(), cov.copy()
-    X[rows] += np.einsum("nij,nj->ni", G, m - X[rows])
+    X[rows] += (G @ (m - X[rows])[:, :, None])[:, :, 0]
     post = own - G @ own
     cov[rows] = 0.5 * (post + post.transpose(0, 2, 1))
     return X, cov
