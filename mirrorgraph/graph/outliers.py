@@ -25,11 +25,17 @@ from dataclasses import replace
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ..errors import DegenerateGeometryError
-from .bones import bone_table
 from .options import RefineOptions
-from .rig import Rig, parallax_deg, seen_twice, triangulate_rig, view_projections, view_residuals
 from .stage_config import SolveConfig
+
+if TYPE_CHECKING:
+    from .rig import Rig
+
+# the rig's geometry (and GTSAM with it) is imported where it is used: the live run's
+# per-frame path takes :func:`one_view_outliers` alone, without GTSAM
 
 __all__ = ["feasible", "observation_outliers", "one_view_outliers", "bone_outliers",
            "clean_views", "check_held", "MIN_HELD_OBSERVATIONS"]
@@ -40,6 +46,8 @@ def feasible(rig: Rig, points: np.ndarray, masks: list[np.ndarray], poses, plane
     """Per view ``(T, J)`` bool: the observed joint is in front of the view's (real or
     virtual) camera and, through a mirror, in front of that mirror (cheirality);
     ``True`` where the view does not observe it."""
+    from .rig import view_projections
+
     out = []
     X = np.nan_to_num(points)
     for v, P, m in zip(rig.views, view_projections(rig, poses, planes), masks):
@@ -66,6 +74,8 @@ def observation_outliers(rig: Rig, points: np.ndarray, used: np.ndarray,
     Returns:
         The new masks and how many observations were dropped.
     """
+    from .rig import view_residuals
+
     probe = [np.asarray(m, bool) & used for m in masks]
     res = view_residuals(replace(rig, views=tuple(replace(v, mask=m) for v, m
                                                   in zip(rig.views, probe))),
@@ -142,6 +152,9 @@ def clean_views(rig: Rig, masks: list[np.ndarray], poses, planes, opts: RefineOp
     """Triangulate; drop observations behind their camera, joints without parallax and,
     with ``config.first_rejection``, outliers. Returns points, masks, the count dropped
     and the count of outliers found (for the ``"auto"`` kernel)."""
+    from .bones import bone_table
+    from .rig import parallax_deg, seen_twice, triangulate_rig
+
     offered = masks
     points, ok = triangulate_rig(rig, masks, poses, planes)
     masks, behind = observation_outliers(rig, points, seen_twice(masks), masks, poses, planes, np.inf)

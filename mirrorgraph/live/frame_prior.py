@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["refine_with_bones", "triangulate_two_rays", "HUBER_K"]
+from ..graph.outliers import one_view_outliers
+
+__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -102,10 +104,12 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         sigma_px: the reprojection noise, px.
         sigma_len: the bones' spread about their lengths (the unit of ``X``).
         iterations: Gauss-Newton steps.
-        gate_px: after the steps, a view whose residual exceeds this (px) is left out
-            of a joint held by bones (a keypoint displaced along its epipolar line,
-            which the two rays follow in depth and the bones do not) and one more step
-            is taken; ``None``: every view kept.
+        gate_px: after the steps, of each joint held by bones the view whose residual
+            is the larger and exceeds this (px) is left out (a keypoint displaced along
+            its epipolar line, which the two rays follow in depth and the bones do not;
+            the offline joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`,
+            at most one view a joint) and one more step is taken; ``None``: every view
+            kept.
         full: also return the views kept and the residuals at the joints returned.
 
     Returns:
@@ -163,8 +167,10 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             if gate_px is None or not held.any():
                 break
             px = sigma_px * rn.reshape(2, k).T
-            drop = keep & (px > gate_px) & held[:, None]
-            drop[drop.all(1)] = False            # a joint keeps one view at least
+            # the joints pass's rule (one home): the worst view over the threshold, at
+            # most one a joint, here of the joints the bones hold
+            drop = np.stack(one_view_outliers([px[:, 0], px[:, 1]], gate_px), 1)
+            drop &= keep & held[:, None]
             if not drop.any():
                 break
             keep &= ~drop
@@ -237,3 +243,96 @@ class _Normal:
         V = np.linalg.solve(S, Uf).reshape(self.B, k, 3)
         U = Uf.reshape(self.B, k, 3)
         return Dinv - np.einsum("bki,bkj->kij", U, V)
+
+
+_HEADS: dict = {}
+_EYE3 = np.diag_indices(3)
+
+
+def head_layout(names) -> tuple | None:
+    """``(face, trunk, level)``: the face keypoints' indices ``(f,)``, the trunk's
+    ``(4,)`` (left and right shoulder, left and right hip) and each face keypoint's
+    height over the shoulders, a fraction of the height ``(f,)``
+    (:data:`mirrorgraph.completion.HEAD_LANDMARKS`); ``None`` without a face or a trunk.
+    Kept per layout."""
+    key = tuple(names)
+    if key not in _HEADS:
+        from ..anthropometry import LANDMARK_HEIGHT
+        from ..completion import HEAD_LANDMARKS
+
+        index = {n: i for i, n in enumerate(key)}
+        trunk = [index.get(f"{side}_{part}") for part in ("shoulder", "hip")
+                 for side in ("left", "right")]
+        face = [i for i, n in enumerate(key) if n in HEAD_LANDMARKS]
+        level = [sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[key[i]])
+                 - LANDMARK_HEIGHT["shoulder"] for i in face]
+        _HEADS[key] = (None if not face or any(t is None for t in trunk) else
+                       (np.array(face), np.array(trunk), np.array(level, float)))
+    return _HEADS[key]
+
+
+def with_head_prior(X: np.ndarray, cov: np.ndarray, joints: np.ndarray, names,
+                    height: float) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's face keypoints fused with where its trunk puts them.
+
+    The offline run's prior of the face (:func:`mirrorgraph.completion.head_prior`, here
+    for one frame and one person, vectorised: the nose, eyes, ears and head top on the
+    trunk's axis ``u`` (mid-hip to mid-shoulder) at their landmark heights over the
+    shoulders, ``m = mid-shoulder + (h_k - h_shoulder) H u``, an isotropic spread of
+    :data:`~mirrorgraph.completion.HEAD_PRIOR_SIGMA` ``H`` per axis plus the
+    mid-shoulder's covariance: ``C``) fused with each face keypoint's own estimate
+    ``(x, cov)``: ``(cov^-1 + C^-1)^-1 (cov^-1 x + C^-1 m)``, in its gain form ``x + G (m
+    - x)``, ``G = cov (cov + C)^-1``, covariance ``cov - G cov``. The face has no bone,
+    and where its two rays meet at a small angle its depth is the prior's. Applied to a
+    frame's output after the joints' filter (its track keeps its own measurements), as
+    the offline run fuses it after the smoothing.
+
+    Args:
+        X: ``(k, 3)`` the frame's joints (camera frame); cov: ``(k, 3, 3)`` their
+            covariances.
+        joints: ``(k,)`` their indices in the skeleton.
+        names: ``(J,)`` the skeleton's joint names.
+        height: the subject's height ``H``, the unit of ``X``.
+
+    Returns:
+        ``(X, cov)``, the face keypoints with the prior fused (copies), the others as
+        given; as given without both shoulders and both hips.
+    """
+    from ..completion import HEAD_PRIOR_SIGMA
+
+    layout = head_layout(names)
+    if layout is None or not height > 0:
+        return X, cov
+    face, trunk, level = layout
+    local = np.full(len(names), -1)
+    local[joints] = np.arange(len(joints))
+    t = local[trunk]
+    rows = local[face]
+    f = rows >= 0
+    if t.min() < 0 or not f.any():
+        return X, cov
+    rows, level = rows[f], level[f]
+    own = cov[rows]
+    if not np.isfinite(own).all():
+        good = np.isfinite(own).all((-2, -1))
+        rows, level, own = rows[good], level[good], own[good]
+    Xt = X[t]                                  # left, right shoulder; left, right hip
+    ms = 0.5 * (Xt[0] + Xt[1])
+    axis = ms - 0.5 * (Xt[2] + Xt[3])
+    norm = float(np.sqrt(axis @ axis))
+    if not norm > 0 or not len(rows):
+        return X, cov
+    m = ms + np.outer(level * (height / norm), axis)
+    C = 0.25 * (cov[t[0]] + cov[t[1]])
+    if not np.isfinite(C).all():
+        C = np.zeros((3, 3))
+    C[_EYE3] += (HEAD_PRIOR_SIGMA * height) ** 2
+    try:
+        G = own @ np.linalg.inv(own + C)
+    except np.linalg.LinAlgError:
+        return X, cov
+    X, cov = X.copy(), cov.copy()
+    X[rows] += (G @ (m - X[rows])[:, :, None])[:, :, 0]
+    post = own - G @ own
+    cov[rows] = 0.5 * (post + post.transpose(0, 2, 1))
+    return X, cov

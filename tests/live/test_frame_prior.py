@@ -71,3 +71,88 @@ def test_a_joint_far_off_its_bone_is_pulled_back_robustly():
     Xr, _ = refine_with_bones(sc.K, sc.normal, sc.distance, X0, u, um, np.arange(len(X)),
                               pairs, L, 1.0, 0.01 * sc.subject_height)
     assert np.linalg.norm(Xr[j] - X[j]) < 0.5 * np.linalg.norm(X0[j] - X[j])
+
+
+def test_of_a_joint_held_by_bones_the_worst_view_over_the_threshold_is_left_out():
+    """A knee's mirror pixel 60 px off along its epipolar line and its camera pixel 40 px
+    off across it (both views beyond the 20 px threshold once the bones hold the knee):
+    the joints pass's rule (:func:`mirrorgraph.graph.outliers.one_view_outliers`) leaves
+    out the worse view alone, and the knee comes out of its bones and the view kept
+    nearer the truth than the two rays put it; the other joints keep both views."""
+    from mirrorgraph.graph.outliers import one_view_outliers
+
+    sc = make_wide_scene(3, "wide", "iid", 50)
+    pairs, L = _bones(sc)
+    X, u, um = _frame_data(sc, 20, np.random.default_rng(4), noise=1.0)
+    j = sc.skeleton.index("left_knee")
+    # along the epipolar line in the mirror: towards the epipole K n
+    e = sc.K @ sc.normal
+    e = e[:2] / e[2]
+    along = (um[j] - e) / np.linalg.norm(um[j] - e)
+    um[j] += 60.0 * along
+    u[j] += 40.0 * np.array([-along[1], along[0]])
+    X0 = geo.triangulate_mirror(sc.K, sc.normal, sc.distance, u, um, iterations=1)
+    Xr, _, keep, px = refine_with_bones(sc.K, sc.normal, sc.distance, X0, u, um,
+                                        np.arange(len(X)), pairs, L, 1.0,
+                                        0.01 * sc.subject_height, iterations=2,
+                                        gate_px=20.0, full=True)
+    assert keep[j].sum() == 1                       # one view left out, the worse one
+    others = np.ones(len(X), bool)
+    others[j] = False
+    assert keep[others].all()
+    assert np.linalg.norm(Xr[j] - X[j]) < 0.5 * np.linalg.norm(X0[j] - X[j])
+    # the rule is the joints pass's: at the joints without the gate, the view it drops
+    _, _, _, px0 = refine_with_bones(sc.K, sc.normal, sc.distance, X0, u, um,
+                                     np.arange(len(X)), pairs, L, 1.0,
+                                     0.01 * sc.subject_height, iterations=2, full=True)
+    drop = np.stack(one_view_outliers([px0[:, 0], px0[:, 1]], 20.0), 1)
+    assert (drop[j] == ~keep[j]).all()
+
+
+def test_the_head_prior_holds_a_face_keypoint_slid_in_depth_and_its_std_covers_it():
+    """The nose 0.6 m off along its (near-parallel) rays, its covariance long that way:
+    fused with where the trunk puts it (the offline run's prior), it comes within 0.2 m,
+    its std shrinks and still covers its error; the trunk's joints are as given."""
+    from mirrorgraph.live.frame_prior import with_head_prior
+
+    sc = make_wide_scene(3, "wide", "iid", 50)
+    names = sc.skeleton.joints
+    X = np.array(sc.joints3d[10], float)
+    J = len(X)
+    ray = X[0] / np.linalg.norm(X[0])
+    cov = np.broadcast_to(1e-4 * np.eye(3), (J, 3, 3)).copy()
+    cov[0] += 0.5 ** 2 * np.outer(ray, ray)
+    Xin = X.copy()
+    Xin[0] += 0.6 * ray
+    have = np.ones(J, bool)
+    Xo, Co = with_head_prior(Xin, cov, np.flatnonzero(have), names, sc.subject_height)
+    err = np.linalg.norm(Xo[0] - X[0])
+    std = np.sqrt(np.trace(Co[0]))
+    assert err < 0.2, err
+    assert std < np.sqrt(np.trace(cov[0]))
+    assert err < 3 * std
+    body = [names.index(n) for n in ("left_shoulder", "right_hip", "left_knee")]
+    assert np.allclose(Xo[body], Xin[body]) and np.allclose(Co[body], cov[body])
+
+
+def test_the_frames_head_prior_is_the_offline_runs():
+    """One frame's face fused with :func:`mirrorgraph.completion.head_prior`'s mean and
+    information gives what the live path's vectorised prior gives."""
+    from mirrorgraph.completion import head_prior
+    from mirrorgraph.live.frame_prior import with_head_prior
+
+    sc = make_wide_scene(3, "wide", "iid", 20)
+    X, names = sc.joints3d[5], sc.skeleton.joints
+    J = len(X)
+    A = np.random.default_rng(0).normal(size=(J, 3, 3))
+    C = 1e-3 * (A @ A.transpose(0, 2, 1) + np.eye(3))
+    have = np.ones(J, bool)
+    Xo, Co = with_head_prior(X, C, np.arange(J), names, 1.7)
+    m, P = head_prior(X[None], have[None], names, 1.7, C[None])
+    f = np.isfinite(m[0]).all(1)
+    assert f.sum() == 5
+    post = np.linalg.inv(np.linalg.inv(C[f]) + P[0][f])
+    x = np.einsum("nij,nj->ni", post, np.einsum("nij,nj->ni", np.linalg.inv(C[f]), X[f])
+                  + np.einsum("nij,nj->ni", P[0][f], m[0][f]))
+    assert np.allclose(Xo[f], x, atol=1e-12) and np.allclose(Co[f], post, atol=1e-15)
+    assert np.array_equal(Xo[~f], X[~f])

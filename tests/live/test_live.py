@@ -536,3 +536,56 @@ def test_the_live_scale_over_fused_windows_under_a_realistic_detector():
     assert np.mean(e > 0.3) < 0.15
     es = np.linalg.norm(Xz * np.nan_to_num(fit)[:, None, None] - T, axis=-1)[given]
     assert np.mean(es > 0.3) < 0.01
+
+
+def test_a_new_windows_distance_rescales_the_tracks_only_as_the_body_size_changes(scene):
+    """With a subject height every window's joints are in metres: a new window's other
+    distance leaves the tracks (and the frames awaiting their lag) as they are; a body
+    whose bones come out 5 % longer (a new unit) scales them by 1.05."""
+    live = _live(scene)
+    people = scene.detections.people
+    _feed(live, people[:150])
+    last = live._filter.history[-1][1].copy()
+    live.fusion.distance *= 1.05                  # the same bones: the same metres
+    live._cache.clear()
+    live.update(people[150], frame_id=150)
+    kept = live._filter.history[-2][1]
+    ok = np.isfinite(last).all(1)
+    assert ok.sum() > 5
+    assert np.allclose(kept[ok], last[ok])
+    last = live._filter.history[-1][1].copy()
+    live.fusion.bone_lengths = {k: 1.05 * v for k, v in live.fusion.bone_lengths.items()}
+    live._cache.clear()
+    live.update(people[151], frame_id=151)
+    assert np.allclose(live._filter.history[-2][1][ok], 1.05 * last[ok])
+
+
+def test_a_frame_without_a_hip_keeps_the_face_held_to_the_trunk(scene):
+    """A frame whose left hip is missing: the head prior takes the hip from its track (the
+    filter's point and covariance at the frame), so the face keypoints keep their prior
+    (on the realistic scene 1 a left ear without it came out 4 m off, its two rays nearly
+    parallel); without a track they are left as given."""
+    from mirrorgraph.live.frame_prior import with_head_prior
+
+    live = _live(scene)
+    _feed(live, scene.detections.people[:130])
+    names = scene.skeleton.joints
+    J = len(names)
+    X = np.array(scene.joints3d[129], float)
+    ray = X[3] / np.linalg.norm(X[3])
+    X[3] += 0.8 * ray                               # the left ear slid along its rays
+    cov = np.broadcast_to(1e-4 * np.eye(3), (J, 3, 3)).copy()
+    cov[3] += 0.6 ** 2 * np.outer(ray, ray)
+    hip = names.index("left_hip")
+    idx = np.array([j for j in range(J) if j != hip])
+    track = (np.array(scene.joints3d[129], float), np.broadcast_to(1e-4 * np.eye(3),
+                                                                   (J, 3, 3)).copy())
+    Xo, Co = live._head(idx, X[idx], cov[idx], track)
+    ear = int(np.flatnonzero(idx == 3)[0])
+    assert np.linalg.norm(Xo[ear] - scene.joints3d[129][3]) < 0.3
+    assert np.trace(Co[ear]) < 0.1 * np.trace(cov[3])
+    full, _ = with_head_prior(X, np.where(np.arange(J)[:, None, None] == hip, track[1], cov),
+                              np.arange(J), names, live._cached("height", lambda: None))
+    assert np.allclose(Xo, full[idx])
+    Xn, Cn = live._head(idx, X[idx], cov[idx])      # no track: no trunk, no prior
+    assert np.array_equal(Xn, X[idx]) and np.array_equal(Cn, cov[idx])
