@@ -547,11 +547,9 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
         return None
     jopts = replace(opts, use_smoothness=True, smoothness_sigma=sigma)
     jp = with_motion_priors(problem, values, lengths, jopts)
-    # the sensitivity of the solve whose joints are returned only (a second
-    # back-substitution a unit of the plane: ~5 % of a chunk's time)
     res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                      max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
-                      sensitivity=sensitivity and opts.outlier_threshold <= 0)
+                      max_iterations=JOINTS_PASS_ITERATIONS,
+                      hold_globals=True, sensitivity=sensitivity)
     if opts.outlier_threshold > 0:
         # what the body now exposes: a keypoint displaced along its epipolar line fits
         # both views in the calibration's graph (the joint slides in depth), and
@@ -565,10 +563,6 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
             res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
                               max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
                               values=res.values, sensitivity=sensitivity)
-        elif sensitivity:                # nothing left out: the same solve, with it
-            res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                              max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
-                              sensitivity=True)
     return jp, res
 
 
