@@ -309,7 +309,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     # joint one view sees (the other left out) is fixed by the smoothness below
     top = np.zeros(T)
     np.maximum.at(top, t, H6[:3].max(0))
-    Hr = H6.copy()
+    Hr = H6                                  # in place: H6 is not read again
     Hr[:3] += RIDGE * top[t]
     adj, det = geo.sym3_adjugate(Hr)
     ok = det > 0
