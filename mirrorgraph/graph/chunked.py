@@ -357,8 +357,12 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     """:func:`solve_chunked` with the subset's ``rows``, the chunks' row ``ranges`` and the
     ``runner`` of their jobs."""
     T, J = rig.num_frames, rig.skeleton.num_joints
-    # the subset's joints are not kept (every chunk is solved again): no joints pass there
-    sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
+    # the subset's joints are not kept (every chunk is solved again): no joints pass
+    # there; its own uncertainty (the marginals, the joints' scores) serves an estimated
+    # intrinsic's only (held in the chunks): the video's comes from the chunks
+    estimated = any(c.intrinsics_dim for c in rig.cameras)
+    sub = solve_rows(rig.subset(rows), opts if estimated else replace(opts, marginals=False),
+                     replace(config, joints_pass=False), height, counter)
     # the subset's estimated intrinsics are held in the chunks: what their uncertainty
     # brings to the plane is added to every figure of the whole video's
     held_cov = None
