@@ -213,13 +213,3 @@ def test_the_chunks_covariance_is_the_graphs_on_the_joints_pass_observations():
     counted = position_std(ju._chunked(replace(state, problem=None), opts, True, 1.0, rig,
                                        empty.copy()))
     assert np.median(np.abs(counted[left] / graph[left] - 1)) > 0.05
-
-
-@pytest.mark.parametrize("kernel", ["geman_mcclure", "huber", "cauchy", "tukey"])
-def test_kernel_weights_are_gtsams(kernel):
-    from mirrorgraph.factors.reprojection import KERNELS, kernel_weights
-
-    e = np.array([0.0, 0.3, 1.0, 2.0, 2.9, 4.5])
-    m = KERNELS[kernel](2.5)
-    np.testing.assert_allclose(kernel_weights(kernel, e, 2.5), [m.weight(x) for x in e],
-                               rtol=1e-12)
