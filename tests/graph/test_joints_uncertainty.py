@@ -162,6 +162,10 @@ def test_a_video_solved_in_chunks_has_its_stds_too(monkeypatch):
     chunked = ju._chunked
 
     def spy(*args):
+        state = args[0]
+        # the joints pass's observations: the calibration's, less any it left out
+        assert len(state.joints_masks) == len(state.view_masks) == 2
+        assert all(not (j & ~v).any() for j, v in zip(state.joints_masks, state.view_masks))
         seen.append(True)
         return chunked(*args)
 
