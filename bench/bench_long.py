@@ -17,13 +17,17 @@ distance errors beside their stds, the joints' mean and median error, the share 
 than 0.3 m off, the worst, the median error/std, and how far the joints of the two
 trees lie apart.
 
+With ``--tree NAME=DIR`` (repeatable) more checkouts run beside them, on the frame
+counts of ``--tree-frames`` (default every one): an older commit's figures side by side
+in the same run (its npz may lack ``joints_std``: its error/std is then left out).
+
 With ``--workers 1,2`` the scenes also run through the library as the command does
 (``mg.calibrate`` of the keypoints file, ``write_calibration``) in a fresh process with
 ``RefineOptions(workers=N)``: the processes that solve the chunks of a long video at
 once (this one included); the command has no flag for it.
 
 Run:  python bench/bench_long.py [--frames 1000,4000,16000] [--before DIR] [--repeats 1]
-      [--workers 1,2] [--seed 0] [--no-write]
+      [--tree NAME=DIR ...] [--tree-frames 1000] [--workers 1,2] [--seed 0] [--no-write]
 """
 
 from __future__ import annotations
@@ -114,7 +118,8 @@ def _measured(cmd: list[str], env: dict, tree: Path, out: Path) -> dict:
         with np.load(npz) as z:
             res.update(joints3d=np.asarray(z["joints3d"], float),
                        valid=np.asarray(z["valid"], bool),
-                       joints_std=np.asarray(z["joints_std"], float))
+                       joints_std=np.asarray(z["joints_std"], float) if "joints_std" in z.files
+                       else np.full(np.shape(z["valid"]), np.nan))
     return res
 
 
@@ -126,7 +131,7 @@ def accuracy(r: dict, truth: dict) -> dict:
     if "joints3d" in r:
         ok = r["valid"]
         err = np.linalg.norm(r["joints3d"] - truth["joints3d"], axis=-1)[ok]
-        ratio = err / r["joints_std"][ok]
+        ratio = err / r["joints_std"][ok]           # NaN: a tree without joints_std
         out.update(mpjpe_mm=1e3 * float(np.mean(err)), median_mm=1e3 * float(np.median(err)),
                    gross_pct=100.0 * float(np.mean(err > 0.3)), worst_m=float(np.max(err)),
                    err_std=float(np.median(ratio)), joints=int(np.count_nonzero(ok)))
@@ -151,6 +156,10 @@ def main() -> None:
     ap.add_argument("--frames", default="1000,4000,16000")
     ap.add_argument("--before", type=Path, default=None,
                     help="a checkout of the commit to compare with")
+    ap.add_argument("--tree", action="append", default=[], metavar="NAME=DIR",
+                    help="another checkout run beside the two (repeatable)")
+    ap.add_argument("--tree-frames", default="",
+                    help="the frame counts the --tree checkouts run on (default: every one)")
     ap.add_argument("--repeats", type=int, default=1, help="runs of each tree (the fastest kept)")
     ap.add_argument("--workers", default="",
                     help="also run the library with these RefineOptions.workers (e.g. 1,2)")
@@ -160,7 +169,10 @@ def main() -> None:
     from _report import header, now
 
     started = now()
-    trees = ([("before", args.before.resolve())] if args.before else []) + [("after", ROOT)]
+    extra = [(n, Path(d).resolve()) for n, d in (t.split("=", 1) for t in args.tree)]
+    extra_frames = {int(f) for f in args.tree_frames.split(",") if f.strip()}
+    trees = (extra + ([("before", args.before.resolve())] if args.before else [])
+             + [("after", ROOT)])
     workers = [int(w) for w in args.workers.split(",") if w.strip()]
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_long_") as tmp:
@@ -171,6 +183,8 @@ def main() -> None:
             best: dict[str, dict] = {}
             for _ in range(args.repeats):
                 for name, tree in trees:
+                    if (name, tree) in extra and extra_frames and frames not in extra_frames:
+                        continue
                     r = run_cli(tree, kp, intr, height, folder / f"{name}.json")
                     if name not in best or r["cpu"] < best[name]["cpu"]:
                         best[name] = r
@@ -198,7 +212,7 @@ def main() -> None:
     lines = [head, sep]
     for frames, best in rows:
         cells = [f"{best[n]['wall']:.1f} | {best[n]['cpu']:.1f} | {best[n]['rss_mb']:.0f}"
-                 for n in names]
+                 if n in best else "- | - | -" for n in names]
         diff = (f" | {_angle_deg(best['before']['normal'], best['after']['normal']):.4f}"
                 if args.before else "")
         lines.append(f"| {frames} | " + " | ".join(cells) + diff + " |")
@@ -208,6 +222,8 @@ def main() -> None:
            "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for frames, best in rows:
         for n in names:
+            if n not in best:
+                continue
             a = best[n]["acc"]
             j = (f"{a['mpjpe_mm']:.1f} | {a['median_mm']:.1f} | {a['gross_pct']:.2f} | "
                  f"{a['worst_m']:.2f} | {a['err_std']:.2f} | {a['joints']}"

@@ -42,7 +42,8 @@ import numpy as np
 from ..geometry import project, reflect_points
 
 __all__ = ["ReprojectionFactors", "robust_pixel_noise", "mirrored_calibration",
-           "calibration", "direct_residuals", "mirror_residuals", "KERNELS"]
+           "calibration", "direct_residuals", "mirror_residuals", "KERNELS",
+           "kernel_weights"]
 
 #: Robust kernels by option name: GTSAM m-estimator constructors taking the scale.
 KERNELS = {
@@ -51,6 +52,34 @@ KERNELS = {
     "cauchy": gtsam.noiseModel.mEstimator.Cauchy.Create,
     "tukey": gtsam.noiseModel.mEstimator.Tukey.Create,
 }
+
+
+def kernel_weights(kernel: str | None, residual: np.ndarray, scale: float) -> np.ndarray:
+    """The weight :data:`KERNELS`' m-estimator gives each residual (its square root
+    multiplies a factor's whitened Jacobian and error when GTSAM linearises it).
+
+    Args:
+        kernel: a name of :data:`KERNELS`, or ``None``/``"none"`` (weights 1).
+        residual: ``(...)`` residual norms; scale: the kernel's scale, the same unit.
+
+    Returns:
+        ``(...)`` weights in ``[0, 1]``: Geman-McClure ``c^4 / (c^2 + e^2)^2``, Huber
+        ``min(1, c / |e|)``, Cauchy ``c^2 / (c^2 + e^2)``, Tukey ``(1 - (e / c)^2)^2``
+        within ``c`` (0 beyond).
+    """
+    e2 = np.asarray(residual, float) ** 2
+    c2 = float(scale) ** 2
+    if kernel is None or kernel == "none":
+        return np.ones_like(e2)
+    if kernel == "geman_mcclure":
+        return (c2 / (c2 + e2)) ** 2
+    if kernel == "huber":
+        return np.minimum(1.0, np.sqrt(c2 / np.maximum(e2, 1e-300)))
+    if kernel == "cauchy":
+        return c2 / (c2 + e2)
+    if kernel == "tukey":
+        return np.where(e2 <= c2, (1.0 - e2 / c2) ** 2, 0.0)
+    raise ValueError(f"unknown robust kernel {kernel!r}; known: {', '.join(KERNELS)}, none")
 
 
 def robust_pixel_noise(sigma_px: float, kernel: str | None = "geman_mcclure",

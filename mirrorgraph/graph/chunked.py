@@ -142,6 +142,7 @@ class _ChunkResult:
     iterations: int = 0
     joints: np.ndarray | None = None          # (T_c, J, 3) the joints pass's
     sensitivity: np.ndarray | None = None     # (T_c, J, 3, nz) its joints per unit z
+    joints_masks: list[np.ndarray] | None = None   # per view (T_c, J): the pass's observations
     joints_iterations: int = 0
     joints_seconds: float = 0.0
 
@@ -207,6 +208,7 @@ def _joints_pass(out: _ChunkResult, problem, values: gtsam.Values, ctx: _Context
     jproblem, res = jp
     T, J = jproblem.used.shape
     out.joints, out.joints_iterations = extract_points(jproblem, res.values), res.iterations
+    out.joints_masks = [np.asarray(v.mask, bool) for v in jproblem.rig.views]
     if res.sensitivity is not None:
         sens = np.zeros((T * J, 3, res.sensitivity.shape[-1]))
         sens[jproblem.flat_index] = res.sensitivity
@@ -355,8 +357,12 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     """:func:`solve_chunked` with the subset's ``rows``, the chunks' row ``ranges`` and the
     ``runner`` of their jobs."""
     T, J = rig.num_frames, rig.skeleton.num_joints
-    # the subset's joints are not kept (every chunk is solved again): no joints pass there
-    sub = solve_rows(rig.subset(rows), opts, replace(config, joints_pass=False), height, counter)
+    # the subset's joints are not kept (every chunk is solved again): no joints pass
+    # there; its own uncertainty (the marginals, the joints' scores) serves an estimated
+    # intrinsic's only (held in the chunks): the video's comes from the chunks
+    estimated = any(c.intrinsics_dim for c in rig.cameras)
+    sub = solve_rows(rig.subset(rows), opts if estimated else replace(opts, marginals=False),
+                     replace(config, joints_pass=False), height, counter)
     # the subset's estimated intrinsics are held in the chunks: what their uncertainty
     # brings to the plane is added to every figure of the whole video's
     held_cov = None
@@ -410,10 +416,15 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     stages[-1]["rejected"] = rejected
     n_repro = sum(r.reprojection_factors for r in good)
     solved = [r for r in good if r.joints is not None]
+    joints_masks: list[np.ndarray] = []
     if opts.joints_smoothness_sigma is not None and solved:
-        # each chunk's joints pass at the mirror of the last pass, moved by its step
+        # each chunk's joints pass at the mirror of the last pass, moved by its step,
+        # on the observations it kept
+        joints_masks = [m.copy() for m in out_masks]
         for r in solved:
             out_points[r.a:r.b] = r.joints
+            for k, m in enumerate(r.joints_masks):
+                joints_masks[k][r.a:r.b] = m & r.used
             if r.sensitivity is not None:
                 out_points[r.a:r.b] += np.einsum("tjkn,n->tjk", r.sensitivity, z)
         joints_iterations = sum(r.joints_iterations for r in solved)
@@ -447,7 +458,7 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
                       timings=timings, body_height=sub.body_height, information=information,
                       z_keys=z_keys, z_values=zv, problem=None, scores=scores,
                       intrinsics=sub.intrinsics, intrinsics_cov=sub.intrinsics_cov,
-                      intrinsics_std=sub.intrinsics_std)
+                      intrinsics_std=sub.intrinsics_std, joints_masks=joints_masks)
 
 
 # --------------------------------------------------------------------------- helpers

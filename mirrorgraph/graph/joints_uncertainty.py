@@ -38,6 +38,7 @@ import numpy as np
 from .. import geometry as geo
 from ..factors import plane_from_gtsam, plane_to_gtsam
 from ..factors.smoothness import SmoothnessFactor
+from ..factors.reprojection import kernel_weights
 from .optimizer import reduced_covariance_matrix
 from .options import RefineOptions
 from .problem import X_BASE, GraphProblem, snap_virtual_poses
@@ -254,11 +255,14 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
              rig: Rig | None, out: np.ndarray) -> np.ndarray:
     """:func:`graph_joints_covariance` of a long video solved in chunks (:mod:`.chunked`,
     whose graphs are not kept; one camera, one mirror): each joint's own rays (the
-    chunks' kept observations) with the smoothness over its frames (:func:`chain_marginals`),
-    the detector's bias and the mirror's uncertainty as for the graph; the bones and the
-    hip are left out (information dropped: the std is wider than the graph's, not
-    thinner). Vectorised over every frame: a fraction of a second for 16,000 frames,
-    where rebuilding every chunk's graph took a quarter of the run."""
+    observations the joints pass kept, :attr:`~.solve_state.SolveState.joints_masks`,
+    weighted by the robust kernel at their residuals as the graph's rows are) with the
+    smoothness over its frames (:func:`chain_marginals`), the detector's bias and the
+    mirror's uncertainty as for the graph, a joint one view sees with the graph's ridge;
+    the bones and the hip are left out (information dropped: the std is wider than the
+    graph's, not thinner; without them the two agree to ~1e-8). Vectorised over every
+    frame: a fraction of a second for 16,000 frames, where rebuilding every chunk's
+    graph took a quarter of the run."""
     if rig is None or len(state.planes) != 1 or len(rig.views) != 2:
         return out
     used = np.asarray(state.used, bool) & np.isfinite(state.points).all(-1)
@@ -267,7 +271,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     n, d = state.planes[0]
     K = np.asarray(rig.cameras[0].K, float)
     views = mirror_plane_projections(K, n, float(d))
-    masks = [np.asarray(m, bool) & used for m in state.view_masks]
+    masks = [np.asarray(m, bool) & used for m in (state.joints_masks or state.view_masks)]
     pixels = [np.asarray(v.pixels, float) for v in rig.views]
     t, j = np.nonzero(used)
     X = np.asarray(state.points, float)[t, j]
@@ -276,23 +280,39 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     sigma = float(opts.pixel_sigma)               # whitened as the graph's rows, scaled below
     P0 = views(np.zeros(0))
     T, J = used.shape
+    kernel = next((s["kernel"] for s in reversed(state.stages) if s.get("kernel")), None)
     # each view's information on the point (six entries xx, yy, zz, xy, xz, yz, whitened
-    # as the graph's rows) and its whitened residuals, (n,) columns
-    Hv, r = [], []
+    # and weighted by the robust kernel as the graph's rows) and its whitened, weighted
+    # residuals, (n,) columns
+    Hv, r, wts = [], [], []
     Xt = X.T
     for P, uv, mk in zip(P0, u, m):
         y = P[:, :3] @ Xt + P[:, 3:4]
         inv = 1.0 / y[2]
         px, py = y[0] * inv, y[1] * inv
+        res = np.stack([px - uv[:, 0], py - uv[:, 1]], 1)
+        w = kernel_weights(kernel, np.linalg.norm(np.nan_to_num(res), axis=1),
+                           float(opts.final_kernel_scale_px))
+        wts.append(w)
         jx = (P[0, :3, None] - P[2, :3, None] * px) * (inv / sigma)
         jy = (P[1, :3, None] - P[2, :3, None] * py) * (inv / sigma)
-        Hv.append(np.where(mk, np.stack([jx[a] * jx[b] + jy[a] * jy[b]
-                                         for a, b in geo.SYM3]), 0.0))
-        r.append(np.stack([px - uv[:, 0], py - uv[:, 1]], 1) / sigma)
-    adj, det = geo.sym3_adjugate(Hv[0] + Hv[1])
-    ok = det > 0
+        Hv.append(np.where(mk, w * np.stack([jx[a] * jx[b] + jy[a] * jy[b]
+                                             for a, b in geo.SYM3]), 0.0))
+        r.append(res * (np.sqrt(w) / sigma)[:, None])
+    H6 = Hv[0] + Hv[1]
+    # the joints both views determine (the bias and the globals' response: their rays')
+    adj, det = geo.sym3_adjugate(H6)
+    own = m[0] & m[1] & (det > 0)
     Hinv = np.zeros((len(t), 3, 3))
-    Hinv[ok] = _full3(adj[:, ok] / det[ok])
+    Hinv[own] = _full3(adj[:, own] / det[own])
+    # every joint's information in its frame with the graph's ridge (:data:`RIDGE`): a
+    # joint one view sees (the other left out) is fixed by the smoothness below
+    top = np.zeros(T)
+    np.maximum.at(top, t, H6[:3].max(0))
+    Hr = H6                                  # in place: H6 is not read again
+    Hr[:3] += RIDGE * top[t]
+    adj, det = geo.sym3_adjugate(Hr)
+    ok = det > 0
     # the detector's bias: each joint's mean residual in each view (:func:`_bias_weights`)
     Hb6 = np.zeros_like(Hv[0])
     for mk, rv, Hk in zip(m, r, Hv):
@@ -301,7 +321,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
         Hb6 += (2.0 * np.sum((mean / cnt[:, None]) ** 2, axis=1))[j] * Hk
     Hb = _full3(Hb6)
     marg = np.full((T, J, 3, 3), np.nan)
-    marg[t[ok], j[ok]] = Hinv[ok]
+    marg[t[ok], j[ok]] = _full3(adj[:, ok] / det[ok])
     used_ok = np.zeros((T, J), bool)
     used_ok[t[ok], j[ok]] = True
     if joints_pass and opts.joints_smoothness_sigma is not None:
@@ -310,12 +330,13 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
         band = _smoothness_band(used_ok, rig.frame_ids, smooth)
         if band is not None:
             info = np.zeros((T, J, 3, 3))
-            info[t[ok], j[ok]] = _full3((Hv[0] + Hv[1])[:, ok])
+            info[t[ok], j[ok]] = _full3(Hr[:, ok])
             marg = _chain_solve(marg, used_ok, band, info)
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
-        state.scale == "subject_height") else None, rays=False)
+        state.scale == "subject_height") else None, rays=False, weights=wts,
+        ridge=RIDGE * top[t])
     cov = np.full((T, J, 3, 3), np.nan)
     cov[t, j] = (float(state.variance_factor) * marg[t, j] + Hinv @ Hb @ Hinv
                  + np.nan_to_num(glob))
@@ -890,7 +911,9 @@ def _tridiagonal_marginals(D: np.ndarray, U: np.ndarray, off: bool = False,
 def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]],
                             Cz: np.ndarray | None, points: np.ndarray, pixels: list,
                             masks: list, pixel_sigma: float, step: float = 1e-6,
-                            frames: np.ndarray | None = None, rays: bool = True) -> np.ndarray:
+                            frames: np.ndarray | None = None, rays: bool = True,
+                            weights: list | None = None, ridge: np.ndarray | None = None
+                            ) -> np.ndarray:
     """The covariance of points triangulated from two views or more, the globals' share
     included.
 
@@ -914,6 +937,12 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             unit).
         rays: with the rays' share; ``False``: the globals' share alone (``G C_z G^T``,
             zero without ``Cz``).
+        weights: ``V`` arrays ``(N,)``, each observation's weight in the globals'
+            response (a robust kernel's, :func:`~mirrorgraph.factors.reprojection.
+            kernel_weights`); ``None``: 1.
+        ridge: ``(N,)`` added to each point's information in the globals' response
+            (the graph's :data:`RIDGE`), which then covers points one view sees too
+            (their response across the ray); with ``rays=False`` only.
 
     Returns:
         ``(N, 3, 3)``; NaN where fewer than two views see a point.
@@ -948,6 +977,9 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
             inv = np.where(m, 1.0 / y[2], 0.0)
             jx = (P[0, :3, None] - P[2, :3, None] * (y[0] * inv)) * inv       # (3, N)
             jy = (P[1, :3, None] - P[2, :3, None] * (y[1] * inv)) * inv
+            if weights is not None:                  # w J^T J and w J^T J_z
+                root = np.sqrt(np.asarray(weights[vi], float).reshape(-1))
+                jx, jy = jx * root, jy * root
             for c, (a, b) in enumerate(geo.SYM3):
                 info[c] += jx[a] * jx[b] + jy[a] * jy[b]
             for k in range(n):
@@ -957,10 +989,15 @@ def triangulated_covariance(projections: Callable[[np.ndarray], list[np.ndarray]
                 yp, ym = Pp[:, :3] @ Xt + Pp[:, 3:4], Pm[:, :3] @ Xt + Pm[:, 3:4]
                 dx = np.where(m, (yp[0] / yp[2] - ym[0] / ym[2]) / (2 * step), 0.0)
                 dy = np.where(m, (yp[1] / yp[2] - ym[1] / ym[2]) / (2 * step), 0.0)
+                if weights is not None:
+                    dx, dy = dx * root, dy * root
                 rhs[:, k] += jx * dx + jy * dy
+    if ridge is not None:
+        info[:3] += np.asarray(ridge, float)
     adj, det = geo.sym3_adjugate(info)
     if cov is None:                      # as geo.triangulation_covariance decides it
-        seen = np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0) >= 2
+        seen = (np.sum([np.asarray(m, bool).reshape(-1) for m in masks], axis=0)
+                >= (2 if ridge is None else 1))
         ok = seen & np.isfinite(info).all(0)
         ok[ok] = det[ok] > 0
         cov = np.where(ok[:, None, None], 0.0, np.nan) * np.ones((1, 3, 3))

@@ -37,6 +37,10 @@ class SolveState:
         plane_basis: per mirror the ``(3, 2)`` tangent basis of the normal.
         noise_px: the a posteriori pixel sigma; variance_factor: ``(noise / pixel_sigma)^2``.
         view_masks: per view the observations kept.
+        joints_masks: per view the observations the output joints rest on where they
+            differ from :attr:`view_masks` (a long video's joints pass, which leaves
+            out observations the body exposes, :func:`~.stages.joints_pass`; a
+            single graph holds them in :attr:`problem`); empty: :attr:`view_masks`.
         rejected: observations dropped as outliers (all views, all stages).
         undetermined: joints dropped because GTSAM found them undetermined.
         prior_info: prior name -> description.
@@ -105,3 +109,4 @@ class SolveState:
     plane_spread: list[np.ndarray] = field(default_factory=list)
     focal_undetermined: dict[str, dict] = field(default_factory=dict)
     focal_bias: dict[str, dict] = field(default_factory=dict)
+    joints_masks: list[np.ndarray] = field(default_factory=list)

@@ -134,15 +134,36 @@ def _minplus(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return out
 
 
-def _scan(M: np.ndarray) -> np.ndarray:
-    """``(T, ...)`` inclusive prefix min-plus products ``M[0] M[1] ... M[t]`` (an
-    associative scan in ``log2 T`` vectorised steps, Hillis and Steele 1986)."""
-    out = np.array(M, copy=True)
-    k = 1
-    while k < len(out):
-        out[k:] = _minplus(out[:-k], out[k:])
-        k *= 2
-    return out
+#: Frames a block of :func:`_messages` (the blocks' products are formed side by side).
+MESSAGE_BLOCK = 64
+
+
+def _messages(M: np.ndarray, block: int = MESSAGE_BLOCK) -> np.ndarray:
+    """``(T, ..., S)`` the Viterbi recursion's forward messages ``v_t = v_{t-1} M[t]``
+    (min-plus, ``v_{-1} = 0``) of ``(T, ..., S, S)`` matrices: the product of each block
+    of ``block`` frames, every block at once; the blocks' entering messages one block
+    after the other; then every block's frames at once. ``O(T)`` work in ``2 block``
+    vectorised steps (a scan of prefix products, Hillis and Steele 1986, does
+    ``log2 T`` times the work)."""
+    T, S = len(M), M.shape[-1]
+    nb = -(-T // block)
+    pad = nb * block - T
+    if pad:                                                  # identity matrices at the end
+        eye = np.where(np.eye(S, dtype=bool), 0.0, np.inf)
+        M = np.concatenate([M, np.broadcast_to(eye, (pad,) + M.shape[1:])])
+    Mb = M.reshape((nb, block) + M.shape[1:])
+    total = Mb[:, 0].copy()
+    for k in range(1, block):
+        total = _minplus(total, Mb[:, k])
+    entering = np.zeros((nb,) + M.shape[1:-1])
+    for i in range(1, nb):
+        entering[i] = _minplus(entering[i - 1][..., None, :], total[i - 1])[..., 0, :]
+    out = np.empty((nb, block) + M.shape[1:-1])
+    v = entering
+    for k in range(block):
+        v = _minplus(v[..., None, :], Mb[:, k])[..., 0, :]
+        out[:, k] = v
+    return out.reshape((nb * block,) + M.shape[1:-1])[:T]
 
 
 class _Chain:
@@ -187,7 +208,7 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     """``(T, P, 2)`` bool: the frames where the detector swapped pair ``p``'s labels in
     the direct view (``[..., 0]``) and in the reflection (``[..., 1]``) (the most likely
     path of the module docstring's chain: each frame's state the smaller of the forward
-    and backward min-plus messages' sums, by associative scans); pairs in the order of
+    and backward min-plus messages' sums, :func:`_messages`); pairs in the order of
     ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
     opts = options or BodySwapOptions()
     left, right = _pairs(np.asarray(paired.skeleton.flip))
@@ -206,11 +227,10 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     gap = np.where(before >= 0, frames[:, None] - frames[np.maximum(before, 0)], 10 ** 12)
     fresh = seen & ((before < 0) | (gap > opts.max_gap))
     M = _transitions(pts, _carried(pts), gap, fresh, scale, opts)   # (T, P, 4, 4)
-    forward = _scan(M).min(axis=-2)                                 # (T, P, cur)
+    forward = _messages(M)                                          # (T, P, cur)
     backward = np.zeros((T, P, _STATES))
-    if T > 1:
-        rest = _scan(np.swapaxes(M[1:][::-1], -1, -2))[::-1]        # M[t+1] ... M[T-1], transposed
-        backward[:-1] = rest.min(axis=-2)
+    if T > 1:                                       # M[t+1] ... M[T-1], transposed
+        backward[:-1] = _messages(np.swapaxes(M[1:][::-1], -1, -2))[::-1]
     state = np.argmin(forward + backward, axis=-1)
     in_view = np.isfinite(pts).all(-1).reshape(T, P, 2, 2).any(-1)  # (T, P, view)
     return np.stack([_REAL_SWAPPED[state], _MIRROR_SWAPPED[state]], -1).astype(bool) & in_view

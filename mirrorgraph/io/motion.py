@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .archive import savez
 from .atomic import atomic_path, atomic_write_text
 from .motion_base import (CAMERA_FRAME, TRC_FROM_CAMERA, metres_factor, regular_frames,
                           to_trc_axes, trc_marker_name, trc_marker_names)
@@ -154,12 +155,10 @@ def write_joints3d_npz(path: str | os.PathLike, joints3d: np.ndarray, valid: np.
     if scale_rel_std is not None:
         extra["scale_rel_std"] = np.float64(scale_rel_std)
     with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, joints3d=X, valid=ok, frame_ids=ids,
-                                joint_names=np.array(names, dtype=str),
-                                fps=np.float64(np.nan if fps is None else fps),
-                                unit=np.array(str(unit)), frame=np.array(CAMERA_FRAME),
-                                **extra)
+        savez(tmp, dict(joints3d=X, valid=ok, frame_ids=ids,
+                        joint_names=np.array(names, dtype=str),
+                        fps=np.float64(np.nan if fps is None else fps),
+                        unit=np.array(str(unit)), frame=np.array(CAMERA_FRAME), **extra))
 
 
 def write_joints3d_csv(path: str | os.PathLike, joints3d: np.ndarray, valid: np.ndarray | None,

@@ -7,7 +7,7 @@ calibrate`` writes them beside the calibration (``c.json`` -> ``c.report.npz``,
 named in ``c.json`` under :data:`KEY`) so that ``mirrorgraph report`` draws the
 very figures ``calibrate --report`` draws.
 
-The file (NumPy ``.npz``, compressed, no pickles) holds:
+The file (NumPy ``.npz``, :func:`mirrorgraph.io.archive.savez`, no pickles) holds:
 
 * ``real``, ``mirror``: ``(T, J, 3)`` paired keypoints (x px, y px, confidence),
   undistorted, the reflection's labels flipped, as the calibration used them;
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +34,7 @@ import numpy as np
 
 from ..result.mirror import write_calibration
 from ..errors import InputError
+from ..io.archive import savez
 from ..io.atomic import atomic_path
 from ..io.calibration import write_json
 from ..keypoints import PairedKeypoints
@@ -101,22 +101,7 @@ def save_run(file: str | os.PathLike, run) -> None:
         arrays["completed"] = np.asarray(run.completed, bool)
     arrays["run_fps"] = np.float64(run.fps)
     arrays["fps_source"] = np.str_(run.fps_source)
-    _savez(file, arrays)
-
-
-#: Time stamp of every member of the ``.npz`` (zip) file: the same run gives the same bytes.
-_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
-
-
-def _savez(file, arrays: dict[str, Any]) -> None:
-    """``np.savez_compressed`` with fixed time stamps, so that the bytes depend on the data only."""
-    with zipfile.ZipFile(file, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name, value in arrays.items():
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_TIME)
-            info.compress_type = zipfile.ZIP_DEFLATED
-            info.external_attr = 0o644 << 16
-            with zf.open(info, "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
+    savez(file, arrays)
 
 
 def write_run(path: str | os.PathLike, run) -> Path:

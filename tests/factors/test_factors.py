@@ -306,3 +306,13 @@ def test_smoothness_factor_is_exact_and_matches_numerical_jacobian():
     sm.add_many(g, np.array([[X(0), X(1), X(2)]], dtype=np.uint64), frames[None], pts[None],
                 values)
     assert g.error(moved) == pytest.approx(f.error(moved), rel=1e-12)
+
+
+@pytest.mark.parametrize("kernel", ["geman_mcclure", "huber", "cauchy", "tukey"])
+def test_kernel_weights_are_gtsams(kernel):
+    from mirrorgraph.factors.reprojection import KERNELS, kernel_weights
+
+    e = np.array([0.0, 0.3, 1.0, 2.0, 2.9, 4.5])
+    m = KERNELS[kernel](2.5)
+    np.testing.assert_allclose(kernel_weights(kernel, e, 2.5), [m.weight(x) for x in e],
+                               rtol=1e-12)

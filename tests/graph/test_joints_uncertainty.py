@@ -162,6 +162,10 @@ def test_a_video_solved_in_chunks_has_its_stds_too(monkeypatch):
     chunked = ju._chunked
 
     def spy(*args):
+        state = args[0]
+        # the joints pass's observations: the calibration's, less any it left out
+        assert len(state.joints_masks) == len(state.view_masks) == 2
+        assert all(not (j & ~v).any() for j, v in zip(state.joints_masks, state.view_masks))
         seen.append(True)
         return chunked(*args)
 
@@ -175,3 +179,41 @@ def test_a_video_solved_in_chunks_has_its_stds_too(monkeypatch):
     zs = (np.linalg.norm(f * run.joints3d - truth, axis=-1)[ok]
           / (f * run.joints_std_shape[ok]))
     assert 0.3 < np.median(zs) < 1.5 and np.percentile(zs, 99) < 3.0
+
+
+def test_the_chunks_covariance_is_the_graphs_on_the_joints_pass_observations():
+    """A long video's joints' covariance (the chunks' graphs are not kept: each joint's
+    own rays, the smoothness, the bias, the mirror) on the observations the joints pass
+    kept, where it left some out: the one graph's covariance of the same solution with
+    the bones and the hip aside (which the chunks' formula leaves out), to 1e-6; on the
+    calibration's observations (the left-out ones counted) it is not."""
+    from dataclasses import replace
+
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.graph import joints_uncertainty as ju
+    from mirrorgraph.graph.solve import solve
+    from mirrorgraph.graph.stage_config import single_mirror_config
+    from mirrorgraph.pipelines.solve import prepare, with_intrinsics
+    from mirrorgraph.synth import make_scene
+
+    warnings.filterwarnings("ignore")
+    sc = make_scene(frames=240, seed=0, noise_std=4.0, epipolar_outlier_rate=0.08)
+    p = sc.paired()
+    opts = RefineOptions(subject_height=sc.subject_height)
+    rig = prepare(p, sc.K, sc.normal, p.valid(), None, opts)
+    state = solve(rig, opts, single_mirror_config(opts), height=opts.subject_height)
+    rig = with_intrinsics(rig, state.intrinsics)
+    kept = [np.asarray(v.mask, bool) for v in state.problem.rig.views]
+    left = (state.view_masks[0] & ~kept[0]) | (state.view_masks[1] & ~kept[1])
+    assert left.sum() >= 50                         # views of joints the joints pass left out
+    graph = position_std(ju.graph_joints_covariance(
+        state, replace(opts, use_bone_length=False, use_hip=False), joints_pass=True, rig=rig))
+    empty = np.full(state.used.shape + (3, 3), np.nan)
+    chunks = position_std(ju._chunked(replace(state, problem=None, joints_masks=kept), opts,
+                                      True, 1.0, rig, empty.copy()))
+    ok = np.isfinite(graph)
+    assert ok.sum() > 2000 and np.array_equal(ok, np.isfinite(chunks))
+    np.testing.assert_allclose(chunks[ok], graph[ok], rtol=1e-6)
+    counted = position_std(ju._chunked(replace(state, problem=None), opts, True, 1.0, rig,
+                                       empty.copy()))
+    assert np.median(np.abs(counted[left] / graph[left] - 1)) > 0.05

@@ -4,6 +4,7 @@ against synthetic scenes whose swapped frames are known."""
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from mirrorgraph.initial.body_left_right import swap_states, undo_body_swaps
 from mirrorgraph.initial.pairing import pair_detections
@@ -128,3 +129,17 @@ def test_a_person_swapped_in_one_view_that_fits_the_epipole_either_way_is_undone
     after = _wrong_labels(fixed, scene)
     assert (after[..., 0] != after[..., 1]).all(1).sum() == 0
     assert after.sum() <= 0.2 * before.sum()
+
+
+@pytest.mark.parametrize("T", [1, 5, 64, 200])
+def test_messages_are_the_recursion_frame_by_frame(T):
+    from mirrorgraph.initial.body_left_right import _messages
+
+    rng = np.random.default_rng(T)
+    M = rng.random((T, 3, 4, 4)) * 10
+    M[rng.random((T, 3)) < 0.2] = np.where(np.eye(4, dtype=bool), 0.0, np.inf)  # unseen
+    v, want = np.zeros((3, 4)), []
+    for t in range(T):
+        v = np.min(v[:, :, None] + M[t], axis=1)
+        want.append(v)
+    np.testing.assert_allclose(_messages(M, block=16), np.array(want), rtol=1e-12)
