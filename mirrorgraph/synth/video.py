@@ -6,12 +6,11 @@ a body a pose detector takes for a person: a head, a neck, a torso and limbs as 
 strokes of a fixed thickness in metres (so a farther body is thinner), painted far to
 near, the reflection dimmer (a mirror reflects less than all the light) and behind the
 person where they overlap. A head shows its face (the eyes) only where it turns to the
-camera, else hair: the reflection of a person facing the camera is seen from behind, and
-a pose detector labels its left and right as a mirror image's (a face drawn there makes
-BlazePose label it as a person facing the camera, and the mirror from the clip comes out
-degrees off: ``bench/RESULTS_synth_clip.md``). :func:`reflection_visibility` measures how
-much of the reflection a clip shows. The scene's detector noise and outliers are not drawn: the
-detector that reads the video makes its own. What it is for: trying ``calibrate clip.mp4``,
+camera, else hair: the reflection of a person facing the camera is seen from behind (a
+face drawn there makes BlazePose label the reflection as a person facing the camera, left
+and right crossed, in most frames: ``bench/RESULTS_synth_clip.md``).
+:func:`reflection_visibility` measures how much of the reflection a clip shows. The scene's
+detector noise and outliers are not drawn: the detector that reads the video makes its own. What it is for: trying ``calibrate clip.mp4``,
 ``live clip.mp4``, ``--video`` and ``--render`` on a scene with a known answer
 (``tests/synth/test_video.py``: BlazePose finds both bodies in every frame of seed 1).
 A body drawn across much of the frame or cut by its edge is not a person to BlazePose
