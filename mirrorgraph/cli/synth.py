@@ -17,7 +17,7 @@ from ..synth.geometry import PRESETS
 from ..synth.writer import FORMATS as SCENE_FORMATS
 from ..progress import Progress
 from .args import (add_common, floats, image_size, positive, print_result, printer, rate, seed,
-                   solver_progress)
+                   solver_progress, warn)
 from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_demo", "cmd_synth"]
@@ -120,13 +120,18 @@ def cmd_synth(args) -> int:
     paths = write_scene(scene, args.out, formats=tuple(f.strip() for f in args.formats.split(",")))
     say = printer(args)
     if args.video_frames:
-        from ..synth.video import write_scene_video
+        from ..synth.video import hidden_reflection_note, write_scene_video
 
         count = min(args.video_frames, args.frames)
         with Progress("drawing clip.mp4", total=count, enabled=not args.quiet) as bar:
             # for mirrorgraph's own reader: the codec need not be one browsers play
             paths["video"], _ = write_scene_video(scene, Path(args.out) / "clip.mp4", count,
                                                   progress=bar.update)
+        hidden = hidden_reflection_note(scene, count)
+        if hidden:
+            warn(args, [f"clip.mp4 of seed {args.seed}: {hidden}, where a pose detector "
+                        "finds the person alone (the keypoint files hold the whole scene; "
+                        "another --seed or --geometry favourable draws both)"])
     say(f"wrote a {args.frames}-frame {args.skeleton} {args.geometry} scene to {args.out}:")
     for name, path in paths.items():
         say(f"  {name:18s} {path}")

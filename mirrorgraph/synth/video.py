@@ -5,8 +5,12 @@ Each frame draws the true image of the joints (:attr:`SyntheticScene.real_image`
 a body a pose detector takes for a person: a head, a neck, a torso and limbs as rounded
 strokes of a fixed thickness in metres (so a farther body is thinner), painted far to
 near, the reflection dimmer (a mirror reflects less than all the light) and behind the
-person where they overlap. The scene's detector noise and outliers are not drawn: the
-detector that reads the video makes its own. What it is for: trying ``calibrate clip.mp4``,
+person where they overlap. A head shows its face (the eyes) only where it turns to the
+camera, else hair: the reflection of a person facing the camera is seen from behind (a
+face drawn there makes BlazePose label the reflection as a person facing the camera, left
+and right crossed, in most frames: ``bench/RESULTS_synth_clip.md``).
+:func:`reflection_visibility` measures how much of the reflection a clip shows. The scene's
+detector noise and outliers are not drawn: the detector that reads the video makes its own. What it is for: trying ``calibrate clip.mp4``,
 ``live clip.mp4``, ``--video`` and ``--render`` on a scene with a known answer
 (``tests/synth/test_video.py``: BlazePose finds both bodies in every frame of seed 1).
 A body drawn across much of the frame or cut by its edge is not a person to BlazePose
@@ -22,7 +26,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["render_frame", "write_scene_video", "VIDEO_JOINTS"]
+__all__ = ["render_frame", "write_scene_video", "reflection_visibility", "hidden_reflection_note",
+           "VIDEO_JOINTS", "VISIBLE_FRACTION"]
 
 #: The joints the drawing needs (every layout mirrorgraph reads has them).
 VIDEO_JOINTS = ("nose", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
@@ -36,6 +41,7 @@ _LIMBS = (("left_shoulder", "left_elbow", 0.10), ("left_elbow", "left_wrist", 0.
           ("right_hip", "right_knee", 0.16), ("right_knee", "right_ankle", 0.12))
 _HEAD_M, _NECK_M, _CHEST_M, _EYE_M = 0.22, 0.10, 0.24, 0.02   # heights, widths: metres
 _SKIN, _SHIRT, _TROUSERS, _EYE = (150, 180, 220), (180, 90, 40), (60, 50, 40), (40, 30, 30)
+_HAIR = (30, 40, 60)
 _BACKGROUND = (90, 100, 110)
 
 
@@ -76,9 +82,15 @@ def _body(img: np.ndarray, p: np.ndarray, z: np.ndarray, f: float, index: dict,
         shoulders = p[torso[:2]].mean(0)
         if np.isfinite(shoulders).all():
             parts.append((depth + 1e-3, "stroke", (shoulders, head, width(_NECK_M, depth), _SKIN)))
-        parts.append((depth, "head", (head, f * _HEAD_M / depth)))
-        eyes = [index[n] for n in ("left_eye", "right_eye") if n in index]
-        if eyes and np.isfinite(p[eyes]).all():
+        # the face where it turns to the camera: an eye nearer than the ears' middle
+        # is seen, the back of the head is hair (a reflection of a person facing the
+        # camera shows their back, and a pose detector labels it so)
+        ears = [index[n] for n in ("left_ear", "right_ear") if n in index]
+        back = float(np.mean(z[ears])) if ears else depth
+        eyes = [index[n] for n in ("left_eye", "right_eye")
+                if n in index and np.isfinite(p[index[n]]).all() and z[index[n]] < back]
+        parts.append((depth, "head", (head, f * _HEAD_M / depth, _SKIN if eyes else _HAIR)))
+        if eyes:
             parts.append((depth - 1e-3, "eyes", (p[eyes], width(_EYE_M, depth))))
     for _, kind, arg in sorted(parts, key=lambda t: -t[0]):      # far to near
         if kind == "stroke":
@@ -91,9 +103,67 @@ def _body(img: np.ndarray, p: np.ndarray, z: np.ndarray, f: float, index: dict,
         elif kind == "torso":
             cv2.fillConvexPoly(img, np.round(arg).astype(np.int32), col(_SHIRT), cv2.LINE_AA)
         else:
-            centre, size = arg
+            centre, size, colour = arg
             cv2.ellipse(img, pt(centre), (max(2, int(0.42 * size)), max(2, int(0.5 * size))),
-                        0, 0, 360, col(_SKIN), -1, cv2.LINE_AA)
+                        0, 0, 360, col(colour), -1, cv2.LINE_AA)
+
+
+#: A reflection counts as visible in a frame where at least this fraction of its drawn
+#: area lies in the image and not behind the person.
+VISIBLE_FRACTION = 0.5
+
+
+def _joint_index(scene) -> dict:
+    sk = scene.skeleton
+    return {n: sk.index(n) for n in (*VIDEO_JOINTS, "left_eye", "right_eye", "left_ear",
+                                     "right_ear") if sk.has(n)}
+
+
+def reflection_visibility(scene, frames: int | None = None, *, scale: float = 0.125
+                          ) -> np.ndarray:
+    """``(T,)`` fraction of the reflection's drawn area that the clip shows, per frame of
+    the first ``frames`` (default all): inside the image and not behind the person.
+
+    Both bodies are drawn as :func:`render_frame` draws them, as masks at ``scale``
+    times the image size on a canvas three images wide and high (the image in its
+    middle), so that the part of the reflection outside the image is counted too.
+    A reflection drawn nowhere (behind the camera) has visibility 0.
+    """
+    from .. import geometry as geo
+
+    W, H = scene.image_size
+    count = len(scene.frame_ids) if frames is None else min(int(frames), len(scene.frame_ids))
+    index = _joint_index(scene)
+    f = float(scene.K[0, 0]) * scale
+    w, h = int(round(W * scale)), int(round(H * scale))
+    offset = np.array([w, h], float)
+    out = np.zeros(count)
+    for t in range(count):
+        X = scene.joints3d[t]
+        S = geo.reflect_points(X, scene.normal, scene.distance)
+        masks = []
+        for p, z in ((scene.mirror_image[t], S[:, 2]), (scene.real_image[t], X[:, 2])):
+            img = np.zeros((3 * h, 3 * w), np.uint8)     # every colour's first channel > 0
+            _body(img, p * scale + offset, z, f, index, 1.0)
+            masks.append(img > 0)
+        mirror, person = masks
+        area = mirror.sum()
+        if area == 0:
+            continue
+        shown = mirror[h:2 * h, w:2 * w] & ~person[h:2 * h, w:2 * w]
+        out[t] = shown.sum() / area
+    return out
+
+
+def hidden_reflection_note(scene, frames: int | None = None) -> str | None:
+    """What the clip of the first ``frames`` frames cannot show, in one line, where its
+    reflection is visible (:data:`VISIBLE_FRACTION`, :func:`reflection_visibility`) in
+    fewer than half of them; else ``None``."""
+    seen = reflection_visibility(scene, frames) >= VISIBLE_FRACTION
+    if 2 * seen.sum() >= len(seen):
+        return None
+    return (f"the reflection is behind the person or outside the image in "
+            f"{len(seen) - int(seen.sum())} of the {len(seen)} frames drawn")
 
 
 def render_frame(scene, t: int, *, reflection_gain: float = 0.7) -> np.ndarray:
@@ -104,9 +174,7 @@ def render_frame(scene, t: int, *, reflection_gain: float = 0.7) -> np.ndarray:
     W, H = scene.image_size
     img = np.empty((H, W, 3), np.uint8)
     img[:] = _BACKGROUND
-    sk = scene.skeleton
-    index = {n: sk.index(n) for n in (*VIDEO_JOINTS, "left_eye", "right_eye", "left_ear",
-                                      "right_ear") if sk.has(n)}
+    index = _joint_index(scene)
     X = scene.joints3d[t]
     S = geo.reflect_points(X, scene.normal, scene.distance)
     f = float(scene.K[0, 0])
