@@ -26,7 +26,9 @@ metric scale's relative std (:attr:`MirrorFusion.scale_rel_std`) holds the heigh
 the latest window's measured stature spread (a detector's distortion: more frames do not
 average it out) and the windows' statures' sampling std fused by its information
 (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
-frames). The per-frame bone prior holds the latest window's bone lengths. Fusing the scale
+frames) or, from three windows on, their distances' spread, the larger (a detector's
+error that drifts with the motion over longer than a window is seen between windows
+only). The per-frame bone prior holds the latest window's bone lengths. Fusing the scale
 otherwise (each window's distance moved to the fused normal so that its body keeps its
 size, the bones averaged over the windows, the median weighted by the sampling's
 information) measured no better on realistic streams of 150-frame windows
@@ -286,31 +288,51 @@ class MirrorFusion:
     MAX_DISTANCES = 1000
 
     @property
+    def distance_spread_std(self) -> float:
+        """The std of the windows' median distance from their spread: ``1.2533 * 1.4826
+        MAD / sqrt(n)`` over the ``n >= 3`` windows' distances (the median's standard
+        error, the MAD scaled to a normal's std; NaN with fewer windows). With a subject
+        height each window's distance is its scale (the stature measured on its joints
+        is the height), so this spread is the windows' scale draws seen together."""
+        if len(self.distances) < 3:
+            return float("nan")
+        d = np.array([x for x, _ in self.distances])
+        mad = 1.4826 * np.median(np.abs(d - np.median(d)))
+        return float(1.2533 * mad / np.sqrt(len(d)))
+
+    @property
     def distance_data_std(self) -> float:
         """The distance's std without the height's share: the windows' own (combined by
-        information) or their spread, the larger."""
+        information) or their spread (:attr:`distance_spread_std`), the larger."""
         if self.distance_info <= 0:
             return float("nan")
-        var = 1.0 / self.distance_info
-        if len(self.distances) >= 3:
-            d = np.array([x for x, _ in self.distances])
-            mad = 1.4826 * np.median(np.abs(d - np.median(d)))
-            var = max(var, (1.2533 * mad) ** 2 / len(d))
-        return float(np.sqrt(var))
+        return float(np.sqrt(max(1.0 / self.distance_info,
+                                 np.nan_to_num(self.distance_spread_std) ** 2)))
 
     @property
     def distance_std(self) -> float:
+        """The distance's std: with a subject height the windows' own and the metric
+        scale's share (:attr:`scale_rel_std`, which holds the windows' spread), else
+        :attr:`distance_data_std`."""
         if self.distance_info <= 0:
             return float("nan")
-        scale = self.scale_rel_std * self.distance if self.metric else 0.0
-        return float(np.hypot(self.distance_data_std, scale))
+        if not self.metric:
+            return self.distance_data_std
+        return float(np.hypot(np.sqrt(1.0 / self.distance_info),
+                              self.scale_rel_std * self.distance))
 
     @property
     def scale_rel_std(self) -> float:
         """The metric scale's relative std: the height's prior, the latest fused window's
-        measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows' fused
-        sampling std (:attr:`scale_sampling`; ``0`` where none was measured)."""
+        measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows'
+        sampling: their fused within-window std (:attr:`scale_sampling`) or, from three
+        windows on, their distances' spread (:attr:`distance_spread_std` over the
+        distance), the larger (``0`` where neither was measured). A window's own sampling
+        std sees only what varies within its frames; a detector's error that drifts
+        with the motion over longer than a window is seen between windows."""
         sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
+        spread = self.distance_spread_std / self.distance if self.metric else float("nan")
+        sampling = max(sampling, np.nan_to_num(spread))
         return float(np.sqrt(self.height_sigma ** 2 + self.scale_side ** 2 + sampling ** 2))
 
     def _median_distance(self) -> float:

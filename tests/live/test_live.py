@@ -240,7 +240,12 @@ def test_the_distance_is_the_windows_median_not_their_gauge_weighted_mean():
                               distance_std=s, frames=900))
     assert fu.distance == pytest.approx(1.015)
     assert 0.003 < fu.distance_data_std < 0.05
-    assert fu.distance_std == pytest.approx(np.hypot(fu.distance_data_std, 0.02 * 1.015))
+    # the spread is the windows' scale draws: in the scale's share, counted once
+    spread = fu.distance_spread_std
+    assert fu.distance_data_std == pytest.approx(spread)
+    assert fu.scale_rel_std == pytest.approx(np.hypot(0.02, spread / 1.015))
+    assert fu.distance_std == pytest.approx(np.hypot(1e-7 / 2, fu.scale_rel_std * 1.015),
+                                            rel=1e-6)
 
 
 def test_a_window_far_off_is_rejected_and_three_agreeing_reset():
@@ -503,6 +508,29 @@ def test_the_scale_std_holds_the_windows_fused_stature_sampling():
     fu.add(WindowEstimate(ok=True, normal=n, distance=2.1, cov_marginal=C, cov_indep=C,
                           cov_shared=np.zeros((3, 3)), distance_std=1e-3, frames=900))
     assert fu.scale_sampling == pytest.approx(1 / np.sqrt(info))
+
+
+def test_the_scale_std_covers_the_windows_scale_spread_their_sampling_misses():
+    """Windows whose scale errors (a detector's error drifting with the motion) spread
+    by 3 % while each window's stature sampling std says 0.5 %: the fused distance's
+    error against the true one is that of its scale std (from three windows on)."""
+    C = np.diag([1e-6, 1e-6, 0.0])
+    n = np.array([0.0, 0.0, 1.0])
+    rng = np.random.default_rng(7)
+    z = []
+    for _ in range(300):
+        fu = MirrorFusion(metric=True, height_sigma=0.0)
+        for e in rng.normal(0.0, 0.03, 5):
+            fu.add(WindowEstimate(ok=True, normal=n, distance=2.0 * (1 + e), cov_marginal=C,
+                                  cov_indep=C, cov_shared=np.zeros((3, 3)),
+                                  distance_std=1e-3, frames=900, scale_sampling=0.005,
+                                  scale_side=0.0))
+        z.append(abs(fu.distance / 2.0 - 1) / fu.scale_rel_std)
+    z = np.array(z)
+    # a median absolute deviation of five windows is itself a rough draw: the tail is
+    # wide, the middle right
+    assert 0.5 <= np.median(z) <= 1.2, np.median(z)
+    assert np.percentile(z, 90) < 3.5, np.percentile(z, 90)
 
 
 def test_the_live_scale_over_fused_windows_under_a_realistic_detector():
