@@ -7,8 +7,7 @@
         out.status, out.joints3d, out.joints_std, out.mirror.normal
     live.close()
 
-**Per frame** (fixed latency, no solver): the detections are checked (a bad frame is
-skipped and counted), undistorted, paired against the current mirror's epipole
+**Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired against the current mirror's epipole
 ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
 right swapped back where the frames so far say the detector confused them in either view
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
@@ -36,11 +35,9 @@ calibrated by the offline run: every frame so far each time their number doubles
 calibrator or before it (:func:`start_worker`) (``background=True``: the frames keep
 flowing; a buffer beyond ``max_buffer_frames`` while the worker is busy is thinned evenly).
 
-**Status**: ``initialising`` until the fused rotation std is at most
-``calibrated_std_deg``, then ``calibrated``; never ``calibrated`` while the latest window
-fails the reflection check (:mod:`mirrorgraph.initial.reflection_check`; the mirror's
-``doubt`` says so). Accuracy, std honesty and window sizes: ``bench/RESULTS_live.md``,
-``bench/RESULTS_live_lag.md``, ``bench/RESULTS_live_video.md``.
+**Status**: ``initialising`` until the fused rotation std is at most ``calibrated_std_deg``,
+then ``calibrated`` unless the latest window fails the reflection check
+(:mod:`mirrorgraph.initial.reflection_check`). Figures: ``bench/RESULTS_live*.md``.
 """
 
 from __future__ import annotations
@@ -358,8 +355,8 @@ _STARTED: list = []
 
 
 def start_worker() -> None:
-    """Start the background worker (its process and imports: about a second of CPU) now,
-    for the next :class:`LiveCalibrator` with ``background=True`` to take: a caller that
+    """Start the background worker (its process and imports: about a second of CPU) ahead
+    of its calibrator, for the next :class:`LiveCalibrator` with ``background=True`` to take: a caller that
     reads its input before it can make the calibrator overlaps the two.
     :func:`stop_started_workers` ends any left untaken."""
     _STARTED.append(_new_worker())

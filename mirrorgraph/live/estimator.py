@@ -28,11 +28,8 @@ average it out) and the windows' statures' sampling std fused by its information
 (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
 frames) or, from three windows on, their distances' spread, the larger (a detector's
 error that drifts with the motion over longer than a window is seen between windows
-only). The per-frame bone prior holds the latest window's bone lengths. Fusing the scale
-otherwise (each window's distance moved to the fused normal so that its body keeps its
-size, the bones averaged over the windows, the median weighted by the sampling's
-information) measured no better on realistic streams of 150-frame windows
-(``bench/RESULTS_live_scale.md``).
+only). The per-frame bone prior holds the latest window's bone lengths
+(other fusions of the scale: ``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
 (:meth:`MirrorFusion.restart`); later blocks are fused (:meth:`MirrorFusion.add`). A window

@@ -7,9 +7,8 @@ drift is measured) shows at its frame ``g`` the rig's frame ``(rate g - o) / r``
 frame rate, frame ``f`` shows rig frame ``f - o`` (the rig file's ``frame_offset``); a
 fractional ``o`` puts its frames between the rig's. Three steps (three cameras or more):
 
-1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift
-   against the reference camera by the least median Sampson distance of an essential
-   matrix fitted at that shift (LMedS, no threshold).
+1. **A start** (:func:`coarse_cost`): per camera, the best of every sixth whole shift by
+   the least median Sampson distance of an essential matrix fitted there (LMedS).
 2. **Whole offsets against the rig** (:func:`_rig_search`): the rig's poses from the
    essential matrix of the reference and its best partner, the others resected; then in
    rounds every camera's median reprojection error per whole shift against the joints
@@ -20,31 +19,25 @@ fractional ``o`` puts its frames between the rig's. Three steps (three cameras o
 3. **Fractions against the rig** (:func:`_rig_fraction`): every camera's joints as
    local quadratics of its own samples, evaluated at its own instants ``t + u`` on a grid
    of ``u`` (a 30 fps camera's seven samples span twelve frames of a 60 fps clock), the
-   others at their latest fractions, the cost (Huber) fitted by a quadratic; in rounds
-   until they settle. The std is the M-estimator's sandwich over blocks of samples,
-   propagated through the cameras' coupling. A camera leaves the rig file's whole offset
+   others at their latest fractions, the Huber cost fitted by a quadratic, in rounds; the
+   std the M-estimator's sandwich over blocks of samples through the cameras' coupling. A camera leaves the rig file's whole offset
    only where the move is significant (the block bootstrap of its whole-shift scan
    prefers it in :data:`ACCEPT_LEVEL` of the draws, or the fraction lies beyond
    :data:`FRACTION_Z` stds) and the draws agree on it (:data:`MOVE_SPREAD`); a fraction
    is applied beyond :data:`FRACTION_Z` stds, or where the camera moved and the people
    fix it within half a frame.
 
-With ``drift`` (the rig file's ``clock_drift``), every camera's fraction is measured again
-in :data:`DRIFT_STRETCHES` stretches of its frames and a line through them gives its clock
-rate and its offset at the rig's frame 0 (:func:`_drift`).
+With ``drift`` (the rig file's ``clock_drift``) a line through each camera's fractions in
+:data:`DRIFT_STRETCHES` stretches gives its clock rate and offset (:func:`_drift`).
 
-A rig of two cameras has no third to triangulate from: the pair's epipolar cost per
-whole shift (:func:`scan_shifts`, :func:`joint_offsets`) and the fraction against the
-reference (:func:`subframe_offset`) instead. Continuous-time
-calibration treats a camera's time as ``t + dt`` in the same way (e.g. Kalibr's temporal
-calibration, Furgale et al., IROS 2013); Pose2Sim synchronises whole frames from the
-keypoints' speeds. :func:`on_rig_clock` puts a camera's keypoints on the rig's frames at
-their instants (linear interpolation between its own frames).
+Two cameras: the pair's epipolar cost per whole shift (:func:`scan_shifts`,
+:func:`joint_offsets`) and the fraction against the reference (:func:`subframe_offset`).
+:func:`on_rig_clock` puts a camera's keypoints on the rig's frames at their instants
+(linear interpolation). Reference: Kalibr's temporal calibration (Furgale et al., IROS 2013).
 
-Shapes: a camera's person is ``(T_c, J, 2)`` normalised or pixel coordinates on its own
-samples (NaN where unseen); a sample is one row of its frames (``frame_step`` frames
-apart for a video read every n-th frame). The scans run on a grid of rig frames
-(:class:`_Track`: every camera's own samples at their places on it).
+Shapes: a camera's person is ``(T_c, J, 2)`` coordinates on its own samples (NaN where
+unseen; a sample is one row, ``frame_step`` frames apart); the scans run on a grid of rig
+frames (:class:`_Track`).
 """
 
 from __future__ import annotations
