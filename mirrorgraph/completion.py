@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from .pipelines.solve import RigSolution
 
 __all__ = ["Completion", "complete_mirror_joints", "complete_rig_joints", "anchor_gate",
-           "smooth_tracks", "head_prior", "HEAD_LANDMARKS", "HEAD_PRIOR_SIGMA", "BODY_GATE_MADS",
+           "smooth_tracks", "head_prior", "head_level", "HEAD_LANDMARKS", "HEAD_PRIOR_SIGMA", "BODY_GATE_MADS",
            "BODY_GATE_FLOOR", "BODY_GATE_ANCHORS", "BODY_GATE_MIN_FRAMES"]
 
 #: Body gate: robust z-score (in scaled MADs) beyond which a completed joint's
@@ -106,6 +106,15 @@ def _head_prior_sigma() -> float:
 HEAD_PRIOR_SIGMA = _head_prior_sigma()
 
 
+def head_level(name: str) -> float:
+    """A face keypoint's height over the shoulders, a fraction of the stature (Winter's
+    landmarks, :data:`HEAD_LANDMARKS`); ``name`` without a person's tag."""
+    from .anthropometry import LANDMARK_HEIGHT
+
+    return (sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[name])
+            - LANDMARK_HEIGHT["shoulder"])
+
+
 def head_prior(points: np.ndarray, known: np.ndarray, names: list[str] | tuple[str, ...],
                height: float, cov: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -132,7 +141,6 @@ def head_prior(points: np.ndarray, known: np.ndarray, names: list[str] | tuple[s
         ``(mean, info)``, ``(T, J, 3)`` and ``(T, J, 3, 3)``, NaN where no prior; ``None``
         where the layout has no face keypoint, or no shoulders and hips.
     """
-    from .anthropometry import LANDMARK_HEIGHT
     from .skeletons import person_of
 
     if not (math.isfinite(height) and height > 0):
@@ -159,8 +167,7 @@ def head_prior(points: np.ndarray, known: np.ndarray, names: list[str] | tuple[s
         axis = ms - 0.5 * (points[ok, lh] + points[ok, rh])
         with np.errstate(invalid="ignore", divide="ignore"):
             u = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-        level = sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[base])
-        m = ms + (level - LANDMARK_HEIGHT["shoulder"]) * height * u
+        m = ms + head_level(base) * height * u
         C = np.broadcast_to((HEAD_PRIOR_SIGMA * height) ** 2 * np.eye(3), (len(m), 3, 3)).copy()
         if cov is not None:
             Cs = 0.25 * (np.asarray(cov)[ok, ls] + np.asarray(cov)[ok, rs])

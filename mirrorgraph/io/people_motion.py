@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .archive import savez
 from .atomic import atomic_path
 from .motion import write_joints3d
 from .motion_base import CAMERA_FRAME, trc_marker_names
@@ -110,13 +111,13 @@ def write_people_joints3d(path: str | os.PathLike, joints3d: np.ndarray,
             extra["scale_rel_std"] = np.float64(scale_rel_std)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
-                np.savez_compressed(
-                    fh, joints3d=np.stack([c[0] for c in checked]),
+                savez(fh, dict(
+                    joints3d=np.stack([c[0] for c in checked]),
                     valid=np.stack([c[1] for c in checked]), frame_ids=ids,
                     joint_names=np.array(jnames, dtype=str),
                     fps=np.float64(np.nan if fps is None else fps),
                     unit=np.array(str(unit)), frame=np.array(CAMERA_FRAME),
-                    people=np.array(names, dtype=str), **extra)
+                    people=np.array(names, dtype=str), **extra))
         return [Path(path)]
     if layout == "prefixed":
         if suffix not in (".trc", ".c3d"):

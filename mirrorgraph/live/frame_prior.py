@@ -257,15 +257,13 @@ def head_layout(names) -> tuple | None:
     Kept per layout."""
     key = tuple(names)
     if key not in _HEADS:
-        from ..anthropometry import LANDMARK_HEIGHT
-        from ..completion import HEAD_LANDMARKS
+        from ..completion import HEAD_LANDMARKS, head_level
 
         index = {n: i for i, n in enumerate(key)}
         trunk = [index.get(f"{side}_{part}") for part in ("shoulder", "hip")
                  for side in ("left", "right")]
         face = [i for i, n in enumerate(key) if n in HEAD_LANDMARKS]
-        level = [sum(w * LANDMARK_HEIGHT[lm] for lm, w in HEAD_LANDMARKS[key[i]])
-                 - LANDMARK_HEIGHT["shoulder"] for i in face]
+        level = [head_level(key[i]) for i in face]
         _HEADS[key] = (None if not face or any(t is None for t in trunk) else
                        (np.array(face), np.array(trunk), np.array(level, float)))
     return _HEADS[key]
