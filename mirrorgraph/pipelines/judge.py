@@ -24,7 +24,8 @@ from ..keypoints import PairedKeypoints
 from ..initial.reflection_check import ReflectionCheck
 
 __all__ = ["judge_mirror", "judge_rig", "poor_mirror_cause", "poorly_determined",
-           "dominant_intrinsic", "median_ray_angle_deg", "motion_px"]
+           "dominant_intrinsic", "median_ray_angle_deg", "ray_angles_deg", "low_parallax_warning",
+           "motion_px"]
 
 #: Warn when the inliers' median epipolar distance exceeds this many pixels.
 SUSPICIOUS_RESIDUAL_PX = 6.0
@@ -110,18 +111,42 @@ def poor_mirror_cause(uncertainty: dict, normal: np.ndarray, ray_angle_deg: floa
             "more frames and motion help")
 
 
-def median_ray_angle_deg(joints3d: np.ndarray | None, valid: np.ndarray | None,
-                         normal: np.ndarray, distance: float) -> float:
-    """Median angle between a joint's two rays, degrees: from the real camera (origin)
-    and from the virtual one (``2 d n``), over the ``(T, J, 3)`` joints ``valid``
-    (real camera frame, the unit of ``distance``); NaN without joints."""
-    if joints3d is None or valid is None or not np.any(valid):
-        return float("nan")
-    X = np.asarray(joints3d, float)[np.asarray(valid, bool)]
+def ray_angles_deg(joints3d: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
+    """``(...)`` angle between the *lines* of a joint's two rays, degrees in ``[0, 90]``:
+    from the real camera (origin) and from the virtual one (``2 d n``), for ``(..., 3)``
+    joints (real camera frame, the unit of ``distance``). Rays pointing opposite ways (a
+    joint between the camera and the mirror) are as ill-conditioned as rays pointing the
+    same way: a joint's depth std grows as ``1 / sin`` of this angle."""
+    X = np.asarray(joints3d, float)
     a = X / np.linalg.norm(X, axis=-1, keepdims=True)
     b = X - 2.0 * float(distance) * np.asarray(normal, float)
     b /= np.linalg.norm(b, axis=-1, keepdims=True)
-    return float(np.degrees(np.median(np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0)))))
+    return np.degrees(np.arccos(np.clip(np.abs(np.sum(a * b, -1)), 0.0, 1.0)))
+
+
+def median_ray_angle_deg(joints3d: np.ndarray | None, valid: np.ndarray | None,
+                         normal: np.ndarray, distance: float) -> float:
+    """Median of :func:`ray_angles_deg` over the ``(T, J, 3)`` joints ``valid``; NaN
+    without joints."""
+    if joints3d is None or valid is None or not np.any(valid):
+        return float("nan")
+    X = np.asarray(joints3d, float)[np.asarray(valid, bool)]
+    return float(np.median(ray_angles_deg(X, normal, distance)))
+
+
+def low_parallax_warning(ray_angle_deg: float, scale_rel_std: float | None) -> str | None:
+    """The warning about the 3D joints of a person near the line from the camera to the
+    mirror (their rays meeting at a median angle under :data:`LOW_PARALLAX_DEG`): each
+    joint's depth rests on the body (its bone lengths, the other joints, the motion)
+    more than on its two rays, and with it the metric scale; ``None`` otherwise."""
+    if not (np.isfinite(ray_angle_deg) and ray_angle_deg < LOW_PARALLAX_DEG):
+        return None
+    text = (f"low parallax: a joint's two rays meet at a median {ray_angle_deg:.0f} deg (the "
+            "person near the line from the camera to the mirror): the joints' depths rest on "
+            "the body's bone lengths more than on the views")
+    if scale_rel_std is not None and np.isfinite(scale_rel_std) and scale_rel_std > 0:
+        text += f", and the metric scale with them (std {100 * scale_rel_std:.0f}%)"
+    return text + "; film from further to the side of the mirror for better depth"
 
 
 def judge_mirror(calib: Calibration, inlier_residuals: np.ndarray,

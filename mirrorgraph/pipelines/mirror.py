@@ -29,7 +29,7 @@ from ..anthropometry import height_from_bone_lengths
 from ..completion import complete_mirror_joints
 from ..errors import DegenerateGeometryError, InputError
 from ..initial.estimators import estimate_mirror
-from .judge import judge_mirror, median_ray_angle_deg, motion_px
+from .judge import judge_mirror, low_parallax_warning, median_ray_angle_deg, motion_px
 from .options import CalibrateOptions
 from ..initial.reflection_check import GREY_QUANTILE, check_reflection
 from .lines import (disagreement_warning, focal_sources, fuse_gaussians, lines_witness,
@@ -207,7 +207,8 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
 def judge_run(run: CalibrationRun, obs: Observations, init: Initial,
               opts: CalibrateOptions) -> None:
     """Every warning about the run's calibration (:func:`.judge.judge_mirror`): its rays'
-    angle, the initialisation's residuals, the motion, the reflection check."""
+    angle, the initialisation's residuals, the motion, the reflection check; and about its
+    joints where their rays meet at small angles (:func:`.judge.low_parallax_warning`)."""
     calib = run.calibration
     rays = (median_ray_angle_deg(run.joints3d, run.valid3d, calib.normal,
                                  calib.distance if calib.distance is not None else 1.0)
@@ -215,6 +216,9 @@ def judge_run(run: CalibrationRun, obs: Observations, init: Initial,
     est = init.estimate
     judge_mirror(calib, est.residuals[est.inliers],
                  motion_px(obs.paired, obs.joints, opts.min_confidence), init.check, rays)
+    warning = low_parallax_warning(rays, run.scale_rel_std)
+    if warning:
+        calib.warnings.append(warning)
 
 
 @dataclass
