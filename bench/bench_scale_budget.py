@@ -36,10 +36,14 @@ chain on them), and with the scale fitted to the truth. The iid scenes are the c
 
 Usage::
 
-    python bench/bench_scale_budget.py                      # realistic 0-7, iid 0-3, ~10 min
-    python bench/bench_scale_budget.py --seeds 0-19 --iid-seeds 0-9 --jobs 2
+    python bench/bench_scale_budget.py              # realistic 0-7, iid 0-3: 2 min idle, ~10 busy
+    python bench/bench_scale_budget.py --seeds 0-19 --iid-seeds 0-7 \
+        --json bench/RESULTS_scale_budget.json     # the results file's run, ~3-15 min
+    python bench/bench_scale_budget.py --from-json bench/RESULTS_scale_budget.json
 
-Writes ``--out`` (default ``bench/RESULTS_scale_budget.md``) unless ``--no-write``.
+Writes ``--out`` (default ``bench/RESULTS_scale_budget.md``) unless ``--no-write``; the
+Reading section reads apart the scenes whose run's own scale std exceeds
+:data:`UNSCALED_REL_STD` (no scale in their data, and the run says so).
 """
 
 from __future__ import annotations
@@ -436,8 +440,14 @@ def summary(rows: list[dict]) -> list[str]:
            "err/std median | > 0.3 m median % | at the bound median % | "
            "scenes > 2 % as run | at the bound | fitted |",
            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    groups = []
     for kind in dict.fromkeys(r["kind"] for r in rows):
         rs = [r for r in rows if r["kind"] == kind]
+        groups.append((kind, rs))
+        kept = [r for r in rs if r["std"] <= UNSCALED_REL_STD]
+        if 0 < len(kept) < len(rs):
+            groups.append((f"{kind}, own scale std <= {pct(UNSCALED_REL_STD, '.0f')} %", kept))
+    for kind, rs in groups:
 
         def col(k):
             return np.array([r[k] for r in rs], float)
