@@ -136,6 +136,7 @@ def keypoint_offset_fraction(offset_m: float | None, height: float | None) -> fl
         return KEYPOINT_OFFSET
     return float(offset_m) / float(height)
 
+
 #: ``Phi^-1(0.75)``: the median of ``|z|`` for a standard normal ``z``.
 _MAD_NORMAL = 0.6744897501960817
 
@@ -201,8 +202,7 @@ class StatureEstimate:
         placement its std holds in the estimate's unit, metres once scaled)."""
         top = "head top" if self.top == "head_top" else "eyes"
         o = self.keypoint_offset
-        source = ("Needham et al. 2021" if o == KEYPOINT_OFFSET
-                  else "as stated")
+        source = "Needham et al. 2021" if o == KEYPOINT_OFFSET else "as stated"
         return (f"stature measured from ankle to {top} (shank, thigh, trunk, head); "
                 f"{100 * self.unmeasured_fraction:.1f} % of it from Winter's landmark heights; "
                 f"its std holds keypoints placed {100 * o * self.height:.1f} cm "
