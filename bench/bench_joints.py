@@ -59,7 +59,11 @@ scene), so that the metric scale's share of every joint's std (``height_sigma``)
 an error of the kind users make; the synthetic bodies' proportions (``--body``) spread as
 adults' do. The metric scale's error is one draw a run: its error / std
 (``scale_rel_std``, the share of ``joints_std`` that ``joints_std_shape`` leaves out) is
-read over many scenes, the shape's over every joint.
+read over many scenes, the shape's over every joint. ``--keypoint-offset METRES`` states
+the keypoints' placement off the anatomical landmarks the runs' metric scale std holds
+(``RefineOptions.keypoint_offset``; default the literature's,
+:data:`mirrorgraph.anthropometry.KEYPOINT_OFFSET` of the height): ``0`` for keypoints
+that sit on the joints, as the synthetic iid ones do.
 
 Usage::
 
@@ -68,6 +72,7 @@ Usage::
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
     python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
+    python bench/bench_joints.py --methods calibrate --keypoint-offset 0 --out /tmp/k0.md
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
     python bench/bench_joints.py --methods live --offline-from bench/RESULTS_joints.json
 
@@ -467,10 +472,18 @@ def on_truth_frames(run, tr: Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return X, given, rows, keep
 
 
-def run_calibrate(tr: Truth) -> dict:
+def _refine_options(keypoint_offset: float | None):
+    """The runs' graph options: the defaults, with the keypoints' placement stated."""
+    from mirrorgraph.graph import RefineOptions
+
+    return None if keypoint_offset is None else RefineOptions(keypoint_offset=keypoint_offset)
+
+
+def run_calibrate(tr: Truth, keypoint_offset: float | None = None) -> dict:
     import mirrorgraph as mg
 
-    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS)
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS,
+                               refine_options=_refine_options(keypoint_offset))
     wall, cpu = time.perf_counter(), time.process_time()
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -502,11 +515,13 @@ def run_calibrate(tr: Truth) -> dict:
     return out
 
 
-def run_live(tr: Truth) -> dict:
+def run_live(tr: Truth, keypoint_offset: float | None = None) -> dict:
     from mirrorgraph.live import LiveCalibrator, LiveOptions
 
     det = tr.detections
-    live = LiveCalibrator(det.skeleton, tr.intrinsics, LiveOptions.of(subject_height=tr.height_given))
+    live = LiveCalibrator(det.skeleton, tr.intrinsics,
+                          LiveOptions.of(subject_height=tr.height_given,
+                                         refine_options=_refine_options(keypoint_offset)))
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
@@ -557,7 +572,7 @@ def run_scene(case: tuple) -> dict:
     warnings.filterwarnings("ignore")
     from mirrorgraph.metrics import pa_mpjpe
 
-    kind, seed, frames, methods, fixtures, body, height_given = case
+    kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset = case
     clock = time.perf_counter()
     tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given)
     orc = oracle(tr)
@@ -568,7 +583,7 @@ def run_scene(case: tuple) -> dict:
                           height_given=tr.height_given))
     for m in methods:
         try:
-            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr)
+            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr, keypoint_offset)
         except Exception as exc:  # noqa: BLE001 - a failure is a result here
             out[m] = dict(error=f"{type(exc).__name__}: {exc}")
         r = out[m]
@@ -950,6 +965,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--body", choices=BODIES, default="population",
                     help="the synthetic bodies' proportions: 'population' (default; each "
                          "segment's spread among adults) or 'model' (3 %% each)")
+    ap.add_argument("--keypoint-offset", type=float, default=None, metavar="METRES",
+                    help="the keypoints' placement off the landmarks the runs' metric scale "
+                         "std holds (RefineOptions.keypoint_offset; default: the literature's "
+                         "1.7 %% of the height); 0 for keypoints on the joints")
     ap.add_argument("--full", action="store_true",
                     help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
     ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
@@ -989,11 +1008,11 @@ def main(argv: list[str] | None = None) -> int:
             if not found:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
             cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given) for p in found]
+                       args.height_given, args.keypoint_offset) for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given) for s in _seeds(seeds)]
+                       args.height_given, args.keypoint_offset) for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
         return 2
@@ -1027,6 +1046,7 @@ def main(argv: list[str] | None = None) -> int:
                 machine=_report.machine(), load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
+                keypoint_offset=args.keypoint_offset,
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -1046,6 +1066,10 @@ def main(argv: list[str] | None = None) -> int:
          + ({"population": "; the synthetic bodies' proportions drawn with each segment's "
                            "spread among adults (`POPULATION_VARIATION`), CMU's the take's",
              "model": "; the synthetic bodies' segments 3 % apart"}[args.body]),
+         "- keypoint placement the metric scale's std holds (`--keypoint-offset`): "
+         + ("the default, `anthropometry.KEYPOINT_OFFSET` = 1.7 % of the height (Needham et "
+            "al. 2021)" if args.keypoint_offset is None
+            else f"{args.keypoint_offset:g} m, stated (`RefineOptions.keypoint_offset`)"),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "

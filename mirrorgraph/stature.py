@@ -47,7 +47,7 @@ from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
            "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "keypoint_rel_std",
-           "limbs_rel_std", "MIN_FRAMES",
+           "limbs_rel_std", "keypoint_offset_fraction", "segment_rel_std", "MIN_FRAMES",
            "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
            "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
 
@@ -80,29 +80,62 @@ _WIDTH_KIND = {"scapular": "shoulder_width", "pelvis": "hip_width",
                "shoulder_width": "shoulder_width", "hip_width": "hip_width"}
 
 
-def _segment_rel_std() -> dict[str, float]:
+def segment_rel_std(keypoint_offset: float = KEYPOINT_OFFSET) -> dict[str, float]:
     """Segment kind -> the relative std of the height it gives over adults and detectors:
     the anatomical spread (:data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`; a limb's
     the length-weighted mean of its bones', an upper bound for a sum) and the keypoints'
-    placement (:data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` ``o``: ``sqrt(2) o / f``
-    for a limb or the trunk, ``2 o / f`` for a width, ``f`` its fraction), in quadrature."""
+    placement (``o``: ``sqrt(2) o / f`` for a limb or the trunk, ``2 o / f`` for a width,
+    ``f`` its fraction), in quadrature.
+
+    Args:
+        keypoint_offset: ``o``, where the keypoints lie off their anatomical landmarks, a
+            fraction of the height (:data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` by
+            default; :func:`keypoint_offset_fraction` from metres).
+
+    Returns:
+        Kind -> relative std (dimensionless).
+    """
+    o = float(keypoint_offset)
     out = {}
     for kind, parts in _WHOLE_LIMBS.items():
         f = sum(HEIGHT_FRACTION[b] for b, _, _ in parts)
         cv = sum(HEIGHT_FRACTION[b] * HEIGHT_FRACTION_CV[b] for b, _, _ in parts) / f
-        out[kind] = math.hypot(cv, math.sqrt(2.0) * KEYPOINT_OFFSET / f)
+        out[kind] = math.hypot(cv, math.sqrt(2.0) * o / f)
     f = LANDMARK_HEIGHT["shoulder"] - LANDMARK_HEIGHT["hip"]
-    out["trunk"] = math.hypot(HEIGHT_FRACTION_CV["trunk"], math.sqrt(2.0) * KEYPOINT_OFFSET / f)
+    out["trunk"] = math.hypot(HEIGHT_FRACTION_CV["trunk"], math.sqrt(2.0) * o / f)
     for kind in ("shoulder_width", "hip_width"):
-        out[kind] = math.hypot(HEIGHT_FRACTION_CV[kind], 2.0 * KEYPOINT_OFFSET / HEIGHT_FRACTION[kind])
+        out[kind] = math.hypot(HEIGHT_FRACTION_CV[kind], 2.0 * o / HEIGHT_FRACTION[kind])
     return out
 
 
 #: Segment kind (``leg``, ``arm``, ``trunk``, ``shoulder_width``, ``hip_width``) -> the
 #: relative std of the height it gives (its length over Winter's fraction) among adults
-#: measured by keypoints: leg 5.7 %, arm 7.9 %, trunk 9.3 %, shoulder width 14 %, hip
-#: width 19 % (dimensionless).
-SEGMENT_REL_STD: dict[str, float] = _segment_rel_std()
+#: measured by keypoints at the literature's placement
+#: (:data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET`): leg 5.7 %, arm 7.9 %, trunk 9.3 %,
+#: shoulder width 14 %, hip width 19 % (dimensionless; :func:`segment_rel_std` for another).
+SEGMENT_REL_STD: dict[str, float] = segment_rel_std()
+
+
+def keypoint_offset_fraction(offset_m: float | None, height: float | None) -> float:
+    """The keypoints' placement against their anatomical landmarks as a fraction of the
+    height, the unit of :func:`keypoint_rel_std`, :func:`limbs_rel_std` and
+    :func:`segment_rel_std`.
+
+    Args:
+        offset_m: the placement a user states, metres (``RefineOptions.keypoint_offset``),
+            or ``None``: the literature's,
+            :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` of the height (3.0 cm at
+            1.75 m; Needham et al. 2021).
+        height: the subject's standing height, metres; ``None`` (no metric scale): the
+            literature's fraction, whatever ``offset_m``.
+
+    Returns:
+        ``offset_m / height``, or :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET`.
+    """
+    if offset_m is None or height is None:
+        return KEYPOINT_OFFSET
+    return float(offset_m) / float(height)
+
 
 #: ``Phi^-1(0.75)``: the median of ``|z|`` for a standard normal ``z``.
 _MAD_NORMAL = 0.6744897501960817
@@ -144,6 +177,12 @@ class StatureEstimate:
         scale_from: what made the run's metric scale: ``"stature"`` (this chain, set to
             the given height) or ``"limbs"`` (the gauge's limb proportions, this estimate
             measured on the result only); :func:`measurement_rel_std` follows it.
+        keypoint_offset: where the keypoints are taken to lie off their anatomical
+            landmarks, a fraction of the height (the literature's
+            :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET`, or a user's statement,
+            ``RefineOptions.keypoint_offset``): the placement term of
+            :func:`measurement_rel_std` and the segments' spread of
+            :attr:`bones_rel_spread`.
     """
 
     height: float
@@ -156,12 +195,18 @@ class StatureEstimate:
     bones_rel_spread: float = 0.0
     sampling_rel_std: float = float("nan")
     scale_from: str = "stature"
+    keypoint_offset: float = KEYPOINT_OFFSET
 
     def describe(self) -> str:
-        """One line for reports: what was measured and what was assumed."""
+        """One line for reports: what was measured and what was assumed (the keypoints'
+        placement its std holds in the estimate's unit, metres once scaled)."""
         top = "head top" if self.top == "head_top" else "eyes"
+        o = self.keypoint_offset
+        source = "Needham et al. 2021" if o == KEYPOINT_OFFSET else "as stated"
         return (f"stature measured from ankle to {top} (shank, thigh, trunk, head); "
-                f"{100 * self.unmeasured_fraction:.1f} % of it from Winter's landmark heights")
+                f"{100 * self.unmeasured_fraction:.1f} % of it from Winter's landmark heights; "
+                f"its std holds keypoints placed {100 * o * self.height:.1f} cm "
+                f"({100 * o:.2f} % of the height) off the landmarks ({source})")
 
     def scaled(self, factor: float) -> "StatureEstimate":
         """The same estimate on joints ``factor`` times larger (height and segments)."""
@@ -173,7 +218,8 @@ class StatureEstimate:
                                bone_ratios=dict(self.bone_ratios),
                                bones_rel_spread=self.bones_rel_spread,
                                sampling_rel_std=self.sampling_rel_std,
-                               scale_from=self.scale_from)
+                               scale_from=self.scale_from,
+                               keypoint_offset=self.keypoint_offset)
 
     def to_dict(self) -> dict:
         """Plain-Python form for JSON."""
@@ -185,6 +231,7 @@ class StatureEstimate:
                 "sampling_rel_std": (float(self.sampling_rel_std)
                                      if math.isfinite(self.sampling_rel_std) else None),
                 "scale_from": self.scale_from,
+                "keypoint_offset": float(self.keypoint_offset),
                 "rel_std": measurement_rel_std(self), "method": self.describe()}
 
 
@@ -214,7 +261,8 @@ def _median(values: np.ndarray) -> tuple[float, int]:
 
 
 def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, *,
-                     min_frames: int = MIN_FRAMES) -> StatureEstimate | None:
+                     min_frames: int = MIN_FRAMES,
+                     keypoint_offset: float = KEYPOINT_OFFSET) -> StatureEstimate | None:
     """Standing height from 3D joints by summing the segments of the vertical chain.
 
     Args:
@@ -223,6 +271,9 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
         skeleton: their layout (needs left/right ankle, knee, hip, shoulder and
             either ``head_top`` or both eyes).
         min_frames: frames each segment needs.
+        keypoint_offset: the keypoints' placement off their landmarks, a fraction of the
+            height (:attr:`StatureEstimate.keypoint_offset`; :func:`keypoint_offset_fraction`
+            from metres).
 
     Returns:
         The estimate, or ``None`` when the skeleton lacks a joint of the chain or
@@ -280,8 +331,10 @@ def estimate_stature(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, 
     return StatureEstimate(height=height, segments=segments, top=top_name,
                            unmeasured_fraction=unmeasured, frames=frames,
                            side_rel_diff=float(side) if np.isfinite(side) else 0.0,
-                           bone_ratios=ratios, bones_rel_spread=bones_rel_spread(ratios),
-                           sampling_rel_std=sampling)
+                           bone_ratios=ratios,
+                           bones_rel_spread=bones_rel_spread(ratios,
+                                                             keypoint_offset=keypoint_offset),
+                           sampling_rel_std=sampling, keypoint_offset=float(keypoint_offset))
 
 
 def _sampling_rel_std(per_frame: dict[str, np.ndarray], height: float, measured: float,
@@ -359,7 +412,8 @@ def _median_abs_quantile(n: int, alpha: float) -> float:
     return float(ndtri(0.5 * (1.0 + p))) / _MAD_NORMAL
 
 
-def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) -> float:
+def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA, *,
+                     keypoint_offset: float = KEYPOINT_OFFSET) -> float:
     """The body's segments' disagreement about the height beyond what adults and keypoints
     give: the stature measurement's spread where the reconstruction distorts the body.
 
@@ -384,17 +438,21 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
     Args:
         bone_ratios: segment kind -> height it gives over the chain's (dimensionless).
         alpha: the test's false-alarm probability on a body measured right.
+        keypoint_offset: the keypoints' placement off their landmarks in ``c_k``, a
+            fraction of the height (:func:`segment_rel_std`).
 
     Returns:
         The relative std (dimensionless), ``0`` within the spread of adults and keypoints
         or with fewer than three kinds left.
     """
     wild = math.log(WILD_RATIO)
-    kinds = [k for k, r in bone_ratios.items() if k in SEGMENT_REL_STD and r > 0
+    spread = (SEGMENT_REL_STD if keypoint_offset == KEYPOINT_OFFSET
+              else segment_rel_std(keypoint_offset))
+    kinds = [k for k, r in bone_ratios.items() if k in spread and r > 0
              and (k in _CHAIN_KINDS or abs(math.log(r)) < wild)]
     if len(kinds) < 3:
         return 0.0
-    cv = np.array([SEGMENT_REL_STD[k] for k in kinds])
+    cv = np.array([spread[k] for k in kinds])
     r = np.abs(np.log([bone_ratios[k] for k in kinds]))
 
     def scale(extra: float) -> float:                    # the (high) median of |z|, normalised
@@ -410,7 +468,7 @@ def bones_rel_spread(bone_ratios: dict[str, float], alpha: float = BONES_ALPHA) 
     return float(brentq(lambda e: scale(e) - 1.0, 0.0, 10.0, xtol=1e-14))
 
 
-def keypoint_rel_std(top: str = "eyes") -> float:
+def keypoint_rel_std(top: str = "eyes", keypoint_offset: float = KEYPOINT_OFFSET) -> float:
     """The stature's relative std from where a detector places the chain's two end
     keypoints against Winter's landmarks.
 
@@ -427,18 +485,24 @@ def keypoint_rel_std(top: str = "eyes") -> float:
     keypoints give statures 4.5 % apart, a detector's std of 3.2 % from that one pair
     (``|a - b| / sqrt(2)``; ``bench/RESULTS_stature_real.md``).
 
+    Keypoints placed on the landmarks themselves (2D projections of motion-capture
+    markers, synthetic keypoints: ``keypoint_offset`` 0) make it 0.
+
     Args:
         top: ``"eyes"`` or ``"head_top"`` (:attr:`StatureEstimate.top`).
+        keypoint_offset: ``o``, a fraction of the height (the literature's
+            :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET` by default;
+            :func:`keypoint_offset_fraction` from a user's metres).
 
     Returns:
         The relative std (dimensionless).
     """
     above = (1.0 - LANDMARK_HEIGHT["vertex"] if top == "head_top"
              else LANDMARK_HEIGHT["vertex"] - LANDMARK_HEIGHT["eye"])
-    return math.sqrt(2.0) * KEYPOINT_OFFSET / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
+    return math.sqrt(2.0) * float(keypoint_offset) / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
 
 
-def _limbs_parts() -> tuple[float, float]:
+def _limbs_parts(keypoint_offset: float = KEYPOINT_OFFSET) -> tuple[float, float]:
     """``(proportions, keypoints)``: the relative stds of the limb-proportion scale
     (:func:`limbs_rel_std`)."""
     groups = {}                                            # kind -> (fraction, anatomical cv)
@@ -452,11 +516,11 @@ def _limbs_parts() -> tuple[float, float]:
     proportions = math.sqrt(sum((f * cv) ** 2 for f, cv in groups.values())) / total
     # each limb's two ends, both sides moved alike (2 o each); each width's two sides (2 o)
     ends = 2 * len(_WHOLE_LIMBS) + 2
-    keypoints = 2.0 * KEYPOINT_OFFSET * math.sqrt(ends) / total
+    keypoints = 2.0 * float(keypoint_offset) * math.sqrt(ends) / total
     return proportions, keypoints
 
 
-def limbs_rel_std() -> float:
+def limbs_rel_std(keypoint_offset: float = KEYPOINT_OFFSET) -> float:
     """The relative std of the limb-proportion scale (``RefineOptions.scale_from =
     "limbs"``: the gauge's limb bones and widths at Winter's fractions of the height)
     beyond the height's prior: the subject's proportions and the detector's keypoints,
@@ -477,12 +541,15 @@ def limbs_rel_std() -> float:
     Together 4.4 % (dimensionless), against the chain's 2.7 % (:func:`keypoint_rel_std`,
     the proportions of the 10 % of the height outside it under the height's prior): the
     limbs are the scale for a subject who is not upright, not the more precise one.
+    ``keypoint_offset`` (a fraction of the height) replaces ``o``: 0 leaves the
+    proportions' 1.9 %.
     """
-    return math.hypot(*_limbs_parts())
+    return math.hypot(*_limbs_parts(keypoint_offset))
 
 
 def measurement_rel_std(stature: StatureEstimate | dict | None,
-                        scale_from: str | None = None) -> float:
+                        scale_from: str | None = None,
+                        keypoint_offset: float | None = None) -> float:
     """The metric scale's measured relative std: its share beyond the height's prior
     (``RefineOptions.height_sigma``), for a single mirror, a rig and the live scale alike,
     whichever made the scale (``scale_from``: the stature's chain, or the limbs).
@@ -516,6 +583,10 @@ def measurement_rel_std(stature: StatureEstimate | dict | None,
             calibration's ``refinement["stature"]`` holds it), or ``None`` (not measured).
         scale_from: ``"stature"`` or ``"limbs"`` (``RefineOptions.scale_from``); ``None``:
             the estimate's own (:attr:`StatureEstimate.scale_from`), else ``"stature"``.
+        keypoint_offset: the keypoints' placement, a fraction of the height
+            (:func:`keypoint_offset_fraction`); ``None``: the estimate's own
+            (:attr:`StatureEstimate.keypoint_offset`; a record without one, or no
+            estimate: :data:`~mirrorgraph.anthropometry.KEYPOINT_OFFSET`).
 
     Returns:
         The relative std (dimensionless); for ``None`` ``0`` with the stature (no scale
@@ -526,19 +597,21 @@ def measurement_rel_std(stature: StatureEstimate | dict | None,
         bones = stature.get("bones_rel_spread") or 0.0
         top = stature.get("top") or "eyes"
         own = stature.get("scale_from")
+        offset = stature.get("keypoint_offset")
     elif stature is not None:
         side, bones, top = stature.side_rel_diff, stature.bones_rel_spread, stature.top
-        own = stature.scale_from
+        own, offset = stature.scale_from, stature.keypoint_offset
     else:
         side = bones = 0.0
-        top, own = "eyes", None
+        top, own, offset = "eyes", None, None
+    o = next((v for v in (keypoint_offset, offset) if v is not None), KEYPOINT_OFFSET)
     scale_from = scale_from or own or "stature"
     if scale_from == "limbs":
-        prior = limbs_rel_std()
+        prior = limbs_rel_std(o)
     elif stature is None:
         return 0.0
     else:
-        prior = keypoint_rel_std(top)
+        prior = keypoint_rel_std(top, o)
     return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + prior ** 2))
 
 
@@ -549,7 +622,8 @@ LIMB_PROPORTIONS = _LIMBS + ": the joints do not span ankle to eyes in enough fr
 LIMB_CHOSEN = _LIMBS + ", as asked (scale_from = limbs)"
 
 
-def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, height: float
+def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, height: float,
+                    keypoint_offset: float = KEYPOINT_OFFSET
                     ) -> tuple[float | None, str, StatureEstimate | None]:
     """The factor that makes the stature measured on a solution's joints ``height``: the
     metric scale of every front end (one mirror, :mod:`mirrorgraph.pipelines.scale`;
@@ -565,6 +639,8 @@ def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, h
         valid: ``(T, J)`` bool, where ``points`` hold a joint.
         skeleton: their layout.
         height: the subject's height in the unit wanted (metres).
+        keypoint_offset: the keypoints' placement off their landmarks, a fraction of the
+            height (:func:`keypoint_offset_fraction`), which the estimate's std holds.
 
     Returns:
         ``(factor, source, stature)``: the factor to multiply every length by, a description
@@ -572,11 +648,12 @@ def stature_rescale(points: np.ndarray, valid: np.ndarray, skeleton: Skeleton, h
         LIMB_PROPORTIONS, None)`` where the joints do not span ankle to eyes (the gauge's
         limb-proportion scale stays).
     """
-    est = estimate_stature(points, valid, skeleton)
+    est = estimate_stature(points, valid, skeleton, keypoint_offset=keypoint_offset)
     if est is None:
         return None, LIMB_PROPORTIONS, None
     factor = float(height) / est.height
-    return factor, est.describe(), est.scaled(factor)
+    scaled = est.scaled(factor)
+    return factor, scaled.describe(), scaled
 
 
 def with_height_sigma(std: float, length: float, rel_sigma: float) -> float:

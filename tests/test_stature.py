@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -391,3 +393,80 @@ def test_a_rigs_limbs_scale_keeps_the_solution_and_measures_its_stature():
     assert stature.scale_from == "limbs"
     assert stature.height / scene.subject_height == pytest.approx(1.04, abs=0.01)
     assert measurement_rel_std(stature) >= limbs_rel_std()
+
+
+def test_keypoints_stated_on_the_landmarks_leave_the_measured_terms():
+    """A keypoint placement stated as 0 (keypoints on the landmarks: projected markers,
+    synthetic): the chain's placement term is 0 and the measurement's std is the legs
+    apart and the segments' disagreement alone, in quadrature; stated in metres it is
+    ``sqrt(2) o / H / (1 - u)``, ``u`` the unmeasured fraction; the record carries it."""
+    from mirrorgraph.anthropometry import KEYPOINT_OFFSET
+    from mirrorgraph.stature import (keypoint_offset_fraction, keypoint_rel_std,
+                                     measurement_rel_std)
+
+    sk, pts, valid, _ = _subject(3)
+    long = pts.copy()
+    hip = long[:, [sk.index("right_hip")]]
+    for j in ("right_knee", "right_ankle"):                  # one leg 5 % longer
+        long[:, sk.index(j)] = hip[:, 0] + 1.05 * (long[:, sk.index(j)] - hip[:, 0])
+    default = estimate_stature(long, valid, sk)
+    zero = estimate_stature(long, valid, sk, keypoint_offset=0.0)
+    assert default.keypoint_offset == KEYPOINT_OFFSET and zero.keypoint_offset == 0.0
+    assert zero.side_rel_diff == default.side_rel_diff > 0.01
+    assert zero.bones_rel_spread == default.bones_rel_spread == 0.0   # a body measured right
+    assert keypoint_rel_std(zero.top, 0.0) == 0.0
+    # the documented sum: the measured spreads alone, against the default's three terms
+    # (the end keypoints' sqrt(2) o / (1 - u), eyes as top: u = 0.039 + 0.064)
+    assert measurement_rel_std(zero) == pytest.approx(
+        math.hypot(zero.side_rel_diff, zero.bones_rel_spread), rel=1e-12)
+    assert measurement_rel_std(default) == pytest.approx(math.sqrt(
+        default.side_rel_diff ** 2 + default.bones_rel_spread ** 2
+        + (math.sqrt(2) * KEYPOINT_OFFSET / 0.897) ** 2), rel=1e-3)
+    assert measurement_rel_std(zero) < measurement_rel_std(default) - 0.01
+    # the JSON record and the scaled estimate keep the statement
+    assert zero.to_dict()["keypoint_offset"] == 0.0
+    assert measurement_rel_std(zero.to_dict()) == pytest.approx(measurement_rel_std(zero))
+    assert measurement_rel_std(zero.scaled(2.0)) == pytest.approx(measurement_rel_std(zero))
+    assert "0.0 cm" in zero.describe() and "as stated" in zero.describe()
+    assert "Needham" in default.describe()
+    # a record of before the setting reads as the literature's
+    old = {k: v for k, v in default.to_dict().items() if k != "keypoint_offset"}
+    assert measurement_rel_std(old) == pytest.approx(measurement_rel_std(default))
+    # metres: 1 cm on a 1.60 m subject, eyes as top
+    o = keypoint_offset_fraction(0.01, 1.60)
+    assert o == pytest.approx(0.01 / 1.60)
+    assert keypoint_rel_std("eyes", o) == pytest.approx(math.sqrt(2) * 0.01 / 1.60 / 0.897,
+                                                        rel=1e-3)
+    assert keypoint_offset_fraction(None, 1.60) == KEYPOINT_OFFSET
+    assert keypoint_offset_fraction(0.01, None) == KEYPOINT_OFFSET
+
+
+def test_a_stated_placement_is_checked_by_the_segments():
+    """Both legs 40 % long (a biased reconstruction) measured by keypoints stated to lie on
+    the landmarks: the segments' spread is the population's alone, so their disagreement
+    is the larger and the measurement's std does not shrink below the error's share that
+    the default's shows."""
+    from mirrorgraph.stature import measurement_rel_std
+
+    sk, pts, valid, _ = _subject(3)
+    stretched = _legs_stretched(pts, sk, 1.4)
+    default = estimate_stature(stretched, valid, sk)
+    zero = estimate_stature(stretched, valid, sk, keypoint_offset=0.0)
+    assert zero.bones_rel_spread > default.bones_rel_spread > 0.1
+    assert measurement_rel_std(zero) > 0.1
+
+
+def test_the_segments_and_limbs_spread_without_the_keypoints():
+    """With the placement 0 each segment's spread is the population's alone
+    (:data:`~mirrorgraph.anthropometry.HEIGHT_FRACTION_CV`) and the limbs' std their
+    proportions' 1.9 %; the literature's placement gives the module's constants."""
+    from mirrorgraph.anthropometry import HEIGHT_FRACTION_CV
+    from mirrorgraph.stature import SEGMENT_REL_STD, limbs_rel_std, segment_rel_std
+
+    assert segment_rel_std() == SEGMENT_REL_STD
+    bare = segment_rel_std(0.0)
+    for kind in ("trunk", "shoulder_width", "hip_width"):
+        assert bare[kind] == pytest.approx(HEIGHT_FRACTION_CV[kind])
+    assert all(bare[k] < SEGMENT_REL_STD[k] for k in bare)
+    assert limbs_rel_std(0.0) == pytest.approx(0.019, abs=0.001)
+    assert limbs_rel_std() == pytest.approx(math.hypot(limbs_rel_std(0.0), 0.040), abs=0.001)

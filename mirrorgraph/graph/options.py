@@ -385,6 +385,18 @@ class GaugeOptions:
             lying, bent over). On synthetic subjects (3 % per segment) the metric
             scale error is 0.33 % RMS with the stature, 1.59 % with the limbs
             (``bench/RESULTS_stature.md``).
+        keypoint_offset: where the keypoints lie off the anatomical landmarks the
+            stature's proportions are measured between, metres: the placement term of
+            the metric scale's std (:func:`mirrorgraph.stature.keypoint_rel_std`, the
+            limbs' :func:`~mirrorgraph.stature.limbs_rel_std`, the segments'
+            :func:`~mirrorgraph.stature.segment_rel_std`). ``None`` (default): the
+            literature's, :data:`mirrorgraph.anthropometry.KEYPOINT_OFFSET` of the
+            height (3.0 cm at 1.75 m: video keypoint detectors against marker-based
+            joint centres, Needham et al., *Sci. Rep.* 11, 20673, 2021). Lower it for
+            keypoints that sit on the landmarks (2D projections of motion-capture
+            markers, a detector validated on anatomical landmarks, synthetic
+            keypoints); ``0`` leaves the height's prior and the measured spreads.
+            Without ``subject_height`` it is unused.
         link_sigma_rotation, link_sigma_translation: sigmas of the mirror-link
             factor (rad, length unit) when it is used as a soft factor
             (``GraphProblem.full(links=True)`` for GTSAM's own optimisers); the
@@ -394,6 +406,7 @@ class GaugeOptions:
     subject_height: float | None = None
     height_sigma: float = 0.02
     scale_from: ScaleFrom = "stature"
+    keypoint_offset: float | None = None
     link_sigma_rotation: float = 1e-6
     link_sigma_translation: float = 1e-6
 
@@ -406,6 +419,12 @@ class GaugeOptions:
                               or not (math.isfinite(h) and h > 0)):
             raise InputError(f"must be a positive number of metres or None, got {h!r}",
                              field="subject_height")
+        o = self.keypoint_offset
+        if o is not None and (isinstance(o, bool) or not isinstance(o, (int, float))
+                              or not (math.isfinite(o) and o >= 0)):
+            raise InputError(f"must be a non-negative number of metres (a keypoint's "
+                             f"placement off its landmark) or None, got {o!r}",
+                             field="keypoint_offset")
 
 
 _GROUPS = {"priors": PriorOptions, "schedule": ScheduleOptions, "solver": SolverOptions,

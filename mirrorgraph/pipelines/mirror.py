@@ -399,6 +399,7 @@ def initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Cal
                "min_confidence": opts.min_confidence, "threshold_px": opts.threshold_px,
                "seed": opts.seed, "fps": obs.fps, "fps_source": obs.fps_source,
                "subject_height": opts.subject_height, "scale_from": opts.graph.scale_from,
+               "keypoint_offset": opts.graph.keypoint_offset,
                "read_notes": obs.keypoints.read_notes.as_dict(),
                "body_lr_fixes": obs.body_lr_fixes},
         warnings=obs.warnings)

@@ -38,7 +38,8 @@ from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_pe
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
 from ..graph.joints_uncertainty import position_std, with_scale
-from ..stature import estimate_stature, measurement_rel_std, with_height_sigma
+from ..stature import (estimate_stature, keypoint_offset_fraction, measurement_rel_std,
+                       with_height_sigma)
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
                      judge_run, prepare, refine_run)
 from .options import CalibrateOptions
@@ -120,16 +121,26 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
 
 
 def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
-                  height_of) -> tuple[float | None, np.ndarray, int | None, str, float]:
+                  height_of, keypoint_offset: float | None = None
+                  ) -> tuple[float | None, np.ndarray, int | None, str, float]:
     """The factor that makes the chosen person's stature (or the list's) the given one:
     ``(factor, statures before scaling, person, source, rel_std)``; ``factor`` ``None``
     where no stature can be measured; ``rel_std`` the stature measurement's own relative
     std (:func:`mirrorgraph.stature.measurement_rel_std`) of the chosen person, or with a
     list of heights the median of the measured people's (the detector's keypoint offsets
     are shared by the people, so their number does not shrink it); ``0`` without a
-    factor."""
+    factor. ``keypoint_offset``: the keypoints' placement in metres
+    (``RefineOptions.keypoint_offset``), each person's fraction of their own height."""
     P = points.shape[0]
-    est = [estimate_stature(points[p], valid[p], base) for p in range(P)]
+
+    def own(p: int):                                       # person p's height, metres
+        if heights is not None:
+            return heights[p] if p < len(heights) else None
+        return height
+
+    est = [estimate_stature(points[p], valid[p], base,
+                            keypoint_offset=keypoint_offset_fraction(keypoint_offset, own(p)))
+           for p in range(P)]
     measured = np.array([np.nan if e is None else e.height for e in est])
     if heights is not None:
         ratios = [float(h) / measured[p] for p, h in enumerate(heights)
@@ -228,7 +239,8 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
         joints3d = split_people(run.joints3d, P)
         valid3d = split_people(run.valid3d, P)
         factor, measured, person, source, rel = _scale_people(
-            joints3d, valid3d, pairing.base, height, heights, height_of)
+            joints3d, valid3d, pairing.base, height, heights, height_of,
+            opts.graph.keypoint_offset)
         statures = measured
         if (height is not None or heights is not None) and factor is not None:
             joints3d = joints3d * factor

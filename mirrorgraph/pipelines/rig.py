@@ -26,7 +26,7 @@ from ..graph.joints_uncertainty import position_std, with_scale
 from ..graph.options import RefineOptions
 from .options import CalibrateOptions
 from .judge import judge_rig
-from ..stature import measurement_rel_std, with_height_sigma
+from ..stature import keypoint_offset_fraction, measurement_rel_std, with_height_sigma
 from .scale import scale_rig_by_stature
 from ..completion import complete_rig_joints
 from ..joint_sets import resolve_joints
@@ -136,6 +136,7 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     estimate_focal = run.estimate_focal
     scale = "subject_height" if height is not None else "unit_height"
     H = float(height) if height is not None else 1.0
+    offset = keypoint_offset_fraction(opts.keypoint_offset, height)   # of the height
     say = progress or (lambda s: None)
     seed, joints = run.seed, run.joints
 
@@ -183,13 +184,14 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     if everyone is not None:                                                 # scale
         from .rig_people import scale_everyone
         sol, scale_source, stature = scale_everyone(sol, obs.skeleton, everyone.count, H,
-                                                    opts.scale_from)
+                                                    opts.scale_from, offset)
     else:                   # snapshots: each stretch its own subject, one body's stature
         stretch = rig_segments(solved.frame_ids, [c.people or [] for c in solved.cameras],
                                obs.skeleton.calibration_joints)
         count = max((len(p) for c in solved.cameras for p in (c.people or [])), default=1)
         sol, scale_source, stature = scale_rig_by_stature(sol, obs.skeleton, H,
-                                                          opts.scale_from, stretch, count)
+                                                          opts.scale_from, stretch, count,
+                                                          offset)
     if opts.scale_from == "stature" and stature is None:
         warnings.append(f"scale: {scale_source}")
 
@@ -218,7 +220,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
     joints_std = None
     if sol.joints_cov is not None:
         # the metric scale's share: the height's prior and the legs' disagreement
-        rel = (float(np.hypot(opts.height_sigma, measurement_rel_std(stature, opts.scale_from)))
+        rel = (float(np.hypot(opts.height_sigma,
+                              measurement_rel_std(stature, opts.scale_from, offset)))
                if height is not None else 0.0)
         cov = with_scale(sol.joints_cov, np.nan_to_num(sol.points), rel)
         cov[~np.asarray(sol.used, bool)] = np.nan
@@ -358,7 +361,8 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_sta
     # as the single-mirror refinement does; without one the unit is the height itself
     rel = opts.height_sigma if height is not None else 0.0
     if height is not None:                  # the measurement's own: the stature's or the limbs'
-        rel = float(np.hypot(rel, measurement_rel_std(sol_stature, opts.scale_from)))
+        rel = float(np.hypot(rel, measurement_rel_std(
+            sol_stature, opts.scale_from, keypoint_offset_fraction(opts.keypoint_offset, height))))
     rms = dict(zip(sol.view_names, sol.view_rms_px))
     counts = dict(zip(sol.view_names, sol.view_counts))
     cameras = []

@@ -343,18 +343,21 @@ def split_solution(values: np.ndarray | None, P: int) -> np.ndarray | None:
 
 
 def scale_everyone(sol: RigSolution, skeleton, P: int, height: float,
-                   scale_from: str = "stature"):
+                   scale_from: str = "stature", keypoint_offset: float | None = None):
     """The solution rescaled so that the stature measured on slot 0's joints (the
     one-person run's subject) is ``height``: :func:`.scale.scale_rig_by_stature` on that
-    person, every length of the rig and of every person scaled alike. Returns
-    ``(solution, source, stature)`` as it does."""
+    person, every length of the rig and of every person scaled alike (``keypoint_offset``
+    as there; ``None``: the literature's). Returns ``(solution, source, stature)`` as it
+    does."""
+    from ..anthropometry import KEYPOINT_OFFSET
     from ..stature import LIMB_CHOSEN, stature_rescale
     from .scale import limbs_stature
 
+    o = KEYPOINT_OFFSET if keypoint_offset is None else keypoint_offset
     points, used = split_solution(sol.points, P), split_solution(sol.used, P)
     if scale_from != "stature":
-        return sol, LIMB_CHOSEN, limbs_stature(points[0], used[0], skeleton)
-    factor, source, stature = stature_rescale(points[0], used[0], skeleton, height)
+        return sol, LIMB_CHOSEN, limbs_stature(points[0], used[0], skeleton, o)
+    factor, source, stature = stature_rescale(points[0], used[0], skeleton, height, o)
     return (sol if factor is None else sol.scaled(factor)), source, stature
 
 

@@ -22,6 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..anthropometry import KEYPOINT_OFFSET
 from ..errors import InputError
 from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
@@ -33,13 +34,15 @@ from ..rigs.identities import groups_by_size
 __all__ = ["scale_by_stature", "scale_rig_by_stature", "limbs_stature", "subject_frames"]
 
 
-def limbs_stature(points: np.ndarray, valid: np.ndarray, skeleton) -> StatureEstimate | None:
+def limbs_stature(points: np.ndarray, valid: np.ndarray, skeleton,
+                  keypoint_offset: float = KEYPOINT_OFFSET) -> StatureEstimate | None:
     """The stature measured on a result whose scale the limbs made (``scale_from =
     "limbs"``), left at that scale: the measurement's spreads (the legs apart, the
     segments' disagreement) for the scale's std (:func:`mirrorgraph.stature.
     measurement_rel_std`, which the estimate's ``scale_from = "limbs"`` points at the
-    limbs' own prior); ``None`` where the joints do not span ankle to eyes."""
-    est = estimate_stature(points, valid, skeleton)
+    limbs' own prior, at ``keypoint_offset``, the keypoints' placement as a fraction of
+    the height); ``None`` where the joints do not span ankle to eyes."""
+    est = estimate_stature(points, valid, skeleton, keypoint_offset=keypoint_offset)
     return None if est is None else replace(est, scale_from="limbs")
 
 def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
@@ -68,7 +71,8 @@ def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
 
 
 def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
-                     height: float, scale_from: str = "stature") -> RefinementResult:
+                     height: float, scale_from: str = "stature",
+                     keypoint_offset: float = KEYPOINT_OFFSET) -> RefinementResult:
     """Rescale a metric refinement so that the subject's measured stature is ``height``.
 
     Args:
@@ -80,6 +84,9 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
             (``RefineOptions.scale_from``), the stature measured on it
             (:func:`limbs_stature`) and ``distance_std`` widened by the limbs' rule of
             :func:`mirrorgraph.stature.measurement_rel_std`.
+        keypoint_offset: the keypoints' placement off their landmarks, a fraction of the
+            height (:func:`mirrorgraph.stature.keypoint_offset_fraction` of
+            ``RefineOptions.keypoint_offset``), which the std holds.
 
     Returns:
         ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
@@ -99,12 +106,12 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
                          field="subject_height")
     points, valid = _with_head(res, paired, K)
     if scale_from != "stature":
-        stature = limbs_stature(points, valid, paired.skeleton)
+        stature = limbs_stature(points, valid, paired.skeleton, keypoint_offset)
         dstd = with_height_sigma(res.distance_std, res.distance,
-                                 measurement_rel_std(stature, "limbs"))
+                                 measurement_rel_std(stature, "limbs", keypoint_offset))
         return replace(res, distance_std=dstd, scale_source=LIMB_CHOSEN,
                        stature=None if stature is None else stature.to_dict())
-    f, source, stature = stature_rescale(points, valid, paired.skeleton, height)
+    f, source, stature = stature_rescale(points, valid, paired.skeleton, height, keypoint_offset)
     if f is None:
         return replace(res, scale_source=source)
     record = stature.to_dict()
@@ -167,7 +174,8 @@ def subject_frames(points: np.ndarray, used: np.ndarray, skeleton, stretch: np.n
 
 
 def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "stature",
-                         stretch: np.ndarray | None = None, count: int = 1):
+                         stretch: np.ndarray | None = None, count: int = 1,
+                         keypoint_offset: float = KEYPOINT_OFFSET):
     """A rig's solution rescaled so that the stature measured on its joints is ``height``.
 
     Args:
@@ -181,6 +189,8 @@ def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "statur
             (snapshots), with ``count`` the most people seen at once: the stature is then
             the body's seen in the most frames (:func:`subject_frames`; ``height`` is
             theirs), not a mix of the subjects'.
+        keypoint_offset: the keypoints' placement off their landmarks, a fraction of the
+            height, which the stature's std holds (:func:`scale_by_stature`).
 
     Returns:
         ``(solution, source, stature)``: the (rescaled) solution, the scale's source in
@@ -194,8 +204,8 @@ def scale_rig_by_stature(sol, skeleton, height: float, scale_from: str = "statur
     points, used = ((sol.points, sol.used) if bodies < 2
                     else (sol.points[keep], sol.used[keep]))
     if scale_from != "stature":
-        return sol, LIMB_CHOSEN, limbs_stature(points, used, skeleton)
-    factor, source, stature = stature_rescale(points, used, skeleton, height)
+        return sol, LIMB_CHOSEN, limbs_stature(points, used, skeleton, keypoint_offset)
+    factor, source, stature = stature_rescale(points, used, skeleton, height, keypoint_offset)
     if factor is not None and bodies > 1:
         source += (f"; the subject's {measured} stretches of frames show {bodies} bodies: "
                    f"the one of the most frames ({int(keep.sum())} of {len(keep)})")

@@ -57,7 +57,7 @@ from .. import geometry as geo
 from ..graph.joints_uncertainty import graph_joints_covariance, view_projections
 from ..graph.uncertainty import robust_blocks, robust_normal_cov
 from ..keypoints import MIN_PAIRS, PairedKeypoints
-from ..stature import measurement_rel_std, with_height_sigma
+from ..stature import keypoint_offset_fraction, measurement_rel_std, with_height_sigma
 from .scale import scale_by_stature
 
 if TYPE_CHECKING:         # a single mirror's run needs neither (they import SciPy and OpenCV)
@@ -132,13 +132,14 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
         res.focal = focal_record(state, guess, options=opts)
     res = with_joints_cov(res, state, opts, single_mirror_config(opts).joints_pass, rig)
     if res.scale == "subject_height":
+        offset = keypoint_offset_fraction(opts.keypoint_offset, opts.subject_height)
         res = scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height),
-                               opts.scale_from)
+                               opts.scale_from, offset)
         # the scale's relative std: the height's prior and the measurement's own, the
         # stature's or the limbs' (mirrorgraph.stature.measurement_rel_std), as the
         # distance's std holds it
         res = replace(res, scale_rel_std=float(np.hypot(
-            opts.height_sigma, measurement_rel_std(res.stature, opts.scale_from))))
+            opts.height_sigma, measurement_rel_std(res.stature, opts.scale_from, offset))))
     return res
 
 

@@ -356,7 +356,8 @@ def options_from_calibration(obj) -> CalibrateOptions:
         joints=tuple(names) if names else None, refine=bool(obj.get("refined", False)),
         subject_height=None if height is None else float(height),
         seed=int(info.get("seed", 0) or 0),
-        refine_options=RefineOptions(scale_from=scale_from))
+        refine_options=RefineOptions(scale_from=scale_from,
+                                     keypoint_offset=info.get("keypoint_offset")))
 
 
 def _stored_path(obj, calibration_path: Path) -> Path:

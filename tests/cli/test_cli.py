@@ -190,3 +190,28 @@ def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
     X = z["joints3d"]
     back = np.hypot(shape[valid], scale * np.linalg.norm(X[valid], axis=-1))
     assert np.allclose(back, std[valid], rtol=1e-6)
+
+
+def test_a_stated_keypoint_placement_reaches_the_run(scene_dir, tmp_path):
+    """``--keypoint-offset 0`` (keypoints on the landmarks): recorded as the run's input and
+    in its stature, the metric scale's std without the placement term (the height's 2 %
+    and the measured spreads in quadrature), smaller than the default's; the mirror the
+    same."""
+    cals, scales = {}, {}
+    for flag in ([], ["--keypoint-offset", "0"]):
+        out, j3d = tmp_path / f"c{len(flag)}.json", tmp_path / f"j{len(flag)}.npz"
+        assert main(["calibrate", str(scene_dir / "easymocap"), "--intrinsics",
+                     str(scene_dir / "camera.json"), "--out", str(out), "--subject-height",
+                     "1.7", "--joints3d", str(j3d), "--quiet", *flag]) == 0
+        cals[bool(flag)] = json.loads(out.read_text())
+        scales[bool(flag)] = float(np.load(j3d)["scale_rel_std"])
+    zero, default = cals[True], cals[False]
+    assert zero["input"]["keypoint_offset"] == 0.0 and default["input"]["keypoint_offset"] is None
+    st = zero["refinement"]["stature"]
+    assert st["keypoint_offset"] == 0.0 and default["refinement"]["stature"]["keypoint_offset"] > 0
+    assert "0.0 cm" in zero["refinement"]["scale_source"]
+    assert scales[True] == pytest.approx(
+        np.sqrt(0.02 ** 2 + st["side_rel_diff"] ** 2 + st["bones_rel_spread"] ** 2), rel=1e-9)
+    assert scales[True] < scales[False] - 0.01
+    assert zero["uncertainty"]["distance_std"] < default["uncertainty"]["distance_std"]
+    assert zero["mirror"]["normal"] == default["mirror"]["normal"]

@@ -229,6 +229,23 @@ def test_subject_height_in_centimetres_is_named(monkeypatch, tmp_path):
         assert "175 m is not a human height" in err and "1.75 m (centimetres given)" in err
 
 
+def test_a_keypoint_offset_that_is_no_placement_is_one_line(monkeypatch, tmp_path):
+    """``--keypoint-offset`` on every command that takes ``--subject-height``: a negative,
+    a non-numeric or a centimetre value is refused in one line, exit 2."""
+    for cmd in (["calibrate", "kp.json", "--out", str(tmp_path / "c.json")],
+                ["calibrate-rig", "rig.toml", "--out", str(tmp_path / "c.toml")],
+                ["batch", "m.csv"],
+                ["live", "kp.json", "--jsonl", str(tmp_path / "l.jsonl")]):
+        for bad, said in (("-0.01", "must be a non-negative number of metres"),
+                          ("abc", "not a number of metres"),
+                          ("3", "give metres, e.g. 0.03 for 3 cm")):
+            code, _, err = run_cli(cmd + [f"--keypoint-offset={bad}"], monkeypatch)
+            assert code == 2 and err.count("\n") == 1, (cmd, bad, err)
+            assert "--keypoint-offset" in err and said in err, err
+        code, _, err = run_cli(cmd + ["--keypoint-offset", "-0.01"], monkeypatch)
+        assert code == 2 and err.count("\n") == 1, (cmd, err)
+
+
 def test_demo_prints_a_path_only_when_it_is_kept(tmp_path, monkeypatch):
     code, out, err = run_cli(["demo", "--frames", "120"], monkeypatch)
     assert code == 0, err

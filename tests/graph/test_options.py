@@ -33,7 +33,7 @@ def test_every_setting_lives_in_exactly_one_group():
     assert {"bone_sigma", "use_hip"} <= _names(PriorOptions)
     assert {"robust_kernel", "min_parallax_deg"} <= _names(ScheduleOptions)
     assert {"max_iterations", "workers"} <= _names(SolverOptions)
-    assert {"subject_height", "scale_from"} <= _names(GaugeOptions)
+    assert {"subject_height", "scale_from", "keypoint_offset"} <= _names(GaugeOptions)
 
 
 def test_groups_round_trip_and_keep_their_defaults():
@@ -57,6 +57,8 @@ def test_groups_round_trip_and_keep_their_defaults():
     (dict(robust_kernel="gemanmcclure"), "robust_kernel"),
     (dict(final_kernel="cauchyy"), "final_kernel"),
     (dict(scale_from="bones"), "scale_from"),
+    (dict(keypoint_offset=-0.01), "keypoint_offset"),
+    (dict(keypoint_offset=float("nan")), "keypoint_offset"),
     (dict(pixel_sigma=0.0), "pixel_sigma"),
 ])
 def test_bad_values_are_refused_by_name(bad, field):

@@ -122,3 +122,18 @@ def test_inline_needs_a_file_replayed_flat_out(scene_dir, tmp_path, capsys):
                  "--inline"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--inline" in err[0] and "--as-fast-as-possible" in err[0]
+
+
+def test_a_stated_keypoint_placement_reaches_the_live_scale(scene_dir, tmp_path):
+    """``--keypoint-offset 0``: the windows' stature carries no keypoint placement, so the
+    live scale's std (``mirror.scale_rel_std``) is smaller than the default's, the same
+    frames replayed inline."""
+    stds = {}
+    for flag in ([], ["--keypoint-offset", "0"]):
+        out = tmp_path / f"l{len(flag)}.jsonl"
+        assert main(["live", str(scene_dir / "keypoints_mmpose.json"), "--intrinsics",
+                     str(scene_dir / "camera.json"), "--subject-height", "1.7", "--jsonl",
+                     str(out), "--as-fast-as-possible", "--inline", "--quiet", *flag]) == 0
+        last = json.loads(out.read_text().splitlines()[-1])
+        stds[bool(flag)] = last["mirror"]["scale_rel_std"]
+    assert 0.02 <= stds[True] < stds[False] - 0.01

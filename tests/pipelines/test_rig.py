@@ -485,3 +485,26 @@ def test_a_single_mirror_calibrates_as_the_rig_of_one_camera(tmp_path):
     assert abs(m.distance / s.distance - 1) < 0.02
     view = rig.mirror_view()                  # and back: the rig's view is a Calibration
     np.testing.assert_allclose(view.normal, m.normal, atol=1e-12)
+
+
+def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
+    """A rig's metric scale with the keypoints stated on the landmarks
+    (``RefineOptions.keypoint_offset`` 0): the stature records it, the cameras' position
+    stds (the scale's share in them) are smaller than with the literature's placement,
+    and the rig is the same."""
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.stature import measurement_rel_std
+
+    rig = make_rig("2cams1mirror", frames=60, seed=1, noise_std=4.0)
+    path = write_rig(rig, tmp_path)
+    default = calibrate_rig(path)
+    zero = calibrate_rig(path, CalibrateOptions(
+        refine_options=RefineOptions(keypoint_offset=0.0)))
+    st = zero.refinement["stature"]
+    assert st["keypoint_offset"] == 0.0 and "0.0 cm" in zero.scale_source
+    assert measurement_rel_std(st) == pytest.approx(
+        np.hypot(st["side_rel_diff"], st["bones_rel_spread"]), rel=1e-12)
+    assert measurement_rel_std(st) < measurement_rel_std(default.refinement["stature"])
+    far = int(np.argmax([np.linalg.norm(c.pose[:3, 3]) for c in default.cameras]))
+    assert zero.cameras[far].position_std < default.cameras[far].position_std
+    np.testing.assert_allclose(zero.cameras[far].pose, default.cameras[far].pose, atol=1e-9)

@@ -215,3 +215,36 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     f = out.distance / res.distance
     assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance))
     assert abs(err) < 2 * out.distance_std / out.distance
+
+
+def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
+    """The keypoints stated on the landmarks (``keypoint_offset`` 0, a fraction of the
+    height): the same rescaling, its distance std holding the measured spreads alone
+    (the legs apart, the segments' disagreement) beside the data's, smaller than with
+    the literature's placement; 2 cm stated on the scene's subject: ``sqrt(2) 0.02 / H
+    / (1 - u)`` in quadrature with them."""
+    from mirrorgraph.stature import keypoint_offset_fraction, measurement_rel_std
+
+    paired, H = scene.paired(), scene.subject_height
+    res = _limbs_at_scale(scene, 1.13)
+    default = scale_by_stature(res, paired, scene.K, H)
+    zero = scale_by_stature(res, paired, scene.K, H, keypoint_offset=0.0)
+    assert zero.distance == default.distance and zero.stature["keypoint_offset"] == 0.0
+    f = zero.distance / res.distance
+    rel = math.hypot(zero.stature["side_rel_diff"], zero.stature["bones_rel_spread"])
+    assert measurement_rel_std(zero.stature) == pytest.approx(rel, rel=1e-12)
+    assert zero.distance_std == pytest.approx(math.hypot(f * res.distance_std,
+                                                         rel * zero.distance), rel=1e-12)
+    assert zero.distance_std < default.distance_std
+    two = scale_by_stature(res, paired, scene.K, H,
+                           keypoint_offset=keypoint_offset_fraction(0.02, H))
+    u = two.stature["unmeasured_fraction"]
+    kp = math.sqrt(2) * 0.02 / H / (1 - u)
+    assert measurement_rel_std(two.stature) == pytest.approx(
+        math.sqrt(two.stature["side_rel_diff"] ** 2 + two.stature["bones_rel_spread"] ** 2
+                  + kp ** 2), rel=1e-9)
+    assert "2.0 cm" in two.scale_source
+    # the limbs' scale, asked for: its prior without the keypoints' share
+    limbs0 = scale_by_stature(res, paired, scene.K, H, "limbs", keypoint_offset=0.0)
+    limbs = scale_by_stature(res, paired, scene.K, H, "limbs")
+    assert limbs0.distance_std < limbs.distance_std
