@@ -26,9 +26,10 @@ metric scale's relative std (:attr:`MirrorFusion.scale_rel_std`) holds the heigh
 the latest window's measured stature spread (a detector's distortion: more frames do not
 average it out) and the windows' statures' sampling std fused by its information
 (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
-frames) or, from three windows on, their distances' spread, the larger (a detector's
-error that drifts with the motion over longer than a window is seen between windows
-only). The per-frame bone prior holds the latest window's bone lengths
+frames), from three windows on their distances' spread, or the first block's restart
+steps (:meth:`MirrorFusion.note_restart_step`), the largest (a detector's error that
+drifts with the motion over longer than a window is seen between windows only). The
+per-frame bone prior holds the latest window's bone lengths
 (other fusions of the scale: ``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
@@ -352,9 +353,10 @@ class MirrorFusion:
     def scale_rel_std(self) -> float:
         """The metric scale's relative std: the height's prior, the latest fused window's
         measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows'
-        sampling: their fused within-window std (:attr:`scale_sampling`) or, from three
-        windows on, their distances' spread (:attr:`distance_spread_std` over the
-        distance), the larger (``0`` where neither was measured). A window's own sampling
+        sampling: their fused within-window std (:attr:`scale_sampling`), from three
+        windows on their distances' spread (:attr:`distance_spread_std` over the
+        distance), or the first block's restart steps (:attr:`scale_step_std`), the
+        largest (``0`` where none was measured). A window's own sampling
         std sees only what varies within its frames; a detector's error that drifts
         with the motion over longer than a window is seen between windows."""
         sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
