@@ -659,9 +659,10 @@ class LiveCalibrator:
         r, J = view_residuals(K, n, d, X, u, um)
         s = self._sigma_px()
         kept = keep & np.isfinite(r).all(2)
-        np.add.at(self._res_sum, idx, np.where(kept[:, :, None], r / s, 0.0))
-        np.add.at(self._res_count, idx, kept)
-        mean = self._res_sum[idx] / np.maximum(self._res_count[idx], 1)[:, :, None]
+        total = self._res_sum[idx] + np.where(kept[:, :, None], r / s, 0.0)   # idx unique
+        count = self._res_count[idx] + kept
+        self._res_sum[idx], self._res_count[idx] = total, count
+        mean = total / np.maximum(count, 1)[:, :, None]
         C = bias_covariance(J, mean, s)
         return np.where(np.isfinite(C).all((1, 2))[:, None, None], C, 0.0)
 
