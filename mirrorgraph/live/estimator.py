@@ -312,8 +312,11 @@ class MirrorFusion:
         independent draws, each of a variance falling as ``1 / frames`` or not falling
         at all (a detector's error that drifts with the motion), ``step^2 m / (n - m)``
         is an unbiased draw of the new window's scale variance for ``n = 2 m``, and
-        about one otherwise (``m / (n - m)`` exactly under the first). Ignored where
-        not finite or ``new_frames <= old_frames``."""
+        about one otherwise (``m / (n - m)`` exactly under the first). An error that
+        persists over longer than the windows (a drift correlated over hundreds of
+        frames) moves the windows less than it is off: the draws then understate it
+        (``tests/live/test_live.py``: an AR(1) drift, median error / std 1.2). Ignored
+        where not finite or ``new_frames <= old_frames``."""
         m, n = int(old_frames), int(new_frames)
         if not (np.isfinite(log_ratio) and 0 < m < n):
             return
