@@ -7,35 +7,34 @@
         out.status, out.joints3d, out.joints_std, out.mirror.normal
     live.close()
 
-**Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired against the current mirror's epipole
-``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
-right swapped back where the frames so far say the detector confused them in either view
+**Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired
+against the current mirror's epipole ``e ~ K n``
+(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and right
+swapped back where the frames so far say the detector confused them
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined together with the latest window's bone lengths, the
-worse view off by more than the threshold once the bones hold the joint left out (the
-joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`;
-:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
-the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
-under the joints pass's acceleration prior, measurements beyond its gate taken as
-outliers; a new window's tracks rescaled by the joints' scale change, the latest frame
-triangulated with both mirrors), the face
-keypoints fused with where the trunk puts them (:func:`.frame_prior.with_head_prior`, the
-offline run's head prior), and given again :attr:`LiveOptions.lag_frames` frames later
-smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
-covariance's trace) holds the filter's (or smoother's) covariance, the detector's bias
-(:func:`.frame_prior.bias_covariance` of each joint's mean residual in each view over
-the frames so far, which no filter averages) and the fused normal's share (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
-distance is held); :attr:`LiveFrame.joints_std` adds the metric scale's
+each joint's two rays and refined with the latest window's bone lengths, the worse view
+off by more than the threshold once the bones hold the joint left out
+(:func:`mirrorgraph.graph.outliers.one_view_outliers`; :mod:`.frame_prior`), kept where it
+reprojects within the threshold in front of the camera and the mirror, filtered over
+time (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior,
+outliers gated; a new window rescales the tracks by the joints' scale change, the latest
+frame triangulated with both mirrors), the face fused with where the trunk puts it
+(:func:`.frame_prior.with_head_prior`), and given again :attr:`LiveOptions.lag_frames`
+frames later smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's
+std (``sqrt`` of its covariance's trace) holds the filter's (or smoother's) covariance,
+the detector's bias (:func:`.frame_prior.bias_covariance` of each joint's mean residual in
+each view over the frames so far, which no filter averages) and the fused normal's share
+(:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
+distance); :attr:`LiveFrame.joints_std` adds the metric scale's
 (:attr:`LiveMirror.scale_rel_std`), :attr:`LiveFrame.joints_std_shape` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
-``first_window_frames`` up to ``window_frames``), then each later block of
-``window_frames`` fused into the mirror carried from the older ones
-(:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
-(``background=False``: deterministic) or in one worker process started with the
-calibrator or before it (:func:`start_worker`) (``background=True``: the frames keep
-flowing; a buffer beyond ``max_buffer_frames`` while the worker is busy is thinned evenly).
+``first_window_frames`` to ``window_frames``), then each later block of ``window_frames``
+fused into the mirror of the older ones (:class:`~.estimator.MirrorFusion`), in the calling
+thread (``background=False``: deterministic) or in one worker process
+(:func:`start_worker`; ``background=True``: the frames flow on, a buffer beyond
+``max_buffer_frames`` while the worker is busy is thinned evenly).
 
 **Status**: ``initialising`` until the fused rotation std is at most ``calibrated_std_deg``,
 then ``calibrated`` unless the latest window fails the reflection check
@@ -425,7 +424,8 @@ class LiveCalibrator:
                                    metric=self._copts.subject_height is not None)
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
         self._filter: JointFilter | None = None
-        self._held: deque = deque()   # (LiveFrame, its normal share) awaiting their lag
+        # (LiveFrame, its normal and bias shares) awaiting their lag
+        self._held: deque = deque()
         self._last_rays: tuple | None = None   # the latest frame's pixels (both views)
         self._mirror_frames = 0                 # frames of the window the mirror is
         self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
@@ -955,8 +955,8 @@ class LiveCalibrator:
     def _scale_ratio(self, before: tuple | None) -> float:
         """The joints' size at the current mirror over their size at ``before`` ``(K,
         normal, distance)``: the latest frame's pixels triangulated with both (two rays
-        a joint, :func:`.frame_prior.triangulate_two_rays`), the median of the joints'
-        distances from the camera's ratio; NaN without both mirrors or that frame, ``1``
+        a joint, :func:`.frame_prior.triangulate_two_rays`), the median over the joints of
+        their distances from the camera's ratio; NaN without both mirrors or that frame, ``1``
         where the mirror is unchanged. A new window moves the joints' scale by this
         whatever made it (its distance, its normal, the focal length)."""
         fu = self.fusion
