@@ -25,8 +25,7 @@ std (``sqrt`` of its covariance's trace) holds the filter's (or smoother's) cova
 the detector's bias (:func:`.frame_prior.bias_covariance` of each joint's mean residual in
 each view over the frames so far, which no filter averages) and the fused normal's share
 (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
-distance); :attr:`LiveFrame.joints_std` adds the metric scale's
-(:attr:`LiveMirror.scale_rel_std`), :attr:`LiveFrame.joints_std_shape` leaves it out.
+distance); ``joints_std`` adds the metric scale's, ``joints_std_shape`` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
