@@ -13,7 +13,17 @@ and, for every window the live run solved:
 * the output joints of the frames it served (the frames until the next window): their
   scale's error (each frame's least-squares factor about the camera, truth ~ f X: the
   median over the frames of ``1 / f - 1``, and its 10th and 90th percentiles), the share
-  of joints more than 0.3 m off, and the same with each frame's scale taken out.
+  of joints more than 0.3 m off, and the same with each frame's scale taken out;
+* the parts of that scale: the same frames' keypoints (in the true labels, outliers
+  kept) triangulated from their two rays with the mirror the frame had, before any
+  prior, filter or lag (``two rays``), and the height the window's bone lengths make
+  (Winter's fractions: what the per-frame prior holds) against the height given, and
+  the scale's std from the first block's restarts after it
+  (:attr:`mirrorgraph.live.estimator.MirrorFusion.scale_step_std`).
+
+Per scene, the joints' scale against the mirror: the output's, the final mirror's
+distance error, the frames' own mirrors' distance errors (mean over the frames) and the
+two rays' scale (means over the frames).
 
 Per scene: the stature measured on the detector's keypoints triangulated with the TRUE
 mirror (two rays a joint, :func:`mirrorgraph.live.frame_prior.triangulate_two_rays`,
@@ -65,6 +75,7 @@ def run_scene(case: tuple) -> dict:
     warnings.filterwarnings("ignore")
     import mirrorgraph.live.calibrator as lc
     from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.anthropometry import height_from_bone_lengths
     from mirrorgraph.live.frame_prior import triangulate_two_rays
     from mirrorgraph.stature import estimate_stature
 
@@ -92,18 +103,29 @@ def run_scene(case: tuple) -> dict:
                           LiveOptions.of(subject_height=tr.height_given, **extra))
     X = np.full((T, J, 3), np.nan)
     served = np.full(T, -1)
+    mirror_d = np.full(T, np.nan)
+    rays = np.full(T, np.nan)
+    K = tr.intrinsics.K
     fused = {}
     where = {int(f): i for i, f in enumerate(tr.frame_ids)}
+    truth_of = tr.joints3d
     det = tr.detections
     clock = time.perf_counter()
     try:
         for k, people in enumerate(det.people):
             fid = int(det.frame_ids[k])
             f = live.update(people, frame_id=fid, time_s=fid / FPS)
-            served[where[fid]] = len(windows) - 1
+            t = where[fid]
+            served[t] = len(windows) - 1
+            if f.mirror.normal is not None and f.paired:
+                mirror_d[t] = f.mirror.distance / tr.distance - 1.0
+                Xr = triangulate_two_rays(K, f.mirror.normal, f.mirror.distance, tr.real[t],
+                                          tr.mirror[t])
+                rays[t] = _frame_scale(Xr[None], truth_of[t][None])[0]
             if windows and len(windows) - 1 not in fused:
                 m = live.mirror
-                fused[len(windows) - 1] = (m.distance, m.scale_rel_std)
+                fused[len(windows) - 1] = (m.distance, m.scale_rel_std,
+                                           live.fusion.scale_step_std)
             if f.settled is not None:
                 X[where[int(f.settled.frame_id)]] = f.settled.joints3d
         live.finish()
@@ -126,7 +148,7 @@ def run_scene(case: tuple) -> dict:
     for i, w in enumerate(windows):
         sel = (served == i) & np.isfinite(s_err)
         g = given & sel[:, None]
-        d_f, s_f = fused.get(i, (None, None))
+        d_f, s_f, step = fused.get(i, (None, None, None))
         rows.append(dict(
             frames=f"{w.first_frame}-{w.last_frame}", size=int(log[i]["size"]) if i < len(log)
             else w.frames, result=log[i]["result"] if i < len(log) else "?",
@@ -138,8 +160,17 @@ def run_scene(case: tuple) -> dict:
             scale_p10=float(np.percentile(s_err[sel], 10)) if sel.any() else None,
             scale_p90=float(np.percentile(s_err[sel], 90)) if sel.any() else None,
             gross=float((e[g] > bj.GROSS_M).mean()) if g.any() else None,
-            gross_scaled=float((es[g] > bj.GROSS_M).mean()) if g.any() else None))
+            gross_scaled=float((es[g] > bj.GROSS_M).mean()) if g.any() else None,
+            rays_med=float(np.nanmedian(rays[sel])) if sel.any() else None,
+            step=None if step is None or not np.isfinite(step) else float(step),
+            bones_height_err=(height_from_bone_lengths(w.bone_lengths, tr.detections.skeleton)
+                              / tr.height_given - 1.0) if w.ok and w.bone_lengths else None))
     out["windows"] = rows
+    final = live.mirror
+    out["final_distance_err"] = final.distance / tr.distance - 1.0
+    out["served_distance_err"] = float(np.nanmean(mirror_d))
+    out["rays_scale_err"] = float(np.nanmean(rays))
+    out["scale_err_mean"] = float(np.nanmean(s_err))
     ok = np.isfinite(s_err)
     out["scale_err"] = float(np.median(s_err[ok])) if ok.any() else None
     out["gross"] = float((e[given] > bj.GROSS_M).mean()) if given.any() else None
@@ -169,8 +200,9 @@ def tables(scenes: list[dict]) -> list[str]:
              "least-squares scale about the camera.", "",
              "| scene | window frames | size | result | window distance err % | sampling std % "
              "| spread % | fused distance err % | scale std % | served | output scale err % "
-             "| p10 / p90 % | > 0.3 m % | > 0.3 m, frame's scale out % |",
-             "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|"]
+             "| p10 / p90 % | > 0.3 m % | > 0.3 m, frame's scale out % | two rays scale err % "
+             "| bones' height err % | restart steps std % |",
+             "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|"]
     for s in scenes:
         for w in s["windows"]:
             lines.append(
@@ -179,7 +211,9 @@ def tables(scenes: list[dict]) -> list[str]:
                 f"| {_pct(w['side'], '.2f')} | {_pct(w['fused_err'])} "
                 f"| {_pct(w['fused_std'], '.2f')} | {w['served']} | {_pct(w['scale_med'])} "
                 f"| {_pct(w['scale_p10'], '+.1f')} / {_pct(w['scale_p90'], '+.1f')} "
-                f"| {_pct(w['gross'], '.1f')} | {_pct(w['gross_scaled'], '.2f')} |")
+                f"| {_pct(w['gross'], '.1f')} | {_pct(w['gross_scaled'], '.2f')} "
+                f"| {_pct(w.get('rays_med'))} | {_pct(w.get('bones_height_err'))} "
+                f"| {_pct(w.get('step'), '.2f')} |")
     lines += ["", "## Per scene", "",
               "`true-mirror stature err`: the stature measured on the keypoints triangulated "
               "with the TRUE mirror (two rays a joint, outliers kept) against the true height; "
@@ -195,6 +229,20 @@ def tables(scenes: list[dict]) -> list[str]:
             f"| {_pct(s['gross'], '.2f')} | {_pct(s['gross_scaled'], '.2f')} "
             f"| {_pct(s.get('offline_scale_err'))} | {_pct(s.get('offline_distance_err'))} "
             f"| {s['seconds']:.0f} |")
+    lines += ["", "## The joints' scale against the mirror", "",
+              "Means over the frames. `output`: the live joints' scale error; `final "
+              "distance`: the last mirror's distance error; `frames' distance`: each "
+              "frame's own mirror's distance error; `two rays`: each frame's keypoints "
+              "triangulated with its own mirror before any prior. output - final distance = (frames' distance - "
+              "final distance) + (two rays - frames' distance) + (output - two rays).", "",
+              "| scene | output % | final distance % | frames' distance % | two rays % "
+              "| windows' part | rays' part | per-frame path's part |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for s in scenes:
+        o, f, m, r = (s["scale_err_mean"], s["final_distance_err"], s["served_distance_err"],
+                      s["rays_scale_err"])
+        lines.append(f"| {s['name']} | {_pct(o)} | {_pct(f)} | {_pct(m)} | {_pct(r)} "
+                     f"| {_pct(m - f)} | {_pct(r - m)} | {_pct(o - r)} |")
     return lines
 
 

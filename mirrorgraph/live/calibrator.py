@@ -7,33 +7,33 @@
         out.status, out.joints3d, out.joints_std, out.mirror.normal
     live.close()
 
-**Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired against the current mirror's epipole
-``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and
-right swapped back where the frames so far say the detector confused them in either view
+**Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired
+against the current mirror's epipole ``e ~ K n``
+(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and right
+swapped back where the frames so far say the detector confused them
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined together with the latest window's bone lengths, the
-worse view off by more than the threshold once the bones hold the joint left out (the
-joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`;
-:mod:`.frame_prior`), kept where it reprojects within the threshold and lies in front of
-the camera and the mirror, and filtered over time (:mod:`.joint_filter`: a Kalman filter
-under the joints pass's acceleration prior, measurements beyond its gate taken as
-outliers; a new window's tracks rescaled by its body's size over the old one's), the face
-keypoints fused with where the trunk puts them (:func:`.frame_prior.with_head_prior`, the
-offline run's head prior), and given again :attr:`LiveOptions.lag_frames` frames later
-smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its
-covariance's trace) holds the filter's (or smoother's) covariance and the fused normal's
-share (:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
-distance is held); :attr:`LiveFrame.joints_std` adds the metric scale's
-(:attr:`LiveMirror.scale_rel_std`), :attr:`LiveFrame.joints_std_shape` leaves it out.
+each joint's two rays and refined with the latest window's bone lengths, the worse view
+off by more than the threshold once the bones hold the joint left out
+(:func:`mirrorgraph.graph.outliers.one_view_outliers`; :mod:`.frame_prior`), kept where it
+reprojects within the threshold in front of the camera and the mirror, filtered over
+time (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior,
+outliers gated; a new window rescales the tracks by the joints' scale change, the latest
+frame triangulated with both mirrors), the face fused with where the trunk puts it
+(:func:`.frame_prior.with_head_prior`), and given again :attr:`LiveOptions.lag_frames`
+frames later smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's
+std (``sqrt`` of its covariance's trace) holds the filter's (or smoother's) covariance,
+the detector's bias (:func:`.frame_prior.bias_covariance` of each joint's mean residual in
+each view over the frames so far, which no filter averages) and the fused normal's share
+(:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
+distance); ``joints_std`` adds the metric scale's, ``joints_std_shape`` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
-``first_window_frames`` up to ``window_frames``), then each later block of
-``window_frames`` fused into the mirror carried from the older ones
-(:class:`~.estimator.MirrorFusion`). Windows are solved in the calling thread
-(``background=False``: deterministic) or in one worker process started with the
-calibrator or before it (:func:`start_worker`) (``background=True``: the frames keep
-flowing; a buffer beyond ``max_buffer_frames`` while the worker is busy is thinned evenly).
+``first_window_frames`` to ``window_frames``), then each later block of ``window_frames``
+fused into the mirror of the older ones (:class:`~.estimator.MirrorFusion`), in the calling
+thread (``background=False``: deterministic) or in one worker process
+(:func:`start_worker`; ``background=True``: the frames flow on, a buffer beyond
+``max_buffer_frames`` while the worker is busy is thinned evenly).
 
 **Status**: ``initialising`` until the fused rotation std is at most ``calibrated_std_deg``,
 then ``calibrated`` unless the latest window fails the reflection check
@@ -58,7 +58,8 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import head_layout, refine_with_bones, triangulate_two_rays, with_head_prior
+from .frame_prior import (bias_covariance, head_layout, refine_with_bones,
+                          triangulate_two_rays, view_residuals, with_head_prior)
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -422,9 +423,15 @@ class LiveCalibrator:
                                    metric=self._copts.subject_height is not None)
         self._swaps = BodySwapFilter(self.skeleton, copts.min_confidence)
         self._filter: JointFilter | None = None
-        self._held: deque = deque()   # (LiveFrame, its normal share) awaiting their lag
-        self._filter_height: float | None = None   # the body's size the tracks are in
+        # (LiveFrame, its normal and bias shares) awaiting their lag
+        self._held: deque = deque()
+        self._last_rays: tuple | None = None   # the latest frame's pixels (both views)
+        self._mirror_frames = 0                 # frames of the window the mirror is
         self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
+        self._frame_bias = np.zeros(self.skeleton.num_joints)
+        # each joint's whitened residual in each view summed over the frames, their count
+        self._res_sum = np.zeros((self.skeleton.num_joints, 2, 2))
+        self._res_count = np.zeros((self.skeleton.num_joints, 2))
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -545,6 +552,7 @@ class LiveCalibrator:
         nan = np.full((J, 3), np.nan)
         solve_s = self._poll()
         self._frame_normal = np.full(J, np.nan)
+        self._frame_bias = np.zeros(J)
         p, reason = self._checked(people)
         if reason is None and self._last_id is not None and fid <= self._last_id:
             reason = ("frame number not increasing",
@@ -606,6 +614,7 @@ class LiveCalibrator:
                 self._filtered(fid, idx, X, np.zeros((0, 3, 3)))
             return out, total, shape, bool(seen.any())
         u, um = real[idx, :2], mirror[idx, :2]
+        self._last_rays = (u, um)
         lengths = self._bone_lengths() if self.options.bone_prior else None
         L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
                                                             1.0)
@@ -625,6 +634,7 @@ class LiveCalibrator:
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
             ok &= (~keep | (px <= gate)).all(1)
             ok &= np.isfinite(cov).all((1, 2))
+        bias = self._bias(K, n, d, X[ok], u[ok], um[ok], idx[ok], keep[ok])
         idx, X, cov = idx[ok], X[ok], cov[ok]
         if self.options.smooth:
             X, cov = self._filtered(fid, idx, X, cov)
@@ -634,10 +644,26 @@ class LiveCalibrator:
                  else (self._filter.x[:, :3], self._filter.P[:, :3, :3]))
         X, cov = self._head(idx, X, cov, track)
         out[idx] = X
-        shape[idx], total[idx] = self._stds(K, n, d, X, cov)
+        shape[idx], total[idx] = self._stds(K, n, d, X, cov + bias)
+        self._frame_bias[idx] = np.trace(bias, axis1=1, axis2=2)
         if "normal" in self.last_variances:
             self._frame_normal[idx] = self.last_variances["normal"]
         return out, total, shape, True
+
+    def _bias(self, K, n, d, X, u, um, idx, keep) -> np.ndarray:
+        """``(k, 3, 3)`` the detector's bias share of the joints ``X`` (skeleton indices
+        ``idx``, views ``keep`` ``(k, 2)``): each joint's residual in each view it keeps,
+        whitened, added to its running mean over the frames so far, and
+        :func:`.frame_prior.bias_covariance` of the means (0 where NaN)."""
+        r, J = view_residuals(K, n, d, X, u, um)
+        s = self._sigma_px()
+        kept = keep & np.isfinite(r).all(2)
+        total = self._res_sum[idx] + np.where(kept[:, :, None], r / s, 0.0)   # idx unique
+        count = self._res_count[idx] + kept
+        self._res_sum[idx], self._res_count[idx] = total, count
+        mean = total / np.maximum(count, 1)[:, :, None]
+        C = bias_covariance(J, mean, s)
+        return np.where(np.isfinite(C).all((1, 2))[:, None, None], C, 0.0)
 
     def _stds(self, K, n, d, X, cov) -> tuple[np.ndarray, np.ndarray]:
         """``(k,)`` each joint's std without and with the metric scale's share."""
@@ -705,12 +731,7 @@ class LiveCalibrator:
             self._filter = JointFilter(self.skeleton.num_joints, sigma,
                                        int(g.smoothness_max_gap),
                                        lag=max(int(self.options.lag_frames), 0))
-        elif self._filter_height is not None and h != self._filter_height:
-            # a new window's unit: the body's size its bones make over the old one's
-            # (with a subject height both are the subject's: the tracks stay in metres
-            # whatever the new distance; without one, the body in mirror distances)
-            self._filter.scale(h / self._filter_height)
-        self._filter.sigma, self._filter_height = sigma, h
+        self._filter.sigma = sigma
         Xf, C, _ = self._filter.step(fid, idx, X, cov)
         return Xf, C
 
@@ -748,15 +769,18 @@ class LiveCalibrator:
         lag = int(self.options.lag_frames)
         if lag <= 0:
             return None
-        self._held.append((frame, self._frame_normal.copy()))
+        self._held.append((frame, self._frame_normal.copy(), self._frame_bias.copy()))
         if len(self._held) <= lag:
             return None
         return self._smoothed_frame(*self._held.popleft(), lag)
 
-    def _smoothed_frame(self, old: LiveFrame, normal: np.ndarray, lag: int) -> LiveFrame:
+    def _smoothed_frame(self, old: LiveFrame, normal: np.ndarray, bias: np.ndarray,
+                        lag: int) -> LiveFrame:
         """``old`` with the smoother's joints where it gave joints of its own; ``normal``
         ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
-        point (first order: the smoothed point is millimetres away), NaN where none."""
+        point (first order: the smoothed point is millimetres away), NaN where none;
+        ``bias`` ``(J,)`` the detector's bias share (:meth:`_bias`'s trace), which the
+        smoother does not average."""
         out = copy.copy(old)
         out.settled, out.lag_frames = None, lag
         sm = (self._filter.smoothed(old.frame_id)
@@ -769,13 +793,15 @@ class LiveCalibrator:
             return out
         X, cov = self._head(np.flatnonzero(have), sm[0][have], sm[1][have], sm)
         if np.isfinite(normal[have]).all():
-            var = np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
+            var = (np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
+                   + bias[have])
             scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2
                      if self._copts.subject_height is not None else 0.0)
             shape, total = np.sqrt(var), np.sqrt(var + scale)
         else:
             shape, total = self._stds(self.K, self.fusion.normal,
-                                      float(self.fusion.distance), X, cov)
+                                      float(self.fusion.distance), X,
+                                      cov + bias[have, None, None] / 3.0 * np.eye(3))
         out.joints3d, out.joints_std, out.joints_std_shape = (
             old.joints3d.copy(), old.joints_std.copy(), old.joints_std_shape.copy())
         out.joints3d[have], out.joints_std[have], out.joints_std_shape[have] = X, total, shape
@@ -787,7 +813,7 @@ class LiveCalibrator:
         lag = int(self.options.lag_frames)
         held = list(self._held)
         self._held.clear()
-        return [self._smoothed_frame(fr, normal, lag) for fr, normal in held]
+        return [self._smoothed_frame(fr, normal, bias, lag) for fr, normal, bias in held]
 
     def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length
@@ -897,6 +923,8 @@ class LiveCalibrator:
         return B, B.T @ self.fusion.normal_cov @ B
 
     def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
+        before = (None if self.fusion.normal is None else
+                  (self.K, self.fusion.normal.copy(), float(self.fusion.distance)))
         self._cache.clear()
         if provisional:
             # the calibration of every frame so far replaces the one of fewer frames
@@ -908,11 +936,44 @@ class LiveCalibrator:
                 self._next = self.options.first_window_frames
         else:
             what = self.fusion.add(est)
+        ratio = self._scale_ratio(before)
+        if np.isfinite(ratio):
+            # the tracks (and the frames awaiting their lag) at the new mirror's scale
+            if self._filter is not None:
+                self._filter.scale(ratio)
+            if provisional and what == "started":
+                self.fusion.note_restart_step(math.log(ratio), self._mirror_frames, size)
+        if what in ("started", "reset"):
+            self._mirror_frames = size
         if len(self.window_log) < self._log_cap:
             self.window_log.append({"frames": [est.first_frame, est.last_frame],
                                     "size": size, "result": what, "reason": est.reason,
                                     "rotation_std_deg": est.rotation_std_deg,
                                     "seconds": est.seconds, "pairs": est.pairs})
+
+    def _scale_ratio(self, before: tuple | None) -> float:
+        """The joints' size at the current mirror over their size at ``before`` ``(K,
+        normal, distance)``: the latest frame's pixels triangulated with both (two rays
+        a joint, :func:`.frame_prior.triangulate_two_rays`), the median over the joints of
+        their distances from the camera's ratio; NaN without both mirrors or that frame, ``1``
+        where the mirror is unchanged. A new window moves the joints' scale by this
+        whatever made it (its distance, its normal, the focal length)."""
+        fu = self.fusion
+        if before is None or fu.normal is None or self._last_rays is None:
+            return float("nan")
+        K0, n0, d0 = before
+        K1, n1, d1 = self.K, fu.normal, float(fu.distance)
+        if d1 == d0 and np.array_equal(n1, n0) and np.array_equal(K1, K0):
+            return 1.0
+        u, um = self._last_rays
+        X0 = triangulate_two_rays(K0, n0, d0, u, um)
+        X1 = triangulate_two_rays(K1, n1, d1, u, um)
+        with np.errstate(invalid="ignore"):
+            ok = (np.isfinite(X0).all(1) & np.isfinite(X1).all(1) & (X0[:, 2] > 0)
+                  & (X1[:, 2] > 0))
+        if not ok.any():
+            return float("nan")
+        return float(np.median(np.linalg.norm(X1[ok], axis=1) / np.linalg.norm(X0[ok], axis=1)))
 
     def finish(self) -> LiveMirror:
         """End of the stream: wait for a window in flight, solve what is buffered (the

@@ -26,9 +26,10 @@ metric scale's relative std (:attr:`MirrorFusion.scale_rel_std`) holds the heigh
 the latest window's measured stature spread (a detector's distortion: more frames do not
 average it out) and the windows' statures' sampling std fused by its information
 (:attr:`mirrorgraph.stature.StatureEstimate.sampling_rel_std`: it shrinks with the
-frames) or, from three windows on, their distances' spread, the larger (a detector's
-error that drifts with the motion over longer than a window is seen between windows
-only). The per-frame bone prior holds the latest window's bone lengths
+frames), from three windows on their distances' spread, or the first block's restart
+steps (:meth:`MirrorFusion.note_restart_step`), the largest (a detector's error that
+drifts with the motion over longer than a window is seen between windows only). The
+per-frame bone prior holds the latest window's bone lengths
 (other fusions of the scale: ``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
@@ -256,6 +257,8 @@ class MirrorFusion:
     scale_sampling: float = float("nan")
     sampling_info: float = 0.0
     bone_lengths: dict = field(default_factory=dict)
+    step_var_sum: float = 0.0
+    steps: int = 0
     _pending: list = field(default_factory=list)
 
     @property
@@ -297,6 +300,37 @@ class MirrorFusion:
         mad = 1.4826 * np.median(np.abs(d - np.median(d)))
         return float(1.2533 * mad / np.sqrt(len(d)))
 
+    def note_restart_step(self, log_ratio: float, old_frames: int, new_frames: int) -> None:
+        """Record how far a restart of the first block moved the joints' scale.
+
+        ``log_ratio``: the log of the new window's joints' size over the old one's, on the
+        same rays (:meth:`LiveCalibrator <mirrorgraph.live.calibrator.LiveCalibrator>`
+        measures it on the latest frame's); ``old_frames``, ``new_frames``: the two
+        windows' frames, the old ones among the new. The new window is the old one and
+        a block of ``n - m`` new frames, so the step is ``(n - m) / n`` times the
+        difference of the two blocks' scale errors; with blocks whose errors are
+        independent draws, each of a variance falling as ``1 / frames`` or not falling
+        at all (a detector's error that drifts with the motion), ``step^2 m / (n - m)``
+        is an unbiased draw of the new window's scale variance for ``n = 2 m``, and
+        about one otherwise (``m / (n - m)`` exactly under the first). An error that
+        persists over longer than the windows (a drift correlated over hundreds of
+        frames) moves the windows less than it is off: the draws then understate it
+        (``tests/live/test_live.py``: an AR(1) drift, median error / std 1.2). Ignored
+        where not finite or ``new_frames <= old_frames``."""
+        m, n = int(old_frames), int(new_frames)
+        if not (np.isfinite(log_ratio) and 0 < m < n):
+            return
+        self.step_var_sum += float(log_ratio) ** 2 * m / (n - m)
+        self.steps += 1
+
+    @property
+    def scale_step_std(self) -> float:
+        """The joints' scale std from the first block's restarts (relative): the RMS of
+        their draws (:meth:`note_restart_step`); NaN before the first. A window's own
+        sampling std (batch means within its frames) does not see a detector's error
+        that drifts over longer than the window; two windows' blocks apart do."""
+        return float(np.sqrt(self.step_var_sum / self.steps)) if self.steps else float("nan")
+
     @property
     def distance_data_std(self) -> float:
         """The distance's std without the height's share: the windows' own (combined by
@@ -322,14 +356,15 @@ class MirrorFusion:
     def scale_rel_std(self) -> float:
         """The metric scale's relative std: the height's prior, the latest fused window's
         measured stature spread (:attr:`WindowEstimate.scale_side`) and the windows'
-        sampling: their fused within-window std (:attr:`scale_sampling`) or, from three
-        windows on, their distances' spread (:attr:`distance_spread_std` over the
-        distance), the larger (``0`` where neither was measured). A window's own sampling
+        sampling: their fused within-window std (:attr:`scale_sampling`), from three
+        windows on their distances' spread (:attr:`distance_spread_std` over the
+        distance), or the first block's restart steps (:attr:`scale_step_std`), the
+        largest (``0`` where none was measured). A window's own sampling
         std sees only what varies within its frames; a detector's error that drifts
         with the motion over longer than a window is seen between windows."""
         sampling = self.scale_sampling if np.isfinite(self.scale_sampling) else 0.0
         spread = self.distance_spread_std / self.distance if self.metric else float("nan")
-        sampling = max(sampling, np.nan_to_num(spread))
+        sampling = max(sampling, np.nan_to_num(spread), np.nan_to_num(self.scale_step_std))
         return float(np.sqrt(self.height_sigma ** 2 + self.scale_side ** 2 + sampling ** 2))
 
     def _median_distance(self) -> float:
@@ -406,6 +441,7 @@ class MirrorFusion:
                 recent = self._pending[-RESET_AFTER:]
                 self._pending.clear()
                 self.resets += 1
+                self.step_var_sum, self.steps = 0.0, 0       # another scene
                 self._start(recent[0])
                 for other in recent[1:]:
                     self._fuse(other)

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..graph.outliers import one_view_outliers
 
-__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout", "HUBER_K"]
+__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout",
+           "view_residuals", "bias_covariance", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -69,6 +70,58 @@ def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: 
         X = 0.5 * (s[:, None] * r1 + c2 + t[:, None] * r2)
     X[~(np.abs(den) > 1e-12 * a * c)] = np.nan
     return X
+
+
+def view_residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
+                   u: np.ndarray, um: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's reprojection residual and projection Jacobian in both views.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        X: ``(k, 3)`` joints (camera frame); u, um: ``(k, 2)`` their pixels in the
+            camera and in the mirror, undistorted.
+
+    Returns:
+        ``(r, J)``: ``(k, 2, 2)`` residuals ``pi(P X) - u``, px (view: camera, mirror;
+        x, y) and ``(k, 2, 2, 3)`` their Jacobians in ``X``, px per unit of ``X``.
+    """
+    n = np.asarray(normal, float)
+    H = np.eye(3) - 2.0 * np.outer(n, n)
+    P = np.stack([K, K @ H])                                              # (2, 3, 3)
+    q = np.einsum("vij,kj->kvi", P, X)
+    q[:, 1] += K @ (2.0 * float(distance) * n)
+    z = q[:, :, 2:3]
+    p = q[:, :, :2] / z
+    J = (P[None, :, :2, :] - p[..., None] * P[None, :, 2:3, :]) / z[..., None]
+    return p - np.stack([u, um], 1), J
+
+
+def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.ndarray:
+    """The covariance a detector's per-joint bias adds to a joint triangulated from two
+    views: ``H^-1 H_b H^-1``, ``H = sum_v J_v^T J_v / s^2`` the joint's information from
+    its two rays, ``H_b = sum_v 2 |m_v|^2 J_v^T J_v / s^2`` with ``m_v`` the joint's mean
+    whitened residual in view ``v`` over the frames (the offline joints' bias share,
+    :func:`mirrorgraph.graph.joints_uncertainty.joints_covariance`'s: the bias shows
+    across the epipolar line, each view about half of it, and is taken as large along
+    it). A shared bias does not average over frames: it is added after the filter.
+    Under iid noise ``|m_v|^2`` is ``~2 / frames``.
+
+    Args:
+        J: ``(k, 2, 2, 3)`` each joint's projection Jacobians (:func:`view_residuals`).
+        mean_w: ``(k, 2, 2)`` each joint's mean residual in each view over ``s``.
+        sigma_px: the reprojection noise ``s``, px.
+
+    Returns:
+        ``(k, 3, 3)``; NaN where the two rays do not fix the joint.
+    """
+    Hv = np.einsum("kvri,kvrj->kvij", J, J) / (sigma_px * sigma_px)          # (k, 2, 3, 3)
+    w = 2.0 * np.einsum("kvr,kvr->kv", mean_w, mean_w)
+    Hb = np.einsum("kv,kvij->kij", w, Hv)
+    try:
+        Hinv = np.linalg.inv(Hv.sum(1))
+    except np.linalg.LinAlgError:
+        return np.full((len(J), 3, 3), np.nan)
+    return Hinv @ Hb @ Hinv
 
 
 _DIAGONALS: dict = {}

@@ -156,3 +156,43 @@ def test_the_frames_head_prior_is_the_offline_runs():
                   + np.einsum("nij,nj->ni", P[0][f], m[0][f]))
     assert np.allclose(Xo[f], x, atol=1e-12) and np.allclose(Co[f], post, atol=1e-15)
     assert np.array_equal(Xo[~f], X[~f])
+
+
+def test_the_bias_share_holds_a_detectors_per_joint_bias_and_vanishes_without_one():
+    """Each joint's pixels off by a fixed 3 px in each view (a direction drawn per joint
+    and view) beside 1 px iid noise over 200 frames: every frame's joint is off by the
+    bias's triangulation, which the frame's own covariance (at 1 px) does not hold
+    (the mean error's Mahalanobis length per axis, median over the joints: 2.0). The
+    share from the joints' mean residuals (``bias_covariance``) is 4.2 times the frame's
+    own (median of the traces) and brings it to 1.6: the bias along the epipolar line
+    leaves no residual and is taken as large as the one across. Without a bias the
+    share is the mean's iid floor (``2 / frames`` of the frame's own)."""
+    from mirrorgraph.live.frame_prior import bias_covariance, view_residuals
+
+    sc = make_wide_scene(0, "wide", "iid", 200)
+    rng = np.random.default_rng(3)
+    n, k = sc.joints3d.shape[:2]
+    ang = rng.uniform(0, 2 * np.pi, (k, 2))
+    for amp in (3.0, 0.0):
+        bias = amp * np.stack([np.cos(ang), np.sin(ang)], -1)          # (k, view, xy)
+        rsum, errs = np.zeros((k, 2, 2)), []
+        for t in range(n):
+            X, u, um = _frame_data(sc, t, rng, noise=1.0)
+            u, um = u + bias[:, 0], um + bias[:, 1]
+            X0 = geo.triangulate_mirror(sc.K, sc.normal, sc.distance, u, um, iterations=1)
+            Xr, own = refine_with_bones(sc.K, sc.normal, sc.distance, X0, u, um,
+                                        np.arange(k), np.zeros((0, 2), int), np.zeros(0),
+                                        1.0, 0.02)
+            r, J = view_residuals(sc.K, sc.normal, sc.distance, Xr, u, um)
+            rsum += r
+            errs.append(Xr - X)
+        C = bias_covariance(J, rsum / n, 1.0)
+        ratio = np.median(np.trace(C, axis1=1, axis2=2) / np.trace(own, axis1=1, axis2=2))
+        if not amp:
+            assert ratio < 10.0 / n, ratio
+            continue
+        e = np.mean(errs, 0)                              # the bias's part of the error
+        d = np.sqrt(np.einsum("ki,kij,kj->k", e, np.linalg.inv(C + own), e) / 3)
+        d_own = np.sqrt(np.einsum("ki,kij,kj->k", e, np.linalg.inv(own), e) / 3)
+        assert ratio > 3.0, ratio
+        assert np.median(d_own) > 1.8 and np.median(d) < 0.85 * np.median(d_own)
