@@ -9,43 +9,19 @@ where the person's left/right pairs lie along the epipolar lines (seen from the 
 mirror) both labellings fit and the crossed ones stay, and a consistent pair of crossed
 views triangulates a body whose left is its right.
 
-:func:`clip_left_right` decides it for every frame of the clip jointly, with a hidden
+:func:`crossed_states` decides it for every frame of the clip jointly, with a hidden
 four-state Markov chain decoded by its min-sum (Viterbi) messages (Rabiner 1989,
-sec. III-B; the messages of :func:`.body_left_right.swap_states`): the state is whether
-the direct view's labels are crossed and whether the reflection's are; each frame's cost of
-a state is
-
-* the *epipolar* term: the two views' left/right joints under the labelling the state gives
-  them relative to each other, ``sum_j min((d_j / sigma)^2, c^2) / 2`` over the epipolar
-  (Sampson) distances ``d_j`` to the mirror's epipole (:func:`mirrorgraph.geometry.
-  epipolar_distances`), ``sigma`` half the pairing's threshold: it tells the two views'
-  labels crossed against each other from consistent ones, not which view is wrong;
-* the *facing* term: the body triangulated from the consistent labelling
-  (:func:`mirrorgraph.geometry.triangulate_mirror` with the normal ``K^-1 e``, unit
-  distance) has a handedness, ``h = ((L - R) x (S - H)) . (N - E)`` normalised by the three
-  lengths, with ``L``, ``R`` the shoulders (and hips) labelled left and right, ``S``, ``H``
-  the shoulders' and hips' midpoints, ``N`` the mean of the nose and the eyes' midpoint
-  and ``E`` the ears' midpoint: a
-  person's left, their up and their facing make a right-handed frame, so ``h > 0`` where the
-  labels are right and ``h < 0`` where both views are crossed. The term is the logistic
-  loss ``log(1 + exp(-k s h))`` with ``s = +-1`` the sign the state expects (the midpoints
-  and the nose do not depend on the labels, so a crossed body cannot fake the sign);
-* a small cost of each crossed view (the labels as given are the default);
-
-the two geometric terms weighted by ``evidence_weight`` (a detector's errors persist over
-frames, and so do the geometry's ambiguities: a run's frames are not independent
-witnesses);
-
-and a step between consecutive frames costs ``switch_cost`` for each view whose state
-changes (a detector turning its convention) plus, in each view, the motion of its keypoints
-as the two states relabel them: ``sum_j min((|x_t - x_prev| / s_j)^2, c^2) / 2`` in units of
-each joint's typical motion ``s_j`` (the motion's continuity of
-:mod:`.body_left_right`, over the whole body): the chain changes a view's state where the
-detector's labels jump from one side to the other, and a run between two jumps is decided
-by the evidence of all its frames together; frames where neither labelling fits better
-(the side views) take their run's state, and a clip the detector labels the same way
-throughout is decided as one. Frames further apart than ``max_gap`` are unrelated (the
-chain restarts).
+sec. III-B; :func:`.body_left_right.min_sum_messages`): the state is whether the direct
+view's labels are crossed and whether the reflection's are. Each frame weighs how well the
+two views' labels fit the mirror's epipole under the state (which tells crossed views from
+consistent ones, not which view is crossed) and the handedness of the body they
+triangulate (a person's left, up and facing make a right-handed frame: which view is
+crossed); each step between frames weighs the motion of every view's keypoints as the
+states relabel them (the chain changes a view's state where the detector's labels jump from
+one side to the other) and a cost per change. A run between two jumps is decided by the
+evidence of all its frames together: frames where neither labelling fits better (the side
+views) take their run's state, and a clip the detector labels the same way throughout is
+decided as one. :func:`clip_left_right` relabels the frames so found.
 
 Frames: ``paired.real`` and ``paired.mirror`` in undistorted pixels, the reflection's labels
 in the person's (:class:`~mirrorgraph.keypoints.PairedKeypoints`); ``K`` the camera's (an
@@ -108,6 +84,11 @@ _SIDES = (("left_shoulder", "right_shoulder"), ("left_hip", "right_hip"))
 _FACE = ("nose", "left_eye", "right_eye", "left_ear", "right_ear")
 
 
+#: The face's offset ahead of the ears' midpoint, in units of the torso's length (the
+#: shoulders' midpoint to the hips'): about 10 cm of 50 cm.
+FACE_AHEAD = 0.2
+
+
 def _face_joints(sk) -> np.ndarray | None:
     """``(9,)`` indices: left shoulder, right shoulder, left hip, right hip, nose, left eye,
     right eye, left ear, right ear; ``None`` where the layout lacks one."""
@@ -134,25 +115,35 @@ def handedness(X: np.ndarray) -> np.ndarray:
 
 
 def _facing(paired: PairedKeypoints, real: np.ndarray, mirror: np.ndarray, e: np.ndarray,
-            K: np.ndarray) -> np.ndarray:
+            K: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
     """``(T, 2)`` the handedness of each frame's body triangulated from the reflection as
     labelled (``[:, 0]``) and with its left and right exchanged (``[:, 1]``), the direct
-    view's labels; NaN where the layout or a frame lacks a joint of it."""
+    view's labels, and ``(T, 2)`` its weight (the module docstring's); NaN (weight 0)
+    where the layout or a frame lacks a joint of it."""
     T = len(real)
     idx = _face_joints(paired.skeleton)
     if idx is None:
-        return np.full((T, 2), np.nan)
+        return np.full((T, 2), np.nan), np.zeros((T, 2))
     flip = paired.skeleton.flip
     n = geo.normal_from_epipole(K, e)
     u, um = real[:, idx, :2], mirror[:, idx, :2]
     seen = np.isfinite(u).all(-1) & np.isfinite(um).all(-1)
     if seen[:, 4].sum() >= 3:                      # the nose: the same in either labelling
         n = geo.orient_normal(K, n, u[seen[:, 4], 4], um[seen[:, 4], 4])
-    out = []
+    out, weight = [], []
     for m in (mirror, mirror[:, flip]):
         X = geo.triangulate_mirror(K, n, 1.0, u, m[:, idx, :2], iterations=0)
         out.append(handedness(X))
-    return np.stack(out, axis=-1)
+        head = X[:, 4:].mean(1)                                        # (T, 3)
+        torso = np.linalg.norm(X[:, :2].mean(1) - X[:, 2:4].mean(1), axis=-1)
+        d1 = np.linalg.norm(head, axis=-1)
+        d2 = np.linalg.norm(head - 2.0 * n, axis=-1)                  # the virtual camera
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sin = np.linalg.norm(np.cross(head / d1[:, None], (head - 2.0 * n) / d2[:, None]),
+                                 axis=-1)
+            q = FACE_AHEAD * torso * K[0, 0] * sin / (sigma * np.hypot(d1, d2))
+        weight.append(np.nan_to_num(q ** 2 / (1.0 + q ** 2)))
+    return np.stack(out, axis=-1), np.stack(weight, axis=-1)
 
 
 def _epipolar(e: np.ndarray, real: np.ndarray, mirror: np.ndarray, flip: np.ndarray,
@@ -215,6 +206,38 @@ def crossed_states(paired: PairedKeypoints, K: np.ndarray, joints: np.ndarray | 
     docstring's chain (each frame's state the smallest sum of the forward and backward
     min-sum messages).
 
+    The chain's costs of a state, each frame:
+
+    * the *epipolar* term: the two views' left/right joints under the labelling the state
+      gives them relative to each other, ``sum_j min((d_j / sigma)^2, c^2) / 2`` over the
+      epipolar (Sampson) distances ``d_j`` to the epipole
+      (:func:`mirrorgraph.geometry.epipolar_distances`), ``sigma`` half the pairing's
+      threshold, ``c`` the truncation;
+    * the *facing* term: the body triangulated from the consistent labelling
+      (:func:`mirrorgraph.geometry.triangulate_mirror`, the normal ``K^-1 e``, unit
+      distance) has the handedness ``h = ((L - R) x (S - H)) . (N - E)`` normalised by the
+      three lengths (:func:`handedness`: ``L``, ``R`` the shoulders and hips labelled left
+      and right, ``S``, ``H`` the shoulders' and hips' midpoints, ``N`` the mean of the nose
+      and the eyes' midpoint, ``E`` the ears' midpoint), ``h > 0`` where the labels are
+      right and ``h < 0`` where both views are crossed (the midpoints and the nose do not
+      depend on the labels). The term is the logistic loss ``log(1 + exp(-k s h))``, ``s``
+      the sign the state expects, weighted by the share of ``h``'s spread that is signal,
+      ``q^2 / (1 + q^2)``: ``q`` the face's offset ahead of the ears (:data:`FACE_AHEAD` of
+      the torso's length) over the triangulation's std along its worse axis,
+      ``sigma sqrt(D1^2 + D2^2) / (f sin theta)`` (``D1``, ``D2`` the head's distances to
+      the camera and to the virtual camera, ``theta`` the angle between their rays: a
+      person on the line between the camera and the mirror is seen along nearly opposite
+      rays, and their facing is the depth neither view measures);
+    * both weighted by ``evidence_weight`` (a detector's errors persist over frames, and so
+      do the geometry's ambiguities: a run's frames are not independent witnesses);
+    * a small cost of each crossed view (the labels as given are the default);
+
+    and each step between consecutive frames costs ``switch_cost`` for each view whose state
+    changes plus, in each view, the motion of its keypoints as the two states relabel them,
+    ``sum_j min((|x_t - x_prev| / s_j)^2, c^2) / 2`` in units of each joint's typical motion
+    ``s_j`` (over frames one apart, at least ``min_motion_px``). Frames further apart than
+    ``max_gap`` are unrelated (the chain restarts).
+
     Args:
         paired: person and reflection, paired (the reflection's labels in the person's).
         K: ``(3, 3)`` the camera's intrinsics (pixels of ``paired``).
@@ -236,12 +259,13 @@ def crossed_states(paired: PairedKeypoints, K: np.ndarray, joints: np.ndarray | 
     e = (_epipole(real, mirror, joints, flip, popts, paired.source) if epipole is None
          else np.asarray(epipole, dtype=float).reshape(3))
     epi = _epipolar(e, real, mirror, flip, 0.5 * popts.threshold_px, opts.truncation)
-    face = _facing(paired, real, mirror, e, np.asarray(K, dtype=float))    # (T, 2)
+    face, weight = _facing(paired, real, mirror, e, np.asarray(K, dtype=float),
+                           0.5 * popts.threshold_px)                        # (T, 2)
     rel = _REAL ^ _MIRROR                                   # (S,) pairing the state implies
     sign = 1.0 - 2.0 * _REAL                                 # (S,) handedness it expects
     h = np.nan_to_num(face[:, rel], nan=0.0)                 # (T, S)
-    emit = (opts.evidence_weight * (epi[:, rel]
-                                    + np.logaddexp(0.0, -opts.facing_gain * sign * h))
+    emit = (opts.evidence_weight * (epi[:, rel] + weight[:, rel]
+                                    * np.logaddexp(0.0, -opts.facing_gain * sign * h))
             + opts.crossed_cost[0] * _REAL + opts.crossed_cost[1] * _MIRROR)
     frames = np.asarray(paired.frame_ids, dtype=np.int64)
     gap = np.diff(frames, prepend=frames[0]) if len(frames) == T else np.ones(T, np.int64)
