@@ -130,12 +130,13 @@ def median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndar
 
 
 #: The epipole found on both labellings of the reflection replaces the one found on the
-#: labels as given only where it pairs this many times as many candidates (either
-#: labelling under the threshold): where the detector crossed a view's labels in a whole
-#: clip or long runs the labels' own epipole pairs a fraction of them; where it crossed
-#: none both pair alike, and among several people the pairs of the other labelling add
-#: chance fits.
-EITHER_LABELLING_GAIN = 1.2
+#: labels as given only where its truncated cost over the candidates (either labelling's
+#: median distance, squared, at most the threshold's square) is under this fraction of
+#: the other's: where the detector crossed a view's labels in a whole clip, an epipole
+#: beside the true one fits the crossed pairs loosely and the true one fits them at the
+#: noise once relabelled; where it crossed none both epipoles fit alike (and among
+#: several people the pairs of the other labelling add chance fits).
+EITHER_LABELLING_GAIN = 0.8
 
 
 def epipole_either_labelling(a: np.ndarray, b: np.ndarray, joints: np.ndarray,
@@ -150,16 +151,16 @@ def epipole_either_labelling(a: np.ndarray, b: np.ndarray, joints: np.ndarray,
     left/right counterpart, ``b``'s counterpart too (of a left/right joint's two pairs one
     images the same physical joint), then again on each candidate under the labelling of
     ``b`` that fits that epipole better (median epipolar distance). The second is kept
-    where it pairs :data:`EITHER_LABELLING_GAIN` times as many candidates as the first
-    (either labelling's median distance under the threshold).
+    where its truncated cost is under :data:`EITHER_LABELLING_GAIN` times the first's.
 
     Raises:
         DegenerateGeometryError: the pairs do not determine an epipole.
     """
-    def paired(e: np.ndarray) -> tuple[int, np.ndarray]:
+    def paired(e: np.ndarray) -> tuple[float, np.ndarray]:
         keep = median_distance(e, a, b, joints, opts.min_joints)
         swap = median_distance(e, a, b[:, flip], joints, opts.min_joints)
-        return int(np.count_nonzero(np.minimum(keep, swap) < opts.threshold_px)), swap < keep
+        cost = np.minimum(np.minimum(keep, swap), opts.threshold_px) ** 2
+        return float(np.sum(cost[np.isfinite(cost)])), swap < keep
 
     try:
         e_as, _, _, _ = estimate_epipole(a[:, joints, :2].reshape(-1, 2),
@@ -167,7 +168,7 @@ def epipole_either_labelling(a: np.ndarray, b: np.ndarray, joints: np.ndarray,
                                          threshold_px=opts.threshold_px, seed=seed)
         count_as = paired(e_as)[0]
     except DegenerateGeometryError:
-        e_as, count_as = None, 0
+        e_as, count_as = None, np.inf
     sided = joints[flip[joints] != joints]
     u = np.concatenate([a[:, joints, :2].reshape(-1, 2), a[:, sided, :2].reshape(-1, 2)])
     um = np.concatenate([b[:, joints, :2].reshape(-1, 2),
@@ -182,7 +183,7 @@ def epipole_either_labelling(a: np.ndarray, b: np.ndarray, joints: np.ndarray,
         if e_as is None:
             raise
         return e_as
-    if e_as is None or paired(e)[0] > EITHER_LABELLING_GAIN * count_as:
+    if e_as is None or paired(e)[0] < EITHER_LABELLING_GAIN * count_as:
         return e
     return e_as
 
