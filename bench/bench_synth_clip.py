@@ -16,6 +16,11 @@ labelled with left and right crossed (the person as a mirror image, the reflecti
 person facing the camera: what :mod:`mirrorgraph.initial.left_right` undoes only where the
 detector's labels fit the epipole badly).
 
+``--frame-left-right`` calibrates the clip's detections also with the left/right labels
+decided for each frame alone (``left_right="frame"``) beside the whole clip's decision
+(:mod:`mirrorgraph.initial.clip_left_right`, the default); ``--cache DIR`` keeps
+BlazePose's detections of each clip in ``DIR`` for the next run.
+
 Prints a table and writes ``bench/RESULTS_synth_clip.md`` (machine, command, date) unless
 ``--no-write``; ``--json FILE`` saves the rows, ``--rows FILE`` writes the report from saved
 rows, ``--before FILE`` sets another commit's clip columns beside.
@@ -29,6 +34,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import pickle
 import sys
 import tempfile
 from pathlib import Path
@@ -120,7 +126,8 @@ def errors(run, scene) -> dict:
             "frames_paired": int(c.frames_paired)}
 
 
-def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False) -> dict:
+def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False,
+             frame_left_right: bool = False, cache: Path | None = None) -> dict:
     from mirrorgraph.errors import MirrorgraphError
     from mirrorgraph.intrinsics import load_intrinsics
     from mirrorgraph.io import read_keypoints
@@ -137,17 +144,26 @@ def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False) -> d
     K = load_intrinsics(paths["camera"])
     row = {"seed": seed, "clip_frames": clip_frames,
            "visible": int((reflection_visibility(scene, clip_frames) >= VISIBLE_FRACTION).sum())}
-    raw = detect_video(clip, VideoOptions(cache=False)).to_raw()
+    cached = None if cache is None else cache / f"seed{seed}_{clip_frames}.pkl"
+    if cached is not None and cached.exists():
+        raw = pickle.loads(cached.read_bytes())
+    else:
+        raw = detect_video(clip, VideoOptions(cache=False)).to_raw()
+        if cached is not None:
+            cached.parent.mkdir(parents=True, exist_ok=True)
+            cached.write_bytes(pickle.dumps(raw))
     row["facing"] = facing_camera(scene, clip_frames)
     row["crossed"] = crossed_shares(scene, raw, clip_frames)
     keys = read_keypoints(paths["mmpose"])
     keys = dataclasses.replace(keys, frame_ids=keys.frame_ids[:clip_frames],
                                people=keys.people[:clip_frames])
-    runs = [("clip", raw), ("keypoints", keys)]
+    runs = [("clip", raw, "clip"), ("keypoints", keys, "clip")]
     if uncross:
-        runs.append(("clip_uncrossed", uncrossed(scene, raw, clip_frames)))
-    for name, data in runs:
-        opts = CalibrateOptions(subject_height=1.75)
+        runs.append(("clip_uncrossed", uncrossed(scene, raw, clip_frames), "clip"))
+    if frame_left_right:
+        runs.append(("clip_frame", raw, "frame"))
+    for name, data, left_right in runs:
+        opts = CalibrateOptions(subject_height=1.75, left_right=left_right)
         opts.fps = 30.0
         try:
             row[name] = errors(calibrate(data, K, opts), scene)
@@ -173,6 +189,8 @@ def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
     head = ["seed", "reflection visible", "person faces the camera",
             "person labelled crossed", "reflection labelled crossed"]
     head += [f"clip, face always drawn: {c}" for c in cols[:4]] if before else []
+    frame = any("clip_frame" in r for r in rows)
+    head += [f"clip, left/right each frame alone: {c}" for c in cols[:4]] if frame else []
     head += [f"clip: {c}" for c in cols]
     uncross = any("clip_uncrossed" in r for r in rows)
     head += [f"clip, left/right by the truth: {c}" for c in cols[:4]] if uncross else []
@@ -188,6 +206,8 @@ def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
                  share(r["crossed"]["reflection"])]
         if before:
             cells += _cell(before[r["seed"]]["clip"])[:4] if r["seed"] in before else [""] * 4
+        if frame:
+            cells += _cell(r["clip_frame"])[:4] if "clip_frame" in r else [""] * 4
         cells += _cell(r["clip"])
         if uncross:
             cells += _cell(r["clip_uncrossed"])[:4] if "clip_uncrossed" in r else [""] * 4
@@ -202,6 +222,12 @@ def main() -> None:
     ap.add_argument("--uncross", action="store_true",
                     help="also calibrate the clip's detections with left and right put the "
                          "right way round by the truth")
+    ap.add_argument("--frame-left-right", action="store_true",
+                    help="also calibrate the clip's detections with left/right decided for "
+                         "each frame alone (left_right='frame') beside the whole clip's")
+    ap.add_argument("--cache", metavar="DIR",
+                    help="keep BlazePose's detections of each seed's clip in DIR and read "
+                         "them from there on the next run")
     ap.add_argument("--json", metavar="FILE", help="save the rows")
     ap.add_argument("--rows", metavar="FILE", help="write the report from saved rows")
     ap.add_argument("--before", metavar="FILE",
@@ -211,7 +237,9 @@ def main() -> None:
     rows = json.loads(Path(args.rows).read_text()) if args.rows else []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in [] if args.rows else args.seeds:
-            rows.append(one_seed(seed, args.clip_frames, Path(tmp), args.uncross))
+            rows.append(one_seed(seed, args.clip_frames, Path(tmp), args.uncross,
+                                 args.frame_left_right,
+                                 Path(args.cache) if args.cache else None))
             print(json.dumps(rows[-1]), flush=True)
     before = ({r["seed"]: r for r in json.loads(Path(args.before).read_text())}
               if args.before else None)
