@@ -18,7 +18,9 @@ images; crossed labels in both views triangulate a body whose left is its right)
 refusal.
 
 Prints a table and writes ``bench/RESULTS_left_right_clip.md`` (machine, command, date,
-code) unless ``--no-write``.
+code) unless ``--no-write``; ``--json FILE`` saves the rows, ``--rows FILE`` writes the
+report from saved rows, ``--clip-rows FILE`` adds the rows of ``bench/bench_synth_clip.py
+--frame-left-right --json FILE`` (BlazePose on the drawn clip) as a second table.
 
 Run:  python bench/bench_left_right_clip.py [--seeds 0 1 2 3] [--frames 400]
       [--before-code /tmp/base]     (~10 s a scene on 2 shared cores, three runs)
@@ -148,6 +150,9 @@ def main() -> None:
     ap.add_argument("--before-code", metavar="DIR",
                     help="a tree of another commit whose calibrate runs beside")
     ap.add_argument("--json", metavar="FILE", help="save the rows")
+    ap.add_argument("--rows", metavar="FILE", help="write the report from saved rows")
+    ap.add_argument("--clip-rows", metavar="FILE",
+                    help="saved rows of bench_synth_clip.py --frame-left-right, a second table")
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--solve", nargs=2, metavar=("JOBS", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -159,9 +164,10 @@ def main() -> None:
     sys.path.insert(0, str(ROOT / "bench"))
     from mirrorgraph.synth.sampling import make_wide_scene
 
-    modes = (["before"] if args.before_code else []) + ["frame", "clip"]
-    rows = []
-    for det in DETECTORS:
+    rows = json.loads(Path(args.rows).read_text()) if args.rows else []
+    before = args.before_code or any("before" in r for r in rows)
+    modes = (["before"] if before else []) + ["frame", "clip"]
+    for det in DETECTORS if not args.rows else ():
         for name, kw in CROSSINGS:
             for sl in SLICES:
                 for seed in args.seeds:
@@ -183,6 +189,11 @@ def main() -> None:
         from _report import header
         text = ["# Crossed left/right labels in long runs of one view "
                 "(`bench/bench_left_right_clip.py`)", "", *header(code=True), "", *lines, ""]
+        if args.clip_rows:
+            from bench_synth_clip import table as clip_table
+            text += ["## BlazePose on the drawn clip (`bench/bench_synth_clip.py "
+                     "--frame-left-right`)", "",
+                     *clip_table(json.loads(Path(args.clip_rows).read_text())), ""]
         (ROOT / "bench" / "RESULTS_left_right_clip.md").write_text("\n".join(text))
 
 
