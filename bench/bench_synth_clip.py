@@ -37,6 +37,7 @@ import json
 import pickle
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -113,6 +114,28 @@ def facing_camera(scene, count: int) -> float:
     return float(np.mean(X[:, sk.index("nose"), 2] < ears))
 
 
+def crossed_after(run, scene) -> float:
+    """The share of the run's paired frames (both views seen) whose body joints (either
+    view's) lie nearer their counterparts' true images than their own: labels crossed
+    after the run's left/right decisions (the reflection's labels in the person's)."""
+    sk = run.paired.skeleton
+    found = [sk.index(n) for n in _NAMES]
+    same = [scene.skeleton.index(n) for n in _NAMES]
+    flipped = [scene.skeleton.index(_swap(n)) for n in _NAMES]
+    t = np.asarray(run.paired.frame_ids)
+    wrong = []
+    for view, image in ((run.paired.real, scene.real_image), (run.paired.mirror,
+                                                                scene.mirror_image)):
+        v = view[:, found, :2]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)         # unpaired frames
+            d_same = np.nanmedian(np.linalg.norm(v - image[t][:, same], axis=-1), axis=1)
+            d_cross = np.nanmedian(np.linalg.norm(v - image[t][:, flipped], axis=-1), axis=1)
+        wrong.append(d_cross < d_same)
+    both = (run.paired.real[..., 2] > 0).any(1) & (run.paired.mirror[..., 2] > 0).any(1)
+    return float(np.mean((wrong[0] | wrong[1])[both])) if both.any() else float("nan")
+
+
 def errors(run, scene) -> dict:
     from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
 
@@ -123,7 +146,7 @@ def errors(run, scene) -> dict:
             "rotation_deg": float(rot), "rotation_std_deg": None if std is None else float(std),
             "distance_pct": (None if c.distance is None else
                              float(100 * (c.distance - scene.distance) / scene.distance)),
-            "frames_paired": int(c.frames_paired)}
+            "frames_paired": int(c.frames_paired), "crossed_after": crossed_after(run, scene)}
 
 
 def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False,
@@ -174,26 +197,28 @@ def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False,
 
 def _cell(r: dict) -> list[str]:
     if "error" in r:
-        return [f"refused: {r['error'].split('clip.mp4: ')[-1]}", "", "", "", "", ""]
+        return [f"refused: {r['error'].split('clip.mp4: ')[-1]}", "", "", "", "", "", ""]
     std = r["rotation_std_deg"]
     ratio = "" if not std else f"{r['rotation_deg'] / std:.1f}"
     dist = "" if r["distance_pct"] is None else f"{r['distance_pct']:+.1f}"
+    crossed = r.get("crossed_after")
     return [f"{r['normal_deg']:.2f}", f"{r['rotation_deg']:.2f}",
-            "" if std is None else f"{std:.2f}", ratio, dist, str(r["frames_paired"])]
+            "" if std is None else f"{std:.2f}", ratio,
+            "" if crossed is None else f"{100 * crossed:.0f}%", dist, str(r["frames_paired"])]
 
 
 def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
     before = before or {}
     cols = ["normal err (deg)", "rotation err (deg)", "rotation std (deg)", "err / std",
-            "distance err (%)", "frames paired"]
+            "frames labelled crossed after", "distance err (%)", "frames paired"]
     head = ["seed", "reflection visible", "person faces the camera",
             "person labelled crossed", "reflection labelled crossed"]
-    head += [f"clip, face always drawn: {c}" for c in cols[:4]] if before else []
+    head += [f"clip, face always drawn: {c}" for c in cols[:5]] if before else []
     frame = any("clip_frame" in r for r in rows)
-    head += [f"clip, left/right each frame alone: {c}" for c in cols[:4]] if frame else []
+    head += [f"clip, left/right each frame alone: {c}" for c in cols[:5]] if frame else []
     head += [f"clip: {c}" for c in cols]
     uncross = any("clip_uncrossed" in r for r in rows)
-    head += [f"clip, left/right by the truth: {c}" for c in cols[:4]] if uncross else []
+    head += [f"clip, left/right by the truth: {c}" for c in cols[:5]] if uncross else []
     head += [f"keypoints: {c}" for c in cols]
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
@@ -205,12 +230,12 @@ def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
                  f"{100 * r['facing']:.0f}%", share(r["crossed"]["person"]),
                  share(r["crossed"]["reflection"])]
         if before:
-            cells += _cell(before[r["seed"]]["clip"])[:4] if r["seed"] in before else [""] * 4
+            cells += _cell(before[r["seed"]]["clip"])[:5] if r["seed"] in before else [""] * 5
         if frame:
-            cells += _cell(r["clip_frame"])[:4] if "clip_frame" in r else [""] * 4
+            cells += _cell(r["clip_frame"])[:5] if "clip_frame" in r else [""] * 5
         cells += _cell(r["clip"])
         if uncross:
-            cells += _cell(r["clip_uncrossed"])[:4] if "clip_uncrossed" in r else [""] * 4
+            cells += _cell(r["clip_uncrossed"])[:5] if "clip_uncrossed" in r else [""] * 5
         out.append("| " + " | ".join(cells + _cell(r["keypoints"])) + " |")
     return out
 
