@@ -61,15 +61,18 @@ def solve(jobs: list[dict]) -> list[dict]:
 
     out = []
     for job in jobs:
-        kw = {"left_right": job["left_right"]} if job["left_right"] else {}
+        kw = dict(job.get("options", {}))
+        if job["left_right"]:
+            kw["left_right"] = job["left_right"]
         try:
             run = calibrate(job["detections"], job["intrinsics"], CalibrateOptions(**kw))
         except MirrorgraphError as exc:
             out.append({"error": str(exc).splitlines()[0][:90]})
             continue
         c = run.calibration
-        out.append({"R": np.asarray(c.virtual_rotation),
+        out.append({"R": np.asarray(c.virtual_rotation), "normal": np.asarray(c.normal),
                     "std": c.uncertainty.get("rotation_std_deg"),
+                    "distance": c.distance, "frames_paired": int(c.frames_paired),
                     "frame_ids": np.asarray(run.paired.frame_ids),
                     "real": np.asarray(run.paired.real), "mirror": np.asarray(run.paired.mirror)})
     return out

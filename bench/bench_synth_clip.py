@@ -19,7 +19,8 @@ detector's labels fit the epipole badly).
 ``--frame-left-right`` calibrates the clip's detections also with the left/right labels
 decided for each frame alone (``left_right="frame"``) beside the whole clip's decision
 (:mod:`mirrorgraph.initial.clip_left_right`, the default); ``--cache DIR`` keeps
-BlazePose's detections of each clip in ``DIR`` for the next run.
+BlazePose's detections of each clip in ``DIR`` for the next run; ``--before-code DIR``
+calibrates the clip's detections also with another commit's tree (a subprocess).
 
 Prints a table and writes ``bench/RESULTS_synth_clip.md`` (machine, command, date) unless
 ``--no-write``; ``--json FILE`` saves the rows, ``--rows FILE`` writes the report from saved
@@ -122,18 +123,45 @@ def crossed_after(run, scene) -> float:
     found = [sk.index(n) for n in _NAMES]
     same = [scene.skeleton.index(n) for n in _NAMES]
     flipped = [scene.skeleton.index(_swap(n)) for n in _NAMES]
-    t = np.asarray(run.paired.frame_ids)
+    return _crossed(np.asarray(run.paired.frame_ids), run.paired.real, run.paired.mirror,
+                    scene, found, same, flipped)
+
+
+def _crossed(t, real, mirror, scene, found, same, flipped) -> float:
     wrong = []
-    for view, image in ((run.paired.real, scene.real_image), (run.paired.mirror,
-                                                                scene.mirror_image)):
+    for view, image in ((real, scene.real_image), (mirror, scene.mirror_image)):
         v = view[:, found, :2]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)         # unpaired frames
             d_same = np.nanmedian(np.linalg.norm(v - image[t][:, same], axis=-1), axis=1)
             d_cross = np.nanmedian(np.linalg.norm(v - image[t][:, flipped], axis=-1), axis=1)
         wrong.append(d_cross < d_same)
-    both = (run.paired.real[..., 2] > 0).any(1) & (run.paired.mirror[..., 2] > 0).any(1)
+    both = (real[..., 2] > 0).any(1) & (mirror[..., 2] > 0).any(1)
     return float(np.mean((wrong[0] | wrong[1])[both])) if both.any() else float("nan")
+
+
+def before_cell(raw, K, scene, code: str) -> dict:
+    """The clip's detections calibrated by the code in ``code`` (another commit's tree, in
+    a subprocess: ``bench_left_right_clip.run_before``), as :func:`errors` reports."""
+    from bench_left_right_clip import run_before
+    from mirrorgraph.metrics import normal_angle_deg, rotation_error_deg
+
+    r = run_before([{"detections": raw, "intrinsics": K,
+                     "options": {"subject_height": 1.75, "fps": 30.0}}], code)[0]
+    if "error" in r:
+        return {"error": r["error"]}
+    sk = raw.skeleton
+    found = [sk.index(n) for n in _NAMES]
+    same = [scene.skeleton.index(n) for n in _NAMES]
+    flipped = [scene.skeleton.index(_swap(n)) for n in _NAMES]
+    return {"normal_deg": float(normal_angle_deg(r["normal"], scene.normal)),
+            "rotation_deg": float(rotation_error_deg(r["R"], scene.virtual_R)),
+            "rotation_std_deg": None if r["std"] is None else float(r["std"]),
+            "distance_pct": (None if r["distance"] is None else
+                             float(100 * (r["distance"] - scene.distance) / scene.distance)),
+            "frames_paired": r["frames_paired"],
+            "crossed_after": _crossed(r["frame_ids"], r["real"], r["mirror"], scene, found,
+                                      same, flipped)}
 
 
 def errors(run, scene) -> dict:
@@ -150,7 +178,8 @@ def errors(run, scene) -> dict:
 
 
 def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False,
-             frame_left_right: bool = False, cache: Path | None = None) -> dict:
+             frame_left_right: bool = False, cache: Path | None = None,
+             before_code: str | None = None) -> dict:
     from mirrorgraph.errors import MirrorgraphError
     from mirrorgraph.intrinsics import load_intrinsics
     from mirrorgraph.io import read_keypoints
@@ -185,6 +214,8 @@ def one_seed(seed: int, clip_frames: int, tmp: Path, uncross: bool = False,
         runs.append(("clip_uncrossed", uncrossed(scene, raw, clip_frames), "clip"))
     if frame_left_right:
         runs.append(("clip_frame", raw, "frame"))
+    if before_code:
+        row["clip_code_before"] = before_cell(raw, K, scene, before_code)
     for name, data, left_right in runs:
         opts = CalibrateOptions(subject_height=1.75, left_right=left_right)
         opts.fps = 30.0
@@ -214,6 +245,8 @@ def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
     head = ["seed", "reflection visible", "person faces the camera",
             "person labelled crossed", "reflection labelled crossed"]
     head += [f"clip, face always drawn: {c}" for c in cols[:5]] if before else []
+    code_before = any("clip_code_before" in r for r in rows)
+    head += [f"clip, another commit: {c}" for c in cols[:5]] if code_before else []
     frame = any("clip_frame" in r for r in rows)
     head += [f"clip, left/right each frame alone: {c}" for c in cols[:5]] if frame else []
     head += [f"clip: {c}" for c in cols]
@@ -231,6 +264,9 @@ def table(rows: list[dict], before: dict[int, dict] | None = None) -> list[str]:
                  share(r["crossed"]["reflection"])]
         if before:
             cells += _cell(before[r["seed"]]["clip"])[:5] if r["seed"] in before else [""] * 5
+        if code_before:
+            cells += (_cell(r["clip_code_before"])[:5] if "clip_code_before" in r
+                      else [""] * 5)
         if frame:
             cells += _cell(r["clip_frame"])[:5] if "clip_frame" in r else [""] * 5
         cells += _cell(r["clip"])
@@ -253,6 +289,9 @@ def main() -> None:
     ap.add_argument("--cache", metavar="DIR",
                     help="keep BlazePose's detections of each seed's clip in DIR and read "
                          "them from there on the next run")
+    ap.add_argument("--before-code", metavar="DIR",
+                    help="also calibrate the clip's detections with the code of another "
+                         "commit's tree (e.g. git archive <commit> | tar -x -C DIR)")
     ap.add_argument("--json", metavar="FILE", help="save the rows")
     ap.add_argument("--rows", metavar="FILE", help="write the report from saved rows")
     ap.add_argument("--before", metavar="FILE",
@@ -264,7 +303,8 @@ def main() -> None:
         for seed in [] if args.rows else args.seeds:
             rows.append(one_seed(seed, args.clip_frames, Path(tmp), args.uncross,
                                  args.frame_left_right,
-                                 Path(args.cache) if args.cache else None))
+                                 Path(args.cache) if args.cache else None,
+                                 args.before_code))
             print(json.dumps(rows[-1]), flush=True)
     before = ({r["seed"]: r for r in json.loads(Path(args.before).read_text())}
               if args.before else None)
