@@ -21,7 +21,8 @@ states relabel them (the chain changes a view's state where the detector's label
 one side to the other) and a cost per change. A run between two jumps is decided by the
 evidence of all its frames together: frames where neither labelling fits better (the side
 views) take their run's state, and a clip the detector labels the same way throughout is
-decided as one. :func:`clip_left_right` relabels the frames so found.
+decided as one. :func:`clip_left_right` relabels the frames so found;
+:func:`clip_left_right_people` does it for every person's track apart.
 
 Frames: ``paired.real`` and ``paired.mirror`` in undistorted pixels, the reflection's labels
 in the person's (:class:`~mirrorgraph.keypoints.PairedKeypoints`); ``K`` the camera's (an
@@ -40,7 +41,8 @@ from ..keypoints import PairedKeypoints
 from .body_left_right import min_sum_messages
 from .pair_candidates import PairingOptions, epipole_either_labelling, masked, spread_subset
 
-__all__ = ["ClipLeftRightOptions", "clip_left_right", "crossed_states", "handedness"]
+__all__ = ["ClipLeftRightOptions", "clip_left_right", "clip_left_right_people",
+           "crossed_states", "handedness"]
 
 
 @dataclass(frozen=True)
@@ -307,3 +309,37 @@ def clip_left_right(paired: PairedKeypoints, K: np.ndarray, joints: np.ndarray |
     real = np.where(crossed[:, 0, None, None], paired.real[:, flip], paired.real)
     mirror = np.where(crossed[:, 1, None, None], paired.mirror[:, flip], paired.mirror)
     return replace(paired, real=real, mirror=mirror, lr_fixes=paired.lr_fixes + n), n
+
+
+def clip_left_right_people(paired: PairedKeypoints, base, K: np.ndarray, epipole: np.ndarray,
+                           joints: np.ndarray | None = None,
+                           pairing: PairingOptions | None = None,
+                           options: ClipLeftRightOptions | None = None
+                           ) -> tuple[PairedKeypoints, int]:
+    """:func:`clip_left_right` for each person's track apart, with the mirror's epipole.
+
+    Args:
+        paired: every person and their reflection side by side, layout
+            :func:`~mirrorgraph.skeletons.people_skeleton` of ``base`` (``(T, P J, 3)``).
+        base: one person's layout (``J`` joints).
+        K: ``(3, 3)`` the camera's intrinsics.
+        epipole: ``(3,)`` the mirror's homogeneous epipole, pixels.
+        joints: one person's joints (default: ``base``'s calibration joints).
+
+    Returns:
+        The keypoints relabelled, and how many (frame, person) tracks' frames changed.
+    """
+    J = base.num_joints
+    P = paired.real.shape[1] // J
+    real, mirror = np.array(paired.real, copy=True), np.array(paired.mirror, copy=True)
+    total = 0
+    for p in range(P):
+        block = slice(p * J, (p + 1) * J)
+        one = replace(paired, skeleton=base, real=paired.real[:, block],
+                      mirror=paired.mirror[:, block], lr_fixes=0)
+        fixed, n = clip_left_right(one, K, joints, pairing, options, epipole)
+        real[:, block], mirror[:, block] = fixed.real, fixed.mirror
+        total += n
+    if total == 0:
+        return paired, 0
+    return replace(paired, real=real, mirror=mirror, lr_fixes=paired.lr_fixes + total), total

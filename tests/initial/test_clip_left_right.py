@@ -2,15 +2,20 @@
 known: a view crossed for the whole clip or in long runs, and the detectors that cross
 none (controls)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from mirrorgraph.initial.clip_left_right import clip_left_right, crossed_states, handedness
+from mirrorgraph.initial.clip_left_right import (clip_left_right, clip_left_right_people,
+                                                 crossed_states, handedness)
 from mirrorgraph.initial.pairing import pair_detections
+from mirrorgraph.initial.people import pair_people
 from mirrorgraph.pipelines.mirror import calibrate
 from mirrorgraph.pipelines.options import CalibrateOptions
 from mirrorgraph.metrics import mirror_rotation_error_deg
 from mirrorgraph.synth import make_scene
+from mirrorgraph.synth.crowd import make_crowd
 from mirrorgraph.synth.detector import crossed_runs, sample_detector_params
 
 
@@ -108,3 +113,27 @@ def test_calibrate_with_the_person_crossed_for_the_whole_clip():
     frame = calibrate(scene.detections, scene.intrinsics,
                       CalibrateOptions(refine=False, left_right="frame"))
     assert _right_share(frame.paired, scene) < 0.5      # each frame alone keeps them crossed
+
+
+@pytest.mark.parametrize("views", ["real", "both"])
+def test_each_persons_track_is_decided_apart(views):
+    crowd = make_crowd(people=3, frames=200, seed=3, occluded_rate=0.3)
+    pairing = pair_people(crowd.detections)
+    paired, base = pairing.paired, pairing.base
+    J, flip = base.num_joints, base.flip
+    block = np.arange(J, 2 * J)                          # the second person's track
+    crossed = paired.real.copy(), paired.mirror.copy()
+    crossed[0][:, block] = paired.real[:, block][:, flip]
+    if views == "both":                                  # consistent, a body whose left is its right
+        crossed[1][:, block] = paired.mirror[:, block][:, flip]
+    bad = replace(paired, real=crossed[0], mirror=crossed[1])
+    fixed, n = clip_left_right_people(bad, base, crowd.K, pairing.epipole)
+    assert n > 0
+    seen = (paired.real[:, block, 2] > 0).any(1)
+    same = [np.isclose(np.nan_to_num(f[:, block, :2]), np.nan_to_num(o[:, block, :2])).all((1, 2))
+            for f, o in ((fixed.real, paired.real), (fixed.mirror, paired.mirror))]
+    assert (same[0] & same[1])[seen].mean() >= 0.95
+    others = np.r_[0:J, 2 * J:3 * J]
+    for f, o in ((fixed.real, paired.real), (fixed.mirror, paired.mirror)):
+        kept = np.isclose(np.nan_to_num(f[:, others]), np.nan_to_num(o[:, others])).all((1, 2))
+        assert kept.mean() >= 0.99
