@@ -89,8 +89,9 @@ class CalibrateOptions:
         left_right: ``"clip"`` (default): after the pairing, which frames of which view
             carry crossed left/right labels (a body seen from behind labelled as facing
             the camera) is decided over the whole clip
-            (:mod:`mirrorgraph.initial.clip_left_right`); ``"frame"``: the pairing's
-            check of each frame alone (one mirror).
+            (:mod:`mirrorgraph.initial.clip_left_right`; with ``people="all"`` each
+            person's track apart); ``"frame"``: the pairing's check of each frame alone
+            (one mirror; a rig's cameras keep the pairing's).
 
     **Intrinsics** (cameras given without a camera matrix)
 
