@@ -55,6 +55,11 @@ class ClipLeftRightOptions:
             error weighs no more than this.
         facing_gain: ``k`` of the facing term: a frame whose normalised handedness is
             ``h`` says ``k |h|`` nats for its sign.
+        dead_zone: the epipolar distance that says nothing, in units of ``sigma`` (half the
+            pairing's threshold): without it the realistic detector's label-following bias
+            crosses whole runs of a scene whose left/right pairs lie along the epipolar
+            lines; from ``0.5`` on, BlazePose's crossed runs of a drawn clip go unseen
+            (``bench/RESULTS_left_right_clip.md``).
         evidence_weight: the weight of each frame's epipolar and facing terms (about one
             over the number of frames a detector's errors stay correlated).
         switch_cost: a change of one view's state between consecutive frames
@@ -69,6 +74,7 @@ class ClipLeftRightOptions:
 
     truncation: float = 3.0
     facing_gain: float = 4.0
+    dead_zone: float = 0.25
     evidence_weight: float = 0.1
     switch_cost: float = 9.2
     crossed_cost: tuple[float, float] = (0.006, 0.005)
@@ -149,14 +155,14 @@ def _facing(paired: PairedKeypoints, real: np.ndarray, mirror: np.ndarray, e: np
 
 
 def _epipolar(e: np.ndarray, real: np.ndarray, mirror: np.ndarray, flip: np.ndarray,
-              sigma: float, cap: float) -> np.ndarray:
+              sigma: float, cap: float, dead_zone: float) -> np.ndarray:
     """``(T, 2)`` the epipolar term of the reflection as labelled and with its left and
     right exchanged (the module docstring's), over the joints with a counterpart."""
     sided = np.flatnonzero(flip != np.arange(len(flip)))
     out = []
     for m in (mirror, mirror[:, flip]):
         d = geo.epipolar_distances(e, real[:, sided, :2], m[:, sided, :2])
-        r = np.minimum((np.maximum(d - sigma, 0.0) / sigma) ** 2, cap ** 2)
+        r = np.minimum((np.maximum(d - dead_zone * sigma, 0.0) / sigma) ** 2, cap ** 2)
         out.append(0.5 * np.nansum(np.where(np.isfinite(r), r, np.nan), axis=1))
     return np.stack(out, axis=-1)
 
@@ -211,13 +217,12 @@ def crossed_states(paired: PairedKeypoints, K: np.ndarray, joints: np.ndarray | 
     The chain's costs of a state, each frame:
 
     * the *epipolar* term: the two views' left/right joints under the labelling the state
-      gives them relative to each other, ``sum_j min(((d_j - sigma)_+ / sigma)^2, c^2) / 2``
+      gives them relative to each other, ``sum_j min(((d_j - z sigma)_+ / sigma)^2, c^2) / 2``
       over the epipolar (Sampson) distances ``d_j`` to the epipole
       (:func:`mirrorgraph.geometry.epipolar_distances`), ``sigma`` half the pairing's
-      threshold, ``c`` the truncation: a distance within ``sigma`` says nothing (a
-      detector's bias that follows its labels in both views makes the crossed labelling
-      fit a few pixels better where the left/right pairs lie along the epipolar lines,
-      frame after frame);
+      threshold, ``c`` the truncation, ``z`` the dead zone (a detector's bias that follows
+      its labels in both views makes the crossed labelling fit a little better where the
+      left/right pairs lie along the epipolar lines, frame after frame);
     * the *facing* term: the body triangulated from the consistent labelling
       (:func:`mirrorgraph.geometry.triangulate_mirror`, the normal ``K^-1 e``, unit
       distance) has the handedness ``h = ((L - R) x (S - H)) . (N - E)`` normalised by the
@@ -263,7 +268,8 @@ def crossed_states(paired: PairedKeypoints, K: np.ndarray, joints: np.ndarray | 
     mirror = masked(paired.mirror, popts.min_confidence)
     e = (_epipole(real, mirror, joints, flip, popts, paired.source) if epipole is None
          else np.asarray(epipole, dtype=float).reshape(3))
-    epi = _epipolar(e, real, mirror, flip, 0.5 * popts.threshold_px, opts.truncation)
+    epi = _epipolar(e, real, mirror, flip, 0.5 * popts.threshold_px, opts.truncation,
+                    opts.dead_zone)
     face, weight = _facing(paired, real, mirror, e, np.asarray(K, dtype=float),
                            0.5 * popts.threshold_px)                        # (T, 2)
     rel = _REAL ^ _MIRROR                                   # (S,) pairing the state implies
