@@ -146,8 +146,9 @@ class PairedKeypoints:
         format: input format name.
         image_size: ``(width, height)`` in pixels if known.
         fps: frames per second if known.
-        lr_fixes: number of frames whose reflection's left/right labels were
-            found swapped by the detector and corrected.
+        lr_fixes: number of frames whose left/right labels were found crossed by the
+            detector and corrected (the reflection's by the pairing, either view's by the
+            whole clip's decision, :mod:`mirrorgraph.initial.clip_left_right`).
         frames_read: number of frames in the input before pairing.
         notes: free-text remarks.
         read_notes: what the reader read as missing or clipped (:class:`ReadNotes`;

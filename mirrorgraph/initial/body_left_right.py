@@ -37,7 +37,8 @@ import numpy as np
 
 from ..keypoints import PairedKeypoints
 
-__all__ = ["BodySwapOptions", "BodySwapFilter", "undo_body_swaps", "swap_states"]
+__all__ = ["BodySwapOptions", "BodySwapFilter", "min_sum_messages", "undo_body_swaps",
+           "swap_states"]
 
 
 @dataclass(frozen=True)
@@ -134,11 +135,11 @@ def _minplus(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return out
 
 
-#: Frames a block of :func:`_messages` (the blocks' products are formed side by side).
+#: Frames a block of :func:`min_sum_messages` (the blocks' products are formed side by side).
 MESSAGE_BLOCK = 64
 
 
-def _messages(M: np.ndarray, block: int = MESSAGE_BLOCK) -> np.ndarray:
+def min_sum_messages(M: np.ndarray, block: int = MESSAGE_BLOCK) -> np.ndarray:
     """``(T, ..., S)`` the Viterbi recursion's forward messages ``v_t = v_{t-1} M[t]``
     (min-plus, ``v_{-1} = 0``) of ``(T, ..., S, S)`` matrices: the product of each block
     of ``block`` frames, every block at once; the blocks' entering messages one block
@@ -208,7 +209,7 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     """``(T, P, 2)`` bool: the frames where the detector swapped pair ``p``'s labels in
     the direct view (``[..., 0]``) and in the reflection (``[..., 1]``) (the most likely
     path of the module docstring's chain: each frame's state the smaller of the forward
-    and backward min-plus messages' sums, :func:`_messages`); pairs in the order of
+    and backward min-plus messages' sums, :func:`min_sum_messages`); pairs in the order of
     ``np.flatnonzero(flip > arange)`` (the left joint of each pair)."""
     opts = options or BodySwapOptions()
     left, right = _pairs(np.asarray(paired.skeleton.flip))
@@ -227,10 +228,10 @@ def swap_states(paired: PairedKeypoints, min_confidence: float = 0.0,
     gap = np.where(before >= 0, frames[:, None] - frames[np.maximum(before, 0)], 10 ** 12)
     fresh = seen & ((before < 0) | (gap > opts.max_gap))
     M = _transitions(pts, _carried(pts), gap, fresh, scale, opts)   # (T, P, 4, 4)
-    forward = _messages(M)                                          # (T, P, cur)
+    forward = min_sum_messages(M)                                          # (T, P, cur)
     backward = np.zeros((T, P, _STATES))
     if T > 1:                                       # M[t+1] ... M[T-1], transposed
-        backward[:-1] = _messages(np.swapaxes(M[1:][::-1], -1, -2))[::-1]
+        backward[:-1] = min_sum_messages(np.swapaxes(M[1:][::-1], -1, -2))[::-1]
     state = np.argmin(forward + backward, axis=-1)
     in_view = np.isfinite(pts).all(-1).reshape(T, P, 2, 2).any(-1)  # (T, P, view)
     return np.stack([_REAL_SWAPPED[state], _MIRROR_SWAPPED[state]], -1).astype(bool) & in_view

@@ -1,10 +1,15 @@
-"""The detector's left/right confusions of the reflection, and undoing them.
+"""The detector's left/right confusions of either view, and undoing them.
 
 A reflection's labels are flipped to the real joints they image (its left is the person's
 right); a detector sometimes labels it as if it were a person, with left and right the
 other way round. :func:`is_swap` decides, from how well each labelling fits the epipole,
 that the detector confused them (the pairing, :mod:`mirrorgraph.initial.pairing`, uses it
 per candidate); :func:`fix_left_right` undoes the confusions of already paired keypoints.
+
+A detector also labels a body seen from behind as one facing the camera, in whichever view
+shows the person's back, frame after frame: the labels of that view are crossed in long
+runs or the whole clip. :func:`.clip_left_right.clip_left_right` decides, over the whole
+clip, which frames of which view are crossed.
 """
 
 from __future__ import annotations
@@ -13,8 +18,8 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import PairedKeypoints
-from .estimators import estimate_epipole
-from .pair_candidates import PairingOptions, masked, median_distance, spread_subset
+from .pair_candidates import (PairingOptions, epipole_either_labelling, masked,
+                              median_distance, spread_subset)
 
 __all__ = ["SWAP_MARGIN", "SWAP_MIN_FRACTION", "fix_left_right", "is_swap"]
 
@@ -57,9 +62,7 @@ def fix_left_right(paired: PairedKeypoints, joints: np.ndarray | None = None,
     frames = np.arange(len(real))
     sub = spread_subset(frames, opts.ransac_frames)
     try:
-        e, _, _, _ = estimate_epipole(real[sub][:, joints, :2].reshape(-1, 2),
-                                      mirror[sub][:, joints, :2].reshape(-1, 2),
-                                      threshold_px=opts.threshold_px, seed=opts.seed)
+        e = epipole_either_labelling(real[sub], mirror[sub], joints, sk.flip, opts, opts.seed)
     except DegenerateGeometryError as exc:
         raise DegenerateGeometryError(f"{paired.source}: {exc}") from None
     flip = sk.flip

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import geometry as geo
-from ..errors import InputError
+from ..errors import DegenerateGeometryError, InputError
 from ..keypoints import DEFAULT_MIN_CONFIDENCE, RawDetections
-from .estimators import DEFAULT_THRESHOLD_PX
+from .estimators import DEFAULT_THRESHOLD_PX, estimate_epipole
 
 __all__ = ["Candidates", "FAR_EPIPOLE_PX", "PairingOptions", "b_is_reflection_of", "candidates",
-           "masked", "median_distance", "spread_subset"]
+           "epipole_either_labelling", "masked", "median_distance", "spread_subset"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +127,65 @@ def median_distance(e: np.ndarray, a: np.ndarray, b: np.ndarray, joints: np.ndar
     if enough.any():
         out[enough] = nanmedian_rows(d[enough])
     return out
+
+
+#: The epipole found on both labellings of the reflection replaces the one found on the
+#: labels as given only where its truncated cost over the candidates (either labelling's
+#: median distance, squared, at most the threshold's square) is under this fraction of
+#: the other's: where the detector crossed a view's labels in a whole clip, an epipole
+#: beside the true one fits the crossed pairs loosely and the true one fits them at the
+#: noise once relabelled; where it crossed none both epipoles fit alike (and among
+#: several people the pairs of the other labelling add chance fits).
+EITHER_LABELLING_GAIN = 0.8
+
+
+def epipole_either_labelling(a: np.ndarray, b: np.ndarray, joints: np.ndarray,
+                             flip: np.ndarray, opts: PairingOptions, seed: int) -> np.ndarray:
+    """``(3,)`` the mirror's homogeneous epipole (pixels) from candidates ``a``, ``b``
+    (``(M, J, 3)``, ``b`` in ``a``'s labels) whichever way a detector labels left and
+    right, in any share of them (a body seen from behind labelled as facing the camera in
+    a whole clip).
+
+    The reflective RANSAC (:func:`~.estimators.estimate_epipole`) on the pairs as
+    labelled; and on every joint of ``joints`` as labelled with, for the joints with a
+    left/right counterpart, ``b``'s counterpart too (of a left/right joint's two pairs one
+    images the same physical joint), then again on each candidate under the labelling of
+    ``b`` that fits that epipole better (median epipolar distance). The second is kept
+    where its truncated cost is under :data:`EITHER_LABELLING_GAIN` times the first's.
+
+    Raises:
+        DegenerateGeometryError: the pairs do not determine an epipole.
+    """
+    def paired(e: np.ndarray) -> tuple[float, np.ndarray]:
+        keep = median_distance(e, a, b, joints, opts.min_joints)
+        swap = median_distance(e, a, b[:, flip], joints, opts.min_joints)
+        cost = np.minimum(np.minimum(keep, swap), opts.threshold_px) ** 2
+        return float(np.sum(cost[np.isfinite(cost)])), swap < keep
+
+    try:
+        e_as, _, _, _ = estimate_epipole(a[:, joints, :2].reshape(-1, 2),
+                                         b[:, joints, :2].reshape(-1, 2),
+                                         threshold_px=opts.threshold_px, seed=seed)
+        count_as = paired(e_as)[0]
+    except DegenerateGeometryError:
+        e_as, count_as = None, np.inf
+    sided = joints[flip[joints] != joints]
+    u = np.concatenate([a[:, joints, :2].reshape(-1, 2), a[:, sided, :2].reshape(-1, 2)])
+    um = np.concatenate([b[:, joints, :2].reshape(-1, 2),
+                         b[:, flip[sided], :2].reshape(-1, 2)])
+    try:
+        e, _, _, _ = estimate_epipole(u, um, threshold_px=opts.threshold_px, seed=seed)
+        better = np.where(paired(e)[1][:, None, None], b[:, flip], b)
+        e, _, _, _ = estimate_epipole(a[:, joints, :2].reshape(-1, 2),
+                                      better[:, joints, :2].reshape(-1, 2),
+                                      threshold_px=opts.threshold_px, seed=seed)
+    except DegenerateGeometryError:
+        if e_as is None:
+            raise
+        return e_as
+    if e_as is None or paired(e)[0] < EITHER_LABELLING_GAIN * count_as:
+        return e
+    return e_as
 
 
 def spread_subset(frames: np.ndarray, count: int) -> np.ndarray:

@@ -36,10 +36,9 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import PairedKeypoints, RawDetections
-from .estimators import estimate_epipole
 from .left_right import is_swap
 from .pair_candidates import (Candidates, PairingOptions, b_is_reflection_of, candidates,
-                              masked, median_distance, spread_subset)
+                              epipole_either_labelling, masked, median_distance, spread_subset)
 
 __all__ = ["MirrorPairing", "PairCandidates", "choose_pairs", "pair_candidates",
            "pair_detections", "pair_frame_with_epipole", "pair_reflections", "paired_people"]
@@ -149,9 +148,8 @@ def _find_epipoles(cand: Candidates, num_mirrors: int, joints: np.ndarray, flip:
             break
         sub = pool[spread_subset(cand.frame[pool], opts.ransac_frames)]
         try:
-            e, _, _, _ = estimate_epipole(cand.a[sub][:, joints, :2].reshape(-1, 2),
-                                          cand.b[sub][:, joints, :2].reshape(-1, 2),
-                                          threshold_px=opts.threshold_px, seed=opts.seed + m)
+            e = epipole_either_labelling(cand.a[sub], cand.b[sub], joints, flip, opts,
+                                         opts.seed + m)
         except DegenerateGeometryError as exc:
             if not needed:
                 break

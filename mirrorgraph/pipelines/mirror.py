@@ -42,6 +42,7 @@ from ..io import read_keypoints
 from ..joint_sets import mirror_joints
 from ..keypoints import MIN_PAIRS, PairedKeypoints, RawDetections
 from ..initial.body_left_right import undo_body_swaps
+from ..initial.clip_left_right import clip_left_right
 from ..initial.left_right import fix_left_right
 from ..initial.pair_candidates import PairingOptions
 from ..initial.pair_scores import frame_scores
@@ -296,8 +297,11 @@ def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
             intrinsics: Intrinsics | None, opts: CalibrateOptions,
             step: Callable[[str], None] = lambda _name: None) -> Observations:
     """Read the keypoints, resolve the joints, frame rate and intrinsics, undistort
-    (:func:`prepare`), and pair person and reflection (:mod:`mirrorgraph.initial.pairing`):
-    the observations of the rig of one camera and one mirror."""
+    (:func:`prepare`), pair person and reflection (:mod:`mirrorgraph.initial.pairing`),
+    decide their left/right labels over the clip (``opts.left_right``,
+    :mod:`mirrorgraph.initial.clip_left_right`) and undo the detector's confusions of
+    single pairs (:mod:`mirrorgraph.initial.body_left_right`): the observations of the
+    rig of one camera and one mirror."""
     p = prepare(keypoints, intrinsics, opts, step)
     step("pairing person and reflection")
     clock = time.perf_counter()
@@ -305,6 +309,8 @@ def observe(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
         paired = fix_left_right(p.data, p.joints, p.pairing)
     else:
         paired = pair_detections(p.data, p.joints, p.pairing)
+    if opts.left_right == "clip":
+        paired, _ = clip_left_right(paired, p.intrinsics.K, p.joints, p.pairing)
     paired, body_swaps = undo_body_swaps(paired, opts.min_confidence)
     return Observations.of(p, paired, time.perf_counter() - clock, body_swaps)
 

@@ -29,6 +29,8 @@ __all__ = ["CalibrateOptions", "PEOPLE"]
 
 #: The values of :attr:`CalibrateOptions.people` (``None``: the run's default).
 PEOPLE = ("one", "all", None)
+#: How a single mirror's left/right labels are decided (``left_right``).
+LEFT_RIGHT = ("clip", "frame")
 
 
 @dataclass
@@ -84,6 +86,12 @@ class CalibrateOptions:
         threshold_px: inlier threshold on the epipolar distance, pixels (one mirror;
             a rig's views use ``refine_options.outlier_threshold``).
         seed: seed of every random choice (RANSAC), a non-negative integer.
+        left_right: ``"clip"`` (default): after the pairing, which frames of which view
+            carry crossed left/right labels (a body seen from behind labelled as facing
+            the camera) is decided over the whole clip
+            (:mod:`mirrorgraph.initial.clip_left_right`; with ``people="all"`` each
+            person's track apart); ``"frame"``: the pairing's check of each frame alone
+            (one mirror; a rig's cameras keep the pairing's).
 
     **Intrinsics** (cameras given without a camera matrix)
 
@@ -142,6 +150,7 @@ class CalibrateOptions:
     estimator: str = "reflective"
     threshold_px: float = DEFAULT_THRESHOLD_PX
     seed: int = 0
+    left_right: str = "clip"
     # intrinsics
     image_size: tuple[int, int] | None = None
     fov_deg: float = DEFAULT_FOV_DEG
@@ -180,6 +189,9 @@ class CalibrateOptions:
         if self.people not in PEOPLE:
             raise InputError(f"must be 'one' or 'all', got {self.people!r}",
                              field="people")
+        if self.left_right not in LEFT_RIGHT:
+            raise InputError(f"must be one of {', '.join(LEFT_RIGHT)}, got {self.left_right!r}",
+                             field="left_right")
         if self.estimator not in ESTIMATORS:
             raise InputError(f"unknown estimator {self.estimator!r}; choose one of "
                              f"{', '.join(ESTIMATORS)}", field="estimator")

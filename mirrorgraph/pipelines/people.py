@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..initial.body_left_right import undo_body_swaps
+from ..initial.clip_left_right import clip_left_right_people
 from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_people
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
@@ -109,8 +110,12 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
     clock = time.perf_counter()
     pairing = pair_people(prep.data, prep.joints, prep.pairing, people)
     prep.warnings.extend(pairing.notes)
+    paired = pairing.paired
+    if opts.left_right == "clip":        # each person's track decided over the clip
+        paired, _ = clip_left_right_people(paired, pairing.base, prep.intrinsics.K,
+                                           pairing.epipole, prep.joints, prep.pairing)
     # each person's left/right pairs are pairs of the layout's flip: one chain each
-    paired, body_swaps = undo_body_swaps(pairing.paired, opts.min_confidence)
+    paired, body_swaps = undo_body_swaps(paired, opts.min_confidence)
     pairing = replace(pairing, paired=paired)
     P, J = pairing.num_people, prep.keypoints.skeleton.num_joints
     all_joints = (np.asarray(prep.joints, dtype=int)[None, :] + J * np.arange(P)[:, None]).ravel()

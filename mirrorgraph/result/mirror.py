@@ -53,7 +53,8 @@ class Calibration:
         frames_read, frames_paired, frames_used: frames in the input, with a
             person/reflection pair, with at least one inlier pair.
         pairs_total, pairs_used: joint/reflection pairs considered, inliers kept.
-        lr_fixes: frames whose reflection's left/right labels were corrected.
+        lr_fixes: frames whose left/right labels were corrected (the reflection's, or
+            either view's over the clip).
         ransac_iterations: samples the robust initialisation drew.
         input: description of the input (source, format, skeleton, joints, the frame
             rate ``fps`` and its ``fps_source``: option, input, video or default) and

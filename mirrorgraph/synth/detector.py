@@ -13,6 +13,9 @@ are hardest for a mirror calibration, and names two detector presets:
   RANSAC can reject it, but the depth triangulated from it is wrong;
 * left/right swaps in both views (``make_scene(lr_swap_views="both")``): the
   detector also confuses the real person's left and right;
+* crossed labels in long runs of one view (``make_scene(lr_crossed_view=...)``,
+  :func:`crossed_runs`): a body seen from behind labelled as one facing the camera,
+  frame after frame while the person turns their back to it, or the whole clip;
 * a per-joint bias that follows the detector's *label* in both views
   (``make_scene(joint_bias_shared=True)``): label ``j`` is off by ``b_j`` on the
   person and by ``b_j`` mirrored horizontally on the reflection (which looks
@@ -38,7 +41,7 @@ import numpy as np
 
 from .camera import Z_MIN, project
 
-__all__ = ["DETECTORS", "sample_detector_params", "displace_along_epipolar_lines",
+__all__ = ["DETECTORS", "crossed_runs", "sample_detector_params", "displace_along_epipolar_lines",
            "EPIPOLAR_OUTLIER_PX", "bystander_keypoints", "observe_keypoints"]
 
 #: Length of a displacement along the epipolar line, px (uniform, either direction).
@@ -52,6 +55,37 @@ DETECTORS: dict[str, dict] = {
                       joint_bias_px=(2.0, 4.0), joint_bias_shared=True,
                       epipolar_outlier_rate=0.05, lr_swap_rate=0.03, lr_swap_views="both"),
 }
+
+
+def crossed_runs(rng: np.random.Generator, frames: int, fraction: float,
+                 mean_run: float) -> np.ndarray:
+    """``(frames,)`` bool: the frames of a view whose labels a detector crosses in runs.
+
+    A two-state Markov chain over the frames whose crossed runs last ``mean_run``
+    frames on average (geometric lengths) and whose stationary share of crossed frames
+    is ``fraction``; it starts in its stationary distribution. ``fraction = 1`` crosses
+    every frame, ``0`` none.
+
+    Args:
+        rng: the generator of the runs.
+        frames: ``T``.
+        fraction: the share of crossed frames, in ``[0, 1]``.
+        mean_run: the mean length of a crossed run, frames (``>= 1``).
+    """
+    if fraction >= 1.0:
+        return np.ones(frames, bool)
+    if fraction <= 0.0:
+        return np.zeros(frames, bool)
+    leave = 1.0 / max(float(mean_run), 1.0)                  # crossed -> straight
+    enter = min(leave * fraction / (1.0 - fraction), 1.0)    # straight -> crossed
+    u = rng.random(frames)
+    out = np.empty(frames, bool)
+    state = bool(u[0] < fraction)
+    for t in range(frames):                 # a scalar recursion of T steps, once a scene
+        if t:
+            state = (u[t] >= leave) if state else (u[t] < enter)
+        out[t] = state
+    return out
 
 
 def sample_detector_params(rng: np.random.Generator, model: str = "iid") -> dict:

@@ -21,7 +21,8 @@ Detector model (after MirrorCalib, Liao, Zheng and Mitchell), in image pixels: G
 noise of mean ``noise_mean`` and std ``noise_std`` added after lens distortion; then
 outliers displaced 30-150 px (``outlier_rate``), confidences from Beta distributions,
 missing people and joints (``missing_rate``), one of the two undetected
-(``single_person_rate``), left/right swaps (``lr_swap_rate``, ``lr_swap_views``),
+(``single_person_rate``), left/right swaps (``lr_swap_rate``, ``lr_swap_views``; in long
+runs of one view: ``lr_crossed_view``),
 outliers along the epipolar line (``epipolar_outlier_rate``), per-joint bias
 (``joint_bias_px``, ``joint_bias_shared``), AR(1) noise (``noise_correlation``) and
 bystanders (``extra_person_rate``); :mod:`.detector` names a ``"realistic"`` detector
@@ -42,7 +43,8 @@ from ..keypoints import PairedKeypoints, RawDetections
 from ..skeletons import Skeleton, skeleton_by_name
 from .body import BodyModel, check_skeleton, make_body, skeleton_points
 from .camera import D_FLIP, check_camera_args, distort_pixels, random_camera_matrix
-from .detector import bystander_keypoints, displace_along_epipolar_lines, observe_keypoints
+from .detector import (bystander_keypoints, crossed_runs, displace_along_epipolar_lines,
+                       observe_keypoints)
 from .geometry import PRESETS, GeometryPreset, resolve_geometry
 from .motion import generate_motion
 from .placement import place
@@ -77,7 +79,8 @@ class SyntheticScene:
         epipolar_outlier_mask_mirror: ``(T, J)`` the same for the reflection.
         lr_swapped: ``(T,)`` frames whose reflection the detector labelled unflipped.
         lr_swapped_real: ``(T,)`` frames whose person the detector labelled with
-            left and right swapped (``lr_swap_views="both"``; all False otherwise).
+            left and right swapped (``lr_swap_views="both"`` or
+            ``lr_crossed_view="real"``; all False otherwise).
         real_image: ``(T, J, 2)`` noise-free points as the camera images them
             (``real_clean`` distorted by ``dist``; the same as ``real_clean`` without).
         mirror_image: ``(T, J, 2)`` the same for the reflection.
@@ -222,10 +225,12 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                geometry: str | GeometryPreset | None = None, focal_px: float | None = None,
                lr_swap_views: str = "mirror", epipolar_outlier_rate: float = 0.0,
                joint_bias_shared: bool = False,
-               body_variation: float | str = 0.03) -> SyntheticScene:
+               body_variation: float | str = 0.03, lr_crossed_view: str | None = None,
+               lr_crossed_fraction: float = 1.0,
+               lr_crossed_run: float = 90.0) -> SyntheticScene:
     """Generate a synthetic mirror scene (see the module docstring for the model).
 
-    Long for its 26 documented options only: the body is the named steps below it.
+    Long for its 29 documented options only: the body is the named steps below it.
 
     Args:
         frames: number of frames ``T`` (>= 1).
@@ -280,6 +285,13 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
             segment kind, or ``"population"``, each kind's spread among adults
             (:func:`~mirrorgraph.synth.body.make_body`; the same draws either way, so
             only the body changes). Not used with ``motion`` (the take's own body).
+        lr_crossed_view: ``"real"`` or ``"mirror"``: the view whose labels the detector
+            crosses in long runs (a body seen from behind labelled as one facing the
+            camera; :func:`~mirrorgraph.synth.detector.crossed_runs`), on top of the
+            per-frame swaps; ``None``: none.
+        lr_crossed_fraction: the share of that view's frames crossed (``1``: the
+            whole clip).
+        lr_crossed_run: the mean length of a crossed run, frames.
 
     Raises:
         ValueError: an option out of range, or no placement satisfies the
@@ -304,10 +316,14 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
                    noise_correlation=noise_correlation, joint_bias_px=joint_bias_px)
     _record_variant_options(options, gp, focal_px=focal_px, lr_swap_views=lr_swap_views,
                             epipolar_outlier_rate=epipolar_outlier_rate,
-                            joint_bias_shared=joint_bias_shared, body_variation=body_variation)
+                            joint_bias_shared=joint_bias_shared, body_variation=body_variation,
+                            lr_crossed_view=lr_crossed_view,
+                            lr_crossed_fraction=lr_crossed_fraction,
+                            lr_crossed_run=lr_crossed_run)
     T, w, h = check_camera_args(frames, image_size, 60.0 if fov_deg is None else fov_deg, fps,
                                 noise_std)
     _check_scene_args(options, epipolar_outlier_rate, focal_px, lr_swap_views)
+    _check_crossed_args(lr_crossed_view, lr_crossed_fraction, lr_crossed_run)
     dist = _distortion_coefficients(distortion)
     skel = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
     check_skeleton(skel)
@@ -332,8 +348,9 @@ def make_scene(*, frames: int = 1000, seed: int | None = 0, skeleton: str | Skel
         rng, seed0, np.stack([ri, mi]), np.stack([rc, mc]), K, n, size, dist, skel.flip,
         noise_mean, noise_std, outlier_rate, missing_rate, single_person_rate,
         noise_correlation, joint_bias_px, joint_bias_shared, epipolar_outlier_rate)
-    swap, swap_real, det_real, det_mirror = _lr_swaps(rng, seed0, obs, detected, skel.flip,
-                                                      lr_swap_rate, lr_swap_views)
+    swap, swap_real, det_real, det_mirror = _lr_swaps(
+        rng, seed0, obs, detected, skel.flip, lr_swap_rate, lr_swap_views,
+        (lr_crossed_view, lr_crossed_fraction, lr_crossed_run))
     extra = rng.random(T) < extra_person_rate
     extra_people = bystander_keypoints(rng, local, np.flatnonzero(extra), K, size,
                                        chosen["margin_px"], chosen["R_world"], noise_mean,
@@ -366,7 +383,8 @@ def _record_variant_options(options: dict, gp: GeometryPreset, **variants) -> No
     if gp.name != "favourable" or PRESETS.get(gp.name) is not gp:
         options["geometry"] = gp.name if PRESETS.get(gp.name) is gp else asdict(gp)
     defaults = dict(focal_px=None, lr_swap_views="mirror", epipolar_outlier_rate=0.0,
-                    joint_bias_shared=False, body_variation=0.03)
+                    joint_bias_shared=False, body_variation=0.03, lr_crossed_view=None,
+                    lr_crossed_fraction=1.0, lr_crossed_run=90.0)
     for key, default in defaults.items():
         if variants[key] != default:
             options[key] = variants[key]
@@ -396,6 +414,16 @@ def _check_scene_args(options: dict, epipolar_outlier_rate: float, focal_px: flo
         raise ValueError(f"focal_px must be positive, got {focal_px}")
     if lr_swap_views not in ("mirror", "both"):
         raise ValueError(f"lr_swap_views must be 'mirror' or 'both', got {lr_swap_views!r}")
+
+
+def _check_crossed_args(view: str | None, fraction: float, run: float) -> None:
+    """Raise ValueError naming the first of the crossed runs' options out of range."""
+    if view not in (None, "real", "mirror"):
+        raise ValueError(f"lr_crossed_view must be None, 'real' or 'mirror', got {view!r}")
+    if not 0.0 <= fraction <= 1.0:
+        raise ValueError(f"lr_crossed_fraction must be in [0, 1], got {fraction}")
+    if not run >= 1.0:
+        raise ValueError(f"lr_crossed_run must be >= 1 frame, got {run}")
 
 
 def _distortion_coefficients(distortion: Any) -> np.ndarray | None:
@@ -488,16 +516,27 @@ def _observe(rng: np.random.Generator, seed0: int, obs_clean: np.ndarray, clean:
 
 
 def _lr_swaps(rng: np.random.Generator, seed0: int, obs: np.ndarray, detected: np.ndarray,
-              flip: np.ndarray, lr_swap_rate: float, lr_swap_views: str):
+              flip: np.ndarray, lr_swap_rate: float, lr_swap_views: str,
+              crossed: tuple[str | None, float, float] = (None, 1.0, 90.0)):
     """The detector's left/right labels: ``(swap, swap_real, det_real, det_mirror)``, the
     frames whose reflection (person) is labelled unflipped (swapped) and the keypoints of
-    both views as the detector labels them."""
+    both views as the detector labels them. ``crossed``: ``(view, fraction, mean run)`` of
+    the runs of crossed labels (:func:`~.detector.crossed_runs`, a generator of their
+    own), which cross the per-frame swaps' labels again (a swap within a run labels the
+    frame right)."""
     T = obs.shape[1]
     swap = (rng.random(T) < lr_swap_rate) & detected[1]
     swap_real = np.zeros(T, dtype=bool)
     if lr_swap_views == "both":
         swap_real = (np.random.default_rng([seed0, 15485863]).random(T) < lr_swap_rate) \
             & detected[0]
+    view, fraction, run = crossed
+    if view is not None:
+        runs = crossed_runs(np.random.default_rng([seed0, 32452843]), T, fraction, run)
+        if view == "real":
+            swap_real = (swap_real ^ runs) & detected[0]
+        else:
+            swap = (swap ^ runs) & detected[1]
     det_real = np.where(swap_real[:, None, None], obs[0][:, flip], obs[0]) if swap_real.any() \
         else obs[0]
     det_mirror = np.where(swap[:, None, None], obs[1], obs[1][:, flip])

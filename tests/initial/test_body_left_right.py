@@ -133,7 +133,7 @@ def test_a_person_swapped_in_one_view_that_fits_the_epipole_either_way_is_undone
 
 @pytest.mark.parametrize("T", [1, 5, 64, 200])
 def test_messages_are_the_recursion_frame_by_frame(T):
-    from mirrorgraph.initial.body_left_right import _messages
+    from mirrorgraph.initial.body_left_right import min_sum_messages
 
     rng = np.random.default_rng(T)
     M = rng.random((T, 3, 4, 4)) * 10
@@ -142,4 +142,4 @@ def test_messages_are_the_recursion_frame_by_frame(T):
     for t in range(T):
         v = np.min(v[:, :, None] + M[t], axis=1)
         want.append(v)
-    np.testing.assert_allclose(_messages(M, block=16), np.array(want), rtol=1e-12)
+    np.testing.assert_allclose(min_sum_messages(M, block=16), np.array(want), rtol=1e-12)
