@@ -86,12 +86,18 @@ class CalibrateOptions:
         threshold_px: inlier threshold on the epipolar distance, pixels (one mirror;
             a rig's views use ``refine_options.outlier_threshold``).
         seed: seed of every random choice (RANSAC), a non-negative integer.
-        left_right: ``"clip"`` (default): after the pairing, which frames of which view
-            carry crossed left/right labels (a body seen from behind labelled as facing
-            the camera) is decided over the whole clip
-            (:mod:`mirrorgraph.initial.clip_left_right`; with ``people="all"`` each
-            person's track apart); ``"frame"``: the pairing's check of each frame alone
-            (one mirror; a rig's cameras keep the pairing's).
+        left_right: ``"frame"`` (default): the pairing's check of each frame alone
+            (one mirror; a rig's cameras keep the pairing's); ``"clip"``: after the
+            pairing, which frames of which view carry crossed left/right labels (a body
+            seen from behind labelled as facing the camera) is decided over the whole
+            clip (:mod:`mirrorgraph.initial.clip_left_right`; with ``people="all"`` each
+            person's track apart). ``"clip"`` puts right a view crossed for the whole
+            clip (BlazePose on a person seen from behind: 94 -> 3 % of the frames
+            crossed, ``bench/RESULTS_left_right_clip.md``), but under a detector whose
+            per-label bias follows the labels it crosses runs that were not
+            (``bench/RESULTS_joints_full.md``: 4 of 20 realistic scenes, the mirror
+            0.78 -> 2.33 deg on one): use it on clips whose person turns their back
+            to the camera.
 
     **Intrinsics** (cameras given without a camera matrix)
 
@@ -150,7 +156,7 @@ class CalibrateOptions:
     estimator: str = "reflective"
     threshold_px: float = DEFAULT_THRESHOLD_PX
     seed: int = 0
-    left_right: str = "clip"
+    left_right: str = "frame"
     # intrinsics
     image_size: tuple[int, int] | None = None
     fov_deg: float = DEFAULT_FOV_DEG

@@ -107,7 +107,8 @@ def test_crossed_runs_have_the_asked_share():
 
 def test_calibrate_with_the_person_crossed_for_the_whole_clip():
     scene = make_scene(frames=300, seed=38, geometry="gym", lr_crossed_view="real")
-    run = calibrate(scene.detections, scene.intrinsics, CalibrateOptions(refine=False))
+    run = calibrate(scene.detections, scene.intrinsics,
+                    CalibrateOptions(refine=False, left_right="clip"))
     assert mirror_rotation_error_deg(run.calibration.normal, scene.normal) < 1.0
     assert _right_share(run.paired, scene) >= 0.95
     frame = calibrate(scene.detections, scene.intrinsics,
