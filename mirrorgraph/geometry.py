@@ -114,6 +114,21 @@ def reflect_points(X: np.ndarray, normal: np.ndarray, distance: float) -> np.nda
     return X - 2.0 * ((X @ n) - distance)[..., None] * n
 
 
+def mirror_ray_angles_deg(X: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
+    """``(...)`` angle between the *lines* of a point's two rays, degrees in ``[0, 90]``.
+
+    The rays from the camera centre (origin) and from the virtual camera's centre
+    ``2 d n`` to ``(..., 3)`` points ``X`` (camera frame, the unit of ``distance``).
+    Rays pointing opposite ways (a point between the camera and the mirror) are as
+    ill-conditioned as rays pointing the same way: a point's depth std grows as ``1 /
+    sin`` of this angle (Hartley and Zisserman, *Multiple View Geometry*, 2nd ed., 12.6).
+    """
+    X = np.asarray(X, dtype=float)
+    v = X - 2.0 * float(distance) * np.asarray(normal, dtype=float).reshape(3)
+    c = np.abs(np.sum(X * v, axis=-1)) / (np.linalg.norm(X, axis=-1) * np.linalg.norm(v, axis=-1))
+    return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
+
+
 def virtual_camera_from_mirror(normal: np.ndarray, distance: float
                                ) -> tuple[np.ndarray, np.ndarray]:
     """Extrinsics of the virtual camera, ``X_virtual = D (R X + t)``.

@@ -170,3 +170,24 @@ def test_similarity_align_recovers_a_known_similarity_and_matches_scipy():
     w2[1, 3] = 0.0                                   # the hole left out: aligned again
     R3, s3, _ = geo.similarity_align(src, holes, w2)
     np.testing.assert_allclose(R3[1], R[1], atol=1e-12)
+
+
+def test_ray_angles_fold_rays_pointing_opposite_ways():
+    """A joint on the line from the camera to the mirror, between them, has rays pointing
+    opposite ways (180 deg apart as directions): as ill-conditioned as parallel ones."""
+    n, d = np.array([0.0, 0.0, 1.0]), 5.0
+    on_axis = np.array([[0.0, 0.0, 3.0]])
+    assert geo.mirror_ray_angles_deg(on_axis, n, d)[0] == pytest.approx(0.0, abs=1e-6)
+    # rays at 30 and at 150 deg as directions: the same conditioning, 30 deg
+    for angle in (30.0, 150.0):
+        # a point X whose directions X and X - 2 d n are `angle` apart, found on a line
+        x = np.linspace(0.1, 20.0, 20000)
+        pts = np.stack([x, np.zeros_like(x), np.full_like(x, 2.0)], 1)
+        a = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+        b = pts - 2 * d * n
+        b /= np.linalg.norm(b, axis=1, keepdims=True)
+        raw = np.degrees(np.arccos(np.clip(np.sum(a * b, 1), -1, 1)))
+        k = int(np.argmin(np.abs(raw - angle)))
+        assert raw[k] == pytest.approx(angle, abs=0.1)
+        assert geo.mirror_ray_angles_deg(pts[k], n, d) == pytest.approx(
+            min(angle, 180.0 - angle), abs=0.1)

@@ -24,8 +24,7 @@ from ..keypoints import PairedKeypoints
 from ..initial.reflection_check import ReflectionCheck
 
 __all__ = ["judge_mirror", "judge_rig", "poor_mirror_cause", "poorly_determined",
-           "dominant_intrinsic", "median_ray_angle_deg", "ray_angles_deg", "low_parallax_warning",
-           "motion_px"]
+           "dominant_intrinsic", "median_ray_angle_deg", "low_parallax_warning", "motion_px"]
 
 #: Warn when the inliers' median epipolar distance exceeds this many pixels.
 SUSPICIOUS_RESIDUAL_PX = 6.0
@@ -111,27 +110,15 @@ def poor_mirror_cause(uncertainty: dict, normal: np.ndarray, ray_angle_deg: floa
             "more frames and motion help")
 
 
-def ray_angles_deg(joints3d: np.ndarray, normal: np.ndarray, distance: float) -> np.ndarray:
-    """``(...)`` angle between the *lines* of a joint's two rays, degrees in ``[0, 90]``:
-    from the real camera (origin) and from the virtual one (``2 d n``), for ``(..., 3)``
-    joints (real camera frame, the unit of ``distance``). Rays pointing opposite ways (a
-    joint between the camera and the mirror) are as ill-conditioned as rays pointing the
-    same way: a joint's depth std grows as ``1 / sin`` of this angle."""
-    X = np.asarray(joints3d, float)
-    a = X / np.linalg.norm(X, axis=-1, keepdims=True)
-    b = X - 2.0 * float(distance) * np.asarray(normal, float)
-    b /= np.linalg.norm(b, axis=-1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(np.abs(np.sum(a * b, -1)), 0.0, 1.0)))
-
-
 def median_ray_angle_deg(joints3d: np.ndarray | None, valid: np.ndarray | None,
                          normal: np.ndarray, distance: float) -> float:
-    """Median of :func:`ray_angles_deg` over the ``(T, J, 3)`` joints ``valid``; NaN
-    without joints."""
+    """Median of :func:`mirrorgraph.geometry.mirror_ray_angles_deg` (the angle between the
+    lines of a joint's two rays, in ``[0, 90]``) over the ``(T, J, 3)`` joints ``valid``;
+    NaN without joints."""
     if joints3d is None or valid is None or not np.any(valid):
         return float("nan")
     X = np.asarray(joints3d, float)[np.asarray(valid, bool)]
-    return float(np.median(ray_angles_deg(X, normal, distance)))
+    return float(np.median(geo.mirror_ray_angles_deg(X, normal, distance)))
 
 
 def low_parallax_warning(ray_angle_deg: float, scale_rel_std: float | None) -> str | None:

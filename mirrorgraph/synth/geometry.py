@@ -213,12 +213,10 @@ def parallax_deg(X: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
     Returns:
         ``(N,)`` degrees in ``[0, 90]``: the angle between the lines through ``X``
         from the camera centre and from the virtual camera's centre ``2 d n``
-        (the 3D form of :func:`ray_angles_deg`).
+        (the 3D form of :func:`ray_angles_deg`;
+        :func:`mirrorgraph.geometry.mirror_ray_angles_deg`).
     """
-    v = X - 2.0 * d * np.asarray(n, float)
-    c = np.abs(np.einsum("ij,ij->i", X, v)) / (np.linalg.norm(X, axis=1)
-                                               * np.linalg.norm(v, axis=1))
-    return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
+    return geo.mirror_ray_angles_deg(X, n, d)
 
 
 def ray_angles_deg(K: np.ndarray, n: np.ndarray, u: np.ndarray, u_mirror: np.ndarray
