@@ -44,6 +44,8 @@ Scenes (``--kinds``):
   the two detector models);
 * ``cmu``: the same wide scenes (iid detector) moved by the CMU motion-capture take the
   package ships (``mirrorgraph/data/cmu_01_01.bvh``);
+* ``lowpar``: the ``low_parallax`` slice (the wide ranges with the person near the
+  camera-mirror line, rays 2-12 deg apart), iid detector;
 * ``paper``: MirrorCalib's protocol on the project's generator (``make_scene``: the
   ``favourable`` geometry, 4 px iid noise of mean 0.076 px, 3 % outliers);
 * ``fixtures``: the scenes of an independent generator in ``--fixtures`` (default
@@ -67,8 +69,8 @@ that sit on the joints, as the synthetic iid ones do.
 
 Usage::
 
-    python bench/bench_joints.py                       # 14 scenes, ~7 min on 2 busy cores
-    python bench/bench_joints.py --full                # 62 scenes, ~35 min on 2 busy cores
+    python bench/bench_joints.py                       # 16 scenes, ~8 min on 2 busy cores
+    python bench/bench_joints.py --full                # 72 scenes, ~40 min on 2 busy cores
     python bench/bench_joints.py --kinds iid,fixtures --seeds 0-3 --methods calibrate
     python bench/bench_joints.py --json after.json --out /tmp/after.md
     python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
@@ -116,7 +118,7 @@ MODE_PX = 10.0
 #: (their detector: 4 px noise, outliers of 20-200 px)
 FIXTURE_OUTLIER_PX = 15.0
 MODES = ("depth", "off", "outlier", "one view", "swap")
-KINDS = ("iid", "realistic", "cmu", "paper", "fixtures")
+KINDS = ("iid", "realistic", "cmu", "lowpar", "paper", "fixtures")
 #: The height a user gives (``--height-given reported``): their own report, ``true + bias +
 #: std z`` (m), ``z`` standard normal, one draw a scene. Adults over-report their height by
 #: 1.0-1.6 cm on average (men 1.6, women 1.0: S. Scholes et al., Health Survey for England
@@ -133,8 +135,9 @@ HEIGHT_GIVEN = ("reported", "exact")
 BODIES = ("population", "model")
 METHODS = ("calibrate", "live")
 #: the default run: (kind, seeds); ``--full``: the wide run
-DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-1", "cmu": "0-1", "paper": "0-1"}
-FULL_SEEDS = {"iid": "0-19", "realistic": "0-19", "cmu": "0-9", "paper": "0-9"}
+DEFAULT_SEEDS = {"iid": "0-3", "realistic": "0-1", "cmu": "0-1", "lowpar": "0-1", "paper": "0-1"}
+FULL_SEEDS = {"iid": "0-19", "realistic": "0-19", "cmu": "0-9", "lowpar": "0-9",
+              "paper": "0-9"}
 
 
 def _seeds(text: str) -> list[int]:
@@ -175,6 +178,8 @@ def _synthetic(kind: str, seed: int, frames: int, body: str = "population") -> T
     body_kw = dict(body_variation="population") if body == "population" else {}
     if kind in ("iid", "realistic"):
         sc = make_wide_scene(seed, "wide", kind, frames, **body_kw)
+    elif kind == "lowpar":
+        sc = make_wide_scene(seed, "low_parallax", "iid", frames, **body_kw)
     elif kind == "cmu":       # the take's own body
         sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()))
     elif kind == "paper":
@@ -780,7 +785,7 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
 #: the kinds each set of targets applies to: iid detectors (the paper's protocol and the
 #: CMU motion included) and the detectors with structure (the realistic model, the
 #: independent generator's swaps and outliers)
-IID_KINDS = ("iid", "cmu", "paper")
+IID_KINDS = ("iid", "cmu", "lowpar", "paper")
 HARD_KINDS = ("realistic", "fixtures")
 
 
@@ -951,7 +956,7 @@ def code_version() -> str:
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="iid,realistic,cmu,paper,fixtures",
+    ap.add_argument("--kinds", default="iid,realistic,cmu,lowpar,paper,fixtures",
                     help=f"comma-separated, of {', '.join(KINDS)}")
     ap.add_argument("--methods", default="calibrate,live", help="calibrate, live")
     ap.add_argument("--seeds", default=None,
