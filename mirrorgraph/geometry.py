@@ -84,6 +84,33 @@ def project(K: np.ndarray, X: np.ndarray) -> np.ndarray:
     return x[..., :2] / x[..., 2:3]
 
 
+def project_with_jacobian(P: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pinhole projection ``pi(P [X; 1])`` and its Jacobian in ``X``.
+
+    ``d pi / d X = (1 / z) [P_1 - u P_3; P_2 - v P_3]`` over the first three columns,
+    ``z`` the point's third homogeneous coordinate (Hartley and Zisserman, *Multiple View
+    Geometry*, 2nd ed., sec. 5.2.1): the ``2 x 3`` block of a reprojection error's
+    linearisation, of a triangulated point's information ``J^T J / sigma^2``.
+
+    Args:
+        P: ``(3, 4)`` world-to-pixel matrix, or ``(3, 3)`` (no translation: ``K`` for
+            camera-frame points, ``K H`` for a reflection through a plane at the origin).
+        X: ``(N, 3)`` points in ``P``'s world frame.
+
+    Returns:
+        ``(u, J)``: ``(N, 2)`` pixels and ``(N, 2, 3)`` Jacobians, px per unit of ``X``;
+        NaN or inf where ``z`` is 0.
+    """
+    P = np.asarray(P, dtype=float)
+    y = np.asarray(X, dtype=float) @ P[:, :3].T
+    if P.shape[1] == 4:
+        y = y + P[:, 3]
+    z = y[:, 2:3]
+    u = y[:, :2] / z
+    J = (P[None, :2, :3] - u[:, :, None] * P[None, 2:3, :3]) / z[:, :, None]
+    return u, J
+
+
 # --------------------------------------------------------------------------- mirror
 def normalize_plane(normal: np.ndarray, distance: float) -> tuple[np.ndarray, float]:
     """Scale ``n . X = d`` to a unit normal and orient it so that ``d > 0``.

@@ -20,7 +20,8 @@ import math
 
 import numpy as np
 
-from .geometry import householder, similarity_align, tangent_basis, virtual_camera_from_mirror
+from .geometry import (householder, project_with_jacobian, similarity_align, tangent_basis,
+                       virtual_camera_from_mirror)
 
 
 def rotation_error_deg(R_est: np.ndarray, R_true: np.ndarray) -> float:
@@ -100,16 +101,6 @@ def pa_mpjpe(pred: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = Non
     return float(err[ok].mean()) if ok.any() else float("nan")
 
 
-def _projection_jacobian(K: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """``(N, 2, 3)`` Jacobian of ``pi(K Y)`` with respect to the camera-frame points ``Y``."""
-    z = Y[:, 2]
-    J = np.zeros((len(Y), 2, 3))
-    J[:, 0, 0] = J[:, 1, 1] = 1.0 / z
-    J[:, 0, 2] = -Y[:, 0] / z ** 2
-    J[:, 1, 2] = -Y[:, 1] / z ** 2
-    return K[None, :2, :2] @ J
-
-
 def cramer_rao_mirror(K: np.ndarray, n: np.ndarray, d: float, X: np.ndarray, sigma: float,
                       rng: np.random.Generator | None = None) -> dict:
     """Cramer-Rao bound of the mirror normal from joints seen in both views.
@@ -143,8 +134,8 @@ def cramer_rao_mirror(K: np.ndarray, n: np.ndarray, d: float, X: np.ndarray, sig
     B = tangent_basis(n)
     H = householder(n)
     S = X @ H.T + 2.0 * d * n                              # reflected points
-    J1 = _projection_jacobian(K, X)                        # (N, 2, 3) d u / d X
-    J2 = _projection_jacobian(K, S)                        # d u' / d S
+    J1 = project_with_jacobian(K, X)[1]                    # (N, 2, 3) d u / d X
+    J2 = project_with_jacobian(K, S)[1]                    # d u' / d S
     Jx = np.concatenate([J1, J2 @ H], 1)                   # (N, 4, 3)
     s = X @ n - d                                          # (N,)
     # d S / d n = -2 (s I + n X^T), along the tangent basis

@@ -191,3 +191,20 @@ def test_ray_angles_fold_rays_pointing_opposite_ways():
         assert raw[k] == pytest.approx(angle, abs=0.1)
         assert geo.mirror_ray_angles_deg(pts[k], n, d) == pytest.approx(
             min(angle, 180.0 - angle), abs=0.1)
+
+
+def test_project_with_jacobian_matches_projection_and_finite_differences():
+    rng = np.random.default_rng(4)
+    K = np.array([[1200.0, 0.5, 950.0], [0.0, 1180.0, 540.0], [0.0, 0.0, 1.0]])
+    n, d = geo.normalize_plane(np.array([0.3, -0.1, 1.0]), 4.0)
+    P = K @ np.column_stack([geo.householder(n), 2.0 * d * n])     # the mirror's view
+    X = rng.normal([0.2, 0.1, 3.0], 0.5, (40, 3))
+    for A, Y in ((K, X), (P, X)):
+        u, J = geo.project_with_jacobian(A, Y)
+        ref = geo.project(K, Y) if A is K else geo.project(K, geo.reflect_points(Y, n, d))
+        np.testing.assert_allclose(u, ref, atol=1e-9)
+        h = 1e-6
+        fd = np.stack([(geo.project_with_jacobian(A, Y + h * e)[0]
+                        - geo.project_with_jacobian(A, Y - h * e)[0]) / (2 * h)
+                       for e in np.eye(3)], axis=-1)
+        np.testing.assert_allclose(J, fd, rtol=1e-6, atol=1e-3)

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import project_with_jacobian
+
 __all__ = ["BenchDependencyError", "require", "triangulate_virtual"]
 
 _D = np.diag([-1.0, 1.0, 1.0])
@@ -85,20 +87,10 @@ def triangulate_virtual(K: np.ndarray, R: np.ndarray, t: np.ndarray, u: np.ndarr
     return out.reshape(shape + (3,))
 
 
-def _project_jacobian(K, Y, M):
-    y = Y @ K.T
-    z = y[:, 2:3]
-    p = y[:, :2] / z
-    J = np.zeros((len(Y), 2, 3))
-    J[:, 0, 0] = J[:, 1, 1] = 1.0 / z[:, 0]
-    J[:, :, 2] = -p / z
-    return p, J @ K @ M
-
-
 def _gauss_newton(K, M, c, X, a, b):
     with np.errstate(divide="ignore", invalid="ignore"):
-        p1, J1 = _project_jacobian(K, X, np.eye(3))
-        p2, J2 = _project_jacobian(K, X @ M.T + c, M)
+        p1, J1 = project_with_jacobian(K, X)
+        p2, J2 = project_with_jacobian(K @ np.column_stack([M, c]), X)
         r = np.concatenate([p1 - a, p2 - b], 1)
         J = np.concatenate([J1, J2], 1)
         JtJ = np.einsum("nki,nkj->nij", J, J) + 1e-12 * np.eye(3)
