@@ -58,7 +58,7 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import (bias_covariance, head_layout, refine_with_bones,
+from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_with_bones,
                           triangulate_two_rays, view_residuals, with_head_prior)
 from .joint_filter import JointFilter
 
@@ -629,6 +629,10 @@ class LiveCalibrator:
         X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
                                              self._sigma_px(), sigma_len, iterations=2,
                                              gate_px=gate, full=True)
+        if lengths is not None:
+            # a joint the two rays barely place: its bones' other branch along the ray
+            X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, self._bones, L,
+                                   self._sigma_px(), sigma_len)
         S = geo.reflect_points(X, n, d)
         with np.errstate(invalid="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)

@@ -29,7 +29,7 @@ import numpy as np
 from ..graph.outliers import one_view_outliers
 
 __all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout",
-           "view_residuals", "bias_covariance", "HUBER_K"]
+           "view_residuals", "bias_covariance", "bone_branches", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -122,6 +122,85 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
     except np.linalg.LinAlgError:
         return np.full((len(J), 3, 3), np.nan)
     return Hinv @ Hb @ Hinv
+
+
+def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
+                  cov: np.ndarray, u: np.ndarray, um: np.ndarray, keep: np.ndarray,
+                  joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
+                  sigma_px: float, sigma_len: float) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's refined joints with each one's other bone branch folded into its
+    Gaussian: the two modes' moment-matched mean and covariance.
+
+    A bone of length ``L`` from a joint ``p`` meets the joint's camera ray ``c + s r``
+    (``|r| = 1``) twice, at points mirror-symmetric about the foot of ``p`` on the ray:
+    the joint ``X`` and ``X' = X - 2 ((X - p) . r) r``. Where the two rays of the joint
+    meet at a small angle the views barely tell the two apart, and the refinement's
+    Laplace covariance at ``X`` (:func:`refine_with_bones`) covers one of them only.
+    Each joint's likeliest other branch (over its bones) is scored by the frame's
+    cost at the joint, the others held: both views' squared whitened reprojection
+    residuals (the views kept) and the squared whitened length errors of every bone at
+    the joint; with ``c``, ``c'`` the costs at ``X``, ``X'`` the modes weigh ``1 - w``
+    and ``w = 1 / (1 + exp((c' - c) / 2))``, and the joint becomes their moment-matched
+    Gaussian ``m = X + w (X' - X)``, ``C + w (1 - w) (X' - X)(X' - X)^T`` (the
+    collapse of a two-component mixture: Bar-Shalom, Li and Kirubarajan, *Estimation
+    with Applications to Tracking and Navigation*, 2001, sec. 11.6; each mode's
+    covariance taken as ``C``). A joint the views place is unchanged (``w`` ~ 0): its
+    other branch reprojects far off.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        X: ``(k, 3)`` the refined joints (camera frame); cov: ``(k, 3, 3)`` theirs.
+        u, um: ``(k, 2)`` their pixels in the camera and the mirror, undistorted.
+        keep: ``(k, 2)`` the views kept (direct, mirror).
+        joints: ``(k,)`` the skeleton's indices of the joints; bones: ``(B, 2)`` the
+            skeleton's bones; lengths: ``(B,)`` their lengths (NaN: not used).
+        sigma_px: the reprojection noise, px; sigma_len: the bones' spread.
+
+    Returns:
+        ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)`` (copies).
+    """
+    X = np.asarray(X, float)
+    k = len(X)
+    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
+    local[np.asarray(joints)] = np.arange(k)
+    a, b = local[bones[:, 0]], local[bones[:, 1]]
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
+    if not use.any():
+        return X.copy(), np.array(cov, float)
+    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    # every bone end moved to its other branch about the bone's other end
+    move = np.concatenate([a, b])                                  # (2B,)
+    fixed = np.concatenate([b, a])
+    r = X[move] / np.linalg.norm(X[move], axis=1, keepdims=True)   # camera rays
+    Y = X[move] - 2.0 * ((X[move] - X[fixed]) * r).sum(1, keepdims=True) * r
+    # the cost at the joint (reprojection in the views kept, the bones at it)
+    ends = np.stack([a, b], 1)                                     # (B, 2)
+
+    def cost(P: np.ndarray, who: np.ndarray) -> np.ndarray:
+        res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
+        rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
+        at = ends[None] == who[:, None, None]                      # (n, B, 2)
+        touch = at.any(2)
+        other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
+        length = np.linalg.norm(P[:, None, :] - X[other], axis=2)
+        e = np.where(touch, (length - L[None]) / sigma_len, 0.0)
+        return rr + (e * e).sum(1)
+
+    with np.errstate(invalid="ignore", over="ignore"):
+        gap = cost(Y, move) - cost(X[move], move)                  # c' - c, (2B,)
+        gap = np.where(np.isfinite(gap), gap, np.inf)
+    # each joint's likeliest other branch
+    order = np.lexsort((gap, move))
+    first = np.ones(len(order), bool)
+    first[1:] = move[order][1:] != move[order][:-1]
+    pick = order[first]
+    i, D = move[pick], Y[pick] - X[move[pick]]
+    with np.errstate(over="ignore"):
+        w = 1.0 / (1.0 + np.exp(np.minimum(0.5 * gap[pick], 700.0)))
+    Xo, Co = X.copy(), np.array(cov, float)
+    Xo[i] += w[:, None] * D
+    Co[i] += (w * (1.0 - w))[:, None, None] * D[:, :, None] * D[:, None, :]
+    return Xo, Co
 
 
 _DIAGONALS: dict = {}
