@@ -409,6 +409,12 @@ class LiveCalibrator:
                                 for a, b in self.skeleton.bones.values()], dtype=np.int64
                                ).reshape(-1, 2)
         self._lengths_of, self._lengths = None, None
+        # each bone's length step between the windows whose lengths the frames held:
+        # the sum of its draws of the latest window's relative length variance, their
+        # count (:meth:`_note_bone_steps`), and that window's frames
+        self._bone_step_sum = np.zeros(len(self._bones))
+        self._bone_steps = np.zeros(len(self._bones))
+        self._bones_frames = 0
         self.intrinsics = intrinsics
         if intrinsics is None:
             if copts.image_size is None:
@@ -617,7 +623,7 @@ class LiveCalibrator:
         self._last_rays = (u, um)
         lengths = self._bone_lengths() if self.options.bone_prior else None
         L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
-                                                            1.0)
+                                                            np.ones(len(self._bones)))
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; the worst view off by more than the calibration's inlier threshold
         # once the bones hold the joint (a keypoint displaced along its epipolar line)
@@ -688,11 +694,13 @@ class LiveCalibrator:
         fu = self.fusion
         return fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
 
-    def _bone_lengths(self) -> tuple[np.ndarray, float] | None:
+    def _bone_lengths(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lengths, sigma)``: the latest window's length of each bone of
-        ``self._bones`` (NaN where it has none) and the bones' spread, the graph's
-        ``bone_sigma`` of the height they make (Winter's fractions); ``None`` without a
-        window's lengths."""
+        ``self._bones`` (NaN where it has none) and each one's ``(B,)`` spread about
+        it: the graph's ``bone_sigma`` of the height they make (Winter's fractions) and
+        the window's own length error, the RMS of the bone's steps between windows
+        (:meth:`_note_bone_steps`; none before the second window), in quadrature;
+        ``None`` without a window's lengths."""
         found = self.fusion.bone_lengths
         if not found:
             return None
@@ -705,7 +713,9 @@ class LiveCalibrator:
             both = np.isfinite(L) & np.isfinite(f)
             h = float(L[both].sum() / f[both].sum()) if both.any() else float("nan")
             sigma = self._copts.graph.priors.bone_sigma * h
-            self._lengths = (L, sigma) if np.isfinite(sigma) and sigma > 0 else None
+            own = np.sqrt(self._bone_step_sum / np.maximum(self._bone_steps, 1.0)) * L
+            spread = np.hypot(sigma, np.nan_to_num(own))
+            self._lengths = (L, spread) if np.isfinite(sigma) and sigma > 0 else None
             self._lengths_of = found
         return self._lengths
 
@@ -929,6 +939,7 @@ class LiveCalibrator:
     def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
         before = (None if self.fusion.normal is None else
                   (self.K, self.fusion.normal.copy(), float(self.fusion.distance)))
+        bones_before = self.fusion.bone_lengths
         self._cache.clear()
         if provisional:
             # the calibration of every frame so far replaces the one of fewer frames
@@ -949,11 +960,41 @@ class LiveCalibrator:
                 self.fusion.note_restart_step(math.log(ratio), self._mirror_frames, size)
         if what in ("started", "reset"):
             self._mirror_frames = size
+        if self.fusion.bone_lengths is not bones_before:
+            self._note_bone_steps(bones_before if what != "reset" else {},
+                                  provisional and what == "started", size)
         if len(self.window_log) < self._log_cap:
             self.window_log.append({"frames": [est.first_frame, est.last_frame],
                                     "size": size, "result": what, "reason": est.reason,
                                     "rotation_std_deg": est.rotation_std_deg,
                                     "seconds": est.seconds, "pairs": est.pairs})
+
+    def _note_bone_steps(self, old: dict, nested: bool, frames: int) -> None:
+        """Record how far the new window's bone lengths moved from ``old`` (the lengths
+        the frames held), one draw a bone of the new window's relative length variance.
+
+        With each window's length errors independent draws of a variance falling as
+        ``1 / frames`` (that of the length measured on its frames), the log step
+        ``s`` from a window of ``m`` frames to one of ``n`` is a draw of variance
+        ``v_n (n - m) / m`` where the new window holds the old one (the first block's
+        re-solves, :meth:`.estimator.MirrorFusion.note_restart_step`'s reasoning) and
+        ``v_n (1 + n / m)`` where the two are disjoint (later blocks): ``s^2 m / (n - m)``
+        and ``s^2 m / (m + n)`` are draws of ``v_n``. A reset (a cut) starts over."""
+        m, n = int(self._bones_frames), int(frames)
+        self._bones_frames = n
+        if not old or m <= 0 or (nested and n <= m):
+            self._bone_step_sum[:] = 0.0
+            self._bone_steps[:] = 0.0
+            return
+        new = self.fusion.bone_lengths
+        a = np.array([old.get(b, np.nan) for b in self._bone_names], float)
+        c = np.array([new.get(b, np.nan) for b in self._bone_names], float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = np.log(c / a)
+        ok = np.isfinite(step)
+        w = m / (n - m) if nested else m / (m + n)
+        self._bone_step_sum[ok] += step[ok] ** 2 * w
+        self._bone_steps[ok] += 1.0
 
     def _scale_ratio(self, before: tuple | None) -> float:
         """The joints' size at the current mirror over their size at ``before`` ``(K,

@@ -127,7 +127,8 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
 def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                   cov: np.ndarray, u: np.ndarray, um: np.ndarray, keep: np.ndarray,
                   joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
-                  sigma_px: float, sigma_len: float) -> tuple[np.ndarray, np.ndarray]:
+                  sigma_px: float, sigma_len: "float | np.ndarray"
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """One frame's refined joints with each one's other bone branch folded into its
     Gaussian: the two modes' moment-matched mean and covariance.
 
@@ -154,7 +155,8 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
         keep: ``(k, 2)`` the views kept (direct, mirror).
         joints: ``(k,)`` the skeleton's indices of the joints; bones: ``(B, 2)`` the
             skeleton's bones; lengths: ``(B,)`` their lengths (NaN: not used).
-        sigma_px: the reprojection noise, px; sigma_len: the bones' spread.
+        sigma_px: the reprojection noise, px; sigma_len: the bones' spread about
+            their lengths, one for all or ``(B,)`` one a bone.
 
     Returns:
         ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)`` (copies).
@@ -168,6 +170,7 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     if not use.any():
         return X.copy(), np.array(cov, float)
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
     # every bone end moved to its other branch about the bone's other end
     move = np.concatenate([a, b])                                  # (2B,)
     fixed = np.concatenate([b, a])
@@ -183,7 +186,7 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
         touch = at.any(2)
         other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
         length = np.linalg.norm(P[:, None, :] - X[other], axis=2)
-        e = np.where(touch, (length - L[None]) / sigma_len, 0.0)
+        e = np.where(touch, (length - L[None]) / sl[None], 0.0)
         return rr + (e * e).sum(1)
 
     with np.errstate(invalid="ignore", over="ignore"):
@@ -219,7 +222,7 @@ def _diagonal(k: int) -> np.ndarray:
 
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                       u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
-                      lengths: np.ndarray, sigma_px: float, sigma_len: float,
+                      lengths: np.ndarray, sigma_px: float, sigma_len: "float | np.ndarray",
                       iterations: int = 3, *, gate_px: float | None = None,
                       full: bool = False):
     """Refine one frame's triangulated joints with the bones' lengths.
@@ -234,7 +237,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         bones: ``(B, 2)`` skeleton joint indices of each bone's two ends.
         lengths: ``(B,)`` the bones' lengths (the unit of ``X``); NaN: not used.
         sigma_px: the reprojection noise, px.
-        sigma_len: the bones' spread about their lengths (the unit of ``X``).
+        sigma_len: the bones' spread about their lengths (the unit of ``X``), one for
+            all or ``(B,)`` one a bone.
         iterations: Gauss-Newton steps.
         gate_px: after the steps, of each joint held by bones the view whose residual
             is the larger and exceeds this (px) is left out (a keypoint displaced along
@@ -259,6 +263,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b = local[bones[:, 0]], local[bones[:, 1]]
     use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((k, 2), bool)
@@ -292,9 +297,9 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         if len(L):
             diff = X[a] - X[b]
             length = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-            e = diff / (np.maximum(length, 1e-12) * sigma_len)[:, None]  # d r / d X_a
+            e = diff / (np.maximum(length, 1e-12) * sl)[:, None]  # d r / d X_a
             Jb[rows, a], Jb[rows, b] = e, -e
-            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sigma_len)
+            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sl)
         if done >= steps:
             if gate_px is None or not held.any():
                 break
