@@ -59,7 +59,8 @@ from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
 from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_with_bones,
-                          triangulate_two_rays, view_residuals, with_head_prior)
+                          triangulate_two_rays, two_starts, view_residuals,
+                          with_head_prior)
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -635,6 +636,20 @@ class LiveCalibrator:
         X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
                                              self._sigma_px(), sigma_len, iterations=2,
                                              gate_px=gate, full=True)
+        if lengths is not None and self.options.smooth and self._filter is not None:
+            # the frame refined again from where the tracks predict it: at small parallax
+            # the bones hold a limb on either side of its neighbours along the ray, and
+            # the start picks the side; the two folded by the frame's cost at each joint
+            Xp = self._filter.predict(fid)[0][idx]
+            have = np.isfinite(Xp).all(1)
+            if have.any():
+                X0 = triangulate_two_rays(K, n, d, u, um)
+                X0[have] = Xp[have]
+                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, self._bones, L,
+                                                     self._sigma_px(), sigma_len,
+                                                     iterations=2, gate_px=gate, full=True)
+                X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
+                                    self._bones, L, self._sigma_px(), sigma_len)
         if lengths is not None:
             # a joint the two rays barely place: its bones' other branch along the ray
             X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, self._bones, L,

@@ -29,7 +29,7 @@ import numpy as np
 from ..graph.outliers import one_view_outliers
 
 __all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout",
-           "view_residuals", "bias_covariance", "bone_branches", "HUBER_K"]
+           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -176,18 +176,10 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     fixed = np.concatenate([b, a])
     r = X[move] / np.linalg.norm(X[move], axis=1, keepdims=True)   # camera rays
     Y = X[move] - 2.0 * ((X[move] - X[fixed]) * r).sum(1, keepdims=True) * r
-    # the cost at the joint (reprojection in the views kept, the bones at it)
     ends = np.stack([a, b], 1)                                     # (B, 2)
 
     def cost(P: np.ndarray, who: np.ndarray) -> np.ndarray:
-        res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
-        rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
-        at = ends[None] == who[:, None, None]                      # (n, B, 2)
-        touch = at.any(2)
-        other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
-        length = np.linalg.norm(P[:, None, :] - X[other], axis=2)
-        e = np.where(touch, (length - L[None]) / sl[None], 0.0)
-        return rr + (e * e).sum(1)
+        return _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px)
 
     with np.errstate(invalid="ignore", over="ignore"):
         gap = cost(Y, move) - cost(X[move], move)                  # c' - c, (2B,)
@@ -204,6 +196,80 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     Xo[i] += w[:, None] * D
     Co[i] += (w * (1.0 - w))[:, None, None] * D[:, :, None] * D[:, None, :]
     return Xo, Co
+
+
+def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px):
+    """``(n,)`` the frame's cost at joints ``who`` placed at ``P`` ``(n, 3)``, the
+    others at ``X``: both views' squared whitened reprojection residuals (the views
+    ``keep``), the squared whitened length errors of the bones ``ends`` ``(B, 2)``
+    (local indices; lengths ``L``, spreads ``sl``) at the joint."""
+    res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
+    rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
+    at = ends[None] == who[:, None, None]                          # (n, B, 2)
+    touch = at.any(2)
+    other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
+    length = np.linalg.norm(P[:, None, :] - X[other], axis=2)
+    e = np.where(touch, (length - L[None]) / sl[None], 0.0)
+    return rr + (e * e).sum(1)
+
+
+def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarray,
+               CA: np.ndarray, XB: np.ndarray, CB: np.ndarray, u: np.ndarray,
+               um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
+               bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
+               sigma_len: "float | np.ndarray") -> tuple[np.ndarray, np.ndarray]:
+    """Two refinements of one frame's joints (:func:`refine_with_bones` from two
+    starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
+    predict them) folded, joint by joint, into the moment-matched Gaussian of the two.
+
+    At small parallax the frame's cost has a mode on either side of a joint's
+    neighbours along its ray (a bone meets the ray twice), and the Gauss-Newton steps
+    end in the one their start lies nearer. Each joint's two solutions weigh ``1 - w``
+    and ``w = 1 / (1 + exp((c_B - c_A) / 2))`` with ``c`` the frame's cost at the joint
+    in each solution (both views' squared whitened residuals, the squared whitened
+    length errors of its bones, :func:`bone_branches`'s): the likelihood alone, the
+    prediction only the start, so that the tracks' filter does not take its own
+    prediction again. The fold: ``m = X_A + w (X_B - X_A)``, ``(1 - w) C_A + w C_B
+    + w (1 - w) (X_B - X_A)(X_B - X_A)^T`` (Bar-Shalom, Li and Kirubarajan, 2001, sec.
+    11.6). Where the two kept different views of a joint their costs do not compare,
+    and ``A`` is kept.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        XA, CA: ``(k, 3)``, ``(k, 3, 3)`` the refinement from the midpoints;
+            XB, CB: the one from the prediction (NaN rows: none).
+        u, um: ``(k, 2)`` the pixels in the camera and the mirror, undistorted.
+        keepA, keepB: ``(k, 2)`` the views each kept.
+        joints: ``(k,)`` the skeleton's indices; bones: ``(B, 2)``; lengths: ``(B,)``.
+        sigma_px: the reprojection noise, px; sigma_len: the bones' spread, one for all
+            or ``(B,)``.
+
+    Returns:
+        ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)``.
+    """
+    k = len(XA)
+    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
+    local[np.asarray(joints)] = np.arange(k)
+    a, b = local[bones[:, 0]], local[bones[:, 1]]
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
+    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    ends = np.stack([a, b], 1)
+    who = np.arange(k)
+    with np.errstate(invalid="ignore", over="ignore"):
+        gap = (_joint_cost(K, normal, distance, XB, who, XB, u, um, keepA, ends, L, sl,
+                           sigma_px)
+               - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
+                             sigma_px))
+        w = 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
+    w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
+                 & (keepA == keepB).all(1), w, 0.0)
+    D = XB - XA
+    D = np.where(np.isfinite(D), D, 0.0)
+    X = XA + w[:, None] * D
+    C = ((1 - w)[:, None, None] * CA + w[:, None, None] * np.nan_to_num(CB)
+         + (w * (1 - w))[:, None, None] * D[:, :, None] * D[:, None, :])
+    return X, C
 
 
 _DIAGONALS: dict = {}

@@ -106,6 +106,22 @@ class JointFilter:
                         + ((h[6] * factor, h[7] * factor * factor) if h[3] is not None
                            else h[6:]) for h in self.history]
 
+    def predict(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Every track predicted to ``frame_id`` (after the last step's), the state left
+        as it is: ``(J, 3)`` points and ``(J, 3, 3)`` covariances, NaN where a joint has
+        no track within its gap or one not yet gated (fewer than ``restart_after``
+        measurements: its velocity still that of its first few)."""
+        J = self.J
+        if self.frame is None:
+            return np.full((J, 3), np.nan), np.full((J, 3, 3), np.nan)
+        F, Q = self._model(max(int(frame_id) - self.frame, 1))
+        alive = (np.isfinite(self.x[:, 0]) & (frame_id - self.seen <= self.max_gap)
+                 & (self.age >= self.restart_after))
+        xp = np.where(alive[:, None], self.x @ F.T, np.nan)
+        Pp = np.where(alive[:, None, None],
+                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T + Q, np.nan)
+        return xp[:, :3], Pp[:, :3, :3]
+
     def step(self, frame_id: int, idx: np.ndarray, z: np.ndarray, R: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One frame: predict every track to ``frame_id``, take the measurements of joints
