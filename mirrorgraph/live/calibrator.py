@@ -8,24 +8,24 @@
     live.close()
 
 **Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired
-against the current mirror's epipole ``e ~ K n``
-(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and right
-swapped back where the frames so far say the detector confused them
-(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined with the latest window's bone lengths, the worse view
-off by more than the threshold once the bones hold the joint left out
-(:func:`mirrorgraph.graph.outliers.one_view_outliers`; :mod:`.frame_prior`), kept where it
-reprojects within the threshold in front of the camera and the mirror, filtered over
-time (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior,
-outliers gated; a new window rescales the tracks by the joints' scale change, the latest
-frame triangulated with both mirrors), the face fused with where the trunk puts it
-(:func:`.frame_prior.with_head_prior`), and given again :attr:`LiveOptions.lag_frames`
-frames later smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's
-std (``sqrt`` of its covariance's trace) holds the filter's (or smoother's) covariance,
-the detector's bias (:func:`.frame_prior.bias_covariance` of each joint's mean residual in
-each view over the frames so far, which no filter averages) and the fused normal's share
-(:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
-distance); ``joints_std`` adds the metric scale's, ``joints_std_shape`` leaves it out.
+against the current mirror's epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
+left and right swapped back where the frames so far say the detector confused them
+(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), refined with the latest
+window's bone lengths (each one's spread widened by its steps between windows) from each
+joint's rays' midpoint and from where its track predicts it, the two and each limb's other
+branch along its ray folded by the frame's cost (:mod:`.frame_prior`), the worse view off
+by more than the threshold once the bones hold the joint left out
+(:func:`mirrorgraph.graph.outliers.one_view_outliers`), kept where it reprojects within
+the threshold in front of the camera and the mirror, filtered over time
+(:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior, outliers
+gated; a new window rescales the tracks by the joints' scale change), the face fused with
+where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
+:attr:`LiveOptions.lag_frames` frames later smoothed with the frames after it
+(:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its covariance's trace) holds
+the smoother's covariance, the detector's bias (:func:`.frame_prior.bias_covariance` of
+each joint's mean residual in each view so far, which no filter averages) and the fused
+normal's share (:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's,
+``joints_std_shape`` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from

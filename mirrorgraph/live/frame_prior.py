@@ -10,7 +10,7 @@ joints with them at a fixed cost: a few Gauss-Newton steps on
       + sum_b (|X_a - X_b| - L_b)^2 / s_L^2
 
 over the frame's joints ``X`` (``S`` the reflection in the mirror plane, ``s`` the
-reprojection noise, ``s_L`` the bones' spread, ``rho`` Huber's loss at 1.345 standard
+reprojection noise, ``s_L`` each bone's spread, ``rho`` Huber's loss at 1.345 standard
 deviations on the pixels: Huber, *Robust Statistics*, 1981; Hartley and Zisserman,
 *Multiple View Geometry*, 2nd ed., sec. A6.8). The bones are Gaussian, as the offline
 graph's factor: a joint the detector misplaced along its epipolar line (which the
