@@ -8,7 +8,7 @@
     live.close()
 
 **Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired
-against the current mirror's epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
+against the epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
 left and right swapped back where the frames so far say the detector confused them
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), refined with the latest
 window's bone lengths (each one's spread widened by its steps between windows) from each
