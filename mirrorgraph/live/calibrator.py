@@ -8,24 +8,24 @@
     live.close()
 
 **Per frame** (fixed latency, no solver): the detections are checked, undistorted, paired
-against the current mirror's epipole ``e ~ K n``
-(:func:`mirrorgraph.initial.pairing.pair_with_epipoles`), the person's left and right
-swapped back where the frames so far say the detector confused them
-(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), started at the midpoint of
-each joint's two rays and refined with the latest window's bone lengths, the worse view
-off by more than the threshold once the bones hold the joint left out
-(:func:`mirrorgraph.graph.outliers.one_view_outliers`; :mod:`.frame_prior`), kept where it
-reprojects within the threshold in front of the camera and the mirror, filtered over
-time (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior,
-outliers gated; a new window rescales the tracks by the joints' scale change, the latest
-frame triangulated with both mirrors), the face fused with where the trunk puts it
-(:func:`.frame_prior.with_head_prior`), and given again :attr:`LiveOptions.lag_frames`
-frames later smoothed with the frames after it (:attr:`LiveFrame.settled`). Each joint's
-std (``sqrt`` of its covariance's trace) holds the filter's (or smoother's) covariance,
-the detector's bias (:func:`.frame_prior.bias_covariance` of each joint's mean residual in
-each view over the frames so far, which no filter averages) and the fused normal's share
-(:func:`joints_normal_jacobian`; a subject height holds the body's size, else the
-distance); ``joints_std`` adds the metric scale's, ``joints_std_shape`` leaves it out.
+against the epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
+left and right swapped back where the frames so far say the detector confused them
+(:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), refined with the latest
+window's bone lengths (each one's spread widened by its steps between windows) from each
+joint's rays' midpoint and from where its track predicts it, the two and each limb's other
+branch along its ray folded by the frame's cost (:mod:`.frame_prior`), the worse view off
+by more than the threshold once the bones hold the joint left out
+(:func:`mirrorgraph.graph.outliers.one_view_outliers`), kept where it reprojects within
+the threshold in front of the camera and the mirror, filtered over time
+(:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior, outliers
+gated; a new window rescales the tracks by the joints' scale change), the face fused with
+where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
+:attr:`LiveOptions.lag_frames` frames later smoothed with the frames after it
+(:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its covariance's trace) holds
+the smoother's covariance, the detector's bias (:func:`.frame_prior.bias_covariance` of
+each joint's mean residual in each view so far, which no filter averages) and the fused
+normal's share (:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's,
+``joints_std_shape`` leaves it out.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
@@ -58,8 +58,9 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import (bias_covariance, head_layout, refine_with_bones,
-                          triangulate_two_rays, view_residuals, with_head_prior)
+from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_with_bones,
+                          triangulate_two_rays, two_starts, view_residuals,
+                          with_head_prior)
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -409,6 +410,12 @@ class LiveCalibrator:
                                 for a, b in self.skeleton.bones.values()], dtype=np.int64
                                ).reshape(-1, 2)
         self._lengths_of, self._lengths = None, None
+        # each bone's length step between the windows whose lengths the frames held:
+        # the sum of its draws of the latest window's relative length variance, their
+        # count (:meth:`_note_bone_steps`), and that window's frames
+        self._bone_step_sum = np.zeros(len(self._bones))
+        self._bone_steps = np.zeros(len(self._bones))
+        self._bones_frames = 0
         self.intrinsics = intrinsics
         if intrinsics is None:
             if copts.image_size is None:
@@ -617,7 +624,7 @@ class LiveCalibrator:
         self._last_rays = (u, um)
         lengths = self._bone_lengths() if self.options.bone_prior else None
         L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
-                                                            1.0)
+                                                            np.ones(len(self._bones)))
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; the worst view off by more than the calibration's inlier threshold
         # once the bones hold the joint (a keypoint displaced along its epipolar line)
@@ -629,6 +636,24 @@ class LiveCalibrator:
         X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
                                              self._sigma_px(), sigma_len, iterations=2,
                                              gate_px=gate, full=True)
+        if lengths is not None and self.options.smooth and self._filter is not None:
+            # the frame refined again from where the tracks predict it: at small parallax
+            # the bones hold a limb on either side of its neighbours along the ray, and
+            # the start picks the side; the two folded by the frame's cost at each joint
+            Xp = self._filter.predict(fid)[0][idx]
+            have = np.isfinite(Xp).all(1)
+            if have.any():
+                X0 = triangulate_two_rays(K, n, d, u, um)
+                X0[have] = Xp[have]
+                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, self._bones, L,
+                                                     self._sigma_px(), sigma_len,
+                                                     iterations=2, gate_px=gate, full=True)
+                X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
+                                    self._bones, L, self._sigma_px(), sigma_len)
+        if lengths is not None:
+            # a joint the two rays barely place: its bones' other branch along the ray
+            X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, self._bones, L,
+                                   self._sigma_px(), sigma_len)
         S = geo.reflect_points(X, n, d)
         with np.errstate(invalid="ignore"):
             ok = np.isfinite(X).all(1) & (X[:, 2] > 0) & (X @ n < d) & (S[:, 2] > 0)
@@ -684,11 +709,13 @@ class LiveCalibrator:
         fu = self.fusion
         return fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
 
-    def _bone_lengths(self) -> tuple[np.ndarray, float] | None:
+    def _bone_lengths(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lengths, sigma)``: the latest window's length of each bone of
-        ``self._bones`` (NaN where it has none) and the bones' spread, the graph's
-        ``bone_sigma`` of the height they make (Winter's fractions); ``None`` without a
-        window's lengths."""
+        ``self._bones`` (NaN where it has none) and each one's ``(B,)`` spread about
+        it: the graph's ``bone_sigma`` of the height they make (Winter's fractions) and
+        the window's own length error, the RMS of the bone's steps between windows
+        (:meth:`_note_bone_steps`; none before the second window), in quadrature;
+        ``None`` without a window's lengths."""
         found = self.fusion.bone_lengths
         if not found:
             return None
@@ -701,7 +728,9 @@ class LiveCalibrator:
             both = np.isfinite(L) & np.isfinite(f)
             h = float(L[both].sum() / f[both].sum()) if both.any() else float("nan")
             sigma = self._copts.graph.priors.bone_sigma * h
-            self._lengths = (L, sigma) if np.isfinite(sigma) and sigma > 0 else None
+            own = np.sqrt(self._bone_step_sum / np.maximum(self._bone_steps, 1.0)) * L
+            spread = np.hypot(sigma, np.nan_to_num(own))
+            self._lengths = (L, spread) if np.isfinite(sigma) and sigma > 0 else None
             self._lengths_of = found
         return self._lengths
 
@@ -925,6 +954,7 @@ class LiveCalibrator:
     def _absorb(self, est: WindowEstimate, provisional: bool, block: bool, size: int) -> None:
         before = (None if self.fusion.normal is None else
                   (self.K, self.fusion.normal.copy(), float(self.fusion.distance)))
+        bones_before = self.fusion.bone_lengths
         self._cache.clear()
         if provisional:
             # the calibration of every frame so far replaces the one of fewer frames
@@ -945,11 +975,41 @@ class LiveCalibrator:
                 self.fusion.note_restart_step(math.log(ratio), self._mirror_frames, size)
         if what in ("started", "reset"):
             self._mirror_frames = size
+        if self.fusion.bone_lengths is not bones_before:
+            self._note_bone_steps(bones_before if what != "reset" else {},
+                                  provisional and what == "started", size)
         if len(self.window_log) < self._log_cap:
             self.window_log.append({"frames": [est.first_frame, est.last_frame],
                                     "size": size, "result": what, "reason": est.reason,
                                     "rotation_std_deg": est.rotation_std_deg,
                                     "seconds": est.seconds, "pairs": est.pairs})
+
+    def _note_bone_steps(self, old: dict, nested: bool, frames: int) -> None:
+        """Record how far the new window's bone lengths moved from ``old`` (the lengths
+        the frames held), one draw a bone of the new window's relative length variance.
+
+        With each window's length errors independent draws of a variance falling as
+        ``1 / frames`` (that of the length measured on its frames), the log step
+        ``s`` from a window of ``m`` frames to one of ``n`` is a draw of variance
+        ``v_n (n - m) / m`` where the new window holds the old one (the first block's
+        re-solves, :meth:`.estimator.MirrorFusion.note_restart_step`'s reasoning) and
+        ``v_n (1 + n / m)`` where the two are disjoint (later blocks): ``s^2 m / (n - m)``
+        and ``s^2 m / (m + n)`` are draws of ``v_n``. A reset (a cut) starts over."""
+        m, n = int(self._bones_frames), int(frames)
+        self._bones_frames = n
+        if not old or m <= 0 or (nested and n <= m):
+            self._bone_step_sum[:] = 0.0
+            self._bone_steps[:] = 0.0
+            return
+        new = self.fusion.bone_lengths
+        a = np.array([old.get(b, np.nan) for b in self._bone_names], float)
+        c = np.array([new.get(b, np.nan) for b in self._bone_names], float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = np.log(c / a)
+        ok = np.isfinite(step)
+        w = m / (n - m) if nested else m / (m + n)
+        self._bone_step_sum[ok] += step[ok] ** 2 * w
+        self._bone_steps[ok] += 1.0
 
     def _scale_ratio(self, before: tuple | None) -> float:
         """The joints' size at the current mirror over their size at ``before`` ``(K,

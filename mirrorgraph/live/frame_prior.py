@@ -10,7 +10,7 @@ joints with them at a fixed cost: a few Gauss-Newton steps on
       + sum_b (|X_a - X_b| - L_b)^2 / s_L^2
 
 over the frame's joints ``X`` (``S`` the reflection in the mirror plane, ``s`` the
-reprojection noise, ``s_L`` the bones' spread, ``rho`` Huber's loss at 1.345 standard
+reprojection noise, ``s_L`` each bone's spread, ``rho`` Huber's loss at 1.345 standard
 deviations on the pixels: Huber, *Robust Statistics*, 1981; Hartley and Zisserman,
 *Multiple View Geometry*, 2nd ed., sec. A6.8). The bones are Gaussian, as the offline
 graph's factor: a joint the detector misplaced along its epipolar line (which the
@@ -29,7 +29,7 @@ import numpy as np
 from ..graph.outliers import one_view_outliers
 
 __all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout",
-           "view_residuals", "bias_covariance", "HUBER_K"]
+           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
@@ -124,6 +124,154 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
     return Hinv @ Hb @ Hinv
 
 
+def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
+                  cov: np.ndarray, u: np.ndarray, um: np.ndarray, keep: np.ndarray,
+                  joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
+                  sigma_px: float, sigma_len: "float | np.ndarray"
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """One frame's refined joints with each one's other bone branch folded into its
+    Gaussian: the two modes' moment-matched mean and covariance.
+
+    A bone of length ``L`` from a joint ``p`` meets the joint's camera ray ``c + s r``
+    (``|r| = 1``) twice, at points mirror-symmetric about the foot of ``p`` on the ray:
+    the joint ``X`` and ``X' = X - 2 ((X - p) . r) r``. Where the two rays of the joint
+    meet at a small angle the views barely tell the two apart, and the refinement's
+    Laplace covariance at ``X`` (:func:`refine_with_bones`) covers one of them only.
+    Each joint's likeliest other branch (over its bones) is scored by the frame's
+    cost at the joint, the others held: both views' squared whitened reprojection
+    residuals (the views kept) and the squared whitened length errors of every bone at
+    the joint; with ``c``, ``c'`` the costs at ``X``, ``X'`` the modes weigh ``1 - w``
+    and ``w = 1 / (1 + exp((c' - c) / 2))``, and the joint becomes their moment-matched
+    Gaussian ``m = X + w (X' - X)``, ``C + w (1 - w) (X' - X)(X' - X)^T`` (the
+    collapse of a two-component mixture: Bar-Shalom, Li and Kirubarajan, *Estimation
+    with Applications to Tracking and Navigation*, 2001, sec. 11.6; each mode's
+    covariance taken as ``C``). A joint the views place is unchanged (``w`` ~ 0): its
+    other branch reprojects far off.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        X: ``(k, 3)`` the refined joints (camera frame); cov: ``(k, 3, 3)`` theirs.
+        u, um: ``(k, 2)`` their pixels in the camera and the mirror, undistorted.
+        keep: ``(k, 2)`` the views kept (direct, mirror).
+        joints: ``(k,)`` the skeleton's indices of the joints; bones: ``(B, 2)`` the
+            skeleton's bones; lengths: ``(B,)`` their lengths (NaN: not used).
+        sigma_px: the reprojection noise, px; sigma_len: the bones' spread about
+            their lengths, one for all or ``(B,)`` one a bone.
+
+    Returns:
+        ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)`` (copies).
+    """
+    X = np.asarray(X, float)
+    k = len(X)
+    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
+    local[np.asarray(joints)] = np.arange(k)
+    a, b = local[bones[:, 0]], local[bones[:, 1]]
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
+    if not use.any():
+        return X.copy(), np.array(cov, float)
+    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    # every bone end moved to its other branch about the bone's other end
+    move = np.concatenate([a, b])                                  # (2B,)
+    fixed = np.concatenate([b, a])
+    r = X[move] / np.linalg.norm(X[move], axis=1, keepdims=True)   # camera rays
+    Y = X[move] - 2.0 * ((X[move] - X[fixed]) * r).sum(1, keepdims=True) * r
+    ends = np.stack([a, b], 1)                                     # (B, 2)
+
+    def cost(P: np.ndarray, who: np.ndarray) -> np.ndarray:
+        return _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px)
+
+    with np.errstate(invalid="ignore", over="ignore"):
+        gap = cost(Y, move) - cost(X[move], move)                  # c' - c, (2B,)
+        gap = np.where(np.isfinite(gap), gap, np.inf)
+    # each joint's likeliest other branch
+    order = np.lexsort((gap, move))
+    first = np.ones(len(order), bool)
+    first[1:] = move[order][1:] != move[order][:-1]
+    pick = order[first]
+    i, D = move[pick], Y[pick] - X[move[pick]]
+    with np.errstate(over="ignore"):
+        w = 1.0 / (1.0 + np.exp(np.minimum(0.5 * gap[pick], 700.0)))
+    Xo, Co = X.copy(), np.array(cov, float)
+    Xo[i] += w[:, None] * D
+    Co[i] += (w * (1.0 - w))[:, None, None] * D[:, :, None] * D[:, None, :]
+    return Xo, Co
+
+
+def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px):
+    """``(n,)`` the frame's cost at joints ``who`` placed at ``P`` ``(n, 3)``, the
+    others at ``X``: both views' squared whitened reprojection residuals (the views
+    ``keep``), the squared whitened length errors of the bones ``ends`` ``(B, 2)``
+    (local indices; lengths ``L``, spreads ``sl``) at the joint."""
+    res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
+    rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
+    at = ends[None] == who[:, None, None]                          # (n, B, 2)
+    touch = at.any(2)
+    other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
+    length = np.linalg.norm(P[:, None, :] - X[other], axis=2)
+    e = np.where(touch, (length - L[None]) / sl[None], 0.0)
+    return rr + (e * e).sum(1)
+
+
+def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarray,
+               CA: np.ndarray, XB: np.ndarray, CB: np.ndarray, u: np.ndarray,
+               um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
+               bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
+               sigma_len: "float | np.ndarray") -> tuple[np.ndarray, np.ndarray]:
+    """Two refinements of one frame's joints (:func:`refine_with_bones` from two
+    starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
+    predict them) folded, joint by joint, into the moment-matched Gaussian of the two.
+
+    At small parallax the frame's cost has a mode on either side of a joint's
+    neighbours along its ray (a bone meets the ray twice), and the Gauss-Newton steps
+    end in the one their start lies nearer. Each joint's two solutions weigh ``1 - w``
+    and ``w = 1 / (1 + exp((c_B - c_A) / 2))`` with ``c`` the frame's cost at the joint
+    in each solution (both views' squared whitened residuals, the squared whitened
+    length errors of its bones, :func:`bone_branches`'s): the likelihood alone, the
+    prediction only the start, so that the tracks' filter does not take its own
+    prediction again. The fold: ``m = X_A + w (X_B - X_A)``, ``(1 - w) C_A + w C_B
+    + w (1 - w) (X_B - X_A)(X_B - X_A)^T`` (Bar-Shalom, Li and Kirubarajan, 2001, sec.
+    11.6). Where the two kept different views of a joint their costs do not compare,
+    and ``A`` is kept.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        XA, CA: ``(k, 3)``, ``(k, 3, 3)`` the refinement from the midpoints;
+            XB, CB: the one from the prediction (NaN rows: none).
+        u, um: ``(k, 2)`` the pixels in the camera and the mirror, undistorted.
+        keepA, keepB: ``(k, 2)`` the views each kept.
+        joints: ``(k,)`` the skeleton's indices; bones: ``(B, 2)``; lengths: ``(B,)``.
+        sigma_px: the reprojection noise, px; sigma_len: the bones' spread, one for all
+            or ``(B,)``.
+
+    Returns:
+        ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)``.
+    """
+    k = len(XA)
+    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
+    local[np.asarray(joints)] = np.arange(k)
+    a, b = local[bones[:, 0]], local[bones[:, 1]]
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
+    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    ends = np.stack([a, b], 1)
+    who = np.arange(k)
+    with np.errstate(invalid="ignore", over="ignore"):
+        gap = (_joint_cost(K, normal, distance, XB, who, XB, u, um, keepA, ends, L, sl,
+                           sigma_px)
+               - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
+                             sigma_px))
+        w = 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
+    w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
+                 & (keepA == keepB).all(1), w, 0.0)
+    D = XB - XA
+    D = np.where(np.isfinite(D), D, 0.0)
+    X = XA + w[:, None] * D
+    C = ((1 - w)[:, None, None] * CA + w[:, None, None] * np.nan_to_num(CB)
+         + (w * (1 - w))[:, None, None] * D[:, :, None] * D[:, None, :])
+    return X, C
+
+
 _DIAGONALS: dict = {}
 
 
@@ -140,7 +288,7 @@ def _diagonal(k: int) -> np.ndarray:
 
 def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                       u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
-                      lengths: np.ndarray, sigma_px: float, sigma_len: float,
+                      lengths: np.ndarray, sigma_px: float, sigma_len: "float | np.ndarray",
                       iterations: int = 3, *, gate_px: float | None = None,
                       full: bool = False):
     """Refine one frame's triangulated joints with the bones' lengths.
@@ -155,7 +303,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         bones: ``(B, 2)`` skeleton joint indices of each bone's two ends.
         lengths: ``(B,)`` the bones' lengths (the unit of ``X``); NaN: not used.
         sigma_px: the reprojection noise, px.
-        sigma_len: the bones' spread about their lengths (the unit of ``X``).
+        sigma_len: the bones' spread about their lengths (the unit of ``X``), one for
+            all or ``(B,)`` one a bone.
         iterations: Gauss-Newton steps.
         gate_px: after the steps, of each joint held by bones the view whose residual
             is the larger and exceeds this (px) is left out (a keypoint displaced along
@@ -180,6 +329,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     a, b = local[bones[:, 0]], local[bones[:, 1]]
     use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
     a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((k, 2), bool)
@@ -213,9 +363,9 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         if len(L):
             diff = X[a] - X[b]
             length = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-            e = diff / (np.maximum(length, 1e-12) * sigma_len)[:, None]  # d r / d X_a
+            e = diff / (np.maximum(length, 1e-12) * sl)[:, None]  # d r / d X_a
             Jb[rows, a], Jb[rows, b] = e, -e
-            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sigma_len)
+            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sl)
         if done >= steps:
             if gate_px is None or not held.any():
                 break

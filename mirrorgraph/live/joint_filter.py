@@ -18,9 +18,11 @@ against the prediction before it is taken: its squared Mahalanobis distance on t
 innovation's covariance beyond :data:`GATE_CHI2` (3 degrees of freedom) marks it an
 outlier (a keypoint displaced along its epipolar line, a left/right label the detector
 swapped in both views): the joint keeps its prediction for that frame, and after
-``restart_after`` such frames in a row its track restarts from the measurements (the
-person moved unlike the prior). A track is gated from its ``restart_after``-th
-measurement on: before, its velocity is that of its first few measurements.
+``restart_after`` such frames in a row its track restarts from the measurement (the
+person moved unlike the prior), keeping the velocity it had and that velocity's
+covariance (the motion goes on where the position the frames give jumped). A track is
+gated from its ``restart_after``-th measurement on: before, it follows its first few
+measurements.
 """
 
 from __future__ import annotations
@@ -67,7 +69,8 @@ class JointFilter:
         max_gap: a joint unseen for more than this many frames starts a new track.
         gate_chi2: the outlier gate on the innovation (squared Mahalanobis distance).
         restart_after: measurements rejected in a row that restart a joint's track.
-        velocity_std: the std of a new track's velocity, the points' unit per frame.
+        velocity_std: the std of a new track's velocity (a joint without a track within
+            ``max_gap``), the points' unit per frame.
         lag: frames kept for :meth:`smoothed`.
     """
 
@@ -105,6 +108,22 @@ class JointFilter:
         self.history = [(h[0], h[1] * factor, h[2] * factor * factor) + h[3:6]
                         + ((h[6] * factor, h[7] * factor * factor) if h[3] is not None
                            else h[6:]) for h in self.history]
+
+    def predict(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """Every track predicted to ``frame_id`` (after the last step's), the state left
+        as it is: ``(J, 3)`` points and ``(J, 3, 3)`` covariances, NaN where a joint has
+        no track within its gap or one not yet gated (fewer than ``restart_after``
+        measurements: its velocity still that of its first few)."""
+        J = self.J
+        if self.frame is None:
+            return np.full((J, 3), np.nan), np.full((J, 3, 3), np.nan)
+        F, Q = self._model(max(int(frame_id) - self.frame, 1))
+        alive = (np.isfinite(self.x[:, 0]) & (frame_id - self.seen <= self.max_gap)
+                 & (self.age >= self.restart_after))
+        xp = np.where(alive[:, None], self.x @ F.T, np.nan)
+        Pp = np.where(alive[:, None, None],
+                      F @ np.where(alive[:, None, None], self.P, 0.0) @ F.T + Q, np.nan)
+        return xp[:, :3], Pp[:, :3, :3]
 
     def step(self, frame_id: int, idx: np.ndarray, z: np.ndarray, R: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,10 +179,18 @@ class JointFilter:
         self.age = np.where(take, self.age + 1, self.age)
         fresh = (meas & ~alive) | (out & ~gate)          # a new track from the measurement
         if fresh.any():
-            xf[fresh, :3], xf[fresh, 3:] = zJ[fresh], 0.0
+            # a track restarted on measurements that left its prediction keeps the
+            # velocity it had and its covariance (the body's motion goes on where the
+            # position the frames give jumped: a young track's first measurements, an
+            # outlier among them, do not set it alone); a new one starts at rest
+            again = fresh & alive
+            xf[fresh, :3] = zJ[fresh]
+            xf[fresh, 3:] = np.where(again[fresh, None], xp[fresh, 3:], 0.0)
+            Pv = np.where(again[fresh, None, None], Pp[fresh, 3:, 3:],
+                          self.velocity_var * np.eye(3))
             Pf[fresh] = 0.0
             Pf[fresh, :3, :3] = RJ[fresh]
-            Pf[fresh, 3:, 3:] = self.velocity_var * np.eye(3)
+            Pf[fresh, 3:, 3:] = Pv
             self.rejected[fresh] = 0
             self.age[fresh] = 1
             chained[fresh] = False

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mirrorgraph import geometry as geo
-from mirrorgraph.live.frame_prior import refine_with_bones
+from mirrorgraph.live.frame_prior import bone_branches, refine_with_bones, two_starts
 from mirrorgraph.synth import make_wide_scene
 
 
@@ -196,3 +196,77 @@ def test_the_bias_share_holds_a_detectors_per_joint_bias_and_vanishes_without_on
         d_own = np.sqrt(np.einsum("ki,kij,kj->k", e, np.linalg.inv(own), e) / 3)
         assert ratio > 3.0, ratio
         assert np.median(d_own) > 1.8 and np.median(d) < 0.85 * np.median(d_own)
+
+
+def _wrong_branch_frames(seed=0, frames=400):
+    """A low-parallax scene's frames (4 px noise) refined with the left wrist started on
+    its forearm's other branch along its ray (mirrored about the elbow's foot on it), and
+    from the truth: ``(truth, wrong, right)`` per frame where the wrong start's wrist
+    stays more than 0.15 m off, each ``(X, cov, keep)``, with the frame's data."""
+    sc = make_wide_scene(seed, "low_parallax", "iid", frames)
+    pairs, L = _bones(sc)
+    sk = sc.skeleton
+    wr, el = sk.index("left_wrist"), sk.index("left_elbow")
+    rng = np.random.default_rng(0)
+    sl = 0.01 * sc.subject_height
+    out = []
+    for t in range(0, frames, 2):
+        X, u, um = _frame_data(sc, t, rng)
+        idx = np.arange(len(X))
+        r = X[wr] / np.linalg.norm(X[wr])
+        X0 = X.copy()
+        X0[wr] = X[wr] - 2.0 * ((X[wr] - X[el]) @ r) * r
+        wrong = refine_with_bones(sc.K, sc.normal, sc.distance, X0, u, um, idx, pairs, L,
+                                  4.0, sl, iterations=2, full=True)[:3]
+        if np.linalg.norm(wrong[0][wr] - X[wr]) < 0.15:
+            continue
+        right = refine_with_bones(sc.K, sc.normal, sc.distance, X, u, um, idx, pairs, L,
+                                  4.0, sl, iterations=2, full=True)[:3]
+        out.append((X, wrong, right, (sc.K, sc.normal, sc.distance, u, um, idx, pairs, L,
+                                      4.0, sl)))
+    return out, wr
+
+
+def _z2(e, C):
+    return float(e @ np.linalg.solve(C, e))
+
+
+def test_the_other_bone_branch_is_held_in_the_joints_covariance():
+    """Where the two rays barely tell a limb's two branches along its ray apart, the
+    refinement's covariance holds only the branch it ended on; with the other folded in
+    (:func:`bone_branches`) the truth lies within it (squared Mahalanobis distance under
+    21.1, chi-square 3 at 0.9999). Measured (low_parallax seed 0, 400 frames, the wrist
+    started on its wrong branch, the 60 frames where it stays > 0.15 m off): covered
+    83 % -> 98 %, median squared distance 11.5 -> 3.0."""
+    cases, wr = _wrong_branch_frames()
+    assert len(cases) >= 20
+    before, after = [], []
+    for X, (Xw, Cw, kw), _, (K, n, d, u, um, idx, pairs, L, s, sl) in cases:
+        Xo, Co = bone_branches(K, n, d, Xw, Cw, u, um, kw, idx, pairs, L, s, sl)
+        before.append(_z2(Xw[wr] - X[wr], Cw[wr]))
+        after.append(_z2(Xo[wr] - X[wr], Co[wr]))
+    before, after = np.array(before), np.array(after)
+    assert np.mean(before < 21.1) < 0.9, np.mean(before < 21.1)
+    assert np.mean(after < 21.1) > 0.95, np.mean(after < 21.1)
+    assert np.median(after) < 6.0 < np.median(before), (np.median(after), np.median(before))
+
+
+def test_two_starts_fold_the_branch_each_start_ends_on():
+    """The same frames refined from the wrong branch (``A``) and from the truth (``B``,
+    a prediction on the right side): the fold (:func:`two_starts`) covers the truth in
+    nearly every frame and lies nearer it than ``A``; either order gives the same fold;
+    two equal solutions are left as they are. Measured: covered in all 60 frames, nearer
+    in all, median squared distance 2.1."""
+    cases, wr = _wrong_branch_frames()
+    z, closer = [], []
+    for X, (Xa, Ca, ka), (Xb, Cb, kb), (K, n, d, u, um, idx, pairs, L, s, sl) in cases:
+        Xm, Cm = two_starts(K, n, d, Xa, Ca, Xb, Cb, u, um, ka, kb, idx, pairs, L, s, sl)
+        Xr, Cr = two_starts(K, n, d, Xb, Cb, Xa, Ca, u, um, kb, ka, idx, pairs, L, s, sl)
+        if (ka == kb).all():
+            assert np.allclose(Xm, Xr, atol=1e-9) and np.allclose(Cm, Cr, atol=1e-9)
+        z.append(_z2(Xm[wr] - X[wr], Cm[wr]))
+        closer.append(np.linalg.norm(Xm[wr] - X[wr]) < np.linalg.norm(Xa[wr] - X[wr]))
+        Xs, Cs = two_starts(K, n, d, Xa, Ca, Xa, Ca, u, um, ka, ka, idx, pairs, L, s, sl)
+        assert np.allclose(Xs, Xa) and np.allclose(Cs, Ca)
+    assert np.mean(np.array(z) < 21.1) > 0.95
+    assert np.mean(closer) > 0.9, np.mean(closer)
