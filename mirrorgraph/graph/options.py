@@ -419,6 +419,11 @@ class GaugeOptions:
                               or not (math.isfinite(h) and h > 0)):
             raise InputError(f"must be a positive number of metres or None, got {h!r}",
                              field="subject_height")
+        hs = self.height_sigma
+        if (isinstance(hs, bool) or not isinstance(hs, (int, float))
+                or not (math.isfinite(hs) and hs >= 0)):
+            raise InputError(f"must be a non-negative fraction of the height (its relative "
+                             f"std), got {hs!r}", field="height_sigma")
         o = self.keypoint_offset
         if o is not None and (isinstance(o, bool) or not isinstance(o, (int, float))
                               or not (math.isfinite(o) and o >= 0)):
