@@ -65,7 +65,9 @@ read over many scenes, the shape's over every joint. ``--keypoint-offset METRES`
 the keypoints' placement off the anatomical landmarks the runs' metric scale std holds
 (``RefineOptions.keypoint_offset``; default the literature's,
 :data:`mirrorgraph.anthropometry.KEYPOINT_OFFSET` of the height): ``0`` for keypoints
-that sit on the joints, as the synthetic iid ones do.
+that sit on the joints, as the synthetic iid ones do. ``--height-sigma FRACTION`` states
+the given height's relative std (``RefineOptions.height_sigma``): ``0.013`` the reported
+heights' (the 1.1 cm bias and 1.9 cm spread in quadrature over ~1.7 m).
 
 Usage::
 
@@ -75,6 +77,7 @@ Usage::
     python bench/bench_joints.py --json after.json --out /tmp/after.md
     python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
     python bench/bench_joints.py --methods calibrate --keypoint-offset 0 --out /tmp/k0.md
+    python bench/bench_joints.py --methods calibrate --keypoint-offset 0 --height-sigma 0.013
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
     python bench/bench_joints.py --methods live --offline-from bench/RESULTS_joints.json
 
@@ -477,18 +480,22 @@ def on_truth_frames(run, tr: Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return X, given, rows, keep
 
 
-def _refine_options(keypoint_offset: float | None):
-    """The runs' graph options: the defaults, with the keypoints' placement stated."""
+def _refine_options(keypoint_offset: float | None, height_sigma: float | None = None):
+    """The runs' graph options: the defaults, with the keypoints' placement and the
+    height's relative std stated where given."""
     from mirrorgraph.graph import RefineOptions
 
-    return None if keypoint_offset is None else RefineOptions(keypoint_offset=keypoint_offset)
+    stated = {k: v for k, v in (("keypoint_offset", keypoint_offset),
+                                ("height_sigma", height_sigma)) if v is not None}
+    return RefineOptions(**stated) if stated else None
 
 
-def run_calibrate(tr: Truth, keypoint_offset: float | None = None) -> dict:
+def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
+                  height_sigma: float | None = None) -> dict:
     import mirrorgraph as mg
 
     opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS,
-                               refine_options=_refine_options(keypoint_offset))
+                               refine_options=_refine_options(keypoint_offset, height_sigma))
     wall, cpu = time.perf_counter(), time.process_time()
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -520,13 +527,15 @@ def run_calibrate(tr: Truth, keypoint_offset: float | None = None) -> dict:
     return out
 
 
-def run_live(tr: Truth, keypoint_offset: float | None = None) -> dict:
+def run_live(tr: Truth, keypoint_offset: float | None = None,
+             height_sigma: float | None = None) -> dict:
     from mirrorgraph.live import LiveCalibrator, LiveOptions
 
     det = tr.detections
     live = LiveCalibrator(det.skeleton, tr.intrinsics,
                           LiveOptions.of(subject_height=tr.height_given,
-                                         refine_options=_refine_options(keypoint_offset)))
+                                         refine_options=_refine_options(keypoint_offset,
+                                                                        height_sigma)))
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
@@ -577,7 +586,7 @@ def run_scene(case: tuple) -> dict:
     warnings.filterwarnings("ignore")
     from mirrorgraph.metrics import pa_mpjpe
 
-    kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset = case
+    kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset, height_sigma = case
     clock = time.perf_counter()
     tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given)
     orc = oracle(tr)
@@ -588,7 +597,8 @@ def run_scene(case: tuple) -> dict:
                           height_given=tr.height_given))
     for m in methods:
         try:
-            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr, keypoint_offset)
+            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr, keypoint_offset,
+                                                                         height_sigma)
         except Exception as exc:  # noqa: BLE001 - a failure is a result here
             out[m] = dict(error=f"{type(exc).__name__}: {exc}")
         r = out[m]
@@ -953,6 +963,13 @@ def code_version() -> str:
 
 
 
+def _default_height_sigma() -> float:
+    """``RefineOptions.height_sigma``'s default (a fraction)."""
+    from mirrorgraph.graph import RefineOptions
+
+    return float(RefineOptions().height_sigma)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -974,6 +991,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the keypoints' placement off the landmarks the runs' metric scale "
                          "std holds (RefineOptions.keypoint_offset; default: the literature's "
                          "1.7 %% of the height); 0 for keypoints on the joints")
+    ap.add_argument("--height-sigma", type=float, default=None, metavar="FRACTION",
+                    help="the relative std of the height the runs are given "
+                         "(RefineOptions.height_sigma; default: the option's), e.g. 0.013 for "
+                         "the reported heights' 1.1 cm bias and 1.9 cm spread")
     ap.add_argument("--full", action="store_true",
                     help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
     ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
@@ -1013,11 +1034,13 @@ def main(argv: list[str] | None = None) -> int:
             if not found:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
             cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given, args.keypoint_offset) for p in found]
+                       args.height_given, args.keypoint_offset, args.height_sigma)
+                      for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given, args.keypoint_offset) for s in _seeds(seeds)]
+                       args.height_given, args.keypoint_offset, args.height_sigma)
+                      for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
         return 2
@@ -1051,7 +1074,7 @@ def main(argv: list[str] | None = None) -> int:
                 machine=_report.machine(), load=os.getloadavg()[0], minutes=(time.perf_counter() - clock) / 60.0,
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
-                keypoint_offset=args.keypoint_offset,
+                keypoint_offset=args.keypoint_offset, height_sigma=args.height_sigma,
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -1075,6 +1098,10 @@ def main(argv: list[str] | None = None) -> int:
          + ("the default, `anthropometry.KEYPOINT_OFFSET` = 1.7 % of the height (Needham et "
             "al. 2021)" if args.keypoint_offset is None
             else f"{args.keypoint_offset:g} m, stated (`RefineOptions.keypoint_offset`)"),
+         "- the given height's relative std (`--height-sigma`): "
+         + (f"the default, `RefineOptions.height_sigma` = {100 * _default_height_sigma():g} %"
+            if args.height_sigma is None
+            else f"{100 * args.height_sigma:g} %, stated (`RefineOptions.height_sigma`)"),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "

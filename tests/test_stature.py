@@ -145,8 +145,8 @@ def test_a_leg_measured_long_on_one_side_is_the_measurements_spread():
 def test_the_distance_std_holds_the_legs_disagreement():
     """A detector placing the reflection's right knee and ankle 20 px off: the legs
     measured 2.6 % apart, the distance's std widened by that spread over the height's
-    2 % and the end keypoints' 2.7 % (the scale's measurement error the data show), and
-    it still covers the error."""
+    prior (``height_sigma``) and the end keypoints' 2.7 % (the scale's measurement error
+    the data show), and it still covers the error."""
     from mirrorgraph.keypoints import PairedKeypoints
     from mirrorgraph.synth.scene import make_scene
 
@@ -166,7 +166,10 @@ def test_the_distance_std_holds_the_legs_disagreement():
     from mirrorgraph.stature import keypoint_rel_std
 
     assert side > 0.01
-    assert stds[20.0] >= np.sqrt(0.02 ** 2 + side ** 2 + keypoint_rel_std("eyes") ** 2) - 1e-4
+    from mirrorgraph.graph.options import GaugeOptions
+
+    prior = GaugeOptions().height_sigma
+    assert stds[20.0] >= np.sqrt(prior ** 2 + side ** 2 + keypoint_rel_std("eyes") ** 2) - 1e-4
     assert stds[20.0] > stds[0.0] + 0.002
 
 

@@ -21,10 +21,11 @@ from ..anthropometry import height_problem
 from ..errors import InputError
 from ..progress import Progress, SolveProgress
 
-__all__ = ["FLAGS", "add_common", "add_joints", "add_keypoint_offset", "add_scale_from",
-           "error_message", "floats", "height", "image_size", "keypoint_offset", "options_from_args", "positive", "print_result", "printer",
-           "rate", "report_written", "seed", "solver_progress", "staged_names", "step",
-           "warn"]
+__all__ = ["FLAGS", "add_common", "add_height_sigma", "add_joints", "add_keypoint_offset",
+           "add_scale_from", "error_message", "floats", "height", "height_sigma", "image_size",
+           "keypoint_offset", "options_from_args", "positive", "print_result", "printer",
+           "rate", "report_written", "seed", "solver_progress", "stated_gauge", "staged_names",
+           "step", "warn"]
 
 
 #: The library's argument names -> the flags that give them (with a metavar where the flag
@@ -36,6 +37,7 @@ FLAGS = {"intrinsics": "--intrinsics FILE", "image_size": "--image-size WxH",
          "min_confidence": "--min-confidence C", "joints": "--joints NAMES",
          "subject_height": "--subject-height METRES", "scale_from": "--scale-from WHAT",
          "keypoint_offset": "--keypoint-offset METRES",
+         "height_sigma": "--height-sigma FRACTION",
          "seed": "--seed N", "fps": "--fps HZ", "video": "--video FILE",
          "render": "--render OUT.mp4", "workers": "--workers N",
          "scheduler": "--scheduler ADDRESS", "joints3d": "--joints3d FILE",
@@ -106,6 +108,24 @@ def keypoint_offset(text: str) -> float:
     return v
 
 
+#: ``--height-sigma`` above this is taken for a percentage.
+_MAX_HEIGHT_SIGMA = 0.2
+
+
+def height_sigma(text: str) -> float:
+    """``--height-sigma``: the given height's relative std, a fraction (0 allowed; a
+    percentage is caught and named)."""
+    v = _number(text.strip(), float, "a fraction")
+    if not np.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative fraction of the height, "
+                                         f"got {text!r}")
+    if v > _MAX_HEIGHT_SIGMA:
+        raise argparse.ArgumentTypeError(
+            f"{text} is no height's relative std (at most {_MAX_HEIGHT_SIGMA:g}): give a "
+            f"fraction, e.g. 0.005 for 0.5 %")
+    return v
+
+
 def seed(text: str) -> int:
     v = _number(text, int, "an integer")
     if v < 0:
@@ -158,11 +178,31 @@ def add_keypoint_offset(p) -> None:
                         "keypoints on the landmarks (mocap markers projected, synthetic: 0)")
 
 
+def add_height_sigma(p) -> None:
+    """``--height-sigma FRACTION``: the given height's relative std, the height's prior in
+    the metric scale's std (``RefineOptions.height_sigma``)."""
+    from ..graph.options import GaugeOptions
+    p.add_argument("--height-sigma", type=height_sigma, default=None, metavar="FRACTION",
+                   help="with --subject-height: the height's relative std, a fraction (default: "
+                        f"{GaugeOptions().height_sigma:g}, a height the subject reports: adults "
+                        "over-report by ~1.1 cm, spread 1.9 cm); e.g. 0.005 for a height "
+                        "measured with a stadiometer")
+
+
+def stated_gauge(args) -> dict:
+    """The :class:`~mirrorgraph.graph.options.GaugeOptions` fields the command line states
+    (``--keypoint-offset``, ``--height-sigma``), those not given left out (the options'
+    defaults stand)."""
+    given = {"keypoint_offset": getattr(args, "keypoint_offset", None),
+             "height_sigma": getattr(args, "height_sigma", None)}
+    return {k: v for k, v in given.items() if v is not None}
+
+
 def options_from_args(args):
     """The :class:`~mirrorgraph.pipelines.mirror.CalibrateOptions` of the options ``calibrate``
     and ``batch`` share (``--estimator --threshold --min-confidence --joints
     --no-refine --subject-height --seed --image-size --fov --scale-from
-    --keypoint-offset``, and
+    --keypoint-offset --height-sigma``, and
     ``--sensitivity`` and ``--principal-point`` where the command has them). Without
     intrinsics the focal length is estimated unless ``--fov`` gives one."""
     from ..graph.options import FocalOptions, RefineOptions
@@ -176,7 +216,7 @@ def options_from_args(args):
                             if args.joints else None,
                             refine_options=RefineOptions(
                                 scale_from=args.scale_from,
-                                keypoint_offset=getattr(args, "keypoint_offset", None),
+                                **stated_gauge(args),
                                 focal=FocalOptions(principal_point=free,
                                                    lines=not getattr(args, "no_lines", False))),
                             sensitivity_priors=getattr(args, "sensitivity", False))

@@ -13,8 +13,8 @@ import sys
 from ..initial.estimators import DEFAULT_THRESHOLD_PX, ESTIMATORS
 from ..intrinsics import DEFAULT_FOV_DEG
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
-from .args import (add_joints, add_keypoint_offset, add_scale_from, height, image_size,
-                   options_from_args, positive, rate, seed)
+from .args import (add_height_sigma, add_joints, add_keypoint_offset, add_scale_from, height,
+                   image_size, options_from_args, positive, rate, seed)
 from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_batch"]
@@ -57,6 +57,7 @@ def add_parsers(subparsers) -> None:
                    help="subject height for recordings whose manifest line gives none")
     add_scale_from(p)
     add_keypoint_offset(p)
+    add_height_sigma(p)
     p.add_argument("--image-size", type=image_size, metavar="WxH",
                    help="image size for recordings without intrinsics or a size of their own")
     p.add_argument("--fov", type=positive, default=None, metavar="DEG",

@@ -21,9 +21,10 @@ from ..preprocess import DEFAULT_FPS, DEFAULT_FPS_WARNING
 from ..progress import Progress
 from ..report.backend import INSTALL_HINT
 from ..skeletons import SKELETONS
-from .args import (add_common, add_joints, add_keypoint_offset, add_scale_from, height,
-                   image_size, options_from_args, positive, print_result, printer, rate,
-                   report_written, seed, solver_progress, staged_names, step, warn)
+from .args import (add_common, add_height_sigma, add_joints, add_keypoint_offset,
+                   add_scale_from, height, image_size, options_from_args, positive,
+                   print_result, printer, rate, report_written, seed, solver_progress,
+                   staged_names, step, warn)
 from .commands import HELP
 from .video import (add_video_options, check_video, describe, detect_with_progress,
                     video_options)
@@ -80,6 +81,7 @@ def add_parsers(sub) -> None:
                    help="subject's standing height in metres, e.g. 1.75: gives the metric scale")
     add_scale_from(p)
     add_keypoint_offset(p)
+    add_height_sigma(p)
     p.add_argument("--people", choices=("one", "all"), default="one",
                    help="one: a person and their reflection a frame (default); all: every "
                         "person before the mirror paired with their own reflection and "

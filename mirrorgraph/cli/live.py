@@ -16,8 +16,8 @@ from ..errors import InputError
 from ..initial.estimators import DEFAULT_THRESHOLD_PX
 from ..keypoints import DEFAULT_MIN_CONFIDENCE
 from ..progress import Progress
-from .args import (add_common, add_joints, add_keypoint_offset, height, image_size, positive,
-                   printer, rate, seed, warn)
+from .args import (add_common, add_height_sigma, add_joints, add_keypoint_offset, height,
+                   image_size, positive, printer, rate, seed, stated_gauge, warn)
 from .commands import HELP
 
 __all__ = ["add_parsers", "cmd_live"]
@@ -59,6 +59,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--subject-height", type=height, metavar="METRES",
                    help="subject's standing height in metres: lengths in metres")
     add_keypoint_offset(p)
+    add_height_sigma(p)
     p.add_argument("--as-fast-as-possible", action="store_true",
                    help="process a video or keypoint file flat out instead of at its frame rate")
     p.add_argument("--fps", type=positive, default=None,
@@ -140,8 +141,8 @@ def _run(args, say, camera: bool, to_stdout: bool) -> int:
     copts = CalibrateOptions(min_confidence=args.min_confidence, threshold_px=args.threshold,
                              seed=args.seed, image_size=args.image_size,
                              subject_height=args.subject_height,
-                             refine_options=(None if args.keypoint_offset is None else
-                                             RefineOptions(keypoint_offset=args.keypoint_offset)),
+                             refine_options=(RefineOptions(**stated_gauge(args))
+                                             if stated_gauge(args) else None),
                              joints=tuple(j.strip() for j in args.joints.split(","))
                              if args.joints else None)
     realtime = camera or not args.as_fast_as_possible

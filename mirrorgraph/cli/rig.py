@@ -20,8 +20,8 @@ from ..skeletons import SKELETONS
 from ..synth.rig import KINDS
 from ..synth.rig_files import KEYPOINT_FORMATS
 from ..synth.rig_placement import DEFAULT_RIG_GEOMETRY, RIG_PRESETS
-from .args import (add_common, add_keypoint_offset, add_scale_from, height, positive,
-                   print_result, printer, rate, seed)
+from .args import (add_common, add_height_sigma, add_keypoint_offset, add_scale_from, height,
+                   positive, print_result, printer, rate, seed, stated_gauge)
 from .commands import HELP
 from .video import add_video_options, video_options
 from .view import add_view_option, check_view_option, view_after_run
@@ -52,6 +52,7 @@ def add_parsers(sub) -> None:
                         "subject_height)")
     add_scale_from(p)
     add_keypoint_offset(p)
+    add_height_sigma(p)
     p.add_argument("--skeleton", help="keypoint layout for cameras whose table names none "
                                       f"({', '.join(SKELETONS)})")
     p.add_argument("--joints", metavar="SET",
@@ -180,7 +181,7 @@ def cmd_calibrate_rig(args) -> int:
         opts = CalibrateOptions(subject_height=args.subject_height, skeleton=args.skeleton,
                                 joints=args.joints, seed=args.seed, detection=vopts,
                                 refine_options=RefineOptions(scale_from=args.scale_from,
-                                                             keypoint_offset=args.keypoint_offset),
+                                                             **stated_gauge(args)),
                                 estimate_focal=not held, people=args.people,
                                 fov_deg=args.fov if args.fov is not None else DEFAULT_FOV_DEG,
                                 time_offsets="fixed" if args.fixed_offsets else "search",

@@ -369,12 +369,22 @@ class GaugeOptions:
     Attributes:
         subject_height: standing height in metres: fixes the scale (metres);
             ``None``: the mirror distance is 1.
-        height_sigma: relative standard deviation of the metric scale, added to
-            every reported length std (``distance_std``, camera positions): the
-            subject's proportions where the stature is not measured, the
-            detector's placement of the keypoints and the height's own
-            measurement. 2 % by default: conservative on synthetic subjects
-            (0.3 % RMS with the stature), not measured on real video.
+        height_sigma: relative standard deviation of ``subject_height`` as given, the
+            height's prior in the metric scale's std (``scale_rel_std``, with the
+            measurement's own spread, :func:`mirrorgraph.stature.measurement_rel_std`),
+            added to every reported length std (``distance_std``, camera positions,
+            ``joints_std``). 1.3 % by default: a height the subject reports
+            (adults over-report by 1.0-1.6 cm, S. Scholes et al., Health Survey for
+            England 2011-16, 38,942 adults, medRxiv 10.1101/2022.01.28.22270014; 1.07 cm
+            in the Danish DCH-NG cohort, 39,514 adults, medRxiv
+            10.1101/2022.12.20.22283553; reported and measured heights correlate at
+            r = 0.98, a difference std of 1.9 cm at an adult height std of 9.5 cm),
+            bias and spread in quadrature, 2.2 cm, over a 1.7 m adult. A height
+            measured: its measurement's own std (e.g. 0.005). The stature's own error
+            with the height exact (Winter's fractions for the ~10 % of the height below
+            the ankles and above the eyes, the reconstruction) is not in it: 0.2-0.75 %
+            RMS on synthetic and the independent fixtures' scenes, 1.25 % on the CMU
+            skeleton (``bench/RESULTS_joints_stated_uncertainty.md``).
         scale_from: how the subject's height becomes a length (with
             ``subject_height``): ``"stature"`` (default) rescales the solution so
             that the stature measured on its joints, ankle to eyes or head top,
@@ -404,7 +414,7 @@ class GaugeOptions:
     """
 
     subject_height: float | None = None
-    height_sigma: float = 0.02
+    height_sigma: float = 0.013
     scale_from: ScaleFrom = "stature"
     keypoint_offset: float | None = None
     link_sigma_rotation: float = 1e-6
@@ -419,6 +429,11 @@ class GaugeOptions:
                               or not (math.isfinite(h) and h > 0)):
             raise InputError(f"must be a positive number of metres or None, got {h!r}",
                              field="subject_height")
+        hs = self.height_sigma
+        if (isinstance(hs, bool) or not isinstance(hs, (int, float))
+                or not (math.isfinite(hs) and hs >= 0)):
+            raise InputError(f"must be a non-negative fraction of the height (its relative "
+                             f"std), got {hs!r}", field="height_sigma")
         o = self.keypoint_offset
         if o is not None and (isinstance(o, bool) or not isinstance(o, (int, float))
                               or not (math.isfinite(o) and o >= 0)):

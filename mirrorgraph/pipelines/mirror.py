@@ -406,6 +406,7 @@ def initial_run(obs: Observations, init: Initial, opts: CalibrateOptions) -> Cal
                "seed": opts.seed, "fps": obs.fps, "fps_source": obs.fps_source,
                "subject_height": opts.subject_height, "scale_from": opts.graph.scale_from,
                "keypoint_offset": opts.graph.keypoint_offset,
+               "height_sigma": opts.graph.height_sigma,
                "read_notes": obs.keypoints.read_notes.as_dict(),
                "body_lr_fixes": obs.body_lr_fixes},
         warnings=obs.warnings)

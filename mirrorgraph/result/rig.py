@@ -66,8 +66,8 @@ class RigCamera:
             follows the data's error structure (time-correlated and per-joint detector
             error, :mod:`mirrorgraph.graph.uncertainty`), never below the marginal one.
         position_std: RMS error of the camera centre (length unit); with a subject
-            height it includes the scale's uncertainty (``height_sigma``, 2 %, of the
-            distance to the first camera: the subject's proportions vs Winter's).
+            height it includes the scale's uncertainty (``height_sigma``, the given
+            height's relative std, of the distance to the first camera).
         reprojection_rms_px: RMS residual of its direct view.
         observations: keypoints of its direct view used in the final solve.
         lr_fixes: reflection frames whose labels were corrected.

@@ -8,6 +8,7 @@ import pytest
 
 from mirrorgraph import geometry as geo
 from mirrorgraph.cli import main
+from mirrorgraph.graph.options import GaugeOptions
 from mirrorgraph.metrics import rotation_error_deg
 from mirrorgraph.synth import read_ground_truth
 
@@ -186,7 +187,7 @@ def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
     assert np.all(std[valid] > 0) and np.median(std[valid]) < 1.0      # metres, sane
     # the metric scale's share apart: joints_std^2 = joints_std_shape^2 + (scale |X|)^2
     shape, scale = z["joints_std_shape"], float(z["scale_rel_std"])
-    assert scale >= 0.02                                    # the height's 2 % at least
+    assert scale >= GaugeOptions().height_sigma             # the height's prior at least
     X = z["joints3d"]
     back = np.hypot(shape[valid], scale * np.linalg.norm(X[valid], axis=-1))
     assert np.allclose(back, std[valid], rtol=1e-6)
@@ -194,7 +195,7 @@ def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
 
 def test_a_stated_keypoint_placement_reaches_the_run(scene_dir, tmp_path):
     """``--keypoint-offset 0`` (keypoints on the landmarks): recorded as the run's input and
-    in its stature, the metric scale's std without the placement term (the height's 2 %
+    in its stature, the metric scale's std without the placement term (the height's prior
     and the measured spreads in quadrature), smaller than the default's; the mirror the
     same."""
     cals, scales = {}, {}
@@ -211,7 +212,42 @@ def test_a_stated_keypoint_placement_reaches_the_run(scene_dir, tmp_path):
     assert st["keypoint_offset"] == 0.0 and default["refinement"]["stature"]["keypoint_offset"] > 0
     assert "0.0 cm" in zero["refinement"]["scale_source"]
     assert scales[True] == pytest.approx(
-        np.sqrt(0.02 ** 2 + st["side_rel_diff"] ** 2 + st["bones_rel_spread"] ** 2), rel=1e-9)
+        np.sqrt(GaugeOptions().height_sigma ** 2 + st["side_rel_diff"] ** 2
+                + st["bones_rel_spread"] ** 2), rel=1e-9)
     assert scales[True] < scales[False] - 0.01
     assert zero["uncertainty"]["distance_std"] < default["uncertainty"]["distance_std"]
     assert zero["mirror"]["normal"] == default["mirror"]["normal"]
+
+
+def test_a_stated_height_std_reaches_the_run(scene_dir, tmp_path):
+    """``--height-sigma 0.005`` (a height measured with a stadiometer): recorded as the
+    run's input, the metric scale's std the stated 0.5 % and the measurement's own in
+    quadrature (the default's prior in its place without the flag), the distance's std
+    narrower and still holding the distance's error; the mirror and the joints the
+    same."""
+    from mirrorgraph.stature import measurement_rel_std
+
+    truth = read_ground_truth(scene_dir)
+    cals, npz = {}, {}
+    for flag in ([], ["--height-sigma", "0.005"]):
+        out, j3d = tmp_path / f"c{len(flag)}.json", tmp_path / f"j{len(flag)}.npz"
+        assert main(["calibrate", str(scene_dir / "easymocap"), "--intrinsics",
+                     str(scene_dir / "camera.json"), "--out", str(out), "--subject-height",
+                     str(truth["subject_height"]), "--joints3d", str(j3d), "--quiet",
+                     *flag]) == 0
+        cals[bool(flag)], npz[bool(flag)] = json.loads(out.read_text()), np.load(j3d)
+    stated, default = cals[True], cals[False]
+    assert stated["input"]["height_sigma"] == 0.005
+    assert default["input"]["height_sigma"] == GaugeOptions().height_sigma
+    m = measurement_rel_std(stated["refinement"]["stature"])
+    assert m == measurement_rel_std(default["refinement"]["stature"])
+    assert float(npz[True]["scale_rel_std"]) == pytest.approx(np.hypot(0.005, m), rel=1e-9)
+    assert float(npz[False]["scale_rel_std"]) == pytest.approx(
+        np.hypot(GaugeOptions().height_sigma, m), rel=1e-9)
+    d_std = stated["uncertainty"]["distance_std"]
+    assert d_std < default["uncertainty"]["distance_std"]
+    assert abs(stated["mirror"]["distance"] - truth["distance"]) < 3 * d_std
+    assert stated["mirror"] == default["mirror"]
+    assert np.array_equal(npz[True]["joints3d"], npz[False]["joints3d"], equal_nan=True)
+    assert (npz[True]["joints_std"][npz[True]["valid"]]
+            < npz[False]["joints_std"][npz[False]["valid"]]).all()

@@ -7,6 +7,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 
 def test_a_file_that_ends_before_its_first_mirror_says_so(tmp_path):
     """A 62-frame file played at its frame rate: the first window (60 frames) is solved
@@ -30,3 +32,31 @@ def test_a_file_that_ends_before_its_first_mirror_says_so(tmp_path):
     if said:
         assert said[0].startswith("warning: the mirror came after the last frame")
         assert "--as-fast-as-possible" in said[0]
+
+
+def test_a_stated_height_std_reaches_the_live_scale(tmp_path):
+    """``live --height-sigma 0.005``: the metric scale's std of the last line holds the
+    stated 0.5 % in place of the default's prior in quadrature, the rest (the stature's
+    spread and sampling) within 0.2 %, so the distance's std narrower; the mirror the
+    same."""
+    import numpy as np
+
+    from mirrorgraph.cli import main
+    from mirrorgraph.graph.options import GaugeOptions
+
+    assert main(["synth", "--out", str(tmp_path / "s"), "--frames", "240", "--seed", "21",
+                 "--formats", "mmpose", "--video-frames", "0", "--quiet"]) == 0
+    last = {}
+    for flag in ([], ["--height-sigma", "0.005"]):
+        out = tmp_path / f"l{len(flag)}.jsonl"
+        assert main(["live", str(tmp_path / "s" / "keypoints_mmpose.json"), "--intrinsics",
+                     str(tmp_path / "s" / "camera.json"), "--subject-height", "1.7",
+                     "--jsonl", str(out), "--as-fast-as-possible", "--quiet", *flag]) == 0
+        last[bool(flag)] = json.loads(out.read_text().splitlines()[-1])["mirror"]
+    stated, default = last[True], last[False]
+    rest = default["scale_rel_std"] ** 2 - GaugeOptions().height_sigma ** 2
+    assert rest > 0
+    # the rest within 0.2 %
+    assert stated["scale_rel_std"] == pytest.approx(np.sqrt(0.005 ** 2 + rest), rel=2e-3)
+    assert stated["distance_std"] < default["distance_std"]
+    assert stated["normal"] == default["normal"]

@@ -246,6 +246,22 @@ def test_a_keypoint_offset_that_is_no_placement_is_one_line(monkeypatch, tmp_pat
         assert code == 2 and err.count("\n") == 1, (cmd, err)
 
 
+def test_a_height_sigma_that_is_no_fraction_is_one_line(monkeypatch, tmp_path):
+    """``--height-sigma`` on every command that takes ``--keypoint-offset``: a negative, a
+    non-numeric or a percentage value is refused in one line that names the flag, exit 2."""
+    for cmd in (["calibrate", "kp.json", "--out", str(tmp_path / "c.json")],
+                ["calibrate-rig", "rig.toml", "--out", str(tmp_path / "c.toml")],
+                ["batch", "m.csv"],
+                ["live", "kp.json", "--jsonl", str(tmp_path / "l.jsonl")]):
+        for bad, said in (("-0.01", "must be a non-negative fraction of the height"),
+                          ("nan", "must be a non-negative fraction of the height"),
+                          ("1.3%", "not a fraction"),
+                          ("0.5", "give a fraction, e.g. 0.005 for 0.5 %")):
+            code, _, err = run_cli(cmd + [f"--height-sigma={bad}"], monkeypatch)
+            assert code == 2 and err.count("\n") == 1, (cmd, bad, err)
+            assert "--height-sigma" in err and said in err, err
+
+
 def test_demo_prints_a_path_only_when_it_is_kept(tmp_path, monkeypatch):
     code, out, err = run_cli(["demo", "--frames", "120"], monkeypatch)
     assert code == 0, err

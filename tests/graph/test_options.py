@@ -59,6 +59,9 @@ def test_groups_round_trip_and_keep_their_defaults():
     (dict(scale_from="bones"), "scale_from"),
     (dict(keypoint_offset=-0.01), "keypoint_offset"),
     (dict(keypoint_offset=float("nan")), "keypoint_offset"),
+    (dict(height_sigma=-0.01), "height_sigma"),
+    (dict(height_sigma=float("inf")), "height_sigma"),
+    (dict(height_sigma="2 %"), "height_sigma"),
     (dict(pixel_sigma=0.0), "pixel_sigma"),
 ])
 def test_bad_values_are_refused_by_name(bad, field):

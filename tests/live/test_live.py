@@ -85,7 +85,7 @@ def test_the_joints_std_is_honest_against_the_true_joints():
     assert np.mean(z > 3) < 0.02
     assert np.sqrt(np.mean(zm ** 2)) < rms                  # the scale's prior widens it
     m = live.mirror
-    # the height's 2 %, the stature measurement's own (the end keypoints' placement and
+    # the height's prior, the stature measurement's own (the end keypoints' placement and
     # the legs apart: small under iid) and its sampling std over the frames or the
     # first block's restart steps, the larger (both small under iid on 300 frames)
     from mirrorgraph.stature import keypoint_rel_std
@@ -95,7 +95,9 @@ def test_the_joints_std_is_honest_against_the_true_joints():
     kp = keypoint_rel_std("head_top" if "head_top" in sc.skeleton.joints else "eyes")
     assert kp <= side < np.hypot(kp, 0.01) and 0.0 < sampling < 0.01
     assert live.fusion.steps == 2 and 0.0 < steps < 0.01
-    rel = np.sqrt(0.02 ** 2 + side ** 2 + max(sampling, steps) ** 2)
+    from mirrorgraph.graph.options import GaugeOptions
+
+    rel = np.sqrt(GaugeOptions().height_sigma ** 2 + side ** 2 + max(sampling, steps) ** 2)
     assert m.scale_rel_std == pytest.approx(rel)
     line = json.loads(json.dumps(f.to_dict(), allow_nan=False))
     assert line["mirror"]["scale_rel_std"] == pytest.approx(rel)

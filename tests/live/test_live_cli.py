@@ -136,4 +136,6 @@ def test_a_stated_keypoint_placement_reaches_the_live_scale(scene_dir, tmp_path)
                      str(out), "--as-fast-as-possible", "--inline", "--quiet", *flag]) == 0
         last = json.loads(out.read_text().splitlines()[-1])
         stds[bool(flag)] = last["mirror"]["scale_rel_std"]
-    assert 0.02 <= stds[True] < stds[False] - 0.01
+    from mirrorgraph.graph.options import GaugeOptions
+
+    assert GaugeOptions().height_sigma <= stds[True] < stds[False] - 0.01
