@@ -197,12 +197,13 @@ class PriorOptions:
             ``h`` (3.4 cm for 1.7 m: above the 0.5-0.7 cm the trunk's bending and the
             shoulder girdle give them in motion capture); ``None`` (the default): no
             torso term. It ties a shoulder whose rays meet at a few degrees to the
-            hips, and it holds the torso against the held bone lengths: with the
-            true lengths it takes a wide scene of low parallax (``iid`` 9 of
-            ``bench/bench_joints.py``) from 5.3 % of its joints more than 0.3 m off
-            to 0.3 % and a CMU one's PA-MPJPE from 37 to 26 mm; with a held
-            shoulder width 29-50 % short, as the joints pass's lengths come out at
-            low parallax, it makes both worse: hence opt-in.
+            hips, and it holds the torso against the held bone lengths: given the
+            true lengths it takes the median PA-MPJPE of 16 scenes (low parallax, CMU)
+            from 29.3 to 21.4 mm and the worst scene's share of joints more than
+            0.3 m off (the scale fitted) from 2.23 to 1.07 %; given a shoulder width
+            28-50 % short, as the joints pass's lengths come out on some of them, it
+            makes those scenes worse (``bench/RESULTS_low_parallax_depth.md``):
+            hence opt-in.
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior of the calibration graph (the hip prior also needs a
             mid-hip joint; the subject-height gauge needs the bone lengths, so it
