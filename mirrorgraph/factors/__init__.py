@@ -13,6 +13,7 @@ module              factor                                  paper term
 ``anthropometry``   length / femur vs Winter 2009          ``L_anth``
 ``hip``             left hip, mid-hip, right hip colinear  ``L_hip``
 ``smoothness``      gap-aware second difference            ``L_smooth``
+``torso``           shoulder-hip distances held            (the trunk nearly rigid)
 ``gauge``           subject height or unit distance        (scale)
 ==================  =====================================  ===========================
 
@@ -30,11 +31,13 @@ from .reprojection import (ReprojectionFactors, calibration, direct_residuals, m
                            mirrored_calibration, robust_pixel_noise)
 from .smoothness import SmoothnessFactor
 from .symmetry import SymmetryFactor
+from .torso import TORSO_CORNERS, TorsoFactors, torso_pairs
 
 __all__ = [
     "AnthropometricRatioFactor", "BoneLengthFactor", "DistancePriorFactor",
     "HeightPriorFactor", "HipColinearityFactor", "MirrorLinkFactor", "ReprojectionFactors",
-    "SmoothnessFactor", "SymmetryFactor", "calibration", "direct_residuals", "mirror_residuals",
+    "SmoothnessFactor", "SymmetryFactor", "TORSO_CORNERS", "TorsoFactors", "calibration",
+    "direct_residuals", "mirror_residuals",
     "mirrored_calibration", "plane_from_gtsam", "plane_to_gtsam", "reflected_pose",
-    "robust_pixel_noise",
+    "robust_pixel_noise", "torso_pairs",
 ]

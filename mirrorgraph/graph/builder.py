@@ -29,7 +29,8 @@ from ..factors import (HeightPriorFactor, MirrorLinkFactor, ReprojectionFactors,
 from .bones import body_height_from_points, bone_curvature_bias, bone_table, median_bone_lengths
 from .options import RefineOptions
 from .priors import (BoneSet, add_anthropometry, add_focal_prior, add_hip, add_smoothness,
-                     add_symmetry, gauge_weights, record_prior)
+                     add_symmetry, add_torso, gauge_weights, other_side_lengths,
+                     record_prior)
 from .problem import LENGTH_KEY, X_BASE, GraphProblem, bone_graph, extract_planes, extract_points
 from .rig import Rig
 
@@ -345,21 +346,27 @@ def _gauge(rig: Rig, planes: list[tuple[np.ndarray, float]], options: RefineOpti
 
 
 def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
-                       options: RefineOptions) -> GraphProblem:
+                       options: RefineOptions, torso: dict[str, float] | None = None
+                       ) -> GraphProblem:
     """The graph of the joints pass: ``problem``'s variables and reprojection factors, other
     body priors.
 
-    Every bone of ``lengths`` in every frame where both its joints are estimated (no
+    Every bone of ``lengths`` (a bone it lacks at its left/right partner's length,
+    :func:`~.priors.other_side_lengths`) in every frame where both its joints are estimated (no
     curvature rule: the globals are held, a bone of known length holds the depth of
-    joints whose rays meet at a small angle), the hip prior, and the smoothness of
-    ``options.smoothness_sigma``; no length-only factor and no gauge (the globals
-    and the lengths are held). The reprojection factors are shared, not rebuilt.
+    joints whose rays meet at a small angle), the torso's distances no bone holds
+    (``options.torso_sigma``, :func:`~.priors.add_torso`: a shoulder is tied to the
+    hips), the hip prior, and the smoothness of ``options.smoothness_sigma``; no
+    length-only factor and no gauge (the globals and the lengths are held). The
+    reprojection factors are shared, not rebuilt.
 
     Args:
         problem: a built graph; values: its solution (the new graph starts there).
         lengths: bone name -> length (graph units), held.
         options: the priors' switches and sigmas (``use_smoothness`` and
             ``smoothness_sigma`` as the joints pass wants them).
+        torso: the torso's distances (``"a-b"`` joint names -> length, graph units,
+            :func:`~.priors.torso_lengths`), held; ``None``: no torso term.
 
     Returns:
         A :class:`~.problem.GraphProblem` with new ``priors``, ``bones``, ``values`` and
@@ -375,6 +382,7 @@ def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dic
     if problem.length_key is not None:            # the lengths are held here
         start.erase(problem.length_key)
     graph, info = gtsam.NonlinearFactorGraph(), {}
+    lengths, other_side = other_side_lengths(rig.skeleton, lengths)
     names, pairs = bone_table(rig)
     sel = [i for i, b in enumerate(names) if b in lengths]
     names, pairs = [names[i] for i in sel], pairs[sel]
@@ -386,6 +394,11 @@ def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dic
                             h * options.bone_sigma, lengths)
         if bone.lengths is not None:
             record_prior(info, "bone_length", bone.sigma, "length", len(bone.rows))
+            if other_side and "bone_length" in info:
+                info["bone_length"]["from_other_side"] = [b for b in other_side
+                                                          if b in bone.names]
+    if options.use_bone_length and options.torso_sigma is not None and torso:
+        add_torso(rig, graph, used, keys, torso, h * options.torso_sigma, info)
     if options.use_hip:
         add_hip(rig, graph, used, keys, h, options, info)
     if options.use_smoothness:

@@ -238,7 +238,9 @@ def graph_joints_covariance(state: SolveState, opts: RefineOptions, *, joints_pa
         # the joints pass's graph but for its smoothness, whose rows (linear, known) are
         # added to each joint's chain directly (SmoothnessFactor's own triples)
         jopts = replace(opts, use_smoothness=False)
-        graph_problem = with_motion_priors(problem, values, state.bone_lengths, jopts)
+        torso = (state.prior_info.get("joints_pass") or {}).get("torso", {}).get("lengths", {})
+        graph_problem = with_motion_priors(problem, values, state.bone_lengths, jopts,
+                                           torso=torso)
         values = graph_problem.values
         smooth = SmoothnessFactor(problem.body_height * sigma, opts.smoothness_max_gap)
     red = mirror_reduction(graph_problem, distance_gauge=None)

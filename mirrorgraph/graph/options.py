@@ -190,6 +190,20 @@ class PriorOptions:
             unchanged, +0.4 s per 1000 frames): the two passes give each its own.
             Videos solved in chunks (longer than ``max_graph_frames``) get it
             chunk by chunk with the final mirror.
+        torso_sigma: with it the joints pass holds the torso nearly rigid: the
+            distances between the shoulders and the hips that no bone holds (the two
+            sides and the two diagonals, :mod:`mirrorgraph.factors.torso`), each at its
+            median over the pass's own joints, this standard deviation, fraction of
+            ``h`` (3.4 cm for 1.7 m: above the 0.5-0.7 cm the trunk's bending and the
+            shoulder girdle give them in motion capture); ``None`` (the default): no
+            torso term. It ties a shoulder whose rays meet at a few degrees to the
+            hips, and it holds the torso against the held bone lengths: given the
+            true lengths it takes the median PA-MPJPE of 16 scenes (low parallax, CMU)
+            from 29.3 to 21.4 mm and the worst scene's share of joints more than
+            0.3 m off (the scale fitted) from 2.23 to 1.07 %; given a shoulder width
+            28-50 % short, as the joints pass's lengths come out on some of them, it
+            makes those scenes worse (``bench/RESULTS_low_parallax_depth.md``):
+            hence opt-in.
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior of the calibration graph (the hip prior also needs a
             mid-hip joint; the subject-height gauge needs the bone lengths, so it
@@ -205,6 +219,7 @@ class PriorOptions:
     smoothness_sigma: float = 0.8
     smoothness_max_gap: int = 4
     joints_smoothness_sigma: float | None = 0.01
+    torso_sigma: float | None = None
     use_bone_length: bool = True
     use_symmetry: bool = True
     use_anthropometry: bool = True

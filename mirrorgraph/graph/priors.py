@@ -19,12 +19,12 @@ import numpy as np
 from ..anthropometry import femur_ratios, height_fractions
 from ..skeletons import person_of
 from ..factors import (AnthropometricRatioFactor, HipColinearityFactor, SmoothnessFactor,
-                       SymmetryFactor)
+                       SymmetryFactor, TorsoFactors, torso_pairs)
 from .bones import median_bone_lengths
 from .problem import LENGTH_KEY
 
 __all__ = ["BoneSet", "record_prior", "add_symmetry", "add_anthropometry", "add_focal_prior",
-           "add_hip", "add_smoothness", "gauge_weights", "intrinsics_prior",
+           "add_hip", "add_smoothness", "add_torso", "torso_lengths", "other_side_lengths", "gauge_weights", "intrinsics_prior",
            "intrinsics_prior_sigmas", "PRINCIPAL_POINT_PRIOR", "PRINCIPAL_POINT_HOLD"]
 
 
@@ -152,6 +152,69 @@ def add_hip(rig, graph, used, keys, h, options, info):
     for t in frames:
         graph.push_back(factor.make(int(keys[t, m]), int(keys[t, lh]), int(keys[t, rh])))
     record_prior(info, "hip", options.hip_sigma, "sine", len(frames))
+
+
+def torso_lengths(rig, points: np.ndarray, used: np.ndarray) -> dict[str, float]:
+    """The torso's distances that no bone holds (:func:`~mirrorgraph.factors.torso_pairs`),
+    each its median over the frames of ``points`` (``(T, J, 3)``, where ``used``
+    ``(T, J)``): joints the bones and the smoothness already hold (the joints pass's),
+    whose depth slides in a minority of the frames at most; raw triangulations would
+    not do where the rays meet at a few degrees (their depth noise is decimetres, and
+    first-order corrections of it fail: a diagonal 25-55 % short on a 300-frame clip).
+
+    Returns:
+        ``"a-b"`` (the two joints' names) -> length in graph units; a distance seen in
+        no frame is left out.
+    """
+    sk = rig.skeleton
+    names = list(sk.joints)
+    pairs = torso_pairs(names, np.asarray(sk.bone_index, int))
+    keep = set(np.asarray(rig.joints, dtype=int).tolist())
+    pairs = np.array([p for p in pairs.tolist() if p[0] in keep and p[1] in keep],
+                     dtype=int).reshape(-1, 2)
+    if not len(pairs):
+        return {}
+    both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]
+    med = median_bone_lengths(points, pairs, both)
+    return {f"{names[a]}-{names[b]}": float(v) for (a, b), v in zip(pairs.tolist(), med)
+            if np.isfinite(v) and v > 0}
+
+
+def other_side_lengths(skeleton, lengths: dict[str, float]) -> tuple[dict[str, float],
+                                                                     list[str]]:
+    """``lengths`` with each bone it lacks given its left/right partner's length
+    (``skeleton.symmetric_bones``: a healthy adult's limbs differ by millimetres,
+    the paper's ``L_sym``), and the names so given. A limb left without any length
+    has no body term in the joints pass, and where its joints' rays meet at a small
+    angle nothing holds their depth."""
+    out = dict(lengths)
+    given = []
+    for left, right in skeleton.symmetric_bones:
+        for a, b in ((left, right), (right, left)):
+            if a not in out and b in lengths:
+                out[a] = float(lengths[b])
+                given.append(a)
+    return out, given
+
+
+def add_torso(rig, graph, used, keys, lengths: dict[str, float], sigma, info):
+    """The torso nearly rigid (:mod:`mirrorgraph.factors.torso`): each distance of
+    ``lengths`` (``"a-b"`` joint names -> length, :func:`torso_lengths`) at its length,
+    standard deviation ``sigma`` (graph units), in every frame where both joints are
+    used; ``keys``: ``(T, J)`` joint keys."""
+    if not lengths:
+        return
+    sk = rig.skeleton
+    factor = TorsoFactors(sigma)
+    count = 0
+    for pair, length in lengths.items():
+        a, b = (sk.index(n) for n in pair.split("-"))
+        t = np.flatnonzero(used[:, a] & used[:, b])
+        factor.add(graph, keys[t, a], keys[t, b], np.full(len(t), float(length)))
+        count += len(t)
+    record_prior(info, "torso", sigma, "length", count)
+    if count:
+        info["torso"]["lengths"] = {k: float(v) for k, v in lengths.items()}
 
 
 def add_smoothness(rig, graph, values, used, keys, points, sigma, max_gap, info):

@@ -38,6 +38,7 @@ from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
 from .bones import bone_table, debiased_bone_lengths, gauge_scale
 from .builder import build_problem, with_motion_priors
+from .priors import torso_lengths
 from .focal_search import focal_search, focal_searchable
 from .marginals import covariances
 from .noise import residual_noise
@@ -444,7 +445,7 @@ def _joints_pass_stage(run: _Run, lengths: dict[str, float], points: np.ndarray
             points = extract_points(jp[0], jp[1].values)
             observed = jp[0]
             joints_priors = {k: v for k, v in jp[0].prior_info.items()
-                             if k in ("bone_length", "hip", "smoothness")}
+                             if k in ("bone_length", "torso", "hip", "smoothness")}
             joints_priors["observations_left_out"] = int(
                 sum(np.count_nonzero(np.asarray(a.mask, bool) & ~np.asarray(b.mask, bool))
                     for a, b in zip(run.problem.rig.views, jp[0].rig.views)))
@@ -520,7 +521,11 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     calibration wants none, see :class:`~.options.RefineOptions`), and every bone of ``lengths``
     in every frame, the frames that ``opts.bone_bias_limit`` left out of the
     calibration included (the mirror held, a bone's known length is what fixes the
-    depth of joints whose rays meet at a small angle).
+    depth of joints whose rays meet at a small angle); a bone ``lengths`` lacks at its
+    left/right partner's length (:func:`~.priors.other_side_lengths`). With
+    ``opts.torso_sigma`` the torso's distances no bone holds are then read on that
+    solution (:func:`~.priors.torso_lengths`) and the pass solved again from it with
+    the torso nearly rigid (:mod:`mirrorgraph.factors.torso`).
 
     Then the observations whose residual exceeds ``opts.outlier_threshold`` (the
     calibration's own rule) at that solution are left out, at most one view of a
@@ -550,6 +555,15 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
                       max_iterations=JOINTS_PASS_ITERATIONS,
                       hold_globals=True, sensitivity=sensitivity)
+    if opts.torso_sigma is not None and opts.use_bone_length:
+        # the torso's distances read on the joints the bones and the smoothness hold,
+        # then the pass again from them with the torso held nearly rigid
+        torso = torso_lengths(jp.rig, extract_points(jp, res.values), jp.used)
+        if torso:
+            jp = with_motion_priors(problem, res.values, lengths, jopts, torso=torso)
+            res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                              max_iterations=JOINTS_PASS_ITERATIONS,
+                              hold_globals=True, sensitivity=sensitivity)
     if opts.outlier_threshold > 0:
         # what the body now exposes: a keypoint displaced along its epipolar line fits
         # both views in the calibration's graph (the joint slides in depth), and
