@@ -18,7 +18,8 @@ from ..geometry import triangulation_covariance
 from .rig import Rig, view_projections
 
 __all__ = ["bone_table", "median_bone_lengths", "body_height_from_points", "gauge_scale",
-           "bone_curvature_bias", "debiased_bone_lengths"]
+           "bone_curvature_bias", "debiased_bone_lengths", "DIRECTION_BINS",
+           "BONE_OUTLIER_RATE", "LIKELIHOOD_FRAMES", "EM_STEPS"]
 
 
 def bone_table(rig: Rig) -> tuple[list[str], np.ndarray]:
@@ -114,52 +115,179 @@ def bone_curvature_bias(rig: Rig, points: np.ndarray, used: np.ndarray,
     return total / (2.0 * np.maximum(np.asarray(lengths, dtype=float), 1e-12))
 
 
+#: Edges of the bins of ``|c|`` (``c`` the cosine of a bone's angle to its noise's long
+#: axis) whose shares :func:`debiased_bone_lengths` estimates for each bone: the bone's
+#: own distribution of directions, nonparametric.
+DIRECTION_BINS = np.linspace(0.0, 1.0, 9)
+
+#: Share of the frames :func:`debiased_bone_lengths` starts the outlier class at (a
+#: keypoint moved along its epipolar line, a left/right confusion): their density is
+#: uniform over a ball five times the bone's median measured length.
+BONE_OUTLIER_RATE = 0.05
+
+#: Most frames (evenly spread over the clip) a bone's likelihood is evaluated on: each
+#: costs ``~10^3`` evaluations of the integrand per candidate length.
+LIKELIHOOD_FRAMES = 300
+
+#: Expectation-maximisation steps of the direction shares at each candidate length.
+EM_STEPS = 200
+
+_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(4)
+
+
+def _depth_frame(d: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Each frame's bone ``d`` ``(T, 3)`` in its noise's frame (``cov`` ``(T, 3, 3)``):
+    ``z`` along the long axis (the line of sight at low parallax), ``r`` the length
+    across it, the variance ``var_z`` along it and ``var_r`` across it (the geometric
+    mean of the two smaller eigenvalues)."""
+    w, v = np.linalg.eigh(cov)                                                 # ascending
+    axis = v[:, :, 2]
+    z = np.einsum("ti,ti->t", d, axis)
+    r = np.linalg.norm(d - z[:, None] * axis, axis=1)
+    return z, r, w[:, 2], np.sqrt(w[:, 0] * w[:, 1])
+
+
+def _bin_likelihood(length: float, z: np.ndarray, r: np.ndarray, var_z: np.ndarray,
+                    var_r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, K)`` density of each frame's bone for a ``length`` with its direction uniform
+    within each bin of :data:`DIRECTION_BINS`, as ``(log of a common factor (T,),
+    the factored densities)``: ``N(d; L u, S)`` integrated over the direction ``u``, its
+    azimuth about the noise's long axis in closed form (the von Mises integral, ``I_0``),
+    ``c`` by Gauss-Legendre quadrature on pieces cut at the bins' edges and where the
+    integrand peaks (``c = z / L`` along the axis, ``c = +-sqrt(1 - r^2 / L^2)`` across
+    it)."""
+    from scipy.special import i0e
+
+    T = len(z)
+    sz, sr = np.sqrt(var_z), np.sqrt(var_r)
+    cz = z / length
+    cr = np.sqrt(np.clip(1.0 - (r / length) ** 2, 0.0, 1.0))
+    wr = np.clip(sr * np.sqrt(np.clip(1.0 - cr ** 2, 1e-6, 1.0)) / (length * np.maximum(cr, 1e-3)),
+                 0.0, 2.0)
+    edges = np.concatenate([-DIRECTION_BINS[::-1], DIRECTION_BINS[1:]])
+    cuts = [np.full(T, e) for e in edges]
+    cuts += [cz + f * sz / length for f in (-6.0, -2.0, 2.0, 6.0)]
+    cuts += [g * cr + f * wr for g in (-1.0, 1.0) for f in (-6.0, -2.0, 0.0, 2.0, 6.0)]
+    cuts = np.sort(np.clip(np.stack(cuts, axis=1), -1.0, 1.0), axis=1)            # (T, P)
+    half = 0.5 * (cuts[:, 1:] - cuts[:, :-1])
+    mid = 0.5 * (cuts[:, 1:] + cuts[:, :-1])
+    c = mid[..., None] + half[..., None] * _GL_NODES
+    w = half[..., None] * _GL_WEIGHTS
+    c, w = c.reshape(T, -1), w.reshape(T, -1)                                     # (T, N)
+    s = length * np.sqrt(np.clip(1.0 - c * c, 0.0, 1.0))
+    log_f = (-(z[:, None] - length * c) ** 2 / (2.0 * var_z[:, None])
+             - (r[:, None] - s) ** 2 / (2.0 * var_r[:, None])
+             + np.log(i0e(r[:, None] * s / var_r[:, None])))
+    top = log_f.max(axis=1)
+    f = w * np.exp(log_f - top[:, None])
+    k = np.clip(np.searchsorted(DIRECTION_BINS, np.abs(mid), side="right") - 1, 0,
+                len(DIRECTION_BINS) - 2)                                          # (T, P-1)
+    K = len(DIRECTION_BINS) - 1
+    k = np.repeat(k + K * np.arange(T)[:, None], len(_GL_NODES), axis=1)
+    dens = np.bincount(k.ravel(), weights=f.ravel(), minlength=T * K).reshape(T, K)
+    dens /= 2.0 * np.diff(DIRECTION_BINS)                     # uniform in c over +-bin
+    top += -0.5 * np.log(2.0 * np.pi * var_z) - np.log(2.0 * np.pi * var_r)
+    return top, dens
+
+
+def _profile_log_likelihood(length: float, groups: list[tuple[np.ndarray, ...]],
+                            outlier_rate: float) -> float:
+    """The log-likelihood of every group's frames at ``length``, each group at its own
+    maximum-likelihood shares of the direction bins and of the outlier class
+    (expectation-maximisation, :data:`EM_STEPS`)."""
+    total = 0.0
+    for z, r, var_z, var_r, log_out in groups:
+        top, dens = _bin_likelihood(length, z, r, var_z, var_r)
+        dens = np.concatenate([dens, np.exp(log_out - top)[:, None]], axis=1)   # (T, K+1)
+        K = dens.shape[1] - 1
+        share = np.concatenate([np.full(K, (1.0 - outlier_rate) / K), [outlier_rate]])
+        for _ in range(EM_STEPS):
+            share = share * (dens.T @ (1.0 / np.maximum(dens @ share, 1e-300))) / len(dens)
+        total += float(np.sum(np.log(np.maximum(dens @ share, 1e-300)) + top))
+    return total
+
+
 def debiased_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
                           planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
-                          pixel_sigma: float, outlier_k: float = 10.0,
+                          pixel_sigma: float, partners: np.ndarray | None = None,
+                          outlier_rate: float = BONE_OUTLIER_RATE,
                           min_frames: int = 10) -> np.ndarray:
     """``(B,)`` bone lengths from noisy triangulated joints, free of the curvature bias.
 
-    ``E |d|^2 = L^2 + tr(S)`` for a bone ``d = X_a - X_b`` measured with zero-mean noise
-    of covariance ``S = Sigma_a + Sigma_b``, whatever the bone's direction (the
-    corrected-score idea of measurement-error models: Stefanski 1989, Nakamura 1990).
-    So ``L^2`` is estimated by the mean over frames of ``|d|^2 - tr(S)``
-    (:func:`~mirrorgraph.geometry.triangulation_covariance`), where the median of
-    ``|d|`` would be decimetres long for joints whose rays meet at a small angle
-    (:func:`bone_curvature_bias`). Values beyond ``outlier_k`` robust standard
-    deviations (1.4826 MAD) of their median are left out first (a mean, unlike a
-    trimmed one, stays unbiased on the skewed distribution of ``|d|^2``; a cut at 5
-    MAD took that skewed tail off a forearm at low parallax, 4 % short, at 10 MAD
-    the lengths of three low-parallax scenes are 0.07 % short on average, 1.4 % at
-    most).
+    A bone ``d = X_a - X_b`` is measured in each frame with the noise of its two joints'
+    triangulations, ``S = Sigma_a + Sigma_b``
+    (:func:`~mirrorgraph.geometry.triangulation_covariance`): where their rays meet at a
+    small angle ``S`` is long along the line of sight and ``|d|`` is decimetres too long
+    on average (:func:`bone_curvature_bias`). The length ``L`` maximises the likelihood
+    of every frame's ``d`` with the bone's direction ``u`` in each frame integrated out,
+    ``p(d | L, kappa) = int N(d; L u, S) W(u; kappa) du`` (the integrated likelihood of a
+    nuisance parameter: Berger, Liseo and Wolpert, *Statistical Science* 14, 1999), under
+    a Watson prior about the noise's long axis ``a``, ``W(u) ~ exp(kappa (u . a)^2)``
+    (Mardia and Jupp, *Directional Statistics*, 2000, sec. 9.4.2), whose concentration
+    is the likelihood's own maximum for each bone (type-II maximum likelihood): a bone
+    that stays across the line of sight takes a girdle, one that turns every way the
+    uniform sphere. Frames of near-parallel rays tell the length by the bone's extent
+    across the line of sight and hardly by its depth, where a moment estimate (the mean
+    of ``|d|^2 - tr S``) takes their heavy depth tail, and a detector's per-label bias
+    turned into depth, as length. Each frame is mixed with an outlier density
+    (:data:`BONE_OUTLIER_RATE`); bones ``b`` and ``partners[b]`` (left and right) share
+    one length, each with its own concentration.
 
     Args:
         points: ``(T, J, 3)`` joints triangulated from the views (not pulled by priors);
             used: ``(T, J)`` bool.
         planes: ``(n, d)`` per mirror; pairs: ``(B, 2)`` joint indices.
         pixel_sigma: pixel noise, px.
-        outlier_k: the outlier cut, robust standard deviations.
+        partners: ``(B,)`` the row of each bone's left/right partner among ``pairs``,
+            ``-1`` for none; ``None``: every bone alone.
+        outlier_rate: the frames' outlier share of the mixture.
         min_frames: frames a bone needs.
 
     Returns:
         The lengths in the points' unit; NaN for a bone seen in under ``min_frames``
-        frames or whose corrected square is not positive.
+        frames whose partner is not either.
     """
+    from scipy.optimize import minimize_scalar
+
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
     masks = [np.asarray(v.mask, bool) & used for v in rig.views]
     cov = triangulation_covariance(view_projections(rig, None, planes), points, masks,
-                                   pixel_sigma)
-    var = np.trace(cov, axis1=-2, axis2=-1)                                     # (T, J)
+                                   pixel_sigma)                                  # (T, J, 3, 3)
     pts = np.asarray(points, dtype=float)
-    sq = np.sum((pts[:, pairs[:, 0]] - pts[:, pairs[:, 1]]) ** 2, axis=-1)      # (T, B)
-    corrected = sq - var[:, pairs[:, 0]] - var[:, pairs[:, 1]]
+    groups: list[tuple[np.ndarray, ...] | None] = []
+    typical = np.full(len(pairs), np.nan)
+    for b, (i, j) in enumerate(pairs):
+        d, s = pts[:, i] - pts[:, j], cov[:, i] + cov[:, j]
+        ok = np.isfinite(d).all(1) & np.isfinite(s).all((1, 2)) & (np.linalg.norm(d, axis=1) > 0)
+        if np.count_nonzero(ok):
+            ok[ok] = np.linalg.eigvalsh(s[ok])[:, 0] > 0
+        if np.count_nonzero(ok) < min_frames:
+            groups.append(None)
+            continue
+        d, s = d[ok], s[ok]
+        if len(d) > LIKELIHOOD_FRAMES:
+            keep = np.linspace(0, len(d) - 1, LIKELIHOOD_FRAMES).round().astype(int)
+            d, s = d[keep], s[keep]
+        typical[b] = float(np.median(np.linalg.norm(d, axis=1)))
+        radius = 5.0 * typical[b]
+        log_out = np.full(len(d), -np.log(4.0 / 3.0 * np.pi * radius ** 3))
+        groups.append((*_depth_frame(d, s), log_out))
+    partners = (np.full(len(pairs), -1) if partners is None
+                else np.asarray(partners, dtype=int))
     out = np.full(len(pairs), np.nan)
     for b in range(len(pairs)):
-        v = corrected[:, b][np.isfinite(corrected[:, b])]
-        if len(v) < min_frames:
+        if np.isfinite(out[b]):
             continue
-        med = np.median(v)
-        mad = 1.4826 * np.median(np.abs(v - med))
-        m = float(np.mean(v[np.abs(v - med) <= outlier_k * mad])) if mad > 0 else float(med)
-        if m > 0:
-            out[b] = np.sqrt(m)
+        members = [b] + ([int(partners[b])] if partners[b] >= 0 else [])
+        data = [groups[m] for m in members if groups[m] is not None]
+        if not data:
+            continue
+        scale = float(np.nanmedian(typical[members]))
+        grid = scale * np.geomspace(0.25, 2.0, 10)
+        ll = [_profile_log_likelihood(x, data, outlier_rate) for x in grid]
+        g = int(np.argmax(ll))
+        best = minimize_scalar(lambda x: -_profile_log_likelihood(x, data, outlier_rate),
+                               bounds=(grid[max(g - 1, 0)], grid[min(g + 1, len(grid) - 1)]),
+                               method="bounded", options={"xatol": 1e-3 * scale})
+        out[members] = float(best.x)
     return out

@@ -414,8 +414,8 @@ def _retriangulate(run: _Run, final_used: np.ndarray
 def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict[str, float]:
     """Bone name -> length for the joints pass (and the result): the calibration's, and
     for the bones it left out, or measured in under :data:`THIN_BONE_FRAMES` frames,
-    their length measured without the curvature bias
-    (:func:`~.bones.debiased_bone_lengths`)."""
+    their length measured without the curvature bias, a left and a right bone among
+    them one length (:func:`~.bones.debiased_bone_lengths`)."""
     problem, opts = run.problem, run.opts
     lengths = problem.bone_lengths()
     names, pairs = bone_table(problem.rig)
@@ -425,8 +425,13 @@ def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict
     other = [i for i, b in enumerate(names)
              if b not in lengths or frames.get(b, 0) < THIN_BONE_FRAMES]
     if other and opts.use_bone_length:
+        row = {names[i]: k for k, i in enumerate(other)}
+        partners = np.full(len(other), -1)
+        for left, right in problem.rig.skeleton.symmetric_bones:
+            if left in row and right in row:
+                partners[row[left]], partners[row[right]] = row[right], row[left]
         est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
-                                    opts.pixel_sigma)
+                                    opts.pixel_sigma, partners=partners)
         lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
     return lengths
 
