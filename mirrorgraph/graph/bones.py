@@ -5,7 +5,9 @@ A rig's bones between estimated joints (:func:`bone_table`), their median length
 against Winter's segment fractions (:func:`body_height_from_points`,
 :func:`gauge_scale`; Winter, *Biomechanics and Motor Control of Human Movement*, 4th
 ed., 2009), the second-order bias of a length measured from noisy joints
-(:func:`bone_curvature_bias`) and lengths free of it (:func:`debiased_bone_lengths`).
+(:func:`bone_curvature_bias`) and lengths free of it, by moments (:func:`debiased_bone_lengths`)
+or by the likelihood with each frame's bone direction integrated out
+(:func:`integrated_bone_lengths`).
 Lengths in the points' unit (graph units), joints ``(T, J, 3)`` in the world frame.
 """
 
@@ -18,8 +20,8 @@ from ..geometry import triangulation_covariance
 from .rig import Rig, view_projections
 
 __all__ = ["bone_table", "median_bone_lengths", "body_height_from_points", "gauge_scale",
-           "bone_curvature_bias", "debiased_bone_lengths", "WATSON_KAPPAS",
-           "BONE_OUTLIER_RATE", "LIKELIHOOD_FRAMES"]
+           "bone_curvature_bias", "debiased_bone_lengths", "integrated_bone_lengths",
+           "WATSON_KAPPAS", "BONE_OUTLIER_RATE", "LIKELIHOOD_FRAMES"]
 
 
 def bone_table(rig: Rig) -> tuple[list[str], np.ndarray]:
@@ -115,14 +117,65 @@ def bone_curvature_bias(rig: Rig, points: np.ndarray, used: np.ndarray,
     return total / (2.0 * np.maximum(np.asarray(lengths, dtype=float), 1e-12))
 
 
-#: Concentrations ``kappa`` of the Watson direction prior :func:`debiased_bone_lengths`
+def debiased_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
+                          planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
+                          pixel_sigma: float, outlier_k: float = 10.0,
+                          min_frames: int = 10) -> np.ndarray:
+    """``(B,)`` bone lengths from noisy triangulated joints, free of the curvature bias.
+
+    ``E |d|^2 = L^2 + tr(S)`` for a bone ``d = X_a - X_b`` measured with zero-mean noise
+    of covariance ``S = Sigma_a + Sigma_b``, whatever the bone's direction (the
+    corrected-score idea of measurement-error models: Stefanski 1989, Nakamura 1990).
+    So ``L^2`` is estimated by the mean over frames of ``|d|^2 - tr(S)``
+    (:func:`~mirrorgraph.geometry.triangulation_covariance`), where the median of
+    ``|d|`` would be decimetres long for joints whose rays meet at a small angle
+    (:func:`bone_curvature_bias`). Values beyond ``outlier_k`` robust standard
+    deviations (1.4826 MAD) of their median are left out first (a mean, unlike a
+    trimmed one, stays unbiased on the skewed distribution of ``|d|^2``; a cut at 5
+    MAD took that skewed tail off a forearm at low parallax, 4 % short, at 10 MAD
+    the lengths of three low-parallax scenes are 0.07 % short on average, 1.4 % at
+    most).
+
+    Args:
+        points: ``(T, J, 3)`` joints triangulated from the views (not pulled by priors);
+            used: ``(T, J)`` bool.
+        planes: ``(n, d)`` per mirror; pairs: ``(B, 2)`` joint indices.
+        pixel_sigma: pixel noise, px.
+        outlier_k: the outlier cut, robust standard deviations.
+        min_frames: frames a bone needs.
+
+    Returns:
+        The lengths in the points' unit; NaN for a bone seen in under ``min_frames``
+        frames or whose corrected square is not positive.
+    """
+    masks = [np.asarray(v.mask, bool) & used for v in rig.views]
+    cov = triangulation_covariance(view_projections(rig, None, planes), points, masks,
+                                   pixel_sigma)
+    var = np.trace(cov, axis1=-2, axis2=-1)                                     # (T, J)
+    pts = np.asarray(points, dtype=float)
+    sq = np.sum((pts[:, pairs[:, 0]] - pts[:, pairs[:, 1]]) ** 2, axis=-1)      # (T, B)
+    corrected = sq - var[:, pairs[:, 0]] - var[:, pairs[:, 1]]
+    out = np.full(len(pairs), np.nan)
+    for b in range(len(pairs)):
+        v = corrected[:, b][np.isfinite(corrected[:, b])]
+        if len(v) < min_frames:
+            continue
+        med = np.median(v)
+        mad = 1.4826 * np.median(np.abs(v - med))
+        m = float(np.mean(v[np.abs(v - med) <= outlier_k * mad])) if mad > 0 else float(med)
+        if m > 0:
+            out[b] = np.sqrt(m)
+    return out
+
+
+#: Concentrations ``kappa`` of the Watson direction prior :func:`integrated_bone_lengths`
 #: chooses among (its maximum-likelihood one, each bone's own): a girdle across the line
 #: of sight (``kappa < 0``, angular width ``1 / sqrt(2 |kappa|)``), the uniform sphere
 #: (``0``), a bipolar spread along it (``kappa > 0``).
 WATSON_KAPPAS = np.concatenate([-np.geomspace(1.0, 256.0, 5)[::-1], [0.0],
                                 np.geomspace(1.0, 256.0, 5)])
 
-#: Share of the frames :func:`debiased_bone_lengths` lets be outliers (a keypoint moved
+#: Share of the frames :func:`integrated_bone_lengths` lets be outliers (a keypoint moved
 #: along its epipolar line, a left/right confusion): their density is uniform over a ball
 #: five times the bone's median measured length.
 BONE_OUTLIER_RATE = 0.05
@@ -214,11 +267,11 @@ def _profile_log_likelihood(length: float, groups: list[tuple[np.ndarray, ...]],
     return total
 
 
-def debiased_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
-                          planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
-                          pixel_sigma: float, partners: np.ndarray | None = None,
-                          outlier_rate: float = BONE_OUTLIER_RATE,
-                          min_frames: int = 10) -> np.ndarray:
+def integrated_bone_lengths(rig: Rig, points: np.ndarray, used: np.ndarray,
+                            planes: list[tuple[np.ndarray, float]], pairs: np.ndarray,
+                            pixel_sigma: float, partners: np.ndarray | None = None,
+                            outlier_rate: float = BONE_OUTLIER_RATE,
+                            min_frames: int = 10) -> np.ndarray:
     """``(B,)`` bone lengths from noisy triangulated joints, free of the curvature bias.
 
     A bone ``d = X_a - X_b`` is measured in each frame with the noise of its two joints'

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .bones import bone_table, debiased_bone_lengths, gauge_scale
+from .bones import bone_table, debiased_bone_lengths, gauge_scale, integrated_bone_lengths
 from .builder import build_problem, with_motion_priors
 from .focal_search import focal_search, focal_searchable
 from .marginals import covariances
@@ -414,8 +414,9 @@ def _retriangulate(run: _Run, final_used: np.ndarray
 def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict[str, float]:
     """Bone name -> length for the joints pass (and the result): the calibration's, and
     for the bones it left out, or measured in under :data:`THIN_BONE_FRAMES` frames,
-    their length measured without the curvature bias, a left and a right bone among
-    them one length (:func:`~.bones.debiased_bone_lengths`)."""
+    their length measured without the curvature bias (``opts.joints_bone_lengths``:
+    :func:`~.bones.debiased_bone_lengths`, or :func:`~.bones.integrated_bone_lengths`
+    with a left and a right bone among them one length)."""
     problem, opts = run.problem, run.opts
     lengths = problem.bone_lengths()
     names, pairs = bone_table(problem.rig)
@@ -430,8 +431,12 @@ def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict
         for left, right in problem.rig.skeleton.symmetric_bones:
             if left in row and right in row:
                 partners[row[left]], partners[row[right]] = row[right], row[left]
-        est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
-                                    opts.pixel_sigma, partners=partners)
+        if opts.joints_bone_lengths == "integrated":
+            est = integrated_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
+                                          opts.pixel_sigma, partners=partners)
+        else:
+            est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
+                                        opts.pixel_sigma)
         lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
     return lengths
 

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import mirrorgraph as mg
-from mirrorgraph.graph.bones import bone_table, debiased_bone_lengths
+from mirrorgraph.errors import InputError
+from mirrorgraph.graph import RefineOptions
+from mirrorgraph.graph.bones import bone_table, integrated_bone_lengths
 from mirrorgraph.graph.rig import single_mirror_rig, triangulate_rig
 from mirrorgraph.synth import make_wide_scene
 
@@ -46,7 +49,7 @@ def _triangulated(seed: int, geometry: str, frames: int):
 
 
 def _ratios(s: dict, ok: np.ndarray | None = None, partners: bool = True) -> dict[str, float]:
-    est = debiased_bone_lengths(s["rig"], s["tri"], s["ok"] if ok is None else ok, s["planes"],
+    est = integrated_bone_lengths(s["rig"], s["tri"], s["ok"] if ok is None else ok, s["planes"],
                                 s["pairs"], PIXEL_SIGMA,
                                 partners=s["partners"] if partners else None)
     return dict(zip(s["names"], est / s["true"]))
@@ -88,11 +91,12 @@ def test_a_bone_seen_in_too_few_frames_takes_its_partners_length():
 def test_metric_scale_under_a_biased_detector_at_low_parallax():
     """The person on the camera-mirror line under the realistic detector (per-label
     bias, correlated noise): the joints pass's lengths set the body the stature is
-    measured on, so the run's metric scale (its joints against the true ones, one
-    least-squares factor about the camera) is within 10 %; lengths taken as measured
-    made it 30 % short, every joint far off."""
+    measured on, so with the integrated likelihood's lengths the run's metric scale
+    (its joints against the true ones, one least-squares factor about the camera) is
+    within 10 %; the moments' lengths made it 30 % short, every joint far off."""
     sc = make_wide_scene(9, "wide", "realistic", 1000, body_variation="population")
-    opts = mg.CalibrateOptions(subject_height=float(sc.subject_height), fps=30.0)
+    opts = mg.CalibrateOptions(subject_height=float(sc.subject_height), fps=30.0,
+                               refine_options=RefineOptions(joints_bone_lengths="integrated"))
     run = mg.calibrate(sc.detections, sc.intrinsics, opts)
     rows = {int(f): i for i, f in enumerate(sc.frame_ids)}
     keep = np.array([int(f) in rows for f in run.paired.frame_ids])
@@ -101,3 +105,8 @@ def test_metric_scale_under_a_biased_detector_at_low_parallax():
     given = run.valid3d[keep] & np.isfinite(X).all(-1)
     fit = float((X[given] * truth[given]).sum() / (X[given] ** 2).sum())
     assert abs(1.0 / fit - 1.0) < 0.10, 1.0 / fit - 1.0
+
+
+def test_an_unknown_bone_length_method_is_refused():
+    with pytest.raises(InputError, match="joints_bone_lengths"):
+        RefineOptions(joints_bone_lengths="median")
