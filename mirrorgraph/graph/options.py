@@ -203,7 +203,7 @@ class PriorOptions:
             right one length (:func:`~mirrorgraph.graph.bones.integrated_bone_lengths`:
             right where rays meet at a few degrees and the moments take a biased
             depth as length; the joints pass then slides more joints in depth on
-            some scenes, ``bench/RESULTS_joints_full.md``).
+            some scenes: ``bench/RESULTS_joints_bonelengths.md``).
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior of the calibration graph (the hip prior also needs a
             mid-hip joint; the subject-height gauge needs the bone lengths, so it
