@@ -32,11 +32,16 @@ from ..errors import InputError
 Kernel = Literal["geman_mcclure", "huber", "cauchy", "tukey"]
 KERNELS: tuple[str, ...] = get_args(Kernel)
 
+#: How the joints pass measures the bones the calibration graph left out
+#: (``PriorOptions.joints_bone_lengths``).
+BoneLengths = Literal["moments", "integrated"]
+BONE_LENGTHS: tuple[str, ...] = get_args(BoneLengths)
+
 #: The ways a subject height becomes a length (``GaugeOptions.scale_from``).
 ScaleFrom = Literal["stature", "limbs"]
 SCALE_FROM: tuple[str, ...] = get_args(ScaleFrom)
 
-__all__ = ["GaugeOptions", "KERNELS", "one_subject_height", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
+__all__ = ["BONE_LENGTHS", "BoneLengths", "GaugeOptions", "KERNELS", "one_subject_height", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
            "FocalOptions", "ScaleFrom", "ScheduleOptions", "SolverOptions"]
 
 
@@ -204,6 +209,15 @@ class PriorOptions:
             28-50 % short, as the joints pass's lengths come out on some of them, it
             makes those scenes worse (``bench/RESULTS_low_parallax_depth.md``):
             hence opt-in.
+        joints_bone_lengths: how the joints pass measures the bones the calibration
+            graph left out, on the joints triangulated with the solved mirror:
+            ``"moments"`` (default) the mean of ``|d|^2 - tr S``
+            (:func:`~mirrorgraph.graph.bones.debiased_bone_lengths`), ``"integrated"``
+            the likelihood with each frame's bone direction integrated out, left and
+            right one length (:func:`~mirrorgraph.graph.bones.integrated_bone_lengths`:
+            right where rays meet at a few degrees and the moments take a biased
+            depth as length; the joints pass then slides more joints in depth on
+            some scenes: ``bench/RESULTS_joints_bonelengths.md``).
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior of the calibration graph (the hip prior also needs a
             mid-hip joint; the subject-height gauge needs the bone lengths, so it
@@ -220,11 +234,17 @@ class PriorOptions:
     smoothness_max_gap: int = 4
     joints_smoothness_sigma: float | None = 0.01
     torso_sigma: float | None = None
+    joints_bone_lengths: BoneLengths = "moments"
     use_bone_length: bool = True
     use_symmetry: bool = True
     use_anthropometry: bool = True
     use_hip: bool = True
     use_smoothness: bool = False
+
+    def __post_init__(self) -> None:
+        if self.joints_bone_lengths not in BONE_LENGTHS:
+            raise InputError(f"must be one of {', '.join(BONE_LENGTHS)}, got "
+                             f"{self.joints_bone_lengths!r}", field="joints_bone_lengths")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -486,6 +506,7 @@ class RefineOptions(PriorOptions, ScheduleOptions, SolverOptions, GaugeOptions):
     focal: FocalOptions = FocalOptions()
 
     def __post_init__(self) -> None:
+        PriorOptions.__post_init__(self)
         ScheduleOptions.__post_init__(self)
         GaugeOptions.__post_init__(self)
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .bones import bone_table, debiased_bone_lengths, gauge_scale
+from .bones import bone_table, debiased_bone_lengths, gauge_scale, integrated_bone_lengths
 from .builder import build_problem, with_motion_priors
 from .priors import torso_lengths
 from .focal_search import focal_search, focal_searchable
@@ -415,8 +415,9 @@ def _retriangulate(run: _Run, final_used: np.ndarray
 def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict[str, float]:
     """Bone name -> length for the joints pass (and the result): the calibration's, and
     for the bones it left out, or measured in under :data:`THIN_BONE_FRAMES` frames,
-    their length measured without the curvature bias
-    (:func:`~.bones.debiased_bone_lengths`)."""
+    their length measured without the curvature bias (``opts.joints_bone_lengths``:
+    :func:`~.bones.debiased_bone_lengths`, or :func:`~.bones.integrated_bone_lengths`
+    with a left and a right bone among them one length)."""
     problem, opts = run.problem, run.opts
     lengths = problem.bone_lengths()
     names, pairs = bone_table(problem.rig)
@@ -426,8 +427,17 @@ def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict
     other = [i for i, b in enumerate(names)
              if b not in lengths or frames.get(b, 0) < THIN_BONE_FRAMES]
     if other and opts.use_bone_length:
-        est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
-                                    opts.pixel_sigma)
+        row = {names[i]: k for k, i in enumerate(other)}
+        partners = np.full(len(other), -1)
+        for left, right in problem.rig.skeleton.symmetric_bones:
+            if left in row and right in row:
+                partners[row[left]], partners[row[right]] = row[right], row[left]
+        if opts.joints_bone_lengths == "integrated":
+            est = integrated_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
+                                          opts.pixel_sigma, partners=partners)
+        else:
+            est = debiased_bone_lengths(problem.rig, tri, tri_ok, run.planes, pairs[other],
+                                        opts.pixel_sigma)
         lengths.update({names[i]: float(v) for i, v in zip(other, est) if np.isfinite(v)})
     return lengths
 
