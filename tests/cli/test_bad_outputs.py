@@ -374,13 +374,16 @@ def test_live_ctrl_c_one_line_and_complete_lines(scene, tmp_path):
     most of the run still paced when it lands."""
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     out = tmp_path / "l.jsonl"
-    proc = subprocess.Popen([sys.executable, "-m", "mirrorgraph", "live",
+    # a terminal's child: SIGINT raises KeyboardInterrupt whatever the runner ignores
+    # (set in the child itself: a preexec_fn would fork a runner that JAX made threaded)
+    start = ("import runpy, signal, sys; signal.signal(signal.SIGINT, "
+             "signal.default_int_handler); sys.argv[0] = 'mirrorgraph'; "
+             "runpy.run_module('mirrorgraph', run_name='__main__')")
+    proc = subprocess.Popen([sys.executable, "-c", start, "live",
                              str(scene / "keypoints_mmpose.json"), "--intrinsics",
                              str(scene / "camera.json"), "--jsonl", str(out), "--fps", "1",
                              "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True, env=env,
-                            # a terminal's child: SIGINT not ignored, whatever the runner's
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            text=True, start_new_session=True, env=env)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None and (
             not out.exists() or out.read_text().count("\n") < 2):
