@@ -78,6 +78,8 @@ Usage::
     python bench/bench_joints.py --body model --height-given exact   # the true height, 3 % bodies
     python bench/bench_joints.py --methods calibrate --keypoint-offset 0 --out /tmp/k0.md
     python bench/bench_joints.py --methods calibrate --keypoint-offset 0 --height-sigma 0.013
+    python bench/bench_joints.py --methods calibrate --refine joints_bone_lengths=integrated \\
+        --refine torso_sigma=0.02 --out /tmp/lt.md      # graph options set
     python bench/bench_joints.py --compare bench/RESULTS_joints_before.json after.json
     python bench/bench_joints.py --methods live --offline-from bench/RESULTS_joints.json
 
@@ -480,22 +482,43 @@ def on_truth_frames(run, tr: Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return X, given, rows, keep
 
 
-def _refine_options(keypoint_offset: float | None, height_sigma: float | None = None):
-    """The runs' graph options: the defaults, with the keypoints' placement and the
-    height's relative std stated where given."""
+def _refine_options(keypoint_offset: float | None, height_sigma: float | None = None,
+                    refine: tuple = ()):
+    """The runs' graph options: the defaults, with the keypoints' placement, the
+    height's relative std and ``refine``'s ``(name, value)`` pairs (``--refine``) stated
+    where given."""
     from mirrorgraph.graph import RefineOptions
 
     stated = {k: v for k, v in (("keypoint_offset", keypoint_offset),
                                 ("height_sigma", height_sigma)) if v is not None}
+    stated.update(dict(refine))
     return RefineOptions(**stated) if stated else None
 
 
+def _refine_pair(text: str) -> tuple[str, object]:
+    """``--refine NAME=VALUE``: a :class:`~mirrorgraph.graph.RefineOptions` field and its
+    value (a number, ``none``, or a word)."""
+    name, eq, value = text.partition("=")
+    if not eq or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    v: object = value.strip()
+    if v.lower() == "none":
+        v = None
+    else:
+        try:
+            v = float(v) if any(c in v for c in ".eE") else int(v)
+        except ValueError:
+            pass
+    return name.strip(), v
+
+
 def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
-                  height_sigma: float | None = None) -> dict:
+                  height_sigma: float | None = None, refine: tuple = ()) -> dict:
     import mirrorgraph as mg
 
     opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS,
-                               refine_options=_refine_options(keypoint_offset, height_sigma))
+                               refine_options=_refine_options(keypoint_offset, height_sigma,
+                                                              refine))
     wall, cpu = time.perf_counter(), time.process_time()
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -528,14 +551,15 @@ def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
 
 
 def run_live(tr: Truth, keypoint_offset: float | None = None,
-             height_sigma: float | None = None) -> dict:
+             height_sigma: float | None = None, refine: tuple = ()) -> dict:
     from mirrorgraph.live import LiveCalibrator, LiveOptions
 
     det = tr.detections
     live = LiveCalibrator(det.skeleton, tr.intrinsics,
                           LiveOptions.of(subject_height=tr.height_given,
                                          refine_options=_refine_options(keypoint_offset,
-                                                                        height_sigma)))
+                                                                        height_sigma,
+                                                                        refine)))
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
@@ -586,7 +610,8 @@ def run_scene(case: tuple) -> dict:
     warnings.filterwarnings("ignore")
     from mirrorgraph.metrics import pa_mpjpe
 
-    kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset, height_sigma = case
+    (kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset, height_sigma,
+     refine) = case
     clock = time.perf_counter()
     tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given)
     orc = oracle(tr)
@@ -598,7 +623,7 @@ def run_scene(case: tuple) -> dict:
     for m in methods:
         try:
             out[m] = (run_calibrate if m == "calibrate" else run_live)(tr, keypoint_offset,
-                                                                         height_sigma)
+                                                                         height_sigma, refine)
         except Exception as exc:  # noqa: BLE001 - a failure is a result here
             out[m] = dict(error=f"{type(exc).__name__}: {exc}")
         r = out[m]
@@ -995,6 +1020,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the relative std of the height the runs are given "
                          "(RefineOptions.height_sigma; default: the option's), e.g. 0.013 for "
                          "the reported heights' 1.1 cm bias and 1.9 cm spread")
+    ap.add_argument("--refine", type=_refine_pair, action="append", default=[],
+                    metavar="NAME=VALUE",
+                    help="a RefineOptions field the runs set (repeatable), e.g. "
+                         "joints_bone_lengths=integrated torso_sigma=0.02")
     ap.add_argument("--full", action="store_true",
                     help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
     ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
@@ -1027,6 +1056,13 @@ def main(argv: list[str] | None = None) -> int:
     for m in methods:
         if m not in METHODS:
             ap.error(f"--methods: unknown {m!r}; known: {', '.join(METHODS)}")
+    if args.refine:
+        from mirrorgraph.graph import RefineOptions
+        try:
+            _refine_options(args.keypoint_offset, args.height_sigma, tuple(args.refine))
+        except (TypeError, ValueError) as exc:
+            ap.error(f"--refine: {exc} (fields: RefineOptions, "
+                     f"{', '.join(sorted(RefineOptions.__dataclass_fields__))})")
     cases = []
     for k in kinds:
         if k == "fixtures":
@@ -1034,12 +1070,14 @@ def main(argv: list[str] | None = None) -> int:
             if not found:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
             cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given, args.keypoint_offset, args.height_sigma)
+                       args.height_given, args.keypoint_offset, args.height_sigma,
+                       tuple(args.refine))
                       for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
-                       args.height_given, args.keypoint_offset, args.height_sigma)
+                       args.height_given, args.keypoint_offset, args.height_sigma,
+                       tuple(args.refine))
                       for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
@@ -1075,6 +1113,7 @@ def main(argv: list[str] | None = None) -> int:
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
                 keypoint_offset=args.keypoint_offset, height_sigma=args.height_sigma,
+                refine=dict(args.refine),
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -1102,6 +1141,8 @@ def main(argv: list[str] | None = None) -> int:
          + (f"the default, `RefineOptions.height_sigma` = {100 * _default_height_sigma():g} %"
             if args.height_sigma is None
             else f"{100 * args.height_sigma:g} %, stated (`RefineOptions.height_sigma`)"),
+         *(["- graph options set (`--refine`): "
+            + ", ".join(f"`{k}={v}`" for k, v in args.refine)] if args.refine else []),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "
