@@ -208,6 +208,10 @@ def check_held(rig: Rig, masks: list[np.ndarray], offered: list[int]) -> None:
                     "which the graph starts its estimate from: the start is too far off for "
                     "these views (give this camera's intrinsics), or it sees another person "
                     "or needs a frame offset")
+            if len(rig.cameras) == 1:
+                raise DegenerateGeometryError(
+                    f"{head}: too few of the person's keypoints agree with one reflection "
+                    "(a short clip, or a second person taken for the reflection?)")
             raise DegenerateGeometryError(
                 f"{head}: is it the same person as in the other cameras? the right "
                 "intrinsics, frame offset, mirror?")

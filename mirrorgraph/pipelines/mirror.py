@@ -194,9 +194,15 @@ def calibrate(keypoints: RawDetections | PairedKeypoints | str | os.PathLike,
                                   getattr(obs.keypoints, "people", None),
                                   obs.intrinsics.image_size, opts.graph.focal, seed=opts.seed)
             run.timings["lines"] = time.perf_counter() - clock
-        refine_run(run, opts, iteration_progress, estimate_focal=intrinsics is None,
-                   focal_rel_sigma=None if focal_estimated(opts) else
-                   opts.graph.focal.guess_rel_sigma, lines=lines)
+        try:
+            refine_run(run, opts, iteration_progress, estimate_focal=intrinsics is None,
+                       focal_rel_sigma=None if focal_estimated(opts) else
+                       opts.graph.focal.guess_rel_sigma, lines=lines)
+        except DegenerateGeometryError as exc:    # the graph's refusal names the input
+            source = str(run.paired.source)
+            if str(exc).startswith(source):
+                raise
+            raise DegenerateGeometryError(f"{source}: {exc}") from None
     elif opts.subject_height is not None:
         run.calibration.warnings.append(
             "subject_height needs the refinement (it scales the body); without it the "

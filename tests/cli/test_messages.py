@@ -420,3 +420,16 @@ def test_calibrate_names_every_file_it_wrote(scene_dir, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert re.search(r"^wrote c\.json and j\.npz in [\d.]+ s$", proc.stdout, re.M), proc.stdout
     assert (tmp_path / "c.json").is_file() and (tmp_path / "j.npz").is_file()
+
+
+def test_too_short_a_clip_for_the_graph_names_the_file(tmp_path, capfd):
+    """One frame: the initial estimate passes, the graph keeps under the keypoints a
+    mirror needs; the refusal is one line naming the file and the mirror, exit 2."""
+    write_scene(make_scene(frames=1, seed=3), tmp_path, formats=("mmpose",))
+    kp = tmp_path / "keypoints_mmpose.json"
+    code = main(["calibrate", str(kp), "--intrinsics", str(tmp_path / "camera.json"),
+                 "--out", str(tmp_path / "o.json"), "--quiet"])
+    err = capfd.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert str(kp) in err and "mirror mirror" in err and "other cameras" not in err, err
+    assert not (tmp_path / "o.json").exists()
