@@ -4,6 +4,8 @@
     lines = ["# Title (`bench/bench_x.py`)", "", *header(), "", table...]
     lines = [..., *header(code=True), ...]      # a fourth line: the commit measured
 
+:func:`emit` prints the report's lines and writes them to the results file.
+
 A script that saves its figures (JSON) and can write the report again from them saves
 :func:`record` beside the figures and heads the report with :func:`recorded_header`: the
 report written again carries the run's date, command and machine, not today's.
@@ -23,7 +25,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["header", "command", "machine", "cpu_model", "now", "code_state", "record",
-           "recorded_header", "NOT_RECORDED"]
+           "recorded_header", "emit", "NOT_RECORDED"]
 
 #: What :func:`recorded_header` says of a line the saved data lack.
 NOT_RECORDED = "not recorded with the figures"
@@ -125,3 +127,13 @@ def recorded_header(meta: dict, *, note: str = "", bullet: str = "*") -> list[st
                   cmd=meta.get("command") or NOT_RECORDED,
                   machine_line=meta.get("machine") or NOT_RECORDED, note=note, bullet=bullet,
                   code=meta.get("code") or False)
+
+
+def emit(lines: list[str], out: str | Path | None) -> str:
+    """The report's ``lines`` printed and, with ``out``, written there (one trailing
+    newline); returns the text."""
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if out:
+        Path(out).write_text(text)
+    return text

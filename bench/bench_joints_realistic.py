@@ -296,10 +296,7 @@ def main(argv: list[str] | None = None) -> int:
          f"- scenes: `make_wide_scene(seed, 'wide', 'realistic', {args.frames})`, bodies with "
          "the adult spread, the true height given; variants: the script's docstring", ""]
     L += tables(rows, variants)
-    text = "\n".join(L) + "\n"
-    print(text)
-    if not args.no_write:
-        Path(args.out).write_text(text)
+    _report.emit(L, None if args.no_write else args.out)
     return 0
 
 

@@ -87,10 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     L += ["", f"Over {len(rows)} scenes: error {100 * np.sqrt((e ** 2).mean()):.2f} % RMS, "
           f"{100 * np.abs(e).max():.2f} % largest; err/std median {np.median(z):.2f}, largest "
           f"{z.max():.2f} (the prior alone: {np.median(zp):.2f}, {zp.max():.2f})."]
-    text = "\n".join(L) + "\n"
-    print(text)
-    if not args.no_write:
-        Path(args.out).write_text(text)
+    _report.emit(L, None if args.no_write else args.out)
     return 0
 
 

@@ -108,10 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     L += ["", f"RMS over {len(rows)} scenes: one body {100 * np.sqrt((e ** 2).mean()):.2f} %, "
           f"the mix {100 * np.sqrt((m ** 2).mean()):.2f} %; largest "
           f"{100 * np.abs(e).max():.2f} % against {100 * np.abs(m).max():.2f} %."]
-    text = "\n".join(L) + "\n"
-    print(text)
-    if not args.no_write:
-        Path(args.out).write_text(text)
+    _report.emit(L, None if args.no_write else args.out)
     return 0
 
 

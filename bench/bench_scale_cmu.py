@@ -270,10 +270,7 @@ def main(argv: list[str] | None = None) -> int:
           "Winter's 0.039 H), and the one take is a playground of jumps, never upright; "
           "the model's part is one body's, the same on every scene, within the scale's "
           "std (the chain's end keypoints' 2.7 % and the height's 2 %)."]
-    text = "\n".join(L) + "\n"
-    print(text)
-    if not args.no_write:
-        Path(args.out).write_text(text)
+    _report.emit(L, None if args.no_write else args.out)
     return 0
 
 

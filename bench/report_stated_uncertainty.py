@@ -224,10 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     for label, data in runs.items():
         L += run_table(label, data)
     L += realistic_table(runs)
-    text = "\n".join(L) + "\n"
-    print(text)
-    if not args.no_write:
-        Path(args.out).write_text(text)
+    _report.emit(L, None if args.no_write else args.out)
     return 0
 
 
