@@ -14,12 +14,15 @@ reprojection noise, ``s_L`` each bone's spread, ``rho`` Huber's loss at 1.345 st
 deviations on the pixels: Huber, *Robust Statistics*, 1981; Hartley and Zisserman,
 *Multiple View Geometry*, 2nd ed., sec. A6.8). The bones are Gaussian, as the offline
 graph's factor: a joint the detector misplaced along its epipolar line (which the
-reprojection threshold cannot see) is held by its bones. The normal equations
-(``3k x 3k``, ``k`` <= 33 joints) are the per-joint ``3 x 3`` blocks of the two views'
-``2 x 3`` projection Jacobians plus the bones' ``1 x 3`` length Jacobians, ``B`` rows
-in all; they are solved through the ``B x B`` system of the Woodbury identity where every
-joint keeps both views (densely otherwise), vectorised; the joints' covariance is the
-diagonal blocks of their inverse (the Laplace approximation, at the final weights).
+reprojection threshold cannot see) is held by its bones. A "bone" here is any pair of
+joints held at a distance: the offline joints pass's torso distances
+(:mod:`mirrorgraph.factors.torso`, the shoulders tied to the hips) are more such pairs.
+The normal equations (``3k x 3k``, ``k`` <= 33 joints) are the per-joint ``3 x 3``
+blocks of the two views' ``2 x 3`` projection Jacobians plus the bones' ``1 x 3`` length
+Jacobians, ``B`` rows in all; they are solved through the ``B x B`` system of the
+Woodbury identity where every joint keeps both views (densely otherwise), vectorised; the
+joints' covariance is the diagonal blocks of their inverse (the Laplace approximation, at
+the final weights).
 """
 
 from __future__ import annotations
@@ -314,7 +317,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         u, um: ``(k, 2)`` their pixels in the camera and in the mirror (the reflection's
             keypoints in the person's labels), undistorted.
         joints: ``(k,)`` the skeleton's indices of the ``k`` joints.
-        bones: ``(B, 2)`` skeleton joint indices of each bone's two ends.
+        bones: ``(B, 2)`` skeleton joint indices of each bone's two ends (any two
+            joints held at a distance: the torso's too).
         lengths: ``(B,)`` the bones' lengths (the unit of ``X``); NaN: not used.
         sigma_px: the reprojection noise, px.
         sigma_len: the bones' spread about their lengths (the unit of ``X``), one for
