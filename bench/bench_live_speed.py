@@ -21,7 +21,15 @@ the windows solved in the worker process (the default) and inline (``--inline``)
   imports (GTSAM, SciPy, the offline run), the reading, the per-frame path, the windows'
   solves and the JSON lines;
 * ``--before PATH``: the same runs with the package of another tree (its
-  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side, interleaved run by run.
+  ``mirrorgraph/`` first on ``PYTHONPATH``), side by side, interleaved run by run;
+* ``--refine NAME=VALUE`` (repeatable): a :class:`~mirrorgraph.graph.RefineOptions` field
+  every run sets (its windows' graph; the whole-process runs take it as the field's
+  default, which ``mirrorgraph live`` has no flag for);
+* **latency**: a frame's line comes ``lag_frames`` frames after the frame (the smoothing
+  over the frames after it) plus its own path's time: the lag at the stream's frame rate
+  plus the per-frame path's 99th percentile (``LiveFrame.cpu_s``), against the target
+  (:data:`TARGET_LATENCY_S` at :data:`STREAM_FPS`); the whole process keeps up where its
+  frames/s exceeds the stream's.
 
 Each tree's modules are byte-compiled first (one untimed run writes their
 ``__pycache__``, as installing a package does; ``PYTHONDONTWRITEBYTECODE`` is not passed
@@ -31,8 +39,10 @@ Usage::
 
     python bench/bench_live_speed.py                       # 1000 frames, 3 repeats
     python bench/bench_live_speed.py --before ../main --repeats 5
+    python bench/bench_live_speed.py --refine torso_sigma=0.02 --append
 
-Writes ``--out`` (default ``bench/RESULTS_live_speed.md``) unless ``--no-write``.
+Writes ``--out`` (default ``bench/RESULTS_live_speed.md``; with ``--append`` a section
+added below the ones there) unless ``--no-write``.
 """
 
 from __future__ import annotations
@@ -50,12 +60,29 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import header  # noqa: E402
+from _report import header, now  # noqa: E402
 
 from mirrorgraph.metrics import pa_mpjpe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_FPS = 200.0
+#: The latency target of a live stream (s) and the stream's frame rate it holds at.
+TARGET_LATENCY_S = 0.5
+STREAM_FPS = 30.0
+
+#: A fresh process running ``mirrorgraph live`` with ``RefineOptions`` defaults of its
+#: own (``argv[1]``, JSON): the ``--refine`` fields, which the command has no flag for.
+LAUNCH = """
+import json, sys
+from mirrorgraph.graph import options
+refine = json.loads(sys.argv[1])
+init = options.RefineOptions.__init__
+def patched(self, *args, **kw):
+    init(self, *args, **{**refine, **kw})
+options.RefineOptions.__init__ = patched
+from mirrorgraph.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
 
 
 def _env(tree: Path) -> dict:
@@ -82,11 +109,13 @@ def _main_thread(pid: int) -> tuple[float, float]:
     return int(on) * 1e-9, int(queued) * 1e-9
 
 
-def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path) -> dict:
+def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path, refine: dict) -> dict:
     """One fresh ``mirrorgraph live`` process: wall, CPU, and its lines' joints."""
-    cmd = [sys.executable, "-m", "mirrorgraph", "live", str(scene / "keypoints_mmpose.json"),
-           "--intrinsics", str(scene / "camera.json"), "--subject-height", "1.75",
-           "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet"] + ["--inline"] * inline
+    args = ["live", str(scene / "keypoints_mmpose.json"),
+            "--intrinsics", str(scene / "camera.json"), "--subject-height", "1.75",
+            "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet"] + ["--inline"] * inline
+    cmd = ([sys.executable, "-c", LAUNCH, json.dumps(refine)] if refine
+           else [sys.executable, "-m", "mirrorgraph"]) + args
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     clock = time.perf_counter()
     # run from the tree: ``python -m`` puts the working directory first on the path
@@ -125,6 +154,7 @@ BREAKDOWN = """
 import time
 import json, sys
 import numpy as np
+from mirrorgraph.graph import RefineOptions
 from mirrorgraph.cli import main
 from mirrorgraph.intrinsics import load_intrinsics
 from mirrorgraph.live import LiveCalibrator, LiveOptions
@@ -136,11 +166,13 @@ import scipy.optimize
 import mirrorgraph.pipelines.mirror
 t["solve_imports"] = time.process_time() - c
 scene = sys.argv[1]
+refine = json.loads(sys.argv[2])
 c = time.process_time()
 src = open_source(scene + "/keypoints_mmpose.json", skeleton=None, fps=None)
 intr = load_intrinsics(scene + "/camera.json")
 t["read"] = time.process_time() - c
-live = LiveCalibrator(src.skeleton, intr, LiveOptions.of(subject_height=1.75, can_wait=True))
+live = LiveCalibrator(src.skeleton, intr, LiveOptions.of(
+    subject_height=1.75, can_wait=True, refine_options=RefineOptions(**refine)))
 out, total = [], 0.0
 for f in src.frames:
     c = time.thread_time()
@@ -148,7 +180,11 @@ for f in src.frames:
     total += time.thread_time() - c
 t["per_frame"] = float(sum(f.cpu_s for f in out))
 t["windows"] = total - t["per_frame"]
-t["paired_ms"] = 1e3 * float(np.median([f.cpu_s for f in out if f.paired]))
+paired = [f.cpu_s for f in out if f.paired]
+t["paired_ms"] = 1e3 * float(np.median(paired))
+t["paired_p99_ms"] = 1e3 * float(np.percentile(paired, 99))
+t["paired_max_ms"] = 1e3 * float(np.max(paired))
+t["lag_frames"] = live.options.lag_frames
 c = time.process_time()
 for f in out:
     if f.settled is not None:
@@ -158,15 +194,18 @@ print(json.dumps(t))
 """
 
 #: The breakdown's columns: key, heading.
-PARTS = [("paired_ms", "per-frame path, ms a paired frame"), ("per_frame", "per-frame path s"),
+PARTS = [("paired_ms", "per-frame path, ms a paired frame"),
+         ("paired_p99_ms", "its p99 ms"), ("paired_max_ms", "its max ms"),
+         ("per_frame", "per-frame path s"),
          ("windows", "windows' solves s"), ("start", "start-up s"),
          ("solve_imports", "the windows' imports s"), ("read", "reading s"),
          ("json", "JSON lines s")]
 
 
-def breakdown(tree: Path, scene: Path) -> dict:
+def breakdown(tree: Path, scene: Path, refine: dict) -> dict:
     """Where an inline run's CPU goes (:data:`BREAKDOWN`), seconds (the frame's ms)."""
-    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene)], check=True,
+    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene), json.dumps(refine)],
+                         check=True,
                          env=_env(tree), capture_output=True, text=True, cwd=tree)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -182,9 +221,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--nice", type=int, default=0,
                     help="niceness of the runs (default 0: a speed bench runs at the "
                          "machine's normal priority; its CPU time is the steadier figure)")
+    ap.add_argument("--refine", action="append", default=[], metavar="NAME=VALUE",
+                    help="a RefineOptions field every run sets (repeatable), e.g. "
+                         "torso_sigma=0.02 joints_bone_lengths=integrated")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_speed.md"))
+    ap.add_argument("--append", action="store_true",
+                    help="add the report as a section below the ones --out holds")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
+    refine = _refine(ap, args.refine)
     if args.nice:
         os.nice(args.nice)
     trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
@@ -194,12 +239,12 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
         for _, tree in trees:                      # untimed: each tree's bytecode written
-            run_once(tree, scene, True, Path(tmp) / "out.jsonl")
+            run_once(tree, scene, True, Path(tmp) / "out.jsonl", refine)
         for r in range(args.repeats):              # interleaved: the load hits both alike
             for name, tree in trees:
                 for inline in (False, True):
                     loads.append(os.getloadavg()[0])
-                    out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl")
+                    out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl", refine)
                     out.update(code=name, mode="inline" if inline else "background", rep=r)
                     rows.append(out)
                     print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
@@ -209,9 +254,16 @@ def main(argv: list[str] | None = None) -> int:
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
             for name, tree in trees:
-                parts.setdefault(name, []).append(breakdown(tree, scene))
-    L = ["# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)",
-         "", *header(argv=argv), f"* input: `mirrorgraph synth --frames {args.frames} --seed "
+                parts.setdefault(name, []).append(breakdown(tree, scene, refine))
+    title = "# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)"
+    old = (Path(args.out).read_text().rstrip("\n") if args.append and Path(args.out).exists()
+           else "")
+    L = [old, "", f"## {now()[:16].replace('T', ' ')}" + (
+        ": " + ", ".join(f"`{k}={v}`" for k, v in refine.items()) if refine else "")] if old \
+        else [title]
+    L += ["", *header(argv=argv), "* graph options set (`--refine`): " + (
+        ", ".join(f"`{k}={v}`" for k, v in refine.items()) if refine else "none (the defaults)"),
+         f"* input: `mirrorgraph synth --frames {args.frames} --seed "
          f"{args.seed}` (MMPose keypoints, 30 fps, the camera and the subject's height given); "
          f"each run a fresh process, its modules byte-compiled beforehand (an untimed run "
          f"per tree); medians of {args.repeats} runs (min, max), the trees interleaved; "
@@ -245,6 +297,17 @@ def main(argv: list[str] | None = None) -> int:
     for name, _ in trees:
         med = [np.median([p[k] for p in parts[name]]) for k, _ in PARTS]
         L.append(f"| {name} | " + " | ".join(f"{v:.2f}" for v in med) + " |")
+    L += ["", f"Latency at {STREAM_FPS:.0f} fps (a frame's line after the frame: the lag's "
+          "frames at the stream's rate plus the per-frame path's p99, medians over the "
+          f"repeats; target <= {TARGET_LATENCY_S} s):", ""]
+    for name, _ in trees:
+        lag = int(parts[name][0]["lag_frames"])
+        p99 = float(np.median([p["paired_p99_ms"] for p in parts[name]])) / 1e3
+        worst = float(np.max([p["paired_max_ms"] for p in parts[name]])) / 1e3
+        total = lag / STREAM_FPS + p99
+        L.append(f"* {name}: {lag} frames / {STREAM_FPS:.0f} fps + {1e3 * p99:.1f} ms = "
+                 f"{total:.3f} s (the slowest frame's path {1e3 * worst:.1f} ms): "
+                 + ("holds" if total <= TARGET_LATENCY_S else "over the target"))
     L += ["", f"Target: >= {TARGET_FPS:.0f} frames/s whole process in both modes, no line "
           "without joints after the first mirror."]
     text = "\n".join(L) + "\n"
@@ -252,6 +315,24 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_write:
         Path(args.out).write_text(text)
     return 0
+
+
+def _refine(ap: argparse.ArgumentParser, items: list[str]) -> dict:
+    """``--refine NAME=VALUE`` items as RefineOptions fields (values read as JSON, else
+    as text); an unknown field refused by name."""
+    from mirrorgraph.graph import RefineOptions
+
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or name not in RefineOptions.__dataclass_fields__:
+            ap.error(f"--refine {item!r}: not NAME=VALUE of a RefineOptions field")
+        try:
+            out[name] = json.loads(value)
+        except json.JSONDecodeError:
+            out[name] = value
+    RefineOptions(**out)
+    return out
 
 
 if __name__ == "__main__":

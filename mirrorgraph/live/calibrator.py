@@ -11,8 +11,9 @@
 against the epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
 left and right swapped back where the frames so far say the detector confused them
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), refined with the latest
-window's bone lengths (each one's spread widened by its steps between windows) from each
-joint's rays' midpoint and from where its track predicts it, the two and each limb's other
+window's bone lengths (each one's spread widened by its steps between windows) and, where
+its joints pass held the torso (``RefineOptions.torso_sigma``), the torso's distances, from
+each joint's rays' midpoint and from where its track predicts it, the two and each limb's other
 branch along its ray folded by the frame's cost (:mod:`.frame_prior`), the worse view off
 by more than the threshold once the bones hold the joint left out
 (:func:`mirrorgraph.graph.outliers.one_view_outliers`), kept where it reprojects within
@@ -409,7 +410,8 @@ class LiveCalibrator:
         self._bones = np.array([[self.skeleton.index(a), self.skeleton.index(b)]
                                 for a, b in self.skeleton.bones.values()], dtype=np.int64
                                ).reshape(-1, 2)
-        self._lengths_of, self._lengths = None, None
+        self._lengths_of, self._lengths, self._lengths_height = None, None, float("nan")
+        self._torso_of, self._torso_for, self._torso = None, None, None
         # each bone's length step between the windows whose lengths the frames held:
         # the sum of its draws of the latest window's relative length variance, their
         # count (:meth:`_note_bone_steps`), and that window's frames
@@ -622,9 +624,9 @@ class LiveCalibrator:
             return out, total, shape, bool(seen.any())
         u, um = real[idx, :2], mirror[idx, :2]
         self._last_rays = (u, um)
-        lengths = self._bone_lengths() if self.options.bone_prior else None
-        L, sigma_len = lengths if lengths is not None else (np.full(len(self._bones), np.nan),
-                                                            np.ones(len(self._bones)))
+        lengths = self._frame_lengths() if self.options.bone_prior else None
+        pairs, L, sigma_len = lengths if lengths is not None else (
+            self._bones, np.full(len(self._bones), np.nan), np.ones(len(self._bones)))
         # the frame's joints together: both views' reprojection (Huber), the bones'
         # lengths; the worst view off by more than the calibration's inlier threshold
         # once the bones hold the joint (a keypoint displaced along its epipolar line)
@@ -633,7 +635,7 @@ class LiveCalibrator:
         # on the paper protocol 1.08 against 1.04-1.07, the independent generator's
         # 1.07-1.09 against 1.05-1.07)
         gate = co.threshold_px
-        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, self._bones, L,
+        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, pairs, L,
                                              self._sigma_px(), sigma_len, iterations=2,
                                              gate_px=gate, full=True)
         if lengths is not None and self.options.smooth and self._filter is not None:
@@ -645,14 +647,14 @@ class LiveCalibrator:
             if have.any():
                 X0 = triangulate_two_rays(K, n, d, u, um)
                 X0[have] = Xp[have]
-                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, self._bones, L,
+                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, pairs, L,
                                                      self._sigma_px(), sigma_len,
                                                      iterations=2, gate_px=gate, full=True)
                 X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
-                                    self._bones, L, self._sigma_px(), sigma_len)
+                                    pairs, L, self._sigma_px(), sigma_len)
         if lengths is not None:
             # a joint the two rays barely place: its bones' other branch along the ray
-            X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, self._bones, L,
+            X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, pairs, L,
                                    self._sigma_px(), sigma_len)
         S = geo.reflect_points(X, n, d)
         with np.errstate(invalid="ignore"):
@@ -709,20 +711,49 @@ class LiveCalibrator:
         fu = self.fusion
         return fu.noise_px if np.isfinite(fu.noise_px) else self._copts.graph.pixel_sigma
 
+    def _frame_lengths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """``(pairs, lengths, sigma)``: the distances each frame's joints are held at,
+        those the offline joints pass holds (:func:`mirrorgraph.graph.stages.joints_pass`):
+        every bone (:meth:`_bone_lengths`) and, where the latest window's pass held the
+        torso (``RefineOptions.torso_sigma``), the torso's distances no bone holds
+        (:attr:`.estimator.WindowEstimate.torso_lengths`) at ``torso_sigma`` of the
+        height; ``(P, 2)`` skeleton joint indices, ``(P,)``, ``(P,)``. ``None`` without
+        a window's lengths."""
+        bones = self._bone_lengths()
+        if bones is None:
+            return None
+        torso = self.fusion.torso_lengths
+        g = self._copts.graph
+        if not torso or g.torso_sigma is None or not g.use_bone_length:
+            return (self._bones, *bones)
+        if self._torso_of is not torso or self._torso_for is not bones:
+            sk = self.skeleton
+            pairs = np.array([[sk.index(j) for j in name.split("-")] for name in torso],
+                             np.int64).reshape(-1, 2)
+            L = np.fromiter(torso.values(), float, len(torso))
+            sigma = np.full(len(torso), float(g.torso_sigma) * self._lengths_height)
+            self._torso = (np.concatenate([self._bones, pairs]),
+                           np.concatenate([bones[0], L]), np.concatenate([bones[1], sigma]))
+            self._torso_of, self._torso_for = torso, bones
+        return self._torso
+
     def _bone_lengths(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lengths, sigma)``: the latest window's length of each bone of
-        ``self._bones`` (NaN where it has none) and each one's ``(B,)`` spread about
-        it: the graph's ``bone_sigma`` of the height they make (Winter's fractions) and
-        the window's own length error, the RMS of the bone's steps between windows
-        (:meth:`_note_bone_steps`; none before the second window), in quadrature;
-        ``None`` without a window's lengths."""
+        ``self._bones`` (a bone it lacks at its left/right partner's, as the joints pass
+        holds it: :func:`mirrorgraph.graph.priors.other_side_lengths`; NaN where neither
+        has one) and each one's ``(B,)`` spread about it: the graph's ``bone_sigma`` of
+        the height they make (Winter's fractions) and the window's own length error, the
+        RMS of the bone's steps between windows (:meth:`_note_bone_steps`; none before
+        the second window), in quadrature; ``None`` without a window's lengths."""
         found = self.fusion.bone_lengths
         if not found:
             return None
         if self._lengths_of is not found:
             from ..anthropometry import height_fractions
+            from ..graph.priors import other_side_lengths
 
-            L = np.array([found.get(b, np.nan) for b in self._bone_names], float)
+            held = other_side_lengths(self.skeleton, found)[0]
+            L = np.array([held.get(b, np.nan) for b in self._bone_names], float)
             frac = height_fractions(self.skeleton)
             f = np.array([frac.get(b, np.nan) for b in self._bone_names], float)
             both = np.isfinite(L) & np.isfinite(f)
@@ -731,7 +762,7 @@ class LiveCalibrator:
             own = np.sqrt(self._bone_step_sum / np.maximum(self._bone_steps, 1.0)) * L
             spread = np.hypot(sigma, np.nan_to_num(own))
             self._lengths = (L, spread) if np.isfinite(sigma) and sigma > 0 else None
-            self._lengths_of = found
+            self._lengths_of, self._lengths_height = found, h
         return self._lengths
 
     def _ray_covariance(self, K, n, d, X) -> np.ndarray:

@@ -29,7 +29,7 @@ average it out) and the windows' statures' sampling std fused by its information
 frames), from three windows on their distances' spread, or the first block's restart
 steps (:meth:`MirrorFusion.note_restart_step`), the largest (a detector's error that
 drifts with the motion over longer than a window is seen between windows only). The
-per-frame bone prior holds the latest window's bone lengths
+per-frame bone prior holds the latest window's bone lengths and torso distances
 (other fusions of the scale: ``bench/RESULTS_live_scale.md``).
 
 While the first block grows each solve replaces the fused mirror
@@ -92,6 +92,11 @@ class WindowEstimate:
             measured).
         bone_lengths: bone name -> length the window's graph held (the unit of
             ``distance``), for the per-frame prior (:mod:`.frame_prior`).
+        torso_lengths: the torso's distances the window's joints pass held nearly rigid
+            (``RefineOptions.torso_sigma``, :mod:`mirrorgraph.factors.torso`): ``"a-b"``
+            (the two joints' names) -> the median over the window's frames of the
+            distance on its joints (the unit of ``distance``); empty where the pass had
+            no torso term.
     """
 
     ok: bool
@@ -116,6 +121,27 @@ class WindowEstimate:
     scale_side: float = 0.0
     scale_sampling: float = float("nan")
     bone_lengths: dict = field(default_factory=dict)
+    torso_lengths: dict = field(default_factory=dict)
+
+
+def _torso_lengths(run) -> dict:
+    """The torso's distances a window's joints pass held (its record's pairs,
+    :func:`mirrorgraph.graph.priors.add_torso`), each the median over the window's frames
+    of the distance on its output joints: the unit of its bone lengths (the record's
+    lengths are the graph's unit, before the metric scale's rescaling); empty without a
+    torso term."""
+    from ..graph.bones import median_bone_lengths
+
+    record = (((run.calibration.refinement or {}).get("priors") or {}).get("joints_pass")
+              or {}).get("torso") or {}
+    names = list(record.get("lengths") or {})
+    if not names or run.joints3d is None or run.valid3d is None:
+        return {}
+    sk = run.paired.skeleton
+    pairs = np.array([[sk.index(j) for j in name.split("-")] for name in names], int)
+    used = np.asarray(run.valid3d, bool)
+    L = median_bone_lengths(run.joints3d, pairs, used[:, pairs[:, 0]] & used[:, pairs[:, 1]])
+    return {name: float(v) for name, v in zip(names, L) if np.isfinite(v) and v > 0}
 
 
 def _psd(C: np.ndarray) -> np.ndarray:
@@ -197,6 +223,7 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
         check=check.verdict if check is not None else "", scale_side=side,
         scale_sampling=float(sampling) if sampling is not None else float("nan"),
         bone_lengths=dict((cal.refinement or {}).get("bone_lengths") or {}),
+        torso_lengths=_torso_lengths(run),
         check_text=check.describe() if check is not None and check.verdict == "doubtful"
         else "")
 
@@ -233,6 +260,7 @@ class MirrorFusion:
             sqrt(sum_w 1 / s_w^2)`` over their :attr:`WindowEstimate.scale_sampling`; NaN
             where none was measured.
         bone_lengths: the latest fused window's bone lengths (the per-frame prior).
+        torso_lengths: that window's torso distances (:attr:`WindowEstimate.torso_lengths`).
     """
 
     height_sigma: float = 0.02
@@ -257,6 +285,7 @@ class MirrorFusion:
     scale_sampling: float = float("nan")
     sampling_info: float = 0.0
     bone_lengths: dict = field(default_factory=dict)
+    torso_lengths: dict = field(default_factory=dict)
     step_var_sum: float = 0.0
     steps: int = 0
     _pending: list = field(default_factory=list)
@@ -491,3 +520,4 @@ class MirrorFusion:
             self.scale_sampling = float(1.0 / np.sqrt(self.sampling_info))
         if w.bone_lengths:
             self.bone_lengths = w.bone_lengths
+            self.torso_lengths = w.torso_lengths

@@ -14,12 +14,15 @@ reprojection noise, ``s_L`` each bone's spread, ``rho`` Huber's loss at 1.345 st
 deviations on the pixels: Huber, *Robust Statistics*, 1981; Hartley and Zisserman,
 *Multiple View Geometry*, 2nd ed., sec. A6.8). The bones are Gaussian, as the offline
 graph's factor: a joint the detector misplaced along its epipolar line (which the
-reprojection threshold cannot see) is held by its bones. The normal equations
-(``3k x 3k``, ``k`` <= 33 joints) are the per-joint ``3 x 3`` blocks of the two views'
-``2 x 3`` projection Jacobians plus the bones' ``1 x 3`` length Jacobians, ``B`` rows
-in all; they are solved through the ``B x B`` system of the Woodbury identity where every
-joint keeps both views (densely otherwise), vectorised; the joints' covariance is the
-diagonal blocks of their inverse (the Laplace approximation, at the final weights).
+reprojection threshold cannot see) is held by its bones. A "bone" here is any pair of
+joints held at a distance: the offline joints pass's torso distances
+(:mod:`mirrorgraph.factors.torso`, the shoulders tied to the hips) are more such pairs.
+The normal equations (``3k x 3k``, ``k`` <= 33 joints) are the per-joint ``3 x 3``
+blocks of the two views' ``2 x 3`` projection Jacobians plus the bones' ``1 x 3`` length
+Jacobians, ``B`` rows in all; they are solved through the ``B x B`` system of the
+Woodbury identity where every joint keeps both views (densely otherwise), vectorised; the
+joints' covariance is the diagonal blocks of their inverse (the Laplace approximation, at
+the final weights).
 """
 
 from __future__ import annotations
@@ -124,6 +127,30 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
     return Hinv @ Hb @ Hinv
 
 
+def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
+                 sigma_len: "float | np.ndarray", k: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One frame's bone table: the bones whose two ends the frame has and whose length
+    is known, in the frame's local joint indices.
+
+    Args:
+        joints: ``(k,)`` the skeleton's indices of the frame's ``k`` joints.
+        bones: ``(B, 2)`` the skeleton's bones; lengths: ``(B,)`` (NaN: not used).
+        sigma_len: the bones' spread, one for all or ``(B,)`` one a bone.
+        k: the frame's joint count.
+
+    Returns:
+        ``(a, b, L, sl)``: ``(m,)`` each used bone's two ends (local indices), its length
+        and its spread.
+    """
+    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
+    local[np.asarray(joints)] = np.arange(k)
+    a, b = local[bones[:, 0]], local[bones[:, 1]]
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
+    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    return a[use], b[use], np.asarray(lengths, float)[use], sl
+
+
 def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                   cov: np.ndarray, u: np.ndarray, um: np.ndarray, keep: np.ndarray,
                   joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
@@ -163,14 +190,9 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     """
     X = np.asarray(X, float)
     k = len(X)
-    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
-    local[np.asarray(joints)] = np.arange(k)
-    a, b = local[bones[:, 0]], local[bones[:, 1]]
-    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
-    if not use.any():
+    a, b, L, sl = _frame_bones(joints, bones, lengths, sigma_len, k)
+    if not len(L):
         return X.copy(), np.array(cov, float)
-    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
-    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
     # every bone end moved to its other branch about the bone's other end
     move = np.concatenate([a, b])                                  # (2B,)
     fixed = np.concatenate([b, a])
@@ -248,12 +270,7 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
         ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)``.
     """
     k = len(XA)
-    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
-    local[np.asarray(joints)] = np.arange(k)
-    a, b = local[bones[:, 0]], local[bones[:, 1]]
-    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
-    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
-    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    a, b, L, sl = _frame_bones(joints, bones, lengths, sigma_len, k)
     ends = np.stack([a, b], 1)
     who = np.arange(k)
     with np.errstate(invalid="ignore", over="ignore"):
@@ -300,7 +317,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         u, um: ``(k, 2)`` their pixels in the camera and in the mirror (the reflection's
             keypoints in the person's labels), undistorted.
         joints: ``(k,)`` the skeleton's indices of the ``k`` joints.
-        bones: ``(B, 2)`` skeleton joint indices of each bone's two ends.
+        bones: ``(B, 2)`` skeleton joint indices of each bone's two ends (any two
+            joints held at a distance: the torso's too).
         lengths: ``(B,)`` the bones' lengths (the unit of ``X``); NaN: not used.
         sigma_px: the reprojection noise, px.
         sigma_len: the bones' spread about their lengths (the unit of ``X``), one for
@@ -324,12 +342,7 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
     k = len(X)
     n = np.asarray(normal, float)
     H = np.eye(3) - 2.0 * np.outer(n, n)
-    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
-    local[np.asarray(joints)] = np.arange(k)
-    a, b = local[bones[:, 0]], local[bones[:, 1]]
-    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
-    a, b, L = a[use], b[use], np.asarray(lengths, float)[use]
-    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
+    a, b, L, sl = _frame_bones(joints, bones, lengths, sigma_len, k)
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((k, 2), bool)

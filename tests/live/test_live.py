@@ -767,3 +767,47 @@ def test_a_low_parallax_stream_keeps_every_joint_within_a_metre():
     assert pa < 0.040, pa
     assert np.mean(e > 0.3) < 0.005, np.mean(e > 0.3)
     assert e.max() < 1.0, e.max()
+
+
+def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
+    """With ``RefineOptions.torso_sigma`` the windows' joints pass holds the torso's
+    distances, and each frame's refinement holds them too: the window's four (the two
+    sides, the two diagonals; measured on its joints, within 5 % of the true ones) reach
+    :func:`~mirrorgraph.live.frame_prior.refine_with_bones` beside the bones, at
+    ``torso_sigma`` of the height; without the option only the bones do."""
+    from mirrorgraph.graph import RefineOptions
+    from mirrorgraph.live import calibrator as live_calibrator
+
+    sc = make_wide_scene(3, "wide", "iid", 300)
+    sk = sc.skeleton
+    sizes = []
+    real = live_calibrator.refine_with_bones
+
+    def spy(K, normal, distance, X, u, um, joints, bones, lengths, *args, **kw):
+        sizes.append(int(np.isfinite(lengths).sum()))
+        return real(K, normal, distance, X, u, um, joints, bones, lengths, *args, **kw)
+
+    monkeypatch.setattr(live_calibrator, "refine_with_bones", spy)
+    live = _live(sc, refine_options=RefineOptions(torso_sigma=0.02))
+    _feed(live, sc.detections.people)
+    live.finish()
+    torso = live.fusion.torso_lengths
+    assert len(torso) == 4
+    for name, length in torso.items():
+        a, b = (sk.index(j) for j in name.split("-"))
+        true = np.median(np.linalg.norm(sc.joints3d[:, a] - sc.joints3d[:, b], axis=1))
+        assert abs(length / true - 1.0) < 0.05, (name, length, true)
+    pairs, L, sigma = live._frame_lengths()
+    B = len(live._bones)
+    assert len(pairs) == B + 4 and np.allclose(L[B:], list(torso.values()))
+    assert np.allclose(sigma[B:], 0.02 * live._lengths_height)
+    assert max(sizes) == B + 4
+    live.close()
+
+    sizes.clear()
+    plain = _live(sc)
+    _feed(plain, sc.detections.people[:200])
+    plain.finish()
+    assert plain.fusion.bone_lengths and not plain.fusion.torso_lengths
+    assert len(plain._frame_lengths()[0]) == B and max(sizes) == B
+    plain.close()
