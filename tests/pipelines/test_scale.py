@@ -20,6 +20,7 @@ import pytest
 from mirrorgraph import geometry as geo
 from mirrorgraph.errors import InputError
 from mirrorgraph.graph import RefineOptions
+from mirrorgraph.graph.options import GaugeOptions
 from mirrorgraph.graph.result import RefinementResult
 from mirrorgraph.pipelines.scale import scale_by_stature
 from mirrorgraph.stature import LIMB_PROPORTIONS
@@ -94,13 +95,13 @@ def test_the_rescaling_is_a_pure_change_of_scale(scene):
     np.testing.assert_array_equal(out.normal, res.normal)
     np.testing.assert_array_equal(out.valid, res.valid)
     np.testing.assert_allclose(out.joints3d[out.valid], f * res.joints3d[res.valid], rtol=1e-12)
-    # the std scaled, and the stature measurement's own (the end keypoints' placement)
+    # the std: the normal's through the stature, the height's prior and the stature
+    # measurement's own (the end keypoints' placement)
     from mirrorgraph.stature import measurement_rel_std
 
     rel = measurement_rel_std(out.stature)
     assert rel > 0.02
-    assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance),
-                                             rel=1e-12)
+    _std_of_parts(out, rel)
     assert out.bone_lengths == pytest.approx({b: f * v for b, v in res.bone_lengths.items()})
     # the images do not change: the same pixels in the camera and in the mirror
     X, Y = res.joints3d[res.valid], out.joints3d[out.valid]
@@ -110,6 +111,21 @@ def test_the_rescaling_is_a_pure_change_of_scale(scene):
         geo.project(scene.K, geo.reflect_points(X, res.normal, res.distance)), atol=1e-9)
     # the input is left as it was
     assert res.distance == pytest.approx(1.13 * scene.distance) and res.stature is None
+
+
+def _std_of_parts(out: RefinementResult, measurement: float,
+                  height_sigma: float = GaugeOptions().height_sigma) -> dict:
+    """``out.distance_std`` is its parts' quadrature: the data's (the normal's through the
+    stature and the stature's sampling), the height's prior and ``measurement``."""
+    parts = out.stature["distance_rel_std"]
+    assert parts["measurement"] == pytest.approx(measurement, rel=1e-12)
+    assert parts["height"] == height_sigma
+    assert parts["data"] == pytest.approx(math.hypot(parts["normal"], parts["sampling"]))
+    assert parts["normal"] > 0 and parts["sampling"] > 0
+    assert parts["total"] == pytest.approx(
+        math.sqrt(parts["data"] ** 2 + height_sigma ** 2 + measurement ** 2), rel=1e-12)
+    assert out.distance_std == pytest.approx(parts["total"] * out.distance, rel=1e-12)
+    return parts
 
 
 def test_the_result_does_not_depend_on_the_scale_it_started_from(scene):
@@ -212,8 +228,7 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     rel = measurement_rel_std(out.stature)
     assert rel == pytest.approx(np.hypot(out.stature["bones_rel_spread"],
                                          keypoint_rel_std(out.stature["top"]))) and rel > 0.1
-    f = out.distance / res.distance
-    assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance))
+    _std_of_parts(out, rel)
     assert abs(err) < 2 * out.distance_std / out.distance
 
 
@@ -230,11 +245,9 @@ def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
     default = scale_by_stature(res, paired, scene.K, H)
     zero = scale_by_stature(res, paired, scene.K, H, keypoint_offset=0.0)
     assert zero.distance == default.distance and zero.stature["keypoint_offset"] == 0.0
-    f = zero.distance / res.distance
     rel = math.hypot(zero.stature["side_rel_diff"], zero.stature["bones_rel_spread"])
     assert measurement_rel_std(zero.stature) == pytest.approx(rel, rel=1e-12)
-    assert zero.distance_std == pytest.approx(math.hypot(f * res.distance_std,
-                                                         rel * zero.distance), rel=1e-12)
+    _std_of_parts(zero, rel)
     assert zero.distance_std < default.distance_std
     two = scale_by_stature(res, paired, scene.K, H,
                            keypoint_offset=keypoint_offset_fraction(0.02, H))
