@@ -479,7 +479,9 @@ def test_a_single_mirror_calibrates_as_the_rig_of_one_camera(tmp_path):
     np.testing.assert_allclose(m.normal, one.normal, rtol=0, atol=1e-9)
     assert m.distance == pytest.approx(one.distance, rel=1e-9)
     assert m.rotation_std_deg == pytest.approx(one.uncertainty["rotation_std_deg"], rel=1e-6)
-    assert m.distance_std == pytest.approx(one.uncertainty["distance_std"], rel=1e-6)
+    # the same parts; the stature's sampling std measured on the rig's completed joints
+    # (the single mirror's: its graph's and the chain's triangulated) differs by ~1e-3 of it
+    assert m.distance_std == pytest.approx(one.uncertainty["distance_std"], rel=1e-5)
     assert normal_angle_deg(m.normal, one.normal) < 1e-6
     assert mirror_rotation_error_deg(m.normal, s.normal) < 3 * m.rotation_std_deg
     assert abs(m.distance / s.distance - 1) < 0.02
