@@ -7,7 +7,8 @@ measured on the joints triangulated with the mirror ``(n, 1)``,
 the stature, the stature's sampling, the height's prior and the measurement's spread. The
 scale (the joints' one factor about the camera against the truth) holds the last two.
 
-Each scene (``make_wide_scene(seed, "wide", kind, frames)``, the generator's population
+Each scene (``bench_joints.py``'s: ``make_wide_scene(seed, "wide", kind, frames)`` for
+``iid`` and ``realistic``, its other kinds by ``--kinds``; the generator's population
 bodies, the camera matrix given) is calibrated by ``calibrate`` under three settings:
 
 - ``reported``: the height a user reports (``bench_joints.py``'s model: the truth + 1.1 cm
@@ -240,7 +241,8 @@ def main(argv: list[str] | None = None) -> int:
              "", *header(code=True),
              f"- before: `{old}` (`git archive`); after: the working tree; {minutes:.1f} min "
              f"with {args.workers} workers",
-             f"- scenes: `make_wide_scene(seed, 'wide', kind, {args.frames})`, kinds "
+             f"- scenes: `bench_joints.py`'s of each kind (`iid`, `realistic`: "
+             f"`make_wide_scene(seed, 'wide', kind, {args.frames})`), kinds "
              f"{', '.join(kinds)}, seeds {seeds[0]}-{seeds[-1]}; population bodies; the camera "
              "matrix given",
              "- settings: `reported` (the user's reported height, defaults), `exact` (the true "
