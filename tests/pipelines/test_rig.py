@@ -495,7 +495,7 @@ def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
     stds (the scale's share in them) are smaller than with the literature's placement,
     and the rig is the same."""
     from mirrorgraph.graph import RefineOptions
-    from mirrorgraph.stature import measurement_rel_std
+    from mirrorgraph.stature import measurement_rel_std, unmeasured_rel_std
 
     rig = make_rig("2cams1mirror", frames=60, seed=1, noise_std=4.0)
     path = write_rig(rig, tmp_path)
@@ -504,8 +504,9 @@ def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
         refine_options=RefineOptions(keypoint_offset=0.0)))
     st = zero.refinement["stature"]
     assert st["keypoint_offset"] == 0.0 and "0.0 cm" in zero.scale_source
-    assert measurement_rel_std(st) == pytest.approx(
-        np.hypot(st["side_rel_diff"], st["bones_rel_spread"]), rel=1e-12)
+    assert measurement_rel_std(st) == pytest.approx(np.sqrt(
+        st["side_rel_diff"] ** 2 + st["bones_rel_spread"] ** 2
+        + unmeasured_rel_std(st["top"]) ** 2), rel=1e-12)
     assert measurement_rel_std(st) < measurement_rel_std(default.refinement["stature"])
     far = int(np.argmax([np.linalg.norm(c.pose[:3, 3]) for c in default.cameras]))
     assert zero.cameras[far].position_std < default.cameras[far].position_std

@@ -212,7 +212,7 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     stretched along both legs alike): the stature comes out long and the distance short;
     the legs agree, and the segments' disagreement (legs against arms, trunk, widths) is
     the std's measurement term, which covers the error."""
-    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std
+    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std, unmeasured_rel_std
 
     sk, paired = scene.skeleton, scene.paired()
     res = _limbs_at_scale(scene, 1.0)
@@ -226,8 +226,10 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     err = out.distance / scene.distance - 1
     assert err < -0.1 and out.stature["side_rel_diff"] < 0.005
     rel = measurement_rel_std(out.stature)
-    assert rel == pytest.approx(np.hypot(out.stature["bones_rel_spread"],
-                                         keypoint_rel_std(out.stature["top"]))) and rel > 0.1
+    top = out.stature["top"]
+    assert rel == pytest.approx(np.sqrt(out.stature["bones_rel_spread"] ** 2
+                                        + keypoint_rel_std(top) ** 2
+                                        + unmeasured_rel_std(top) ** 2)) and rel > 0.1
     _std_of_parts(out, rel)
     assert abs(err) < 2 * out.distance_std / out.distance
 
@@ -238,14 +240,17 @@ def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
     (the legs apart, the segments' disagreement) beside the data's, smaller than with
     the literature's placement; 2 cm stated on the scene's subject: ``sqrt(2) 0.02 / H
     / (1 - u)`` in quadrature with them."""
-    from mirrorgraph.stature import keypoint_offset_fraction, measurement_rel_std
+    from mirrorgraph.stature import (keypoint_offset_fraction, measurement_rel_std,
+                                     unmeasured_rel_std)
 
     paired, H = scene.paired(), scene.subject_height
     res = _limbs_at_scale(scene, 1.13)
     default = scale_by_stature(res, paired, scene.K, H)
     zero = scale_by_stature(res, paired, scene.K, H, keypoint_offset=0.0)
     assert zero.distance == default.distance and zero.stature["keypoint_offset"] == 0.0
-    rel = math.hypot(zero.stature["side_rel_diff"], zero.stature["bones_rel_spread"])
+    un = unmeasured_rel_std(zero.stature["top"])
+    rel = math.sqrt(zero.stature["side_rel_diff"] ** 2 + zero.stature["bones_rel_spread"] ** 2
+                    + un ** 2)
     assert measurement_rel_std(zero.stature) == pytest.approx(rel, rel=1e-12)
     _std_of_parts(zero, rel)
     assert zero.distance_std < default.distance_std
@@ -255,7 +260,7 @@ def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
     kp = math.sqrt(2) * 0.02 / H / (1 - u)
     assert measurement_rel_std(two.stature) == pytest.approx(
         math.sqrt(two.stature["side_rel_diff"] ** 2 + two.stature["bones_rel_spread"] ** 2
-                  + kp ** 2), rel=1e-9)
+                  + kp ** 2 + un ** 2), rel=1e-9)
     assert "2.0 cm" in two.scale_source
     # the limbs' scale, asked for: its prior without the keypoints' share
     limbs0 = scale_by_stature(res, paired, scene.K, H, "limbs", keypoint_offset=0.0)
