@@ -94,6 +94,20 @@ HEIGHT_FRACTION_CV: dict[str, float] = {
 #: elbow) cancels in the limb's length.
 KEYPOINT_OFFSET = 0.017
 
+#: How much the parts of the stature that no keypoint spans vary among adults, as a
+#: fraction of the stature (dimensionless): ``ankle``, the lateral malleolus above the
+#: floor, and ``head``, the vertex above the eyes. Their coefficients of variation over the
+#: 6,068 men of ANSUR II (C. C. Gordon et al., *2012 Anthropometric Survey of U.S. Army
+#: Personnel*, NATICK/TR-15/007, 2014; its public data: lateral malleolus height
+#: 69.6 +- 7.3 mm, tragion to top of head 129.6 +- 6.7 mm, the nearest measured span to
+#: eyes-to-vertex), 10.4 % and 5.1 %, at Winter's fractions (:data:`LANDMARK_HEIGHT`:
+#: 0.039 and 0.064): 0.41 % and 0.33 %. The whole spread is taken (what correlates with
+#: stature is not taken out): an upper bound.
+UNMEASURED_STD: dict[str, float] = {
+    "ankle": 0.039 * 7.27 / 69.58,
+    "head": 0.064 * 6.66 / 129.62,
+}
+
 #: Height of a landmark above the floor / standing height, standing upright
 #: (Winter 2009, Fig. 4.1).
 LANDMARK_HEIGHT: dict[str, float] = {

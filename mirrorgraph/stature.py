@@ -42,11 +42,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .anthropometry import (HEIGHT_FRACTION, HEIGHT_FRACTION_CV, KEYPOINT_OFFSET,
-                            LANDMARK_HEIGHT, bone_kind)
+                            LANDMARK_HEIGHT, UNMEASURED_STD, bone_kind)
 from .skeletons import Skeleton
 
 __all__ = ["StatureEstimate", "estimate_stature", "stature_joints", "stature_rescale",
            "with_height_sigma", "measurement_rel_std", "bones_rel_spread", "keypoint_rel_std",
+           "unmeasured_rel_std",
            "limbs_rel_std", "keypoint_offset_fraction", "segment_rel_std", "MIN_FRAMES",
            "SAMPLING_BLOCKS", "BONES_ALPHA", "WILD_RATIO", "SEGMENT_REL_STD",
            "LIMB_PROPORTIONS", "LIMB_CHOSEN"]
@@ -502,6 +503,21 @@ def keypoint_rel_std(top: str = "eyes", keypoint_offset: float = KEYPOINT_OFFSET
     return math.sqrt(2.0) * float(keypoint_offset) / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
 
 
+def unmeasured_rel_std(top: str = "eyes") -> float:
+    """The stature's relative std from the subject's own proportions of the parts no
+    keypoint spans: the ankle above the floor and, with the eyes as top, the vertex above
+    them, taken at Winter's landmark heights (:data:`~mirrorgraph.anthropometry.
+    LANDMARK_HEIGHT`). With ``u`` the unmeasured fraction, ``H = S / (1 - u)`` errs by
+    ``du / (1 - u)``, ``du`` the subject's departure from it: each part's spread among
+    adults (:data:`~mirrorgraph.anthropometry.UNMEASURED_STD`, ANSUR II), independent,
+    over ``1 - u``: 0.58 % with the eyes, 0.42 % with the head top (dimensionless). A
+    prior, like :func:`keypoint_rel_std`: no video shows it."""
+    parts = [UNMEASURED_STD["ankle"]] + ([] if top == "head_top" else [UNMEASURED_STD["head"]])
+    above = (1.0 - LANDMARK_HEIGHT["vertex"] if top == "head_top"
+             else LANDMARK_HEIGHT["vertex"] - LANDMARK_HEIGHT["eye"])
+    return math.hypot(*parts) / (1.0 - LANDMARK_HEIGHT["ankle"] - above)
+
+
 def _limbs_parts(keypoint_offset: float = KEYPOINT_OFFSET) -> tuple[float, float]:
     """``(proportions, keypoints)``: the relative stds of the limb-proportion scale
     (:func:`limbs_rel_std`)."""
@@ -556,6 +572,7 @@ def measurement_rel_std(stature: StatureEstimate | dict | None,
 
     The detector's placement of the scale's keypoints and the proportions they stand for
     (a prior: no video shows them; the chain's end keypoints, :func:`keypoint_rel_std`,
+    with the subject's proportions of the unmeasured parts, :func:`unmeasured_rel_std`,
     or the limbs', :func:`limbs_rel_std`) and two views of a distorted reconstruction,
     measured on the result's stature, added in quadrature:
 
@@ -611,7 +628,7 @@ def measurement_rel_std(stature: StatureEstimate | dict | None,
     elif stature is None:
         return 0.0
     else:
-        prior = keypoint_rel_std(top, o)
+        prior = math.hypot(keypoint_rel_std(top, o), unmeasured_rel_std(top))
     return float(np.sqrt(float(side) ** 2 + float(bones) ** 2 + prior ** 2))
 
 

@@ -125,13 +125,14 @@ def test_a_leg_measured_long_on_one_side_is_the_measurements_spread():
     that places one side's joints with a bias measures one leg long: ``side_rel_diff`` is
     ``|L - R| / (L + R)``, the spread :func:`~mirrorgraph.stature.measurement_rel_std`
     adds to the metric scale."""
-    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std
+    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std, unmeasured_rel_std
 
     sk, pts, valid, _ = _subject(3)
     est = estimate_stature(pts, valid, sk)
     assert est.side_rel_diff < 0.005
-    assert measurement_rel_std(est) == pytest.approx(np.hypot(est.side_rel_diff,
-                                                              keypoint_rel_std(est.top)))
+    assert measurement_rel_std(est) == pytest.approx(np.sqrt(
+        est.side_rel_diff ** 2 + keypoint_rel_std(est.top) ** 2
+        + unmeasured_rel_std(est.top) ** 2))
     long = pts.copy()
     hip = long[:, [sk.index("right_hip")]]
     for j in ("right_knee", "right_ankle"):                 # the right leg 30 % longer
@@ -213,7 +214,7 @@ def test_legs_lengthened_alike_are_the_measurements_spread():
     comes out ~22 % long, the legs agree, and the segments' disagreement (legs long against
     arms, widths and trunk) holds the error; 20 % long (stature +11 %) stays within what
     adults and keypoints' placement give (nothing added)."""
-    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std
+    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std, unmeasured_rel_std
 
     sk, pts, valid, _ = _subject(3)
     est = estimate_stature(_legs_stretched(pts, sk, 1.4), valid, sk)
@@ -222,7 +223,8 @@ def test_legs_lengthened_alike_are_the_measurements_spread():
     assert err / 2 < est.bones_rel_spread < 2 * err
     assert estimate_stature(_legs_stretched(pts, sk, 1.2), valid, sk).bones_rel_spread == 0.0
     assert measurement_rel_std(est) == pytest.approx(np.sqrt(
-        est.side_rel_diff ** 2 + est.bones_rel_spread ** 2 + keypoint_rel_std(est.top) ** 2))
+        est.side_rel_diff ** 2 + est.bones_rel_spread ** 2 + keypoint_rel_std(est.top) ** 2
+        + unmeasured_rel_std(est.top) ** 2))
     assert measurement_rel_std(est.to_dict()) == pytest.approx(measurement_rel_std(est))
     assert est.scaled(3.0).bones_rel_spread == est.bones_rel_spread
 
@@ -401,11 +403,12 @@ def test_a_rigs_limbs_scale_keeps_the_solution_and_measures_its_stature():
 def test_keypoints_stated_on_the_landmarks_leave_the_measured_terms():
     """A keypoint placement stated as 0 (keypoints on the landmarks: projected markers,
     synthetic): the chain's placement term is 0 and the measurement's std is the legs
-    apart and the segments' disagreement alone, in quadrature; stated in metres it is
+    apart, the segments' disagreement and the unmeasured parts' proportions (ANSUR II's
+    ankle and head heights) in quadrature; stated in metres the placement is
     ``sqrt(2) o / H / (1 - u)``, ``u`` the unmeasured fraction; the record carries it."""
     from mirrorgraph.anthropometry import KEYPOINT_OFFSET
     from mirrorgraph.stature import (keypoint_offset_fraction, keypoint_rel_std,
-                                     measurement_rel_std)
+                                     measurement_rel_std, unmeasured_rel_std)
 
     sk, pts, valid, _ = _subject(3)
     long = pts.copy()
@@ -418,13 +421,16 @@ def test_keypoints_stated_on_the_landmarks_leave_the_measured_terms():
     assert zero.side_rel_diff == default.side_rel_diff > 0.01
     assert zero.bones_rel_spread == default.bones_rel_spread == 0.0   # a body measured right
     assert keypoint_rel_std(zero.top, 0.0) == 0.0
-    # the documented sum: the measured spreads alone, against the default's three terms
-    # (the end keypoints' sqrt(2) o / (1 - u), eyes as top: u = 0.039 + 0.064)
+    # the documented sum: the measured spreads and the unmeasured parts' (eyes as top:
+    # u = 0.039 + 0.064; ANSUR II's 0.41 % and 0.33 % over 1 - u), against the default's
+    # four terms (the end keypoints' sqrt(2) o / (1 - u))
+    u = unmeasured_rel_std(zero.top)
+    assert u == pytest.approx(math.hypot(0.0041, 0.0033) / 0.897, rel=0.01)
     assert measurement_rel_std(zero) == pytest.approx(
-        math.hypot(zero.side_rel_diff, zero.bones_rel_spread), rel=1e-12)
+        math.sqrt(zero.side_rel_diff ** 2 + zero.bones_rel_spread ** 2 + u ** 2), rel=1e-12)
     assert measurement_rel_std(default) == pytest.approx(math.sqrt(
         default.side_rel_diff ** 2 + default.bones_rel_spread ** 2
-        + (math.sqrt(2) * KEYPOINT_OFFSET / 0.897) ** 2), rel=1e-3)
+        + (math.sqrt(2) * KEYPOINT_OFFSET / 0.897) ** 2 + u ** 2), rel=1e-3)
     assert measurement_rel_std(zero) < measurement_rel_std(default) - 0.01
     # the JSON record and the scaled estimate keep the statement
     assert zero.to_dict()["keypoint_offset"] == 0.0

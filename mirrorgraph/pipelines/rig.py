@@ -27,7 +27,8 @@ from ..graph.options import RefineOptions
 from .options import CalibrateOptions
 from .judge import judge_rig
 from ..stature import keypoint_offset_fraction, measurement_rel_std, with_height_sigma
-from .scale import scale_rig_by_stature
+from .scale import distance_rel_parts, normal_scale_rel_std, scale_rig_by_stature
+from ..keypoints import PairedKeypoints
 from ..completion import complete_rig_joints
 from ..joint_sets import resolve_joints
 from ..rigs.config import RigConfig, load_rig_config
@@ -349,6 +350,31 @@ def _clock(clock) -> dict:
                 clock_rate=float(clock.rate), clock_rate_std=float(clock.rate_std))
 
 
+def _one_mirror_distance_std(obs, sol, name: str, n, d: float, normal_cov, data_std: float,
+                             stature, run: CalibrateOptions) -> float | None:
+    """A one-camera rig's mirror distance std with the scale from the stature: the single
+    mirror's (:func:`~.scale.distance_rel_parts`, the normal's share through the stature,
+    :func:`~.scale.normal_scale_rel_std`, from the camera's person and reflection); ``None``
+    (the graph's std with the scale's share) for several cameras, the limbs' scale or no
+    stature."""
+    opts, height = run.graph, run.subject_height
+    if (len(obs.cameras) != 1 or stature is None or height is None
+            or opts.scale_from != "stature" or not np.isfinite(data_std)):
+        return None
+    cam = obs.cameras[0]
+    if name not in cam.reflections:
+        return None
+    paired = PairedKeypoints(skeleton=obs.skeleton, frame_ids=obs.frame_ids, real=cam.real,
+                             mirror=cam.reflections[name], source=cam.source)
+    offset = keypoint_offset_fraction(opts.keypoint_offset, height)
+    normal_rel = normal_scale_rel_std(paired, np.asarray(sol.intrinsics[0], float), n, d,
+                                      np.asarray(sol.used, bool), normal_cov, offset)
+    focal = sol.focal.get(cam.name) or {}
+    parts = distance_rel_parts(normal_rel, stature, opts.height_sigma,
+                               float(focal.get("rel_std", 0.0)) if focal else 0.0)
+    return parts["total"] * float(d)
+
+
 def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_stature=None
              ) -> tuple[list[RigCamera], list[RigMirror]]:
     """The result's cameras and mirrors from the solution: poses, intrinsics (an estimated
@@ -389,7 +415,8 @@ def _records(obs, init, sol, run: CalibrateOptions, warnings: list[str], sol_sta
         mrot = float("nan")
         if sol.plane_basis:
             ncov, rot, dstd = plane_std(sol.plane_cov[i], sol.plane_basis[i])
-            dstd = with_height_sigma(dstd, d, rel)
+            one = _one_mirror_distance_std(obs, sol, name, n, d, ncov, dstd, sol_stature, run)
+            dstd = with_height_sigma(dstd, d, rel) if one is None else one
             mrot = plane_std((sol.marginal_plane_cov or sol.plane_cov)[i], sol.plane_basis[i])[1]
         else:
             ncov, rot, dstd = np.full((3, 3), np.nan), float("nan"), float("nan")

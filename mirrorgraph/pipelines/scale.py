@@ -13,6 +13,16 @@ ratios are unchanged, so it is the solution the graph would reach under that gau
 The chain needs the eyes (or the head top), which the calibration joints (the
 limbs) do not include: they are triangulated here from the person and the
 reflection with the refined mirror (:func:`mirrorgraph.geometry.triangulate_mirror`).
+
+The metric distance is then ``D = H d / S(n, d)`` with ``S`` the stature measured on joints
+triangulated with the mirror ``(n, d)``; triangulation scales with ``d``, so
+``D = H / S(n, 1)``: whatever gauge held the graph's scale, only the mirror's normal and
+the stature's measurement move it. Its relative std (:func:`distance_rel_parts`) holds the
+normal's covariance carried through ``d ln S / d n`` (:func:`normal_scale_rel_std`: a
+subject far beyond the mirror's foot point turns a small tilt into a scale, 2.7 % per
+0.01 rad with the subject at 2.2 times the mirror's distance), the stature's sampling std,
+the given height's prior and the measurement's own spread
+(:func:`mirrorgraph.stature.measurement_rel_std`).
 """
 
 from __future__ import annotations
@@ -28,10 +38,22 @@ from ..geometry import triangulate_mirror
 from ..keypoints import PairedKeypoints
 from ..stature import (LIMB_CHOSEN, StatureEstimate, estimate_stature, measurement_rel_std,
                        stature_joints, stature_rescale, with_height_sigma)
+from ..graph.options import GaugeOptions
 from ..graph.result import RefinementResult
 from ..rigs.identities import groups_by_size
 
-__all__ = ["scale_by_stature", "scale_rig_by_stature", "limbs_stature", "subject_frames"]
+__all__ = ["scale_by_stature", "scale_rig_by_stature", "limbs_stature", "subject_frames",
+           "normal_scale_rel_std", "distance_rel_parts", "NORMAL_STEP", "NORMAL_FRAMES"]
+
+#: The normal's step (radians) of the central differences of ``ln S`` in
+#: :func:`normal_scale_rel_std`: the stature is a sum of medians, piecewise constant
+#: under a step of 1e-4 rad on a 1000-frame scene (the gradient 2x off), stable within
+#: 10 % from 1e-3 to 2e-2 rad; a tenth of a degree is within a typical normal's std.
+NORMAL_STEP = 3e-3
+
+#: Most frames :func:`normal_scale_rel_std` triangulates (spread evenly over the video):
+#: the medians' gradient is settled by then, and a long video costs no more.
+NORMAL_FRAMES = 2000
 
 
 def limbs_stature(points: np.ndarray, valid: np.ndarray, skeleton,
@@ -70,9 +92,116 @@ def _with_head(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray
     return points, valid
 
 
+def _tangent_basis(normal: np.ndarray) -> np.ndarray:
+    """``(3, 2)`` orthonormal basis of the plane perpendicular to ``normal``."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.eye(3)[int(np.argmin(np.abs(n)))]
+    b1 = np.cross(n, a)
+    b1 /= np.linalg.norm(b1)
+    return np.stack([b1, np.cross(n, b1)], axis=1)
+
+
+def normal_scale_rel_std(paired: PairedKeypoints, K: np.ndarray, normal: np.ndarray,
+                         distance: float, valid: np.ndarray, normal_cov: np.ndarray,
+                         keypoint_offset: float = KEYPOINT_OFFSET) -> float:
+    """The metric distance's relative std from the mirror normal's uncertainty, through
+    the stature.
+
+    With the scale from the stature, the metric distance is ``D = H / S(n, 1)``, ``S``
+    the stature measured (:func:`mirrorgraph.stature.estimate_stature`) on the chain's
+    joints triangulated from both views with the mirror ``(n, 1)``
+    (:func:`mirrorgraph.geometry.triangulate_mirror`); a tilt ``dn`` of the normal moves
+    the subject's reconstructed depth, and so ``S``, by the subject's lever arm about the
+    mirror's foot point (the body far beyond it: several percent per degree). First-order
+    propagation (Bishop, *Pattern Recognition and Machine Learning*, 2006, sec. 2.3.3):
+    ``var ln D = g^T B^T C B g``, ``g`` the gradient of ``ln S`` over the two tangent
+    coordinates ``B`` of the normal (central differences of step :data:`NORMAL_STEP`), ``C``
+    the normal's covariance. The joints' error at a given mirror is the stature's sampling
+    std (:attr:`~mirrorgraph.stature.StatureEstimate.sampling_rel_std`), not this.
+
+    Args:
+        paired: person and reflection keypoints (undistorted pixels).
+        K: ``(3, 3)`` intrinsics.
+        normal: ``(3,)`` the mirror's unit normal (camera frame).
+        distance: the mirror's distance (any unit: ``S`` scales with it, ``ln S``'s
+            gradient does not).
+        valid: ``(T, J)`` bool, the observations to triangulate (the chain's joints the
+            run used; at most :data:`NORMAL_FRAMES` frames are taken, evenly spread).
+        normal_cov: ``(3, 3)`` the normal's covariance (rad^2, camera frame).
+        keypoint_offset: the keypoints' placement, a fraction of the height (unused by
+            the height itself; passed to the estimate).
+
+    Returns:
+        The relative std (dimensionless); 0 where the stature cannot be measured at the
+        perturbed normals or the covariance is not finite.
+    """
+    C = np.asarray(normal_cov, float)
+    chain = stature_joints(paired.skeleton)
+    if chain is None or C.shape != (3, 3) or not np.all(np.isfinite(C)):
+        return 0.0
+    ok = np.asarray(valid, bool)[:, chain] & paired.valid()[:, chain]           # (T, k)
+    rows = np.flatnonzero(ok.any(1))
+    if len(rows) > NORMAL_FRAMES:
+        rows = rows[np.linspace(0, len(rows) - 1, NORMAL_FRAMES).round().astype(int)]
+    t, k = np.nonzero(ok[rows])
+    j = chain[k]
+    u, um = paired.real[rows[t], j, :2], paired.mirror[rows[t], j, :2]
+    J = paired.real.shape[1]
+    n0 = np.asarray(normal, float) / np.linalg.norm(normal)
+    B = _tangent_basis(n0)
+
+    def log_stature(n: np.ndarray) -> float:
+        n = n / np.linalg.norm(n)
+        X = triangulate_mirror(K, n, float(distance), u, um)
+        with np.errstate(invalid="ignore"):
+            good = (np.isfinite(X).all(-1) & (X[:, 2] > 0) & (X @ n < float(distance)))
+        P = np.full((len(rows), J, 3), np.nan)
+        P[t[good], j[good]] = X[good]
+        mask = np.zeros((len(rows), J), bool)
+        mask[t[good], j[good]] = True
+        est = estimate_stature(P, mask, paired.skeleton, keypoint_offset=keypoint_offset)
+        return math.log(est.height) if est is not None and est.height > 0 else float("nan")
+
+    g = np.array([(log_stature(n0 + NORMAL_STEP * B[:, i])
+                   - log_stature(n0 - NORMAL_STEP * B[:, i])) / (2.0 * NORMAL_STEP)
+                  for i in range(2)])
+    if not np.all(np.isfinite(g)):
+        return 0.0
+    var = float(g @ (B.T @ C @ B) @ g)
+    return math.sqrt(max(var, 0.0))
+
+
+def distance_rel_parts(normal_rel: float, stature: StatureEstimate, height_sigma: float,
+                       focal_rel: float = 0.0) -> dict[str, float]:
+    """The metric distance's relative std with the scale from the stature, by part.
+
+    ``D = H / S(n, 1)`` (module docstring): the data's share is the normal's
+    (``normal_rel``, :func:`normal_scale_rel_std`) and the stature's sampling std over
+    its frames (:attr:`~mirrorgraph.stature.StatureEstimate.sampling_rel_std`, 0 where
+    not measured) in quadrature, or an estimated focal length's relative std where larger
+    (a person of known size imaged at a fixed size lies at a depth proportional to the
+    focal length); the scale's share is the given height's prior (``height_sigma``,
+    ``RefineOptions.height_sigma``) and the measurement's own spread
+    (:func:`mirrorgraph.stature.measurement_rel_std`).
+
+    Returns:
+        ``normal``, ``sampling``, ``focal``, ``data``, ``height``, ``measurement`` and
+        ``total`` (the quadrature of ``data``, ``height`` and ``measurement``), each a
+        relative std (dimensionless).
+    """
+    sampling = float(stature.sampling_rel_std)
+    sampling = sampling if math.isfinite(sampling) else 0.0
+    data = max(math.hypot(float(normal_rel), sampling), float(focal_rel))
+    meas = measurement_rel_std(stature)
+    total = math.sqrt(data ** 2 + float(height_sigma) ** 2 + meas ** 2)
+    return {"normal": float(normal_rel), "sampling": sampling, "focal": float(focal_rel),
+            "data": data, "height": float(height_sigma), "measurement": meas, "total": total}
+
+
 def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarray,
                      height: float, scale_from: str = "stature",
-                     keypoint_offset: float = KEYPOINT_OFFSET) -> RefinementResult:
+                     keypoint_offset: float = KEYPOINT_OFFSET,
+                     height_sigma: float | None = None) -> RefinementResult:
     """Rescale a metric refinement so that the subject's measured stature is ``height``.
 
     Args:
@@ -87,14 +216,18 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
         keypoint_offset: the keypoints' placement off their landmarks, a fraction of the
             height (:func:`mirrorgraph.stature.keypoint_offset_fraction` of
             ``RefineOptions.keypoint_offset``), which the std holds.
+        height_sigma: the given height's relative std (``RefineOptions.height_sigma``;
+            ``None``: its default), the one ``res.distance_std`` holds.
 
     Returns:
-        ``res`` with ``distance``, ``joints3d``, ``bone_lengths`` and ``distance_std``
-        multiplied by ``height / measured stature`` (``joints_cov`` by its square, the
-        distance's part of ``plane_cov`` as the distance) (the std widened by the
-        measurement's own spread, :func:`mirrorgraph.stature.measurement_rel_std`) and
-        ``scale_source``/``stature`` set; unchanged but for ``scale_source`` when the
-        stature cannot be measured.
+        ``res`` with ``distance``, ``joints3d`` and ``bone_lengths`` multiplied by
+        ``height / measured stature`` (``joints_cov`` by its square, the distance's part
+        of ``plane_cov`` as the distance), ``distance_std`` the metric distance's
+        (:func:`distance_rel_parts` of the normal's covariance through the stature,
+        :func:`normal_scale_rel_std`, the stature's sampling, the height's prior and the
+        measurement's own spread; NaN where ``res.distance_std`` is: no marginals) and
+        ``scale_source``/``stature`` set (the record's ``distance_rel_std``: the parts);
+        unchanged but for ``scale_source`` when the stature cannot be measured.
 
     Raises:
         InputError: ``height`` is not a positive finite number.
@@ -114,10 +247,15 @@ def scale_by_stature(res: RefinementResult, paired: PairedKeypoints, K: np.ndarr
     f, source, stature = stature_rescale(points, valid, paired.skeleton, height, keypoint_offset)
     if f is None:
         return replace(res, scale_source=source)
+    hs = GaugeOptions().height_sigma if height_sigma is None else float(height_sigma)
+    normal_rel = normal_scale_rel_std(paired, K, res.normal, res.distance, valid,
+                                      res.normal_cov, keypoint_offset)
+    focal_rel = float(res.focal.get("rel_std", 0.0)) if res.focal.get("estimated") else 0.0
+    parts = distance_rel_parts(normal_rel, stature, hs, focal_rel)
     record = stature.to_dict()
-    # the measurement's own spread (the legs measured apart) on top of the height's prior
-    dstd = with_height_sigma(res.distance_std * f, res.distance * f,
-                             measurement_rel_std(stature))
+    record["distance_rel_std"] = parts
+    dstd = (parts["total"] * res.distance * f if math.isfinite(res.distance_std)
+            else float("nan"))
     plane = None
     if res.plane_cov is not None:
         plane = np.array(res.plane_cov, float)

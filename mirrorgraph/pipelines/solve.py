@@ -134,7 +134,7 @@ def refine_mirror(paired: PairedKeypoints, K: np.ndarray, normal0: np.ndarray,
     if res.scale == "subject_height":
         offset = keypoint_offset_fraction(opts.keypoint_offset, opts.subject_height)
         res = scale_by_stature(res, paired, res.intrinsics, float(opts.subject_height),
-                               opts.scale_from, offset)
+                               opts.scale_from, offset, opts.height_sigma)
         # the scale's relative std: the height's prior and the measurement's own, the
         # stature's or the limbs' (mirrorgraph.stature.measurement_rel_std), as the
         # distance's std holds it

@@ -195,8 +195,8 @@ def test_joints3d_npz_carries_each_joints_std(scene_dir, tmp_path):
 
 def test_a_stated_keypoint_placement_reaches_the_run(scene_dir, tmp_path):
     """``--keypoint-offset 0`` (keypoints on the landmarks): recorded as the run's input and
-    in its stature, the metric scale's std without the placement term (the height's prior
-    and the measured spreads in quadrature), smaller than the default's; the mirror the
+    in its stature, the metric scale's std without the placement term (the height's prior,
+    the measured spreads and the unmeasured parts' proportions in quadrature), smaller than the default's; the mirror the
     same."""
     cals, scales = {}, {}
     for flag in ([], ["--keypoint-offset", "0"]):
@@ -211,9 +211,11 @@ def test_a_stated_keypoint_placement_reaches_the_run(scene_dir, tmp_path):
     st = zero["refinement"]["stature"]
     assert st["keypoint_offset"] == 0.0 and default["refinement"]["stature"]["keypoint_offset"] > 0
     assert "0.0 cm" in zero["refinement"]["scale_source"]
+    from mirrorgraph.stature import unmeasured_rel_std
+
     assert scales[True] == pytest.approx(
         np.sqrt(GaugeOptions().height_sigma ** 2 + st["side_rel_diff"] ** 2
-                + st["bones_rel_spread"] ** 2), rel=1e-9)
+                + st["bones_rel_spread"] ** 2 + unmeasured_rel_std(st["top"]) ** 2), rel=1e-9)
     assert scales[True] < scales[False] - 0.01
     assert zero["uncertainty"]["distance_std"] < default["uncertainty"]["distance_std"]
     assert zero["mirror"]["normal"] == default["mirror"]["normal"]

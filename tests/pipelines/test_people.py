@@ -155,7 +155,9 @@ def test_each_persons_joints_std_holds_the_metric_scales_share(crowd, runs):
 def test_a_stated_keypoint_placement_is_each_persons_fraction_of_their_height(crowd, runs):
     """The people's scale with the keypoints' placement stated in metres: the chosen
     person's stature measured at ``offset / height`` (the height given is theirs), so the
-    std holds ``sqrt(2) offset / height / (1 - u)``; 0 leaves the measured spreads."""
+    std holds ``sqrt(2) offset / height / (1 - u)``; 0 leaves the measured spreads and the
+    unmeasured parts' proportions."""
+    from mirrorgraph.stature import unmeasured_rel_std
     from mirrorgraph.pipelines.people import _scale_people
 
     _, run = runs
@@ -165,7 +167,8 @@ def test_a_stated_keypoint_placement_is_each_persons_fraction_of_their_height(cr
     *_, rel2 = _scale_people(X, V, crowd.skeleton, H, None, "tallest", 0.02)
     *_, rel = _scale_people(X, V, crowd.skeleton, H, None, "tallest")
     est = estimate_stature(X[k], V[k], crowd.skeleton, keypoint_offset=0.0)
-    assert rel0 == pytest.approx(np.hypot(est.side_rel_diff, est.bones_rel_spread), rel=1e-9)
+    assert rel0 == pytest.approx(np.sqrt(est.side_rel_diff ** 2 + est.bones_rel_spread ** 2
+                                         + unmeasured_rel_std(est.top) ** 2), rel=1e-9)
     kp = np.sqrt(2) * 0.02 / H / (1 - est.unmeasured_fraction)
     assert rel2 == pytest.approx(np.sqrt(rel0 ** 2 + kp ** 2), rel=1e-6)
     assert rel0 < rel2 < rel

@@ -479,7 +479,9 @@ def test_a_single_mirror_calibrates_as_the_rig_of_one_camera(tmp_path):
     np.testing.assert_allclose(m.normal, one.normal, rtol=0, atol=1e-9)
     assert m.distance == pytest.approx(one.distance, rel=1e-9)
     assert m.rotation_std_deg == pytest.approx(one.uncertainty["rotation_std_deg"], rel=1e-6)
-    assert m.distance_std == pytest.approx(one.uncertainty["distance_std"], rel=1e-6)
+    # the same parts; the stature's sampling std measured on the rig's completed joints
+    # (the single mirror's: its graph's and the chain's triangulated) differs by ~1e-3 of it
+    assert m.distance_std == pytest.approx(one.uncertainty["distance_std"], rel=1e-5)
     assert normal_angle_deg(m.normal, one.normal) < 1e-6
     assert mirror_rotation_error_deg(m.normal, s.normal) < 3 * m.rotation_std_deg
     assert abs(m.distance / s.distance - 1) < 0.02
@@ -493,7 +495,7 @@ def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
     stds (the scale's share in them) are smaller than with the literature's placement,
     and the rig is the same."""
     from mirrorgraph.graph import RefineOptions
-    from mirrorgraph.stature import measurement_rel_std
+    from mirrorgraph.stature import measurement_rel_std, unmeasured_rel_std
 
     rig = make_rig("2cams1mirror", frames=60, seed=1, noise_std=4.0)
     path = write_rig(rig, tmp_path)
@@ -502,8 +504,9 @@ def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
         refine_options=RefineOptions(keypoint_offset=0.0)))
     st = zero.refinement["stature"]
     assert st["keypoint_offset"] == 0.0 and "0.0 cm" in zero.scale_source
-    assert measurement_rel_std(st) == pytest.approx(
-        np.hypot(st["side_rel_diff"], st["bones_rel_spread"]), rel=1e-12)
+    assert measurement_rel_std(st) == pytest.approx(np.sqrt(
+        st["side_rel_diff"] ** 2 + st["bones_rel_spread"] ** 2
+        + unmeasured_rel_std(st["top"]) ** 2), rel=1e-12)
     assert measurement_rel_std(st) < measurement_rel_std(default.refinement["stature"])
     far = int(np.argmax([np.linalg.norm(c.pose[:3, 3]) for c in default.cameras]))
     assert zero.cameras[far].position_std < default.cameras[far].position_std

@@ -20,6 +20,7 @@ import pytest
 from mirrorgraph import geometry as geo
 from mirrorgraph.errors import InputError
 from mirrorgraph.graph import RefineOptions
+from mirrorgraph.graph.options import GaugeOptions
 from mirrorgraph.graph.result import RefinementResult
 from mirrorgraph.pipelines.scale import scale_by_stature
 from mirrorgraph.stature import LIMB_PROPORTIONS
@@ -94,13 +95,13 @@ def test_the_rescaling_is_a_pure_change_of_scale(scene):
     np.testing.assert_array_equal(out.normal, res.normal)
     np.testing.assert_array_equal(out.valid, res.valid)
     np.testing.assert_allclose(out.joints3d[out.valid], f * res.joints3d[res.valid], rtol=1e-12)
-    # the std scaled, and the stature measurement's own (the end keypoints' placement)
+    # the std: the normal's through the stature, the height's prior and the stature
+    # measurement's own (the end keypoints' placement)
     from mirrorgraph.stature import measurement_rel_std
 
     rel = measurement_rel_std(out.stature)
     assert rel > 0.02
-    assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance),
-                                             rel=1e-12)
+    _std_of_parts(out, rel)
     assert out.bone_lengths == pytest.approx({b: f * v for b, v in res.bone_lengths.items()})
     # the images do not change: the same pixels in the camera and in the mirror
     X, Y = res.joints3d[res.valid], out.joints3d[out.valid]
@@ -110,6 +111,21 @@ def test_the_rescaling_is_a_pure_change_of_scale(scene):
         geo.project(scene.K, geo.reflect_points(X, res.normal, res.distance)), atol=1e-9)
     # the input is left as it was
     assert res.distance == pytest.approx(1.13 * scene.distance) and res.stature is None
+
+
+def _std_of_parts(out: RefinementResult, measurement: float,
+                  height_sigma: float = GaugeOptions().height_sigma) -> dict:
+    """``out.distance_std`` is its parts' quadrature: the data's (the normal's through the
+    stature and the stature's sampling), the height's prior and ``measurement``."""
+    parts = out.stature["distance_rel_std"]
+    assert parts["measurement"] == pytest.approx(measurement, rel=1e-12)
+    assert parts["height"] == height_sigma
+    assert parts["data"] == pytest.approx(math.hypot(parts["normal"], parts["sampling"]))
+    assert parts["normal"] > 0 and parts["sampling"] > 0
+    assert parts["total"] == pytest.approx(
+        math.sqrt(parts["data"] ** 2 + height_sigma ** 2 + measurement ** 2), rel=1e-12)
+    assert out.distance_std == pytest.approx(parts["total"] * out.distance, rel=1e-12)
+    return parts
 
 
 def test_the_result_does_not_depend_on_the_scale_it_started_from(scene):
@@ -196,7 +212,7 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     stretched along both legs alike): the stature comes out long and the distance short;
     the legs agree, and the segments' disagreement (legs against arms, trunk, widths) is
     the std's measurement term, which covers the error."""
-    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std
+    from mirrorgraph.stature import keypoint_rel_std, measurement_rel_std, unmeasured_rel_std
 
     sk, paired = scene.skeleton, scene.paired()
     res = _limbs_at_scale(scene, 1.0)
@@ -210,10 +226,11 @@ def test_legs_reconstructed_long_widen_the_distance_std(scene):
     err = out.distance / scene.distance - 1
     assert err < -0.1 and out.stature["side_rel_diff"] < 0.005
     rel = measurement_rel_std(out.stature)
-    assert rel == pytest.approx(np.hypot(out.stature["bones_rel_spread"],
-                                         keypoint_rel_std(out.stature["top"]))) and rel > 0.1
-    f = out.distance / res.distance
-    assert out.distance_std == pytest.approx(math.hypot(f * res.distance_std, rel * out.distance))
+    top = out.stature["top"]
+    assert rel == pytest.approx(np.sqrt(out.stature["bones_rel_spread"] ** 2
+                                        + keypoint_rel_std(top) ** 2
+                                        + unmeasured_rel_std(top) ** 2)) and rel > 0.1
+    _std_of_parts(out, rel)
     assert abs(err) < 2 * out.distance_std / out.distance
 
 
@@ -223,18 +240,19 @@ def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
     (the legs apart, the segments' disagreement) beside the data's, smaller than with
     the literature's placement; 2 cm stated on the scene's subject: ``sqrt(2) 0.02 / H
     / (1 - u)`` in quadrature with them."""
-    from mirrorgraph.stature import keypoint_offset_fraction, measurement_rel_std
+    from mirrorgraph.stature import (keypoint_offset_fraction, measurement_rel_std,
+                                     unmeasured_rel_std)
 
     paired, H = scene.paired(), scene.subject_height
     res = _limbs_at_scale(scene, 1.13)
     default = scale_by_stature(res, paired, scene.K, H)
     zero = scale_by_stature(res, paired, scene.K, H, keypoint_offset=0.0)
     assert zero.distance == default.distance and zero.stature["keypoint_offset"] == 0.0
-    f = zero.distance / res.distance
-    rel = math.hypot(zero.stature["side_rel_diff"], zero.stature["bones_rel_spread"])
+    un = unmeasured_rel_std(zero.stature["top"])
+    rel = math.sqrt(zero.stature["side_rel_diff"] ** 2 + zero.stature["bones_rel_spread"] ** 2
+                    + un ** 2)
     assert measurement_rel_std(zero.stature) == pytest.approx(rel, rel=1e-12)
-    assert zero.distance_std == pytest.approx(math.hypot(f * res.distance_std,
-                                                         rel * zero.distance), rel=1e-12)
+    _std_of_parts(zero, rel)
     assert zero.distance_std < default.distance_std
     two = scale_by_stature(res, paired, scene.K, H,
                            keypoint_offset=keypoint_offset_fraction(0.02, H))
@@ -242,9 +260,32 @@ def test_a_stated_keypoint_placement_sets_the_distance_std(scene):
     kp = math.sqrt(2) * 0.02 / H / (1 - u)
     assert measurement_rel_std(two.stature) == pytest.approx(
         math.sqrt(two.stature["side_rel_diff"] ** 2 + two.stature["bones_rel_spread"] ** 2
-                  + kp ** 2), rel=1e-9)
+                  + kp ** 2 + un ** 2), rel=1e-9)
     assert "2.0 cm" in two.scale_source
     # the limbs' scale, asked for: its prior without the keypoints' share
     limbs0 = scale_by_stature(res, paired, scene.K, H, "limbs", keypoint_offset=0.0)
     limbs = scale_by_stature(res, paired, scene.K, H, "limbs")
     assert limbs0.distance_std < limbs.distance_std
+
+
+def test_the_distance_std_covers_a_mirror_tilted_within_its_std():
+    """A wide scene whose subject stands twice as far from the camera as the mirror's foot
+    point, given the true height, the synthetic keypoints stated on the landmarks and a
+    0.5 % height: the normal comes out within its std, and through the subject's lever arm
+    that tilt puts the metric distance ~3 % off while the stature (the joints' scale) is
+    right within 1 %. The distance's std holds the normal's share and covers the error."""
+    from mirrorgraph.pipelines.mirror import CalibrateOptions, calibrate
+    from mirrorgraph.synth import make_wide_scene
+
+    sc = make_wide_scene(13, "wide", "iid", 1000, body_variation="population")
+    opts = CalibrateOptions(subject_height=sc.subject_height,
+                            refine_options=RefineOptions(keypoint_offset=0.0,
+                                                         height_sigma=0.005))
+    cal = calibrate(sc.detections, sc.intrinsics, opts).calibration
+    err = cal.distance / sc.distance - 1.0
+    std = cal.uncertainty["distance_std"] / cal.distance
+    parts = cal.refinement["stature"]["distance_rel_std"]
+    assert abs(err) > 0.02                      # beyond the height's and the stature's terms
+    assert parts["normal"] > 3 * math.hypot(parts["height"], parts["measurement"])
+    assert std == pytest.approx(parts["total"], rel=1e-9)
+    assert abs(err) / std < 3
