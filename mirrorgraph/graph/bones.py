@@ -203,6 +203,35 @@ def _log_watson_norm(kappa: np.ndarray) -> np.ndarray:
     return out
 
 
+def _watson_weights(u: np.ndarray, kappas: np.ndarray) -> np.ndarray:
+    """``(K, ...)`` ``exp(kappa (u - 1))`` for ``kappa > 0``, ``exp(kappa u)`` otherwise
+    (``u = c^2`` in ``[0, 1]``: the Watson density's kernel, at most 1), for each of
+    ``kappas``. A concentration twice another of its sign is the square of that one's
+    weight: :data:`WATSON_KAPPAS` (powers of four) takes two exponentials and squarings
+    where one exponential each would cost ten times as much (rounding: a relative
+    ``2^k`` ulps after ``k`` squarings)."""
+    u = np.asarray(u, dtype=float)
+    out = np.empty((len(kappas),) + u.shape)
+    done: dict[float, int] = {}
+    for k in np.argsort(np.abs(kappas), kind="stable"):
+        kappa = float(kappas[k])
+        base = u - 1.0 if kappa > 0 else u
+        w = None
+        for prev, i in done.items():
+            if prev == 0.0 or np.sign(prev) != np.sign(kappa):
+                continue
+            ratio = kappa / prev
+            steps = int(round(np.log2(ratio))) if ratio > 1 else -1
+            if steps >= 1 and 2.0 ** steps == ratio:
+                w = out[i]
+                for _ in range(steps):
+                    w = w * w
+                break
+        out[k] = np.exp(kappa * base) if w is None else w
+        done[kappa] = k
+    return out
+
+
 def _depth_frame(d: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, ...]:
     """Each frame's bone ``d`` ``(T, 3)`` in its noise's frame (``cov`` ``(T, 3, 3)``):
     ``z`` along the long axis (the line of sight at low parallax), ``r`` the length
@@ -247,8 +276,8 @@ def _frame_log_likelihood(length: float, z: np.ndarray, r: np.ndarray, var_z: np
     log_f += (-0.5 * np.log(2.0 * np.pi * var_z) - np.log(2.0 * np.pi * var_r))[:, None]
     top = log_f.max(axis=1)
     lift = np.maximum(kappas, 0.0)
-    prior = np.exp(kappas * (c * c)[..., None] - lift)                        # (T, N, K)
-    dens = np.einsum("tn,tnk->tk", np.exp(log_f - top[:, None]), prior)
+    prior = _watson_weights(c * c, kappas)                                    # (K, T, N)
+    dens = np.einsum("tn,ktn->tk", np.exp(log_f - top[:, None]), prior)
     with np.errstate(divide="ignore"):
         return np.log(dens) + top[:, None] + lift - _log_watson_norm(kappas)
 

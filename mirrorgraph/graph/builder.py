@@ -345,6 +345,25 @@ def _gauge(rig: Rig, planes: list[tuple[np.ndarray, float]], options: RefineOpti
     return gauge, distance_gauge, scale, weights
 
 
+def with_torso(problem: GraphProblem, torso: dict[str, float], options: RefineOptions
+               ) -> GraphProblem:
+    """``problem`` (a joints pass's graph, :func:`with_motion_priors`) with the torso's
+    distances ``torso`` (``"a-b"`` joint names -> length, graph units) held with
+    ``options.torso_sigma`` (:func:`~.priors.add_torso`) beside its priors, which are
+    shared, not rebuilt; ``problem`` itself unchanged."""
+    if not torso or options.torso_sigma is None or not options.use_bone_length:
+        return problem
+    T, J = problem.used.shape
+    keys = np.zeros(T * J, dtype=np.uint64)
+    keys[problem.flat_index] = np.uint64(X_BASE) + problem.flat_index.astype(np.uint64)
+    graph = gtsam.NonlinearFactorGraph()
+    graph.push_back(problem.priors)
+    info = {k: dict(v) for k, v in problem.prior_info.items()}
+    add_torso(problem.rig, graph, problem.used, keys.reshape(T, J), torso,
+              problem.body_height * options.torso_sigma, info)
+    return replace(problem, priors=graph, prior_info=info)
+
+
 def with_motion_priors(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
                        options: RefineOptions, torso: dict[str, float] | None = None
                        ) -> GraphProblem:

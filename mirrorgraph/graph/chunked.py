@@ -118,6 +118,7 @@ class _Context:
     pose: list[np.ndarray]
     body_height: float
     lengths: dict[str, float]
+    torso: dict[str, float] | None
     length_sum: float | None
     kernel: str | None
 
@@ -202,7 +203,7 @@ def _joints_pass(out: _ChunkResult, problem, values: gtsam.Values, ctx: _Context
     ``(T_c, J, 3, nz)`` change per unit of the plane's reduced coordinates (zero where
     a joint is not estimated); nothing without ``joints_smoothness_sigma``."""
     t = time.perf_counter()
-    jp = joints_pass(problem, values, ctx.lengths, ctx.opts, sensitivity=True)
+    jp = joints_pass(problem, values, ctx.lengths, ctx.opts, sensitivity=True, torso=ctx.torso)
     if jp is None:
         return
     jproblem, res = jp
@@ -378,7 +379,7 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     iterations = sub.iterations
     plane = (np.asarray(sub.planes[0][0], dtype=float), float(sub.planes[0][1]))
     ctx = _Context(opts=opts, config=config, pose=sub.poses, body_height=sub.body_height,
-                   lengths=dict(sub.bone_lengths),
+                   lengths=dict(sub.bone_lengths), torso=sub.torso_lengths,
                    length_sum=sub.prior_info.get("length_sum_gauge", {}).get("sum"),
                    kernel=next((s.get("kernel") for s in reversed(sub.stages) if "kernel" in s),
                                None))
@@ -449,7 +450,8 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
             scores.added_cov = held_cov
     timings["marginals"] = time.perf_counter() - t
     return SolveState(poses=ctx.pose, planes=[plane], points=out_points, used=out_used,
-                      bone_lengths={k: float(v) for k, v in ctx.lengths.items()}, scale=sub.scale,
+                      bone_lengths={k: float(v) for k, v in ctx.lengths.items()},
+                      torso_lengths=ctx.torso, scale=sub.scale,
                       camera_cov=[np.zeros((6, 6))], plane_cov=plane_cov, plane_basis=basis,
                       noise_px=noise_px, variance_factor=factor, view_masks=out_masks,
                       rejected=rejected, undetermined=sub.undetermined,

@@ -195,29 +195,32 @@ class PriorOptions:
             unchanged, +0.4 s per 1000 frames): the two passes give each its own.
             Videos solved in chunks (longer than ``max_graph_frames``) get it
             chunk by chunk with the final mirror.
-        torso_sigma: with it the joints pass holds the torso nearly rigid: the
-            distances between the shoulders and the hips that no bone holds (the two
-            sides and the two diagonals, :mod:`mirrorgraph.factors.torso`), each at its
-            median over the pass's own joints, this standard deviation, fraction of
-            ``h`` (3.4 cm for 1.7 m: above the 0.5-0.7 cm the trunk's bending and the
-            shoulder girdle give them in motion capture); ``None`` (the default): no
-            torso term. It ties a shoulder whose rays meet at a few degrees to the
-            hips, and it holds the torso against the held bone lengths: given the
-            true lengths it takes the median PA-MPJPE of 16 scenes (low parallax, CMU)
-            from 29.3 to 21.4 mm and the worst scene's share of joints more than
-            0.3 m off (the scale fitted) from 2.23 to 1.07 %; given a shoulder width
-            28-50 % short, as the joints pass's lengths come out on some of them, it
-            makes those scenes worse (``bench/RESULTS_low_parallax_depth.md``):
-            hence opt-in.
+        torso_sigma: the joints pass holds the torso nearly rigid: the distances
+            between the shoulders and the hips that no bone holds (the two sides and
+            the two diagonals, :mod:`mirrorgraph.factors.torso`), with this standard
+            deviation, fraction of ``h`` (3.4 cm for 1.7 m: above the 0.5-0.7 cm the
+            trunk's bending and the shoulder girdle give them in motion capture).
+            Each distance is its median over the calibration's joints in the frames
+            where their rays fix its length (its curvature bias under
+            ``bone_bias_limit``), or where it has too few such frames over the joints
+            pass solved first without it (:func:`~mirrorgraph.graph.stages.joints_pass`).
+            It ties a shoulder whose rays meet at a few degrees to the hips, whose depth
+            the legs hold; with ``joints_bone_lengths="integrated"`` it takes the median
+            calibrate PA-MPJPE of low-parallax scenes from 32.8 to 26.4 mm and the
+            realistic detector's worst scene's share of joints more than 1 m off from
+            99.8 to 0 % (``bench/RESULTS_joints_lengths_torso.md``); with lengths
+            28-50 % short it makes a scene worse (``bench/RESULTS_low_parallax_depth.md``),
+            hence the integrated lengths beside it. ``None``: no torso term.
         joints_bone_lengths: how the joints pass measures the bones the calibration
             graph left out, on the joints triangulated with the solved mirror:
-            ``"moments"`` (default) the mean of ``|d|^2 - tr S``
-            (:func:`~mirrorgraph.graph.bones.debiased_bone_lengths`), ``"integrated"``
-            the likelihood with each frame's bone direction integrated out, left and
-            right one length (:func:`~mirrorgraph.graph.bones.integrated_bone_lengths`:
-            right where rays meet at a few degrees and the moments take a biased
-            depth as length; the joints pass then slides more joints in depth on
-            some scenes: ``bench/RESULTS_joints_bonelengths.md``).
+            ``"integrated"`` the likelihood with each frame's bone direction integrated
+            out, left and right one length
+            (:func:`~mirrorgraph.graph.bones.integrated_bone_lengths`: right where rays
+            meet at a few degrees, where a moment estimate takes a biased depth as
+            length), or ``"moments"`` the mean of ``|d|^2 - tr S``
+            (:func:`~mirrorgraph.graph.bones.debiased_bone_lengths`: a fraction of the
+            cost; without the torso term the integrated lengths slide more joints in
+            depth on some scenes, ``bench/RESULTS_joints_bonelengths.md``).
         use_bone_length, use_symmetry, use_anthropometry, use_hip, use_smoothness:
             switch each prior of the calibration graph (the hip prior also needs a
             mid-hip joint; the subject-height gauge needs the bone lengths, so it
@@ -233,8 +236,8 @@ class PriorOptions:
     smoothness_sigma: float = 0.8
     smoothness_max_gap: int = 4
     joints_smoothness_sigma: float | None = 0.01
-    torso_sigma: float | None = None
-    joints_bone_lengths: BoneLengths = "moments"
+    torso_sigma: float | None = 0.02
+    joints_bone_lengths: BoneLengths = "integrated"
     use_bone_length: bool = True
     use_symmetry: bool = True
     use_anthropometry: bool = True

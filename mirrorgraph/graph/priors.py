@@ -24,8 +24,9 @@ from .bones import median_bone_lengths
 from .problem import LENGTH_KEY
 
 __all__ = ["BoneSet", "record_prior", "add_symmetry", "add_anthropometry", "add_focal_prior",
-           "add_hip", "add_smoothness", "add_torso", "torso_lengths", "other_side_lengths", "gauge_weights", "intrinsics_prior",
-           "intrinsics_prior_sigmas", "PRINCIPAL_POINT_PRIOR", "PRINCIPAL_POINT_HOLD"]
+           "add_hip", "add_smoothness", "add_torso", "torso_table", "torso_lengths",
+           "other_side_lengths", "gauge_weights", "intrinsics_prior", "intrinsics_prior_sigmas",
+           "PRINCIPAL_POINT_PRIOR", "PRINCIPAL_POINT_HOLD"]
 
 
 def record_prior(info: dict, name: str, sigma: float, unit: str, count: int) -> None:
@@ -154,30 +155,41 @@ def add_hip(rig, graph, used, keys, h, options, info):
     record_prior(info, "hip", options.hip_sigma, "sine", len(frames))
 
 
-def torso_lengths(rig, points: np.ndarray, used: np.ndarray) -> dict[str, float]:
-    """The torso's distances that no bone holds (:func:`~mirrorgraph.factors.torso_pairs`),
-    each its median over the frames of ``points`` (``(T, J, 3)``, where ``used``
-    ``(T, J)``): joints the bones and the smoothness already hold (the joints pass's),
-    whose depth slides in a minority of the frames at most; raw triangulations would
-    not do where the rays meet at a few degrees (their depth noise is decimetres, and
-    first-order corrections of it fail: a diagonal 25-55 % short on a 300-frame clip).
-
-    Returns:
-        ``"a-b"`` (the two joints' names) -> length in graph units; a distance seen in
-        no frame is left out.
-    """
+def torso_table(rig) -> tuple[list[str], np.ndarray]:
+    """The torso's distances that no bone holds (:func:`~mirrorgraph.factors.torso_pairs`)
+    between joints the rig estimates: ``"a-b"`` names (the two joints' names) and
+    ``(P, 2)`` joint indices."""
     sk = rig.skeleton
     names = list(sk.joints)
-    pairs = torso_pairs(names, np.asarray(sk.bone_index, int))
     keep = set(np.asarray(rig.joints, dtype=int).tolist())
-    pairs = np.array([p for p in pairs.tolist() if p[0] in keep and p[1] in keep],
-                     dtype=int).reshape(-1, 2)
+    pairs = np.array([p for p in torso_pairs(names, np.asarray(sk.bone_index, int)).tolist()
+                      if p[0] in keep and p[1] in keep], dtype=int).reshape(-1, 2)
+    return [f"{names[a]}-{names[b]}" for a, b in pairs.tolist()], pairs
+
+
+def torso_lengths(rig, points: np.ndarray, used: np.ndarray,
+                  frames: np.ndarray | None = None) -> dict[str, float]:
+    """The torso's distances that no bone holds (:func:`torso_table`), each its median
+    over the frames of ``points`` (``(T, J, 3)``) where both its joints are ``used``
+    (``(T, J)``) and, with ``frames`` (``(T, P)`` bool, :func:`torso_table`'s order),
+    the distance's own frames. The points must hold their depth: joints the bones and
+    the smoothness hold (the joints pass's), or the frames where the rays meet at an
+    angle that fixes it (:func:`~.bones.bone_curvature_bias` under the bone rule); raw
+    triangulations of rays that meet at a few degrees would not do (their depth noise
+    is decimetres, and first-order corrections of it fail: a diagonal 25-55 % short on
+    a 300-frame clip).
+
+    Returns:
+        ``"a-b"`` -> length in graph units; a distance seen in no frame is left out.
+    """
+    names, pairs = torso_table(rig)
     if not len(pairs):
         return {}
     both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]
+    if frames is not None:
+        both = both & np.asarray(frames, bool)
     med = median_bone_lengths(points, pairs, both)
-    return {f"{names[a]}-{names[b]}": float(v) for (a, b), v in zip(pairs.tolist(), med)
-            if np.isfinite(v) and v > 0}
+    return {n: float(v) for n, v in zip(names, med) if np.isfinite(v) and v > 0}
 
 
 def other_side_lengths(skeleton, lengths: dict[str, float]) -> tuple[dict[str, float],

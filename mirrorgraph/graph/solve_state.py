@@ -30,6 +30,9 @@ class SolveState:
         planes: ``(n, d)`` per mirror.
         points: ``(T, J, 3)`` joints (NaN where not estimated); used: ``(T, J)``.
         bone_lengths: bone name -> length.
+        torso_lengths: the torso's distances the joints pass holds (``"a-b"`` joint
+            names -> length, :func:`~.stages.joints_pass`) where read on the
+            calibration's joints; ``None``: the joints pass reads them on its own.
         scale: ``"subject_height"`` or ``"unit_distance"``.
         camera_cov: per camera ``(6, 6)`` tangent covariance (zeros for a held pose,
             NaN when not computed), scaled by ``variance_factor``.
@@ -110,3 +113,4 @@ class SolveState:
     focal_undetermined: dict[str, dict] = field(default_factory=dict)
     focal_bias: dict[str, dict] = field(default_factory=dict)
     joints_masks: list[np.ndarray] = field(default_factory=list)
+    torso_lengths: dict[str, float] | None = None

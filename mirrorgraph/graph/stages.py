@@ -36,9 +36,10 @@ import numpy as np
 
 from ..errors import DegenerateGeometryError
 from ..keypoints import MIN_PAIRS
-from .bones import bone_table, debiased_bone_lengths, gauge_scale, integrated_bone_lengths
-from .builder import build_problem, with_motion_priors
-from .priors import torso_lengths
+from .bones import (bone_curvature_bias, bone_table, debiased_bone_lengths, gauge_scale,
+                    integrated_bone_lengths, median_bone_lengths)
+from .builder import build_problem, with_motion_priors, with_torso
+from .priors import torso_lengths, torso_table
 from .focal_search import focal_search, focal_searchable
 from .marginals import covariances
 from .noise import residual_noise
@@ -186,7 +187,9 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     final_error, final_used, state_points, intrinsics = _solution(run)
     final_masks, tri, tri_ok = _retriangulate(run, final_used)
     lengths = _joints_pass_lengths(run, tri, tri_ok)
-    state_points, joints_priors, observed = _joints_pass_stage(run, lengths, state_points)  # 5.
+    torso = _joints_pass_torso(run, state_points, final_used)
+    state_points, joints_priors, observed = _joints_pass_stage(run, lengths, torso,
+                                                               state_points)         # 5.
     unc = _marginals_and_noise(run, final_masks, tri, tri_ok)                        # 6.
     timings["total"] = time.perf_counter() - t_start
     problem, factor = run.problem, unc["factor"]
@@ -201,7 +204,8 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
         info["distance_gauge"] = {"sigma": 1e-6, "weight": 1e12, "unit": "d", "factors": 1,
                                   "distance": problem.distance_gauge}
     return SolveState(poses=run.poses, planes=run.planes, points=state_points,
-                      used=final_used, bone_lengths=lengths, scale=problem.scale,
+                      used=final_used, bone_lengths=lengths, torso_lengths=torso,
+                      scale=problem.scale,
                       camera_cov=[C * factor for C in unc["cam_cov"]],
                       plane_cov=[C * factor for C in unc["plane_cov"]],
                       plane_basis=unc["basis"], noise_px=unc["noise_px"],
@@ -442,15 +446,48 @@ def _joints_pass_lengths(run: _Run, tri: np.ndarray, tri_ok: np.ndarray) -> dict
     return lengths
 
 
-def _joints_pass_stage(run: _Run, lengths: dict[str, float], points: np.ndarray
+def _joints_pass_torso(run: _Run, points: np.ndarray, used: np.ndarray
+                       ) -> dict[str, float] | None:
+    """The torso's distances the joints pass holds (``opts.torso_sigma``), read on the
+    calibration's joints ``points`` ``(T, J, 3)`` (``used`` ``(T, J)``) where their
+    depth is fixed: in each distance's frames whose curvature bias
+    (:func:`~.bones.bone_curvature_bias`, its bound ``tr S / 2L``) is under the
+    calibration's bone rule (``opts.bone_bias_limit`` bone sigmas: the frames where the
+    calibration would measure it as a bone), each the median over them
+    (:func:`~.priors.torso_lengths`). ``None`` where a distance has fewer than
+    :data:`THIN_BONE_FRAMES` such frames (rays that meet at a few degrees over most of
+    the clip): :func:`joints_pass` then reads them on its own joints; ``{}`` without a
+    torso term. (A rule twice as loose, ``opts.bone_bias_limit`` torso sigmas, reads
+    them so on more wide scenes, and on one of them, iid 1 of
+    ``bench/bench_joints.py``, the PA-MPJPE rose from 19.4 to 21.3 mm.)"""
+    problem, opts = run.problem, run.opts
+    if opts.torso_sigma is None or not opts.use_bone_length:
+        return {}
+    names, pairs = torso_table(problem.rig)
+    if not len(pairs):
+        return {}
+    both = used[:, pairs[:, 0]] & used[:, pairs[:, 1]]                          # (T, P)
+    keep = both
+    if opts.bone_bias_limit is not None:
+        bias = bone_curvature_bias(problem.rig, points, used, run.planes, pairs,
+                                   median_bone_lengths(points, pairs, both), opts.pixel_sigma)
+        keep = both & ~(bias > opts.bone_bias_limit * problem.body_height * opts.bone_sigma)
+    if (np.count_nonzero(keep, axis=0) < THIN_BONE_FRAMES).any():
+        return None
+    return torso_lengths(problem.rig, points, used, keep)
+
+
+def _joints_pass_stage(run: _Run, lengths: dict[str, float], torso: dict[str, float] | None,
+                       points: np.ndarray
                        ) -> tuple[np.ndarray, dict | None, GraphProblem | None]:
     """Stage 5 (``config.joints_pass``): the joints with everything else held
-    (:func:`joints_pass`). Returns the joints (``points`` without a pass), the
-    pass's body priors for the record and its graph (``None`` without one)."""
+    (:func:`joints_pass`, the torso's distances ``torso``). Returns the joints
+    (``points`` without a pass), the pass's body priors for the record and its graph
+    (``None`` without one)."""
     joints_priors, observed = None, None
     if run.config.joints_pass:
         t = time.perf_counter()
-        jp = joints_pass(run.problem, run.values, lengths, run.opts)
+        jp = joints_pass(run.problem, run.values, lengths, run.opts, torso=torso)
         if jp is not None:
             points = extract_points(jp[0], jp[1].values)
             observed = jp[0]
@@ -516,12 +553,16 @@ THIN_BONE_FRAMES = 10
 #: Gauss-Newton steps of the joints pass (:func:`joints_pass`): the points start at the
 #: calibration's solution and the smoothness is linear in them, so one step lands
 #: within ~1 mm of the converged joints (error 15156.7 vs 15155.9 converged on a
-#: 1000-frame protocol scene).
+#: 1000-frame protocol scene). With the torso held a second step would lower the
+#: PA-MPJPE a little more (1000-frame wide scenes, realistic detector: by 0-1.3 mm, 2 %
+#: at most), at the cost of one more elimination of every joint (+0.2 s per 1000
+#: frames, +25 % CPU on a 16,000-frame video).
 JOINTS_PASS_ITERATIONS = 1
 
 
 def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
-                opts: RefineOptions, sensitivity: bool = False
+                opts: RefineOptions, sensitivity: bool = False,
+                torso: dict[str, float] | None = None
                 ) -> tuple[GraphProblem, LMResult] | None:
     """The 3D joints solved again with every global held, from the calibration's solution.
 
@@ -532,10 +573,11 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     in every frame, the frames that ``opts.bone_bias_limit`` left out of the
     calibration included (the mirror held, a bone's known length is what fixes the
     depth of joints whose rays meet at a small angle); a bone ``lengths`` lacks at its
-    left/right partner's length (:func:`~.priors.other_side_lengths`). With
-    ``opts.torso_sigma`` the torso's distances no bone holds are then read on that
-    solution (:func:`~.priors.torso_lengths`) and the pass solved again from it with
-    the torso nearly rigid (:mod:`mirrorgraph.factors.torso`).
+    left/right partner's length (:func:`~.priors.other_side_lengths`), and with
+    ``opts.torso_sigma`` the torso nearly rigid (:mod:`mirrorgraph.factors.torso`):
+    its distances no bone holds at ``torso``, or where ``torso`` is ``None`` at their
+    medians on the pass solved first without them (:func:`~.priors.torso_lengths`:
+    joints the bones and the smoothness hold), the pass then solved again from there.
 
     Then the observations whose residual exceeds ``opts.outlier_threshold`` (the
     calibration's own rule) at that solution are left out, at most one view of a
@@ -548,6 +590,8 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     Args:
         problem, values: the calibration's graph and its solution.
         lengths: bone name -> length (graph units), held.
+        torso: the torso's distances (``"a-b"`` joint names -> length, graph units), held
+            with ``opts.torso_sigma``; ``None``: read on the pass's own joints.
         sensitivity: also return the joints' change per unit of the held mirror's
             reduced coordinates (:attr:`~.optimizer.LMResult.sensitivity`, ``(N, 3, nz)``
             in ``problem.flat_index`` order): the joints of the pass at a mirror moved
@@ -561,19 +605,24 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     if sigma is None:
         return None
     jopts = replace(opts, use_smoothness=True, smoothness_sigma=sigma)
-    jp = with_motion_priors(problem, values, lengths, jopts)
-    res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                      max_iterations=JOINTS_PASS_ITERATIONS,
-                      hold_globals=True, sensitivity=sensitivity)
-    if opts.torso_sigma is not None and opts.use_bone_length:
+    if opts.torso_sigma is None or not opts.use_bone_length:
+        torso = {}
+    if torso is None:
         # the torso's distances read on the joints the bones and the smoothness hold,
-        # then the pass again from them with the torso held nearly rigid
+        # then the pass again from there with the torso held nearly rigid
+        jp = with_motion_priors(problem, values, lengths, jopts)
+        res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True)
         torso = torso_lengths(jp.rig, extract_points(jp, res.values), jp.used)
-        if torso:
-            jp = with_motion_priors(problem, res.values, lengths, jopts, torso=torso)
-            res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                              max_iterations=JOINTS_PASS_ITERATIONS,
-                              hold_globals=True, sensitivity=sensitivity)
+        jp = with_torso(jp, torso, jopts)
+        res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                          values=res.values, sensitivity=sensitivity)
+    else:
+        jp = with_motion_priors(problem, values, lengths, jopts, torso=torso)
+        res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
+                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                          sensitivity=sensitivity)
     if opts.outlier_threshold > 0:
         # what the body now exposes: a keypoint displaced along its epipolar line fits
         # both views in the calibration's graph (the joint slides in depth), and

@@ -110,3 +110,18 @@ def test_metric_scale_under_a_biased_detector_at_low_parallax():
 def test_an_unknown_bone_length_method_is_refused():
     with pytest.raises(InputError, match="joints_bone_lengths"):
         RefineOptions(joints_bone_lengths="median")
+
+
+def test_the_watson_weights_are_the_exponentials():
+    """The concentrations' weights by squaring are ``exp(kappa (c^2 - [kappa > 0]))``."""
+    from mirrorgraph.graph.bones import WATSON_KAPPAS, _watson_weights
+
+    u = np.linspace(0.0, 1.0, 101) ** 2
+    want = np.exp(WATSON_KAPPAS[:, None] * (u[None] - (WATSON_KAPPAS[:, None] > 0)))
+    got = _watson_weights(u, WATSON_KAPPAS)
+    assert got.shape == (len(WATSON_KAPPAS), len(u))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0.0)
+    odd = np.array([3.0, -0.5, 6.0, 0.0, 7.0])          # no power of two apart: exp each
+    np.testing.assert_allclose(_watson_weights(u, odd),
+                               np.exp(odd[:, None] * (u[None] - (odd[:, None] > 0))),
+                               rtol=1e-12, atol=0.0)

@@ -303,7 +303,8 @@ def test_rotation_std_is_twice_the_normal_spread():
 def test_joints_pass_follows_the_held_mirror_to_first_order(scene, refined):
     """The joints pass's sensitivity to the mirror it holds: its joints at a plane moved by
     ``z`` are its joints at the plane plus ``sensitivity @ z`` (a chunked solve moves every
-    chunk's joints by the shared step so, instead of solving them again)."""
+    chunk's joints by the shared step so, instead of solving them again), the torso's
+    distances held at one reading as a chunk holds them."""
     from mirrorgraph.factors import plane_from_gtsam, plane_to_gtsam
     from mirrorgraph.graph.problem import extract_points, snap_virtual_poses
     from mirrorgraph.graph.rig import seen_twice, triangulate_rig
@@ -318,18 +319,21 @@ def test_joints_pass_follows_the_held_mirror_to_first_order(scene, refined):
     pts, ok = triangulate_rig(rig, masks, [c.pose for c in rig.cameras], [plane0])
     ok &= seen_twice(masks) & np.isfinite(pts).all(-1)
 
-    def solved(plane):              # the joints pass from the same start, the plane held
+    def solved(plane, torso):       # the joints pass from the same start, the plane held
         problem = build_problem(rig, pts, ok, [plane], opts, body_height=scene.subject_height,
                                 bone_lengths=res.bone_lengths)
         snap_virtual_poses(problem, problem.values)
-        jp, lm = joints_pass(problem, problem.values, res.bone_lengths, opts, sensitivity=True)
+        jp, lm = joints_pass(problem, problem.values, res.bone_lengths, opts, sensitivity=True,
+                             torso=torso)
         return extract_points(jp, lm.values), lm.sensitivity, jp
 
-    x0, M, jp = solved(plane0)
+    torso = solved(plane0, None)[2].prior_info["torso"]["lengths"]
+    assert len(torso) == 4
+    x0, M, jp = solved(plane0, torso)
     assert M.shape == (len(jp.flat_index), 3, 3)
     # the plane turned by ~0.01 and ~0.06 deg, moved by 5 and 20 mm
     for z in (np.array([2e-4, -1e-4, 5e-3]), np.array([-1e-3, 5e-4, -2e-2])):
-        x1, _, _ = solved(plane_from_gtsam(plane_to_gtsam(*plane0).retract(z)))
+        x1, _, _ = solved(plane_from_gtsam(plane_to_gtsam(*plane0).retract(z)), torso)
         pred = x0.reshape(-1, 3).copy()
         pred[jp.flat_index] += M @ z
         moved = np.linalg.norm(x1 - x0, axis=-1)[jp.used]
