@@ -199,12 +199,15 @@ def solve_window(raw, intrinsics, options) -> WindowEstimate:
     shared = _psd(head - indep) if np.all(np.isfinite(head)) else np.zeros((3, 3))
     d = float(cal.distance) if cal.distance is not None else 1.0
     d_std = unc.get("distance_std")
-    # the scale's shared part out of the window's own: the height's prior and the
-    # stature's measured spread, one factor on every window alike
+    # the scale's parts out of the window's own: the height's prior and the stature's
+    # measured spread, one factor on every window alike, and the stature's sampling
+    # std, which the fusion takes by its information (:attr:`MirrorFusion.scale_sampling`)
     stature = (cal.refinement or {}).get("stature")
     side = measurement_rel_std(stature)
     sampling = (stature or {}).get("sampling_rel_std")
-    hs = float(np.hypot(options.graph.height_sigma, side)) if cal.distance is not None else 0.0
+    own = float(sampling) if sampling is not None and np.isfinite(sampling) else 0.0
+    hs = (float(np.sqrt(options.graph.height_sigma ** 2 + side ** 2 + own ** 2))
+          if cal.distance is not None else 0.0)
     d_var = (float(d_std) ** 2 - (hs * d) ** 2) if d_std is not None else 0.0
     focal = cal.intrinsics.estimated or None
     priors = (cal.refinement or {}).get("priors", {}).get("reprojection", {})

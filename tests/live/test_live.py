@@ -774,7 +774,8 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
     distances, and each frame's refinement holds them too: the window's four (the two
     sides, the two diagonals; measured on its joints, within 5 % of the true ones) reach
     :func:`~mirrorgraph.live.frame_prior.refine_with_bones` beside the bones, at
-    ``torso_sigma`` of the height; without the option only the bones do."""
+    ``torso_sigma`` of the height (the default's); with ``torso_sigma=None`` only the bones
+    do."""
     from mirrorgraph.graph import RefineOptions
     from mirrorgraph.live import calibrator as live_calibrator
 
@@ -788,7 +789,7 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
         return real(K, normal, distance, X, u, um, joints, bones, lengths, *args, **kw)
 
     monkeypatch.setattr(live_calibrator, "refine_with_bones", spy)
-    live = _live(sc, refine_options=RefineOptions(torso_sigma=0.02))
+    live = _live(sc, refine_options=RefineOptions())
     _feed(live, sc.detections.people)
     live.finish()
     torso = live.fusion.torso_lengths
@@ -805,7 +806,7 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
     live.close()
 
     sizes.clear()
-    plain = _live(sc)
+    plain = _live(sc, refine_options=RefineOptions(torso_sigma=None))
     _feed(plain, sc.detections.people[:200])
     plain.finish()
     assert plain.fusion.bone_lengths and not plain.fusion.torso_lengths
