@@ -58,7 +58,7 @@ from .stage_config import SolveConfig, Stage
 from .uncertainty import robust_intrinsics_std
 
 __all__ = ["solve_rows", "joints_pass", "Counter", "stage_record", "THIN_BONE_FRAMES",
-           "JOINTS_PASS_ITERATIONS"]
+           "JOINTS_PASS_ITERATIONS", "LOW_PARALLAX_ITERATIONS"]
 
 
 # --------------------------------------------------------------------------- bookkeeping
@@ -559,6 +559,12 @@ THIN_BONE_FRAMES = 10
 #: frames, +25 % CPU on a 16,000-frame video).
 JOINTS_PASS_ITERATIONS = 1
 
+#: Gauss-Newton steps of the joints pass with the torso held where the torso's distances
+#: are read on the pass's own joints (:func:`joints_pass` with ``torso=None``: rays that
+#: meet at a few degrees over most of the video, where the torso moves the joints far
+#: from the calibration's solution and one step stops short of it).
+LOW_PARALLAX_ITERATIONS = 2
+
 
 def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
                 opts: RefineOptions, sensitivity: bool = False,
@@ -616,7 +622,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
         torso = torso_lengths(jp.rig, extract_points(jp, res.values), jp.used)
         jp = with_torso(jp, torso, jopts)
         res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                          max_iterations=LOW_PARALLAX_ITERATIONS, hold_globals=True,
                           values=res.values, sensitivity=sensitivity)
     else:
         jp = with_motion_priors(problem, values, lengths, jopts, torso=torso)
