@@ -618,6 +618,7 @@ class LiveCalibrator:
         X = triangulate_two_rays(K, n, d, real[idx, :2], mirror[idx, :2])
         good = np.isfinite(X).all(1)
         idx, X = idx[good], X[good]
+        mid = X                                 # the rays' midpoints (refined: a copy)
         if idx.size == 0:
             if self.options.smooth:
                 self._filtered(fid, idx, X, np.zeros((0, 3, 3)))
@@ -645,13 +646,13 @@ class LiveCalibrator:
             Xp = self._filter.predict(fid)[0][idx]
             have = np.isfinite(Xp).all(1)
             if have.any():
-                X0 = triangulate_two_rays(K, n, d, u, um)
-                X0[have] = Xp[have]
-                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, pairs, L,
-                                                     self._sigma_px(), sigma_len,
-                                                     iterations=2, gate_px=gate, full=True)
+                X0 = np.where(have[:, None], Xp, mid)
+                XB, CB, keepB, pxB = refine_with_bones(K, n, d, X0, u, um, idx, pairs, L,
+                                                       self._sigma_px(), sigma_len,
+                                                       iterations=2, gate_px=gate,
+                                                       full=True)
                 X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
-                                    pairs, L, self._sigma_px(), sigma_len)
+                                    pairs, L, self._sigma_px(), sigma_len, pxA=px, pxB=pxB)
         if lengths is not None:
             # a joint the two rays barely place: its bones' other branch along the ray
             X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, pairs, L,
@@ -855,7 +856,7 @@ class LiveCalibrator:
         if np.isfinite(normal[have]).all():
             var = (np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
                    + bias[have])
-            scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2
+            scale = ((np.linalg.norm(X, axis=1) * self._scale_rel_std()) ** 2
                      if self._copts.subject_height is not None else 0.0)
             shape, total = np.sqrt(var), np.sqrt(var + scale)
         else:
@@ -884,7 +885,6 @@ class LiveCalibrator:
         the windows' gauge holds fixed: the body's size with a subject height, else
         the distance) and ``scale`` (the metric scale's prior, kept apart: see the
         module docstring)."""
-        fu = self.fusion
         if cov is None:
             cov = self._ray_covariance(K, n, d, X)
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
@@ -899,8 +899,12 @@ class LiveCalibrator:
             J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
             var["normal"] = np.maximum(((J @ C) * J).sum((1, 2)), 0.0)
         if metric:
-            var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
+            var["scale"] = (np.linalg.norm(X, axis=1) * self._scale_rel_std()) ** 2
         return var
+
+    def _scale_rel_std(self) -> float:
+        """The fused mirror's metric scale relative std (computed once between windows)."""
+        return self._cached("scale_rel_std", lambda: self.fusion.scale_rel_std)
 
     # ------------------------------------------------------------------ windows
     def _window(self, clear: bool) -> RawDetections:

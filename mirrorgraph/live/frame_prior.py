@@ -99,6 +99,17 @@ def view_residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.nda
     return p - np.stack([u, um], 1), J
 
 
+def _residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
+               u: np.ndarray, um: np.ndarray) -> np.ndarray:
+    """``(k, 2, 2)`` :func:`view_residuals`' residuals alone (no Jacobians)."""
+    n = np.asarray(normal, float)
+    KH = K - 2.0 * np.outer(K @ n, n)                                     # K H
+    q = np.empty((len(X), 2, 3))
+    q[:, 0] = X @ K.T
+    q[:, 1] = X @ KH.T + K @ (2.0 * float(distance) * n)
+    return q[:, :, :2] / q[:, :, 2:3] - np.stack([u, um], 1)
+
+
 def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.ndarray:
     """The covariance a detector's per-joint bias adds to a joint triangulated from two
     views: ``H^-1 H_b H^-1``, ``H = sum_v J_v^T J_v / s^2`` the joint's information from
@@ -127,11 +138,17 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
     return Hinv @ Hb @ Hinv
 
 
+_TABLE: list = []
+
+
 def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
                  sigma_len: "float | np.ndarray", k: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One frame's bone table: the bones whose two ends the frame has and whose length
     is known, in the frame's local joint indices.
+
+    The last table is kept with its inputs (the per-frame path asks for the same frame's
+    table from each of its refinements and folds): equal inputs give it back.
 
     Args:
         joints: ``(k,)`` the skeleton's indices of the frame's ``k`` joints.
@@ -141,14 +158,27 @@ def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
 
     Returns:
         ``(a, b, L, sl)``: ``(m,)`` each used bone's two ends (local indices), its length
-        and its spread.
+        and its spread (read-only: shared by the callers of one frame).
     """
-    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
-    local[np.asarray(joints)] = np.arange(k)
+    joints = np.asarray(joints)
+    key = (np.asarray(bones).tobytes(), np.asarray(lengths, float).tobytes(),
+           np.asarray(sigma_len, float).tobytes(), joints.tobytes(), k)
+    last = _TABLE[0] if _TABLE else None            # one tuple: safe across threads
+    if last is not None and last[0] == key:
+        return last[1]
+    top = max(int(joints.max()) if joints.size else 0, int(bones.max()) if bones.size else 0)
+    local = np.full(top + 1, -1)
+    local[joints] = np.arange(k)
     a, b = local[bones[:, 0]], local[bones[:, 1]]
-    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
-    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
-    return a[use], b[use], np.asarray(lengths, float)[use], sl
+    lengths_f = np.asarray(lengths, float)
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths_f)
+    sig = np.asarray(sigma_len, float)
+    sl = (np.full(use.shape, float(sig)) if sig.ndim == 0 else sig)[use]
+    out = (a[use], b[use], lengths_f[use], sl)
+    for v in out:
+        v.flags.writeable = False
+    _TABLE[:] = [(key, out)]
+    return out
 
 
 def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
@@ -200,11 +230,11 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     Y = X[move] - 2.0 * ((X[move] - X[fixed]) * r).sum(1, keepdims=True) * r
     ends = np.stack([a, b], 1)                                     # (B, 2)
 
-    def cost(P: np.ndarray, who: np.ndarray) -> np.ndarray:
-        return _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px)
-
+    m = len(move)
     with np.errstate(invalid="ignore", over="ignore"):
-        gap = cost(Y, move) - cost(X[move], move)                  # c' - c, (2B,)
+        c = _joint_cost(K, normal, distance, np.concatenate([Y, X[move]]),
+                        np.concatenate([move, move]), X, u, um, keep, ends, L, sl, sigma_px)
+        gap = c[:m] - c[m:]                                        # c' - c, (2B,)
         gap = np.where(np.isfinite(gap), gap, np.inf)
     # each joint's likeliest other branch
     order = np.lexsort((gap, move))
@@ -220,13 +250,20 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     return Xo, Co
 
 
-def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px):
+def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px,
+                px=None):
     """``(n,)`` the frame's cost at joints ``who`` placed at ``P`` ``(n, 3)``, the
     others at ``X``: both views' squared whitened reprojection residuals (the views
-    ``keep``), the squared whitened length errors of the bones ``ends`` ``(B, 2)``
-    (local indices; lengths ``L``, spreads ``sl``) at the joint."""
-    res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
-    rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
+    ``keep``; ``px`` ``(n, 2)``: their norms at ``P`` where known, px), the squared
+    whitened length errors of the bones ``ends`` ``(B, 2)`` (local indices; lengths
+    ``L``, spreads ``sl``) at the joint."""
+    if px is None:
+        res = _residuals(K, normal, distance, P, u[who], um[who])
+        sq = (res * res).sum(2) / (sigma_px * sigma_px)
+    else:
+        sq = px / sigma_px
+        sq = sq * sq
+    rr = np.where(keep[who], sq, 0.0).sum(1)
     at = ends[None] == who[:, None, None]                          # (n, B, 2)
     touch = at.any(2)
     other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
@@ -239,7 +276,8 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                CA: np.ndarray, XB: np.ndarray, CB: np.ndarray, u: np.ndarray,
                um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
                bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
-               sigma_len: "float | np.ndarray") -> tuple[np.ndarray, np.ndarray]:
+               sigma_len: "float | np.ndarray", *, pxA: np.ndarray | None = None,
+               pxB: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Two refinements of one frame's joints (:func:`refine_with_bones` from two
     starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
     predict them) folded, joint by joint, into the moment-matched Gaussian of the two.
@@ -265,6 +303,9 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
         joints: ``(k,)`` the skeleton's indices; bones: ``(B, 2)``; lengths: ``(B,)``.
         sigma_px: the reprojection noise, px; sigma_len: the bones' spread, one for all
             or ``(B,)``.
+        pxA, pxB: ``(k, 2)`` each view's reprojection residual at ``XA``, ``XB``, px
+            (:func:`refine_with_bones`' ``full`` output), where known: the costs' views
+            taken from them, not reprojected again.
 
     Returns:
         ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)``.
@@ -275,9 +316,9 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
     who = np.arange(k)
     with np.errstate(invalid="ignore", over="ignore"):
         gap = (_joint_cost(K, normal, distance, XB, who, XB, u, um, keepA, ends, L, sl,
-                           sigma_px)
+                           sigma_px, pxB)
                - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
-                             sigma_px))
+                             sigma_px, pxA))
         w = 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
     w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
                  & (keepA == keepB).all(1), w, 0.0)
