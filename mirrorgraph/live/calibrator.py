@@ -59,7 +59,7 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_with_bones,
+from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_starts,
                           triangulate_two_rays, two_starts, view_residuals,
                           with_head_prior)
 from .joint_filter import JointFilter
@@ -618,7 +618,6 @@ class LiveCalibrator:
         X = triangulate_two_rays(K, n, d, real[idx, :2], mirror[idx, :2])
         good = np.isfinite(X).all(1)
         idx, X = idx[good], X[good]
-        mid = X                                 # the rays' midpoints (refined: a copy)
         if idx.size == 0:
             if self.options.smooth:
                 self._filtered(fid, idx, X, np.zeros((0, 3, 3)))
@@ -636,23 +635,22 @@ class LiveCalibrator:
         # on the paper protocol 1.08 against 1.04-1.07, the independent generator's
         # 1.07-1.09 against 1.05-1.07)
         gate = co.threshold_px
-        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, pairs, L,
-                                             self._sigma_px(), sigma_len, iterations=2,
-                                             gate_px=gate, full=True)
+        # the frame refined again from where the tracks predict it: at small parallax
+        # the bones hold a limb on either side of its neighbours along the ray, and the
+        # start picks the side; the two folded by the frame's cost at each joint
+        starts = [X]
         if lengths is not None and self.options.smooth and self._filter is not None:
-            # the frame refined again from where the tracks predict it: at small parallax
-            # the bones hold a limb on either side of its neighbours along the ray, and
-            # the start picks the side; the two folded by the frame's cost at each joint
             Xp = self._filter.predict(fid)[0][idx]
             have = np.isfinite(Xp).all(1)
             if have.any():
-                X0 = np.where(have[:, None], Xp, mid)
-                XB, CB, keepB, pxB = refine_with_bones(K, n, d, X0, u, um, idx, pairs, L,
-                                                       self._sigma_px(), sigma_len,
-                                                       iterations=2, gate_px=gate,
-                                                       full=True)
-                X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
-                                    pairs, L, self._sigma_px(), sigma_len, pxA=px, pxB=pxB)
+                starts.append(np.where(have[:, None], Xp, X))
+        Xs, Cs, keeps, pxs = refine_starts(K, n, d, np.stack(starts), u, um, idx, pairs, L,
+                                           self._sigma_px(), sigma_len, iterations=2,
+                                           gate_px=gate)
+        X, cov, keep, px = Xs[0], Cs[0], keeps[0], pxs[0]
+        if len(starts) > 1:
+            X, cov = two_starts(K, n, d, X, cov, Xs[1], Cs[1], u, um, keep, keeps[1], idx,
+                                pairs, L, self._sigma_px(), sigma_len, pxA=px, pxB=pxs[1])
         if lengths is not None:
             # a joint the two rays barely place: its bones' other branch along the ray
             X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, pairs, L,
