@@ -451,21 +451,21 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
             Jb[:, rows, a], Jb[:, rows, b] = e, -e
             g += (Jb.reshape(m, nb, 3 * k).swapaxes(1, 2)
                   @ ((length - L) / sl)[..., None])[..., 0]
-        end = np.zeros(m, bool)
-        for i in np.flatnonzero(active & (done >= steps)):
-            if not gated[i] or not held.any():
-                end[i] = True
-                continue
-            px = sigma_px * rn[i]
+        due = active & (done >= steps)
+        test = due & gated & held.any()
+        end = due & ~test
+        if test.any():
+            px = sigma_px * rn[test]                                        # (t, k, 2)
             # the joints pass's rule (one home): the worst view over the threshold, at
             # most one a joint, here of the joints the bones hold
-            drop = np.stack(one_view_outliers([px[:, 0], px[:, 1]], gate_px), 1)
-            drop &= keep[i] & held[:, None]
-            if not drop.any():
-                end[i] = True
-                continue
-            keep[i] &= ~drop
-            gated[i], steps[i] = False, steps[i] + 1   # one more step, then stop
+            drop = np.stack(one_view_outliers([px[..., 0], px[..., 1]], gate_px), -1)
+            drop &= keep[test] & held[:, None]
+            some = drop.any((1, 2))
+            at = np.flatnonzero(test)
+            end[at[~some]] = True
+            keep[at[some]] &= ~drop[some]
+            gated[at[some]] = False                 # one more step, then stop
+            steps[at[some]] += 1
         go = active & ~end
         if go.any():
             step, solved = _solve_many(D[go], Jb[go], both[go], g[go], "solve")
