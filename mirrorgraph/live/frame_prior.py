@@ -467,12 +467,21 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
             gated[at[some]] = False                 # one more step, then stop
             steps[at[some]] += 1
         go = active & ~end
-        if go.any():
+        if go.all():                              # every start steps: no rows to pick
+            step, solved = _solve_many(D, Jb, both, g, "solve")
+            if solved.all():
+                X -= step.reshape(m, k, 3)
+                done += 1
+            else:
+                X[solved] -= step[solved].reshape(-1, k, 3)
+                done[solved] += 1
+                end[~solved] = True               # a singular system: stop there
+        elif go.any():
             step, solved = _solve_many(D[go], Jb[go], both[go], g[go], "solve")
             at = np.flatnonzero(go)
             X[at[solved]] -= step[solved].reshape(-1, k, 3)
             done[at[solved]] += 1
-            end[at[~solved]] = True               # a singular system: stop there
+            end[at[~solved]] = True
         if end.any():
             Df[end], Jbf[end], rnf[end], bothf[end] = D[end], Jb[end], rn[end], both[end]
             active &= ~end
@@ -490,8 +499,13 @@ def _solve_many(D: np.ndarray, Jb: np.ndarray, both: np.ndarray, g: np.ndarray |
     ``A^-1 g`` (``what="solve"``) or ``(m, k, 3, 3)`` their covariance blocks
     (``"covariance"``), and ``(m,)`` bool where solved (NaN where singular)."""
     m, k = D.shape[:2]
-    out = np.full((m, 3 * k) if what == "solve" else (m, k, 3, 3), np.nan)
     ok = np.ones(m, bool)
+    if both.all() or not both.any():              # one solver for all: no rows to pick
+        try:
+            return _Normal(D, Jb, bool(both[0])).run(what, g), ok
+        except np.linalg.LinAlgError:
+            pass
+    out = np.full((m, 3 * k) if what == "solve" else (m, k, 3, 3), np.nan)
     for flag in (True, False):
         sel = np.flatnonzero(both == flag)
         if not sel.size:
