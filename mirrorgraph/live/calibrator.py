@@ -59,7 +59,7 @@ from ..errors import InputError
 from ..initial.body_left_right import BodySwapFilter
 from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
-from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_with_bones,
+from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_starts,
                           triangulate_two_rays, two_starts, view_residuals,
                           with_head_prior)
 from .joint_filter import JointFilter
@@ -635,23 +635,22 @@ class LiveCalibrator:
         # on the paper protocol 1.08 against 1.04-1.07, the independent generator's
         # 1.07-1.09 against 1.05-1.07)
         gate = co.threshold_px
-        X, cov, keep, px = refine_with_bones(K, n, d, X, u, um, idx, pairs, L,
-                                             self._sigma_px(), sigma_len, iterations=2,
-                                             gate_px=gate, full=True)
+        # the frame refined again from where the tracks predict it: at small parallax
+        # the bones hold a limb on either side of its neighbours along the ray, and the
+        # start picks the side; the two folded by the frame's cost at each joint
+        starts = [X]
         if lengths is not None and self.options.smooth and self._filter is not None:
-            # the frame refined again from where the tracks predict it: at small parallax
-            # the bones hold a limb on either side of its neighbours along the ray, and
-            # the start picks the side; the two folded by the frame's cost at each joint
             Xp = self._filter.predict(fid)[0][idx]
             have = np.isfinite(Xp).all(1)
             if have.any():
-                X0 = triangulate_two_rays(K, n, d, u, um)
-                X0[have] = Xp[have]
-                XB, CB, keepB, _ = refine_with_bones(K, n, d, X0, u, um, idx, pairs, L,
-                                                     self._sigma_px(), sigma_len,
-                                                     iterations=2, gate_px=gate, full=True)
-                X, cov = two_starts(K, n, d, X, cov, XB, CB, u, um, keep, keepB, idx,
-                                    pairs, L, self._sigma_px(), sigma_len)
+                starts.append(np.where(have[:, None], Xp, X))
+        Xs, Cs, keeps, pxs = refine_starts(K, n, d, np.stack(starts), u, um, idx, pairs, L,
+                                           self._sigma_px(), sigma_len, iterations=2,
+                                           gate_px=gate)
+        X, cov, keep, px = Xs[0], Cs[0], keeps[0], pxs[0]
+        if len(starts) > 1:
+            X, cov = two_starts(K, n, d, X, cov, Xs[1], Cs[1], u, um, keep, keeps[1], idx,
+                                pairs, L, self._sigma_px(), sigma_len, pxA=px, pxB=pxs[1])
         if lengths is not None:
             # a joint the two rays barely place: its bones' other branch along the ray
             X, cov = bone_branches(K, n, d, X, cov, u, um, keep, idx, pairs, L,
@@ -855,7 +854,7 @@ class LiveCalibrator:
         if np.isfinite(normal[have]).all():
             var = (np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
                    + bias[have])
-            scale = ((np.linalg.norm(X, axis=1) * self.fusion.scale_rel_std) ** 2
+            scale = ((np.linalg.norm(X, axis=1) * self._scale_rel_std()) ** 2
                      if self._copts.subject_height is not None else 0.0)
             shape, total = np.sqrt(var), np.sqrt(var + scale)
         else:
@@ -884,7 +883,6 @@ class LiveCalibrator:
         the windows' gauge holds fixed: the body's size with a subject height, else
         the distance) and ``scale`` (the metric scale's prior, kept apart: see the
         module docstring)."""
-        fu = self.fusion
         if cov is None:
             cov = self._ray_covariance(K, n, d, X)
         var = {"pixels": np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0)}
@@ -899,8 +897,12 @@ class LiveCalibrator:
             J = joints_normal_jacobian(K, n, d, X, u, um, B, keep_spread=metric)  # (N, 3, 2)
             var["normal"] = np.maximum(((J @ C) * J).sum((1, 2)), 0.0)
         if metric:
-            var["scale"] = (np.linalg.norm(X, axis=1) * fu.scale_rel_std) ** 2
+            var["scale"] = (np.linalg.norm(X, axis=1) * self._scale_rel_std()) ** 2
         return var
+
+    def _scale_rel_std(self) -> float:
+        """The fused mirror's metric scale relative std (computed once between windows)."""
+        return self._cached("scale_rel_std", lambda: self.fusion.scale_rel_std)
 
     # ------------------------------------------------------------------ windows
     def _window(self, clear: bool) -> RawDetections:

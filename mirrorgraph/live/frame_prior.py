@@ -31,7 +31,7 @@ import numpy as np
 
 from ..graph.outliers import one_view_outliers
 
-__all__ = ["refine_with_bones", "triangulate_two_rays", "with_head_prior", "head_layout",
+__all__ = ["refine_with_bones", "refine_starts", "triangulate_two_rays", "with_head_prior", "head_layout",
            "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
@@ -99,6 +99,17 @@ def view_residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.nda
     return p - np.stack([u, um], 1), J
 
 
+def _residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
+               u: np.ndarray, um: np.ndarray) -> np.ndarray:
+    """``(k, 2, 2)`` :func:`view_residuals`' residuals alone (no Jacobians)."""
+    n = np.asarray(normal, float)
+    KH = K - 2.0 * np.outer(K @ n, n)                                     # K H
+    q = np.empty((len(X), 2, 3))
+    q[:, 0] = X @ K.T
+    q[:, 1] = X @ KH.T + K @ (2.0 * float(distance) * n)
+    return q[:, :, :2] / q[:, :, 2:3] - np.stack([u, um], 1)
+
+
 def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.ndarray:
     """The covariance a detector's per-joint bias adds to a joint triangulated from two
     views: ``H^-1 H_b H^-1``, ``H = sum_v J_v^T J_v / s^2`` the joint's information from
@@ -127,11 +138,17 @@ def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.nd
     return Hinv @ Hb @ Hinv
 
 
+_TABLE: list = []
+
+
 def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
                  sigma_len: "float | np.ndarray", k: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One frame's bone table: the bones whose two ends the frame has and whose length
     is known, in the frame's local joint indices.
+
+    The last table is kept with its inputs (the per-frame path asks for the same frame's
+    table from each of its refinements and folds): equal inputs give it back.
 
     Args:
         joints: ``(k,)`` the skeleton's indices of the frame's ``k`` joints.
@@ -141,14 +158,27 @@ def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
 
     Returns:
         ``(a, b, L, sl)``: ``(m,)`` each used bone's two ends (local indices), its length
-        and its spread.
+        and its spread (read-only: shared by the callers of one frame).
     """
-    local = np.full(int(max(np.max(joints), np.max(bones, initial=0))) + 1, -1)
-    local[np.asarray(joints)] = np.arange(k)
+    joints = np.asarray(joints)
+    key = (np.asarray(bones).tobytes(), np.asarray(lengths, float).tobytes(),
+           np.asarray(sigma_len, float).tobytes(), joints.tobytes(), k)
+    last = _TABLE[0] if _TABLE else None            # one tuple: safe across threads
+    if last is not None and last[0] == key:
+        return last[1]
+    top = max(int(joints.max()) if joints.size else 0, int(bones.max()) if bones.size else 0)
+    local = np.full(top + 1, -1)
+    local[joints] = np.arange(k)
     a, b = local[bones[:, 0]], local[bones[:, 1]]
-    use = (a >= 0) & (b >= 0) & np.isfinite(lengths)
-    sl = np.broadcast_to(np.asarray(sigma_len, float), use.shape)[use]
-    return a[use], b[use], np.asarray(lengths, float)[use], sl
+    lengths_f = np.asarray(lengths, float)
+    use = (a >= 0) & (b >= 0) & np.isfinite(lengths_f)
+    sig = np.asarray(sigma_len, float)
+    sl = (np.full(use.shape, float(sig)) if sig.ndim == 0 else sig)[use]
+    out = (a[use], b[use], lengths_f[use], sl)
+    for v in out:
+        v.flags.writeable = False
+    _TABLE[:] = [(key, out)]
+    return out
 
 
 def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
@@ -200,11 +230,11 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     Y = X[move] - 2.0 * ((X[move] - X[fixed]) * r).sum(1, keepdims=True) * r
     ends = np.stack([a, b], 1)                                     # (B, 2)
 
-    def cost(P: np.ndarray, who: np.ndarray) -> np.ndarray:
-        return _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px)
-
+    m = len(move)
     with np.errstate(invalid="ignore", over="ignore"):
-        gap = cost(Y, move) - cost(X[move], move)                  # c' - c, (2B,)
+        c = _joint_cost(K, normal, distance, np.concatenate([Y, X[move]]),
+                        np.concatenate([move, move]), X, u, um, keep, ends, L, sl, sigma_px)
+        gap = c[:m] - c[m:]                                        # c' - c, (2B,)
         gap = np.where(np.isfinite(gap), gap, np.inf)
     # each joint's likeliest other branch
     order = np.lexsort((gap, move))
@@ -220,13 +250,20 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     return Xo, Co
 
 
-def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px):
+def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px,
+                px=None):
     """``(n,)`` the frame's cost at joints ``who`` placed at ``P`` ``(n, 3)``, the
     others at ``X``: both views' squared whitened reprojection residuals (the views
-    ``keep``), the squared whitened length errors of the bones ``ends`` ``(B, 2)``
-    (local indices; lengths ``L``, spreads ``sl``) at the joint."""
-    res, _ = view_residuals(K, normal, distance, P, u[who], um[who])
-    rr = np.where(keep[who], (res * res).sum(2) / (sigma_px * sigma_px), 0.0).sum(1)
+    ``keep``; ``px`` ``(n, 2)``: their norms at ``P`` where known, px), the squared
+    whitened length errors of the bones ``ends`` ``(B, 2)`` (local indices; lengths
+    ``L``, spreads ``sl``) at the joint."""
+    if px is None:
+        res = _residuals(K, normal, distance, P, u[who], um[who])
+        sq = (res * res).sum(2) / (sigma_px * sigma_px)
+    else:
+        sq = px / sigma_px
+        sq = sq * sq
+    rr = np.where(keep[who], sq, 0.0).sum(1)
     at = ends[None] == who[:, None, None]                          # (n, B, 2)
     touch = at.any(2)
     other = np.where(at[:, :, 0], ends[None, :, 1], ends[None, :, 0])   # (n, B)
@@ -239,7 +276,8 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                CA: np.ndarray, XB: np.ndarray, CB: np.ndarray, u: np.ndarray,
                um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
                bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
-               sigma_len: "float | np.ndarray") -> tuple[np.ndarray, np.ndarray]:
+               sigma_len: "float | np.ndarray", *, pxA: np.ndarray | None = None,
+               pxB: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Two refinements of one frame's joints (:func:`refine_with_bones` from two
     starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
     predict them) folded, joint by joint, into the moment-matched Gaussian of the two.
@@ -265,6 +303,9 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
         joints: ``(k,)`` the skeleton's indices; bones: ``(B, 2)``; lengths: ``(B,)``.
         sigma_px: the reprojection noise, px; sigma_len: the bones' spread, one for all
             or ``(B,)``.
+        pxA, pxB: ``(k, 2)`` each view's reprojection residual at ``XA``, ``XB``, px
+            (:func:`refine_with_bones`' ``full`` output), where known: the costs' views
+            taken from them, not reprojected again.
 
     Returns:
         ``(X, cov)``: ``(k, 3)``, ``(k, 3, 3)``.
@@ -275,9 +316,9 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
     who = np.arange(k)
     with np.errstate(invalid="ignore", over="ignore"):
         gap = (_joint_cost(K, normal, distance, XB, who, XB, u, um, keepA, ends, L, sl,
-                           sigma_px)
+                           sigma_px, pxB)
                - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
-                             sigma_px))
+                             sigma_px, pxA))
         w = 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
     w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
                  & (keepA == keepB).all(1), w, 0.0)
@@ -338,77 +379,153 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
         with ``full`` also ``(k, 2)`` bool the views kept and ``(k, 2)`` each view's
         reprojection residual at the returned joints, px (direct, mirror).
     """
-    X = np.array(X, dtype=float)
-    k = len(X)
+    Xs, cov, keep, px = refine_starts(K, normal, distance, np.asarray(X, float)[None], u,
+                                      um, joints, bones, lengths, sigma_px, sigma_len,
+                                      iterations, gate_px=gate_px)
+    if full:
+        return Xs[0], cov[0], keep[0], px[0]
+    return Xs[0], cov[0]
+
+
+def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np.ndarray,
+                  u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
+                  lengths: np.ndarray, sigma_px: float, sigma_len: "float | np.ndarray",
+                  iterations: int = 3, *, gate_px: float | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`refine_with_bones` of one frame from ``m`` starting points at once, each
+    refinement on its own (its steps, its views left out), vectorised over the starts.
+
+    Args:
+        starts: ``(m, k, 3)`` the starting joints (camera frame); the other arguments
+            as :func:`refine_with_bones`'.
+
+    Returns:
+        ``(X, cov, keep, px)``: ``(m, k, 3)`` the refined joints, ``(m, k, 3, 3)``
+        their covariances, ``(m, k, 2)`` bool the views kept and ``(m, k, 2)`` each
+        view's reprojection residual at the joints returned, px (direct, mirror).
+    """
+    X = np.array(starts, dtype=float)
+    m, k = X.shape[:2]
     n = np.asarray(normal, float)
     H = np.eye(3) - 2.0 * np.outer(n, n)
     a, b, L, sl = _frame_bones(joints, bones, lengths, sigma_len, k)
+    nb = len(L)
     held = np.zeros(k, bool)
     held[a] = held[b] = True
-    keep = np.ones((k, 2), bool)
-    steps = max(int(iterations), 1)
-    done = 0
-    uu = np.concatenate([u, um])                  # both views' pixels, stacked: (2k, 2)
-    # both views' projections, stacked: the camera's K, the mirror's K H (offset K c)
+    keep = np.ones((m, k, 2), bool)
+    steps = np.full(m, max(int(iterations), 1))
+    done = np.zeros(m, np.int64)
+    gated = np.full(m, gate_px is not None)
+    active = np.ones(m, bool)
+    uu = np.stack([u, um], 1)                      # (k, view, 2)
+    # both views' projections side by side: the camera's K, the mirror's K H (offset K c)
     KH = K @ H
-    Kc = K @ (2.0 * distance * n)
-    P = np.empty((2 * k, 3, 3))
-    P[:k], P[k:] = K, KH
-    rows = np.arange(len(L))
-    Jb = np.zeros((len(L), k, 3))                 # the bones' rows of the Jacobian
+    PT = np.concatenate([K.T, KH.T], 1)            # (3, 6)
+    off = np.concatenate([np.zeros(3), K @ (2.0 * distance * n)])
+    P = np.stack([K, KH])                          # (view, 3, 3)
+    rows = np.arange(nb)
+    Jb = np.zeros((m, nb, k, 3))                   # the bones' rows of the Jacobian
     inv_var = 1.0 / (sigma_px * sigma_px)
+    # each refinement's state where it ends: its blocks, bone rows, residuals, solver
+    Df, Jbf = np.empty((m, k, 3, 3)), np.empty((m, nb, k, 3))
+    rnf, bothf = np.empty((m, k, 2)), np.zeros(m, bool)
     while True:
-        q = np.concatenate([X @ K.T, X @ KH.T + Kc])                       # (2k, 3)
-        z = q[:, 2:3]
-        p = q[:, :2] / z
-        Jv = (P[:, :2, :] - p[:, :, None] * P[:, 2:3, :]) / z[:, :, None]   # (2k, 2, 3)
+        q = (X @ PT + off).reshape(m, k, 2, 3)
+        z = q[..., 2:3]
+        p = q[..., :2] / z
+        Jv = (P[:, :2, :] - p[..., None] * P[:, 2:3, :]) / z[..., None]    # (m, k, 2, 2, 3)
         d = p - uu
-        rn = np.sqrt(np.einsum("ij,ij->i", d, d)) / sigma_px
+        rn = np.sqrt(np.einsum("...i,...i->...", d, d)) / sigma_px           # (m, k, 2)
         w = np.minimum(1.0, HUBER_K / np.maximum(rn, 1e-12))
-        w *= keep.T.ravel()
+        w *= keep
         w *= inv_var
-        Jt = Jv.transpose(0, 2, 1)
-        JJ = (Jt @ Jv) * w[:, None, None]
-        Jr = np.einsum("nri,nr->ni", Jv, d) * w[:, None]
-        D = JJ[:k] + JJ[k:]                       # the reprojection's diagonal blocks
-        both = bool(keep.all())                   # every block of two views: invertible
-        g = (Jr[:k] + Jr[k:]).ravel()
-        if len(L):
-            diff = X[a] - X[b]
-            length = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-            e = diff / (np.maximum(length, 1e-12) * sl)[:, None]  # d r / d X_a
-            Jb[rows, a], Jb[rows, b] = e, -e
-            g += Jb.reshape(len(L), 3 * k).T @ ((length - L) / sl)
-        if done >= steps:
-            if gate_px is None or not held.any():
-                break
-            px = sigma_px * rn.reshape(2, k).T
+        JJ = (Jv.swapaxes(-1, -2) @ Jv) * w[..., None, None]
+        Jr = (Jv.swapaxes(-1, -2) @ d[..., None])[..., 0] * w[..., None]     # (m, k, 2, 3)
+        D = JJ[:, :, 0] + JJ[:, :, 1]             # the reprojection's diagonal blocks
+        both = keep.all((1, 2))                   # every block of two views: invertible
+        g = (Jr[:, :, 0] + Jr[:, :, 1]).reshape(m, 3 * k)
+        if nb:
+            diff = X[:, a] - X[:, b]
+            length = np.sqrt(np.einsum("mbi,mbi->mb", diff, diff))
+            e = diff / (np.maximum(length, 1e-12) * sl)[..., None]      # d r / d X_a
+            Jb[:, rows, a], Jb[:, rows, b] = e, -e
+            g += (Jb.reshape(m, nb, 3 * k).swapaxes(1, 2)
+                  @ ((length - L) / sl)[..., None])[..., 0]
+        due = active & (done >= steps)
+        test = due & gated & held.any()
+        end = due & ~test
+        if test.any():
+            px = sigma_px * rn[test]                                        # (t, k, 2)
             # the joints pass's rule (one home): the worst view over the threshold, at
             # most one a joint, here of the joints the bones hold
-            drop = np.stack(one_view_outliers([px[:, 0], px[:, 1]], gate_px), 1)
-            drop &= keep & held[:, None]
-            if not drop.any():
-                break
-            keep &= ~drop
-            gate_px, steps = None, steps + 1     # one more step without them, then stop
-        try:
-            step = _Normal(D, Jb, both).solve(g)
-        except np.linalg.LinAlgError:
+            drop = np.stack(one_view_outliers([px[..., 0], px[..., 1]], gate_px), -1)
+            drop &= keep[test] & held[:, None]
+            some = drop.any((1, 2))
+            at = np.flatnonzero(test)
+            end[at[~some]] = True
+            keep[at[some]] &= ~drop[some]
+            gated[at[some]] = False                 # one more step, then stop
+            steps[at[some]] += 1
+        go = active & ~end
+        if go.all():                              # every start steps: no rows to pick
+            step, solved = _solve_many(D, Jb, both, g, "solve")
+            if solved.all():
+                X -= step.reshape(m, k, 3)
+                done += 1
+            else:
+                X[solved] -= step[solved].reshape(-1, k, 3)
+                done[solved] += 1
+                end[~solved] = True               # a singular system: stop there
+        elif go.any():
+            step, solved = _solve_many(D[go], Jb[go], both[go], g[go], "solve")
+            at = np.flatnonzero(go)
+            X[at[solved]] -= step[solved].reshape(-1, k, 3)
+            done[at[solved]] += 1
+            end[at[~solved]] = True
+        if end.any():
+            Df[end], Jbf[end], rnf[end], bothf[end] = D[end], Jb[end], rn[end], both[end]
+            active &= ~end
+        if not active.any():
             break
-        X = X - step.reshape(k, 3)
-        done += 1
-    try:
-        cov = _Normal(D, Jb, both).covariance()
-    except np.linalg.LinAlgError:
-        cov = np.full((k, 3, 3), np.nan)
-    if full:
-        return X, cov, keep, sigma_px * rn.reshape(2, k).T
-    return X, cov
+    cov, solved = _solve_many(Df, Jbf, bothf, None, "covariance")
+    cov = cov.reshape(m, k, 3, 3)
+    cov[~solved] = np.nan
+    return X, cov, keep, sigma_px * rnf
+
+
+def _solve_many(D: np.ndarray, Jb: np.ndarray, both: np.ndarray, g: np.ndarray | None,
+                what: str) -> tuple[np.ndarray, np.ndarray]:
+    """``m`` frames' normal equations (:class:`_Normal`): ``(m, 3k)`` their steps
+    ``A^-1 g`` (``what="solve"``) or ``(m, k, 3, 3)`` their covariance blocks
+    (``"covariance"``), and ``(m,)`` bool where solved (NaN where singular)."""
+    m, k = D.shape[:2]
+    ok = np.ones(m, bool)
+    if both.all() or not both.any():              # one solver for all: no rows to pick
+        try:
+            return _Normal(D, Jb, bool(both[0])).run(what, g), ok
+        except np.linalg.LinAlgError:
+            pass
+    out = np.full((m, 3 * k) if what == "solve" else (m, k, 3, 3), np.nan)
+    for flag in (True, False):
+        sel = np.flatnonzero(both == flag)
+        if not sel.size:
+            continue
+        try:
+            out[sel] = _Normal(D[sel], Jb[sel], flag).run(what, None if g is None else g[sel])
+        except np.linalg.LinAlgError:
+            for i in sel:                         # one by one: which one is singular
+                try:
+                    out[i] = _Normal(D[i:i + 1], Jb[i:i + 1], flag).run(
+                        what, None if g is None else g[i:i + 1])[0]
+                except np.linalg.LinAlgError:
+                    ok[i] = False
+    return out, ok
 
 
 class _Normal:
-    """The normal equations ``A = blockdiag(D) + J_b^T J_b`` of one frame: ``D`` ``(k, 3,
-    3)`` the reprojection's blocks, ``J_b`` ``(B, k, 3)`` the bones' rows (``B`` small).
+    """The normal equations ``A = blockdiag(D) + J_b^T J_b`` of ``m`` frames (or starts):
+    ``D`` ``(m, k, 3, 3)`` the reprojection's blocks, ``J_b`` ``(m, B, k, 3)`` the bones'
+    rows (``B`` small).
 
     With every block invertible (both views of every joint kept) by the Woodbury
     identity, ``A^-1 = D^-1 - D^-1 J_b^T S^-1 J_b D^-1`` with ``S = I + J_b D^-1 J_b^T``
@@ -418,47 +535,51 @@ class _Normal:
 
     def __init__(self, D: np.ndarray, Jb: np.ndarray, blocks_invertible: bool):
         self.D, self.Jb = D, Jb
-        self.k, self.B = len(D), len(Jb)
+        self.m, self.k, self.B = D.shape[0], D.shape[1], Jb.shape[1]
         self.woodbury = bool(blocks_invertible)
 
+    def run(self, what: str, g: np.ndarray | None) -> np.ndarray:
+        return self.solve(g) if what == "solve" else self.covariance()
+
     def dense(self) -> np.ndarray:
-        """``(3k, 3k)`` the matrix."""
+        """``(m, 3k, 3k)`` the matrices."""
         k = self.k
-        Jf = self.Jb.reshape(self.B, 3 * k)
-        A = Jf.T @ Jf
-        A.reshape(-1)[_diagonal(k)] += self.D
+        Jf = self.Jb.reshape(self.m, self.B, 3 * k)
+        A = Jf.swapaxes(1, 2) @ Jf
+        A.reshape(self.m, -1)[:, _diagonal(k)] += self.D
         return A
 
     def _parts(self):
-        Dinv = np.linalg.inv(self.D)                                          # (k, 3, 3)
-        U = np.matmul(self.Jb.transpose(1, 0, 2), Dinv).transpose(1, 0, 2)    # J_b D^-1
-        Uf = U.reshape(self.B, 3 * self.k)
-        S = Uf @ self.Jb.reshape(self.B, 3 * self.k).T
-        S[np.diag_indices(self.B)] += 1.0
+        m, k, B = self.m, self.k, self.B
+        Dinv = np.linalg.inv(self.D)                                          # (m, k, 3, 3)
+        U = np.matmul(self.Jb.transpose(0, 2, 1, 3), Dinv).transpose(0, 2, 1, 3)  # J_b D^-1
+        Uf = U.reshape(m, B, 3 * k)
+        S = Uf @ self.Jb.reshape(m, B, 3 * k).swapaxes(1, 2)
+        S[:, np.arange(B), np.arange(B)] += 1.0
         return Dinv, Uf, S
 
     def solve(self, g: np.ndarray) -> np.ndarray:
-        """``(3k,)`` ``A^-1 g``."""
+        """``(m, 3k)`` ``A^-1 g``."""
         if not self.woodbury:
-            return np.linalg.solve(self.dense(), g)
+            return np.linalg.solve(self.dense(), g[..., None])[..., 0]
         Dinv, Uf, S = self._parts()
-        Dg = np.matmul(Dinv, g.reshape(self.k, 3, 1)).reshape(-1)
+        Dg = np.matmul(Dinv, g.reshape(self.m, self.k, 3, 1)).reshape(self.m, -1)
         if self.B == 0:
             return Dg
-        return Dg - Uf.T @ np.linalg.solve(S, Uf @ g)
+        return Dg - (Uf.swapaxes(1, 2) @ np.linalg.solve(S, (Uf @ g[..., None])))[..., 0]
 
     def covariance(self) -> np.ndarray:
-        """``(k, 3, 3)`` the diagonal blocks of ``A^-1``."""
-        k = self.k
+        """``(m, k, 3, 3)`` the diagonal blocks of ``A^-1``."""
+        m, k = self.m, self.k
         if not self.woodbury:
-            inv = np.linalg.inv(self.dense())
-            return inv.reshape(k, 3, k, 3)[np.arange(k), :, np.arange(k), :]
+            inv = np.linalg.inv(self.dense()).reshape(m, k, 3, k, 3)
+            return np.einsum("mkikj->mkij", inv)
         Dinv, Uf, S = self._parts()
         if self.B == 0:
             return Dinv
-        V = np.linalg.solve(S, Uf).reshape(self.B, k, 3)
-        U = Uf.reshape(self.B, k, 3)
-        return Dinv - np.einsum("bki,bkj->kij", U, V)
+        V = np.linalg.solve(S, Uf).reshape(m, self.B, k, 3)
+        U = Uf.reshape(m, self.B, k, 3)
+        return Dinv - np.einsum("mbki,mbkj->mkij", U, V)
 
 
 _HEADS: dict = {}

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from mirrorgraph import geometry as geo
-from mirrorgraph.live.frame_prior import bone_branches, refine_with_bones, two_starts
+from mirrorgraph.live.frame_prior import (bone_branches, refine_starts, refine_with_bones,
+                                          two_starts)
 from mirrorgraph.synth import make_wide_scene
 
 
@@ -107,6 +108,37 @@ def test_of_a_joint_held_by_bones_the_worst_view_over_the_threshold_is_left_out(
                                      0.01 * sc.subject_height, iterations=2, full=True)
     drop = np.stack(one_view_outliers([px0[:, 0], px0[:, 1]], 20.0), 1)
     assert (drop[j] == ~keep[j]).all()
+
+
+def test_several_starts_at_once_are_each_start_refined_on_its_own():
+    """:func:`refine_starts` of three starts (the rays' optimum, one joint of it moved a
+    third of a metre, the truth) with a knee displaced along its epipolar line (a view
+    left out in some starts) gives each start's :func:`refine_with_bones` (its joints,
+    covariances, views kept and residuals, to rounding)."""
+    sc = make_wide_scene(3, "wide", "iid", 50)
+    pairs, L = _bones(sc)
+    X, u, um = _frame_data(sc, 20, np.random.default_rng(4), noise=1.0)
+    j = sc.skeleton.index("left_knee")
+    e = sc.K @ sc.normal
+    e = e[:2] / e[2]
+    um[j] += 60.0 * (um[j] - e) / np.linalg.norm(um[j] - e)
+    X0 = geo.triangulate_mirror(sc.K, sc.normal, sc.distance, u, um, iterations=1)
+    X1 = X0.copy()
+    X1[sc.skeleton.index("left_wrist")] += 0.3
+    starts = np.stack([X0, X1, X])
+    idx = np.arange(len(X))
+    args = (idx, pairs, L, 1.0, 0.01 * sc.subject_height)
+    many = refine_starts(sc.K, sc.normal, sc.distance, starts, u, um, *args, iterations=2,
+                         gate_px=20.0)
+    kept = []
+    for i, start in enumerate(starts):
+        one = refine_with_bones(sc.K, sc.normal, sc.distance, start, u, um, *args,
+                                iterations=2, gate_px=20.0, full=True)
+        for a, b in zip(many, one):
+            assert a[i].shape == b.shape
+            np.testing.assert_allclose(a[i], b, rtol=1e-9, atol=1e-12)
+        kept.append(one[2][j].sum())
+    assert min(kept) == 1                          # the knee's worse view left out
 
 
 def test_the_head_prior_holds_a_face_keypoint_slid_in_depth_and_its_std_covers_it():

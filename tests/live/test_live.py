@@ -773,7 +773,7 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
     """With ``RefineOptions.torso_sigma`` the windows' joints pass holds the torso's
     distances, and each frame's refinement holds them too: the window's four (the two
     sides, the two diagonals; measured on its joints, within 5 % of the true ones) reach
-    :func:`~mirrorgraph.live.frame_prior.refine_with_bones` beside the bones, at
+    :func:`~mirrorgraph.live.frame_prior.refine_starts` beside the bones, at
     ``torso_sigma`` of the height (the default's); with ``torso_sigma=None`` only the bones
     do."""
     from mirrorgraph.graph import RefineOptions
@@ -782,13 +782,13 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
     sc = make_wide_scene(3, "wide", "iid", 300)
     sk = sc.skeleton
     sizes = []
-    real = live_calibrator.refine_with_bones
+    real = live_calibrator.refine_starts
 
     def spy(K, normal, distance, X, u, um, joints, bones, lengths, *args, **kw):
         sizes.append(int(np.isfinite(lengths).sum()))
         return real(K, normal, distance, X, u, um, joints, bones, lengths, *args, **kw)
 
-    monkeypatch.setattr(live_calibrator, "refine_with_bones", spy)
+    monkeypatch.setattr(live_calibrator, "refine_starts", spy)
     live = _live(sc, refine_options=RefineOptions())
     _feed(live, sc.detections.people)
     live.finish()
