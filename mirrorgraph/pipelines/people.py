@@ -180,6 +180,9 @@ def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
         person = int(height_of)
     if height is None:
         return None, measured, None, "no height given", 0.0, None
+    if person >= P:
+        return (None, measured, None, f"person {person} is not among the {P} people tracked",
+                0.0, None)
     if not np.isfinite(measured[person]):
         return (None, measured, person,
                 f"person {person}'s joints do not span ankle to eyes", 0.0, None)

@@ -82,6 +82,16 @@ def test_height_of_refuses_nonsense(crowd):
         calibrate_people(crowd.detections, None, height_of="oldest")
 
 
+def test_height_of_a_person_not_tracked_leaves_the_scale_unknown(crowd, runs):
+    from mirrorgraph.pipelines.people import _scale_people
+
+    _, run = runs
+    factor, _, person, source, *_ = _scale_people(run.joints3d, run.valid3d, crowd.skeleton,
+                                                  1.8, None, run.num_people)
+    assert factor is None and person is None
+    assert f"not among the {run.num_people} people" in source
+
+
 def test_a_list_of_heights(crowd, runs):
     _, run = runs
     owners = _owners(crowd, run)
