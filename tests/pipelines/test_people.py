@@ -145,6 +145,7 @@ def test_the_distance_std_is_stated_as_one_persons_run_states_it(crowd, runs):
     assert parts["data"] == pytest.approx(np.hypot(parts["normal"], parts["sampling"]))
     want = np.sqrt(hs ** 2 + rel ** 2 + parts["data"] ** 2)
     assert cal.uncertainty["distance_std"] / cal.distance == pytest.approx(want, rel=1e-6)
+    assert abs(cal.distance - crowd.distance) < 3.0 * cal.uncertainty["distance_std"]
 
 
 def test_each_persons_joints_std_holds_the_metric_scales_share(crowd, runs):
