@@ -20,6 +20,15 @@ largest stature measured on the solved joints, ankle to eyes or head top,
 one per person in that order, ``None`` for unknown ones), the scale is the median of their
 ratios. The others' statures then follow from the shared mirror: the graph holds every
 person in the same unit (the mirror's distance), so one length fixes them all.
+
+The metric distance is then ``D = H / S(n, 1)``, ``S`` the stature of the person whose
+height sets the scale (with a list, the person of the median ratio), and its std is one
+person's run's (:func:`mirrorgraph.pipelines.scale.distance_rel_parts`, recorded by part as
+``uncertainty["distance_rel_std"]``): the mirror normal's covariance carried through that
+person's stature (:func:`mirrorgraph.pipelines.scale.normal_scale_rel_std`, on their own
+person and reflection), their stature's sampling std, an estimated focal length's relative
+std, the height's prior and the measurement's own spread. The joints' scale share
+(:attr:`PeopleRun.scale_rel_std`) holds the last two, as one person's run does.
 """
 
 from __future__ import annotations
@@ -39,11 +48,11 @@ from ..initial.people import PeopleOptions, PeoplePairing, pair_people, split_pe
 from ..intrinsics import Intrinsics
 from ..keypoints import PairedKeypoints, RawDetections
 from ..graph.joints_uncertainty import position_std, with_scale
-from ..stature import (estimate_stature, keypoint_offset_fraction, measurement_rel_std,
-                       with_height_sigma)
+from ..stature import estimate_stature, keypoint_offset_fraction, measurement_rel_std
 from .mirror import (CalibrationRun, Observations, focal_estimated, initial_run, initialise,
                      judge_run, prepare, refine_run)
 from .options import CalibrateOptions
+from .scale import distance_rel_parts, normal_scale_rel_std
 
 __all__ = ["PeopleRun", "calibrate_people"]
 
@@ -127,14 +136,16 @@ def _observe_people(keypoints, intrinsics, opts: CalibrateOptions, people: Peopl
 
 def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
                   height_of, keypoint_offset: float | None = None
-                  ) -> tuple[float | None, np.ndarray, int | None, str, float]:
+                  ) -> tuple[float | None, np.ndarray, int | None, str, float, int | None]:
     """The factor that makes the chosen person's stature (or the list's) the given one:
-    ``(factor, statures before scaling, person, source, rel_std)``; ``factor`` ``None``
-    where no stature can be measured; ``rel_std`` the stature measurement's own relative
-    std (:func:`mirrorgraph.stature.measurement_rel_std`) of the chosen person, or with a
-    list of heights the median of the measured people's (the detector's keypoint offsets
-    are shared by the people, so their number does not shrink it); ``0`` without a
-    factor. ``keypoint_offset``: the keypoints' placement in metres
+    ``(factor, statures before scaling, person, source, rel_std, setter)``; ``factor``
+    ``None`` where no stature can be measured; ``rel_std`` the stature measurement's own
+    relative std (:func:`mirrorgraph.stature.measurement_rel_std`) of the chosen person,
+    or with a list of heights the median of the measured people's (the detector's keypoint
+    offsets are shared by the people, so their number does not shrink it); ``0`` without
+    a factor. ``setter``: the person whose stature sets the scale (the chosen one, or with
+    a list the person of the median ratio, the lower of two middle ones), ``None`` without
+    a factor. ``keypoint_offset``: the keypoints' placement in metres
     (``RefineOptions.keypoint_offset``), each person's fraction of their own height."""
     P = points.shape[0]
 
@@ -148,16 +159,19 @@ def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
            for p in range(P)]
     measured = np.array([np.nan if e is None else e.height for e in est])
     if heights is not None:
-        ratios = [float(h) / measured[p] for p, h in enumerate(heights)
-                  if h is not None and p < P and np.isfinite(measured[p])]
-        if not ratios:
-            return None, measured, None, "no person of the given heights has a stature", 0.0
-        rel = float(np.median([measurement_rel_std(est[p]) for p, h in enumerate(heights)
-                               if h is not None and p < P and np.isfinite(measured[p])]))
+        given = [p for p, h in enumerate(heights)
+                 if h is not None and p < P and np.isfinite(measured[p])]
+        if not given:
+            return (None, measured, None, "no person of the given heights has a stature",
+                    0.0, None)
+        ratios = np.array([float(heights[p]) / measured[p] for p in given])
+        rel = float(np.median([measurement_rel_std(est[p]) for p in given]))
+        setter = given[int(np.argsort(ratios)[(len(ratios) - 1) // 2])]
         return (float(np.median(ratios)), measured, None,
-                f"the median of {len(ratios)} people's given heights over their statures", rel)
+                f"the median of {len(ratios)} people's given heights over their statures",
+                rel, setter)
     if not np.isfinite(measured).any():
-        return None, measured, None, "no person's joints span ankle to eyes", 0.0
+        return None, measured, None, "no person's joints span ankle to eyes", 0.0, None
     if height_of == "tallest":
         person = int(np.nanargmax(measured))
     elif height_of == "first":
@@ -165,12 +179,16 @@ def _scale_people(points: np.ndarray, valid: np.ndarray, base, height, heights,
     else:
         person = int(height_of)
     if height is None:
-        return None, measured, None, "no height given", 0.0
+        return None, measured, None, "no height given", 0.0, None
+    if person >= P:
+        return (None, measured, None, f"person {person} is not among the {P} people tracked",
+                0.0, None)
     if not np.isfinite(measured[person]):
         return (None, measured, person,
-                f"person {person}'s joints do not span ankle to eyes", 0.0)
+                f"person {person}'s joints do not span ankle to eyes", 0.0, None)
     return (float(height) / measured[person], measured, person,
-            f"person {person}'s stature ({height_of})", measurement_rel_std(est[person]))
+            f"person {person}'s stature ({height_of})", measurement_rel_std(est[person]),
+            person)
 
 
 def _check_height_of(height_of, heights) -> None:
@@ -243,7 +261,7 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
                 run_opts.graph.focal.guess_rel_sigma)
         joints3d = split_people(run.joints3d, P)
         valid3d = split_people(run.valid3d, P)
-        factor, measured, person, source, rel = _scale_people(
+        factor, measured, person, source, rel, setter = _scale_people(
             joints3d, valid3d, pairing.base, height, heights, height_of,
             opts.graph.keypoint_offset)
         statures = measured
@@ -256,7 +274,11 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
             # the height's prior and the stature measurement's own spread, as one
             # person's scale (mirrorgraph.pipelines.scale.scale_by_stature) holds them
             scale_rel = float(np.hypot(opts.graph.height_sigma, rel))
-            calib.uncertainty["distance_std"] = with_height_sigma(0.0, float(factor), scale_rel)
+            parts = _distance_rel_parts(run, pairing, joints3d, valid3d, setter,
+                                        height if heights is None else heights[setter],
+                                        rel, opts)
+            calib.uncertainty["distance_std"] = parts["total"] * float(factor)
+            calib.uncertainty["distance_rel_std"] = parts
             calib.refinement["scale_source"] = source
             _scale_joints(run, float(factor), scale_rel)
         elif height is not None or heights is not None:
@@ -273,6 +295,47 @@ def calibrate_people(keypoints: RawDetections | str | os.PathLike,
     return PeopleRun(run=run, pairing=pairing, joints3d=joints3d, valid3d=valid3d,
                      statures=statures, height_person=person, joints_std=stds[0],
                      joints_std_shape=stds[1])
+
+
+def _distance_rel_parts(run: CalibrationRun, pairing: PeoplePairing, points: np.ndarray,
+                        valid: np.ndarray, setter: int, height: float, measurement: float,
+                        opts: CalibrateOptions) -> dict[str, float]:
+    """The metric distance's relative std by part (:func:`~.scale.distance_rel_parts`),
+    as one person's run states it, from the person whose stature sets the scale: the
+    mirror normal's covariance carried through their stature
+    (:func:`~.scale.normal_scale_rel_std`, on their own person and reflection), their
+    stature's sampling std, an estimated focal length's relative std, the height's prior
+    and the measurement's own spread (``measurement``, :func:`_scale_people`'s).
+
+    Args:
+        run: the refined run (its keypoints in the layout of several people, undistorted).
+        pairing: every person with their reflection (``base``: one person's layout).
+        points: ``(P, T, J, 3)`` the joints in the graph's unit; valid: ``(P, T, J)``.
+        setter: the person whose stature sets the scale.
+        height: their height, metres.
+        measurement: the measurement's relative std the scale holds.
+        opts: the options (``graph.height_sigma``, ``graph.keypoint_offset``).
+    """
+    calib = run.calibration
+    J = pairing.base.num_joints
+    cols = slice(setter * J, (setter + 1) * J)
+    paired = replace(run.paired, skeleton=pairing.base, real=run.paired.real[:, cols],
+                     mirror=run.paired.mirror[:, cols])
+    offset = keypoint_offset_fraction(opts.graph.keypoint_offset, height)
+    stature = estimate_stature(points[setter], valid[setter], pairing.base,
+                               keypoint_offset=offset)
+    normal_cov = np.asarray(calib.uncertainty.get("normal_cov", np.full((3, 3), np.nan)),
+                            float)
+    K = np.asarray(calib.intrinsics.K, float)
+    normal_rel = normal_scale_rel_std(paired, K, calib.normal, 1.0, valid[setter],
+                                      normal_cov, offset)
+    focal_std = calib.uncertainty.get("focal_std_px")
+    focal_rel = float(focal_std) / float(K[0, 0]) if focal_std is not None else 0.0
+    parts = distance_rel_parts(normal_rel, stature, opts.graph.height_sigma, focal_rel)
+    parts["measurement"] = float(measurement)
+    parts["total"] = float(np.sqrt(parts["data"] ** 2 + parts["height"] ** 2
+                                   + measurement ** 2))
+    return parts
 
 
 def _scale_joints(run: CalibrationRun, factor: float, scale_rel_std: float) -> None:

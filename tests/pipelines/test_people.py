@@ -82,6 +82,16 @@ def test_height_of_refuses_nonsense(crowd):
         calibrate_people(crowd.detections, None, height_of="oldest")
 
 
+def test_height_of_a_person_not_tracked_leaves_the_scale_unknown(crowd, runs):
+    from mirrorgraph.pipelines.people import _scale_people
+
+    _, run = runs
+    factor, _, person, source, *_ = _scale_people(run.joints3d, run.valid3d, crowd.skeleton,
+                                                  1.8, None, run.num_people)
+    assert factor is None and person is None
+    assert f"not among the {run.num_people} people" in source
+
+
 def test_a_list_of_heights(crowd, runs):
     _, run = runs
     owners = _owners(crowd, run)
@@ -114,18 +124,28 @@ def test_each_persons_left_right_swaps_undone():
         assert pa_mpjpe(run.joints3d[k], crowd.joints3d[p], run.valid3d[k]) < 0.03
 
 
-def test_the_distance_std_holds_the_stature_measurement_as_one_persons_does(crowd, runs):
-    """The people's scale std is one person's rule: the height's prior and the chosen
-    person's stature measurement (its detector keypoint term included), not the prior
-    alone."""
+def test_the_distance_std_is_stated_as_one_persons_run_states_it(crowd, runs):
+    """The people's distance std is one person's rule (mirrorgraph.pipelines.scale.
+    distance_rel_parts) on the person whose stature sets the scale: the height's prior, the
+    chosen person's stature measurement (its detector keypoint term included) and the
+    data's share (the normal's covariance through their stature, their stature's
+    sampling), in quadrature."""
     _, run = runs
     cal = run.calibration
     k = run.height_person
     est = estimate_stature(run.joints3d[k], run.valid3d[k], crowd.skeleton)
     rel = measurement_rel_std(est)
     assert rel >= keypoint_rel_std(est.top)                  # the end keypoints' share in it
-    want = np.hypot(CalibrateOptions().graph.height_sigma, rel)
+    parts = cal.uncertainty["distance_rel_std"]
+    hs = CalibrateOptions().graph.height_sigma
+    assert parts["measurement"] == pytest.approx(rel, rel=1e-6)
+    assert parts["height"] == hs
+    assert parts["sampling"] == pytest.approx(est.sampling_rel_std, rel=1e-6)
+    assert parts["normal"] > 0.0
+    assert parts["data"] == pytest.approx(np.hypot(parts["normal"], parts["sampling"]))
+    want = np.sqrt(hs ** 2 + rel ** 2 + parts["data"] ** 2)
     assert cal.uncertainty["distance_std"] / cal.distance == pytest.approx(want, rel=1e-6)
+    assert abs(cal.distance - crowd.distance) < 3.0 * cal.uncertainty["distance_std"]
 
 
 def test_each_persons_joints_std_holds_the_metric_scales_share(crowd, runs):
@@ -135,7 +155,8 @@ def test_each_persons_joints_std_holds_the_metric_scales_share(crowd, runs):
     covers each person's error against the truth."""
     _, run = runs
     cal, r = run.calibration, run.run
-    rel = cal.uncertainty["distance_std"] / cal.distance
+    parts = cal.uncertainty["distance_rel_std"]
+    rel = float(np.hypot(parts["height"], parts["measurement"]))     # the scale's share
     assert r.scale_rel_std == pytest.approx(rel, rel=1e-9)
     assert run.joints_std.shape == run.joints_std_shape.shape == run.valid3d.shape
     owners = _owners(crowd, run)
@@ -163,9 +184,9 @@ def test_a_stated_keypoint_placement_is_each_persons_fraction_of_their_height(cr
     _, run = runs
     k, H = run.height_person, float(crowd.heights.max())
     X, V = run.joints3d / run.calibration.distance, run.valid3d    # back to the run's unit
-    *_, rel0 = _scale_people(X, V, crowd.skeleton, H, None, "tallest", 0.0)
-    *_, rel2 = _scale_people(X, V, crowd.skeleton, H, None, "tallest", 0.02)
-    *_, rel = _scale_people(X, V, crowd.skeleton, H, None, "tallest")
+    rel0 = _scale_people(X, V, crowd.skeleton, H, None, "tallest", 0.0)[4]
+    rel2 = _scale_people(X, V, crowd.skeleton, H, None, "tallest", 0.02)[4]
+    rel = _scale_people(X, V, crowd.skeleton, H, None, "tallest")[4]
     est = estimate_stature(X[k], V[k], crowd.skeleton, keypoint_offset=0.0)
     assert rel0 == pytest.approx(np.sqrt(est.side_rel_diff ** 2 + est.bones_rel_spread ** 2
                                          + unmeasured_rel_std(est.top) ** 2), rel=1e-9)
