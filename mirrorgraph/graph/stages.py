@@ -459,7 +459,7 @@ def _joints_pass_torso(run: _Run, points: np.ndarray, used: np.ndarray
     the clip): :func:`joints_pass` then reads them on its own joints; ``{}`` without a
     torso term. (A rule twice as loose, ``opts.bone_bias_limit`` torso sigmas, reads
     them so on more wide scenes, and on one of them, iid 1 of
-    ``bench/bench_joints.py``, the PA-MPJPE rose from 19.4 to 21.3 mm.)"""
+    ``bench/bench_joints.py``, gives a PA-MPJPE of 21.3 mm against 19.4 mm.)"""
     problem, opts = run.problem, run.opts
     if opts.torso_sigma is None or not opts.use_bone_length:
         return {}

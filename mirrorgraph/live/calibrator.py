@@ -11,13 +11,12 @@
 against the epipole ``e ~ K n`` (:func:`mirrorgraph.initial.pairing.pair_with_epipoles`),
 left and right swapped back where the frames so far say the detector confused them
 (:class:`~mirrorgraph.initial.body_left_right.BodySwapFilter`), refined with the latest
-window's bone lengths (each one's spread widened by its steps between windows) and, where
-its joints pass held the torso (``RefineOptions.torso_sigma``), the torso's distances, from
-each joint's rays' midpoint and from where its track predicts it, the two and each limb's other
-branch along its ray folded by the frame's cost (:mod:`.frame_prior`), the worse view off
-by more than the threshold once the bones hold the joint left out
-(:func:`mirrorgraph.graph.outliers.one_view_outliers`), kept where it reprojects within
-the threshold in front of the camera and the mirror, filtered over time
+window's bone lengths (spreads widened by their steps between windows) and torso distances
+(``RefineOptions.torso_sigma``) from each joint's rays' midpoint and its track's prediction,
+the two and each limb's other branch along its ray folded by the frame's cost
+(:mod:`.frame_prior`), the worse view off by more than the threshold once the bones hold
+the joint left out (:func:`mirrorgraph.graph.outliers.one_view_outliers`), kept where it
+reprojects within the threshold in front of the camera and the mirror, filtered over time
 (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior, outliers
 gated; a new window rescales the tracks by the joints' scale change), the face fused with
 where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
