@@ -31,9 +31,15 @@ def test_calibrate_every_person(tmp_path, capsys):
     with np.load(tmp_path / "people.npz") as f:
         assert f["joints3d"].shape == (3, 150, 17, 3)
         assert str(f["unit"]) == "m"
-        # each person's std with the metric scale's share, as one person's npz holds it
-        rel = cal["uncertainty"]["distance_std"] / cal["mirror"]["distance"]
+        # each person's std with the metric scale's share, as one person's npz holds it:
+        # the height's prior and the stature's measurement (the distance's std holds the
+        # data's share besides, ``uncertainty.distance_rel_std``)
+        parts = cal["uncertainty"]["distance_rel_std"]
+        rel = float(np.hypot(parts["height"], parts["measurement"]))
         assert float(f["scale_rel_std"]) == pytest.approx(rel, rel=1e-9)
+        assert cal["uncertainty"]["distance_std"] / cal["mirror"]["distance"] == \
+            pytest.approx(parts["total"], rel=1e-9)
+        assert parts["total"] >= rel
         ok = f["valid"]
         assert f["joints_std"].shape == f["joints_std_shape"].shape == ok.shape
         want = np.hypot(f["joints_std_shape"][ok],
