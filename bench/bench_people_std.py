@@ -43,10 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -57,6 +54,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
+from _trees import archive, run_worker  # noqa: E402
 
 #: setting -> (height given, RefineOptions fields, the camera matrix given)
 SETTINGS = {"exact": ("exact", {}, True),
@@ -166,29 +164,13 @@ def rig_worker(setting: str, geometries: list[str], seeds: list[int], frames: in
 
 
 def _run(tree: Path, setting: str, args, rig: bool = False) -> list[dict]:
-    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    cmd = ["nice", "-n", str(args.nice), sys.executable, str(HERE / "bench_people_std.py"),
-           "--worker", setting, "--layouts", args.layouts, "--people", args.people,
-           "--seeds", args.seeds, "--frames", str(args.frames)]
     if rig:
-        cmd = cmd[:5] + ["--rig-worker", setting, "--rig-geometries", args.rig_geometries,
-                         "--rigs", args.rigs, "--frames", str(args.frames)]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(tree))
-    if done.returncode:
-        raise RuntimeError(f"{tree} {setting}: {done.stderr[-2000:]}")
-    return [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
-
-
-def _archive(rev: str, into: Path) -> str:
-    """``mirrorgraph/`` at ``rev`` extracted into ``into``; its short commit."""
-    short = subprocess.run(["git", "rev-parse", "--short", rev], cwd=ROOT, check=True,
-                           capture_output=True, text=True).stdout.strip()
-    tar = into / "src.tar"
-    subprocess.run(["git", "archive", "-o", str(tar), rev, "mirrorgraph"], cwd=ROOT, check=True)
-    with tarfile.open(tar) as t:
-        t.extractall(into, filter="data")
-    return short
+        cmd = ["--rig-worker", setting, "--rig-geometries", args.rig_geometries,
+               "--rigs", args.rigs, "--frames", str(args.frames)]
+    else:
+        cmd = ["--worker", setting, "--layouts", args.layouts, "--people", args.people,
+               "--seeds", args.seeds, "--frames", str(args.frames)]
+    return run_worker(tree, "bench_people_std.py", cmd, args.nice)
 
 
 # ---------------------------------------------------------------- figures
@@ -332,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
                          or key == "rigs"]
     have = {(v, x["setting"]) for v in rows for x in rows[v]}
     with tempfile.TemporaryDirectory(prefix="people_std_") as tmp:
-        old = _archive(args.before, Path(tmp))
+        old = archive(args.before, Path(tmp))
         trees = {"before": Path(tmp), "after": ROOT}
         jobs = [(v, s) for s in settings for v in trees if (v, s) not in have]
         if args.rigs:

@@ -34,10 +34,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -48,6 +46,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
+from _trees import archive, run_worker  # noqa: E402
 
 #: setting -> (height given, RefineOptions fields)
 SETTINGS = {"reported": ("reported", {}),
@@ -103,26 +102,9 @@ def worker(setting: str, kinds: list[str], seeds: list[int], frames: int) -> Non
 
 def _run(tree: Path, setting: str, kinds: list[str], seeds: list[int], frames: int,
          nice: int) -> list[dict]:
-    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    cmd = ["nice", "-n", str(nice), sys.executable, str(HERE / "bench_scale_std.py"),
-           "--worker", setting, "--kinds", ",".join(kinds),
-           "--seeds", ",".join(map(str, seeds)), "--frames", str(frames)]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(tree))
-    if done.returncode:
-        raise RuntimeError(f"{tree} {setting}: {done.stderr[-2000:]}")
-    return [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
-
-
-def _archive(rev: str, into: Path) -> str:
-    """``mirrorgraph/`` at ``rev`` extracted into ``into``; its full commit."""
-    full = subprocess.run(["git", "rev-parse", "--short", rev], cwd=ROOT, check=True,
-                          capture_output=True, text=True).stdout.strip()
-    tar = into / "src.tar"
-    subprocess.run(["git", "archive", "-o", str(tar), rev, "mirrorgraph"], cwd=ROOT, check=True)
-    with tarfile.open(tar) as t:
-        t.extractall(into, filter="data")
-    return full
+    return run_worker(tree, "bench_scale_std.py",
+                      ["--worker", setting, "--kinds", ",".join(kinds),
+                       "--seeds", ",".join(map(str, seeds)), "--frames", str(frames)], nice)
 
 
 # ---------------------------------------------------------------- figures
@@ -225,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                                            capture_output=True, text=True).stdout.strip()
     clock = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="scale_std_") as tmp:
-        old = _archive(before, Path(tmp))
+        old = archive(before, Path(tmp))
         trees = {"before": Path(tmp), "after": ROOT}
         jobs = [(v, s) for s in settings for v in trees]
         with ThreadPoolExecutor(max(1, args.workers)) as pool:
