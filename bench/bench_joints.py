@@ -24,7 +24,9 @@ scene's true joint:
   joint's std, the RMS length of the error it claims) where the result carries per-joint
   stds (``run.joints_std`` / the npz's ``joints_std``, ``LiveFrame.joints_std``;
   ``n/a`` otherwise), and the same over the std without the metric scale's share
-  (``joints_std_shape``) where given; the metric **distance's** error and error / std;
+  (``joints_std_shape``) where given, against the error left once the run's scale is
+  fitted to the truth (``live``: each fused mirror's own, over the frames it served);
+  the metric **distance's** error and error / std;
 * **time** per run (wall and CPU seconds of this process).
 
 Over the scenes of each kind: the median and the worst scene of every figure, and the
@@ -355,13 +357,18 @@ def _modes(tr: Truth, X: np.ndarray, gross: np.ndarray, normal: np.ndarray,
 
 def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
           normal: np.ndarray, distance: np.ndarray, extra: dict,
-          std_shape: np.ndarray | None = None, scale_rel_std: float | None = None) -> dict:
+          std_shape: np.ndarray | None = None, scale_rel_std: float | None = None,
+          epochs: np.ndarray | None = None) -> dict:
     """The figures of one run's joints ``X`` ``(T, J, 3)`` (aligned with the truth).
 
     ``std``, ``std_shape``: ``(T, J)`` the joints' stds with and without the metric
     scale's share (``None``: the run gives none); ``scale_rel_std``: that share, the
     run's metric scale's relative std, against the scale's error (the run's joints over
     the truth's: the one factor about the camera that fits them best, least squares).
+    ``epochs``: ``(T,)`` labels of the frames that share one metric scale (``live``: the
+    frames one fused mirror served); ``None``: the whole run shares one. The shape's
+    error takes out each epoch's own factor, as ``std_shape`` leaves out the scale the
+    frame was given at.
     """
     from mirrorgraph.metrics import pa_mpjpe
 
@@ -385,7 +392,16 @@ def score(tr: Truth, X: np.ndarray, given: np.ndarray, std: np.ndarray | None,
         out["scale_rel_std"] = scale_rel_std
         out["scale_z"] = (abs(out["scale_err"]) / scale_rel_std
                           if scale_rel_std and scale_rel_std > 0 else None)
-    e_shape = np.linalg.norm(np.where(given[..., None], fit * X, 0.0) - truth, axis=-1)
+    fits = np.full(len(X), fit)
+    if epochs is not None:
+        Xz, Tz = np.where(given[..., None], X, 0.0), np.where(given[..., None], truth, 0.0)
+        lab = np.unique(np.asarray(epochs), return_inverse=True)[1].ravel()
+        num = np.bincount(lab, (Xz * Tz).sum((1, 2)))
+        den = np.bincount(lab, (Xz * Xz).sum((1, 2)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fits = np.where(den > 0, num / den, fit)[lab]
+    e_shape = np.linalg.norm(np.where(given[..., None], fits[:, None, None] * X, 0.0) - truth,
+                             axis=-1)
     es = e_shape[given]
     out["gross_shape"] = float((es > GROSS_M).mean()) if es.size else float("nan")
     # the same with each frame's common scale error taken out (its joints times the
@@ -602,7 +618,7 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
     return score(tr, X, given, std, normal, dist,
                  dict(wall_s=wall, cpu_s=cpu,
                       **_distance_figures(tr, final.distance, final.distance_std)), std_shape,
-                 getattr(final, "scale_rel_std", None))
+                 getattr(final, "scale_rel_std", None), epochs=dist)
 
 
 def run_scene(case: tuple) -> dict:
