@@ -177,18 +177,21 @@ class Truth:
         self.__dict__.update(kw)
 
 
-def _synthetic(kind: str, seed: int, frames: int, body: str = "population") -> Truth:
+def _synthetic(kind: str, seed: int, frames: int, body: str = "population",
+               scene: tuple = ()) -> Truth:
     from mirrorgraph.synth import make_scene, make_wide_scene
     from mirrorgraph.synth.mocap import cmu_example_path
 
     # the generator's default bodies without the argument (a package before it runs too)
     body_kw = dict(body_variation="population") if body == "population" else {}
+    body_kw.update(dict(scene))     # --scene: make_scene arguments that win over the drawn
     if kind in ("iid", "realistic"):
         sc = make_wide_scene(seed, "wide", kind, frames, **body_kw)
     elif kind == "lowpar":
         sc = make_wide_scene(seed, "low_parallax", "iid", frames, **body_kw)
     elif kind == "cmu":       # the take's own body
-        sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()))
+        sc = make_wide_scene(seed, "wide", "iid", frames, motion=str(cmu_example_path()),
+                             **dict(scene))
     elif kind == "paper":
         sc = make_scene(frames=frames, seed=seed, noise_std=4.0, noise_mean=0.076,
                         outlier_rate=0.03, **body_kw)
@@ -288,12 +291,13 @@ def _fixture(path: Path) -> Truth:
 
 
 def make_truth(kind: str, seed, frames: int, fixtures: Path, body: str = "population",
-               height_given: str = "reported") -> Truth:
+               height_given: str = "reported", scene: tuple = ()) -> Truth:
     """The scene and its truth, with ``height_given`` the height the run is given
     (:data:`HEIGHT_GIVEN`: a user's report drawn from the scene's own generator, or the
-    true height)."""
+    true height) and ``scene``'s ``(name, value)`` pairs ``make_scene`` arguments of the
+    synthetic kinds (``--scene``)."""
     tr = (_fixture(fixtures / str(seed)) if kind == "fixtures"
-          else _synthetic(kind, int(seed), frames, body))
+          else _synthetic(kind, int(seed), frames, body, scene))
     tr.height_given = tr.height
     if height_given == "reported":
         key = zlib.crc32(f"{kind} {seed}".encode())
@@ -627,9 +631,9 @@ def run_scene(case: tuple) -> dict:
     from mirrorgraph.metrics import pa_mpjpe
 
     (kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset, height_sigma,
-     refine) = case
+     refine, scene) = case
     clock = time.perf_counter()
-    tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given)
+    tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given, scene)
     orc = oracle(tr)
     Xo, oko = orc.pop("_X"), orc.pop("_ok")
     out = dict(kind=kind, seed=seed, name=tr.name, frames=int(len(tr.frame_ids)),
@@ -1040,6 +1044,11 @@ def main(argv: list[str] | None = None) -> int:
                     metavar="NAME=VALUE",
                     help="a RefineOptions field the runs set (repeatable), e.g. "
                          "joints_bone_lengths=integrated torso_sigma=0.02")
+    ap.add_argument("--scene", type=_refine_pair, action="append", default=[],
+                    metavar="NAME=VALUE",
+                    help="a make_scene argument of the synthetic scenes (repeatable; it wins "
+                         "over the drawn one), e.g. noise_correlation=0 joint_bias_px=0: "
+                         "ablations of the detector models")
     ap.add_argument("--full", action="store_true",
                     help="the wide run: " + ", ".join(f"{k} {v}" for k, v in FULL_SEEDS.items()))
     ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
@@ -1087,13 +1096,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
             cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
                        args.height_given, args.keypoint_offset, args.height_sigma,
-                       tuple(args.refine))
+                       tuple(args.refine), tuple(args.scene))
                       for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
                        args.height_given, args.keypoint_offset, args.height_sigma,
-                       tuple(args.refine))
+                       tuple(args.refine), tuple(args.scene))
                       for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
@@ -1129,7 +1138,7 @@ def main(argv: list[str] | None = None) -> int:
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
                 keypoint_offset=args.keypoint_offset, height_sigma=args.height_sigma,
-                refine=dict(args.refine),
+                refine=dict(args.refine), scene=dict(args.scene),
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -1159,12 +1168,15 @@ def main(argv: list[str] | None = None) -> int:
             else f"{100 * args.height_sigma:g} %, stated (`RefineOptions.height_sigma`)"),
          *(["- graph options set (`--refine`): "
             + ", ".join(f"`{k}={v}`" for k, v in args.refine)] if args.refine else []),
+         *(["- scene arguments set (`--scene`, the synthetic kinds): "
+            + ", ".join(f"`{k}={v}`" for k, v in args.scene)] if args.scene else []),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "
          "given; `oracle PA`: each frame triangulated with the true mirror from the same "
          "observations, outliers removed with the truth; `> 0.3 m`, `> 1 m`: shares of the "
          "joints given; `given`: share of the scene's joints; `err/std`: the error's length "
          "over the joint's std (`n/a`: the run carries none), `shape`: the error left once the "
-         "run's scale is fitted to the truth (one factor about the camera) over the std "
+         "run's scale is fitted to the truth (one factor about the camera; live: each fused "
+         "mirror's over the frames it served) over the std "
          "without the metric scale's share (`joints_std_shape`); `> 0.3 m scaled`: the "
          "share of joints that far off after that fit; `distance`: the metric mirror "
          "distance's error and error / std; `scale`: the run's metric scale's error (its "
