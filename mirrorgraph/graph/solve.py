@@ -144,7 +144,7 @@ def focal_bias(state: SolveState, rig: Rig, opts: RefineOptions, config: SolveCo
     estimate's own sampling variance, so that a replicate whose draw happens to land
     near the reference does not call the bias absent (a bias within ``s`` of zero is
     not resolved). That variance is added to the data's. On the scene above ``b`` is
-    -6.9 % (the std becomes 7.0 %: error / std 6.0 -> 1.4). On 20 scenes of
+    -5.4 % (the std becomes 5.7 %: error / std 6.1 -> 1.7). On 20 scenes of
     ``bench/RESULTS_focal_bias.md`` with 6 single-replicate draws each, |error| / std
     beyond 3 in 1 % of the draws (the joints pass's joints and ``b^2 - s^2``: 10 %;
     more replicates of the latter: 8 % with 2, 5 % with 3). The initial search is not
