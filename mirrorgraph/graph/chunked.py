@@ -418,7 +418,9 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
     n_repro = sum(r.reprojection_factors for r in good)
     solved = [r for r in good if r.joints is not None]
     joints_masks: list[np.ndarray] = []
+    own_points = None                 # the chunks' calibration joints (focal_bias's truth)
     if opts.joints_smoothness_sigma is not None and solved:
+        own_points = out_points.copy()
         # each chunk's joints pass at the mirror of the last pass, moved by its step,
         # on the observations it kept
         joints_masks = [m.copy() for m in out_masks]
@@ -460,7 +462,8 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
                       timings=timings, body_height=sub.body_height, information=information,
                       z_keys=z_keys, z_values=zv, problem=None, scores=scores,
                       intrinsics=sub.intrinsics, intrinsics_cov=sub.intrinsics_cov,
-                      intrinsics_std=sub.intrinsics_std, joints_masks=joints_masks)
+                      intrinsics_std=sub.intrinsics_std, joints_masks=joints_masks,
+                      calibration_points=own_points)
 
 
 # --------------------------------------------------------------------------- helpers

@@ -128,13 +128,17 @@ class FocalOptions:
             (``bench/RESULTS_lines.md``). ``False`` (``--no-lines``): the person alone.
         lines_frames: frames sampled over the video for the lines' median background.
         bias_replicates: noisy replicates of the focal length's bias
-            (:func:`~mirrorgraph.graph.solve.focal_bias`: the solved joints re-imaged and
-            solved again, once without noise and this many times with the data's pixel
-            noise; its square is added to the std of a determined focal length). Each is
-            one solve of up to :data:`~mirrorgraph.graph.solve.FOCAL_BIAS_FRAMES` frames
-            (the fixture scene_901, 1000 frames: 4.1-4.7 s of CPU without, 6.3-6.7 s with
-            one); 0: no bias term (the data's std alone, which on 40 scenes left 3 of 31
-            focal lengths beyond 4 std, ``bench/RESULTS_focal_std.md``).
+            (:func:`~mirrorgraph.graph.solve.focal_bias`: the calibration graph's joints
+            re-imaged and solved again, once without noise and this many times with the
+            data's pixel noise; the squared bias, never under its estimate's own
+            sampling variance, is added to the variance of a determined focal length).
+            Each is one solve of up to :data:`~mirrorgraph.graph.solve.FOCAL_BIAS_FRAMES`
+            frames (the fixture scene_901, 1000 frames: 4.1-4.7 s of CPU without,
+            6.3-6.7 s with one). One replicate: on 20 scenes with 6 draws each
+            (``bench/RESULTS_focal_bias.md``) |error| / std beyond 3 in 1 % of the
+            draws, the median 0.97; more replicates shrink that floor and the std with
+            it (3 replicates: 2 % beyond 3, twice the solves). 0: no bias term (the
+            data's std alone: 25 % of those scenes beyond 3 std).
     """
 
     principal_point: bool = False

@@ -29,6 +29,9 @@ class SolveState:
         poses: ``(4, 4)`` camera-to-world pose per camera.
         planes: ``(n, d)`` per mirror.
         points: ``(T, J, 3)`` joints (NaN where not estimated); used: ``(T, J)``.
+        calibration_points: ``(T, J, 3)`` the calibration graph's own joints where the
+            joints pass replaces them in :attr:`points` (the truth of
+            :func:`mirrorgraph.graph.solve.focal_bias`); ``None``: :attr:`points`.
         bone_lengths: bone name -> length.
         torso_lengths: the torso's distances the joints pass holds (``"a-b"`` joint
             names -> length, :func:`~.stages.joints_pass`) where read on the
@@ -114,3 +117,4 @@ class SolveState:
     focal_bias: dict[str, dict] = field(default_factory=dict)
     joints_masks: list[np.ndarray] = field(default_factory=list)
     torso_lengths: dict[str, float] | None = None
+    calibration_points: np.ndarray | None = None

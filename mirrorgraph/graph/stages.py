@@ -188,6 +188,7 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
     final_masks, tri, tri_ok = _retriangulate(run, final_used)
     lengths = _joints_pass_lengths(run, tri, tri_ok)
     torso = _joints_pass_torso(run, state_points, final_used)
+    calibration_points = state_points
     state_points, joints_priors, observed = _joints_pass_stage(run, lengths, torso,
                                                                state_points)         # 5.
     unc = _marginals_and_noise(run, final_masks, tri, tri_ok)                        # 6.
@@ -205,6 +206,8 @@ def solve_rows(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float
                                   "distance": problem.distance_gauge}
     return SolveState(poses=run.poses, planes=run.planes, points=state_points,
                       used=final_used, bone_lengths=lengths, torso_lengths=torso,
+                      calibration_points=(calibration_points if observed is not None
+                                          else None),
                       scale=problem.scale,
                       camera_cov=[C * factor for C in unc["cam_cov"]],
                       plane_cov=[C * factor for C in unc["plane_cov"]],

@@ -512,3 +512,27 @@ def test_without_replicates_the_std_is_the_data_own(scene, run):
     assert abs(state.intrinsics[0][0, 0] - scene.K[0, 0]) <= 3.0 * state.intrinsics_std[0][0]
     with pytest.raises(InputError, match="bias_replicates"):
         FocalOptions(bias_replicates=-1)
+
+
+def test_the_bootstrap_draws_from_the_calibration_graphs_joints(scene, run):
+    """The bias bootstrap's truth is the calibration graph's own joints
+    (``state.calibration_points``), which the joints pass does not replace: a bootstrap
+    from the pass's joints starts from another reference. The squared bias is never
+    under its estimate's sampling variance (one replicate: the replicate's variance)."""
+    from mirrorgraph.graph.solve import focal_bias
+
+    opts = RefineOptions(subject_height=scene.subject_height)
+    config = single_mirror_config(opts)
+    rig = prepare(run.paired, run.calibration.intrinsics.K, run.calibration.normal,
+                  run.inliers, None, opts, estimate_focal=True)
+    state = solve(rig, opts, config, height=scene.subject_height)
+    own = state.calibration_points
+    assert own is not None and own.shape == state.points.shape
+    used = state.used
+    assert np.all(np.isfinite(own[used])) and not np.allclose(own[used], state.points[used])
+    bias = state.focal_bias[rig.cameras[0].name]
+    floor = max(bias["bias_px"] ** 2, bias["replicate_std_px"] ** 2)
+    assert bias["bias_var_px2"] == pytest.approx(floor, rel=1e-9)
+    other = focal_bias(dataclasses.replace(state, calibration_points=None), rig, opts, config,
+                       scene.subject_height)[0]
+    assert other["noiseless_px"] != pytest.approx(bias["noiseless_px"], abs=1e-6)
