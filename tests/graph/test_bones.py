@@ -125,3 +125,43 @@ def test_the_watson_weights_are_the_exponentials():
     np.testing.assert_allclose(_watson_weights(u, odd),
                                np.exp(odd[:, None] * (u[None] - (odd[:, None] > 0))),
                                rtol=1e-12, atol=0.0)
+
+
+def test_the_grid_on_a_subsample_brackets_the_same_peak(monkeypatch):
+    """The coarse grid on :data:`~mirrorgraph.graph.bones.GRID_FRAMES` spread frames of
+    each bone gives the lengths the grid on all of them gives (the peak searched on all
+    frames either way; Brent's tolerance is ``1e-3`` of the length), at low parallax
+    where the likelihood is widest."""
+    from mirrorgraph.graph import bones
+
+    s = _triangulated(1, "low_parallax", 400)
+    sub = np.array(list(_ratios(s).values()))
+    monkeypatch.setattr(bones, "GRID_FRAMES", 10_000)
+    full = np.array(list(_ratios(s).values()))
+    assert np.all(np.isfinite(sub))
+    np.testing.assert_allclose(sub, full, rtol=3e-3)
+
+
+def test_a_frame_likelihood_takes_one_length_a_frame():
+    """The frames' log-densities at one length each (the grid's single call) are those
+    of one call per length, and the quadrature's density integrates to one over a
+    bone's extent: ``p(d | L)`` on a ball about the origin, uniform directions."""
+    from mirrorgraph.graph.bones import WATSON_KAPPAS, _frame_log_likelihood
+
+    rng = np.random.default_rng(3)
+    z, r = rng.normal(0.0, 0.2, 6), np.abs(rng.normal(0.2, 0.1, 6))
+    var_z, var_r = rng.uniform(1e-3, 1e-2, 6), rng.uniform(1e-5, 1e-4, 6)
+    lengths = np.array([0.2, 0.3, 0.4])
+    both = _frame_log_likelihood(np.repeat(lengths, 6), np.tile(z, 3), np.tile(r, 3),
+                                 np.tile(var_z, 3), np.tile(var_r, 3), WATSON_KAPPAS)
+    each = np.concatenate([_frame_log_likelihood(x, z, r, var_z, var_r, WATSON_KAPPAS)
+                           for x in lengths])
+    np.testing.assert_allclose(both, each, rtol=1e-12, atol=1e-12)
+    # the uniform sphere (kappa 0): the density of d integrates to one (a grid in z, r)
+    zz, rr = np.meshgrid(np.linspace(-0.6, 0.6, 241), np.linspace(1e-4, 0.6, 240),
+                         indexing="ij")
+    n = zz.size
+    dens = np.exp(_frame_log_likelihood(0.3, zz.ravel(), rr.ravel(), np.full(n, 4e-3),
+                                        np.full(n, 4e-3), np.array([0.0]))[:, 0])
+    mass = np.sum(dens * 2.0 * np.pi * rr.ravel()) * (1.2 / 240) * (0.6 - 1e-4) / 239
+    assert abs(mass - 1.0) < 0.02, mass
