@@ -369,8 +369,10 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             is the larger and exceeds this (px) is left out (a keypoint displaced along
             its epipolar line, which the two rays follow in depth and the bones do not;
             the offline joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`,
-            at most one view a joint) and one more step is taken; ``None``: every view
-            kept.
+            at most one view a joint) and the steps are taken again without it (their
+            normal equations built anew; each step halved until the frame's cost without
+            the views left out falls: a joint left one view is held along its ray by
+            its bones alone); ``None``: every view kept.
         full: also return the views kept and the residuals at the joints returned.
 
     Returns:
@@ -429,6 +431,7 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     # each refinement's state where it ends: its blocks, bone rows, residuals, solver
     Df, Jbf = np.empty((m, k, 3, 3)), np.empty((m, nb, k, 3))
     rnf, bothf = np.empty((m, k, 2)), np.zeros(m, bool)
+    guard = np.zeros(m, bool)                      # views left out: steps line-searched
     while True:
         q = (X @ PT + off).reshape(m, k, 2, 3)
         z = q[..., 2:3]
@@ -464,10 +467,17 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
             at = np.flatnonzero(test)
             end[at[~some]] = True
             keep[at[some]] &= ~drop[some]
-            gated[at[some]] = False                 # one more step, then stop
-            steps[at[some]] += 1
-        go = active & ~end
-        if go.all():                              # every start steps: no rows to pick
+            # the steps again without those views (their normal equations built anew,
+            # by the pass below), then stop
+            gated[at[some]] = False
+            steps[at[some]] += max(int(iterations), 1)
+            again = np.zeros(m, bool)
+            again[at[some]] = True
+            guard |= again
+        else:
+            again = np.zeros(m, bool)
+        go = active & ~end & ~again
+        if go.all() and not guard.any():          # every start steps: no rows to pick
             step, solved = _solve_many(D, Jb, both, g, "solve")
             if solved.all():
                 X -= step.reshape(m, k, 3)
@@ -479,7 +489,24 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
         elif go.any():
             step, solved = _solve_many(D[go], Jb[go], both[go], g[go], "solve")
             at = np.flatnonzero(go)
-            X[at[solved]] -= step[solved].reshape(-1, k, 3)
+            step = step.reshape(-1, k, 3)
+            ls = guard[at] & solved
+            if ls.any():
+                # the step after views were left out: a joint left one view is held
+                # along that view's ray by its bones alone, whose linearisation can
+                # overshoot; the step is halved until the frame's cost falls
+                # (Nocedal and Wright, *Numerical Optimization*, 2nd ed., sec. 3.1)
+                i = at[ls]
+                c0 = _frame_cost(PT, off, uu, sigma_px, X[i], keep[i], a, b, L, sl)
+                trial = X[i, None] - _HALVINGS[None, :, None, None] * step[ls][:, None]
+                c = _frame_cost(PT, off, uu, sigma_px, trial.reshape(-1, k, 3),
+                                np.repeat(keep[i], len(_HALVINGS), 0), a, b, L, sl
+                                ).reshape(len(i), -1)
+                fall = c <= c0[:, None]
+                first = np.where(fall.any(1), fall.argmax(1), len(_HALVINGS))
+                alpha = np.append(_HALVINGS, 0.0)[first]
+                step[ls] *= alpha[:, None, None]
+            X[at[solved]] -= step[solved]
             done[at[solved]] += 1
             end[at[~solved]] = True
         if end.any():
@@ -491,6 +518,26 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     cov = cov.reshape(m, k, 3, 3)
     cov[~solved] = np.nan
     return X, cov, keep, sigma_px * rnf
+
+
+#: The step fractions the line search after views are left out tries, in turn.
+_HALVINGS = 0.5 ** np.arange(5)
+
+
+def _frame_cost(PT, off, uu, sigma_px, X, keep, a, b, L, sl) -> np.ndarray:
+    """``(n,)`` the frames' costs at joints ``X`` ``(n, k, 3)``: the views ``keep``
+    ``(n, k, 2)``'s Huber losses (twice Huber's rho of the whitened residual's norm,
+    the Gauss-Newton weights' cost) and the bones' squared whitened length errors."""
+    n, k = X.shape[:2]
+    q = (X @ PT + off).reshape(n, k, 2, 3)
+    d = q[..., :2] / q[..., 2:3] - uu
+    r = np.sqrt(np.einsum("...i,...i->...", d, d)) / sigma_px
+    rho = np.where(r <= HUBER_K, r * r, HUBER_K * (2.0 * r - HUBER_K))
+    cost = np.where(keep, rho, 0.0).sum((1, 2))
+    if len(L):
+        e = (np.linalg.norm(X[:, a] - X[:, b], axis=2) - L) / sl
+        cost += (e * e).sum(1)
+    return np.where(np.isfinite(cost), cost, np.inf)
 
 
 def _solve_many(D: np.ndarray, Jb: np.ndarray, both: np.ndarray, g: np.ndarray | None,
