@@ -32,10 +32,16 @@ import numpy as np
 from ..graph.outliers import one_view_outliers
 
 __all__ = ["refine_with_bones", "refine_starts", "triangulate_two_rays", "with_head_prior", "head_layout",
-           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K"]
+           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K",
+           "views_near_track", "VIEW_GATE_CHI2"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
+
+#: A joint's view whose pixel is beyond this squared Mahalanobis distance from its
+#: track's predicted projection is one keypoint misplaced: chi-square with 2 degrees of
+#: freedom at 0.9999 (the tracks' own gate's level, :data:`.joint_filter.GATE_CHI2`).
+VIEW_GATE_CHI2 = 18.4
 
 
 def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: np.ndarray,
@@ -108,6 +114,48 @@ def _residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray
     q[:, 0] = X @ K.T
     q[:, 1] = X @ KH.T + K @ (2.0 * float(distance) * n)
     return q[:, :, :2] / q[:, :, 2:3] - np.stack([u, um], 1)
+
+
+def views_near_track(K: np.ndarray, normal: np.ndarray, distance: float, Xp: np.ndarray,
+                     Pp: np.ndarray, u: np.ndarray, um: np.ndarray, sigma_px: float,
+                     chi2: float = VIEW_GATE_CHI2) -> np.ndarray:
+    """The views of a frame's joints near where their tracks predict them.
+
+    Each view's pixel is tested against the prediction's projection: its squared
+    Mahalanobis distance on ``J P J^T + s^2 I`` (``J`` the view's ``2 x 3`` projection
+    Jacobian at the prediction, ``P`` its covariance, ``s`` the reprojection noise;
+    the innovation of that view alone, Bar-Shalom, Li and Kirubarajan, 2001, sec. 5.2)
+    beyond ``chi2`` leaves the view out. One keypoint misplaced in one view moves the
+    two rays' point along the other's ray, where the bones may not see it; the offline
+    joints pass finds it by its residual once the smoothness holds the joint
+    (:func:`mirrorgraph.graph.stages.joints_pass`), the track does here. A joint far
+    off in both views keeps both (the tracks' own gate judges its point: an outlier,
+    or the person moved unlike the prior), as does one without a prediction.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        Xp, Pp: ``(k, 3)``, ``(k, 3, 3)`` the joints' predicted points (camera frame)
+            and covariances; NaN rows: no prediction.
+        u, um: ``(k, 2)`` the pixels in the camera and the mirror, undistorted.
+        sigma_px: the reprojection noise, px.
+        chi2: the gate.
+
+    Returns:
+        ``(k, 2)`` bool the views kept (direct, mirror).
+    """
+    ok = np.isfinite(Xp).all(1) & np.isfinite(Pp).all((1, 2))
+    views = np.ones((len(Xp), 2), bool)
+    if not ok.any():
+        return views
+    r, J = view_residuals(K, normal, distance, Xp[ok], u[ok], um[ok])
+    S = J @ Pp[ok][:, None] @ J.swapaxes(-1, -2)                         # (n, 2, 2, 2)
+    S[..., [0, 1], [0, 1]] += sigma_px * sigma_px
+    with np.errstate(invalid="ignore"):
+        m2 = np.einsum("nvi,nvi->nv", r, np.linalg.solve(S, r[..., None])[..., 0])
+    near = ~(m2 > chi2)
+    near[~near.any(1)] = True
+    views[ok] = near
+    return views
 
 
 def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -392,7 +440,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
 def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np.ndarray,
                   u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
                   lengths: np.ndarray, sigma_px: float, sigma_len: "float | np.ndarray",
-                  iterations: int = 3, *, gate_px: float | None = None
+                  iterations: int = 3, *, gate_px: float | None = None,
+                  views: np.ndarray | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`refine_with_bones` of one frame from ``m`` starting points at once, each
     refinement on its own (its steps, its views left out), vectorised over the starts.
@@ -400,6 +449,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     Args:
         starts: ``(m, k, 3)`` the starting joints (camera frame); the other arguments
             as :func:`refine_with_bones`'.
+        views: ``(k, 2)`` bool the views each joint starts with (default: both; each
+            joint needs one, and one held by no bone both).
 
     Returns:
         ``(X, cov, keep, px)``: ``(m, k, 3)`` the refined joints, ``(m, k, 3, 3)``
@@ -415,6 +466,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((m, k, 2), bool)
+    if views is not None:
+        keep &= np.asarray(views, bool)[None]
     steps = np.full(m, max(int(iterations), 1))
     done = np.zeros(m, np.int64)
     gated = np.full(m, gate_px is not None)

@@ -6,7 +6,7 @@ import numpy as np
 
 from mirrorgraph import geometry as geo
 from mirrorgraph.live.frame_prior import (bone_branches, refine_starts, refine_with_bones,
-                                          two_starts)
+                                          two_starts, views_near_track)
 from mirrorgraph.synth import make_wide_scene
 
 
@@ -394,3 +394,40 @@ def test_the_torso_distances_hold_the_shoulders_and_hips_nearer_the_truth():
     assert rms(e_torso[:, corners]) < 0.9 * rms(e_bones[:, corners])
     assert rms(e_torso) < rms(e_bones)
     assert 0.5 < rms(z) < 2.0
+
+
+def test_a_view_far_from_its_tracks_prediction_is_left_out():
+    """Tracks predicting the truth within 2 cm: a knee's mirror pixel 30 px off along its
+    epipolar line (its two rays still meet, 0.26 m off in depth) is left out and its
+    camera pixel kept; a wrist off 30 px in both views keeps both (the tracks' gate
+    judges it), as do the joints without a prediction and the clean ones; the frame
+    refined with those views puts the knee within 5 cm of the truth, where with both
+    views the bones keep both (under the 10 px gate) and leave it 0.22 m off."""
+    sc = make_wide_scene(3, "wide", "iid", 50)
+    pairs, L = _bones(sc)
+    X, u, um = _frame_data(sc, 20, np.random.default_rng(5), noise=1.0)
+    sk = sc.skeleton
+    knee, wrist, ankle = (sk.index(n) for n in ("left_knee", "right_wrist", "left_ankle"))
+    e = sc.K @ sc.normal
+    e = e[:2] / e[2]
+    um[knee] += 30.0 * (um[knee] - e) / np.linalg.norm(um[knee] - e)
+    u[wrist] += 30.0
+    um[wrist] += 30.0
+    P = np.broadcast_to((0.02 ** 2) * np.eye(3), (len(X), 3, 3)).copy()
+    Xp = X.copy()
+    Xp[ankle] = np.nan
+    views = views_near_track(sc.K, sc.normal, sc.distance, Xp, P, u, um, 1.0)
+    assert views[knee].tolist() == [True, False]
+    assert views[wrist].all() and views[ankle].all()
+    others = np.ones(len(X), bool)
+    others[knee] = False
+    assert views[others].all()
+    X0 = geo.triangulate_mirror(sc.K, sc.normal, sc.distance, u, um, iterations=1)
+    args = (np.arange(len(X)), pairs, L, 1.0, 0.01 * sc.subject_height)
+    Xa, _, keep_a, _ = refine_starts(sc.K, sc.normal, sc.distance, X0[None], u, um, *args,
+                                     iterations=2, gate_px=10.0, views=views)
+    Xb, _, keep_b, _ = refine_starts(sc.K, sc.normal, sc.distance, X0[None], u, um, *args,
+                                     iterations=2, gate_px=10.0)
+    assert keep_a[0, knee].tolist() == [True, False]
+    assert np.linalg.norm(Xa[0, knee] - X[knee]) < 0.05
+    assert np.linalg.norm(Xb[0, knee] - X[knee]) > 0.1
