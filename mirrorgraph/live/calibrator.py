@@ -60,7 +60,7 @@ from ..keypoints import RawDetections
 from .estimator import MirrorFusion, WindowEstimate, solve_window
 from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_starts,
                           triangulate_two_rays, two_starts, view_residuals,
-                          with_head_prior)
+                          views_near_track, with_head_prior)
 from .joint_filter import JointFilter
 
 if TYPE_CHECKING:
@@ -638,14 +638,17 @@ class LiveCalibrator:
         # the bones hold a limb on either side of its neighbours along the ray, and the
         # start picks the side; the two folded by the frame's cost at each joint
         starts = [X]
+        views = None
         if lengths is not None and self.options.smooth and self._filter is not None:
-            Xp = self._filter.predict(fid)[0][idx]
+            Xp, Pp = self._filter.predict(fid)
+            Xp, Pp = Xp[idx], Pp[idx]
             have = np.isfinite(Xp).all(1)
             if have.any():
                 starts.append(np.where(have[:, None], Xp, X))
+                views = self._views_near(K, n, d, Xp, Pp, u, um, idx, pairs, L)
         Xs, Cs, keeps, pxs = refine_starts(K, n, d, np.stack(starts), u, um, idx, pairs, L,
                                            self._sigma_px(), sigma_len, iterations=2,
-                                           gate_px=gate)
+                                           gate_px=gate, views=views)
         X, cov, keep, px = Xs[0], Cs[0], keeps[0], pxs[0]
         if len(starts) > 1:
             X, cov = two_starts(K, n, d, X, cov, Xs[1], Cs[1], u, um, keep, keeps[1], idx,
@@ -674,6 +677,22 @@ class LiveCalibrator:
         if "normal" in self.last_variances:
             self._frame_normal[idx] = self.last_variances["normal"]
         return out, total, shape, True
+
+    def _views_near(self, K, n, d, Xp, Pp, u, um, idx, pairs, L) -> np.ndarray | None:
+        """:func:`.frame_prior.views_near_track` of the frame's joints (skeleton indices
+        ``idx``) and their tracks' prediction ``Xp``, ``Pp``; of a joint held by no bone
+        (``pairs`` at ``L``) both views are kept (a view left out would leave its depth
+        to nothing). ``None``: every view kept."""
+        local = np.full(self.skeleton.num_joints, -1)
+        local[idx] = np.arange(len(idx))
+        use = np.isfinite(L)
+        a, b = local[pairs[use, 0]], local[pairs[use, 1]]
+        both = (a >= 0) & (b >= 0)
+        held = np.zeros(len(idx), bool)
+        held[a[both]] = held[b[both]] = True
+        views = views_near_track(K, n, d, Xp, Pp, u, um, self._sigma_px())
+        views[~held] = True
+        return None if views.all() else views
 
     def _bias(self, K, n, d, X, u, um, idx, keep) -> np.ndarray:
         """``(k, 3, 3)`` the detector's bias share of the joints ``X`` (skeleton indices

@@ -32,10 +32,16 @@ import numpy as np
 from ..graph.outliers import one_view_outliers
 
 __all__ = ["refine_with_bones", "refine_starts", "triangulate_two_rays", "with_head_prior", "head_layout",
-           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K"]
+           "view_residuals", "bias_covariance", "bone_branches", "two_starts", "HUBER_K",
+           "views_near_track", "VIEW_GATE_CHI2"]
 
 #: Huber's threshold in standard deviations (95 % efficiency under Gaussian noise).
 HUBER_K = 1.345
+
+#: A joint's view whose pixel is beyond this squared Mahalanobis distance from its
+#: track's predicted projection is one keypoint misplaced: chi-square with 2 degrees of
+#: freedom at 0.9999 (the tracks' own gate's level, :data:`.joint_filter.GATE_CHI2`).
+VIEW_GATE_CHI2 = 18.4
 
 
 def triangulate_two_rays(K: np.ndarray, normal: np.ndarray, distance: float, u: np.ndarray,
@@ -108,6 +114,48 @@ def _residuals(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray
     q[:, 0] = X @ K.T
     q[:, 1] = X @ KH.T + K @ (2.0 * float(distance) * n)
     return q[:, :, :2] / q[:, :, 2:3] - np.stack([u, um], 1)
+
+
+def views_near_track(K: np.ndarray, normal: np.ndarray, distance: float, Xp: np.ndarray,
+                     Pp: np.ndarray, u: np.ndarray, um: np.ndarray, sigma_px: float,
+                     chi2: float = VIEW_GATE_CHI2) -> np.ndarray:
+    """The views of a frame's joints near where their tracks predict them.
+
+    Each view's pixel is tested against the prediction's projection: its squared
+    Mahalanobis distance on ``J P J^T + s^2 I`` (``J`` the view's ``2 x 3`` projection
+    Jacobian at the prediction, ``P`` its covariance, ``s`` the reprojection noise;
+    the innovation of that view alone, Bar-Shalom, Li and Kirubarajan, 2001, sec. 5.2)
+    beyond ``chi2`` leaves the view out. One keypoint misplaced in one view moves the
+    two rays' point along the other's ray, where the bones may not see it; the offline
+    joints pass finds it by its residual once the smoothness holds the joint
+    (:func:`mirrorgraph.graph.stages.joints_pass`), the track does here. A joint far
+    off in both views keeps both (the tracks' own gate judges its point: an outlier,
+    or the person moved unlike the prior), as does one without a prediction.
+
+    Args:
+        K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
+        Xp, Pp: ``(k, 3)``, ``(k, 3, 3)`` the joints' predicted points (camera frame)
+            and covariances; NaN rows: no prediction.
+        u, um: ``(k, 2)`` the pixels in the camera and the mirror, undistorted.
+        sigma_px: the reprojection noise, px.
+        chi2: the gate.
+
+    Returns:
+        ``(k, 2)`` bool the views kept (direct, mirror).
+    """
+    ok = np.isfinite(Xp).all(1) & np.isfinite(Pp).all((1, 2))
+    views = np.ones((len(Xp), 2), bool)
+    if not ok.any():
+        return views
+    r, J = view_residuals(K, normal, distance, Xp[ok], u[ok], um[ok])
+    S = J @ Pp[ok][:, None] @ J.swapaxes(-1, -2)                         # (n, 2, 2, 2)
+    S[..., [0, 1], [0, 1]] += sigma_px * sigma_px
+    with np.errstate(invalid="ignore"):
+        m2 = np.einsum("nvi,nvi->nv", r, np.linalg.solve(S, r[..., None])[..., 0])
+    near = ~(m2 > chi2)
+    near[~near.any(1)] = True
+    views[ok] = near
+    return views
 
 
 def bias_covariance(J: np.ndarray, mean_w: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -369,8 +417,10 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
             is the larger and exceeds this (px) is left out (a keypoint displaced along
             its epipolar line, which the two rays follow in depth and the bones do not;
             the offline joints pass's rule, :func:`mirrorgraph.graph.outliers.one_view_outliers`,
-            at most one view a joint) and one more step is taken; ``None``: every view
-            kept.
+            at most one view a joint) and the steps are taken again without it (their
+            normal equations built anew; each step halved until the frame's cost without
+            the views left out falls: a joint left one view is held along its ray by
+            its bones alone); ``None``: every view kept.
         full: also return the views kept and the residuals at the joints returned.
 
     Returns:
@@ -390,7 +440,8 @@ def refine_with_bones(K: np.ndarray, normal: np.ndarray, distance: float, X: np.
 def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np.ndarray,
                   u: np.ndarray, um: np.ndarray, joints: np.ndarray, bones: np.ndarray,
                   lengths: np.ndarray, sigma_px: float, sigma_len: "float | np.ndarray",
-                  iterations: int = 3, *, gate_px: float | None = None
+                  iterations: int = 3, *, gate_px: float | None = None,
+                  views: np.ndarray | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`refine_with_bones` of one frame from ``m`` starting points at once, each
     refinement on its own (its steps, its views left out), vectorised over the starts.
@@ -398,6 +449,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     Args:
         starts: ``(m, k, 3)`` the starting joints (camera frame); the other arguments
             as :func:`refine_with_bones`'.
+        views: ``(k, 2)`` bool the views each joint starts with (default: both; each
+            joint needs one, and one held by no bone both).
 
     Returns:
         ``(X, cov, keep, px)``: ``(m, k, 3)`` the refined joints, ``(m, k, 3, 3)``
@@ -413,6 +466,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((m, k, 2), bool)
+    if views is not None:
+        keep &= np.asarray(views, bool)[None]
     steps = np.full(m, max(int(iterations), 1))
     done = np.zeros(m, np.int64)
     gated = np.full(m, gate_px is not None)
@@ -429,6 +484,7 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     # each refinement's state where it ends: its blocks, bone rows, residuals, solver
     Df, Jbf = np.empty((m, k, 3, 3)), np.empty((m, nb, k, 3))
     rnf, bothf = np.empty((m, k, 2)), np.zeros(m, bool)
+    guard = np.zeros(m, bool)                      # views left out: steps line-searched
     while True:
         q = (X @ PT + off).reshape(m, k, 2, 3)
         z = q[..., 2:3]
@@ -464,10 +520,17 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
             at = np.flatnonzero(test)
             end[at[~some]] = True
             keep[at[some]] &= ~drop[some]
-            gated[at[some]] = False                 # one more step, then stop
-            steps[at[some]] += 1
-        go = active & ~end
-        if go.all():                              # every start steps: no rows to pick
+            # the steps again without those views (their normal equations built anew,
+            # by the pass below), then stop
+            gated[at[some]] = False
+            steps[at[some]] += max(int(iterations), 1)
+            again = np.zeros(m, bool)
+            again[at[some]] = True
+            guard |= again
+        else:
+            again = np.zeros(m, bool)
+        go = active & ~end & ~again
+        if go.all() and not guard.any():          # every start steps: no rows to pick
             step, solved = _solve_many(D, Jb, both, g, "solve")
             if solved.all():
                 X -= step.reshape(m, k, 3)
@@ -479,7 +542,24 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
         elif go.any():
             step, solved = _solve_many(D[go], Jb[go], both[go], g[go], "solve")
             at = np.flatnonzero(go)
-            X[at[solved]] -= step[solved].reshape(-1, k, 3)
+            step = step.reshape(-1, k, 3)
+            ls = guard[at] & solved
+            if ls.any():
+                # the step after views were left out: a joint left one view is held
+                # along that view's ray by its bones alone, whose linearisation can
+                # overshoot; the step is halved until the frame's cost falls
+                # (Nocedal and Wright, *Numerical Optimization*, 2nd ed., sec. 3.1)
+                i = at[ls]
+                c0 = _frame_cost(PT, off, uu, sigma_px, X[i], keep[i], a, b, L, sl)
+                trial = X[i, None] - _HALVINGS[None, :, None, None] * step[ls][:, None]
+                c = _frame_cost(PT, off, uu, sigma_px, trial.reshape(-1, k, 3),
+                                np.repeat(keep[i], len(_HALVINGS), 0), a, b, L, sl
+                                ).reshape(len(i), -1)
+                fall = c <= c0[:, None]
+                first = np.where(fall.any(1), fall.argmax(1), len(_HALVINGS))
+                alpha = np.append(_HALVINGS, 0.0)[first]
+                step[ls] *= alpha[:, None, None]
+            X[at[solved]] -= step[solved]
             done[at[solved]] += 1
             end[at[~solved]] = True
         if end.any():
@@ -491,6 +571,26 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     cov = cov.reshape(m, k, 3, 3)
     cov[~solved] = np.nan
     return X, cov, keep, sigma_px * rnf
+
+
+#: The step fractions the line search after views are left out tries, in turn.
+_HALVINGS = 0.5 ** np.arange(5)
+
+
+def _frame_cost(PT, off, uu, sigma_px, X, keep, a, b, L, sl) -> np.ndarray:
+    """``(n,)`` the frames' costs at joints ``X`` ``(n, k, 3)``: the views ``keep``
+    ``(n, k, 2)``'s Huber losses (twice Huber's rho of the whitened residual's norm,
+    the Gauss-Newton weights' cost) and the bones' squared whitened length errors."""
+    n, k = X.shape[:2]
+    q = (X @ PT + off).reshape(n, k, 2, 3)
+    d = q[..., :2] / q[..., 2:3] - uu
+    r = np.sqrt(np.einsum("...i,...i->...", d, d)) / sigma_px
+    rho = np.where(r <= HUBER_K, r * r, HUBER_K * (2.0 * r - HUBER_K))
+    cost = np.where(keep, rho, 0.0).sum((1, 2))
+    if len(L):
+        e = (np.linalg.norm(X[:, a] - X[:, b], axis=2) - L) / sl
+        cost += (e * e).sum(1)
+    return np.where(np.isfinite(cost), cost, np.inf)
 
 
 def _solve_many(D: np.ndarray, Jb: np.ndarray, both: np.ndarray, g: np.ndarray | None,
