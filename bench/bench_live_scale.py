@@ -332,7 +332,8 @@ def _cases(text: str, frames: int, offline: bool, window: int | None,
     cases = []
     for part in text.split(","):
         kind, seeds = part.split(":")
-        names = seeds.split("+") if kind == "fixtures" else bj._seeds(seeds)
+        names = (seeds.split("+") if kind == "fixtures"
+                 else bj._seeds(seeds.replace("+", ",")))
         cases += [(kind, s, frames, offline, window, fixtures) for s in names]
     return cases
 
@@ -341,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", default="realistic:0-1,iid:0",
                     help="kind:seeds, comma-separated (kinds iid, realistic, cmu, lowpar, "
-                         "paper; fixtures:scene_900+scene_901)")
+                         "paper; seeds joined by '+': realistic:0-9+13; fixtures:scene_900+scene_901)")
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--window-frames", type=int, default=None,
                     help="the live windows' size (LiveOptions.window_frames; default the "
