@@ -164,10 +164,20 @@ def run_scene(case: tuple) -> dict:
                                          int((b & (es > bj.GROSS_M)).sum()))
     rows = []
     log = live.window_log
+    fids = np.asarray(tr.frame_ids)
     for i, w in enumerate(windows):
         sel = (served == i) & np.isfinite(s_err)
         g = given & sel[:, None]
         d_f, s_f, step = fused.get(i, (None, None, None))
+        # the data's bound: the window's own frames triangulated with the TRUE mirror,
+        # their stature made the height given (the scale error a perfect mirror leaves)
+        span = (fids >= w.first_frame) & (fids <= w.last_frame)
+        st_w = estimate_stature(Xo[span], np.isfinite(Xo[span]).all(-1), tr.detections.skeleton,
+                                min_frames=1) if span.any() else None
+        bound = None if st_w is None else tr.height_given / st_w.height - 1.0
+        with np.errstate(invalid="ignore"):
+            gross_bound = (float((np.abs(bound) * r[g] > bj.GROSS_M).mean())
+                           if bound is not None and g.any() else None)
         rows.append(dict(
             frames=f"{w.first_frame}-{w.last_frame}", size=int(log[i]["size"]) if i < len(log)
             else w.frames, result=log[i]["result"] if i < len(log) else "?",
@@ -182,6 +192,7 @@ def run_scene(case: tuple) -> dict:
             gross_scaled=float((es[g] > bj.GROSS_M).mean()) if g.any() else None,
             rays_med=float(np.nanmedian(rays[sel])) if sel.any() else None,
             step=None if step is None or not np.isfinite(step) else float(step),
+            bound=bound, gross_bound=gross_bound,
             z_med=float(np.nanmedian(z[sel])) if sel.any() else None,
             stated_med=float(np.nanmedian(stated[sel])) if sel.any() else None,
             expected=(float(np.nanmean(expect[g])) if g.any() else None),
@@ -258,14 +269,19 @@ def tables(scenes: list[dict]) -> list[str]:
               "(its data's, the height's prior, its stature's spread and sampling); "
               "`stated`: the median over the frames served of the scale_rel_std each came "
               "out with; `output z`: the median over them of each frame's scale error over "
-              "its stated std; `0.3 m at`: the scale error that puts a joint at the served "
+              "its stated std; `true mirror's scale err`: the scale error the window's own "
+              "frames leave with the TRUE mirror (their keypoints triangulated with it, two "
+              "rays a joint, their stature made the height given: what the window's data "
+              "allow), and `> 0.3 m at it` the share of the served joints that error puts "
+              "beyond 0.3 m (the scale's share alone); `0.3 m at`: the scale error that puts a joint at the served "
               "joints' median range |X| beyond 0.3 m; `expected > 0.3 m`: the mean over the "
               "served joints of P(|scale error| > 0.3 m / |X|) for a normal scale error of "
               "the stated std (the scale's share alone); `gross`: joints beyond 0.3 m.", "",
               "| scene | window frames | size | result | window distance err % | window std % "
               "| window z | served | stated % | output scale err % | output z | range m "
-              "| 0.3 m at % | > 0.3 m % | expected > 0.3 m % | gross |",
-              "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "| 0.3 m at % | > 0.3 m % | expected > 0.3 m % | gross | true mirror's scale err % "
+              "| > 0.3 m at it % |",
+              "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for s in scenes:
         for w in s["windows"]:
             wz = (None if w["distance_err"] is None or not w.get("window_std")
@@ -279,7 +295,36 @@ def tables(scenes: list[dict]) -> list[str]:
                 f"| {'-' if rad is None else format(rad, '.1f')} "
                 f"| {'-' if rad is None else format(100 * 0.3 / rad, '.1f')} "
                 f"| {_pct(w['gross'], '.1f')} | {_pct(w.get('expected'), '.1f')} "
-                f"| {w.get('gross_n', 0)} |")
+                f"| {w.get('gross_n', 0)} | {_pct(w.get('bound'))} "
+                f"| {_pct(w.get('gross_bound'), '.1f')} |")
+    lines += ["", "### By kind and window size", "",
+              "Over the windows of each kind and size (first block: 60, 120, ... frames): "
+              "`RMS z`, `max |z|`: the output z's; `output`, `true mirror`, `output - true "
+              "mirror`: RMS of the output scale error, of the true mirror's (the window's "
+              "data) and of their difference; `> 0.3 m`: the served joints beyond 0.3 m, "
+              "live and at the true mirror's scale error (the scale's share alone).", "",
+              "| kind | size | windows | RMS z | max abs z | output RMS % | true mirror RMS % "
+              "| output - true mirror RMS % | > 0.3 m % | > 0.3 m at the true mirror's % |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    groups: dict = {}
+    for s in scenes:
+        for w in s["windows"]:
+            if w.get("z_med") is None or w.get("bound") is None or not w["served"]:
+                continue
+            groups.setdefault((s["name"].split()[0], w["size"]), []).append(w)
+    for (kind, size), ws in sorted(groups.items()):
+        z = np.array([w["z_med"] for w in ws])
+        o = np.array([w["scale_med"] for w in ws])
+        b = np.array([w["bound"] for w in ws])
+        n = np.array([w["served"] for w in ws], float)
+
+        def rms(v):
+            return float(np.sqrt(np.mean(v ** 2)))
+        gl = float(np.sum(n * [w["gross"] or 0 for w in ws]) / n.sum())
+        gb = float(np.sum(n * [w["gross_bound"] or 0 for w in ws]) / n.sum())
+        lines.append(f"| {kind} | {size} | {len(ws)} | {rms(z):.2f} | {np.abs(z).max():.2f} "
+                     f"| {100 * rms(o):.2f} | {100 * rms(b):.2f} | {100 * rms(o - b):.2f} "
+                     f"| {100 * gl:.1f} | {100 * gb:.1f} |")
     lines += ["", "### Every output joint by its frame's |scale error| / stated std", "",
               "`> 0.3 m, scale out`: after each frame's least-squares scale; `expected`: the "
               "gross joints a normal scale error of the stated std gives (sum over the "
