@@ -21,6 +21,16 @@ and, for every window the live run solved:
   the scale's std from the first block's restarts after it
   (:attr:`mirrorgraph.live.estimator.MirrorFusion.scale_step_std`).
 
+Per window against its stated std: each output frame's scale error over the
+``scale_rel_std`` it came out with (``z``), the window's own distance error over its total
+std, the range of the served joints (a joint at ``|X|`` m is beyond 0.3 m once the scale is
+off by ``0.3 / |X|``), the share of them a normal scale error of the stated std would put
+beyond 0.3 m, and the window's data bound: its own frames' keypoints triangulated with the
+TRUE mirror (the planted outliers out), their stature made the height given, the scale
+error left (the stature measured on those frames' keypoints with a perfect mirror) and the
+joints it puts beyond 0.3 m; the same by kind and window size (RMS z), and every output joint by its frame's
+``|z|`` (beyond 0.3 m, and still after the frame's own scale).
+
 Per scene, the joints' scale against the mirror: the output's, the final mirror's
 distance error, the frames' own mirrors' distance errors (mean over the frames) and the
 two rays' scale (means over the frames).
@@ -36,6 +46,7 @@ Writes ``--out`` (default ``bench/RESULTS_live_scale.md``) unless ``--no-write``
 Run:  python bench/bench_live_scale.py                     # realistic 0-1, iid 0, ~2 min
       python bench/bench_live_scale.py --scenes realistic:0-3,iid:0-3 --offline
       python bench/bench_live_scale.py --window-frames 150   # several fused windows
+      python bench/bench_live_scale.py --scenes iid:0-5+13,realistic:0-9+13,cmu:0-3+8,lowpar:0-6,fixtures:scene_900+scene_901 --fixtures /work/shared/fixtures --out bench/RESULTS_live_scale_z.md
 """
 
 from __future__ import annotations
