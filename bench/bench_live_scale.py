@@ -21,6 +21,16 @@ and, for every window the live run solved:
   the scale's std from the first block's restarts after it
   (:attr:`mirrorgraph.live.estimator.MirrorFusion.scale_step_std`).
 
+Per window against its stated std: each output frame's scale error over the
+``scale_rel_std`` it came out with (``z``), the window's own distance error over its total
+std, the range of the served joints (a joint at ``|X|`` m is beyond 0.3 m once the scale is
+off by ``0.3 / |X|``), the share of them a normal scale error of the stated std would put
+beyond 0.3 m, and the window's data bound: its own frames' keypoints triangulated with the
+TRUE mirror (the planted outliers out), their stature made the height given, the scale
+error left (the stature measured on those frames' keypoints with a perfect mirror) and the
+joints it puts beyond 0.3 m; the same by kind and window size (RMS z), and every output joint by its frame's
+``|z|`` (beyond 0.3 m, and still after the frame's own scale).
+
 Per scene, the joints' scale against the mirror: the output's, the final mirror's
 distance error, the frames' own mirrors' distance errors (mean over the frames) and the
 two rays' scale (means over the frames).
@@ -36,6 +46,7 @@ Writes ``--out`` (default ``bench/RESULTS_live_scale.md``) unless ``--no-write``
 Run:  python bench/bench_live_scale.py                     # realistic 0-1, iid 0, ~2 min
       python bench/bench_live_scale.py --scenes realistic:0-3,iid:0-3 --offline
       python bench/bench_live_scale.py --window-frames 150   # several fused windows
+      python bench/bench_live_scale.py --scenes iid:0-5+13,realistic:0-9+13,cmu:0-3+8,lowpar:0-6,fixtures:scene_900+scene_901 --fixtures /work/shared/fixtures --out bench/RESULTS_live_scale_z.md
 """
 
 from __future__ import annotations
@@ -79,8 +90,8 @@ def run_scene(case: tuple) -> dict:
     from mirrorgraph.live.frame_prior import triangulate_two_rays
     from mirrorgraph.stature import estimate_stature
 
-    kind, seed, frames, offline, window = case
-    tr = bj.make_truth(kind, seed, frames, bj.default_fixtures(), "population", "reported")
+    kind, seed, frames, offline, window, fixtures = case
+    tr = bj.make_truth(kind, seed, frames, Path(fixtures), "population", "reported")
     T, J = tr.joints3d.shape[:2]
     out = dict(name=tr.name, distance=tr.distance, height=tr.height,
                height_err=tr.height_given / tr.height - 1.0)
@@ -102,6 +113,7 @@ def run_scene(case: tuple) -> dict:
     live = LiveCalibrator(tr.detections.skeleton, tr.intrinsics,
                           LiveOptions.of(subject_height=tr.height_given, **extra))
     X = np.full((T, J, 3), np.nan)
+    stated = np.full(T, np.nan)          # the scale_rel_std each output frame came with
     served = np.full(T, -1)
     mirror_d = np.full(T, np.nan)
     rays = np.full(T, np.nan)
@@ -128,9 +140,11 @@ def run_scene(case: tuple) -> dict:
                                            live.fusion.scale_step_std)
             if f.settled is not None:
                 X[where[int(f.settled.frame_id)]] = f.settled.joints3d
+                stated[where[int(f.settled.frame_id)]] = f.settled.mirror.scale_rel_std or np.nan
         live.finish()
         for f in live.flush():
             X[where[int(f.frame_id)]] = f.joints3d
+            stated[where[int(f.frame_id)]] = f.mirror.scale_rel_std or np.nan
     finally:
         live.close()
         lc.solve_window = solve
@@ -143,12 +157,39 @@ def run_scene(case: tuple) -> dict:
         fit = 1.0 / (1.0 + s_err)
     es = np.linalg.norm(np.where(np.isfinite(X), X, 0.0) * np.nan_to_num(fit)[:, None, None]
                         - truth, axis=-1)
+    # each output frame's scale error against the scale std it was given out with, and
+    # the share of its joints a scale error as large as the stated std's draws would put
+    # beyond 0.3 m (the scale alone: a joint at |X| m is gross once |err| > 0.3 / |X|)
+    from scipy.stats import norm
+
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = s_err / stated
+        r = np.linalg.norm(truth, axis=-1)
+        expect = 2.0 * norm.sf(bj.GROSS_M / (r * stated[:, None]))
+    zj = np.broadcast_to(np.abs(z)[:, None], e.shape)
+    out["z_joints"] = {"n": int(given.sum()), "gross": int((given & (e > bj.GROSS_M)).sum()),
+                       "expected": float(np.nansum(np.where(given, expect, 0.0)))}
+    for lo, hi in ((0, 1), (1, 2), (2, 3), (3, np.inf)):
+        b = given & (zj >= lo) & (zj < hi)
+        out["z_joints"][f"{lo}-{hi}"] = (int(b.sum()), int((b & (e > bj.GROSS_M)).sum()),
+                                         int((b & (es > bj.GROSS_M)).sum()))
     rows = []
     log = live.window_log
+    fids = np.asarray(tr.frame_ids)
+    inlier = np.isfinite(Xo).all(-1) & ~tr.out_real & ~tr.out_mirror   # the planted outliers out
     for i, w in enumerate(windows):
         sel = (served == i) & np.isfinite(s_err)
         g = given & sel[:, None]
         d_f, s_f, step = fused.get(i, (None, None, None))
+        # the data's bound: the window's own frames triangulated with the TRUE mirror,
+        # their stature made the height given (the scale error a perfect mirror leaves)
+        span = (fids >= w.first_frame) & (fids <= w.last_frame)
+        st_w = (estimate_stature(Xo[span], inlier[span], tr.detections.skeleton)
+                if span.any() else None)
+        bound = None if st_w is None else tr.height_given / st_w.height - 1.0
+        with np.errstate(invalid="ignore"):
+            gross_bound = (float((np.abs(bound) * r[g] > bj.GROSS_M).mean())
+                           if bound is not None and g.any() else None)
         rows.append(dict(
             frames=f"{w.first_frame}-{w.last_frame}", size=int(log[i]["size"]) if i < len(log)
             else w.frames, result=log[i]["result"] if i < len(log) else "?",
@@ -163,6 +204,16 @@ def run_scene(case: tuple) -> dict:
             gross_scaled=float((es[g] > bj.GROSS_M).mean()) if g.any() else None,
             rays_med=float(np.nanmedian(rays[sel])) if sel.any() else None,
             step=None if step is None or not np.isfinite(step) else float(step),
+            bound=bound, gross_bound=gross_bound,
+            z_med=float(np.nanmedian(z[sel])) if sel.any() else None,
+            stated_med=float(np.nanmedian(stated[sel])) if sel.any() else None,
+            expected=(float(np.nanmean(expect[g])) if g.any() else None),
+            gross_n=int((e[g] > bj.GROSS_M).sum()) if g.any() else 0,
+            radius=float(np.median(r[g])) if g.any() else None,
+            window_std=(float(np.sqrt((w.distance_std / w.distance) ** 2
+                                      + live.fusion.height_sigma ** 2 + w.scale_side ** 2
+                                      + np.nan_to_num(w.scale_sampling) ** 2))
+                        if w.ok else None),
             bones_height_err=(height_from_bone_lengths(w.bone_lengths, tr.detections.skeleton)
                               / tr.height_given - 1.0) if w.ok and w.bone_lengths else None))
     out["windows"] = rows
@@ -192,6 +243,17 @@ def _pct(v, spec="+.2f") -> str:
     return "-" if v is None else format(100.0 * v, spec)
 
 
+def _num(v, spec="+.2f") -> str:
+    return "-" if v is None or not np.isfinite(v) else format(v, spec)
+
+
+def _zrow(name: str, zj: dict) -> str:
+    n = max(zj["n"], 1)
+    bins = " | ".join("{} / {} / {}".format(*zj[k]) for k in ("0-1", "1-2", "2-3", "3-inf"))
+    return (f"| {name} | {zj['n']} | {zj['gross']} ({100 * zj['gross'] / n:.2f} %) "
+            f"| {zj['expected']:.0f} ({100 * zj['expected'] / n:.2f} %) | {bins} |")
+
+
 def tables(scenes: list[dict]) -> list[str]:
     lines = ["## Per window", "",
              "`served`: the frames whose joints the window's mirror gave (until the next "
@@ -214,6 +276,82 @@ def tables(scenes: list[dict]) -> list[str]:
                 f"| {_pct(w['gross'], '.1f')} | {_pct(w['gross_scaled'], '.2f')} "
                 f"| {_pct(w.get('rays_med'))} | {_pct(w.get('bones_height_err'))} "
                 f"| {_pct(w.get('step'), '.2f')} |")
+    lines += ["", "## The scale's error against its stated std, window by window", "",
+              "`window z`: the window's own distance error over its total relative std "
+              "(its data's, the height's prior, its stature's spread and sampling); "
+              "`stated`: the median over the frames served of the scale_rel_std each came "
+              "out with; `output z`: the median over them of each frame's scale error over "
+              "its stated std; `true mirror's scale err`: the scale error the window's own "
+              "frames leave with the TRUE mirror (their keypoints triangulated with it, two "
+              "rays a joint, the planted outliers out, their stature made the height given: "
+              "what the window's data allow), and `> 0.3 m at it` the share of the served joints that error puts "
+              "beyond 0.3 m (the scale's share alone); `0.3 m at`: the scale error that puts a joint at the served "
+              "joints' median range |X| beyond 0.3 m; `expected > 0.3 m`: the mean over the "
+              "served joints of P(|scale error| > 0.3 m / |X|) for a normal scale error of "
+              "the stated std (the scale's share alone); `gross`: joints beyond 0.3 m.", "",
+              "| scene | window frames | size | result | window distance err % | window std % "
+              "| window z | served | stated % | output scale err % | output z | range m "
+              "| 0.3 m at % | > 0.3 m % | expected > 0.3 m % | gross | true mirror's scale err % "
+              "| > 0.3 m at it % |",
+              "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for s in scenes:
+        for w in s["windows"]:
+            wz = (None if w["distance_err"] is None or not w.get("window_std")
+                  else w["distance_err"] / w["window_std"])
+            rad = w.get("radius")
+            lines.append(
+                f"| {s['name']} | {w['frames']} | {w['size']} | {w['result']} "
+                f"| {_pct(w['distance_err'])} | {_pct(w.get('window_std'), '.2f')} "
+                f"| {_num(wz)} | {w['served']} | {_pct(w.get('stated_med'), '.2f')} "
+                f"| {_pct(w['scale_med'])} | {_num(w.get('z_med'))} "
+                f"| {'-' if rad is None else format(rad, '.1f')} "
+                f"| {'-' if rad is None else format(100 * 0.3 / rad, '.1f')} "
+                f"| {_pct(w['gross'], '.1f')} | {_pct(w.get('expected'), '.1f')} "
+                f"| {w.get('gross_n', 0)} | {_pct(w.get('bound'))} "
+                f"| {_pct(w.get('gross_bound'), '.1f')} |")
+    lines += ["", "### By kind and window size", "",
+              "Over the windows of each kind and size (first block: 60, 120, ... frames): "
+              "`RMS z`, `max |z|`: the output z's; `output`, `true mirror`, `output - true "
+              "mirror`: RMS of the output scale error, of the true mirror's (the window's "
+              "data) and of their difference; `> 0.3 m`: the served joints beyond 0.3 m, "
+              "live and at the true mirror's scale error (the scale's share alone).", "",
+              "| kind | size | windows | RMS z | max abs z | output RMS % | true mirror RMS % "
+              "| output - true mirror RMS % | > 0.3 m % | > 0.3 m at the true mirror's % |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    groups: dict = {}
+    for s in scenes:
+        for w in s["windows"]:
+            if w.get("z_med") is None or w.get("bound") is None or not w["served"]:
+                continue
+            groups.setdefault((s["name"].split()[0], w["size"]), []).append(w)
+    for (kind, size), ws in sorted(groups.items()):
+        z = np.array([w["z_med"] for w in ws])
+        o = np.array([w["scale_med"] for w in ws])
+        b = np.array([w["bound"] for w in ws])
+        n = np.array([w["served"] for w in ws], float)
+
+        def rms(v):
+            return float(np.sqrt(np.mean(v ** 2)))
+        gl = float(np.sum(n * [w["gross"] or 0 for w in ws]) / n.sum())
+        gb = float(np.sum(n * [w["gross_bound"] or 0 for w in ws]) / n.sum())
+        lines.append(f"| {kind} | {size} | {len(ws)} | {rms(z):.2f} | {np.abs(z).max():.2f} "
+                     f"| {100 * rms(o):.2f} | {100 * rms(b):.2f} | {100 * rms(o - b):.2f} "
+                     f"| {100 * gl:.1f} | {100 * gb:.1f} |")
+    lines += ["", "### Every output joint by its frame's |scale error| / stated std", "",
+              "`> 0.3 m, scale out`: after each frame's least-squares scale; `expected`: the "
+              "gross joints a normal scale error of the stated std gives (sum over the "
+              "joints of P(|err| > 0.3 m / |X|)).", "",
+              "| scene | joints | > 0.3 m | expected | |z| < 1: joints / > 0.3 m / scale out "
+              "| 1-2 | 2-3 | >= 3 |", "|---|---:|---:|---:|---|---|---|---|"]
+    tot = {}
+    for s in scenes:
+        zj = s["z_joints"]
+        for k, v in zj.items():
+            tot[k] = (tot.get(k, 0) + v if not isinstance(v, tuple)
+                      else tuple(a + b for a, b in zip(tot.get(k, (0, 0, 0)), v)))
+        lines.append(_zrow(s["name"], zj))
+    if len(scenes) > 1:
+        lines.append(_zrow("**all**", tot))
     lines += ["", "## Per scene", "",
               "`true-mirror stature err`: the stature measured on the keypoints triangulated "
               "with the TRUE mirror (two rays a joint, outliers kept) against the true height; "
@@ -246,29 +384,35 @@ def tables(scenes: list[dict]) -> list[str]:
     return lines
 
 
-def _cases(text: str, frames: int, offline: bool, window: int | None) -> list[tuple]:
+def _cases(text: str, frames: int, offline: bool, window: int | None,
+           fixtures: str) -> list[tuple]:
     cases = []
     for part in text.split(","):
         kind, seeds = part.split(":")
-        cases += [(kind, s, frames, offline, window) for s in bj._seeds(seeds)]
+        names = (seeds.split("+") if kind == "fixtures"
+                 else bj._seeds(seeds.replace("+", ",")))
+        cases += [(kind, s, frames, offline, window, fixtures) for s in names]
     return cases
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", default="realistic:0-1,iid:0",
-                    help="kind:seeds, comma-separated (kinds iid, realistic)")
+                    help="kind:seeds, comma-separated (kinds iid, realistic, cmu, lowpar, "
+                         "paper; seeds joined by '+': realistic:0-9+13; fixtures:scene_900+scene_901)")
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--window-frames", type=int, default=None,
                     help="the live windows' size (LiveOptions.window_frames; default the "
                          "live run's): smaller windows fuse more of them")
     ap.add_argument("--offline", action="store_true",
                     help="also mirrorgraph.calibrate on every frame of each scene")
+    ap.add_argument("--fixtures", default=str(bj.default_fixtures()),
+                    help="folder of fixture scenes (bench_joints.py's)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_scale.md"))
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args(argv)
-    cases = _cases(args.scenes, args.frames, args.offline, args.window_frames)
+    cases = _cases(args.scenes, args.frames, args.offline, args.window_frames, args.fixtures)
     clock = time.perf_counter()
     with ProcessPoolExecutor(max(1, args.workers)) as pool:
         scenes = list(pool.map(run_scene, cases))
