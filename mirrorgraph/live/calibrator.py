@@ -645,7 +645,7 @@ class LiveCalibrator:
             have = np.isfinite(Xp).all(1)
             if have.any():
                 starts.append(np.where(have[:, None], Xp, X))
-                views = self._views_near(K, n, d, Xp, Pp, u, um, idx, pairs, L)
+                views = views_near_track(K, n, d, Xp, Pp, u, um, self._sigma_px())
         Xs, Cs, keeps, pxs = refine_starts(K, n, d, np.stack(starts), u, um, idx, pairs, L,
                                            self._sigma_px(), sigma_len, iterations=2,
                                            gate_px=gate, views=views)
@@ -677,22 +677,6 @@ class LiveCalibrator:
         if "normal" in self.last_variances:
             self._frame_normal[idx] = self.last_variances["normal"]
         return out, total, shape, True
-
-    def _views_near(self, K, n, d, Xp, Pp, u, um, idx, pairs, L) -> np.ndarray | None:
-        """:func:`.frame_prior.views_near_track` of the frame's joints (skeleton indices
-        ``idx``) and their tracks' prediction ``Xp``, ``Pp``; of a joint held by no bone
-        (``pairs`` at ``L``) both views are kept (a view left out would leave its depth
-        to nothing). ``None``: every view kept."""
-        local = np.full(self.skeleton.num_joints, -1)
-        local[idx] = np.arange(len(idx))
-        use = np.isfinite(L)
-        a, b = local[pairs[use, 0]], local[pairs[use, 1]]
-        both = (a >= 0) & (b >= 0)
-        held = np.zeros(len(idx), bool)
-        held[a[both]] = held[b[both]] = True
-        views = views_near_track(K, n, d, Xp, Pp, u, um, self._sigma_px())
-        views[~held] = True
-        return None if views.all() else views
 
     def _bias(self, K, n, d, X, u, um, idx, keep) -> np.ndarray:
         """``(k, 3, 3)`` the detector's bias share of the joints ``X`` (skeleton indices

@@ -450,7 +450,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
         starts: ``(m, k, 3)`` the starting joints (camera frame); the other arguments
             as :func:`refine_with_bones`'.
         views: ``(k, 2)`` bool the views each joint starts with (default: both; each
-            joint needs one, and one held by no bone both).
+            joint needs one; a joint held by no bone keeps both, as a view left out
+            would leave its depth to nothing).
 
     Returns:
         ``(X, cov, keep, px)``: ``(m, k, 3)`` the refined joints, ``(m, k, 3, 3)``
@@ -466,8 +467,8 @@ def refine_starts(K: np.ndarray, normal: np.ndarray, distance: float, starts: np
     held = np.zeros(k, bool)
     held[a] = held[b] = True
     keep = np.ones((m, k, 2), bool)
-    if views is not None:
-        keep &= np.asarray(views, bool)[None]
+    if views is not None:                           # a joint no bone holds keeps both
+        keep &= np.where(held[:, None], np.asarray(views, bool), True)[None]
     steps = np.full(m, max(int(iterations), 1))
     done = np.zeros(m, np.int64)
     gated = np.full(m, gate_px is not None)
