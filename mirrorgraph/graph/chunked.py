@@ -331,12 +331,19 @@ def _main_hidden():
 
 
 # --------------------------------------------------------------------------- driver
-def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter):
+def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter,
+                  judge=None):
     """Subset solve, then chunk passes with a shared global step (see the module docstring).
 
     Args:
         rig: one fixed camera, one mirror (its initial plane), two views.
         opts, config, height, counter: as :func:`mirrorgraph.graph.solve.solve`.
+        judge: ``judge(state, rig, opts, config, height)``, the estimated focal lengths'
+            headline stds and verdicts (:func:`mirrorgraph.graph.solve.judge_focal`),
+            applied to the subset whose focal lengths the chunks hold: its stds (the
+            estimator's bias in them), verdicts and bias are the video's, and its
+            uncertainty is added to the plane's. ``None``: the disagreement floor alone
+            (:func:`~.marginals.floor_focal`).
 
     Returns:
         :class:`mirrorgraph.graph.solve_state.SolveState` for the whole video.
@@ -348,27 +355,32 @@ def solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, c
     ranges = chunk_ranges(T, opts.max_graph_frames)
     runner = _Runner(worker_count(opts, len(ranges)))
     try:
-        return _solve_chunked(rig, opts, config, height, counter, rows, ranges, runner)
+        return _solve_chunked(rig, opts, config, height, counter, rows, ranges, runner, judge)
     finally:
         runner.close()
 
 
 def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, counter,
-                   rows: np.ndarray, ranges: list[tuple[int, int]], runner: _Runner):
-    """:func:`solve_chunked` with the subset's ``rows``, the chunks' row ``ranges`` and the
-    ``runner`` of their jobs."""
+                   rows: np.ndarray, ranges: list[tuple[int, int]], runner: _Runner, judge):
+    """:func:`solve_chunked` with the subset's ``rows``, the chunks' row ``ranges``, the
+    ``runner`` of their jobs and the focal lengths' ``judge``."""
     T, J = rig.num_frames, rig.skeleton.num_joints
     # the subset's joints are not kept (every chunk is solved again): no joints pass
     # there; its own uncertainty (the marginals, the joints' scores) serves an estimated
     # intrinsic's only (held in the chunks): the video's comes from the chunks
     estimated = any(c.intrinsics_dim for c in rig.cameras)
-    sub = solve_rows(rig.subset(rows), opts if estimated else replace(opts, marginals=False),
-                     replace(config, joints_pass=False), height, counter)
+    sub_rig, sub_config = rig.subset(rows), replace(config, joints_pass=False)
+    sub = solve_rows(sub_rig, opts if estimated else replace(opts, marginals=False),
+                     sub_config, height, counter)
     # the subset's estimated intrinsics are held in the chunks: what their uncertainty
-    # brings to the plane is added to every figure of the whole video's
+    # (the estimator's bias in it) brings to the plane is added to every figure of the
+    # whole video's
     held_cov = None
-    if sub.scores is not None and any(c.intrinsics_dim for c in rig.cameras):
-        floor_focal(sub)
+    if sub.scores is not None and estimated:
+        if judge is not None:
+            judge(sub, sub_rig, opts, sub_config, height)
+        else:
+            floor_focal(sub)
         held_cov = held_intrinsics_cov(sub.scores)
     # an estimated focal length is the subset's, held in the chunks
     rig = replace(rig, cameras=tuple(replace(c, K=np.asarray(K, float), estimate_focal=False,
@@ -463,7 +475,9 @@ def _solve_chunked(rig: Rig, opts: RefineOptions, config, height: float | None, 
                       z_keys=z_keys, z_values=zv, problem=None, scores=scores,
                       intrinsics=sub.intrinsics, intrinsics_cov=sub.intrinsics_cov,
                       intrinsics_std=sub.intrinsics_std, joints_masks=joints_masks,
-                      calibration_points=own_points)
+                      calibration_points=own_points,
+                      intrinsics_data_std=sub.intrinsics_data_std,
+                      focal_undetermined=sub.focal_undetermined, focal_bias=sub.focal_bias)
 
 
 # --------------------------------------------------------------------------- helpers

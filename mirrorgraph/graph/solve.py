@@ -23,7 +23,9 @@ the lenses searched) is named in :attr:`~.solve_state.SolveState.focal_undetermi
 the figures found (and the rays' median angle), for the warnings, and carries its
 prior's variance (:func:`~.marginals.floor_focal`) where the data's own std is that
 large; where only the initial search and the graph disagree that much, their
-disagreement.
+disagreement. A chunked video's focal lengths are its spread subset's, judged as a video
+of the subset's length (:func:`judge_focal`, the estimator's bias in the std: it does
+not shrink with frames) and held in the chunks.
 """
 
 from __future__ import annotations
@@ -68,6 +70,10 @@ def solve(rig: Rig, opts: RefineOptions, config: SolveConfig, *,
             without keypoints.
     """
     counter = counter or Counter(progress)
+    if _chunked(rig, opts, config):             # judges the subset's focal lengths itself
+        state = solve_chunked(rig, opts, config, height, counter, judge=judge_focal)
+        state.camera_spread, state.plane_spread = intrinsics_spread(state)
+        return state
     state = _solve(rig, opts, config, height, counter)
     judge_focal(state, rig, opts, config, height)
     return state
@@ -332,8 +338,6 @@ FOV_EDGE = 0.05
 def _solve(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | None,
            counter: Counter) -> SolveState:
     T = rig.num_frames
-    if T > opts.max_graph_frames and config.chunks and _one_camera_one_mirror(rig):
-        return solve_chunked(rig, opts, config, height, counter)
     rows = spread_rows(T, opts.max_graph_frames)
     sub = rig.subset(rows) if not rows.all() else rig
     state = solve_rows(sub, opts, config, height, counter)
@@ -348,6 +352,12 @@ def _solve(rig: Rig, opts: RefineOptions, config: SolveConfig, height: float | N
         ok[idx] |= state.used
         state.points, state.used = full, ok
     return state
+
+
+def _chunked(rig: Rig, opts: RefineOptions, config: SolveConfig) -> bool:
+    """Whether :func:`solve` solves ``rig`` in chunks (:mod:`.chunked`)."""
+    return (rig.num_frames > opts.max_graph_frames and config.chunks
+            and _one_camera_one_mirror(rig))
 
 
 def _one_camera_one_mirror(rig: Rig) -> bool:

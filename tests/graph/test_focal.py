@@ -536,3 +536,21 @@ def test_the_bootstrap_draws_from_the_calibration_graphs_joints(scene, run):
     other = focal_bias(dataclasses.replace(state, calibration_points=None), rig, opts, config,
                        scene.subject_height)[0]
     assert other["noiseless_px"] != pytest.approx(bias["noiseless_px"], abs=1e-6)
+
+
+def test_a_chunked_video_holds_the_estimators_bias_in_its_focal_std(scene, run):
+    """Above ``max_graph_frames`` the chunks hold the focal length a spread subset
+    estimated; the subset is judged as a video of its length is (the bias bootstrap
+    included), and its std, verdicts and bias are the whole video's: a bias does not
+    shrink with frames, so a long video's std without it would claim what the data do
+    not hold."""
+    opts = RefineOptions(subject_height=scene.subject_height, max_graph_frames=150, workers=1)
+    rig = prepare(run.paired, run.calibration.intrinsics.K, run.calibration.normal,
+                  run.inliers, None, opts, estimate_focal=True)
+    state = solve(rig, opts, single_mirror_config(opts), height=scene.subject_height)
+    assert state.problem is None and state.points.shape[0] == rig.num_frames  # chunked, whole
+    bias = state.focal_bias[rig.cameras[0].name]
+    data, std = state.intrinsics_data_std[0][0], state.intrinsics_std[0][0]
+    assert bias["bias_var_px2"] > 0
+    assert std ** 2 >= (data ** 2 + bias["bias_var_px2"]) * (1 - 1e-9)
+    assert abs(state.intrinsics[0][0, 0] - scene.K[0, 0]) <= 3.0 * std
