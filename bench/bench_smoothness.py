@@ -142,10 +142,10 @@ JOINTS_FIGS = (("pa_mpjpe_mm", "PA-MPJPE mm", ".1f"), ("oracle_ratio", "/ oracle
                ("z_shape_p99", "shape err/std p99", ".2f"))
 
 
-def joints_table(paths: list[str]) -> list[str]:
+def joints_table(paths: list[str], method: str = "calibrate") -> list[str]:
     """``bench_joints.py --json`` runs side by side: per kind, per value of
     ``joints_smoothness_sigma`` (the run's ``--refine``), the median and the worst scene
-    (max) of each figure over the calibrate runs."""
+    (max) of each figure over the ``method`` runs (``calibrate`` or ``live``)."""
     runs = []
     for p in paths:
         d = json.loads(Path(p).read_text())
@@ -155,8 +155,8 @@ def joints_table(paths: list[str]) -> list[str]:
          + " |", "|" + "---|" * (3 + len(JOINTS_FIGS))]
     for k in kinds:
         for v, d in sorted(runs, key=lambda r: -float(r[0]) if _num(r[0]) else 0):
-            rs = [sc["calibrate"] for sc in d["scenes"]
-                  if sc["kind"] == k and "error" not in sc.get("calibrate", {"error": 1})]
+            rs = [sc[method] for sc in d["scenes"]
+                  if sc["kind"] == k and "error" not in sc.get(method, {"error": 1})]
             if not rs:
                 continue
             cells = []
@@ -195,9 +195,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None)
     ap.add_argument("--joints", nargs="+", default=None,
                     help="bench_joints.py --json files: tabulate them per value per kind, exit")
+    ap.add_argument("--method", default="calibrate", help="with --joints: calibrate or live")
     args = ap.parse_args(argv)
     if args.joints:
-        text = "\n".join(joints_table(args.joints))
+        text = "\n".join(joints_table(args.joints, args.method))
         print(text)
         if args.out:
             Path(args.out).write_text(text + "\n")
