@@ -198,7 +198,17 @@ class PriorOptions:
             error: PA-MPJPE 15-20 -> 9-11 mm on protocol and CMU scenes, mirror
             unchanged, +0.4 s per 1000 frames): the two passes give each its own.
             Videos solved in chunks (longer than ``max_graph_frames``) get it
-            chunk by chunk with the final mirror.
+            chunk by chunk with the final mirror. The same sigma sets the joints' std
+            (:mod:`~.joints_uncertainty`), the completed joints' smoothing and live's
+            joint filter (:class:`mirrorgraph.live.joint_filter.JointFilter`). Per frame
+            number, whatever the frame rate: 0.01 h at 30 fps is 9 h/s^2 (15 m/s^2 for
+            1.7 m); a 60 fps video gets 4x that, and wants 0.0025-0.005 (CMU take 01_01:
+            PA-MPJPE 20.1 mm at 0.01, 17.2 at 0.005, 15.4 at 0.0025). At 30 fps, 0.005
+            lowers the PA-MPJPE on every kind (CMU 18.3 -> 16.6 mm, iid 15.7 -> 13.6,
+            independent fixtures 20.3 -> 17.6; medians) but the std shrinks faster than
+            the error: the realistic detector's scenes with error / std p99 over 3 go
+            from 3 to 5 of 12, CMU's wrists' worst p99 from 2.97 to 3.36; at 0.0025 the
+            wrists lose 13 % (``bench/RESULTS_smoothness.md``).
         torso_sigma: the joints pass holds the torso nearly rigid: the distances
             between the shoulders and the hips that no bone holds (the two sides and
             the two diagonals, :mod:`mirrorgraph.factors.torso`), with this standard
