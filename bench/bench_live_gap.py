@@ -14,15 +14,16 @@ writes them) under variants that each hand live one thing the offline run has:
   the offline solve of all frames (rescaled to the window's distance) / of the true
   joints (median over the frames);
 * ``gate=off``: no view gated on the tracks' prediction (``views_near_track``);
-* ``branches=off``, ``twostarts=off``: no bone branch along the ray
-  (``frame_prior.bone_branches``), ``bw=plain``: its weight by the cost gap alone (before
-  this bench's change), no second start from the tracks' prediction
-  (``frame_prior.two_starts``); ``bones=none``: no per-frame bone prior;
+* ``branches=off``: no bone branch along the ray folded in (``frame_prior.bone_branches``);
+  ``bw=plain``: the branch weighed by the cost gap alone (``laplace=False``, as before
+  ``bench/RESULTS_live_gap.md``); ``twostarts=off``: no second start from the tracks'
+  prediction (``frame_prior.two_starts``); ``ts=lap``: the two starts weighed as the
+  branches are; ``bones=none``: no per-frame bone prior;
 * ``fgate=C``, ``restart=N``: the joint filter's gate (squared Mahalanobis distance of
   the innovation) and the rejected measurements in a row that restart a track.
 
-The hooks replace ``mirrorgraph.live.calibrator.solve_window`` in this process only (a
-bench hook; the library is unchanged). PA-MPJPE is in mm; ``/ off`` is live's over the
+The hooks replace ``mirrorgraph.live.calibrator``'s functions (``solve_window``, the
+per-frame ones) in this process only, restored after each run; the library is unchanged. PA-MPJPE is in mm; ``/ off`` is live's over the
 offline run's on all the joints each gives, ``/ off, same`` both on the joints both give
 (the frames before live's first window left out of the offline run's too).
 
@@ -135,6 +136,8 @@ def run_variant(tr, variant: dict, full) -> dict:
         lc.bone_branches = lambda K, n, d, X, cov, *a, **k: (X, cov)
     if variant.get("bw") == "plain":           # the branch's weight without the Laplace tail
         lc.bone_branches = functools.partial(saved[3], laplace=False)
+    if variant.get("ts") == "lap":             # two_starts weighed as bone_branches
+        lc.two_starts = functools.partial(saved[4], laplace=True)
     if variant.get("twostarts") == "off":
         lc.two_starts = lambda K, n, d, X, cov, *a, **k: (X, cov)
     hook = _hook(variant, full, tr, live.skeleton)

@@ -302,27 +302,33 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     first[1:] = move[order][1:] != move[order][:-1]
     pick = order[first]
     i, D = move[pick], Y[pick] - X[move[pick]]
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        if not laplace:
-            w = 1.0 / (1.0 + np.exp(np.minimum(0.5 * gap[pick], 700.0)))
-        else:
-            # the weight whose mixture gives the frame's density at both points
-            # (the docstring): a the first mode's density at X', g the frame's there
-            C = np.array(cov, float)[i]
-            C = np.where(np.isfinite(C).all((1, 2))[:, None, None], C, np.eye(3))
-            try:
-                CiD = np.linalg.solve(C, D[:, :, None])[:, :, 0]
-            except np.linalg.LinAlgError:           # a joint the frame does not hold
-                CiD = (np.linalg.pinv(C, hermitian=True) @ D[:, :, None])[:, :, 0]
-            q = np.einsum("ni,ni->n", D, CiD)
-            a = np.exp(-0.5 * np.maximum(q, 0.0))
-            g = np.exp(np.minimum(-0.5 * gap[pick], 700.0))
-            w = np.clip((g - a) / ((1.0 - a) * (1.0 + g)), 0.0, 1.0)
-            w = np.where(np.isfinite(w) & (q > 1e-9), w, 0.0)
+    w = _mode_weight(gap[pick], D, np.array(cov, float)[i], laplace)
     Xo, Co = X.copy(), np.array(cov, float)
     Xo[i] += w[:, None] * D
     Co[i] += (w * (1.0 - w))[:, None, None] * D[:, :, None] * D[:, None, :]
     return Xo, Co
+
+
+def _mode_weight(gap: np.ndarray, D: np.ndarray, C: np.ndarray, laplace: bool
+                 ) -> np.ndarray:
+    """``(n,)`` the second mode's weight of two Gaussians of covariance ``C`` ``(n, 3,
+    3)`` ``D`` ``(n, 3)`` apart whose costs differ by ``gap`` (``c' - c``): the mixture
+    matched to the frame's density at both points (:func:`bone_branches`), or with
+    ``laplace`` off ``1 / (1 + exp(gap / 2))``."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        if not laplace:
+            return 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
+        C = np.where(np.isfinite(C).all((1, 2))[:, None, None], C, np.eye(3))
+        D = np.where(np.isfinite(D), D, 0.0)
+        try:
+            CiD = np.linalg.solve(C, D[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:               # a joint the frame does not hold
+            CiD = (np.linalg.pinv(C, hermitian=True) @ D[:, :, None])[:, :, 0]
+        q = np.einsum("ni,ni->n", D, CiD)
+        a = np.exp(-0.5 * np.maximum(q, 0.0))       # the first mode's density at the other
+        g = np.exp(np.clip(-0.5 * gap, -700.0, 700.0))      # the frame's there, relative
+        w = np.clip((g - a) / ((1.0 - a) * (1.0 + g)), 0.0, 1.0)
+        return np.where(np.isfinite(w) & (q > 1e-9), w, 0.0)
 
 
 def _joint_cost(K, normal, distance, P, who, X, u, um, keep, ends, L, sl, sigma_px,
@@ -352,7 +358,8 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
                bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
                sigma_len: "float | np.ndarray", *, pxA: np.ndarray | None = None,
-               pxB: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               pxB: np.ndarray | None = None, laplace: bool = False
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Two refinements of one frame's joints (:func:`refine_with_bones` from two
     starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
     predict them) folded, joint by joint, into the moment-matched Gaussian of the two.
@@ -394,7 +401,7 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                            sigma_px, pxB)
                - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
                              sigma_px, pxA))
-        w = 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
+    w = _mode_weight(gap, XB - XA, np.asarray(CA, float), laplace)
     w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
                  & (keepA == keepB).all(1), w, 0.0)
     D = XB - XA
