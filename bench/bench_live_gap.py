@@ -15,7 +15,7 @@ writes them) under variants that each hand live one thing the offline run has:
   joints (median over the frames);
 * ``gate=off``: no view gated on the tracks' prediction (``views_near_track``);
 * ``branches=off``: no bone branch along the ray folded in (``frame_prior.bone_branches``);
-  ``bw=plain``: the branch weighed by the cost gap alone (``laplace=False``, as before
+  ``bw=plain``: the branch weighed by the cost gap alone (``matched=False``, as before
   ``bench/RESULTS_live_gap.md``); ``twostarts=off``: no second start from the tracks'
   prediction (``frame_prior.two_starts``); ``ts=lap``: the two starts weighed as the
   branches are; ``bones=none``: no per-frame bone prior;
@@ -135,9 +135,9 @@ def run_variant(tr, variant: dict, full) -> dict:
     if variant.get("branches") == "off":
         lc.bone_branches = lambda K, n, d, X, cov, *a, **k: (X, cov)
     if variant.get("bw") == "plain":           # the branch's weight without the Laplace tail
-        lc.bone_branches = functools.partial(saved[3], laplace=False)
+        lc.bone_branches = functools.partial(saved[3], matched=False)
     if variant.get("ts") == "lap":             # two_starts weighed as bone_branches
-        lc.two_starts = functools.partial(saved[4], laplace=True)
+        lc.two_starts = functools.partial(saved[4], matched=True)
     if variant.get("twostarts") == "off":
         lc.two_starts = lambda K, n, d, X, cov, *a, **k: (X, cov)
     hook = _hook(variant, full, tr, live.skeleton)

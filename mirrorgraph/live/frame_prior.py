@@ -232,7 +232,7 @@ def _frame_bones(joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
 def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndarray,
                   cov: np.ndarray, u: np.ndarray, um: np.ndarray, keep: np.ndarray,
                   joints: np.ndarray, bones: np.ndarray, lengths: np.ndarray,
-                  sigma_px: float, sigma_len: "float | np.ndarray", *, laplace: bool = True
+                  sigma_px: float, sigma_len: "float | np.ndarray", *, matched: bool = True
                   ) -> tuple[np.ndarray, np.ndarray]:
     """One frame's refined joints with each one's other bone branch folded into its
     Gaussian: the two modes' moment-matched mean and covariance.
@@ -256,11 +256,9 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     moment-matched Gaussian ``m = X + w D``, ``C + w (1 - w) D D^T`` (the collapse of a
     two-component mixture: Bar-Shalom, Li and Kirubarajan, *Estimation with
     Applications to Tracking and Navigation*, 2001, sec. 11.6). A joint the views place
-    is unchanged (``w`` ~ 0): its other branch reprojects far off. Measured
-    (``bench/RESULTS_live_gap.md``): weighed by the cost alone the fold pulled joints
-    the Gaussian already covered towards a branch the frames did not hold (the
-    independent generator's fixtures at 1.14 and 1.17 times the offline PA-MPJPE, 1.13
-    and 1.13 with the Laplace tail taken out).
+    is unchanged (``w`` ~ 0): its other branch reprojects far off. Weighed by the cost
+    gap alone, the fold pulls joints the Gaussian already covers towards a branch the
+    frames do not hold (``bench/RESULTS_live_gap.md``).
 
     Args:
         K: ``(3, 3)`` camera matrix, px; normal, distance: the plane ``n . X = d``.
@@ -271,7 +269,7 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
             skeleton's bones; lengths: ``(B,)`` their lengths (NaN: not used).
         sigma_px: the reprojection noise, px; sigma_len: the bones' spread about
             their lengths, one for all or ``(B,)`` one a bone.
-        laplace: weigh the other branch by the density the joint's Gaussian at ``X``
+        matched: weigh the other branch by the density the joint's Gaussian at ``X``
             does not already give it there (above); ``False``: by the cost gap alone,
             ``w = 1 / (1 + exp((c' - c) / 2))`` (a bench ablation).
 
@@ -302,21 +300,21 @@ def bone_branches(K: np.ndarray, normal: np.ndarray, distance: float, X: np.ndar
     first[1:] = move[order][1:] != move[order][:-1]
     pick = order[first]
     i, D = move[pick], Y[pick] - X[move[pick]]
-    w = _mode_weight(gap[pick], D, np.array(cov, float)[i], laplace)
+    w = _mode_weight(gap[pick], D, np.array(cov, float)[i], matched)
     Xo, Co = X.copy(), np.array(cov, float)
     Xo[i] += w[:, None] * D
     Co[i] += (w * (1.0 - w))[:, None, None] * D[:, :, None] * D[:, None, :]
     return Xo, Co
 
 
-def _mode_weight(gap: np.ndarray, D: np.ndarray, C: np.ndarray, laplace: bool
+def _mode_weight(gap: np.ndarray, D: np.ndarray, C: np.ndarray, matched: bool
                  ) -> np.ndarray:
     """``(n,)`` the second mode's weight of two Gaussians of covariance ``C`` ``(n, 3,
     3)`` ``D`` ``(n, 3)`` apart whose costs differ by ``gap`` (``c' - c``): the mixture
     matched to the frame's density at both points (:func:`bone_branches`), or with
-    ``laplace`` off ``1 / (1 + exp(gap / 2))``."""
+    ``matched`` off ``1 / (1 + exp(gap / 2))``."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        if not laplace:
+        if not matched:
             return 1.0 / (1.0 + np.exp(np.clip(0.5 * gap, -700.0, 700.0)))
         C = np.where(np.isfinite(C).all((1, 2))[:, None, None], C, np.eye(3))
         D = np.where(np.isfinite(D), D, 0.0)
@@ -358,7 +356,7 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                um: np.ndarray, keepA: np.ndarray, keepB: np.ndarray, joints: np.ndarray,
                bones: np.ndarray, lengths: np.ndarray, sigma_px: float,
                sigma_len: "float | np.ndarray", *, pxA: np.ndarray | None = None,
-               pxB: np.ndarray | None = None, laplace: bool = False
+               pxB: np.ndarray | None = None, matched: bool = False
                ) -> tuple[np.ndarray, np.ndarray]:
     """Two refinements of one frame's joints (:func:`refine_with_bones` from two
     starting points: ``A``, the rays' midpoints, and ``B``, where the joints' tracks
@@ -401,7 +399,7 @@ def two_starts(K: np.ndarray, normal: np.ndarray, distance: float, XA: np.ndarra
                            sigma_px, pxB)
                - _joint_cost(K, normal, distance, XA, who, XA, u, um, keepA, ends, L, sl,
                              sigma_px, pxA))
-    w = _mode_weight(gap, XB - XA, np.asarray(CA, float), laplace)
+    w = _mode_weight(gap, XB - XA, np.asarray(CA, float), matched)
     w = np.where(np.isfinite(gap) & np.isfinite(XB).all(1) & np.isfinite(CB).all((1, 2))
                  & (keepA == keepB).all(1), w, 0.0)
     D = XB - XA

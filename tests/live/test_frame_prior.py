@@ -338,11 +338,11 @@ def test_a_branch_the_joints_gaussian_already_reaches_is_not_counted_twice():
     for X, _, (Xr, Cr, kr), (K, n, d, u, um, idx, pairs, L, s, sl) in cases:
         Xn, _ = bone_branches(K, n, d, Xr, Cr * 1e-8, u, um, kr, idx, pairs, L, s, sl)
         Xn_plain, _ = bone_branches(K, n, d, Xr, Cr * 1e-8, u, um, kr, idx, pairs, L, s,
-                                    sl, laplace=False)
+                                    sl, matched=False)
         np.testing.assert_allclose(Xn, Xn_plain, atol=1e-9)
         Xw, _ = bone_branches(K, n, d, Xr, Cr * 1e4, u, um, kr, idx, pairs, L, s, sl)
         Xw_plain, _ = bone_branches(K, n, d, Xr, Cr * 1e4, u, um, kr, idx, pairs, L, s,
-                                    sl, laplace=False)
+                                    sl, matched=False)
         plain.append(np.linalg.norm(Xw_plain - Xr, axis=1))
         wide.append(np.linalg.norm(Xw - Xr, axis=1))
     plain, wide = np.concatenate(plain), np.concatenate(wide)
