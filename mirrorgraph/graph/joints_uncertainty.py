@@ -1116,7 +1116,7 @@ def epipolar_residuals(cell: np.ndarray, A: np.ndarray, r: np.ndarray, n_cells: 
 
 
 @lru_cache(maxsize=1)
-def _smoother_kernels(max_lag: int = MAX_LAG, n_grid: int = 160, size: int = 16384
+def _smoother_kernels(max_lag: int = MAX_LAG, n_grid: int = 120, size: int = 8192
                       ) -> tuple[np.ndarray, np.ndarray]:
     """The equivalent kernel of a chain smoothed by a second-difference prior, over a
     grid of its strengths: ``(n_grid,)`` each one's width ``1 / w_0`` (the variance over
@@ -1129,7 +1129,7 @@ def _smoother_kernels(max_lag: int = MAX_LAG, n_grid: int = 160, size: int = 163
     Silverman 1984's equivalent kernel), whose posterior variance is ``w_0``; its kernel
     and the kernel's autocorrelation are inverse FFTs."""
     omega = 2.0 * np.pi * np.fft.rfftfreq(size)
-    lam = np.logspace(-3, 12, n_grid)
+    lam = np.logspace(-3, 10, n_grid)
     G = 1.0 / (1.0 + lam[:, None] * (2.0 - 2.0 * np.cos(omega)) ** 2)
     w0 = np.fft.irfft(G, n=size, axis=1)[:, 0]
     acf = np.fft.irfft(G * G, n=size, axis=1)[:, 1:max_lag + 1]
@@ -1141,7 +1141,8 @@ def residual_autocorrelation(e: np.ndarray, groups: np.ndarray, max_lag: int) ->
     where none) at lags ``1..max_lag`` frames, each joint's series less its own mean (its
     bias, which :func:`_bias_weights` holds), pooled over the joints of each group
     (``groups`` ``(J,)`` in ``0..P-1``): the sum of the lagged products over the sum of
-    squares, each over its own count of pairs. A group without a pair at a lag gets 0."""
+    squares, each over its own count of pairs (the lagged sums by FFT, zero-padded: every
+    lag at once). A group without a pair at a lag gets 0."""
     e = np.asarray(e, float)
     T, J = e.shape
     P = int(groups.max()) + 1 if len(groups) else 0
@@ -1151,15 +1152,16 @@ def residual_autocorrelation(e: np.ndarray, groups: np.ndarray, max_lag: int) ->
     x = np.where(ok, e - mean, 0.0)
     onehot = np.zeros((J, P))
     onehot[np.arange(J), groups] = 1.0
-    var = ((x * x).sum(0) @ onehot) / np.maximum(cnt @ onehot, 1)
-    okf = ok.astype(float)
-    rho = np.zeros((P, max_lag))
-    for k in range(1, min(max_lag, T - 1) + 1):
-        s = np.einsum("tj,tj->j", x[:-k], x[k:]) @ onehot
-        n = np.einsum("tj,tj->j", okf[:-k], okf[k:]) @ onehot
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rho[:, k - 1] = np.where((n > 0) & (var > 0), s / np.maximum(n, 1) / var, 0.0)
-    return rho
+    size = 1 << int(np.ceil(np.log2(2 * T)))
+    F = np.fft.rfft(np.concatenate([x, ok.astype(float)], 1), n=size, axis=0)
+    lagged = np.fft.irfft(F * F.conj(), n=size, axis=0)[:max_lag + 1]     # (L + 1, 2J)
+    s, n = lagged[:, :J] @ onehot, np.rint(lagged[:, J:]) @ onehot          # (L + 1, P)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        var = s[0] / np.maximum(n[0], 1)
+        rho = np.where((n[1:] > 0) & (var > 0), s[1:] / np.maximum(n[1:], 1) / var, 0.0)
+    out = np.zeros((P, max_lag))
+    out[:, :rho.shape[0]] = rho.T
+    return out
 
 
 def time_correlation_factor(e: np.ndarray, frame_cov: np.ndarray, smoothed_cov: np.ndarray,
