@@ -1221,3 +1221,38 @@ def time_correlation_factor(e: np.ndarray, frame_cov: np.ndarray, smoothed_cov: 
     f = (1.0 - u) * table[hi - 1, groups[None, :]] + u * table[hi, groups[None, :]]
     out = np.where(good, np.clip(f, 1.0, n), 1.0)
     return out
+
+
+@lru_cache(maxsize=4)
+def fixed_lag_kernels(lag: int, max_lag: int = MAX_LAG, n_grid: int = 120, size: int = 4096
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_smoother_kernels` of a filter that has seen ``lag`` frames after the one
+    it gives (0: the Kalman filter's newest frame; the live run's fixed-lag smoother):
+    the batch maximum a posteriori over the frames up to ``lag`` after it, which the
+    Kalman filter and its fixed-lag smoother give exactly (Sarkka 2013, ch. 8), its
+    kernel the row of ``(I + lambda D^T D)^-1`` of a ``size``-frame chain ending ``lag``
+    frames after it (``D`` the second differences; a banded solve per strength)."""
+    from scipy.linalg import solveh_banded
+
+    lam = np.logspace(-3, 10, n_grid)
+    t = size - 1 - int(lag)
+    widths = np.empty(n_grid)
+    acf = np.empty((n_grid, max_lag))
+    d = np.ones(size)
+    # D^T D's bands (upper form): diagonal 1 5 6 ... 6 5 1, first -2 -4 ... -4 -2, second 1
+    d0 = np.full(size, 6.0)
+    d0[[0, -1]], d0[[1, -2]] = 1.0, 5.0
+    d1 = np.full(size, -4.0)
+    d1[[1, -1]] = -2.0
+    d2 = np.ones(size)
+    e = np.zeros(size)
+    e[t] = 1.0
+    for i, lm in enumerate(lam):
+        ab = np.stack([lm * d2, lm * d1, d + lm * d0])
+        ab[0, :2] = 0.0
+        ab[1, 0] = 0.0
+        w = solveh_banded(ab, e)
+        widths[i] = 1.0 / w[t]
+        F = np.fft.rfft(w, n=2 * size)
+        acf[i] = np.fft.irfft(F * F.conj(), n=2 * size)[1:max_lag + 1]
+    return widths, acf

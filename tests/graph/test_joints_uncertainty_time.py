@@ -89,3 +89,40 @@ def test_epipolar_residual_is_the_noise_no_point_fits():
     # a joint-frame with other than four rows has none
     c = ju.epipolar_residuals(cells[:-1], A.reshape(-1, 3)[:-1], noise.reshape(-1)[:-1], T)
     assert np.isnan(c[-1]) and np.isfinite(c[:-1]).all()
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.8])
+def test_the_live_runs_residuals_keep_the_noises_autocorrelation(rho):
+    """The live run's record of each frame's two views (a mirror 2 m off, pixels off by
+    AR(1) noise): the pooled autocorrelation is the noise's, and the factor on a
+    covariance a filter shrank ``n``-fold is ~1 for iid noise, well above for AR(1),
+    within ``[1, n]``."""
+    from mirrorgraph.live.noise_in_time import NoiseInTime
+
+    rng = np.random.default_rng(5)
+    T, J = 1500, 6
+    K = np.array([[900.0, 0, 640], [0, 900.0, 360], [0, 0, 1]])
+    normal, d = np.array([0.6, 0.0, 0.8]), 4.0
+    H = np.eye(3) - 2.0 * np.outer(normal, normal)
+    X = np.array([0.0, 0.0, 3.5]) + rng.normal(size=(J, 3)) * 0.3
+
+    def pix(Y):
+        y = Y @ K.T
+        return y[:, :2] / y[:, 2:]
+
+    u0, um0 = pix(X), pix(X @ H.T + 2.0 * d * normal)
+    noise = 2.0 * ar1(rng, (T, J, 4), rho)
+    cov = np.broadcast_to(np.eye(3) * 1e-4, (J, 3, 3))
+    keep = np.ones((J, 2), bool)
+    nt = NoiseInTime(J)
+    for t in range(T):
+        nt.record(t, np.arange(J), K, normal, d, X, u0 + noise[t, :, :2],
+                  um0 + noise[t, :, 2:], keep, cov)
+    ac = nt.autocorrelation()
+    np.testing.assert_allclose(ac[:4], rho ** np.arange(1, 5), atol=0.05)
+    f = nt.factor(T - 1, np.arange(J), cov / 8.0, 0)
+    assert np.all((f >= 1.0) & (f <= 8.0))
+    if rho == 0.0:
+        assert np.all(f < 1.15)
+    else:
+        assert np.all(f > 3.0)
