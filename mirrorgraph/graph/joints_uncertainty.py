@@ -8,7 +8,10 @@ in four parts:
 
 * ``H_xx^-1``: the joints' information from their views and the body priors, scaled by
   the noise the data show (``s^2``); a joint's chain of frames with its smoothness is
-  inverted exactly by cyclic reduction (:func:`chain_marginals`);
+  inverted exactly by cyclic reduction (:func:`chain_marginals`), and widened where the
+  detector's noise persists from frame to frame, which the smoothness's average does not
+  remove (:func:`time_correlation_factor`: the residuals' autocorrelation through the
+  smoother's kernel);
 * ``B``: the detector's bias, from the residuals' mean per joint and view
   (:func:`_bias_weights`);
 * ``G C_z G^T``: the reduced globals' covariance ``C_z`` (planes, estimated poses and
