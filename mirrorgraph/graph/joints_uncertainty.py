@@ -1108,14 +1108,23 @@ def epipolar_residuals(cell: np.ndarray, A: np.ndarray, r: np.ndarray, n_cells: 
         return out
     Af = np.asarray(A, float)[order][four].reshape(-1, 4, 3)
     rf = np.asarray(r, float)[order][four].reshape(-1, 4)
-    minors = np.stack([np.linalg.det(np.delete(Af, i, axis=1)) * (-1.0) ** i
-                       for i in range(4)], axis=1)                              # (k, 4)
+    out[cs[four][::4]] = null_component(Af, rf)
+    return out
+
+
+def null_component(A: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``(k,)`` the residuals ``r`` ``(k, 4)`` along the unit left null vector of their
+    Jacobians ``A`` ``(k, 4, 3)`` (:func:`epipolar_residuals`): the signed ``3 x 3``
+    minors, each a triple product; NaN where ``A`` has no single null vector."""
+    a0, a1, a2, a3 = (A[:, i] for i in range(4))
+    c23, c01 = np.cross(a2, a3), np.cross(a0, a1)
+    minors = np.stack([np.einsum("ki,ki->k", a1, c23), -np.einsum("ki,ki->k", a0, c23),
+                       np.einsum("ki,ki->k", c01, a3), -np.einsum("ki,ki->k", c01, a2)], 1)
     norm = np.linalg.norm(minors, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        e = np.einsum("ki,ki->k", minors, rf) / norm
+        e = np.einsum("ki,ki->k", minors, r) / norm
     e[~(norm > 0)] = np.nan
-    out[cs[four][::4]] = e
-    return out
+    return e
 
 
 @lru_cache(maxsize=1)

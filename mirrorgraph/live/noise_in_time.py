@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..graph.joints_uncertainty import epipolar_residuals, fixed_lag_kernels
+from ..graph.joints_uncertainty import fixed_lag_kernels, null_component
 from .frame_prior import view_residuals
 
 __all__ = ["NoiseInTime", "LAGS"]
@@ -46,6 +46,7 @@ class NoiseInTime:
         self._prod = np.zeros((L + 1, J))               # sum e_t e_{t-k}, k = 0..L
         self._pairs = np.zeros((L + 1, J))
         self._sum = np.zeros(J)
+        self._tables: dict = {}              # lag -> its factors' table (and rho), this frame
 
     def record(self, fid: int, idx: np.ndarray, K: np.ndarray, normal: np.ndarray,
                distance: float, X: np.ndarray, u: np.ndarray, um: np.ndarray,
@@ -55,6 +56,7 @@ class NoiseInTime:
         keeps) and their per-frame covariances ``cov`` ``(k, 3, 3)`` (before the filter).
         Frames come in increasing order."""
         fid, L = int(fid), self.lags
+        self._tables.clear()
         row = fid % (L + 1)
         self._e[row] = np.nan
         self._frame_trace[row] = np.nan
@@ -67,9 +69,7 @@ class NoiseInTime:
         both = np.asarray(keep, bool).all(1) & np.isfinite(r).all((1, 2))
         if not both.any():
             return
-        k = int(both.sum())
-        e = epipolar_residuals(np.repeat(np.arange(k), 4), Jac[both].reshape(-1, 3),
-                               r[both].reshape(-1), k)
+        e = null_component(Jac[both].reshape(-1, 4, 3), r[both].reshape(-1, 4))
         j = idx[both]
         self._e[row, j] = e
         fine = np.isfinite(e)
@@ -111,9 +111,18 @@ class NoiseInTime:
         good = np.isfinite(n) & (ts > 0)
         if not good.any():
             return out
-        widths, acf = fixed_lag_kernels(int(lag))
-        rho = self.autocorrelation()
-        table = 1.0 + 2.0 * widths * (acf[:, :self.lags] @ rho)                 # (grid,)
+        widths, table = self._table(int(lag))
         n = np.clip(np.where(good, n, 1.0), 1.0, widths[-1])
         f = np.interp(np.log(n), np.log(widths), table)
         return np.where(good, np.clip(f, 1.0, n), 1.0)
+
+    def _table(self, lag: int) -> tuple[np.ndarray, np.ndarray]:
+        """The filter's widths ``n`` and the factor ``1 + 2 n sum_k a_k(n) rho_k`` at each
+        ``(grid,)``, once a frame and lag."""
+        if lag not in self._tables:
+            if "rho" not in self._tables:
+                self._tables["rho"] = self.autocorrelation()
+            widths, acf = fixed_lag_kernels(lag)
+            self._tables[lag] = (widths, 1.0 + 2.0 * widths * (acf[:, :self.lags]
+                                                               @ self._tables["rho"]))
+        return self._tables[lag]
