@@ -1268,3 +1268,33 @@ def fixed_lag_kernels(lag: int, max_lag: int = MAX_LAG, n_grid: int = 120, size:
         F = np.fft.rfft(w, n=2 * size)
         acf[i] = np.fft.irfft(F * F.conj(), n=2 * size)[1:max_lag + 1]
     return widths, acf
+
+
+def rays_time_correlation_factor(views: list[np.ndarray], points: np.ndarray, pixels: list,
+                                 t: np.ndarray, j: np.ndarray, frame_cov: np.ndarray,
+                                 smoothed_cov: np.ndarray) -> np.ndarray:
+    """:func:`time_correlation_factor` of points triangulated from two views and smoothed
+    over their frames (the completion's joints, :func:`mirrorgraph.completion.
+    smooth_tracks`): the residual series from the points' own two rays.
+
+    Args:
+        views: the two views' ``(3, 4)`` world-to-pixel matrices.
+        points: ``(n, 3)`` the points at joint-frames ``t``, ``j`` ``(n,)``; pixels: two
+            ``(n, 2)`` arrays, their observations in each view.
+        frame_cov, smoothed_cov: ``(T, J, 3, 3)`` the covariances in each frame alone and
+            smoothed (NaN where none).
+
+    Returns:
+        ``(T, J)``, 1 where either covariance is not finite.
+    """
+    T, J = np.shape(frame_cov)[:2]
+    X = np.asarray(points, float)
+    A, r = [], []
+    for P, uv in zip(views, pixels):
+        y = X @ P[:, :3].T + P[:, 3]
+        p = y[:, :2] / y[:, 2:]
+        r.append(p - np.asarray(uv, float))
+        A.append((P[None, :2, :3] - p[:, :, None] * P[None, 2:3, :3]) / y[:, 2, None, None])
+    e = np.full((T, J), np.nan)
+    e[t, j] = null_component(np.concatenate(A, 1), np.concatenate(r, 1))
+    return time_correlation_factor(e, frame_cov, smoothed_cov)
