@@ -126,3 +126,33 @@ def test_the_live_runs_residuals_keep_the_noises_autocorrelation(rho):
         assert np.all(f < 1.15)
     else:
         assert np.all(f > 3.0)
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.9])
+def test_completed_joints_factor_reads_their_own_rays(rho):
+    """Points triangulated from a camera and its mirror view, their pixels off by AR(1)
+    noise, a covariance smoothed 6-fold: the factor is the chain's own (the kernel's
+    cross terms at the rays' autocorrelation), ~1 for iid noise."""
+    from mirrorgraph import geometry as geo
+
+    rng = np.random.default_rng(7)
+    T, J = 800, 3
+    K = np.array([[900.0, 0, 640], [0, 900.0, 360], [0, 0, 1]])
+    views = [geo.camera_projection(K, np.eye(4)),
+             geo.mirror_projection(K, np.eye(4), np.array([0.6, 0.0, 0.8]), 4.0)]
+    X = np.array([0.0, 0.0, 3.5]) + rng.normal(size=(J, 3)) * 0.3
+    t, j = (a.ravel() for a in np.meshgrid(np.arange(T), np.arange(J), indexing="ij"))
+    noise = ar1(rng, (T, J, 4), rho).reshape(-1, 4)
+    pix = []
+    for v, P in enumerate(views):
+        y = X[j] @ P[:, :3].T + P[:, 3]
+        pix.append(y[:, :2] / y[:, 2:] + noise[:, 2 * v:2 * v + 2])
+    frame = np.broadcast_to(np.eye(3), (T, J, 3, 3))
+    f = ju.rays_time_correlation_factor(views, X[j], pix, t, j, frame, frame / 6.0)
+    if rho == 0.0:
+        assert np.all(np.abs(f - 1.0) < 0.1)
+    else:
+        widths, acf = ju._smoother_kernels()
+        expected = 1.0 + 2.0 * 6.0 * np.interp(np.log(6.0), np.log(widths),
+                                               acf @ rho ** np.arange(1, acf.shape[1] + 1))
+        np.testing.assert_allclose(f, expected, rtol=0.15)
