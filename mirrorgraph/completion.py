@@ -344,7 +344,9 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
     points[new & ~keep] = np.nan
     out.joints3d, out.valid, out.completed = points, known | keep, keep
     if pixel_sigma is not None:
-        from .graph.joints_uncertainty import mirror_plane_projections, triangulated_covariance
+        from .graph.joints_uncertainty import (mirror_plane_projections,
+                                               rays_time_correlation_factor,
+                                               triangulated_covariance)
 
         tk, jk = np.nonzero(keep)
         projections = mirror_plane_projections(K, n, float(distance))
@@ -371,9 +373,16 @@ def complete_mirror_joints(paired: PairedKeypoints, K: np.ndarray, normal: np.nd
             info[tk[good], jk[good]] = np.linalg.inv(rays[good])
             track = np.zeros((T, J), dtype=bool)
             track[tk[good], jk[good]] = True
+            measured = points[tk, jk]
             points, smoothed = smooth_tracks(points, info, track, paired.frame_ids,
                                              float(smoothness[0]), int(smoothness[1]))
-            own = smoothed[tk, jk] + bias
+            # the detector's noise that persists from frame to frame, which the smoothing
+            # does not average out (the rays' own residuals' autocorrelation)
+            frame = np.full((T, J, 3, 3), np.nan)
+            frame[tk[good], jk[good]] = rays[good]
+            widen = rays_time_correlation_factor(projections(np.zeros(0)), measured,
+                                                 pixels, tk, jk, frame, smoothed)
+            own = smoothed[tk, jk] * widen[tk, jk][:, None, None] + bias
         else:
             own = rays + bias
         own[~good] = np.nan

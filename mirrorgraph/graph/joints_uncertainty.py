@@ -8,7 +8,10 @@ in four parts:
 
 * ``H_xx^-1``: the joints' information from their views and the body priors, scaled by
   the noise the data show (``s^2``); a joint's chain of frames with its smoothness is
-  inverted exactly by cyclic reduction (:func:`chain_marginals`);
+  inverted exactly by cyclic reduction (:func:`chain_marginals`), and widened where the
+  detector's noise persists from frame to frame, which the smoothness's average does not
+  remove (:func:`time_correlation_factor`: the residuals' autocorrelation through the
+  smoother's kernel);
 * ``B``: the detector's bias, from the residuals' mean per joint and view
   (:func:`_bias_weights`);
 * ``G C_z G^T``: the reduced globals' covariance ``C_z`` (planes, estimated poses and
@@ -30,6 +33,7 @@ of the joint's 3D error (metres with a subject height). Calibration of the figur
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import lru_cache
 from typing import Callable
 
 import gtsam
@@ -286,7 +290,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
     # each view's information on the point (six entries xx, yy, zz, xy, xz, yz, whitened
     # and weighted by the robust kernel as the graph's rows) and its whitened, weighted
     # residuals, (n,) columns
-    Hv, r, wts = [], [], []
+    Hv, r, wts, rows = [], [], [], []
     Xt = X.T
     for P, uv, mk in zip(P0, u, m):
         y = P[:, :3] @ Xt + P[:, 3:4]
@@ -301,6 +305,7 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
         Hv.append(np.where(mk, w * np.stack([jx[a] * jx[b] + jy[a] * jy[b]
                                              for a, b in geo.SYM3]), 0.0))
         r.append(res * (np.sqrt(w) / sigma)[:, None])
+        rows += [np.sqrt(w) * jx, np.sqrt(w) * jy]
     H6 = Hv[0] + Hv[1]
     # the joints both views determine (the bias and the globals' response: their rays')
     adj, det = geo.sym3_adjugate(H6)
@@ -333,7 +338,15 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
         if band is not None:
             info = np.zeros((T, J, 3, 3))
             info[t[ok], j[ok]] = _full3(Hr[:, ok])
+            frame_marg = marg
             marg = _chain_solve(marg, used_ok, band, info)
+            # the noise correlated in time (:func:`time_correlation_factor`)
+            both = np.flatnonzero(m[0] & m[1])
+            A = np.stack(rows, 1).transpose(2, 1, 0)[both]                    # (k, 4, 3)
+            res4 = np.concatenate(r, 1)[both]                         # x0, y0, x1, y1
+            e = epipolar_residuals(np.repeat(t[both] * J + j[both], 4), A.reshape(-1, 3),
+                                   res4.reshape(-1), T * J).reshape(T, J)
+            marg = marg * time_correlation_factor(e, frame_marg, marg)[..., None, None]
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
     glob = triangulated_covariance(views, Cz, X, u, m, 1.0, frames=t if (
@@ -544,7 +557,17 @@ def _graph_covariance(problem: GraphProblem, values: gtsam.Values, red, Cz: np.n
         extra = _smoothness_rows(problem, used, smooth, 0 if rows is None else rows[0].max() + 1)
         rows = extra if rows is None else tuple(np.concatenate([a, b]) for a, b in zip(rows, extra))
     if rows is not None and len(rows[0]):
+        frame_marg = marg
         marg = _with_smoothness(marg, used, rows, J)
+        # the noise correlated in time: the smoothed share widened by the residuals'
+        # autocorrelation (each cell's four whitened rows, their component no point fits)
+        res = np.zeros(n_rows)
+        res[rhs_rows] = rhs
+        e = np.full((Tg, J), np.nan)
+        e[:, jsel] = epipolar_residuals(cell, Ad, res[lr_idx[rows_d]], Tg * Jc).reshape(Tg, Jc)
+        person = np.zeros(J, np.int64)
+        person[jsel] = group_of
+        marg = marg * time_correlation_factor(e, frame_marg, marg, person)[..., None, None]
     glob = np.zeros((Tg, J, 3, 3))
     if nz and np.all(np.isfinite(Cz)):
         if body_gauge:
@@ -1042,3 +1065,236 @@ def mirror_plane_projections(K: np.ndarray, normal: np.ndarray, distance: float
         return [P_real, geo.mirror_projection(K, np.eye(4), n, d)]
 
     return views
+
+
+# --------------------------------------------------------------------------- noise in time
+#: The longest lag of the residuals' autocorrelation :func:`time_correlation_factor` reads
+#: (frames; also at most ``SMOOTHER_LAGS_PER_FRAME`` times the widest smoother's frames).
+MAX_LAG = 512
+
+#: Lags read per frame of the smoother's width (``1 / w_0``): its equivalent kernel's
+#: autocorrelation is below 1e-3 of its peak beyond ~4 widths.
+SMOOTHER_LAGS_PER_FRAME = 6
+
+
+def epipolar_residuals(cell: np.ndarray, A: np.ndarray, r: np.ndarray, n_cells: int
+                       ) -> np.ndarray:
+    """``(n_cells,)`` each joint-frame's residual no point can fit: its four whitened
+    reprojection rows' (two views, ``x`` and ``y``) residual ``r`` along the left null
+    vector of their ``4 x 3`` Jacobian ``A``.
+
+    Moving the point moves the rows' residual within the Jacobian's column space, so this
+    component is the detector's noise itself (first order), whatever the smoothness did
+    to the point: its disagreement across the epipolar line, in the whitened rows' unit.
+    The null vector is the four signed ``3 x 3`` minors (a generalised cross product),
+    continuous in ``A``, so its sign is kept from frame to frame.
+
+    Args:
+        cell: ``(m,)`` each row's joint-frame; A: ``(m, 3)`` its point Jacobian; r:
+            ``(m,)`` its whitened residual (either sign, the same for every row).
+        n_cells: the number of joint-frames.
+
+    Returns:
+        NaN where a joint-frame has not exactly four rows (one view; more than two).
+    """
+    out = np.full(n_cells, np.nan)
+    cell = np.asarray(cell, np.int64)
+    if not len(cell):
+        return out
+    order = np.argsort(cell, kind="stable")
+    cs = cell[order]
+    four = (np.bincount(cell, minlength=n_cells) == 4)[cs]
+    if not four.any():
+        return out
+    Af = np.asarray(A, float)[order][four].reshape(-1, 4, 3)
+    rf = np.asarray(r, float)[order][four].reshape(-1, 4)
+    out[cs[four][::4]] = null_component(Af, rf)
+    return out
+
+
+def null_component(A: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``(k,)`` the residuals ``r`` ``(k, 4)`` along the unit left null vector of their
+    Jacobians ``A`` ``(k, 4, 3)`` (:func:`epipolar_residuals`): the signed ``3 x 3``
+    minors, each a triple product; NaN where ``A`` has no single null vector."""
+    a0, a1, a2, a3 = (A[:, i] for i in range(4))
+    c23, c01 = np.cross(a2, a3), np.cross(a0, a1)
+    minors = np.stack([np.einsum("ki,ki->k", a1, c23), -np.einsum("ki,ki->k", a0, c23),
+                       np.einsum("ki,ki->k", c01, a3), -np.einsum("ki,ki->k", c01, a2)], 1)
+    norm = np.linalg.norm(minors, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.einsum("ki,ki->k", minors, r) / norm
+    e[~(norm > 0)] = np.nan
+    return e
+
+
+@lru_cache(maxsize=1)
+def _smoother_kernels(max_lag: int = MAX_LAG, n_grid: int = 120, size: int = 8192
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The equivalent kernel of a chain smoothed by a second-difference prior, over a
+    grid of its strengths: ``(n_grid,)`` each one's width ``1 / w_0`` (the variance over
+    a lone frame's over the smoothed one's) and ``(n_grid, max_lag)`` its autocorrelation
+    ``a_k = sum_t w_t w_{t+k}`` at lags ``1..max_lag``, unit per-frame information.
+
+    A chain of frames with information 1 each and a prior ``lambda |x_{t-1} - 2 x_t +
+    x_{t+1}|^2`` is a linear filter ``x = w * y`` with the transfer function ``1 / (1 +
+    lambda (2 - 2 cos omega)^2)`` (away from its ends; the discrete cubic smoothing spline,
+    Silverman 1984's equivalent kernel), whose posterior variance is ``w_0``; its kernel
+    and the kernel's autocorrelation are inverse FFTs."""
+    omega = 2.0 * np.pi * np.fft.rfftfreq(size)
+    lam = np.logspace(-3, 10, n_grid)
+    G = 1.0 / (1.0 + lam[:, None] * (2.0 - 2.0 * np.cos(omega)) ** 2)
+    w0 = np.fft.irfft(G, n=size, axis=1)[:, 0]
+    acf = np.fft.irfft(G * G, n=size, axis=1)[:, 1:max_lag + 1]
+    return 1.0 / w0, acf
+
+
+def residual_autocorrelation(e: np.ndarray, groups: np.ndarray, max_lag: int) -> np.ndarray:
+    """``(P, max_lag)`` the autocorrelation of the residual series ``e`` ``(T, J)`` (NaN
+    where none) at lags ``1..max_lag`` frames, each joint's series less its own mean (its
+    bias, which :func:`_bias_weights` holds), pooled over the joints of each group
+    (``groups`` ``(J,)`` in ``0..P-1``): the sum of the lagged products over the sum of
+    squares, each over its own count of pairs (the lagged sums by FFT, zero-padded: every
+    lag at once). A group without a pair at a lag gets 0."""
+    e = np.asarray(e, float)
+    T, J = e.shape
+    P = int(groups.max()) + 1 if len(groups) else 0
+    ok = np.isfinite(e)
+    cnt = ok.sum(0)
+    mean = np.where(cnt > 0, np.nansum(e, 0) / np.maximum(cnt, 1), 0.0)
+    x = np.where(ok, e - mean, 0.0)
+    onehot = np.zeros((J, P))
+    onehot[np.arange(J), groups] = 1.0
+    size = 1 << int(np.ceil(np.log2(2 * T)))
+    F = np.fft.rfft(np.concatenate([x, ok.astype(float)], 1), n=size, axis=0)
+    lagged = np.fft.irfft(F * F.conj(), n=size, axis=0)[:max_lag + 1]     # (L + 1, 2J)
+    s, n = lagged[:, :J] @ onehot, np.rint(lagged[:, J:]) @ onehot          # (L + 1, P)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        var = s[0] / np.maximum(n[0], 1)
+        rho = np.where((n[1:] > 0) & (var > 0), s[1:] / np.maximum(n[1:], 1) / var, 0.0)
+    out = np.zeros((P, max_lag))
+    out[:, :rho.shape[0]] = rho.T
+    return out
+
+
+def time_correlation_factor(e: np.ndarray, frame_cov: np.ndarray, smoothed_cov: np.ndarray,
+                            groups: np.ndarray | None = None) -> np.ndarray:
+    """``(T, J)`` the factor on each smoothed joint's covariance for noise correlated in
+    time.
+
+    A smoothness over a joint's frames averages its per-frame estimates as if their noise
+    were independent, and its covariance shrinks by the frames it averages; a detector's
+    noise that persists from frame to frame does not average out. The smoothed estimate is
+    a linear filter ``sum_t w_t y_t`` of the per-frame ones, so its variance under noise of
+    autocorrelation ``rho_k`` is ``sum_{t,s} w_t w_s rho_{t-s}`` in the per-frame unit
+    (the long-run variance of a filtered series: Bartlett 1946; the lag window the
+    filter's own kernel, as the Newey and West 1987 estimator's is Bartlett's); the
+    covariance the graph states, ``w_0`` (``1 / n``, ``n`` the per-frame covariance's trace
+    over the smoothed one's), gains the cross terms:
+
+        factor = 1 + 2 n sum_{k >= 1} a_k(n) rho_k,   clipped to [1, n]
+
+    ``a_k(n)`` the autocorrelation of the smoother's equivalent kernel of width ``n``
+    (:func:`_smoother_kernels`), ``rho_k`` the residuals' own (:func:`residual_
+    autocorrelation` of :func:`epipolar_residuals`, a component of the noise no point
+    fits). Independent noise leaves 1 up to the pooled autocorrelation's sampling noise;
+    noise fully correlated gives ``n``, the per-frame covariance again. Vectorised: a few
+    milliseconds for a thousand frames.
+
+    Args:
+        e: ``(T, J)`` the residual series (NaN where none).
+        frame_cov, smoothed_cov: ``(T, J, 3, 3)`` each joint's covariance in its frame
+            alone and smoothed.
+        groups: ``(J,)`` the joints pooled for the autocorrelation (a person's, in
+            ``0..P-1``); ``None``: every joint together.
+
+    Returns:
+        ``(T, J)``; 1 where either covariance is not finite.
+    """
+    e = np.asarray(e, float)
+    T, J = e.shape
+    groups = np.zeros(J, np.int64) if groups is None else np.asarray(groups, np.int64)
+    tf = np.trace(np.asarray(frame_cov, float), axis1=-2, axis2=-1)
+    ts = np.trace(np.asarray(smoothed_cov, float), axis1=-2, axis2=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        n = tf / ts
+    good = np.isfinite(n) & (ts > 0)
+    out = np.ones((T, J))
+    if not good.any() or T < 2:
+        return out
+    widths, acf = _smoother_kernels()
+    n = np.clip(np.where(good, n, 1.0), 1.0, widths[-1])
+    lags = max(int(min(MAX_LAG, T - 1, np.ceil(SMOOTHER_LAGS_PER_FRAME * n[good].max()))), 1)
+    rho = residual_autocorrelation(e, groups, lags)                    # (P, lags)
+    table = 1.0 + 2.0 * widths[:, None] * (acf[:, :lags] @ rho.T)      # (grid, P)
+    # linear in the width's logarithm between the grid's two kernels about it
+    hi = np.clip(np.searchsorted(widths, n), 1, len(widths) - 1)
+    lw = np.log(widths)
+    u = np.clip((np.log(n) - lw[hi - 1]) / (lw[hi] - lw[hi - 1]), 0.0, 1.0)
+    f = (1.0 - u) * table[hi - 1, groups[None, :]] + u * table[hi, groups[None, :]]
+    out = np.where(good, np.clip(f, 1.0, n), 1.0)
+    return out
+
+
+@lru_cache(maxsize=4)
+def fixed_lag_kernels(lag: int, max_lag: int = MAX_LAG, n_grid: int = 120, size: int = 4096
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_smoother_kernels` of a filter that has seen ``lag`` frames after the one
+    it gives (0: the Kalman filter's newest frame; the live run's fixed-lag smoother):
+    the batch maximum a posteriori over the frames up to ``lag`` after it, which the
+    Kalman filter and its fixed-lag smoother give exactly (Sarkka 2013, ch. 8), its
+    kernel the row of ``(I + lambda D^T D)^-1`` of a ``size``-frame chain ending ``lag``
+    frames after it (``D`` the second differences; a banded solve per strength)."""
+    from scipy.linalg import solveh_banded
+
+    lam = np.logspace(-3, 10, n_grid)
+    t = size - 1 - int(lag)
+    widths = np.empty(n_grid)
+    acf = np.empty((n_grid, max_lag))
+    d = np.ones(size)
+    # D^T D's bands (upper form): diagonal 1 5 6 ... 6 5 1, first -2 -4 ... -4 -2, second 1
+    d0 = np.full(size, 6.0)
+    d0[[0, -1]], d0[[1, -2]] = 1.0, 5.0
+    d1 = np.full(size, -4.0)
+    d1[[1, -1]] = -2.0
+    d2 = np.ones(size)
+    e = np.zeros(size)
+    e[t] = 1.0
+    for i, lm in enumerate(lam):
+        ab = np.stack([lm * d2, lm * d1, d + lm * d0])
+        ab[0, :2] = 0.0
+        ab[1, 0] = 0.0
+        w = solveh_banded(ab, e)
+        widths[i] = 1.0 / w[t]
+        F = np.fft.rfft(w, n=2 * size)
+        acf[i] = np.fft.irfft(F * F.conj(), n=2 * size)[1:max_lag + 1]
+    return widths, acf
+
+
+def rays_time_correlation_factor(views: list[np.ndarray], points: np.ndarray, pixels: list,
+                                 t: np.ndarray, j: np.ndarray, frame_cov: np.ndarray,
+                                 smoothed_cov: np.ndarray) -> np.ndarray:
+    """:func:`time_correlation_factor` of points triangulated from two views and smoothed
+    over their frames (the completion's joints, :func:`mirrorgraph.completion.
+    smooth_tracks`): the residual series from the points' own two rays.
+
+    Args:
+        views: the two views' ``(3, 4)`` world-to-pixel matrices.
+        points: ``(n, 3)`` the points at joint-frames ``t``, ``j`` ``(n,)``; pixels: two
+            ``(n, 2)`` arrays, their observations in each view.
+        frame_cov, smoothed_cov: ``(T, J, 3, 3)`` the covariances in each frame alone and
+            smoothed (NaN where none).
+
+    Returns:
+        ``(T, J)``, 1 where either covariance is not finite.
+    """
+    T, J = np.shape(frame_cov)[:2]
+    X = np.asarray(points, float)
+    A, r = [], []
+    for P, uv in zip(views, pixels):
+        y = X @ P[:, :3].T + P[:, 3]
+        p = y[:, :2] / y[:, 2:]
+        r.append(p - np.asarray(uv, float))
+        A.append((P[None, :2, :3] - p[:, :, None] * P[None, 2:3, :3]) / y[:, 2, None, None])
+    e = np.full((T, J), np.nan)
+    e[t, j] = null_component(np.concatenate(A, 1), np.concatenate(r, 1))
+    return time_correlation_factor(e, frame_cov, smoothed_cov)

@@ -22,7 +22,9 @@ gated; a new window rescales the tracks by the joints' scale change), the face f
 where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
 :attr:`LiveOptions.lag_frames` frames later smoothed with the frames after it
 (:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its covariance's trace) holds
-the smoother's covariance, the detector's bias (:func:`.frame_prior.bias_covariance` of
+the smoother's covariance (widened for the detector's noise that persists from frame to
+frame, which the filter does not average out: :class:`.noise_in_time.NoiseInTime`), the
+detector's bias (:func:`.frame_prior.bias_covariance` of
 each joint's mean residual in each view so far, which no filter averages) and the fused
 normal's share (:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's,
 ``joints_std_shape`` leaves it out.
@@ -62,6 +64,7 @@ from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_st
                           triangulate_two_rays, two_starts, view_residuals,
                           views_near_track, with_head_prior)
 from .joint_filter import JointFilter
+from .noise_in_time import NoiseInTime
 
 if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
@@ -440,6 +443,8 @@ class LiveCalibrator:
         # each joint's whitened residual in each view summed over the frames, their count
         self._res_sum = np.zeros((self.skeleton.num_joints, 2, 2))
         self._res_count = np.zeros((self.skeleton.num_joints, 2))
+        # the residuals' autocorrelation over time, which widens the filtered joints' std
+        self._noise_time = NoiseInTime(self.skeleton.num_joints)
         self._buffer_ids: list[int] = []
         self._buffer_people: list[np.ndarray] = []
         self._future = None
@@ -663,16 +668,19 @@ class LiveCalibrator:
             ok &= (~keep | (px <= gate)).all(1)
             ok &= np.isfinite(cov).all((1, 2))
         bias = self._bias(K, n, d, X[ok], u[ok], um[ok], idx[ok], keep[ok])
+        self._noise_time.record(fid, idx[ok], K, n, d, X[ok], u[ok], um[ok], keep[ok], cov[ok])
         idx, X, cov = idx[ok], X[ok], cov[ok]
+        widen = np.ones(len(idx))
         if self.options.smooth:
             X, cov = self._filtered(fid, idx, X, cov)
+            widen = self._noise_time.factor(fid, idx, cov, 0)
         if idx.size == 0:
             return out, total, shape, True
         track = (None if self._filter is None or not self.options.smooth
                  else (self._filter.x[:, :3], self._filter.P[:, :3, :3]))
         X, cov = self._head(idx, X, cov, track)
         out[idx] = X
-        shape[idx], total[idx] = self._stds(K, n, d, X, cov + bias)
+        shape[idx], total[idx] = self._stds(K, n, d, X, cov * widen[:, None, None] + bias)
         self._frame_bias[idx] = np.trace(bias, axis1=1, axis2=2)
         if "normal" in self.last_variances:
             self._frame_normal[idx] = self.last_variances["normal"]
@@ -853,6 +861,8 @@ class LiveCalibrator:
         if not have.any():
             return out
         X, cov = self._head(np.flatnonzero(have), sm[0][have], sm[1][have], sm)
+        cov = cov * self._noise_time.factor(old.frame_id, np.flatnonzero(have), sm[1][have],
+                                            lag)[:, None, None]
         if np.isfinite(normal[have]).all():
             var = (np.maximum(np.trace(cov, axis1=1, axis2=2), 0.0) + normal[have]
                    + bias[have])
