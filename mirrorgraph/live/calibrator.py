@@ -21,13 +21,10 @@ reprojects within the threshold in front of the camera and the mirror, filtered 
 gated; a new window rescales the tracks by the joints' scale change), the face fused with
 where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
 :attr:`LiveOptions.lag_frames` frames later smoothed with the frames after it
-(:attr:`LiveFrame.settled`). Each joint's std (``sqrt`` of its covariance's trace) holds
-the smoother's covariance (widened for the detector's noise that persists from frame to
-frame, which the filter does not average out: :class:`.noise_in_time.NoiseInTime`), the
-detector's bias (:func:`.frame_prior.bias_covariance` of
-each joint's mean residual in each view so far, which no filter averages) and the fused
-normal's share (:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's,
-``joints_std_shape`` leaves it out.
+(:attr:`LiveFrame.settled`). Each joint's std holds the smoother's covariance (widened for
+noise that persists in time: :class:`.noise_in_time.NoiseInTime`), the detector's bias
+(:func:`.frame_prior.bias_covariance`) and the fused normal's share
+(:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's, not ``_shape``.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from

@@ -99,7 +99,7 @@ class NoiseInTime:
         joints ``idx`` filtered with ``lag`` frames after it (0: the filter's newest):
         ``1 + 2 n sum_k a_k(n) rho_k`` clipped to ``[1, n]``, ``n`` the frame's own
         covariance's trace over the filtered one's (the frames the filter averages);
-        1 where the frame is no longer held or either trace is not finite."""
+        1 where the frame has left the recorder's window or either trace is not finite."""
         idx = np.asarray(idx, np.int64)
         out = np.ones(len(idx))
         row = int(fid) % (self.lags + 1)
