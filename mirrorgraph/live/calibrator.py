@@ -24,7 +24,7 @@ where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
 (:attr:`LiveFrame.settled`). Each joint's std holds the smoother's covariance (widened for
 noise that persists in time: :class:`.noise_in_time.NoiseInTime`), the detector's bias
 (:func:`.frame_prior.bias_covariance`) and the fused normal's share
-(:func:`joints_normal_jacobian`); ``joints_std`` adds the metric scale's, not ``_shape``.
+(:func:`joints_normal_jacobian`); ``joints_std`` adds the scale's, ``joints_std_shape`` not.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
 calibrated by the offline run: every frame so far each time their number doubles (from
