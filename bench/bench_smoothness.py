@@ -1,7 +1,8 @@
 """The joints pass's acceleration prior against real motion: wrists, frame rate, coverage.
 
 ``RefineOptions.joints_smoothness_sigma`` is the std of each joint's second difference
-per frame^2, a fraction of the subject's height. ``bench/bench_joints.py --refine``
+per frame^2 at 30 fps (``REFERENCE_FPS``), a fraction of the subject's height; the run
+takes it at its frame rate (``RefineOptions.at_frame_rate``). ``bench/bench_joints.py --refine``
 scores it over every joint; this script runs the same ``calibrate`` (its
 :func:`bench_joints.make_truth` scenes, the height as a user reports it) at several
 values side by side on each scene and scores what a tight prior hurts first:
@@ -16,8 +17,10 @@ values side by side on each scene and scores what a tight prior hurts first:
   the prior's per-axis sigma is set against.
 
 Over the scenes: the median and the worst scene (max) of each figure per value.
-``--scene fps=60`` plays the same take at another frame rate (the per-frame^2 prior is
-then ``(60/30)^2`` times looser in m/s^2).
+``--scene fps=60`` plays the same take at another frame rate; each run is told the
+scene's rate, or with ``--run-fps 30,60`` each rate in turn (a 60 fps scene told 30 fps
+gets the prior per frame number, ``(60/30)^2`` times looser in h/s^2: the code before
+``at_frame_rate``).
 
 ``--joints A.json B.json ...`` instead tabulates ``bench_joints.py --json`` runs made at
 several ``--refine joints_smoothness_sigma=...`` (every kind, every joint: PA-MPJPE,
@@ -27,6 +30,7 @@ value per kind.
 Usage::
 
     python bench/bench_smoothness.py --values 0.02,0.01,0.005,0.0025 --kinds cmu --seeds 0-9
+    python bench/bench_smoothness.py --values 0.01 --scene fps=60 --run-fps 30,60
     python bench/bench_smoothness.py --joints cmu_0.01.json cmu_0.005.json --out T.md
 """
 from __future__ import annotations
@@ -60,13 +64,14 @@ def _accel(tr) -> tuple[np.ndarray, np.ndarray]:
     return a[np.isfinite(a)], a[:, w][np.isfinite(a[:, w])]
 
 
-def run_one(tr, sigma: float | None, refine: tuple) -> dict:
-    """One ``calibrate`` of the scene at ``joints_smoothness_sigma = sigma``: its figures."""
+def run_one(tr, sigma: float | None, refine: tuple, fps: float) -> dict:
+    """One ``calibrate`` of the scene at ``joints_smoothness_sigma = sigma``, told the
+    frame rate ``fps``: its figures."""
     import mirrorgraph as mg
     from mirrorgraph.metrics import pa_joint_errors
 
     ropts = bj._refine_options(None, None, tuple(refine) + (("joints_smoothness_sigma", sigma),))
-    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS, refine_options=ropts)
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=fps, refine_options=ropts)
     clock = time.perf_counter()
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
     wall = time.perf_counter() - clock
@@ -187,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--scene", action="append", default=[], type=bj._refine_pair,
                     help="a make_scene argument (repeatable), e.g. fps=60")
+    ap.add_argument("--run-fps", default="scene",
+                    help="frame rates told the runs, comma-separated (default: the scene's)")
     ap.add_argument("--refine", action="append", default=[], type=bj._refine_pair,
                     help="a further RefineOptions field (repeatable)")
     ap.add_argument("--fixtures", type=Path, default=bj.default_fixtures())
@@ -204,7 +211,13 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.out).write_text(text + "\n")
         return 0
     os.nice(args.nice)
-    values = [None if v.strip().lower() == "none" else float(v) for v in args.values.split(",")]
+    sigmas = [None if v.strip().lower() == "none" else float(v) for v in args.values.split(",")]
+    rates = [None if r.strip() == "scene" else float(r) for r in args.run_fps.split(",")]
+    # (label, sigma, rate told the run; None: the scene's)
+    configs = [(str(v) if len(rates) == 1 else
+                f"{v} @ " + ("scene" if r is None else f"{r:g} fps"), v, r)
+               for v in sigmas for r in rates]
+    values = [c[0] for c in configs]
     kinds = [k.strip() for k in args.kinds.split(",")]
     started = _dt.datetime.now(_dt.timezone.utc)
     clock = time.perf_counter()
@@ -219,9 +232,11 @@ def main(argv: list[str] | None = None) -> int:
                 all_med=float(np.median(a_all)), all_p99=float(np.percentile(a_all, 99)),
                 wrist_med=float(np.median(a_w)), wrist_p99=float(np.percentile(a_w, 99))),
                 runs={})
-            for v in values:
-                row["runs"][str(v)] = r = run_one(tr, v, tuple(args.refine))
-                print(f"{k} {s} sigma {v}: PA {r['pa_all_mm']:.1f} mm, wrists "
+            for label, v, rate in configs:
+                fps = rate or tr.detections.fps or bj.FPS
+                row["runs"][label] = r = run_one(tr, v, tuple(args.refine), fps)
+                r["run_fps"] = float(fps)
+                print(f"{k} {s} sigma {label}: PA {r['pa_all_mm']:.1f} mm, wrists "
                       f"{r['pa_wrist_mm']:.1f} mm, err/std wrists p99 {r['z_wrist_p99']:.2f} "
                       f"({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
             rows.append(row)
