@@ -1,7 +1,8 @@
 """The joints pass's acceleration prior against real motion: wrists, frame rate, coverage.
 
 ``RefineOptions.joints_smoothness_sigma`` is the std of each joint's second difference
-per frame^2, a fraction of the subject's height. ``bench/bench_joints.py --refine``
+per frame^2 at 30 fps (``REFERENCE_FPS``), a fraction of the subject's height; the run
+takes it at its frame rate (``RefineOptions.at_frame_rate``). ``bench/bench_joints.py --refine``
 scores it over every joint; this script runs the same ``calibrate`` (its
 :func:`bench_joints.make_truth` scenes, the height as a user reports it) at several
 values side by side on each scene and scores what a tight prior hurts first:
@@ -9,15 +10,19 @@ values side by side on each scene and scores what a tight prior hurts first:
 * **PA-MPJPE** (mm) over every joint and over the **wrists** alone (each frame's
   similarity alignment on all its joints, :func:`mirrorgraph.metrics.pa_joint_errors`);
 * the wrists' **error / std** (median, p99): the error left once the run's metric scale
-  is fitted to the truth over the std without the scale's share (``joints_std_shape``,
-  RMS length), as ``bench_joints.py``'s ``shape err/std`` over every joint (also given);
+  is fitted to the truth (live: each frame's) over the std without the scale's share
+  (``joints_std_shape``, RMS length), as ``bench_joints.py``'s ``shape err/std`` over
+  every joint (also given);
 * the truth's own **acceleration** (the norm of its second difference over consecutive
   frames, fraction of the height per frame^2; median and p99, wrists and all joints): what
   the prior's per-axis sigma is set against.
 
 Over the scenes: the median and the worst scene (max) of each figure per value.
-``--scene fps=60`` plays the same take at another frame rate (the per-frame^2 prior is
-then ``(60/30)^2`` times looser in m/s^2).
+``--scene fps=60`` plays the same take at another frame rate; each run is told the
+scene's rate, or with ``--run-fps 30,60`` each rate in turn (a 60 fps scene told 30 fps
+gets the prior per frame number, ``(60/30)^2`` times looser in h/s^2: the code before
+``at_frame_rate``). ``--method live`` scores the live run's lines instead (each frame
+settled after ``lag_frames``).
 
 ``--joints A.json B.json ...`` instead tabulates ``bench_joints.py --json`` runs made at
 several ``--refine joints_smoothness_sigma=...`` (every kind, every joint: PA-MPJPE,
@@ -27,6 +32,7 @@ value per kind.
 Usage::
 
     python bench/bench_smoothness.py --values 0.02,0.01,0.005,0.0025 --kinds cmu --seeds 0-9
+    python bench/bench_smoothness.py --values 0.01 --scene fps=60 --run-fps 30,60
     python bench/bench_smoothness.py --joints cmu_0.01.json cmu_0.005.json --out T.md
 """
 from __future__ import annotations
@@ -60,25 +66,74 @@ def _accel(tr) -> tuple[np.ndarray, np.ndarray]:
     return a[np.isfinite(a)], a[:, w][np.isfinite(a[:, w])]
 
 
-def run_one(tr, sigma: float | None, refine: tuple) -> dict:
-    """One ``calibrate`` of the scene at ``joints_smoothness_sigma = sigma``: its figures."""
+def _calibrate_joints(tr, ropts, fps: float):
+    """``calibrate``'s joints on the truth's frames: ``X (T, J, 3)``, ``given (T, J)``,
+    the RMS shape std ``(T, J)``."""
     import mirrorgraph as mg
-    from mirrorgraph.metrics import pa_joint_errors
 
-    ropts = bj._refine_options(None, None, tuple(refine) + (("joints_smoothness_sigma", sigma),))
-    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS, refine_options=ropts)
-    clock = time.perf_counter()
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=fps, refine_options=ropts)
     run = mg.calibrate(tr.detections, tr.intrinsics, opts)
-    wall = time.perf_counter() - clock
     T, J = tr.joints3d.shape[:2]
     X, given, rows, keep = bj.on_truth_frames(run, tr)
     given &= np.isfinite(X).all(-1)
     sd = np.full((T, J), np.nan)
     if getattr(run, "joints_std_shape", None) is not None:
         sd[rows[keep]] = bj._rms_length(np.asarray(run.joints_std_shape, float))[keep]
+    return X, given, sd
+
+
+def _live_joints(tr, ropts, fps: float):
+    """The live run's joints (each frame as its JSON line carries it: settled after the
+    lag) on the truth's frames, as :func:`_calibrate_joints`; the stream's rate ``fps``."""
+    from mirrorgraph.live import LiveCalibrator, LiveOptions
+
+    det = tr.detections
+    live = LiveCalibrator(det.skeleton, tr.intrinsics,
+                          LiveOptions.of(subject_height=tr.height_given, refine_options=ropts,
+                                         fps=fps))
+    T, J = tr.joints3d.shape[:2]
+    X, sd = np.full((T, J, 3), np.nan), np.full((T, J), np.nan)
+    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
+
+    def take(f) -> None:
+        t = where.get(int(f.frame_id))
+        if t is not None:
+            X[t] = f.joints3d
+            if f.joints_std_shape is not None:
+                sd[t] = f.joints_std_shape
+
+    try:
+        for k, people in enumerate(det.people):
+            f = live.update(people, frame_id=int(det.frame_ids[k]))
+            if f.settled is not None:
+                take(f.settled)
+        live.finish()
+        for f in live.flush():
+            take(f)
+    finally:
+        live.close()
+    return X, np.isfinite(X).all(-1), sd
+
+
+def run_one(tr, sigma: float | None, refine: tuple, fps: float,
+            method: str = "calibrate") -> dict:
+    """One ``calibrate`` (or with ``method="live"`` one replayed live run, its lines'
+    settled joints) of the scene at ``joints_smoothness_sigma = sigma``, told the frame
+    rate ``fps``: its figures."""
+    from mirrorgraph.metrics import pa_joint_errors
+
+    ropts = bj._refine_options(None, None, tuple(refine) + (("joints_smoothness_sigma", sigma),))
+    clock = time.perf_counter()
+    X, given, sd = (_live_joints if method == "live" else _calibrate_joints)(tr, ropts, fps)
+    wall = time.perf_counter() - clock
+    T, J = tr.joints3d.shape[:2]
     pa = pa_joint_errors(X, tr.joints3d, given)
     Xz = np.where(given[..., None], X, 0.0)
-    fit = float((Xz * tr.joints3d).sum() / (Xz * Xz).sum())
+    # the metric scale fitted to the truth: over the run (calibrate's one scale), or each
+    # frame's (live's changes from window to window, as tests/live score it)
+    axes = (1, 2) if method == "live" else (0, 1, 2)
+    fit = ((Xz * tr.joints3d).sum(axes, keepdims=True)
+           / np.maximum((Xz * Xz).sum(axes, keepdims=True), 1e-12))
     e_shape = np.linalg.norm(fit * Xz - tr.joints3d, axis=-1)
     e = np.linalg.norm(Xz - tr.joints3d, axis=-1)
     w = [tr.names.index(n) for n in WRISTS if n in tr.names]
@@ -187,6 +242,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--scene", action="append", default=[], type=bj._refine_pair,
                     help="a make_scene argument (repeatable), e.g. fps=60")
+    ap.add_argument("--run-fps", default="scene",
+                    help="frame rates told the runs, comma-separated (default: the scene's)")
     ap.add_argument("--refine", action="append", default=[], type=bj._refine_pair,
                     help="a further RefineOptions field (repeatable)")
     ap.add_argument("--fixtures", type=Path, default=bj.default_fixtures())
@@ -195,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None)
     ap.add_argument("--joints", nargs="+", default=None,
                     help="bench_joints.py --json files: tabulate them per value per kind, exit")
-    ap.add_argument("--method", default="calibrate", help="with --joints: calibrate or live")
+    ap.add_argument("--method", default="calibrate",
+                    help="calibrate or live: the runs' (with --joints: the files' to tabulate)")
     args = ap.parse_args(argv)
     if args.joints:
         text = "\n".join(joints_table(args.joints, args.method))
@@ -204,7 +262,13 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.out).write_text(text + "\n")
         return 0
     os.nice(args.nice)
-    values = [None if v.strip().lower() == "none" else float(v) for v in args.values.split(",")]
+    sigmas = [None if v.strip().lower() == "none" else float(v) for v in args.values.split(",")]
+    rates = [None if r.strip() == "scene" else float(r) for r in args.run_fps.split(",")]
+    # (label, sigma, rate told the run; None: the scene's)
+    configs = [(str(v) if len(rates) == 1 else
+                f"{v} @ " + ("scene" if r is None else f"{r:g} fps"), v, r)
+               for v in sigmas for r in rates]
+    values = [c[0] for c in configs]
     kinds = [k.strip() for k in args.kinds.split(",")]
     started = _dt.datetime.now(_dt.timezone.utc)
     clock = time.perf_counter()
@@ -219,9 +283,11 @@ def main(argv: list[str] | None = None) -> int:
                 all_med=float(np.median(a_all)), all_p99=float(np.percentile(a_all, 99)),
                 wrist_med=float(np.median(a_w)), wrist_p99=float(np.percentile(a_w, 99))),
                 runs={})
-            for v in values:
-                row["runs"][str(v)] = r = run_one(tr, v, tuple(args.refine))
-                print(f"{k} {s} sigma {v}: PA {r['pa_all_mm']:.1f} mm, wrists "
+            for label, v, rate in configs:
+                fps = rate or tr.detections.fps or bj.FPS
+                row["runs"][label] = r = run_one(tr, v, tuple(args.refine), fps, args.method)
+                r["run_fps"] = float(fps)
+                print(f"{k} {s} sigma {label}: PA {r['pa_all_mm']:.1f} mm, wrists "
                       f"{r['pa_wrist_mm']:.1f} mm, err/std wrists p99 {r['z_wrist_p99']:.2f} "
                       f"({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
             rows.append(row)

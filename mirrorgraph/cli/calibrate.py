@@ -100,7 +100,8 @@ def add_parsers(sub) -> None:
                         "mask, .csv, or in metres (needs --subject-height) OpenSim .trc, C3D "
                         ".c3d or BVH .bvh")
     p.add_argument("--fps", type=positive, default=None,
-                   help="frame rate of the 3D motion (default: the input's, else --video's, "
+                   help="frame rate of the 3D motion; the joints' acceleration prior, stated at "
+                        "30 fps, is taken at it (default: the input's, else --video's, "
                         f"else {DEFAULT_FPS:g} with a warning)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the RANSAC (default 0)")
     p.add_argument("--report", metavar="DIR",

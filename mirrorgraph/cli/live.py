@@ -63,7 +63,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--as-fast-as-possible", action="store_true",
                    help="process a video or keypoint file flat out instead of at its frame rate")
     p.add_argument("--fps", type=positive, default=None,
-                   help="frame rate of a keypoint input that carries none (default 30)")
+                   help="frame rate of a keypoint input that carries none (default 30): "
+                        "the frame times, and the rate the joints' acceleration prior (stated at 30 fps) "
+                        "is taken at")
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--window", type=lambda t: int(positive(t)), default=900, metavar="N",
                    help="most frames in a window of the mirror's solve (default 900)")

@@ -10,6 +10,12 @@ The defaults' evidence: ``bench/RESULTS_priors.md`` (which bones enter,
 ``bone_bias_limit``: RMS error over the bound per setting); the protocol and the
 reasoning behind every default: ``docs/internals.md``.
 
+The two acceleration priors (``smoothness_sigma``, ``joints_smoothness_sigma``) are
+stated at :data:`REFERENCE_FPS`, a fraction of ``h`` per frame^2 of a 30 fps video
+(x 900 = ``h`` per s^2): :meth:`PriorOptions.at_frame_rate` turns them into the video's
+frame interval, once, where a pipeline meets its frame rate; the graph, the completion
+and live's joint filter take them per frame (their frame gaps in frame numbers).
+
 The settings are grouped by concern, one class each (:class:`PriorOptions`,
 :class:`ScheduleOptions`, :class:`SolverOptions`, :class:`GaugeOptions`, each setting in
 exactly one of them); :class:`RefineOptions`, the one options object of the solve driver,
@@ -22,7 +28,7 @@ is all of them together (as GTSAM's ``LevenbergMarquardtParams`` extends
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Literal, get_args
 
 from ..anthropometry import height_problem
@@ -42,7 +48,13 @@ ScaleFrom = Literal["stature", "limbs"]
 SCALE_FROM: tuple[str, ...] = get_args(ScaleFrom)
 
 __all__ = ["BONE_LENGTHS", "BoneLengths", "GaugeOptions", "KERNELS", "one_subject_height", "Kernel", "PriorOptions", "RefineOptions", "SCALE_FROM",
-           "FocalOptions", "ScaleFrom", "ScheduleOptions", "SolverOptions"]
+           "FocalOptions", "REFERENCE_FPS", "ScaleFrom", "ScheduleOptions", "SolverOptions"]
+
+#: The frame rate, Hz, at which the acceleration priors (``smoothness_sigma``,
+#: ``joints_smoothness_sigma``) are stated: a fraction of ``h`` per frame^2 at this rate
+#: (x ``REFERENCE_FPS^2`` = 900: ``h`` per s^2), whatever the video's
+#: (:meth:`PriorOptions.at_frame_rate`).
+REFERENCE_FPS = 30.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -188,11 +200,14 @@ class PriorOptions:
         symmetry_sigma: ``L_sym``, left minus right length, fraction of ``h``.
         anthropometry_sigma: ``L_anth``, the ratio length / femur about Winter's (absolute).
         hip_sigma: ``L_hip``, the normalised cross product (~ sine of the hip angle).
-        smoothness_sigma: ``L_smooth``, acceleration per frame^2, fraction of ``h``.
-        smoothness_max_gap: longest frame step bridged by a smoothness factor.
+        smoothness_sigma: ``L_smooth``, acceleration, fraction of ``h`` per frame^2 at
+            :data:`REFERENCE_FPS` (x 900 = ``h``/s^2; 0.8: 720 ``h``/s^2).
+        smoothness_max_gap: longest frame step bridged by a smoothness factor, frames
+            of the video.
         joints_smoothness_sigma: after the mirror is found, the 3D joints are solved
             once more with the mirror and the bone lengths held and this (tighter)
-            smoothness, fraction of ``h`` per frame^2; ``None`` skips that pass (the
+            smoothness, fraction of ``h`` per frame^2 at :data:`REFERENCE_FPS` (x 900 =
+            ``h``/s^2: 0.01 is 9 ``h``/s^2, 15 m/s^2 for 1.7 m); ``None`` skips that pass (the
             joints are then the calibration's). The mirror wants a loose prior (a
             tight one biases it), the motion a tight one (it halves the joints'
             error: PA-MPJPE 15-20 -> 9-11 mm on protocol and CMU scenes, mirror
@@ -200,10 +215,11 @@ class PriorOptions:
             Videos solved in chunks (longer than ``max_graph_frames``) get it
             chunk by chunk with the final mirror. The same sigma sets the joints' std
             (:mod:`~.joints_uncertainty`), the completed joints' smoothing and live's
-            joint filter (:class:`mirrorgraph.live.joint_filter.JointFilter`). Per frame
-            number, whatever the frame rate: 0.01 h at 30 fps is 9 h/s^2 (15 m/s^2 for
-            1.7 m); a 60 fps video gets 4x that, and wants 0.0025-0.005 (CMU take 01_01:
-            PA-MPJPE 20.1 mm at 0.01, 17.2 at 0.005, 15.4 at 0.0025). At 30 fps, 0.005
+            joint filter (:class:`mirrorgraph.live.joint_filter.JointFilter`), each at
+            the video's frame interval (:meth:`at_frame_rate`: a 60 fps video's graph
+            gets 0.0025 per frame^2, the same 9 ``h``/s^2; CMU take 01_01 at 60 fps:
+            PA-MPJPE 20.1 -> 15.4 mm against the prior per frame number,
+            ``bench/RESULTS_smoothness.md``). At 30 fps, 0.005
             lowers the PA-MPJPE on every kind (CMU 18.3 -> 16.6 mm, iid 15.7 -> 13.6,
             independent fixtures 20.3 -> 17.6; medians) but the std shrinks faster than
             the error: the realistic detector's scenes with error / std p99 over 3 go
@@ -262,6 +278,40 @@ class PriorOptions:
         if self.joints_bone_lengths not in BONE_LENGTHS:
             raise InputError(f"must be one of {', '.join(BONE_LENGTHS)}, got "
                              f"{self.joints_bone_lengths!r}", field="joints_bone_lengths")
+
+    def at_frame_rate(self, fps: float):
+        """These options with the acceleration priors at a video's frame interval.
+
+        ``smoothness_sigma`` and ``joints_smoothness_sigma`` are stated per frame^2 at
+        :data:`REFERENCE_FPS`; a second difference of a smooth motion scales as the
+        frame interval squared, so at ``fps`` each is multiplied by
+        ``(REFERENCE_FPS / fps)^2``: the same acceleration in ``h``/s^2 whatever the
+        rate. The result is what the graph reads (per frame number; a gap of ``g``
+        frames is ``g`` frame intervals of the video); convert once, where the pipeline
+        resolves its frame rate.
+
+        Args:
+            fps: the video's frame rate, Hz (positive).
+
+        Returns:
+            A copy of the same class; ``self`` at :data:`REFERENCE_FPS`.
+
+        Raises:
+            InputError: ``fps`` not a positive finite number, field ``fps``.
+
+        Example:
+            >>> RefineOptions().at_frame_rate(60.0).joints_smoothness_sigma
+            0.0025
+        """
+        if (isinstance(fps, bool) or not isinstance(fps, (int, float))
+                or not (math.isfinite(fps) and fps > 0)):
+            raise InputError(f"frame rate must be a positive number, got {fps!r}", field="fps")
+        k = (REFERENCE_FPS / float(fps)) ** 2
+        if k == 1.0:
+            return self
+        j = self.joints_smoothness_sigma
+        return replace(self, smoothness_sigma=self.smoothness_sigma * k,
+                       joints_smoothness_sigma=None if j is None else j * k)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -578,7 +578,9 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     The calibration's variables and reprojection factors with other body priors
     (:func:`~.builder.with_motion_priors`): the smoothness of
     ``opts.joints_smoothness_sigma`` (tight: it halves the joints' error, where the
-    calibration wants none, see :class:`~.options.RefineOptions`), and every bone of ``lengths``
+    calibration wants none, see :class:`~.options.RefineOptions`; per frame^2 of the
+    video: ``opts`` as the pipeline took them at its frame rate,
+    :meth:`~.options.PriorOptions.at_frame_rate`), and every bone of ``lengths``
     in every frame, the frames that ``opts.bone_bias_limit`` left out of the
     calibration included (the mirror held, a bone's known length is what fixes the
     depth of joints whose rays meet at a small angle); a bone ``lengths`` lacks at its

@@ -92,11 +92,15 @@ class LiveOptions:
         background: solve windows in one worker process (see the module docstring).
         max_buffer_frames: most frames buffered while the worker is busy (thinned evenly
             beyond; at least ``window_frames``).
-        fps: frame rate for frame times where the caller gives none.
+        fps: the stream's frame rate, Hz, where ``calibrate.fps`` is ``None``: of the
+            frame times where the caller gives none and of the acceleration priors (the
+            joint filter's and the windows' graphs,
+            :meth:`~mirrorgraph.graph.options.PriorOptions.at_frame_rate`).
         bone_prior: refine each frame's joints with the latest window's bone lengths
             (:mod:`.frame_prior`); ``False``: the two rays alone.
         smooth: each joint's track filtered over time (:class:`.joint_filter.JointFilter`:
-            the joints pass's acceleration prior ``RefineOptions.joints_smoothness_sigma``,
+            the joints pass's acceleration prior ``RefineOptions.joints_smoothness_sigma``
+            at the stream's frame rate, ``calibrate.fps`` or ``fps``,
             a Kalman filter over every frame so far, measurements beyond its gate taken
             as outliers); ``False``: each frame on its own.
         lag_frames: each frame is given again, final, this many frames later
@@ -403,6 +407,9 @@ class LiveCalibrator:
                               fps=copts.fps or opts.fps,
                               refine_options=replace(copts.graph, joints_uncertainty=False,
                                                      resolve_after_rejection=False))
+        # the joint filter's acceleration prior at the stream's frame interval (the
+        # windows' calibrate takes the graph's at their frame rate itself)
+        self._motion = self._copts.graph.at_frame_rate(self._copts.fps)
         self.skeleton = skeleton_by_name(skeleton) if isinstance(skeleton, str) else skeleton
         self.joints = mirror_joints(self.skeleton, copts.joints)
         self._bone_names = list(self.skeleton.bones)
@@ -783,15 +790,16 @@ class LiveCalibrator:
                   ) -> tuple[np.ndarray, np.ndarray]:
         """The frame's joints ``X`` ``(k, 3)`` (skeleton indices ``idx``) and their
         covariance filtered with the frames before (:class:`.joint_filter.JointFilter`
-        at the joints pass's acceleration prior, a fraction of the body's height the
-        windows' bone lengths make); as given before the first window's bone lengths."""
+        at the joints pass's acceleration prior at the stream's frame rate, a fraction of
+        the body's height the windows' bone lengths make, per frame^2 of the stream);
+        as given before the first window's bone lengths."""
         from ..anthropometry import height_from_bone_lengths
 
         h = self._cached("height", lambda: height_from_bone_lengths(
             self.fusion.bone_lengths or {}, self.skeleton))
         if not np.isfinite(h):
             return X, cov
-        g = self._copts.graph
+        g = self._motion
         sigma = float(g.joints_smoothness_sigma * h)
         if self._filter is None:
             self._filter = JointFilter(self.skeleton.num_joints, sigma,

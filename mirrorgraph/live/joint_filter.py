@@ -65,7 +65,8 @@ class JointFilter:
 
     Args:
         joints: the skeleton's joint count ``J``.
-        sigma: the acceleration's std, the points' unit per frame^2.
+        sigma: the acceleration's std, the points' unit per frame^2 of the stream
+            (:meth:`mirrorgraph.graph.options.PriorOptions.at_frame_rate`).
         max_gap: a joint unseen for more than this many frames starts a new track.
         gate_chi2: the outlier gate on the innovation (squared Mahalanobis distance).
         restart_after: measurements rejected in a row that restart a joint's track.

@@ -431,8 +431,11 @@ def refine_run(run: CalibrationRun, opts: CalibrateOptions,
     from its pairs; ``estimate_focal``: the intrinsics a guess, estimated). ``lines``: the
     scene's witness of the focal length (:mod:`.lines`): where it has an estimate the graph
     is solved a second time with it joined to the guess's prior, and both cues are
-    recorded apart (``intrinsics.estimated.focal_sources``)."""
-    ropts = opts.graph
+    recorded apart (``intrinsics.estimated.focal_sources``). The graph's acceleration
+    priors are taken at the run's frame rate (``run.fps``,
+    :meth:`~mirrorgraph.graph.options.PriorOptions.at_frame_rate`): here, once, for the
+    solves, the sensitivity's and the completion's smoothing."""
+    ropts = opts.graph.at_frame_rate(run.fps)
     calib = run.calibration
     pairs = run.candidates if run.candidates is not None else run.inliers
     guess = calib.intrinsics
@@ -569,7 +572,8 @@ def refine_run(run: CalibrationRun, opts: CalibrateOptions,
 def _completion_smoothness(run: CalibrationRun, res, ropts) -> tuple[float, int] | None:
     """``(sigma, max_gap)`` of the completed joints' smoothing: the joints pass's
     (``joints_smoothness_sigma`` of the body's height its bone lengths make,
-    :func:`mirrorgraph.anthropometry.height_from_bone_lengths`)."""
+    :func:`mirrorgraph.anthropometry.height_from_bone_lengths`; ``ropts`` at the run's
+    frame rate, so per frame^2 of the video, and ``max_gap`` in frames)."""
     if ropts.joints_smoothness_sigma is None:
         return None
     h = height_from_bone_lengths(res.bone_lengths, run.paired.skeleton)

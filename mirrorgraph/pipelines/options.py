@@ -54,7 +54,9 @@ class CalibrateOptions:
             (frame range, detector, cache); ``None``: the defaults.
         fps: frame rate of the 3D motion in Hz, given by the user; ``None``: from the
             input, else from ``video``, else :data:`~mirrorgraph.preprocess.DEFAULT_FPS`
-            with a warning (:func:`mirrorgraph.preprocess.resolve_fps`; one mirror).
+            with a warning (:func:`mirrorgraph.preprocess.resolve_fps`; one mirror). The
+            graph's acceleration priors, stated at 30 fps, are taken at this rate
+            (:meth:`mirrorgraph.graph.options.PriorOptions.at_frame_rate`).
         video: the video the keypoints were detected on, read for its frame rate
             (:func:`~mirrorgraph.preprocess.fps_from_video`; one mirror) and, where the
             focal length is estimated, for the scene's straight lines

@@ -812,3 +812,33 @@ def test_the_windows_torso_distances_reach_each_frames_refinement(monkeypatch):
     assert plain.fusion.bone_lengths and not plain.fusion.torso_lengths
     assert len(plain._frame_lengths()[0]) == B and max(sizes) == B
     plain.close()
+
+
+def test_a_60_fps_stream_takes_the_prior_at_its_frame_rate(monkeypatch):
+    # the joint filter and the windows' joints pass hold 9 h/s^2 at the stream's rate
+    # (0.0025 h per frame^2 at 60 fps), the windows' calibrate converting it once: the
+    # joints nearer the truth than with the prior per frame number (the stream told
+    # 30 fps: PA-MPJPE 19.7 -> 14.2 mm here; seeds 0-2: 0.71-0.84 of it)
+    import mirrorgraph.pipelines.mirror as mirror
+
+    windows = []
+    real = mirror.calibrate
+
+    def spy(*args, **kw):
+        run = real(*args, **kw)
+        p = run.calibration.refinement["priors"]["joints_pass"]
+        windows.append((run.fps, p["smoothness"]["sigma"] / p["bone_length"]["sigma"]))
+        return run
+
+    monkeypatch.setattr(mirror, "calibrate", spy)
+    sc = make_wide_scene(1, noise="iid", frames=300, fps=60.0)
+    pa = {}
+    for told in (30.0, 60.0):
+        windows.clear()
+        live = _live(sc, fps=told)
+        pa[told] = _scored(sc, _joints_of(live, sc.detections.people))[0]
+        # each window's graph: joints_smoothness_sigma / bone_sigma, at the stream's rate
+        assert windows and all(w == (told, pytest.approx(1.0 * (30.0 / told) ** 2))
+                               for w in windows), windows
+        live.close()
+    assert pa[60.0] < 0.85 * pa[30.0], pa
