@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from typing import Literal, get_args
+from typing import Literal, Self, get_args
 
 from ..anthropometry import height_problem
 from ..errors import InputError
@@ -279,7 +279,7 @@ class PriorOptions:
             raise InputError(f"must be one of {', '.join(BONE_LENGTHS)}, got "
                              f"{self.joints_bone_lengths!r}", field="joints_bone_lengths")
 
-    def at_frame_rate(self, fps: float):
+    def at_frame_rate(self, fps: float) -> Self:
         """These options with the acceleration priors at a video's frame interval.
 
         ``smoothness_sigma`` and ``joints_smoothness_sigma`` are stated per frame^2 at
