@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 
 from ..graph.joints_uncertainty import position_std, with_scale
-from ..graph.options import RefineOptions
+from ..graph.options import REFERENCE_FPS, RefineOptions
 from .options import CalibrateOptions
 from .judge import judge_rig
 from ..stature import keypoint_offset_fraction, measurement_rel_std, with_height_sigma
@@ -148,6 +148,8 @@ def calibrate_rig(config: RigConfig | str | os.PathLike,
                             time_offsets=run.time_offsets, offset_window=run.offset_window,
                             seed=seed)
     warnings = list(obs.warnings)
+    # the acceleration priors (stated at REFERENCE_FPS) at the rig clock's frame interval
+    opts = opts.at_frame_rate(obs.fps or REFERENCE_FPS)
     used_joints = resolve_joints(obs.skeleton, joints if joints is not None else cfg.joints,
                                  source=cfg.source)
     say("initialising: camera pairs, mirrors, spanning tree")               # initialisation

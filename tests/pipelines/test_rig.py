@@ -511,3 +511,24 @@ def test_a_stated_keypoint_placement_narrows_the_rig_scale(tmp_path):
     far = int(np.argmax([np.linalg.norm(c.pose[:3, 3]) for c in default.cameras]))
     assert zero.cameras[far].position_std < default.cameras[far].position_std
     np.testing.assert_allclose(zero.cameras[far].pose, default.cameras[far].pose, atol=1e-9)
+
+
+def test_a_60_fps_rig_holds_the_acceleration_prior_of_30_fps_in_h_per_s2(tmp_path, monkeypatch):
+    """The rig's smoothness priors are stated at 30 fps and taken at the rig clock's frame
+    interval (``PriorOptions.at_frame_rate``): a 60 fps rig's graph holds a quarter of the
+    sigmas per frame^2, the same acceleration in h/s^2."""
+    import mirrorgraph.pipelines.rig as rig_module
+    from mirrorgraph.graph.options import RefineOptions
+
+    seen = []
+    solve = rig_module.solve_rig
+    monkeypatch.setattr(rig_module, "solve_rig",
+                        lambda rig, opts, *a, **k: seen.append(opts) or solve(rig, opts, *a, **k))
+    path = write_rig(make_rig("2cams1mirror", frames=120, seed=1, fps=60.0), tmp_path)
+    # the detections carry no frame rate: the rig file gives each camera's
+    path.write_text(path.read_text().replace("frame_offset = 0", "frame_offset = 0\nfps = 60.0"))
+    calibrate_rig(path)
+    base = RefineOptions()
+    assert seen and all(o.joints_smoothness_sigma == pytest.approx(base.joints_smoothness_sigma / 4)
+                        and o.smoothness_sigma == pytest.approx(base.smoothness_sigma / 4)
+                        for o in seen)
