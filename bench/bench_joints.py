@@ -1,7 +1,7 @@
 """The 3D joints users take home, against the true joints: offline ``calibrate`` and ``live``.
 
 Every scene is calibrated as a user runs it (the camera matrix and the subject's height
-given, 30 fps): ``calibrate`` through the Python API in this process, as the command line
+given, the scene's frame rate: 30 fps unless its detections say): ``calibrate`` through the Python API in this process, as the command line
 runs it (:func:`mirrorgraph.calibrate`, its ``joints3d`` where ``valid3d``: what
 ``--joints3d`` writes), and ``live`` (:class:`mirrorgraph.live.LiveCalibrator` fed the
 keypoints frame by frame, windows solved in the calling thread: every frame's
@@ -116,6 +116,13 @@ import _report  # noqa: E402  (the machine line every results file shares)
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 30.0
+
+
+def scene_fps(tr) -> float:
+    """The scene's frame rate, Hz: its detections', else :data:`FPS`."""
+    f = getattr(tr.detections, "fps", None)
+    return float(f) if f and np.isfinite(f) and f > 0 else FPS
+
 #: a joint more than this far from the truth is gross (m), and badly gross
 GROSS_M, FAR_M = 0.3, 1.0
 #: a reprojection within this of its observation (px) is "on" it (the 95 % circle of
@@ -536,7 +543,7 @@ def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
                   height_sigma: float | None = None, refine: tuple = ()) -> dict:
     import mirrorgraph as mg
 
-    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=FPS,
+    opts = mg.CalibrateOptions(subject_height=tr.height_given, fps=scene_fps(tr),
                                refine_options=_refine_options(keypoint_offset, height_sigma,
                                                               refine))
     wall, cpu = time.perf_counter(), time.process_time()
@@ -576,7 +583,7 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
 
     det = tr.detections
     live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given,
+                          LiveOptions.of(subject_height=tr.height_given, fps=scene_fps(tr),
                                          refine_options=_refine_options(keypoint_offset,
                                                                         height_sigma,
                                                                         refine)))
@@ -606,7 +613,7 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
     try:
         for k, people in enumerate(det.people):
             f = live.update(people, frame_id=int(det.frame_ids[k]),
-                            time_s=float(det.frame_ids[k]) / FPS)
+                            time_s=float(det.frame_ids[k]) / scene_fps(tr))
             # what the JSON lines carry: with a lag, each frame as it is given again
             if not lagged:
                 take(f)
