@@ -24,17 +24,16 @@ import numpy as np
 
 from mirrorgraph.factors.smoothness import SmoothnessFactor
 from mirrorgraph.graph import joints_uncertainty as ju
+from mirrorgraph.synth.detector import correlated_noise
 
 RHOS = (0.0, 0.5, 0.8, 0.9, 0.95)
 SIGMAS = (1.0, 0.3, 0.05)          # the smoothness's std per frame^2 over the per-frame std
 
 
 def ar1(rng, shape: tuple, rho: float) -> np.ndarray:
-    x = np.empty(shape)
-    x[0] = rng.normal(size=shape[1:])
-    for t in range(1, shape[0]):
-        x[t] = rho * x[t - 1] + np.sqrt(1.0 - rho ** 2) * rng.normal(size=shape[1:])
-    return x
+    """Unit-variance AR(1) noise along the first axis (the synthetic detector's,
+    :func:`mirrorgraph.synth.detector.correlated_noise`, whose frames are its axis 1)."""
+    return correlated_noise(rng, (1, *shape), rho)[0]
 
 
 def one(rho: float, sigma: float, T: int = 600, J: int = 2, R: int = 64, s: float = 1.0,

@@ -41,7 +41,8 @@ import numpy as np
 
 from .camera import Z_MIN, project
 
-__all__ = ["DETECTORS", "crossed_runs", "sample_detector_params", "displace_along_epipolar_lines",
+__all__ = ["DETECTORS", "correlated_noise", "crossed_runs", "sample_detector_params",
+           "displace_along_epipolar_lines",
            "EPIPOLAR_OUTLIER_PX", "bystander_keypoints", "observe_keypoints"]
 
 #: Length of a displacement along the epipolar line, px (uniform, either direction).
@@ -173,7 +174,7 @@ def _confidences(rng: np.random.Generator, outlier: np.ndarray) -> np.ndarray:
     return conf
 
 
-def _correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: float
+def correlated_noise(rng: np.random.Generator, shape: tuple[int, ...], rho: float
                       ) -> np.ndarray:
     """Unit-variance AR(1) noise along axis 1 (frames): ``e_t = rho e_(t-1) + sqrt(1-rho^2) w_t``."""
     # lazy: importing scipy.signal costs ~0.35 s, and this module is loaded by
@@ -202,7 +203,7 @@ def observe_keypoints(rng: np.random.Generator, clean: np.ndarray, size: tuple[i
     if noise_correlation > 0 or joint_bias_px > 0:
         xy = clean + noise_mean
         if noise_std > 0:
-            xy = xy + noise_std * _correlated_noise(rng_detector, clean.shape, noise_correlation)
+            xy = xy + noise_std * correlated_noise(rng_detector, clean.shape, noise_correlation)
         if joint_bias_px > 0 and bias_flip is None:
             xy = xy + rng_detector.normal(0.0, joint_bias_px, (V, 1, J, 2))
         elif joint_bias_px > 0:

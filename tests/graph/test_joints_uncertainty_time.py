@@ -8,15 +8,13 @@ import pytest
 
 from mirrorgraph.factors.smoothness import SmoothnessFactor
 from mirrorgraph.graph import joints_uncertainty as ju
+from mirrorgraph.synth.detector import correlated_noise
 
 
 def ar1(rng, shape: tuple, rho: float) -> np.ndarray:
-    """Unit-variance AR(1) noise along the first axis (stationary from the first frame)."""
-    x = np.empty(shape)
-    x[0] = rng.normal(size=shape[1:])
-    for t in range(1, shape[0]):
-        x[t] = rho * x[t - 1] + np.sqrt(1.0 - rho ** 2) * rng.normal(size=shape[1:])
-    return x
+    """Unit-variance AR(1) noise along the first axis (the synthetic detector's,
+    :func:`mirrorgraph.synth.detector.correlated_noise`, whose frames are its axis 1)."""
+    return correlated_noise(rng, (1, *shape), rho)[0]
 
 
 def smoothed_chain(T: int, J: int, sigma_px: float, smooth_sigma: float):
