@@ -343,9 +343,8 @@ def _chunked(state: SolveState, opts: RefineOptions, joints_pass: bool, inflatio
             # the noise correlated in time (:func:`time_correlation_factor`)
             both = np.flatnonzero(m[0] & m[1])
             A = np.stack(rows, 1).transpose(2, 1, 0)[both]                    # (k, 4, 3)
-            res4 = np.concatenate(r, 1)[both]                         # x0, y0, x1, y1
-            e = epipolar_residuals(np.repeat(t[both] * J + j[both], 4), A.reshape(-1, 3),
-                                   res4.reshape(-1), T * J).reshape(T, J)
+            e = np.full((T, J), np.nan)
+            e[t[both], j[both]] = null_component(A, np.concatenate(r, 1)[both])  # x0 y0 x1 y1
             marg = marg * time_correlation_factor(e, frame_marg, marg)[..., None, None]
     plane_key = [(k, dim) for k, dim in state.z_keys if dim == 3][:1]
     Cz = globals_covariance(state, plane_key, inflation) if plane_key else None
@@ -1227,12 +1226,11 @@ def time_correlation_factor(e: np.ndarray, frame_cov: np.ndarray, smoothed_cov: 
     rho = residual_autocorrelation(e, groups, lags)                    # (P, lags)
     table = 1.0 + 2.0 * widths[:, None] * (acf[:, :lags] @ rho.T)      # (grid, P)
     # linear in the width's logarithm between the grid's two kernels about it
-    hi = np.clip(np.searchsorted(widths, n), 1, len(widths) - 1)
-    lw = np.log(widths)
-    u = np.clip((np.log(n) - lw[hi - 1]) / (lw[hi] - lw[hi - 1]), 0.0, 1.0)
-    f = (1.0 - u) * table[hi - 1, groups[None, :]] + u * table[hi, groups[None, :]]
-    out = np.where(good, np.clip(f, 1.0, n), 1.0)
-    return out
+    f = np.ones((T, J))
+    for g in np.unique(groups):
+        cols = groups == g
+        f[:, cols] = np.interp(np.log(n[:, cols]), np.log(widths), table[:, g])
+    return np.where(good, np.clip(f, 1.0, n), 1.0)
 
 
 @lru_cache(maxsize=4)
