@@ -92,6 +92,8 @@ def run_scene(case: tuple) -> list[dict]:
 
     kind, seed, frames, lengths, clips, fixtures, truth_start, scene = case
     tr = bj.make_truth(kind, seed, frames, Path(fixtures), scene=scene)
+    # an ablation's rows apart (the fixtures take no scene argument)
+    label = kind + ("".join(f" {k}={v:g}" for k, v in scene) if kind != "fixtures" else "")
     det = tr.detections
     copts = LiveCalibrator(det.skeleton, tr.intrinsics,
                            LiveOptions.of(subject_height=tr.height_given))._copts
@@ -100,7 +102,7 @@ def run_scene(case: tuple) -> list[dict]:
     rows = []
     for L in lengths:
         for a in clip_starts(T, L, clips if L < T else 1):
-            row = dict(kind=kind, seed=str(seed), length=int(L), start=int(a))
+            row = dict(kind=label, seed=str(seed), length=int(L), start=int(a))
             t0 = time.perf_counter()
             try:
                 clip = replace(det, frame_ids=det.frame_ids[a:a + L],
@@ -305,7 +307,6 @@ def main(argv=None) -> int:
             for r in saved["rows"]:
                 merged[(r["kind"], r["seed"], r["length"], r["start"])] = r
         rows = list(merged.values())
-        kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
     else:
         meta = _report.record(code=True)
         cases = []
@@ -331,6 +332,8 @@ def main(argv=None) -> int:
         metas.append(meta)
         if a.json:
             Path(a.json).write_text(json.dumps(dict(meta=meta, rows=rows)))
+    kinds = sorted({r["kind"] for r in rows}, key=lambda k: (
+        KINDS.index(k.split()[0]) if k.split()[0] in KINDS else len(KINDS), k))
     head = []
     for meta in metas:
         head += [*_report.recorded_header(meta), ""]
