@@ -47,7 +47,7 @@ import _report  # noqa: E402
 import bench_joints as bj  # noqa: E402
 
 PARTS = ("marginal", "time", "joint", "two_way", "jack_time", "jack_joint")
-LENGTHS = (60, 120, 240, 480)
+LENGTHS = (60, 120, 240, 480, 1000)
 KINDS = bj.KINDS
 
 
