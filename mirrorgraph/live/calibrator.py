@@ -115,7 +115,8 @@ class LiveOptions:
             latest window's lengths, the torso, the acceleration prior, one-view outliers
             left out) over the last ``W`` frames that gave joints, from the per-frame
             joints; the joints it does not solve (seen in one view) keep the fixed-lag
-            smoother's, and every settled joint keeps the smoother's std. ``0``: the
+            smoother's; every settled joint's std is the smoother's (widened by its
+            distance to the graph's point where the graph solved it). ``0``: the
             fixed-lag smoother alone (:class:`.joint_filter.JointFilter`).
         window_graph_every: ``k``: the window is solved on every ``k``-th update, in
             the calling thread (30-90 ms each on one core), and each solve gives the
@@ -247,8 +248,9 @@ class LiveFrame:
             the window graph's solve for the settled joints is in ``latency_s``.
         settled: the frame :attr:`LiveOptions.lag_frames` back, given again with its
             joints solved with the frames after it (the window's graph, else the
-            fixed-lag smoother; the smoother's stds) (``None`` while fewer frames came,
-            or without a lag); its ``lag_frames`` says how late it is.
+            fixed-lag smoother; the smoother's stds, widened by the two's distance)
+            (``None`` while fewer frames came, or without a lag); its ``lag_frames``
+            says how late it is.
         lag_frames: frames between this frame and the frame whose update gave it out
             (0: the frame's own update).
     """
@@ -934,15 +936,26 @@ class LiveCalibrator:
                         lag: int) -> LiveFrame:
         """``old`` settled: :meth:`_smoother_frame`, and where the window's graph solved
         a joint it gives (:meth:`_solve_graph`) the graph's point, its std the smoother's
-        (``bench/RESULTS_live_graph.md``: err / std)."""
+        with the two points' distance added in quadrature (``bench/RESULTS_live_graph.md``:
+        err / std)."""
         out = self._smoother_frame(old, normal, bias, lag)
         G = self._graph_joints.pop(old.frame_id, None) if self._graph is not None else None
         if G is not None:
-            # the graph's joints where it solved one the smoother gives, the smoother's std
+            # the graph's joints where it solved one the smoother gives; their std the
+            # smoother's and the two points' distance in quadrature: its error is within
+            # the smoother's error plus that distance, and where the two disagree (a limb
+            # on the other crossing of its bone with its ray) the smoother's std alone
+            # left the graph's error at 3.0 stds at the 99th percentile of the worst of
+            # 72 scenes (bench/RESULTS_live_graph.md)
             take = np.isfinite(G).all(1) & np.isfinite(out.joints3d).all(1)
             if take.any():
+                gap2 = np.sum((G[take] - out.joints3d[take]) ** 2, axis=1)
                 out.joints3d = out.joints3d.copy()
                 out.joints3d[take] = G[take]
+                out.joints_std, out.joints_std_shape = (out.joints_std.copy(),
+                                                        out.joints_std_shape.copy())
+                out.joints_std[take] = np.sqrt(out.joints_std[take] ** 2 + gap2)
+                out.joints_std_shape[take] = np.sqrt(out.joints_std_shape[take] ** 2 + gap2)
         return out
 
     def _smoother_frame(self, old: LiveFrame, normal: np.ndarray, bias: np.ndarray,

@@ -72,8 +72,8 @@ def test_the_settled_frames_come_at_the_fixed_lag_and_flush_gives_the_rest(runs)
 def test_the_graphs_settled_joints_are_nearer_the_truth_than_the_smoothers(scene, runs):
     """Over the frames after the first window (60 frames) the graph's settled joints have
     a lower PA-MPJPE than the fixed-lag smoother's at the same lag and than the per-frame
-    path's (each update's own frame), on the same joints; the smoother's std, kept,
-    still covers their errors."""
+    path's (each update's own frame), on the same joints; the smoother's std, widened by
+    the two's distance, covers their errors as the smoother's covers its own."""
     g, _ = _joints(scene, _settled(runs["graph"]))
     s, S = _joints(scene, _settled(runs["smoother"]))
     p, _ = _joints(scene, [u for u in runs["graph"][0]])
@@ -102,17 +102,21 @@ def _shape_z(sc, X, S, ok):
 
 def test_the_graph_changes_the_settled_joints_alone(runs):
     """The window's graph reads the per-frame path and changes nothing of it: each
-    update's own frame and every settled std are bit-identical with and without it;
-    the settled joints differ only where it solved them (some, not all, frames)."""
+    update's own frame is bit-identical with and without it; a settled joint's std is the
+    smoother's with the graph's and the smoother's points' distance in quadrature (equal
+    where the graph left the joint), and the graph moves joints in nearly every frame."""
     gu, su = runs["graph"][0], runs["smoother"][0]
     for a, b in zip(gu, su):
         np.testing.assert_array_equal(a.joints3d, b.joints3d)
         np.testing.assert_array_equal(a.joints_std, b.joints_std)
     ga, sa = _settled(runs["graph"]), _settled(runs["smoother"])
     for a, b in zip(ga, sa):
-        np.testing.assert_array_equal(a.joints_std, b.joints_std)
-        np.testing.assert_array_equal(a.joints_std_shape, b.joints_std_shape)
         np.testing.assert_array_equal(np.isfinite(a.joints3d), np.isfinite(b.joints3d))
+        have = np.isfinite(b.joints3d).all(1)
+        gap2 = np.sum((a.joints3d[have] - b.joints3d[have]) ** 2, axis=1)
+        for name in ("joints_std", "joints_std_shape"):
+            np.testing.assert_allclose(getattr(a, name)[have] ** 2,
+                                       getattr(b, name)[have] ** 2 + gap2, rtol=1e-12)
     moved = [np.nanmax(np.abs(a.joints3d - b.joints3d)) > 0 for a, b in zip(ga, sa)
              if np.isfinite(a.joints3d).any()]
     assert np.mean(moved) > 0.9
