@@ -578,7 +578,9 @@ def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
 
 
 def run_live(tr: Truth, keypoint_offset: float | None = None,
-             height_sigma: float | None = None, refine: tuple = ()) -> dict:
+             height_sigma: float | None = None, refine: tuple = (), live: tuple = ()) -> dict:
+    """The live run of ``tr`` (``live``: ``(name, value)`` pairs of
+    :class:`~mirrorgraph.live.LiveOptions` fields, ``--live``)."""
     from mirrorgraph.live import LiveCalibrator, LiveOptions
 
     det = tr.detections
@@ -586,7 +588,8 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
                           LiveOptions.of(subject_height=tr.height_given, fps=scene_fps(tr),
                                          refine_options=_refine_options(keypoint_offset,
                                                                         height_sigma,
-                                                                        refine)))
+                                                                        refine),
+                                         **dict(live)))
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
@@ -638,7 +641,7 @@ def run_scene(case: tuple) -> dict:
     from mirrorgraph.metrics import pa_mpjpe
 
     (kind, seed, frames, methods, fixtures, body, height_given, keypoint_offset, height_sigma,
-     refine, scene) = case
+     refine, scene, live) = case
     clock = time.perf_counter()
     tr = make_truth(kind, seed, frames, Path(fixtures), body, height_given, scene)
     orc = oracle(tr)
@@ -649,8 +652,9 @@ def run_scene(case: tuple) -> dict:
                           height_given=tr.height_given))
     for m in methods:
         try:
-            out[m] = (run_calibrate if m == "calibrate" else run_live)(tr, keypoint_offset,
-                                                                         height_sigma, refine)
+            out[m] = (run_calibrate(tr, keypoint_offset, height_sigma, refine)
+                      if m == "calibrate"
+                      else run_live(tr, keypoint_offset, height_sigma, refine, live))
         except Exception as exc:  # noqa: BLE001 - a failure is a result here
             out[m] = dict(error=f"{type(exc).__name__}: {exc}")
         r = out[m]
@@ -1051,6 +1055,10 @@ def main(argv: list[str] | None = None) -> int:
                     metavar="NAME=VALUE",
                     help="a RefineOptions field the runs set (repeatable), e.g. "
                          "joints_bone_lengths=integrated torso_sigma=0.02")
+    ap.add_argument("--live", type=_refine_pair, action="append", default=[],
+                    metavar="NAME=VALUE",
+                    help="a LiveOptions field the live runs set (repeatable), e.g. "
+                         "window_graph_frames=0 lag_frames=5")
     ap.add_argument("--scene", type=_refine_pair, action="append", default=[],
                     metavar="NAME=VALUE",
                     help="a make_scene argument of the synthetic scenes (repeatable; it wins "
@@ -1095,6 +1103,12 @@ def main(argv: list[str] | None = None) -> int:
         except (TypeError, ValueError) as exc:
             ap.error(f"--refine: {exc} (fields: RefineOptions, "
                      f"{', '.join(sorted(RefineOptions.__dataclass_fields__))})")
+    if args.live:
+        from mirrorgraph.live import LiveOptions
+        unknown = [k for k, _ in args.live if k not in LiveOptions.__dataclass_fields__]
+        if unknown:
+            ap.error(f"--live: unknown {', '.join(unknown)} (fields: "
+                     f"{', '.join(sorted(LiveOptions.__dataclass_fields__))})")
     cases = []
     for k in kinds:
         if k == "fixtures":
@@ -1103,13 +1117,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"fixtures: no scene in {args.fixtures}; left out", file=sys.stderr)
             cases += [(k, p.name, args.frames, methods, str(args.fixtures), args.body,
                        args.height_given, args.keypoint_offset, args.height_sigma,
-                       tuple(args.refine), tuple(args.scene))
+                       tuple(args.refine), tuple(args.scene), tuple(args.live))
                       for p in found]
         else:
             seeds = args.seeds or (FULL_SEEDS if args.full else DEFAULT_SEEDS)[k]
             cases += [(k, s, args.frames, methods, str(args.fixtures), args.body,
                        args.height_given, args.keypoint_offset, args.height_sigma,
-                       tuple(args.refine), tuple(args.scene))
+                       tuple(args.refine), tuple(args.scene), tuple(args.live))
                       for s in _seeds(seeds)]
     if not cases:
         print("no scene to run", file=sys.stderr)
@@ -1145,7 +1159,7 @@ def main(argv: list[str] | None = None) -> int:
                 frames=args.frames, kinds=kinds, methods=methods, gross_m=GROSS_M, far_m=FAR_M,
                 height_given=args.height_given, body=args.body,
                 keypoint_offset=args.keypoint_offset, height_sigma=args.height_sigma,
-                refine=dict(args.refine), scene=dict(args.scene),
+                refine=dict(args.refine), scene=dict(args.scene), live=dict(args.live),
                 mode_px=MODE_PX)
     L = ["# The 3D joints against the truth (`bench/bench_joints.py`)", "",
          f"- date: {meta['date']}; code `{meta['code']}`",
@@ -1175,6 +1189,8 @@ def main(argv: list[str] | None = None) -> int:
             else f"{100 * args.height_sigma:g} %, stated (`RefineOptions.height_sigma`)"),
          *(["- graph options set (`--refine`): "
             + ", ".join(f"`{k}={v}`" for k, v in args.refine)] if args.refine else []),
+         *(["- live options set (`--live`): "
+            + ", ".join(f"`{k}={v}`" for k, v in args.live)] if args.live else []),
          *(["- scene arguments set (`--scene`, the synthetic kinds): "
             + ", ".join(f"`{k}={v}`" for k, v in args.scene)] if args.scene else []),
          "- figures: MPJPE (no alignment) and PA-MPJPE (per-frame similarity) over the joints "

@@ -25,9 +25,13 @@ the windows solved in the worker process (the default) and inline (``--inline``)
 * ``--refine NAME=VALUE`` (repeatable): a :class:`~mirrorgraph.graph.RefineOptions` field
   every run sets (its windows' graph; the whole-process runs take it as the field's
   default, which ``mirrorgraph live`` has no flag for);
-* **latency**: a frame's line comes ``lag_frames`` frames after the frame (the smoothing
-  over the frames after it) plus its own path's time: the lag at the stream's frame rate
-  plus the per-frame path's 99th percentile (``LiveFrame.cpu_s``), against the target
+* ``--graph-off``: this tree again with the window graph off (``--window-graph 0``, the
+  fixed-lag smoother alone), side by side;
+* **latency**: a frame's line comes ``lag_frames`` frames after the frame (the window
+  graph's or the smoother's solve over the frames after it) plus its own path's time: the
+  lag at the stream's frame rate plus the per-frame path's 99th percentile
+  (``LiveFrame.cpu_s``, the window graph's solve included on the updates that run it,
+  one in ``window_graph_every``), against the target
   (:data:`TARGET_LATENCY_S` at :data:`STREAM_FPS`); the whole process keeps up where its
   frames/s exceeds the stream's.
 
@@ -109,11 +113,14 @@ def _main_thread(pid: int) -> tuple[float, float]:
     return int(on) * 1e-9, int(queued) * 1e-9
 
 
-def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path, refine: dict) -> dict:
-    """One fresh ``mirrorgraph live`` process: wall, CPU, and its lines' joints."""
+def run_once(tree: Path, scene: Path, inline: bool, jsonl: Path, refine: dict,
+             extra: tuple = ()) -> dict:
+    """One fresh ``mirrorgraph live`` process (``extra``: more of its arguments): wall,
+    CPU, and its lines' joints."""
     args = ["live", str(scene / "keypoints_mmpose.json"),
             "--intrinsics", str(scene / "camera.json"), "--subject-height", "1.75",
-            "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet"] + ["--inline"] * inline
+            "--as-fast-as-possible", "--jsonl", str(jsonl), "--quiet",
+            *extra] + ["--inline"] * inline
     cmd = ([sys.executable, "-c", LAUNCH, json.dumps(refine)] if refine
            else [sys.executable, "-m", "mirrorgraph"]) + args
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -167,12 +174,13 @@ import mirrorgraph.pipelines.mirror
 t["solve_imports"] = time.process_time() - c
 scene = sys.argv[1]
 refine = json.loads(sys.argv[2])
+live_opts = json.loads(sys.argv[3])
 c = time.process_time()
 src = open_source(scene + "/keypoints_mmpose.json", skeleton=None, fps=None)
 intr = load_intrinsics(scene + "/camera.json")
 t["read"] = time.process_time() - c
 live = LiveCalibrator(src.skeleton, intr, LiveOptions.of(
-    subject_height=1.75, can_wait=True, refine_options=RefineOptions(**refine)))
+    subject_height=1.75, can_wait=True, refine_options=RefineOptions(**refine), **live_opts))
 out, total = [], 0.0
 for f in src.frames:
     c = time.thread_time()
@@ -185,6 +193,8 @@ t["paired_ms"] = 1e3 * float(np.median(paired))
 t["paired_p99_ms"] = 1e3 * float(np.percentile(paired, 99))
 t["paired_max_ms"] = 1e3 * float(np.max(paired))
 t["lag_frames"] = live.options.lag_frames
+t["graph_s"] = live.graph_seconds
+t["graph_solves"] = live.graph_solves
 c = time.process_time()
 for f in out:
     if f.settled is not None:
@@ -199,12 +209,16 @@ PARTS = [("paired_ms", "per-frame path, ms a paired frame"),
          ("per_frame", "per-frame path s"),
          ("windows", "windows' solves s"), ("start", "start-up s"),
          ("solve_imports", "the windows' imports s"), ("read", "reading s"),
-         ("json", "JSON lines s")]
+         ("json", "JSON lines s"), ("graph_s", "window graph's solves s (wall, in the "
+                                              "per-frame path)"),
+         ("graph_solves", "its solves")]
 
 
-def breakdown(tree: Path, scene: Path, refine: dict) -> dict:
-    """Where an inline run's CPU goes (:data:`BREAKDOWN`), seconds (the frame's ms)."""
-    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene), json.dumps(refine)],
+def breakdown(tree: Path, scene: Path, refine: dict, live: dict | None = None) -> dict:
+    """Where an inline run's CPU goes (:data:`BREAKDOWN`; ``live``: LiveOptions fields),
+    seconds (the frame's ms)."""
+    res = subprocess.run([sys.executable, "-c", BREAKDOWN, str(scene), json.dumps(refine),
+                          json.dumps(live or {})],
                          check=True,
                          env=_env(tree), capture_output=True, text=True, cwd=tree)
     return json.loads(res.stdout.strip().splitlines()[-1])
@@ -224,6 +238,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--refine", action="append", default=[], metavar="NAME=VALUE",
                     help="a RefineOptions field every run sets (repeatable), e.g. "
                          "torso_sigma=0.02 joints_bone_lengths=integrated")
+    ap.add_argument("--graph-off", action="store_true",
+                    help="also this tree with the window graph off (--window-graph 0: the "
+                         "fixed-lag smoother alone), side by side")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_live_speed.md"))
     ap.add_argument("--append", action="store_true",
                     help="add the report as a section below the ones --out holds")
@@ -232,19 +249,22 @@ def main(argv: list[str] | None = None) -> int:
     refine = _refine(ap, args.refine)
     if args.nice:
         os.nice(args.nice)
-    trees = ([("before", args.before.resolve())] if args.before else []) + [("this", ROOT)]
+    # (name, tree, the command's extra arguments, the in-process run's LiveOptions)
+    trees = ([("before", args.before.resolve(), (), {})] if args.before else []) + [
+        ("this", ROOT, (), {})] + ([("this, graph off", ROOT, ("--window-graph", "0"),
+                                     {"window_graph_frames": 0})] if args.graph_off else [])
     rows = []
     parts: dict[str, list] = {}
     loads = []
     with tempfile.TemporaryDirectory() as tmp:
         scene = make_scene(Path(tmp) / "scene", args.frames, args.seed)
-        for _, tree in trees:                      # untimed: each tree's bytecode written
+        for _, tree, _, _ in trees:                # untimed: each tree's bytecode written
             run_once(tree, scene, True, Path(tmp) / "out.jsonl", refine)
         for r in range(args.repeats):              # interleaved: the load hits both alike
-            for name, tree in trees:
+            for name, tree, extra, _ in trees:
                 for inline in (False, True):
                     loads.append(os.getloadavg()[0])
-                    out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl", refine)
+                    out = run_once(tree, scene, inline, Path(tmp) / "out.jsonl", refine, extra)
                     out.update(code=name, mode="inline" if inline else "background", rep=r)
                     rows.append(out)
                     print(f"{name} {out['mode']}: {out['wall']:.2f} s wall "
@@ -253,8 +273,8 @@ def main(argv: list[str] | None = None) -> int:
                           f"asleep, PA-MPJPE {out['pa_mm']:.1f} mm, "
                           f"{out['missing']} lines without joints after the first mirror",
                           file=sys.stderr, flush=True)
-            for name, tree in trees:
-                parts.setdefault(name, []).append(breakdown(tree, scene, refine))
+            for name, tree, _, live in trees:
+                parts.setdefault(name, []).append(breakdown(tree, scene, refine, live))
     title = "# `mirrorgraph live --as-fast-as-possible`, whole process (`bench/bench_live_speed.py`)"
     old = (Path(args.out).read_text().rstrip("\n") if args.append and Path(args.out).exists()
            else "")
@@ -272,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
          "main thread asleep s | PA-MPJPE mm | lines | lines without joints after the first "
          "mirror | first mirror at frame |",
          "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for name, _ in trees:
+    for name, *_ in trees:
         for mode in ("background", "inline"):
             sel = [r for r in rows if r["code"] == name and r["mode"] == mode]
             w = np.array([r["wall"] for r in sel])
@@ -294,13 +314,13 @@ def main(argv: list[str] | None = None) -> int:
           "offline run), medians over the repeats:", "",
           "| code | " + " | ".join(h for _, h in PARTS) + " |",
           "|---|" + "---:|" * len(PARTS)]
-    for name, _ in trees:
+    for name, *_ in trees:
         med = [np.median([p[k] for p in parts[name]]) for k, _ in PARTS]
         L.append(f"| {name} | " + " | ".join(f"{v:.2f}" for v in med) + " |")
     L += ["", f"Latency at {STREAM_FPS:.0f} fps (a frame's line after the frame: the lag's "
           "frames at the stream's rate plus the per-frame path's p99, medians over the "
           f"repeats; target <= {TARGET_LATENCY_S} s):", ""]
-    for name, _ in trees:
+    for name, *_ in trees:
         lag = int(parts[name][0]["lag_frames"])
         p99 = float(np.median([p["paired_p99_ms"] for p in parts[name]])) / 1e3
         worst = float(np.max([p["paired_max_ms"] for p in parts[name]])) / 1e3

@@ -69,10 +69,16 @@ def add_parsers(sub) -> None:
     p.add_argument("--skeleton", help="keypoint layout when the count is ambiguous")
     p.add_argument("--window", type=lambda t: int(positive(t)), default=900, metavar="N",
                    help="most frames in a window of the mirror's solve (default 900)")
-    p.add_argument("--lag", type=_lag, default=5, metavar="FRAMES",
+    p.add_argument("--lag", type=_lag, default=None, metavar="FRAMES",
                    help="write each frame's line this many frames after it came, its joints "
-                        "smoothed with the frames after it (default 5: 0.17 s at 30 fps); "
-                        "0: each line as its frame comes, filtered with the frames before")
+                        "solved again with the frames after it: the joints pass's graph over "
+                        "the last 30 frames, solved every 5th frame in this thread, else the "
+                        "fixed-lag smoother (default 9: 0.30 s at 30 fps; below 4 the graph "
+                        "sees fewer frames ahead); 0: each line as its frame comes, filtered "
+                        "with the frames before")
+    p.add_argument("--window-graph", type=_lag, default=None, metavar="FRAMES",
+                   help="frames of the joints pass's graph that solves each line's joints "
+                        "again (default 30; 0: the fixed-lag smoother alone)")
     p.add_argument("--calibrated-std", type=positive, default=2.0, metavar="DEG",
                    help="rotation std at which the status becomes 'calibrated' (default 2)")
     solve = p.add_mutually_exclusive_group()
@@ -153,7 +159,10 @@ def _run(args, say, camera: bool, to_stdout: bool) -> int:
                          "--as-fast-as-possible with a file", field="--inline")
     opts = LiveOptions(calibrate=copts, window_frames=args.window,
                        calibrated_std_deg=args.calibrated_std, background=not args.inline,
-                       can_wait=not realtime, lag_frames=args.lag)
+                       can_wait=not realtime,
+                       **({} if args.lag is None else {"lag_frames": args.lag}),
+                       **({} if args.window_graph is None
+                          else {"window_graph_frames": args.window_graph}))
     with Progress(f"live from {source.name}", total=source.total,
                   enabled=not args.quiet) as bar:
         def on_frame(frame) -> None:

@@ -571,7 +571,7 @@ LOW_PARALLAX_ITERATIONS = 2
 
 def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, float],
                 opts: RefineOptions, sensitivity: bool = False,
-                torso: dict[str, float] | None = None
+                torso: dict[str, float] | None = None, iterations: int | None = None
                 ) -> tuple[GraphProblem, LMResult] | None:
     """The 3D joints solved again with every global held, from the calibration's solution.
 
@@ -607,6 +607,11 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
             reduced coordinates (:attr:`~.optimizer.LMResult.sensitivity`, ``(N, 3, nz)``
             in ``problem.flat_index`` order): the joints of the pass at a mirror moved
             by ``z`` are, to first order, the result plus ``sensitivity @ z``.
+        iterations: Gauss-Newton steps of each of the pass's solves (the one after the
+            torso is read on the pass's own joints takes :data:`LOW_PARALLAX_ITERATIONS`);
+            ``None``: :data:`JOINTS_PASS_ITERATIONS` (from the calibration's solution).
+            A graph that starts elsewhere (the live run's windows,
+            :mod:`mirrorgraph.live.window_graph`, from the per-frame joints) takes more.
 
     Returns:
         The joints' graph (without the observations left out: its views' masks and its
@@ -615,6 +620,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     sigma = opts.joints_smoothness_sigma
     if sigma is None:
         return None
+    steps = JOINTS_PASS_ITERATIONS if iterations is None else int(iterations)
     jopts = replace(opts, use_smoothness=True, smoothness_sigma=sigma)
     if opts.torso_sigma is None or not opts.use_bone_length:
         torso = {}
@@ -623,7 +629,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
         # then the pass again from there with the torso held nearly rigid
         jp = with_motion_priors(problem, values, lengths, jopts)
         res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True)
+                          max_iterations=steps, hold_globals=True)
         torso = torso_lengths(jp.rig, extract_points(jp, res.values), jp.used)
         jp = with_torso(jp, torso, jopts)
         res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
@@ -632,7 +638,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
     else:
         jp = with_motion_priors(problem, values, lengths, jopts, torso=torso)
         res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                          max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                          max_iterations=steps, hold_globals=True,
                           sensitivity=sensitivity)
     if opts.outlier_threshold > 0:
         # what the body now exposes: a keypoint displaced along its epipolar line fits
@@ -645,7 +651,7 @@ def joints_pass(problem: GraphProblem, values: gtsam.Values, lengths: dict[str, 
         if any(d.any() for d in drop):
             jp = without_observations(jp, drop)
             res, _ = optimize(jp, jp.full(), jopts, distance_gauge=jp.distance_gauge,
-                              max_iterations=JOINTS_PASS_ITERATIONS, hold_globals=True,
+                              max_iterations=steps, hold_globals=True,
                               values=res.values, sensitivity=sensitivity)
     return jp, res
 

@@ -20,10 +20,11 @@ reprojects within the threshold in front of the camera and the mirror, filtered 
 (:mod:`.joint_filter`: a Kalman filter under the joints pass's acceleration prior, outliers
 gated; a new window rescales the tracks by the joints' scale change), the face fused with
 where the trunk puts it (:func:`.frame_prior.with_head_prior`), and given again
-:attr:`LiveOptions.lag_frames` frames later smoothed with the frames after it
-(:attr:`LiveFrame.settled`). Each joint's std holds the smoother's covariance (widened for
-noise that persists in time: :class:`.noise_in_time.NoiseInTime`), the detector's bias
-(:func:`.frame_prior.bias_covariance`) and the fused normal's share
+:attr:`LiveOptions.lag_frames` frames later, final (:attr:`LiveFrame.settled`): the joints
+pass's graph over the latest frames (:mod:`.window_graph`, solved in the calling thread)
+where it solves a joint, else the fixed-lag smoother's. Each joint's std holds the
+smoother's covariance (widened for noise that persists in time: :class:`.noise_in_time.NoiseInTime`),
+the detector's bias (:func:`.frame_prior.bias_covariance`) and the fused normal's share
 (:func:`joints_normal_jacobian`); ``joints_std`` adds the scale's, ``joints_std_shape`` not.
 
 **The mirror** (:mod:`.estimator`): frames holding two people or more are buffered and
@@ -62,6 +63,7 @@ from .frame_prior import (bias_covariance, bone_branches, head_layout, refine_st
                           views_near_track, with_head_prior)
 from .joint_filter import JointFilter
 from .noise_in_time import NoiseInTime
+from .window_graph import WindowGraph
 
 if TYPE_CHECKING:
     from ..intrinsics import Intrinsics
@@ -104,8 +106,23 @@ class LiveOptions:
             a Kalman filter over every frame so far, measurements beyond its gate taken
             as outliers); ``False``: each frame on its own.
         lag_frames: each frame is given again, final, this many frames later
-            (:attr:`LiveFrame.settled`: its joints smoothed with the frames after it,
-            the fixed-lag smoother's; what ``mirrorgraph live`` writes); ``0``: none.
+            (:attr:`LiveFrame.settled`: its joints smoothed with the frames after it;
+            what ``mirrorgraph live`` writes): the output's fixed lag, whatever solves
+            it; ``0``: none. At 30 fps the default 9 is 0.30 s (with a window's solve,
+            0.03-0.09 s, on the frame that runs it: under 0.5 s).
+        window_graph_frames: ``W``: the settled joints are the joints pass's own graph
+            (:mod:`.window_graph`: reprojection with the mirror held, every bone at the
+            latest window's lengths, the torso, the acceleration prior, one-view outliers
+            left out) over the last ``W`` frames that gave joints, from the per-frame
+            joints; the joints it does not solve (seen in one view) keep the fixed-lag
+            smoother's; every settled joint's std is the smoother's (widened by its
+            distance to the graph's point where the graph solved it). ``0``: the
+            fixed-lag smoother alone (:class:`.joint_filter.JointFilter`).
+        window_graph_every: ``k``: the window is solved on every ``k``-th update, in
+            the calling thread (30-90 ms each on one core), and each solve gives the
+            next ``k`` settled frames: frame ``t - lag_frames`` to ``t - lag_frames +
+            k - 1`` of the update at ``t``, seen ``lag_frames`` to ``lag_frames - k + 1``
+            frames ahead (``k`` is cut to ``lag_frames + 1``).
         can_wait: the source can wait (a file replayed flat out). In the background
             mode the frame that starts the first solve then waits for its mirror, and a
             window due while the worker is busy waits for it instead of thinning the
@@ -123,7 +140,9 @@ class LiveOptions:
     fps: float = 30.0
     bone_prior: bool = True
     smooth: bool = True
-    lag_frames: int = 5
+    lag_frames: int = 9
+    window_graph_frames: int = 30
+    window_graph_every: int = 5
     can_wait: bool = False
 
     @classmethod
@@ -220,14 +239,18 @@ class LiveFrame:
             ``joints_std`` without a subject height).
         paired: a person and their reflection were found in this frame.
         skipped: why the frame was skipped (bad input), else ``None``.
-        latency_s: wall seconds of this frame's own work (pairing, triangulation).
+        latency_s: wall seconds of this frame's own work (pairing, triangulation; on
+            the updates that solve the window's graph, its solve).
         cpu_s: the thread's CPU seconds of the same (the latency without what other
             processes on the machine took from it).
         solve_s: wall seconds spent in a window's solve during this call (in the
-            background mode only the waits of a source that can wait, ``can_wait``).
+            background mode only the waits of a source that can wait, ``can_wait``);
+            the window graph's solve for the settled joints is in ``latency_s``.
         settled: the frame :attr:`LiveOptions.lag_frames` back, given again with its
-            joints and stds smoothed with the frames after it (``None`` while fewer
-            frames came, or without a lag); its ``lag_frames`` says how late it is.
+            joints solved with the frames after it (the window's graph, else the
+            fixed-lag smoother; the smoother's stds, widened by the two's distance)
+            (``None`` while fewer frames came, or without a lag); its ``lag_frames``
+            says how late it is.
         lag_frames: frames between this frame and the frame whose update gave it out
             (0: the frame's own update).
     """
@@ -440,6 +463,15 @@ class LiveCalibrator:
         self._filter: JointFilter | None = None
         # (LiveFrame, its normal and bias shares) awaiting their lag
         self._held: deque = deque()
+        # the joints pass's graph over the latest frames (:mod:`.window_graph`), its
+        # settled joints by frame number, the settled frames its last solve still covers
+        self._graph = (WindowGraph(self.skeleton, self.joints, opts.window_graph_frames)
+                       if opts.window_graph_frames > 0 and opts.lag_frames > 0 else None)
+        self._graph_joints: dict[int, np.ndarray] = {}
+        self._graph_left = 0
+        self.graph_solves = 0
+        self.graph_failed = 0
+        self.graph_seconds = 0.0
         self._last_rays: tuple | None = None   # the latest frame's pixels (both views)
         self._mirror_frames = 0                 # frames of the window the mirror is
         self._frame_normal = np.full(self.skeleton.num_joints, np.nan)
@@ -514,13 +546,15 @@ class LiveCalibrator:
 
     @property
     def counts(self) -> dict:
-        """Frames fed, skipped (by reason), without a pair, with joints; window counts."""
+        """Frames fed, skipped (by reason), without a pair, with joints; window counts;
+        the window graph's solves and its failed ones (:mod:`.window_graph`)."""
         return {"frames": self.frames, "skipped": sum(self.skipped.values()),
                 "skipped_by_reason": dict(self.skipped), "unpaired": self.unpaired,
                 "with_joints": self.with_joints, "windows": self.fusion.windows,
                 "windows_rejected": self.fusion.rejected,
                 "windows_failed": self.fusion.failed, "resets": self.fusion.resets,
-                "buffered": len(self._buffer_ids)}
+                "buffered": len(self._buffer_ids), "graph_solves": self.graph_solves,
+                "graph_failed": self.graph_failed}
 
     # ------------------------------------------------------------------ input
     def _checked(self, people) -> tuple[np.ndarray | None, tuple[str, str] | None]:
@@ -678,6 +712,12 @@ class LiveCalibrator:
         if self.options.smooth:
             X, cov = self._filtered(fid, idx, X, cov)
             widen = self._noise_time.factor(fid, idx, cov, 0)
+        if self._graph is not None and idx.size:
+            views = np.zeros((J, 2), bool)
+            views[idx] = keep[ok]
+            start = np.full((J, 3), np.nan)
+            start[idx] = X
+            self._graph.push(fid, real, mirror, views, start)
         if idx.size == 0:
             return out, total, shape, True
         track = (None if self._filter is None or not self.options.smooth
@@ -846,15 +886,85 @@ class LiveCalibrator:
         self._held.append((frame, self._frame_normal.copy(), self._frame_bias.copy()))
         if len(self._held) <= lag:
             return None
+        if self._graph is not None:
+            if self._graph_left <= 0:
+                # frames t - lag .. t - lag + k - 1 from the window ending at t
+                self._graph_left = max(1, min(int(self.options.window_graph_every), lag + 1))
+                self._solve_graph(self._graph_left)
+            self._graph_left -= 1
         return self._smoothed_frame(*self._held.popleft(), lag)
+
+    def _solve_graph(self, count: int) -> None:
+        """Solve the window's graph (:class:`.window_graph.WindowGraph`) at the current
+        mirror and keep its joints of the ``count`` oldest frames held (their settled
+        joints); nothing before the first window's bone lengths or where it fails."""
+        from ..anthropometry import height_from_bone_lengths
+        from ..errors import MirrorgraphError
+
+        self._graph_joints.clear()
+        fu = self.fusion
+        if fu.normal is None or not fu.bone_lengths or len(self._graph) < 3:
+            return
+        h = self._cached("height", lambda: height_from_bone_lengths(
+            fu.bone_lengths or {}, self.skeleton))
+        g = self._motion
+        kernel = g.final_kernel
+        if kernel == "auto":
+            # the window's pixels are gated per frame, not cleaned as a calibration's:
+            # the robust branch of "auto"
+            kernel = "geman_mcclure"
+        clock = time.perf_counter()
+        try:
+            sol = self._graph.solve(self.K, fu.normal, float(fu.distance), fu.bone_lengths,
+                                    fu.torso_lengths, h, g, kernel=kernel)
+        except (MirrorgraphError, RuntimeError, ValueError, np.linalg.LinAlgError):
+            sol = None                         # GTSAM's indeterminant system among them
+            self.graph_failed += 1
+        self.graph_seconds += time.perf_counter() - clock
+        if sol is None:
+            return
+        self.graph_solves += 1
+        row = {int(f): i for i, f in enumerate(sol.frame_ids)}
+        for k, (fr, _, _) in enumerate(self._held):
+            if k >= count:
+                break
+            i = row.get(int(fr.frame_id))
+            if i is not None and fr.skipped is None:
+                self._graph_joints[int(fr.frame_id)] = sol.joints[i]
 
     def _smoothed_frame(self, old: LiveFrame, normal: np.ndarray, bias: np.ndarray,
                         lag: int) -> LiveFrame:
-        """``old`` with the smoother's joints where it gave joints of its own; ``normal``
-        ``(J,)`` the fused normal's share of each joint's variance at the frame's filtered
-        point (first order: the smoothed point is millimetres away), NaN where none;
-        ``bias`` ``(J,)`` the detector's bias share (:meth:`_bias`'s trace), which the
-        smoother does not average."""
+        """``old`` settled: :meth:`_smoother_frame`, and where the window's graph solved
+        a joint it gives (:meth:`_solve_graph`) the graph's point, its std the smoother's
+        with the two points' distance added in quadrature (``bench/RESULTS_live_graph.md``:
+        err / std)."""
+        out = self._smoother_frame(old, normal, bias, lag)
+        G = self._graph_joints.pop(old.frame_id, None) if self._graph is not None else None
+        if G is not None:
+            # the graph's joints where it solved one the smoother gives; their std the
+            # smoother's and the two points' distance in quadrature: its error is within
+            # the smoother's error plus that distance, and where the two disagree (a limb
+            # on the other crossing of its bone with its ray) the smoother's std alone
+            # left the graph's error at 3.0 stds at the 99th percentile of the worst of
+            # 72 scenes (bench/RESULTS_live_graph.md)
+            take = np.isfinite(G).all(1) & np.isfinite(out.joints3d).all(1)
+            if take.any():
+                gap2 = np.sum((G[take] - out.joints3d[take]) ** 2, axis=1)
+                out.joints3d = out.joints3d.copy()
+                out.joints3d[take] = G[take]
+                out.joints_std, out.joints_std_shape = (out.joints_std.copy(),
+                                                        out.joints_std_shape.copy())
+                out.joints_std[take] = np.sqrt(out.joints_std[take] ** 2 + gap2)
+                out.joints_std_shape[take] = np.sqrt(out.joints_std_shape[take] ** 2 + gap2)
+        return out
+
+    def _smoother_frame(self, old: LiveFrame, normal: np.ndarray, bias: np.ndarray,
+                        lag: int) -> LiveFrame:
+        """``old`` with the fixed-lag smoother's joints and stds where it gave joints of
+        its own; ``normal`` ``(J,)`` the fused normal's share of each joint's variance at
+        the frame's filtered point (first order: the smoothed point is millimetres away),
+        NaN where none; ``bias`` ``(J,)`` the detector's bias share (:meth:`_bias`'s
+        trace), which the smoother does not average."""
         out = copy.copy(old)
         out.settled, out.lag_frames = None, lag
         sm = (self._filter.smoothed(old.frame_id)
@@ -885,11 +995,17 @@ class LiveCalibrator:
 
     def flush(self) -> list[LiveFrame]:
         """The frames still held for their lag at the end of a stream, each smoothed
-        with the frames after it (after :meth:`finish`)."""
+        with the frames after it (after :meth:`finish`): with the window's graph, one
+        last window solved over them (in the calling thread)."""
         lag = int(self.options.lag_frames)
+        if self._graph is not None and self._held:
+            self._solve_graph(len(self._held))
         held = list(self._held)
         self._held.clear()
-        return [self._smoothed_frame(fr, normal, bias, lag) for fr, normal, bias in held]
+        out = [self._smoothed_frame(fr, normal, bias, lag) for fr, normal, bias in held]
+        self._graph_joints.clear()
+        self._graph_left = 0
+        return out
 
     def _variances(self, K, n, d, X, u, um, cov=None) -> dict:
         """The shares of each joint's variance (the trace of its covariance, length
@@ -1021,10 +1137,16 @@ class LiveCalibrator:
             # the tracks (and the frames awaiting their lag) at the new mirror's scale
             if self._filter is not None:
                 self._filter.scale(ratio)
+            if self._graph is not None:           # the window's starts and its joints
+                self._graph.scale(ratio)
+                for G in self._graph_joints.values():
+                    G *= ratio
             if provisional and what == "started":
                 self.fusion.note_restart_step(math.log(ratio), self._mirror_frames, size)
         if what in ("started", "reset"):
             self._mirror_frames = size
+        if what == "reset" and self._graph is not None:
+            self._graph.clear()                   # a cut: the frames before are another rig
         if self.fusion.bone_lengths is not bones_before:
             self._note_bone_steps(bones_before if what != "reset" else {},
                                   provisional and what == "started", size)

@@ -11,7 +11,7 @@ done, so another program can follow it): :meth:`mirrorgraph.live.LiveFrame.to_di
                 "windows_failed": ..., "resets": ..., "scale": "subject_height"},
      "joints3d": [[x, y, z] | null, ...], "joints_std": [s | null, ...],
      "joints_std_shape": [s | null, ...],
-     "paired": true, "skipped": null, "lag_frames": 5}
+     "paired": true, "skipped": null, "lag_frames": 9}
 
 With a lag (``LiveOptions.lag_frames``, ``--lag``) each line is written that many frames
 after its frame came, its joints smoothed with the frames after it
@@ -152,7 +152,7 @@ class LiveSummary:
         if self.lag_frames:
             late = f" ({self.lag_frames / self.fps:.2f} s)" if self.fps else ""
             lines.append(f"each line written {self.lag_frames} frames{late} after its frame, "
-                         "its joints smoothed with them (--lag)")
+                         "its joints solved again with them (--lag)")
         if self.latency_ms:
             lat = self.latency_ms
             lines.append(f"per-frame latency median {lat['median']:.2f} ms, p95 "

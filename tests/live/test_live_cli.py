@@ -107,9 +107,9 @@ def test_a_short_file_has_joints_on_every_frame_after_the_first_window(tmp_path,
                  str(scene / "camera.json"), "--subject-height", "1.75", "--jsonl", str(out),
                  "--as-fast-as-possible", "--quiet"] + ["--inline"] * inline) == 0
     lines = [json.loads(line) for line in out.read_text().splitlines()]
-    # every frame once, in order, each written 5 frames late (smoothed with them)
+    # every frame once, in order, each written 9 frames late (solved again with them)
     assert [ln["frame"] for ln in lines] == list(range(100))
-    assert {ln["lag_frames"] for ln in lines} == {5}
+    assert {ln["lag_frames"] for ln in lines} == {9}
     with_joints = [ln["frame"] for ln in lines
                    if any(X is not None for X in ln["joints3d"])]
     assert with_joints == list(range(60, 100))
