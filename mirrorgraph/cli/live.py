@@ -72,13 +72,13 @@ def add_parsers(sub) -> None:
     p.add_argument("--lag", type=_lag, default=None, metavar="FRAMES",
                    help="write each frame's line this many frames after it came, its joints "
                         "solved again with the frames after it: the joints pass's graph over "
-                        "the last 30 frames, solved every 5th frame in this thread, else the "
+                        "the last 20 frames, solved every 5th frame in this thread, else the "
                         "fixed-lag smoother (default 9: 0.30 s at 30 fps; below 4 the graph "
                         "sees fewer frames ahead); 0: each line as its frame comes, filtered "
                         "with the frames before")
     p.add_argument("--window-graph", type=_lag, default=None, metavar="FRAMES",
                    help="frames of the joints pass's graph that solves each line's joints "
-                        "again (default 30; 0: the fixed-lag smoother alone)")
+                        "again (default 20; 0: the fixed-lag smoother alone)")
     p.add_argument("--calibrated-std", type=positive, default=2.0, metavar="DEG",
                    help="rotation std at which the status becomes 'calibrated' (default 2)")
     solve = p.add_mutually_exclusive_group()

@@ -117,9 +117,11 @@ class LiveOptions:
             joints; the joints it does not solve (seen in one view) keep the fixed-lag
             smoother's; every settled joint's std is the smoother's (widened by its
             distance to the graph's point where the graph solved it). ``0``: the
-            fixed-lag smoother alone (:class:`.joint_filter.JointFilter`).
+            fixed-lag smoother alone (:class:`.joint_filter.JointFilter`). 20 gives the
+            joints of 30 to 0.01 of PA-MPJPE at two thirds of the solve (15: the
+            fixtures 1.09 -> 1.10x the offline run's; ``bench/RESULTS_live_graph.md``).
         window_graph_every: ``k``: the window is solved on every ``k``-th update, in
-            the calling thread (30-90 ms each on one core), and each solve gives the
+            the calling thread (15-60 ms each on one core), and each solve gives the
             next ``k`` settled frames: frame ``t - lag_frames`` to ``t - lag_frames +
             k - 1`` of the update at ``t``, seen ``lag_frames`` to ``lag_frames - k + 1``
             frames ahead (``k`` is cut to ``lag_frames + 1``).
@@ -141,7 +143,7 @@ class LiveOptions:
     bone_prior: bool = True
     smooth: bool = True
     lag_frames: int = 9
-    window_graph_frames: int = 30
+    window_graph_frames: int = 20
     window_graph_every: int = 5
     can_wait: bool = False
 
