@@ -891,7 +891,8 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
                  for k, _, _, spec in FIGURES]
         n = f"{a['scenes']}" + (f" ({a['failed']} failed)" if a["failed"] else "")
         L.append(f"| {kind} | {m} | {n} | " + " | ".join(cells) + " |")
-    rows = [(s["name"], "", flat_status(s)) for s in scenes]
+    rows = [(s["name"], s["live"]["by_status"]["frames"] if flat_status(s) else "",
+             flat_status(s)) for s in scenes]
     rows = [r for r in rows if r[2] is not None]
     if rows:
         sh = [label for _, label, _, _ in STATUS_FIGURES]
@@ -900,10 +901,11 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
               "until the fused rotation std is at most `LiveOptions.calibrated_std_deg`, 2 deg "
               "by default, then "
               "`calibrated`): the share calibrated and the PA-MPJPE and gross shares on each "
-              "part (`n/a`: no frame of that status). Over scenes: median / worst scene.", "",
+              "part (`n/a`: no frame of that status); `n`: the frames scored (a scene), the "
+              "scenes (over scenes: median / worst scene).", "",
               "| scene | n | " + " | ".join(sh) + " |", "|---|---:|" + "---:|" * len(sh)]
-        for name, _, r in rows:
-            L.append(f"| {name} | | " + " | ".join(
+        for name, n, r in rows:
+            L.append(f"| {name} | {n} | " + " | ".join(
                 _f(r[k], spec) for k, _, _, spec in STATUS_FIGURES) + " |")
         for key, a in agg.items():
             if "by_status" not in a:

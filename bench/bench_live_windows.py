@@ -41,9 +41,11 @@ def _angle(n, tn) -> float:
 
 
 def run_live(tr, resolve_every: int = 0) -> dict:
-    """Live's ``(T, J, 3)`` joints, each frame's mirror and status, the window log."""
+    """Live's ``(T, J, 3)`` joints, each frame's mirror and status, the window log
+    (:func:`bench_joints.replay_live`, the first block re-solved every ``resolve_every``
+    frames where it is positive)."""
     import mirrorgraph.live.calibrator as lc
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.live import LiveOptions
 
     real = lc.LiveCalibrator._absorb
 
@@ -52,41 +54,14 @@ def run_live(tr, resolve_every: int = 0) -> dict:
         if provisional and not block:
             self._next = min(size + resolve_every, self.options.window_frames)
 
-    det = tr.detections
-    T, J = tr.joints3d.shape[:2]
-    X = np.full((T, J, 3), np.nan)
-    normal, dist = np.full((T, 3), np.nan), np.full(T, np.nan)
-    rot_std, status = np.full(T, np.nan), np.full(T, "", object)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-
-    def take(f):
-        t = where.get(int(f.frame_id))
-        if t is None:
-            return
-        X[t] = f.joints3d
-        status[t] = f.mirror.status
-        if f.mirror.normal is not None:
-            normal[t], dist[t] = f.mirror.normal, f.mirror.distance
-            rot_std[t] = f.mirror.rotation_std_deg
-
     if resolve_every > 0:
         lc.LiveCalibrator._absorb = absorb
-    live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given))
     try:
-        for k, people in enumerate(det.people):
-            f = live.update(people, frame_id=int(det.frame_ids[k]),
-                            time_s=float(det.frame_ids[k]) / bj.FPS)
-            if f.settled is not None:
-                take(f.settled)
-        live.finish()
-        for f in live.flush():
-            take(f)
+        r = bj.replay_live(tr, LiveOptions.of(subject_height=tr.height_given))
     finally:
-        live.close()
         lc.LiveCalibrator._absorb = real
-    return dict(X=X, normal=normal, dist=dist, rot_std=rot_std, status=status,
-                windows=list(live.window_log))
+    return dict(X=r["X"], normal=r["normal"], dist=r["distance"], rot_std=r["rotation_std_deg"],
+                status=r["status"], windows=r["windows"])
 
 
 def _frame_scaled_errors(X, truth) -> tuple[np.ndarray, np.ndarray]:

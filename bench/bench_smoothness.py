@@ -100,35 +100,13 @@ def _calibrate_joints(tr, ropts, fps: float):
 
 def _live_joints(tr, ropts, fps: float):
     """The live run's joints (each frame as its JSON line carries it: settled after the
-    lag) on the truth's frames, as :func:`_calibrate_joints`; the stream's rate ``fps``."""
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    lag, :func:`bench_joints.replay_live`) on the truth's frames, as
+    :func:`_calibrate_joints`; the stream's rate ``fps``."""
+    from mirrorgraph.live import LiveOptions
 
-    det = tr.detections
-    live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given, refine_options=ropts,
-                                         fps=fps))
-    T, J = tr.joints3d.shape[:2]
-    X, sd = np.full((T, J, 3), np.nan), np.full((T, J), np.nan)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-
-    def take(f) -> None:
-        t = where.get(int(f.frame_id))
-        if t is not None:
-            X[t] = f.joints3d
-            if f.joints_std_shape is not None:
-                sd[t] = f.joints_std_shape
-
-    try:
-        for k, people in enumerate(det.people):
-            f = live.update(people, frame_id=int(det.frame_ids[k]))
-            if f.settled is not None:
-                take(f.settled)
-        live.finish()
-        for f in live.flush():
-            take(f)
-    finally:
-        live.close()
-    return X, np.isfinite(X).all(-1), sd
+    r = bj.replay_live(tr, LiveOptions.of(subject_height=tr.height_given,
+                                          refine_options=ropts, fps=fps))
+    return r["X"], np.isfinite(r["X"]).all(-1), r["std_shape"]
 
 
 def run_one(tr, sigma: float | None, refine: tuple, fps: float,
