@@ -235,6 +235,32 @@ def default_fixtures() -> Path:
     return ROOT.parent / "shared" / "fixtures"
 
 
+def add_scene_args(ap: argparse.ArgumentParser, kinds: str, seeds: str,
+                   frames: int = 1000) -> None:
+    """Add the scene choice the live bench scripts share to ``ap``: ``--kinds``
+    (comma-separated, of :data:`KINDS`), ``--seeds`` (the synthetic kinds'), ``--frames``
+    and ``--fixtures`` (the fixture scenes' folder), with these defaults
+    (:func:`scene_list` reads them back)."""
+    ap.add_argument("--kinds", default=kinds, help=f"comma-separated, of {', '.join(KINDS)}")
+    ap.add_argument("--seeds", default=seeds,
+                    help="seeds of every synthetic kind, e.g. 0-5 or 0,3,7")
+    ap.add_argument("--frames", type=int, default=frames)
+    ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
+                    help="folder of fixture scenes (default: shared/fixtures in a folder "
+                         "above the repository)")
+
+
+def scene_list(args: argparse.Namespace) -> list[tuple[str, int | str]]:
+    """``(kind, seed)`` of each scene :func:`add_scene_args`' arguments choose, for
+    :func:`make_truth` (the fixtures: their folders' names)."""
+    out: list[tuple[str, int | str]] = []
+    for kind in (k.strip() for k in args.kinds.split(",") if k.strip()):
+        names = ([p.name for p in fixture_dirs(Path(args.fixtures))] if kind == "fixtures"
+                 else _seeds(args.seeds))
+        out += [(kind, s) for s in names]
+    return out
+
+
 def fixture_dirs(root: Path) -> list[Path]:
     if not root.is_dir():
         return []

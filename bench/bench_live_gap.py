@@ -260,22 +260,13 @@ def per_joint(scenes: list[dict], variants: list[str]) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="fixtures,iid,cmu,lowpar")
-    ap.add_argument("--seeds", default="0-1")
-    ap.add_argument("--frames", type=int, default=1000)
-    ap.add_argument("--fixtures", default=str(bj.default_fixtures()))
+    bj.add_scene_args(ap, "fixtures,iid,cmu,lowpar", "0-1")
     ap.add_argument("--variants", default="base,lag=15,lag=30,lag=60,mirror=offline")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     variants = a.variants.split(",")
-    cases = []
-    for kind in a.kinds.split(","):
-        if kind == "fixtures":
-            cases += [(kind, p.name, a.frames, a.fixtures, variants)
-                      for p in bj.fixture_dirs(Path(a.fixtures))]
-        else:
-            cases += [(kind, s, a.frames, a.fixtures, variants) for s in bj._seeds(a.seeds)]
+    cases = [(kind, s, a.frames, a.fixtures, variants) for kind, s in bj.scene_list(a)]
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
             scenes = list(ex.map(run_scene, cases))

@@ -137,54 +137,50 @@ def segments(tr, spec: str) -> list[str]:
 def main(argv=None) -> int:
     warnings.filterwarnings("ignore")
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="realistic")
-    ap.add_argument("--seeds", default="13")
-    ap.add_argument("--frames", type=int, default=1000)
-    ap.add_argument("--fixtures", default=str(bj.default_fixtures()))
+    bj.add_scene_args(ap, "realistic", "13")
     ap.add_argument("--segments", default=None)
     ap.add_argument("--resolve-every", type=int, default=0)
     a = ap.parse_args(argv)
     import mirrorgraph as mg
 
     out = []
-    for kind in a.kinds.split(","):
-        for seed in bj._seeds(a.seeds):
-            tr = bj.make_truth(kind, seed, a.frames, Path(a.fixtures))
-            run = mg.calibrate(tr.detections, tr.intrinsics,
-                               mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS))
-            Xoff, given, _, _ = bj.on_truth_frames(run, tr)
-            Xoff = np.where(given[..., None], Xoff, np.nan)
-            lv = run_live(tr)
-            s = summary(tr, lv["X"], Xoff)
-            start = len(out)
-            out += [f"\n### {tr.name}: live PA {s['live']:.1f} mm, offline {s['off']:.1f} mm "
-                    f"({s['live'] / s['off']:.2f}x), > 0.3 m with each frame's scale fitted "
-                    f"{s['gross']:.2f} %; offline mirror "
-                    f"{_angle(run.calibration.normal, np.asarray(tr.normal, float)):.2f} deg, "
-                    f"distance {(run.calibration.distance / tr.distance - 1) * 100:+.1f} %\n",
-                    "| live's mirror serves frames | normal error deg | distance error % "
-                    "| rotation_std_deg | status | live PA mm | offline PA mm | live / offline "
-                    "| > 0.3 m, frame's scale fitted |",
-                    "|---|---:|---:|---:|---|---:|---:|---:|---:|"]
-            for r in epochs(tr, lv, Xoff):
-                f = (lambda v, p: "" if v is None else format(v, p))  # noqa: E731
-                ratio = (r["live"] / r["off"]) if r["live"] and r["off"] else None
-                out.append(f"| {r['frames'][0]}-{r['frames'][1]} | {f(r['angle'], '.2f')} | "
-                           f"{f(r['dist_err'], '+.1f')} | {f(r['rot_std'], '.1f')} | "
-                           f"{r['status'] if r['has'] else 'no mirror yet'} | "
-                           f"{f(r['live'], '.1f')} | {f(r['off'], '.1f')} | {f(ratio, '.2f')} | "
-                           f"{r['gross']} ({100 * r['gross'] / max(r['given'], 1):.2f} %) |")
-            if a.resolve_every > 0:
-                lv2 = run_live(tr, a.resolve_every)
-                s2 = summary(tr, lv2["X"], Xoff)
-                out.append(f"\nfirst block re-solved every {a.resolve_every} frames "
-                           f"({len(lv2['windows'])} windows against {len(lv['windows'])}): "
-                           f"live PA {s2['live']:.1f} mm ({s2['live'] / s2['off']:.2f}x), "
-                           f"> 0.3 m frame-scaled {s2['gross']:.2f} %")
-            if a.segments:
-                out += [f"\n{tr.name}: the window solve of these frames alone\n"]
-                out += segments(tr, a.segments)
-            print("\n".join(out[start:]), flush=True)
+    for kind, seed in bj.scene_list(a):
+        tr = bj.make_truth(kind, seed, a.frames, Path(a.fixtures))
+        run = mg.calibrate(tr.detections, tr.intrinsics,
+                           mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS))
+        Xoff, given, _, _ = bj.on_truth_frames(run, tr)
+        Xoff = np.where(given[..., None], Xoff, np.nan)
+        lv = run_live(tr)
+        s = summary(tr, lv["X"], Xoff)
+        start = len(out)
+        out += [f"\n### {tr.name}: live PA {s['live']:.1f} mm, offline {s['off']:.1f} mm "
+                f"({s['live'] / s['off']:.2f}x), > 0.3 m with each frame's scale fitted "
+                f"{s['gross']:.2f} %; offline mirror "
+                f"{_angle(run.calibration.normal, np.asarray(tr.normal, float)):.2f} deg, "
+                f"distance {(run.calibration.distance / tr.distance - 1) * 100:+.1f} %\n",
+                "| live's mirror serves frames | normal error deg | distance error % "
+                "| rotation_std_deg | status | live PA mm | offline PA mm | live / offline "
+                "| > 0.3 m, frame's scale fitted |",
+                "|---|---:|---:|---:|---|---:|---:|---:|---:|"]
+        for r in epochs(tr, lv, Xoff):
+            f = (lambda v, p: "" if v is None else format(v, p))  # noqa: E731
+            ratio = (r["live"] / r["off"]) if r["live"] and r["off"] else None
+            out.append(f"| {r['frames'][0]}-{r['frames'][1]} | {f(r['angle'], '.2f')} | "
+                       f"{f(r['dist_err'], '+.1f')} | {f(r['rot_std'], '.1f')} | "
+                       f"{r['status'] if r['has'] else 'no mirror yet'} | "
+                       f"{f(r['live'], '.1f')} | {f(r['off'], '.1f')} | {f(ratio, '.2f')} | "
+                       f"{r['gross']} ({100 * r['gross'] / max(r['given'], 1):.2f} %) |")
+        if a.resolve_every > 0:
+            lv2 = run_live(tr, a.resolve_every)
+            s2 = summary(tr, lv2["X"], Xoff)
+            out.append(f"\nfirst block re-solved every {a.resolve_every} frames "
+                       f"({len(lv2['windows'])} windows against {len(lv['windows'])}): "
+                       f"live PA {s2['live']:.1f} mm ({s2['live'] / s2['off']:.2f}x), "
+                       f"> 0.3 m frame-scaled {s2['gross']:.2f} %")
+        if a.segments:
+            out += [f"\n{tr.name}: the window solve of these frames alone\n"]
+            out += segments(tr, a.segments)
+        print("\n".join(out[start:]), flush=True)
     return 0
 
 
