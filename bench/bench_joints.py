@@ -815,6 +815,27 @@ def flat_status(scene: dict) -> dict | None:
     return out
 
 
+def pooled_status(scenes: list[dict]) -> dict:
+    """Live's figures by the mirror's status pooled over ``scenes`` (every scored frame
+    and given joint of them together, under the :data:`STATUS_FIGURES` keys; the
+    PA-MPJPEs left ``None``: means over scenes are the tables' medians)."""
+    by = [s["live"]["by_status"] for s in scenes
+          if "by_status" in (s.get("live") or {})]
+    out: dict = dict(calibrated_pct=None)
+    if not by:
+        return out
+    n = sum(b["frames"] for b in by)
+    cal = sum(b["calibrated"]["frames"] for b in by)
+    out["calibrated_pct"] = 100.0 * cal / n if n else None
+    for st in STATUSES:
+        given = sum(b[st]["n_given"] for b in by)
+        out[f"{st}_pa_mm"] = None
+        for key in ("gross", "gross_scaled"):
+            bad = sum(b[st][key] * b[st]["n_given"] for b in by if b[st]["n_given"])
+            out[f"{st}_{key}_pct"] = 100.0 * bad / given if given else None
+    return out
+
+
 def _median_worst(rows: list[dict], figures: tuple) -> dict:
     out = {}
     for key, _, worst, _ in figures:
@@ -885,6 +906,7 @@ def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
             if m == "live":
                 agg["by_status"] = _median_worst(
                     [r for r in map(flat_status, sel) if r is not None], STATUS_FIGURES)
+                agg["by_status_pooled"] = pooled_status(sel)
             out[f"{kind}/{m}"] = agg
     return out
 
@@ -928,7 +950,8 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
               "by default, then "
               "`calibrated`): the share calibrated and the PA-MPJPE and gross shares on each "
               "part (`n/a`: no frame of that status); `n`: the frames scored (a scene), the "
-              "scenes (over scenes: median / worst scene).", "",
+              "scenes (over scenes: median / worst scene; pooled: every scored frame and "
+              "given joint of the kind's scenes together, no PA-MPJPE).", "",
               "| scene | n | " + " | ".join(sh) + " |", "|---|---:|" + "---:|" * len(sh)]
         for name, n, r in rows:
             L.append(f"| {name} | {n} | " + " | ".join(
@@ -939,6 +962,10 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
             L.append(f"| {key.split('/')[0]} (over scenes) | {a['scenes']} | " + " | ".join(
                 f"{_f(a['by_status'][k]['median'], spec)} / "
                 f"{_f(a['by_status'][k]['worst'], spec)}"
+                for k, _, _, spec in STATUS_FIGURES) + " |")
+            p = a["by_status_pooled"]
+            L.append(f"| {key.split('/')[0]} (pooled) | {a['scenes']} | " + " | ".join(
+                "-" if p[k] is None else _f(p[k], spec)
                 for k, _, _, spec in STATUS_FIGURES) + " |")
     kinds = list(dict.fromkeys(s["kind"] for s in scenes))
     T = targets(scenes, kinds)
