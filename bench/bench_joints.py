@@ -235,6 +235,32 @@ def default_fixtures() -> Path:
     return ROOT.parent / "shared" / "fixtures"
 
 
+def add_scene_args(ap: argparse.ArgumentParser, kinds: str, seeds: str,
+                   frames: int = 1000) -> None:
+    """Add the scene choice the live bench scripts share to ``ap``: ``--kinds``
+    (comma-separated, of :data:`KINDS`), ``--seeds`` (the synthetic kinds'), ``--frames``
+    and ``--fixtures`` (the fixture scenes' folder), with these defaults
+    (:func:`scene_list` reads them back)."""
+    ap.add_argument("--kinds", default=kinds, help=f"comma-separated, of {', '.join(KINDS)}")
+    ap.add_argument("--seeds", default=seeds,
+                    help="seeds of every synthetic kind, e.g. 0-5 or 0,3,7")
+    ap.add_argument("--frames", type=int, default=frames)
+    ap.add_argument("--fixtures", type=Path, default=default_fixtures(),
+                    help="folder of fixture scenes (default: shared/fixtures in a folder "
+                         "above the repository)")
+
+
+def scene_list(args: argparse.Namespace) -> list[tuple[str, int | str]]:
+    """``(kind, seed)`` of each scene :func:`add_scene_args`' arguments choose, for
+    :func:`make_truth` (the fixtures: their folders' names)."""
+    out: list[tuple[str, int | str]] = []
+    for kind in (k.strip() for k in args.kinds.split(",") if k.strip()):
+        names = ([p.name for p in fixture_dirs(Path(args.fixtures))] if kind == "fixtures"
+                 else _seeds(args.seeds))
+        out += [(kind, s) for s in names]
+    return out
+
+
 def fixture_dirs(root: Path) -> list[Path]:
     if not root.is_dir():
         return []
@@ -577,25 +603,33 @@ def run_calibrate(tr: Truth, keypoint_offset: float | None = None,
     return out
 
 
-def run_live(tr: Truth, keypoint_offset: float | None = None,
-             height_sigma: float | None = None, refine: tuple = (), live: tuple = ()) -> dict:
-    """The live run of ``tr`` (``live``: ``(name, value)`` pairs of
-    :class:`~mirrorgraph.live.LiveOptions` fields, ``--live``)."""
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+def replay_live(tr: Truth, options) -> dict:
+    """Replay ``tr``'s detections through :class:`~mirrorgraph.live.LiveCalibrator` with
+    ``options`` (:class:`~mirrorgraph.live.LiveOptions`), frame by frame in the calling
+    thread, and keep what ``mirrorgraph live`` writes: each frame's settled joints
+    (:attr:`~mirrorgraph.live.LiveFrame.settled`, the frame itself without a lag), the
+    remaining ones flushed after :meth:`~mirrorgraph.live.LiveCalibrator.finish`.
+
+    Returns a dict on the truth's ``T`` frames (``J`` joints): ``X`` ``(T, J, 3)`` the
+    joints, metres, camera frame (NaN: not given); ``std``, ``std_shape`` ``(T, J)`` their
+    stds with and without the metric scale's share, metres (NaN: none given); ``normal``
+    ``(T, 3)``, ``distance`` ``(T,)`` metres, ``rotation_std_deg`` ``(T,)``: the mirror the
+    frame was given with (NaN: none, or no distance); ``status`` ``(T,)`` the mirror's
+    status (``"initialising"``, ``"calibrated"``; ``""``: the frame not given); ``final``:
+    the final :class:`~mirrorgraph.live.LiveMirror`; ``windows``: the calibrator's window
+    log; ``wall_s``, ``cpu_s``: the replay's wall and process CPU seconds (the
+    calibrator's construction not counted).
+    """
+    from mirrorgraph.live import LiveCalibrator
 
     det = tr.detections
-    live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given, fps=scene_fps(tr),
-                                         refine_options=_refine_options(keypoint_offset,
-                                                                        height_sigma,
-                                                                        refine),
-                                         **dict(live)))
+    live = LiveCalibrator(det.skeleton, tr.intrinsics, options)
     T, J = tr.joints3d.shape[:2]
     X = np.full((T, J, 3), np.nan)
     std = np.full((T, J), np.nan)
     std_shape = np.full((T, J), np.nan)
-    normal = np.tile(np.array([0.0, 0.0, 1.0]), (T, 1))
-    dist = np.ones(T)
+    normal, dist = np.full((T, 3), np.nan), np.full(T, np.nan)
+    rot_std, status = np.full(T, np.nan), np.full(T, "", object)
     where = {int(f): i for i, f in enumerate(tr.frame_ids)}
     wall, cpu = time.perf_counter(), time.process_time()
     lagged = getattr(live.options, "lag_frames", 0) > 0
@@ -605,18 +639,20 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
         if t is None:
             return
         X[t] = f.joints3d
+        status[t] = f.mirror.status
         if f.joints_std is not None:
             std[t] = f.joints_std
         if getattr(f, "joints_std_shape", None) is not None:
             std_shape[t] = f.joints_std_shape
         if f.mirror.normal is not None:
             normal[t] = f.mirror.normal
-            dist[t] = f.mirror.distance if f.mirror.distance is not None else 1.0
+            dist[t] = f.mirror.distance if f.mirror.distance is not None else np.nan
+            rot_std[t] = f.mirror.rotation_std_deg
 
     try:
         for k, people in enumerate(det.people):
             f = live.update(people, frame_id=int(det.frame_ids[k]),
-                            time_s=float(det.frame_ids[k]) / scene_fps(tr))
+                            time_s=float(det.frame_ids[k]) / live.options.fps)
             # what the JSON lines carry: with a lag, each frame as it is given again
             if not lagged:
                 take(f)
@@ -627,12 +663,50 @@ def run_live(tr: Truth, keypoint_offset: float | None = None,
             take(f)
     finally:
         live.close()
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return dict(X=X, std=std, std_shape=std_shape, normal=normal, distance=dist,
+                rotation_std_deg=rot_std, status=status, final=final,
+                windows=list(live.window_log), wall_s=time.perf_counter() - wall,
+                cpu_s=time.process_time() - cpu)
+
+
+#: the live mirror's statuses (:attr:`mirrorgraph.live.LiveMirror.status`)
+STATUSES = ("calibrated", "initialising")
+
+
+def run_live(tr: Truth, keypoint_offset: float | None = None,
+             height_sigma: float | None = None, refine: tuple = (), live: tuple = ()) -> dict:
+    """The live run of ``tr`` (``live``: ``(name, value)`` pairs of
+    :class:`~mirrorgraph.live.LiveOptions` fields, ``--live``): :func:`score`'s figures,
+    and ``by_status``: the share of the scored frames the mirror gave as ``calibrated``
+    (``calibrated_share``) and per status, :func:`score`'s figures on those frames alone."""
+    from mirrorgraph.live import LiveOptions
+
+    r = replay_live(tr, LiveOptions.of(subject_height=tr.height_given, fps=scene_fps(tr),
+                                       refine_options=_refine_options(keypoint_offset,
+                                                                      height_sigma, refine),
+                                       **dict(live)))
+    X, final = r["X"], r["final"]
+    # no mirror yet: the camera's axis at the unit distance (no joint is given there)
+    normal = np.where(np.isfinite(r["normal"]).all(1, keepdims=True), r["normal"],
+                      np.array([0.0, 0.0, 1.0]))
+    dist = np.where(np.isfinite(r["distance"]), r["distance"], 1.0)
     given = np.isfinite(X).all(-1)
-    return score(tr, X, given, std, normal, dist,
-                 dict(wall_s=wall, cpu_s=cpu,
-                      **_distance_figures(tr, final.distance, final.distance_std)), std_shape,
-                 getattr(final, "scale_rel_std", None), epochs=dist)
+    out = score(tr, X, given, r["std"], normal, dist,
+                dict(wall_s=r["wall_s"], cpu_s=r["cpu_s"],
+                     **_distance_figures(tr, final.distance, final.distance_std)),
+                r["std_shape"], getattr(final, "scale_rel_std", None), epochs=dist)
+    scored = given.any(1)
+    by = dict(frames=int(scored.sum()),
+              calibrated_share=float((r["status"][scored] == "calibrated").mean())
+              if scored.any() else float("nan"))
+    for st in STATUSES:
+        on = given & (r["status"] == st)[:, None]
+        s = score(tr, X, on, None, normal, dist, {}, epochs=dist)
+        by[st] = dict(frames=int(on.any(1).sum()), n_given=s["n_given"],
+                      pa_mpjpe_mm=s["pa_mpjpe_mm"], gross=s["gross"],
+                      gross_scaled=s["gross_scaled"])
+    out["by_status"] = by
+    return out
 
 
 def run_scene(case: tuple) -> dict:
@@ -714,6 +788,63 @@ def flat(scene: dict, method: str) -> dict | None:
                 wall_s=r["wall_s"], cpu_s=r["cpu_s"])
 
 
+#: live's figures by the mirror's status (:func:`flat_status`): (key, label, worst, format)
+STATUS_FIGURES = (("calibrated_pct", "calibrated frames %", min, ".1f"),
+                  ("calibrated_pa_mm", "PA mm calibrated", max, ".1f"),
+                  ("initialising_pa_mm", "PA mm initialising", max, ".1f"),
+                  ("calibrated_gross_pct", "> 0.3 m % calibrated", max, ".2f"),
+                  ("initialising_gross_pct", "> 0.3 m % initialising", max, ".2f"),
+                  ("calibrated_gross_scaled_pct", "> 0.3 m, frame's scale out % calibrated",
+                   max, ".2f"),
+                  ("initialising_gross_scaled_pct",
+                   "> 0.3 m, frame's scale out % initialising", max, ".2f"))
+
+
+def flat_status(scene: dict) -> dict | None:
+    """One scene's live figures by the mirror's status under the :data:`STATUS_FIGURES`
+    keys (``None``: no live run, or one without them)."""
+    by = (scene.get("live") or {}).get("by_status")
+    if not by:
+        return None
+    pct = lambda v: None if v is None else 100.0 * v  # noqa: E731
+    out = dict(calibrated_pct=pct(by["calibrated_share"]))
+    for st in STATUSES:
+        out[f"{st}_pa_mm"] = by[st]["pa_mpjpe_mm"]
+        out[f"{st}_gross_pct"] = pct(by[st]["gross"])
+        out[f"{st}_gross_scaled_pct"] = pct(by[st]["gross_scaled"])
+    return out
+
+
+def pooled_status(scenes: list[dict]) -> dict:
+    """Live's figures by the mirror's status pooled over ``scenes`` (every scored frame
+    and given joint of them together, under the :data:`STATUS_FIGURES` keys; the
+    PA-MPJPEs left ``None``: means over scenes are the tables' medians)."""
+    by = [s["live"]["by_status"] for s in scenes
+          if "by_status" in (s.get("live") or {})]
+    out: dict = dict(calibrated_pct=None)
+    if not by:
+        return out
+    n = sum(b["frames"] for b in by)
+    cal = sum(b["calibrated"]["frames"] for b in by)
+    out["calibrated_pct"] = 100.0 * cal / n if n else None
+    for st in STATUSES:
+        given = sum(b[st]["n_given"] for b in by)
+        out[f"{st}_pa_mm"] = None
+        for key in ("gross", "gross_scaled"):
+            bad = sum(b[st][key] * b[st]["n_given"] for b in by if b[st]["n_given"])
+            out[f"{st}_{key}_pct"] = 100.0 * bad / given if given else None
+    return out
+
+
+def _median_worst(rows: list[dict], figures: tuple) -> dict:
+    out = {}
+    for key, _, worst, _ in figures:
+        vals = [r[key] for r in rows if _num(r.get(key))]
+        out[key] = (dict(median=float(np.median(vals)), worst=float(worst(vals))) if vals
+                    else dict(median=None, worst=None))
+    return out
+
+
 def _num(v) -> bool:
     return v is not None and isinstance(v, (int, float)) and np.isfinite(v)
 
@@ -772,6 +903,10 @@ def aggregate(scenes: list[dict], kinds: list[str], methods: list[str]) -> dict:
             agg["off_residual_px"] = [float(np.median(resid))] if resid else None
             agg["gross_completed"] = completed if m == "calibrate" else None
             agg["longest_gross_run"] = longest
+            if m == "live":
+                agg["by_status"] = _median_worst(
+                    [r for r in map(flat_status, sel) if r is not None], STATUS_FIGURES)
+                agg["by_status_pooled"] = pooled_status(sel)
             out[f"{kind}/{m}"] = agg
     return out
 
@@ -804,6 +939,34 @@ def tables(scenes: list[dict], agg: dict, methods: list[str]) -> list[str]:
                  for k, _, _, spec in FIGURES]
         n = f"{a['scenes']}" + (f" ({a['failed']} failed)" if a["failed"] else "")
         L.append(f"| {kind} | {m} | {n} | " + " | ".join(cells) + " |")
+    rows = [(s["name"], s["live"]["by_status"]["frames"] if flat_status(s) else "",
+             flat_status(s)) for s in scenes]
+    rows = [r for r in rows if r[2] is not None]
+    if rows:
+        sh = [label for _, label, _, _ in STATUS_FIGURES]
+        L += ["", "## Live by the mirror's status", "",
+              "The live run's scored frames split by their mirror's status (`initialising` "
+              "until the fused rotation std is at most `LiveOptions.calibrated_std_deg`, 2 deg "
+              "by default, then "
+              "`calibrated`): the share calibrated and the PA-MPJPE and gross shares on each "
+              "part (`n/a`: no frame of that status); `n`: the frames scored (a scene), the "
+              "scenes (over scenes: median / worst scene; pooled: every scored frame and "
+              "given joint of the kind's scenes together, no PA-MPJPE).", "",
+              "| scene | n | " + " | ".join(sh) + " |", "|---|---:|" + "---:|" * len(sh)]
+        for name, n, r in rows:
+            L.append(f"| {name} | {n} | " + " | ".join(
+                _f(r[k], spec) for k, _, _, spec in STATUS_FIGURES) + " |")
+        for key, a in agg.items():
+            if "by_status" not in a:
+                continue
+            L.append(f"| {key.split('/')[0]} (over scenes) | {a['scenes']} | " + " | ".join(
+                f"{_f(a['by_status'][k]['median'], spec)} / "
+                f"{_f(a['by_status'][k]['worst'], spec)}"
+                for k, _, _, spec in STATUS_FIGURES) + " |")
+            p = a["by_status_pooled"]
+            L.append(f"| {key.split('/')[0]} (pooled) | {a['scenes']} | " + " | ".join(
+                "-" if p[k] is None else _f(p[k], spec)
+                for k, _, _, spec in STATUS_FIGURES) + " |")
     kinds = list(dict.fromkeys(s["kind"] for s in scenes))
     T = targets(scenes, kinds)
     if T:

@@ -120,66 +120,47 @@ def _hook(variant: dict, full, tr, skeleton):
 
 
 def run_variant(tr, variant: dict, full) -> dict:
-    """One live run of ``tr`` under ``variant``: its ``(T, J, 3)`` joints and figures."""
+    """One live run of ``tr`` under ``variant``: its ``(T, J, 3)`` joints and CPU seconds
+    (:func:`bench_joints.replay_live` with the variant's hooks in place)."""
     import mirrorgraph.live.calibrator as lc
-    import mirrorgraph.live.frame_prior as fp
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.live import LiveOptions
+    from mirrorgraph.skeletons import skeleton_by_name
 
     det = tr.detections
     opts = LiveOptions.of(subject_height=tr.height_given,
                           lag_frames=int(variant.get("lag", 5)),
                           bone_prior=variant.get("bones") != "none")
-    live = LiveCalibrator(det.skeleton, tr.intrinsics, opts)
+    # the calibrator's own skeleton (LiveCalibrator.skeleton)
+    skeleton = (skeleton_by_name(det.skeleton) if isinstance(det.skeleton, str)
+                else det.skeleton)
     saved = (lc.solve_window, lc.views_near_track, lc.JointFilter, lc.bone_branches,
              lc.two_starts)
-    if variant.get("branches") == "off":
-        lc.bone_branches = lambda K, n, d, X, cov, *a, **k: (X, cov)
-    if variant.get("bw") == "plain":           # the branch's weight without the Laplace tail
-        lc.bone_branches = functools.partial(saved[3], matched=False)
-    if variant.get("ts") == "lap":             # two_starts weighed as bone_branches
-        lc.two_starts = functools.partial(saved[4], matched=True)
-    if variant.get("twostarts") == "off":
-        lc.two_starts = lambda K, n, d, X, cov, *a, **k: (X, cov)
-    hook = _hook(variant, full, tr, live.skeleton)
-    if hook is not None:
-        lc.solve_window = hook
-    if variant.get("gate") == "off":
-        lc.views_near_track = lambda *a, **k: None
-    if "fgate" in variant or "restart" in variant:
-        kw = {}
-        if "fgate" in variant:
-            kw["gate_chi2"] = float(variant["fgate"])
-        if "restart" in variant:
-            kw["restart_after"] = int(variant["restart"])
-        lc.JointFilter = functools.partial(saved[2], **kw)
-    _ = fp
-    T, J = tr.joints3d.shape[:2]
-    X = np.full((T, J, 3), np.nan)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-    cpu = time.process_time()
-
-    def take(f):
-        t = where.get(int(f.frame_id))
-        if t is not None:
-            X[t] = f.joints3d
-
-    lag = opts.lag_frames > 0
     try:
-        for k, people in enumerate(det.people):
-            f = live.update(people, frame_id=int(det.frame_ids[k]),
-                            time_s=float(det.frame_ids[k]) / bj.FPS)
-            if not lag:
-                take(f)
-            elif f.settled is not None:
-                take(f.settled)
-        live.finish()
-        for f in (live.flush() if lag else []):
-            take(f)
+        if variant.get("branches") == "off":
+            lc.bone_branches = lambda K, n, d, X, cov, *a, **k: (X, cov)
+        if variant.get("bw") == "plain":       # the branch's weight without the Laplace tail
+            lc.bone_branches = functools.partial(saved[3], matched=False)
+        if variant.get("ts") == "lap":         # two_starts weighed as bone_branches
+            lc.two_starts = functools.partial(saved[4], matched=True)
+        if variant.get("twostarts") == "off":
+            lc.two_starts = lambda K, n, d, X, cov, *a, **k: (X, cov)
+        hook = _hook(variant, full, tr, skeleton)
+        if hook is not None:
+            lc.solve_window = hook
+        if variant.get("gate") == "off":
+            lc.views_near_track = lambda *a, **k: None
+        if "fgate" in variant or "restart" in variant:
+            kw = {}
+            if "fgate" in variant:
+                kw["gate_chi2"] = float(variant["fgate"])
+            if "restart" in variant:
+                kw["restart_after"] = int(variant["restart"])
+            lc.JointFilter = functools.partial(saved[2], **kw)
+        r = bj.replay_live(tr, opts)
     finally:
-        live.close()
         (lc.solve_window, lc.views_near_track, lc.JointFilter, lc.bone_branches,
          lc.two_starts) = saved
-    return dict(X=X, cpu_s=time.process_time() - cpu)
+    return dict(X=r["X"], cpu_s=r["cpu_s"])
 
 
 def _figures(tr, X, Xoff) -> dict:
@@ -279,22 +260,13 @@ def per_joint(scenes: list[dict], variants: list[str]) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="fixtures,iid,cmu,lowpar")
-    ap.add_argument("--seeds", default="0-1")
-    ap.add_argument("--frames", type=int, default=1000)
-    ap.add_argument("--fixtures", default=str(bj.default_fixtures()))
+    bj.add_scene_args(ap, "fixtures,iid,cmu,lowpar", "0-1")
     ap.add_argument("--variants", default="base,lag=15,lag=30,lag=60,mirror=offline")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
     variants = a.variants.split(",")
-    cases = []
-    for kind in a.kinds.split(","):
-        if kind == "fixtures":
-            cases += [(kind, p.name, a.frames, a.fixtures, variants)
-                      for p in bj.fixture_dirs(Path(a.fixtures))]
-        else:
-            cases += [(kind, s, a.frames, a.fixtures, variants) for s in bj._seeds(a.seeds)]
+    cases = [(kind, s, a.frames, a.fixtures, variants) for kind, s in bj.scene_list(a)]
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
             scenes = list(ex.map(run_scene, cases))

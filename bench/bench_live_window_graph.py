@@ -220,10 +220,7 @@ def table(scenes: list[dict]) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="fixtures")
-    ap.add_argument("--seeds", default="0-1")
-    ap.add_argument("--frames", type=int, default=1000)
-    ap.add_argument("--fixtures", default=str(bj.default_fixtures()))
+    bj.add_scene_args(ap, "fixtures", "0-1")
     ap.add_argument("--windows", default="30,60", help="window lengths, or none (live alone)")
     ap.add_argument("--lags", default="0,5,14")
     ap.add_argument("--every", type=int, default=1)
@@ -232,12 +229,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     windows = [int(w) for w in a.windows.split(",")] if a.windows != "none" else []
     lags = [int(v) for v in a.lags.split(",")]
-    cases = []
-    for kind in a.kinds.split(","):
-        names = ([p.name for p in bj.fixture_dirs(Path(a.fixtures))] if kind == "fixtures"
-                 else bj._seeds(a.seeds))
-        cases += [(kind, s, a.frames, a.fixtures, windows, lags, a.every, not a.no_live)
-                  for s in names]
+    cases = [(kind, s, a.frames, a.fixtures, windows, lags, a.every, not a.no_live)
+             for kind, s in bj.scene_list(a)]
     scenes = []
     for c in cases:
         scenes.append(run_scene(c))

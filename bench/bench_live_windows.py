@@ -41,9 +41,11 @@ def _angle(n, tn) -> float:
 
 
 def run_live(tr, resolve_every: int = 0) -> dict:
-    """Live's ``(T, J, 3)`` joints, each frame's mirror and status, the window log."""
+    """Live's ``(T, J, 3)`` joints, each frame's mirror and status, the window log
+    (:func:`bench_joints.replay_live`, the first block re-solved every ``resolve_every``
+    frames where it is positive)."""
     import mirrorgraph.live.calibrator as lc
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    from mirrorgraph.live import LiveOptions
 
     real = lc.LiveCalibrator._absorb
 
@@ -52,41 +54,14 @@ def run_live(tr, resolve_every: int = 0) -> dict:
         if provisional and not block:
             self._next = min(size + resolve_every, self.options.window_frames)
 
-    det = tr.detections
-    T, J = tr.joints3d.shape[:2]
-    X = np.full((T, J, 3), np.nan)
-    normal, dist = np.full((T, 3), np.nan), np.full(T, np.nan)
-    rot_std, status = np.full(T, np.nan), np.full(T, "", object)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-
-    def take(f):
-        t = where.get(int(f.frame_id))
-        if t is None:
-            return
-        X[t] = f.joints3d
-        status[t] = f.mirror.status
-        if f.mirror.normal is not None:
-            normal[t], dist[t] = f.mirror.normal, f.mirror.distance
-            rot_std[t] = f.mirror.rotation_std_deg
-
     if resolve_every > 0:
         lc.LiveCalibrator._absorb = absorb
-    live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given))
     try:
-        for k, people in enumerate(det.people):
-            f = live.update(people, frame_id=int(det.frame_ids[k]),
-                            time_s=float(det.frame_ids[k]) / bj.FPS)
-            if f.settled is not None:
-                take(f.settled)
-        live.finish()
-        for f in live.flush():
-            take(f)
+        r = bj.replay_live(tr, LiveOptions.of(subject_height=tr.height_given))
     finally:
-        live.close()
         lc.LiveCalibrator._absorb = real
-    return dict(X=X, normal=normal, dist=dist, rot_std=rot_std, status=status,
-                windows=list(live.window_log))
+    return dict(X=r["X"], normal=r["normal"], dist=r["distance"], rot_std=r["rotation_std_deg"],
+                status=r["status"], windows=r["windows"])
 
 
 def _frame_scaled_errors(X, truth) -> tuple[np.ndarray, np.ndarray]:
@@ -162,54 +137,50 @@ def segments(tr, spec: str) -> list[str]:
 def main(argv=None) -> int:
     warnings.filterwarnings("ignore")
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kinds", default="realistic")
-    ap.add_argument("--seeds", default="13")
-    ap.add_argument("--frames", type=int, default=1000)
-    ap.add_argument("--fixtures", default=str(bj.default_fixtures()))
+    bj.add_scene_args(ap, "realistic", "13")
     ap.add_argument("--segments", default=None)
     ap.add_argument("--resolve-every", type=int, default=0)
     a = ap.parse_args(argv)
     import mirrorgraph as mg
 
     out = []
-    for kind in a.kinds.split(","):
-        for seed in bj._seeds(a.seeds):
-            tr = bj.make_truth(kind, seed, a.frames, Path(a.fixtures))
-            run = mg.calibrate(tr.detections, tr.intrinsics,
-                               mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS))
-            Xoff, given, _, _ = bj.on_truth_frames(run, tr)
-            Xoff = np.where(given[..., None], Xoff, np.nan)
-            lv = run_live(tr)
-            s = summary(tr, lv["X"], Xoff)
-            start = len(out)
-            out += [f"\n### {tr.name}: live PA {s['live']:.1f} mm, offline {s['off']:.1f} mm "
-                    f"({s['live'] / s['off']:.2f}x), > 0.3 m with each frame's scale fitted "
-                    f"{s['gross']:.2f} %; offline mirror "
-                    f"{_angle(run.calibration.normal, np.asarray(tr.normal, float)):.2f} deg, "
-                    f"distance {(run.calibration.distance / tr.distance - 1) * 100:+.1f} %\n",
-                    "| live's mirror serves frames | normal error deg | distance error % "
-                    "| rotation_std_deg | status | live PA mm | offline PA mm | live / offline "
-                    "| > 0.3 m, frame's scale fitted |",
-                    "|---|---:|---:|---:|---|---:|---:|---:|---:|"]
-            for r in epochs(tr, lv, Xoff):
-                f = (lambda v, p: "" if v is None else format(v, p))  # noqa: E731
-                ratio = (r["live"] / r["off"]) if r["live"] and r["off"] else None
-                out.append(f"| {r['frames'][0]}-{r['frames'][1]} | {f(r['angle'], '.2f')} | "
-                           f"{f(r['dist_err'], '+.1f')} | {f(r['rot_std'], '.1f')} | "
-                           f"{r['status'] if r['has'] else 'no mirror yet'} | "
-                           f"{f(r['live'], '.1f')} | {f(r['off'], '.1f')} | {f(ratio, '.2f')} | "
-                           f"{r['gross']} ({100 * r['gross'] / max(r['given'], 1):.2f} %) |")
-            if a.resolve_every > 0:
-                lv2 = run_live(tr, a.resolve_every)
-                s2 = summary(tr, lv2["X"], Xoff)
-                out.append(f"\nfirst block re-solved every {a.resolve_every} frames "
-                           f"({len(lv2['windows'])} windows against {len(lv['windows'])}): "
-                           f"live PA {s2['live']:.1f} mm ({s2['live'] / s2['off']:.2f}x), "
-                           f"> 0.3 m frame-scaled {s2['gross']:.2f} %")
-            if a.segments:
-                out += [f"\n{tr.name}: the window solve of these frames alone\n"]
-                out += segments(tr, a.segments)
-            print("\n".join(out[start:]), flush=True)
+    for kind, seed in bj.scene_list(a):
+        tr = bj.make_truth(kind, seed, a.frames, Path(a.fixtures))
+        run = mg.calibrate(tr.detections, tr.intrinsics,
+                           mg.CalibrateOptions(subject_height=tr.height_given, fps=bj.FPS))
+        Xoff, given, _, _ = bj.on_truth_frames(run, tr)
+        Xoff = np.where(given[..., None], Xoff, np.nan)
+        lv = run_live(tr)
+        s = summary(tr, lv["X"], Xoff)
+        start = len(out)
+        out += [f"\n### {tr.name}: live PA {s['live']:.1f} mm, offline {s['off']:.1f} mm "
+                f"({s['live'] / s['off']:.2f}x), > 0.3 m with each frame's scale fitted "
+                f"{s['gross']:.2f} %; offline mirror "
+                f"{_angle(run.calibration.normal, np.asarray(tr.normal, float)):.2f} deg, "
+                f"distance {(run.calibration.distance / tr.distance - 1) * 100:+.1f} %\n",
+                "| live's mirror serves frames | normal error deg | distance error % "
+                "| rotation_std_deg | status | live PA mm | offline PA mm | live / offline "
+                "| > 0.3 m, frame's scale fitted |",
+                "|---|---:|---:|---:|---|---:|---:|---:|---:|"]
+        for r in epochs(tr, lv, Xoff):
+            f = (lambda v, p: "" if v is None else format(v, p))  # noqa: E731
+            ratio = (r["live"] / r["off"]) if r["live"] and r["off"] else None
+            out.append(f"| {r['frames'][0]}-{r['frames'][1]} | {f(r['angle'], '.2f')} | "
+                       f"{f(r['dist_err'], '+.1f')} | {f(r['rot_std'], '.1f')} | "
+                       f"{r['status'] if r['has'] else 'no mirror yet'} | "
+                       f"{f(r['live'], '.1f')} | {f(r['off'], '.1f')} | {f(ratio, '.2f')} | "
+                       f"{r['gross']} ({100 * r['gross'] / max(r['given'], 1):.2f} %) |")
+        if a.resolve_every > 0:
+            lv2 = run_live(tr, a.resolve_every)
+            s2 = summary(tr, lv2["X"], Xoff)
+            out.append(f"\nfirst block re-solved every {a.resolve_every} frames "
+                       f"({len(lv2['windows'])} windows against {len(lv['windows'])}): "
+                       f"live PA {s2['live']:.1f} mm ({s2['live'] / s2['off']:.2f}x), "
+                       f"> 0.3 m frame-scaled {s2['gross']:.2f} %")
+        if a.segments:
+            out += [f"\n{tr.name}: the window solve of these frames alone\n"]
+            out += segments(tr, a.segments)
+        print("\n".join(out[start:]), flush=True)
     return 0
 
 

@@ -100,35 +100,13 @@ def _calibrate_joints(tr, ropts, fps: float):
 
 def _live_joints(tr, ropts, fps: float):
     """The live run's joints (each frame as its JSON line carries it: settled after the
-    lag) on the truth's frames, as :func:`_calibrate_joints`; the stream's rate ``fps``."""
-    from mirrorgraph.live import LiveCalibrator, LiveOptions
+    lag, :func:`bench_joints.replay_live`) on the truth's frames, as
+    :func:`_calibrate_joints`; the stream's rate ``fps``."""
+    from mirrorgraph.live import LiveOptions
 
-    det = tr.detections
-    live = LiveCalibrator(det.skeleton, tr.intrinsics,
-                          LiveOptions.of(subject_height=tr.height_given, refine_options=ropts,
-                                         fps=fps))
-    T, J = tr.joints3d.shape[:2]
-    X, sd = np.full((T, J, 3), np.nan), np.full((T, J), np.nan)
-    where = {int(f): i for i, f in enumerate(tr.frame_ids)}
-
-    def take(f) -> None:
-        t = where.get(int(f.frame_id))
-        if t is not None:
-            X[t] = f.joints3d
-            if f.joints_std_shape is not None:
-                sd[t] = f.joints_std_shape
-
-    try:
-        for k, people in enumerate(det.people):
-            f = live.update(people, frame_id=int(det.frame_ids[k]))
-            if f.settled is not None:
-                take(f.settled)
-        live.finish()
-        for f in live.flush():
-            take(f)
-    finally:
-        live.close()
-    return X, np.isfinite(X).all(-1), sd
+    r = bj.replay_live(tr, LiveOptions.of(subject_height=tr.height_given,
+                                          refine_options=ropts, fps=fps))
+    return r["X"], np.isfinite(r["X"]).all(-1), r["std_shape"]
 
 
 def run_one(tr, sigma: float | None, refine: tuple, fps: float,
@@ -451,16 +429,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--values", default="0.02,0.01,0.005,0.0025",
                     help="joints_smoothness_sigma values, comma-separated ('none': no pass)")
-    ap.add_argument("--kinds", default="cmu", help=f"comma-separated, of {', '.join(bj.KINDS)}")
-    ap.add_argument("--seeds", default="0-9")
-    ap.add_argument("--frames", type=int, default=1000)
+    bj.add_scene_args(ap, "cmu", "0-9")
     ap.add_argument("--scene", action="append", default=[], type=bj._refine_pair,
                     help="a make_scene argument (repeatable), e.g. fps=60")
     ap.add_argument("--run-fps", default="scene",
                     help="frame rates told the runs, comma-separated (default: the scene's)")
     ap.add_argument("--refine", action="append", default=[], type=bj._refine_pair,
                     help="a further RefineOptions field (repeatable)")
-    ap.add_argument("--fixtures", type=Path, default=bj.default_fixtures())
     ap.add_argument("--nice", type=int, default=10)
     ap.add_argument("--out", default=None, help="markdown (default: print only)")
     ap.add_argument("--json", default=None)
@@ -510,29 +485,26 @@ def main(argv: list[str] | None = None) -> int:
     started = _dt.datetime.now(_dt.timezone.utc)
     clock = time.perf_counter()
     rows = []
-    for k in kinds:
-        seeds = ([p.name for p in bj.fixture_dirs(args.fixtures)] if k == "fixtures"
-                 else bj._seeds(args.seeds))
-        for s in seeds:
-            tr = bj.make_truth(k, s, args.frames, args.fixtures, scene=tuple(args.scene))
-            a_all, a_w = _accel(tr)
-            orc = bj.oracle(tr)["pa_mpjpe_mm"]
-            row = dict(kind=k, seed=s, accel=dict(
-                all_med=float(np.median(a_all)), all_p99=float(np.percentile(a_all, 99)),
-                wrist_med=float(np.median(a_w)), wrist_p99=float(np.percentile(a_w, 99))),
-                oracle_pa_mm=float(orc), runs={})
-            for label, v, rate in configs:
-                fps = rate or tr.detections.fps or bj.FPS
-                row["runs"][label] = r = run_one(tr, v, tuple(args.refine), fps, args.method,
-                                                 orc)
-                r["run_fps"] = float(fps)
-                print(f"{k} {s} sigma {label}: PA {r['pa_all_mm']:.1f} mm, wrists "
-                      f"{r['pa_wrist_mm']:.1f} mm, err/std wrists p99 {r['z_wrist_p99']:.2f} "
-                      f"({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
-            rows.append(row)
-            if args.json:   # each scene as it is done
-                Path(args.json).write_text(json.dumps(dict(meta=dict(partial=True),
-                                                           scenes=rows), indent=1))
+    for k, s in bj.scene_list(args):
+        tr = bj.make_truth(k, s, args.frames, args.fixtures, scene=tuple(args.scene))
+        a_all, a_w = _accel(tr)
+        orc = bj.oracle(tr)["pa_mpjpe_mm"]
+        row = dict(kind=k, seed=s, accel=dict(
+            all_med=float(np.median(a_all)), all_p99=float(np.percentile(a_all, 99)),
+            wrist_med=float(np.median(a_w)), wrist_p99=float(np.percentile(a_w, 99))),
+            oracle_pa_mm=float(orc), runs={})
+        for label, v, rate in configs:
+            fps = rate or tr.detections.fps or bj.FPS
+            row["runs"][label] = r = run_one(tr, v, tuple(args.refine), fps, args.method,
+                                             orc)
+            r["run_fps"] = float(fps)
+            print(f"{k} {s} sigma {label}: PA {r['pa_all_mm']:.1f} mm, wrists "
+                  f"{r['pa_wrist_mm']:.1f} mm, err/std wrists p99 {r['z_wrist_p99']:.2f} "
+                  f"({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
+        rows.append(row)
+        if args.json:   # each scene as it is done
+            Path(args.json).write_text(json.dumps(dict(meta=dict(partial=True),
+                                                       scenes=rows), indent=1))
     meta = dict(date=f"{started:%Y-%m-%d %H:%M} UTC", code=bj.code_version(),
                 command="python bench/bench_smoothness.py " + shlex.join(argv),
                 machine=_report.machine(), minutes=(time.perf_counter() - clock) / 60.0)
