@@ -86,7 +86,7 @@ Usage::
     python bench/bench_joints.py --methods live --offline-from bench/RESULTS_joints.json
 
 Writes ``--out`` (default ``bench/RESULTS_joints.md``: machine, command, date, tables)
-and ``--json`` (every number) unless ``--no-write``. ``--compare A.json B.json`` prints
+unless ``--no-write``, and ``--json`` (every number) where given. ``--compare A.json B.json`` prints
 two such runs side by side (each kind's medians and worst scenes with their ratios, the
 targets, every scene common to both), the summaries recomputed from the scenes.
 """
@@ -1238,7 +1238,8 @@ def main(argv: list[str] | None = None) -> int:
                          "benchmark shares the machine)")
     ap.add_argument("--json", metavar="OUT", default=None, help="every number, as JSON")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS_joints.md"))
-    ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--no-write", action="store_true",
+                    help="print the tables without writing --out (an explicit --json is written)")
     ap.add_argument("--offline-from", metavar="JSON", default=None,
                     help="with --methods live: the calibrate figures of the same scenes taken "
                          "from this earlier --json (its code named in the header), for the "
@@ -1376,9 +1377,9 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if not args.no_write:
         Path(args.out).write_text(text)
-        if args.json:
-            Path(args.json).write_text(json.dumps(dict(meta=meta, summary=agg, scenes=scenes),
-                                                  indent=1, default=float) + "\n")
+    if args.json:                  # asked for by name: written with --no-write too
+        Path(args.json).write_text(json.dumps(dict(meta=meta, summary=agg, scenes=scenes),
+                                              indent=1, default=float) + "\n")
     return 0
 
 
