@@ -109,7 +109,7 @@ class LiveOptions:
             (:attr:`LiveFrame.settled`: its joints smoothed with the frames after it;
             what ``mirrorgraph live`` writes): the output's fixed lag, whatever solves
             it; ``0``: none. At 30 fps the default 9 is 0.30 s (with a window's solve,
-            0.03-0.09 s, on the frame that runs it: under 0.5 s).
+            0.015-0.06 s, on the frame that runs it: under 0.5 s).
         window_graph_frames: ``W``: the settled joints are the joints pass's own graph
             (:mod:`.window_graph`: reprojection with the mirror held, every bone at the
             latest window's lengths, the torso, the acceleration prior, one-view outliers
@@ -509,6 +509,14 @@ class LiveCalibrator:
             self._cache[name] = make()
         return self._cache[name]
 
+    def _body_height(self) -> float:
+        """The body height the latest window's bone lengths make (the priors' unit, the
+        fused mirror's length unit; NaN without them), computed once between two windows."""
+        from ..anthropometry import height_from_bone_lengths
+
+        return self._cached("height", lambda: height_from_bone_lengths(
+            self.fusion.bone_lengths or {}, self.skeleton))
+
     @property
     def K(self) -> np.ndarray:
         """The current camera matrix (the fused focal length where it is estimated)."""
@@ -835,10 +843,7 @@ class LiveCalibrator:
         at the joints pass's acceleration prior at the stream's frame rate, a fraction of
         the body's height the windows' bone lengths make, per frame^2 of the stream);
         as given before the first window's bone lengths."""
-        from ..anthropometry import height_from_bone_lengths
-
-        h = self._cached("height", lambda: height_from_bone_lengths(
-            self.fusion.bone_lengths or {}, self.skeleton))
+        h = self._body_height()
         if not np.isfinite(h):
             return X, cov
         g = self._motion
@@ -859,10 +864,7 @@ class LiveCalibrator:
         joint's filtered (or smoothed) point and covariance at the frame, whose trunk
         joints stand in for those the frame does not give (a hip the detector missed
         leaves the face its prior)."""
-        from ..anthropometry import height_from_bone_lengths
-
-        h = self._cached("height", lambda: height_from_bone_lengths(
-            self.fusion.bone_lengths or {}, self.skeleton))
+        h = self._body_height()
         names = self.skeleton.joints
         layout = head_layout(names)
         if track is not None and layout is not None:
@@ -900,15 +902,13 @@ class LiveCalibrator:
         """Solve the window's graph (:class:`.window_graph.WindowGraph`) at the current
         mirror and keep its joints of the ``count`` oldest frames held (their settled
         joints); nothing before the first window's bone lengths or where it fails."""
-        from ..anthropometry import height_from_bone_lengths
         from ..errors import MirrorgraphError
 
         self._graph_joints.clear()
         fu = self.fusion
         if fu.normal is None or not fu.bone_lengths or len(self._graph) < 3:
             return
-        h = self._cached("height", lambda: height_from_bone_lengths(
-            fu.bone_lengths or {}, self.skeleton))
+        h = self._body_height()
         g = self._motion
         kernel = g.final_kernel
         if kernel == "auto":
